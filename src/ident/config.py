@@ -45,9 +45,7 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise ConfigError(
-            f"{path}: malformed YAML{where}: {problem}; fix the syntax."
-        ) from e
+        raise ConfigError(f"{path}: malformed YAML{where}: {problem}; fix the syntax.") from e
     if not isinstance(data, Mapping):
         raise ConfigError(
             f"{path}: the top level must be a mapping of sections (key: value), "
@@ -93,9 +91,7 @@ def _unwrap_model(annotation: Any) -> type[BaseModel] | None:
     return None
 
 
-def validate_config(
-    model: type[ModelT], data: Mapping[str, Any], source: str | Path
-) -> ModelT:
+def validate_config(model: type[ModelT], data: Mapping[str, Any], source: str | Path) -> ModelT:
     """Validate ``data`` against ``model``; report the first problems as one message.
 
     Parameters
@@ -130,9 +126,7 @@ def validate_config(
                 messages.append(f"missing required key '{where}'; add it")
             else:
                 messages.append(
-                    f"'{where}' = {err.get('input')!r}: {err['msg']}".replace(
-                        "Value error, ", ""
-                    )
+                    f"'{where}' = {err.get('input')!r}: {err['msg']}".replace("Value error, ", "")
                 )
         more = f" (+{len(e.errors()) - 3} more)" if len(e.errors()) > 3 else ""
         raise ConfigError(f"{source}: " + "; ".join(messages) + more) from e
