@@ -23,7 +23,7 @@ app = typer.Typer(
 )
 
 # Order of the commands in `ident --help`.
-_COMMAND_MODULES = ("robot", "run", "identify", "bench", "replay")
+_COMMAND_MODULES = ("robot", "verify", "run", "identify", "bench", "replay")
 
 for _name in _COMMAND_MODULES:
     _module_name = f"{__name__}.{_name}"
