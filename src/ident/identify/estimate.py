@@ -1,0 +1,361 @@
+"""Linear least-squares estimation of base parameters: OLS and WLS with standard deviations.
+
+The identification model is linear in the parameters, ``tau = W x + e``. This module solves it
+by a QR factorisation of the observation matrix (never by the normal equations) and returns an
+:class:`Estimate` with the parameter standard deviations ``sqrt(diag(sigma^2 (W^T W)^-1))``
+computed from the triangular factor.
+
+Weighted least squares (WLS) follows Gautier's IDIM-WLS: a first OLS pass estimates one error
+variance per group of rows (per joint); the rows of each group are then scaled by ``1/sigma_j``
+(row scaling, no dense diagonal matrix) and the scaled system is solved again.
+
+References
+----------
+M. Gautier, "Dynamic identification of robots with power model", ICRA 1997;
+M. Gautier and W. Khalil, "Exciting trajectories for the identification of base inertial
+parameters of robots", IJRR 1992.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import scipy.linalg
+
+from ident.errors import DataError, NotIdentifiable
+
+__all__ = ["Estimate", "least_squares", "rank_report"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+METHODS = ("ols", "wls")
+
+# A joint's residual standard deviation below this fraction of its torque RMS counts as zero
+# (noise-free data): WLS then keeps the pooled OLS weight for that joint.
+_ZERO_SIGMA_RTOL = 1e-10
+
+
+@dataclass(frozen=True, eq=False)  # arrays: no field-wise ==, made read-only
+class Estimate:
+    """Outcome of a least-squares parameter estimate; check ``success`` before use.
+
+    Attributes
+    ----------
+    x :
+        Estimated parameters, SI units, shape (n_params,).
+    names :
+        Parameter names, length n_params.
+    std :
+        Standard deviations of ``x``, shape (n_params,).
+    relative_std :
+        ``100 * std / |x|`` [%], ``inf`` where ``x == 0``, shape (n_params,).
+    method :
+        ``"ols"`` or ``"wls"``.
+    residual_rms :
+        RMS of the unweighted residual ``tau - W x`` per row group (joint) [N*m],
+        shape (n_groups,).
+    relative_residual :
+        ``||tau - W x|| / ||tau||`` over all rows (unweighted).
+    sigma :
+        Per-group noise standard deviation used for the weights [N*m], shape (n_groups,);
+        for OLS the pooled value repeated.
+    condition_number :
+        2-norm condition number of the (unweighted) observation matrix ``W``.
+    n_samples :
+        Number of samples (``n_observations / rows_per_sample`` for a full sample-major
+        stack; the number of observation rows when rows are grouped by ``groups``).
+    success :
+        False if the estimate is unusable (message says why).
+    message :
+        What happened, including any WLS fallback.
+    n_observations :
+        Number of observation rows ``m`` of ``W``.
+    covariance :
+        Parameter covariance matrix, shape (n_params, n_params).
+    """
+
+    x: FloatArray
+    names: tuple[str, ...]
+    std: FloatArray
+    relative_std: FloatArray
+    method: str
+    residual_rms: FloatArray
+    relative_residual: float
+    sigma: FloatArray
+    condition_number: float
+    n_samples: int
+    success: bool
+    message: str
+    n_observations: int = 0
+    covariance: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    def __post_init__(self) -> None:
+        for name in ("x", "std", "relative_std", "residual_rms", "sigma", "covariance"):
+            value = getattr(self, name)
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+
+    def predict(self, W: FloatArray) -> FloatArray:
+        """Predicted stacked torques ``W @ x`` [N*m], shape (m,)."""
+        return np.asarray(W, dtype=float) @ self.x
+
+
+def _as_groups(
+    tau: FloatArray, m: int, rows_per_sample: int | None, groups: npt.ArrayLike | None
+) -> tuple[FloatArray, IntArray, int, int]:
+    """Flatten ``tau`` and give the group (joint) index of every row."""
+    tau = np.asarray(tau, dtype=float)
+    if tau.ndim == 2:
+        if rows_per_sample is not None and rows_per_sample != tau.shape[1]:
+            raise DataError(
+                f"tau has {tau.shape[1]} columns but rows_per_sample={rows_per_sample}; "
+                "pass tau as (n_samples, n_rows) or stacked (n_samples*n_rows,)."
+            )
+        rows_per_sample = tau.shape[1]
+        tau = tau.reshape(-1)  # sample-major: rows are (sample, joint)
+    elif tau.ndim != 1:
+        raise DataError(f"tau must be 1-D or 2-D, got shape {tau.shape}.")
+    if tau.shape[0] != m:
+        raise DataError(
+            f"W has {m} rows but tau has {tau.shape[0]} values; they must describe the same "
+            "stacked observations."
+        )
+    if groups is not None:
+        group_of_row = np.asarray(groups, dtype=np.int64).reshape(-1)
+        if group_of_row.shape[0] != m:
+            raise DataError(f"groups has {group_of_row.shape[0]} entries, W has {m} rows.")
+        if group_of_row.min(initial=0) < 0:
+            raise DataError("groups must be non-negative row-group (joint) indices.")
+        n_groups = int(group_of_row.max(initial=-1)) + 1
+        return tau, group_of_row, n_groups, m
+    rows_per_sample = 1 if rows_per_sample is None else int(rows_per_sample)
+    if rows_per_sample < 1 or m % rows_per_sample:
+        raise DataError(f"W has {m} rows, not a multiple of rows_per_sample={rows_per_sample}.")
+    group_of_row = np.tile(np.arange(rows_per_sample, dtype=np.int64), m // rows_per_sample)
+    return tau, group_of_row, rows_per_sample, m // rows_per_sample
+
+
+def rank_report(W: FloatArray, names: tuple[str, ...] | list[str]) -> str | None:
+    """Describe why ``W`` is rank deficient, or return None if it has full column rank.
+
+    Columns are first compared with the largest column norm: a column whose norm is below
+    ``max(m, n) * eps`` times it has no effect (the parameter is not excited). The remaining
+    columns are scaled to unit norm and a null space is read from the SVD of their triangular
+    factor: the parameters with non-negligible weight in a null vector appear only in a linear
+    combination.
+
+    Parameters
+    ----------
+    W :
+        Observation matrix, shape (m, n_params).
+    names :
+        Parameter names, length n_params.
+
+    Returns
+    -------
+    :
+        One sentence naming the parameters, or None if ``W`` has full column rank.
+    """
+    W = np.asarray(W, dtype=float)
+    m, n = W.shape
+    norms = np.linalg.norm(W, axis=0)
+    scale = norms.max(initial=0.0)
+    tol = max(m, n) * np.finfo(float).eps
+    dead = norms <= tol * scale if scale > 0 else np.ones(n, dtype=bool)
+    parts: list[str] = []
+    if dead.any():
+        dead_names = [names[i] for i in np.flatnonzero(dead)]
+        parts.append(
+            f"parameter(s) {', '.join(dead_names)} have no effect on the torques "
+            "(not excited by the motion, or removed by the velocity threshold)"
+        )
+    live = np.flatnonzero(~dead)
+    if live.size:
+        Wn = W[:, live] / norms[live]
+        R = scipy.linalg.qr(Wn, mode="r", check_finite=False)[0][: live.size]
+        _, s, Vt = np.linalg.svd(R)
+        null = Vt[s <= tol * max(s[0], 1.0) * 10.0]
+        for v in null:
+            members = live[np.abs(v) > 1e-6 * np.abs(v).max()]
+            parts.append(
+                "parameters "
+                + ", ".join(names[i] for i in members)
+                + " enter the torques only in a linear combination"
+            )
+    if not parts:
+        return None
+    return (
+        "; ".join(parts)
+        + ". Reduce to base parameters, drop the parameter(s), or record a motion that"
+        + " excites them."
+    )
+
+
+def _qr_solve(W: FloatArray, tau: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Solve ``min ||W x - tau||`` by economic QR; return x, residual and R."""
+    Q, R = scipy.linalg.qr(W, mode="economic", check_finite=False)
+    x = scipy.linalg.solve_triangular(R, Q.T @ tau, check_finite=False)
+    return x, tau - W @ x, R
+
+
+def _covariance_unit(R: FloatArray) -> FloatArray:
+    """``(W^T W)^-1 = R^-1 R^-T`` from the triangular factor (no normal equations)."""
+    R_inv = scipy.linalg.solve_triangular(R, np.eye(R.shape[0]), check_finite=False)
+    return R_inv @ R_inv.T
+
+
+def least_squares(
+    W: FloatArray,
+    tau: FloatArray,
+    names: tuple[str, ...] | list[str],
+    *,
+    method: str = "ols",
+    rows_per_sample: int | None = None,
+    groups: npt.ArrayLike | None = None,
+    wls_passes: int = 2,
+) -> Estimate:
+    """Estimate ``x`` in ``tau = W x + e`` by ordinary or weighted least squares.
+
+    Parameters
+    ----------
+    W :
+        Observation matrix, sample-major stacked, shape (n_samples * n_rows, n_params).
+    tau :
+        Measured torques [N*m], shape (n_samples, n_rows) or stacked (n_samples * n_rows,).
+    names :
+        Parameter names, length n_params.
+    method :
+        ``"ols"``: one noise variance ``sigma^2 = ||r||^2 / (m - n)``, covariance
+        ``sigma^2 (W^T W)^-1``. ``"wls"``: per-group variances from an OLS pass,
+        ``sigma_j^2 = ||r_j||^2 / (m_j (m - n) / m)`` (the degrees of freedom shared in
+        proportion to the rows), rows scaled by ``1 / sigma_j``, covariance
+        ``sigma_w^2 (W_s^T W_s)^-1`` with ``sigma_w^2`` the variance of the scaled residual
+        (about 1). With equal per-group variances WLS equals OLS exactly.
+    rows_per_sample :
+        Rows per sample (joints) when ``tau`` is stacked; inferred from a 2-D ``tau``.
+    groups :
+        Optional group (joint) index of every row, shape (m,), for stacks where rows were
+        removed per joint (velocity threshold); overrides ``rows_per_sample`` for grouping.
+    wls_passes :
+        WLS only: number of weighted solves. Pass 1 takes the variances from the OLS residual
+        (Gautier's IDIM-WLS); each further pass re-estimates them from the previous WLS
+        residual, which the noisiest joint no longer contaminates (iterated feasible GLS).
+
+    Returns
+    -------
+    :
+        The :class:`Estimate`.
+
+    Raises
+    ------
+    DataError
+        On shape mismatch, non-finite values, or too few rows (``m <= n_params``).
+    NotIdentifiable
+        If ``W`` is rank deficient; the message names the parameter(s) with no effect or in a
+        linear combination.
+
+    Notes
+    -----
+    WLS with a zero residual variance on a group (noise-free data, ``sigma_j`` below
+    ``1e-10`` times that group's torque RMS) does not divide by zero: that group keeps the
+    pooled OLS weight and ``message`` says so. If every group is noise free the result is
+    the OLS solution.
+    """
+    if method not in METHODS:
+        raise DataError(f"method={method!r} is not one of {', '.join(METHODS)}.")
+    W = np.asarray(W, dtype=float)
+    if W.ndim != 2:
+        raise DataError(f"W must be 2-D (rows, parameters), got shape {W.shape}.")
+    m, n = W.shape
+    names = tuple(names)
+    if len(names) != n:
+        raise DataError(f"{len(names)} names for {n} columns of W.")
+    tau_flat, group_of_row, n_groups, n_samples = _as_groups(tau, m, rows_per_sample, groups)
+    if not np.all(np.isfinite(W)):
+        bad = sorted({names[j] for j in np.flatnonzero(~np.isfinite(W).all(axis=0))})
+        raise DataError(f"observation matrix has NaN/inf in the column(s) of {', '.join(bad)}.")
+    if not np.all(np.isfinite(tau_flat)):
+        raise DataError("measured torques contain NaN/inf values; clean or trim the log.")
+    if m <= n:
+        raise DataError(
+            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
+            "use a longer log, less decimation, or fewer parameters."
+        )
+    problem = rank_report(W, names)
+    if problem is not None:
+        raise NotIdentifiable(problem)
+
+    x, r, R = _qr_solve(W, tau_flat)
+    s = np.linalg.svd(R, compute_uv=False)
+    condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    if not np.isfinite(condition_number) or condition_number > 1.0 / np.finfo(float).eps:
+        raise NotIdentifiable(
+            rank_report(W, names) or f"observation matrix is singular (cond={condition_number})."
+        )
+    dof = m - n
+    sigma_pooled = float(np.sqrt(r @ r / dof))
+    rows_in_group = np.bincount(group_of_row, minlength=n_groups).astype(float)
+    message = "ok"
+
+    if method == "ols":
+        cov = sigma_pooled**2 * _covariance_unit(R)
+        sigma = np.full(n_groups, sigma_pooled)
+    else:
+        zero = np.zeros(n_groups, dtype=bool)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tau_rms = np.sqrt(
+                np.bincount(group_of_row, weights=tau_flat**2, minlength=n_groups) / rows_in_group
+            )
+        for _ in range(wls_passes):
+            ss_group = np.bincount(group_of_row, weights=r**2, minlength=n_groups)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                sigma = np.sqrt(ss_group / (rows_in_group * dof / m))
+            zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
+            if zero.any():
+                sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
+            sigma = np.where(rows_in_group > 0, sigma, np.nan)
+            weight = 1.0 / sigma[group_of_row]
+            Ws = W * weight[:, None]  # row scaling, never a dense diagonal matrix
+            x, rs, Rs = _qr_solve(Ws, tau_flat * weight)
+            r = tau_flat - W @ x
+        if zero.any():
+            message = (
+                "WLS: zero residual variance on group(s) "
+                + ", ".join(str(j) for j in np.flatnonzero(zero))
+                + " (noise-free data); used the pooled OLS weight there."
+            )
+        sigma_w2 = float(rs @ rs / dof)
+        cov = sigma_w2 * _covariance_unit(Rs)
+        # Report the per-group std the covariance assumes: sigma_j * sigma_w (sigma_w ~ 1).
+        sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
+
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative_std = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
+        residual_rms = np.sqrt(
+            np.bincount(group_of_row, weights=r**2, minlength=n_groups) / rows_in_group
+        )
+    tau_norm = float(np.linalg.norm(tau_flat))
+    relative_residual = float(np.linalg.norm(r) / tau_norm) if tau_norm > 0 else float("inf")
+    success = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(std)))
+    if not success:
+        message = "non-finite estimate or standard deviation; check the data scaling."
+    return Estimate(
+        x=x,
+        names=names,
+        std=std,
+        relative_std=relative_std,
+        method=method,
+        residual_rms=residual_rms,
+        relative_residual=relative_residual,
+        sigma=sigma,
+        condition_number=condition_number,
+        n_samples=n_samples,
+        success=success,
+        message=message,
+        n_observations=m,
+        covariance=cov,
+    )
