@@ -1,0 +1,178 @@
+"""Run folders: ``runs/<config-name>-<timestamp>/``, never overwritten, always consistent.
+
+A run folder is created empty and exclusively (``mkdir`` without ``exist_ok``); if the name
+is taken (two runs in the same second) a suffix ``-2``, ``-3``, ... is added. Its state lives
+in ``run.json`` (wall-clock data: start and end time, duration, status, command line), which
+is rewritten atomically at every transition:
+
+``running``  the run is in progress (or the process died without a word: a crash that
+             could not even write ``failed`` leaves ``running`` behind, which
+             :func:`read_status` reports as such);
+``complete`` everything was written;
+``incomplete`` the run was interrupted (Ctrl-C) or failed; what had finished is saved and
+             ``message`` says what is missing. An ``INCOMPLETE`` marker file sits beside it
+             so that a plain ``ls`` shows it.
+
+``result.json`` never contains times, so that the same config and seed give a
+byte-identical file.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from ident.errors import IdentError
+from ident.fileio import atomic_write_text
+
+__all__ = [
+    "INCOMPLETE_MARKER",
+    "RUN_STATE_FILE",
+    "RunDir",
+    "create_run_dir",
+    "read_status",
+]
+
+RUN_STATE_FILE = "run.json"
+INCOMPLETE_MARKER = "INCOMPLETE"
+STATUSES = ("running", "complete", "incomplete")
+_SAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+class RunDir:
+    """A run folder and its ``run.json`` state.
+
+    Use :func:`create_run_dir` to make one; :meth:`open` wraps an existing folder.
+    """
+
+    def __init__(self, path: Path, state: dict[str, Any]) -> None:
+        self.path = path
+        self._state = state
+        self._t0 = time.monotonic()
+
+    @classmethod
+    def open(cls, path: str | Path) -> RunDir:
+        """Wrap an existing run folder (for ``ident report``)."""
+        path = Path(path)
+        return cls(path, read_status(path))
+
+    @property
+    def status(self) -> str:
+        """``running``, ``complete`` or ``incomplete``."""
+        return str(self._state.get("status", "running"))
+
+    @property
+    def state(self) -> dict[str, Any]:
+        """A copy of the ``run.json`` content."""
+        return dict(self._state)
+
+    def file(self, name: str) -> Path:
+        """Path of a file inside the run folder."""
+        return self.path / name
+
+    def update(self, **fields: Any) -> None:
+        """Merge ``fields`` into ``run.json`` and rewrite it atomically."""
+        self._state.update(fields)
+        atomic_write_text(
+            self.path / RUN_STATE_FILE, json.dumps(self._state, indent=2, sort_keys=True) + "\n"
+        )
+
+    def finish(self, status: str, message: str = "") -> None:
+        """Record the final status, end time and wall time; manage the marker file."""
+        if status not in STATUSES[1:]:
+            raise ValueError(f"final status must be complete or incomplete, got {status!r}")
+        marker = self.path / INCOMPLETE_MARKER
+        if status == "incomplete":
+            atomic_write_text(marker, (message or "run did not finish") + "\n")
+        else:
+            marker.unlink(missing_ok=True)
+        self.update(
+            status=status,
+            message=message,
+            finished_at=_now_iso(),
+            wall_time_s=round(time.monotonic() - self._t0, 3),
+        )
+
+
+def create_run_dir(
+    out: str | Path,
+    name: str,
+    *,
+    now: datetime | None = None,
+    info: dict[str, Any] | None = None,
+) -> RunDir:
+    """Create a new, empty run folder ``<out>/<name>-<YYYYmmdd-HHMMSS>``.
+
+    Parameters
+    ----------
+    out :
+        Parent folder (created if missing).
+    name :
+        Run name (config name); characters outside ``[A-Za-z0-9._-]`` become ``_``.
+    now :
+        Time stamp of the folder name (UTC); the current time by default.
+    info :
+        Extra fields for ``run.json`` (command line, seed, ...).
+
+    Returns
+    -------
+    :
+        The run folder, with ``run.json`` in state ``running``.
+
+    Raises
+    ------
+    IdentError
+        If the parent folder cannot be created or written.
+    """
+    out = Path(out)
+    now = now or datetime.now(timezone.utc)
+    stem = f"{_SAFE.sub('_', name) or 'run'}-{now.strftime('%Y%m%d-%H%M%S')}"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for k in range(1, 1000):
+            path = out / (stem if k == 1 else f"{stem}-{k}")
+            try:
+                path.mkdir()  # exclusive: an earlier run is never reused
+                break
+            except FileExistsError:
+                continue
+        else:  # pragma: no cover - a thousand runs in one second
+            raise IdentError(f"{out}: could not find a free run folder name for {stem}.")
+    except OSError as e:
+        raise IdentError(f"{out}: cannot create the run folder ({e.strerror}); use --out.") from e
+    run = RunDir(path, {"status": "running", "started_at": _now_iso(), **(info or {})})
+    run.update()
+    return run
+
+
+def read_status(path: str | Path) -> dict[str, Any]:
+    """Read ``run.json`` of a run folder.
+
+    Raises
+    ------
+    IdentError
+        If the folder or its ``run.json`` is missing or unreadable.
+    """
+    path = Path(path)
+    state_file = path / RUN_STATE_FILE
+    if not path.is_dir():
+        raise IdentError(f"{path}: not a run folder (does not exist or is not a directory).")
+    if not state_file.is_file():
+        raise IdentError(
+            f"{path}: no {RUN_STATE_FILE}; this is not a folder written by 'ident run'."
+        )
+    try:
+        state = json.loads(state_file.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as e:
+        raise IdentError(f"{state_file}: unreadable ({e}); the run folder is damaged.") from e
+    if not isinstance(state, dict):
+        raise IdentError(f"{state_file}: expected a JSON object.")
+    return state
+
+
+def _now_iso() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")

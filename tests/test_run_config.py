@@ -1,0 +1,96 @@
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ident.errors import ConfigError
+from ident.run.config import RunConfig, load_run_config
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+
+def _write(tmp_path, text, robot=True):
+    if robot:
+        (tmp_path / "robot.yaml").write_text("placeholder: true\n")
+    path = tmp_path / "run.yaml"
+    path.write_text(text)
+    return path
+
+
+MINIMAL = "robot: robot.yaml\nstage: wrist\nexcitation: {family: paper_wrist}\n"
+
+
+def test_defaults_are_the_papers_procedure(tmp_path):
+    config = load_run_config(_write(tmp_path, MINIMAL))
+    assert (config.elites.n_particles, config.elites.n_elites) == (10, 5)
+    assert (config.emupso.n_particles, config.emupso.maxiter) == (20, 30)
+    assert (config.emupso.stagnation, config.emupso.n_runs) == (10, 5)
+    assert config.estimation.methods == ["ols", "wls"]
+    assert config.name == "run"  # the file stem
+    assert config.robot == (tmp_path / "robot.yaml").resolve()
+
+
+@pytest.mark.parametrize("name", ["wrist", "arm"])
+def test_shipped_configs_are_the_papers_settings(name):
+    raw = yaml.safe_load((CONFIGS / f"{name}.yaml").read_text())
+    config = RunConfig.model_validate(raw)  # robot existence checked by load_run_config
+    assert config.stage == name
+    assert config.excitation.family == f"paper_{name}"
+    assert config.elites.n_particles == 10
+    assert config.elites.n_elites == 5
+    assert config.emupso.n_particles == 20
+    assert config.emupso.maxiter == 30
+    assert config.emupso.stagnation == 10
+    assert config.emupso.n_runs == 5
+    quick = config.quick_version()
+    assert quick.emupso.n_particles < 20
+    assert quick.emupso.n_runs < 5
+    assert quick.excitation.n_samples < config.excitation.n_samples
+    assert quick.seed == config.seed
+    assert quick.stage == config.stage
+
+
+def test_unknown_key_suggests_closest(tmp_path):
+    path = _write(tmp_path, MINIMAL + "emupso: {n_particle: 3}\n")
+    with pytest.raises(ConfigError, match=r"emupso.n_particle.*did you mean 'n_particles'"):
+        load_run_config(path)
+
+
+def test_missing_robot_names_key_and_path(tmp_path):
+    path = _write(tmp_path, MINIMAL, robot=False)
+    with pytest.raises(ConfigError, match=r"robot = 'robot.yaml' resolves to .*robot.yaml"):
+        load_run_config(path)
+
+
+def test_family_must_match_stage(tmp_path):
+    path = _write(tmp_path, "robot: robot.yaml\nstage: arm\nexcitation: {family: paper_wrist}\n")
+    with pytest.raises(ConfigError, match="paper_arm"):
+        load_run_config(path)
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        ("measurement: {torque_noise_std: -1.0}\n", "torque_noise_std"),
+        ("measurement: {torque_noise_std: [0.1, -2]}\n", "torque_noise_std"),
+        ("emupso: {n_runs: 0}\n", "emupso.n_runs"),
+        ("estimation: {methods: []}\n", "estimation.methods"),
+        ("estimation: {methods: [gls]}\n", r"estimation.methods\[0\]"),
+    ],
+)
+def test_bad_values_name_the_key(tmp_path, extra, match):
+    with pytest.raises(ConfigError, match=match):
+        load_run_config(_write(tmp_path, MINIMAL + extra))
+
+
+def test_bounds_must_be_ordered(tmp_path):
+    text = MINIMAL.replace("{family: paper_wrist}", "{family: paper_wrist, bounds: {a1: [2, 1]}}")
+    with pytest.raises(ConfigError, match="low < high"):
+        load_run_config(_write(tmp_path, text))
+
+
+def test_with_seed(tmp_path):
+    config = load_run_config(_write(tmp_path, MINIMAL))
+    assert config.with_seed(7).seed == 7
+    with pytest.raises(ConfigError, match="seed"):
+        config.with_seed(-1)
