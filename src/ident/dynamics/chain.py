@@ -1,0 +1,279 @@
+"""Kinematic chain arrays of a fixed-base serial robot, read from a Pinocchio model.
+
+The regressor kernels work on plain arrays, not on ``pin.Model``: joint placements in the
+parent joint frame, joint axes in the joint frame, and a prismatic flag. The frames are
+Pinocchio's joint frames, so the regressor built on them uses the same parameter vector as
+``pin.computeJointTorqueRegressor`` (inertia about each joint frame origin; fixed links are
+already merged into the body of their parent joint by Pinocchio).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ident.errors import ModelError
+
+__all__ = [
+    "BoolArray",
+    "FloatArray",
+    "IntArray",
+    "KinematicChain",
+    "chain_from_model",
+    "random_states",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
+
+# Pinocchio joint types the chain accepts: 1-DoF, nq == nv == 1, axis in the joint frame.
+_REVOLUTE_AXES = {
+    "JointModelRX": (1.0, 0.0, 0.0),
+    "JointModelRY": (0.0, 1.0, 0.0),
+    "JointModelRZ": (0.0, 0.0, 1.0),
+}
+_PRISMATIC_AXES = {
+    "JointModelPX": (1.0, 0.0, 0.0),
+    "JointModelPY": (0.0, 1.0, 0.0),
+    "JointModelPZ": (0.0, 0.0, 1.0),
+}
+_UNALIGNED = {"JointModelRevoluteUnaligned": False, "JointModelPrismaticUnaligned": True}
+
+_FIX_HINT = (
+    "a fixed-base serial chain of revolute (with limits) and prismatic joints is needed; "
+    "fix the URDF (no floating/planar/spherical joints, declare continuous joints as "
+    "revolute with limits) or lock the extra joints with pin.buildReducedModel"
+)
+
+
+@dataclass(frozen=True, eq=False)  # arrays: no field-wise ==, made read-only
+class KinematicChain:
+    """Kinematic data of a fixed-base serial chain, in Pinocchio's joint frames.
+
+    Attributes
+    ----------
+    joint_names :
+        Names of the ``n`` joints, base to tip.
+    parents :
+        Parent joint index of each joint, shape (n,); -1 for the base (universe).
+        For a serial chain ``parents[i] == i - 1``.
+    placements :
+        Placement of each joint frame in its parent joint frame at q = 0
+        (``model.jointPlacements``), homogeneous transforms [m], shape (n, 4, 4).
+    axes :
+        Unit joint axis in the joint frame, shape (n, 3).
+    prismatic :
+        True for prismatic joints, False for revolute ones, shape (n,).
+    gravity :
+        Gravity vector in the base frame [m/s^2], shape (3,).
+    q_lower, q_upper :
+        Position limits [rad or m], shape (n,); ``-inf``/``inf`` where unknown.
+    dq_max :
+        Velocity limits [rad/s or m/s], shape (n,); ``inf`` where unknown.
+    tau_max :
+        Effort limits [N*m or N], shape (n,); ``inf`` where unknown.
+    """
+
+    joint_names: tuple[str, ...]
+    parents: IntArray
+    placements: FloatArray
+    axes: FloatArray
+    prismatic: BoolArray
+    gravity: FloatArray
+    q_lower: FloatArray
+    q_upper: FloatArray
+    dq_max: FloatArray
+    tau_max: FloatArray
+
+    def __post_init__(self) -> None:
+        n = len(self.joint_names)
+        shapes = {
+            "parents": (n,),
+            "placements": (n, 4, 4),
+            "axes": (n, 3),
+            "prismatic": (n,),
+            "gravity": (3,),
+            "q_lower": (n,),
+            "q_upper": (n,),
+            "dq_max": (n,),
+            "tau_max": (n,),
+        }
+        for name, shape in shapes.items():
+            value = np.array(getattr(self, name), copy=True)
+            if value.shape != shape:
+                raise ModelError(
+                    f"KinematicChain.{name} must have shape {shape}, got {value.shape}"
+                )
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints (= nq = nv = number of bodies)."""
+        return len(self.joint_names)
+
+    @property
+    def nq(self) -> int:
+        """Size of the configuration vector."""
+        return self.n_joints
+
+    @property
+    def nv(self) -> int:
+        """Size of the velocity vector."""
+        return self.n_joints
+
+
+def _joint_axis(joint: pin.JointModel) -> tuple[np.ndarray, bool] | None:
+    """Axis in the joint frame and prismatic flag, or None for unsupported joint types."""
+    kind = joint.shortname()
+    if kind in _REVOLUTE_AXES:
+        return np.array(_REVOLUTE_AXES[kind]), False
+    if kind in _PRISMATIC_AXES:
+        return np.array(_PRISMATIC_AXES[kind]), True
+    if kind in _UNALIGNED:
+        # Pinocchio uses the stored axis as is (the URDF parser normalizes it)
+        return np.array(joint.extract().axis, dtype=float), _UNALIGNED[kind]
+    return None
+
+
+def chain_from_model(model: pin.Model) -> KinematicChain:
+    """Read the kinematic chain of a fixed-base serial Pinocchio model.
+
+    Parameters
+    ----------
+    model :
+        Pinocchio model whose joints 1..njoints-1 form a serial chain of 1-DoF revolute
+        (about any axis) or prismatic joints.
+
+    Returns
+    -------
+    :
+        The chain arrays, in Pinocchio's joint frames and joint order.
+
+    Raises
+    ------
+    ModelError
+        Naming the offending joint, for a floating-base, multi-DoF, spherical, planar,
+        continuous (unbounded, nq = 2) or mimic joint, or a branched model.
+    """
+    n = model.njoints - 1
+    if n < 1:
+        raise ModelError(f"model {model.name!r} has no joints; {_FIX_HINT}.")
+    names: list[str] = []
+    axes = np.zeros((n, 3))
+    prismatic = np.zeros(n, dtype=bool)
+    placements = np.zeros((n, 4, 4))
+    parents = np.zeros(n, dtype=np.intp)
+    for i in range(1, model.njoints):
+        joint = model.joints[i]
+        name = model.names[i]
+        kind = joint.shortname()
+        found = _joint_axis(joint)
+        if found is None or joint.nq != 1 or joint.nv != 1:
+            what = {
+                "JointModelFreeFlyer": "a floating base (free-flyer)",
+                "JointModelSpherical": "a spherical joint",
+                "JointModelSphericalZYX": "a spherical joint",
+                "JointModelPlanar": "a planar joint",
+                "JointModelTranslation": "a 3-DoF translation joint",
+                "JointModelRUBX": "a continuous (unbounded) joint",
+                "JointModelRUBY": "a continuous (unbounded) joint",
+                "JointModelRUBZ": "a continuous (unbounded) joint",
+                "JointModelRevoluteUnboundedUnaligned": "a continuous (unbounded) joint",
+            }.get(kind, f"a joint of type {kind} (nq={joint.nq}, nv={joint.nv})")
+            raise ModelError(f"joint {name!r} of model {model.name!r} is {what}; {_FIX_HINT}.")
+        if joint.idx_q != i - 1 or joint.idx_v != i - 1:
+            raise ModelError(
+                f"joint {name!r} of model {model.name!r} has configuration index {joint.idx_q} "
+                f"(expected {i - 1}); {_FIX_HINT}."
+            )
+        parent = int(model.parents[i]) - 1
+        if parent != i - 2:
+            raise ModelError(
+                f"model {model.name!r} is branched: joint {name!r} is attached to "
+                f"{model.names[parent + 1]!r}, not to the previous joint "
+                f"{model.names[i - 1]!r}; {_FIX_HINT}."
+            )
+        if abs(np.linalg.norm(found[0]) - 1.0) > 1e-9:
+            raise ModelError(
+                f"joint {name!r} of model {model.name!r} has a non-unit axis {found[0]}; "
+                "normalize the joint axis."
+            )
+        names.append(name)
+        axes[i - 1], prismatic[i - 1] = found
+        placements[i - 1] = model.jointPlacements[i].homogeneous
+        parents[i - 1] = parent
+    if model.nq != n or model.nv != n:
+        raise ModelError(
+            f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {n} joints; {_FIX_HINT}."
+        )
+
+    def limits(values: np.ndarray, fill: float) -> np.ndarray:
+        out = np.array(values, dtype=float).reshape(n)
+        out[~np.isfinite(out) | (np.abs(out) >= 1e300)] = fill
+        return out
+
+    q_lower = limits(model.lowerPositionLimit, -np.inf)
+    q_upper = limits(model.upperPositionLimit, np.inf)
+    dq_max = limits(model.velocityLimit, np.inf)
+    tau_max = limits(model.effortLimit, np.inf)
+    # URDFs without limits give 0 (not inf) in Pinocchio: treat an empty range as unknown.
+    unknown = q_upper <= q_lower
+    q_lower[unknown], q_upper[unknown] = -np.inf, np.inf
+    dq_max[dq_max <= 0.0] = np.inf
+    tau_max[tau_max <= 0.0] = np.inf
+    return KinematicChain(
+        joint_names=tuple(names),
+        parents=parents,
+        placements=placements,
+        axes=axes,
+        prismatic=prismatic,
+        gravity=np.array(model.gravity.linear, dtype=float),
+        q_lower=q_lower,
+        q_upper=q_upper,
+        dq_max=dq_max,
+        tau_max=tau_max,
+    )
+
+
+def random_states(
+    chain: KinematicChain,
+    n_samples: int,
+    *,
+    rng: np.random.Generator | int | None = None,
+    ddq_max: float = 10.0,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Uniformly random states within the chain's limits.
+
+    Parameters
+    ----------
+    chain :
+        Kinematic chain with its limits.
+    n_samples :
+        Number of states.
+    rng :
+        Generator or seed.
+    ddq_max :
+        Bound of the uniform accelerations [rad/s^2 or m/s^2] (models carry no limit).
+
+    Returns
+    -------
+    :
+        ``q`` in ``[q_lower, q_upper]`` (``[-pi, pi]`` rad or ``[-1, 1]`` m where a limit is
+        unknown), ``dq`` in ``[-dq_max, dq_max]`` (``dq_max = 1`` where unknown), ``ddq`` in
+        ``[-ddq_max, ddq_max]``; each of shape (n_samples, n).
+    """
+    rng = np.random.default_rng(rng)
+    n = chain.n_joints
+    default_range = np.where(chain.prismatic, 1.0, np.pi)
+    lower = np.where(np.isfinite(chain.q_lower), chain.q_lower, -default_range)
+    upper = np.where(np.isfinite(chain.q_upper), chain.q_upper, default_range)
+    dq_max = np.where(np.isfinite(chain.dq_max), chain.dq_max, 1.0)
+    q = rng.uniform(lower, upper, size=(n_samples, n))
+    dq = rng.uniform(-dq_max, dq_max, size=(n_samples, n))
+    ddq = rng.uniform(-ddq_max, ddq_max, size=(n_samples, n))
+    return q, dq, ddq
