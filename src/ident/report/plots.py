@@ -1,0 +1,196 @@
+"""Report figures as PNG bytes (matplotlib, Agg canvas, no display and no global state).
+
+Figures are built on :class:`matplotlib.figure.Figure` directly, never through ``pyplot``,
+so no backend is selected globally and nothing leaks between calls.
+
+- :func:`convergence_png`: best fitness per iteration of every optimizer run and their mean
+  (the paper's Figure 2).
+- :func:`trajectory_png`: Cartesian path of the traced point, joint positions and joint
+  velocities with their limits (the paper's Figures 3-4).
+- :func:`estimate_png`: estimation error of every base parameter in units of its reported
+  standard deviation, per estimator.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["convergence_png", "estimate_png", "figure_png", "trajectory_png"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def _figure(width: float, height: float):  # noqa: ANN202 - matplotlib Figure
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+def figure_png(fig: object, dpi: int = 110) -> bytes:
+    """Render a matplotlib ``Figure`` to PNG bytes (no timestamp in the metadata)."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})  # type: ignore[attr-defined]
+    return buffer.getvalue()
+
+
+def convergence_png(
+    histories: Sequence[npt.ArrayLike],
+    *,
+    title: str = "Convergence",
+    ylabel: str = "best fitness",
+) -> bytes:
+    """Best objective value per iteration of every run, and their mean (paper Figure 2).
+
+    Parameters
+    ----------
+    histories :
+        One array per run, best fitness after each iteration (index 0: initial swarm),
+        shape (nit_k + 1,). Shorter runs are extended with their last value for the mean.
+    title, ylabel :
+        Labels.
+
+    Returns
+    -------
+    :
+        PNG bytes.
+    """
+    fig = _figure(7.0, 4.0)
+    ax = fig.add_subplot()
+    runs = [np.asarray(h, dtype=float) for h in histories if len(h)]
+    if runs:
+        length = max(len(h) for h in runs)
+        padded = np.array([np.pad(h, (0, length - len(h)), mode="edge") for h in runs])
+        for k, h in enumerate(runs):
+            ax.plot(np.arange(len(h)), h, lw=1.2, label=f"run {k + 1}")
+        ax.plot(np.arange(length), padded.mean(axis=0), "k--", lw=2.0, label="mean")
+        finite = padded[np.isfinite(padded)]
+        if finite.size and finite.min() > 0 and finite.max() / finite.min() > 50:
+            ax.set_yscale("log")
+        ax.legend(fontsize="small", ncols=2)
+    else:
+        ax.text(0.5, 0.5, "no finished run", ha="center", va="center", transform=ax.transAxes)
+    ax.set_xlabel("iteration")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    return figure_png(fig)
+
+
+def trajectory_png(
+    t: FloatArray,
+    q: FloatArray,
+    dq: FloatArray,
+    joint_labels: Sequence[str],
+    *,
+    q_limits: FloatArray | None = None,
+    dq_limits: FloatArray | None = None,
+    path: FloatArray | None = None,
+    title: str = "Excitation trajectory",
+) -> bytes:
+    """Cartesian path, joint positions and joint velocities (paper Figures 3-4).
+
+    Parameters
+    ----------
+    t :
+        Time [s], shape (n_samples,).
+    q, dq :
+        Joint positions [rad] and velocities [rad/s] of the plotted joints,
+        shape (n_samples, n_joints).
+    joint_labels :
+        Legend labels, length n_joints.
+    q_limits :
+        Position limits [rad], shape (n_joints, 2) (lower, upper), drawn dashed.
+    dq_limits :
+        Velocity limits [rad/s], shape (n_joints,), drawn dashed at +-limit.
+    path :
+        Cartesian path of the traced point [m], shape (n_samples, 3); panel (a) is omitted
+        when ``None``.
+    title :
+        Figure title.
+
+    Returns
+    -------
+    :
+        PNG bytes.
+    """
+    n_panels = 3 if path is not None else 2
+    fig = _figure(5.0 * n_panels, 4.2)
+    fig.suptitle(title)
+    colors = [f"C{k}" for k in range(len(joint_labels))]
+    panel = 1
+    if path is not None:
+        path = np.asarray(path, dtype=float)
+        ax3 = fig.add_subplot(1, n_panels, panel, projection="3d")
+        ax3.plot(path[:, 0], path[:, 1], path[:, 2], lw=1.2)
+        ax3.scatter(*path[0], color="k", s=12, label="start")
+        ax3.set_xlabel("x [m]")
+        ax3.set_ylabel("y [m]")
+        ax3.set_zlabel("z [m]")
+        ax3.set_title("(a) Cartesian path")
+        panel += 1
+    for values, limits, symmetric, label, letter, what in (
+        (q, q_limits, False, "position [rad]", "b", "positions"),
+        (dq, dq_limits, True, "velocity [rad/s]", "c", "velocities"),
+    ):
+        ax = fig.add_subplot(1, n_panels, panel)
+        panel += 1
+        for k, name in enumerate(joint_labels):
+            ax.plot(t, values[:, k], color=colors[k], lw=1.2, label=name)
+            if limits is not None:
+                lim = np.asarray(limits, dtype=float)[k]
+                low, high = (-abs(float(lim)), abs(float(lim))) if symmetric else lim
+                for value in (low, high):
+                    if np.isfinite(value):
+                        ax.axhline(value, color=colors[k], ls="--", lw=0.8, alpha=0.7)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(f"joint {label}")
+        letter = letter if path is not None else chr(ord(letter) - 1)
+        ax.set_title(f"({letter}) joint {what} (dashed: limits)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small")
+    return figure_png(fig)
+
+
+def estimate_png(
+    names: Sequence[str],
+    true: FloatArray,
+    estimates: Mapping[str, tuple[FloatArray, FloatArray]],
+    *,
+    title: str = "Estimation error in standard deviations",
+) -> bytes:
+    """Error of each base parameter divided by its standard deviation, per estimator.
+
+    Parameters
+    ----------
+    names :
+        Base parameter names, length n.
+    true :
+        True base parameters, shape (n,).
+    estimates :
+        ``{method: (x, std)}`` with arrays of shape (n,).
+
+    Returns
+    -------
+    :
+        PNG bytes; bars within the grey +-3 band are consistent with the reported std.
+    """
+    n = len(names)
+    fig = _figure(max(6.0, 0.35 * n + 2.0), 4.0)
+    ax = fig.add_subplot()
+    width = 0.8 / max(1, len(estimates))
+    for k, (method, (x, std)) in enumerate(estimates.items()):
+        x, std = np.asarray(x, dtype=float), np.asarray(std, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.where(std > 0, (x - true) / std, 0.0)
+        ax.bar(np.arange(n) + (k - (len(estimates) - 1) / 2) * width, z, width, label=method)
+    ax.axhspan(-3, 3, color="0.9", zorder=0)
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xticks(np.arange(n), list(names), rotation=60, ha="right", fontsize="small")
+    ax.set_ylabel("(identified - true) / std")
+    ax.set_title(title)
+    ax.legend(fontsize="small")
+    return figure_png(fig)
