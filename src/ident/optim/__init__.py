@@ -1,0 +1,187 @@
+"""Population-based optimizers behind one ``scipy.optimize``-like function, :func:`minimize`.
+
+Methods: ``emupso`` (the paper's eMuPSO), ``pso`` (standard PSO), ``woa``, ``gwo``, ``goa``,
+``de`` (DE/rand/1/bin). See ``docs/optimizers.md`` and each module's docstring for the
+equations, defaults and boundary handling. :mod:`ident.optim.elites` adds the paper's
+"initial elites" stage for constrained problems.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ident.errors import OptimizationError
+from ident.optim._common import (
+    DEFAULT_MAXITER,
+    Problem,
+    as_population,
+    as_rng,
+    check_options,
+    make_executor,
+    parse_bounds,
+    plan_iterations,
+)
+from ident.optim.result import EliteArchive, IntermediateResult, OptimizeHistory, OptimizeResult
+
+__all__ = [
+    "METHODS",
+    "EliteArchive",
+    "IntermediateResult",
+    "OptimizeHistory",
+    "OptimizeResult",
+    "method_defaults",
+    "minimize",
+]
+
+#: Method name -> module implementing ``run(problem, x0, **options)``.
+METHODS: dict[str, str] = {
+    "emupso": "ident.optim.emupso",
+    "pso": "ident.optim.pso",
+    "woa": "ident.optim.woa",
+    "gwo": "ident.optim.gwo",
+    "goa": "ident.optim.goa",
+    "de": "ident.optim.de",
+}
+
+#: Options every method accepts.
+COMMON_OPTIONS: dict[str, Any] = {"f_target": None, "target_tol": 1e-8}
+
+
+def _module(method: str) -> Any:
+    if method not in METHODS:
+        close = difflib.get_close_matches(str(method), list(METHODS), n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        raise OptimizationError(
+            f"unknown method '{method}'{hint} Valid methods: {', '.join(METHODS)}."
+        )
+    return importlib.import_module(METHODS[method])
+
+
+def method_defaults(method: str) -> dict[str, Any]:
+    """Default options of ``method`` (including the common ``f_target``, ``target_tol``)."""
+    mod = _module(method)
+    return {**COMMON_OPTIONS, **mod.DEFAULTS}
+
+
+def minimize(
+    fun: Callable[..., Any],
+    bounds: Any,
+    method: str = "emupso",
+    *,
+    rng: np.random.Generator | int | None = None,
+    maxiter: int | None = None,
+    popsize: int | None = None,
+    max_nfev: int | None = None,
+    callback: Callable[[IntermediateResult], Any] | None = None,
+    vectorized: bool = True,
+    workers: int = 1,
+    x0: Any = None,
+    **options: Any,
+) -> OptimizeResult:
+    """Minimize ``fun`` over a box with a population-based method.
+
+    Parameters
+    ----------
+    fun :
+        Objective. With ``vectorized=True`` it maps a population (n_pop, dim) to (n_pop,);
+        with ``vectorized=False`` it maps one point (dim,) to a float.
+    bounds :
+        ``(low, high)`` per variable: a sequence of pairs, or an array (dim, 2) / (2, dim).
+    method :
+        One of :data:`METHODS`.
+    rng :
+        Generator or seed; the same ``rng`` gives an identical result (any ``workers``).
+    maxiter :
+        Iterations after the initial population (each evaluates one population). Default
+        1000, or what ``max_nfev`` allows.
+    popsize :
+        Population size (default 30, the paper's benchmark setting).
+    max_nfev :
+        Evaluation budget, never exceeded: ``maxiter = min(maxiter, max_nfev // popsize - 1)``.
+        Every time-varying schedule (eMuPSO ``w``/``c2``, WOA/GWO ``a``, GOA ``c``) is spread
+        over that number of iterations.
+    callback :
+        ``callback(IntermediateResult)`` after every iteration; returning True stops the run.
+    vectorized :
+        See ``fun``.
+    workers :
+        Processes evaluating the population (``fun`` must be picklable when > 1).
+    x0 :
+        Optional initial points (k, dim), k <= popsize, inside the bounds; the rest of the
+        initial population is uniform (used to seed a run from elites).
+    **options :
+        Method options (see ``method_defaults(method)``), plus ``f_target`` and
+        ``target_tol``: stop when ``fun <= f_target + target_tol`` (paper eq. 7).
+
+    Returns
+    -------
+    :
+        :class:`OptimizeResult`.
+
+    Raises
+    ------
+    OptimizationError
+        Invalid bounds, unknown method or option (with the closest valid name), a budget
+        smaller than one population, a bad ``x0``.
+    """
+    mod = _module(method)
+    opts = check_options(method, options, {**COMMON_OPTIONS, **mod.DEFAULTS})
+    lower, upper = parse_bounds(bounds)
+    popsize = int(mod.DEFAULT_POPSIZE if popsize is None else popsize)
+    min_pop = getattr(mod, "MIN_POPSIZE", 1)
+    if popsize < min_pop:
+        raise OptimizationError(f"method '{method}' needs popsize >= {min_pop}, got {popsize}")
+    n_iter = plan_iterations(popsize, maxiter, max_nfev, default_maxiter=DEFAULT_MAXITER)
+    pop0 = as_population(x0, lower.shape[0], popsize, lower, upper)
+    if int(workers) < 1:
+        raise OptimizationError(f"workers must be >= 1, got {workers}")
+    f_target, target_tol = opts.pop("f_target"), float(opts.pop("target_tol"))
+    executor = make_executor(int(workers))
+    try:
+        problem = Problem(
+            fun,
+            lower,
+            upper,
+            popsize=popsize,
+            maxiter=n_iter,
+            rng=as_rng(rng),
+            callback=callback,
+            vectorized=vectorized,
+            workers=int(workers),
+            f_target=f_target,
+            target_tol=target_tol,
+            executor=executor,
+        )
+        extras = mod.run(problem, pop0, **opts)
+    finally:
+        if executor is not None:
+            executor.shutdown()
+    best, nfev = problem.history_arrays()
+    history = OptimizeHistory(
+        best_fun=best,
+        nfev=nfev,
+        radius=extras.get("radius"),
+        stagnation=extras.get("stagnation"),
+        mutation_iterations=extras.get("mutation_iterations", np.zeros(0, np.int64)),
+    )
+    success = problem.success and np.isfinite(problem.best_f)
+    message = problem.final_message()
+    if not np.isfinite(problem.best_f):
+        message += "; no finite objective value was found"
+    return OptimizeResult(
+        x=problem.best_x,
+        fun=problem.best_f,
+        nit=problem.nit,
+        nfev=problem.nfev,
+        success=bool(success),
+        message=message,
+        history=history,
+        method=method,
+        n_nonfinite=problem.n_nonfinite,
+        archive=extras.get("archive"),
+    )
