@@ -1,0 +1,306 @@
+"""Base (identifiable) parameters of an observation matrix, found numerically.
+
+The standard parameters ``P`` of a robot are not all identifiable from joint torques: some
+columns of the stacked observation matrix ``W`` are zero (the parameter has no effect:
+*unidentifiable*), others are linear combinations of earlier ones (*identifiable in linear
+combination*). With ``independent`` columns ``W_b`` and ``dependent`` columns
+``W_d = W_b K``,
+
+    W P = W_b (P_b + K P_d) = W_b beta,
+
+so the base parameters are ``beta = P_b + K P_d`` (Gautier 1990; Khalil and Dombre 2002).
+
+Two methods choose the independent columns:
+
+``"sequential"``
+    The paper's numerical method (its reference [40]): columns are taken in order; a
+    zero-norm column is unidentifiable; a column that does not raise the rank of the
+    independent columns kept so far is in linear combination; otherwise it is independent.
+    Implemented with Gram-Schmidt (re-orthogonalized), so the rank test of one column costs
+    one projection.
+``"qr"``
+    QR with column pivoting (LAPACK ``geqp3``): the independent columns are the first ``rank``
+    pivots, listed in the original column order. The columns kept favour the best
+    conditioned ``W_b``, not the parameter order.
+
+Tolerances are relative, and the rank is decided on column-normalized ``W`` (see
+:func:`compute_base_parameters`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from ident.dynamics.chain import FloatArray, IntArray
+from ident.errors import DataError
+
+__all__ = ["METHODS", "BaseParameters", "compute_base_parameters"]
+
+METHODS = ("qr", "sequential")
+
+# Entries of K (in normalized-column units) below this are printed as absent.
+_EXPRESSION_CUTOFF = 1e-9
+
+
+@dataclass(frozen=True, eq=False)  # arrays: no field-wise ==, made read-only
+class BaseParameters:
+    """Base parameters of an observation matrix: which columns, and how they combine.
+
+    Attributes
+    ----------
+    names :
+        Names of the considered columns (standard parameters), length ``n_params``.
+    independent :
+        Indices of the independent columns, increasing, shape (n_independent,).
+    dependent :
+        Indices of the columns in linear combination, increasing, shape (n_dependent,).
+    unidentifiable :
+        Indices of the zero columns, increasing, shape (n_unidentifiable,).
+    K :
+        Combination matrix, shape (n_independent, n_dependent), in the units of the
+        parameters: ``beta = P[independent] + K @ P[dependent]``.
+    rank :
+        Numerical rank of ``W`` (= n_independent).
+    tolerance :
+        Relative tolerance used (on normalized columns; see :func:`compute_base_parameters`).
+    method :
+        ``"qr"`` or ``"sequential"``.
+    scores :
+        For every considered column, shape (n_params,): the norm of its part orthogonal to
+        the independent columns chosen before it, relative to its own norm (``|R_kk|`` of the
+        pivoted QR for ``"qr"``); 0 for zero columns. Independent columns score above
+        ``tolerance``, dependent ones below; the gap shows how clear the decision was.
+    """
+
+    names: tuple[str, ...]
+    independent: IntArray
+    dependent: IntArray
+    unidentifiable: IntArray
+    K: FloatArray
+    rank: int
+    tolerance: float
+    method: str
+    scores: FloatArray
+    _K_normalized: FloatArray
+
+    def __post_init__(self) -> None:
+        for name in ("independent", "dependent", "unidentifiable", "K", "scores", "_K_normalized"):
+            value = np.array(getattr(self, name), copy=True)
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    @property
+    def n_params(self) -> int:
+        """Number of considered (standard) parameters."""
+        return len(self.names)
+
+    @property
+    def base_names(self) -> tuple[str, ...]:
+        """Names of the base parameters: the independent parameter's name, suffixed ``R``
+        when other parameters are combined into it."""
+        combined = np.any(np.abs(self._K_normalized) > _EXPRESSION_CUTOFF, axis=1)
+        return tuple(
+            self.names[i] + ("R" if combined[k] else "") for k, i in enumerate(self.independent)
+        )
+
+    @property
+    def projection(self) -> FloatArray:
+        """Matrix ``T`` of shape (n_independent, n_params) with ``beta = T @ P``."""
+        out = np.zeros((len(self.independent), self.n_params))
+        out[np.arange(len(self.independent)), self.independent] = 1.0
+        out[:, self.dependent] = self.K
+        return out
+
+    def project(self, params: FloatArray) -> FloatArray:
+        """Base parameters of standard parameters.
+
+        Parameters
+        ----------
+        params :
+            Standard parameters, shape (..., n_params), in the order of :attr:`names`.
+
+        Returns
+        -------
+        :
+            ``beta = P[independent] + K @ P[dependent]``, shape (..., n_independent).
+        """
+        params = np.asarray(params, dtype=float)
+        if params.shape[-1] != self.n_params:
+            raise DataError(
+                f"params must have {self.n_params} entries on the last axis, "
+                f"got shape {params.shape}"
+            )
+        return params[..., self.independent] + params[..., self.dependent] @ self.K.T
+
+    def base_columns(self, W: FloatArray) -> FloatArray:
+        """Independent columns ``W[:, independent]`` of an observation matrix (n_rows, n_params)."""
+        W = np.asarray(W)
+        if W.shape[-1] != self.n_params:
+            raise DataError(f"W must have {self.n_params} columns, got shape {W.shape}")
+        return W[..., self.independent]
+
+    def expressions(self, precision: int = 4) -> list[str]:
+        """Readable base parameters, for example ``"Iyy1 + 0.6 mcx1 + 0.09 m1"``.
+
+        Coefficients are printed with ``precision`` significant digits; combinations
+        whose coefficient is below 1e-9 in normalized-column units are numerical noise and
+        are left out of the text (not of :attr:`K`).
+        """
+        lines = []
+        for k, i in enumerate(self.independent):
+            text = self.names[i]
+            for d, j in enumerate(self.dependent):
+                if abs(self._K_normalized[k, d]) <= _EXPRESSION_CUTOFF:
+                    continue
+                coefficient = self.K[k, d]
+                sign = "-" if coefficient < 0 else "+"
+                magnitude = f"{abs(coefficient):.{precision}g}"
+                term = self.names[j] if magnitude == "1" else f"{magnitude} {self.names[j]}"
+                text += f" {sign} {term}"
+            lines.append(text)
+        return lines
+
+    def counts(self) -> dict[str, int]:
+        """``rank``, ``n_independent``, ``n_dependent``, ``n_unidentifiable``, ``n_params``."""
+        return {
+            "rank": self.rank,
+            "n_independent": len(self.independent),
+            "n_dependent": len(self.dependent),
+            "n_unidentifiable": len(self.unidentifiable),
+            "n_params": self.n_params,
+        }
+
+
+def _sequential(
+    normalized: FloatArray, candidates: IntArray, tol: float
+) -> tuple[list, list, dict]:
+    """Gram-Schmidt in column order: (independent, dependent, scores)."""
+    basis = np.zeros((normalized.shape[0], 0))
+    independent, dependent, scores = [], [], {}
+    for j in candidates:
+        residual = normalized[:, j].copy()
+        for _ in range(2):  # re-orthogonalize: one pass loses orthogonality
+            residual -= basis @ (basis.T @ residual)
+        score = float(np.linalg.norm(residual))
+        scores[j] = score
+        if score > tol:
+            independent.append(j)
+            basis = np.column_stack([basis, residual / score])
+        else:
+            dependent.append(j)
+    return independent, dependent, scores
+
+
+def _pivoted_qr(
+    normalized: FloatArray, candidates: IntArray, tol: float
+) -> tuple[list, list, dict]:
+    """QR with column pivoting: (independent, dependent, scores)."""
+    if normalized.shape[0] == 0:
+        return [], list(candidates), {j: 0.0 for j in candidates}
+    _, r, pivots = scipy.linalg.qr(normalized[:, candidates], mode="economic", pivoting=True)
+    diagonal = np.abs(np.diag(r))
+    rank = int(np.sum(diagonal > tol * diagonal[0])) if diagonal.size else 0
+    scores = {j: 0.0 for j in candidates}
+    for k, p in enumerate(pivots[: diagonal.size]):
+        scores[candidates[p]] = float(diagonal[k])
+    chosen = {int(candidates[p]) for p in pivots[:rank]}
+    independent = [j for j in candidates if j in chosen]
+    dependent = [j for j in candidates if j not in chosen]
+    return independent, dependent, scores
+
+
+def compute_base_parameters(
+    W: FloatArray,
+    names: Sequence[str],
+    *,
+    method: str = "qr",
+    rtol: float | None = None,
+) -> BaseParameters:
+    """Find the base parameters of a stacked observation matrix.
+
+    Parameters
+    ----------
+    W :
+        Observation matrix, shape (n_rows, n_params), rows stacked over samples and joints.
+    names :
+        Names of the ``n_params`` columns.
+    method :
+        ``"qr"`` (column pivoting) or ``"sequential"`` (the paper's method).
+    rtol :
+        Relative tolerance; default ``max(W.shape) * eps`` (numpy's ``matrix_rank`` rule).
+
+    Returns
+    -------
+    :
+        The classification of the columns and the combination matrix ``K``.
+
+    Notes
+    -----
+    Column units differ (kg, kg*m, kg*m^2 parameters give columns in m/s^2, m/s^2 and
+    1/s^2 times lever arms), and their norms differ by orders of magnitude; identifiability
+    does not depend on those units (scaling a parameter scales its column). So:
+
+    1. A column is *unidentifiable* when its norm is at most ``rtol`` times the largest
+       column norm (it is zero up to the round-off of the computation that produced it).
+    2. The other columns are divided by their norms, and the rank decisions are made on
+       this normalized matrix with ``rtol``: a column is independent when its part
+       orthogonal to the independent columns before it has a norm above ``rtol``
+       (sequential), or when ``|R_kk| > rtol * |R_00|`` (pivoted QR; ``|R_00| = 1``).
+
+    The rank then equals ``numpy.linalg.matrix_rank`` of the normalized matrix, and is the
+    same for both methods unless a singular value sits at the tolerance.
+
+    Raises
+    ------
+    DataError
+        For a non-2-D or non-finite ``W``, a wrong number of names, or an unknown method.
+    """
+    W = np.asarray(W, dtype=float)
+    names = tuple(names)
+    if W.ndim != 2:
+        raise DataError(f"W must be 2-D (n_rows, n_params), got shape {W.shape}")
+    if W.shape[1] != len(names):
+        raise DataError(f"W has {W.shape[1]} columns but {len(names)} names were given")
+    if not np.all(np.isfinite(W)):
+        raise DataError("W contains NaN or inf; check the states used to build it")
+    if method not in METHODS:
+        raise DataError(f"unknown base-parameter method {method!r}; use one of {METHODS}")
+    tol = float(max(W.shape) * np.finfo(float).eps) if rtol is None else float(rtol)
+    norms = np.linalg.norm(W, axis=0)
+    largest = float(norms.max()) if norms.size else 0.0
+    nonzero = norms > tol * largest
+    unidentifiable = np.flatnonzero(~nonzero)
+    candidates = np.flatnonzero(nonzero)
+    normalized = np.zeros_like(W)
+    normalized[:, nonzero] = W[:, nonzero] / norms[nonzero]
+    search = _sequential if method == "sequential" else _pivoted_qr
+    independent, dependent, score_map = search(normalized, candidates, tol)
+    independent_idx = np.array(independent, dtype=np.intp)
+    dependent_idx = np.array(dependent, dtype=np.intp)
+    # W_d = W_b K: least squares on normalized columns, then back to parameter units
+    if independent_idx.size and dependent_idx.size:
+        k_normalized = np.linalg.lstsq(
+            normalized[:, independent_idx], normalized[:, dependent_idx], rcond=None
+        )[0]
+    else:
+        k_normalized = np.zeros((independent_idx.size, dependent_idx.size))
+    K = k_normalized / norms[independent_idx, None] * norms[None, dependent_idx]
+    scores = np.zeros(len(names))
+    for j, score in score_map.items():
+        scores[j] = score
+    return BaseParameters(
+        names=names,
+        independent=independent_idx,
+        dependent=dependent_idx,
+        unidentifiable=unidentifiable.astype(np.intp),
+        K=K,
+        rank=int(independent_idx.size),
+        tolerance=tol,
+        method=method,
+        scores=scores,
+        _K_normalized=k_normalized,
+    )
