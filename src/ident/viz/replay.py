@@ -1,0 +1,484 @@
+"""Replay joint trajectories in meshcat: the robot animated at true speed, the traced path drawn.
+
+The scene is built offline (:class:`~ident.viz.recorder.SceneRecorder`): Pinocchio's
+``MeshcatVisualizer`` loads the robot's visual geometry from its URDF, the trajectory becomes
+a meshcat animation (one keyframe per ``1 / fps`` seconds of replay time, positions and
+orientations interpolated by three.js in between), the Cartesian path of the traced frame is a
+line, and the camera looks at the whole motion. The same scene is exported as a self-contained
+HTML page (:func:`replay_html`) or pushed to a live server (:mod:`ident.viz.server`).
+
+Several trajectories (elites of the optimizer's archive) are shown side by side: one robot per
+trajectory, robot ``k`` shifted by ``k`` times a spacing along the world ``y`` axis, all
+animations on one time line.
+
+Scene layout (meshcat paths)::
+
+    /meshcat/replay/robot_<k>                     static offset of robot k
+    /meshcat/replay/robot_<k>/visuals/<geometry>  animated link geometry (Pinocchio names)
+    /meshcat/replay/robot_<k>/path                line through the traced frame's positions
+    /meshcat/replay/robot_<k>/marker              animated sphere at the traced frame
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import meshcat
+import meshcat.geometry as mg
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+from meshcat.animation import Animation
+from meshcat.commands import SetAnimation
+from pinocchio.visualize import MeshcatVisualizer
+
+from ident.errors import DataError, IdentWarning, ModelError
+from ident.trajectory import JointTrajectory
+from ident.viz.recorder import SceneRecorder
+
+__all__ = [
+    "DEFAULT_FPS",
+    "ReplayScene",
+    "build_replay_scene",
+    "default_traced_frame",
+    "joint_configurations",
+    "load_visual_robot",
+    "replay_html",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+DEFAULT_FPS = 30.0
+# Frames tried, in order, when no traced frame is given (the paper robot's flange first).
+_PREFERRED_TRACED_FRAMES = ("flange", "tool0", "tool", "ee_link", "wrist_centre")
+# Line colours of robots 0, 1, ... (0xRRGGBB), cycled.
+_PATH_COLORS = (0xE8590C, 0x1C7ED6, 0x2F9E44, 0xAE3EC9, 0xF59F00, 0x0CA678)
+_ROOT = "replay"
+# Keep the path line light: a 1 kHz, 60 s log is decimated to at most this many points.
+_MAX_PATH_POINTS = 4000
+
+
+@dataclass(frozen=True)
+class ReplayScene:
+    """A recorded meshcat scene of one or more replayed trajectories.
+
+    Attributes
+    ----------
+    recorder :
+        The recorded meshcat commands; ``recorder.static_html()`` exports them.
+    duration :
+        Length of the animation in replay time [s] (trajectory duration / speed).
+    robot_paths :
+        meshcat path of each robot's root node, e.g. ``"/meshcat/replay/robot_0"``.
+    traced_frame :
+        Name of the Pinocchio frame whose path is drawn.
+    n_visuals :
+        Number of visual geometries per robot.
+    fallback_geometry :
+        True when the URDF's visuals could not be loaded and a stick figure is shown.
+    """
+
+    recorder: SceneRecorder
+    duration: float
+    robot_paths: tuple[str, ...]
+    traced_frame: str
+    n_visuals: int
+    fallback_geometry: bool
+
+
+def load_visual_robot(
+    urdf_path: str | Path, package_dirs: Sequence[str | Path] = ()
+) -> tuple[pin.Model, pin.GeometryModel, bool]:
+    """Load a URDF's kinematics and visual geometry.
+
+    Parameters
+    ----------
+    urdf_path :
+        URDF file; meshes may be given as ``package://`` URIs or paths relative to the URDF.
+    package_dirs :
+        Directories that contain the ``package://`` roots (the URDF's folder and its parent
+        are always searched).
+
+    Returns
+    -------
+    model, visual_model, fallback :
+        Pinocchio model, visual geometry model and whether the geometry is a stick figure
+        built from the kinematics (URDF without visuals, or with meshes that cannot be found:
+        an :class:`IdentWarning` names the missing file).
+
+    Raises
+    ------
+    ModelError
+        The file does not exist or is not a URDF Pinocchio can parse.
+    """
+    urdf_path = Path(urdf_path)
+    if not urdf_path.is_file():
+        raise ModelError(f"{urdf_path}: URDF file not found.")
+    dirs = [str(Path(d)) for d in package_dirs]
+    dirs += [str(urdf_path.parent.resolve()), str(urdf_path.parent.resolve().parent)]
+    try:
+        model = pin.buildModelFromUrdf(str(urdf_path))
+    except (RuntimeError, ValueError) as e:
+        raise ModelError(f"{urdf_path}: not a valid URDF for Pinocchio: {e}") from e
+    try:
+        visual_model = pin.buildGeomFromUrdf(
+            model, str(urdf_path), pin.GeometryType.VISUAL, package_dirs=dirs
+        )
+    except (RuntimeError, ValueError) as e:
+        warnings.warn(
+            f"{urdf_path}: cannot load the visual geometry ({e}); showing a stick figure of "
+            "the kinematic chain instead. Pass the folder that contains the mesh package "
+            "with --package-dir.",
+            IdentWarning,
+            stacklevel=2,
+        )
+        return model, stick_figure(model), True
+    if len(visual_model.geometryObjects) == 0:
+        return model, stick_figure(model), True
+    return model, visual_model, False
+
+
+def _characteristic_length(model: pin.Model) -> float:
+    """Sum of the joint and frame offsets [m]: the size of the robot when stretched."""
+    length = sum(float(np.linalg.norm(p.translation)) for p in model.jointPlacements)
+    tips = [f for f in model.frames if f.type == pin.FrameType.BODY or f.type == pin.OP_FRAME]
+    length += max((float(np.linalg.norm(f.placement.translation)) for f in tips), default=0.0)
+    return max(length, 0.1)
+
+
+def stick_figure(model: pin.Model) -> pin.GeometryModel:
+    """Visual geometry made of the kinematics: a sphere per joint, a cylinder per link.
+
+    Used when a URDF has no visuals or its meshes are missing, so the motion stays visible.
+    """
+    import coal  # Pinocchio's geometry library, installed with pin
+
+    size = _characteristic_length(model)
+    radius = float(np.clip(0.02 * size, 0.005, 0.05))
+    geometry = pin.GeometryModel()
+    grey, orange = np.array([0.6, 0.6, 0.65, 1.0]), np.array([0.9, 0.45, 0.1, 1.0])
+
+    def segment(name: str, parent_joint: int, start: FloatArray, end: FloatArray) -> None:
+        vector = end - start
+        length = float(np.linalg.norm(vector))
+        if length < 1e-6:
+            return
+        rotation = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), vector / length)
+        placement = pin.SE3(rotation.toRotationMatrix(), (start + end) / 2)
+        obj = pin.GeometryObject(name, parent_joint, placement, coal.Cylinder(radius, length))
+        obj.meshColor = grey
+        geometry.addGeometryObject(obj)
+
+    for j in range(1, model.njoints):
+        ball = pin.GeometryObject(
+            f"joint_{model.names[j]}", j, pin.SE3.Identity(), coal.Sphere(1.6 * radius)
+        )
+        ball.meshColor = orange
+        geometry.addGeometryObject(ball)
+        segment(
+            f"link_{model.names[j]}",
+            model.parents[j],
+            np.zeros(3),
+            np.asarray(model.jointPlacements[j].translation),
+        )
+    # Tip segment: from each leaf joint to its farthest attached frame (flange, tool).
+    leaves = set(range(1, model.njoints)) - set(model.parents[1:])
+    for leaf in sorted(leaves):
+        attached = [f for f in model.frames if f.parentJoint == leaf]
+        if attached:
+            tip = max(attached, key=lambda f: float(np.linalg.norm(f.placement.translation)))
+            segment(f"tip_{tip.name}", leaf, np.zeros(3), np.asarray(tip.placement.translation))
+    return geometry
+
+
+def default_traced_frame(model: pin.Model) -> str:
+    """Frame traced when none is given: ``flange``, ``tool0``, ... else the last frame."""
+    for name in _PREFERRED_TRACED_FRAMES:
+        if model.existFrame(name):
+            return name
+    return model.frames[len(model.frames) - 1].name
+
+
+def _frame_id(model: pin.Model, name: str, urdf_path: Path) -> int:
+    if model.existFrame(name):
+        return int(model.getFrameId(name))
+    names = [f.name for f in model.frames]
+    close = difflib.get_close_matches(name, names, n=3)
+    hint = f" Did you mean {close}?" if close else ""
+    raise ModelError(f"{urdf_path}: no frame '{name}' to trace.{hint} Frames: {names}.")
+
+
+def joint_configurations(model: pin.Model, trajectory: JointTrajectory) -> FloatArray:
+    """Configurations of ``model`` along a trajectory whose columns are named joints.
+
+    The trajectory's joints are matched to the model's by name (any column order).
+
+    Parameters
+    ----------
+    model :
+        Pinocchio model of a fixed-base robot (revolute, prismatic, continuous joints).
+    trajectory :
+        Joint positions [rad] or [m], shape (n_samples, n_joints).
+
+    Returns
+    -------
+    :
+        Configurations, shape (n_samples, model.nq); a continuous joint's angle becomes
+        its (cos, sin) pair.
+
+    Raises
+    ------
+    DataError
+        The trajectory's joint names are not exactly the model's 1-DoF joints.
+    ModelError
+        The model has a joint with more than one degree of freedom (floating base...).
+    """
+    model_joints = [model.names[j] for j in range(1, model.njoints)]
+    multi = [model.names[j] for j in range(1, model.njoints) if model.joints[j].nv != 1]
+    if multi:
+        raise ModelError(
+            f"replay supports 1-DoF joints only; joints {multi} have several degrees of freedom."
+        )
+    names = list(trajectory.joint_names)
+    if sorted(names) != sorted(model_joints):
+        missing = [j for j in model_joints if j not in names]
+        extra = [j for j in names if j not in model_joints]
+        raise DataError(
+            f"the trajectory's joints {names} do not match the URDF's joints {model_joints} "
+            f"(missing from the trajectory: {missing}; unknown to the URDF: {extra}); "
+            "the q_<joint> columns must name the URDF's joints."
+        )
+    q = np.tile(pin.neutral(model), (trajectory.n_samples, 1))
+    for column, name in enumerate(names):
+        joint = model.joints[model.getJointId(name)]
+        angle = trajectory.q[:, column]
+        if joint.nq == 1:
+            q[:, joint.idx_q] = angle
+        else:  # continuous joint: unit complex number (cos, sin)
+            q[:, joint.idx_q] = np.cos(angle)
+            q[:, joint.idx_q + 1] = np.sin(angle)
+    return q
+
+
+def _resample(trajectory: JointTrajectory, q: FloatArray, fps: float, speed: float) -> FloatArray:
+    """Configurations at replay times ``k / fps``: trajectory times ``t0 + k * speed / fps``."""
+    t = trajectory.t - trajectory.t[0]
+    n_frames = int(math.floor(t[-1] / speed * fps + 1e-9)) + 1
+    t_frames = np.arange(n_frames) * speed / fps
+    out = np.empty((n_frames, q.shape[1]))
+    for k in range(q.shape[1]):  # linear interpolation; keyframes are dense (fps >= 10)
+        out[:, k] = np.interp(t_frames, t, q[:, k])
+    return out
+
+
+def _frame_positions(model: pin.Model, q: FloatArray, frame_id: int) -> FloatArray:
+    """World positions [m] of a frame, shape (n_samples, 3)."""
+    data = model.createData()
+    out = np.empty((q.shape[0], 3))
+    for k in range(q.shape[0]):  # Pinocchio evaluates one configuration at a time
+        pin.framesForwardKinematics(model, data, q[k])
+        out[k] = data.oMf[frame_id].translation
+    return out
+
+
+def _joint_positions(model: pin.Model, q: FloatArray) -> FloatArray:
+    """World positions [m] of every joint origin, shape (n_samples, njoints, 3)."""
+    data = model.createData()
+    out = np.empty((q.shape[0], model.njoints, 3))
+    for k in range(q.shape[0]):
+        pin.forwardKinematics(model, data, q[k])
+        out[k] = np.array([m.translation for m in data.oMi])
+    return out
+
+
+def _decimate(points: FloatArray, max_points: int) -> FloatArray:
+    if points.shape[0] <= max_points:
+        return points
+    index = np.unique(np.linspace(0, points.shape[0] - 1, max_points).round().astype(int))
+    return points[index]
+
+
+def _set_camera(vis: meshcat.Visualizer, points: FloatArray) -> None:
+    """Look at the bounding box of ``points`` (world [m], shape (n, 3)) from front-right-above."""
+    lower, upper = points.min(axis=0), points.max(axis=0)
+    target = (lower + upper) / 2
+    radius = max(float(np.linalg.norm(upper - lower)) / 2, 0.2)
+    direction = np.array([1.0, -1.1, 0.7])
+    # The 75 deg vertical field of view sees a sphere of radius R from 1.64 R; keep a margin.
+    offset = 2.0 * radius * direction / np.linalg.norm(direction)
+    # The orbit controls turn about the origin of /Cameras/default; the camera object lives in
+    # its "rotated" child (three.js y-up), where world (x, y, z) is (x, z, -y).
+    vis["/Cameras/default"].set_transform(pin.SE3(np.eye(3), target).homogeneous)
+    vis["/Cameras/default/rotated/<object>"].set_property(
+        "position", [float(offset[0]), float(offset[2]), float(-offset[1])]
+    )
+
+
+def build_replay_scene(
+    urdf_path: str | Path,
+    trajectories: Sequence[JointTrajectory],
+    *,
+    traced_frame: str | None = None,
+    speed: float = 1.0,
+    loop: bool = True,
+    fps: float = DEFAULT_FPS,
+    package_dirs: Sequence[str | Path] = (),
+    spacing: float | None = None,
+) -> ReplayScene:
+    """Record a meshcat scene replaying one or more trajectories of the robot of a URDF.
+
+    Parameters
+    ----------
+    urdf_path :
+        Robot description; visuals from primitives or meshes (``package://`` URIs are looked
+        up in ``package_dirs``).
+    trajectories :
+        Trajectories to replay; one robot each, side by side along world ``y``.
+    traced_frame :
+        Pinocchio frame whose Cartesian path is drawn (``None``: ``flange``, ``tool0``, ...,
+        else the model's last frame).
+    speed :
+        Replay speed factor (1: true speed, 0.5: half speed).
+    loop :
+        Repeat the animation forever instead of playing it once.
+    fps :
+        Keyframes per second of replay time [1/s].
+    spacing :
+        Distance between robots [m] (``None``: 1.2 times the largest extent of the motion).
+
+    Returns
+    -------
+    :
+        The recorded scene.
+
+    Raises
+    ------
+    DataError
+        No trajectory, or joint names that do not match the URDF.
+    ModelError
+        Unreadable URDF or unknown traced frame.
+    """
+    urdf_path = Path(urdf_path)
+    if len(trajectories) == 0:
+        raise DataError("no trajectory to replay.")
+    if not (math.isfinite(speed) and speed > 0.0):
+        raise DataError(f"speed = {speed} must be a positive factor (1 = true speed).")
+    if not (math.isfinite(fps) and fps >= 1.0):
+        raise DataError(f"fps = {fps} must be >= 1 keyframe per second.")
+    model, visual_model, fallback = load_visual_robot(urdf_path, package_dirs)
+    frame_name = traced_frame if traced_frame is not None else default_traced_frame(model)
+    frame_id = _frame_id(model, frame_name, urdf_path)
+    configurations = [joint_configurations(model, traj) for traj in trajectories]
+
+    keyframes = [
+        _resample(traj, q, fps, speed) for traj, q in zip(trajectories, configurations, strict=True)
+    ]
+    paths = [
+        _frame_positions(model, _decimate(q, _MAX_PATH_POINTS), frame_id) for q in configurations
+    ]
+    joints = [_joint_positions(model, q).reshape(-1, 3) for q in keyframes]
+    extents = [np.ptp(np.vstack([j, p]), axis=0) for j, p in zip(joints, paths, strict=True)]
+    if spacing is None:
+        spacing = 1.2 * max(max(float(e.max()) for e in extents), 0.3)
+
+    recorder = SceneRecorder()
+    vis = meshcat.Visualizer(window=recorder)
+    animation = Animation(default_framerate=fps)
+    marker_radius = float(np.clip(0.015 * _characteristic_length(model), 0.004, 0.03))
+    robot_paths = []
+    camera_points = []
+    for k, (q_frames, path) in enumerate(zip(keyframes, paths, strict=True)):
+        root = f"{_ROOT}/robot_{k}"
+        offset = np.array([0.0, k * spacing, 0.0])
+        viz = MeshcatVisualizer(model, None, visual_model)
+        with warnings.catch_warnings():
+            # Pinocchio warns through UserWarning for each unsupported geometry; keep them,
+            # but not its meshcat-version notice about get_image.
+            warnings.filterwarnings("ignore", message=".*get_image.*")
+            viz.initViewer(viewer=vis)
+            viz.loadViewerModel(rootNodeName=root)
+        vis[root].set_transform(pin.SE3(np.eye(3), offset).homogeneous)
+        viz.display(q_frames[0])  # static pose (and mesh scale) before the animation starts
+        _animate_robot(viz, animation, vis, root, q_frames)
+
+        color = _PATH_COLORS[k % len(_PATH_COLORS)]
+        vis[f"{root}/path"].set_object(
+            mg.Line(mg.PointsGeometry(path.T.astype(np.float32)), mg.LineBasicMaterial(color=color))
+        )
+        vis[f"{root}/marker"].set_object(
+            mg.Sphere(marker_radius), mg.MeshLambertMaterial(color=color)
+        )
+        marker_path = _frame_positions(model, q_frames, frame_id)
+        for frame, position in enumerate(marker_path):
+            with animation.at_frame(vis, frame) as frame_vis:
+                frame_vis[f"{root}/marker"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
+        robot_paths.append(f"/meshcat/{root}")
+        camera_points.append(np.vstack([joints[k], path]) + offset)
+
+    vis.window.send(SetAnimation(animation, play=True, repetitions=math.inf if loop else 1))
+    _set_camera(vis, np.vstack(camera_points))
+    duration = max((q.shape[0] - 1) / fps for q in keyframes)
+    return ReplayScene(
+        recorder=recorder,
+        duration=duration,
+        robot_paths=tuple(robot_paths),
+        traced_frame=frame_name,
+        n_visuals=len(visual_model.geometryObjects),
+        fallback_geometry=fallback,
+    )
+
+
+def _animate_robot(
+    viz: MeshcatVisualizer,
+    animation: Animation,
+    vis: meshcat.Visualizer,
+    root: str,
+    q_frames: FloatArray,
+) -> None:
+    """Add one keyframe per configuration for every visual geometry of ``viz``."""
+    model, data = viz.model, viz.data
+    geom_model, geom_data = viz.visual_model, viz.visual_data
+    for frame, q in enumerate(q_frames):
+        pin.forwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, geom_model, geom_data)
+        with animation.at_frame(vis, frame) as frame_vis:
+            for gid, geometry in enumerate(geom_model.geometryObjects):
+                # Position and orientation only: the mesh scale set by display() stays.
+                frame_vis[f"{root}/visuals/{geometry.name}"].set_transform(
+                    geom_data.oMg[gid].homogeneous
+                )
+
+
+def replay_html(
+    urdf_path: Path,
+    trajectories: Sequence[JointTrajectory],
+    *,
+    traced_frame: str | None = None,
+    speed: float = 1.0,
+    package_dirs: Sequence[Path] = (),
+    loop: bool = True,
+    fps: float = DEFAULT_FPS,
+) -> str:
+    """Self-contained HTML page replaying trajectories of a robot (meshcat's static export).
+
+    The page inlines meshcat's viewer and the scene (robot, animation, traced path, camera);
+    it opens from disk, with no server and no network access. Arguments as in
+    :func:`build_replay_scene`. Writing the file is the caller's job
+    (``ident.fileio.atomic_write_text``).
+    """
+    scene = build_replay_scene(
+        urdf_path,
+        trajectories,
+        traced_frame=traced_frame,
+        speed=speed,
+        loop=loop,
+        fps=fps,
+        package_dirs=package_dirs,
+    )
+    title = f"ident replay: {Path(urdf_path).stem}"
+    return scene.recorder.static_html(title=title)

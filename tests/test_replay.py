@@ -1,0 +1,243 @@
+"""Replay scene and static HTML export (no browser; see test_replay_browser.py for rendering).
+
+The reference for the animated motion is an independent standard-DH product of the paper's
+Table 1 (numpy), not Pinocchio: the fixture URDF is that table.
+"""
+
+from __future__ import annotations
+
+import base64
+import importlib.metadata
+import math
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import umsgpack
+
+from ident.errors import DataError, IdentWarning, ModelError
+from ident.trajectory import JointTrajectory
+from ident.viz.replay import build_replay_scene, joint_configurations, replay_html
+
+DATA = Path(__file__).parent / "data" / "replay"
+URDF = DATA / "paper_like_6r.urdf"
+JOINTS = tuple(f"joint_{i}" for i in range(1, 7))
+# Paper Table 1, standard DH (a [m], d [m], alpha [rad]); flange = frame 6.
+DH = [
+    (0.300, 0.320, -math.pi / 2),
+    (0.700, 0.0, 0.0),
+    (0.0, 0.0, -math.pi / 2),
+    (0.0, 0.6975, math.pi / 2),
+    (0.0, 0.0, -math.pi / 2),
+    (0.0, 0.1275, 0.0),
+]
+
+
+def dh_transform(q: np.ndarray) -> np.ndarray:
+    """Pose of DH frame len(q) by the product of Rz(q) Tz(d) Tx(a) Rx(alpha) (numpy only)."""
+    T = np.eye(4)
+    for qi, (a, d, alpha) in zip(q, DH[: len(q)], strict=True):
+        c, s, ca, sa = math.cos(qi), math.sin(qi), math.cos(alpha), math.sin(alpha)
+        T = T @ np.array(
+            [[c, -s * ca, s * sa, a * c], [s, c * ca, -c * sa, a * s], [0, sa, ca, d], [0, 0, 0, 1]]
+        )
+    return T
+
+
+def dh_flange(q: np.ndarray) -> np.ndarray:
+    """Flange position [m]: origin of DH frame 6."""
+    return dh_transform(q)[:3, 3]
+
+
+def make_trajectory(
+    joints=JOINTS, duration: float = 2.0, rate: float = 60.0, phase: float = 0.0
+) -> JointTrajectory:
+    t = np.arange(round(duration * rate) + 1) / rate
+    k = np.arange(len(joints))
+    w = 2 * np.pi / duration
+    q = 0.5 * np.sin(w * t[:, None] + k + phase)
+    dq = 0.5 * w * np.cos(w * t[:, None] + k + phase)
+    ddq = -0.5 * w * w * np.sin(w * t[:, None] + k + phase)
+    return JointTrajectory(t=t + 3.0, q=q, dq=dq, ddq=ddq, joint_names=tuple(joints))
+
+
+def html_commands(html: str) -> list[dict]:
+    """Decode the msgpack commands embedded in a replay page."""
+    block = html[html.index("const commands = [") : html.index("];", html.index("const commands"))]
+    return [
+        umsgpack.unpackb(base64.b64decode(c)) for c in re.findall(r'"([A-Za-z0-9+/=]+)"', block)
+    ]
+
+
+def animation_of(commands: list[dict]) -> dict:
+    (cmd,) = [c for c in commands if c["type"] == "set_animation"]
+    return cmd
+
+
+def track(cmd: dict, path: str, name: str) -> tuple[np.ndarray, np.ndarray, float]:
+    (anim,) = [a for a in cmd["animations"] if a["path"] == path]
+    (tr,) = [t for t in anim["clip"]["tracks"] if t["name"] == "." + name]
+    times = np.array([k["time"] for k in tr["keys"]], dtype=float)
+    values = np.array([k["value"] for k in tr["keys"]], dtype=float)
+    return times, values, float(anim["clip"]["fps"])
+
+
+def test_static_html_is_self_contained_and_animates_the_dh_motion():
+    traj = make_trajectory()
+    html = replay_html(URDF, [traj], speed=0.5, fps=30.0)
+    assert html.startswith("<!DOCTYPE html>")
+    assert "new MeshCat.Viewer" in html
+    # Nothing to fetch: no external script, stylesheet or image.
+    assert not re.search(r"<script[^>]+src=|<link[^>]+href=|<img[^>]+src=", html)
+    commands = html_commands(html)
+    objects = {c["path"] for c in commands if c["type"] == "set_object"}
+    assert sum(p.startswith("/meshcat/replay/robot_0/visuals/") for p in objects) == 12
+    assert "/meshcat/replay/robot_0/path" in objects
+
+    anim = animation_of(commands)
+    assert anim["options"]["repetitions"] == math.inf  # loops by default
+    times, positions, fps = track(anim, "/meshcat/replay/robot_0/marker", "position")
+    # 2 s at half speed -> 4 s of replay at 30 keyframes/s.
+    assert fps == 30.0
+    assert times[-1] / fps == pytest.approx(4.0)
+    np.testing.assert_array_equal(times, np.arange(121))
+    # Keyframe k shows trajectory time k * speed / fps = k / 60 = sample k: no interpolation.
+    expected = np.array([dh_flange(q) for q in traj.q])
+    np.testing.assert_allclose(positions, expected, atol=1e-9)
+
+    # The path line passes through the same DH positions (float32 in the scene).
+    (line,) = [c for c in commands if c["path"] == "/meshcat/replay/robot_0/path"]
+    geometry = line["object"]["geometries"][0]
+    points = np.frombuffer(geometry["data"]["attributes"]["position"]["array"].data, np.float32)
+    np.testing.assert_allclose(points.reshape(-1, 3), expected, atol=1e-6)
+
+
+def test_link_keyframes_follow_forward_kinematics():
+    # The last link's housing turns about joint 6's axis; its position is the wrist centre.
+    traj = make_trajectory()
+    scene = build_replay_scene(URDF, [traj], fps=60.0, loop=False)
+    commands = [umsgpack.unpackb(c.data) for c in scene.recorder.commands]
+    anim = animation_of(commands)
+    assert anim["options"]["repetitions"] == 1
+    _, positions, _ = track(anim, "/meshcat/replay/robot_0/visuals/link_6_0", "position")
+    _, quats, _ = track(anim, "/meshcat/replay/robot_0/visuals/link_6_0", "quaternion")
+    for k in (0, 37, 120):
+        # The housing is centred on joint 6: origin of DH frame 5, axis z5.
+        T5 = dh_transform(traj.q[k, :5])
+        np.testing.assert_allclose(positions[k], T5[:3, 3], atol=1e-9)
+        # three.js quaternion (x, y, z, w): z axis of the housing = z axis of frame 5.
+        x, y, z, w = quats[k]
+        z_axis = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+        np.testing.assert_allclose(z_axis, T5[:3, 2], atol=1e-9)
+    assert scene.duration == pytest.approx(2.0)
+
+
+def test_joint_columns_are_matched_by_name():
+    traj = make_trajectory()
+    order = [3, 0, 5, 1, 4, 2]
+    shuffled = JointTrajectory(
+        t=traj.t,
+        q=traj.q[:, order],
+        dq=traj.dq[:, order],
+        ddq=traj.ddq[:, order],
+        joint_names=tuple(JOINTS[i] for i in order),
+    )
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(URDF))
+    np.testing.assert_array_equal(
+        joint_configurations(model, shuffled), joint_configurations(model, traj)
+    )
+
+
+def test_joint_name_mismatch_names_both_lists():
+    traj = make_trajectory(joints=("a1", "a2", "a3", "a4", "a5", "a6"))
+    with pytest.raises(DataError, match=r"\['a1'.*joint_1") as info:
+        replay_html(URDF, [traj])
+    assert "missing from the trajectory" in str(info.value)
+    with pytest.raises(DataError, match="joint_6"):
+        replay_html(URDF, [make_trajectory(joints=JOINTS[:5])])
+
+
+def test_unknown_traced_frame_lists_frames():
+    with pytest.raises(ModelError, match="no frame 'flang'.*Did you mean.*flange"):
+        replay_html(URDF, [make_trajectory()], traced_frame="flang")
+
+
+def test_bad_inputs_are_identerrors(tmp_path):
+    with pytest.raises(DataError, match="no trajectory"):
+        replay_html(URDF, [])
+    with pytest.raises(DataError, match="speed"):
+        replay_html(URDF, [make_trajectory()], speed=0.0)
+    with pytest.raises(ModelError, match="not found"):
+        replay_html(tmp_path / "nope.urdf", [make_trajectory()])
+    bad = tmp_path / "bad.urdf"
+    bad.write_text("<robot name='x'><link name='a'/><joint name='j'/></robot>")
+    with pytest.raises(ModelError, match="bad.urdf"):
+        replay_html(bad, [make_trajectory()])
+
+
+def test_missing_meshes_fall_back_to_a_stick_figure(tmp_path):
+    text = URDF.read_text().replace(
+        '<geometry><box size="0.3 0.3 0.1"/></geometry>',
+        '<geometry><mesh filename="package://nowhere/meshes/base.stl"/></geometry>',
+    )
+    urdf = tmp_path / "missing_mesh.urdf"
+    urdf.write_text(text)
+    with pytest.warns(IdentWarning, match="base.stl.*stick figure"):
+        scene = build_replay_scene(urdf, [make_trajectory()])
+    assert scene.fallback_geometry
+    # One sphere per joint, one cylinder per nonzero joint offset (joints 2, 3, 5) and the
+    # segment from joint 6 to the flange.
+    assert scene.n_visuals == 6 + 3 + 1
+    commands = [umsgpack.unpackb(c.data) for c in scene.recorder.commands]
+    visuals = [c for c in commands if c["type"] == "set_object" and "/visuals/" in c["path"]]
+    assert len(visuals) == scene.n_visuals
+
+
+def test_elites_side_by_side():
+    trajs = [make_trajectory(phase=p, duration=d) for p, d in ((0.0, 2.0), (1.0, 1.5), (2.0, 2.0))]
+    scene = build_replay_scene(URDF, trajs, spacing=1.5)
+    assert scene.robot_paths == tuple(f"/meshcat/replay/robot_{k}" for k in range(3))
+    commands = [umsgpack.unpackb(c.data) for c in scene.recorder.commands]
+    offsets = {
+        c["path"]: np.array(c["matrix"]).reshape(4, 4).T[:3, 3]
+        for c in commands
+        if c["type"] == "set_transform" and c["path"] in scene.robot_paths
+    }
+    for k, path in enumerate(scene.robot_paths):
+        np.testing.assert_allclose(offsets[path], [0.0, 1.5 * k, 0.0])
+    anim = animation_of(commands)
+    durations = {
+        a["path"]: a["clip"]["tracks"][0]["keys"][-1]["time"] / a["clip"]["fps"]
+        for a in anim["animations"]
+        if a["path"].endswith("/marker")
+    }
+    assert durations["/meshcat/replay/robot_1/marker"] == pytest.approx(1.5)
+    assert durations["/meshcat/replay/robot_2/marker"] == pytest.approx(2.0)
+    assert scene.duration == pytest.approx(2.0)
+
+
+def test_mesh_urdf_with_package_dirs():
+    share = Path(
+        importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share")
+    )
+    urdf = share / "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
+    names = (
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "elbow_joint",
+        "wrist_1_joint",
+        "wrist_2_joint",
+        "wrist_3_joint",
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", IdentWarning)  # meshes found: no fallback
+        scene = build_replay_scene(
+            urdf, [make_trajectory(joints=names, duration=1.0)], package_dirs=[share]
+        )
+    assert not scene.fallback_geometry
+    assert scene.traced_frame == "tool0"
+    assert scene.n_visuals == 7
