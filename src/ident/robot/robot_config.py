@@ -56,9 +56,10 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
-ANGLE_UNITS: dict[str, float] = {"rad": 1.0, "deg": math.pi / 180.0}
-MASS_UNITS: dict[str, float] = {"kg": 1.0, "g": 1e-3}
+# SI value = file value / divisor (a division by 1000 is exact where a product by 1e-3 is not)
+LENGTH_UNITS: dict[str, float] = {"m": 1.0, "cm": 100.0, "mm": 1000.0}
+MASS_UNITS: dict[str, float] = {"kg": 1.0, "g": 1000.0}
+ANGLE_UNITS: dict[str, float] = {"rad": 1.0, "deg": 180.0 / math.pi}
 DH_COLUMNS: tuple[str, ...] = ("a", "d", "alpha", "theta")
 _REQUIRED_COLUMNS = ("a", "d", "alpha")
 
@@ -196,6 +197,9 @@ class RobotDescription:
         shape (n_joints,); ``inf`` where the file gives none.
     gravity :
         Gravity acceleration in the base frame [m/s^2], shape (3,).
+    mass, com, inertia_com :
+        Link masses [kg] (n_joints,), centres of mass in DH frame i [m] (n_joints, 3), and
+        inertia tensors about the centre of mass, axes of DH frame i [kg*m^2] (n_joints, 3, 3).
     parameters_dh :
         Standard parameters of each link in Pinocchio order, about the origin of DH frame i and
         in its axes [kg, kg*m, kg*m^2], shape (n_joints, 10).
@@ -213,6 +217,9 @@ class RobotDescription:
     ddq_max: FloatArray
     effort_max: FloatArray
     gravity: FloatArray
+    mass: FloatArray
+    com: FloatArray
+    inertia_com: FloatArray
     parameters_dh: FloatArray
     source: Path | None = None
 
@@ -279,10 +286,10 @@ def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
     joint_types = tuple(j.type for j in raw.joints)
     dh = DHTable(
         convention=raw.dh.convention,
-        a=column["a"] * length,
-        d=column["d"] * length,
-        alpha=column["alpha"] * angle,
-        theta=theta * angle,
+        a=column["a"] / length,
+        d=column["d"] / length,
+        alpha=column["alpha"] / angle,
+        theta=theta / angle,
         joint_types=joint_types,
     )
     # joint variables are angles for revolute joints and lengths for prismatic ones
@@ -292,33 +299,36 @@ def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
         values = [getattr(j, key) for j in raw.joints]
         return np.array([np.inf if v is None else v for v in values], dtype=float)
 
+    mass = np.array([link.mass for link in raw.links], dtype=float) / mass_unit
+    com = np.empty((n_rows, 3))
+    inertia_com = np.empty((n_rows, 3, 3))
     parameters = np.empty((n_rows, 10))
     for i, link in enumerate(raw.links):
-        m = link.mass * mass_unit
         if link.com is not None:
-            com = np.array(link.com) * length
+            com[i] = np.array(link.com) / length
         else:
-            com = np.array(link.first_moment) * (mass_unit * length) / m
+            com[i] = np.array(link.first_moment) / (mass_unit * length) / mass[i]
         c = link.inertia_com
-        inertia_com = np.array([[c.xx, c.xy, c.xz], [c.xy, c.yy, c.yz], [c.xz, c.yz, c.zz]]) * (
-            mass_unit * length**2
-        )
-        parameters[i] = parameters_from_com(m, com, inertia_com)
+        tensor = np.array([[c.xx, c.xy, c.xz], [c.xy, c.yy, c.yz], [c.xz, c.yz, c.zz]])
+        inertia_com[i] = tensor / (mass_unit * length**2)
+        parameters[i] = parameters_from_com(mass[i], com[i], inertia_com[i])
         problems = consistency_problems(parameters[i])
         if problems:
             raise ConfigError(
                 f"{source}: links[{i}].inertia_com: {problems[0]}; give the inertia about the "
                 "link's centre of mass (axes parallel to DH frame i), not about the frame origin."
             )
-    gravity = np.array(raw.gravity_m_s2, dtype=float)
-    for array in (parameters, gravity):
-        array.setflags(write=False)
     arrays = {
-        "q_lower": limit("lower") * motion_unit,
-        "q_upper": limit("upper") * motion_unit,
-        "dq_max": limit("velocity") * motion_unit,
-        "ddq_max": limit("acceleration") * motion_unit,
+        "q_lower": limit("lower") / motion_unit,
+        "q_upper": limit("upper") / motion_unit,
+        "dq_max": limit("velocity") / motion_unit,
+        "ddq_max": limit("acceleration") / motion_unit,
         "effort_max": limit("effort"),
+        "gravity": np.array(raw.gravity_m_s2, dtype=float),
+        "mass": mass,
+        "com": com,
+        "inertia_com": inertia_com,
+        "parameters_dh": parameters,
     }
     for array in arrays.values():
         array.setflags(write=False)
@@ -327,8 +337,6 @@ def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
         dh=dh,
         joint_names=_names(raw.joints, "joint", source, "joints"),
         link_names=_names(raw.links, "link", source, "links"),
-        gravity=gravity,
-        parameters_dh=parameters,
         source=source,
         **arrays,
     )
