@@ -26,7 +26,7 @@ def chain_arrays(chain: KinematicChain) -> tuple[FloatArray, FloatArray, np.ndar
     )
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, acc):  # noqa: PLR0913
     """Kinematics of one sample: parent_R_i, parent_p_i, and per joint frame
     vel[i] = (v, w), acc[i] = (classical linear acceleration a + w x v, alpha)."""
@@ -114,114 +114,83 @@ def _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, ac
         acc[i, 3], acc[i, 4], acc[i, 5] = bx, by, bz
 
 
-@njit(cache=True)
-def _body_block(vel, acc, i, block):
-    """Body wrench regressor A_i (6, 10) in frame i: [f; n] = A_i @ phi_i."""
-    for r in range(6):
-        for c in range(10):
-            block[r, c] = 0.0
-    wx, wy, wz = vel[i, 3], vel[i, 4], vel[i, 5]
-    cx, cy, cz = acc[i, 0], acc[i, 1], acc[i, 2]
-    bx, by, bz = acc[i, 3], acc[i, 4], acc[i, 5]
-    # force: m * a_c + ([alpha]x + [w]x[w]x) h
-    block[0, 0], block[1, 0], block[2, 0] = cx, cy, cz
-    block[0, 1] = -(wy * wy + wz * wz)
-    block[0, 2] = wx * wy - bz
-    block[0, 3] = wx * wz + by
-    block[1, 1] = wx * wy + bz
-    block[1, 2] = -(wx * wx + wz * wz)
-    block[1, 3] = wy * wz - bx
-    block[2, 1] = wx * wz - by
-    block[2, 2] = wy * wz + bx
-    block[2, 3] = -(wx * wx + wy * wy)
-    # moment, first moments: -[a_c]x h
-    block[3, 2], block[3, 3] = cz, -cy
-    block[4, 1], block[4, 3] = -cz, cx
-    block[5, 1], block[5, 2] = cy, -cx
-    # moment, inertia [Ixx, Ixy, Iyy, Ixz, Iyz, Izz]: L(alpha) + [w]x L(w)
-    # L(u) = [[u0, u1, 0, u2, 0, 0], [0, u0, u1, 0, u2, 0], [0, 0, 0, u0, u1, u2]]
-    block[3, 4] = bx
-    block[3, 5] = by - wx * wz
-    block[3, 6] = -wy * wz
-    block[3, 7] = bz + wx * wy
-    block[3, 8] = wy * wy - wz * wz
-    block[3, 9] = wy * wz
-    block[4, 4] = wx * wz
-    block[4, 5] = bx + wy * wz
-    block[4, 6] = by
-    block[4, 7] = wz * wz - wx * wx
-    block[4, 8] = bz - wx * wy
-    block[4, 9] = -wx * wz
-    block[5, 4] = -wx * wy
-    block[5, 5] = wx * wx - wy * wy
-    block[5, 6] = wx * wy
-    block[5, 7] = bx - wy * wz
-    block[5, 8] = by + wx * wz
-    block[5, 9] = bz
-
-
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _sample(
-    placements,
-    axes,
-    prismatic,
-    gravity,
-    q,
-    dq,
-    ddq,
-    body_used,
-    row_min,
-    rot,
-    pos,
-    vel,
-    acc,
-    block,
-    y,
+    placements, axes, prismatic, gravity, q, dq, ddq, row_used, body_used, rot, pos, vel, acc, y
 ):
-    """Regressor of one sample into y (n, 10 n); only bodies with body_used, rows >= row_min."""
+    """Regressor of one sample into y (n, 10 n): entries (j, block i) for i >= j, row_used[j]
+    and body_used[i]; other entries are left untouched.
+
+    ``Y[j, block i] = S_j^T jX*_i A_i = (iX_j S_j)^T A_i``: the joint-j axis is carried up
+    the chain as a motion vector (u, r) and dotted with the wrench regressor of body i,
+    written out with its sparsity (mass: force only; inertia: moment only)."""
     n = q.shape[0]
     _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, acc)
-    for i in range(n):
-        if not body_used[i]:
+    for j in range(n):
+        if not row_used[j]:
             continue
-        _body_block(vel, acc, i, block)
-        for j in range(i, row_min - 1, -1):
-            kx, ky, kz = axes[j, 0], axes[j, 1], axes[j, 2]
-            off = 0 if prismatic[j] else 3
-            for c in range(10):
-                y[j, 10 * i + c] = (
-                    kx * block[off, c] + ky * block[off + 1, c] + kz * block[off + 2, c]
-                )
-            if j > row_min:
-                # force transform frame j -> parent: f' = R f, n' = R n + p x f'
-                r = rot[j]
-                px, py, pz = pos[j, 0], pos[j, 1], pos[j, 2]
-                for c in range(10):
-                    f0, f1, f2 = block[0, c], block[1, c], block[2, c]
-                    n0, n1, n2 = block[3, c], block[4, c], block[5, c]
-                    g0 = r[0, 0] * f0 + r[0, 1] * f1 + r[0, 2] * f2
-                    g1 = r[1, 0] * f0 + r[1, 1] * f1 + r[1, 2] * f2
-                    g2 = r[2, 0] * f0 + r[2, 1] * f1 + r[2, 2] * f2
-                    block[0, c], block[1, c], block[2, c] = g0, g1, g2
-                    block[3, c] = r[0, 0] * n0 + r[0, 1] * n1 + r[0, 2] * n2 + py * g2 - pz * g1
-                    block[4, c] = r[1, 0] * n0 + r[1, 1] * n1 + r[1, 2] * n2 + pz * g0 - px * g2
-                    block[5, c] = r[2, 0] * n0 + r[2, 1] * n1 + r[2, 2] * n2 + px * g1 - py * g0
+        kx, ky, kz = axes[j, 0], axes[j, 1], axes[j, 2]
+        if prismatic[j]:
+            ux, uy, uz, rx, ry, rz = kx, ky, kz, 0.0, 0.0, 0.0
+        else:
+            ux, uy, uz, rx, ry, rz = 0.0, 0.0, 0.0, kx, ky, kz
+        for i in range(j, n):
+            if i > j:
+                # motion transform parent -> i: u' = R^T (u + r x p), r' = R^T r
+                R = rot[i]
+                px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+                tx = ux + ry * pz - rz * py
+                ty = uy + rz * px - rx * pz
+                tz = uz + rx * py - ry * px
+                ux = R[0, 0] * tx + R[1, 0] * ty + R[2, 0] * tz
+                uy = R[0, 1] * tx + R[1, 1] * ty + R[2, 1] * tz
+                uz = R[0, 2] * tx + R[1, 2] * ty + R[2, 2] * tz
+                sx = R[0, 0] * rx + R[1, 0] * ry + R[2, 0] * rz
+                sy = R[0, 1] * rx + R[1, 1] * ry + R[2, 1] * rz
+                sz = R[0, 2] * rx + R[1, 2] * ry + R[2, 2] * rz
+                rx, ry, rz = sx, sy, sz
+            if not body_used[i]:
+                continue
+            wx, wy, wz = vel[i, 3], vel[i, 4], vel[i, 5]
+            cx, cy, cz = acc[i, 0], acc[i, 1], acc[i, 2]
+            bx, by, bz = acc[i, 3], acc[i, 4], acc[i, 5]
+            c = 10 * i
+            # mass: f = m a_c
+            y[j, c] = ux * cx + uy * cy + uz * cz
+            # first moments: f = (alpha x + w x w x) h, n = -a_c x h:
+            # coefficient of h = u x alpha + (u x w) x w + a_c x r
+            ex = uy * wz - uz * wy
+            ey = uz * wx - ux * wz
+            ez = ux * wy - uy * wx
+            y[j, c + 1] = uy * bz - uz * by + ey * wz - ez * wy + cy * rz - cz * ry
+            y[j, c + 2] = uz * bx - ux * bz + ez * wx - ex * wz + cz * rx - cx * rz
+            y[j, c + 3] = ux * by - uy * bx + ex * wy - ey * wx + cx * ry - cy * rx
+            # inertia about the origin: n = Ibar alpha + w x Ibar w, so
+            # r . n = r . (Ibar alpha) + (r x w) . (Ibar w)
+            gx = ry * wz - rz * wy
+            gy = rz * wx - rx * wz
+            gz = rx * wy - ry * wx
+            y[j, c + 4] = rx * bx + gx * wx
+            y[j, c + 5] = rx * by + ry * bx + gx * wy + gy * wx
+            y[j, c + 6] = ry * by + gy * wy
+            y[j, c + 7] = rx * bz + rz * bx + gx * wz + gz * wx
+            y[j, c + 8] = ry * bz + rz * by + gy * wz + gz * wy
+            y[j, c + 9] = rz * bz + gz * wz
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def regressor_into(placements, axes, prismatic, gravity, q, dq, ddq, out):
-    """Full regressor of every sample into out (n_samples, n, 10 n), zero-filled here."""
+    """Full regressor of every sample into out (n_samples, n, 10 n)."""
     n = q.shape[1]
     rot = np.empty((n, 3, 3))
     pos = np.empty((n, 3))
     vel = np.empty((n, 6))
     acc = np.empty((n, 6))
-    block = np.empty((6, 10))
-    body_used = np.ones(n, dtype=np.bool_)
+    used = np.ones(n, dtype=np.bool_)
     for k in range(q.shape[0]):
         y = out[k]
-        for j in range(n):
-            for c in range(10 * n):
+        for j in range(1, n):  # bodies before the joint: zero (serial chain)
+            for c in range(10 * j):
                 y[j, c] = 0.0
         _sample(
             placements,
@@ -231,18 +200,17 @@ def regressor_into(placements, axes, prismatic, gravity, q, dq, ddq, out):
             q[k],
             dq[k],
             ddq[k],
-            body_used,
-            0,
+            used,
+            used,
             rot,
             pos,
             vel,
             acc,
-            block,
             y,
         )
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def selected_rows_into(
     placements, axes, prismatic, gravity, q, dq, ddq, start, stop, rows, columns, weights, out
 ):
@@ -253,14 +221,13 @@ def selected_rows_into(
     pos = np.empty((n, 3))
     vel = np.empty((n, 6))
     acc = np.empty((n, 6))
-    block = np.empty((6, 10))
-    y = np.zeros((n, 10 * n))  # entries of unused bodies stay zero and are never read
+    y = np.zeros((n, 10 * n))  # entries not computed stay zero (bodies before the joint)
+    row_used = np.zeros(n, dtype=np.bool_)
     body_used = np.zeros(n, dtype=np.bool_)
+    for r in range(rows.shape[0]):
+        row_used[rows[r]] = True
     for c in range(columns.shape[0]):
         body_used[columns[c] // 10] = True
-    row_min = n
-    for r in range(rows.shape[0]):
-        row_min = min(row_min, rows[r])
     n_rows = rows.shape[0]
     for k in range(start, stop):
         _sample(
@@ -271,13 +238,12 @@ def selected_rows_into(
             q[k],
             dq[k],
             ddq[k],
+            row_used,
             body_used,
-            row_min,
             rot,
             pos,
             vel,
             acc,
-            block,
             y,
         )
         base = (k - start) * n_rows
@@ -285,6 +251,4 @@ def selected_rows_into(
             j = rows[r]
             w = weights[r]
             for c in range(columns.shape[0]):
-                col = columns[c]
-                # body below the row: zero by construction (serial chain)
-                out[base + r, c] = w * y[j, col] if col // 10 >= j else 0.0
+                out[base + r, c] = w * y[j, columns[c]]
