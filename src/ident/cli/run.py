@@ -1,0 +1,224 @@
+"""``ident run CONFIG`` and ``ident report RUN_DIR``.
+
+``ident run`` validates the config, creates a new run folder ``<out>/<name>-<timestamp>/``,
+runs :func:`ident.run.pipeline.run_pipeline` with a progress bar (stderr), saves the data,
+the replay and the report, and prints a one-screen summary (stdout). Ctrl-C or an error
+during the run saves what finished and marks the folder incomplete (``run.json`` status,
+``INCOMPLETE`` file) before exiting (130 for Ctrl-C, 2 for a user error).
+
+``ident report RUN_DIR`` regenerates ``report.md``, ``report.html`` and the figures from the
+saved data of a run folder.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from ident.cli._common import EXIT_INTERRUPTED, EXIT_USER_ERROR, user_errors
+
+__all__ = ["register"]
+
+EXIT_NOT_IDENTIFIED = 1
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``run`` and ``report`` to the ``ident`` command line."""
+    app.command("run")(run)
+    app.command("report")(report)
+
+
+def run(
+    config: Annotated[Path, typer.Argument(help="Run config (e.g. configs/wrist.yaml).")],
+    seed: Annotated[
+        int | None, typer.Option(help="Seed of every random draw (overrides the config).")
+    ] = None,
+    out: Annotated[Path, typer.Option(help="Parent folder of the run folders.")] = Path("runs"),
+    quick: Annotated[
+        bool, typer.Option("--quick", help="Small settings for a first look (seconds).")
+    ] = False,
+    replay: Annotated[
+        bool, typer.Option(help="Write replay.html (meshcat static page) into the run folder.")
+    ] = True,
+) -> None:
+    """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
+    from ident.errors import IdentError
+    from ident.report.run_report import save_run, write_replay, write_report
+    from ident.run.config import load_run_config
+    from ident.run.pipeline import RunInterrupted, run_pipeline
+    from ident.run.rundir import create_run_dir
+
+    with user_errors():
+        cfg = load_run_config(config)
+        if quick:
+            cfg = cfg.quick_version()
+        if seed is not None:
+            cfg = cfg.with_seed(seed)
+        name = f"{cfg.name}-quick" if quick else str(cfg.name)
+        rundir = create_run_dir(
+            out,
+            name,
+            info={
+                "config": str(config),
+                "seed": cfg.seed,
+                "quick": quick,
+                "command": " ".join(["ident", *sys.argv[1:]]),
+            },
+        )
+        typer.echo(f"run folder: {rundir.path}", err=True)
+        try:
+            with _ProgressDisplay(cfg) as display:
+                result = run_pipeline(cfg, progress=display.update)
+        except RunInterrupted as e:
+            _save_partial(e.partial, rundir)
+            if isinstance(e.cause, KeyboardInterrupt):
+                typer.echo(f"interrupted: partial results in {rundir.path}", err=True)
+                raise typer.Exit(code=EXIT_INTERRUPTED) from None
+            if isinstance(e.cause, IdentError):
+                typer.echo(f"error: {e.cause} (run folder: {rundir.path})", err=True)
+                raise typer.Exit(code=EXIT_USER_ERROR) from None
+            raise e.cause from None
+        except IdentError as e:  # before anything ran: robot, stage or family invalid
+            rundir.finish("incomplete", str(e))
+            raise
+        except KeyboardInterrupt:
+            rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
+            raise
+        save_run(result, rundir.path)
+        replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
+        rundir.update(replay=replay_note)
+        report_path = write_report(rundir.path)
+        rundir.finish("complete", result.message)
+        write_report(rundir.path)  # again, now with the final status and wall time
+        _summary(result, rundir.path, report_path, replay_note)
+        if result.warnings:
+            for warning in result.warnings:
+                typer.echo(f"error: {warning}", err=True)
+            raise typer.Exit(code=EXIT_NOT_IDENTIFIED)
+
+
+def report(
+    run_dir: Annotated[Path, typer.Argument(help="A run folder written by 'ident run'.")],
+) -> None:
+    """Regenerate report.md, report.html and the figures of RUN_DIR from its saved data."""
+    from ident.report.run_report import write_replay, write_report
+    from ident.run.rundir import read_status
+
+    with user_errors():
+        read_status(run_dir)  # a clear message for a folder that is not a run
+        if not (run_dir / "replay.html").is_file():
+            typer.echo(write_replay(run_dir), err=True)
+        typer.echo(str(write_report(run_dir)))
+
+
+def _save_partial(partial: Any, rundir: Any) -> None:
+    """Save what an interrupted run finished; never hide the original problem."""
+    from ident.report.run_report import save_run, write_report
+
+    try:
+        save_run(partial, rundir.path)
+        rundir.finish("incomplete", partial.message)
+        write_report(rundir.path)
+    except BaseException as e:  # noqa: BLE001 - the folder must still be marked
+        rundir.finish("incomplete", f"{partial.message}; saving failed: {e}")
+
+
+class _ProgressDisplay:
+    """A rich progress bar over the elite search, the eMuPSO iterations and the estimates."""
+
+    def __init__(self, cfg: Any) -> None:
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
+
+        self.cfg = cfg
+        self.progress = Progress(
+            TextColumn("{task.description:<16}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[info]}"),
+            TimeElapsedColumn(),
+            console=Console(stderr=True),
+            transient=False,
+        )
+        self.tasks: dict[str, Any] = {}
+
+    def __enter__(self) -> _ProgressDisplay:
+        self.progress.__enter__()
+        cfg = self.cfg
+        self.tasks["elites"] = self.progress.add_task(
+            "initial elites", total=cfg.elites.maxiter, info=""
+        )
+        self.tasks["optimize"] = self.progress.add_task(
+            "eMuPSO", total=cfg.emupso.n_runs * cfg.emupso.maxiter, info=""
+        )
+        self.tasks["identify"] = self.progress.add_task(
+            "identification", total=cfg.emupso.n_report_elites, info=""
+        )
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.progress.__exit__(*exc)
+
+    def update(self, event: Any) -> None:
+        """Progress callback of :func:`ident.run.pipeline.run_pipeline`."""
+        p = self.progress
+        if event.phase == "elites":
+            p.update(self.tasks["elites"], completed=event.step, info=f"violation {event.best:.3g}")
+        elif event.phase == "optimize":
+            run = f"run {event.run + 1}/{self.cfg.emupso.n_runs}"
+            p.update(
+                self.tasks["optimize"], completed=event.step, info=f"{run} best {event.best:.6g}"
+            )
+        elif event.phase == "run_done":
+            t = self.tasks["elites"]
+            p.update(t, total=p.tasks[t].completed or 1, completed=p.tasks[t].completed or 1)
+            p.update(self.tasks["optimize"], completed=event.step * self.cfg.emupso.maxiter)
+        elif event.phase == "identify":
+            p.update(self.tasks["identify"], completed=event.step, total=event.total, info="")
+
+
+def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) -> None:
+    """One screen: the chosen elite, the estimate quality, where the files are."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from ident.report.run_report import error_measures
+
+    console = Console()
+    stage = result.stage
+    table = Table(title=f"ident run {result.config.name}: {stage.name} stage", show_header=False)
+    indep, dep, unid = stage.counts
+    table.add_row(
+        "base parameters",
+        f"{len(stage.base_names)} ({indep}/{dep}/{unid} independent/combined/unidentifiable)",
+    )
+    table.add_row("eMuPSO runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
+    if result.elites:
+        best = result.elites[0]
+        table.add_row(
+            "chosen elite",
+            f"fitness {best.fitness:.6g}, "
+            f"cond (scaled) {best.details.get('cond', float('nan')):.4g}",
+        )
+        for method, est in best.estimates.items():
+            m = error_measures(est.x, est.std, stage.true_base)
+            table.add_row(
+                method.upper(),
+                f"max rel. error {m['max_rel_error']:.3g}, "
+                f"{100 * m['within_3std']:.0f} % within 3 std, cond {est.condition_number:.4g}",
+            )
+        for method, message in best.failures.items():
+            table.add_row(method.upper(), f"[red]{message}[/red]")
+    table.add_row("replay", replay_note)
+    table.add_row("report", str(report_path))
+    console.print(table)
+    console.print(f"Run folder: {run_dir}")
