@@ -11,7 +11,7 @@ import pytest
 from ident.errors import IdentWarning, OptimizationError
 from ident.optim import METHODS, minimize
 
-ALL = [m for m in METHODS if m in ("emupso", "pso")]
+ALL = list(METHODS)
 
 
 def sphere(x):
@@ -50,10 +50,18 @@ EASY = {
 }
 
 
+# WOA and GWO move towards their leaders by multiples of |C x_lead - x|, a step that shrinks
+# near the origin: they are known to be biased towards the centre of the box, and Branin's
+# minima lie far from it. Over 10 seeds at 6000 evaluations the worst errors were 1.1e-2
+# (WOA) and 9.9e-4 (GWO); the other methods were below 1e-6.
+LOOSER = {("woa", "branin"): 5e-2, ("gwo", "branin"): 5e-3}
+
+
 @pytest.mark.parametrize("method", ALL)
 @pytest.mark.parametrize("name", list(EASY))
 def test_reaches_known_optimum(method, name):
     fun, bounds, f_star, tol = EASY[name]
+    tol = LOOSER.get((method, name), tol)
     res = minimize(fun, bounds, method, rng=1, max_nfev=6000, popsize=30)
     assert res.success, res.message
     assert res.fun - f_star < tol, (method, name, res.fun - f_star)
@@ -79,7 +87,7 @@ def test_same_rng_identical_and_nfev_budget(method):
     assert not np.array_equal(a.history.best_fun, d.history.best_fun)
 
 
-@pytest.mark.parametrize("method", ["emupso", "pso"])
+@pytest.mark.parametrize("method", ["emupso", "de"])
 def test_workers_do_not_change_result(method):
     kw = dict(rng=3, maxiter=5, popsize=8, vectorized=False)
     a = minimize(sphere_scalar, [(-5, 5)] * 3, method, workers=1, **kw)
