@@ -1,0 +1,554 @@
+"""The ``ident identify`` pipeline: a log of a real robot -> identified base parameters.
+
+Steps (each recorded for the report):
+
+1. read the URDF (Pinocchio) and the log; convert motor-side signals to joint side
+   (:mod:`ident.identify.logs`);
+2. low-pass the positions, differentiate to ``dq`` and ``ddq``, trim the edges
+   (:mod:`ident.identify.preprocess`);
+3. build the regressor: rigid bodies (:mod:`ident.dynamics.regressor`) plus friction, offsets,
+   rotor inertias and coupled-wrist terms (:mod:`ident.dynamics.friction`);
+4. base parameters, found structurally on random states (so that a parameter the log does not
+   excite is reported by name instead of silently merged), with the *sequential* column choice
+   in the priority order ``Ixx Ixy Ixz Iyy Iyz Izz mcx mcy mcz m Ia fv fs off`` per joint, then
+   the coupled-wrist terms: the first independent column of each group is kept, which is the
+   choice of the figaroh reference, so base parameters can be compared by name;
+5. zero-phase decimation of torques and base regressor rows alike; per-joint velocity threshold;
+6. split in time; OLS/WLS on the first part (:mod:`ident.identify.estimate`), essential
+   parameters (:mod:`ident.identify.essential`);
+7. held-out prediction of the identified, essential, reference and URDF-nominal parameters
+   (:mod:`ident.identify.validation`).
+
+Nothing here writes files; :mod:`ident.report.identify_report` does.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from ident.dynamics.friction import (
+    KINDS,
+    ExtraTerms,
+    extra_columns,
+    extra_names,
+    figaroh_coupling_columns,
+)
+from ident.errors import ConfigError, DataError, ModelError, NotIdentifiable
+from ident.identify import preprocess
+from ident.identify.config import IdentifyConfig
+from ident.identify.essential import EssentialResult, essential_parameters
+from ident.identify.estimate import Estimate, least_squares
+from ident.identify.logs import RobotLog, read_log
+from ident.identify.reference import ReferenceParameter, expression_to_vector, read_reference
+from ident.identify.validation import PredictionMetrics, prediction_metrics, time_split
+
+__all__ = [
+    "PRIORITY_LABELS",
+    "IdentifyResult",
+    "ParameterModel",
+    "build_parameter_model",
+    "identify",
+    "load_robot_model",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+# Per-joint priority of the sequential base-parameter choice (figaroh's column order).
+PRIORITY_LABELS = ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz", "mcx", "mcy", "mcz", "m")
+_N_RANDOM_STATES = 200  # random states for the structural base parameters
+# Relative rank tolerance of the structural base parameters. URDFs give angles to ~11 digits
+# (rpy="-1.57079632679"), so axes meant to be orthogonal are off by ~5e-12 and machine-precision
+# tolerances would call, e.g., Izz2 and Ia2 separately identifiable; 1e-6 is far above that
+# round-off and far below any physical effect.
+_BASE_RTOL = 1e-6
+
+
+def load_robot_model(urdf: str | Path):  # noqa: ANN201 - pinocchio.Model
+    """Load a fixed-base serial URDF with Pinocchio.
+
+    Raises
+    ------
+    ModelError
+        If the URDF cannot be parsed or is not a chain of 1-DoF joints.
+    """
+    import pinocchio as pin
+
+    try:
+        model = pin.buildModelFromUrdf(str(urdf))
+    except (RuntimeError, ValueError) as e:
+        raise ModelError(f"{urdf}: cannot load the URDF ({e}).") from e
+    if model.nq != model.nv or model.nv != model.njoints - 1:
+        raise ModelError(
+            f"{urdf}: only chains of revolute/prismatic joints are supported "
+            f"(nq={model.nq}, nv={model.nv}, joints={model.njoints - 1})."
+        )
+    return model
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterModel:
+    """All parameters of the identification model and its base parameters.
+
+    Attributes
+    ----------
+    names :
+        Every parameter in priority order (see module docstring), length n_all.
+    inertial_index :
+        For each name, its column in the rigid-body regressor (Pinocchio order), or -1.
+    extra_index :
+        For each name, its column in :func:`~ident.dynamics.friction.extra_columns`, or -1.
+    terms :
+        The extra terms.
+    base :
+        :class:`~ident.dynamics.base_parameters.BaseParameters` over ``names``.
+    nominal :
+        Nominal values of ``names`` (URDF inertias, zero friction), shape (n_all,).
+    """
+
+    names: tuple[str, ...]
+    inertial_index: npt.NDArray[np.intp]
+    extra_index: npt.NDArray[np.intp]
+    terms: ExtraTerms
+    base: object
+    nominal: FloatArray
+
+    @property
+    def base_names(self) -> tuple[str, ...]:
+        """Names of the base parameters (independent name, ``R`` suffix when regrouped)."""
+        return self.base.base_names  # type: ignore[attr-defined]
+
+    def columns(self, Y_rigid: FloatArray, Y_extra: FloatArray, index: npt.ArrayLike) -> FloatArray:
+        """Regressor columns of the parameters ``index`` (into :attr:`names`).
+
+        ``Y_rigid`` (n, nv, 10 n) and ``Y_extra`` (n, nv, n_extra) -> (n, nv, len(index)).
+        """
+        index = np.asarray(index, dtype=np.intp)
+        out = np.empty((*Y_rigid.shape[:2], index.size))
+        for k, i in enumerate(index):
+            if self.inertial_index[i] >= 0:
+                out[:, :, k] = Y_rigid[:, :, self.inertial_index[i]]
+            else:
+                out[:, :, k] = Y_extra[:, :, self.extra_index[i]]
+        return out
+
+
+def _regressors(chain, terms: ExtraTerms, q, dq, ddq) -> tuple[FloatArray, FloatArray]:  # noqa: ANN001
+    from ident.dynamics.regressor import joint_torque_regressor
+
+    return joint_torque_regressor(chain, q, dq, ddq), extra_columns(terms, dq, ddq)
+
+
+def build_parameter_model(model, terms: ExtraTerms, *, rng: int = 0) -> ParameterModel:  # noqa: ANN001
+    """Name, order and reduce to base parameters every parameter of the model.
+
+    Parameters
+    ----------
+    model :
+        Pinocchio model.
+    terms :
+        Extra (friction, offset, rotor, coupling) terms.
+    rng :
+        Seed of the random states used to find the structural base parameters.
+    """
+    from ident.dynamics.base_parameters import compute_base_parameters
+    from ident.dynamics.chain import chain_from_model, random_states
+    from ident.dynamics.parameters import parameter_names, parameters_from_model
+
+    n = model.nv
+    chain = chain_from_model(model)
+    rigid_names = parameter_names(n)
+    extras = extra_names(terms)
+    names: list[str] = []
+    for j in range(1, n + 1):
+        names += [f"{label}{j}" for label in PRIORITY_LABELS]
+        names += [f"{kind}{j}" for kind in KINDS if j - 1 in terms.per_joint[kind]]
+    names += [e for e in extras if e.startswith(("Iam", "fvm", "fsm"))]
+    inertial_index = np.array(
+        [rigid_names.index(nm) if nm in rigid_names else -1 for nm in names], dtype=np.intp
+    )
+    extra_index = np.array(
+        [extras.index(nm) if nm in extras else -1 for nm in names], dtype=np.intp
+    )
+    q, dq, ddq = random_states(chain, _N_RANDOM_STATES, rng=rng)
+    Y_rigid, Y_extra = _regressors(chain, terms, q, dq, ddq)
+    pm = ParameterModel(
+        names=tuple(names),
+        inertial_index=inertial_index,
+        extra_index=extra_index,
+        terms=terms,
+        base=None,
+        nominal=np.zeros(len(names)),
+    )
+    W = pm.columns(Y_rigid, Y_extra, np.arange(len(names))).reshape(-1, len(names))
+    base = compute_base_parameters(W, names, method="sequential", rtol=_BASE_RTOL)
+    rigid_nominal = parameters_from_model(model)
+    nominal = np.where(inertial_index >= 0, rigid_nominal[np.maximum(inertial_index, 0)], 0.0)
+    return ParameterModel(
+        names=tuple(names),
+        inertial_index=inertial_index,
+        extra_index=extra_index,
+        terms=terms,
+        base=base,
+        nominal=nominal,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ModelPrediction:
+    """A parameter set judged on the held-out part."""
+
+    label: str
+    metrics: PredictionMetrics
+    tau_pred: FloatArray
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifyResult:
+    """Everything the identify report needs (arrays SI, samples on axis 0).
+
+    Attributes
+    ----------
+    config :
+        The validated config.
+    log :
+        The converted log (before processing).
+    records :
+        Every processing step, in order.
+    parameters :
+        Parameter model (names, base parameters).
+    estimate :
+        Estimate of the base parameters on the identification part.
+    essential :
+        Essential-parameter reduction, or None when disabled.
+    t_validate, tau_validate :
+        Held-out time [s] and measured torques [N*m], shapes (n_val,), (n_val, nv).
+    predictions :
+        Held-out predictions by label (identified, essential, reference, URDF nominal).
+    comparison :
+        Rows comparing our values with the reference values.
+    reference_note :
+        How the reference maps onto our parameters.
+    timings :
+        Seconds per stage.
+    """
+
+    config: IdentifyConfig
+    log: RobotLog
+    records: tuple[dict, ...]
+    parameters: ParameterModel
+    estimate: Estimate
+    essential: EssentialResult | None
+    t_validate: FloatArray
+    tau_validate: FloatArray
+    predictions: dict[str, ModelPrediction]
+    comparison: tuple[dict, ...]
+    reference_note: str
+    joint_names: tuple[str, ...]
+    sampling_rate_hz: float
+    n_identify_rows: int
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _coupling_convention_map(pm: ParameterModel) -> dict[str, list[str]]:
+    """Our parameters summing to a reference (figaroh-basis) parameter of the coupled wrist."""
+    pair = pm.terms.coupled_wrist
+    if pair is None:
+        return {}
+    a, b = (j + 1 for j in pair)
+    out = {}
+    for kind, motor in (("fv", f"fvm{b}"), ("Ia", f"Iam{b}")):
+        for j in (a, b):
+            if f"{kind}{j}" in pm.names:
+                out[f"{kind}{j}"] = [f"{kind}{j}", motor]
+    return out
+
+
+def _compare_with_reference(
+    pm: ParameterModel, est: Estimate, reference: list[ReferenceParameter], column: str
+) -> tuple[list[dict], str]:
+    """Match reference base parameters to ours: same expression, or a documented sum."""
+    base = pm.base
+    projection = base.projection  # type: ignore[attr-defined]
+    base_names = pm.base_names
+    coupled = _coupling_convention_map(pm)
+    rows = []
+    for ref in reference:
+        vector = expression_to_vector(ref.terms, pm.names)
+        ref_value, ref_rel = ref.value(column)
+        row = {
+            "reference": ref.expression,
+            "reference_value": ref_value,
+            "reference_relative_std_pct": ref_rel,
+            "ours": None,
+            "value": None,
+            "relative_std_pct": None,
+            "match": "none",
+            "nominal": None,
+        }
+        if ref.lead in coupled:
+            members = [base_names.index(n) for n in coupled[ref.lead] if n in base_names]
+            if len(members) == len(coupled[ref.lead]):
+                weights = np.zeros(len(base_names))
+                weights[members] = 1.0
+                value = float(weights @ est.x)
+                std = float(np.sqrt(weights @ est.covariance @ weights))
+                row.update(
+                    ours=" + ".join(coupled[ref.lead]),
+                    value=value,
+                    relative_std_pct=100.0 * std / abs(value) if value else float("inf"),
+                    match="coupling basis",
+                )
+        elif vector is not None:
+            for k in range(projection.shape[0]):
+                scale = np.max(np.abs(projection[k]))
+                if np.allclose(projection[k], vector, atol=2e-4 * max(scale, 1.0), rtol=1e-3):
+                    row.update(
+                        ours=base_names[k],
+                        value=float(est.x[k]),
+                        relative_std_pct=float(est.relative_std[k]),
+                        match="same expression",
+                        nominal=float(projection[k] @ pm.nominal),
+                    )
+                    break
+        rows.append(row)
+    note = (
+        f"Reference values: the '{column}' column. Values are compared where the reference "
+        "expression equals one of our base parameters (coefficients within 2e-4, the "
+        "reference prints 4-5 digits). The coupled wrist uses another basis in the reference "
+        "(see ident.dynamics.friction): its fv/Ia of the wrist joints equal our sums "
+        "'fv_j + fvm', 'Ia_j + Iam'."
+    )
+    return rows, note
+
+
+def _reference_prediction(
+    pm: ParameterModel,
+    reference: list[ReferenceParameter],
+    column: str,
+    Y_rigid: FloatArray,
+    Y_extra: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+) -> tuple[FloatArray, list[str]]:
+    """Reference model regressor columns (n, nv, n_ref) and their values (as a 2-tuple)."""
+    pair = pm.terms.coupled_wrist
+    cols = []
+    missing = []
+    fig = figaroh_coupling_columns(dq, ddq, pair) if pair is not None else None
+    index = {n: i for i, n in enumerate(pm.names)}
+    for ref in reference:
+        lead = ref.lead
+        stem = lead.rstrip("0123456789")
+        if fig is not None and stem in ("Iam", "fvm", "fsm"):
+            cols.append(fig[:, :, ("Iam", "fvm", "fsm").index(stem)])
+        elif lead in index:
+            cols.append(pm.columns(Y_rigid, Y_extra, [index[lead]])[:, :, 0])
+        else:
+            cols.append(np.zeros(Y_rigid.shape[:2]))
+            missing.append(lead)
+    return np.stack(cols, axis=2), missing
+
+
+def identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
+    """Run the identification described by ``cfg`` (see :func:`_identify`).
+
+    The least-squares problems here are small (thousands of rows, tens of columns) and many
+    (essential parameters); multi-threaded BLAS only adds synchronisation to them (35x slower
+    measured on a loaded 2-core machine), so BLAS runs on one thread inside this call.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - optional speed-up
+        return _identify(cfg, rng=rng)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(cfg, rng=rng)
+
+
+def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
+    """Run the identification described by ``cfg``.
+
+    Parameters
+    ----------
+    cfg :
+        Validated config with absolute paths (:func:`~ident.identify.config.load_identify_config`).
+    rng :
+        Seed of the random states used to find the structural base parameters (the result does
+        not depend on it beyond round-off).
+
+    Raises
+    ------
+    IdentError
+        Subclasses naming the file, column or parameter: bad log, bad config, rank deficiency.
+    """
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    source = str(cfg.source or "config")
+    model = load_robot_model(cfg.robot.urdf)
+    model_joints = [model.names[i] for i in range(1, model.njoints)]
+    joints = cfg.robot.joints or model_joints
+    if list(joints) != model_joints:
+        raise DataError(
+            f"{source}: robot.joints = {joints} must list the URDF's joints in chain order "
+            f"({', '.join(model_joints)})."
+        )
+    log = read_log(cfg.log, cfg.transmission, joints, source=source)
+    timings["read"] = time.perf_counter() - t0
+    records = list(log.records)
+    fs = log.sampling_rate_hz
+    q, tau = log.q, log.tau
+    t = log.t
+
+    t1 = time.perf_counter()
+    pp = cfg.preprocess
+    if pp.lowpass is not None:
+        try:
+            q, rec = preprocess.lowpass(q, fs, pp.lowpass.cutoff_hz, pp.lowpass.order, what="q")
+        except ConfigError as e:
+            raise ConfigError(f"{source}: preprocess.lowpass.{e}") from e
+        records.append(rec)
+    if pp.torque_lowpass is not None:
+        tau, rec = preprocess.lowpass(
+            tau, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
+        )
+        records.append(rec)
+    dq, ddq, rec = preprocess.differentiate(q, fs)
+    records.append(rec)
+    (q, dq, ddq, tau, t), rec = preprocess.trim([q, dq, ddq, tau, t], pp.trim_samples)
+    records.append(rec)
+    timings["preprocess"] = time.perf_counter() - t1
+
+    t2 = time.perf_counter()
+    terms = ExtraTerms.from_options(
+        model.nv,
+        rotor_inertia=cfg.model.rotor_inertia,
+        viscous=cfg.model.viscous,
+        coulomb=cfg.model.coulomb,
+        offset=cfg.model.offset,
+        coupled_wrist=cfg.model.coupled_wrist,
+    )
+    pm = build_parameter_model(model, terms, rng=rng)
+    base = pm.base
+    timings["base_parameters"] = time.perf_counter() - t2
+
+    t3 = time.perf_counter()
+    from ident.dynamics.chain import chain_from_model
+
+    Y_rigid, Y_extra = _regressors(chain_from_model(model), terms, q, dq, ddq)
+    Yb = pm.columns(Y_rigid, Y_extra, base.independent)  # type: ignore[attr-defined]
+    reference = (
+        read_reference(cfg.reference.base_parameters)
+        if cfg.reference.base_parameters is not None
+        else []
+    )
+    bank = [tau, Yb, dq]
+    if reference:
+        Yref, missing_ref = _reference_prediction(
+            pm, reference, cfg.reference.column, Y_rigid, Y_extra, dq, ddq
+        )
+        bank.append(Yref)
+    del Y_rigid, Y_extra
+    timings["regressor"] = time.perf_counter() - t3
+
+    t4 = time.perf_counter()
+    bank, fs_dec, rec = preprocess.decimate(bank, pp.decimation, fs)
+    records.append(rec)
+    step = int(np.prod(pp.decimation)) if pp.decimation else 1
+    t_dec = t[::step][: bank[0].shape[0]]
+    tau_d, Yb_d, dq_d = bank[0], bank[1], bank[2]
+    keep, rec = preprocess.velocity_mask(dq_d, pp.velocity_threshold)
+    records.append(rec)
+    n_dec, nv = tau_d.shape
+    ident_part, val_part = time_split(n_dec, cfg.validation.identify_fraction)
+    records.append(
+        {
+            "step": "time split",
+            "detail": f"identify on samples 0..{ident_part.stop - 1} "
+            f"({t_dec[ident_part.stop - 1] if ident_part.stop else 0:.3f} s), validate on "
+            f"{val_part.stop - val_part.start} later samples (all joints, no velocity "
+            "threshold)",
+        }
+    )
+    timings["decimate"] = time.perf_counter() - t4
+
+    t5 = time.perf_counter()
+    keep_id = keep[ident_part]
+    W_id = Yb_d[ident_part][keep_id]  # rows (sample, joint) kept, sample-major
+    tau_id = tau_d[ident_part][keep_id]
+    groups = np.broadcast_to(np.arange(nv), keep_id.shape)[keep_id]
+    for j in range(nv):
+        if not keep_id[:, j].any():
+            raise DataError(
+                f"{source}: no sample of joint {joints[j]} reaches the velocity threshold "
+                f"{pp.velocity_threshold[j] if pp.velocity_threshold else 0} rad/s in the "
+                "identification part; lower preprocess.velocity_threshold."
+            )
+    base_names = pm.base_names
+    try:
+        est = least_squares(
+            W_id, tau_id, base_names, method=cfg.estimation.method, groups=groups
+        )
+    except NotIdentifiable as e:
+        raise NotIdentifiable(
+            f"{source}: the log does not determine every base parameter: {e}"
+        ) from e
+    except DataError as e:
+        raise DataError(f"{source}: {e}") from e
+    timings["estimate"] = time.perf_counter() - t5
+
+    essential = None
+    if cfg.estimation.essential.enabled:
+        t6 = time.perf_counter()
+        essential = essential_parameters(
+            W_id,
+            tau_id,
+            base_names,
+            method=cfg.estimation.method,
+            groups=groups,
+            max_relative_std_pct=cfg.estimation.essential.max_relative_std_pct,
+            max_residual_increase=cfg.estimation.essential.max_residual_increase,
+        )
+        timings["essential"] = time.perf_counter() - t6
+
+    # held-out prediction (or in-sample when the whole log identifies)
+    part = val_part if val_part.stop > val_part.start else ident_part
+    tau_val = tau_d[part]
+    predictions: dict[str, ModelPrediction] = {}
+
+    def add(label: str, tau_pred: FloatArray) -> None:
+        predictions[label] = ModelPrediction(label, prediction_metrics(tau_val, tau_pred), tau_pred)
+
+    add("identified", Yb_d[part] @ est.x)
+    if essential is not None:
+        add("essential", Yb_d[part][:, :, list(essential.kept)] @ essential.estimate.x)
+    comparison: list[dict] = []
+    note = ""
+    if reference:
+        values = np.array([r.value(cfg.reference.column)[0] for r in reference])
+        add("reference", bank[3][part] @ values)
+        comparison, note = _compare_with_reference(pm, est, reference, cfg.reference.column)
+        if missing_ref:
+            note += f" Reference parameters without a column here: {', '.join(missing_ref)}."
+    add("URDF nominal", Yb_d[part] @ base.project(pm.nominal))  # type: ignore[attr-defined]
+    timings["total"] = time.perf_counter() - t0
+    return IdentifyResult(
+        config=cfg,
+        log=log,
+        records=tuple(records),
+        parameters=pm,
+        estimate=est,
+        essential=essential,
+        t_validate=t_dec[part],
+        tau_validate=tau_val,
+        predictions=predictions,
+        comparison=tuple(comparison),
+        reference_note=note,
+        joint_names=tuple(joints),
+        sampling_rate_hz=fs_dec,
+        n_identify_rows=int(W_id.shape[0]),
+        timings=timings,
+    )
