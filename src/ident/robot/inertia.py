@@ -29,6 +29,7 @@ __all__ = [
     "paper_to_pinocchio",
     "parameters_from_com",
     "pinocchio_to_paper",
+    "transform_matrix",
     "transform_parameters",
 ]
 
@@ -215,3 +216,13 @@ def consistency_problems(params: npt.ArrayLike, *, rtol: float = 1e-9) -> list[s
             f"I1 + I2 >= I3 ({moments[0]:.6g} + {moments[1]:.6g} < {moments[2]:.6g} kg*m^2)"
         )
     return problems
+
+
+def transform_matrix(rotation: npt.ArrayLike, translation: npt.ArrayLike) -> FloatArray:
+    """The linear map of :func:`transform_parameters` for one pose, as a (10, 10) matrix.
+
+    ``transform_matrix(R, t) @ params_b == transform_parameters(params_b, R, t)``: a change of
+    frame is linear in the parameters, so regressors change by the same matrix
+    (``Y_b = Y_a @ transform_matrix(R, t)``).
+    """
+    return transform_parameters(np.eye(10), rotation, translation).T

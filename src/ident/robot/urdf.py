@@ -39,6 +39,7 @@ __all__ = [
     "BASE_LINK",
     "FLANGE",
     "WRIST_CENTRE",
+    "dh_frame_in_link",
     "joint_origins",
     "urdf_from_description",
     "wrist_centre",
@@ -74,7 +75,7 @@ def joint_origins(dh: DHTable) -> tuple[FloatArray, FloatArray]:
     return fixed, np.eye(4)
 
 
-def _dh_frame_in_link(dh: DHTable, i: int) -> FloatArray:
+def dh_frame_in_link(dh: DHTable, i: int) -> FloatArray:
     """Pose of DH frame ``i`` (0-based link index) in URDF link ``i``."""
     return dh.fixed_transform(i) if dh.convention == "standard" else np.eye(4)
 
@@ -263,7 +264,7 @@ def urdf_from_description(robot: RobotDescription) -> str:
         )
         link = ET.SubElement(root, "link", name=robot.link_names[i])
         # inertial frame: at the centre of mass, axes of DH frame i
-        dh_in_link = _dh_frame_in_link(dh, i)
+        dh_in_link = dh_frame_in_link(dh, i)
         inertial_pose = dh_in_link.copy()
         inertial_pose[:3, 3] = dh_in_link[:3, :3] @ com[i] + dh_in_link[:3, 3]
         inertial = ET.SubElement(link, "inertial")

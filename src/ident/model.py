@@ -1,0 +1,424 @@
+"""The :class:`Robot` facade: a Pinocchio model with names, limits and true parameters.
+
+A ``Robot`` is built from a URDF (:meth:`Robot.from_urdf`) or from a DH robot description
+(:meth:`Robot.from_config`, which generates the URDF in memory). It offers the regressor
+(hand-derived Newton-Euler from :mod:`ident.dynamics`), inverse dynamics and forward kinematics
+through Pinocchio, and random states within the limits. Everything is SI; samples are on axis 0.
+
+Parameters are Pinocchio's standard parameters per body, ``[m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz,
+Iyz, Izz]``, about the origin of each body's (URDF link / Pinocchio joint) frame. For a robot
+built from a standard-DH config those frames are *not* the DH frames the paper uses;
+:meth:`Robot.parameters_dh` and :meth:`Robot.dh_to_model_parameters` give the DH-frame vector and
+the linear map between the two.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ident.errors import DataError, ModelError
+from ident.robot.dh import DHTable
+
+if TYPE_CHECKING:
+    from ident.robot.robot_config import RobotDescription
+
+__all__ = ["Robot"]
+
+FloatArray = npt.NDArray[np.float64]
+
+# Fallback ranges where a model carries no limit (URDFs rarely give accelerations).
+DEFAULT_Q_RANGE = {"revolute": np.pi, "prismatic": 1.0}  # [rad], [m]
+DEFAULT_DQ_MAX = 1.0  # [rad/s or m/s]
+DEFAULT_DDQ_MAX = 10.0  # [rad/s^2 or m/s^2]
+
+
+def _known(values: npt.ArrayLike, *, positive: bool = False) -> FloatArray:
+    """Replace unknown limits (non-finite, Pinocchio's +-max float, or <= 0) by inf."""
+    out = np.array(values, dtype=float)
+    unknown = ~np.isfinite(out) | (np.abs(out) >= 1e300)
+    if positive:
+        unknown |= out <= 0.0
+    out[unknown] = np.inf if positive else np.nan
+    return out
+
+
+class Robot:
+    """A fixed-base serial robot: Pinocchio model, names, limits and true parameters.
+
+    Attributes
+    ----------
+    name :
+        Robot name.
+    model :
+        The Pinocchio model (fixed base, serial chain of 1-DoF joints).
+    urdf_text :
+        The URDF the model was built from.
+    urdf_path :
+        The URDF file, or ``None`` when the URDF was generated from a config.
+    dh :
+        The DH table when built from a config, else ``None``.
+    description :
+        The full robot description when built from a config, else ``None``.
+    joint_names :
+        Names of the joints, base to tip.
+    nq, nv, n_bodies :
+        Configuration and velocity sizes, number of moving bodies.
+    q_lower, q_upper :
+        Position limits [rad or m], shape (nq,); ``-inf``/``inf`` where unknown.
+    dq_max, ddq_max :
+        Velocity [rad/s or m/s] and acceleration [rad/s^2 or m/s^2] limits, shape (nv,);
+        ``inf`` where unknown (URDFs carry no acceleration limits).
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        urdf_text: str,
+        *,
+        urdf_path: Path | None = None,
+        description: RobotDescription | None = None,
+        ddq_max: npt.ArrayLike | None = None,
+    ) -> None:
+        self.model = model
+        self.urdf_text = urdf_text
+        self.urdf_path = urdf_path
+        self.description = description
+        self.dh: DHTable | None = description.dh if description is not None else None
+        self.name: str = description.name if description is not None else model.name
+        self.joint_names: tuple[str, ...] = tuple(model.names[1:])
+        self.nq: int = model.nq
+        self.nv: int = model.nv
+        self.n_bodies: int = model.njoints - 1
+        lower = _known(model.lowerPositionLimit)
+        upper = _known(model.upperPositionLimit)
+        empty = ~(upper > lower)  # URDFs without limits give lower == upper == 0
+        lower[empty | np.isnan(lower)] = -np.inf
+        upper[empty | np.isnan(upper)] = np.inf
+        self.q_lower: FloatArray = lower
+        self.q_upper: FloatArray = upper
+        self.dq_max: FloatArray = _known(model.velocityLimit, positive=True)
+        self.ddq_max: FloatArray = (
+            np.full(self.nv, np.inf) if ddq_max is None else np.array(ddq_max, dtype=float)
+        )
+        for array in (self.q_lower, self.q_upper, self.dq_max, self.ddq_max):
+            array.setflags(write=False)
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_urdf(cls, path: str | Path) -> Robot:
+        """Load a fixed-base serial robot from a URDF file.
+
+        Raises
+        ------
+        ModelError
+            Naming the file, if it is missing or malformed, or not a fixed-base serial chain
+            of revolute and prismatic joints.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise ModelError(f"{path}: URDF file not found; check the path.")
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            raise ModelError(f"{path}: cannot read the URDF ({e}); check the file.") from e
+        model = _build_model(text, str(path))
+        robot = cls(model, text, urdf_path=path)
+        robot._check_serial(str(path))
+        return robot
+
+    @classmethod
+    def from_config(cls, path: str | Path) -> Robot:
+        """Build a robot from a DH description file (see :mod:`ident.robot.robot_config`).
+
+        The URDF is generated in memory (:func:`ident.robot.urdf.urdf_from_description`), the
+        model's gravity is set from the file, and the acceleration limits come from the file.
+
+        Raises
+        ------
+        ConfigError
+            For a missing, malformed or inconsistent description file.
+        """
+        from ident.robot.robot_config import load_robot_config
+
+        return cls.from_description(load_robot_config(path))
+
+    @classmethod
+    def from_description(cls, description: RobotDescription) -> Robot:
+        """Build a robot from an already loaded :class:`RobotDescription`."""
+        from ident.robot.urdf import urdf_from_description
+
+        text = urdf_from_description(description)
+        model = _build_model(text, str(description.source or description.name))
+        model.gravity.linear = np.array(description.gravity, dtype=float)
+        robot = cls(model, text, description=description, ddq_max=description.ddq_max)
+        robot._check_serial(str(description.source or description.name))
+        return robot
+
+    def _check_serial(self, where: str) -> None:
+        try:
+            self.chain  # noqa: B018 - builds and validates the chain
+        except ModelError as e:
+            raise ModelError(f"{where}: {e}") from e
+
+    def __repr__(self) -> str:
+        source = self.urdf_path or (self.description.source if self.description else None)
+        return f"Robot({self.name!r}, nq={self.nq}, source={str(source)!r})"
+
+    # ------------------------------------------------------------------ dynamics
+    @functools.cached_property
+    def chain(self) -> Any:
+        """Kinematic chain arrays for the regressor (``ident.dynamics.chain.chain_from_model``)."""
+        from ident.dynamics.chain import chain_from_model
+
+        return chain_from_model(self.model)
+
+    def parameters(self) -> FloatArray:
+        """True standard parameters of the model, shape (10 * n_bodies,).
+
+        Pinocchio order per body, about the origin of each body (joint) frame, in its axes
+        [kg, kg*m, kg*m^2]; the labels are :meth:`parameter_names`.
+        """
+        return np.concatenate(
+            [self.model.inertias[j].toDynamicParameters() for j in range(1, self.model.njoints)]
+        )
+
+    def parameter_names(self) -> tuple[str, ...]:
+        """Labels of :meth:`parameters`: ``m1, mcx1, mcy1, mcz1, Ixx1, ..., Izz<n>``."""
+        from ident.dynamics.parameters import parameter_names
+
+        return parameter_names(self.n_bodies)
+
+    def dh_to_model_parameters(self) -> FloatArray:
+        """Linear map from DH-frame parameters to model-frame parameters.
+
+        Returns
+        -------
+        :
+            Block-diagonal matrix ``M`` of shape (10 * n_bodies, 10 * n_bodies) with
+            ``parameters() == M @ parameters_dh()``; a regressor in the DH parameterization is
+            ``regressor(...) @ M``. For modified DH, ``M`` is the identity.
+
+        Raises
+        ------
+        ModelError
+            If the robot was not built from a DH description.
+        """
+        from ident.robot.inertia import transform_matrix
+        from ident.robot.urdf import dh_frame_in_link
+
+        dh = self._require_dh("dh_to_model_parameters")
+        out = np.zeros((10 * self.n_bodies, 10 * self.n_bodies))
+        for i in range(self.n_bodies):
+            pose = dh_frame_in_link(dh, i)
+            out[10 * i : 10 * i + 10, 10 * i : 10 * i + 10] = transform_matrix(
+                pose[:3, :3], pose[:3, 3]
+            )
+        return out
+
+    def parameters_dh(self) -> FloatArray:
+        """True parameters about the DH frame origins, in DH axes (the paper's frames).
+
+        Pinocchio order per link, shape (10 * n_bodies,). Reorder with
+        :func:`ident.robot.inertia.pinocchio_to_paper` for the paper's eq. 14 order.
+        """
+        self._require_dh("parameters_dh")
+        assert self.description is not None
+        return np.asarray(self.description.parameters_dh, dtype=float).reshape(-1).copy()
+
+    def _require_dh(self, what: str) -> DHTable:
+        if self.dh is None:
+            raise ModelError(
+                f"Robot {self.name!r} was loaded from a URDF and has no DH table; {what} needs "
+                "a robot built with Robot.from_config."
+            )
+        return self.dh
+
+    def regressor(self, q: npt.ArrayLike, dq: npt.ArrayLike, ddq: npt.ArrayLike) -> FloatArray:
+        """Joint-torque regressor (hand-derived Newton-Euler), vectorized over samples.
+
+        Parameters
+        ----------
+        q, dq, ddq :
+            Positions [rad or m], velocities, accelerations; shapes (n_samples, nq),
+            (n_samples, nv), (n_samples, nv).
+
+        Returns
+        -------
+        :
+            Shape (n_samples, nv, 10 * n_bodies); ``regressor @ parameters()`` gives the joint
+            torques [N*m or N] of :meth:`rnea`.
+        """
+        from ident.dynamics.regressor import joint_torque_regressor
+
+        q, dq, ddq = self._states(q, dq, ddq)
+        return joint_torque_regressor(self.chain, q, dq, ddq)
+
+    def rnea(self, q: npt.ArrayLike, dq: npt.ArrayLike, ddq: npt.ArrayLike) -> FloatArray:
+        """Inverse dynamics with Pinocchio's RNEA (gravity of the model included).
+
+        Parameters
+        ----------
+        q, dq, ddq :
+            Shapes (n_samples, nq), (n_samples, nv), (n_samples, nv) (one state of shape
+            (nq,) is one sample).
+
+        Returns
+        -------
+        :
+            Joint torques [N*m or N], shape (n_samples, nv).
+        """
+        q, dq, ddq = self._states(q, dq, ddq)
+        data = self.model.createData()
+        tau = np.empty((q.shape[0], self.nv))
+        for k in range(q.shape[0]):  # Pinocchio evaluates one state at a time
+            tau[k] = pin.rnea(self.model, data, q[k], dq[k], ddq[k])
+        return tau
+
+    # ------------------------------------------------------------------ kinematics
+    def frame_placements(self, q: npt.ArrayLike, frame: str) -> FloatArray:
+        """World poses of a named frame (``"flange"``, ``"wrist_centre"``, a link or joint).
+
+        Parameters
+        ----------
+        q :
+            Positions, shape (n_samples, nq) or (nq,).
+        frame :
+            Frame name in the model.
+
+        Returns
+        -------
+        :
+            Homogeneous transforms, shape (n_samples, 4, 4) [m].
+
+        Raises
+        ------
+        ModelError
+            If the frame does not exist; the message lists the available frames.
+        """
+        frame_id = self._frame_id(frame)
+        q = self._positions(q)
+        data = self.model.createData()
+        out = np.empty((q.shape[0], 4, 4))
+        for k in range(q.shape[0]):
+            pin.forwardKinematics(self.model, data, q[k])
+            out[k] = pin.updateFramePlacement(self.model, data, frame_id).homogeneous
+        return out
+
+    def frame_positions(self, q: npt.ArrayLike, frame: str) -> FloatArray:
+        """World positions of a named frame [m], shape (n_samples, 3)."""
+        return self.frame_placements(q, frame)[:, :3, 3]
+
+    def frame_names(self) -> tuple[str, ...]:
+        """Names of all frames of the model (links, joints, ``flange``, ...)."""
+        return tuple(f.name for f in self.model.frames)
+
+    def _frame_id(self, frame: str) -> int:
+        if not self.model.existFrame(frame):
+            import difflib
+
+            names = [n for n in dict.fromkeys(self.frame_names()) if n != "universe"]
+            close = difflib.get_close_matches(frame, names, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ModelError(
+                f"frame {frame!r} not found in robot {self.name!r}; {hint}"
+                f"available frames: {', '.join(names)}."
+            )
+        return int(self.model.getFrameId(frame))
+
+    # ------------------------------------------------------------------ sampling
+    def random_configurations(
+        self, n_samples: int, rng: np.random.Generator | int | None = None
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Uniformly random states within the limits.
+
+        Parameters
+        ----------
+        n_samples :
+            Number of states.
+        rng :
+            Generator or seed; the same seed gives the same states.
+
+        Returns
+        -------
+        q, dq, ddq :
+            Each of shape (n_samples, nq or nv). ``q`` in ``[q_lower, q_upper]`` (``+-pi`` rad or
+            ``+-1`` m where unknown), ``dq`` in ``[-dq_max, dq_max]`` (``+-1`` where unknown),
+            ``ddq`` in ``[-ddq_max, ddq_max]`` (``+-10`` where unknown).
+        """
+        rng = np.random.default_rng(rng)
+        prismatic = self._prismatic()
+        default_range = np.where(
+            prismatic, DEFAULT_Q_RANGE["prismatic"], DEFAULT_Q_RANGE["revolute"]
+        )
+        lower = np.where(np.isfinite(self.q_lower), self.q_lower, -default_range)
+        upper = np.where(np.isfinite(self.q_upper), self.q_upper, default_range)
+        dq_max = np.where(np.isfinite(self.dq_max), self.dq_max, DEFAULT_DQ_MAX)
+        ddq_max = np.where(np.isfinite(self.ddq_max), self.ddq_max, DEFAULT_DDQ_MAX)
+        q = rng.uniform(lower, upper, size=(n_samples, self.nq))
+        dq = rng.uniform(-dq_max, dq_max, size=(n_samples, self.nv))
+        ddq = rng.uniform(-ddq_max, ddq_max, size=(n_samples, self.nv))
+        return q, dq, ddq
+
+    def _prismatic(self) -> npt.NDArray[np.bool_]:
+        return np.array(
+            [
+                self.model.joints[j].shortname().startswith("JointModelP")
+                for j in range(1, self.model.njoints)
+            ]
+        )
+
+    # ------------------------------------------------------------------ input checks
+    def _positions(self, q: npt.ArrayLike) -> FloatArray:
+        q = np.asarray(q, dtype=float)
+        if q.ndim == 1:
+            q = q[None, :]
+        if q.ndim != 2 or q.shape[1] != self.nq:
+            raise DataError(
+                f"q must have shape (n_samples, {self.nq}) for robot {self.name!r}, got {q.shape}."
+            )
+        return q
+
+    def _states(
+        self, q: npt.ArrayLike, dq: npt.ArrayLike, ddq: npt.ArrayLike
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        q = self._positions(q)
+        out = [q]
+        for name, value in (("dq", dq), ("ddq", ddq)):
+            array = np.asarray(value, dtype=float)
+            if array.ndim == 1:
+                array = array[None, :]
+            if array.shape != (q.shape[0], self.nv):
+                raise DataError(
+                    f"{name} must have shape ({q.shape[0]}, {self.nv}) to match q for robot "
+                    f"{self.name!r}, got {array.shape}."
+                )
+            out.append(array)
+        return out[0], out[1], out[2]
+
+
+def _build_model(text: str, where: str) -> pin.Model:
+    """Parse URDF text with Pinocchio, turning parser failures into one-line ModelErrors."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as e:
+        raise ModelError(f"{where}: malformed URDF XML ({e}); fix the file.") from e
+    if root.tag != "robot":
+        raise ModelError(f"{where}: the root element is <{root.tag}>, not <robot>; not a URDF.")
+    try:
+        model = pin.buildModelFromXML(text)
+    except (RuntimeError, ValueError) as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise ModelError(
+            f"{where}: Pinocchio cannot parse the URDF ({first}); fix the file."
+        ) from e
+    if model.njoints < 2:
+        raise ModelError(f"{where}: the URDF has no moving joint; a serial arm is needed.")
+    return model
