@@ -90,9 +90,10 @@ def run(
         save_run(result, rundir.path)
         replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
         rundir.update(replay=replay_note)
-        report_path = write_report(rundir.path)
         rundir.finish("complete", result.message)
-        write_report(rundir.path)  # again, now with the final status and wall time
+        # after finish(): the report shows the final status and the wall time; if it fails,
+        # the data are saved and 'ident report RUN_DIR' writes it again
+        report_path = write_report(rundir.path)
         _summary(result, rundir.path, report_path, replay_note)
         if result.warnings:
             for warning in result.warnings:

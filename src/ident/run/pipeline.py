@@ -49,6 +49,7 @@ __all__ = [
     "RunInterrupted",
     "RunResult",
     "StageInfo",
+    "identify_elite",
     "run_pipeline",
 ]
 
@@ -592,7 +593,7 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
         meas_streams = streams[2].spawn(chosen_x.shape[0])
         for i in range(chosen_x.shape[0]):
             phase = f"identification of elite {i + 1}"
-            outcome = _identify_elite(
+            outcome = identify_elite(
                 config,
                 robot,
                 family,
@@ -691,7 +692,7 @@ def _elite_failure(search: Any, family: Any, objective: Any, bounds: FloatArray)
     )
 
 
-def _identify_elite(
+def identify_elite(
     config: RunConfig,
     robot: Any,
     family: Any,
@@ -702,6 +703,11 @@ def _identify_elite(
     details: dict[str, float],
     seed: Any,
 ) -> EliteOutcome:
+    """Measure (simulate) one elite trajectory and estimate the stage's base parameters.
+
+    Estimator failures (rank-deficient base matrix on this trajectory, ...) are recorded in
+    ``failures`` with their message; they do not raise.
+    """
     from ident.identify.estimate import least_squares
     from ident.identify.measurements import NoiseModel, simulate_measurements
 

@@ -1,0 +1,166 @@
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from ident.cli import app
+
+QUICK = Path(__file__).parent / "data" / "run" / "quick-wrist.yaml"
+runner = CliRunner()
+
+
+def _run(*args):
+    return runner.invoke(app, ["run", *map(str, args)])
+
+
+def _only_run_dir(out):
+    dirs = [d for d in out.iterdir() if d.is_dir()]
+    assert len(dirs) == 1
+    return dirs[0]
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs")
+    result = _run(QUICK, "--out", out)
+    assert result.exit_code == 0, result.output
+    return out, _only_run_dir(out), result.output
+
+
+def test_quick_run_writes_every_file(quick_run):
+    _, run_dir, output = quick_run
+    assert run_dir.name.startswith("quick-wrist-")
+    for name in (
+        "run.json",
+        "config.yaml",
+        "robot.urdf",
+        "result.json",
+        "trajectory.csv",
+        "elites/elite_1.csv",
+        "elites/elite_2.csv",
+        "figures/convergence.png",
+        "figures/trajectory.png",
+        "report.md",
+        "report.html",
+        "replay.html",
+    ):
+        assert (run_dir / name).is_file(), name
+    assert json.loads((run_dir / "run.json").read_text())["status"] == "complete"
+    assert not (run_dir / "INCOMPLETE").exists()
+    assert str(run_dir / "report.html") in output.replace("\n", "") or "report" in output
+    assert "Run folder" in output
+
+
+def test_result_json_is_complete_and_exact(quick_run):
+    _, run_dir, _ = quick_run
+    data = json.loads((run_dir / "result.json").read_text())
+    assert data["status"] == "complete"
+    stage = data["stage"]
+    n_base = stage["counts"]["n_base"]
+    assert n_base == len(stage["base_names"]) == len(stage["true_base"])
+    c = stage["counts"]
+    assert c["independent"] + c["dependent"] + c["unidentifiable"] == 30
+    assert stage["paper_counts"] == {"independent": 15, "dependent": 7, "unidentifiable": 8}
+    best = data["elites"][0]
+    assert best["fitness"] is not None
+    for method in ("ols", "wls"):
+        est = best["estimates"][method]
+        assert len(est["x"]) == len(est["std"]) == n_base
+        assert est["condition_number"] > 1
+        assert est["max_rel_error"] < 1e-8  # noise-free
+    assert "noise-free" in best["estimates"]["wls"]["message"]
+    assert len(data["optimization"]["runs"]) == 2
+
+
+def test_report_is_self_contained_and_mentions_the_paper(quick_run):
+    _, run_dir, _ = quick_run
+    page = (run_dir / "report.html").read_text()
+    assert page.count("data:image/png;base64,") >= 3
+    assert 'href="replay.html"' in page
+    md = (run_dir / "report.md").read_text()
+    assert "Tables 2-3" in md
+    assert "| paper | 15 | 7 | 8 |" in md
+    assert "nan" not in md.lower().replace("nanosecond", "")
+
+
+def test_same_seed_gives_byte_identical_result_json(quick_run, tmp_path):
+    _, run_dir, _ = quick_run
+    result = _run(QUICK, "--out", tmp_path, "--no-replay")
+    assert result.exit_code == 0, result.output
+    again = _only_run_dir(tmp_path)
+    assert again != run_dir
+    assert (again / "result.json").read_bytes() == (run_dir / "result.json").read_bytes()
+    assert not (again / "replay.html").exists()
+
+
+def test_report_command_regenerates(quick_run, tmp_path):
+    _, run_dir, _ = quick_run
+    copy = tmp_path / run_dir.name
+    shutil.copytree(run_dir, copy)
+    for name in ("report.md", "report.html", "figures/convergence.png"):
+        (copy / name).unlink()
+    result = runner.invoke(app, ["report", str(copy)])
+    assert result.exit_code == 0, result.output
+    assert (copy / "report.html").is_file()
+    assert (copy / "figures/convergence.png").is_file()
+    assert (copy / "report.md").read_text() == (run_dir / "report.md").read_text()
+
+
+def test_report_on_a_non_run_folder_is_a_clear_error(tmp_path):
+    result = runner.invoke(app, ["report", str(tmp_path)])
+    assert result.exit_code == 2
+    assert "run.json" in result.output
+
+
+def test_ctrl_c_leaves_a_consistent_incomplete_folder(tmp_path, monkeypatch):
+    from ident.cli import run as cli_run
+
+    original = cli_run._ProgressDisplay.update
+
+    def interrupt(self, event):
+        original(self, event)
+        if event.phase == "run_done":
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_run._ProgressDisplay, "update", interrupt)
+    result = _run(QUICK, "--out", tmp_path)
+    assert result.exit_code == 130
+    run_dir = _only_run_dir(tmp_path)
+    state = json.loads((run_dir / "run.json").read_text())
+    assert state["status"] == "incomplete"
+    assert "interrupted" in state["message"]
+    assert (run_dir / "INCOMPLETE").is_file()
+    data = json.loads((run_dir / "result.json").read_text())
+    assert data["status"] == "incomplete"
+    assert data["optimization"]["n_runs_finished"] == 1
+    assert data["elites"] == []
+    assert "Incomplete run" in (run_dir / "report.md").read_text()
+
+
+def test_bad_config_is_one_line_exit_2(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(QUICK.read_text().replace("stage: wrist", "stag: wrist"))
+    result = _run(bad, "--out", tmp_path / "runs")
+    assert result.exit_code == 2
+    assert "did you mean 'stage'" in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "runs").exists()
+
+
+def test_unmeetable_limits_exit_2_and_mark_the_folder(tmp_path):
+    bad = tmp_path / "infeasible.yaml"
+    text = QUICK.read_text().replace(
+        "robot: ../../../configs/paper6r.yaml",
+        f"robot: {QUICK.parents[3] / 'configs/paper6r.yaml'}",
+    )
+    text = text.replace(
+        "n_samples: 100\n", "n_samples: 100\n  bounds: {'q0[joint_5]': [3.0, 3.1]}\n"
+    )
+    bad.write_text(text)
+    result = _run(bad, "--out", tmp_path / "runs")
+    assert result.exit_code == 2
+    assert "initial elite search" in result.output
+    run_dir = _only_run_dir(tmp_path / "runs")
+    assert json.loads((run_dir / "run.json").read_text())["status"] == "incomplete"

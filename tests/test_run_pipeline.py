@@ -1,0 +1,141 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ident.errors import TrajectoryError
+from ident.run.config import load_run_config
+from ident.run.pipeline import (
+    RunInterrupted,
+    build_stage_info,
+    get_stage,
+    identify_elite,
+    load_robot,
+    make_family,
+    run_pipeline,
+)
+
+QUICK = Path(__file__).parent / "data" / "run" / "quick-wrist.yaml"
+
+
+@pytest.fixture(scope="module")
+def config():
+    return load_run_config(QUICK)
+
+
+@pytest.fixture(scope="module")
+def noise_free(config):
+    return run_pipeline(config)
+
+
+@pytest.fixture(scope="module")
+def noisy(config):
+    cfg = config.model_copy(
+        update={"measurement": config.measurement.model_copy(update={"torque_noise_std": 0.05})}
+    )
+    return run_pipeline(cfg)
+
+
+def _max_relative_error(x, true):
+    """|x - true| / |true| where true is non-zero, else against the largest |true|."""
+    scale = np.max(np.abs(true))
+    nonzero = np.abs(true) > 1e-9 * scale
+    err = np.abs(x - true)
+    return max(
+        np.max(err[nonzero] / np.abs(true[nonzero])), np.max(err[~nonzero], initial=0) / scale
+    )
+
+
+def test_noise_free_identification_recovers_true_base_parameters(noise_free):
+    assert noise_free.status == "complete"
+    stage = noise_free.stage
+    assert len(noise_free.elites) == 2
+    for elite in noise_free.elites:
+        assert set(elite.estimates) == {"ols", "wls"}
+        for est in elite.estimates.values():
+            assert est.names == stage.base_names
+            assert _max_relative_error(est.x, stage.true_base) < 1e-8
+
+
+def test_true_base_parameters_reproduce_the_full_model(noise_free, config):
+    """W_b @ beta_true == W @ p_true on random states: the truth the errors refer to."""
+    robot = load_robot(config.robot)
+    stage = noise_free.stage
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-1, 1, (30, 6))
+    dq, ddq = rng.normal(size=(30, 6)), rng.normal(size=(30, 6))
+    q[:, :3] = q[0, :3]  # the wrist stage holds the arm
+    dq[:, :3] = ddq[:, :3] = 0.0
+    Y = robot.regressor(q, dq, ddq)[:, list(stage.rows)]
+    full = Y[:, :, list(stage.columns)] @ stage.true_standard
+    base = stage.base.base_columns(Y[:, :, list(stage.columns)].reshape(-1, len(stage.columns)))
+    np.testing.assert_allclose(base @ stage.true_base, full.reshape(-1), atol=1e-9)
+
+
+def test_noisy_errors_fall_within_reported_std(noisy):
+    stage = noisy.stage
+    for elite in noisy.elites:
+        for method, est in elite.estimates.items():
+            within = np.abs(est.x - stage.true_base) <= 3.0 * est.std
+            assert within.mean() >= 0.8, (method, within.mean())
+            assert np.all(np.isfinite(est.std))
+            assert np.all(est.std > 0)
+
+
+def test_chosen_trajectories_violate_no_constraint(noise_free, config):
+    robot = load_robot(config.robot)
+    for elite in noise_free.elites:
+        assert np.all(elite.q >= robot.q_lower - 1e-12)
+        assert np.all(elite.q <= robot.q_upper + 1e-12)
+        assert np.all(np.abs(elite.dq) <= robot.dq_max + 1e-12)
+        assert np.all(np.abs(elite.ddq) <= robot.ddq_max + 1e-12)
+        assert elite.details["penalty"] == 0.0
+    fitness = [e.fitness for e in noise_free.elites]
+    assert fitness == sorted(fitness)
+    assert noise_free.elites[0].fitness <= min(r.fun for r in noise_free.runs) + 1e-12
+
+
+def test_same_seed_same_result_other_seed_differs(noise_free, config):
+    again = run_pipeline(config)
+    np.testing.assert_array_equal(again.elites[0].x, noise_free.elites[0].x)
+    np.testing.assert_array_equal(again.runs[1].history, noise_free.runs[1].history)
+    other = run_pipeline(config.with_seed(config.seed + 1))
+    assert not np.array_equal(other.elites[0].x, noise_free.elites[0].x)
+
+
+def test_keyboard_interrupt_in_progress_keeps_finished_runs(config):
+    def stop_in_second_run(event):
+        if event.phase == "optimize" and event.run == 1 and event.step >= 8:
+            raise KeyboardInterrupt
+
+    with pytest.raises(RunInterrupted) as info:
+        run_pipeline(config, progress=stop_in_second_run)
+    partial = info.value.partial
+    assert isinstance(info.value.cause, KeyboardInterrupt)
+    assert partial.status == "incomplete"
+    assert "eMuPSO run 2 of 2" in partial.message
+    assert len(partial.runs) == 1
+    assert partial.initial_elites.shape[0] == 2
+    assert partial.elites == ()
+
+
+def test_infeasible_limits_give_a_clear_elite_search_error(config):
+    excitation = config.excitation.model_copy(update={"bounds": {"q0[joint_5]": (3.0, 3.1)}})
+    with pytest.raises(RunInterrupted) as info:
+        run_pipeline(config.model_copy(update={"excitation": excitation}))
+    cause = info.value.cause
+    assert isinstance(cause, TrajectoryError)
+    assert "position:joint_5" in str(cause)
+    assert "initial elite search" in str(cause)
+
+
+def test_a_motionless_trajectory_is_reported_not_identifiable(config, noise_free):
+    robot = load_robot(config.robot)
+    stage = get_stage(robot, config.stage)
+    family = make_family(config, robot, stage)
+    info = build_stage_info(robot, stage, family, "qr", np.random.default_rng(0))
+    x = np.zeros(len(family.variable_names))  # all joints still at q0 = 0
+    outcome = identify_elite(config, robot, family, info, 0, x, 1.0, {}, 0)
+    assert outcome.estimates == {}
+    assert set(outcome.failures) == {"ols", "wls"}
+    assert all("not identifiable" in m for m in outcome.failures.values())
