@@ -19,6 +19,7 @@ from ident.dynamics.pinocchio_check import (
 from ident.dynamics.regressor import joint_torque_regressor, joint_torque_regressor_numpy
 from ident.errors import DataError
 
+ROOT = Path(__file__).parents[1]
 DATA = Path(__file__).parent / "data" / "urdf"
 ROBOTS = Path(
     str(
@@ -61,6 +62,7 @@ MODELS = {
     "ur5": lambda: pin.buildModelFromUrdf(str(ROBOTS / "ur_description/urdf/ur5_robot.urdf")),
     "panda": _panda,
     "unaligned": _unaligned,
+    "paper6r": lambda: pin.buildModelFromUrdf(str(ROOT / "robot/urdf/paper6r.urdf")),
 }
 
 
