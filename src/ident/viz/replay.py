@@ -36,6 +36,7 @@ import pinocchio as pin
 from meshcat.animation import Animation
 from meshcat.commands import SetAnimation
 from pinocchio.visualize import MeshcatVisualizer
+from pinocchio.visualize.meshcat_visualizer import loadMesh
 
 from ident.errors import DataError, IdentWarning, ModelError
 from ident.trajectory import JointTrajectory
@@ -57,7 +58,7 @@ DEFAULT_FPS = 30.0
 # Frames tried, in order, when no traced frame is given (the paper robot's flange first).
 _PREFERRED_TRACED_FRAMES = ("flange", "tool0", "tool", "ee_link", "wrist_centre")
 # Line colours of robots 0, 1, ... (0xRRGGBB), cycled.
-_PATH_COLORS = (0xE8590C, 0x1C7ED6, 0x2F9E44, 0xAE3EC9, 0xF59F00, 0x0CA678)
+_PATH_COLORS = (0xF03E9E, 0xFFD43B, 0x40C057, 0x15AABF, 0xFFFFFF, 0xBE4BDB)
 _ROOT = "replay"
 # Keep the path line light: a 1 kHz, 60 s log is decimated to at most this many points.
 _MAX_PATH_POINTS = 4000
@@ -89,6 +90,24 @@ class ReplayScene:
     traced_frame: str
     n_visuals: int
     fallback_geometry: bool
+
+
+class _BakedMeshVisualizer(MeshcatVisualizer):
+    """Pinocchio's meshcat visualizer that sends meshes as triangles loaded by coal.
+
+    Pinocchio sends Collada files to the browser as they are, and meshcat's viewer 0.3.2
+    misplaces the parts of Z-up Collada files (the UR5 falls apart). The triangles coal
+    loaded for Pinocchio (with the URDF's mesh scale applied) are what Pinocchio's own
+    kinematics use; they are also smaller to embed. Their placement is ``oMg`` without scale.
+    """
+
+    def loadMeshFromFile(self, geometry_object: pin.GeometryObject) -> object:  # noqa: N802
+        """Return the coal triangle mesh of a mesh file, else Pinocchio's loader."""
+        import coal
+
+        if isinstance(geometry_object.geometry, coal.BVHModelBase):
+            return loadMesh(geometry_object.geometry)
+        return super().loadMeshFromFile(geometry_object)
 
 
 def load_visual_robot(
@@ -310,7 +329,7 @@ def _set_camera(vis: meshcat.Visualizer, points: FloatArray) -> None:
     radius = max(float(np.linalg.norm(upper - lower)) / 2, 0.2)
     direction = np.array([1.0, -1.1, 0.7])
     # The 75 deg vertical field of view sees a sphere of radius R from 1.64 R; keep a margin.
-    offset = 2.0 * radius * direction / np.linalg.norm(direction)
+    offset = 1.7 * radius * direction / np.linalg.norm(direction)
     # The orbit controls turn about the origin of /Cameras/default; the camera object lives in
     # its "rotated" child (three.js y-up), where world (x, y, z) is (x, z, -y).
     vis["/Cameras/default"].set_transform(pin.SE3(np.eye(3), target).homogeneous)
@@ -395,7 +414,7 @@ def build_replay_scene(
     for k, (q_frames, path) in enumerate(zip(keyframes, paths, strict=True)):
         root = f"{_ROOT}/robot_{k}"
         offset = np.array([0.0, k * spacing, 0.0])
-        viz = MeshcatVisualizer(model, None, visual_model)
+        viz = _BakedMeshVisualizer(model, None, visual_model)
         with warnings.catch_warnings():
             # Pinocchio warns through UserWarning for each unsupported geometry; keep them,
             # but not its meshcat-version notice about get_image.
@@ -403,7 +422,6 @@ def build_replay_scene(
             viz.initViewer(viewer=vis)
             viz.loadViewerModel(rootNodeName=root)
         vis[root].set_transform(pin.SE3(np.eye(3), offset).homogeneous)
-        viz.display(q_frames[0])  # static pose (and mesh scale) before the animation starts
         _animate_robot(viz, animation, vis, root, q_frames)
 
         color = _PATH_COLORS[k % len(_PATH_COLORS)]
@@ -440,18 +458,24 @@ def _animate_robot(
     root: str,
     q_frames: FloatArray,
 ) -> None:
-    """Add one keyframe per configuration for every visual geometry of ``viz``."""
+    """Add one keyframe per configuration for every visual geometry of ``viz``.
+
+    The static pose (shown before the animation starts) is the first configuration. Mesh
+    scales are baked into the vertices (:class:`_BakedMeshVisualizer`), primitives have
+    their size in the geometry: placements carry no scale.
+    """
     model, data = viz.model, viz.data
     geom_model, geom_data = viz.visual_model, viz.visual_data
+    names = [f"{root}/visuals/{g.name}" for g in geom_model.geometryObjects]
     for frame, q in enumerate(q_frames):
         pin.forwardKinematics(model, data, q)
         pin.updateGeometryPlacements(model, data, geom_model, geom_data)
+        if frame == 0:
+            for gid, name in enumerate(names):
+                vis[name].set_transform(geom_data.oMg[gid].homogeneous)
         with animation.at_frame(vis, frame) as frame_vis:
-            for gid, geometry in enumerate(geom_model.geometryObjects):
-                # Position and orientation only: the mesh scale set by display() stays.
-                frame_vis[f"{root}/visuals/{geometry.name}"].set_transform(
-                    geom_data.oMg[gid].homogeneous
-                )
+            for gid, name in enumerate(names):
+                frame_vis[name].set_transform(geom_data.oMg[gid].homogeneous)
 
 
 def replay_html(

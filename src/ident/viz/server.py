@@ -1,0 +1,208 @@
+"""A live meshcat server bound to 127.0.0.1 only, in a thread of the calling process.
+
+meshcat 0.3.2's ``ZMQWebSocketBridge`` binds its ZMQ socket to its ``host`` (127.0.0.1 by
+default) but starts its web server with ``Application.listen(port)``, which listens on every
+interface: anyone on the network could watch (and the viewer's websocket accepts commands).
+:class:`LoopbackMeshcatServer` subclasses the bridge so the web server listens on the same
+loopback host, and runs it in a daemon thread of this process instead of meshcat's
+``meshcat-server`` subprocess: nothing outlives the process, and :meth:`stop` (or leaving the
+``with`` block, Ctrl-C included) closes both sockets.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import socket
+import threading
+from typing import Any
+
+import tornado.web
+import zmq
+from meshcat.servers import zmqserver
+
+from ident.errors import IdentError
+from ident.viz.recorder import SceneRecorder
+
+__all__ = ["DEFAULT_PORT", "LoopbackMeshcatServer", "find_free_port"]
+
+DEFAULT_PORT = 7000  # meshcat's default web port
+_LOOPBACK = "127.0.0.1"
+_PORT_ATTEMPTS = 100
+_REPLY_TIMEOUT_MS = 10_000
+
+
+class ServerError(IdentError):
+    """The live meshcat server could not start or did not answer."""
+
+
+def find_free_port(start: int, host: str = _LOOPBACK, attempts: int = _PORT_ATTEMPTS) -> int:
+    """First port >= ``start`` where a TCP server can listen on ``host``.
+
+    Raises
+    ------
+    ServerError
+        No free port among ``attempts`` consecutive ports.
+    """
+    for port in range(start, min(start + attempts, 65536)):
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            try:
+                probe.bind((host, port))
+            except OSError:
+                continue
+            return port
+    raise ServerError(
+        f"no free TCP port on {host} in {start}..{start + attempts - 1}; choose another --port."
+    )
+
+
+class _LoopbackApplication(tornado.web.Application):
+    """Tornado application whose ``listen`` binds to one host and keeps its server."""
+
+    def __init__(self, handlers: list[Any], host: str) -> None:
+        super().__init__(handlers)
+        self.host = host
+        self.http_server: Any = None
+
+    def listen(self, port: int, address: str | None = None, **kwargs: Any) -> Any:
+        """Listen on ``self.host`` whatever address the caller passes (meshcat passes none)."""
+        self.http_server = super().listen(port, address=self.host, **kwargs)
+        return self.http_server
+
+
+class _QuietWebSocketHandler(zmqserver.WebSocketHandler):
+    """meshcat's websocket handler without its 'opened:'/'closed:' prints."""
+
+    def open(self) -> None:
+        self.bridge.websocket_pool.add(self)
+        self.bridge.send_scene(self)
+
+    def on_close(self) -> None:
+        self.bridge.websocket_pool.discard(self)
+
+
+class _NoFavicon(tornado.web.RequestHandler):
+    """Answer browsers' /favicon.ico with 204 (meshcat's 404 shows as a console error)."""
+
+    def get(self) -> None:
+        self.set_status(204)
+
+
+class _LoopbackBridge(zmqserver.ZMQWebSocketBridge):
+    """meshcat's ZMQ <-> websocket bridge with both sockets on ``self.host``."""
+
+    def make_app(self) -> _LoopbackApplication:
+        return _LoopbackApplication(
+            [
+                (
+                    r"/static/(.*)",
+                    zmqserver.StaticFileHandlerNoCache,
+                    {"path": zmqserver.VIEWER_ROOT, "default_filename": zmqserver.VIEWER_HTML},
+                ),
+                (r"/", _QuietWebSocketHandler, {"bridge": self}),
+                (r"/favicon.ico", _NoFavicon),
+            ],
+            host=self.host,
+        )
+
+
+class LoopbackMeshcatServer:
+    """meshcat server on 127.0.0.1 in a daemon thread; use as a context manager.
+
+    Parameters
+    ----------
+    port :
+        First web port to try; the next free one is taken when it is in use.
+
+    Attributes
+    ----------
+    web_url :
+        Page of the viewer, ``http://127.0.0.1:<port>/static/``.
+    port, zmq_url :
+        Web port and ZMQ endpoint (``tcp://127.0.0.1:<port>``) once started.
+    """
+
+    def __init__(self, port: int = DEFAULT_PORT) -> None:
+        self.requested_port = port
+        self.port: int | None = None
+        self.web_url = ""
+        self.zmq_url = ""
+        self._bridge: _LoopbackBridge | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+
+    def start(self) -> LoopbackMeshcatServer:
+        """Start the server thread and wait until both sockets listen."""
+        self.port = find_free_port(self.requested_port)
+        self._thread = threading.Thread(target=self._serve, name="meshcat-server", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout=20.0):
+            raise ServerError("the meshcat server did not start within 20 s.")
+        if self._error is not None:
+            raise ServerError(
+                f"cannot start the meshcat server on {_LOOPBACK}:{self.port}: {self._error}"
+            ) from self._error
+        assert self._bridge is not None
+        self.zmq_url = self._bridge.zmq_url
+        self.web_url = self._bridge.web_url
+        return self
+
+    def _serve(self) -> None:
+        asyncio.set_event_loop(asyncio.new_event_loop())
+        try:
+            # zmq_url=None: meshcat takes the first free ZMQ port from 6000 on self.host.
+            self._bridge = _LoopbackBridge(host=_LOOPBACK, port=self.port)
+        except BaseException as e:  # reported by start() in the calling thread
+            self._error = e
+            self._ready.set()
+            return
+        self._ready.set()
+        bridge = self._bridge
+        try:
+            bridge.run()
+        finally:
+            # Runs in the server thread, after stop(): close every socket of the bridge.
+            for ws in list(bridge.websocket_pool):
+                ws.close()
+            if bridge.app.http_server is not None:
+                bridge.app.http_server.stop()
+            bridge.zmq_stream.close(linger=0)
+            bridge.ioloop.close(all_fds=True)
+
+    def push(self, recorder: SceneRecorder) -> None:
+        """Send a recorded scene to the server (and to every connected browser)."""
+        if self._bridge is None:
+            raise ServerError("push() before start().")
+        context = zmq.Context.instance()
+        with contextlib.closing(context.socket(zmq.REQ)) as sock:
+            sock.setsockopt(zmq.LINGER, 0)
+            sock.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
+            sock.connect(self.zmq_url)
+            for command in recorder.commands:
+                sock.send_multipart([command.type.encode(), command.path.encode(), command.data])
+                try:
+                    reply = sock.recv()
+                except zmq.Again as e:
+                    raise ServerError(
+                        f"the meshcat server at {self.zmq_url} did not answer within "
+                        f"{_REPLY_TIMEOUT_MS / 1000:.0f} s."
+                    ) from e
+                if reply != b"ok":
+                    raise ServerError(f"the meshcat server refused a command: {reply!r}")
+
+    def stop(self) -> None:
+        """Stop the server and close its sockets; safe to call twice."""
+        if self._thread is None:
+            return
+        if self._bridge is not None and self._thread.is_alive():
+            ioloop = self._bridge.ioloop
+            ioloop.add_callback(ioloop.stop)
+        self._thread.join(timeout=10.0)
+        self._thread = None
+
+    def __enter__(self) -> LoopbackMeshcatServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -1,0 +1,149 @@
+"""Headless Debian Chromium driven by Playwright, for the replay's browser tests.
+
+Never downloads a browser: Playwright starts ``/usr/bin/chromium`` (``apt-get install
+chromium``). Outside CI a missing chromium skips the tests; under ``CI=true`` it fails them.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+CHROMIUM = Path(os.environ.get("IDENT_CHROMIUM", "/usr/bin/chromium"))
+# Renders WebGL with SwiftShader (CPU) through ANGLE: no GPU, no display needed.
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+]
+VIEWPORT = {"width": 640, "height": 480}
+
+
+def require_chromium() -> None:
+    """Skip (or fail under CI=true) when Debian's chromium is not installed."""
+    if CHROMIUM.is_file():
+        return
+    message = (
+        f"{CHROMIUM} not found: install Debian's chromium with "
+        "`apt-get install -y --no-install-recommends chromium` (never a browser download)"
+    )
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(message)
+    pytest.skip(message)
+
+
+@pytest.fixture(scope="module")
+def chromium() -> Iterator[object]:
+    """A headless Chromium with a fresh user-data directory, shared by a test module."""
+    require_chromium()
+    from playwright.sync_api import sync_playwright
+
+    with tempfile.TemporaryDirectory(prefix="ident-chromium-") as user_data:
+        with sync_playwright() as playwright:
+            context = playwright.chromium.launch_persistent_context(
+                user_data,
+                executable_path=str(CHROMIUM),
+                headless=True,
+                args=CHROMIUM_ARGS,
+                viewport=VIEWPORT,
+                device_scale_factor=1,
+            )
+            try:
+                yield context
+            finally:
+                context.close()
+
+
+class PageLog:
+    """JavaScript errors and network requests of a page."""
+
+    def __init__(self, page: object) -> None:
+        self.errors: list[str] = []
+        self.requests: list[str] = []
+        page.on("console", self._console)
+        page.on("pageerror", lambda e: self.errors.append(f"pageerror: {e}"))
+        page.on("request", lambda r: self.requests.append(r.url))
+
+    def _console(self, message: object) -> None:
+        if message.type == "error":
+            self.errors.append(f"console.error: {message.text}")
+
+
+def wait_for_robot(page: object, robot_path: str, n_meshes: int, timeout_ms: int = 20000) -> None:
+    """Wait until the robot's meshes and the animation are loaded in the page's viewer."""
+    entries = [p for p in robot_path.split("/") if p]
+    page.wait_for_function(
+        """([entries, n]) => {
+            if (typeof viewer === "undefined") return false;
+            let count = 0;
+            viewer.scene_tree.find(entries).object.traverse(o => { if (o.isMesh) count++; });
+            return count >= n && viewer.animator.actions.length > 0;
+        }""",
+        arg=[entries, n_meshes],
+        timeout=timeout_ms,
+    )
+
+
+def freeze(page: object, time_s: float) -> None:
+    """Pause the animation at ``time_s`` [s] of replay time and let the viewer render it."""
+    page.evaluate(
+        """async (t) => {
+            viewer.animator.pause();
+            viewer.animator.seek(t);
+            viewer.set_dirty();
+            await new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)));
+        }""",
+        time_s,
+    )
+
+
+def set_visible(page: object, path: str, visible: bool) -> None:
+    """Show or hide a scene node (and its subtree) and render."""
+    entries = [p for p in path.split("/") if p]
+    page.evaluate(
+        """async ([entries, visible]) => {
+            viewer.scene_tree.find(entries).object.visible = visible;
+            viewer.set_dirty();
+            await new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)));
+        }""",
+        [entries, visible],
+    )
+
+
+def canvas_pixels(page: object) -> np.ndarray:
+    """RGB pixels of the viewer's WebGL canvas, shape (height, width, 3)."""
+    png = page.locator("#meshcat-pane canvas").first.screenshot()
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.int16)
+
+
+def changed_mask(a: np.ndarray, b: np.ndarray, threshold: int = 12) -> np.ndarray:
+    """Pixels whose colour differs by more than ``threshold`` in some channel."""
+    return np.abs(a - b).max(axis=2) > threshold
+
+
+def robot_mask(page: object, visuals_path: str, time_s: float) -> tuple[np.ndarray, float]:
+    """Pixels covered by the robot at ``time_s``: frame with the robot minus frame without.
+
+    Returns the mask and the share of changed pixels between two renders of the same
+    frame with nothing hidden (the negative control).
+    """
+    freeze(page, time_s)
+    shown = canvas_pixels(page)
+    again = canvas_pixels(page)
+    set_visible(page, visuals_path, False)
+    hidden = canvas_pixels(page)
+    set_visible(page, visuals_path, True)
+    return changed_mask(shown, hidden), float(changed_mask(shown, again).mean())
