@@ -1,0 +1,27 @@
+"""Benchmark functions and the optimizer comparison campaign of the paper (Tables 4-9).
+
+``ident.bench.functions``: the 36 table functions (and the appendix order) in a registry;
+``ident.bench.campaign``: seeded runs, parallel execution, statistics;
+``ident.bench.report``: tables, plots and the Markdown/HTML report;
+``ident.bench.paper_tables``: the paper's published numbers, for side-by-side comparison.
+"""
+
+from __future__ import annotations
+
+from ident.bench.functions import (
+    BenchmarkFunction,
+    appendix_functions,
+    get_function,
+    list_functions,
+    register_function,
+    table_functions,
+)
+
+__all__ = [
+    "BenchmarkFunction",
+    "appendix_functions",
+    "get_function",
+    "list_functions",
+    "register_function",
+    "table_functions",
+]
