@@ -70,3 +70,112 @@ def test_plots_are_deterministic_pngs():
     assert convergence_png([]).startswith(PNG_MAGIC)
     est = estimate_png(["a", "b"], np.zeros(2), {"ols": (np.ones(2), np.array([1.0, 0.0]))})
     assert est.startswith(PNG_MAGIC)
+
+
+# ----------------------------------------------------------------------------- run report
+
+import json  # noqa: E402
+
+import pytest  # noqa: E402
+
+from ident.errors import IdentError  # noqa: E402
+from ident.report.run_report import error_measures, render_markdown, write_report  # noqa: E402
+
+
+def test_error_measures_handle_zero_true_values():
+    true = np.array([2.0, 0.0, -4.0, 1e-20])
+    x = np.array([2.5, 0.01, -4.0, 0.0])
+    std = np.array([0.1, 0.01, 0.0, 1.0])
+    m = error_measures(x, std, true)
+    assert m["rel_error_percent"][0] == pytest.approx(25.0)
+    assert m["rel_error_percent"][1] is None  # true is zero: no relative error
+    assert m["rel_error_percent"][3] is None  # zero up to round-off
+    assert m["normalized_error"][2] is None  # std = 0
+    assert m["error_sum_percent"] == pytest.approx(25.0)
+    assert m["error_sum_best_percent"] == 0.0
+    assert m["within_3std"] == pytest.approx(0.75)
+    assert m["max_rel_error"] == pytest.approx(0.25)
+    json.dumps(m, allow_nan=False)
+
+
+def _data(estimates, failures):
+    return {
+        "format": "ident-run/1",
+        "status": "complete",
+        "message": "run complete",
+        "name": "t",
+        "seed": 1,
+        "config": {
+            "robot": "r.yaml",
+            "stage": "wrist",
+            "excitation": {"family": "joint_fourier", "criterion": "paper", "n_samples": 10},
+            "elites": {"n_particles": 2, "n_elites": 1},
+            "emupso": {"n_runs": 1, "n_particles": 2, "maxiter": 1, "stagnation": 1},
+            "measurement": {"torque_noise_std": 0.0, "encoder_counts_per_rev": None},
+            "estimation": {"methods": ["ols"]},
+        },
+        "robot": {"name": "r", "joint_names": ["a"], "q_limits": [[-1, 1]], "dq_limits": [1]},
+        "excitation": {"variable_names": ["v"], "moving_joints": [0]},
+        "warnings": [],
+        "stage": {
+            "name": "wrist",
+            "torque_rows": [0],
+            "base_method": "qr",
+            "known_bodies": "all bodies are unknown in this stage",
+            "counts": {"independent": 1, "dependent": 0, "unidentifiable": 0, "n_base": 1},
+            "paper_counts": {"independent": 15, "dependent": 7, "unidentifiable": 8},
+            "independent": ["m1"],
+            "dependent": [],
+            "unidentifiable": [],
+            "base_names": ["m1"],
+            "base_expressions": ["m1"],
+            "true_base": [1.0],
+            "identifiable_alone": [True],
+        },
+        "initial_elites": {"x": [[0.0]], "message": "1 elites found"},
+        "optimization": {"n_runs_finished": 1, "runs": []},
+        "elites": [
+            {
+                "rank": 1,
+                "x": [0.5],
+                "fitness": 3.0,
+                "objective": {"cond": 2.0},
+                "estimates": estimates,
+                "failures": failures,
+                "path_csv": None,
+            }
+        ],
+        "chosen_elite": 1,
+    }
+
+
+def test_markdown_says_plainly_when_nothing_was_identified():
+    md = render_markdown(_data({}, {"ols": "not identifiable on this trajectory: m1 ..."}))
+    assert "**Elite 1, ols**: not identifiable" in md
+    assert "No estimate" in md
+    assert "nan" not in md.lower()
+    assert "None" not in md.split("## Configuration snapshot")[0]
+
+
+def test_markdown_tables_of_an_estimate():
+    est = {
+        "x": [1.1],
+        "std": [0.1],
+        "condition_number": 3.0,
+        "residual_rms": [0.2],
+        "relative_residual": 0.01,
+        "message": "ok",
+        **error_measures(np.array([1.1]), np.array([0.1]), np.array([1.0])),
+    }
+    md = render_markdown(_data({"ols": est}, {}))
+    assert "| `m1` (alone) | 1 | 1.1 | 0.1 | 0.1 | 10 | 1 |" in md
+    assert "Standard parameters identifiable alone" in md
+    assert "| paper | 15 | 7 | 8 |" in md
+
+
+def test_write_report_needs_result_json(tmp_path):
+    with pytest.raises(IdentError, match="no result.json"):
+        write_report(tmp_path)
+    (tmp_path / "result.json").write_text('{"format": "other"}')
+    with pytest.raises(IdentError, match="format"):
+        write_report(tmp_path)

@@ -647,6 +647,19 @@ def _identification_section(
             ],
             rows,
         )
+    alone = [i for i, a in enumerate(stage["identifiable_alone"]) if a]
+    if alone:
+        md += ["### Standard parameters identifiable alone", ""]
+        rows = []
+        for i in alone:
+            cells = [f"`{stage['base_names'][i]}`", _fmt(true[i])]
+            for est in elite["estimates"].values():
+                cells += [_fmt(est["x"][i]), _fmt(est["std"][i]), _fmt(est["rel_error_percent"][i])]
+            rows.append(cells)
+        header = ["parameter", "true"]
+        for m in elite["estimates"]:
+            header += [f"{m} identified", f"{m} std", f"{m} rel. error [%]"]
+        md += _table(header, rows)
     md += [
         "Parameters marked *(alone)* are standard parameters identifiable alone (no other "
         "parameter is combined into them): their row is also their standard-parameter "
