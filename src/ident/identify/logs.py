@@ -140,6 +140,11 @@ def transmission_from_config(
     )
 
 
+def _matrix(a: FloatArray) -> str:
+    """One-line matrix text for the records (rows separated by ';')."""
+    return "[" + "; ".join(" ".join(f"{v:g}" for v in row) for row in a) + "]"
+
+
 def _open_text(path: Path) -> io.TextIOBase:
     if path.suffix == ".gz":
         return io.TextIOWrapper(gzip.open(path, "rb"), encoding="utf-8")
@@ -368,8 +373,8 @@ def read_log(
         {
             "step": "transmission",
             "detail": f"{cfg.side}-side signals; q = Rq^-1 q_motor + offsets, tau = Rt (k y); "
-            f"Rq = {np.array2string(trans.position_matrix, separator=', ')}; "
-            f"Rt = {np.array2string(trans.torque_matrix, separator=', ')}; "
+            f"Rq = {_matrix(trans.position_matrix)}; "
+            f"Rt = {_matrix(trans.torque_matrix)}; "
             f"k = {trans.torque_constants.tolist()}; "
             f"zero offsets [rad] = {trans.zero_offsets.tolist()}",
         }

@@ -106,7 +106,11 @@ def differentiate(q: FloatArray, sampling_rate_hz: float) -> tuple[FloatArray, F
     step = 1.0 / sampling_rate_hz
     dq = np.gradient(q, step, axis=0, edge_order=2)
     ddq = np.gradient(dq, step, axis=0, edge_order=2)
-    return dq, ddq, {"step": "differentiate", "detail": "central differences (np.gradient) to dq, ddq"}
+    return (
+        dq,
+        ddq,
+        {"step": "differentiate", "detail": "central differences (np.gradient) to dq, ddq"},
+    )
 
 
 def trim(arrays: list[FloatArray], n_edge: int) -> tuple[list[FloatArray], dict]:
@@ -219,8 +223,8 @@ def velocity_mask(
     kept = keep.sum(axis=0)
     return keep, {
         "step": "velocity threshold",
-        "detail": "dropped the rows of joint j where |dq_j| < threshold_j "
-        f"{np.array2string(thresholds, precision=4, separator=', ')} rad/s; kept per joint "
+        "detail": "dropped the rows of joint j where abs(dq_j) < threshold_j "
+        f"{[round(float(v), 4) for v in thresholds]} rad/s; kept per joint "
         f"{kept.tolist()} of {n_samples}",
         "kept": kept.tolist(),
     }

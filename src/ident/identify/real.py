@@ -203,7 +203,8 @@ class ModelPrediction:
     """A parameter set judged on the held-out part."""
 
     label: str
-    metrics: PredictionMetrics
+    metrics: PredictionMetrics  # rows above the velocity threshold (as identified)
+    metrics_all: PredictionMetrics  # every held-out sample, standstill included
     tau_pred: FloatArray
 
 
@@ -245,6 +246,7 @@ class IdentifyResult:
     essential: EssentialResult | None
     t_validate: FloatArray
     tau_validate: FloatArray
+    keep_validate: npt.NDArray[np.bool_]
     predictions: dict[str, ModelPrediction]
     comparison: tuple[dict, ...]
     reference_note: str
@@ -469,8 +471,8 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
             "step": "time split",
             "detail": f"identify on samples 0..{ident_part.stop - 1} "
             f"({t_dec[ident_part.stop - 1] if ident_part.stop else 0:.3f} s), validate on "
-            f"{val_part.stop - val_part.start} later samples (all joints, no velocity "
-            "threshold)",
+            f"{val_part.stop - val_part.start} later samples (errors reported on the rows "
+            "above the velocity threshold, as identified, and on all samples)",
         }
     )
     timings["decimate"] = time.perf_counter() - t4
@@ -489,9 +491,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
             )
     base_names = pm.base_names
     try:
-        est = least_squares(
-            W_id, tau_id, base_names, method=cfg.estimation.method, groups=groups
-        )
+        est = least_squares(W_id, tau_id, base_names, method=cfg.estimation.method, groups=groups)
     except NotIdentifiable as e:
         raise NotIdentifiable(
             f"{source}: the log does not determine every base parameter: {e}"
@@ -517,10 +517,16 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     # held-out prediction (or in-sample when the whole log identifies)
     part = val_part if val_part.stop > val_part.start else ident_part
     tau_val = tau_d[part]
+    keep_val = keep[part]
     predictions: dict[str, ModelPrediction] = {}
 
     def add(label: str, tau_pred: FloatArray) -> None:
-        predictions[label] = ModelPrediction(label, prediction_metrics(tau_val, tau_pred), tau_pred)
+        predictions[label] = ModelPrediction(
+            label,
+            prediction_metrics(tau_val, tau_pred, keep_val),
+            prediction_metrics(tau_val, tau_pred),
+            tau_pred,
+        )
 
     add("identified", Yb_d[part] @ est.x)
     if essential is not None:
@@ -544,6 +550,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
         essential=essential,
         t_validate=t_dec[part],
         tau_validate=tau_val,
+        keep_validate=keep_val,
         predictions=predictions,
         comparison=tuple(comparison),
         reference_note=note,

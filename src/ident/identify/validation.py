@@ -53,21 +53,46 @@ class PredictionMetrics:
         }
 
 
-def prediction_metrics(tau: FloatArray, tau_pred: FloatArray) -> PredictionMetrics:
+def prediction_metrics(
+    tau: FloatArray, tau_pred: FloatArray, mask: npt.NDArray[np.bool_] | None = None
+) -> PredictionMetrics:
     """Compare measured and predicted torques.
 
     Parameters
     ----------
     tau, tau_pred :
         Measured and predicted torques [N*m], shape (n_samples, nv).
+    mask :
+        Optional (n_samples, nv) selection of the (sample, joint) entries to compare, e.g. the
+        velocity threshold; unselected entries count neither in the error nor in the norms.
 
     Returns
     -------
     :
-        The :class:`PredictionMetrics`.
+        The :class:`PredictionMetrics` (``n_samples``: selected entries / nv, rounded down,
+        when masked).
     """
     tau = np.asarray(tau, dtype=float)
     r = tau - np.asarray(tau_pred, dtype=float)
+    if mask is not None:
+        mask = np.asarray(mask, dtype=bool)
+        tau = np.where(mask, tau, 0.0)
+        r = np.where(mask, r, 0.0)
+        count = np.maximum(mask.sum(axis=0), 1)
+        mean = tau.sum(axis=0) / count
+        sst = np.sum(np.where(mask, (tau - mean) ** 2, 0.0), axis=0)
+        norm_tau = np.linalg.norm(tau, axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            relative = np.where(norm_tau > 0, np.linalg.norm(r, axis=0) / norm_tau, np.inf)
+            r2 = np.where(sst > 0, 1.0 - np.sum(r**2, axis=0) / sst, np.nan)
+        total = float(np.linalg.norm(r) / np.linalg.norm(tau)) if np.any(tau) else float("inf")
+        return PredictionMetrics(
+            rmse=np.sqrt(np.sum(r**2, axis=0) / count),
+            relative_residual=relative,
+            total_relative_residual=total,
+            r2=r2,
+            n_samples=int(mask.sum() // max(mask.shape[1], 1)),
+        )
     norm_tau = np.linalg.norm(tau, axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         relative = np.where(norm_tau > 0, np.linalg.norm(r, axis=0) / norm_tau, np.inf)
@@ -104,9 +129,7 @@ def time_split(n_samples: int, identify_fraction: float) -> tuple[slice, slice]:
         If the fraction is outside (0, 1] or leaves an empty identification part.
     """
     if not 0.0 < identify_fraction <= 1.0:
-        raise ConfigError(
-            f"validation.identify_fraction = {identify_fraction} must be in (0, 1]."
-        )
+        raise ConfigError(f"validation.identify_fraction = {identify_fraction} must be in (0, 1].")
     n_id = int(round(identify_fraction * n_samples))
     if n_id < 1:
         raise ConfigError(

@@ -1,0 +1,376 @@
+"""Report of ``ident identify``: report.md, report.html, result.json, parameters.csv, plots, URDF.
+
+Everything is written into an existing run folder through atomic writes; the HTML page embeds
+its figures (base64 PNG, readable offline). ``result.json`` holds no times, so the same config
+gives the same file; timings go to ``run.json`` (the caller's run folder state).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ident.fileio import atomic_write_bytes, atomic_write_text
+from ident.identify.real import IdentifyResult
+from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
+
+__all__ = ["identified_urdf", "result_dict", "torque_png", "write_identify_report"]
+
+_PLOT_LABELS = ("identified", "reference")
+
+
+def _num(value: float | None, digits: int = 4) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    if isinstance(value, float) and math.isinf(value):
+        return "inf"
+    return f"{value:.{digits}g}"
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if np.isfinite(value) else None
+
+
+def torque_png(result: IdentifyResult) -> bytes:
+    """Measured vs predicted torque per joint on the held-out part, as PNG bytes."""
+    from matplotlib.figure import Figure
+
+    nv = result.tau_validate.shape[1]
+    fig = Figure(figsize=(9.0, 1.9 * nv), layout="constrained")
+    axes = fig.subplots(nv, 1, sharex=True, squeeze=False)[:, 0]
+    styles = {"identified": ("C3", "-"), "reference": ("C0", "--"), "essential": ("C2", ":")}
+    t = result.t_validate
+    for j, ax in enumerate(axes):
+        ax.plot(t, result.tau_validate[:, j], color="k", lw=1.2, label="measured")
+        for label in _PLOT_LABELS:
+            if label in result.predictions:
+                color, ls = styles[label]
+                ax.plot(
+                    t,
+                    result.predictions[label].tau_pred[:, j],
+                    color=color,
+                    ls=ls,
+                    lw=1.0,
+                    label=label,
+                )
+        slow = ~result.keep_validate[:, j]
+        if slow.any():
+            ax.plot(
+                t[slow],
+                result.tau_validate[slow, j],
+                "x",
+                color="0.6",
+                ms=3,
+                label="below velocity threshold",
+            )
+        ax.set_ylabel(f"{result.joint_names[j]}\n[N*m]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=7, ncol=4)
+    axes[-1].set_xlabel("time [s] (held-out part)")
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90, metadata={"Software": None})
+    return buffer.getvalue()
+
+
+def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
+    """URDF copy with the standard parameters that base parameters determine alone."""
+    pm = result.parameters
+    est = result.estimate
+    base = pm.base
+    identified = {}
+    for k, i in enumerate(base.independent):  # type: ignore[attr-defined]
+        name = pm.names[i]
+        alone = not pm.base_names[k].endswith("R") and pm.inertial_index[i] >= 0
+        if alone:
+            identified[name] = float(est.x[k])
+    import pinocchio as pin  # noqa: F401 - used by update_urdf_inertials
+
+    from ident.dynamics.parameters import parameters_from_model
+    from ident.identify.real import load_robot_model
+
+    model = load_robot_model(result.config.robot.urdf)
+    text = Path(result.config.robot.urdf).read_text(encoding="utf-8")
+    return update_urdf_inertials(text, result.joint_names, parameters_from_model(model), identified)
+
+
+def result_dict(result: IdentifyResult, urdf: UrdfUpdate | None = None) -> dict:
+    """JSON-ready summary of the identification (no times)."""
+    pm = result.parameters
+    est = result.estimate
+    expressions = pm.base.expressions()  # type: ignore[attr-defined]
+    essential = result.essential
+    out = {
+        "name": result.config.name,
+        "method": est.method,
+        "n_base_parameters": len(pm.base_names),
+        "n_identification_rows": est.n_observations,
+        "sampling_rate_after_decimation_hz": result.sampling_rate_hz,
+        "relative_residual": est.relative_residual,
+        "condition_number": est.condition_number,
+        "residual_rms": dict(zip(result.joint_names, est.residual_rms.tolist(), strict=True)),
+        "sigma": dict(zip(result.joint_names, est.sigma.tolist(), strict=True)),
+        "message": est.message,
+        "base_parameters": [
+            {
+                "name": name,
+                "expression": expr,
+                "value": float(est.x[k]),
+                "std": float(est.std[k]),
+                "relative_std_pct": _finite(est.relative_std[k]),
+                "nominal": float(pm.base.projection[k] @ pm.nominal),  # type: ignore[attr-defined]
+            }
+            for k, (name, expr) in enumerate(zip(pm.base_names, expressions, strict=True))
+        ],
+        "unidentifiable": [pm.names[i] for i in pm.base.unidentifiable],  # type: ignore[attr-defined]
+        "essential": None
+        if essential is None
+        else {
+            "names": list(essential.estimate.names),
+            "values": essential.estimate.x.tolist(),
+            "relative_std_pct": [_finite(v) for v in essential.estimate.relative_std],
+            "relative_residual": essential.estimate.relative_residual,
+            "dropped": list(essential.dropped),
+            "stop_reason": essential.stop_reason,
+        },
+        "validation": {
+            label: {
+                "above_velocity_threshold": p.metrics.as_dict(),
+                "all_samples": p.metrics_all.as_dict(),
+            }
+            for label, p in result.predictions.items()
+        },
+        "reference_comparison": [
+            {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()}
+            for row in result.comparison
+        ],
+        "reference_note": result.reference_note,
+        "processing": list(result.records),
+    }
+    if urdf is not None:
+        out["urdf"] = {
+            "written": {k: list(v) for k, v in urdf.written.items()},
+            "not_determined": list(urdf.not_determined),
+            "inconsistent_links": urdf.inconsistent_links,
+        }
+    return out
+
+
+def _markdown(result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str) -> str:
+    pm = result.parameters
+    est = result.estimate
+    names = result.joint_names
+    lines = [
+        f"# Identification of `{result.config.name}` from a measured log",
+        "",
+        f"Config: `{result.config.source}`. URDF: `{Path(result.config.robot.urdf).name}`. "
+        f"Estimator: **{est.method.upper()}** on {est.n_observations} rows "
+        f"({len(pm.base_names)} base parameters, condition number {est.condition_number:.4g}).",
+        "",
+        f"**Relative residual (identification rows): {est.relative_residual:.4f}**. {est.message}",
+        "",
+        "## Processing",
+        "",
+        "| step | what |",
+        "| --- | --- |",
+    ]
+    lines += [f"| {r['step']} | {r['detail']} |" for r in result.records]
+    lines += [
+        "",
+        "## Residuals on the identification part",
+        "",
+        "| joint | residual RMS [N*m] | sigma used [N*m] |",
+        "| --- | --- | --- |",
+    ]
+    lines += [
+        f"| {n} | {_num(est.residual_rms[j])} | {_num(est.sigma[j])} |" for j, n in enumerate(names)
+    ]
+    lines += [
+        "",
+        "## Held-out validation",
+        "",
+        "Torque prediction on the last part of the log, never used to identify. Errors on the "
+        "rows above the velocity threshold (the rows the model was identified on; at standstill "
+        "the Coulomb term `sign(dq)` follows noise). The dataset's reference values were "
+        "identified on the whole log, held-out part included.",
+        "",
+        "| parameters | "
+        + " | ".join(f"RMSE {n} [N*m]" for n in names)
+        + " | relative residual | all samples: relative residual |",
+        "| --- |" + " --- |" * (len(names) + 2),
+    ]
+    for label, p in result.predictions.items():
+        lines.append(
+            f"| {label} | "
+            + " | ".join(_num(v) for v in p.metrics.rmse)
+            + f" | {p.metrics.total_relative_residual:.4f} | "
+            f"{p.metrics_all.total_relative_residual:.4f} |"
+        )
+    lines += [
+        "",
+        "| parameters | " + " | ".join(f"rel. residual {n}" for n in names) + " |",
+        "| --- |" + " --- |" * len(names),
+    ]
+    for label, p in result.predictions.items():
+        lines.append(
+            f"| {label} | " + " | ".join(_num(v, 3) for v in p.metrics.relative_residual) + " |"
+        )
+    lines += ["", "![measured vs predicted torque](figures/torque_validation.png)", ""]
+    lines += [
+        "## Base parameters",
+        "",
+        result.reference_note,
+        "",
+        "| # | base parameter | value | rel. std [%] | reference | ref. rel. std [%] | "
+        "URDF nominal | expression |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    by_ours = {row["ours"]: row for row in result.comparison if row["ours"]}
+    expressions = pm.base.expressions()  # type: ignore[attr-defined]
+    for k, name in enumerate(pm.base_names):
+        row = by_ours.get(name)
+        ref = _num(row["reference_value"]) if row else "-"
+        ref_std = _num(row["reference_relative_std_pct"], 3) if row else "-"
+        nominal = float(pm.base.projection[k] @ pm.nominal)  # type: ignore[attr-defined]
+        lines.append(
+            f"| {k + 1} | {name} | {_num(est.x[k])} | {_num(est.relative_std[k], 3)} | {ref} | "
+            f"{ref_std} | {_num(nominal)} | `{expressions[k]}` |"
+        )
+    sums = [row for row in result.comparison if row["match"] == "coupling basis"]
+    if sums:
+        lines += [
+            "",
+            "Coupled wrist, reference basis (sums of our parameters):",
+            "",
+            "| reference | value | ref. rel. std [%] | ours | value | rel. std [%] |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
+        lines += [
+            f"| {r['reference']} | {_num(r['reference_value'])} | "
+            f"{_num(r['reference_relative_std_pct'], 3)} | {r['ours']} | {_num(r['value'])} | "
+            f"{_num(r['relative_std_pct'], 3)} |"
+            for r in sums
+        ]
+    unmatched = [row["reference"] for row in result.comparison if row["match"] == "none"]
+    if unmatched:
+        lines += [
+            "",
+            "Reference parameters without a counterpart here: "
+            + ", ".join(f"`{u}`" for u in unmatched),
+        ]
+    ess = result.essential
+    if ess is not None:
+        lines += [
+            "",
+            "## Essential parameters",
+            "",
+            f"{len(ess.kept)} of {len(pm.base_names)} kept; relative residual "
+            f"{ess.estimate.relative_residual:.4f}; stopped because {ess.stop_reason}.",
+            "",
+            "| parameter | value | rel. std [%] |",
+            "| --- | --- | --- |",
+        ]
+        lines += [
+            f"| {n} | {_num(v)} | {_num(s, 3)} |"
+            for n, v, s in zip(
+                ess.estimate.names, ess.estimate.x, ess.estimate.relative_std, strict=True
+            )
+        ]
+        if ess.dropped:
+            lines += [
+                "",
+                "Dropped, in order: "
+                + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
+            ]
+    lines += [
+        "",
+        "## URDF with identified parameters",
+        "",
+        f"`{urdf_name}`: standard parameters that a base parameter determines alone were "
+        "replaced (values about the joint-frame origin; the URDF stores them about the centre "
+        "of mass):",
+        "",
+        "| parameter | URDF | identified |",
+        "| --- | --- | --- |",
+    ]
+    lines += [f"| {k} | {_num(a)} | {_num(b)} |" for k, (a, b) in urdf.written.items()]
+    lines += [
+        "",
+        f"Not determined alone (kept from the URDF; the data fix only the regrouped sums above): "
+        f"{', '.join(urdf.not_determined)}.",
+    ]
+    if urdf.inconsistent_links:
+        lines += [
+            "",
+            "> Physically inconsistent after the update: "
+            + "; ".join(f"{k}: {v}" for k, v in urdf.inconsistent_links.items())
+            + ". The base parameters are what the data support; use the URDF copy with care.",
+        ]
+    lines += [
+        "",
+        "## Timings",
+        "",
+        "| stage | seconds |",
+        "| --- | --- |",
+    ]
+    lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _parameters_csv(result: IdentifyResult) -> str:
+    pm = result.parameters
+    est = result.estimate
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["name", "value", "std", "relative_std_pct", "expression"])
+    for k, expr in enumerate(pm.base.expressions()):  # type: ignore[attr-defined]
+        writer.writerow(
+            [
+                pm.base_names[k],
+                repr(float(est.x[k])),
+                repr(float(est.std[k])),
+                repr(float(est.relative_std[k])),
+                expr,
+            ]
+        )
+    return buffer.getvalue()
+
+
+def write_identify_report(result: IdentifyResult, folder: str | Path) -> list[Path]:
+    """Write every report file of an identification into ``folder``.
+
+    Returns
+    -------
+    :
+        Paths written.
+    """
+    from ident.report.html import markdown_to_html
+
+    folder = Path(folder)
+    urdf = identified_urdf(result)
+    urdf_name = Path(result.config.robot.urdf).stem + "_identified.urdf"
+    png = torque_png(result)
+    markdown = _markdown(result, urdf, urdf_name)
+    written = [
+        atomic_write_bytes(folder / "figures" / "torque_validation.png", png),
+        atomic_write_text(folder / urdf_name, urdf.text),
+        atomic_write_text(folder / "parameters.csv", _parameters_csv(result)),
+        atomic_write_text(
+            folder / "result.json",
+            json.dumps(result_dict(result, urdf), indent=2, allow_nan=False) + "\n",
+        ),
+        atomic_write_text(folder / "report.md", markdown),
+        atomic_write_text(
+            folder / "report.html",
+            markdown_to_html(
+                markdown,
+                title=f"ident identify: {result.config.name}",
+                images={"figures/torque_validation.png": png},
+            ),
+        ),
+    ]
+    return written
