@@ -58,7 +58,7 @@ FloatArray = npt.NDArray[np.float64]
 #: The paper's base-parameter counts (independent, in combination, unidentifiable).
 PAPER_COUNTS = {"wrist": (15, 7, 8), "arm": (20, 2, 8)}
 _DISTINCT_TOL = 1e-3
-_N_STRUCTURE_SAMPLES = 200
+_N_STRUCTURE_SAMPLES = 500
 
 
 @dataclass(frozen=True)
