@@ -198,6 +198,7 @@ def test_branched_third_party_urdf_is_refused():
 _TWO_LINKS = """<robot name="t"><link name="a"/><link name="b">
 <inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
 </link><joint name="j" type="{kind}"><parent link="a"/><child link="b"/>{extra}</joint></robot>"""
+_LIMIT = "<axis xyz='0 0 1'/><limit lower='-1' upper='1' effort='1' velocity='1'/>"
 
 
 @pytest.mark.parametrize(
@@ -208,14 +209,26 @@ _TWO_LINKS = """<robot name="t"><link name="a"/><link name="b">
         ("<robot name='x'><link name='a'/></robot>", "no moving joint"),
         (_TWO_LINKS.format(kind="floating", extra=""), "floating base"),
         (_TWO_LINKS.format(kind="continuous", extra="<axis xyz='0 0 1'/>"), "continuous"),
+        (
+            _TWO_LINKS.format(kind="revolute", extra=_LIMIT).replace(
+                'child link="b"', 'child link="c"'
+            ),
+            r"child link \[c\] of joint \[j\] not found",
+        ),
+        (
+            _TWO_LINKS.format(kind="revolute", extra=""),
+            r"Joint \[j\] is of type REVOLUTE but it does not specify limits",
+        ),
     ],
 )
-def test_bad_urdfs(tmp_path, text, expected):
+def test_bad_urdfs(tmp_path, capfd, text, expected):
     path = tmp_path / "robot.urdf"
     path.write_text(text)
     with pytest.raises(ModelError, match=expected) as info:
         Robot.from_urdf(path)
     assert str(path) in str(info.value)
+    assert "\n" not in str(info.value)
+    assert capfd.readouterr().err == ""  # the parser's own complaints are in the message
 
 
 def test_missing_files(tmp_path):

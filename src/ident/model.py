@@ -14,7 +14,12 @@ the linear map between the two.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -402,6 +407,27 @@ class Robot:
         return out[0], out[1], out[2]
 
 
+@contextlib.contextmanager
+def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
+    """Capture what C++ libraries write to file descriptor 2 (urdfdom's parse errors)."""
+    captured: list[str] = []
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no real stderr (e.g. some embedded interpreters)
+        yield lambda: captured
+        return
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield lambda: captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            captured.extend(sink.read().decode("utf-8", "replace").splitlines())
+
+
 def _build_model(text: str, where: str) -> pin.Model:
     """Parse URDF text with Pinocchio, turning parser failures into one-line ModelErrors."""
     import xml.etree.ElementTree as ET
@@ -412,13 +438,20 @@ def _build_model(text: str, where: str) -> pin.Model:
         raise ModelError(f"{where}: malformed URDF XML ({e}); fix the file.") from e
     if root.tag != "robot":
         raise ModelError(f"{where}: the root element is <{root.tag}>, not <robot>; not a URDF.")
-    try:
-        model = pin.buildModelFromXML(text)
-    except (RuntimeError, ValueError) as e:
-        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    with _captured_stderr() as messages:
+        try:
+            model = pin.buildModelFromXML(text)
+        except (RuntimeError, ValueError) as e:
+            error: Exception | None = e
+        else:
+            error = None
+    if error is not None:
+        # urdfdom explains the problem on stderr ("child link [x] of joint [j] not found")
+        details = [line.strip() for line in messages() if line.strip().startswith("Error:")]
+        reason = details[0].removeprefix("Error:").strip() if details else str(error).strip()
         raise ModelError(
-            f"{where}: Pinocchio cannot parse the URDF ({first}); fix the file."
-        ) from e
+            f"{where}: Pinocchio cannot parse the URDF ({reason.splitlines()[0]}); fix the file."
+        ) from error
     if model.njoints < 2:
         raise ModelError(f"{where}: the URDF has no moving joint; a serial arm is needed.")
     return model

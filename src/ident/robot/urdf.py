@@ -32,7 +32,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ModelError
-from ident.robot.dh import DHTable, elementary_transform, rot_z, trans_z
+from ident.robot.dh import DHTable, Step, elementary_transform, rot_z, trans_z
 from ident.robot.robot_config import RobotDescription
 
 __all__ = [
@@ -167,7 +167,9 @@ def _z_to(direction: FloatArray) -> FloatArray:
     return np.eye(3) + sin * skew + (1 - cos) * skew @ skew
 
 
-def _cylinder(link: ET.Element, start: FloatArray, end: FloatArray, radius: float, colour: str):
+def _cylinder(
+    link: ET.Element, start: FloatArray, end: FloatArray, radius: float, colour: str
+) -> None:
     length = float(np.linalg.norm(end - start))
     if length < 1e-9:
         return
@@ -181,10 +183,10 @@ def _cylinder(link: ET.Element, start: FloatArray, end: FloatArray, radius: floa
     ET.SubElement(visual, "material", name=colour)
 
 
-def _polyline(steps: tuple[tuple[str, float], ...]) -> list[FloatArray]:
+def _polyline(steps: tuple[Step, ...]) -> list[FloatArray]:
     """Points visited by the translations of a chain of elementary steps, from the origin."""
     points = [np.zeros(3)]
-    done: list[tuple[str, float]] = []
+    done: list[Step] = []
     for step in steps:
         done.append(step)
         if step[0] in ("tz", "tx") and abs(step[1]) > 0.0:
