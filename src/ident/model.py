@@ -217,7 +217,7 @@ class Robot:
         from ident.robot.inertia import transform_matrix
         from ident.robot.urdf import dh_frame_in_link
 
-        dh = self._require_dh("dh_to_model_parameters")
+        dh = self._require_description("dh_to_model_parameters").dh
         out = np.zeros((10 * self.n_bodies, 10 * self.n_bodies))
         for i in range(self.n_bodies):
             pose = dh_frame_in_link(dh, i)
@@ -232,17 +232,16 @@ class Robot:
         Pinocchio order per link, shape (10 * n_bodies,). Reorder with
         :func:`ident.robot.inertia.pinocchio_to_paper` for the paper's eq. 14 order.
         """
-        self._require_dh("parameters_dh")
-        assert self.description is not None
-        return np.asarray(self.description.parameters_dh, dtype=float).reshape(-1).copy()
+        description = self._require_description("parameters_dh")
+        return np.asarray(description.parameters_dh, dtype=float).reshape(-1).copy()
 
-    def _require_dh(self, what: str) -> DHTable:
-        if self.dh is None:
+    def _require_description(self, what: str) -> RobotDescription:
+        if self.description is None:
             raise ModelError(
                 f"Robot {self.name!r} was loaded from a URDF and has no DH table; {what} needs "
                 "a robot built with Robot.from_config."
             )
-        return self.dh
+        return self.description
 
     def regressor(self, q: npt.ArrayLike, dq: npt.ArrayLike, ddq: npt.ArrayLike) -> FloatArray:
         """Joint-torque regressor (hand-derived Newton-Euler), vectorized over samples.
