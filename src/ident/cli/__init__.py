@@ -22,6 +22,13 @@ app = typer.Typer(
     help="Identify the dynamic parameters of serial robot arms.",
 )
 
+
+
+@app.callback()
+def _root() -> None:
+    """Identify the dynamic parameters of serial robot arms."""
+
+
 # Order of the commands in `ident --help`.
 _COMMAND_MODULES = ("robot", "verify", "run", "identify", "bench", "replay")
 
