@@ -14,7 +14,12 @@ import pinocchio as pin
 from ident.dynamics.chain import FloatArray, chain_from_model
 from ident.dynamics.parameters import parameters_from_model
 
-__all__ = ["compare_with_pinocchio", "pinocchio_regressor", "pinocchio_rnea"]
+__all__ = [
+    "compare_with_pinocchio",
+    "pinocchio_regressor",
+    "pinocchio_rnea",
+    "verification_report",
+]
 
 
 def _as_samples(q: FloatArray, dq: FloatArray, ddq: FloatArray) -> tuple[FloatArray, ...]:
@@ -99,3 +104,83 @@ def compare_with_pinocchio(
         "rnea_max_abs_error": tau_error,
         "rnea_max_rel_error": tau_error / tau_scale if tau_scale > 0.0 else tau_error,
     }
+
+
+def _counts_both_methods(W: FloatArray, names: list[str]) -> dict[str, dict[str, int]]:
+    from ident.dynamics.base_parameters import METHODS, compute_base_parameters
+
+    return {method: compute_base_parameters(W, names, method=method).counts() for method in METHODS}
+
+
+def verification_report(
+    model: pin.Model,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    *,
+    parameter_map: FloatArray | None = None,
+    map_label: str = "dh_frames",
+) -> dict[str, Any]:
+    """Everything ``ident verify`` reports, as a JSON-ready dict.
+
+    Parameters
+    ----------
+    model :
+        Fixed-base serial Pinocchio model.
+    q, dq, ddq :
+        Random states within the limits, shapes (n_samples, nq), (n_samples, nv), (n_samples, nv).
+    parameter_map :
+        Optional block-diagonal matrix ``M`` (10 n, 10 n) from another parameterization to the
+        model's (e.g. :meth:`ident.model.Robot.dh_to_model_parameters`); the base-parameter
+        counts are then also given for ``W @ M`` under ``map_label``.
+    map_label :
+        Key of those extra counts.
+
+    Returns
+    -------
+    :
+        The keys of :func:`compare_with_pinocchio`, plus ``rank``, ``n_independent``,
+        ``n_dependent``, ``n_unidentifiable``, ``n_params`` (QR method, whole robot),
+        ``methods`` (counts of both methods), ``ranks_agree``, and ``stages``: for a 6-joint
+        robot the paper's ``wrist`` and ``arm`` stages (moving joints from the same states,
+        other joints held at the middle of their range, see
+        :func:`ident.dynamics.stage.default_held_positions`), each with ``moving_joints``,
+        ``torque_rows``, ``bodies`` (1-based), ``held_positions`` [rad or m] and the counts of
+        both methods; empty otherwise.
+    """
+    from ident.dynamics.parameters import parameter_names
+    from ident.dynamics.regressor import joint_torque_regressor
+    from ident.dynamics.stage import paper_stages, stage_observation_matrix, stage_states
+
+    q, dq, ddq = _as_samples(q, dq, ddq)
+    report: dict[str, Any] = {"robot": model.name, "n_joints": model.nv}
+    report.update(compare_with_pinocchio(model, q, dq, ddq))
+    chain = chain_from_model(model)
+    names = list(parameter_names(chain.n_joints))
+    W = joint_torque_regressor(chain, q, dq, ddq).reshape(-1, len(names))
+    methods = _counts_both_methods(W, names)
+    report.update(methods["qr"])
+    report["methods"] = methods
+    report["ranks_agree"] = len({counts["rank"] for counts in methods.values()}) == 1
+    if parameter_map is not None:
+        report[map_label] = _counts_both_methods(W @ parameter_map, names)
+    stages: dict[str, Any] = {}
+    if chain.n_joints == 6:
+        for name, stage in paper_stages(chain).items():
+            moving = list(stage.moving_joints)
+            states = stage_states(stage, q[:, moving], dq[:, moving], ddq[:, moving], chain.nq)
+            W_stage = stage_observation_matrix(chain, stage, *states)
+            columns = stage.columns
+            entry: dict[str, Any] = {
+                "moving_joints": [j + 1 for j in stage.moving_joints],
+                "torque_rows": [j + 1 for j in stage.torque_rows],
+                "bodies": [b + 1 for b in stage.bodies],
+                "held_positions": [stage.held_positions[j] for j in stage.held_joints],
+                "methods": _counts_both_methods(W_stage, [names[c] for c in columns]),
+            }
+            if parameter_map is not None:
+                mapped = W_stage @ parameter_map[np.ix_(columns, columns)]
+                entry[map_label] = _counts_both_methods(mapped, [names[c] for c in columns])
+            stages[name] = entry
+    report["stages"] = stages
+    return report
