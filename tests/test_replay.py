@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import base64
 import importlib.metadata
+import json
 import math
 import re
+import time
 import warnings
 from pathlib import Path
 
@@ -241,3 +243,146 @@ def test_mesh_urdf_with_package_dirs():
     assert not scene.fallback_geometry
     assert scene.traced_frame == "tool0"
     assert scene.n_visuals == 7
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+def make_run_dir(tmp_path: Path, *, elites: int = 0, traced_frame: str | None = None) -> Path:
+    from ident.trajectory import trajectory_to_csv
+
+    run = tmp_path / "run"
+    (run / "elites").mkdir(parents=True)
+    (run / "robot.urdf").write_text(URDF.read_text())
+    (run / "trajectory.csv").write_text(trajectory_to_csv(make_trajectory()))
+    for k in range(1, elites + 1):
+        csv = trajectory_to_csv(make_trajectory(phase=float(k), duration=1.0 + k))
+        (run / "elites" / f"elite_{k}.csv").write_text(csv)
+        (run / "elites" / f"elite_{k}_path.csv").write_text("t,x,y,z\n0,0,0,0\n1,0,0,0\n")
+    if traced_frame is not None:
+        result = {"excitation": {"traced_frame": traced_frame}}
+        (run / "result.json").write_text(json.dumps(result), encoding="utf-8")
+    return run
+
+
+def test_cli_html_from_run_dir_with_elites(tmp_path):
+    from typer.testing import CliRunner
+
+    from ident.cli import app
+
+    run = make_run_dir(tmp_path, elites=2, traced_frame="link_5")
+    out = tmp_path / "page.html"
+    result = CliRunner().invoke(app, ["replay", str(run), "--elites", "--html", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "3 trajectory(ies)" in result.output
+    assert "traced frame link_5" in result.output  # from result.json
+    commands = html_commands(out.read_text())
+    roots = {c["path"] for c in commands if c["path"].count("/") == 3 and "robot_" in c["path"]}
+    assert roots == {f"/meshcat/replay/robot_{k}" for k in range(3)}
+
+
+def test_cli_bad_inputs_exit_2_with_a_message(tmp_path):
+    from typer.testing import CliRunner
+
+    from ident.cli import app
+
+    runner = CliRunner()
+    run = make_run_dir(tmp_path)
+    (run / "trajectory.csv").unlink()
+    result = runner.invoke(app, ["replay", str(run), "--html", str(tmp_path / "x.html")])
+    assert result.exit_code == 2
+    assert "no trajectory.csv" in result.output
+    assert not (tmp_path / "x.html").exists()
+
+    csv = tmp_path / "other.csv"
+    from ident.trajectory import trajectory_to_csv
+
+    csv.write_text(trajectory_to_csv(make_trajectory(joints=("a", "b", "c", "d", "e", "f"))))
+    result = runner.invoke(
+        app, ["replay", "--urdf", str(URDF), "--trajectory", str(csv), "--html", "y.html"]
+    )
+    assert result.exit_code == 2
+    assert "joint_1" in result.output
+    assert "'a'" in result.output
+
+    result = runner.invoke(app, ["replay", "--urdf", str(URDF)])
+    assert result.exit_code == 2
+    assert "--trajectory" in result.output
+
+    result = runner.invoke(app, ["replay", str(run), "--elites", "--html", "z.html"])
+    assert result.exit_code == 2
+
+
+def _children(pid: int) -> list[int]:
+    """Child processes of ``pid`` (Linux /proc)."""
+    out = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        out += [int(c) for c in (task / "children").read_text().split()]
+    return out
+
+
+def _read_line_with(proc, needle: str, timeout: float) -> str:
+    """First stdout line of ``proc`` containing ``needle`` (a reader thread: no pipe stall)."""
+    import queue
+    import threading
+
+    lines: queue.Queue[str] = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout], daemon=True).start()
+    seen = []
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            line = lines.get(timeout=0.2)
+        except queue.Empty:
+            if proc.poll() is not None:
+                break
+            continue
+        seen.append(line)
+        if needle in line:
+            return line
+    proc.kill()
+    raise AssertionError(f"no line with {needle!r}; stdout {seen}, stderr {proc.stderr.read()}")
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+def test_cli_live_server_loopback_next_free_port_and_clean_ctrl_c(tmp_path):
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import urllib.request
+
+    from ident.viz.server import find_free_port
+
+    run = make_run_dir(tmp_path)
+    busy_port = find_free_port(7600)
+    with socket.socket() as busy:  # a port in use on 127.0.0.1: the server takes the next one
+        busy.bind(("127.0.0.1", busy_port))
+        busy.listen()
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "from ident.cli import main; main()"]
+            + ["replay", str(run), "--port", str(busy_port)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            line = _read_line_with(proc, "http://", timeout=60)
+            url = line.split()[1]
+            port = int(url.split(":")[2].split("/")[0])
+            assert url == f"http://127.0.0.1:{port}/static/"
+            assert port > busy_port
+            with urllib.request.urlopen(url, timeout=5) as response:
+                assert response.status == 200
+                assert b"MeshCat.Viewer" in response.read()
+            # The server is a thread of the command: no process that could outlive it.
+            assert _children(proc.pid) == []
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(timeout=20) == 130
+            assert "interrupted" in proc.stderr.read()
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    with pytest.raises(ConnectionRefusedError):
+        socket.create_connection(("127.0.0.1", port), timeout=2).close()

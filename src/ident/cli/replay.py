@@ -1,0 +1,143 @@
+"""``ident replay``: watch a trajectory in meshcat, live on 127.0.0.1 or as a static HTML file."""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+import webbrowser
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ident.cli._common import user_errors
+from ident.errors import DataError
+
+__all__ = ["register", "replay"]
+
+
+def _elite_csvs(run_dir: Path) -> list[Path]:
+    """``elites/elite_<k>.csv`` of a run folder, by rank ``k`` (path files excluded)."""
+    found = []
+    for path in (run_dir / "elites").glob("elite_*.csv"):
+        match = re.fullmatch(r"elite_(\d+)\.csv", path.name)
+        if match:
+            found.append((int(match.group(1)), path))
+    return [p for _, p in sorted(found)]
+
+
+def _traced_frame_of_run(run_dir: Path) -> str | None:
+    """The traced frame recorded in ``result.json`` (top level or ``excitation``), if any."""
+    path = run_dir / "result.json"
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DataError(f"{path}: not valid JSON ({e}); pass --frame to choose the frame.") from e
+    frame = data.get("traced_frame") or (data.get("excitation") or {}).get("traced_frame")
+    return frame if isinstance(frame, str) else None
+
+
+def _inputs(
+    run_dir: Path | None, urdf: Path | None, trajectory: Path | None, elites: bool
+) -> tuple[Path, list[Path], str | None]:
+    """Resolve the URDF, the trajectory CSVs and the run's traced frame."""
+    if run_dir is None:
+        if urdf is None or trajectory is None:
+            raise DataError(
+                "give a run folder (ident replay runs/<name>) or both --urdf and --trajectory."
+            )
+        return urdf, [trajectory], None
+    if not run_dir.is_dir():
+        raise DataError(f"{run_dir}: run folder not found.")
+    urdf = urdf or run_dir / "robot.urdf"
+    if not urdf.is_file():
+        raise DataError(f"{run_dir}: no robot.urdf in the run folder; pass --urdf PATH.")
+    chosen = trajectory or run_dir / "trajectory.csv"
+    if not chosen.is_file():
+        raise DataError(
+            f"{run_dir}: no trajectory.csv in the run folder (the run did not finish its "
+            "excitation stage?); pass --trajectory CSV."
+        )
+    csvs = [chosen]
+    if elites:
+        others = _elite_csvs(run_dir)
+        if not others:
+            raise DataError(f"{run_dir}: --elites given but no elites/elite_<k>.csv found.")
+        csvs += others
+    return urdf, csvs, _traced_frame_of_run(run_dir)
+
+
+def replay(
+    run_dir: Annotated[
+        Path | None,
+        typer.Argument(help="Run folder of `ident run` (robot.urdf, trajectory.csv, elites/)."),
+    ] = None,
+    urdf: Annotated[Path | None, typer.Option(help="Robot URDF (overrides the run's).")] = None,
+    trajectory: Annotated[
+        Path | None, typer.Option(help="Trajectory CSV: t, q_<joint>..., dq_..., ddq_...")
+    ] = None,
+    frame: Annotated[
+        str | None,
+        typer.Option(help="Frame whose path is drawn (default: the run's, else flange/tool0)."),
+    ] = None,
+    speed: Annotated[float, typer.Option(help="Replay speed factor (1 = true speed).")] = 1.0,
+    loop: Annotated[bool, typer.Option(help="Repeat the motion.")] = True,
+    elites: Annotated[
+        bool, typer.Option(help="Also show the run's other elites, side by side along y.")
+    ] = False,
+    html: Annotated[
+        Path | None,
+        typer.Option(help="Write a self-contained HTML file instead of starting a server."),
+    ] = None,
+    port: Annotated[
+        int, typer.Option(help="First web port to try (the next free one is taken).")
+    ] = 7000,
+    open_browser: Annotated[
+        bool, typer.Option("--open", help="Open the viewer in the system's web browser.")
+    ] = False,
+    package_dir: Annotated[
+        list[Path] | None,
+        typer.Option(help="Folder holding package:// mesh packages (repeatable)."),
+    ] = None,
+) -> None:
+    """Replay the excitation motion of RUN_DIR (or --urdf/--trajectory) in meshcat.
+
+    Without --html, serves the viewer on http://127.0.0.1:<port>/static/ until Ctrl-C.
+    """
+    with user_errors():
+        from ident.fileio import atomic_write_text
+        from ident.trajectory import read_trajectory_csv
+        from ident.viz.replay import build_replay_scene
+        from ident.viz.server import LoopbackMeshcatServer
+
+        urdf_path, csvs, run_frame = _inputs(run_dir, urdf, trajectory, elites)
+        trajectories = [read_trajectory_csv(p) for p in csvs]
+        scene = build_replay_scene(
+            urdf_path,
+            trajectories,
+            traced_frame=frame or run_frame,
+            speed=speed,
+            loop=loop,
+            package_dirs=package_dir or (),
+        )
+        what = f"{len(trajectories)} trajectory(ies), {scene.duration:.2f} s at speed {speed:g}"
+        if html is not None:
+            atomic_write_text(html, scene.recorder.static_html(f"ident replay: {urdf_path.stem}"))
+            typer.echo(f"wrote {html} ({what}; traced frame {scene.traced_frame})")
+            return
+        with LoopbackMeshcatServer(port=port) as server:
+            server.push(scene.recorder)
+            typer.echo(f"replaying {what}; traced frame {scene.traced_frame}")
+            typer.echo(f"open {server.web_url}  (Ctrl-C to stop)")
+            if open_browser:
+                webbrowser.open(server.web_url, new=2)
+            while True:  # the server runs in a daemon thread; Ctrl-C ends this loop
+                time.sleep(0.5)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``ident replay`` to the application."""
+    app.command(name="replay")(replay)
