@@ -482,19 +482,19 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     W_id = Yb_d[ident_part][keep_id]  # rows (sample, joint) kept, sample-major
     tau_id = tau_d[ident_part][keep_id]
     groups = np.broadcast_to(np.arange(nv), keep_id.shape)[keep_id]
-    for j in range(nv):
-        if not keep_id[:, j].any():
-            raise DataError(
-                f"{source}: no sample of joint {joints[j]} reaches the velocity threshold "
-                f"{pp.velocity_threshold[j] if pp.velocity_threshold else 0} rad/s in the "
-                "identification part; lower preprocess.velocity_threshold."
-            )
     base_names = pm.base_names
     try:
         est = least_squares(W_id, tau_id, base_names, method=cfg.estimation.method, groups=groups)
     except NotIdentifiable as e:
+        idle = [joints[j] for j in range(nv) if not keep_id[:, j].any()]
+        hint = (
+            f" No sample of {', '.join(idle)} reaches its velocity threshold in the "
+            "identification part (joint not moving?)."
+            if idle
+            else ""
+        )
         raise NotIdentifiable(
-            f"{source}: the log does not determine every base parameter: {e}"
+            f"{source}: the log does not determine every base parameter: {e}{hint}"
         ) from e
     except DataError as e:
         raise DataError(f"{source}: {e}") from e

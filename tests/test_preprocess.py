@@ -1,0 +1,91 @@
+import numpy as np
+import pytest
+from scipy import signal
+
+from ident.errors import ConfigError, DataError
+from ident.identify.preprocess import decimate, differentiate, lowpass, trim, velocity_mask
+
+
+def test_lowpass_is_minus_6_db_at_cutoff_and_zero_phase():
+    fs, fc = 1000.0, 20.0
+    sos = signal.butter(4, fc, fs=fs, output="sos")
+    _, h = signal.sosfreqz(sos, worN=[fc], fs=fs)
+    assert 20 * np.log10(abs(h[0])) == pytest.approx(-3.0103, abs=1e-3)  # designed: -3 dB
+    t = np.arange(20000) / fs
+    x = np.sin(2 * np.pi * fc * t)
+    y, record = lowpass(x[:, None], fs, fc, 4)
+    middle = slice(5000, 15000)
+    # forward-backward: gain |H|^2 = 1/2 (-6 dB), no phase lag
+    assert np.max(np.abs(y[middle, 0] - 0.5 * x[middle])) < 1e-3
+    assert record["cutoff_hz"] == fc
+    slow = np.sin(2 * np.pi * 1.0 * t)
+    y, _ = lowpass(slow[:, None], fs, fc, 4)
+    assert np.max(np.abs(y[middle, 0] - slow[middle])) < 1e-6
+
+
+def test_cutoff_above_nyquist_is_rejected():
+    with pytest.raises(
+        ConfigError, match=r"cutoff_hz = 300 Hz is not below the Nyquist frequency 250 Hz"
+    ):
+        lowpass(np.zeros((100, 2)), 500.0, 300.0)
+
+
+def test_lowpass_too_short():
+    with pytest.raises(DataError, match="too few"):
+        lowpass(np.zeros((10, 1)), 500.0, 10.0)
+
+
+def test_differentiate_exact_on_polynomials():
+    fs = 200.0
+    t = np.arange(50) / fs
+    q = np.column_stack([3 * t**2 - t + 1, -2 * t**2])
+    dq, ddq, _ = differentiate(q, fs)
+    np.testing.assert_allclose(dq, np.column_stack([6 * t - 1, -4 * t]), atol=1e-10)
+    np.testing.assert_allclose(
+        ddq, np.column_stack([np.full_like(t, 6), np.full_like(t, -4)]), atol=1e-7
+    )
+
+
+def test_trim():
+    (a, b), record = trim([np.arange(10.0), np.arange(20.0).reshape(10, 2)], 2)
+    np.testing.assert_array_equal(a, np.arange(2.0, 8.0))
+    assert b.shape == (6, 2)
+    with pytest.raises(DataError, match="removes all"):
+        trim([np.arange(4.0)], 2)
+
+
+def test_decimate_is_linear_and_keeps_slow_signals():
+    # The model tau = W x survives decimation only if decimation is linear and applied alike.
+    rng = np.random.default_rng(0)
+    fs = 1000.0
+    t = np.arange(5000) / fs
+    W = np.stack([np.sin(2 * np.pi * f * t) for f in (0.5, 1.3, 2.1)], axis=1)[:, None, :]
+    W = np.repeat(W, 2, axis=1) + 0.01 * rng.normal(size=(5000, 2, 3))
+    x = np.array([1.0, -2.0, 0.5])
+    tau = W @ x
+    (tau_d, W_d), fs_d, record = decimate([tau, W], [10, 5], fs)
+    assert fs_d == 20.0
+    assert tau_d.shape == (100, 2)
+    assert W_d.shape == (100, 2, 3)
+    np.testing.assert_allclose(W_d @ x, tau_d, atol=1e-12)
+    slow = np.sin(2 * np.pi * 0.5 * t)
+    (slow_d,), _, _ = decimate([slow], [10, 5], fs)
+    # passband ripple of two zero-phase stages: within +-1.2 % (0.05 dB per pass, centred)
+    np.testing.assert_allclose(slow_d[10:-10], slow[::50][10:-10], atol=1.2e-2)
+    assert "10 x 5" in record["detail"]
+
+
+def test_decimate_too_short():
+    with pytest.raises(DataError, match="too few"):
+        decimate([np.zeros(20)], [10], 100.0)
+
+
+def test_velocity_mask():
+    dq = np.array([[0.1, -0.01], [-0.2, 0.5], [0.0, -0.6]])
+    keep, record = velocity_mask(dq, [0.05, 0.1])
+    np.testing.assert_array_equal(keep, [[True, False], [True, True], [False, True]])
+    assert record["kept"] == [2, 2]
+    keep, _ = velocity_mask(dq, None)
+    assert keep.all()
+    with pytest.raises(ConfigError, match="velocity_threshold has 1 values"):
+        velocity_mask(dq, [0.1])
