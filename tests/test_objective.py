@@ -7,7 +7,12 @@ import pytest
 
 from ident.dynamics.pinocchio_check import pinocchio_regressor
 from ident.excitation.fourier import JointFourierFamily
-from ident.excitation.objective import CRITERION_CAP, ExcitationObjective, criterion_from_gram
+from ident.excitation.objective import (
+    CRITERION_CAP,
+    ExcitationObjective,
+    criterion_from_gram,
+    singular_values_from_gram,
+)
 
 
 def _ur5():
@@ -162,3 +167,19 @@ def test_rank_deficient_trajectory_is_capped():
     value, cond, *_ = criterion_from_gram(np.full((1, 3, 3), np.nan))
     assert value[0] == CRITERION_CAP
     assert cond[0] == np.inf
+
+
+def test_singular_values_from_gram_accurate_when_ill_conditioned():
+    rng = np.random.default_rng(5)
+    w = rng.standard_normal((3, 600, 8)) * np.logspace(0, 5, 8)  # badly scaled columns
+    w[1, :, 7] = w[1, :, 6] * 2.0 + 1e-7 * w[1, :, 5]  # nearly dependent columns
+    reference = np.linalg.svd(w, compute_uv=False)
+    sigma = singular_values_from_gram(np.einsum("bri,brj->bij", w, w))
+    assert reference[0, 0] / reference[0, -1] > 1e4
+    np.testing.assert_allclose(sigma[[0, 2]], reference[[0, 2]], rtol=1e-9)
+    np.testing.assert_allclose(sigma[1, :-1], reference[1, :-1], rtol=1e-9)
+    # a singular Gram matrix (zero column) gives sigma_min = 0, not NaN
+    w[2, :, 3] = 0.0
+    sigma = singular_values_from_gram(np.einsum("bri,brj->bij", w, w))
+    assert sigma[2, -1] == 0.0
+    assert np.all(np.isfinite(sigma))

@@ -3,8 +3,8 @@
 For a design ``x`` the family gives a trajectory; the stage's observation matrix ``W`` stacks
 the regressor rows of the stage's joints (``stage.torque_rows``) over the samples, restricted to
 the stage's independent base columns ``W_b``. The criterion is computed from the small Gram
-matrix ``G = W_b^T W_b`` accumulated sample by sample (never the tall matrix, never its SVD):
-``sigma_i = sqrt(eigvalsh(G))``.
+matrix ``G = W_b^T W_b`` accumulated sample by sample (never the tall matrix, never its SVD),
+see :func:`singular_values_from_gram`.
 
 Scaling (``scaled=True``, the default; see ``docs/excitation.md``): as printed, eq. 15
 ``cond(W_b) + 1/sigma_min(W_b) + sigma_max(W_b)`` depends on the units of the parameters and
@@ -47,6 +47,7 @@ __all__ = [
     "ObjectiveDetails",
     "criterion_from_gram",
     "select_base_columns",
+    "singular_values_from_gram",
 ]
 
 Criterion = Literal["paper", "logdet"]
@@ -87,6 +88,49 @@ class ObjectiveDetails:
     violations: dict[str, float] = field(default_factory=dict)
 
 
+def singular_values_from_gram(gram: FloatArray) -> FloatArray:
+    """Singular values of ``W`` from its Gram matrix ``G = W^T W``, accurately.
+
+    ``sqrt(eigvalsh(G))`` loses ``sigma_min`` to round-off when ``cond(W)`` exceeds ~1e4
+    (relative error ``eps * cond(W)^2``). Most of that ill-conditioning is column scaling, so
+    the Gram matrix is equilibrated first, ``G~ = D G D`` with ``D = diag(G)^(-1/2)``, factored
+    ``G~ = R~^T R~`` (Cholesky), and the singular values are those of the small triangular
+    ``R = R~ D^-1`` (``W = Q R``): relative error about ``eps * cond(W D)^2`` instead. Where the
+    Cholesky factorization fails (numerically singular ``G``) ``sqrt(eigvalsh(G))`` is used,
+    with eigenvalues below ``k * eps * lambda_max`` set to 0.
+
+    Parameters
+    ----------
+    gram :
+        Finite Gram matrices, shape (n_batch, k, k).
+
+    Returns
+    -------
+    :
+        Singular values, descending, shape (n_batch, k).
+    """
+    diag = np.einsum("bii->bi", gram)
+    positive = np.all(diag > 0.0, axis=1)
+    inv = np.where(positive[:, None], 1.0 / np.sqrt(np.where(diag > 0.0, diag, 1.0)), 1.0)
+    equilibrated = gram * inv[:, :, None] * inv[:, None, :]
+    out = np.empty(diag.shape)
+    done = np.zeros(gram.shape[0], dtype=bool)
+    for b in np.flatnonzero(positive):
+        try:
+            lower = np.linalg.cholesky(equilibrated[b])
+        except np.linalg.LinAlgError:
+            continue
+        out[b] = np.linalg.svd(lower.T / inv[b][None, :], compute_uv=False)
+        done[b] = True
+    rest = np.flatnonzero(~done)
+    if rest.size:
+        lam = np.linalg.eigvalsh(gram[rest])[:, ::-1]
+        # eigenvalues at round-off level of a singular G are zero (rank tolerance k * eps)
+        noise = gram.shape[1] * np.finfo(float).eps * np.maximum(lam[:, :1], 0.0)
+        out[rest] = np.sqrt(np.where(lam > noise, lam, 0.0))
+    return out
+
+
 def criterion_from_gram(
     gram: FloatArray, criterion: Criterion = "paper"
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -106,23 +150,18 @@ def criterion_from_gram(
         ``value`` (capped at ``CRITERION_CAP``, finite), ``cond``, ``sigma_min``,
         ``sigma_max``, ``logdet``, each of shape (n_batch,).
     """
+    if criterion not in ("paper", "logdet"):
+        raise ValueError(f"criterion must be 'paper' or 'logdet', got {criterion!r}")
     gram = np.asarray(gram, dtype=float)
     finite = np.all(np.isfinite(gram), axis=(1, 2))
-    safe = np.where(finite[:, None, None], gram, 0.0)
-    lam = np.linalg.eigvalsh(safe)  # ascending
-    # round-off can make eigenvalues of a singular Gram slightly negative
-    lam_min = np.maximum(lam[:, 0], 0.0)
-    sigma_min = np.sqrt(lam_min)
-    sigma_max = np.sqrt(np.maximum(lam[:, -1], 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    sigma = singular_values_from_gram(np.where(finite[:, None, None], gram, 0.0))
+    sigma_min, sigma_max = sigma[:, -1], sigma[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         cond = np.where(sigma_min > 0.0, sigma_max / sigma_min, np.inf)
-        logdet = np.where(lam[:, 0] > 0.0, np.sum(np.log(np.maximum(lam, 1e-300)), axis=1), -np.inf)
-        if criterion == "paper":
-            value = cond + 1.0 / sigma_min + sigma_max
-        elif criterion == "logdet":
-            value = -logdet
-        else:
-            raise ValueError(f"criterion must be 'paper' or 'logdet', got {criterion!r}")
+        logdet = np.where(
+            sigma_min > 0.0, 2.0 * np.sum(np.log(np.maximum(sigma, 1e-300)), axis=1), -np.inf
+        )
+        value = cond + 1.0 / sigma_min + sigma_max if criterion == "paper" else -logdet
     value = np.where(finite & np.isfinite(value), value, CRITERION_CAP)
     value = np.minimum(value, CRITERION_CAP)
     cond = np.where(finite, cond, np.inf)
