@@ -70,6 +70,8 @@ def test_result_json_is_complete_and_exact(quick_run):
         assert len(est["x"]) == len(est["std"]) == n_base
         assert est["condition_number"] > 1
         assert est["max_rel_error"] < 1e-8  # noise-free
+        assert est["max_torque_error"] < 1e-8
+        assert len(est["torque_share"]) == n_base
     assert "noise-free" in best["estimates"]["wls"]["message"]
     assert len(data["optimization"]["runs"]) == 2
 

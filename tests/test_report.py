@@ -95,7 +95,20 @@ def test_error_measures_handle_zero_true_values():
     assert m["error_sum_best_percent"] == 0.0
     assert m["within_3std"] == pytest.approx(0.75)
     assert m["max_rel_error"] == pytest.approx(0.25)
+    assert "torque_share" not in m
     json.dumps(m, allow_nan=False)
+
+
+def test_error_measures_in_torque_units():
+    true = np.array([1.0, 1e-8])
+    x = np.array([1.0 + 1e-12, 2e-8])  # the tiny parameter is 100 % off
+    norms = np.array([1.0, 2.0])
+    m = error_measures(x, np.ones(2), true, norms, 1.0)
+    assert m["torque_share"] == pytest.approx([1.0, 2e-8])
+    assert m["torque_error"] == pytest.approx([1e-12, 2e-8])
+    assert m["max_torque_error"] == pytest.approx(2e-8)
+    assert m["max_rel_error"] == pytest.approx(1e-12)  # only the significant parameter
+    assert m["rel_error_percent"][1] == pytest.approx(100.0)
 
 
 def _data(estimates, failures):

@@ -20,6 +20,13 @@ Error measures (per base parameter, true = projection of the true standard param
 absolute error ``x - true``; relative error ``|x - true| / |true|`` [%] where ``|true|`` is
 above ``1e-9`` times the largest ``|true|`` (otherwise the true value is zero up to
 round-off and only the absolute error is shown); normalized error ``(x - true) / std``.
+Unit-free measures on the trajectory's base matrix ``W_b``: the *torque share*
+``|true_i| ||W_i|| / ||W_b true||`` of a parameter (how much of the torque it explains) and its
+*torque error* ``|x_i - true_i| ||W_i|| / ||W_b true||``. ``max_torque_error`` is the largest
+torque error; ``max_rel_error`` the largest relative error among the parameters with a torque
+share of at least 1e-4. (The paper robot has base parameters of 1e-7 of the largest, products
+of its 1e-6 kg*m first moments: their relative error is limited by ``cond(W_b) * eps`` over
+their share, not by the method.)
 ``error_sum`` is the sum of the relative errors [%] (the paper's "Error(22)"),
 ``error_sum_best`` the same without the two largest (the paper's "Error(20)" for 22 base
 parameters).
@@ -52,6 +59,7 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 FORMAT = "ident-run/1"
 ZERO_RTOL = 1e-9
+SIGNIFICANT_SHARE = 1e-4
 PAPER_COUNTS = {"wrist": (15, 7, 8), "arm": (20, 2, 8)}
 PAPER_COUNTS_NOTE = (
     "The paper reports wrist 15 independent / 7 in combination / 8 unidentifiable and arm "
@@ -79,13 +87,24 @@ def _arr(a: Any) -> Any:
     return [_arr(v) for v in a]
 
 
-def error_measures(x: FloatArray, std: FloatArray, true: FloatArray) -> dict[str, Any]:
+def error_measures(
+    x: FloatArray,
+    std: FloatArray,
+    true: FloatArray,
+    column_norms: FloatArray | None = None,
+    true_torque_norm: float | None = None,
+) -> dict[str, Any]:
     """Errors of an estimate against the true values (see the module docstring).
 
     Parameters
     ----------
     x, std, true :
         Estimate, its standard deviations and the true values, shape (n,).
+    column_norms :
+        Norms of the base observation matrix columns ``||W_b[:, i]||`` on the trajectory,
+        shape (n,); with ``true_torque_norm = ||W_b @ true||`` they give unit-free measures.
+    true_torque_norm :
+        See ``column_norms``.
 
     Returns
     -------
@@ -93,7 +112,12 @@ def error_measures(x: FloatArray, std: FloatArray, true: FloatArray) -> dict[str
         ``abs_error`` (n,), ``rel_error_percent`` (n, None where true ~ 0),
         ``normalized_error`` (n, None where std = 0), ``error_sum_percent``,
         ``error_sum_best_percent``, ``within_3std`` (share of parameters with
-        ``|x - true| <= 3 std``), ``max_rel_error``.
+        ``|x - true| <= 3 std``), and, with the column norms: ``torque_share`` (n,)
+        ``|true_i| ||W_i|| / ||W_b true||``, ``torque_error`` (n,)
+        ``|x_i - true_i| ||W_i|| / ||W_b true||``, ``max_torque_error`` and
+        ``max_rel_error`` (the largest relative error of the parameters whose torque share is
+        at least ``SIGNIFICANT_SHARE``); without them ``max_rel_error`` is over the
+        parameters whose ``|true|`` is at least that fraction of the largest.
     """
     x, std, true = (np.asarray(a, dtype=float) for a in (x, std, true))
     err = x - true
@@ -105,18 +129,28 @@ def error_measures(x: FloatArray, std: FloatArray, true: FloatArray) -> dict[str
         normalized = np.where(std > 0, err / std, np.nan)
     within = np.abs(err) <= 3.0 * std
     rel_sorted = np.sort(100.0 * rel[nonzero])
-    # tolerance for an exact (noise-free) estimate: relative where true != 0, else vs scale
-    exact_rel = np.where(nonzero, np.abs(err) / np.where(nonzero, np.abs(true), 1.0), 0.0)
-    exact_rel = np.maximum(exact_rel, np.where(nonzero, 0.0, np.abs(err) / max(scale, 1e-300)))
-    return {
+    out = {
         "abs_error": _arr(err),
         "rel_error_percent": _arr(100.0 * rel),
         "normalized_error": _arr(normalized),
         "error_sum_percent": _num(rel_sorted.sum()),
         "error_sum_best_percent": _num(rel_sorted[: max(0, rel_sorted.size - 2)].sum()),
         "within_3std": _num(float(np.mean(within)) if within.size else 0.0),
-        "max_rel_error": _num(float(exact_rel.max(initial=0.0))),
     }
+    if column_norms is not None and true_torque_norm is not None and true_torque_norm > 0:
+        norms = np.asarray(column_norms, dtype=float)
+        share = np.abs(true) * norms / true_torque_norm
+        torque_error = np.abs(err) * norms / true_torque_norm
+        significant = share >= SIGNIFICANT_SHARE
+        out["torque_share"] = _arr(share)
+        out["torque_error"] = _arr(torque_error)
+        out["max_torque_error"] = _num(float(torque_error.max(initial=0.0)))
+    else:
+        significant = np.abs(true) >= SIGNIFICANT_SHARE * scale
+    out["max_rel_error"] = _num(
+        float(np.max(np.abs(err[significant]) / np.abs(true[significant]), initial=0.0))
+    )
+    return out
 
 
 # ----------------------------------------------------------------------------- saving
@@ -211,7 +245,15 @@ def result_to_dict(result: Any) -> dict[str, Any]:
                 "message": est.message,
             }
             if stage is not None:
-                entry.update(error_measures(est.x, est.std, stage.true_base))
+                entry.update(
+                    error_measures(
+                        est.x,
+                        est.std,
+                        stage.true_base,
+                        e.base_column_norms,
+                        e.true_torque_norm,
+                    )
+                )
             estimates[method] = entry
         elites.append(
             {
@@ -619,7 +661,10 @@ def _identification_section(
             f"Residual: relative {_fmt(est['relative_residual'])}, RMS per joint "
             f"{', '.join(_fmt(v) for v in est['residual_rms'])} N*m; condition number "
             f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
-            f"errors within 3 std. {'' if est['message'] == 'ok' else est['message']}",
+            f"errors within 3 std; largest torque error {_fmt(est.get('max_torque_error'))}, "
+            f"largest relative error of the parameters with a torque share >= 1e-4 "
+            f"{_fmt(est.get('max_rel_error'))}. "
+            f"{'' if est['message'] == 'ok' else est['message']}",
             "",
         ]
         rows = []
@@ -664,7 +709,9 @@ def _identification_section(
         "Parameters marked *(alone)* are standard parameters identifiable alone (no other "
         "parameter is combined into them): their row is also their standard-parameter "
         "estimate. A relative error is shown as — where the true value is zero up to "
-        "round-off.",
+        "round-off. Torque share: the part of the stage's torques the parameter explains on "
+        "this trajectory; a parameter with a tiny share is barely observable, whatever the "
+        "estimator.",
         "",
     ]
     if "figures/estimate.png" in figures:

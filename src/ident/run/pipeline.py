@@ -206,6 +206,11 @@ class EliteOutcome:
         ``{method: Estimate}`` for the estimators that succeeded.
     failures :
         ``{method: message}`` for the estimators that could not run (rank deficiency, ...).
+    base_column_norms :
+        ``||W_b[:, i]||`` of the base observation matrix on the measured states, shape (n_base,).
+    true_torque_norm :
+        ``||W_b @ true_base||`` [N*m]: the norm of the torques the stage's base parameters
+        explain.
     """
 
     rank: int
@@ -220,6 +225,8 @@ class EliteOutcome:
     tau: FloatArray
     estimates: dict[str, Any]
     failures: dict[str, str]
+    base_column_norms: FloatArray | None = None
+    true_torque_norm: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -756,4 +763,6 @@ def identify_elite(
         tau=np.asarray(meas.tau),
         estimates=estimates,
         failures=failures,
+        base_column_norms=np.linalg.norm(Wb, axis=0),
+        true_torque_norm=float(np.linalg.norm(Wb @ stage.true_base)),
     )
