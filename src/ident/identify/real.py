@@ -254,6 +254,7 @@ class IdentifyResult:
     sampling_rate_hz: float
     n_identify_rows: int
     timings: dict[str, float] = field(default_factory=dict)
+    reference_essential: tuple[dict, ...] = ()
 
 
 def _coupling_convention_map(pm: ParameterModel) -> dict[str, list[str]]:
@@ -540,6 +541,17 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
         if missing_ref:
             note += f" Reference parameters without a column here: {', '.join(missing_ref)}."
     add("URDF nominal", Yb_d[part] @ base.project(pm.nominal))  # type: ignore[attr-defined]
+    reference_essential: list[dict] = []
+    if cfg.reference.essential_parameters is not None:
+        rows, _ = _compare_with_reference(
+            pm, est, read_reference(cfg.reference.essential_parameters), cfg.reference.column
+        )
+        kept = set(essential.estimate.names) if essential is not None else set()
+        for row in rows:
+            ours = row["ours"]
+            members = ours.split(" + ") if ours else []
+            row["in_our_essential_set"] = bool(members) and all(m in kept for m in members)
+            reference_essential.append(row)
     timings["total"] = time.perf_counter() - t0
     return IdentifyResult(
         config=cfg,
@@ -558,4 +570,5 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
         sampling_rate_hz=fs_dec,
         n_identify_rows=int(W_id.shape[0]),
         timings=timings,
+        reference_essential=tuple(reference_essential),
     )

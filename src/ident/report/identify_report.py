@@ -149,6 +149,10 @@ def result_dict(result: IdentifyResult, urdf: UrdfUpdate | None = None) -> dict:
             for row in result.comparison
         ],
         "reference_note": result.reference_note,
+        "reference_essential": [
+            {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()}
+            for row in result.reference_essential
+        ],
         "processing": list(result.records),
     }
     if urdf is not None:
@@ -280,6 +284,26 @@ def _markdown(result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str) -> str:
                 ess.estimate.names, ess.estimate.x, ess.estimate.relative_std, strict=True
             )
         ]
+        if result.reference_essential:
+            ref_rows = result.reference_essential
+            in_both = [r for r in ref_rows if r["in_our_essential_set"]]
+            ours_only = set(ess.estimate.names) - {
+                m for r in ref_rows if r["ours"] for m in r["ours"].split(" + ")
+            }
+            lines += [
+                "",
+                f"Reference essential set: {len(ref_rows)} parameters, {len(in_both)} of them "
+                "also essential here; not essential here: "
+                + (
+                    ", ".join(
+                        f"`{r['reference']}`" for r in ref_rows if not r["in_our_essential_set"]
+                    )
+                    or "none"
+                )
+                + "; essential here only: "
+                + (", ".join(sorted(ours_only)) or "none")
+                + ".",
+            ]
         if ess.dropped:
             lines += [
                 "",
