@@ -15,6 +15,8 @@ from ident.dynamics.chain import FloatArray, KinematicChain
 
 __all__ = ["chain_arrays", "regressor_into", "selected_rows_into"]
 
+Arr = np.ndarray  # numba ignores annotations; the kernels take float64 (int64, bool) arrays
+
 
 def chain_arrays(chain: KinematicChain) -> tuple[FloatArray, FloatArray, np.ndarray, FloatArray]:
     """Contiguous arrays the kernels take: placements, axes, prismatic (int8), gravity."""
@@ -27,7 +29,19 @@ def chain_arrays(chain: KinematicChain) -> tuple[FloatArray, FloatArray, np.ndar
 
 
 @njit(cache=True, fastmath=True)
-def _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, acc):  # noqa: PLR0913
+def _forward(
+    placements: Arr,
+    axes: Arr,
+    prismatic: Arr,
+    gravity: Arr,
+    q: Arr,
+    dq: Arr,
+    ddq: Arr,
+    rot: Arr,
+    pos: Arr,
+    vel: Arr,
+    acc: Arr,
+) -> None:
     """Kinematics of one sample: parent_R_i, parent_p_i, and per joint frame
     vel[i] = (v, w), acc[i] = (classical linear acceleration a + w x v, alpha)."""
     n = q.shape[0]
@@ -116,8 +130,21 @@ def _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, ac
 
 @njit(cache=True, fastmath=True)
 def _sample(
-    placements, axes, prismatic, gravity, q, dq, ddq, row_used, body_used, rot, pos, vel, acc, y
-):
+    placements: Arr,
+    axes: Arr,
+    prismatic: Arr,
+    gravity: Arr,
+    q: Arr,
+    dq: Arr,
+    ddq: Arr,
+    row_used: Arr,
+    body_used: Arr,
+    rot: Arr,
+    pos: Arr,
+    vel: Arr,
+    acc: Arr,
+    y: Arr,
+) -> None:
     """Regressor of one sample into y (n, 10 n): entries (j, block i) for i >= j, row_used[j]
     and body_used[i]; other entries are left untouched.
 
@@ -179,7 +206,9 @@ def _sample(
 
 
 @njit(cache=True, fastmath=True)
-def regressor_into(placements, axes, prismatic, gravity, q, dq, ddq, out):
+def regressor_into(
+    placements: Arr, axes: Arr, prismatic: Arr, gravity: Arr, q: Arr, dq: Arr, ddq: Arr, out: Arr
+) -> None:
     """Full regressor of every sample into out (n_samples, n, 10 n)."""
     n = q.shape[1]
     rot = np.empty((n, 3, 3))
@@ -212,8 +241,20 @@ def regressor_into(placements, axes, prismatic, gravity, q, dq, ddq, out):
 
 @njit(cache=True, fastmath=True)
 def selected_rows_into(
-    placements, axes, prismatic, gravity, q, dq, ddq, start, stop, rows, columns, weights, out
-):
+    placements: Arr,
+    axes: Arr,
+    prismatic: Arr,
+    gravity: Arr,
+    q: Arr,
+    dq: Arr,
+    ddq: Arr,
+    start: int,
+    stop: int,
+    rows: Arr,
+    columns: Arr,
+    weights: Arr,
+    out: Arr,
+) -> None:
     """Weighted rows/columns of samples start..stop-1, sample-major, into
     out[(k - start) * len(rows) + r, c] = weights[r] * Y_k[rows[r], columns[c]]."""
     n = q.shape[1]

@@ -282,10 +282,12 @@ def compute_base_parameters(
     independent_idx = np.array(independent, dtype=np.intp)
     dependent_idx = np.array(dependent, dtype=np.intp)
     # W_d = W_b K: least squares on normalized columns, then back to parameter units
+    k_normalized: FloatArray
     if independent_idx.size and dependent_idx.size:
-        k_normalized = np.linalg.lstsq(
+        solution = np.linalg.lstsq(
             normalized[:, independent_idx], normalized[:, dependent_idx], rcond=None
         )[0]
+        k_normalized = np.asarray(solution, dtype=np.float64)
     else:
         k_normalized = np.zeros((independent_idx.size, dependent_idx.size))
     K = k_normalized / norms[independent_idx, None] * norms[None, dependent_idx]

@@ -31,7 +31,9 @@ def _indices(values: Sequence[int] | np.ndarray | None, size: int, label: str) -
     return out
 
 
-def _states(chain: KinematicChain, q, dq, ddq) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _states(
+    chain: KinematicChain, q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     arrays = [np.asarray(x, dtype=np.float64) for x in (q, dq, ddq)]
     shape = arrays[0].shape
     for label, x in zip(("q", "dq", "ddq"), arrays, strict=True):
@@ -88,7 +90,12 @@ def selected_rows(
     return out
 
 
-def _selection(chain, rows, columns, row_weights):
+def _selection(
+    chain: KinematicChain,
+    rows: Sequence[int] | np.ndarray | None,
+    columns: Sequence[int] | np.ndarray | None,
+    row_weights: FloatArray | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n = chain.n_joints
     rows_i = _indices(rows, n, "rows")
     cols_i = _indices(columns, 10 * n, "columns")
