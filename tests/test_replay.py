@@ -256,7 +256,10 @@ def make_run_dir(tmp_path: Path, *, elites: int = 0, traced_frame: str | None = 
     (run / "robot.urdf").write_text(URDF.read_text())
     (run / "trajectory.csv").write_text(trajectory_to_csv(make_trajectory()))
     for k in range(1, elites + 1):
-        csv = trajectory_to_csv(make_trajectory(phase=float(k), duration=1.0 + k))
+        # As in `ident run`: elite 1 is the chosen trajectory.
+        csv = trajectory_to_csv(make_trajectory(phase=float(k - 1), duration=1.0 + k))
+        if k == 1:
+            csv = (run / "trajectory.csv").read_text()
         (run / "elites" / f"elite_{k}.csv").write_text(csv)
         (run / "elites" / f"elite_{k}_path.csv").write_text("t,x,y,z\n0,0,0,0\n1,0,0,0\n")
     if traced_frame is not None:
@@ -270,11 +273,11 @@ def test_cli_html_from_run_dir_with_elites(tmp_path):
 
     from ident.cli import app
 
-    run = make_run_dir(tmp_path, elites=2, traced_frame="link_5")
+    run = make_run_dir(tmp_path, elites=3, traced_frame="link_5")
     out = tmp_path / "page.html"
     result = CliRunner().invoke(app, ["replay", str(run), "--elites", "--html", str(out)])
     assert result.exit_code == 0, result.output
-    assert "3 trajectory(ies)" in result.output
+    assert "3 trajectory(ies)" in result.output  # chosen = elite 1, shown once
     assert "traced frame link_5" in result.output  # from result.json
     commands = html_commands(out.read_text())
     roots = {c["path"] for c in commands if c["path"].count("/") == 3 and "robot_" in c["path"]}

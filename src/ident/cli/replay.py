@@ -66,7 +66,8 @@ def _inputs(
         others = _elite_csvs(run_dir)
         if not others:
             raise DataError(f"{run_dir}: --elites given but no elites/elite_<k>.csv found.")
-        csvs += others
+        # The chosen trajectory is usually also an elite: show each motion once.
+        csvs += [p for p in others if p.read_bytes() != chosen.read_bytes()]
     return urdf, csvs, _traced_frame_of_run(run_dir)
 
 

@@ -322,17 +322,24 @@ def _decimate(points: FloatArray, max_points: int) -> FloatArray:
     return points[index]
 
 
-def _set_camera(vis: meshcat.Visualizer, points: FloatArray) -> None:
-    """Look at the bounding box of ``points`` (world [m], shape (n, 3)) from front-right-above."""
+def _set_camera(vis: meshcat.Visualizer, points: FloatArray, n_robots: int) -> None:
+    """Look at the bounding box of ``points`` (world [m], shape (n, 3)) from front-right-above.
+
+    meshcat's orbit controls look at, and turn about, the viewer's origin; so the scene
+    (robots, grid, axes) is shifted to put the centre of the motion there. A row of robots
+    (along ``y``) is seen nearly from the front, so none hides another.
+    """
     lower, upper = points.min(axis=0), points.max(axis=0)
-    target = (lower + upper) / 2
+    centre = (lower + upper) / 2
     radius = max(float(np.linalg.norm(upper - lower)) / 2, 0.2)
-    direction = np.array([1.0, -1.1, 0.7])
-    # The 75 deg vertical field of view sees a sphere of radius R from 1.64 R; keep a margin.
+    direction = np.array([1.0, -1.1, 0.7]) if n_robots == 1 else np.array([1.0, -0.3, 0.55])
+    # The 75 deg vertical field of view sees a sphere of radius R from 1.64 R.
     offset = 1.7 * radius * direction / np.linalg.norm(direction)
-    # The orbit controls turn about the origin of /Cameras/default; the camera object lives in
-    # its "rotated" child (three.js y-up), where world (x, y, z) is (x, z, -y).
-    vis["/Cameras/default"].set_transform(pin.SE3(np.eye(3), target).homogeneous)
+    shift = pin.SE3(np.eye(3), -centre).homogeneous
+    for node in (_ROOT, "/Grid", "/Axes"):
+        vis[node].set_transform(shift)
+    # The camera object lives in /Cameras/default/rotated (three.js y-up), where world
+    # (x, y, z) is (x, z, -y).
     vis["/Cameras/default/rotated/<object>"].set_property(
         "position", [float(offset[0]), float(offset[2]), float(-offset[1])]
     )
@@ -439,7 +446,7 @@ def build_replay_scene(
         camera_points.append(np.vstack([joints[k], path]) + offset)
 
     vis.window.send(SetAnimation(animation, play=True, repetitions=math.inf if loop else 1))
-    _set_camera(vis, np.vstack(camera_points))
+    _set_camera(vis, np.vstack(camera_points), len(trajectories))
     duration = max((q.shape[0] - 1) / fps for q in keyframes)
     return ReplayScene(
         recorder=recorder,
