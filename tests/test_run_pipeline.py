@@ -184,3 +184,15 @@ def test_paper_settings_full_run(name):
         for est in elite.estimates.values():
             within = np.abs(est.x - result.stage.true_base) <= 3.0 * est.std
             assert within.mean() >= 0.8
+
+
+def test_unreachable_cartesian_circle_is_a_clear_error():
+    config = load_run_config(CONFIGS / "wrist.yaml").quick_version()
+    # the flange moves on a sphere of radius d6 = 127.5 mm about the wrist centre
+    excitation = config.excitation.model_copy(update={"bounds": {"d0": (500.0, 600.0)}})
+    with pytest.raises(RunInterrupted) as info:
+        run_pipeline(config.model_copy(update={"excitation": excitation}))
+    message = str(info.value.cause)
+    assert isinstance(info.value.cause, TrajectoryError)
+    assert "reachability (100 %)" in message
+    assert "Cartesian circle is reachable" in message

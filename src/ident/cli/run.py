@@ -179,9 +179,15 @@ class _ProgressDisplay:
             p.update(
                 self.tasks["optimize"], completed=event.step, info=f"{run} best {event.best:.6g}"
             )
+        elif event.phase == "elites_done":
+            n = len(event.payload)
+            p.update(
+                self.tasks["elites"],
+                total=max(event.step, 1),
+                completed=max(event.step, 1),
+                info=f"{n} elites in {event.step} iterations",
+            )
         elif event.phase == "run_done":
-            t = self.tasks["elites"]
-            p.update(t, total=p.tasks[t].completed or 1, completed=p.tasks[t].completed or 1)
             p.update(self.tasks["optimize"], completed=event.step * self.cfg.emupso.maxiter)
         elif event.phase == "identify":
             p.update(self.tasks["identify"], completed=event.step, total=event.total, info="")

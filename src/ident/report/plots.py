@@ -42,6 +42,7 @@ def convergence_png(
     *,
     title: str = "Convergence",
     ylabel: str = "best fitness",
+    mutations: Sequence[Sequence[int]] | None = None,
 ) -> bytes:
     """Best objective value per iteration of every run, and their mean (paper Figure 2).
 
@@ -52,6 +53,9 @@ def convergence_png(
         shape (nit_k + 1,). Shorter runs are extended with their last value for the mean.
     title, ylabel :
         Labels.
+    mutations :
+        Per run, the iterations whose population came from a mutation (eq. 8); drawn as
+        markers on the run's curve.
 
     Returns
     -------
@@ -65,7 +69,16 @@ def convergence_png(
         length = max(len(h) for h in runs)
         padded = np.array([np.pad(h, (0, length - len(h)), mode="edge") for h in runs])
         for k, h in enumerate(runs):
-            ax.plot(np.arange(len(h)), h, lw=1.2, label=f"run {k + 1}")
+            (line,) = ax.plot(np.arange(len(h)), h, lw=1.2, label=f"run {k + 1}")
+            its = [
+                i
+                for i in (mutations[k] if mutations and k < len(mutations) else ())
+                if 0 <= i < len(h)
+            ]
+            if its:
+                ax.plot(its, h[its], "v", color=line.get_color(), ms=6)
+        if mutations and any(len(m) for m in mutations):
+            ax.plot([], [], "kv", ms=6, label="mutation")
         ax.plot(np.arange(length), padded.mean(axis=0), "k--", lw=2.0, label="mean")
         finite = padded[np.isfinite(padded)]
         if finite.size and finite.min() > 0 and finite.max() / finite.min() > 50:

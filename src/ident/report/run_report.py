@@ -387,7 +387,9 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
         np.array([np.nan if v is None else v for v in r["history"]], dtype=float) for r in runs
     ]
     figures["figures/convergence.png"] = convergence_png(
-        histories, title=f"Convergence of eMuPSO ({stage_name} stage): all runs and their mean"
+        histories,
+        title=f"Convergence of eMuPSO ({stage_name} stage): all runs and their mean",
+        mutations=[r["mutation_iterations"] for r in runs],
     )
     traj_path = run_dir / "trajectory.csv"
     if data["elites"] and traj_path.is_file():

@@ -68,7 +68,8 @@ class Progress:
     Attributes
     ----------
     phase :
-        ``"elites"`` (initial elite search), ``"optimize"`` (an eMuPSO iteration),
+        ``"elites"`` (an iteration of the initial elite search), ``"elites_done"`` (the
+        elites were found; ``payload`` holds them), ``"optimize"`` (an eMuPSO iteration),
         ``"run_done"`` (an eMuPSO run finished; ``payload`` is its :class:`OptimizerRun`),
         ``"identify"`` (an elite was measured and identified).
     step, total :
@@ -554,6 +555,7 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
         if not search.success:
             raise TrajectoryError(_elite_failure(search, family, objective, bounds))
         state["elites"] = np.asarray(search.elites)
+        notify(Progress("elites_done", search.nit, cfg_e.maxiter, best=0.0, payload=search.elites))
 
         # 2. eMuPSO runs
         cfg_o = config.emupso
@@ -685,10 +687,14 @@ def _elite_failure(search: Any, family: Any, objective: Any, bounds: FloatArray)
         probe = np.random.default_rng(0).uniform(bounds[:, 0], bounds[:, 1], (50, bounds.shape[0]))
         batch = family.trajectories(probe)
         values = np.asarray(batch.violations.values)
+        names = list(batch.violations.names)
         share = (values > 0).mean(axis=0)
-        top = np.argsort(-share, kind="stable")[:4]
+        # an unreachable path causes the other violations: name it first
+        root = np.array([n.startswith("reachability") for n in names])
+        order = np.lexsort((-values.mean(axis=0), -share, ~root))
+        top = [j for j in order if share[j] > 0][:5]
         worst = "; constraints violated most often by random designs: " + ", ".join(
-            f"{batch.violations.names[j]} ({100 * share[j]:.0f} %)" for j in top if share[j] > 0
+            f"{names[j]} ({100 * share[j]:.0f} %)" for j in top
         )
     except Exception:  # the message must not fail: keep what the search said
         pass
