@@ -279,6 +279,9 @@ def test_cli_html_from_run_dir_with_elites(tmp_path):
     assert result.exit_code == 0, result.output
     assert "3 trajectory(ies)" in result.output  # chosen = elite 1, shown once
     assert "traced frame link_5" in result.output  # from result.json
+    page = out.read_text()
+    for k, name in enumerate(("trajectory.csv", "elite_2.csv", "elite_3.csv")):
+        assert f"robot {k}: {name}" in page  # caption: which robot replays which file
     commands = html_commands(out.read_text())
     roots = {c["path"] for c in commands if c["path"].count("/") == 3 and "robot_" in c["path"]}
     assert roots == {f"/meshcat/replay/robot_{k}" for k in range(3)}

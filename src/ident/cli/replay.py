@@ -123,15 +123,21 @@ def replay(
             speed=speed,
             loop=loop,
             package_dirs=package_dir or (),
+            labels=[p.name for p in csvs],
         )
         what = f"{len(trajectories)} trajectory(ies), {scene.duration:.2f} s at speed {speed:g}"
         if html is not None:
-            atomic_write_text(html, scene.recorder.static_html(f"ident replay: {urdf_path.stem}"))
+            page = scene.recorder.static_html(
+                f"ident replay: {urdf_path.stem}", scene.caption_html()
+            )
+            atomic_write_text(html, page)
             typer.echo(f"wrote {html} ({what}; traced frame {scene.traced_frame})")
             return
         with LoopbackMeshcatServer(port=port) as server:
             server.push(scene.recorder)
             typer.echo(f"replaying {what}; traced frame {scene.traced_frame}")
+            for k, (label, color) in enumerate(zip(scene.labels, scene.colors, strict=True)):
+                typer.echo(f"  robot {k} (path #{color:06x}): {label}")
             typer.echo(f"open {server.web_url}  (Ctrl-C to stop)")
             if open_browser:
                 webbrowser.open(server.web_url, new=2)

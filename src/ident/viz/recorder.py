@@ -100,8 +100,10 @@ class SceneRecorder:
                 out.append(node.animation)
         return out
 
-    def static_html(self, title: str = "MeshCat") -> str:
+    def static_html(self, title: str = "MeshCat", caption_html: str = "") -> str:
         """Return a self-contained HTML page showing the recorded scene.
+
+        ``caption_html`` (trusted HTML, escaped by the caller) is shown in the top-left corner.
 
         The page inlines meshcat's viewer and defines a global ``viewer``
         (``MeshCat.Viewer``); it loads nothing from the network. The commands are applied in
@@ -111,8 +113,12 @@ class SceneRecorder:
         commands = ",\n".join(
             '"' + base64.b64encode(c).decode("ascii") + '"' for c in self.scene_commands()
         )
+        caption = f'<div id="ident-caption">{caption_html}</div>' if caption_html else ""
         return _STATIC_TEMPLATE.format(
-            title=html.escape(title), viewer_js=viewer_javascript(), commands=commands
+            title=html.escape(title),
+            caption=caption,
+            viewer_js=viewer_javascript(),
+            commands=commands,
         )
 
     # ViewerWindow API that meshcat.Visualizer may call; an offline window has no browser.
@@ -130,9 +136,13 @@ _STATIC_TEMPLATE = """<!DOCTYPE html>
 <style>
 body {{ margin: 0; }}
 #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
+#ident-caption {{ position: absolute; left: 8px; top: 8px; padding: 4px 8px;
+  font: 13px sans-serif; color: #fff; background: rgba(0, 0, 0, 0.45);
+  pointer-events: none; }}
 </style>
 </head>
 <body>
+{caption}
 <div id="meshcat-pane"></div>
 <script>
 {viewer_js}

@@ -22,6 +22,7 @@ Scene layout (meshcat paths)::
 from __future__ import annotations
 
 import difflib
+import html
 import math
 import warnings
 from collections.abc import Sequence
@@ -82,6 +83,8 @@ class ReplayScene:
         Number of visual geometries per robot.
     fallback_geometry :
         True when the URDF's visuals could not be loaded and a stick figure is shown.
+    labels, colors :
+        Name of each robot's trajectory and the colour of its path and marker (0xRRGGBB).
     """
 
     recorder: SceneRecorder
@@ -90,6 +93,17 @@ class ReplayScene:
     traced_frame: str
     n_visuals: int
     fallback_geometry: bool
+    labels: tuple[str, ...] = ()
+    colors: tuple[int, ...] = ()
+
+    def caption_html(self) -> str:
+        """One line per robot: its path colour, label and duration, for the static page."""
+        rows = [
+            f'<span style="color:#{color:06x}">&#9632;</span> robot {k}: {html.escape(label)}'
+            for k, (label, color) in enumerate(zip(self.labels, self.colors, strict=True))
+        ]
+        head = f"traced frame {html.escape(self.traced_frame)}, {self.duration:.2f} s"
+        return "<br>".join([head, *rows])
 
 
 class _BakedMeshVisualizer(MeshcatVisualizer):
@@ -355,6 +369,7 @@ def build_replay_scene(
     fps: float = DEFAULT_FPS,
     package_dirs: Sequence[str | Path] = (),
     spacing: float | None = None,
+    labels: Sequence[str] | None = None,
 ) -> ReplayScene:
     """Record a meshcat scene replaying one or more trajectories of the robot of a URDF.
 
@@ -376,6 +391,8 @@ def build_replay_scene(
         Keyframes per second of replay time [1/s].
     spacing :
         Distance between robots [m] (``None``: 1.2 times the largest extent of the motion).
+    labels :
+        Name of each trajectory (default ``trajectory 0``, ...), shown in the page's caption.
 
     Returns
     -------
@@ -394,6 +411,10 @@ def build_replay_scene(
         raise DataError("no trajectory to replay.")
     if not (math.isfinite(speed) and speed > 0.0):
         raise DataError(f"speed = {speed} must be a positive factor (1 = true speed).")
+    if labels is None:
+        labels = [f"trajectory {k}" for k in range(len(trajectories))]
+    if len(labels) != len(trajectories):
+        raise DataError(f"{len(labels)} labels for {len(trajectories)} trajectories.")
     if not (math.isfinite(fps) and fps >= 1.0):
         raise DataError(f"fps = {fps} must be >= 1 keyframe per second.")
     model, visual_model, fallback = load_visual_robot(urdf_path, package_dirs)
@@ -455,6 +476,8 @@ def build_replay_scene(
         traced_frame=frame_name,
         n_visuals=len(visual_model.geometryObjects),
         fallback_geometry=fallback,
+        labels=tuple(labels),
+        colors=tuple(_PATH_COLORS[k % len(_PATH_COLORS)] for k in range(len(trajectories))),
     )
 
 
@@ -494,6 +517,7 @@ def replay_html(
     package_dirs: Sequence[Path] = (),
     loop: bool = True,
     fps: float = DEFAULT_FPS,
+    labels: Sequence[str] | None = None,
 ) -> str:
     """Self-contained HTML page replaying trajectories of a robot (meshcat's static export).
 
@@ -510,6 +534,7 @@ def replay_html(
         loop=loop,
         fps=fps,
         package_dirs=package_dirs,
+        labels=labels,
     )
     title = f"ident replay: {Path(urdf_path).stem}"
-    return scene.recorder.static_html(title=title)
+    return scene.recorder.static_html(title=title, caption_html=scene.caption_html())
