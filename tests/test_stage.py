@@ -83,3 +83,32 @@ def test_paper_stages_need_six_joints() -> None:
     chain = chain_from_model(pin.buildModelFromUrdf(str(DATA / "rp2.urdf")))
     with pytest.raises(ModelError, match="6-joint arm, this chain has 2 joints"):
         paper_stages(chain)
+
+
+def test_arm_stage_of_the_paper_robot_combines_body_1_about_its_axis() -> None:
+    """Closed form: in DH frame 1 the joint-1 axis is y1, a1 from the origin, so body 1 acts
+    only through its inertia about that axis, Iyy1 + 2 a1 mcx1 + a1^2 m1 (parallel axes)."""
+    from ident.model import Robot
+
+    robot = Robot.from_config(Path(__file__).parents[1] / "configs/paper6r.yaml")
+    chain = robot.chain
+    stage = paper_stages(chain)["arm"]
+    moving = list(stage.moving_joints)
+    q, dq, ddq = robot.random_configurations(100, rng=6)
+    W = stage_observation_matrix(
+        chain, stage, *stage_states(stage, q[:, moving], dq[:, moving], ddq[:, moving], 6)
+    )
+    W_dh = W @ robot.dh_to_model_parameters()[np.ix_(stage.columns, stage.columns)]
+    names = [parameter_names(6)[c] for c in stage.columns]
+    order = [names.index(n) for n in ("Iyy1", "mcx1", "m1")] + [
+        i for i, n in enumerate(names) if n not in ("Iyy1", "mcx1", "m1")
+    ]
+    base = compute_base_parameters(W_dh[:, order], [names[i] for i in order], method="sequential")
+    a1 = robot.dh.a[0]
+    row = list(base.independent).index(0)  # Iyy1 is kept
+    coefficients = dict(zip([base.names[j] for j in base.dependent], base.K[row], strict=True))
+    assert coefficients["mcx1"] == pytest.approx(2 * a1, rel=1e-9)
+    assert coefficients["m1"] == pytest.approx(a1**2, rel=1e-9)
+    assert base.expressions(3)[row].startswith(f"Iyy1 + {2 * a1:.3g} mcx1 + {a1**2:.3g} m1")
+    unidentifiable = {base.names[j] for j in base.unidentifiable}
+    assert {"mcy1", "mcz1", "Ixx1", "Izz1", "Ixy1", "Ixz1", "Iyz1"} == unidentifiable
