@@ -190,28 +190,34 @@ def _c(x: FloatArray, k: int) -> FloatArray:
 
 
 def sphere(x: FloatArray) -> FloatArray:
+    """Sphere: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(x**2, axis=1)
 
 
 def beale(x: FloatArray) -> FloatArray:
+    """Beale: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return (1.5 - a + a * b) ** 2 + (2.25 - a + a * b**2) ** 2 + (2.625 - a + a * b**3) ** 2
 
 
 def matyas(x: FloatArray) -> FloatArray:
+    """Matyas: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return 0.26 * (a**2 + b**2) - 0.48 * a * b
 
 
 def rosenbrock(x: FloatArray) -> FloatArray:
+    """Rosenbrock: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(100.0 * (x[:, 1:] - x[:, :-1] ** 2) ** 2 + (x[:, :-1] - 1.0) ** 2, axis=1)
 
 
 def step2(x: FloatArray) -> FloatArray:
+    """Step2: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum((x + 0.5) ** 2, axis=1)
 
 
 def step2_floor(x: FloatArray) -> FloatArray:
+    """Step2 floor: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(np.floor(x + 0.5) ** 2, axis=1)
 
 
@@ -220,24 +226,29 @@ def _schaffer_den(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def schaffer2(x: FloatArray) -> FloatArray:
+    """Schaffer2: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return 0.5 + (np.sin(a**2 - b**2) ** 2 - 0.5) / _schaffer_den(a, b)
 
 
 def schaffer3(x: FloatArray) -> FloatArray:
+    """Schaffer3: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return 0.5 + (np.sin(np.cos(np.abs(a**2 - b**2))) ** 2 - 0.5) / _schaffer_den(a, b)
 
 
 def schwefel12(x: FloatArray) -> FloatArray:
+    """Schwefel12: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(np.cumsum(x, axis=1) ** 2, axis=1)
 
 
 def schwefel221(x: FloatArray) -> FloatArray:
+    """Schwefel221: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.max(np.abs(x), axis=1)
 
 
 def schwefel222(x: FloatArray) -> FloatArray:
+    """Schwefel222: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     ax = np.abs(x)
     return np.sum(ax, axis=1) + np.prod(ax, axis=1)
 
@@ -247,27 +258,33 @@ def _i(x: FloatArray) -> FloatArray:
 
 
 def dejong4(x: FloatArray) -> FloatArray:
+    """Dejong4: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(_i(x) * x**4, axis=1)
 
 
 def axis_parallel(x: FloatArray) -> FloatArray:
+    """Axis parallel: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(_i(x) * x**2, axis=1)
 
 
 def easom(x: FloatArray) -> FloatArray:
+    """Easom: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return -np.cos(a) * np.cos(b) * np.exp(-((a - np.pi) ** 2) - (b - np.pi) ** 2)
 
 
 def griewank(x: FloatArray) -> FloatArray:
+    """Griewank: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return 1.0 + np.sum(x**2, axis=1) / 4000.0 - np.prod(np.cos(x / np.sqrt(_i(x))), axis=1)
 
 
 def rastrigin(x: FloatArray) -> FloatArray:
+    """Rastrigin: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(x**2 - 10.0 * np.cos(2.0 * np.pi * x) + 10.0, axis=1)
 
 
 def pen_holder(x: FloatArray) -> FloatArray:
+    """Pen holder: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     inner = np.abs(np.cos(a) * np.cos(b) * np.exp(np.abs(1.0 - np.hypot(a, b) / np.pi)))
     with np.errstate(divide="ignore"):
@@ -275,11 +292,13 @@ def pen_holder(x: FloatArray) -> FloatArray:
 
 
 def test_tube_holder(x: FloatArray) -> FloatArray:
+    """Test tube holder: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return -4.0 * np.abs(np.sin(a) * np.cos(b) * np.exp(np.abs(np.cos((a**2 + b**2) / 200.0))))
 
 
 def egg_holder(x: FloatArray) -> FloatArray:
+    """Egg holder: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return -(b + 47.0) * np.sin(np.sqrt(np.abs(b + a / 2.0 + 47.0))) - a * np.sin(
         np.sqrt(np.abs(a - b - 47.0))
@@ -287,6 +306,7 @@ def egg_holder(x: FloatArray) -> FloatArray:
 
 
 def damavandi(x: FloatArray) -> FloatArray:
+    """Damavandi: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     # np.sinc(t) = sin(pi t) / (pi t) with the removable singularity handled
     return (1.0 - np.abs(np.sinc(a - 2.0) * np.sinc(b - 2.0)) ** 5) * (
@@ -295,30 +315,36 @@ def damavandi(x: FloatArray) -> FloatArray:
 
 
 def cross_leg_table(x: FloatArray) -> FloatArray:
+    """Cross leg table: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     e = np.exp(np.abs(100.0 - np.hypot(a, b) / np.pi))
     return -((np.abs(np.sin(a) * np.sin(b) * e) + 1.0) ** -0.1)
 
 
 def bukin4(x: FloatArray) -> FloatArray:
+    """Bukin4: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return 100.0 * b**2 + 0.01 * np.abs(a + 10.0)
 
 
 def bukin6(x: FloatArray) -> FloatArray:
+    """Bukin6: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return 100.0 * np.sqrt(np.abs(b - 0.01 * a**2)) + 0.01 * np.abs(a + 10.0)
 
 
 def cosine_mixture(x: FloatArray) -> FloatArray:
+    """Cosine mixture: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return np.sum(x**2, axis=1) - 0.1 * np.sum(np.cos(5.0 * np.pi * x), axis=1)
 
 
 def cosine_mixture_jy(x: FloatArray) -> FloatArray:
+    """Cosine mixture jy: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return -0.1 * np.sum(np.cos(5.0 * np.pi * x), axis=1) - np.sum(x**2, axis=1)
 
 
 def modified_rosenbrock(x: FloatArray) -> FloatArray:
+    """Modified rosenbrock: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return (
         74.0
@@ -329,10 +355,12 @@ def modified_rosenbrock(x: FloatArray) -> FloatArray:
 
 
 def schwefel226(x: FloatArray) -> FloatArray:
+    """Schwefel226: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return -np.mean(x * np.sin(np.sqrt(np.abs(x))), axis=1)
 
 
 def paviani(x: FloatArray) -> FloatArray:
+    """Paviani: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     y = x[:, :10]
     with np.errstate(divide="ignore", invalid="ignore"):
         return (
@@ -341,16 +369,19 @@ def paviani(x: FloatArray) -> FloatArray:
 
 
 def modified_ackley(x: FloatArray) -> FloatArray:
+    """Modified ackley: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return math.exp(-0.2) * np.hypot(a, b) + 3.0 * (np.cos(2.0 * a) + np.sin(2.0 * b))
 
 
 def camel6(x: FloatArray) -> FloatArray:
+    """Camel6: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return (4.0 - 2.1 * a**2 + a**4 / 3.0) * a**2 + a * b + (-4.0 + 4.0 * b**2) * b**2
 
 
 def branin(x: FloatArray) -> FloatArray:
+    """Branin: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     return (
         (b - 5.1 / (4.0 * np.pi**2) * a**2 + 5.0 / np.pi * a - 6.0) ** 2
@@ -382,10 +413,12 @@ def _hartmann(x: FloatArray, a: FloatArray, p: FloatArray) -> FloatArray:
 
 
 def hartmann3(x: FloatArray) -> FloatArray:
+    """Hartmann3: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return _hartmann(x, _H3_A, _H3_P)
 
 
 def hartmann6(x: FloatArray) -> FloatArray:
+    """Hartmann6: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return _hartmann(x, _H6_A, _H6_P)
 
 
@@ -402,18 +435,22 @@ def _shekel(x: FloatArray, m: int) -> FloatArray:
 
 
 def shekel5(x: FloatArray) -> FloatArray:
+    """Shekel5: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return _shekel(x, 5)
 
 
 def shekel7(x: FloatArray) -> FloatArray:
+    """Shekel7: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return _shekel(x, 7)
 
 
 def shekel10(x: FloatArray) -> FloatArray:
+    """Shekel10: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return _shekel(x, 10)
 
 
 def perm(x: FloatArray, beta: float = 0.5) -> FloatArray:
+    """Perm: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     y = x[:, :4]
     d = y.shape[1]
     j = np.arange(1, d + 1, dtype=float)
@@ -423,6 +460,7 @@ def perm(x: FloatArray, beta: float = 0.5) -> FloatArray:
 
 
 def goldstein_price(x: FloatArray) -> FloatArray:
+    """Goldstein price: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     a, b = _c(x, 0), _c(x, 1)
     f1 = 1.0 + (a + b + 1.0) ** 2 * (19 - 14 * a + 3 * a**2 - 14 * b + 6 * a * b + 3 * b**2)
     f2 = 30.0 + (2 * a - 3 * b) ** 2 * (18 - 32 * a + 12 * a**2 + 48 * b - 36 * a * b + 27 * b**2)
@@ -446,10 +484,12 @@ def _langerman(x: FloatArray, c: FloatArray) -> FloatArray:
 
 
 def langerman5(x: FloatArray) -> FloatArray:
+    """Langerman5: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return -_langerman(x, _LANG_C)
 
 
 def langerman5_paper(x: FloatArray) -> FloatArray:
+    """Langerman5 paper: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
     return _langerman(x, _LANG_C_PAPER)
 
 
