@@ -85,6 +85,22 @@ def test_identify_slice_agrees_with_reference(tmp_path):
     assert compared >= 12
     names = {p["name"] for p in data["base_parameters"]}
     assert {"fv1", "fs1", "Ia3", "Iam6", "fvm6", "fsm6", "Izz1R"} <= names
+    # URDF copy: the written standard parameters are the identified ones, the rest nominal
+    from ident.dynamics.parameters import parameter_names, parameters_from_model
+    from ident.identify.real import load_robot_model
+
+    names = parameter_names(6)
+    nominal = parameters_from_model(load_robot_model(DATA / "urdf" / "tx40_mdh_modified.urdf"))
+    updated = parameters_from_model(load_robot_model(run / "tx40_mdh_modified_identified.urdf"))
+    written = data["urdf"]["written"]
+    assert {"Ixy3", "mcx4", "Izz6"} <= set(written)
+    values = {p["name"]: p["value"] for p in data["base_parameters"]}
+    for k, name in enumerate(names):
+        if name in written:
+            assert updated[k] == pytest.approx(values[name], rel=1e-6, abs=1e-9), name
+        else:
+            assert updated[k] == pytest.approx(nominal[k], rel=1e-6, abs=1e-9), name
+    assert "Izz1" in data["urdf"]["not_determined"]
     html = (run / "report.html").read_text()
     assert "data:image/png;base64," in html
     assert "missing figure" not in html

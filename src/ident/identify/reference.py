@@ -73,11 +73,19 @@ def parse_expression(expression: str) -> dict[str, float]:
         For a term that is not ``[coefficient*]name``.
     """
     text = expression.replace(" ", "")
+    # split at signs that are not part of a number's exponent (2.5e-3)
+    pieces = re.split(r"(?<![0-9][eE])([+-])", text)
     terms: dict[str, float] = {}
-    for sign, body in re.findall(r"([+-]?)([^+-]+(?:[eE][+-]?[0-9]+)?)", text):
-        match = _TERM.match(body)
+    sign = "+"
+    for piece in pieces:
+        if piece in ("+", "-"):
+            sign = piece
+            continue
+        if not piece:
+            continue
+        match = _TERM.match(piece)
         if not match:
-            raise DataError(f"cannot parse term '{body}' of reference expression '{expression}'.")
+            raise DataError(f"cannot parse term '{piece}' of reference expression '{expression}'.")
         coefficient = float(match.group("coef") or 1.0) * (-1.0 if sign == "-" else 1.0)
         name = _rename(match.group("name"))
         terms[name] = terms.get(name, 0.0) + coefficient
