@@ -49,8 +49,8 @@ def test_quick_run_writes_every_file(quick_run):
         assert (run_dir / name).is_file(), name
     assert json.loads((run_dir / "run.json").read_text())["status"] == "complete"
     assert not (run_dir / "INCOMPLETE").exists()
-    assert str(run_dir / "report.html") in output.replace("\n", "") or "report" in output
-    assert "Run folder" in output
+    assert f"Report: {run_dir / 'report.html'}" in output
+    assert f"Run folder: {run_dir}" in output
 
 
 def test_result_json_is_complete_and_exact(quick_run):
@@ -166,3 +166,25 @@ def test_unmeetable_limits_exit_2_and_mark_the_folder(tmp_path):
     assert "initial elite search" in result.output
     run_dir = _only_run_dir(tmp_path / "runs")
     assert json.loads((run_dir / "run.json").read_text())["status"] == "incomplete"
+
+
+def test_a_crash_keeps_the_folder_consistent_and_surfaces(tmp_path, monkeypatch):
+    from ident.cli import run as cli_run
+
+    def crash(self, event):
+        if event.phase == "optimize" and event.step >= 3:
+            raise RuntimeError("boom")
+
+    monkeypatch.setattr(cli_run._ProgressDisplay, "update", crash)
+    result = _run(QUICK, "--out", tmp_path)
+    assert isinstance(result.exception, RuntimeError)
+    run_dir = _only_run_dir(tmp_path)
+    state = json.loads((run_dir / "run.json").read_text())
+    assert state["status"] == "incomplete"
+    assert "crashed during the eMuPSO run 1 of 2: RuntimeError: boom" in state["message"]
+    data = json.loads((run_dir / "result.json").read_text())
+    assert data["status"] == "incomplete"
+    assert data["initial_elites"]["x"] is not None
+    result = runner.invoke(app, ["report", str(run_dir)])
+    assert result.exit_code == 0, result.output
+    assert "No eMuPSO run finished" in (run_dir / "report.md").read_text()

@@ -228,6 +228,7 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")
     table.add_row("replay", replay_note)
-    table.add_row("report", str(report_path))
     console.print(table)
-    console.print(f"Run folder: {run_dir}")
+    # plain lines, never truncated by the table layout
+    typer.echo(f"Report: {report_path}")
+    typer.echo(f"Run folder: {run_dir}")

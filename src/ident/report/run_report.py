@@ -329,12 +329,23 @@ def write_replay(run_dir: str | Path) -> str:
     except ImportError as e:
         return f"no replay: ident.viz.replay is not available ({e})."
     trajectory = read_trajectory_csv(trajectory_path)
+    traced_frame = None
     try:
-        page = replay_html(run_dir / "robot.urdf", [trajectory])
-    except Exception as e:  # the replay is a convenience: a failure must not lose the run
-        return f"no replay: {type(e).__name__}: {e}"
+        data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
+        traced_frame = data["excitation"].get("traced_frame")
+    except (OSError, ValueError, KeyError):
+        pass
+    page = None
+    for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
+        try:
+            page = replay_html(run_dir / "robot.urdf", [trajectory], traced_frame=frame)
+            break
+        except Exception as e:  # the replay is a convenience: a failure must not lose the run
+            problem = f"no replay: {type(e).__name__}: {e}"
+    if page is None:
+        return problem
     atomic_write_text(run_dir / "replay.html", page)
-    return "replay.html written."
+    return f"replay.html written (traced frame: {frame or 'default'})."
 
 
 # ----------------------------------------------------------------------------- report
