@@ -188,3 +188,23 @@ def test_a_crash_keeps_the_folder_consistent_and_surfaces(tmp_path, monkeypatch)
     result = runner.invoke(app, ["report", str(run_dir)])
     assert result.exit_code == 0, result.output
     assert "No eMuPSO run finished" in (run_dir / "report.md").read_text()
+
+
+def test_no_identifiable_elite_exits_1_with_a_plain_report(tmp_path, monkeypatch):
+    import ident.identify.estimate as estimate
+    from ident.errors import NotIdentifiable
+
+    def rank_deficient(*args, **kwargs):
+        raise NotIdentifiable("parameters Izz6, Ixx6 enter the torques only in a combination")
+
+    monkeypatch.setattr(estimate, "least_squares", rank_deficient)
+    result = _run(QUICK, "--out", tmp_path, "--no-replay")
+    assert result.exit_code == 1
+    assert "no elite trajectory identifies" in result.output
+    run_dir = _only_run_dir(tmp_path)
+    md = (run_dir / "report.md").read_text()
+    assert "not identifiable on this trajectory: parameters Izz6, Ixx6" in md
+    assert "No estimate" in md
+    assert "nan" not in md.lower()
+    data = json.loads((run_dir / "result.json").read_text())
+    assert data["elites"][0]["estimates"] == {}
