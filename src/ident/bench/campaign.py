@@ -25,12 +25,12 @@ Statistics (what the paper's tables hold; the errors are ``f(x_best) - f_star`` 
 
 from __future__ import annotations
 
-import os
 import time
 import zlib
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -153,7 +153,7 @@ class CampaignConfig(StrictModel):
         return self.max_nfev // self.popsize - 1
 
 
-def load_campaign_config(path: str | os.PathLike[str]) -> CampaignConfig:
+def load_campaign_config(path: str | Path) -> CampaignConfig:
     """Read and validate a campaign YAML file."""
     return load_config_file(CampaignConfig, path)
 
@@ -331,7 +331,9 @@ def run_campaign(
     )
 
 
-def _run_dask(tasks: Sequence[RunTask], address: str, done: Callable[[int, RunRecord], None]):
+def _run_dask(
+    tasks: Sequence[RunTask], address: str, done: Callable[[int, RunRecord], None]
+) -> None:
     try:
         from distributed import Client
         from distributed import as_completed as dask_as_completed

@@ -258,7 +258,7 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
             [get_function(f).label, f"{_label(best)} / {_label(pb) if pb else '—'}", *cells]
         )
     L += _md_table(header, rows)
-    for kind, tname, paper in (
+    for kind, tname, published in (
         ("min", "Table 7", PAPER_TABLE7),
         ("wilcoxon", "Table 9", PAPER_TABLE9),
     ):
@@ -271,7 +271,7 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
             for m in methods:
                 ours = "/".join(str(c) for c in per[m])
                 j = PAPER_ALGORITHMS.index(m) if m in PAPER_ALGORITHMS else None
-                pp = paper.get(g)
+                pp = published.get(g)
                 cells.append(f"{ours} / {pp[j] if pp and j is not None else '—'}")
             rows.append([g, *cells])
         L += _md_table(["Group"] + [_label(m) for m in methods], rows)
@@ -303,9 +303,11 @@ def write_campaign(result: CampaignResult, folder: str | Path) -> list[Path]:
     folder = Path(folder)
     cfg = result.config
     written: list[Path] = []
-    runs = [["function", "table_id", "method", "run", "error", "f", "nfev", "nit", "seconds",
-             "n_nonfinite"]]  # fmt: skip
-    curves = [["function", "method", "run", "nfev", "error"]]
+    runs: list[list[Any]] = [
+        ["function", "table_id", "method", "run", "error", "f", "nfev", "nit", "seconds",
+         "n_nonfinite"]
+    ]  # fmt: skip
+    curves: list[list[Any]] = [["function", "method", "run", "nfev", "error"]]
     for r in result.records:
         runs.append([r.function, _table_id(r.function) or "", r.method, r.run, repr(r.error),
                      repr(r.fun), r.nfev, r.nit, f"{r.seconds:.6f}", r.n_nonfinite])  # fmt: skip
@@ -315,8 +317,10 @@ def write_campaign(result: CampaignResult, folder: str | Path) -> list[Path]:
         ]
     written.append(atomic_write_text(folder / "runs.csv", _csv(runs)))
     written.append(atomic_write_text(folder / "curves.csv", _csv(curves)))
-    stats = [["function", "table_id", "method", "min", "mean", "std", "paper_min", "paper_mean",
-              "paper_std"]]  # fmt: skip
+    stats: list[list[Any]] = [
+        ["function", "table_id", "method", "min", "mean", "std", "paper_min", "paper_mean",
+         "paper_std"]
+    ]  # fmt: skip
     for f in cfg.function_keys():
         tid = _table_id(f)
         for m in cfg.methods:
@@ -324,7 +328,9 @@ def write_campaign(result: CampaignResult, folder: str | Path) -> list[Path]:
             p = [paper_value(tid, k, m) if tid else None for k in ("Min", "Ave", "StDev")]
             stats.append([f, tid or "", m, *map(repr, s), *("" if v is None else v for v in p)])
     written.append(atomic_write_text(folder / "stats.csv", _csv(stats)))
-    wil = [["function", "table_id", "best", "paper_best", "method", "p", "paper_p"]]
+    wil: list[list[Any]] = [
+        ["function", "table_id", "best", "paper_best", "method", "p", "paper_p"]
+    ]
     for f, (best, row) in wilcoxon_table(result).items():
         tid = _table_id(f)
         for m in cfg.methods:
@@ -333,7 +339,7 @@ def write_campaign(result: CampaignResult, folder: str | Path) -> list[Path]:
             paper_p = "" if pv is None else pv
             wil.append([f, tid or "", best, _paper_best(tid) or "", m, ours, paper_p])
     written.append(atomic_write_text(folder / "wilcoxon.csv", _csv(wil)))
-    summ = [["table", "group", "method", "wins", "ties", "losses", "paper"]]
+    summ: list[list[Any]] = [["table", "group", "method", "wins", "ties", "losses", "paper"]]
     for kind, tname, paper in (("min", "7", PAPER_TABLE7), ("wilcoxon", "9", PAPER_TABLE9)):
         for g, per in win_tie_loss(result, kind).items():  # type: ignore[arg-type]
             for m in cfg.methods:

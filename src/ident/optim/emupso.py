@@ -273,7 +273,10 @@ def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
     vmax = opts["vmax_fraction"] * span
     big_g = int(opts["stall_threshold"])
     rtol = float(opts["stall_rtol"])
-    keep = {"size": int(opts["archive_size"]), "distinct_tol": float(opts["distinct_tol"])}
+    keep: dict[str, Any] = {
+        "size": int(opts["archive_size"]),
+        "distinct_tol": float(opts["distinct_tol"]),
+    }
 
     x = problem.initial_population(x0)
     v = np.zeros_like(x)

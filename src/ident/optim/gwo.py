@@ -37,7 +37,9 @@ DEFAULTS: dict[str, Any] = {}
 DEFAULT_POPSIZE = 30
 
 
-def _top3(lx: FloatArray, lf: FloatArray, x: FloatArray, f: FloatArray):
+def _top3(
+    lx: FloatArray, lf: FloatArray, x: FloatArray, f: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     cx, cf = np.vstack([lx, x]), np.concatenate([lf, f])
     idx = np.argsort(cf, kind="stable")[:3]
     return cx[idx], cf[idx]

@@ -20,7 +20,7 @@ IntArray = npt.NDArray[np.int64]
 def _frozen(a: npt.ArrayLike | None, dtype: type = np.float64) -> np.ndarray | None:
     if a is None:
         return None
-    out = np.array(a, dtype=dtype, copy=True)
+    out: np.ndarray = np.array(a, dtype=dtype, copy=True)
     out.setflags(write=False)
     return out
 
