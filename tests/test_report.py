@@ -25,8 +25,8 @@ def test_markdown_subset_to_html():
     assert "<strong>bold</strong>" in body
     assert "<code>x&lt;y</code>" in body
     assert '<a href="replay.html">replay</a>' in body
-    assert "<th>name</th><th>value</th>" in body
-    assert "<td>m4</td><td>1.5</td>" in body
+    assert '<th>name</th><th style="text-align: right">value</th>' in body
+    assert '<td>m4</td><td style="text-align: right">1.5</td>' in body
     assert "<td>a|b</td>" in body
     assert "<ul><li>one</li><li>two</li></ul>" in body
     assert "<blockquote><p><strong>warning</strong>: noise-free</p></blockquote>" in body

@@ -9,7 +9,8 @@ The supported subset is what the report writers emit:
 - ``#`` to ``######`` headings;
 - paragraphs (consecutive non-blank lines);
 - ``-`` / ``*`` bullet lists (one level);
-- pipe tables (``| a | b |`` with a ``|---|---|`` separator line; ``:`` alignment accepted);
+- pipe tables (``| a | b |`` with a ``|---|---|`` separator line; ``:---``, ``---:``,
+  ``:---:`` align a column left, right or centre);
 - fenced code blocks (three backticks);
 - ``> `` block quotes (used for warnings);
 - inline: ```code```, ``**bold**``, ``*italic*``, ``[text](href)``, ``![alt](src)``.
@@ -148,6 +149,17 @@ def _cells(line: str) -> list[str]:
     return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)]
 
 
+def _alignment(separator: str) -> str:
+    """``:---`` left, ``---:`` right, ``:---:`` center, ``---`` the stylesheet's default."""
+    left, right = separator.startswith(":"), separator.endswith(":")
+    return "center" if left and right else "left" if left else "right" if right else ""
+
+
+def _cell(tag: str, align: list[str], k: int, text: str, resolver: _ImageResolver) -> str:
+    style = f' style="text-align: {align[k]}"' if k < len(align) and align[k] else ""
+    return f"<{tag}{style}>{_inline(text, resolver)}</{tag}>"
+
+
 def _blocks(lines: list[str], resolver: _ImageResolver) -> list[str]:
     out: list[str] = []
     i, n = 0, len(lines)
@@ -171,14 +183,18 @@ def _blocks(lines: list[str], resolver: _ImageResolver) -> list[str]:
             continue
         if "|" in line and i + 1 < n and _TABLE_SEP.match(lines[i + 1]):
             header = _cells(line)
+            align = [_alignment(c) for c in _cells(lines[i + 1])]
             rows = []
             j = i + 2
             while j < n and lines[j].strip() and "|" in lines[j]:
                 rows.append(_cells(lines[j]))
                 j += 1
-            head = "".join(f"<th>{_inline(c, resolver)}</th>" for c in header)
+
+            head = "".join(_cell("th", align, k, c, resolver) for k, c in enumerate(header))
             body = "".join(
-                "<tr>" + "".join(f"<td>{_inline(c, resolver)}</td>" for c in row) + "</tr>"
+                "<tr>"
+                + "".join(_cell("td", align, k, c, resolver) for k, c in enumerate(row))
+                + "</tr>"
                 for row in rows
             )
             out.append(f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")

@@ -382,8 +382,10 @@ def _fmt(value: Any, digits: int = 4) -> str:
     return f"{value:.{digits - 1}e}"
 
 
-def _table(header: list[str], rows: list[list[str]]) -> list[str]:
-    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+def _table(header: list[str], rows: list[list[str]], left: tuple[int, ...] = ()) -> list[str]:
+    """A Markdown pipe table; columns in ``left`` are left-aligned (text), others default."""
+    seps = [":---" if k in left else "---" for k in range(len(header))]
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(seps) + "|"]
     lines += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in rows]
     return lines + [""]
 
@@ -571,6 +573,7 @@ def _base_section(stage: dict[str, Any]) -> list[str]:
                 stage["base_names"], stage["base_expressions"], stage["true_base"], strict=True
             )
         ],
+        left=(1,),
     )
     return md
 
