@@ -174,7 +174,7 @@ class LoopbackMeshcatServer:
         """Send a recorded scene to the server (and to every connected browser)."""
         if self._bridge is None:
             raise ServerError("push() before start().")
-        context = zmq.Context.instance()
+        context: Any = zmq.Context.instance()
         with contextlib.closing(context.socket(zmq.REQ)) as sock:
             sock.setsockopt(zmq.LINGER, 0)
             sock.setsockopt(zmq.RCVTIMEO, _REPLY_TIMEOUT_MS)
