@@ -129,11 +129,9 @@ class ParameterModel:
         """
         index = np.asarray(index, dtype=np.intp)
         out = np.empty((*Y_rigid.shape[:2], index.size))
-        for k, i in enumerate(index):
-            if self.inertial_index[i] >= 0:
-                out[:, :, k] = Y_rigid[:, :, self.inertial_index[i]]
-            else:
-                out[:, :, k] = Y_extra[:, :, self.extra_index[i]]
+        rigid = self.inertial_index[index] >= 0
+        out[:, :, rigid] = Y_rigid[:, :, self.inertial_index[index[rigid]]]
+        out[:, :, ~rigid] = Y_extra[:, :, self.extra_index[index[~rigid]]]
         return out
 
 
@@ -332,29 +330,41 @@ def _compare_with_reference(
 def _reference_prediction(
     pm: ParameterModel,
     reference: list[ReferenceParameter],
-    column: str,
+    values: FloatArray,
     Y_rigid: FloatArray,
     Y_extra: FloatArray,
     dq: FloatArray,
     ddq: FloatArray,
 ) -> tuple[FloatArray, list[str]]:
-    """Reference model regressor columns (n, nv, n_ref) and their values (as a 2-tuple)."""
-    pair = pm.terms.coupled_wrist
-    cols = []
-    missing = []
-    fig = figaroh_coupling_columns(dq, ddq, pair) if pair is not None else None
+    """Torques [N*m] (n, nv) predicted by the reference's base parameters ``values``.
+
+    The reference's base parameter ``k`` multiplies the column of its first (independent)
+    term; the coupled-wrist terms use the reference's own basis
+    (:func:`~ident.dynamics.friction.figaroh_coupling_columns`). Also returns the reference
+    parameters that have no column here (they contribute nothing).
+    """
     index = {n: i for i, n in enumerate(pm.names)}
-    for ref in reference:
-        lead = ref.lead
-        stem = lead.rstrip("0123456789")
-        if fig is not None and stem in ("Iam", "fvm", "fsm"):
-            cols.append(fig[:, :, ("Iam", "fvm", "fsm").index(stem)])
-        elif lead in index:
-            cols.append(pm.columns(Y_rigid, Y_extra, [index[lead]])[:, :, 0])
+    wrist = ("Iam", "fvm", "fsm")
+    weights_rigid = np.zeros(Y_rigid.shape[2])
+    weights_extra = np.zeros(Y_extra.shape[2])
+    weights_wrist = np.zeros(3)
+    missing = []
+    for ref, value in zip(reference, values, strict=True):
+        stem = ref.lead.rstrip("0123456789")
+        if pm.terms.coupled_wrist is not None and stem in wrist:
+            weights_wrist[wrist.index(stem)] += value
+        elif ref.lead in index:
+            i = index[ref.lead]
+            if pm.inertial_index[i] >= 0:
+                weights_rigid[pm.inertial_index[i]] += value
+            else:
+                weights_extra[pm.extra_index[i]] += value
         else:
-            cols.append(np.zeros(Y_rigid.shape[:2]))
-            missing.append(lead)
-    return np.stack(cols, axis=2), missing
+            missing.append(ref.lead)
+    tau = Y_rigid @ weights_rigid + Y_extra @ weights_extra
+    if pm.terms.coupled_wrist is not None:
+        tau += figaroh_coupling_columns(dq, ddq, pm.terms.coupled_wrist) @ weights_wrist
+    return tau, missing
 
 
 def identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
@@ -442,18 +452,20 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     from ident.dynamics.chain import chain_from_model
 
     Y_rigid, Y_extra = _regressors(chain_from_model(model), terms, q, dq, ddq)
-    Yb = pm.columns(Y_rigid, Y_extra, base.independent)  # type: ignore[attr-defined]
     reference = (
         read_reference(cfg.reference.base_parameters)
         if cfg.reference.base_parameters is not None
         else []
     )
-    bank = [tau, Yb, dq]
+    # Decimation is linear and acts on each column alike: decimate the regressors as they
+    # come out of the kernel (no large gathers) and only the reference's predicted torques.
+    bank = [tau, Y_rigid, Y_extra, dq]
     if reference:
-        Yref, missing_ref = _reference_prediction(
-            pm, reference, cfg.reference.column, Y_rigid, Y_extra, dq, ddq
+        values = np.array([r.value(cfg.reference.column)[0] for r in reference])
+        tau_ref, missing_ref = _reference_prediction(
+            pm, reference, values, Y_rigid, Y_extra, dq, ddq
         )
-        bank.append(Yref)
+        bank.append(tau_ref)
     del Y_rigid, Y_extra
     timings["regressor"] = time.perf_counter() - t3
 
@@ -462,7 +474,8 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     records.append(rec)
     step = int(np.prod(pp.decimation)) if pp.decimation else 1
     t_dec = t[::step][: bank[0].shape[0]]
-    tau_d, Yb_d, dq_d = bank[0], bank[1], bank[2]
+    tau_d, dq_d = bank[0], bank[3]
+    Yb_d = pm.columns(bank[1], bank[2], base.independent)  # type: ignore[attr-defined]
     keep, rec = preprocess.velocity_mask(dq_d, pp.velocity_threshold)
     records.append(rec)
     n_dec, nv = tau_d.shape
@@ -535,8 +548,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     comparison: list[dict] = []
     note = ""
     if reference:
-        values = np.array([r.value(cfg.reference.column)[0] for r in reference])
-        add("reference", bank[3][part] @ values)
+        add("reference", bank[4][part])
         comparison, note = _compare_with_reference(pm, est, reference, cfg.reference.column)
         if missing_ref:
             note += f" Reference parameters without a column here: {', '.join(missing_ref)}."
