@@ -188,3 +188,24 @@ def test_cli_smoke_campaign_end_to_end(tmp_path):
     again = runner.invoke(app, ["bench", cfg, "--out", str(out), "--no-progress"])
     assert again.exit_code == 2
     assert "never overwritten" in again.output
+
+
+@pytest.mark.slow
+def test_dask_tcp_cluster_with_worker_processes():
+    distributed = pytest.importorskip("distributed")
+    cfg = CampaignConfig(**TINY)
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as lc:
+        assert lc.scheduler_address.startswith("tcp://")
+        res = run_campaign(cfg, scheduler=lc.scheduler_address)
+    assert _errors(res) == _errors(run_campaign(cfg))
+
+
+def test_unreachable_scheduler_is_a_clear_error(monkeypatch):
+    pytest.importorskip("distributed")
+    import ident.bench.campaign as campaign
+
+    monkeypatch.setattr(campaign, "DASK_CONNECT_TIMEOUT", "1s")
+    with pytest.raises(IdentError, match="cannot reach the dask scheduler"):
+        run_campaign(CampaignConfig(**TINY), scheduler="tcp://127.0.0.1:9")

@@ -59,6 +59,7 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 ALL_METHODS = ("emupso", "pso", "woa", "gwo", "goa", "de")
+DASK_CONNECT_TIMEOUT = "10s"  # how long to wait for a --scheduler before giving up
 
 
 class CampaignConfig(StrictModel):
@@ -343,7 +344,7 @@ def _run_dask(
             "`pip install 'ident[dask]'` (or `pip install 'dask[distributed]'`)."
         ) from e
     try:
-        client = Client(address, timeout="10s")
+        client = Client(address, timeout=DASK_CONNECT_TIMEOUT)
     except (OSError, TimeoutError) as e:
         raise IdentError(
             f"cannot reach the dask scheduler at {address}: {e}; start one with "
