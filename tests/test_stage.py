@@ -48,7 +48,8 @@ def test_paper_stages_are_wrist_then_arm(ur5) -> None:
     np.testing.assert_array_equal(arm.columns, np.arange(0, 30))
     assert arm.held_joints == (3, 4, 5)
     np.testing.assert_allclose(wrist.held_positions, default_held_positions(chain))
-    np.testing.assert_allclose(default_held_positions(chain), 0.5 * (chain.q_lower + chain.q_upper))
+    fraction = (default_held_positions(chain) - chain.q_lower) / (chain.q_upper - chain.q_lower)
+    np.testing.assert_allclose(fraction, 0.618034, atol=1e-6)
 
 
 def test_stage_states_hold_the_other_joints_at_rest() -> None:

@@ -143,7 +143,7 @@ def verification_report(
         ``n_dependent``, ``n_unidentifiable``, ``n_params`` (QR method, whole robot),
         ``methods`` (counts of both methods), ``ranks_agree``, and ``stages``: for a 6-joint
         robot the paper's ``wrist`` and ``arm`` stages (moving joints from the same states,
-        other joints held at the middle of their range, see
+        other joints held at 0.618 of their range, see
         :func:`ident.dynamics.stage.default_held_positions`), each with ``moving_joints``,
         ``torque_rows``, ``bodies`` (1-based), ``held_positions`` [rad or m] and the counts of
         both methods; empty otherwise.

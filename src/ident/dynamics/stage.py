@@ -19,6 +19,7 @@ from ident.errors import DataError, ModelError
 
 __all__ = [
     "Stage",
+    "HELD_FRACTION",
     "default_held_positions",
     "paper_stages",
     "stage_observation_matrix",
@@ -62,11 +63,24 @@ class Stage:
         return tuple(j for j in range(len(self.held_positions)) if j not in self.moving_joints)
 
 
+# Fraction of each joint's range at which held joints sit by default (golden-ratio conjugate).
+HELD_FRACTION = (np.sqrt(5.0) - 1.0) / 2.0
+
+
 def default_held_positions(chain: KinematicChain) -> FloatArray:
-    """Middle of each joint's range (0 where a limit is unknown) [rad or m], shape (n,)."""
-    lower, upper = chain.q_lower, chain.q_upper
-    finite = np.isfinite(lower) & np.isfinite(upper)
-    return np.where(finite, 0.5 * (np.where(finite, lower, 0) + np.where(finite, upper, 0)), 0.0)
+    """Default positions of held joints [rad or m], shape (n,).
+
+    ``lower + HELD_FRACTION * (upper - lower)`` with ``HELD_FRACTION = 0.618...``; where a
+    limit is unknown, the range is ``[-pi, pi]`` rad or ``[-1, 1]`` m. Not the middle of the
+    range: mid-range angles are typically 0 or +-90 deg, poses where a joint axis can be
+    parallel to gravity and a stage loses base parameters (for example the paper robot's wrist
+    stage loses two when the arm holds the joint-4 axis vertical). An irrational fraction of the
+    range avoids such special poses without a random draw.
+    """
+    default_range = np.where(chain.prismatic, 1.0, np.pi)
+    lower = np.where(np.isfinite(chain.q_lower), chain.q_lower, -default_range)
+    upper = np.where(np.isfinite(chain.q_upper), chain.q_upper, default_range)
+    return lower + HELD_FRACTION * (upper - lower)
 
 
 def paper_stages(
@@ -81,7 +95,7 @@ def paper_stages(
         A 6-joint serial chain.
     held_positions :
         Positions of all six joints [rad or m] at which non-moving joints are held; default
-        the middle of each joint's range (:func:`default_held_positions`).
+        0.618 of each joint's range (:func:`default_held_positions`).
 
     Raises
     ------
