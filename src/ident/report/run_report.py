@@ -116,7 +116,8 @@ def error_measures(
         ``|true_i| ||W_i|| / ||W_b true||``, ``torque_error`` (n,)
         ``|x_i - true_i| ||W_i|| / ||W_b true||``, ``max_torque_error`` and
         ``max_rel_error`` (the largest relative error of the parameters whose torque share is
-        at least ``SIGNIFICANT_SHARE``); without them ``max_rel_error`` is over the
+        at least ``SIGNIFICANT_SHARE``), ``error_sum_significant_percent`` (the sum of their
+        relative errors [%]); without them ``max_rel_error`` is over the
         parameters whose ``|true|`` is at least that fraction of the largest.
     """
     x, std, true = (np.asarray(a, dtype=float) for a in (x, std, true))
@@ -145,6 +146,9 @@ def error_measures(
         out["torque_share"] = _arr(share)
         out["torque_error"] = _arr(torque_error)
         out["max_torque_error"] = _num(float(torque_error.max(initial=0.0)))
+        out["error_sum_significant_percent"] = _num(
+            float(np.sum(100.0 * np.abs(err[significant]) / np.abs(true[significant])))
+        )
     else:
         significant = np.abs(true) >= SIGNIFICANT_SHARE * scale
     out["max_rel_error"] = _num(
@@ -620,7 +624,9 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         "first; elite 1 is the chosen trajectory. Condition numbers: of the scaled base "
         "observation matrix the objective uses (eq. 15), and of the SI base matrix of the "
         "estimate. Error sums: sums of the relative errors [%] of all base parameters with a "
-        "non-zero true value (Error(all)) and without the two largest (Error(all-2)).",
+        "non-zero true value (Error(all), the paper's Error(22)), over the parameters that explain "
+        "at least 1e-4 of the stage's torques (Error(share >= 1e-4)) and without the two "
+        "largest (Error(all-2), the paper's Error(20)).",
         "",
     ]
     names = data["excitation"]["variable_names"]
@@ -641,6 +647,15 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
             [
                 f"Error(all) {m} [%]",
                 *[_fmt(e["estimates"].get(m, {}).get("error_sum_percent")) for e in elites],
+            ]
+        )
+        rows.append(
+            [
+                f"Error(share >= 1e-4) {m} [%]",
+                *[
+                    _fmt(e["estimates"].get(m, {}).get("error_sum_significant_percent"))
+                    for e in elites
+                ],
             ]
         )
         rows.append(
@@ -684,6 +699,7 @@ def _identification_section(
             "",
         ]
         rows = []
+        share = est.get("torque_share") or [None] * len(stage["base_names"])
         for i, name in enumerate(stage["base_names"]):
             rows.append(
                 [
@@ -694,6 +710,7 @@ def _identification_section(
                     _fmt(est["abs_error"][i]),
                     _fmt(est["rel_error_percent"][i]),
                     _fmt(est["normalized_error"][i], 3),
+                    _fmt(share[i], 2),
                 ]
             )
         md += _table(
@@ -705,6 +722,7 @@ def _identification_section(
                 "error",
                 "rel. error [%]",
                 "error / std",
+                "torque share",
             ],
             rows,
         )
