@@ -30,7 +30,10 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
+from ident.dynamics.base_parameters import BaseParameters
+from ident.dynamics.chain import KinematicChain
 from ident.dynamics.friction import (
     KINDS,
     ExtraTerms,
@@ -68,7 +71,7 @@ _N_RANDOM_STATES = 200  # random states for the structural base parameters
 _BASE_RTOL = 1e-6
 
 
-def load_robot_model(urdf: str | Path):  # noqa: ANN201 - pinocchio.Model
+def load_robot_model(urdf: str | Path) -> pin.Model:
     """Load a fixed-base serial URDF with Pinocchio.
 
     Raises
@@ -76,8 +79,6 @@ def load_robot_model(urdf: str | Path):  # noqa: ANN201 - pinocchio.Model
     ModelError
         If the URDF cannot be parsed or is not a chain of 1-DoF joints.
     """
-    import pinocchio as pin
-
     try:
         model = pin.buildModelFromUrdf(str(urdf))
     except (RuntimeError, ValueError) as e:
@@ -114,34 +115,47 @@ class ParameterModel:
     inertial_index: npt.NDArray[np.intp]
     extra_index: npt.NDArray[np.intp]
     terms: ExtraTerms
-    base: object
+    base: BaseParameters
     nominal: FloatArray
 
     @property
     def base_names(self) -> tuple[str, ...]:
         """Names of the base parameters (independent name, ``R`` suffix when regrouped)."""
-        return self.base.base_names  # type: ignore[attr-defined]
+        return self.base.base_names
 
     def columns(self, Y_rigid: FloatArray, Y_extra: FloatArray, index: npt.ArrayLike) -> FloatArray:
         """Regressor columns of the parameters ``index`` (into :attr:`names`).
 
         ``Y_rigid`` (n, nv, 10 n) and ``Y_extra`` (n, nv, n_extra) -> (n, nv, len(index)).
         """
-        index = np.asarray(index, dtype=np.intp)
-        out = np.empty((*Y_rigid.shape[:2], index.size))
-        rigid = self.inertial_index[index] >= 0
-        out[:, :, rigid] = Y_rigid[:, :, self.inertial_index[index[rigid]]]
-        out[:, :, ~rigid] = Y_extra[:, :, self.extra_index[index[~rigid]]]
-        return out
+        return _gather_columns(self.inertial_index, self.extra_index, Y_rigid, Y_extra, index)
 
 
-def _regressors(chain, terms: ExtraTerms, q, dq, ddq) -> tuple[FloatArray, FloatArray]:  # noqa: ANN001
+def _gather_columns(
+    inertial_index: npt.NDArray[np.intp],
+    extra_index: npt.NDArray[np.intp],
+    Y_rigid: FloatArray,
+    Y_extra: FloatArray,
+    index: npt.ArrayLike,
+) -> FloatArray:
+    """Columns ``index`` of the parameter list from the rigid-body and extra regressors."""
+    index = np.asarray(index, dtype=np.intp)
+    out = np.empty((*Y_rigid.shape[:2], index.size))
+    rigid = inertial_index[index] >= 0
+    out[:, :, rigid] = Y_rigid[:, :, inertial_index[index[rigid]]]
+    out[:, :, ~rigid] = Y_extra[:, :, extra_index[index[~rigid]]]
+    return out
+
+
+def _regressors(
+    chain: KinematicChain, terms: ExtraTerms, q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     from ident.dynamics.regressor import joint_torque_regressor
 
     return joint_torque_regressor(chain, q, dq, ddq), extra_columns(terms, dq, ddq)
 
 
-def build_parameter_model(model, terms: ExtraTerms, *, rng: int = 0) -> ParameterModel:  # noqa: ANN001
+def build_parameter_model(model: pin.Model, terms: ExtraTerms, *, rng: int = 0) -> ParameterModel:
     """Name, order and reduce to base parameters every parameter of the model.
 
     Parameters
@@ -174,15 +188,9 @@ def build_parameter_model(model, terms: ExtraTerms, *, rng: int = 0) -> Paramete
     )
     q, dq, ddq = random_states(chain, _N_RANDOM_STATES, rng=rng)
     Y_rigid, Y_extra = _regressors(chain, terms, q, dq, ddq)
-    pm = ParameterModel(
-        names=tuple(names),
-        inertial_index=inertial_index,
-        extra_index=extra_index,
-        terms=terms,
-        base=None,
-        nominal=np.zeros(len(names)),
-    )
-    W = pm.columns(Y_rigid, Y_extra, np.arange(len(names))).reshape(-1, len(names))
+    W = _gather_columns(
+        inertial_index, extra_index, Y_rigid, Y_extra, np.arange(len(names))
+    ).reshape(-1, len(names))
     base = compute_base_parameters(W, names, method="sequential", rtol=_BASE_RTOL)
     rigid_nominal = parameters_from_model(model)
     nominal = np.where(inertial_index >= 0, rigid_nominal[np.maximum(inertial_index, 0)], 0.0)
@@ -274,7 +282,7 @@ def _compare_with_reference(
 ) -> tuple[list[dict], str]:
     """Match reference base parameters to ours: same expression, or a documented sum."""
     base = pm.base
-    projection = base.projection  # type: ignore[attr-defined]
+    projection = base.projection
     base_names = pm.base_names
     coupled = _coupling_convention_map(pm)
     rows = []
@@ -475,7 +483,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     step = int(np.prod(pp.decimation)) if pp.decimation else 1
     t_dec = t[::step][: bank[0].shape[0]]
     tau_d, dq_d = bank[0], bank[3]
-    Yb_d = pm.columns(bank[1], bank[2], base.independent)  # type: ignore[attr-defined]
+    Yb_d = pm.columns(bank[1], bank[2], base.independent)
     keep, rec = preprocess.velocity_mask(dq_d, pp.velocity_threshold)
     records.append(rec)
     n_dec, nv = tau_d.shape
@@ -552,7 +560,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
         comparison, note = _compare_with_reference(pm, est, reference, cfg.reference.column)
         if missing_ref:
             note += f" Reference parameters without a column here: {', '.join(missing_ref)}."
-    add("URDF nominal", Yb_d[part] @ base.project(pm.nominal))  # type: ignore[attr-defined]
+    add("URDF nominal", Yb_d[part] @ base.project(pm.nominal))
     reference_essential: list[dict] = []
     if cfg.reference.essential_parameters is not None:
         rows, _ = _compare_with_reference(

@@ -83,7 +83,7 @@ def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
     est = result.estimate
     base = pm.base
     identified = {}
-    for k, i in enumerate(base.independent):  # type: ignore[attr-defined]
+    for k, i in enumerate(base.independent):
         name = pm.names[i]
         alone = not pm.base_names[k].endswith("R") and pm.inertial_index[i] >= 0
         if alone:
@@ -102,7 +102,7 @@ def result_dict(result: IdentifyResult, urdf: UrdfUpdate | None = None) -> dict:
     """JSON-ready summary of the identification (no times)."""
     pm = result.parameters
     est = result.estimate
-    expressions = pm.base.expressions()  # type: ignore[attr-defined]
+    expressions = pm.base.expressions()
     essential = result.essential
     out = {
         "name": result.config.name,
@@ -122,11 +122,11 @@ def result_dict(result: IdentifyResult, urdf: UrdfUpdate | None = None) -> dict:
                 "value": float(est.x[k]),
                 "std": float(est.std[k]),
                 "relative_std_pct": _finite(est.relative_std[k]),
-                "nominal": float(pm.base.projection[k] @ pm.nominal),  # type: ignore[attr-defined]
+                "nominal": float(pm.base.projection[k] @ pm.nominal),
             }
             for k, (name, expr) in enumerate(zip(pm.base_names, expressions, strict=True))
         ],
-        "unidentifiable": [pm.names[i] for i in pm.base.unidentifiable],  # type: ignore[attr-defined]
+        "unidentifiable": [pm.names[i] for i in pm.base.unidentifiable],
         "essential": None
         if essential is None
         else {
@@ -234,12 +234,12 @@ def _markdown(result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str) -> str:
         "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     by_ours = {row["ours"]: row for row in result.comparison if row["ours"]}
-    expressions = pm.base.expressions()  # type: ignore[attr-defined]
+    expressions = pm.base.expressions()
     for k, name in enumerate(pm.base_names):
         row = by_ours.get(name)
         ref = _num(row["reference_value"]) if row else "-"
         ref_std = _num(row["reference_relative_std_pct"], 3) if row else "-"
-        nominal = float(pm.base.projection[k] @ pm.nominal)  # type: ignore[attr-defined]
+        nominal = float(pm.base.projection[k] @ pm.nominal)
         lines.append(
             f"| {k + 1} | {name} | {_num(est.x[k])} | {_num(est.relative_std[k], 3)} | {ref} | "
             f"{ref_std} | {_num(nominal)} | `{expressions[k]}` |"
@@ -351,7 +351,7 @@ def _parameters_csv(result: IdentifyResult) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(["name", "value", "std", "relative_std_pct", "expression"])
-    for k, expr in enumerate(pm.base.expressions()):  # type: ignore[attr-defined]
+    for k, expr in enumerate(pm.base.expressions()):
         writer.writerow(
             [
                 pm.base_names[k],
