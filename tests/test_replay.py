@@ -351,7 +351,8 @@ def _read_line_with(proc, needle: str, timeout: float) -> str:
 
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
-def test_cli_live_server_loopback_next_free_port_and_clean_ctrl_c(tmp_path):
+@pytest.mark.parametrize("stop_signal", ["SIGINT", "SIGTERM"])
+def test_cli_live_server_loopback_next_free_port_and_clean_stop(tmp_path, stop_signal):
     import signal
     import socket
     import subprocess
@@ -383,7 +384,7 @@ def test_cli_live_server_loopback_next_free_port_and_clean_ctrl_c(tmp_path):
                 assert b"MeshCat.Viewer" in response.read()
             # The server is a thread of the command: no process that could outlive it.
             assert _children(proc.pid) == []
-            proc.send_signal(signal.SIGINT)
+            proc.send_signal(getattr(signal, stop_signal))  # Ctrl-C or kill
             assert proc.wait(timeout=20) == 130
             assert "interrupted" in proc.stderr.read()
         finally:
