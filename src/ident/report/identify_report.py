@@ -240,6 +240,8 @@ def _markdown(result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str) -> str:
         ref = _num(row["reference_value"]) if row else "-"
         ref_std = _num(row["reference_relative_std_pct"], 3) if row else "-"
         nominal = float(pm.base.projection[k] @ pm.nominal)
+        # round-off of the structural K times nominal inertias (friction has no nominal value)
+        nominal = 0.0 if abs(nominal) < 1e-12 else nominal
         lines.append(
             f"| {k + 1} | {name} | {_num(est.x[k])} | {_num(est.relative_std[k], 3)} | {ref} | "
             f"{ref_std} | {_num(nominal)} | `{expressions[k]}` |"
