@@ -15,16 +15,20 @@ from __future__ import annotations
 
 import io
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 __all__ = ["convergence_png", "estimate_png", "figure_png", "trajectory_png"]
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 FloatArray = npt.NDArray[np.float64]
 
 
-def _figure(width: float, height: float):  # noqa: ANN202 - matplotlib Figure
+def _figure(width: float, height: float) -> Figure:
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width, height), layout="constrained")
@@ -64,7 +68,7 @@ def convergence_png(
     """
     fig = _figure(7.0, 4.0)
     ax = fig.add_subplot()
-    runs = [np.asarray(h, dtype=float) for h in histories if len(h)]
+    runs = [a for a in (np.asarray(h, dtype=float) for h in histories) if a.size]
     if runs:
         length = max(len(h) for h in runs)
         padded = np.array([np.pad(h, (0, length - len(h)), mode="edge") for h in runs])

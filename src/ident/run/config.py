@@ -152,12 +152,12 @@ class EstimationSection(StrictModel):
         (the paper's column-by-column rank test).
     """
 
-    methods: list[Literal["ols", "wls"]] = Field(default_factory=lambda: ["ols", "wls"])
+    methods: list[Literal["ols", "wls"]] = ["ols", "wls"]  # pydantic copies mutable defaults
     base_method: Literal["qr", "sequential"] = "qr"
 
     @field_validator("methods")
     @classmethod
-    def _not_empty(cls, value: list[str]) -> list[str]:
+    def _not_empty(cls, value: list[Literal["ols", "wls"]]) -> list[Literal["ols", "wls"]]:
         if not value:
             raise ValueError("give at least one estimator (ols, wls)")
         return list(dict.fromkeys(value))
