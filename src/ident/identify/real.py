@@ -413,7 +413,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     model_joints = [model.names[i] for i in range(1, model.njoints)]
     joints = cfg.robot.joints or model_joints
     if list(joints) != model_joints:
-        raise DataError(
+        raise ConfigError(
             f"{source}: robot.joints = {joints} must list the URDF's joints in chain order "
             f"({', '.join(model_joints)})."
         )
@@ -433,25 +433,34 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
             raise ConfigError(f"{source}: preprocess.lowpass.{e}") from e
         records.append(rec)
     if pp.torque_lowpass is not None:
-        tau, rec = preprocess.lowpass(
-            tau, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
-        )
+        try:
+            tau, rec = preprocess.lowpass(
+                tau, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
+            )
+        except ConfigError as e:
+            raise ConfigError(f"{source}: preprocess.torque_lowpass.{e}") from e
         records.append(rec)
     dq, ddq, rec = preprocess.differentiate(q, fs)
     records.append(rec)
-    (q, dq, ddq, tau, t), rec = preprocess.trim([q, dq, ddq, tau, t], pp.trim_samples)
+    try:
+        (q, dq, ddq, tau, t), rec = preprocess.trim([q, dq, ddq, tau, t], pp.trim_samples)
+    except DataError as e:
+        raise DataError(f"{source}: preprocess.{e}") from e
     records.append(rec)
     timings["preprocess"] = time.perf_counter() - t1
 
     t2 = time.perf_counter()
-    terms = ExtraTerms.from_options(
-        model.nv,
-        rotor_inertia=cfg.model.rotor_inertia,
-        viscous=cfg.model.viscous,
-        coulomb=cfg.model.coulomb,
-        offset=cfg.model.offset,
-        coupled_wrist=cfg.model.coupled_wrist,
-    )
+    try:
+        terms = ExtraTerms.from_options(
+            model.nv,
+            rotor_inertia=cfg.model.rotor_inertia,
+            viscous=cfg.model.viscous,
+            coulomb=cfg.model.coulomb,
+            offset=cfg.model.offset,
+            coupled_wrist=cfg.model.coupled_wrist,
+        )
+    except ConfigError as e:
+        raise ConfigError(f"{source}: {e}") from e
     pm = build_parameter_model(model, terms, rng=rng)
     base = pm.base
     timings["base_parameters"] = time.perf_counter() - t2
@@ -478,13 +487,19 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     timings["regressor"] = time.perf_counter() - t3
 
     t4 = time.perf_counter()
-    bank, fs_dec, rec = preprocess.decimate(bank, pp.decimation, fs)
+    try:
+        bank, fs_dec, rec = preprocess.decimate(bank, pp.decimation, fs)
+    except DataError as e:
+        raise DataError(f"{source}: preprocess.{e}") from e
     records.append(rec)
     step = int(np.prod(pp.decimation)) if pp.decimation else 1
     t_dec = t[::step][: bank[0].shape[0]]
     tau_d, dq_d = bank[0], bank[3]
     Yb_d = pm.columns(bank[1], bank[2], base.independent)
-    keep, rec = preprocess.velocity_mask(dq_d, pp.velocity_threshold)
+    try:
+        keep, rec = preprocess.velocity_mask(dq_d, pp.velocity_threshold)
+    except ConfigError as e:
+        raise ConfigError(f"{source}: {e}") from e
     records.append(rec)
     n_dec, nv = tau_d.shape
     ident_part, val_part = time_split(n_dec, cfg.validation.identify_fraction)
