@@ -87,13 +87,24 @@ def run(
         except KeyboardInterrupt:
             rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
             raise
-        save_run(result, rundir.path)
-        replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
-        rundir.update(replay=replay_note)
+        try:
+            save_run(result, rundir.path)
+            replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
+            rundir.update(replay=replay_note)
+        except BaseException:
+            rundir.finish("incomplete", "stopped while saving the results")
+            raise
         rundir.finish("complete", result.message)
         # after finish(): the report shows the final status and the wall time; if it fails,
         # the data are saved and 'ident report RUN_DIR' writes it again
-        report_path = write_report(rundir.path)
+        try:
+            report_path = write_report(rundir.path)
+        except BaseException:
+            typer.echo(
+                f"the data are saved; write the report with: ident report {rundir.path}",
+                err=True,
+            )
+            raise
         _summary(result, rundir.path, report_path, replay_note)
         if result.warnings:
             for warning in result.warnings:
