@@ -208,3 +208,21 @@ def test_no_identifiable_elite_exits_1_with_a_plain_report(tmp_path, monkeypatch
     assert "nan" not in md.lower()
     data = json.loads((run_dir / "result.json").read_text())
     assert data["elites"][0]["estimates"] == {}
+
+
+def test_noisy_quick_run_errors_within_reported_std(tmp_path):
+    noisy = tmp_path / "noisy.yaml"
+    text = QUICK.read_text().replace(
+        "robot: ../../../configs/paper6r.yaml",
+        f"robot: {QUICK.parents[3] / 'configs' / 'paper6r.yaml'}",
+    )
+    noisy.write_text(text.replace("torque_noise_std: 0.0", "torque_noise_std: 0.05"))
+    result = _run(noisy, "--out", tmp_path / "runs", "--no-replay")
+    assert result.exit_code == 0, result.output
+    data = json.loads((_only_run_dir(tmp_path / "runs") / "result.json").read_text())
+    for elite in data["elites"]:
+        for method in ("ols", "wls"):
+            est = elite["estimates"][method]
+            assert est["within_3std"] >= 0.8
+            assert est["max_torque_error"] > 1e-6  # the noise is really there
+            assert all(s > 0 for s in est["std"])
