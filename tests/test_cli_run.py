@@ -83,7 +83,7 @@ def test_report_is_self_contained_and_mentions_the_paper(quick_run):
     assert 'href="replay.html"' in page
     md = (run_dir / "report.md").read_text()
     assert "Tables 2-3" in md
-    assert "| paper | 15 | 7 | 8 |" in md
+    assert "| paper (its 6R robot) | 15 | 7 | 8 |" in md
     assert "nan" not in md.lower().replace("nanosecond", "")
 
 

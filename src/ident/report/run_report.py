@@ -547,7 +547,7 @@ def _base_section(stage: dict[str, Any]) -> list[str]:
     if paper:
         rows.append(
             [
-                "paper",
+                "paper (its 6R robot)",
                 str(paper["independent"]),
                 str(paper["dependent"]),
                 str(paper["unidentifiable"]),
