@@ -196,3 +196,15 @@ def test_unreachable_cartesian_circle_is_a_clear_error():
     assert isinstance(info.value.cause, TrajectoryError)
     assert "reachability (100 %)" in message
     assert "Cartesian circle is reachable" in message
+
+
+def test_encoder_quantization_enters_the_estimate(config, noise_free):
+    measurement = config.measurement.model_copy(update={"encoder_counts_per_rev": 2**12})
+    result = run_pipeline(config.model_copy(update={"measurement": measurement}))
+    elite = result.elites[0]
+    np.testing.assert_array_equal(elite.x, noise_free.elites[0].x)  # same design
+    est = elite.estimates["ols"]
+    exact = noise_free.elites[0].estimates["ols"]
+    # coarse encoder, differentiated twice: the estimate moves, the residual is no longer zero
+    assert est.relative_residual > 1e3 * max(exact.relative_residual, 1e-16)
+    assert not np.allclose(est.x, exact.x, rtol=1e-6, atol=0)
