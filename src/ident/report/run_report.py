@@ -629,6 +629,15 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         "largest (Error(all-2), the paper's Error(20)).",
         "",
     ]
+    excitation = data["config"]["excitation"]
+    if excitation["family"].startswith("paper_"):
+        unit = excitation.get("options", {}).get("length_unit", 1e-3)
+        what = "mm" if unit == 1e-3 else f"units of {unit:g} m"
+        md += [
+            f"Design variables as in Tables 2-3: a0, d0, e0, f0 in {what}; b0, c0 in {what} "
+            "per second.",
+            "",
+        ]
     names = data["excitation"]["variable_names"]
     header = ["", *[f"elite {e['rank']}" for e in elites]]
     rows = [[f"`{n}`", *[_fmt(e["x"][i]) for e in elites]] for i, n in enumerate(names)]

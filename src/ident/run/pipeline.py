@@ -31,6 +31,8 @@ result depends only on the config and the seed.
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,7 +41,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ident.errors import IdentError, NotIdentifiable, TrajectoryError
+from ident.errors import ConfigError, IdentError, NotIdentifiable, TrajectoryError
 from ident.run.config import RunConfig
 
 __all__ = [
@@ -55,8 +57,6 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-#: The paper's base-parameter counts (independent, in combination, unidentifiable).
-PAPER_COUNTS = {"wrist": (15, 7, 8), "arm": (20, 2, 8)}
 _DISTINCT_TOL = 1e-3
 _N_STRUCTURE_SAMPLES = 500
 
@@ -269,7 +269,7 @@ class RunInterrupted(Exception):
 
 
 # --------------------------------------------------------------------------------------
-# Building blocks (lazy imports: the modules below are written by other parts of ident)
+# Building blocks (heavy modules imported lazily: `import ident.run.pipeline` stays cheap)
 
 
 def load_robot(path: Path) -> Any:
@@ -290,7 +290,6 @@ def make_family(config: RunConfig, robot: Any, stage: Any) -> Any:
         If the family rejects ``excitation.options``.
     """
     from ident import excitation
-    from ident.errors import ConfigError
 
     section = config.excitation
     options = dict(section.options)
@@ -318,14 +317,10 @@ def make_family(config: RunConfig, robot: Any, stage: Any) -> Any:
 
 
 def _override_bounds(family: Any, overrides: dict[str, tuple[float, float]]) -> FloatArray:
-    from ident.errors import ConfigError
-
     bounds = np.array(family.bounds, dtype=float, copy=True)
     names = list(family.variable_names)
     for name, (low, high) in overrides.items():
         if name not in names:
-            import difflib
-
             close = difflib.get_close_matches(name, names, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             raise ConfigError(
@@ -635,8 +630,6 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
 
 
 def _replace(result: RunResult, **changes: Any) -> RunResult:
-    import dataclasses
-
     return dataclasses.replace(result, **changes)
 
 
