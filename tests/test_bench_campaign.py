@@ -185,6 +185,12 @@ def test_cli_smoke_campaign_end_to_end(tmp_path):
         assert heading in md
     assert "f - f_min(paper)" in md
     assert "<img" in (out / "report.html").read_text()
+    # the folder can be read back and re-rendered identically
+    from ident.bench.report import load_campaign, write_campaign
+
+    write_campaign(load_campaign(out), tmp_path / "again")
+    assert (tmp_path / "again" / "stats.csv").read_text() == (out / "stats.csv").read_text()
+    assert (tmp_path / "again" / "report.md").read_text() == md
     again = runner.invoke(app, ["bench", cfg, "--out", str(out), "--no-progress"])
     assert again.exit_code == 2
     assert "never overwritten" in again.output

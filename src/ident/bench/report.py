@@ -24,7 +24,9 @@ from typing import Any
 import numpy as np
 
 from ident.bench.campaign import (
+    CampaignConfig,
     CampaignResult,
+    RunRecord,
     summary_stats,
     wilcoxon_table,
     win_tie_loss,
@@ -39,7 +41,7 @@ from ident.bench.paper_tables import (
 )
 from ident.fileio import atomic_write_bytes, atomic_write_text
 
-__all__ = ["disagreements", "render_markdown", "write_campaign"]
+__all__ = ["disagreements", "load_campaign", "render_markdown", "write_campaign"]
 
 GROUP_TITLES = {
     "unimodal": ("Table 4", "Figure 5", "unimodal"),
@@ -158,10 +160,14 @@ def convergence_figures(result: CampaignResult) -> dict[str, bytes]:
         nrow = math.ceil(n / ncol)
         fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 2.8 * nrow), squeeze=False)
         for ax, f in zip(axes.flat, keys, strict=False):
+            curves = {}
             for m in result.config.methods:
                 runs = result.runs(f, m)
-                curve = np.mean([r.curve_error for r in runs], axis=0)
-                ax.plot(runs[0].curve_nfev, np.maximum(curve, 1e-300), label=_label(m), lw=1.2)
+                curves[m] = (runs[0].curve_nfev, np.mean([r.curve_error for r in runs], axis=0))
+            positive = np.concatenate([c[c > 0] for _, c in curves.values()])
+            floor = positive.min() / 10.0 if positive.size else 1e-300
+            for m, (nfev, curve) in curves.items():
+                ax.plot(nfev, np.maximum(curve, floor), label=_label(m), lw=1.2)
             ax.set_yscale("log")
             ax.set_title(get_function(f).label, fontsize=9)
             ax.tick_params(labelsize=7)
@@ -258,6 +264,8 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
             [get_function(f).label, f"{_label(best)} / {_label(pb) if pb else '—'}", *cells]
         )
     L += _md_table(header, rows)
+    L += ["NA marks the best-by-mean algorithm; a paper best of — means the paper's row has no "
+          "NA entry (its Table 8 omits it on several rows).", ""]  # fmt: skip
     for kind, tname, published in (
         ("min", "Table 7", PAPER_TABLE7),
         ("wilcoxon", "Table 9", PAPER_TABLE9),
@@ -291,6 +299,11 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
     ]
     for fig in figures:
         L += [f"![{fig}]({fig})", ""]
+    L += [
+        "Mean over the runs of the best-so-far error; a mean error of 0 (or below, from "
+        "rounding) is drawn one decade below the smallest positive value of its panel.",
+        "",
+    ]
     return "\n".join(L)
 
 
@@ -366,3 +379,48 @@ def write_campaign(result: CampaignResult, folder: str | Path) -> list[Path]:
     page = markdown_to_html(md, title=f"ident bench: {cfg.name}", images=figs)
     written.append(atomic_write_text(folder / "report.html", page))
     return written
+
+
+def load_campaign(folder: str | Path) -> CampaignResult:
+    """Read a campaign folder back (``campaign.json``, ``runs.csv``, ``curves.csv``).
+
+    Lets the tables, figures and report be re-rendered without rerunning the campaign:
+    ``write_campaign(load_campaign(old), new_folder)``.
+    """
+    folder = Path(folder)
+    meta = json.loads((folder / "campaign.json").read_text(encoding="utf-8"))
+    cfg = CampaignConfig.model_validate(meta["config"])
+    curves: dict[tuple[str, str, int], tuple[list[int], list[float]]] = {}
+    with open(folder / "curves.csv", newline="", encoding="utf-8") as fh:
+        for row in csv.DictReader(fh):
+            key = (row["function"], row["method"], int(row["run"]))
+            n, e = curves.setdefault(key, ([], []))
+            n.append(int(row["nfev"]))
+            e.append(float(row["error"]))
+    records = []
+    with open(folder / "runs.csv", newline="", encoding="utf-8") as fh:
+        for row in csv.DictReader(fh):
+            key = (row["function"], row["method"], int(row["run"]))
+            n, e = curves.get(key, ([], []))
+            records.append(
+                RunRecord(
+                    function=key[0],
+                    method=key[1],
+                    run=key[2],
+                    error=float(row["error"]),
+                    fun=float(row["f"]),
+                    nfev=int(row["nfev"]),
+                    nit=int(row["nit"]),
+                    seconds=float(row["seconds"]),
+                    n_nonfinite=int(row["n_nonfinite"]),
+                    curve_nfev=np.array(n, dtype=np.int64),
+                    curve_error=np.array(e),
+                )
+            )
+    return CampaignResult(
+        config=cfg,
+        records=tuple(records),
+        wall_seconds=float(meta["wall_seconds"]),
+        workers=int(meta["workers"]),
+        scheduler=meta.get("scheduler"),
+    )
