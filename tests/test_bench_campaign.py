@@ -208,6 +208,21 @@ def test_dask_tcp_cluster_with_worker_processes():
     assert _errors(res) == _errors(run_campaign(cfg))
 
 
+def test_cli_failed_campaign_leaves_no_folder(tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    import ident.bench.campaign as campaign
+
+    monkeypatch.setattr(campaign, "DASK_CONNECT_TIMEOUT", "1s")
+    out = tmp_path / "never"
+    cfg = str(ROOT / "configs" / "bench-smoke.yaml")
+    res = CliRunner().invoke(
+        app, ["bench", cfg, "--out", str(out), "--scheduler", "tcp://127.0.0.1:9", "--no-progress"]
+    )
+    assert res.exit_code == 2
+    assert "cannot reach the dask scheduler" in res.output
+    assert not out.exists()
+
+
 def test_unreachable_scheduler_is_a_clear_error(monkeypatch):
     pytest.importorskip("distributed")
     import ident.bench.campaign as campaign

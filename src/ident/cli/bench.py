@@ -25,15 +25,20 @@ def register(app: typer.Typer) -> None:
     app.command("bench")(bench)
 
 
-def _new_folder(out: Path | None, name: str) -> Path:
+def _check_out(out: Path | None) -> None:
     from ident.errors import ConfigError
 
+    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ConfigError(
+            f"--out {out}: exists and is not an empty folder; campaigns are never "
+            "overwritten, choose a new folder."
+        )
+
+
+def _new_folder(out: Path | None, name: str) -> Path:
+    """Create the campaign folder (after the runs: a failed campaign leaves nothing)."""
+    _check_out(out)
     if out is not None:
-        if out.exists() and (not out.is_dir() or any(out.iterdir())):
-            raise ConfigError(
-                f"--out {out}: exists and is not an empty folder; campaigns are never "
-                "overwritten, choose a new folder."
-            )
         out.mkdir(parents=True, exist_ok=True)
         return out
     stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -67,10 +72,10 @@ def bench(
     with user_errors():
         cfg = load_campaign_config(config)
         total = len(make_tasks(cfg))
-        folder = _new_folder(out, cfg.name)
+        _check_out(out)
         typer.echo(
             f"{total} runs: {len(cfg.methods)} methods x {len(cfg.function_keys())} functions "
-            f"x {cfg.runs} runs, {cfg.max_nfev} evaluations each -> {folder}"
+            f"x {cfg.runs} runs, {cfg.max_nfev} evaluations each"
         )
         with Progress(
             TextColumn("[progress.description]{task.description}"),
@@ -86,6 +91,7 @@ def bench(
                 scheduler=scheduler,
                 progress=lambda done, _total: bar.update(task, completed=done),
             )
+        folder = _new_folder(out, cfg.name)
         write_campaign(result, folder)
         typer.echo(f"wall time {result.wall_seconds:.1f} s")
         for line in disagreements(result)[:10]:
