@@ -37,11 +37,6 @@ __all__ = ["Robot"]
 
 FloatArray = npt.NDArray[np.float64]
 
-# Fallback ranges where a model carries no limit (URDFs rarely give accelerations).
-DEFAULT_Q_RANGE = {"revolute": np.pi, "prismatic": 1.0}  # [rad], [m]
-DEFAULT_DQ_MAX = 1.0  # [rad/s or m/s]
-DEFAULT_DDQ_MAX = 10.0  # [rad/s^2 or m/s^2]
-
 
 def _known(values: npt.ArrayLike, *, positive: bool = False) -> FloatArray:
     """Replace unknown limits (non-finite, Pinocchio's +-max float, or <= 0) by inf."""
@@ -189,9 +184,9 @@ class Robot:
         Pinocchio order per body, about the origin of each body (joint) frame, in its axes
         [kg, kg*m, kg*m^2]; the labels are :meth:`parameter_names`.
         """
-        return np.concatenate(
-            [self.model.inertias[j].toDynamicParameters() for j in range(1, self.model.njoints)]
-        )
+        from ident.dynamics.parameters import parameters_from_model
+
+        return parameters_from_model(self.model)
 
     def parameter_names(self) -> tuple[str, ...]:
         """Labels of :meth:`parameters`: ``m1, mcx1, mcy1, mcz1, Ixx1, ..., Izz<n>``."""
@@ -355,27 +350,9 @@ class Robot:
             ``+-1`` m where unknown), ``dq`` in ``[-dq_max, dq_max]`` (``+-1`` where unknown),
             ``ddq`` in ``[-ddq_max, ddq_max]`` (``+-10`` where unknown).
         """
-        rng = np.random.default_rng(rng)
-        prismatic = self._prismatic()
-        default_range = np.where(
-            prismatic, DEFAULT_Q_RANGE["prismatic"], DEFAULT_Q_RANGE["revolute"]
-        )
-        lower = np.where(np.isfinite(self.q_lower), self.q_lower, -default_range)
-        upper = np.where(np.isfinite(self.q_upper), self.q_upper, default_range)
-        dq_max = np.where(np.isfinite(self.dq_max), self.dq_max, DEFAULT_DQ_MAX)
-        ddq_max = np.where(np.isfinite(self.ddq_max), self.ddq_max, DEFAULT_DDQ_MAX)
-        q = rng.uniform(lower, upper, size=(n_samples, self.nq))
-        dq = rng.uniform(-dq_max, dq_max, size=(n_samples, self.nv))
-        ddq = rng.uniform(-ddq_max, ddq_max, size=(n_samples, self.nv))
-        return q, dq, ddq
+        from ident.dynamics.chain import random_states
 
-    def _prismatic(self) -> npt.NDArray[np.bool_]:
-        return np.array(
-            [
-                self.model.joints[j].shortname().startswith("JointModelP")
-                for j in range(1, self.model.njoints)
-            ]
-        )
+        return random_states(self.chain, n_samples, rng=rng, ddq_max=self.ddq_max)
 
     # ------------------------------------------------------------------ input checks
     def _positions(self, q: npt.ArrayLike) -> FloatArray:

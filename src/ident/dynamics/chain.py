@@ -22,6 +22,9 @@ __all__ = [
     "FloatArray",
     "IntArray",
     "KinematicChain",
+    "DEFAULT_DDQ_MAX",
+    "DEFAULT_DQ_MAX",
+    "DEFAULT_Q_RANGE",
     "chain_from_model",
     "random_states",
 ]
@@ -29,6 +32,11 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
+
+# Fallback ranges where a model carries no limit (URDFs rarely give accelerations).
+DEFAULT_Q_RANGE = {"revolute": np.pi, "prismatic": 1.0}  # [rad], [m]
+DEFAULT_DQ_MAX = 1.0  # [rad/s or m/s]
+DEFAULT_DDQ_MAX = 10.0  # [rad/s^2 or m/s^2]
 
 # Pinocchio joint types the chain accepts: 1-DoF, nq == nv == 1, axis in the joint frame.
 _REVOLUTE_AXES = {
@@ -125,6 +133,16 @@ class KinematicChain:
     def nv(self) -> int:
         """Size of the velocity vector."""
         return self.n_joints
+
+    def position_box(self) -> tuple[FloatArray, FloatArray]:
+        """Position limits with unknown ones replaced by ``DEFAULT_Q_RANGE`` (``[-pi, pi]`` rad,
+        ``[-1, 1]`` m) [rad or m], shapes (n,)."""
+        default_range = np.where(
+            self.prismatic, DEFAULT_Q_RANGE["prismatic"], DEFAULT_Q_RANGE["revolute"]
+        )
+        lower = np.where(np.isfinite(self.q_lower), self.q_lower, -default_range)
+        upper = np.where(np.isfinite(self.q_upper), self.q_upper, default_range)
+        return lower, upper
 
 
 def _joint_axis(joint: pin.JointModel) -> tuple[np.ndarray, bool] | None:
@@ -245,7 +263,7 @@ def random_states(
     n_samples: int,
     *,
     rng: np.random.Generator | int | None = None,
-    ddq_max: float = 10.0,
+    ddq_max: npt.ArrayLike = DEFAULT_DDQ_MAX,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Uniformly random states within the chain's limits.
 
@@ -258,21 +276,22 @@ def random_states(
     rng :
         Generator or seed.
     ddq_max :
-        Bound of the uniform accelerations [rad/s^2 or m/s^2] (models carry no limit).
+        Bound of the uniform accelerations [rad/s^2 or m/s^2], scalar or shape (n,) (models
+        carry no limit); ``DEFAULT_DDQ_MAX`` where it is not finite.
 
     Returns
     -------
     :
-        ``q`` in ``[q_lower, q_upper]`` (``[-pi, pi]`` rad or ``[-1, 1]`` m where a limit is
-        unknown), ``dq`` in ``[-dq_max, dq_max]`` (``dq_max = 1`` where unknown), ``ddq`` in
+        ``q`` in ``[q_lower, q_upper]`` (:meth:`KinematicChain.position_box`), ``dq`` in
+        ``[-dq_max, dq_max]`` (``DEFAULT_DQ_MAX`` where unknown), ``ddq`` in
         ``[-ddq_max, ddq_max]``; each of shape (n_samples, n).
     """
     rng = np.random.default_rng(rng)
     n = chain.n_joints
-    default_range = np.where(chain.prismatic, 1.0, np.pi)
-    lower = np.where(np.isfinite(chain.q_lower), chain.q_lower, -default_range)
-    upper = np.where(np.isfinite(chain.q_upper), chain.q_upper, default_range)
-    dq_max = np.where(np.isfinite(chain.dq_max), chain.dq_max, 1.0)
+    lower, upper = chain.position_box()
+    dq_max = np.where(np.isfinite(chain.dq_max), chain.dq_max, DEFAULT_DQ_MAX)
+    ddq_max = np.asarray(ddq_max, dtype=float)
+    ddq_max = np.where(np.isfinite(ddq_max), ddq_max, DEFAULT_DDQ_MAX)
     q = rng.uniform(lower, upper, size=(n_samples, n))
     dq = rng.uniform(-dq_max, dq_max, size=(n_samples, n))
     ddq = rng.uniform(-ddq_max, ddq_max, size=(n_samples, n))

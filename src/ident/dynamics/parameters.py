@@ -2,7 +2,8 @@
 
 Per body (joint frame ``i``): ``[m, m*cx, m*cy, m*cz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]`` with the
 inertia tensor about the joint frame origin, axes of joint frame ``i``
-(``pin.Inertia.toDynamicParameters``). Units: kg, kg*m, kg*m^2.
+(``pin.Inertia.toDynamicParameters``). Units: kg, kg*m, kg*m^2. The per-body labels are
+:data:`ident.robot.inertia.PINOCCHIO_ORDER`.
 """
 
 from __future__ import annotations
@@ -11,21 +12,9 @@ import numpy as np
 import pinocchio as pin
 
 from ident.dynamics.chain import FloatArray
+from ident.robot.inertia import PINOCCHIO_ORDER
 
-__all__ = ["PARAMETER_LABELS", "parameter_names", "parameters_from_model"]
-
-PARAMETER_LABELS: tuple[str, ...] = (
-    "m",
-    "mcx",
-    "mcy",
-    "mcz",
-    "Ixx",
-    "Ixy",
-    "Iyy",
-    "Ixz",
-    "Iyz",
-    "Izz",
-)
+__all__ = ["parameter_names", "parameters_from_model"]
 
 
 def parameter_names(n_bodies: int) -> tuple[str, ...]:
@@ -41,7 +30,7 @@ def parameter_names(n_bodies: int) -> tuple[str, ...]:
     :
         ``("m1", "mcx1", ..., "Izz1", "m2", ...)``, length ``10 * n_bodies``.
     """
-    return tuple(f"{label}{body + 1}" for body in range(n_bodies) for label in PARAMETER_LABELS)
+    return tuple(f"{label}{body + 1}" for body in range(n_bodies) for label in PINOCCHIO_ORDER)
 
 
 def parameters_from_model(model: pin.Model) -> FloatArray:

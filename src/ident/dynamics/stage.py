@@ -77,9 +77,7 @@ def default_held_positions(chain: KinematicChain) -> FloatArray:
     stage loses two when the arm holds the joint-4 axis vertical). An irrational fraction of the
     range avoids such special poses without a random draw.
     """
-    default_range = np.where(chain.prismatic, 1.0, np.pi)
-    lower = np.where(np.isfinite(chain.q_lower), chain.q_lower, -default_range)
-    upper = np.where(np.isfinite(chain.q_upper), chain.q_upper, default_range)
+    lower, upper = chain.position_box()
     return lower + HELD_FRACTION * (upper - lower)
 
 
