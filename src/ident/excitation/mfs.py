@@ -21,7 +21,6 @@ numbers of Tables 2-3 can be entered as printed); they are converted to SI once,
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -104,10 +103,26 @@ def mfs_path(
     return q, dq, ddq
 
 
+# The paper's search box in ``length_unit`` ("limits +-10 ... a and b span negative and positive,
+# others positive"); a family overrides entries (the arm's ``e0``).
+_PAPER_BOX: dict[str, tuple[float, float]] = {
+    "a0": (-10.0, 10.0),
+    "b0": (-10.0, 10.0),
+    "c0": (0.0, 10.0),
+    "d0": (0.0, 10.0),
+    "e0": (0.0, 10.0),
+    "f0": (0.0, 10.0),
+}
+
+
 class _CartesianFamily:
-    """Sampling grid, variables, bounds and units shared by the paper's two families."""
+    """Sampling grid, variables, bounds, units, held joints and the eq. 16-18 path shared by
+    the paper's two families (the moving joints are 0-2 or 3-5 of a 6-joint arm)."""
 
     traced_frame: str | None = None
+    moving_joints: tuple[int, ...]
+    with_f0: bool  # f0 is a design variable (the arm); else the centre's z is 0 (the wrist)
+    fourier_z: bool  # eq. 18 adds F(t) to z (the arm); the wrist completes z by eq. 19
 
     def __init__(
         self,
@@ -117,9 +132,10 @@ class _CartesianFamily:
         period: float,
         n_harmonics: int,
         length_unit: float,
-        with_f0: bool,
         default_bounds: dict[str, tuple[float, float]],
         bounds: npt.ArrayLike | None,
+        hold: npt.ArrayLike,
+        hold_name: str,
     ) -> None:
         if n_samples < 8:
             raise ValueError(f"n_samples must be >= 8, got {n_samples}")
@@ -140,7 +156,7 @@ class _CartesianFamily:
         self.length_unit = float(length_unit)
         self.t = np.arange(self.n_samples) * (self.period / self.n_samples)
         self._t_ext = np.append(self.t, self.period)  # one more sample at t = T for continuity
-        self.variable_names = mfs_variable_names(self.n_harmonics, with_f0=with_f0)
+        self.variable_names = mfs_variable_names(self.n_harmonics, with_f0=self.with_f0)
         if bounds is None:
             rows = [default_bounds[name.split("(")[0]] for name in self.variable_names]
             self.bounds = np.array(rows, dtype=float)
@@ -153,6 +169,23 @@ class _CartesianFamily:
                 )
         if np.any(self.bounds[:, 0] > self.bounds[:, 1]):
             raise ValueError("every lower bound must be <= its upper bound")
+        held_joints = [j for j in range(6) if j not in self.moving_joints]
+        hold_array = np.asarray(hold, dtype=float)
+        if hold_array.shape != (3,):
+            raise ValueError(
+                f"{hold_name} must have 3 entries (joints {held_joints[0] + 1}-"
+                f"{held_joints[-1] + 1}), got {hold_array.shape}"
+            )
+        held = np.zeros(6)
+        held[held_joints] = hold_array
+        held.setflags(write=False)
+        self.held_positions = held
+
+    def _cartesian_path(self, x: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Eq. 16-18 on the extended grid [m, m/s, m/s^2], (n_particles, n + 1, 3)."""
+        x = check_design(x, len(self.variable_names))
+        a, b, c, centre = self._split(x)
+        return mfs_path(self._t_ext, a, b, c, centre, self.base_frequency, fourier_z=self.fourier_z)
 
     def _split(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """``a, b, c, centre`` in SI from design vectors (n_particles, n_vars)."""
@@ -166,21 +199,20 @@ class _CartesianFamily:
 
     def _assemble(
         self,
-        joints: Sequence[int],
         q_ext: FloatArray,
         dq_ext: FloatArray,
         ddq_ext: FloatArray,
         q_end: FloatArray,
-        held: FloatArray,
         traced: FloatArray,
         reach: FloatArray,
     ) -> TrajectoryBatch:
         """Full-robot batch from the moving joints' motion on the extended grid."""
+        held = self.held_positions
         n_p, n = q_ext.shape[0], self.n_samples
         shape = (n_p, n, self.limits.nq)
         q = np.broadcast_to(held, shape).copy()
         dq, ddq = np.zeros(shape), np.zeros(shape)
-        cols = list(joints)
+        cols = list(self.moving_joints)
         q[:, :, cols] = q_ext[:, :n]
         dq[:, :, cols] = dq_ext[:, :n]
         ddq[:, :, cols] = ddq_ext[:, :n]
@@ -240,6 +272,9 @@ class PaperArmFamily(_CartesianFamily):
     """
 
     traced_frame = "wrist_centre"
+    moving_joints = (0, 1, 2)
+    with_f0 = True
+    fourier_z = True
 
     def __init__(
         self,
@@ -259,34 +294,18 @@ class PaperArmFamily(_CartesianFamily):
             period=period,
             n_harmonics=n_harmonics,
             length_unit=length_unit,
-            with_f0=True,
-            default_bounds={
-                "a0": (-10.0, 10.0),
-                "b0": (-10.0, 10.0),
-                "c0": (0.0, 10.0),
-                "d0": (0.0, 10.0),
-                "e0": (100.0, 200.0),
-                "f0": (0.0, 10.0),
-            },
+            default_bounds={**_PAPER_BOX, "e0": (100.0, 200.0)},
             bounds=bounds,
+            hold=wrist_hold,
+            hold_name="wrist_hold",
         )
-        hold = np.asarray(wrist_hold, dtype=float)
-        if hold.shape != (3,):
-            raise ValueError(f"wrist_hold must have 3 entries (joints 4-6), got {hold.shape}")
         if elbow not in (1, -1):
             raise ValueError(f"elbow must be +1 or -1, got {elbow}")
         self.elbow = int(elbow)
-        held = np.zeros(6)
-        held[3:] = hold
-        held.setflags(write=False)
-        self.held_positions = held
-        self.moving_joints = (0, 1, 2)
 
     def path(self, x: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Wrist-centre path [m, m/s, m/s^2] on the extended grid, (n_particles, n + 1, 3)."""
-        x = check_design(x, len(self.variable_names))
-        a, b, c, centre = self._split(x)
-        return mfs_path(self._t_ext, a, b, c, centre, self.base_frequency, fourier_z=True)
+        return self._cartesian_path(x)
 
     def trajectories(self, x: npt.ArrayLike) -> TrajectoryBatch:
         """Trajectories of a swarm; ``x`` of shape (n_particles, n_vars) in ``length_unit``."""
@@ -294,6 +313,4 @@ class PaperArmFamily(_CartesianFamily):
         sol = arm_inverse_kinematics(self.geometry, p, dp, ddp, elbow=self.elbow)
         q_ext = np.unwrap(sol.q, axis=1)
         reach = sol.excess.max(axis=1)
-        return self._assemble(
-            self.moving_joints, q_ext, sol.dq, sol.ddq, q_ext[:, -1], self.held_positions, p, reach
-        )
+        return self._assemble(q_ext, sol.dq, sol.ddq, q_ext[:, -1], p, reach)

@@ -50,9 +50,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ident.excitation.family import FloatArray, TrajectoryBatch, check_design
+from ident.excitation.family import FloatArray, TrajectoryBatch
 from ident.excitation.ik import atan2_derivatives, hypot_derivatives
-from ident.excitation.mfs import PAPER_N_HARMONICS, PAPER_PERIOD, _CartesianFamily, mfs_path
+from ident.excitation.mfs import _PAPER_BOX, PAPER_N_HARMONICS, PAPER_PERIOD, _CartesianFamily
 
 __all__ = [
     "THETA6_MODES",
@@ -234,6 +234,9 @@ class PaperWristFamily(_CartesianFamily):
     """
 
     traced_frame = "flange"
+    moving_joints = (3, 4, 5)
+    with_f0 = False
+    fourier_z = False
 
     def __init__(
         self,
@@ -254,27 +257,15 @@ class PaperWristFamily(_CartesianFamily):
             period=period,
             n_harmonics=n_harmonics,
             length_unit=length_unit,
-            with_f0=False,
-            default_bounds={
-                "a0": (-10.0, 10.0),
-                "b0": (-10.0, 10.0),
-                "c0": (0.0, 10.0),
-                "d0": (0.0, 10.0),
-                "e0": (0.0, 10.0),
-            },
+            default_bounds=_PAPER_BOX,
             bounds=bounds,
+            hold=arm_hold,
+            hold_name="arm_hold",
         )
-        hold = np.asarray(arm_hold, dtype=float)
-        if hold.shape != (3,):
-            raise ValueError(f"arm_hold must have 3 entries (joints 1-3), got {hold.shape}")
         if theta6 not in THETA6_MODES:
             raise ValueError(f"theta6 must be one of {', '.join(THETA6_MODES)}, got {theta6!r}")
         self.theta6 = theta6
-        held = np.zeros(6)
-        held[:3] = hold
-        held.setflags(write=False)
-        self.held_positions = held
-        self.moving_joints = (3, 4, 5)
+        hold = self.held_positions[:3]
         self.wrist_centre = self.geometry.wrist_centre(hold)
         self.rotation_0_3 = self.geometry.rotation_0_3(hold)
         if wrist_branch is None:
@@ -294,10 +285,7 @@ class PaperWristFamily(_CartesianFamily):
             Offsets [m], velocities [m/s], accelerations [m/s^2] and the reachability excess
             per sample, shape (n_particles, n + 1).
         """
-        x = check_design(x, len(self.variable_names))
-        a, b, c, centre = self._split(x)
-        rel = mfs_path(self._t_ext, a, b, c, centre, self.base_frequency, fourier_z=False)
-        return sphere_point(*rel, self.geometry.d6)
+        return sphere_point(*self._cartesian_path(x), self.geometry.d6)
 
     def trajectories(self, x: npt.ArrayLike) -> TrajectoryBatch:
         """Trajectories of a swarm; ``x`` of shape (n_particles, n_vars) in ``length_unit``."""
@@ -324,13 +312,4 @@ class PaperWristFamily(_CartesianFamily):
         dq_ext = np.concatenate([dq45, np.append(dq6, dq6[:, :1], axis=1)[..., None]], -1)
         ddq_ext = np.concatenate([ddq45, np.append(ddq6, ddq6[:, :1], axis=1)[..., None]], -1)
         traced = self.wrist_centre + rel
-        return self._assemble(
-            self.moving_joints,
-            q_ext,
-            dq_ext,
-            ddq_ext,
-            q_ext[:, -1],
-            self.held_positions,
-            traced,
-            excess.max(axis=1),
-        )
+        return self._assemble(q_ext, dq_ext, ddq_ext, q_ext[:, -1], traced, excess.max(axis=1))
