@@ -49,8 +49,22 @@ CONVENTIONS: tuple[str, ...] = ("standard", "modified")
 JOINT_TYPES: tuple[str, ...] = ("revolute", "prismatic")
 
 
-def _identity(n_samples: int) -> FloatArray:
-    return np.broadcast_to(np.eye(4), (n_samples, 4, 4)).copy()
+def _rotation(angle: npt.ArrayLike, i: int, j: int) -> FloatArray:
+    """Homogeneous rotations by ``angle`` [rad] turning axis ``i`` toward axis ``j``."""
+    angle = np.atleast_1d(np.asarray(angle, dtype=float))
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.broadcast_to(np.eye(4), (angle.shape[0], 4, 4)).copy()
+    out[:, i, i], out[:, i, j] = c, -s
+    out[:, j, i], out[:, j, j] = s, c
+    return out
+
+
+def _translation(distance: npt.ArrayLike, axis: int) -> FloatArray:
+    """Homogeneous translations by ``distance`` [m] along ``axis``."""
+    distance = np.atleast_1d(np.asarray(distance, dtype=float))
+    out = np.broadcast_to(np.eye(4), (distance.shape[0], 4, 4)).copy()
+    out[:, axis, 3] = distance
+    return out
 
 
 def rot_z(angle: npt.ArrayLike) -> FloatArray:
@@ -66,38 +80,22 @@ def rot_z(angle: npt.ArrayLike) -> FloatArray:
     :
         Transforms of shape (n_samples, 4, 4) (a scalar gives n_samples = 1).
     """
-    angle = np.atleast_1d(np.asarray(angle, dtype=float))
-    c, s = np.cos(angle), np.sin(angle)
-    out = _identity(angle.shape[0])
-    out[:, 0, 0], out[:, 0, 1] = c, -s
-    out[:, 1, 0], out[:, 1, 1] = s, c
-    return out
+    return _rotation(angle, 0, 1)
 
 
 def rot_x(angle: npt.ArrayLike) -> FloatArray:
     """Homogeneous rotations about x, angles [rad] -> shape (n_samples, 4, 4)."""
-    angle = np.atleast_1d(np.asarray(angle, dtype=float))
-    c, s = np.cos(angle), np.sin(angle)
-    out = _identity(angle.shape[0])
-    out[:, 1, 1], out[:, 1, 2] = c, -s
-    out[:, 2, 1], out[:, 2, 2] = s, c
-    return out
+    return _rotation(angle, 1, 2)
 
 
 def trans_z(distance: npt.ArrayLike) -> FloatArray:
     """Homogeneous translations along z, distances [m] -> shape (n_samples, 4, 4)."""
-    distance = np.atleast_1d(np.asarray(distance, dtype=float))
-    out = _identity(distance.shape[0])
-    out[:, 2, 3] = distance
-    return out
+    return _translation(distance, 2)
 
 
 def trans_x(distance: npt.ArrayLike) -> FloatArray:
     """Homogeneous translations along x, distances [m] -> shape (n_samples, 4, 4)."""
-    distance = np.atleast_1d(np.asarray(distance, dtype=float))
-    out = _identity(distance.shape[0])
-    out[:, 0, 3] = distance
-    return out
+    return _translation(distance, 0)
 
 
 _ELEMENTARY = {"rz": rot_z, "rx": rot_x, "tz": trans_z, "tx": trans_x}
