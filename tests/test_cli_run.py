@@ -2,6 +2,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -83,8 +84,64 @@ def test_report_is_self_contained_and_mentions_the_paper(quick_run):
     assert 'href="replay.html"' in page
     md = (run_dir / "report.md").read_text()
     assert "Tables 2-3" in md
-    assert "| paper (its 6R robot) | 15 | 7 | 8 |" in md
+    assert "| paper (its 6R robot, DH frames) | 15 | 7 | 8 |" in md
     assert "nan" not in md.lower().replace("nanosecond", "")
+
+
+def test_report_compares_dh_frame_counts_with_an_independent_computation(quick_run):
+    """The report's DH-frame counts are those of compute_base_parameters on W @ M (own
+    random states of the stage), and the paper's names are placed in our DH classes."""
+    from ident.dynamics.base_parameters import compute_base_parameters
+    from ident.dynamics.stage import paper_stages
+    from ident.model import Robot
+
+    _, run_dir, _ = quick_run
+    data = json.loads((run_dir / "result.json").read_text())
+    robot = Robot.from_config(QUICK.parents[3] / "configs" / "paper6r.yaml")
+    stage = paper_stages(robot.chain)["wrist"]  # the joint_fourier family holds the arm here
+    gen = np.random.default_rng(123)
+    n = 300
+    q = np.tile(np.asarray(stage.held_positions), (n, 1))
+    dq, ddq = np.zeros((n, 6)), np.zeros((n, 6))
+    moving = list(stage.moving_joints)
+    q[:, moving] = gen.uniform(robot.q_lower[moving], robot.q_upper[moving], (n, 3))
+    dq[:, moving] = gen.uniform(-1.0, 1.0, (n, 3)) * robot.dq_max[moving]
+    ddq[:, moving] = gen.uniform(-1.0, 1.0, (n, 3)) * robot.ddq_max[moving]
+    Y = robot.regressor(q, dq, ddq)[:, list(stage.torque_rows), :] @ robot.dh_to_model_parameters()
+    cols = list(stage.columns)
+    W = Y[:, :, cols].reshape(-1, len(cols))
+    names = [robot.parameter_names()[c] for c in cols]
+    ref = compute_base_parameters(W, names, method="qr").counts()
+    dh = data["stage"]["dh_frames"]
+    assert dh["frames"] == "DH"
+    assert (
+        dh["counts"]["independent"],
+        dh["counts"]["dependent"],
+        dh["counts"]["unidentifiable"],
+    ) == (ref["n_independent"], ref["n_dependent"], ref["n_unidentifiable"])
+    assert (ref["n_independent"], ref["n_dependent"], ref["n_unidentifiable"]) == (17, 5, 8)
+    unidentifiable = {names[i] for i in compute_base_parameters(W, names).unidentifiable}
+    assert set(dh["unidentifiable"]) == unidentifiable
+    # the true DH base parameters are the projection of Robot.parameters_dh()
+    assert dh["true_standard"] == pytest.approx(
+        robot.parameters_dh()[[robot.parameter_names().index(n) for n in dh["standard_names"]]],
+        rel=1e-12,
+        abs=1e-15,
+    )
+    md = (run_dir / "report.md").read_text()
+    assert "| this run, DH frames (the paper's frames) | 17 | 5 | 8 |" in md
+    assert "| this run, body frames (the estimate) | 17 | 4 | 9 |" in md
+    # paper-notes: Iyy4 and m6 are unidentifiable only because of the body frames
+    rows = {r["name"]: r for r in data["stage"]["paper_comparison"]}
+    assert rows["Iyy4"]["body"] == "unidentifiable"
+    assert rows["Iyy4"]["dh"] == "independent"
+    assert rows["m6"]["body"] == "unidentifiable"
+    assert rows["m6"]["dh"] == "dependent"
+    assert rows["Iyy4"]["paper"] == ["independent"]
+    assert rows["Ixz4"]["paper"] == ["independent"]
+    assert rows["Ixz4"]["dh"] == "unidentifiable"
+    assert rows["Iyz6"]["paper"] == ["independent", "dependent"]
+    assert "| `Iyy4` | independent | independent | unidentifiable |" in md
 
 
 def test_same_seed_gives_byte_identical_result_json(quick_run, tmp_path):

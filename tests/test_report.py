@@ -183,7 +183,8 @@ def test_markdown_tables_of_an_estimate():
     md = render_markdown(_data({"ols": est}, {}))
     assert "| `m1` (alone) | 1 | 1.1 | 0.1 | 0.1 | 10 | 1 |" in md
     assert "Standard parameters identifiable alone" in md
-    assert "| paper (its 6R robot) | 15 | 7 | 8 |" in md
+    assert "| paper (its 6R robot, DH frames) | 15 | 7 | 8 |" in md
+    assert "no DH table" in md  # this stage has no DH-frame comparison
 
 
 def test_write_report_needs_result_json(tmp_path):

@@ -217,8 +217,16 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
     indep, dep, unid = stage.counts
     table.add_row(
         "base parameters",
-        f"{len(stage.base_names)} ({indep}/{dep}/{unid} independent/combined/unidentifiable)",
+        f"{len(stage.base_names)} ({indep}/{dep}/{unid} independent/combined/unidentifiable, "
+        "body frames)",
     )
+    if stage.dh_frames is not None:
+        i, d, u = stage.dh_frames.counts
+        paper = {"wrist": "15/7/8", "arm": "20/2/8"}.get(stage.name)
+        table.add_row(
+            "paper's DH frames",
+            f"{i}/{d}/{u}" + (f" (paper: {paper})" if paper else ""),
+        )
     table.add_row("eMuPSO runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
     if result.elites:
         best = result.elites[0]

@@ -65,6 +65,29 @@ PAPER_COUNTS_NOTE = (
     "The paper reports wrist 15 independent / 7 in combination / 8 unidentifiable and arm "
     "20 / 2 / 8 (section 4.1); docs/paper-notes.md explains the differences."
 )
+#: The paper's named lists (section 4.1), in its spelling mapped to ours ("mx5" = mcx5,
+#: "mm6" = m6). Wrist: 15 independent and 7 in combination (Iyz6 is in both lists, so 21
+#: distinct names). Arm: 22 identified names, not split into independent and combined.
+PAPER_NAMES: dict[str, dict[str, tuple[str, ...]]] = {
+    "wrist": {
+        "independent": tuple(
+            "Iyy4 Ixz4 mcx5 Ixx5 Iyy5 Izz5 Ixy5 Ixz5 Iyz5 mcx6 mcy6 Iyy6 Izz6 Ixz6 Iyz6".split()
+        ),
+        "dependent": tuple("mcy4 mcy5 mcz5 m6 mcz6 Ixx6 Iyz6".split()),
+    },
+    "arm": {
+        "identified": tuple(
+            "mcy1 Iyy1 m2 mcx2 mcy2 mcz2 Iyy2 Izz2 Ixz2 Iyz2 m3 mcx3 mcy3 mcz3 Ixx3 Iyy3 "
+            "Izz3 Ixy3 Ixz3 Iyz3 Ixz1 Ixx2".split()
+        ),
+    },
+}
+_CLASS_LABEL = {
+    "independent": "independent",
+    "dependent": "in combination",
+    "unidentifiable": "unidentifiable",
+    "identified": "identified (independent or in combination)",
+}
 
 
 # ----------------------------------------------------------------------------- numbers
@@ -211,6 +234,9 @@ def result_to_dict(result: Any) -> dict[str, Any]:
             "base_expressions": list(stage.base_expressions),
             "true_base": _arr(stage.true_base),
             "identifiable_alone": list(stage.alone),
+            "frames": "body",
+            "dh_frames": _frame_base_dict(stage.dh_frames),
+            "paper_comparison": _paper_comparison(stage),
         }
     out["initial_elites"] = {
         "x": None if result.initial_elites is None else _arr(result.initial_elites),
@@ -274,6 +300,68 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     out["elites"] = elites
     out["chosen_elite"] = 1 if elites else None
     return out
+
+
+def _frame_base_dict(info: Any) -> dict[str, Any] | None:
+    """``result.json`` entry of a :class:`~ident.run.pipeline.FrameBaseInfo` (or None)."""
+    if info is None:
+        return None
+    counts = info.counts
+    return {
+        "frames": info.frames,
+        "method": info.method,
+        "column_order": "eq. 14 (m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz per body)",
+        "counts": {
+            "independent": counts[0],
+            "dependent": counts[1],
+            "unidentifiable": counts[2],
+            "n_base": len(info.base_names),
+        },
+        "standard_names": list(info.standard_names),
+        "true_standard": _arr(info.true_standard),
+        "independent": list(info.independent),
+        "dependent": list(info.dependent),
+        "unidentifiable": list(info.unidentifiable),
+        "base_names": list(info.base_names),
+        "base_expressions": list(info.base_expressions),
+        "true_base": _arr(info.true_base),
+    }
+
+
+def classify(name: str, independent: Any, dependent: Any, unidentifiable: Any) -> str:
+    """``independent``, ``dependent`` or ``unidentifiable`` (``?`` if in none)."""
+    for label, group in (
+        ("independent", independent),
+        ("dependent", dependent),
+        ("unidentifiable", unidentifiable),
+    ):
+        if name in group:
+            return label
+    return "?"
+
+
+def _paper_comparison(stage: Any) -> list[dict[str, Any]] | None:
+    """Per standard parameter of the stage: its class in the paper's lists, ours in DH frames
+    and ours in body frames (``None`` for a stage without the paper's lists)."""
+    lists = PAPER_NAMES.get(stage.name)
+    if lists is None:
+        return None
+    dh = stage.dh_frames
+    names = dh.standard_names if dh is not None else stage.standard_names
+    rows = []
+    for name in names:
+        paper = [label for label, group in lists.items() if name in group]
+        rows.append(
+            {
+                "name": name,
+                "paper": paper or ["not listed"],
+                "dh": None
+                if dh is None
+                else classify(name, dh.independent, dh.dependent, dh.unidentifiable),
+                "body": classify(name, stage.independent, stage.dependent, stage.unidentifiable),
+            }
+        )
+    return rows
 
 
 def _paper_counts(stage_name: str) -> dict[str, int] | None:
@@ -539,20 +627,20 @@ def render_markdown(
     return "\n".join(md)
 
 
+def _count_row(label: str, c: dict[str, int]) -> list[str]:
+    return [label, str(c["independent"]), str(c["dependent"]), str(c["unidentifiable"])]
+
+
 def _base_section(stage: dict[str, Any]) -> list[str]:
     c = stage["counts"]
+    dh = stage.get("dh_frames")
     md = ["## Base parameters of the stage", ""]
     paper = stage.get("paper_counts")
-    rows = [["this run", str(c["independent"]), str(c["dependent"]), str(c["unidentifiable"])]]
+    rows = [_count_row("this run, body frames (the estimate)", c)]
+    if dh:
+        rows.append(_count_row("this run, DH frames (the paper's frames)", dh["counts"]))
     if paper:
-        rows.append(
-            [
-                "paper (its 6R robot)",
-                str(paper["independent"]),
-                str(paper["dependent"]),
-                str(paper["unidentifiable"]),
-            ]
-        )
+        rows.append(_count_row("paper (its 6R robot, DH frames)", paper))
     md += _table(["", "independent", "in linear combination", "unidentifiable"], rows)
     method = {"qr": "QR with column pivoting", "sequential": "the paper's sequential rank test"}
     md += [
@@ -561,24 +649,120 @@ def _base_section(stage: dict[str, Any]) -> list[str]:
         f"{len(stage['base_names'])} base parameters. Torque rows: joints "
         f"{', '.join(str(r + 1) for r in stage['torque_rows'])}; {stage['known_bodies']}.",
         "",
+        "**Frames.** The estimate uses parameters about Pinocchio's body (joint) frames, the "
+        "project's convention (the URDF's inertials). Which *named* parameters are "
+        "unidentifiable or combined depends on the frames (the rank does not); the paper's "
+        "names are about its DH frames, so "
+        + (
+            "the comparison with the paper below uses the same random states with the "
+            "regressor in DH frames (`W @ Robot.dh_to_model_parameters()`), columns in the "
+            "paper's eq. 14 order, reduced by the paper's sequential rank test."
+            if dh
+            else "names cannot be compared with the paper's here: the robot has no DH table "
+            "(loaded from a URDF)."
+        ),
+        "",
     ]
     if paper:
         md += [PAPER_COUNTS_NOTE, ""]
     md += [
+        "### The estimate's base parameters (body frames)",
+        "",
         f"- Unidentifiable: {', '.join(stage['unidentifiable']) or 'none'}",
         f"- In linear combination: {', '.join(stage['dependent']) or 'none'}",
         "",
     ]
-    md += _table(
-        ["base parameter", "expression (SI)", "true value"],
+    md += _expression_table(stage, "body frames, SI")
+    if dh:
+        md += _dh_section(stage, dh)
+    return md
+
+
+def _expression_table(entry: dict[str, Any], what: str) -> list[str]:
+    return _table(
+        ["base parameter", f"expression ({what})", "true value"],
         [
             [f"`{n}`", f"`{e}`", _fmt(t)]
             for n, e, t in zip(
-                stage["base_names"], stage["base_expressions"], stage["true_base"], strict=True
+                entry["base_names"], entry["base_expressions"], entry["true_base"], strict=True
             )
         ],
         left=(1,),
     )
+
+
+def _dh_section(stage: dict[str, Any], dh: dict[str, Any]) -> list[str]:
+    md = [
+        "### Comparison with the paper (DH frames)",
+        "",
+        f"- Independent ({len(dh['independent'])}): {', '.join(dh['independent']) or 'none'}",
+        f"- In linear combination ({len(dh['dependent'])}): {', '.join(dh['dependent']) or 'none'}",
+        f"- Unidentifiable ({len(dh['unidentifiable'])}): "
+        f"{', '.join(dh['unidentifiable']) or 'none'}",
+        "",
+    ]
+    md += _expression_table(dh, "DH frames, SI")
+    comparison = stage.get("paper_comparison")
+    if not comparison:
+        return md
+    classes = ["independent", "dependent", "unidentifiable"]
+    present = {p for row in comparison for p in row["paper"]}
+    order = ("independent", "dependent", "identified", "not listed")
+    paper_classes = [p for p in order if p in present]
+    rows = []
+    for pc in paper_classes:
+        members = [r for r in comparison if pc in r["paper"]]
+        rows.append(
+            [
+                f"paper: {_CLASS_LABEL.get(pc, pc)} ({len(members)})",
+                *[
+                    ", ".join(r["name"] for r in members if r["dh"] == cls) or "—"
+                    for cls in classes
+                ],
+            ]
+        )
+    md += [
+        "Where the paper's names fall in our DH-frame classes (the paper's lists of section "
+        "4.1; `mx5` read as mcx5, `mm` as m; parameters the paper does not list are its "
+        "unidentifiable ones, which it does not name). Which member of a combination is "
+        "called independent depends on the column order and the method, so compare "
+        "independent + in combination (identified) against unidentifiable first:",
+        "",
+    ]
+    md += _table(
+        ["", "ours: independent", "ours: in combination", "ours: unidentifiable"],
+        rows,
+        left=(0, 1, 2, 3),
+    )
+    if stage["name"] == "wrist":
+        md += [
+            "The paper lists Iyz6 both as independent and in combination and does not list "
+            "Ixy6 (21 distinct names for 22 identified parameters): one of the two Iyz6 is "
+            "probably Ixy6.",
+            "",
+        ]
+    md += [
+        "Per parameter (paper / ours in DH frames / ours in body frames, where the estimate's "
+        "names can differ only because of the frames):",
+        "",
+    ]
+    md += _table(
+        ["parameter", "paper", "ours, DH frames", "ours, body frames"],
+        [
+            [
+                f"`{r['name']}`",
+                " and ".join(_CLASS_LABEL.get(p, p) for p in r["paper"]),
+                _CLASS_LABEL.get(r["dh"], str(r["dh"])),
+                _CLASS_LABEL.get(r["body"], r["body"]),
+            ]
+            for r in comparison
+        ],
+        left=(0, 1, 2, 3),
+    )
+    md += [
+        'docs/paper-notes.md ("Base parameters of the paper\'s stages") explains each difference.',
+        "",
+    ]
     return md
 
 

@@ -46,6 +46,7 @@ from ident.run.config import RunConfig
 
 __all__ = [
     "EliteOutcome",
+    "FrameBaseInfo",
     "OptimizerRun",
     "Progress",
     "RunInterrupted",
@@ -128,6 +129,50 @@ class OptimizerRun:
 
 
 @dataclass(frozen=True, eq=False)
+class FrameBaseInfo:
+    """Base parameters of the stage in another parameterization (the paper's DH frames).
+
+    Only for the comparison with the paper: the estimate uses :class:`StageInfo`'s body-frame
+    base parameters. Columns are taken in the paper's eq. 14 order per body
+    (``m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz``) and reduced by the paper's
+    sequential rank test, so the kept names are those the paper's procedure would keep.
+
+    Attributes
+    ----------
+    frames :
+        ``"DH"``.
+    method :
+        Base-parameter method (``"sequential"``).
+    standard_names :
+        Names of the stage's standard parameters in the column order used, shape (30,).
+    true_standard :
+        True values about the DH frames (SI) in that order.
+    independent, dependent, unidentifiable :
+        Names of the standard parameters in each class.
+    base_names, base_expressions :
+        Names and readable expressions of the base parameters.
+    true_base :
+        True base parameters (projection of ``true_standard``).
+    """
+
+    frames: str
+    method: str
+    standard_names: tuple[str, ...]
+    true_standard: FloatArray
+    independent: tuple[str, ...]
+    dependent: tuple[str, ...]
+    unidentifiable: tuple[str, ...]
+    base_names: tuple[str, ...]
+    base_expressions: tuple[str, ...]
+    true_base: FloatArray
+
+    @property
+    def counts(self) -> tuple[int, int, int]:
+        """(independent, in linear combination, unidentifiable)."""
+        return len(self.independent), len(self.dependent), len(self.unidentifiable)
+
+
+@dataclass(frozen=True, eq=False)
 class StageInfo:
     """The stage's parameters: standard columns, base parameters, true values.
 
@@ -159,6 +204,9 @@ class StageInfo:
         How bodies outside the stage were handled.
     base :
         The ``BaseParameters`` object (``base_columns(W)``, ``project(params)``).
+    dh_frames :
+        The same stage's base parameters about the paper's DH frames
+        (:class:`FrameBaseInfo`), for robots built from a DH config; else ``None``.
     """
 
     name: str
@@ -176,6 +224,7 @@ class StageInfo:
     base_method: str
     known_bodies_note: str
     base: Any = None
+    dh_frames: FrameBaseInfo | None = None
 
     @property
     def counts(self) -> tuple[int, int, int]:
@@ -348,12 +397,64 @@ def stage_matrix(
         Torques of the parameters outside the stage on the stage's rows, with their true
         values [N*m], shape (n_samples, n_rows).
     """
-    Y = np.asarray(robot.regressor(q, dq, ddq))[:, list(rows), :]
+    Y = stage_regressor(robot, rows, q, dq, ddq)
     params = np.asarray(robot.parameters(), dtype=float)
     other = np.setdiff1d(np.arange(Y.shape[2]), np.asarray(columns, dtype=int))
     known = Y[:, :, other] @ params[other]
     W = Y[:, :, list(columns)].reshape(-1, len(columns))
     return W, known
+
+
+def stage_regressor(
+    robot: Any, rows: tuple[int, ...], q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> FloatArray:
+    """Rows ``rows`` of the joint-torque regressor, shape (n_samples, n_rows, n_params)."""
+    return np.asarray(robot.regressor(q, dq, ddq))[:, list(rows), :]
+
+
+def dh_frame_base(
+    robot: Any,
+    rows: tuple[int, ...],
+    columns: tuple[int, ...],
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+) -> FrameBaseInfo | None:
+    """Base parameters of a stage about the paper's DH frames (``None`` without a DH table).
+
+    The regressor in the DH parameterization is ``Y @ robot.dh_to_model_parameters()``
+    (docs/paper-notes.md, "Eq. 14: parameter order and frames"); its stage columns are put in
+    the paper's eq. 14 order per body and reduced by the paper's sequential rank test.
+    """
+    if getattr(robot, "dh", None) is None:
+        return None
+    from ident.dynamics.base_parameters import compute_base_parameters
+    from ident.robot.inertia import PAPER_ORDER, PINOCCHIO_ORDER
+
+    M = np.asarray(robot.dh_to_model_parameters(), dtype=float)
+    Y = stage_regressor(robot, rows, q, dq, ddq) @ M
+    names_all = tuple(robot.parameter_names())
+    # eq. 14 order within each body (the stage's columns are whole bodies, 10 each)
+    to_paper = [PINOCCHIO_ORDER.index(label) for label in PAPER_ORDER]
+    order = [c - c % 10 + to_paper[c % 10] for c in columns]
+    if sorted(order) != sorted(columns):
+        raise IdentError("the stage's parameter columns are not whole bodies of 10 parameters")
+    W = Y[:, :, order].reshape(-1, len(order))
+    names = tuple(names_all[c] for c in order)
+    base = compute_base_parameters(W, names, method="sequential")
+    true_standard = np.asarray(robot.parameters_dh(), dtype=float)[order]
+    return FrameBaseInfo(
+        frames="DH",
+        method="sequential",
+        standard_names=names,
+        true_standard=true_standard,
+        independent=tuple(names[i] for i in base.independent),
+        dependent=tuple(names[i] for i in base.dependent),
+        unidentifiable=tuple(names[i] for i in base.unidentifiable),
+        base_names=tuple(base.base_names),
+        base_expressions=tuple(base.expressions()),
+        true_base=np.asarray(base.project(true_standard), dtype=float),
+    )
 
 
 def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng: Any) -> StageInfo:
@@ -403,6 +504,7 @@ def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng:
         base_method=base_method,
         known_bodies_note=known_note,
         base=base,
+        dh_frames=dh_frame_base(robot, rows, columns, q, dq, ddq),
     )
 
 
