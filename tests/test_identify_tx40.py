@@ -104,6 +104,132 @@ def test_identify_slice_agrees_with_reference(tmp_path):
     html = (run / "report.html").read_text()
     assert "data:image/png;base64," in html
     assert "missing figure" not in html
+    _check_measured_replay(run, data)
+
+
+def _replay_commands(page):
+    """The msgpack commands embedded in a replay page."""
+    import base64
+    import re
+
+    import umsgpack
+
+    block = page[page.index("const commands = [") : page.index("];", page.index("const commands"))]
+    return [
+        umsgpack.unpackb(base64.b64decode(c)) for c in re.findall(r'"([A-Za-z0-9+/=]+)"', block)
+    ]
+
+
+def _check_measured_replay(run, data):
+    """replay.html, trajectory.csv and robot.urdf of an identify run folder (4 s slice)."""
+    from html.parser import HTMLParser
+
+    from ident.identify.real import load_robot_model
+    from ident.trajectory import read_trajectory_csv
+
+    urdf = DATA / "urdf" / "tx40_mdh_modified.urdf"
+    model = load_robot_model(urdf)
+    joints = [model.names[i] for i in range(1, model.njoints)]
+    # trajectory.csv: the processed joint-side motion, decimated to 50 Hz, URDF joint names
+    traj = read_trajectory_csv(run / "trajectory.csv")
+    assert list(traj.joint_names) == joints
+    assert traj.tau is not None
+    dt = np.diff(traj.t)
+    np.testing.assert_allclose(dt, 0.02, rtol=1e-9)
+    # 20000 samples - 2 x 20 trimmed -> 19960 at 5 kHz -> 200 samples, 0.004 .. 3.984 s
+    assert traj.n_samples == 200
+    assert traj.t[0] == pytest.approx(20 / 5000)
+    assert traj.t[-1] == pytest.approx(3.984)
+    # joint side: the raw motor angles through Rq^-1 plus the zero offsets, at the same instants
+    with gzip.open(DATA / "data" / "pos_read_data.csv.gz", "rt") as f:
+        f.readline()
+        motor = np.loadtxt(f, delimiter=",", max_rows=20000)
+    Rq = np.diag([32.0, 32, 45, -48, 45, 32])
+    Rq[5, 4] = 32.0
+    q_raw = np.linalg.solve(Rq, motor.T).T + [0, -np.pi / 2, np.pi / 2, 0, 0, 0]
+    index = np.rint(traj.t * 5000).astype(int)
+    # the filters (25 Hz low-pass, flat anti-aliasing) move the angles by 1.2 mrad at most here
+    # (this slice ends mid-motion; 0.8 mrad on the full log)
+    inner = slice(5, -5)  # away from the filters' edge transients
+    np.testing.assert_allclose(traj.q[inner], q_raw[index][inner], atol=2e-3)
+    assert np.ptp(traj.q, axis=0).max() > 0.5  # the arm moves
+    # dq is the derivative of q (central differences on the decimated samples)
+    np.testing.assert_allclose(
+        np.gradient(traj.q, traj.t, axis=0)[inner],
+        traj.dq[inner],
+        atol=0.02 * np.abs(traj.dq).max(),
+    )
+    assert (run / "robot.urdf").read_text() == urdf.read_text()
+    assert data["replay"].startswith("replay.html written")
+    assert "[replay.html](replay.html)" in (run / "report.md").read_text()
+    assert 'href="replay.html"' in (run / "report.html").read_text()
+
+    page = (run / "replay.html").read_text()
+
+    class Tags(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.tags = []
+
+        def handle_starttag(self, tag, attrs):
+            self.tags.append(tag)
+
+    parser = Tags()
+    parser.feed(page)
+    assert {"html", "head", "body", "script"} <= set(parser.tags)
+    assert "new MeshCat.Viewer" in page
+    commands = _replay_commands(page)
+    objects = {c["path"] for c in commands if c["type"] == "set_object"}
+    # the TX40 URDF ships without meshes: a stick figure with one sphere per joint
+    for joint in joints:
+        assert f"/meshcat/replay/robot_0/visuals/joint_{joint}" in objects, joint
+    (anim,) = [c for c in commands if c["type"] == "set_animation"]
+    (marker,) = [a for a in anim["animations"] if a["path"] == "/meshcat/replay/robot_0/marker"]
+    (track,) = [t for t in marker["clip"]["tracks"] if t["name"] == ".position"]
+    # the whole slice at 30 keyframes/s
+    assert len(track["keys"]) == pytest.approx(30 * (traj.t[-1] - traj.t[0]) + 1, abs=1)
+
+    # ident replay works on the identify run folder
+    out = run.parent / "again.html"
+    result = CliRunner().invoke(app, ["replay", str(run), "--html", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "traced frame tool0" in result.output
+    assert out.stat().st_size > 100_000
+
+
+def test_no_replay_option_keeps_the_measured_motion(tmp_path):
+    config = _config(tmp_path, log={"max_samples": 8000})
+    result = CliRunner().invoke(
+        app, ["identify", str(config), "--out", str(tmp_path / "runs"), "--no-replay"]
+    )
+    assert result.exit_code == 0, result.output
+    (run,) = (tmp_path / "runs").iterdir()
+    assert not (run / "replay.html").exists()
+    assert (run / "trajectory.csv").is_file()
+    assert (run / "robot.urdf").is_file()
+    data = json.loads((run / "result.json").read_text())
+    assert data["replay"].startswith("replay skipped (--no-replay)")
+    assert "Motion replay: not available. replay skipped" in (run / "report.md").read_text()
+
+
+def test_failing_replay_keeps_the_identification(tmp_path, monkeypatch):
+    import ident.viz.replay
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no WebGL today")
+
+    monkeypatch.setattr(ident.viz.replay, "replay_html", broken)
+    config = _config(tmp_path, log={"max_samples": 8000})
+    result = _invoke(config, tmp_path / "runs")
+    assert result.exit_code == 0, result.output
+    (run,) = (tmp_path / "runs").iterdir()
+    assert json.loads((run / "run.json").read_text())["status"] == "complete"
+    assert not (run / "replay.html").exists()
+    data = json.loads((run / "result.json").read_text())
+    assert data["replay"] == "no replay: RuntimeError: no WebGL today"
+    assert data["n_base_parameters"] == 60
+    report = (run / "report.md").read_text()
+    assert "Motion replay: not available. no replay: RuntimeError: no WebGL today" in report
 
 
 def _fails(result, *fragments):

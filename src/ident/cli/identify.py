@@ -2,12 +2,15 @@
 
 Validates the config, runs :func:`ident.identify.real.identify`, and only when that succeeded
 creates a new run folder ``<out>/<name>-<timestamp>/`` with the report (so a failed
-identification leaves nothing that looks like a result). If writing the report fails, the
-folder is marked incomplete.
+identification leaves nothing that looks like a result), the measured motion
+(``trajectory.csv``, ``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``;
+a failing replay is reported, never fatal). If writing the report fails, the folder is marked
+incomplete.
 """
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -29,12 +32,16 @@ def identify(
     seed: Annotated[
         int, typer.Option(help="Seed of the random states that find the base parameters.")
     ] = 0,
+    replay: Annotated[
+        bool,
+        typer.Option(help="Write replay.html (the measured motion, meshcat) into the run folder."),
+    ] = True,
 ) -> None:
     """Identify base, friction and actuator parameters from CONFIG's measured log."""
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify as run_identify
-    from ident.report.identify_report import write_identify_report
+    from ident.report.identify_report import write_identify_report, write_measured_replay
     from ident.run.rundir import create_run_dir
 
     with user_errors():
@@ -44,14 +51,19 @@ def identify(
             out, f"{cfg.name}", info={"command": "identify", "config": str(config), "seed": seed}
         )
         try:
-            write_identify_report(result, rundir.path)
+            t0 = time.perf_counter()
+            replay_note = write_measured_replay(result, rundir.path, replay=replay)
+            rundir.update(replay=replay_note)
+            t1 = time.perf_counter()
+            write_identify_report(result, rundir.path, replay_note=replay_note)
+            timings = {**result.timings, "replay": t1 - t0, "report": time.perf_counter() - t1}
         except (IdentError, OSError) as e:
             rundir.finish("incomplete", f"writing the report failed: {e}")
             raise IdentError(f"{rundir.path}: writing the report failed ({e}).") from e
         except BaseException:
             rundir.finish("incomplete", "interrupted while writing the report")
             raise
-        rundir.update(timings_s={k: round(v, 3) for k, v in result.timings.items()})
+        rundir.update(timings_s={k: round(v, 3) for k, v in timings.items()})
         rundir.finish("complete", result.estimate.message)
         est = result.estimate
         typer.echo(f"run folder: {rundir.path}")
@@ -66,4 +78,5 @@ def identify(
                 f"held-out {label}: relative residual {p.metrics.total_relative_residual:.4f}; "
                 f"RMSE per joint [N*m] {rmse}"
             )
+        typer.echo(replay_note)
         typer.echo(f"report: {rundir.path / 'report.html'}")

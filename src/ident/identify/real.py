@@ -47,8 +47,10 @@ from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
 from ident.identify.estimate import Estimate, least_squares
 from ident.identify.logs import RobotLog, read_log
+from ident.identify.motion import measured_motion
 from ident.identify.reference import ReferenceParameter, expression_to_vector, read_reference
 from ident.identify.validation import PredictionMetrics, prediction_metrics, time_split
+from ident.trajectory import JointTrajectory
 
 __all__ = [
     "PRIORITY_LABELS",
@@ -242,6 +244,13 @@ class IdentifyResult:
         How the reference maps onto our parameters.
     timings :
         Seconds per stage.
+    reference_essential :
+        Rows comparing our essential parameters with the reference's.
+    motion :
+        The measured motion (processed, decimated to <= 50 Hz) for ``trajectory.csv`` and the
+        replay, or None when the log is too short to decimate it (see ``motion_note``).
+    motion_note :
+        Why ``motion`` is None, else empty.
     """
 
     config: IdentifyConfig
@@ -261,6 +270,8 @@ class IdentifyResult:
     n_identify_rows: int
     timings: dict[str, float] = field(default_factory=dict)
     reference_essential: tuple[dict, ...] = ()
+    motion: JointTrajectory | None = None
+    motion_note: str = ""
 
 
 def _coupling_convention_map(pm: ParameterModel) -> dict[str, list[str]]:
@@ -449,6 +460,16 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     records.append(rec)
     timings["preprocess"] = time.perf_counter() - t1
 
+    t_motion = time.perf_counter()
+    motion: JointTrajectory | None = None
+    motion_note = ""
+    try:  # the measured motion is for the replay: a failure must not stop the identification
+        motion, rec = measured_motion(t, q, dq, ddq, tau, fs, tuple(joints))
+        records.append(rec)
+    except DataError as e:
+        motion_note = f"measured motion not available: {e}"
+    timings["motion"] = time.perf_counter() - t_motion
+
     t2 = time.perf_counter()
     try:
         terms = ExtraTerms.from_options(
@@ -606,4 +627,6 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
         n_identify_rows=int(W_id.shape[0]),
         timings=timings,
         reference_essential=tuple(reference_essential),
+        motion=motion,
+        motion_note=motion_note,
     )

@@ -19,7 +19,13 @@ from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.real import IdentifyResult
 from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
 
-__all__ = ["identified_urdf", "result_dict", "torque_png", "write_identify_report"]
+__all__ = [
+    "identified_urdf",
+    "result_dict",
+    "torque_png",
+    "write_identify_report",
+    "write_measured_replay",
+]
 
 _PLOT_LABELS = ("identified", "reference")
 
@@ -98,7 +104,52 @@ def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
     return update_urdf_inertials(text, result.joint_names, parameters_from_model(model), identified)
 
 
-def result_dict(result: IdentifyResult, urdf: UrdfUpdate | None = None) -> dict:
+def write_measured_replay(
+    result: IdentifyResult, folder: str | Path, *, replay: bool = True
+) -> str:
+    """Write the measured motion: ``trajectory.csv``, ``robot.urdf`` and ``replay.html``.
+
+    ``trajectory.csv`` (format of :mod:`ident.trajectory`) and ``robot.urdf`` (a copy of the
+    URDF used) let ``ident replay RUN_DIR`` show the run folder; ``replay.html`` is the static
+    meshcat page (:func:`ident.viz.replay.replay_html`). A failing replay never raises: the
+    returned one-line note says what happened, for the report and ``run.json``.
+    """
+    import warnings
+
+    from ident.trajectory import trajectory_to_csv
+
+    folder = Path(folder)
+    motion = result.motion
+    if motion is None:
+        return f"no replay: {result.motion_note or 'no measured motion'}."
+    atomic_write_text(folder / "trajectory.csv", trajectory_to_csv(motion))
+    urdf_path = atomic_write_text(
+        folder / "robot.urdf", Path(result.config.robot.urdf).read_text(encoding="utf-8")
+    )
+    what = (
+        f"measured motion, {motion.n_samples} samples at "
+        f"{(motion.n_samples - 1) / (motion.t[-1] - motion.t[0]):.3g} Hz, "
+        f"{motion.t[-1] - motion.t[0]:.2f} s"
+    )
+    if not replay:
+        return f"replay skipped (--no-replay); {what} in trajectory.csv."
+    try:
+        from ident.viz.replay import replay_html
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            page = replay_html(urdf_path, [motion], labels=[f"{result.config.name}: {what}"])
+    except Exception as e:  # the replay is a convenience: a failure must not lose the result
+        return f"no replay: {type(e).__name__}: {e}"
+    atomic_write_text(folder / "replay.html", page)
+    # e.g. missing meshes -> stick figure; name the copy, not this folder's absolute path
+    notes = [str(w.message).replace(str(urdf_path), urdf_path.name).rstrip(".") for w in caught]
+    return f"replay.html written ({what})" + "".join(f"; {n}" for n in notes) + "."
+
+
+def result_dict(
+    result: IdentifyResult, urdf: UrdfUpdate | None = None, replay_note: str | None = None
+) -> dict:
     """JSON-ready summary of the identification (no times)."""
     pm = result.parameters
     est = result.estimate
@@ -155,6 +206,8 @@ def result_dict(result: IdentifyResult, urdf: UrdfUpdate | None = None) -> dict:
         ],
         "processing": list(result.records),
     }
+    if replay_note is not None:
+        out["replay"] = replay_note
     if urdf is not None:
         out["urdf"] = {
             "written": {k: list(v) for k, v in urdf.written.items()},
@@ -164,7 +217,9 @@ def result_dict(result: IdentifyResult, urdf: UrdfUpdate | None = None) -> dict:
     return out
 
 
-def _markdown(result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str) -> str:
+def _markdown(
+    result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str, replay_note: str = ""
+) -> str:
     pm = result.parameters
     est = result.estimate
     names = result.joint_names
@@ -176,6 +231,13 @@ def _markdown(result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str) -> str:
         f"({len(pm.base_names)} base parameters, condition number {est.condition_number:.4g}).",
         "",
         f"**Relative residual (identification rows): {est.relative_residual:.4f}**. {est.message}",
+        "",
+        (
+            "Motion replay: [replay.html](replay.html) (the measured motion, opens offline in a "
+            f"browser; `ident replay` on this folder shows it live). {replay_note}"
+            if replay_note.startswith("replay.html written")
+            else f"Motion replay: not available. {replay_note}"
+        ),
         "",
         "## Processing",
         "",
@@ -366,28 +428,48 @@ def _parameters_csv(result: IdentifyResult) -> str:
     return buffer.getvalue()
 
 
-def write_identify_report(result: IdentifyResult, folder: str | Path) -> list[Path]:
+def write_identify_report(
+    result: IdentifyResult,
+    folder: str | Path,
+    *,
+    replay: bool = True,
+    replay_note: str | None = None,
+) -> list[Path]:
     """Write every report file of an identification into ``folder``.
+
+    Parameters
+    ----------
+    result :
+        The identification.
+    folder :
+        Existing run folder.
+    replay :
+        Write ``replay.html`` (the measured motion); ``trajectory.csv`` and ``robot.urdf`` are
+        written either way.
+    replay_note :
+        The note of an earlier :func:`write_measured_replay` call; None: call it here.
 
     Returns
     -------
     :
-        Paths written.
+        Paths written (report files; the replay's files are not listed).
     """
     from ident.report.html import markdown_to_html
 
     folder = Path(folder)
+    if replay_note is None:
+        replay_note = write_measured_replay(result, folder, replay=replay)
     urdf = identified_urdf(result)
     urdf_name = Path(result.config.robot.urdf).stem + "_identified.urdf"
     png = torque_png(result)
-    markdown = _markdown(result, urdf, urdf_name)
+    markdown = _markdown(result, urdf, urdf_name, replay_note)
     written = [
         atomic_write_bytes(folder / "figures" / "torque_validation.png", png),
         atomic_write_text(folder / urdf_name, urdf.text),
         atomic_write_text(folder / "parameters.csv", _parameters_csv(result)),
         atomic_write_text(
             folder / "result.json",
-            json.dumps(result_dict(result, urdf), indent=2, allow_nan=False) + "\n",
+            json.dumps(result_dict(result, urdf, replay_note), indent=2, allow_nan=False) + "\n",
         ),
         atomic_write_text(folder / "report.md", markdown),
         atomic_write_text(
