@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import importlib.metadata
-from pathlib import Path
-
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import UR5_URDF
 
 from ident.dynamics.base_parameters import compute_base_parameters
 from ident.dynamics.chain import chain_from_model, random_states
@@ -15,13 +13,6 @@ from ident.dynamics.parameters import parameter_names
 from ident.dynamics.pinocchio_check import pinocchio_regressor
 from ident.errors import DataError
 
-ROBOTS = Path(
-    str(
-        importlib.metadata.distribution("example-robot-data").locate_file(
-            "cmeel.prefix/share/example-robot-data/robots"
-        )
-    )
-)
 NAMES = ("p0", "p1", "p2", "p3", "p4")
 
 
@@ -66,7 +57,7 @@ def test_classification_does_not_depend_on_column_units(scale: float) -> None:
 @pytest.fixture(scope="module")
 def ur5_matrix() -> np.ndarray:
     """Stacked Pinocchio regressor of UR5 (independent of our regressor code)."""
-    model = pin.buildModelFromUrdf(str(ROBOTS / "ur_description/urdf/ur5_robot.urdf"))
+    model = pin.buildModelFromUrdf(str(UR5_URDF))
     q, dq, ddq = random_states(chain_from_model(model), 100, rng=0)
     return pinocchio_regressor(model, q, dq, ddq).reshape(-1, 60)
 

@@ -2,24 +2,17 @@
 
 from __future__ import annotations
 
-import importlib.metadata
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import PANDA_URDF, UR5_URDF
 
 from ident.dynamics.chain import chain_from_model, random_states
 from ident.errors import ModelError
 
 DATA = Path(__file__).parent / "data" / "urdf"
-ROBOTS = Path(
-    str(
-        importlib.metadata.distribution("example-robot-data").locate_file(
-            "cmeel.prefix/share/example-robot-data/robots"
-        )
-    )
-)
 
 
 def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -41,9 +34,7 @@ def _forward_kinematics(chain, q: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-@pytest.mark.parametrize(
-    "urdf", [DATA / "rp2.urdf", ROBOTS / "ur_description/urdf/ur5_robot.urdf"], ids=lambda p: p.stem
-)
+@pytest.mark.parametrize("urdf", [DATA / "rp2.urdf", UR5_URDF], ids=lambda p: p.stem)
 def test_chain_forward_kinematics_matches_pinocchio(urdf: Path) -> None:
     model = pin.buildModelFromUrdf(str(urdf))
     data = model.createData()
@@ -95,7 +86,7 @@ def test_non_serial_models_are_rejected_with_the_joint_and_the_fix(urdf, root, m
 
 
 def test_panda_needs_its_fingers_locked() -> None:
-    model = pin.buildModelFromUrdf(str(ROBOTS / "panda_description/urdf/panda.urdf"))
+    model = pin.buildModelFromUrdf(str(PANDA_URDF))
     with pytest.raises(ModelError, match="panda_finger_joint2"):
         chain_from_model(model)
     fingers = [model.getJointId(f"panda_finger_joint{k}") for k in (1, 2)]

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.metadata
 import json
 from pathlib import Path
 
 import numpy as np
+from robots import UR5_URDF as UR5
 from typer.testing import CliRunner
 
 from ident.cli import app
@@ -15,13 +15,6 @@ from ident.model import Robot
 
 ROOT = Path(__file__).parents[1]
 DATA = Path(__file__).parent / "data" / "urdf"
-UR5 = Path(
-    str(
-        importlib.metadata.distribution("example-robot-data").locate_file(
-            "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
-        )
-    )
-)
 
 
 def _run(*args: object):

@@ -1,31 +1,15 @@
-import importlib.metadata
-from types import SimpleNamespace
-
 import numpy as np
-import pinocchio as pin
 import pytest
+from robots import ur5_with_limits
 
 from ident.excitation.fourier import JointFourierFamily, fourier_series
 
 
-def _ur5():
-    root = importlib.metadata.distribution("example-robot-data").locate_file(
-        "cmeel.prefix/share/example-robot-data/robots"
-    )
-    model = pin.buildModelFromUrdf(str(root / "ur_description/urdf/ur5_robot.urdf"))
-    return SimpleNamespace(
-        model=model,
-        joint_names=tuple(model.names[1:]),
-        q_lower=model.lowerPositionLimit.copy(),
-        q_upper=model.upperPositionLimit.copy(),
-        dq_max=model.velocityLimit.copy(),
-        ddq_max=np.full(model.nv, 10.0),
-    )
-
-
 @pytest.fixture(scope="module")
 def family():
-    return JointFourierFamily(_ur5(), [1, "wrist_1_joint", 4], n_harmonics=4, n_samples=400)
+    return JointFourierFamily(
+        ur5_with_limits(), [1, "wrist_1_joint", 4], n_harmonics=4, n_samples=400
+    )
 
 
 def _design(family, n=5, seed=0):
@@ -89,7 +73,7 @@ def test_limit_violations_flagged(family):
 
 
 def test_invalid_arguments():
-    robot = _ur5()
+    robot = ur5_with_limits()
     with pytest.raises(ValueError, match="n_harmonics"):
         JointFourierFamily(robot, [0], n_harmonics=1)
     with pytest.raises(ValueError, match="unknown joint"):

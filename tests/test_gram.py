@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import random_chain
 
 from ident.dynamics.chain import chain_from_model, random_states
 from ident.dynamics.gram import regressor_gram, selected_rows
@@ -17,20 +18,8 @@ DATA = Path(__file__).parent / "data" / "urdf"
 
 
 def _unaligned_model() -> pin.Model:
-    rng = np.random.default_rng(3)
-    pin.seed(3)
-    model, parent = pin.Model(), 0
-    for k in range(4):
-        axis = rng.normal(size=3)
-        axis /= np.linalg.norm(axis)
-        joint = (
-            pin.JointModelPrismaticUnaligned(axis)
-            if k == 2
-            else pin.JointModelRevoluteUnaligned(axis)
-        )
-        parent = model.addJoint(parent, joint, pin.SE3.Random(), f"joint{k + 1}")
-        model.appendBodyToJoint(parent, pin.Inertia.Random(), pin.SE3.Identity())
-    return model
+    revolute, prismatic = pin.JointModelRevoluteUnaligned, pin.JointModelPrismaticUnaligned
+    return random_chain([revolute, revolute, prismatic, revolute], seed=3)
 
 
 @pytest.fixture(scope="module")

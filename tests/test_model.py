@@ -1,9 +1,9 @@
-import importlib.metadata
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import ERD_ROBOTS as ERD
 
 from ident import Robot
 from ident.errors import ConfigError, DataError, ModelError
@@ -13,11 +13,6 @@ from ident.robot.robot_config import load_robot_config
 DATA = Path("tests/data/robots")
 PAPER = Path("configs/paper6r.yaml")
 CONFIGS = [PAPER, DATA / "puma_modified.yaml", DATA / "rpr.yaml"]
-ERD = Path(
-    importlib.metadata.distribution("example-robot-data").locate_file(
-        "cmeel.prefix/share/example-robot-data/robots"
-    )
-)
 
 
 @pytest.fixture(scope="module")

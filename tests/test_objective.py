@@ -1,9 +1,8 @@
-import importlib.metadata
 from types import SimpleNamespace
 
 import numpy as np
-import pinocchio as pin
 import pytest
+from robots import ur5_with_limits
 
 from ident.dynamics.pinocchio_check import pinocchio_regressor
 from ident.excitation.fourier import JointFourierFamily
@@ -14,23 +13,7 @@ from ident.excitation.objective import (
     singular_values_from_gram,
 )
 
-
-def _ur5():
-    root = importlib.metadata.distribution("example-robot-data").locate_file(
-        "cmeel.prefix/share/example-robot-data/robots"
-    )
-    model = pin.buildModelFromUrdf(str(root / "ur_description/urdf/ur5_robot.urdf"))
-    return SimpleNamespace(
-        model=model,
-        joint_names=tuple(model.names[1:]),
-        q_lower=model.lowerPositionLimit.copy(),
-        q_upper=model.upperPositionLimit.copy(),
-        dq_max=model.velocityLimit.copy(),
-        ddq_max=np.full(model.nv, 10.0),
-    )
-
-
-ROBOT = _ur5()
+ROBOT = ur5_with_limits()
 STAGE = SimpleNamespace(torque_rows=(3, 4, 5), columns=np.arange(30, 60))  # a "wrist" stage
 OMEGA = 2 * np.pi / 4  # 4 s period keeps the trajectories short
 

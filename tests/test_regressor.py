@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.metadata
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import PANDA_URDF, UR5_URDF, random_chain
 
 from ident.dynamics.chain import chain_from_model, random_states
 from ident.dynamics.parameters import parameter_names, parameters_from_model
@@ -21,45 +21,30 @@ from ident.errors import DataError
 
 ROOT = Path(__file__).parents[1]
 DATA = Path(__file__).parent / "data" / "urdf"
-ROBOTS = Path(
-    str(
-        importlib.metadata.distribution("example-robot-data").locate_file(
-            "cmeel.prefix/share/example-robot-data/robots"
-        )
-    )
-)
 
 
 def _panda() -> pin.Model:
-    model = pin.buildModelFromUrdf(str(ROBOTS / "panda_description/urdf/panda.urdf"))
+    model = pin.buildModelFromUrdf(str(PANDA_URDF))
     fingers = [model.getJointId(f"panda_finger_joint{k}") for k in (1, 2)]
     return pin.buildReducedModel(model, fingers, pin.neutral(model))
 
 
 def _unaligned() -> pin.Model:
     """Random 6-joint model with unaligned revolute and prismatic axes."""
-    rng = np.random.default_rng(7)
-    pin.seed(7)
-    model, parent = pin.Model(), 0
-    for k in range(6):
-        axis = rng.normal(size=3)
-        axis /= np.linalg.norm(axis)
-        joint = [
-            pin.JointModelRevoluteUnaligned(axis),
-            pin.JointModelPrismaticUnaligned(axis),
-            pin.JointModelRX(),
-            pin.JointModelPZ(),
-            pin.JointModelRY(),
-            pin.JointModelRevoluteUnaligned(-axis),
-        ][k]
-        parent = model.addJoint(parent, joint, pin.SE3.Random(), f"joint{k + 1}")
-        model.appendBodyToJoint(parent, pin.Inertia.Random(), pin.SE3.Identity())
-    return model
+    joint_types = [
+        pin.JointModelRevoluteUnaligned,
+        pin.JointModelPrismaticUnaligned,
+        lambda _: pin.JointModelRX(),
+        lambda _: pin.JointModelPZ(),
+        lambda _: pin.JointModelRY(),
+        lambda axis: pin.JointModelRevoluteUnaligned(-axis),
+    ]
+    return random_chain(joint_types, seed=7)
 
 
 MODELS = {
     "rp2": lambda: pin.buildModelFromUrdf(str(DATA / "rp2.urdf")),
-    "ur5": lambda: pin.buildModelFromUrdf(str(ROBOTS / "ur_description/urdf/ur5_robot.urdf")),
+    "ur5": lambda: pin.buildModelFromUrdf(str(UR5_URDF)),
     "panda": _panda,
     "unaligned": _unaligned,
     "paper6r": lambda: pin.buildModelFromUrdf(str(ROOT / "robot/urdf/paper6r.urdf")),

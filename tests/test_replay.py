@@ -7,7 +7,6 @@ Table 1 (numpy), not Pinocchio: the fixture URDF is that table.
 from __future__ import annotations
 
 import base64
-import importlib.metadata
 import json
 import math
 import re
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import umsgpack
+from robots import ERD_SHARE, UR5_URDF
 
 from ident.errors import DataError, IdentWarning, ModelError
 from ident.trajectory import JointTrajectory
@@ -223,10 +223,7 @@ def test_elites_side_by_side():
 
 
 def test_mesh_urdf_with_package_dirs():
-    share = Path(
-        importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share")
-    )
-    urdf = share / "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
+    share, urdf = ERD_SHARE, UR5_URDF
     names = (
         "shoulder_pan_joint",
         "shoulder_lift_joint",

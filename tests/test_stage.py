@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.metadata
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from robots import UR5_URDF
 
 from ident.dynamics.base_parameters import compute_base_parameters
 from ident.dynamics.chain import chain_from_model, random_states
@@ -23,18 +23,11 @@ from ident.dynamics.stage import (
 from ident.errors import DataError, ModelError
 
 DATA = Path(__file__).parent / "data" / "urdf"
-UR5 = Path(
-    str(
-        importlib.metadata.distribution("example-robot-data").locate_file(
-            "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
-        )
-    )
-)
 
 
 @pytest.fixture(scope="module")
 def ur5():
-    model = pin.buildModelFromUrdf(str(UR5))
+    model = pin.buildModelFromUrdf(str(UR5_URDF))
     return model, chain_from_model(model)
 
 
