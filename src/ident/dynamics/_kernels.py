@@ -28,6 +28,12 @@ def chain_arrays(chain: KinematicChain) -> tuple[FloatArray, FloatArray, np.ndar
     )
 
 
+@njit(cache=True, fastmath=True, inline="always")
+def _scratch(n: int) -> tuple[Arr, Arr, Arr, Arr]:
+    """Per-call buffers of :func:`_forward`: rotations, positions, velocities, accelerations."""
+    return np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 6)), np.empty((n, 6))
+
+
 @njit(cache=True, fastmath=True, inline="always")  # inlined: about 15% faster
 def _forward(
     placements: Arr,
@@ -211,10 +217,7 @@ def regressor_into(
 ) -> None:
     """Full regressor of every sample into out (n_samples, n, 10 n)."""
     n = q.shape[1]
-    rot = np.empty((n, 3, 3))
-    pos = np.empty((n, 3))
-    vel = np.empty((n, 6))
-    acc = np.empty((n, 6))
+    rot, pos, vel, acc = _scratch(n)
     used = np.ones(n, dtype=np.bool_)
     for k in range(q.shape[0]):
         y = out[k]
@@ -258,10 +261,7 @@ def selected_rows_into(
     """Weighted rows/columns of samples start..stop-1, sample-major, into
     out[(k - start) * len(rows) + r, c] = weights[r] * Y_k[rows[r], columns[c]]."""
     n = q.shape[1]
-    rot = np.empty((n, 3, 3))
-    pos = np.empty((n, 3))
-    vel = np.empty((n, 6))
-    acc = np.empty((n, 6))
+    rot, pos, vel, acc = _scratch(n)
     y = np.zeros((n, 10 * n))  # entries not computed stay zero (bodies before the joint)
     row_used = np.zeros(n, dtype=np.bool_)
     body_used = np.zeros(n, dtype=np.bool_)
