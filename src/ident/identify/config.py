@@ -40,6 +40,7 @@ __all__ = [
     "SignalFile",
     "TimeColumn",
     "TransmissionConfig",
+    "UrdfUpdateConfig",
     "ValidationConfig",
     "load_identify_config",
 ]
@@ -200,6 +201,18 @@ class ReferenceConfig(StrictModel):
     column: Literal["ols", "wls"] = "wls"
 
 
+class UrdfUpdateConfig(StrictModel):
+    """Writing identified inertial parameters into a copy of the URDF
+    (see :mod:`ident.identify.urdf_update`).
+
+    Only standard parameters that a base parameter determines alone and whose relative standard
+    deviation is below ``max_relative_std_pct`` are written; a link that would become physically
+    inconsistent keeps its nominal inertial.
+    """
+
+    max_relative_std_pct: float = Field(default=10.0, gt=0.0)
+
+
 class IdentifyConfig(StrictModel):
     """Everything ``ident identify`` needs."""
 
@@ -212,6 +225,7 @@ class IdentifyConfig(StrictModel):
     estimation: EstimationConfig = Field(default_factory=EstimationConfig)
     validation: ValidationConfig = Field(default_factory=ValidationConfig)
     reference: ReferenceConfig = Field(default_factory=ReferenceConfig)
+    urdf_update: UrdfUpdateConfig = Field(default_factory=UrdfUpdateConfig)
     source: Path | None = None
 
 

@@ -84,24 +84,27 @@ def torque_png(result: IdentifyResult) -> bytes:
 
 
 def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
-    """URDF copy with the standard parameters that base parameters determine alone."""
+    """URDF copy with the standard parameters that base parameters determine alone, where their
+    relative std is below ``urdf_update.max_relative_std_pct`` and the link stays consistent."""
     pm = result.parameters
     est = result.estimate
-    base = pm.base
     identified = {}
-    for k, i in enumerate(base.independent):
-        name = pm.names[i]
+    for k, i in enumerate(pm.base.independent):
         alone = not pm.base_names[k].endswith("R") and pm.inertial_index[i] >= 0
         if alone:
-            identified[name] = float(est.x[k])
-    import pinocchio as pin  # noqa: F401 - used by update_urdf_inertials
-
+            identified[pm.names[i]] = (float(est.x[k]), float(est.relative_std[k]))
     from ident.dynamics.parameters import parameters_from_model
     from ident.identify.real import load_robot_model
 
     model = load_robot_model(result.config.robot.urdf)
     text = Path(result.config.robot.urdf).read_text(encoding="utf-8")
-    return update_urdf_inertials(text, result.joint_names, parameters_from_model(model), identified)
+    return update_urdf_inertials(
+        text,
+        result.joint_names,
+        parameters_from_model(model),
+        identified,
+        max_relative_std_pct=result.config.urdf_update.max_relative_std_pct,
+    )
 
 
 def write_measured_replay(
@@ -210,9 +213,24 @@ def result_dict(
         out["replay"] = replay_note
     if urdf is not None:
         out["urdf"] = {
+            "max_relative_std_pct": urdf.max_relative_std_pct,
             "written": {k: list(v) for k, v in urdf.written.items()},
+            "uncertain": {k: _finite(v) for k, v in urdf.uncertain.items()},
             "not_determined": list(urdf.not_determined),
             "inconsistent_links": urdf.inconsistent_links,
+            "links": [
+                {
+                    "link": link.link,
+                    "joint": link.joint,
+                    "status": link.status,
+                    "written": {k: list(v) for k, v in link.written.items()},
+                    "uncertain": {k: _finite(v) for k, v in link.uncertain.items()},
+                    "rejected": {k: list(v) for k, v in link.rejected.items()},
+                    "not_determined": list(link.not_determined),
+                    "problem": link.problem,
+                }
+                for link in urdf.links
+            ],
         }
     return out
 
@@ -374,30 +392,7 @@ def _markdown(
                 "Dropped, in order: "
                 + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
             ]
-    lines += [
-        "",
-        "## URDF with identified parameters",
-        "",
-        f"`{urdf_name}`: standard parameters that a base parameter determines alone were "
-        "replaced (values about the joint-frame origin; the URDF stores them about the centre "
-        "of mass):",
-        "",
-        "| parameter | URDF | identified |",
-        "| --- | --- | --- |",
-    ]
-    lines += [f"| {k} | {_num(a)} | {_num(b)} |" for k, (a, b) in urdf.written.items()]
-    lines += [
-        "",
-        f"Not determined alone (kept from the URDF; the data fix only the regrouped sums above): "
-        f"{', '.join(urdf.not_determined)}.",
-    ]
-    if urdf.inconsistent_links:
-        lines += [
-            "",
-            "> Physically inconsistent after the update: "
-            + "; ".join(f"{k}: {v}" for k, v in urdf.inconsistent_links.items())
-            + ". The base parameters are what the data support; use the URDF copy with care.",
-        ]
+    lines += _urdf_section(urdf, urdf_name)
     lines += [
         "",
         "## Timings",
@@ -407,6 +402,60 @@ def _markdown(
     ]
     lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
     return "\n".join(lines) + "\n"
+
+
+def _urdf_section(urdf: UrdfUpdate, urdf_name: str) -> list[str]:
+    """Per link: the parameters written, kept nominal (and why), and the consistency check."""
+    threshold = f"{urdf.max_relative_std_pct:g} %"
+    lines = [
+        "",
+        "## URDF with identified parameters",
+        "",
+        f"`{urdf_name}` is a copy of the URDF in which a standard inertial parameter is replaced "
+        f"only if a base parameter determines it alone, its relative std is below {threshold} "
+        "(config `urdf_update.max_relative_std_pct`), and its link stays physically consistent "
+        "(mass > 0, inertia about the centre of mass positive semi-definite, triangle "
+        "inequality); otherwise the link keeps the URDF's values. Parameters are about the "
+        "joint-frame origin (the URDF stores the centre of mass and the inertia about it).",
+        "",
+        f"| link | written | kept nominal: rel. std >= {threshold} | kept nominal: not determined "
+        "alone | result |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for link in urdf.links:
+        written = ", ".join(link.written) or "-"
+        uncertain = ", ".join(f"{k} ({_num(v, 3)} %)" for k, v in link.uncertain.items()) or "-"
+        if link.rejected:
+            uncertain = (uncertain + "; " if uncertain != "-" else "") + (
+                ", ".join(link.rejected) + " (would make the link inconsistent)"
+            )
+        state = {
+            "updated": "updated, consistent",
+            "nominal": "nominal (nothing to write)",
+            "nominal (inconsistent)": f"nominal: with the identified values, {link.problem}",
+        }[link.status]
+        lines.append(
+            f"| {link.link} | {written} | {uncertain} | {', '.join(link.not_determined) or '-'} "
+            f"| {state} |"
+        )
+    if urdf.written:
+        lines += [
+            "",
+            "| parameter | URDF | identified | rel. std [%] |",
+            "| --- | --- | --- | --- |",
+        ]
+        lines += [
+            f"| {k} | {_num(a)} | {_num(b)} | {_num(link.relative_std_pct[k], 3)} |"
+            for link in urdf.links
+            for k, (a, b) in link.written.items()
+        ]
+    else:
+        lines += [
+            "",
+            "Nothing was written: the copy has the URDF's inertial parameters (the base "
+            "parameters above are what the data support).",
+        ]
+    return lines
 
 
 def _parameters_csv(result: IdentifyResult) -> str:
