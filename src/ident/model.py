@@ -350,9 +350,16 @@ class Robot:
             ``+-1`` m where unknown), ``dq`` in ``[-dq_max, dq_max]`` (``+-1`` where unknown),
             ``ddq`` in ``[-ddq_max, ddq_max]`` (``+-10`` where unknown).
         """
+        import dataclasses
+
         from ident.dynamics.chain import random_states
 
-        return random_states(self.chain, n_samples, rng=rng, ddq_max=self.ddq_max)
+        # The robot's limits (a one-sided unknown position limit makes both sides unknown here,
+        # while chain_from_model keeps the known side).
+        limited = dataclasses.replace(
+            self.chain, q_lower=self.q_lower, q_upper=self.q_upper, dq_max=self.dq_max
+        )
+        return random_states(limited, n_samples, rng=rng, ddq_max=self.ddq_max)
 
     # ------------------------------------------------------------------ input checks
     def _positions(self, q: npt.ArrayLike) -> FloatArray:
