@@ -144,6 +144,28 @@ def test_report_compares_dh_frame_counts_with_an_independent_computation(quick_r
     assert "| `Iyy4` | independent | independent | unidentifiable |" in md
 
 
+def test_replay_traces_the_stage_point_and_names_it(quick_run, tmp_path):
+    """Wrist (joint-space family, no traced frame of its own): the flange; the arm stage:
+    the wrist centre. The frame reaches replay_html (its caption) and the note printed."""
+    from ident.report.run_report import write_replay
+
+    _, run_dir, output = quick_run
+    assert "traced frame: flange" in output
+    page = (run_dir / "replay.html").read_text()
+    assert "traced frame flange" in page
+    assert "elite 1 of quick-wrist (wrist stage)" in page
+    arm = tmp_path / "arm"
+    shutil.copytree(run_dir, arm)
+    (arm / "replay.html").unlink()
+    data = json.loads((arm / "result.json").read_text())
+    data["config"]["stage"] = "arm"
+    (arm / "result.json").write_text(json.dumps(data))
+    assert write_replay(arm) == "replay.html written (traced frame: wrist_centre)."
+    page = (arm / "replay.html").read_text()
+    assert "traced frame wrist_centre" in page
+    assert "elite 1 of quick-wrist (arm stage)" in page
+
+
 def test_same_seed_gives_byte_identical_result_json(quick_run, tmp_path):
     _, run_dir, _ = quick_run
     result = _run(QUICK, "--out", tmp_path, "--no-replay")

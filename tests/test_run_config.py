@@ -94,3 +94,14 @@ def test_with_seed(tmp_path):
     assert config.with_seed(7).seed == 7
     with pytest.raises(ConfigError, match="seed"):
         config.with_seed(-1)
+
+
+@pytest.mark.parametrize("name", ["wrist", "arm"])
+def test_fourier_configs_use_the_papers_procedure_and_noise(name):
+    paper = load_run_config(CONFIGS / f"{name}.yaml")
+    fourier = load_run_config(CONFIGS / f"{name}-fourier.yaml")
+    assert fourier.stage == name
+    assert fourier.excitation.family == "joint_fourier"
+    assert fourier.excitation.n_samples == paper.excitation.n_samples
+    for section in ("elites", "emupso", "measurement", "estimation", "quick", "seed"):
+        assert getattr(fourier, section) == getattr(paper, section), section

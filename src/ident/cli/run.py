@@ -237,12 +237,19 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
         )
         for method, est in best.estimates.items():
             m = error_measures(
-                est.x, est.std, stage.true_base, best.base_column_norms, best.true_torque_norm
+                est.x,
+                est.std,
+                stage.true_base,
+                best.base_column_norms,
+                best.true_torque_norm,
+                stage.reference_share,
             )
+            major = m.get("max_rel_error_major")
             table.add_row(
                 method.upper(),
                 f"max rel. error {m['max_rel_error']:.3g} (torque share >= 1e-4), "
-                f"{100 * m['within_3std']:.0f} % within 3 std, cond {est.condition_number:.4g}",
+                + ("" if major is None else f"{major:.3g} (major parameters), ")
+                + f"{100 * m['within_3std']:.0f} % within 3 std, cond {est.condition_number:.4g}",
             )
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")

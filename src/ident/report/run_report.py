@@ -60,6 +60,7 @@ FloatArray = npt.NDArray[np.float64]
 FORMAT = "ident-run/1"
 ZERO_RTOL = 1e-9
 SIGNIFICANT_SHARE = 1e-4
+MAJOR_SHARE = 1e-2
 PAPER_COUNTS = {"wrist": (15, 7, 8), "arm": (20, 2, 8)}
 PAPER_COUNTS_NOTE = (
     "The paper reports wrist 15 independent / 7 in combination / 8 unidentifiable and arm "
@@ -116,6 +117,7 @@ def error_measures(
     true: FloatArray,
     column_norms: FloatArray | None = None,
     true_torque_norm: float | None = None,
+    reference_share: FloatArray | None = None,
 ) -> dict[str, Any]:
     """Errors of an estimate against the true values (see the module docstring).
 
@@ -128,6 +130,9 @@ def error_measures(
         shape (n,); with ``true_torque_norm = ||W_b @ true||`` they give unit-free measures.
     true_torque_norm :
         See ``column_norms``.
+    reference_share :
+        Torque share of each parameter on the stage's reference motion (trajectory
+        independent, :attr:`ident.run.pipeline.StageInfo.reference_share`), shape (n,).
 
     Returns
     -------
@@ -141,7 +146,10 @@ def error_measures(
         ``max_rel_error`` (the largest relative error of the parameters whose torque share is
         at least ``SIGNIFICANT_SHARE``), ``error_sum_significant_percent`` (the sum of their
         relative errors [%]); without them ``max_rel_error`` is over the
-        parameters whose ``|true|`` is at least that fraction of the largest.
+        parameters whose ``|true|`` is at least that fraction of the largest. With
+        ``reference_share``: ``max_rel_error_major``, the largest relative error of the
+        stage's *major* parameters (reference share at least ``MAJOR_SHARE``), the same set
+        whatever the trajectory, so trajectories can be compared.
     """
     x, std, true = (np.asarray(a, dtype=float) for a in (x, std, true))
     err = x - true
@@ -177,6 +185,11 @@ def error_measures(
     out["max_rel_error"] = _num(
         float(np.max(np.abs(err[significant]) / np.abs(true[significant]), initial=0.0))
     )
+    if reference_share is not None:
+        major = (np.asarray(reference_share, dtype=float) >= MAJOR_SHARE) & nonzero
+        out["max_rel_error_major"] = _num(
+            float(np.max(np.abs(err[major]) / np.abs(true[major]), initial=0.0))
+        )
     return out
 
 
@@ -234,6 +247,10 @@ def result_to_dict(result: Any) -> dict[str, Any]:
             "base_expressions": list(stage.base_expressions),
             "true_base": _arr(stage.true_base),
             "identifiable_alone": list(stage.alone),
+            "reference_torque_share": None
+            if stage.reference_share is None
+            else _arr(stage.reference_share),
+            "major_share": MAJOR_SHARE,
             "frames": "body",
             "dh_frames": _frame_base_dict(stage.dh_frames),
             "paper_comparison": _paper_comparison(stage),
@@ -282,6 +299,7 @@ def result_to_dict(result: Any) -> dict[str, Any]:
                         stage.true_base,
                         e.base_column_norms,
                         e.true_torque_norm,
+                        stage.reference_share,
                     )
                 )
             estimates[method] = entry
@@ -410,6 +428,10 @@ def save_run(result: Any, run_dir: str | Path) -> None:
 def write_replay(run_dir: str | Path) -> str:
     """Write ``replay.html`` for the chosen elite; return a one-line note of what happened.
 
+    The traced point is the excitation family's (``result.json`` ``excitation.traced_frame``:
+    the flange for the paper's wrist family, the wrist centre for its arm family); for a
+    family without one (joint space), the wrist centre for the arm stage (the point the arm
+    positions) and the replay's default (the flange) otherwise. The note names the frame.
     Never raises for a missing or failing replay module: the report says so instead.
     """
     run_dir = Path(run_dir)
@@ -421,23 +443,41 @@ def write_replay(run_dir: str | Path) -> str:
     except ImportError as e:
         return f"no replay: ident.viz.replay is not available ({e})."
     trajectory = read_trajectory_csv(trajectory_path)
-    traced_frame = None
+    traced_frame, label = None, "elite 1"
     try:
         data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
         traced_frame = data["excitation"].get("traced_frame")
-    except (OSError, ValueError, KeyError):
+        stage = data["config"]["stage"]
+        label = f"elite 1 of {data.get('name')} ({stage} stage)"
+        if traced_frame is None and stage == "arm":
+            traced_frame = "wrist_centre"
+    except (OSError, ValueError, KeyError, TypeError):
         pass
-    page = None
+    page, problem = None, ""
     for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
         try:
-            page = replay_html(run_dir / "robot.urdf", [trajectory], traced_frame=frame)
+            page = replay_html(
+                run_dir / "robot.urdf", [trajectory], traced_frame=frame, labels=[label]
+            )
             break
         except Exception as e:  # the replay is a convenience: a failure must not lose the run
             problem = f"no replay: {type(e).__name__}: {e}"
     if page is None:
         return problem
     atomic_write_text(run_dir / "replay.html", page)
-    return f"replay.html written (traced frame: {frame or 'default'})."
+    return f"replay.html written (traced frame: {frame or _default_frame(run_dir)})."
+
+
+def _default_frame(run_dir: Path) -> str:
+    """Name of the frame the replay traces by default for the run's robot."""
+    try:
+        import pinocchio as pin
+
+        from ident.viz.replay import default_traced_frame
+
+        return default_traced_frame(pin.buildModelFromUrdf(str(run_dir / "robot.urdf")))
+    except Exception:  # only a label: never fail the replay for it
+        return "default"
 
 
 # ----------------------------------------------------------------------------- report
@@ -810,7 +850,10 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         "estimate. Error sums: sums of the relative errors [%] of all base parameters with a "
         "non-zero true value (Error(all), the paper's Error(22)), over the parameters that explain "
         "at least 1e-4 of the stage's torques (Error(share >= 1e-4)) and without the two "
-        "largest (Error(all-2), the paper's Error(20)).",
+        "largest (Error(all-2), the paper's Error(20)). Major parameters: those that explain "
+        "at least 1 % of the stage's torques when the robot moves at full capability (random "
+        "states within the limits; the same set for every trajectory of the stage, see "
+        "`reference_torque_share` in result.json).",
         "",
     ]
     excitation = data["config"]["excitation"]
@@ -853,6 +896,12 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         )
         rows.append(
             [
+                f"max rel. error, major parameters, {m}",
+                *[_fmt(e["estimates"].get(m, {}).get("max_rel_error_major")) for e in elites],
+            ]
+        )
+        rows.append(
+            [
                 f"Error(all-2) {m} [%]",
                 *[_fmt(e["estimates"].get(m, {}).get("error_sum_best_percent")) for e in elites],
             ]
@@ -887,7 +936,9 @@ def _identification_section(
             f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
             f"errors within 3 std; largest torque error {_fmt(est.get('max_torque_error'))}, "
             f"largest relative error of the parameters with a torque share >= 1e-4 "
-            f"{_fmt(est.get('max_rel_error'))}. "
+            f"{_fmt(est.get('max_rel_error'))}; largest relative error of the stage's major "
+            f"parameters (reference torque share >= {MAJOR_SHARE:g}) "
+            f"{_fmt(est.get('max_rel_error_major'))}. "
             f"{'' if est['message'] == 'ok' else est['message']}",
             "",
         ]

@@ -207,6 +207,11 @@ class StageInfo:
     dh_frames :
         The same stage's base parameters about the paper's DH frames
         (:class:`FrameBaseInfo`), for robots built from a DH config; else ``None``.
+    reference_share :
+        Per base parameter, ``|true_i| ||W_i|| / ||W_b true||`` on the random states of the
+        stage's motion (the robot at full capability): the share of the stage's torques a
+        parameter explains, independent of the trajectory and unit-free, shape (n_base,).
+        Parameters with a share of at least 1e-2 are the stage's *major* parameters.
     """
 
     name: str
@@ -225,6 +230,7 @@ class StageInfo:
     known_bodies_note: str
     base: Any = None
     dh_frames: FrameBaseInfo | None = None
+    reference_share: FloatArray | None = None
 
     @property
     def counts(self) -> tuple[int, int, int]:
@@ -478,6 +484,9 @@ def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng:
     true_standard = params[list(columns)]
     true_base = np.asarray(base.project(true_standard), dtype=float)
     base_names = tuple(base.base_names)
+    Wb = np.asarray(base.base_columns(W), dtype=float)
+    total = float(np.linalg.norm(Wb @ true_base))
+    reference_share = np.abs(true_base) * np.linalg.norm(Wb, axis=0) / (total if total > 0 else 1.0)
     # ident.dynamics.base_parameters suffixes "R" to a base parameter with others combined in
     alone = tuple(b == names[i] for b, i in zip(base_names, base.independent, strict=True))
     others = np.setdiff1d(np.arange(params.shape[0]), np.asarray(columns))
@@ -505,6 +514,7 @@ def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng:
         known_bodies_note=known_note,
         base=base,
         dh_frames=dh_frame_base(robot, rows, columns, q, dq, ddq),
+        reference_share=reference_share,
     )
 
 
