@@ -23,9 +23,18 @@ __all__ = [
     "FloatArray",
     "TrajectoryBatch",
     "check_design",
+    "sample_times",
 ]
 
 FloatArray = npt.NDArray[np.float64]
+
+
+def sample_times(n_samples: int, period: float) -> FloatArray:
+    """Sample times ``t_k = k T / n``, k = 0..n-1, of one period [s], shape (n_samples,).
+
+    ``t = T`` is not included: it is the first sample of the next period.
+    """
+    return np.arange(n_samples, dtype=np.float64) * (period / n_samples)
 
 
 @dataclass(frozen=True, eq=False)  # arrays: no field-wise ==

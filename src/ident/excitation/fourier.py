@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.excitation.constraints import JointLimits, evaluate_constraints
-from ident.excitation.family import FloatArray, TrajectoryBatch, check_design
+from ident.excitation.family import FloatArray, TrajectoryBatch, check_design, sample_times
 
 __all__ = ["JointFourierFamily", "fourier_series", "resolve_joints"]
 
@@ -142,7 +142,7 @@ class JointFourierFamily:
         self.base_frequency = float(base_frequency)
         self.period = 2.0 * np.pi / self.base_frequency
         self.n_samples = int(n_samples)
-        self.t = np.arange(self.n_samples) * (self.period / self.n_samples)
+        self.t = sample_times(self.n_samples, self.period)
         lower, upper = self.limits.finite_position_box()
         if held_positions is None:
             held = np.clip(np.zeros(self.limits.nq), lower, upper)

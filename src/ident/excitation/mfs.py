@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.excitation.constraints import JointLimits, evaluate_constraints
-from ident.excitation.family import FloatArray, TrajectoryBatch, check_design
+from ident.excitation.family import FloatArray, TrajectoryBatch, check_design, sample_times
 from ident.excitation.ik import ArmGeometry, arm_inverse_kinematics
 
 __all__ = [
@@ -154,7 +154,7 @@ class _CartesianFamily:
         self.base_frequency = 2.0 * np.pi / self.period
         self.n_harmonics = int(n_harmonics)
         self.length_unit = float(length_unit)
-        self.t = np.arange(self.n_samples) * (self.period / self.n_samples)
+        self.t = sample_times(self.n_samples, self.period)
         self._t_ext = np.append(self.t, self.period)  # one more sample at t = T for continuity
         self.variable_names = mfs_variable_names(self.n_harmonics, with_f0=self.with_f0)
         if bounds is None:

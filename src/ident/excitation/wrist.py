@@ -129,7 +129,8 @@ def wrist_angles(
                            -b * w[..., 0], -b * dw[..., 0], -b * ddw[..., 0])  # fmt: skip
     rho = hypot_derivatives(w[..., 0], dw[..., 0], ddw[..., 0], w[..., 1], dw[..., 1], ddw[..., 1])
     q5 = atan2_derivatives(*rho, w[..., 2], dw[..., 2], ddw[..., 2])
-    return tuple(np.stack([a4, b * a5], axis=-1) for a4, a5 in zip(q4, q5, strict=True))
+    q45, dq45, ddq45 = (np.stack([a4, b * a5], axis=-1) for a4, a5 in zip(q4, q5, strict=True))
+    return q45, dq45, ddq45
 
 
 def theta6_eq23(
