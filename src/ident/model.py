@@ -272,12 +272,9 @@ class Robot:
         :
             Joint torques [N*m or N], shape (n_samples, nv).
         """
-        q, dq, ddq = self._states(q, dq, ddq)
-        data = self.model.createData()
-        tau = np.empty((q.shape[0], self.nv))
-        for k in range(q.shape[0]):  # Pinocchio evaluates one state at a time
-            tau[k] = pin.rnea(self.model, data, q[k], dq[k], ddq[k])
-        return tau
+        from ident.dynamics.pinocchio_check import pinocchio_rnea
+
+        return pinocchio_rnea(self.model, *self._states(q, dq, ddq))
 
     # ------------------------------------------------------------------ kinematics
     def frame_placements(self, q: npt.ArrayLike, frame: str) -> FloatArray:
