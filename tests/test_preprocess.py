@@ -89,3 +89,45 @@ def test_velocity_mask():
     assert keep.all()
     with pytest.raises(ConfigError, match="velocity_threshold has 1 values"):
         velocity_mask(dq, [0.1])
+
+
+def test_motion_decimation_factor():
+    from ident.identify.motion import decimation_factor
+
+    assert decimation_factor(5000.0, 50.0) == 100
+    assert decimation_factor(1000.0, 50.0) == 20
+    assert decimation_factor(1000.0, 30.0) == 34  # 29.4 Hz: never above the limit
+    assert decimation_factor(40.0, 50.0) == 1
+
+
+def test_measured_motion_keeps_slow_angles_exactly():
+    from ident.identify.motion import measured_motion
+
+    fs = 5000.0
+    t = 0.004 + np.arange(20000) / fs
+    w = np.array([1.0, 2.0, 3.0]) * 2 * np.pi * 0.5  # 0.5, 1, 1.5 Hz
+    q = 1.5 + np.sin(t[:, None] * w)  # an offset: a DC gain error would show
+    dq = w * np.cos(t[:, None] * w)
+    ddq = -(w**2) * np.sin(t[:, None] * w)
+    tau = 10.0 * q
+    traj, record = measured_motion(t, q, dq, ddq, tau, fs, ("a", "b", "c"))
+    assert traj.joint_names == ("a", "b", "c")
+    np.testing.assert_allclose(traj.t, t[::100])
+    np.testing.assert_allclose(np.diff(traj.t), 0.02)
+    exact = 1.5 + np.sin(traj.t[:, None] * w)
+    # edges included (a log cut mid-motion): 2.5e-4 measured at the last sample
+    np.testing.assert_allclose(traj.q, exact, atol=5e-4)
+    inner = slice(10, -10)  # away from the forward-backward filter's edges: 1e-6 measured
+    np.testing.assert_allclose(traj.q[inner], exact[inner], atol=1e-5)
+    np.testing.assert_allclose(traj.dq[inner], (w * np.cos(traj.t[:, None] * w))[inner], atol=1e-4)
+    np.testing.assert_allclose(traj.tau[inner], 10.0 * exact[inner], atol=1e-4)
+    assert "20000 -> 200 samples" in record["detail"]
+    assert "5000 -> 50 Hz" in record["detail"]
+
+
+def test_measured_motion_too_short_log():
+    from ident.identify.motion import measured_motion
+
+    x = np.zeros((20, 2))
+    with pytest.raises(DataError, match="measured motion: 20 samples are too few"):
+        measured_motion(np.arange(20) / 5000.0, x, x, x, x, 5000.0, ("a", "b"))
