@@ -601,9 +601,10 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
     family = make_family(config, robot, stage)
     streams = np.random.SeedSequence(config.seed).spawn(4)
     run_streams = streams[1].spawn(config.emupso.n_runs)
-    stage_info = build_stage_info(
-        robot, stage, family, config.estimation.base_method, np.random.default_rng(streams[3])
-    )
+    with _small_blas():
+        stage_info = build_stage_info(
+            robot, stage, family, config.estimation.base_method, np.random.default_rng(streams[3])
+        )
     # the objective scores the same base columns the estimate uses
     objective = ExcitationObjective(
         robot,
@@ -709,17 +710,18 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
         meas_streams = streams[2].spawn(chosen_x.shape[0])
         for i in range(chosen_x.shape[0]):
             phase = f"identification of elite {i + 1}"
-            outcome = identify_elite(
-                config,
-                robot,
-                family,
-                stage_info,
-                i,
-                chosen_x[i],
-                float(chosen_f[i]),
-                details[i],
-                meas_streams[i],
-            )
+            with _small_blas():
+                outcome = identify_elite(
+                    config,
+                    robot,
+                    family,
+                    stage_info,
+                    i,
+                    chosen_x[i],
+                    float(chosen_f[i]),
+                    details[i],
+                    meas_streams[i],
+                )
             state["outcomes"].append(outcome)
             notify(Progress("identify", i + 1, chosen_x.shape[0], best=outcome.fitness))
     except KeyboardInterrupt as e:
@@ -739,6 +741,18 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
         )
     result = partial("")
     return _replace(result, status="complete", message="run complete", warnings=tuple(warnings))
+
+
+def _small_blas() -> Any:
+    """Single-threaded BLAS for the small least-squares problems of the estimate.
+
+    OpenBLAS threads a (1500 x 17) WLS solve; on a loaded 2-core machine that made it 15-50
+    times slower than one thread (measured 41-160 ms vs 1.3-3.4 ms, docs/run.md). The
+    objective's Gram-matrix kernel (numba) is not BLAS and is left alone.
+    """
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _replace(result: RunResult, **changes: Any) -> RunResult:
