@@ -865,6 +865,13 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
             "per second.",
             "",
         ]
+    elif excitation["family"] == "joint_fourier":
+        md += [
+            "Design variables of the joint-space Fourier series (docs/excitation.md): q0 "
+            "(mean position) in rad, the a, b coefficients of harmonics 2..N in rad/s "
+            "(harmonic 1 follows from rest at both ends).",
+            "",
+        ]
     names = data["excitation"]["variable_names"]
     header = ["", *[f"elite {e['rank']}" for e in elites]]
     rows = [[f"`{n}`", *[_fmt(e["x"][i]) for e in elites]] for i, n in enumerate(names)]
