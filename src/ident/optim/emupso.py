@@ -56,7 +56,7 @@ References
 ----------
 Paper of this project: "Parameter Estimation for Industrial Robot Manipulators Using an Improved
 Particle Swarm Optimization Algorithm with Gaussian Mutation and Archived Elite Learning",
-section 3 (eq. 3-8), ``/work/shared/seed``.
+section 3 (eq. 3-8), in ``../shared/seed/`` beside this repository.
 """
 
 from __future__ import annotations
