@@ -129,34 +129,24 @@ class OptimizerRun:
 
 
 @dataclass(frozen=True, eq=False)
-class FrameBaseInfo:
-    """Base parameters of the stage in another parameterization (the paper's DH frames).
-
-    Only for the comparison with the paper: the estimate uses :class:`StageInfo`'s body-frame
-    base parameters. Columns are taken in the paper's eq. 14 order per body
-    (``m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz``) and reduced by the paper's
-    sequential rank test, so the kept names are those the paper's procedure would keep.
+class BaseParameterSet:
+    """A stage's standard parameters split by a base-parameter reduction.
 
     Attributes
     ----------
-    frames :
-        ``"DH"``.
-    method :
-        Base-parameter method (``"sequential"``).
     standard_names :
-        Names of the stage's standard parameters in the column order used, shape (30,).
+        Names of the stage's standard parameters, in the column order used.
     true_standard :
-        True values about the DH frames (SI) in that order.
+        Their true values (SI), shape (n_cols,).
     independent, dependent, unidentifiable :
         Names of the standard parameters in each class.
     base_names, base_expressions :
-        Names and readable expressions of the base parameters.
+        Names of the base parameters (the independent standard parameter each starts from)
+        and their readable expressions in the standard ones.
     true_base :
-        True base parameters (projection of ``true_standard``).
+        True base parameters (projection of ``true_standard``), shape (n_base,).
     """
 
-    frames: str
-    method: str
     standard_names: tuple[str, ...]
     true_standard: FloatArray
     independent: tuple[str, ...]
@@ -172,8 +162,47 @@ class FrameBaseInfo:
         return len(self.independent), len(self.dependent), len(self.unidentifiable)
 
 
+def _base_set_fields(
+    base: Any, names: tuple[str, ...], true_standard: FloatArray
+) -> dict[str, Any]:
+    """The :class:`BaseParameterSet` fields of a ``BaseParameters`` reduction of ``names``."""
+    return {
+        "standard_names": names,
+        "true_standard": true_standard,
+        "independent": tuple(names[i] for i in base.independent),
+        "dependent": tuple(names[i] for i in base.dependent),
+        "unidentifiable": tuple(names[i] for i in base.unidentifiable),
+        "base_names": tuple(base.base_names),
+        "base_expressions": tuple(base.expressions()),
+        "true_base": np.asarray(base.project(true_standard), dtype=float),
+    }
+
+
 @dataclass(frozen=True, eq=False)
-class StageInfo:
+class FrameBaseInfo(BaseParameterSet):
+    """Base parameters of the stage in another parameterization (the paper's DH frames).
+
+    Only for the comparison with the paper: the estimate uses :class:`StageInfo`'s body-frame
+    base parameters. Columns are taken in the paper's eq. 14 order per body
+    (``m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz``) and reduced by the paper's
+    sequential rank test, so the kept names are those the paper's procedure would keep.
+
+    Attributes
+    ----------
+    frames :
+        ``"DH"``.
+    method :
+        Base-parameter method (``"sequential"``).
+
+    The :class:`BaseParameterSet` fields hold the DH-frame names and true values.
+    """
+
+    frames: str
+    method: str
+
+
+@dataclass(frozen=True, eq=False)
+class StageInfo(BaseParameterSet):
     """The stage's parameters: standard columns, base parameters, true values.
 
     Attributes
@@ -183,21 +212,10 @@ class StageInfo:
     rows :
         Torque rows (joint indices, 0-based) of the stage.
     columns :
-        Indices of the stage's standard parameters in the robot's parameter vector.
-    standard_names :
-        Their names.
-    true_standard :
-        Their true values (SI), shape (n_cols,).
-    base_names :
-        Names of the base parameters (the independent standard parameter each starts from).
-    base_expressions :
-        Readable expression of each base parameter in the standard ones.
-    true_base :
-        True base parameters (projection of ``true_standard``), shape (n_base,).
+        Indices of the stage's standard parameters in the robot's parameter vector (the
+        :class:`BaseParameterSet` fields hold their names and true values, body frames).
     alone :
         Per base parameter: True if it is a standard parameter identifiable alone.
-    independent, dependent, unidentifiable :
-        Names of the standard parameters in each class.
     base_method :
         ``qr`` or ``sequential``.
     known_bodies_note :
@@ -217,25 +235,12 @@ class StageInfo:
     name: str
     rows: tuple[int, ...]
     columns: tuple[int, ...]
-    standard_names: tuple[str, ...]
-    true_standard: FloatArray
-    base_names: tuple[str, ...]
-    base_expressions: tuple[str, ...]
-    true_base: FloatArray
     alone: tuple[bool, ...]
-    independent: tuple[str, ...]
-    dependent: tuple[str, ...]
-    unidentifiable: tuple[str, ...]
     base_method: str
     known_bodies_note: str
     base: Any = None
     dh_frames: FrameBaseInfo | None = None
     reference_share: FloatArray | None = None
-
-    @property
-    def counts(self) -> tuple[int, int, int]:
-        """(independent, in linear combination, unidentifiable)."""
-        return len(self.independent), len(self.dependent), len(self.unidentifiable)
 
 
 @dataclass(frozen=True, eq=False)
@@ -450,16 +455,7 @@ def dh_frame_base(
     base = compute_base_parameters(W, names, method="sequential")
     true_standard = np.asarray(robot.parameters_dh(), dtype=float)[order]
     return FrameBaseInfo(
-        frames="DH",
-        method="sequential",
-        standard_names=names,
-        true_standard=true_standard,
-        independent=tuple(names[i] for i in base.independent),
-        dependent=tuple(names[i] for i in base.dependent),
-        unidentifiable=tuple(names[i] for i in base.unidentifiable),
-        base_names=tuple(base.base_names),
-        base_expressions=tuple(base.expressions()),
-        true_base=np.asarray(base.project(true_standard), dtype=float),
+        frames="DH", method="sequential", **_base_set_fields(base, names, true_standard)
     )
 
 
@@ -481,9 +477,8 @@ def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng:
     W, _ = stage_matrix(robot, rows, columns, q, dq, ddq)
     names = tuple(names_all[c] for c in columns)
     base = compute_base_parameters(W, names, method=base_method)
-    true_standard = params[list(columns)]
-    true_base = np.asarray(base.project(true_standard), dtype=float)
-    base_names = tuple(base.base_names)
+    fields = _base_set_fields(base, names, params[list(columns)])
+    true_base, base_names = fields["true_base"], fields["base_names"]
     Wb = np.asarray(base.base_columns(W), dtype=float)
     total = float(np.linalg.norm(Wb @ true_base))
     reference_share = np.abs(true_base) * np.linalg.norm(Wb, axis=0) / (total if total > 0 else 1.0)
@@ -501,20 +496,13 @@ def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng:
         name=str(stage.name),
         rows=rows,
         columns=columns,
-        standard_names=names,
-        true_standard=true_standard,
-        base_names=base_names,
-        base_expressions=tuple(base.expressions()),
-        true_base=true_base,
         alone=alone,
-        independent=tuple(names[i] for i in base.independent),
-        dependent=tuple(names[i] for i in base.dependent),
-        unidentifiable=tuple(names[i] for i in base.unidentifiable),
         base_method=base_method,
         known_bodies_note=known_note,
         base=base,
         dh_frames=dh_frame_base(robot, rows, columns, q, dq, ddq),
         reference_share=reference_share,
+        **fields,
     )
 
 
