@@ -124,3 +124,21 @@ def test_duplicate_joint_names():
 def test_missing_file():
     with pytest.raises(ConfigError, match="not found"):
         load_robot_config(DATA / "nope.yaml")
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("first_moment", [float("nan"), 0.0, 0.0]),
+        ("com", [0.0, float("inf"), 0.0]),
+        ("inertia_com", {"xx": 0.001, "yy": float("nan"), "zz": 0.0277}),
+        ("mass", float("inf")),
+    ],
+)
+def test_non_finite_values_name_their_field(field, value):
+    data = yaml.safe_load((DATA / "planar2r.yaml").read_text())
+    if field == "first_moment":
+        del data["links"][1]["com"]
+    data["links"][1][field] = value
+    with pytest.raises(ConfigError, match=rf"x.yaml: links\[1\].{field}: values are not finite"):
+        description_from_mapping(data, "x.yaml")

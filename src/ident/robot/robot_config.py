@@ -262,6 +262,23 @@ def _names(entries: list[Any], prefix: str, source: Path, section: str) -> tuple
     return names
 
 
+def _check_finite(link: LinkEntry, index: int, source: Path) -> None:
+    """Name the field of link ``index`` that holds a NaN or infinite value, if any."""
+    c = link.inertia_com
+    fields = {
+        "mass": [link.mass],
+        "com": link.com,
+        "first_moment": link.first_moment,
+        "inertia_com": [c.xx, c.yy, c.zz, c.xy, c.xz, c.yz],
+    }
+    for field, values in fields.items():
+        if values is not None and not np.all(np.isfinite(values)):
+            raise ConfigError(
+                f"{source}: links[{index}].{field}: values are not finite ({list(values)}); "
+                "give finite numbers."
+            )
+
+
 def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
     n_rows = len(raw.dh.rows)
     if len(raw.joints) != n_rows or len(raw.links) != n_rows:
@@ -304,6 +321,7 @@ def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
     inertia_com = np.empty((n_rows, 3, 3))
     parameters = np.empty((n_rows, 10))
     for i, link in enumerate(raw.links):
+        _check_finite(link, i, source)
         if link.com is not None:
             com[i] = np.array(link.com) / length
         else:
