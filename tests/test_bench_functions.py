@@ -135,3 +135,28 @@ def test_register_user_function_and_errors():
         get_function("rastrigen")
     with pytest.raises(ConfigError, match="low < high"):
         register_function("bad_box_test", lambda x: x[:, 0], [(1, 0)], 0.0)
+
+
+def test_register_function_checks_x_star():
+    quad = lambda x: np.sum((x - 1) ** 2, axis=1)  # noqa: E731
+    with pytest.raises(ConfigError, match=r"f\(x_star\) = 3 but f_star = 0"):
+        register_function("bad_xstar_value", quad, [(-5, 5)] * 3, 0.0, x_star=[0, 0, 0])
+    with pytest.raises(ConfigError, match=r"x_star\[1\] = 7 lies outside its bounds \[-5, 5\]"):
+        register_function(
+            "bad_xstar_box", lambda x: np.zeros(len(x)), [(-5, 5)] * 2, 0.0, x_star=[0, 7]
+        )
+    with pytest.raises(ConfigError, match="x_star must be 3 numbers"):
+        register_function("bad_xstar_len", quad, [(-5, 5)] * 3, 0.0, x_star=[1, 1])
+    # the documented absolute tolerance: 1e-7 off passes with the default 1e-6, 1e-5 does not
+    near = [1 + 1e-3 / np.sqrt(10), 1.0, 1.0]  # f = 1e-7
+    register_function("near_xstar_test", quad, [(-5, 5)] * 3, 0.0, x_star=near, overwrite=True)
+    with pytest.raises(ConfigError, match="tol = 1e-06"):
+        register_function("far_xstar_test", quad, [(-5, 5)] * 3, 0.0, x_star=[1.00317, 1, 1])
+    bf = register_function(
+        "far_xstar_test", quad, [(-5, 5)] * 3, 0.0, x_star=[1.00317, 1, 1], tol=1e-4, overwrite=True
+    )
+    assert bf.tol == 1e-4
+    # nothing half-registered after a rejected x_star
+    for key in ("bad_xstar_value", "bad_xstar_box", "bad_xstar_len"):
+        with pytest.raises(ConfigError, match="unknown benchmark function"):
+            get_function(key)

@@ -147,6 +147,39 @@ def test_unknown_method_and_option_suggest():
         minimize(sphere, [(0, 1)], "emupso", stall_treshold=3)
 
 
+def test_unknown_method_message_reads_well_without_a_close_match():
+    with pytest.raises(OptimizationError) as e:
+        minimize(sphere, [(0, 1)], "nelder-mead")
+    assert str(e.value) == (
+        "unknown method 'nelder-mead'; valid methods: emupso, pso, woa, gwo, goa, de."
+    )
+    with pytest.raises(OptimizationError) as e:
+        minimize(sphere, [(0, 1)], "emupos")
+    assert str(e.value).startswith("unknown method 'emupos' (did you mean 'emupso'?); valid")
+    with pytest.raises(OptimizationError, match=r"unknown option 'zzz' for method 'pso'; valid"):
+        minimize(sphere, [(0, 1)], "pso", zzz=1)
+
+
+def test_bad_workers_and_unpicklable_objective_are_optimization_errors():
+    with pytest.raises(OptimizationError, match="workers must be a whole number >= 1.*'x'"):
+        minimize(sphere, [(0, 1)], "pso", workers="x", maxiter=2)
+    with pytest.raises(OptimizationError, match="workers must be >= 1, got 0"):
+        minimize(sphere, [(0, 1)], "pso", workers=0, maxiter=2)
+    with pytest.raises(
+        OptimizationError, match="cannot be pickled.*define the objective at module"
+    ):
+        minimize(lambda x: np.sum(x**2, 1), [(0, 1)], "pso", workers=2, maxiter=2)
+
+    def nested(x):
+        return np.sum(x**2, 1)
+
+    with pytest.raises(OptimizationError, match="vectorized=True"):
+        minimize(nested, [(0, 1)], "de", workers=2, maxiter=2)
+    # one process needs no pickling: the same lambda runs
+    res = minimize(lambda x: np.sum(x**2, 1), [(0, 1)], "pso", workers=1, maxiter=2, rng=0)
+    assert res.nfev == 90
+
+
 def test_budget_smaller_than_population():
     with pytest.raises(OptimizationError, match="smaller than one population"):
         minimize(sphere, [(0, 1)], "pso", popsize=30, max_nfev=29)

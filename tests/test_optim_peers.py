@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from ident.optim import METHODS, goa, minimize, woa
+from ident.optim import METHODS, goa, gwo, minimize, woa
 from ident.optim.de import distinct_indices
 from ident.optim.pso import _neighbour_best
 
@@ -21,6 +21,59 @@ def test_woa_gwo_a_schedule_and_budget(monkeypatch):
     monkeypatch.setattr(woa, "a_schedule", lambda m: seen.append(m) or real(m))
     minimize(lambda x: np.sum(x**2, 1), [(-1, 1)] * 2, "woa", rng=0, popsize=10, max_nfev=95)
     assert seen == [8]
+
+
+class _Recording(np.ndarray):
+    """An array that records which indices a method reads (one schedule value per iteration)."""
+
+    def __getitem__(self, i):
+        self.read.append(i)
+        return np.asarray(self)[i]
+
+
+def _spy_schedule(monkeypatch, module, name):
+    calls = []
+    real = getattr(module, name)
+
+    def spy(m, *args):
+        arr = np.asarray(real(m, *args)).view(_Recording)
+        arr.read = []
+        calls.append((m, arr))
+        return arr
+
+    monkeypatch.setattr(module, name, spy)
+    return calls
+
+
+@pytest.mark.parametrize("max_nfev", [95, 100, 137])
+def test_gwo_a_and_goa_c_follow_the_real_iteration_budget(monkeypatch, max_nfev):
+    popsize = 10
+    planned = max_nfev // popsize - 1  # iterations after the initial population
+    fun = lambda x: np.sum(x**2, 1)  # noqa: E731
+    # GWO: a goes 2 -> 2/maxiter over exactly the iterations run (reference code's a(t))
+    calls = _spy_schedule(monkeypatch, gwo, "a_schedule")
+    res = minimize(fun, [(-1, 1)] * 2, "gwo", rng=0, popsize=popsize, max_nfev=max_nfev)
+    assert res.nit == planned
+    assert res.nfev <= max_nfev
+    ((m, a),) = calls
+    assert m == planned
+    assert a.read == list(range(planned))  # one value per iteration, the last one used last
+    assert a[0] == 2.0
+    assert np.asarray(a)[-1] == pytest.approx(2.0 / planned)
+    # GOA: c reaches c_min exactly at the last iteration that is run
+    calls = _spy_schedule(monkeypatch, goa, "c_schedule")
+    res = minimize(fun, [(-1, 1)] * 2, "goa", rng=0, popsize=popsize, max_nfev=max_nfev)
+    assert res.nit == planned
+    ((m, c),) = calls
+    assert m == planned
+    assert c.read == list(range(planned))
+    assert np.asarray(c)[-1] == pytest.approx(4e-5)
+    # an explicit maxiter smaller than the budget allows is the one that is spread over
+    calls = _spy_schedule(monkeypatch, goa, "c_schedule")
+    res = minimize(fun, [(-1, 1)] * 2, "goa", rng=0, popsize=popsize, max_nfev=max_nfev, maxiter=3)
+    assert res.nit == 3
+    assert calls[0][0] == 3
+    assert calls[0][1].read == [0, 1, 2]
 
 
 def test_goa_c_schedule_and_comfort_zone():

@@ -93,8 +93,8 @@ class CampaignConfig(StrictModel):
                 import difflib
 
                 close = difflib.get_close_matches(m, list(METHODS), n=1)
-                hint = f"; did you mean '{close[0]}'?" if close else ""
-                raise ValueError(f"unknown method '{m}'{hint} (valid: {', '.join(METHODS)})")
+                hint = f" (did you mean '{close[0]}'?)" if close else ""
+                raise ValueError(f"unknown method '{m}'{hint}; valid methods: {', '.join(METHODS)}")
         if len(set(v)) != len(v):
             raise ValueError("methods must not repeat")
         return v

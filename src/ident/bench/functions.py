@@ -120,11 +120,17 @@ def register_function(
 ) -> BenchmarkFunction:
     """Add a function to the registry (usable by key in ``configs/bench.yaml``).
 
+    ``x_star`` (if given) is checked: it must have ``dim`` finite values inside the bounds
+    (closed box, no tolerance) and satisfy ``|f(x_star) - f_star| <= tol`` (absolute; the
+    default ``tol = 1e-6`` is the spec's check). Pass a larger ``tol`` for a minimiser known
+    only to a few digits.
+
     Raises
     ------
     ConfigError
-        If ``key`` exists (and not ``overwrite``), the bounds are malformed, or ``group``
-        is unknown.
+        If ``key`` exists (and not ``overwrite``), the bounds are malformed, ``group`` is
+        unknown, or ``x_star`` has the wrong length, lies outside the bounds, or does not give
+        ``f_star`` within ``tol``.
     """
     if key in _REGISTRY and not overwrite:
         raise ConfigError(f"benchmark function '{key}' is already registered; pick another key")
@@ -135,8 +141,7 @@ def register_function(
         raise ConfigError(f"benchmark function '{key}': group must be one of {GROUPS}")
     xs = None
     if x_star is not None:
-        xs = np.array(x_star, dtype=float).reshape(len(b))
-        xs.setflags(write=False)
+        xs = _checked_x_star(key, fun, b, float(f_star), x_star, tol)
     bf = BenchmarkFunction(
         key=key,
         name=name or key,
@@ -152,6 +157,44 @@ def register_function(
     )
     _REGISTRY[key] = bf
     return bf
+
+
+def _checked_x_star(
+    key: str,
+    fun: Objective,
+    bounds: tuple[tuple[float, float], ...],
+    f_star: float,
+    x_star: npt.ArrayLike,
+    tol: float,
+) -> FloatArray:
+    """``x_star`` as a read-only array (dim,), after the checks of :func:`register_function`."""
+    try:
+        xs = np.array(x_star, dtype=float).reshape(len(bounds))
+    except (TypeError, ValueError) as e:
+        raise ConfigError(
+            f"benchmark function '{key}': x_star must be {len(bounds)} numbers (one per "
+            f"variable), got {x_star!r}"
+        ) from e
+    if not np.all(np.isfinite(xs)):
+        raise ConfigError(f"benchmark function '{key}': x_star must be finite, got {xs.tolist()}")
+    lo = np.array([p[0] for p in bounds])
+    hi = np.array([p[1] for p in bounds])
+    out = np.flatnonzero((xs < lo) | (xs > hi))
+    if out.size:
+        i = int(out[0])
+        raise ConfigError(
+            f"benchmark function '{key}': x_star[{i}] = {xs[i]:g} lies outside its bounds "
+            f"[{lo[i]:g}, {hi[i]:g}]; fix x_star or the bounds."
+        )
+    f = float(np.asarray(fun(xs[None, :]), dtype=float).reshape(-1)[0])
+    if not abs(f - f_star) <= tol:
+        raise ConfigError(
+            f"benchmark function '{key}': f(x_star) = {f:.10g} but f_star = {f_star:.10g} "
+            f"(difference {f - f_star:.3g} > tol = {tol:g}); fix x_star or f_star, or pass "
+            "a larger tol."
+        )
+    xs.setflags(write=False)
+    return xs
 
 
 def get_function(key: str) -> BenchmarkFunction:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import importlib
+import pickle
 from collections.abc import Callable
 from typing import Any
 
@@ -55,11 +56,33 @@ COMMON_OPTIONS: dict[str, Any] = {"f_target": None, "target_tol": 1e-8}
 def _module(method: str) -> Any:
     if method not in METHODS:
         close = difflib.get_close_matches(str(method), list(METHODS), n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
         raise OptimizationError(
-            f"unknown method '{method}'{hint} Valid methods: {', '.join(METHODS)}."
+            f"unknown method '{method}'{hint}; valid methods: {', '.join(METHODS)}."
         )
     return importlib.import_module(METHODS[method])
+
+
+def _check_workers(workers: Any, fun: Callable[..., Any]) -> int:
+    """``workers`` as an int >= 1; with more than one, ``fun`` must pickle (process pool)."""
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)):
+        raise OptimizationError(
+            f"workers must be a whole number >= 1 (processes evaluating the population), "
+            f"got {workers!r}"
+        )
+    if workers < 1:
+        raise OptimizationError(f"workers must be >= 1, got {workers}")
+    if workers > 1:
+        try:
+            pickle.dumps(fun)
+        except Exception as e:  # PicklingError, AttributeError, TypeError by object kind
+            raise OptimizationError(
+                f"workers={workers} sends the objective to other processes, but it cannot be "
+                f"pickled ({type(e).__name__}: {e}); define the objective at module level "
+                "(not a lambda or a nested function), or use workers=1 with "
+                "vectorized=True."
+            ) from e
+    return int(workers)
 
 
 def method_defaults(method: str) -> dict[str, Any]:
@@ -127,7 +150,8 @@ def minimize(
     ------
     OptimizationError
         Invalid bounds, unknown method or option (with the closest valid name), a budget
-        smaller than one population, a bad ``x0``.
+        smaller than one population, a bad ``x0``, a ``workers`` that is not a whole number
+        >= 1, or (``workers > 1``) an objective that cannot be pickled.
     """
     mod = _module(method)
     opts = check_options(method, options, {**COMMON_OPTIONS, **mod.DEFAULTS})
@@ -138,8 +162,7 @@ def minimize(
         raise OptimizationError(f"method '{method}' needs popsize >= {min_pop}, got {popsize}")
     n_iter = plan_iterations(popsize, maxiter, max_nfev, default_maxiter=DEFAULT_MAXITER)
     pop0 = as_population(x0, lower.shape[0], popsize, lower, upper)
-    if int(workers) < 1:
-        raise OptimizationError(f"workers must be >= 1, got {workers}")
+    workers = _check_workers(workers, fun)
     f_target, target_tol = opts.pop("f_target"), float(opts.pop("target_tol"))
     executor = make_executor(int(workers))
     try:

@@ -122,10 +122,10 @@ def check_options(method: str, options: Mapping[str, Any], defaults: Mapping[str
     for name in options:
         if name not in defaults:
             close = difflib.get_close_matches(name, list(defaults), n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else ""
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
             valid = ", ".join(sorted(defaults)) or "(none)"
             raise OptimizationError(
-                f"unknown option '{name}' for method '{method}'{hint} Valid options: {valid}."
+                f"unknown option '{name}' for method '{method}'{hint}; valid options: {valid}."
             )
     merged = dict(defaults)
     merged.update(options)
