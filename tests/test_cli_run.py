@@ -230,6 +230,39 @@ def test_bad_config_is_one_line_exit_2(tmp_path):
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.parametrize(
+    ("bounds", "expected"),
+    [
+        # a typo of a joint-space Fourier variable: the closest name is suggested
+        ("{'q0[joint_44]': [0, 1]}", "did you mean 'q0[joint_4]'?"),
+        # nothing alike: still the nearest name and the whole list
+        ("{zz: [0, 1]}", "nearest: '"),
+        ("{'q0[joint_4]': [1, 0]}", "low < high"),
+        ("{'q0[joint_4]': [0, .inf]}", "finite"),
+        ("{'q0[joint_4]': [.nan, 1]}", "finite"),
+    ],
+)
+def test_bad_excitation_bounds_stop_before_the_run_folder(tmp_path, bounds, expected):
+    bad = tmp_path / "bounds.yaml"
+    text = QUICK.read_text().replace(
+        "robot: ../../../configs/paper6r.yaml",
+        f"robot: {QUICK.parents[3] / 'configs/paper6r.yaml'}",
+    )
+    bad.write_text(text.replace("n_samples: 100\n", f"n_samples: 100\n  bounds: {bounds}\n"))
+    result = _run(bad, "--out", tmp_path / "runs", "--quick")
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    line = lines[0]
+    assert line.startswith(f"error: {bad}: "), line
+    assert "excitation.bounds." in line
+    assert expected in line
+    if "low < high" not in expected and "finite" not in expected:
+        assert "Variables: q0[joint_4], a2[joint_4]" in line
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "runs").exists()  # no run folder, not even an empty one
+
+
 def test_unmeetable_limits_exit_2_and_mark_the_folder(tmp_path):
     bad = tmp_path / "infeasible.yaml"
     text = QUICK.read_text().replace(

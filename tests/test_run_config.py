@@ -89,6 +89,39 @@ def test_bounds_must_be_ordered(tmp_path):
         load_run_config(_write(tmp_path, text))
 
 
+@pytest.mark.parametrize("pair", ["[.nan, 1]", "[0, .inf]", "[-.inf, 0]"])
+def test_bounds_must_be_finite_and_name_their_key(tmp_path, pair):
+    text = MINIMAL.replace(
+        "{family: paper_wrist}", f"{{family: paper_wrist, bounds: {{'a0(1)': {pair}}}}}"
+    )
+    path = _write(tmp_path, text)
+    with pytest.raises(ConfigError, match=r"excitation\.bounds\.a0\(1\).*finite") as info:
+        load_run_config(path)
+    assert str(info.value).startswith(f"{path}: ")
+
+
+def _paper_config(tmp_path, bounds):
+    robot = CONFIGS / "paper6r.yaml"
+    return _write(
+        tmp_path,
+        f"robot: {robot}\nstage: wrist\nexcitation: {{family: paper_wrist, bounds: {bounds}}}\n",
+        robot=False,
+    )
+
+
+def test_bound_names_are_checked_at_load_with_the_closest_name(tmp_path):
+    good = load_run_config(_paper_config(tmp_path, "{'a0(2)': [-3, 3], e0: [0, 1]}"))
+    assert good.excitation.bounds == {"a0(2)": (-3.0, 3.0), "e0": (0.0, 1.0)}
+    path = _paper_config(tmp_path, "{'a0(1)': [-3, 3], 'b0(4)': [0, 1]}")
+    with pytest.raises(ConfigError) as info:
+        load_run_config(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: unknown key 'excitation.bounds.b0(4)'")
+    assert "did you mean 'b0(3)'?" in message
+    assert message.endswith("Variables: a0(1), a0(2), a0(3), b0(1), b0(2), b0(3), c0, d0, e0.")
+    assert "\n" not in message
+
+
 def test_with_seed(tmp_path):
     config = load_run_config(_write(tmp_path, MINIMAL))
     assert config.with_seed(7).seed == 7

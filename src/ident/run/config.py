@@ -14,10 +14,12 @@ file.
 
 from __future__ import annotations
 
+import difflib
+import math
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import AfterValidator, Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError
@@ -30,12 +32,27 @@ __all__ = [
     "MeasurementSection",
     "QuickSection",
     "RunConfig",
+    "check_bound_names",
     "load_run_config",
 ]
 
 FAMILIES = ("paper_wrist", "paper_arm", "joint_fourier")
 CRITERIA = ("paper", "logdet")
 MM = 1e-3  # m per mm
+
+
+def _check_bound(value: tuple[float, float]) -> tuple[float, float]:
+    """A search interval ``[low, high]``: finite and ``low < high``."""
+    low, high = value
+    if not (math.isfinite(low) and math.isfinite(high)):
+        raise ValueError(f"bounds must be finite numbers [low, high], got [{low}, {high}]")
+    if not low < high:
+        raise ValueError(f"bounds must satisfy low < high, got [{low}, {high}]")
+    return value
+
+
+# One ``[low, high]`` pair; a bad pair is reported under its key ``excitation.bounds.<name>``.
+Bound = Annotated[tuple[float, float], AfterValidator(_check_bound)]
 
 
 class ExcitationSection(StrictModel):
@@ -54,24 +71,16 @@ class ExcitationSection(StrictModel):
         Further keyword arguments of the family (see ``docs/excitation.md``), passed through.
     bounds :
         Optional search box per variable, ``{name: [low, high]}``, overriding the family's
-        defaults (the paper: +-10). Units are the family's variable units.
+        defaults (the paper: +-10). Units are the family's variable units. Each pair must be
+        finite with ``low < high``; the names are checked against the family's variables
+        by :func:`load_run_config`, before anything runs.
     """
 
     family: Literal["paper_wrist", "paper_arm", "joint_fourier"]
     criterion: Literal["paper", "logdet"] = "paper"
     n_samples: int = Field(default=500, ge=16)
     options: dict[str, Any] = Field(default_factory=dict)
-    bounds: dict[str, tuple[float, float]] | None = None
-
-    @field_validator("bounds")
-    @classmethod
-    def _ordered(
-        cls, value: dict[str, tuple[float, float]] | None
-    ) -> dict[str, tuple[float, float]] | None:
-        for name, (low, high) in (value or {}).items():
-            if not low < high:
-                raise ValueError(f"bounds of '{name}' must satisfy low < high, got [{low}, {high}]")
-        return value
+    bounds: dict[str, Bound] | None = None
 
 
 class ElitesSection(StrictModel):
@@ -234,8 +243,9 @@ def load_run_config(path: str | Path) -> RunConfig:
     Raises
     ------
     ConfigError
-        Unknown keys (with the closest valid key), bad values, or a robot file that does
-        not exist (naming both the key and the resolved path).
+        Unknown keys (with the closest valid key), bad values, a robot file that does
+        not exist (naming both the key and the resolved path), or ``excitation.bounds``
+        naming no variable of the family (:func:`check_bound_names`).
     """
     path = Path(path)
     config = load_config_file(RunConfig, path)
@@ -251,4 +261,49 @@ def load_run_config(path: str | Path) -> RunConfig:
         raise ConfigError(
             f"{path}: robot = '{config.robot}' must be a robot config (.yaml) or a URDF (.urdf)."
         )
-    return config.model_copy(update={"robot": robot, "name": config.name or path.stem})
+    config = config.model_copy(update={"robot": robot, "name": config.name or path.stem})
+    if config.excitation.bounds:
+        check_bound_names(config, path)
+    return config
+
+
+def check_bound_names(config: RunConfig, source: str | Path) -> None:
+    """Check that every ``excitation.bounds`` key names a variable of the excitation family.
+
+    Builds the robot, the stage and the family (a fraction of a second, no optimization),
+    so that a typo stops ``ident run`` before its run folder is created.
+
+    Parameters
+    ----------
+    config :
+        A run config with its ``robot`` path resolved.
+    source :
+        The config file, named in the message.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file, the key ``excitation.bounds.<name>``, the closest valid
+        variable name and the family's variables.
+    """
+    from ident.run.pipeline import get_stage, load_robot, make_family
+
+    robot = load_robot(Path(config.robot))
+    stage = get_stage(robot, config.stage)
+    unbounded = config.model_copy(
+        update={"excitation": config.excitation.model_copy(update={"bounds": None})}
+    )
+    names = list(make_family(unbounded, robot, stage).variable_names)
+    for name in config.excitation.bounds or {}:
+        if name in names:
+            continue
+        close = difflib.get_close_matches(name, names, n=1)
+        if close:
+            hint = f"did you mean '{close[0]}'?"
+        else:
+            nearest = difflib.get_close_matches(name, names, n=1, cutoff=0.0)
+            hint = f"no variable is named like it (nearest: '{nearest[0]}')." if nearest else ""
+        raise ConfigError(
+            f"{source}: unknown key 'excitation.bounds.{name}': '{name}' is not a variable of "
+            f"the '{config.excitation.family}' family; {hint} Variables: {', '.join(names)}."
+        )

@@ -384,7 +384,7 @@ def _override_bounds(family: Any, overrides: dict[str, tuple[float, float]]) -> 
             close = difflib.get_close_matches(name, names, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             raise ConfigError(
-                f"excitation.bounds: unknown variable '{name}'{hint} Variables: {', '.join(names)}."
+                f"unknown key 'excitation.bounds.{name}'{hint} Variables: {', '.join(names)}."
             )
         bounds[names.index(name)] = (low, high)
     return bounds
