@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from ident.errors import DataError, NotIdentifiable
-from ident.identify.estimate import least_squares
+from ident.identify.estimate import least_squares, rank_report
 
 
 def _problem(rng, n_samples=400, n_rows=3, n_params=5):
@@ -109,6 +109,24 @@ def test_rank_deficiency_names_parameters():
     combo[:, 4] = 2.0 * combo[:, 1] - combo[:, 2]
     with pytest.raises(NotIdentifiable, match=r"mx1, Ia2, fs2 enter the torques only in a linear"):
         least_squares(combo, combo @ x, names)
+
+
+def test_rank_report_names_a_multi_dimensional_null_space_once():
+    rng = np.random.default_rng(7)
+    W = rng.standard_normal((300, 6))
+    names = ["a", "b", "c", "d", "e", "f"]
+    W[:, 2] = W[:, 0] + W[:, 1]  # two independent dependencies among a, b, c, d
+    W[:, 3] = W[:, 0] - 2.0 * W[:, 1]
+    W[:, 5] = 0.0  # f not excited
+    msg = rank_report(W, names)
+    assert msg == (
+        "parameter(s) f have no effect on the torques (not excited by the motion, or removed by "
+        "the velocity threshold); parameters a, b, c, d enter the torques only in a linear "
+        "combination (2 independent combinations of these 4 are undetermined). "
+        "Reduce to base parameters, drop the parameter(s), or record a motion that excites them."
+    )
+    assert rank_report(W, names, advice="").endswith("are undetermined).")
+    assert rank_report(W[:, [0, 1, 4]], ["a", "b", "e"]) is None
 
 
 def test_bad_input():

@@ -298,12 +298,26 @@ def test_unexcited_joint_names_parameters(tmp_path):
 
     path = _copy_log(tmp_path, "pos_read_data.csv.gz", edit)
     config = _config(tmp_path, log={"position": {"path": str(path)}, "max_samples": 8000})
+    result = _invoke(config, tmp_path / "runs")
     _fails(
-        _invoke(config, tmp_path / "runs"),
+        result,
         "Ia4, fv4, fs4, off4 have no effect",
         "No sample of joint_4 reaches its velocity threshold",
     )
     assert not (tmp_path / "runs").exists()
+    # one short line: every clause and every parameter name once (QA: was 1,417 characters,
+    # the linear-combination clause repeated for each of the 7 null-space directions)
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1, result.output
+    (message,) = lines
+    assert len(message) < 700, len(message)
+    assert message.count("linear combination") == 1, message
+    assert message.count("velocity threshold in the identification part") == 1, message
+    assert "7 independent combinations of these 14 are undetermined" in message
+    for name in ("Ia4", "fv4", "Izz1R", "Ixz2R", "mcy4R"):
+        assert message.count(name + ",") + message.count(name + " ") == 1, (name, message)
+    assert message.endswith("Record a motion that moves joint_4, or lower its velocity threshold.")
+    assert "Reduce to base parameters" not in message  # they already are base parameters
 
 
 def test_unknown_config_key(tmp_path):

@@ -138,14 +138,22 @@ def _as_groups(
     return tau, group_of_row, rows_per_sample, m // rows_per_sample
 
 
-def rank_report(W: FloatArray, names: tuple[str, ...] | list[str]) -> str | None:
+RANK_ADVICE = (
+    "Reduce to base parameters, drop the parameter(s), or record a motion that excites them."
+)
+
+
+def rank_report(
+    W: FloatArray, names: tuple[str, ...] | list[str], *, advice: str = RANK_ADVICE
+) -> str | None:
     """Describe why ``W`` is rank deficient, or return None if it has full column rank.
 
     Columns are first compared with the largest column norm: a column whose norm is below
     ``max(m, n) * eps`` times it has no effect (the parameter is not excited). The remaining
     columns are scaled to unit norm and a null space is read from the SVD of their triangular
     factor: the parameters with non-negligible weight in a null vector appear only in a linear
-    combination.
+    combination. They are named once (the union over the null space, in column order) with the
+    null-space dimension, so the sentence stays short however many directions are missing.
 
     Parameters
     ----------
@@ -153,11 +161,14 @@ def rank_report(W: FloatArray, names: tuple[str, ...] | list[str]) -> str | None
         Observation matrix, shape (m, n_params).
     names :
         Parameter names, length n_params.
+    advice :
+        Sentence appended after the diagnosis (default :data:`RANK_ADVICE`; ``""`` for none).
 
     Returns
     -------
     :
-        One sentence naming the parameters, or None if ``W`` has full column rank.
+        One sentence naming the parameters (plus ``advice``), or None if ``W`` has full
+        column rank.
     """
     W = np.asarray(W, dtype=float)
     m, n = W.shape
@@ -178,20 +189,26 @@ def rank_report(W: FloatArray, names: tuple[str, ...] | list[str]) -> str | None
         R = scipy.linalg.qr(Wn, mode="r", check_finite=False)[0][: live.size]
         _, s, Vt = np.linalg.svd(R)
         null = Vt[s <= tol * max(s[0], 1.0) * 10.0]
-        for v in null:
-            members = live[np.abs(v) > 1e-6 * np.abs(v).max()]
-            parts.append(
+        if null.shape[0]:
+            # one clause for the whole null space: the union of its supports, in column order
+            involved = np.zeros(n, dtype=bool)
+            for v in null:
+                involved[live[np.abs(v) > 1e-6 * np.abs(v).max()]] = True
+            members = np.flatnonzero(involved)
+            clause = (
                 "parameters "
                 + ", ".join(names[i] for i in members)
                 + " enter the torques only in a linear combination"
             )
+            if null.shape[0] > 1:
+                clause += (
+                    f" ({null.shape[0]} independent combinations of these {members.size} "
+                    "are undetermined)"
+                )
+            parts.append(clause)
     if not parts:
         return None
-    return (
-        "; ".join(parts)
-        + ". Reduce to base parameters, drop the parameter(s), or record a motion that"
-        + " excites them."
-    )
+    return "; ".join(parts) + "." + (f" {advice}" if advice else "")
 
 
 def _qr_solve(W: FloatArray, tau: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:

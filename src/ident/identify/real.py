@@ -45,7 +45,7 @@ from ident.errors import ConfigError, DataError, ModelError, NotIdentifiable
 from ident.identify import preprocess
 from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
-from ident.identify.estimate import Estimate, least_squares
+from ident.identify.estimate import Estimate, least_squares, rank_report
 from ident.identify.logs import RobotLog, read_log
 from ident.identify.motion import measured_motion
 from ident.identify.reference import ReferenceParameter, expression_to_vector, read_reference
@@ -544,15 +544,16 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     try:
         est = least_squares(W_id, tau_id, base_names, method=cfg.estimation.method, groups=groups)
     except NotIdentifiable as e:
-        idle = [joints[j] for j in range(nv) if not keep_id[:, j].any()]
-        hint = (
-            f" No sample of {', '.join(idle)} reaches its velocity threshold in the "
-            "identification part (joint not moving?)."
-            if idle
-            else ""
-        )
+        idle = ", ".join(joints[j] for j in range(nv) if not keep_id[:, j].any())
+        if not idle:
+            raise NotIdentifiable(
+                f"{source}: the log does not determine every base parameter: {e}"
+            ) from e
+        why = rank_report(W_id, base_names, advice="") or str(e)
         raise NotIdentifiable(
-            f"{source}: the log does not determine every base parameter: {e}{hint}"
+            f"{source}: the log does not determine every base parameter. No sample of {idle} "
+            f"reaches its velocity threshold in the identification part (joint not moving?): "
+            f"{why} Record a motion that moves {idle}, or lower its velocity threshold."
         ) from e
     except DataError as e:
         raise DataError(f"{source}: {e}") from e
