@@ -74,6 +74,47 @@ def test_ragged_row_names_line(tmp_path):
         read_csv_columns(tmp_path / "q.csv", None)
 
 
+def test_non_numeric_cell_names_file_line_and_column(tmp_path):
+    # QA: a bad cell on file line 52 was reported as numpy's "row 50, column 2"
+    data = np.zeros((60, 3))
+    _write(tmp_path / "q.csv", ["a", "b", "c"], data)
+    lines = (tmp_path / "q.csv").read_text().splitlines()
+    lines[51] = "0.0,abc,0.0"  # file line 52 (the header is line 1)
+    (tmp_path / "q.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError) as e:
+        read_csv_columns(tmp_path / "q.csv", None)
+    assert str(e.value) == (
+        f"{tmp_path / 'q.csv'}: line 52, column 'b' (field 2): 'abc' is not a number; "
+        "clean or trim the log."
+    )
+    assert "row" not in str(e.value)
+
+
+def test_line_numbers_are_file_lines_with_blank_lines(tmp_path):
+    path = tmp_path / "q.csv"
+    path.write_text("a,b\n1,2\n\n3,4\n5,x\n")  # the bad cell is on file line 5
+    with pytest.raises(DataError, match=r"line 5, column 'b' \(field 2\): 'x' is not a number"):
+        read_csv_columns(path, None)
+    path.write_text("a,b\n1,2\n\n3,4\n5\n")
+    with pytest.raises(DataError, match=r"line 5 has 1 fields"):
+        read_csv_columns(path, None)
+    path.write_text("a,b\n1,2\n\n3,nan\n")
+    with pytest.raises(
+        DataError, match=r"column 'b' has 1 NaN/inf value\(s\), the first on line 4"
+    ):
+        read_csv_columns(path, None)
+    # time column: the first non-increasing time is named by its file line too
+    q = np.zeros((6, 3))
+    (tmp_path / "t.csv").write_text("time\n0.0\n0.01\n\n0.02\n0.02\n0.04\n0.05\n")
+    cfg = _log_cfg(
+        tmp_path, q, q, sampling_rate_hz=None, time={"path": tmp_path / "t.csv", "column": "time"}
+    )
+    with pytest.raises(
+        DataError, match=r"not strictly increasing at line 6 \(0.02 s then 0.02 s\)"
+    ):
+        read_log(cfg, TransmissionConfig(), JOINTS)
+
+
 def test_transmission_round_trip_and_power_balance(tmp_path):
     rng = np.random.default_rng(0)
     cfg = TransmissionConfig(

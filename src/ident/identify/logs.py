@@ -183,8 +183,24 @@ def read_csv_columns(
     ------
     DataError
         Naming the file and column: missing file or column, wrong column count, a row with a
-        different number of fields or a non-number, NaN or inf values.
+        different number of fields or a non-number, NaN or inf values. Positions in a message
+        are file line numbers (the header is line 1; blank lines count).
     """
+    data, names, _ = _read_csv_lines(
+        path, columns, n_expected=n_expected, delimiter=delimiter, what=what
+    )
+    return data, names
+
+
+def _read_csv_lines(
+    path: str | Path,
+    columns: list[str] | None,
+    *,
+    n_expected: int | None = None,
+    delimiter: str = ",",
+    what: str = "signal",
+) -> tuple[FloatArray, list[str], npt.NDArray[np.int64]]:
+    """:func:`read_csv_columns` plus the file line number of every sample, shape (n_samples,)."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: {what} file not found.")
@@ -211,20 +227,15 @@ def read_csv_columns(
             )
         index = [header.index(c) for c in columns]
         names = list(columns)
-    rows = [line for line in text.splitlines() if line.strip()]
-    if not rows:
+    numbered = [(k + 2, line) for k, line in enumerate(text.splitlines()) if line.strip()]
+    if not numbered:
         raise DataError(f"{path}: {what} file has a header but no samples.")
+    line_no = np.array([n for n, _ in numbered], dtype=np.int64)
+    rows = [line for _, line in numbered]
     try:
         data = np.loadtxt(rows, delimiter=delimiter, ndmin=2, dtype=float)
     except ValueError as e:
-        for k, line in enumerate(rows):  # find the offending line for the message
-            fields = line.split(delimiter)
-            if len(fields) != len(header):
-                raise DataError(
-                    f"{path}: line {k + 2} has {len(fields)} fields, the header has "
-                    f"{len(header)} columns."
-                ) from e
-        raise DataError(f"{path}: non-numeric value ({e}).") from e
+        raise _bad_row(path, header, numbered, delimiter) from e
     if data.shape[1] != len(header):
         raise DataError(
             f"{path}: rows have {data.shape[1]} fields, the header has {len(header)} columns."
@@ -235,9 +246,30 @@ def read_csv_columns(
         row, col = np.argwhere(bad)[0]
         raise DataError(
             f"{path}: column '{names[col]}' has {int(bad[:, col].sum())} NaN/inf value(s), the "
-            f"first on line {row + 2}; clean or trim the log."
+            f"first on line {line_no[row]}; clean or trim the log."
         )
-    return data, names
+    return data, names, line_no
+
+
+def _bad_row(
+    path: Path, header: list[str], numbered: list[tuple[int, str]], delimiter: str
+) -> DataError:
+    """The error for the first line that numpy could not read: field count or a non-number."""
+    for n, line in numbered:
+        fields = line.split(delimiter)
+        if len(fields) != len(header):
+            return DataError(
+                f"{path}: line {n} has {len(fields)} fields, the header has {len(header)} columns."
+            )
+        for j, cell in enumerate(fields):
+            try:
+                float(cell)
+            except ValueError:
+                return DataError(
+                    f"{path}: line {n}, column '{header[j]}' (field {j + 1}): "
+                    f"{cell.strip()!r} is not a number; clean or trim the log."
+                )
+    return DataError(f"{path}: a value could not be read as a number.")  # pragma: no cover
 
 
 @dataclass(frozen=True, eq=False)
@@ -278,7 +310,7 @@ def _time_base(cfg: LogConfig, n_samples: int) -> tuple[FloatArray, float, str]:
         assert cfg.sampling_rate_hz is not None  # guaranteed by LogConfig validation
         fs = float(cfg.sampling_rate_hz)
         return np.arange(n_samples) / fs, fs, f"sampling rate {fs:g} Hz (no time column)"
-    data, _ = read_csv_columns(cfg.time.path, [cfg.time.column], what="time")
+    data, _, line_no = _read_csv_lines(cfg.time.path, [cfg.time.column], what="time")
     t = data[:, 0]
     if t.shape[0] != n_samples:
         raise DataError(
@@ -290,7 +322,7 @@ def _time_base(cfg: LogConfig, n_samples: int) -> tuple[FloatArray, float, str]:
         k = int(np.flatnonzero(dt <= 0)[0])
         raise DataError(
             f"{cfg.time.path}: time column '{cfg.time.column}' is not strictly increasing at "
-            f"line {k + 3} ({t[k]:g} s then {t[k + 1]:g} s); sort or clean the log."
+            f"line {line_no[k + 1]} ({t[k]:g} s then {t[k + 1]:g} s); sort or clean the log."
         )
     step = float(np.median(dt))
     if np.max(np.abs(dt - step)) > _UNIFORM_RTOL * step:
