@@ -316,6 +316,80 @@ def test_cli_bad_inputs_exit_2_with_a_message(tmp_path):
     assert result.exit_code == 2
 
 
+def _invoke_replay(*args):
+    from typer.testing import CliRunner
+
+    from ident.cli import app
+
+    return CliRunner().invoke(app, ["replay", *map(str, args)])
+
+
+def _write_csv(path: Path, traj: JointTrajectory) -> Path:
+    from ident.trajectory import trajectory_to_csv
+
+    path.write_text(trajectory_to_csv(traj))
+    return path
+
+
+def test_cli_joint_count_mismatch_names_the_csv_and_the_urdf(tmp_path):
+    csv = _write_csv(tmp_path / "five.csv", make_trajectory(joints=JOINTS[:5]))
+    result = _invoke_replay("--urdf", URDF, "--trajectory", csv, "--html", tmp_path / "x.html")
+    assert result.exit_code == 2
+    message = result.output
+    assert f"trajectory {csv} has 5 joints {list(JOINTS[:5])}" in message
+    assert f"URDF {URDF} has 6 joints {list(JOINTS)}" in message
+    assert "missing from the trajectory: ['joint_6']" in message
+    assert "unknown to the URDF" not in message  # nothing extra: not printed as []
+    assert not (tmp_path / "x.html").exists()
+
+
+def test_cli_paper_trajectory_on_ur5_names_both_sides(tmp_path):
+    csv = _write_csv(tmp_path / "paper.csv", make_trajectory(duration=0.5))
+    result = _invoke_replay("--urdf", UR5_URDF, "--trajectory", csv, "--html", tmp_path / "x.html")
+    assert result.exit_code == 2
+    message = " ".join(result.output.split())  # undo the terminal's line wrapping
+    assert f"the joints of trajectory {csv} {list(JOINTS)}" in message
+    assert f"do not match the joints of URDF {UR5_URDF} ['shoulder_pan_joint'" in message
+    assert "'wrist_3_joint']" in message
+    assert "unknown to the URDF: ['joint_1'" in message
+    assert not (tmp_path / "x.html").exists()
+
+
+def test_cli_renamed_column_says_the_names_are_inconsistent(tmp_path):
+    csv = _write_csv(tmp_path / "t.csv", make_trajectory())
+    text = csv.read_text()
+    csv.write_text(text.replace("q_joint_2,", "q_jnt_2,", 1))  # the q_ block only
+    result = _invoke_replay("--urdf", URDF, "--trajectory", csv, "--html", tmp_path / "x.html")
+    assert result.exit_code == 2
+    message = " ".join(result.output.split())
+    assert "inconsistent joint names across the column blocks" in message
+    assert "[q_jnt_2, dq_joint_2, ddq_joint_2]" in message
+    assert "missing" not in message
+
+
+def test_cli_replays_a_position_only_csv_like_the_full_one(tmp_path):
+    traj = make_trajectory()
+    full = _write_csv(tmp_path / "full.csv", traj)
+    positions = tmp_path / "positions.csv"
+    header = "t," + ",".join(f"q_{j}" for j in JOINTS)
+    np.savetxt(
+        positions, np.column_stack([traj.t, traj.q]), delimiter=",", header=header, comments=""
+    )
+    pages = {}
+    for csv in (full, positions):
+        out = tmp_path / f"{csv.stem}.html"
+        result = _invoke_replay("--urdf", URDF, "--trajectory", csv, "--html", out)
+        assert result.exit_code == 0, result.output
+        pages[csv.stem] = animation_of(html_commands(out.read_text()))
+    # The replay uses positions only: the same keyframes, and the DH reference motion.
+    path = "/meshcat/replay/robot_0/marker"
+    _, expected, _ = track(pages["full"], path, "position")
+    _, got, _ = track(pages["positions"], path, "position")
+    np.testing.assert_allclose(got, expected, atol=1e-12)
+    # keyframe k (30 /s) shows sample 2 k (60 Hz)
+    np.testing.assert_allclose(got, [dh_flange(q) for q in traj.q[::2]], atol=1e-9)
+
+
 def _children(pid: int) -> list[int]:
     """Child processes of ``pid`` (Linux /proc)."""
     out = []

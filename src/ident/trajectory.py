@@ -6,7 +6,12 @@ one header line, then one row per sample, SI units::
     t, q_<joint>..., dq_<joint>..., ddq_<joint>..., [tau_<joint>...]
 
 ``t`` [s]; ``q`` [rad] (revolute) or [m] (prismatic); ``dq``, ``ddq`` their first and second
-time derivatives; ``tau`` [N*m] or [N], optional. Joint names are those of the URDF.
+time derivatives; ``tau`` [N*m] or [N], optional. Joint names are those of the URDF; every
+block names the same joints in the same order.
+
+A position-only file ``t, q_<joint>...`` (what a motion log often holds) is read when the
+caller allows it (``ident replay`` does): velocities and accelerations are then derived by
+finite differences (see :func:`read_trajectory_csv`).
 """
 
 from __future__ import annotations
@@ -41,6 +46,8 @@ class JointTrajectory:
         Names of the joints, in column order.
     tau :
         Joint torques/forces, shape (n_samples, n_joints), or ``None``.
+    source :
+        The file the trajectory was read from (named in messages), or ``None``.
     """
 
     t: FloatArray
@@ -49,6 +56,7 @@ class JointTrajectory:
     ddq: FloatArray
     joint_names: tuple[str, ...]
     tau: FloatArray | None = None
+    source: str | None = None
 
     def __post_init__(self) -> None:
         n, nj = self.q.shape[0], len(self.joint_names)
@@ -85,44 +93,142 @@ def trajectory_to_csv(trajectory: JointTrajectory) -> str:
     return ",".join(header) + "\n" + buffer.getvalue()
 
 
-def read_trajectory_csv(path: str | Path) -> JointTrajectory:
+def _column_blocks(path: Path, header: list[str]) -> dict[str, list[str]]:
+    """Joint names of each column block ``{prefix: [joint, ...]}`` of a trajectory header.
+
+    Checks the column names, the block order ``q, dq, ddq, tau`` and that every block names
+    the same joints in the same order.
+    """
+    if not header or header[0] != "t":
+        raise DataError(
+            f"{path}: the first column must be 't' (time [s]); header is {header[:4]}..."
+        )
+    blocks: dict[str, list[str]] = {}
+    order: list[str] = []
+    for column in header[1:]:
+        # longest prefix first: 'ddq_x' is not 'dq_x', 'dq_x' is not 'q_x'
+        prefix = next((p for p in ("ddq", "dq", "tau", "q") if column.startswith(p + "_")), None)
+        if prefix is None or not column[len(prefix) + 1 :]:
+            raise DataError(
+                f"{path}: column '{column}' is not one of t, q_<joint>, dq_<joint>, "
+                "ddq_<joint>, tau_<joint>; rename or remove it."
+            )
+        if prefix in blocks and order[-1] != prefix:
+            raise DataError(
+                f"{path}: the {prefix}_* columns are not contiguous (column '{column}'); "
+                "expected order t, q_*, dq_*, ddq_*[, tau_*]."
+            )
+        if prefix not in blocks:
+            order.append(prefix)
+            blocks[prefix] = []
+        blocks[prefix].append(column[len(prefix) + 1 :])
+    if "q" not in blocks:
+        raise DataError(f"{path}: no 'q_<joint>' columns found in the header.")
+    names = blocks["q"]
+    duplicated = sorted({n for n in names if names.count(n) > 1})
+    if duplicated:
+        raise DataError(f"{path}: joints {duplicated} appear twice among the q_* columns.")
+    expected_order = [p for p in _PREFIXES if p in blocks]
+    if order != expected_order:
+        raise DataError(
+            f"{path}: column blocks in the order {', '.join(p + '_*' for p in order)}; "
+            "expected order t, q_*, dq_*, ddq_*[, tau_*]."
+        )
+    _check_same_joints(path, blocks)
+    return blocks
+
+
+def _check_same_joints(path: Path, blocks: dict[str, list[str]]) -> None:
+    """Every block must name the q_* block's joints, in the same order."""
+    names = blocks["q"]
+    if all(block == names for block in blocks.values()):
+        return
+    sizes = {prefix: len(block) for prefix, block in blocks.items()}
+    if len(set(sizes.values())) > 1:
+        counts = ", ".join(f"{n} {p}_*" for p, n in sizes.items())
+        raise DataError(
+            f"{path}: the column blocks have different joint counts ({counts}); every block "
+            f"must have one column per joint. Joint names per block: "
+            + "; ".join(f"{p}_*: {block}" for p, block in blocks.items())
+            + "."
+        )
+    differing = []
+    for k in range(len(names)):
+        row = {prefix: block[k] for prefix, block in blocks.items()}
+        if len(set(row.values())) > 1:
+            differing.append(", ".join(f"{p}_{n}" for p, n in row.items()))
+    if sorted(names) == sorted(blocks[next(p for p in blocks if blocks[p] != names)]):
+        why = "the same joints in another order"
+    else:
+        why = "different joint names"
+    raise DataError(
+        f"{path}: inconsistent joint names across the column blocks ({why}): "
+        + "; ".join(f"[{d}]" for d in differing[:6])
+        + ". Every block (q_*, dq_*, ddq_*, tau_*) must name the same joints in the same "
+        "order; rename the columns that differ."
+    )
+
+
+def _derivative(values: FloatArray, t: FloatArray) -> FloatArray:
+    """Time derivative along axis 0 by ``np.gradient`` (second order where possible)."""
+    return np.gradient(values, t, axis=0, edge_order=2 if t.shape[0] >= 3 else 1)
+
+
+def read_trajectory_csv(path: str | Path, *, allow_positions_only: bool = False) -> JointTrajectory:
     """Read a trajectory CSV; every problem is a :class:`DataError` naming the file.
+
+    Parameters
+    ----------
+    path :
+        CSV in the format of the module docstring.
+    allow_positions_only :
+        Also accept ``t, q_<joint>...[, tau_<joint>...]`` without the ``dq_*`` and
+        ``ddq_*`` blocks (used by ``ident replay``, which needs positions only). The
+        velocities [rad/s] and accelerations [rad/s^2] are then derived from the positions
+        by ``np.gradient`` over ``t`` (central differences inside, second-order one-sided at
+        the ends; first order for 2 samples), ``ddq`` from ``dq`` the same way. They are
+        estimates: amplified noise, no filtering. ``False`` (default) requires the full
+        format.
+
+    Returns
+    -------
+    :
+        The trajectory, ``source`` set to ``str(path)``.
 
     Raises
     ------
     DataError
-        Missing file, missing or inconsistent columns, non-numeric or non-finite values,
-        time not strictly increasing.
+        Missing file, unknown, missing or out-of-order columns, joint names that differ
+        between the q/dq/ddq/tau blocks, non-numeric or non-finite values, time not strictly
+        increasing.
     """
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: trajectory file not found.")
     with path.open(encoding="utf-8") as f:
         header = [h.strip() for h in f.readline().strip().split(",")]
-    if not header or header[0] != "t":
-        raise DataError(
-            f"{path}: the first column must be 't' (time [s]); header is {header[:4]}..."
-        )
-    q_cols = [h for h in header if h.startswith("q_")]
-    names = tuple(h[2:] for h in q_cols)
-    if not names:
-        raise DataError(f"{path}: no 'q_<joint>' columns found in the header.")
-    has_tau = any(h.startswith("tau_") for h in header)
-    expected = ["t"] + [
-        f"{p}_{j}" for p in (_PREFIXES if has_tau else _PREFIXES[:3]) for j in names
-    ]
-    if header != expected:
-        missing = [c for c in expected if c not in header]
-        raise DataError(
-            f"{path}: columns do not match the trajectory format; missing {missing[:6]}, "
-            f"expected order t, q_*, dq_*, ddq_*[, tau_*]."
-        )
+    blocks = _column_blocks(path, header)
+    names = tuple(blocks["q"])
+    positions_only = "dq" not in blocks and "ddq" not in blocks
+    if not (positions_only and allow_positions_only):
+        missing = [p + "_*" for p in ("dq", "ddq") if p not in blocks]
+        if missing:
+            hint = " (ident replay also reads position-only files t, q_*)" if positions_only else ""
+            raise DataError(
+                f"{path}: columns do not match the trajectory format; missing the "
+                f"{' and '.join(missing)} columns of joints {list(names)}, expected order "
+                f"t, q_*, dq_*, ddq_*[, tau_*]{hint}."
+            )
     try:
         data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     except ValueError as e:
         raise DataError(f"{path}: non-numeric value: {e}") from e
     if data.shape[0] < 2:
         raise DataError(f"{path}: needs at least 2 samples, found {data.shape[0]}.")
+    if data.shape[1] != len(header):
+        raise DataError(
+            f"{path}: the data rows have {data.shape[1]} values, the header {len(header)} columns."
+        )
     bad = ~np.isfinite(data)
     if bad.any():
         row, col = np.argwhere(bad)[0]
@@ -134,12 +240,17 @@ def read_trajectory_csv(path: str | Path) -> JointTrajectory:
         row = int(np.argmax(np.diff(t) <= 0)) + 2
         raise DataError(f"{path}: time column 't' is not strictly increasing (row {row}).")
     nj = len(names)
-    blocks = [data[:, 1 + k * nj : 1 + (k + 1) * nj] for k in range(4 if has_tau else 3)]
+    present = [p for p in _PREFIXES if p in blocks]
+    arrays = {p: data[:, 1 + k * nj : 1 + (k + 1) * nj] for k, p in enumerate(present)}
+    if positions_only:
+        arrays["dq"] = _derivative(arrays["q"], t)
+        arrays["ddq"] = _derivative(arrays["dq"], t)
     return JointTrajectory(
         t=t,
-        q=blocks[0],
-        dq=blocks[1],
-        ddq=blocks[2],
+        q=arrays["q"],
+        dq=arrays["dq"],
+        ddq=arrays["ddq"],
         joint_names=names,
-        tau=blocks[3] if has_tau else None,
+        tau=arrays.get("tau"),
+        source=str(path),
     )

@@ -83,7 +83,8 @@ def replay(
     ] = None,
     urdf: Annotated[Path | None, typer.Option(help="Robot URDF (overrides the run's).")] = None,
     trajectory: Annotated[
-        Path | None, typer.Option(help="Trajectory CSV: t, q_<joint>..., dq_..., ddq_...")
+        Path | None,
+        typer.Option(help="Trajectory CSV: t, q_<joint>...[, dq_..., ddq_..., tau_...]"),
     ] = None,
     frame: Annotated[
         str | None,
@@ -120,7 +121,8 @@ def replay(
         from ident.viz.server import LoopbackMeshcatServer
 
         urdf_path, csvs, run_frame = _inputs(run_dir, urdf, trajectory, elites)
-        trajectories = [read_trajectory_csv(p) for p in csvs]
+        # positions suffice to replay: a log t, q_* is read too (dq, ddq derived, unused)
+        trajectories = [read_trajectory_csv(p, allow_positions_only=True) for p in csvs]
         scene = build_replay_scene(
             urdf_path,
             trajectories,

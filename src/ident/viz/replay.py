@@ -246,7 +246,9 @@ def _frame_id(model: pin.Model, name: str, urdf_path: Path) -> int:
     raise ModelError(f"{urdf_path}: no frame '{name}' to trace.{hint} Frames: {names}.")
 
 
-def joint_configurations(model: pin.Model, trajectory: JointTrajectory) -> FloatArray:
+def joint_configurations(
+    model: pin.Model, trajectory: JointTrajectory, *, urdf_path: str | Path | None = None
+) -> FloatArray:
     """Configurations of ``model`` along a trajectory whose columns are named joints.
 
     The trajectory's joints are matched to the model's by name (any column order).
@@ -256,7 +258,10 @@ def joint_configurations(model: pin.Model, trajectory: JointTrajectory) -> Float
     model :
         Pinocchio model of a fixed-base robot (revolute, prismatic, continuous joints).
     trajectory :
-        Joint positions [rad] or [m], shape (n_samples, n_joints).
+        Joint positions [rad] or [m], shape (n_samples, n_joints). Its ``source`` (the CSV)
+        is named in messages.
+    urdf_path :
+        The model's URDF, named in messages.
 
     Returns
     -------
@@ -281,10 +286,21 @@ def joint_configurations(model: pin.Model, trajectory: JointTrajectory) -> Float
     if sorted(names) != sorted(model_joints):
         missing = [j for j in model_joints if j not in names]
         extra = [j for j in names if j not in model_joints]
+        csv = f"trajectory {trajectory.source}" if trajectory.source else "the trajectory"
+        urdf = f"URDF {urdf_path}" if urdf_path is not None else "the URDF"
+        if len(names) != len(model_joints):
+            what = (
+                f"{csv} has {len(names)} joints {names}, {urdf} has {len(model_joints)} "
+                f"joints {model_joints}"
+            )
+        else:
+            what = f"the joints of {csv} {names} do not match the joints of {urdf} {model_joints}"
+        details = [f"missing from the trajectory: {missing}"] if missing else []
+        details += [f"unknown to the URDF: {extra}"] if extra else []
         raise DataError(
-            f"the trajectory's joints {names} do not match the URDF's joints {model_joints} "
-            f"(missing from the trajectory: {missing}; unknown to the URDF: {extra}); "
-            "the q_<joint> columns must name the URDF's joints."
+            f"{what} ({'; '.join(details)}); the q_<joint> columns must name the URDF's "
+            "joints (any order): rename the columns or use the URDF of the robot that made "
+            "the trajectory."
         )
     q = np.tile(pin.neutral(model), (trajectory.n_samples, 1))
     for column, name in enumerate(names):
@@ -420,7 +436,7 @@ def build_replay_scene(
     model, visual_model, fallback = load_visual_robot(urdf_path, package_dirs)
     frame_name = traced_frame if traced_frame is not None else default_traced_frame(model)
     frame_id = _frame_id(model, frame_name, urdf_path)
-    configurations = [joint_configurations(model, traj) for traj in trajectories]
+    configurations = [joint_configurations(model, t, urdf_path=urdf_path) for t in trajectories]
 
     keyframes = [
         _resample(traj, q, fps, speed) for traj, q in zip(trajectories, configurations, strict=True)
