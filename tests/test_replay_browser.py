@@ -58,8 +58,12 @@ def scene():
 
 
 def assert_draws_and_moves(page, scene) -> None:
-    visuals = scene.robot_paths[0] + "/visuals"
-    wait_for_robot(page, scene.robot_paths[0] + "/visuals", scene.n_visuals)
+    assert_robot_draws_and_moves(page, scene.robot_paths[0], scene.n_visuals)
+
+
+def assert_robot_draws_and_moves(page, robot_path: str, n_visuals: int) -> None:
+    visuals = robot_path + "/visuals"
+    wait_for_robot(page, visuals, n_visuals)
     masks = []
     for t in TIMES:
         mask, control = robot_mask(page, visuals, t)
@@ -100,6 +104,99 @@ def test_static_replay_opens_from_disk_draws_and_animates(chromium, scene, tmp_p
         assert offline == []
     finally:
         page.close()
+
+
+def block_network(page) -> None:
+    """Refuse every request other than the file itself and data:/blob: URLs."""
+    page.route(
+        "**/*",
+        lambda route: (
+            route.continue_()
+            if route.request.url.startswith(("file:", "data:", "blob:"))
+            else route.abort()
+        ),
+    )
+
+
+def test_cli_written_replay_html_opens_from_disk_draws_and_animates(chromium, tmp_path):  # noqa: F811
+    """The real output: `ident replay --urdf robot/urdf/paper6r.urdf --trajectory CSV --html`."""
+    from typer.testing import CliRunner
+
+    from ident.cli import app
+    from ident.trajectory import trajectory_to_csv
+    from ident.viz.replay import load_visual_robot
+
+    assert PAPER_URDF.is_file(), f"{PAPER_URDF} missing: regenerate it with `ident urdf`"
+    model, visual_model, fallback = load_visual_robot(PAPER_URDF)
+    assert not fallback
+    names = tuple(model.names[j] for j in range(1, model.njoints))
+    csv = tmp_path / "trajectory.csv"
+    csv.write_text(trajectory_to_csv(excitation(names)))
+    out = tmp_path / "out.html"
+    result = CliRunner().invoke(
+        app,
+        ["replay", "--urdf", "robot/urdf/paper6r.urdf", "--trajectory", str(csv)]
+        + ["--html", str(out)],
+    )
+    assert result.exit_code == 0, result.output
+    assert f"wrote {out}" in result.output
+    page = chromium.new_page()
+    log = PageLog(page)
+    block_network(page)
+    try:
+        page.goto(out.as_uri())
+        page.wait_for_function("window.identReplayReady === true", timeout=20000)
+        robot = "/meshcat/replay/robot_0"
+        wait_for_robot(page, robot + "/visuals", len(visual_model.geometryObjects))
+        t0 = page.evaluate("viewer.animator.actions[0].time")
+        page.wait_for_timeout(400)
+        assert page.evaluate("viewer.animator.playing")
+        assert page.evaluate("viewer.animator.actions[0].time") > t0  # plays on its own
+        assert_robot_draws_and_moves(page, robot, len(visual_model.geometryObjects))
+        assert "robot 0: trajectory.csv" in page.content()  # the CLI's caption
+        assert log.errors == []
+        offline = [u for u in log.requests if not u.startswith(("file:", "data:", "blob:"))]
+        assert offline == []
+    finally:
+        page.close()
+
+
+def non_loopback_ipv6_address() -> str | None:
+    """A global-scope IPv6 address of this machine (not ::1, not link-local), or None."""
+    table = Path("/proc/net/if_inet6")
+    if not table.is_file():
+        return None
+    import ipaddress
+
+    for line in table.read_text().splitlines():
+        fields = line.split()
+        if len(fields) < 6 or fields[3] != "00":  # scope 00: global (ULA included)
+            continue
+        address = ipaddress.IPv6Address(int(fields[0], 16))
+        if not (address.is_loopback or address.is_link_local):
+            return str(address)
+    return None
+
+
+def test_live_server_is_not_reachable_on_ipv6():
+    address = non_loopback_ipv6_address()
+    if address is None:
+        pytest.skip("no global IPv6 address on this machine: the IPv6 reachability check")
+    with socket.socket(socket.AF_INET6, socket.SOCK_STREAM) as listener:
+        # positive control: a listener on the address is reachable from here
+        listener.bind((address, 0))
+        listener.listen()
+        with socket.create_connection((address, listener.getsockname()[1]), timeout=2):
+            pass
+    with LoopbackMeshcatServer(port=find_free_port(7450)) as server:
+        zmq_port = int(server.zmq_url.rsplit(":", 1)[1])
+        for port in (server.port, zmq_port):
+            with socket.create_connection(("127.0.0.1", port), timeout=2):
+                pass  # the server listens, on loopback
+            with pytest.raises((ConnectionRefusedError, TimeoutError)):
+                socket.create_connection((address, port), timeout=2).close()
+            with pytest.raises((ConnectionRefusedError, TimeoutError, OSError)):
+                socket.create_connection(("::1", port), timeout=2).close()
 
 
 def non_loopback_address() -> str | None:
