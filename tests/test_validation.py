@@ -3,7 +3,7 @@ import pytest
 
 from ident.errors import ConfigError
 from ident.identify.reference import expression_to_vector, parse_expression, read_reference
-from ident.identify.validation import prediction_metrics, time_split
+from ident.identify.validation import held_out_warnings, prediction_metrics, time_split
 
 
 def test_prediction_metrics_closed_form():
@@ -49,3 +49,21 @@ def test_reference_expressions(tmp_path):
     assert first.lead == "Izz1"
     assert first.value("wls") == (1.3, 1.1)
     assert second.value("ols") == (8.1, 0.5)
+
+
+def test_held_out_warnings_against_nominal_and_bound():
+    assert held_out_warnings(0.2, 1.0) == []
+    assert held_out_warnings(0.2, None, max_relative_residual=0.25) == []
+    (w,) = held_out_warnings(1.288, 1.064, n_rows=218, n_params=60)
+    assert w.startswith("held-out relative residual of the identified parameters 1.288 is not")
+    assert "nominal parameters' (1.064)" in w
+    assert "(218 identification rows for 60 parameters)" in w
+    # equal is not better
+    assert len(held_out_warnings(0.5, 0.5)) == 1
+    (w,) = held_out_warnings(0.3, 1.0, max_relative_residual=0.25)
+    assert "0.3 exceeds validation.max_relative_residual = 0.25" in w
+    assert len(held_out_warnings(1.3, 1.0, max_relative_residual=0.25)) == 2
+    # a NaN prediction error is never accepted by the bound
+    assert len(held_out_warnings(float("nan"), None, max_relative_residual=1.0)) == 1
+    (w,) = held_out_warnings(2.0, 1.0, in_sample=True)
+    assert w.startswith("on the identification rows (no held-out part) relative residual")

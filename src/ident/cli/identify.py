@@ -6,11 +6,17 @@ identification leaves nothing that looks like a result), the measured motion
 (``trajectory.csv``, ``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``;
 a failing replay is reported, never fatal). If writing the report fails, the folder is marked
 incomplete.
+
+Exit codes: 0 success (warnings, e.g. a held-out prediction worse than the URDF's nominal
+parameters, are printed and recorded in ``result.json``); 1 a warning with
+``validation.fail_on_warning: true`` in the config (the run folder is written); 2 bad input or a
+failed identification (nothing written as a result).
 """
 
 from __future__ import annotations
 
 import time
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Annotated
 
@@ -36,23 +42,38 @@ def identify(
         bool,
         typer.Option(help="Write replay.html (the measured motion, meshcat) into the run folder."),
     ] = True,
+    package_dir: Annotated[
+        list[Path] | None,
+        typer.Option(
+            help="Folder holding the URDF's package:// mesh packages, for replay.html (repeatable)."
+        ),
+    ] = None,
 ) -> None:
     """Identify base, friction and actuator parameters from CONFIG's measured log."""
+    started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    t_start = time.monotonic()
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify as run_identify
     from ident.report.identify_report import write_identify_report, write_measured_replay
     from ident.run.rundir import create_run_dir
 
+    package_dirs = list(package_dir or ())
     with user_errors():
+        for d in package_dirs:
+            if not d.is_dir():
+                raise IdentError(f"--package-dir {d}: not a folder.")
         cfg = load_identify_config(config)
         result = run_identify(cfg, rng=seed)
-        rundir = create_run_dir(
-            out, f"{cfg.name}", info={"command": "identify", "config": str(config), "seed": seed}
-        )
+        info = {"command": "identify", "config": str(config), "seed": seed}
+        if package_dirs:
+            info["package_dirs"] = [str(d) for d in package_dirs]
+        rundir = create_run_dir(out, f"{cfg.name}", info={**info, "started_at": started_at})
         try:
             t0 = time.perf_counter()
-            replay_note = write_measured_replay(result, rundir.path, replay=replay)
+            replay_note = write_measured_replay(
+                result, rundir.path, replay=replay, package_dirs=package_dirs
+            )
             rundir.update(replay=replay_note)
             t1 = time.perf_counter()
             write_identify_report(result, rundir.path, replay_note=replay_note)
@@ -63,9 +84,15 @@ def identify(
         except BaseException:
             rundir.finish("incomplete", "interrupted while writing the report")
             raise
-        rundir.update(timings_s={k: round(v, 3) for k, v in timings.items()})
-        rundir.finish("complete", result.estimate.message)
         est = result.estimate
+        rundir.update(
+            timings_s={k: round(v, 3) for k, v in timings.items()},
+            warnings=list(result.warnings),
+        )
+        message = est.message if not result.warnings else "; ".join(result.warnings)
+        rundir.finish("complete", message)
+        # wall time of the whole command (config, identification, replay, report)
+        rundir.update(wall_time_s=round(time.monotonic() - t_start, 3))
         typer.echo(f"run folder: {rundir.path}")
         typer.echo(
             f"{est.method.upper()}: {len(est.names)} base parameters, relative residual "
@@ -80,3 +107,10 @@ def identify(
             )
         typer.echo(replay_note)
         typer.echo(f"report: {rundir.path / 'report.html'}")
+        for w in result.warnings:
+            typer.echo(f"warning: {w}", err=True)
+    if result.warnings and cfg.validation.fail_on_warning:
+        typer.echo(
+            "error: validation.fail_on_warning is set and the result has warnings.", err=True
+        )
+        raise typer.Exit(code=1)

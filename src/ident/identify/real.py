@@ -49,7 +49,12 @@ from ident.identify.estimate import Estimate, least_squares, rank_report
 from ident.identify.logs import RobotLog, read_log
 from ident.identify.motion import measured_motion
 from ident.identify.reference import ReferenceParameter, expression_to_vector, read_reference
-from ident.identify.validation import PredictionMetrics, prediction_metrics, time_split
+from ident.identify.validation import (
+    PredictionMetrics,
+    held_out_warnings,
+    prediction_metrics,
+    time_split,
+)
 from ident.trajectory import JointTrajectory
 
 __all__ = [
@@ -251,6 +256,9 @@ class IdentifyResult:
         replay, or None when the log is too short to decimate it (see ``motion_note``).
     motion_note :
         Why ``motion`` is None, else empty.
+    warnings :
+        Plain-language problems with the result (held-out prediction worse than the URDF's
+        nominal parameters, or above ``validation.max_relative_residual``); empty when none.
     """
 
     config: IdentifyConfig
@@ -272,6 +280,12 @@ class IdentifyResult:
     reference_essential: tuple[dict, ...] = ()
     motion: JointTrajectory | None = None
     motion_note: str = ""
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def status(self) -> str:
+        """``"ok"``, or ``"warning"`` when :attr:`warnings` is not empty."""
+        return "warning" if self.warnings else "ok"
 
 
 def _coupling_convention_map(pm: ParameterModel) -> dict[str, list[str]]:
@@ -609,6 +623,14 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
             members = ours.split(" + ") if ours else []
             row["in_our_essential_set"] = bool(members) and all(m in kept for m in members)
             reference_essential.append(row)
+    problems = held_out_warnings(
+        predictions["identified"].metrics.total_relative_residual,
+        predictions["URDF nominal"].metrics.total_relative_residual,
+        max_relative_residual=cfg.validation.max_relative_residual,
+        in_sample=part is ident_part,
+        n_rows=int(W_id.shape[0]),
+        n_params=len(base_names),
+    )
     timings["total"] = time.perf_counter() - t0
     return IdentifyResult(
         config=cfg,
@@ -630,4 +652,5 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
         reference_essential=tuple(reference_essential),
         motion=motion,
         motion_note=motion_note,
+        warnings=tuple(problems),
     )

@@ -13,7 +13,7 @@ import numpy.typing as npt
 
 from ident.errors import ConfigError
 
-__all__ = ["PredictionMetrics", "prediction_metrics", "time_split"]
+__all__ = ["PredictionMetrics", "held_out_warnings", "prediction_metrics", "time_split"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -137,3 +137,54 @@ def time_split(n_samples: int, identify_fraction: float) -> tuple[slice, slice]:
             f"from {n_samples}."
         )
     return slice(0, n_id), slice(n_id, n_samples)
+
+
+def held_out_warnings(
+    identified: float,
+    nominal: float | None,
+    *,
+    max_relative_residual: float | None = None,
+    in_sample: bool = False,
+    n_rows: int | None = None,
+    n_params: int | None = None,
+) -> list[str]:
+    """Plain-language warnings about the identified parameters' held-out prediction.
+
+    Parameters
+    ----------
+    identified :
+        Held-out total relative residual of the identified parameters.
+    nominal :
+        The same for the URDF's nominal parameters (None: not compared).
+    max_relative_residual :
+        Optional bound on ``identified`` (config ``validation.max_relative_residual``).
+    in_sample :
+        True when there is no held-out part (the numbers are on the identification rows).
+    n_rows, n_params :
+        Identification rows and parameters, quoted in the message (optional).
+
+    Returns
+    -------
+    :
+        One sentence per problem; empty when the prediction is acceptable.
+    """
+    where = "on the identification rows (no held-out part)" if in_sample else "held-out"
+    rows = (
+        f" ({n_rows} identification rows for {n_params} parameters)"
+        if n_rows is not None and n_params is not None
+        else ""
+    )
+    out: list[str] = []
+    if nominal is not None and np.isfinite(nominal) and not identified < nominal:
+        out.append(
+            f"{where} relative residual of the identified parameters {identified:.4g} is not "
+            f"better than the URDF's nominal parameters' ({nominal:.4g}): the log does not "
+            f"determine the parameters well{rows}; use a longer log or a motion that excites "
+            "every joint, and do not use these values."
+        )
+    if max_relative_residual is not None and not identified <= max_relative_residual:
+        out.append(
+            f"{where} relative residual {identified:.4g} exceeds "
+            f"validation.max_relative_residual = {max_relative_residual:g}{rows}."
+        )
+    return out

@@ -11,6 +11,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -108,14 +109,20 @@ def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
 
 
 def write_measured_replay(
-    result: IdentifyResult, folder: str | Path, *, replay: bool = True
+    result: IdentifyResult,
+    folder: str | Path,
+    *,
+    replay: bool = True,
+    package_dirs: Sequence[str | Path] = (),
 ) -> str:
     """Write the measured motion: ``trajectory.csv``, ``robot.urdf`` and ``replay.html``.
 
     ``trajectory.csv`` (format of :mod:`ident.trajectory`) and ``robot.urdf`` (a copy of the
     URDF used) let ``ident replay RUN_DIR`` show the run folder; ``replay.html`` is the static
-    meshcat page (:func:`ident.viz.replay.replay_html`). A failing replay never raises: the
-    returned one-line note says what happened, for the report and ``run.json``.
+    meshcat page (:func:`ident.viz.replay.replay_html`). ``package_dirs`` are searched for the
+    URDF's ``package://`` meshes (``--package-dir``), then the original URDF's folder and its
+    parent. A failing replay never raises: the returned one-line note says what happened, for
+    the report and ``run.json``.
     """
     import warnings
 
@@ -141,7 +148,13 @@ def write_measured_replay(
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            page = replay_html(urdf_path, [motion], labels=[f"{result.config.name}: {what}"])
+            source = Path(result.config.robot.urdf).resolve().parent
+            page = replay_html(
+                urdf_path,
+                [motion],
+                labels=[f"{result.config.name}: {what}"],
+                package_dirs=[*map(Path, package_dirs), source, source.parent],
+            )
     except Exception as e:  # the replay is a convenience: a failure must not lose the result
         return f"no replay: {type(e).__name__}: {e}"
     atomic_write_text(folder / "replay.html", page)
@@ -169,6 +182,8 @@ def result_dict(
         "residual_rms": dict(zip(result.joint_names, est.residual_rms.tolist(), strict=True)),
         "sigma": dict(zip(result.joint_names, est.sigma.tolist(), strict=True)),
         "message": est.message,
+        "status": result.status,
+        "warnings": list(result.warnings),
         "base_parameters": [
             {
                 "name": name,
@@ -248,8 +263,14 @@ def _markdown(
         f"Estimator: **{est.method.upper()}** on {est.n_observations} rows "
         f"({len(pm.base_names)} base parameters, condition number {est.condition_number:.4g}).",
         "",
-        f"**Relative residual (identification rows): {est.relative_residual:.4f}**. {est.message}",
+        f"**Relative residual (identification rows): {est.relative_residual:.4f}**. "
+        + (
+            est.message
+            if not result.warnings
+            else f"(Least-squares solve: {est.message}; the result is NOT ok, see below.)"
+        ),
         "",
+        *[f"**Warning: {w}**\n" for w in result.warnings],
         (
             "Motion replay: [replay.html](replay.html) (the measured motion, opens offline in a "
             f"browser; `ident replay` on this folder shows it live). {replay_note}"
