@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from robots import ERD_ROBOTS, PANDA_URDF
 from robots import UR5_URDF as UR5
 from typer.testing import CliRunner
 
@@ -74,9 +75,44 @@ def test_verify_prismatic_fixture_has_no_stages() -> None:
 def test_verify_bad_input_gives_one_error_line(tmp_path: Path) -> None:
     broken = tmp_path / "broken.urdf"
     broken.write_text("<robot name='x'><link name='a'></robot>")
+    fixture = (DATA / "continuous.urdf").read_text()
+    negative_mass = tmp_path / "negative_mass.urdf"
+    negative_mass.write_text(fixture.replace('<mass value="1.0"/>', '<mass value="-1"/>'))
+    triangle = tmp_path / "triangle.urdf"
+    triangle.write_text(
+        fixture.replace('ixx="0.01"', 'ixx="1"')
+        .replace('iyy="0.01"', 'iyy="1"')
+        .replace('izz="0.01"', 'izz="5"')
+    )
     cases = [
-        (("--urdf", DATA / "branched.urdf"), ["branched.urdf", "pin.buildReducedModel"]),
-        (("--urdf", DATA / "continuous.urdf"), ["continuous.urdf", "wheel_joint", "revolute"]),
+        (
+            ("--urdf", DATA / "branched.urdf"),
+            ["branched.urdf", "pin.buildReducedModel", "--lock right_joint"],
+        ),
+        (
+            ("--urdf", negative_mass),
+            ["negative_mass.urdf", "link 'wheel'", "mass = -1 kg must be > 0", "fix the link"],
+        ),
+        (
+            ("--urdf", triangle),
+            ["triangle.urdf", "link 'wheel'", "triangle inequality", "I1 + I2 >= I3", "fix"],
+        ),
+        (
+            ("--urdf", PANDA_URDF),
+            ["panda.urdf", "branched", "--lock panda_finger_joint1 --lock panda_finger_joint2"],
+        ),
+        (
+            ("--urdf", PANDA_URDF, "--lock", "panda_finger_joint1", "--lock", "panda_fnger_joint2"),
+            ["panda.urdf", "'panda_fnger_joint2'", "did you mean 'panda_finger_joint2'"],
+        ),
+        (
+            ("--urdf", PANDA_URDF, "--lock", "panda_finger_joint1=0.1"),
+            ["panda_finger_joint1", "outside its limits [0, 0.04]"],
+        ),
+        (("--urdf", PANDA_URDF, "--lock", "panda_finger_joint1=open"), ["'open' is not a number"]),
+        (("--urdf", PANDA_URDF, "--lock", "=1"), ["give a joint name"]),
+        (("--urdf", PANDA_URDF, "--lock", "a", "--lock", "a=1"), ["locked twice"]),
+        (("--robot", ROOT / "configs/paper6r.yaml", "--lock", "joint_1"), ["--urdf only"]),
         (("--urdf", tmp_path / "missing.urdf"), ["missing.urdf", "not found"]),
         (("--urdf", broken), ["broken.urdf", "malformed"]),
         (("--urdf", DATA / "rp2.urdf", "--robot", "configs/paper6r.yaml"), ["exactly one"]),
@@ -91,3 +127,39 @@ def test_verify_bad_input_gives_one_error_line(tmp_path: Path) -> None:
         assert lines[0].startswith("error: ")
         for word in words:
             assert word in lines[0], (word, lines[0])
+
+
+def test_verify_panda_with_its_fingers_locked() -> None:
+    args = ["--urdf", PANDA_URDF, "--samples", 30, "--seed", 1, "--json"]
+    args += ["--lock", "panda_finger_joint1", "--lock", "panda_finger_joint2=0.03"]
+    result = _run(*args)
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["n_joints"] == 7
+    assert report["locked_joints"] == {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.03}
+    assert report["max_rel_error"] < 1e-9
+    assert report["rnea_max_rel_error"] < 1e-9
+    assert report["passed"] is True
+    locked = Robot.from_urdf(PANDA_URDF, lock_joints=report["locked_joints"])
+    assert report["rank"] == _pinocchio_rank(locked, 30, 1)
+    table = _run(*[a for a in args if a != "--json"])
+    assert table.exit_code == 0, table.output
+    assert "panda_finger_joint2 = 0.03" in " ".join(table.stdout.split())
+
+
+def test_verify_continuous_joints() -> None:
+    """kinova has three continuous joints, the fixture one: verified as revolute joints."""
+    kinova = ERD_ROBOTS / "kinova_description/robots/kinova.urdf"
+    report = json.loads(_run("--urdf", kinova, "--samples", 30, "--json").stdout)
+    assert report["n_joints"] == 6
+    assert report["continuous_joints"] == [
+        "j2s6s200_joint_1",
+        "j2s6s200_joint_4",
+        "j2s6s200_joint_6",
+    ]
+    assert report["max_rel_error"] < 1e-9
+    assert report["passed"] is True
+    assert report["ranks_agree"] is True
+    result = _run("--urdf", DATA / "continuous.urdf", "--samples", 10, "--json")
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["continuous_joints"] == ["wheel_joint"]

@@ -203,7 +203,22 @@ _LIMIT = "<axis xyz='0 0 1'/><limit lower='-1' upper='1' effort='1' velocity='1'
         ("<sdf version='1.6'/>", "root element is <sdf>"),
         ("<robot name='x'><link name='a'/></robot>", "no moving joint"),
         (_TWO_LINKS.format(kind="floating", extra=""), "floating base"),
-        (_TWO_LINKS.format(kind="continuous", extra="<axis xyz='0 0 1'/>"), "continuous"),
+        (
+            _TWO_LINKS.format(kind="revolute", extra=_LIMIT).replace('value="1"', 'value="-1"'),
+            r"link 'b': the <inertial> is physically impossible: mass = -1 kg must be > 0",
+        ),
+        (
+            _TWO_LINKS.format(kind="revolute", extra=_LIMIT).replace('izz="1"', 'izz="5"'),
+            r"link 'b': .*triangle inequality I1 \+ I2 >= I3 \(1 \+ 1 < 5",
+        ),
+        (
+            _TWO_LINKS.format(kind="revolute", extra=_LIMIT).replace('izz="1"', 'izz="-1"'),
+            r"link 'b': .*not positive semi-definite",
+        ),
+        (
+            _TWO_LINKS.format(kind="revolute", extra=_LIMIT).replace('ixy="0"', 'ixy="x"'),
+            r"link 'b': the <inertial> has a value that is not a number",
+        ),
         (
             _TWO_LINKS.format(kind="revolute", extra=_LIMIT).replace(
                 'child link="b"', 'child link="c"'
@@ -238,3 +253,202 @@ def test_parameter_names(paper):
     assert len(names) == paper.parameters().size == 60
     assert names[:4] == ("m1", "mcx1", "mcy1", "mcz1")
     assert names[-1] == "Izz6"
+
+
+# ---------------------------------------------------------------- third-party URDFs (issue 2)
+ARMS = {
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "ur10": "ur_description/urdf/ur10_robot.urdf",
+    "z1": "z1_description/urdf/z1.urdf",
+    "xarm7": "xarm_description/urdf/xarm7.urdf",
+    "talos_left_arm": "talos_data/robots/talos_left_arm.urdf",
+    "so100": "so_arm_description/urdf/so100.urdf",
+    "kinova": "kinova_description/robots/kinova.urdf",
+    "double_pendulum_continuous": (
+        "double_pendulum_description/urdf/double_pendulum_continuous.urdf"
+    ),
+}
+FINGERS = ("panda_finger_joint1", "panda_finger_joint2")
+
+
+def test_real_arms_pass_the_inertial_check_at_its_tolerance():
+    """Every link inertial of the arms we test (read by yourdfpy) is consistent even at the
+    strict 1e-9 default: the URDF_INERTIA_RTOL of 1e-6 is round-off room, not needed here."""
+    import yourdfpy
+
+    from ident.model import URDF_INERTIA_RTOL
+    from ident.robot.inertia import consistency_problems, parameters_from_com
+
+    assert URDF_INERTIA_RTOL == 1e-6
+    for relative in (*ARMS.values(), "panda_description/urdf/panda.urdf"):
+        urdf = yourdfpy.URDF.load(str(ERD / relative), build_scene_graph=False, load_meshes=False)
+        checked = 0
+        for link in urdf.robot.links:
+            inertial = link.inertial
+            if inertial is None or (inertial.mass == 0 and not np.any(inertial.inertia)):
+                continue
+            params = parameters_from_com(inertial.mass, np.zeros(3), inertial.inertia)
+            assert consistency_problems(params) == [], (relative, link.name)
+            checked += 1
+        assert checked >= 2, relative
+    lock = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+    assert Robot.from_urdf(ERD / "panda_description/urdf/panda.urdf", lock_joints=lock).nq == 7
+
+
+@pytest.mark.parametrize("name", ["kinova", "double_pendulum_continuous"])
+def test_continuous_joints_match_the_original_unbounded_model(name):
+    """Regressor, torques and FK of the revolute rewrite equal Pinocchio's on the ORIGINAL model
+    (continuous joints as (cos, sin)) at the corresponding states."""
+    path = ERD / ARMS[name]
+    robot = Robot.from_urdf(path)
+    original = pin.buildModelFromUrdf(str(path))
+    unbounded = [
+        original.names[j] for j in range(1, original.njoints) if original.joints[j].nq == 2
+    ]
+    assert unbounded
+    assert robot.continuous_joints == tuple(unbounded)
+    assert robot.nq == robot.nv == original.nv < original.nq
+    assert robot.joint_names == tuple(original.names[1:])
+    for joint in unbounded:
+        index = robot.joint_names.index(joint)
+        assert np.isinf(robot.q_lower[index])
+        assert np.isinf(robot.q_upper[index])
+        assert np.isinf(robot.chain.q_lower[index])
+        assert np.isinf(robot.chain.q_upper[index])
+    q, dq, ddq = robot.random_configurations(8, rng=5)
+    q[0, :] = 3.0  # beyond pi on every continuous joint
+    q_original = np.empty((q.shape[0], original.nq))
+    for j in range(1, original.njoints):
+        joint = original.joints[j]
+        angle = q[:, j - 1]
+        if joint.nq == 2:
+            q_original[:, joint.idx_q] = np.cos(angle)
+            q_original[:, joint.idx_q + 1] = np.sin(angle)
+        else:
+            q_original[:, joint.idx_q] = angle
+    regressor = robot.regressor(q, dq, ddq)
+    data = original.createData()
+    tip = original.frames[-1].name
+    for k in range(q.shape[0]):
+        expected = pin.computeJointTorqueRegressor(original, data, q_original[k], dq[k], ddq[k])
+        scale = np.abs(expected).max()
+        np.testing.assert_allclose(regressor[k], expected, rtol=0, atol=1e-10 * scale)
+        tau = pin.rnea(original, data, q_original[k], dq[k], ddq[k])
+        np.testing.assert_allclose(robot.rnea(q[k], dq[k], ddq[k])[0], tau, atol=1e-10 * scale)
+        pin.framesForwardKinematics(original, data, q_original[k])
+        np.testing.assert_allclose(
+            robot.frame_placements(q[k], tip)[0], data.oMf[-1].homogeneous, atol=1e-12
+        )
+    np.testing.assert_allclose(
+        robot.parameters(),
+        np.concatenate(
+            [original.inertias[j].toDynamicParameters() for j in range(1, original.njoints)]
+        ),
+    )
+
+
+def test_continuous_fixture_keeps_effort_and_velocity():
+    robot = Robot.from_urdf(Path("tests/data/urdf/continuous.urdf"))
+    assert robot.continuous_joints == ("wheel_joint",)
+    assert robot.nq == 1
+    assert np.isinf(robot.q_lower[0])
+    assert np.isinf(robot.dq_max[0])
+    assert 'type="continuous"' not in robot.urdf_text  # the text the model was built from
+    assert 'type="revolute"' in robot.urdf_text
+    kinova = Robot.from_urdf(ERD / ARMS["kinova"])
+    original = pin.buildModelFromUrdf(str(ERD / ARMS["kinova"]))
+    np.testing.assert_allclose(kinova.dq_max, original.velocityLimit)
+    np.testing.assert_allclose(kinova.model.effortLimit, original.effortLimit)
+
+
+def test_locked_panda_fingers_follow_their_values():
+    """The fingers are held where asked: FK of the locked model equals the full model's."""
+    path = ERD / "panda_description/urdf/panda.urdf"
+    full = pin.buildModelFromUrdf(str(path))
+    data = full.createData()
+    for values in ({FINGERS[0]: 0.0, FINGERS[1]: 0.0}, {FINGERS[0]: 0.01, FINGERS[1]: 0.035}):
+        robot = Robot.from_urdf(path, lock_joints=values)
+        assert robot.nq == 7
+        assert robot.locked_joints == values
+        q, dq, ddq = robot.random_configurations(4, rng=1)
+        tau = robot.rnea(q, dq, ddq)
+        np.testing.assert_allclose(
+            robot.regressor(q, dq, ddq) @ robot.parameters(), tau, atol=1e-10 * np.abs(tau).max()
+        )
+        for k in range(q.shape[0]):
+            q_full = np.concatenate([q[k], [values[FINGERS[0]], values[FINGERS[1]]]])
+            pin.framesForwardKinematics(full, data, q_full)
+            for link in ("panda_leftfinger", "panda_rightfinger"):
+                np.testing.assert_allclose(
+                    robot.frame_placements(q[k], link)[0],
+                    data.oMf[full.getFrameId(link)].homogeneous,
+                    atol=1e-12,
+                )
+    # one finger locked: the other is the 8th joint of a serial chain
+    assert Robot.from_urdf(path, lock_joints=[FINGERS[0]]).joint_names[-1] == FINGERS[1]
+    # names only: locked at 0
+    assert Robot.from_urdf(path, lock_joints=list(FINGERS)).locked_joints == dict.fromkeys(
+        FINGERS, 0.0
+    )
+
+
+@pytest.mark.parametrize(
+    ("lock", "expected"),
+    [
+        (["panda_finger_joint3"], r"cannot lock joint 'panda_finger_joint3'.*did you mean"),
+        ({"panda_finger_joint1": 0.5}, r"locked at 0.5, outside its limits \[0, 0.04\]"),
+        (["panda_finger_joint1", "panda_finger_joint1"], "locked twice"),
+        (["panda_joint7"], r"--lock panda_finger_joint1 --lock panda_finger_joint2"),
+    ],
+)
+def test_bad_locks(lock, expected):
+    path = ERD / "panda_description/urdf/panda.urdf"
+    with pytest.raises(ModelError, match=expected) as info:
+        Robot.from_urdf(path, lock_joints=lock)
+    assert str(info.value).startswith(str(path))
+
+
+def test_suggested_locks_follow_the_longest_branch():
+    from ident.model import suggested_locks
+
+    assert suggested_locks(pin.buildModelFromUrdf(str(ERD / ARMS["ur5"]))) == ()
+    panda = pin.buildModelFromUrdf(str(ERD / "panda_description/urdf/panda.urdf"))
+    assert suggested_locks(panda) == FINGERS
+    branched = pin.buildModelFromUrdf("tests/data/urdf/branched.urdf")
+    assert suggested_locks(branched) == ("right_joint",)
+    # an arm on a base that also carries a one-joint branch: lock the short branch only
+    model = pin.Model()
+    first = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "a1")
+    model.addJoint(first, pin.JointModelRY(), pin.SE3.Identity(), "a2")
+    model.addJoint(0, pin.JointModelRX(), pin.SE3.Identity(), "side")
+    assert suggested_locks(model) == ("side",)
+    assert Robot.from_urdf("tests/data/urdf/branched.urdf", lock_joints=["right_joint"]).nq == 1
+
+
+@pytest.mark.parametrize("name", ["ur5", "xarm7", "kinova"])
+def test_forward_kinematics_agree_with_yourdfpy(name):
+    """Every link's pose from Robot (Pinocchio) equals yourdfpy's, an independent URDF FK
+    (kinova: yourdfpy reads its continuous joints itself, as angles)."""
+    import yourdfpy
+
+    path = ERD / ARMS[name]
+    robot = Robot.from_urdf(path)
+    urdf = yourdfpy.URDF.load(str(path), load_meshes=False, load_collision_meshes=False)
+    assert tuple(urdf.actuated_joint_names) == robot.joint_names
+    links = [
+        f.name
+        for f in robot.model.frames
+        if f.type == pin.FrameType.BODY and f.name != urdf.base_link
+    ]
+    assert len(links) >= robot.nq
+    q, _, _ = robot.random_configurations(5, rng=11)
+    for k in range(q.shape[0]):
+        urdf.update_cfg(q[k])
+        for link in links:
+            np.testing.assert_allclose(
+                robot.frame_placements(q[k], link)[0],
+                urdf.get_transform(link, urdf.base_link),
+                rtol=0,
+                atol=1e-9,
+                err_msg=f"{name} {link}",
+            )

@@ -11,7 +11,7 @@ import typer
 from ident.cli._common import user_errors
 from ident.errors import ConfigError
 
-__all__ = ["register", "verify"]
+__all__ = ["parse_locks", "register", "run_verification", "verify"]
 
 # Largest relative error (to the scale of the regressor tensor and of the torques) accepted.
 DEFAULT_TOLERANCE = 1e-9
@@ -31,16 +31,29 @@ def verify(
         float, typer.Option("--tolerance", help="Largest accepted relative error.")
     ] = DEFAULT_TOLERANCE,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    lock: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--lock",
+            help="With --urdf: hold joint NAME fixed at VALUE [rad or m] (0 if omitted), "
+            "e.g. the fingers of a gripper; repeatable.",
+            metavar="NAME[=VALUE]",
+        ),
+    ] = None,
 ) -> None:
     """Compare the hand-derived regressor with Pinocchio on random states within the limits.
 
     Also checks regressor @ parameters against pin.rnea and reports base-parameter counts
     (rank, independent, dependent, unidentifiable; QR and the paper's sequential method) for
     the whole robot and, for 6-joint robots, the paper's wrist and arm stages. Exit code 1 if an
-    error exceeds --tolerance.
+    error exceeds --tolerance. A branched URDF (an arm with gripper fingers) is verified with its
+    extra joints locked: --lock panda_finger_joint1 --lock panda_finger_joint2.
     """
     with user_errors():
-        report = run_verification(robot, urdf, samples=samples, seed=seed, tolerance=tolerance)
+        locks = parse_locks(lock or [])
+        report = run_verification(
+            robot, urdf, samples=samples, seed=seed, tolerance=tolerance, lock_joints=locks
+        )
     if as_json:
         typer.echo(json.dumps(report))
     else:
@@ -56,8 +69,12 @@ def run_verification(
     samples: int,
     seed: int,
     tolerance: float = DEFAULT_TOLERANCE,
+    lock_joints: dict[str, float] | None = None,
 ) -> dict[str, Any]:
-    """Load the robot, draw states and build the report of :func:`verification_report`."""
+    """Load the robot, draw states and build the report of :func:`verification_report`.
+
+    ``lock_joints`` (joint name -> position [rad or m]) applies to ``urdf`` only.
+    """
     from ident.dynamics.pinocchio_check import verification_report
     from ident.model import Robot
 
@@ -65,17 +82,23 @@ def run_verification(
         raise ConfigError("give exactly one of --robot CONFIG or --urdf PATH.")
     if samples < 1:
         raise ConfigError(f"--samples must be at least 1, got {samples}.")
+    if lock_joints and robot_config is not None:
+        raise ConfigError(
+            "--lock works with --urdf only; a --robot config describes a serial chain already."
+        )
     if robot_config is not None:
         loaded = Robot.from_config(robot_config)
         source = str(robot_config)
     else:
         assert urdf is not None
-        loaded = Robot.from_urdf(urdf)
+        loaded = Robot.from_urdf(urdf, lock_joints=lock_joints or None)
         source = str(urdf)
     q, dq, ddq = loaded.random_configurations(samples, rng=seed)
     parameter_map = loaded.dh_to_model_parameters() if loaded.dh is not None else None
     report = verification_report(loaded.model, q, dq, ddq, parameter_map=parameter_map)
     report["source"] = source
+    report["locked_joints"] = dict(loaded.locked_joints)
+    report["continuous_joints"] = list(loaded.continuous_joints)
     report["seed"] = seed
     report["tolerance"] = tolerance
     report["passed"] = bool(
@@ -84,6 +107,32 @@ def run_verification(
         and report["ranks_agree"]
     )
     return report
+
+
+def parse_locks(specs: list[str]) -> dict[str, float]:
+    """``["NAME", "NAME=VALUE", ...]`` -> ``{NAME: VALUE}`` (0 where no value is given).
+
+    Raises
+    ------
+    ConfigError
+        For an empty name, a value that is not a number, or a joint given twice.
+    """
+    out: dict[str, float] = {}
+    for spec in specs:
+        name, sep, text = spec.partition("=")
+        name = name.strip()
+        if not name:
+            raise ConfigError(f"--lock {spec!r}: give a joint name, as NAME or NAME=VALUE.")
+        try:
+            value = float(text) if sep else 0.0
+        except ValueError as e:
+            raise ConfigError(
+                f"--lock {spec!r}: {text!r} is not a number; give NAME=VALUE in rad or m."
+            ) from e
+        if name in out:
+            raise ConfigError(f"--lock {spec!r}: joint {name!r} is locked twice; lock it once.")
+        out[name] = value
+    return out
 
 
 def _print_table(report: dict[str, Any]) -> None:
@@ -95,6 +144,14 @@ def _print_table(report: dict[str, Any]) -> None:
         f"[bold]{report['robot']}[/bold] ({report['source']}): {report['n_joints']} joints, "
         f"{report['n_samples']} random states, seed {report['seed']}"
     )
+    if report["locked_joints"]:
+        held = ", ".join(f"{k} = {v:g}" for k, v in report["locked_joints"].items())
+        console.print(f"locked joints (not in the model): {held}")
+    if report["continuous_joints"]:
+        console.print(
+            "continuous joints, modelled as revolute without position limit: "
+            + ", ".join(report["continuous_joints"])
+        )
     checks = Table(title="Hand-derived regressor vs Pinocchio")
     for column in ("check", "max abs error", "max rel error", "status"):
         checks.add_column(column)

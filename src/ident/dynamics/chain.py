@@ -52,9 +52,13 @@ _PRISMATIC_AXES = {
 _UNALIGNED = {"JointModelRevoluteUnaligned": False, "JointModelPrismaticUnaligned": True}
 
 _FIX_HINT = (
-    "a fixed-base serial chain of revolute (with limits) and prismatic joints is needed; "
-    "fix the URDF (no floating/planar/spherical joints, declare continuous joints as "
-    "revolute with limits) or lock the extra joints with pin.buildReducedModel"
+    "a fixed-base serial chain of revolute and prismatic joints is needed; fix the URDF "
+    "(no floating, planar or spherical joints) or lock the extra joints with "
+    "pin.buildReducedModel (ident.Robot.from_urdf(path, lock_joints=...))"
+)
+_CONTINUOUS_HINT = (
+    "load the URDF with ident.Robot.from_urdf, which reads continuous joints as revolute "
+    "joints without position limit (nq = 1), or lock it with pin.buildReducedModel"
 )
 
 
@@ -203,7 +207,8 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
                 "JointModelRUBZ": "a continuous (unbounded) joint",
                 "JointModelRevoluteUnboundedUnaligned": "a continuous (unbounded) joint",
             }.get(kind, f"a joint of type {kind} (nq={joint.nq}, nv={joint.nv})")
-            raise ModelError(f"joint {name!r} of model {model.name!r} is {what}; {_FIX_HINT}.")
+            hint = _CONTINUOUS_HINT if "continuous" in what else _FIX_HINT
+            raise ModelError(f"joint {name!r} of model {model.name!r} is {what}; {hint}.")
         if joint.idx_q != i - 1 or joint.idx_v != i - 1:
             raise ModelError(
                 f"joint {name!r} of model {model.name!r} has configuration index {joint.idx_q} "
