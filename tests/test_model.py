@@ -1,3 +1,4 @@
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -7,6 +8,7 @@ from robots import ERD_ROBOTS as ERD
 
 from ident import Robot
 from ident.errors import ConfigError, DataError, ModelError
+from ident.model import continuous_as_revolute
 from ident.robot.inertia import PAPER_TO_PINOCCHIO, pinocchio_to_paper
 from ident.robot.robot_config import load_robot_config
 
@@ -353,8 +355,14 @@ def test_continuous_fixture_keeps_effort_and_velocity():
     assert robot.nq == 1
     assert np.isinf(robot.q_lower[0])
     assert np.isinf(robot.dq_max[0])
-    assert 'type="continuous"' not in robot.urdf_text  # the text the model was built from
-    assert 'type="revolute"' in robot.urdf_text
+    # urdf_text is the file as written; the model is built from a revolute rewrite of it
+    assert robot.urdf_text == Path("tests/data/urdf/continuous.urdf").read_text()
+    root = ET.fromstring(robot.urdf_text)
+    rewritten, names = continuous_as_revolute(root, robot.urdf_text)
+    assert names == ("wheel_joint",)
+    assert 'type="continuous"' not in rewritten
+    assert 'type="revolute"' in rewritten
+    assert 'effort="0" velocity="0"' in rewritten
     kinova = Robot.from_urdf(ERD / ARMS["kinova"])
     original = pin.buildModelFromUrdf(str(ERD / ARMS["kinova"]))
     np.testing.assert_allclose(kinova.dq_max, original.velocityLimit)

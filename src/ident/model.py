@@ -64,7 +64,8 @@ class Robot:
     model :
         The Pinocchio model (fixed base, serial chain of 1-DoF joints).
     urdf_text :
-        The URDF the model was built from.
+        The URDF text: generated from the config, or the file as written (continuous joints
+        stay continuous and locked joints stay in it, so a copy of it is the user's robot).
     urdf_path :
         The URDF file, or ``None`` when the URDF was generated from a config.
     dh :
@@ -73,6 +74,10 @@ class Robot:
         The full robot description when built from a config, else ``None``.
     joint_names :
         Names of the joints, base to tip.
+    continuous_joints :
+        URDF joints declared continuous, modelled as revolute joints without position limit.
+    locked_joints :
+        URDF joints held fixed (name -> position [rad or m]); not in the model.
     nq, nv, n_bodies :
         Configuration and velocity sizes, number of moving bodies.
     q_lower, q_upper :
@@ -114,9 +119,7 @@ class Robot:
         )
         for array in (self.q_lower, self.q_upper, self.dq_max, self.ddq_max):
             array.setflags(write=False)
-        #: Joints of the URDF declared continuous, modelled as revolute without position limit.
         self.continuous_joints: tuple[str, ...] = ()
-        #: Joints of the URDF held fixed (name -> position [rad or m]), not in the model.
         self.locked_joints: dict[str, float] = {}
 
     # ------------------------------------------------------------------ constructors
@@ -162,8 +165,8 @@ class Robot:
             raise ModelError(f"{path}: cannot read the URDF ({e}); check the file.") from e
         root = _parse_xml(text, str(path))
         _check_inertials(root, str(path))
-        text, continuous = continuous_as_revolute(root, text)
-        model = _build_model(text, str(path))
+        revolute_text, continuous = continuous_as_revolute(root, text)
+        model = _build_model(revolute_text, str(path))
         for name in continuous:  # no position limit (Pinocchio's convention for unbounded)
             index = model.joints[model.getJointId(name)].idx_q
             model.lowerPositionLimit[index] = -np.finfo(float).max
