@@ -5,11 +5,15 @@ Tests name project files by their repository paths (``configs/paper6r.yaml``,
 same result whatever folder it is started from.
 """
 
+import os
 from pathlib import Path
 
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+
+# Some test modules load the paper robot at import time, during collection.
+os.chdir(REPO_ROOT)
 
 
 @pytest.fixture(autouse=True)
