@@ -14,7 +14,6 @@ file.
 
 from __future__ import annotations
 
-import difflib
 import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -270,8 +269,9 @@ def load_run_config(path: str | Path) -> RunConfig:
 def check_bound_names(config: RunConfig, source: str | Path) -> None:
     """Check that every ``excitation.bounds`` key names a variable of the excitation family.
 
-    Builds the robot, the stage and the family (a fraction of a second, no optimization),
-    so that a typo stops ``ident run`` before its run folder is created.
+    Builds the robot, the stage and the family with its bounds override (a fraction of a
+    second, no optimization), so that the family's own check of the names (the one the
+    pipeline runs) stops ``ident run`` before its run folder is created.
 
     Parameters
     ----------
@@ -289,21 +289,7 @@ def check_bound_names(config: RunConfig, source: str | Path) -> None:
     from ident.run.pipeline import get_stage, load_robot, make_family
 
     robot = load_robot(Path(config.robot))
-    stage = get_stage(robot, config.stage)
-    unbounded = config.model_copy(
-        update={"excitation": config.excitation.model_copy(update={"bounds": None})}
-    )
-    names = list(make_family(unbounded, robot, stage).variable_names)
-    for name in config.excitation.bounds or {}:
-        if name in names:
-            continue
-        close = difflib.get_close_matches(name, names, n=1)
-        if close:
-            hint = f"did you mean '{close[0]}'?"
-        else:
-            nearest = difflib.get_close_matches(name, names, n=1, cutoff=0.0)
-            hint = f"no variable is named like it (nearest: '{nearest[0]}')." if nearest else ""
-        raise ConfigError(
-            f"{source}: unknown key 'excitation.bounds.{name}': '{name}' is not a variable of "
-            f"the '{config.excitation.family}' family; {hint} Variables: {', '.join(names)}."
-        )
+    try:
+        make_family(config, robot, get_stage(robot, config.stage))
+    except ConfigError as e:
+        raise ConfigError(f"{source}: {e}") from e

@@ -372,19 +372,26 @@ def make_family(config: RunConfig, robot: Any, stage: Any) -> Any:
     except ValueError as e:
         raise ConfigError(f"excitation: {e}") from e
     if section.bounds:
-        family.bounds = _override_bounds(family, section.bounds)
+        family.bounds = _override_bounds(family, section.family, section.bounds)
     return family
 
 
-def _override_bounds(family: Any, overrides: dict[str, tuple[float, float]]) -> FloatArray:
+def _override_bounds(
+    family: Any, family_name: str, overrides: dict[str, tuple[float, float]]
+) -> FloatArray:
     bounds = np.array(family.bounds, dtype=float, copy=True)
     names = list(family.variable_names)
     for name, (low, high) in overrides.items():
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else ""
+            if close:
+                hint = f"did you mean '{close[0]}'?"
+            else:
+                nearest = difflib.get_close_matches(name, names, n=1, cutoff=0.0)
+                hint = f"no variable is named like it (nearest: '{nearest[0]}')." if nearest else ""
             raise ConfigError(
-                f"unknown key 'excitation.bounds.{name}'{hint} Variables: {', '.join(names)}."
+                f"unknown key 'excitation.bounds.{name}': '{name}' is not a variable of the "
+                f"'{family_name}' family; {hint} Variables: {', '.join(names)}."
             )
         bounds[names.index(name)] = (low, high)
     return bounds
