@@ -14,13 +14,8 @@ the linear map between the two.
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import os
-import sys
-import tempfile
-import xml.etree.ElementTree as ET
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -30,16 +25,22 @@ import pinocchio as pin
 
 from ident.errors import DataError, ModelError
 from ident.robot.dh import DHTable
+from ident.robot.urdf_load import (
+    URDF_INERTIA_RTOL,
+    build_model,
+    chain_locks,
+    check_inertials,
+    continuous_as_revolute,
+    lock_values,
+    moving_links,
+    parse_xml,
+    suggested_locks,
+)
 
 if TYPE_CHECKING:
     from ident.robot.robot_config import RobotDescription
 
 __all__ = ["URDF_INERTIA_RTOL", "Robot", "continuous_as_revolute", "suggested_locks"]
-
-#: Relative tolerance of the inertial consistency check of URDF links (to the largest principal
-#: moment): URDF files print inertias with a few significant digits, so a link on the boundary
-#: (a thin rod or plate, I1 + I2 = I3) may violate it by round-off; 1e-6 accepts that, not more.
-URDF_INERTIA_RTOL = 1e-6
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -121,6 +122,7 @@ class Robot:
             array.setflags(write=False)
         self.continuous_joints: tuple[str, ...] = ()
         self.locked_joints: dict[str, float] = {}
+        self.package_dirs: tuple[str, ...] = ()
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -129,16 +131,21 @@ class Robot:
         path: str | Path,
         *,
         lock_joints: Mapping[str, float] | Sequence[str] | None = None,
+        base_link: str | None = None,
+        tip_link: str | None = None,
+        package_dirs: Sequence[str | Path] = (),
+        inertia_check: bool = True,
     ) -> Robot:
-        """Load a fixed-base serial robot from a URDF file.
+        """Load the fixed-base serial chain of a URDF file.
 
         Continuous joints (``type="continuous"``, which Pinocchio would model with the
         unit-complex configuration ``(cos q, sin q)``, nq = 2) are read as revolute joints without
-        a position limit: the text is rewritten before Pinocchio parses it
-        (:func:`continuous_as_revolute`), so every joint has nq = nv = 1 and the same dynamics.
-        The inertial of every link is checked for physical consistency (positive mass, inertia
-        about the centre of mass positive semi-definite with ``I1 + I2 >= I3``, relative
-        tolerance :data:`URDF_INERTIA_RTOL`).
+        a position limit (:func:`ident.robot.urdf_load.continuous_as_revolute`), so every joint
+        has nq = nv = 1 and the same dynamics. The inertial of every link that moves is checked
+        for physical consistency (positive mass, inertia about the centre of mass positive
+        semi-definite with ``I1 + I2 >= I3``, relative tolerance
+        :data:`~ident.robot.urdf_load.URDF_INERTIA_RTOL`); links that never move (fixed to the
+        world, or behind locked joints only) cannot change the torques and are not checked.
 
         Parameters
         ----------
@@ -148,30 +155,45 @@ class Robot:
             Joints to hold fixed, as names (locked at 0) or a mapping name -> position [rad or m]:
             the robot is Pinocchio's reduced model (``pin.buildReducedModel``) without them, so a
             branched URDF (an arm with gripper fingers) becomes a serial chain.
+        base_link, tip_link :
+            The chain to identify: the joints between these links move, every other joint is
+            locked (at its ``lock_joints`` value, else at 0 clipped into its limits).
+        package_dirs :
+            Folders in which ``package://`` mesh URIs are looked up (visuals and replay only).
+        inertia_check :
+            ``False`` loads a file whose moving links have impossible inertials (their
+            parameters are then whatever the file says).
 
         Raises
         ------
         ModelError
             Naming the file, if it is missing or malformed, has a physically inconsistent
-            inertial, names an unknown joint to lock, or is not a fixed-base serial chain of
-            revolute and prismatic joints once the locked joints are removed.
+            inertial on a moving link, names an unknown joint or link, or is not a fixed-base
+            serial chain of revolute and prismatic joints once the locked joints are removed.
         """
         path = Path(path)
+        where = str(path)
         if not path.is_file():
             raise ModelError(f"{path}: URDF file not found; check the path.")
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as e:
             raise ModelError(f"{path}: cannot read the URDF ({e}); check the file.") from e
-        root = _parse_xml(text, str(path))
-        _check_inertials(root, str(path))
+        root = parse_xml(text, where)
         revolute_text, continuous = continuous_as_revolute(root, text)
-        model = _build_model(revolute_text, str(path))
+        model = build_model(revolute_text, where)
         for name in continuous:  # no position limit (Pinocchio's convention for unbounded)
             index = model.joints[model.getJointId(name)].idx_q
             model.lowerPositionLimit[index] = -np.finfo(float).max
             model.upperPositionLimit[index] = np.finfo(float).max
-        locked = _lock_values(model, lock_joints, str(path))
+        locked = lock_values(model, lock_joints, where)
+        for name in chain_locks(model, base_link, tip_link, where):
+            if name not in locked:
+                index = model.joints[model.getJointId(name)].idx_q
+                low, high = model.lowerPositionLimit[index], model.upperPositionLimit[index]
+                locked[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
+        if inertia_check:
+            check_inertials(root, where, moving_links(model, locked))
         if locked:
             reference = pin.neutral(model)
             for name, value in locked.items():
@@ -181,7 +203,8 @@ class Robot:
         robot = cls(model, text, urdf_path=path)
         robot.continuous_joints = continuous
         robot.locked_joints = locked
-        robot._check_serial(str(path))
+        robot.package_dirs = tuple(str(p) for p in package_dirs)
+        robot._check_serial(where)
         return robot
 
     @classmethod
@@ -206,7 +229,7 @@ class Robot:
         from ident.robot.urdf import urdf_from_description
 
         text = urdf_from_description(description)
-        model = _build_model(text, str(description.source or description.name))
+        model = build_model(text, str(description.source or description.name))
         model.gravity.linear = np.array(description.gravity, dtype=float)
         robot = cls(model, text, description=description, ddq_max=description.ddq_max)
         robot._check_serial(str(description.source or description.name))
@@ -447,215 +470,3 @@ class Robot:
         return out[0], out[1], out[2]
 
 
-@contextlib.contextmanager
-def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
-    """Capture what C++ libraries write to file descriptor 2 (urdfdom's parse errors)."""
-    captured: list[str] = []
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):  # no real stderr (e.g. some embedded interpreters)
-        yield lambda: captured
-        return
-    with tempfile.TemporaryFile(mode="w+b") as sink:
-        os.dup2(sink.fileno(), 2)
-        try:
-            yield lambda: captured
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            sink.seek(0)
-            captured.extend(sink.read().decode("utf-8", "replace").splitlines())
-
-
-def _parse_xml(text: str, where: str) -> ET.Element:
-    """Parse URDF text into its ``<robot>`` element, with one-line ModelErrors."""
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as e:
-        raise ModelError(f"{where}: malformed URDF XML ({e}); fix the file.") from e
-    if root.tag != "robot":
-        raise ModelError(f"{where}: the root element is <{root.tag}>, not <robot>; not a URDF.")
-    return root
-
-
-def _check_inertials(root: ET.Element, where: str) -> None:
-    """Raise a ModelError naming the first link whose ``<inertial>`` is physically impossible.
-
-    A link without ``<inertial>`` (or with mass and inertia all zero) is massless and accepted.
-    The URDF inertia is about the centre of mass, so the check needs no frame change.
-    """
-    from ident.robot.inertia import consistency_problems, parameters_from_com
-
-    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-    for link in root.findall("link"):
-        name = link.get("name", "?")
-        inertial = link.find("inertial")
-        if inertial is None:
-            continue
-        mass_element, inertia_element = inertial.find("mass"), inertial.find("inertia")
-        try:
-            mass = float(mass_element.get("value", "0")) if mass_element is not None else 0.0
-            values = [
-                float(inertia_element.get(k, "0")) if inertia_element is not None else 0.0
-                for k in keys
-            ]
-        except ValueError as e:
-            raise ModelError(
-                f"{where}: link {name!r}: the <inertial> has a value that is not a number ({e}); "
-                "fix the file."
-            ) from e
-        if mass == 0.0 and not any(values):
-            continue
-        xx, xy, xz, yy, yz, zz = values
-        tensor = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        problems = consistency_problems(
-            parameters_from_com(mass, np.zeros(3), tensor), rtol=URDF_INERTIA_RTOL
-        )
-        if problems:
-            raise ModelError(
-                f"{where}: link {name!r}: the <inertial> is physically impossible: {problems[0]}; "
-                "fix the link's mass (> 0) and its inertia about the centre of mass "
-                "(positive principal moments with I1 + I2 >= I3)."
-            )
-
-
-def continuous_as_revolute(root: ET.Element, text: str) -> tuple[str, tuple[str, ...]]:
-    """Rewrite the continuous joints of a URDF as revolute joints without position limit.
-
-    Pinocchio models a continuous joint with the unit complex number ``(cos q, sin q)``
-    (nq = 2, nv = 1); a revolute joint about the same axis with the angle ``q`` has the same
-    kinematics and dynamics at the corresponding state, with nq = nv = 1 as the chain needs.
-    The ``<limit>`` keeps its effort and velocity and loses any lower/upper bound (Pinocchio
-    then reads an empty range, which :class:`Robot` treats as unknown).
-
-    Parameters
-    ----------
-    root :
-        The parsed ``<robot>`` element (modified in place when there is a continuous joint).
-    text :
-        The URDF text of ``root``.
-
-    Returns
-    -------
-    text, names :
-        The URDF text (``text`` itself when there is no continuous joint) and the names of the
-        rewritten joints, in file order.
-    """
-    names = []
-    for joint in root.findall("joint"):
-        if joint.get("type") != "continuous":
-            continue
-        names.append(joint.get("name", "?"))
-        joint.set("type", "revolute")
-        limit = joint.find("limit")
-        if limit is None:
-            limit = ET.SubElement(joint, "limit")
-        for key in ("lower", "upper"):
-            limit.attrib.pop(key, None)
-        for key in ("effort", "velocity"):  # urdfdom needs both; 0 means unknown here
-            limit.set(key, limit.get(key, "0"))
-    if not names:
-        return text, ()
-    return ET.tostring(root, encoding="unicode"), tuple(names)
-
-
-def _lock_values(
-    model: pin.Model, lock_joints: Mapping[str, float] | Sequence[str] | None, where: str
-) -> dict[str, float]:
-    """Joint name -> locked position, checked against the model's joints and limits."""
-    if lock_joints is None:
-        return {}
-    if isinstance(lock_joints, str):
-        lock_joints = [lock_joints]
-    if isinstance(lock_joints, Mapping):
-        values = {str(k): float(v) for k, v in lock_joints.items()}
-    else:
-        values = {}
-        for name in lock_joints:
-            if name in values:
-                raise ModelError(f"{where}: joint {name!r} is locked twice; lock it once.")
-            values[name] = 0.0
-    names = list(model.names[1:])
-    for name, value in values.items():
-        if not model.existJointName(name):
-            import difflib
-
-            close = difflib.get_close_matches(name, names, n=1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
-            raise ModelError(
-                f"{where}: cannot lock joint {name!r}: no such joint; {hint}"
-                f"joints: {', '.join(names)}."
-            )
-        joint = model.joints[model.getJointId(name)]
-        if joint.nq != 1:
-            raise ModelError(
-                f"{where}: cannot lock joint {name!r}: it has nq={joint.nq}; only 1-DoF joints "
-                "can be locked at a value."
-            )
-        lower = float(model.lowerPositionLimit[joint.idx_q])
-        upper = float(model.upperPositionLimit[joint.idx_q])
-        if not np.isfinite(value):
-            raise ModelError(f"{where}: joint {name!r} locked at {value}; give a finite value.")
-        if upper > lower and not lower <= value <= upper:
-            raise ModelError(
-                f"{where}: joint {name!r} locked at {value:g}, outside its limits "
-                f"[{lower:g}, {upper:g}]; give a value within them."
-            )
-    return values
-
-
-def suggested_locks(model: pin.Model) -> tuple[str, ...]:
-    """Joints to lock to make a branched model a serial chain, base to tip.
-
-    Walks from the base; where the tree branches it follows the deepest branch (the first of
-    equally deep ones) and suggests locking the others, except that equally deep single
-    joints at the tip of a chain (gripper fingers) are all suggested. Empty for a serial model.
-    """
-    children: dict[int, list[int]] = {i: [] for i in range(model.njoints)}
-    for i in range(1, model.njoints):
-        children[int(model.parents[i])].append(i)
-
-    def depth(i: int) -> int:
-        return 1 + max((depth(k) for k in children[i]), default=0)
-
-    def subtree(i: int) -> list[int]:
-        return [i] + [j for k in children[i] for j in subtree(k)]
-
-    locks: list[int] = []
-    node = 0
-    while children[node]:
-        kids = children[node]
-        if len(kids) == 1:
-            node = kids[0]
-            continue
-        depths = [depth(k) for k in kids]
-        if node != 0 and max(depths) == 1:
-            locks.extend(kids)
-            break
-        chosen = kids[depths.index(max(depths))]
-        locks.extend(j for k in kids if k != chosen for j in subtree(k))
-        node = chosen
-    return tuple(model.names[i] for i in sorted(locks))
-
-
-def _build_model(text: str, where: str) -> pin.Model:
-    """Parse URDF text with Pinocchio, turning parser failures into one-line ModelErrors."""
-    _parse_xml(text, where)
-    with _captured_stderr() as messages:
-        try:
-            model = pin.buildModelFromXML(text)
-        except (RuntimeError, ValueError) as e:
-            error: Exception | None = e
-        else:
-            error = None
-    if error is not None:
-        # urdfdom explains the problem on stderr ("child link [x] of joint [j] not found")
-        details = [line.strip() for line in messages() if line.strip().startswith("Error:")]
-        reason = details[0].removeprefix("Error:").strip() if details else str(error).strip()
-        raise ModelError(
-            f"{where}: Pinocchio cannot parse the URDF ({reason.splitlines()[0]}); fix the file."
-        ) from error
-    if model.njoints < 2:
-        raise ModelError(f"{where}: the URDF has no moving joint; a serial arm is needed.")
-    return model

@@ -10,6 +10,7 @@ import typer
 
 from ident.cli._common import user_errors
 from ident.errors import ConfigError
+from ident.robot.selection import RobotSelection, load_robot, selection_from_flags
 
 __all__ = ["parse_locks", "register", "run_verification", "verify"]
 
@@ -40,6 +41,19 @@ def verify(
             metavar="NAME[=VALUE]",
         ),
     ] = None,
+    base_link: Annotated[
+        str | None, typer.Option("--base-link", help="With --urdf: first link of the chain.")
+    ] = None,
+    tip_link: Annotated[
+        str | None, typer.Option("--tip-link", help="With --urdf: last link of the chain.")
+    ] = None,
+    inertia_check: Annotated[
+        bool,
+        typer.Option(
+            "--inertia-check/--no-inertia-check",
+            help="Refuse moving links with physically impossible inertials.",
+        ),
+    ] = True,
 ) -> None:
     """Compare the hand-derived regressor with Pinocchio on random states within the limits.
 
@@ -50,10 +64,15 @@ def verify(
     extra joints locked: --lock panda_finger_joint1 --lock panda_finger_joint2.
     """
     with user_errors():
-        locks = parse_locks(lock or [])
-        report = run_verification(
-            robot, urdf, samples=samples, seed=seed, tolerance=tolerance, lock_joints=locks
+        selection = selection_from_flags(
+            robot=robot,
+            urdf=urdf,
+            lock=parse_locks(lock or []),
+            base_link=base_link,
+            tip_link=tip_link,
+            inertia_check=inertia_check,
         )
+        report = run_verification(selection, samples=samples, seed=seed, tolerance=tolerance)
     if as_json:
         typer.echo(json.dumps(report))
     else:
@@ -63,36 +82,19 @@ def verify(
 
 
 def run_verification(
-    robot_config: Path | None,
-    urdf: Path | None,
+    selection: RobotSelection,
     *,
     samples: int,
     seed: int,
     tolerance: float = DEFAULT_TOLERANCE,
-    lock_joints: dict[str, float] | None = None,
 ) -> dict[str, Any]:
-    """Load the robot, draw states and build the report of :func:`verification_report`.
-
-    ``lock_joints`` (joint name -> position [rad or m]) applies to ``urdf`` only.
-    """
+    """Load the selected robot, draw states and build the report of :func:`verification_report`."""
     from ident.dynamics.pinocchio_check import verification_report
-    from ident.model import Robot
 
-    if (robot_config is None) == (urdf is None):
-        raise ConfigError("give exactly one of --robot CONFIG or --urdf PATH.")
     if samples < 1:
         raise ConfigError(f"--samples must be at least 1, got {samples}.")
-    if lock_joints and robot_config is not None:
-        raise ConfigError(
-            "--lock works with --urdf only; a --robot config describes a serial chain already."
-        )
-    if robot_config is not None:
-        loaded = Robot.from_config(robot_config)
-        source = str(robot_config)
-    else:
-        assert urdf is not None
-        loaded = Robot.from_urdf(urdf, lock_joints=lock_joints or None)
-        source = str(urdf)
+    loaded = load_robot(selection)
+    source = str(selection.path)
     q, dq, ddq = loaded.random_configurations(samples, rng=seed)
     parameter_map = loaded.dh_to_model_parameters() if loaded.dh is not None else None
     report = verification_report(loaded.model, q, dq, ddq, parameter_map=parameter_map)

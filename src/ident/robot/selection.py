@@ -1,0 +1,185 @@
+"""One robot selection for every command: which file, which chain of it, which checks.
+
+The ``robot:`` section of a run or identify config, and the same flags on the command line
+(``--robot``, ``--urdf``, ``--lock``, ``--base-link``, ``--tip-link``, ``--package-dir``,
+``--no-inertia-check``), build a :class:`RobotSelection`; :func:`load_robot` turns it into an
+:class:`ident.model.Robot` the same way for ``verify``, ``run``, ``identify`` and ``replay``, so
+they accept and reject exactly the same robots.
+
+YAML forms::
+
+    robot: paper6r.yaml                 # a DH description (.yaml) or a URDF (.urdf)
+    robot:
+      urdf: panda.urdf                  # or description: paper6r.yaml
+      package_dirs: [meshes/]           # where package:// meshes are found (replay)
+      base_link: panda_link0            # the chain to identify ...
+      tip_link: panda_link8
+      lock: {panda_finger_joint1: 0.0}  # ... and joints held fixed (grippers, torsos)
+      inertia_check: true               # false: load a file with broken inertials anyway
+
+Relative paths are resolved against the folder of the config file.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from pydantic import model_validator
+
+from ident.config import StrictModel
+from ident.errors import ConfigError
+from ident.model import Robot
+
+__all__ = ["RobotSelection", "load_robot", "selection_from_flags"]
+
+
+class RobotSelection(StrictModel):
+    """The robot file and the chain of it to identify (see the module docstring).
+
+    Attributes
+    ----------
+    urdf :
+        A URDF file.
+    description :
+        A DH robot description (``configs/paper6r.yaml``); exclusive with ``urdf``.
+    package_dirs :
+        Folders searched for ``package://`` meshes.
+    base_link, tip_link :
+        The chain: joints between the two links move, the others are locked (URDF only).
+    lock :
+        Joints held fixed, name -> position [rad or m] (URDF only).
+    joints :
+        Optional: the chain's joint names in order, as a check of the selection (a log's
+        columns map onto them).
+    inertia_check :
+        Check the inertials of the moving links (default); ``false`` is the override for a
+        file with broken inertials.
+    """
+
+    urdf: Path | None = None
+    description: Path | None = None
+    package_dirs: list[Path] = []
+    base_link: str | None = None
+    tip_link: str | None = None
+    lock: dict[str, float] = {}
+    joints: list[str] | None = None
+    inertia_check: bool = True
+
+    @model_validator(mode="before")
+    @classmethod
+    def _shorthand(cls, data: Any) -> Any:
+        """``robot: file.yaml`` / ``robot: file.urdf`` as a plain path."""
+        if isinstance(data, (str, Path)):
+            path = Path(data)
+            return {"urdf" if path.suffix.lower() == ".urdf" else "description": path}
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self) -> RobotSelection:
+        if (self.urdf is None) == (self.description is None):
+            raise ValueError(
+                "give exactly one of robot.urdf (a URDF file) and robot.description (a DH "
+                "robot description)"
+            )
+        if self.description is not None and (self.lock or self.base_link or self.tip_link):
+            raise ValueError(
+                "robot.lock, robot.base_link and robot.tip_link select a chain of a URDF; a DH "
+                "description is a serial chain already"
+            )
+        for name, value in self.lock.items():
+            if not math.isfinite(value):
+                raise ValueError(f"robot.lock.{name} = {value}: give a finite position")
+        return self
+
+    @property
+    def path(self) -> Path:
+        """The robot file."""
+        path = self.urdf if self.urdf is not None else self.description
+        assert path is not None  # guaranteed by the validator
+        return path
+
+    def resolved(self, base: Path) -> RobotSelection:
+        """A copy with relative paths taken relative to the folder ``base``."""
+
+        def resolve(p: Path | None) -> Path | None:
+            return None if p is None or p.is_absolute() else base / p
+
+        changes: dict[str, Any] = {"package_dirs": [resolve(p) or p for p in self.package_dirs]}
+        if self.urdf is not None:
+            changes["urdf"] = resolve(self.urdf) or self.urdf
+        if self.description is not None:
+            changes["description"] = resolve(self.description) or self.description
+        return self.model_copy(update=changes)
+
+
+def load_robot(selection: RobotSelection, *, source: str | Path = "config") -> Robot:
+    """The :class:`~ident.model.Robot` of a selection (paths already resolved).
+
+    Raises
+    ------
+    ModelError
+        For a file that is missing, malformed, physically impossible on a moving link, or not
+        a serial chain once the selection is applied (the message names the file).
+    ConfigError
+        If ``joints`` is given and differs from the selected chain's joints.
+    """
+    if selection.urdf is not None:
+        robot = Robot.from_urdf(
+            selection.urdf,
+            lock_joints=selection.lock or None,
+            base_link=selection.base_link,
+            tip_link=selection.tip_link,
+            package_dirs=selection.package_dirs,
+            inertia_check=selection.inertia_check,
+        )
+    else:
+        robot = Robot.from_config(selection.path)
+    if selection.joints is not None and list(selection.joints) != list(robot.joint_names):
+        raise ConfigError(
+            f"{source}: robot.joints = {selection.joints} must list the selected chain's joints "
+            f"in order ({', '.join(robot.joint_names)}); fix the list or the chain selection."
+        )
+    return robot
+
+
+def selection_from_flags(
+    *,
+    robot: Path | None = None,
+    urdf: Path | None = None,
+    lock: dict[str, float] | None = None,
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    package_dirs: list[Path] | None = None,
+    inertia_check: bool = True,
+) -> RobotSelection:
+    """The selection given on the command line (``--robot`` is a DH description or a URDF).
+
+    Raises
+    ------
+    ConfigError
+        For a combination of flags no robot satisfies (the message names the flags).
+    """
+    if (robot is None) == (urdf is None):
+        raise ConfigError("give exactly one of --robot CONFIG or --urdf PATH.")
+    path = robot if robot is not None else urdf
+    assert path is not None
+    is_urdf = urdf is not None or path.suffix.lower() == ".urdf"
+    if not is_urdf and (lock or base_link or tip_link):
+        raise ConfigError(
+            "--lock, --base-link and --tip-link work with --urdf only: they select a chain of "
+            "a URDF; a --robot DH config describes a serial chain already."
+        )
+    try:
+        return RobotSelection(
+            urdf=path if is_urdf else None,
+            description=None if is_urdf else path,
+            package_dirs=list(package_dirs or []),
+            base_link=base_link,
+            tip_link=tip_link,
+            lock=dict(lock or {}),
+            inertia_check=inertia_check,
+        )
+    except ValueError as e:  # pydantic's ValidationError is a ValueError
+        raise ConfigError(f"robot flags: {e}") from e

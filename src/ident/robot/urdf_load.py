@@ -1,0 +1,326 @@
+"""From URDF text to a Pinocchio model of the chain to identify.
+
+Everything :meth:`ident.model.Robot.from_urdf` does to a file before the robot exists: parse
+the XML with one-line errors, rewrite continuous joints as revolute ones, check the inertials of
+the links that move, choose the chain (``base_link`` / ``tip_link`` and locked joints) and build
+Pinocchio's reduced model. The same rules serve every command (``verify``, ``run``,
+``identify``, ``replay``), so they accept and reject the same robots.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import difflib
+import os
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Iterator, Mapping, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from ident.errors import ModelError
+from ident.robot.inertia import consistency_problems, parameters_from_com
+
+__all__ = [
+    "URDF_INERTIA_RTOL",
+    "build_model",
+    "chain_locks",
+    "check_inertials",
+    "continuous_as_revolute",
+    "lock_values",
+    "moving_links",
+    "parse_xml",
+    "suggested_locks",
+]
+
+#: Relative tolerance of the inertial consistency check of URDF links (to the largest principal
+#: moment): URDF files print inertias with a few significant digits, so a link on the boundary
+#: (a thin rod or plate, I1 + I2 = I3) may violate it by round-off; 1e-6 accepts that, not more.
+URDF_INERTIA_RTOL = 1e-6
+
+
+@contextlib.contextmanager
+def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
+    """Capture what C++ libraries write to file descriptor 2 (urdfdom's parse errors)."""
+    captured: list[str] = []
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no real stderr (e.g. some embedded interpreters)
+        yield lambda: captured
+        return
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield lambda: captured
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            captured.extend(sink.read().decode("utf-8", "replace").splitlines())
+
+
+def parse_xml(text: str, where: str) -> ET.Element:
+    """Parse URDF text into its ``<robot>`` element, with one-line ModelErrors."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as e:
+        raise ModelError(f"{where}: malformed URDF XML ({e}); fix the file.") from e
+    if root.tag != "robot":
+        raise ModelError(f"{where}: the root element is <{root.tag}>, not <robot>; not a URDF.")
+    return root
+
+
+def check_inertials(
+    root: ET.Element, where: str, links: set[str] | None = None
+) -> None:
+    """Raise a ModelError naming the first link whose ``<inertial>`` is physically impossible.
+
+    A link without ``<inertial>`` (or with mass and inertia all zero) is massless and accepted.
+    The URDF inertia is about the centre of mass, so the check needs no frame change.
+    ``links``: check only these links (those that enter the chain's dynamics, see
+    :func:`moving_links`); ``None`` checks every link.
+    """
+    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    for link in root.findall("link"):
+        name = link.get("name", "?")
+        inertial = link.find("inertial")
+        if inertial is None or (links is not None and name not in links):
+            continue
+        mass_element, inertia_element = inertial.find("mass"), inertial.find("inertia")
+        try:
+            mass = float(mass_element.get("value", "0")) if mass_element is not None else 0.0
+            values = [
+                float(inertia_element.get(k, "0")) if inertia_element is not None else 0.0
+                for k in keys
+            ]
+        except ValueError as e:
+            raise ModelError(
+                f"{where}: link {name!r}: the <inertial> has a value that is not a number ({e}); "
+                "fix the file."
+            ) from e
+        if mass == 0.0 and not any(values):
+            continue
+        xx, xy, xz, yy, yz, zz = values
+        tensor = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        problems = consistency_problems(
+            parameters_from_com(mass, np.zeros(3), tensor), rtol=URDF_INERTIA_RTOL
+        )
+        if problems:
+            raise ModelError(
+                f"{where}: link {name!r}: the <inertial> is physically impossible: {problems[0]}; "
+                "fix the link's mass (> 0) and its inertia about the centre of mass "
+                "(positive principal moments with I1 + I2 >= I3), or set "
+                "robot.inertia_check: false to load the file anyway."
+            )
+
+
+def continuous_as_revolute(root: ET.Element, text: str) -> tuple[str, tuple[str, ...]]:
+    """Rewrite the continuous joints of a URDF as revolute joints without position limit.
+
+    Pinocchio models a continuous joint with the unit complex number ``(cos q, sin q)``
+    (nq = 2, nv = 1); a revolute joint about the same axis with the angle ``q`` has the same
+    kinematics and dynamics at the corresponding state, with nq = nv = 1 as the chain needs.
+    The ``<limit>`` keeps its effort and velocity and loses any lower/upper bound (Pinocchio
+    then reads an empty range, which :class:`Robot` treats as unknown).
+
+    Parameters
+    ----------
+    root :
+        The parsed ``<robot>`` element (modified in place when there is a continuous joint).
+    text :
+        The URDF text of ``root``.
+
+    Returns
+    -------
+    text, names :
+        The URDF text (``text`` itself when there is no continuous joint) and the names of the
+        rewritten joints, in file order.
+    """
+    names = []
+    for joint in root.findall("joint"):
+        if joint.get("type") != "continuous":
+            continue
+        names.append(joint.get("name", "?"))
+        joint.set("type", "revolute")
+        limit = joint.find("limit")
+        if limit is None:
+            limit = ET.SubElement(joint, "limit")
+        for key in ("lower", "upper"):
+            limit.attrib.pop(key, None)
+        for key in ("effort", "velocity"):  # urdfdom needs both; 0 means unknown here
+            limit.set(key, limit.get(key, "0"))
+    if not names:
+        return text, ()
+    return ET.tostring(root, encoding="unicode"), tuple(names)
+
+
+def lock_values(
+    model: pin.Model, lock_joints: Mapping[str, float] | Sequence[str] | None, where: str
+) -> dict[str, float]:
+    """Joint name -> locked position, checked against the model's joints and limits."""
+    if lock_joints is None:
+        return {}
+    if isinstance(lock_joints, str):
+        lock_joints = [lock_joints]
+    if isinstance(lock_joints, Mapping):
+        values = {str(k): float(v) for k, v in lock_joints.items()}
+    else:
+        values = {}
+        for name in lock_joints:
+            if name in values:
+                raise ModelError(f"{where}: joint {name!r} is locked twice; lock it once.")
+            values[name] = 0.0
+    names = list(model.names[1:])
+    for name, value in values.items():
+        if not model.existJointName(name):
+            close = difflib.get_close_matches(name, names, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ModelError(
+                f"{where}: cannot lock joint {name!r}: no such joint; {hint}"
+                f"joints: {', '.join(names)}."
+            )
+        joint = model.joints[model.getJointId(name)]
+        if joint.nq != 1:
+            raise ModelError(
+                f"{where}: cannot lock joint {name!r}: it has nq={joint.nq}; only 1-DoF joints "
+                "can be locked at a value."
+            )
+        lower = float(model.lowerPositionLimit[joint.idx_q])
+        upper = float(model.upperPositionLimit[joint.idx_q])
+        if not np.isfinite(value):
+            raise ModelError(f"{where}: joint {name!r} locked at {value}; give a finite value.")
+        if upper > lower and not lower <= value <= upper:
+            raise ModelError(
+                f"{where}: joint {name!r} locked at {value:g}, outside its limits "
+                f"[{lower:g}, {upper:g}]; give a value within them."
+            )
+    return values
+
+
+def suggested_locks(model: pin.Model) -> tuple[str, ...]:
+    """Joints to lock to make a branched model a serial chain, base to tip.
+
+    Walks from the base; where the tree branches it follows the deepest branch (the first of
+    equally deep ones) and suggests locking the others, except that equally deep single
+    joints at the tip of a chain (gripper fingers) are all suggested. Empty for a serial model.
+    """
+    children: dict[int, list[int]] = {i: [] for i in range(model.njoints)}
+    for i in range(1, model.njoints):
+        children[int(model.parents[i])].append(i)
+
+    def depth(i: int) -> int:
+        return 1 + max((depth(k) for k in children[i]), default=0)
+
+    def subtree(i: int) -> list[int]:
+        return [i] + [j for k in children[i] for j in subtree(k)]
+
+    locks: list[int] = []
+    node = 0
+    while children[node]:
+        kids = children[node]
+        if len(kids) == 1:
+            node = kids[0]
+            continue
+        depths = [depth(k) for k in kids]
+        if node != 0 and max(depths) == 1:
+            locks.extend(kids)
+            break
+        chosen = kids[depths.index(max(depths))]
+        locks.extend(j for k in kids if k != chosen for j in subtree(k))
+        node = chosen
+    return tuple(model.names[i] for i in sorted(locks))
+
+
+def build_model(text: str, where: str) -> pin.Model:
+    """Parse URDF text with Pinocchio, turning parser failures into one-line ModelErrors."""
+    parse_xml(text, where)
+    with _captured_stderr() as messages:
+        try:
+            model = pin.buildModelFromXML(text)
+        except (RuntimeError, ValueError) as e:
+            error: Exception | None = e
+        else:
+            error = None
+    if error is not None:
+        # urdfdom explains the problem on stderr ("child link [x] of joint [j] not found")
+        details = [line.strip() for line in messages() if line.strip().startswith("Error:")]
+        reason = details[0].removeprefix("Error:").strip() if details else str(error).strip()
+        raise ModelError(
+            f"{where}: Pinocchio cannot parse the URDF ({reason.splitlines()[0]}); fix the file."
+        ) from error
+    if model.njoints < 2:
+        raise ModelError(f"{where}: the URDF has no moving joint; a serial arm is needed.")
+    return model
+
+
+def _body_joint(model: pin.Model, link: str, key: str, where: str) -> int:
+    """The joint that carries URDF link ``link`` (0: the link is fixed to the world)."""
+    if not model.existBodyName(link):
+        links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+        close = difflib.get_close_matches(link, links, n=1)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        raise ModelError(
+            f"{where}: robot.{key} = {link!r} is not a link of the URDF; {hint}"
+            f"links: {', '.join(links)}."
+        )
+    return int(model.frames[model.getBodyId(link)].parentJoint)
+
+
+def chain_locks(
+    model: pin.Model, base_link: str | None, tip_link: str | None, where: str
+) -> tuple[str, ...]:
+    """Joints outside the chain from ``base_link`` to ``tip_link``, to be locked.
+
+    The chain is the joints on the path from ``base_link`` down to ``tip_link``. Without
+    ``tip_link`` it is every joint below ``base_link`` (the subtree must then be serial);
+    without ``base_link`` the path starts at the URDF's root. Everything else (a mobile base or
+    torso above ``base_link``, other arms, grippers below or beside the path) is locked.
+
+    Raises
+    ------
+    ModelError
+        For an unknown link, or a ``tip_link`` that is not below ``base_link``.
+    """
+    if base_link is None and tip_link is None:
+        return ()
+    base_joint = 0 if base_link is None else _body_joint(model, base_link, "base_link", where)
+    above = set(int(j) for j in model.supports[base_joint])  # joints moving base_link
+    if tip_link is None:
+        chain = {
+            j for j in range(1, model.njoints) if base_joint in set(model.supports[j])
+        } - above
+    else:
+        tip_joint = _body_joint(model, tip_link, "tip_link", where)
+        support = [int(j) for j in model.supports[tip_joint]]
+        if not above <= set(support):
+            raise ModelError(
+                f"{where}: robot.tip_link {tip_link!r} is not below robot.base_link "
+                f"{base_link!r}; choose a tip link in the subtree of the base link."
+            )
+        chain = set(support) - above
+    if not chain:
+        raise ModelError(
+            f"{where}: no joint moves between robot.base_link {base_link!r} and robot.tip_link "
+            f"{tip_link!r}; choose links with at least one joint between them."
+        )
+    return tuple(model.names[j] for j in range(1, model.njoints) if j not in chain)
+
+
+def moving_links(model: pin.Model, locked: Mapping[str, float] | Sequence[str]) -> set[str]:
+    """URDF links that move when the joints ``locked`` are held: they enter the dynamics.
+
+    A link whose supporting joints are all locked (or that is fixed to the world) never moves,
+    so its inertial cannot change the torques of the chain and is not checked.
+    """
+    held = set(locked)
+    out = set()
+    for frame in model.frames:
+        if frame.type != pin.FrameType.BODY:
+            continue
+        support = [int(j) for j in model.supports[frame.parentJoint]][1:]
+        if any(model.names[j] not in held for j in support):
+            out.add(frame.name)
+    return out
