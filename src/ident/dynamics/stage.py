@@ -18,12 +18,17 @@ from ident.dynamics.chain import FloatArray, IntArray, KinematicChain
 from ident.errors import DataError, ModelError
 
 __all__ = [
-    "Stage",
     "HELD_FRACTION",
+    "STAGE_PRESETS",
+    "Stage",
+    "custom_stage",
     "default_held_positions",
     "paper_stages",
+    "select_stage",
+    "spherical_wrist_gap",
     "stage_observation_matrix",
     "stage_states",
+    "whole_chain_stage",
 ]
 
 
@@ -114,6 +119,150 @@ def paper_stages(
         "wrist": Stage("wrist", wrist, wrist, wrist, held_tuple),
         "arm": Stage("arm", arm, arm, arm, held_tuple),
     }
+
+
+def whole_chain_stage(chain: KinematicChain) -> Stage:
+    """Every joint moves, every torque is used, every body is unknown: what most users do."""
+    every = tuple(range(chain.n_joints))
+    held = tuple(float(x) for x in default_held_positions(chain))
+    return Stage("whole", every, every, every, held)
+
+
+def custom_stage(
+    chain: KinematicChain,
+    moving: Sequence[str],
+    *,
+    held: dict[str, float] | None = None,
+    bodies: Sequence[str] | None = None,
+    name: str = "custom",
+) -> Stage:
+    """A stage named by joints: ``moving`` joints move and give their torques.
+
+    Parameters
+    ----------
+    chain :
+        The robot's chain.
+    moving :
+        Names of the joints that move (their torque rows are used).
+    held :
+        Positions [rad or m] of held joints; others sit at :func:`default_held_positions`.
+    bodies :
+        Joints whose bodies are unknown; default: the body of every joint from the first
+        moving one to the tip (the bodies whose parameters the moving joints' torques see).
+        Bodies left out are known: their true (nominal) parameters are used.
+
+    Raises
+    ------
+    ModelError
+        For unknown joint names (the message lists the joints), a held position for a
+        moving joint, or no moving joint.
+    """
+    names = list(chain.joint_names)
+
+    def index(joint: str, key: str) -> int:
+        if joint not in names:
+            import difflib
+
+            close = difflib.get_close_matches(joint, names, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ModelError(
+                f"stage.{key}: {joint!r} is not a joint of the chain; {hint}joints: "
+                f"{', '.join(names)}."
+            )
+        return names.index(joint)
+
+    moving_idx = tuple(sorted({index(j, "moving") for j in moving}))
+    if not moving_idx:
+        raise ModelError("stage.moving: name at least one joint that moves.")
+    positions = default_held_positions(chain).copy()
+    for joint, value in (held or {}).items():
+        j = index(joint, "held")
+        if j in moving_idx:
+            raise ModelError(f"stage.held: joint {joint!r} moves in this stage; hold it or not.")
+        positions[j] = float(value)
+    if bodies is None:
+        body_idx = tuple(range(moving_idx[0], chain.n_joints))
+    else:
+        body_idx = tuple(sorted({index(j, "bodies") for j in bodies}))
+    return Stage(name, moving_idx, moving_idx, body_idx, tuple(float(x) for x in positions))
+
+
+def spherical_wrist_gap(model: object, rng: int = 0) -> float:
+    """Largest distance [m] from the last three joint axes to their common point.
+
+    Zero (to round-off) for a wrist-partitioned 6R arm, whose last three axes intersect in one
+    point (the paper's geometry); evaluated at a few random postures, so a coincidence at
+    one posture does not count.
+    """
+    import pinocchio as pin
+
+    data = model.createData()  # type: ignore[attr-defined]
+    gen = np.random.default_rng(rng)
+    worst = 0.0
+    for _ in range(3):
+        q = gen.uniform(-np.pi, np.pi, model.nq)  # type: ignore[attr-defined]
+        pin.computeJointJacobians(model, data, q)
+        points, directions = [], []
+        for j in range(model.njoints - 3, model.njoints):  # type: ignore[attr-defined]
+            jacobian = pin.getJointJacobian(model, data, j, pin.ReferenceFrame.WORLD)
+            points.append(data.oMi[j].translation)
+            directions.append(jacobian[3:, model.joints[j].idx_v])  # type: ignore[attr-defined]
+        # least-squares point closest to the three lines
+        A = np.zeros((3, 3))
+        b = np.zeros(3)
+        for p, d in zip(points, directions, strict=True):
+            d = d / np.linalg.norm(d)
+            P = np.eye(3) - np.outer(d, d)
+            A += P
+            b += P @ p
+        x = np.linalg.lstsq(A, b, rcond=None)[0]
+        for p, d in zip(points, directions, strict=True):
+            d = d / np.linalg.norm(d)
+            r = (x - p) - d * ((x - p) @ d)
+            worst = max(worst, float(np.linalg.norm(r)))
+    return worst
+
+
+#: Stage names a config may use; ``wrist`` and ``arm`` are the paper's two stages.
+STAGE_PRESETS = ("whole", "wrist", "arm")
+
+
+def select_stage(robot: object, spec: str | dict) -> Stage:
+    """The stage a config asks for: a preset name or ``{moving, held, bodies}``.
+
+    ``whole`` (the default of the configs) identifies every body with every joint moving.
+    ``wrist`` and ``arm`` are the paper's two stages; they need a 6R arm whose last three
+    axes intersect (a spherical wrist), where the wrist's torques do not depend on the arm's
+    bodies.
+
+    Raises
+    ------
+    ModelError
+        For an unknown preset, or a paper stage on another geometry.
+    """
+    chain = robot.chain  # type: ignore[attr-defined]
+    if isinstance(spec, dict):
+        return custom_stage(chain, **spec)
+    if spec == "whole":
+        return whole_chain_stage(chain)
+    if spec not in STAGE_PRESETS:
+        raise ModelError(
+            f"stage {spec!r} is unknown; presets: {', '.join(STAGE_PRESETS)}, or give "
+            "{moving: [joints], held: {joint: position}, bodies: [joints]}."
+        )
+    if chain.n_joints != 6:
+        raise ModelError(
+            f"stage {spec!r} is the paper's, for a 6R arm with a spherical wrist; this chain has "
+            f"{chain.n_joints} joints. Use stage: whole (every joint), or a custom stage."
+        )
+    gap = spherical_wrist_gap(robot.model)  # type: ignore[attr-defined]
+    if gap > 1e-6:
+        raise ModelError(
+            f"stage {spec!r} is the paper's, for a 6R arm with a spherical wrist; the last three "
+            f"axes of this robot miss a common point by {gap * 1e3:.1f} mm, so the wrist's "
+            "torques depend on the arm's bodies. Use stage: whole, or a custom stage."
+        )
+    return paper_stages(chain)[spec]
 
 
 def stage_states(
