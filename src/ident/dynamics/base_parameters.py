@@ -38,9 +38,19 @@ import scipy.linalg
 from ident.dynamics.chain import FloatArray, IntArray
 from ident.errors import DataError
 
-__all__ = ["METHODS", "BaseParameters", "compute_base_parameters"]
+__all__ = ["METHODS", "RANK_RTOL", "BaseParameters", "compute_base_parameters"]
 
 METHODS = ("qr", "sequential")
+
+#: The one rank tolerance of every command (``verify``, ``run``, ``identify``), relative to the
+#: scale of the data: a column is independent when the part of its *normalized* column
+#: orthogonal to the independent ones exceeds ``RANK_RTOL``. Far above round-off (double
+#: precision, and the ~5e-12 by which a URDF's 11-digit ``rpy="1.57079632679"`` misaligns axes
+#: meant to be orthogonal), far below any physical effect a log could resolve (a parameter
+#: whose column is 1e-6 of its own norm away from the others' span cannot be estimated from
+#: noisy torques). A column is zero (unidentifiable) at round-off, below ``max(W.shape) * eps``
+#: times the largest column norm, so a parameter in small units is not mistaken for one.
+RANK_RTOL = 1e-6
 
 # Entries of K (in normalized-column units) below this are printed as absent.
 _EXPRESSION_CUTOFF = 1e-9
@@ -231,7 +241,8 @@ def compute_base_parameters(
     method :
         ``"qr"`` (column pivoting) or ``"sequential"`` (the paper's method).
     rtol :
-        Relative tolerance; default ``max(W.shape) * eps`` (numpy's ``matrix_rank`` rule).
+        Relative tolerance of both decisions; default :data:`RANK_RTOL` for the rank and
+        ``max(W.shape) * eps`` for zero columns.
 
     Returns
     -------
@@ -244,8 +255,9 @@ def compute_base_parameters(
     1/s^2 times lever arms), and their norms differ by orders of magnitude; identifiability
     does not depend on those units (scaling a parameter scales its column). So:
 
-    1. A column is *unidentifiable* when its norm is at most ``rtol`` times the largest
-       column norm (it is zero up to the round-off of the computation that produced it).
+    1. A column is *unidentifiable* when its norm is at most ``max(W.shape) * eps`` (or
+       ``rtol`` when given) times the largest column norm (it is zero up to the round-off of
+       the computation that produced it).
     2. The other columns are divided by their norms, and the rank decisions are made on
        this normalized matrix with ``rtol``: a column is independent when its part
        orthogonal to the independent columns before it has a norm above ``rtol``
@@ -269,10 +281,11 @@ def compute_base_parameters(
         raise DataError("W contains NaN or inf; check the states used to build it")
     if method not in METHODS:
         raise DataError(f"unknown base-parameter method {method!r}; use one of {METHODS}")
-    tol = float(max(W.shape) * np.finfo(float).eps) if rtol is None else float(rtol)
+    tol = RANK_RTOL if rtol is None else float(rtol)
+    zero_tol = float(max(W.shape) * np.finfo(float).eps) if rtol is None else tol
     norms = np.linalg.norm(W, axis=0)
     largest = float(norms.max()) if norms.size else 0.0
-    nonzero = norms > tol * largest
+    nonzero = norms > zero_tol * largest
     unidentifiable = np.flatnonzero(~nonzero)
     candidates = np.flatnonzero(nonzero)
     normalized = np.zeros_like(W)

@@ -71,11 +71,6 @@ FloatArray = npt.NDArray[np.float64]
 # Per-joint priority of the sequential base-parameter choice (figaroh's column order).
 PRIORITY_LABELS = ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz", "mcx", "mcy", "mcz", "m")
 _N_RANDOM_STATES = 200  # random states for the structural base parameters
-# Relative rank tolerance of the structural base parameters. URDFs give angles to ~11 digits
-# (rpy="-1.57079632679"), so axes meant to be orthogonal are off by ~5e-12 and machine-precision
-# tolerances would call, e.g., Izz2 and Ia2 separately identifiable; 1e-6 is far above that
-# round-off and far below any physical effect.
-_BASE_RTOL = 1e-6
 
 
 def load_robot_model(urdf: str | Path) -> pin.Model:
@@ -198,7 +193,7 @@ def build_parameter_model(model: pin.Model, terms: ExtraTerms, *, rng: int = 0) 
     W = _gather_columns(
         inertial_index, extra_index, Y_rigid, Y_extra, np.arange(len(names))
     ).reshape(-1, len(names))
-    base = compute_base_parameters(W, names, method="sequential", rtol=_BASE_RTOL)
+    base = compute_base_parameters(W, names, method="sequential")
     rigid_nominal = parameters_from_model(model)
     nominal = np.where(inertial_index >= 0, rigid_nominal[np.maximum(inertial_index, 0)], 0.0)
     return ParameterModel(
