@@ -5,6 +5,7 @@ import yaml
 
 from ident.errors import ConfigError
 from ident.run.config import RunConfig, load_run_config
+from ident.run.setup import load_run
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -27,7 +28,14 @@ def test_defaults_are_the_papers_procedure(tmp_path):
     assert (config.emupso.stagnation, config.emupso.n_runs) == (10, 5)
     assert config.estimation.methods == ["ols", "wls"]
     assert config.name == "run"  # the file stem
-    assert config.robot == (tmp_path / "robot.yaml").resolve()
+    assert config.robot.description == (tmp_path / "robot.yaml").resolve()
+    assert config.stage == "wrist"
+    assert (
+        RunConfig.model_validate(
+            {"robot": "r.urdf", "excitation": {"family": "joint_fourier"}}
+        ).stage
+        == "whole"
+    )
 
 
 @pytest.mark.parametrize("name", ["wrist", "arm"])
@@ -58,13 +66,22 @@ def test_unknown_key_suggests_closest(tmp_path):
 
 def test_missing_robot_names_key_and_path(tmp_path):
     path = _write(tmp_path, MINIMAL, robot=False)
-    with pytest.raises(ConfigError, match=r"robot = 'robot.yaml' resolves to .*robot.yaml"):
+    with pytest.raises(
+        ConfigError, match=r"robot.description = 'robot.yaml' resolves to .*robot.yaml"
+    ):
         load_run_config(path)
 
 
 def test_family_must_match_stage(tmp_path):
-    path = _write(tmp_path, "robot: robot.yaml\nstage: arm\nexcitation: {family: paper_wrist}\n")
-    with pytest.raises(ConfigError, match="paper_arm"):
+    robot = CONFIGS / "paper6r.yaml"
+    path = _write(tmp_path, f"robot: {robot}\nstage: arm\nexcitation: {{family: paper_wrist}}\n")
+    with pytest.raises(ConfigError, match="use stage: wrist, or joint_fourier"):
+        load_run(path)
+
+
+def test_unknown_family_suggests_the_closest(tmp_path):
+    path = _write(tmp_path, MINIMAL.replace("paper_wrist", "joint_fourrier"))
+    with pytest.raises(ConfigError, match="did you mean 'joint_fourier'"):
         load_run_config(path)
 
 
@@ -109,12 +126,12 @@ def _paper_config(tmp_path, bounds):
     )
 
 
-def test_bound_names_are_checked_at_load_with_the_closest_name(tmp_path):
-    good = load_run_config(_paper_config(tmp_path, "{'a0(2)': [-3, 3], e0: [0, 1]}"))
-    assert good.excitation.bounds == {"a0(2)": (-3.0, 3.0), "e0": (0.0, 1.0)}
+def test_bound_names_are_checked_before_the_run_with_the_closest_name(tmp_path):
+    good = load_run(_paper_config(tmp_path, "{'a0(2)': [-3, 3], e0: [0, 1]}"))
+    assert good.config.excitation.bounds == {"a0(2)": (-3.0, 3.0), "e0": (0.0, 1.0)}
     path = _paper_config(tmp_path, "{'a0(1)': [-3, 3], 'b0(4)': [0, 1]}")
     with pytest.raises(ConfigError) as info:
-        load_run_config(path)
+        load_run(path)
     message = str(info.value)
     assert message.startswith(f"{path}: unknown key 'excitation.bounds.b0(4)'")
     assert "did you mean 'b0(3)'?" in message

@@ -11,7 +11,10 @@ import pytest
 
 from ident.dynamics.base_parameters import compute_base_parameters
 from ident.run.config import load_run_config
-from ident.run.pipeline import build_stage_info, get_stage, load_robot, make_family
+from ident.dynamics.stage import select_stage
+from ident.robot.selection import load_robot
+from ident.run.pipeline import build_stage_info
+from ident.run.setup import make_family
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -38,8 +41,8 @@ NOTES = {
 def built(request):
     name = request.param
     config = load_run_config(CONFIGS / f"{name}.yaml")
-    robot = load_robot(Path(config.robot))
-    stage = get_stage(robot, name)
+    robot = load_robot(config.robot)
+    stage = select_stage(robot, name)
     family = make_family(config, robot, stage)
     info = build_stage_info(robot, stage, family, "qr", np.random.default_rng(0))
     return name, robot, stage, family, info
@@ -92,11 +95,11 @@ def test_robot_without_dh_table_has_no_dh_comparison(tmp_path):
     from ident.model import Robot
 
     config = load_run_config(CONFIGS / "wrist.yaml")
-    robot = load_robot(Path(config.robot))
+    robot = load_robot(config.robot)
     urdf = tmp_path / "r.urdf"
     urdf.write_text(robot.urdf_text)
     plain = Robot.from_urdf(urdf)
-    stage = get_stage(plain, "wrist")
+    stage = select_stage(plain, "wrist")
     family = make_family(config, robot, stage)
     info = build_stage_info(plain, stage, family, "qr", np.random.default_rng(0))
     assert info.dh_frames is None

@@ -5,15 +5,10 @@ import pytest
 
 from ident.errors import TrajectoryError
 from ident.run.config import load_run_config
-from ident.run.pipeline import (
-    RunInterrupted,
-    build_stage_info,
-    get_stage,
-    identify_elite,
-    load_robot,
-    make_family,
-    run_pipeline,
-)
+from ident.dynamics.stage import select_stage
+from ident.robot.selection import load_robot
+from ident.run.pipeline import RunInterrupted, build_stage_info, identify_elite, run_pipeline
+from ident.run.setup import make_family
 
 QUICK = Path(__file__).parent / "data" / "run" / "quick-wrist.yaml"
 
@@ -138,7 +133,7 @@ def test_infeasible_limits_give_a_clear_elite_search_error(config):
 
 def test_a_motionless_trajectory_is_reported_not_identifiable(config, noise_free):
     robot = load_robot(config.robot)
-    stage = get_stage(robot, config.stage)
+    stage = select_stage(robot, config.stage)
     family = make_family(config, robot, stage)
     info = build_stage_info(robot, stage, family, "qr", np.random.default_rng(0))
     x = np.zeros(len(family.variable_names))  # all joints still at q0 = 0

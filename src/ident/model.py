@@ -468,5 +468,3 @@ class Robot:
                 )
             out.append(array)
         return out[0], out[1], out[2]
-
-

@@ -50,6 +50,7 @@ def run(
     from ident.run.config import load_run_config
     from ident.run.pipeline import RunInterrupted, run_pipeline
     from ident.run.rundir import create_run_dir
+    from ident.run.setup import prepare_run
 
     with user_errors():
         cfg = load_run_config(config)
@@ -57,6 +58,8 @@ def run(
             cfg = cfg.quick_version()
         if seed is not None:
             cfg = cfg.with_seed(seed)
+        # everything that can be wrong with the config is found before the folder exists
+        setup = prepare_run(cfg, source=config)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
         rundir = create_run_dir(
             out,
@@ -71,7 +74,7 @@ def run(
         typer.echo(f"run folder: {rundir.path}", err=True)
         try:
             with _ProgressDisplay(cfg) as display:
-                result = run_pipeline(cfg, progress=display.update)
+                result = run_pipeline(setup, progress=display.update)
         except RunInterrupted as e:
             _save_partial(e.partial, rundir)
             if isinstance(e.cause, KeyboardInterrupt):
@@ -81,9 +84,6 @@ def run(
                 typer.echo(f"error: {e.cause} (run folder: {rundir.path})", err=True)
                 raise typer.Exit(code=EXIT_USER_ERROR) from None
             raise e.cause from None
-        except IdentError as e:  # before anything ran: robot, stage or family invalid
-            rundir.finish("incomplete", str(e))
-            raise
         except KeyboardInterrupt:
             rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
             raise
@@ -94,17 +94,19 @@ def run(
         except BaseException:
             rundir.finish("incomplete", "stopped while saving the results")
             raise
-        rundir.finish("complete", result.message)
-        # after finish(): the report shows the final status and the wall time; if it fails,
-        # the data are saved and 'ident report RUN_DIR' writes it again
+        # the data are saved: if the report fails, 'ident report RUN_DIR' writes it again;
+        # the run is complete only once its last file (the report) is written
+        rundir.stamp_wall_time()
         try:
             report_path = write_report(rundir.path)
         except BaseException:
+            rundir.finish("incomplete", "stopped while writing the report; the data are saved")
             typer.echo(
                 f"the data are saved; write the report with: ident report {rundir.path}",
                 err=True,
             )
             raise
+        rundir.finish("complete", result.message, stamp_wall_time=False)
         _summary(result, rundir.path, report_path, replay_note)
         if result.warnings:
             for warning in result.warnings:

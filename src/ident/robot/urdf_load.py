@@ -73,9 +73,7 @@ def parse_xml(text: str, where: str) -> ET.Element:
     return root
 
 
-def check_inertials(
-    root: ET.Element, where: str, links: set[str] | None = None
-) -> None:
+def check_inertials(root: ET.Element, where: str, links: set[str] | None = None) -> None:
     """Raise a ModelError naming the first link whose ``<inertial>`` is physically impossible.
 
     A link without ``<inertial>`` (or with mass and inertia all zero) is massless and accepted.
@@ -289,9 +287,7 @@ def chain_locks(
     base_joint = 0 if base_link is None else _body_joint(model, base_link, "base_link", where)
     above = set(int(j) for j in model.supports[base_joint])  # joints moving base_link
     if tip_link is None:
-        chain = {
-            j for j in range(1, model.njoints) if base_joint in set(model.supports[j])
-        } - above
+        chain = {j for j in range(1, model.njoints) if base_joint in set(model.supports[j])} - above
     else:
         tip_joint = _body_joint(model, tip_link, "tip_link", where)
         support = [int(j) for j in model.supports[tip_joint]]

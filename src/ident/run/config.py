@@ -18,10 +18,12 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, Field, field_validator, model_validator
+from pydantic import AfterValidator, Field, field_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError
+from ident.excitation.registry import check_family_name
+from ident.robot.selection import RobotSelection
 
 __all__ = [
     "ElitesSection",
@@ -31,11 +33,10 @@ __all__ = [
     "MeasurementSection",
     "QuickSection",
     "RunConfig",
-    "check_bound_names",
+    "StageSection",
     "load_run_config",
 ]
 
-FAMILIES = ("paper_wrist", "paper_arm", "joint_fourier")
 CRITERIA = ("paper", "logdet")
 MM = 1e-3  # m per mm
 
@@ -60,8 +61,9 @@ class ExcitationSection(StrictModel):
     Attributes
     ----------
     family :
-        ``paper_wrist`` / ``paper_arm`` (the paper's Cartesian modified Fourier series,
-        eq. 16-23) or ``joint_fourier`` (joint-space finite Fourier series).
+        A registered family (:mod:`ident.excitation.registry`): ``joint_fourier`` (joint-space
+        finite Fourier series, any chain) or ``paper_wrist`` / ``paper_arm`` (the paper's
+        Cartesian modified Fourier series, eq. 16-23, for its two stages).
     criterion :
         ``paper`` (eq. 15 on the scaled base observation matrix) or ``logdet``.
     n_samples :
@@ -75,11 +77,19 @@ class ExcitationSection(StrictModel):
         by :func:`load_run_config`, before anything runs.
     """
 
-    family: Literal["paper_wrist", "paper_arm", "joint_fourier"]
+    family: str
     criterion: Literal["paper", "logdet"] = "paper"
     n_samples: int = Field(default=500, ge=16)
     options: dict[str, Any] = Field(default_factory=dict)
     bounds: dict[str, Bound] | None = None
+
+    @field_validator("family")
+    @classmethod
+    def _registered(cls, value: str) -> str:
+        try:
+            return check_family_name(value)
+        except ConfigError as e:
+            raise ValueError(str(e).removeprefix(f"excitation.family '{value}' ")) from e
 
 
 class ElitesSection(StrictModel):
@@ -181,6 +191,27 @@ class QuickSection(StrictModel):
     n_samples: int = Field(default=120, ge=16)
 
 
+class StageSection(StrictModel):
+    """A custom stage: which joints move, where the others are held, which bodies are unknown.
+
+    Attributes
+    ----------
+    moving :
+        Joint names that move; their torques are used.
+    held :
+        Positions of held joints [rad or m]; default 0.618 of each joint's range.
+    bodies :
+        Joints whose bodies are unknown; default every body from the first moving joint on.
+    name :
+        Label in the report.
+    """
+
+    moving: list[str]
+    held: dict[str, float] = {}
+    bodies: list[str] | None = None
+    name: str = "custom"
+
+
 class RunConfig(StrictModel):
     """A whole ``ident run`` config.
 
@@ -189,16 +220,19 @@ class RunConfig(StrictModel):
     name :
         Run name, the prefix of the run folder; defaults to the config file's stem.
     robot :
-        Robot config (``.yaml``, DH table) or URDF path, relative to this config file.
+        The robot selection (:mod:`ident.robot.selection`): a DH description (``.yaml``) or
+        a URDF path relative to this config file, or a mapping with the chain to identify.
     stage :
-        Stage to identify: ``wrist`` or ``arm`` (the paper's two stages).
+        Stage to identify: ``whole`` (every joint moves, every body is unknown: the default),
+        ``wrist`` / ``arm`` (the paper's two stages of a 6R arm with a spherical wrist), or a
+        custom stage (:class:`StageSection`).
     seed :
         Seed of every random draw of the run.
     """
 
     name: str | None = None
-    robot: Path
-    stage: Literal["wrist", "arm"]
+    robot: RobotSelection
+    stage: str | StageSection = "whole"
     seed: int = Field(default=0, ge=0)
     excitation: ExcitationSection
     elites: ElitesSection = ElitesSection()
@@ -206,17 +240,6 @@ class RunConfig(StrictModel):
     measurement: MeasurementSection = MeasurementSection()
     estimation: EstimationSection = EstimationSection()
     quick: QuickSection = QuickSection()
-
-    @model_validator(mode="after")
-    def _consistent(self) -> RunConfig:
-        family = self.excitation.family
-        if family.startswith("paper_") and family != f"paper_{self.stage}":
-            raise ValueError(
-                f"excitation.family '{family}' designs the "
-                f"{family.removeprefix('paper_')} stage but stage is '{self.stage}'; "
-                f"use 'paper_{self.stage}' or 'joint_fourier'"
-            )
-        return self
 
     def quick_version(self) -> RunConfig:
         """The same run with the ``quick`` settings (``--quick``)."""
@@ -237,59 +260,30 @@ class RunConfig(StrictModel):
 
 
 def load_run_config(path: str | Path) -> RunConfig:
-    """Load a run config; resolve the robot path and fill the name from the file stem.
+    """Load a run config; resolve the robot paths and fill the name from the file stem.
+
+    Only the file is checked here (keys, values, the robot file exists); the robot, the stage
+    and the family are built and checked by :func:`ident.run.setup.prepare_run`, still before
+    any run folder exists.
 
     Raises
     ------
     ConfigError
-        Unknown keys (with the closest valid key), bad values, a robot file that does
-        not exist (naming both the key and the resolved path), or ``excitation.bounds``
-        naming no variable of the family (:func:`check_bound_names`).
+        Unknown keys (with the closest valid key), bad values, a robot file that does not
+        exist (naming both the key and the resolved path).
     """
     path = Path(path)
     config = load_config_file(RunConfig, path)
-    robot = config.robot
-    if not robot.is_absolute():
-        robot = (path.parent / robot).resolve()
-    if not robot.is_file():
+    robot = config.robot.resolved(path.parent.resolve())
+    if not robot.path.is_file():
+        key = "robot.urdf" if robot.urdf is not None else "robot.description"
         raise ConfigError(
-            f"{path}: robot = '{config.robot}' resolves to {robot}, which does not exist; "
-            "give the robot config or URDF path relative to this config file."
+            f"{path}: {key} = '{config.robot.path}' resolves to {robot.path}, which does not "
+            "exist; give the robot description or URDF path relative to this config file."
         )
-    if robot.suffix.lower() not in (".yaml", ".yml", ".urdf"):
+    if robot.description is not None and robot.path.suffix.lower() not in (".yaml", ".yml"):
         raise ConfigError(
-            f"{path}: robot = '{config.robot}' must be a robot config (.yaml) or a URDF (.urdf)."
+            f"{path}: robot = '{config.robot.path}' must be a robot description (.yaml) or a "
+            "URDF (.urdf)."
         )
-    config = config.model_copy(update={"robot": robot, "name": config.name or path.stem})
-    if config.excitation.bounds:
-        check_bound_names(config, path)
-    return config
-
-
-def check_bound_names(config: RunConfig, source: str | Path) -> None:
-    """Check that every ``excitation.bounds`` key names a variable of the excitation family.
-
-    Builds the robot, the stage and the family with its bounds override (a fraction of a
-    second, no optimization), so that the family's own check of the names (the one the
-    pipeline runs) stops ``ident run`` before its run folder is created.
-
-    Parameters
-    ----------
-    config :
-        A run config with its ``robot`` path resolved.
-    source :
-        The config file, named in the message.
-
-    Raises
-    ------
-    ConfigError
-        One line naming the file, the key ``excitation.bounds.<name>``, the closest valid
-        variable name and the family's variables.
-    """
-    from ident.run.pipeline import get_stage, load_robot, make_family
-
-    robot = load_robot(Path(config.robot))
-    try:
-        make_family(config, robot, get_stage(robot, config.stage))
-    except ConfigError as e:
-        raise ConfigError(f"{source}: {e}") from e
+    return config.model_copy(update={"robot": robot, "name": config.name or path.stem})

@@ -32,17 +32,16 @@ result depends only on the config and the seed.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ident.errors import ConfigError, IdentError, NotIdentifiable, TrajectoryError
+from ident.errors import IdentError, NotIdentifiable, TrajectoryError
 from ident.run.config import RunConfig
+from ident.run.setup import RunSetup, prepare_run
 
 __all__ = [
     "EliteOutcome",
@@ -332,71 +331,6 @@ class RunInterrupted(Exception):
 # Building blocks (heavy modules imported lazily: `import ident.run.pipeline` stays cheap)
 
 
-def load_robot(path: Path) -> Any:
-    """An :class:`ident.Robot` from a robot config (.yaml) or a URDF."""
-    from ident.model import Robot
-
-    if path.suffix.lower() == ".urdf":
-        return Robot.from_urdf(path)
-    return Robot.from_config(path)
-
-
-def make_family(config: RunConfig, robot: Any, stage: Any) -> Any:
-    """The excitation family of the config.
-
-    Raises
-    ------
-    ConfigError
-        If the family rejects ``excitation.options``.
-    """
-    from ident import excitation
-
-    section = config.excitation
-    options = dict(section.options)
-    options.setdefault("n_samples", section.n_samples)
-    try:
-        if section.family == "joint_fourier":
-            cls = excitation.JointFourierFamily
-            moving = options.pop("moving_joints", None) or stage.moving_joints
-            options.setdefault("held_positions", np.asarray(stage.held_positions))
-            family = cls(robot, moving, **options)
-        elif section.family == "paper_wrist":
-            family = excitation.PaperWristFamily(robot, **options)
-        else:
-            family = excitation.PaperArmFamily(robot, **options)
-    except TypeError as e:
-        raise ConfigError(
-            f"excitation.options: {e}; see docs/excitation.md for the options of "
-            f"'{section.family}'."
-        ) from e
-    except ValueError as e:
-        raise ConfigError(f"excitation: {e}") from e
-    if section.bounds:
-        family.bounds = _override_bounds(family, section.family, section.bounds)
-    return family
-
-
-def _override_bounds(
-    family: Any, family_name: str, overrides: dict[str, tuple[float, float]]
-) -> FloatArray:
-    bounds = np.array(family.bounds, dtype=float, copy=True)
-    names = list(family.variable_names)
-    for name, (low, high) in overrides.items():
-        if name not in names:
-            close = difflib.get_close_matches(name, names, n=1)
-            if close:
-                hint = f"did you mean '{close[0]}'?"
-            else:
-                nearest = difflib.get_close_matches(name, names, n=1, cutoff=0.0)
-                hint = f"no variable is named like it (nearest: '{nearest[0]}')." if nearest else ""
-            raise ConfigError(
-                f"unknown key 'excitation.bounds.{name}': '{name}' is not a variable of the "
-                f"'{family_name}' family; {hint} Variables: {', '.join(names)}."
-            )
-        bounds[names.index(name)] = (low, high)
-    return bounds
-
-
 def stage_matrix(
     robot: Any,
     rows: tuple[int, ...],
@@ -534,18 +468,6 @@ def _structure_states(
     return q, dq, ddq
 
 
-def get_stage(robot: Any, name: str) -> Any:
-    """The paper's stage ``name`` (``wrist``/``arm``) of a 6-joint robot."""
-    from ident.dynamics.chain import chain_from_model
-    from ident.dynamics.stage import paper_stages
-
-    chain = getattr(robot, "chain", None) or chain_from_model(robot.model)
-    stages = paper_stages(chain)
-    if name not in stages:
-        raise IdentError(f"stage '{name}' unknown; stages: {', '.join(stages)}")
-    return stages[name]
-
-
 _DETAIL_KEYS = ("fitness", "criterion", "cond", "sigma_min", "sigma_max", "logdet", "penalty")
 
 
@@ -560,14 +482,16 @@ def _details(objective: Any, x: FloatArray) -> list[dict[str, float]]:
 # --------------------------------------------------------------------------------------
 
 
-def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None) -> RunResult:
+def run_pipeline(
+    config: RunConfig | RunSetup, *, progress: ProgressCallback | None = None
+) -> RunResult:
     """Run the whole procedure of the config (see the module docstring).
 
     Parameters
     ----------
     config :
-        A validated run config (its ``robot`` path resolved, see
-        :func:`ident.run.config.load_run_config`).
+        A checked :class:`~ident.run.setup.RunSetup`, or a run config (its paths resolved, see
+        :func:`ident.run.config.load_run_config`), which is then prepared here.
     progress :
         Called with a :class:`Progress` after every elite-search iteration, every eMuPSO
         iteration, every finished run and every identified elite. An exception raised in it
@@ -591,9 +515,8 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
     from ident.optim.elites import find_feasible_elites, spawn_from_elites
 
     notify = progress or (lambda _p: None)
-    robot = load_robot(Path(config.robot))
-    stage = get_stage(robot, config.stage)
-    family = make_family(config, robot, stage)
+    setup = config if isinstance(config, RunSetup) else prepare_run(config)
+    config, robot, stage, family = setup.config, setup.robot, setup.stage, setup.family
     streams = np.random.SeedSequence(config.seed).spawn(4)
     run_streams = streams[1].spawn(config.emupso.n_runs)
     with _small_blas():
@@ -615,7 +538,7 @@ def run_pipeline(config: RunConfig, *, progress: ProgressCallback | None = None)
         config=config,
         status="incomplete",
         message="",
-        robot_name=str(getattr(robot, "name", Path(config.robot).stem)),
+        robot_name=str(robot.name),
         joint_names=tuple(robot.joint_names),
         q_limits=np.column_stack([robot.q_lower, robot.q_upper]).astype(float),
         dq_limits=np.asarray(robot.dq_max, dtype=float),

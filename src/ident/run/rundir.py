@@ -81,8 +81,16 @@ class RunDir:
             self.path / RUN_STATE_FILE, json.dumps(self._state, indent=2, sort_keys=True) + "\n"
         )
 
-    def finish(self, status: str, message: str = "") -> None:
-        """Record the final status, end time and wall time; manage the marker file."""
+    def stamp_wall_time(self) -> None:
+        """Record the wall time so far (before the report, which shows it, is written)."""
+        self.update(wall_time_s=round(time.monotonic() - self._t0, 3))
+
+    def finish(self, status: str, message: str = "", *, stamp_wall_time: bool = True) -> None:
+        """Record the final status, end time and wall time; manage the marker file.
+
+        ``stamp_wall_time=False`` keeps the wall time of :meth:`stamp_wall_time` (the one the
+        report already shows).
+        """
         if status not in STATUSES[1:]:
             raise ValueError(f"final status must be complete or incomplete, got {status!r}")
         marker = self.path / INCOMPLETE_MARKER
@@ -90,12 +98,10 @@ class RunDir:
             atomic_write_text(marker, (message or "run did not finish") + "\n")
         else:
             marker.unlink(missing_ok=True)
-        self.update(
-            status=status,
-            message=message,
-            finished_at=_now_iso(),
-            wall_time_s=round(time.monotonic() - self._t0, 3),
-        )
+        fields: dict[str, Any] = {"status": status, "message": message, "finished_at": _now_iso()}
+        if stamp_wall_time or "wall_time_s" not in self._state:
+            fields["wall_time_s"] = round(time.monotonic() - self._t0, 3)
+        self.update(**fields)
 
 
 def create_run_dir(
