@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from ident.dynamics.base_parameters import compute_base_parameters
-from ident.run.config import load_run_config
 from ident.dynamics.stage import select_stage
 from ident.robot.selection import load_robot
+from ident.run.config import load_run_config
 from ident.run.pipeline import build_stage_info
 from ident.run.setup import make_family
 
