@@ -199,7 +199,13 @@ class Robot:
             for name, value in locked.items():
                 reference[model.joints[model.getJointId(name)].idx_q] = value
             ids = [model.getJointId(name) for name in locked]
-            model = pin.buildReducedModel(model, ids, reference)
+            try:
+                model = pin.buildReducedModel(model, ids, reference)
+            except (RuntimeError, ValueError) as e:  # e.g. a link and a joint share a name
+                raise ModelError(
+                    f"{where}: Pinocchio cannot lock {', '.join(locked)} in this file ({e}); "
+                    "rename the links or joints that share a name."
+                ) from e
         robot = cls(model, text, urdf_path=path)
         robot.continuous_joints = continuous
         robot.locked_joints = locked

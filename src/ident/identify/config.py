@@ -25,6 +25,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError
+from ident.robot.selection import RobotSelection
 
 __all__ = [
     "CouplingEntry",
@@ -36,7 +37,6 @@ __all__ = [
     "ModelConfig",
     "PreprocessConfig",
     "ReferenceConfig",
-    "RobotConfig",
     "SignalFile",
     "TimeColumn",
     "TransmissionConfig",
@@ -44,13 +44,6 @@ __all__ = [
     "ValidationConfig",
     "load_identify_config",
 ]
-
-
-class RobotConfig(StrictModel):
-    """The robot model: a URDF and, optionally, the joints the log columns map to (in order)."""
-
-    urdf: Path
-    joints: list[str] | None = None
 
 
 class SignalFile(StrictModel):
@@ -226,7 +219,7 @@ class IdentifyConfig(StrictModel):
     """Everything ``ident identify`` needs."""
 
     name: str = "identify"
-    robot: RobotConfig
+    robot: RobotSelection  # the section every command reads (file, chain, checks)
     log: LogConfig
     transmission: TransmissionConfig = Field(default_factory=TransmissionConfig)
     preprocess: PreprocessConfig = Field(default_factory=PreprocessConfig)
@@ -275,9 +268,9 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
             "essential_parameters": _resolve(cfg.reference.essential_parameters, base),
         }
     )
-    robot = cfg.robot.model_copy(update={"urdf": _resolve(cfg.robot.urdf, base)})
+    robot = cfg.robot.resolved(base)
     checks = [
-        ("robot.urdf", robot.urdf),
+        ("robot.urdf" if robot.urdf is not None else "robot.description", robot.path),
         ("log.position.path", log.position.path),
         ("log.torque.path", log.torque.path),
     ]

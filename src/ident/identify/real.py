@@ -41,7 +41,7 @@ from ident.dynamics.friction import (
     extra_names,
     figaroh_coupling_columns,
 )
-from ident.errors import ConfigError, DataError, ModelError, NotIdentifiable
+from ident.errors import ConfigError, DataError, NotIdentifiable
 from ident.identify import preprocess
 from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
@@ -55,6 +55,8 @@ from ident.identify.validation import (
     prediction_metrics,
     time_split,
 )
+from ident.model import Robot
+from ident.robot.selection import load_robot
 from ident.trajectory import JointTrajectory
 
 __all__ = [
@@ -74,23 +76,15 @@ _N_RANDOM_STATES = 200  # random states for the structural base parameters
 
 
 def load_robot_model(urdf: str | Path) -> pin.Model:
-    """Load a fixed-base serial URDF with Pinocchio.
+    """The Pinocchio model of a URDF, loaded as every command loads it
+    (:meth:`ident.model.Robot.from_urdf`: same checks, continuous joints as revolute).
 
     Raises
     ------
     ModelError
         If the URDF cannot be parsed or is not a chain of 1-DoF joints.
     """
-    try:
-        model = pin.buildModelFromUrdf(str(urdf))
-    except (RuntimeError, ValueError) as e:
-        raise ModelError(f"{urdf}: cannot load the URDF ({e}).") from e
-    if model.nq != model.nv or model.nv != model.njoints - 1:
-        raise ModelError(
-            f"{urdf}: only chains of revolute/prismatic joints are supported "
-            f"(nq={model.nq}, nv={model.nv}, joints={model.njoints - 1})."
-        )
-    return model
+    return Robot.from_urdf(urdf).model
 
 
 @dataclass(frozen=True, eq=False)
@@ -429,14 +423,8 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     source = str(cfg.source or "config")
-    model = load_robot_model(cfg.robot.urdf)
-    model_joints = [model.names[i] for i in range(1, model.njoints)]
-    joints = cfg.robot.joints or model_joints
-    if list(joints) != model_joints:
-        raise ConfigError(
-            f"{source}: robot.joints = {joints} must list the URDF's joints in chain order "
-            f"({', '.join(model_joints)})."
-        )
+    model = load_robot(cfg.robot, source=source).model
+    joints = [model.names[i] for i in range(1, model.njoints)]
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
     timings["read"] = time.perf_counter() - t0
     records = list(log.records)
