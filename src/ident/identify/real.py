@@ -390,43 +390,79 @@ def _reference_prediction(
 
 
 def identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
-    """Run the identification described by ``cfg`` (see :func:`_identify`).
-
-    The least-squares problems here are small (thousands of rows, tens of columns) and many
-    (essential parameters); multi-threaded BLAS only adds synchronisation to them (35x slower
-    measured on a loaded 2-core machine), so BLAS runs on one thread inside this call.
-    """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional speed-up
-        return _identify(cfg, rng=rng)
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _identify(cfg, rng=rng)
-
-
-def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
-    """Run the identification described by ``cfg``.
-
-    Parameters
-    ----------
-    cfg :
-        Validated config with absolute paths (:func:`~ident.identify.config.load_identify_config`).
-    rng :
-        Seed of the random states used to find the structural base parameters (the result does
-        not depend on it beyond round-off).
+    """Run the identification described by ``cfg``: read its log, then :func:`identify_log`.
 
     Raises
     ------
     IdentError
         Subclasses naming the file, column or parameter: bad log, bad config, rank deficiency.
     """
-    timings: dict[str, float] = {}
     t0 = time.perf_counter()
     source = str(cfg.source or "config")
     model = load_robot(cfg.robot, source=source).model
     joints = [model.names[i] for i in range(1, model.njoints)]
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
-    timings["read"] = time.perf_counter() - t0
+    return identify_log(cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0)
+
+
+def identify_log(
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    *,
+    model: pin.Model | None = None,
+    rng: int = 0,
+    read_s: float = 0.0,
+) -> IdentifyResult:
+    """Identify from a log already read and converted to joint-side SI signals.
+
+    Everything after reading: what ``ident identify`` does to a file's log, and what ``ident
+    run`` does to the log its simulator writes (so both give the same estimate from the same
+    signals).
+
+    The least-squares problems here are small (thousands of rows, tens of columns) and many
+    (essential parameters); multi-threaded BLAS only adds synchronisation to them (35x slower
+    measured on a loaded 2-core machine), so BLAS runs on one thread inside this call.
+
+    Parameters
+    ----------
+    cfg :
+        Validated config with absolute paths (:func:`~ident.identify.config.load_identify_config`);
+        its ``log`` section is not read again.
+    log :
+        The converted log (:func:`~ident.identify.logs.read_log`).
+    model :
+        The robot's Pinocchio model (loaded from ``cfg.robot`` when not given).
+    rng :
+        Seed of the random states used to find the structural base parameters (the result does
+        not depend on it beyond round-off).
+    read_s :
+        Seconds spent reading the log, for the timings.
+
+    Raises
+    ------
+    IdentError
+        Subclasses naming the file, column or parameter: bad config, rank deficiency.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify_log(cfg, log, model=model, rng=rng, read_s=read_s)
+
+
+def _identify_log(
+    cfg: IdentifyConfig, log: RobotLog, *, model: pin.Model | None, rng: int, read_s: float
+) -> IdentifyResult:
+    timings: dict[str, float] = {"read": read_s}
+    t0 = time.perf_counter() - read_s
+    source = str(cfg.source or "config")
+    if model is None:
+        model = load_robot(cfg.robot, source=source).model
+    joints = [model.names[i] for i in range(1, model.njoints)]
+    if list(log.joint_names) != joints:
+        raise DataError(
+            f"{source}: the log's joints ({', '.join(log.joint_names)}) are not the robot's "
+            f"({', '.join(joints)})."
+        )
     records = list(log.records)
     fs = log.sampling_rate_hz
     q, tau = log.q, log.tau
