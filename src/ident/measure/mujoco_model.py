@@ -37,6 +37,8 @@ __all__ = ["MujocoRobot", "dynamics_only_urdf", "load_mujoco"]
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
+_ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
 
 @dataclass(frozen=True, eq=False)
 class MujocoRobot:
@@ -73,10 +75,9 @@ def _origin(joint: ET.Element) -> tuple[FloatArray, FloatArray]:
 
 def _lock(joint: ET.Element, value: float) -> None:
     """Make ``joint`` fixed at ``value`` by folding the motion into its origin."""
-    axis_element = joint.find("axis")
-    axis = np.array(
-        [float(v) for v in (axis_element.get("xyz", "1 0 0") if axis_element is not None else "1 0 0").split()]
-    )
+    axis_element = joint.find("axis")  # URDF's default axis is x
+    axis_text = axis_element.get("xyz", "1 0 0") if axis_element is not None else "1 0 0"
+    axis = np.array([float(v) for v in axis_text.split()])
     axis = axis / np.linalg.norm(axis)
     xyz, rpy = _origin(joint)
     rotation = pin.rpy.rpyToMatrix(*rpy)
@@ -168,7 +169,7 @@ def load_mujoco(robot: Robot, *, timestep_s: float = 0.001) -> MujocoRobot:
         )
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in robot.joint_names]
     for name, i in zip(robot.joint_names, ids, strict=True):
-        if int(model.jnt_type[i]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        if int(model.jnt_type[i]) not in _ONE_DOF:
             raise ModelError(f"{where}: joint {name!r} is not a 1-DoF joint in MuJoCo.")
     model.opt.timestep = timestep_s
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
