@@ -104,8 +104,11 @@ class ControllerConfig(StrictModel):
     kp, kd :
         Gains, one for all joints or one per joint; ``null`` takes the defaults: natural frequency
         ``w = 100 rad/s``, damping ratio 1, i.e. ``kp = w^2``, ``kd = 2 w`` for computed torque and
-        ``kp = w^2 m_j``, ``kd = 2 w m_j`` for PD, with ``m_j`` the largest diagonal entry of the
-        nominal mass matrix of joint ``j`` along the reference.
+        ``kp = w^2 m_j``, ``kd = 2 w m_j`` for PD, with ``m_j`` the smallest effective inertia
+        ``1 / (M^-1)_jj`` of joint ``j`` of the nominal model along the reference (the diagonal
+        of ``M`` would make the coupled loop unstable at 1 kHz on a 7-joint arm: the stability of
+        the discrete loop needs the eigenvalues of ``h M^-1 Kd`` below 2, and their sum is
+        ``h sum_j (M^-1)_jj kd_j <= 2 w h n_joints`` with this choice).
     """
 
     kind: Literal["computed_torque", "pd"] = "computed_torque"

@@ -233,8 +233,9 @@ def controller_gains(
 
     Defaults (``null`` in the config), with ``w`` = :data:`DEFAULT_NATURAL_FREQUENCY_RAD_S` and
     ``z`` = :data:`DEFAULT_DAMPING_RATIO`: ``kp = w^2`` [1/s^2], ``kd = 2 z w`` [1/s] for computed
-    torque; ``kp = w^2 m_j`` [N*m/rad], ``kd = 2 z w m_j`` [N*m*s/rad] for PD, where ``m_j`` is
-    the largest diagonal entry of the nominal joint-space inertia matrix along ``q_reference``
+    torque; ``kp = w^2 m_j`` [N*m/rad], ``kd = 2 z w m_j`` [N*m*s/rad] for PD, where
+    ``m_j = min_k 1 / (M^-1(q_k))_jj`` is the smallest effective inertia of joint ``j`` (the
+    inertia it shows when the other joints move freely) of the nominal model along ``q_reference``
     (shape (n_samples, nq), at most 200 samples of it are used).
     """
     w, z = DEFAULT_NATURAL_FREQUENCY_RAD_S, DEFAULT_DAMPING_RATIO
@@ -242,8 +243,10 @@ def controller_gains(
     if config.controller.kind == "pd":
         data = robot.model.createData()
         stride = max(1, q_reference.shape[0] // 200)
-        diagonal = [np.diag(pin.crba(robot.model, data, q)).copy() for q in q_reference[::stride]]
-        scale = np.max(diagonal, axis=0)
+        inverse_diagonal = [
+            np.diag(pin.computeMinverse(robot.model, data, q)).copy() for q in q_reference[::stride]
+        ]
+        scale = 1.0 / np.max(inverse_diagonal, axis=0)
     kp = scale * w**2 if config.controller.kp is None else per_joint(config.controller.kp, robot.nv)
     kd = (
         scale * 2.0 * z * w
