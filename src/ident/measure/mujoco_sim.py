@@ -305,6 +305,7 @@ def simulate(
     """
     nv = robot.nv
     check_joint_counts(config, nv, joint_names=robot.joint_names)
+    q = np.asarray(q, dtype=float)
     if q.ndim != 2 or q.shape[1] != robot.nq:
         raise DataError(
             f"reference: q has shape {q.shape}, the robot {robot.name!r} has nq = {robot.nq}."
