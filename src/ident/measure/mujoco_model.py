@@ -1,0 +1,193 @@
+"""A dynamics-only MuJoCo model of a :class:`~ident.model.Robot`, joint for joint.
+
+MuJoCo (``mujoco`` 4.0) compiles the robot's URDF text after these edits, so that its rigid-body
+dynamics are exactly the Pinocchio model's (MuJoCo's inverse dynamics equals Pinocchio's RNEA to
+about 1e-15 relative):
+
+- ``<visual>`` and ``<collision>`` elements are dropped: no ``package://`` mesh has to resolve,
+  and no inertia is computed from geometry (``inertiafromgeom="false"``), as in Pinocchio;
+- the robot's locked joints become ``fixed`` joints whose origin includes the locked position
+  (rotation ``q`` about the axis for a revolute joint, translation ``q`` along it for a prismatic
+  one), as Pinocchio's reduced model does;
+- ``<dynamics>`` and ``<mimic>`` are dropped; damping, armature and friction are set from the
+  measurement config, never from the file.
+
+Compiled model settings: gravity from the Pinocchio model (``model.gravity``), contacts, joint
+limits, equality constraints and MuJoCo's friction loss off (``mjDSBL_CONSTRAINT``), springs off
+(``mjDSBL_SPRING``), semi-implicit Euler integration with explicit damping
+(``mjDSBL_EULERDAMP``: the stored ``qacc`` is the acceleration that is integrated). Joints are
+matched to the robot's by name; links fixed to the world are fused by MuJoCo (they do not move).
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ident.errors import ModelError
+from ident.model import Robot
+
+__all__ = ["MujocoRobot", "dynamics_only_urdf", "load_mujoco"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+_ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+@dataclass(frozen=True, eq=False)
+class MujocoRobot:
+    """A compiled MuJoCo model and the map from the robot's joints to its arrays.
+
+    Attributes
+    ----------
+    model :
+        The ``mujoco.MjModel`` (mutable: ``dof_damping``, ``dof_armature``, ``opt`` may be set).
+    joint_names :
+        The robot's joint names (``Robot.joint_names``), base to tip.
+    qpos_index :
+        ``qpos`` address of each robot joint, shape (nq,): ``data.qpos[qpos_index]`` is the
+        robot's ``q``.
+    dof_index :
+        ``qvel``/``qacc``/force address of each robot joint, shape (nv,).
+    """
+
+    model: mujoco.MjModel
+    joint_names: tuple[str, ...]
+    qpos_index: IntArray
+    dof_index: IntArray
+
+
+def _origin(joint: ET.Element) -> tuple[FloatArray, FloatArray]:
+    origin = joint.find("origin")
+    xyz = np.zeros(3)
+    rpy = np.zeros(3)
+    if origin is not None:
+        xyz = np.array([float(v) for v in origin.get("xyz", "0 0 0").split()])
+        rpy = np.array([float(v) for v in origin.get("rpy", "0 0 0").split()])
+    return xyz, rpy
+
+
+def _lock(joint: ET.Element, value: float) -> None:
+    """Make ``joint`` fixed at ``value`` by folding the motion into its origin."""
+    axis_element = joint.find("axis")  # URDF's default axis is x
+    axis_text = axis_element.get("xyz", "1 0 0") if axis_element is not None else "1 0 0"
+    axis = np.array([float(v) for v in axis_text.split()])
+    axis = axis / np.linalg.norm(axis)
+    xyz, rpy = _origin(joint)
+    rotation = pin.rpy.rpyToMatrix(*rpy)
+    if joint.get("type") == "prismatic":
+        xyz = xyz + rotation @ (axis * value)
+    else:  # revolute or continuous
+        rotation = rotation @ pin.AngleAxis(value, axis).matrix()
+        rpy = pin.rpy.matrixToRpy(rotation)
+    origin = joint.find("origin")
+    if origin is None:
+        origin = ET.SubElement(joint, "origin")
+    origin.set("xyz", " ".join(repr(float(v)) for v in xyz))
+    origin.set("rpy", " ".join(repr(float(v)) for v in rpy))
+    joint.set("type", "fixed")
+    for tag in ("axis", "limit", "dynamics", "mimic", "safety_controller", "calibration"):
+        for element in joint.findall(tag):
+            joint.remove(element)
+
+
+def dynamics_only_urdf(robot: Robot) -> str:
+    """The robot's URDF text prepared for MuJoCo (see the module docstring).
+
+    Raises
+    ------
+    ModelError
+        If a locked joint is not in the URDF.
+    """
+    root = ET.fromstring(robot.urdf_text)
+    for link in root.findall("link"):
+        for tag in ("visual", "collision"):
+            for element in link.findall(tag):
+                link.remove(element)
+    for element in root.findall("mujoco"):
+        root.remove(element)
+    joints = {joint.get("name"): joint for joint in root.findall("joint")}
+    for name, value in robot.locked_joints.items():
+        if name not in joints:
+            raise ModelError(f"robot {robot.name!r}: locked joint {name!r} is not in its URDF.")
+        _lock(joints[name], float(value))
+    for joint in joints.values():
+        for tag in ("dynamics", "mimic"):
+            for element in joint.findall(tag):
+                joint.remove(element)
+    compiler = ET.SubElement(ET.SubElement(root, "mujoco"), "compiler")
+    compiler.set("inertiafromgeom", "false")
+    compiler.set("balanceinertia", "false")
+    compiler.set("discardvisual", "true")
+    return ET.tostring(root, encoding="unicode")
+
+
+def load_mujoco(robot: Robot, *, timestep_s: float = 0.001) -> MujocoRobot:
+    """Compile the robot's dynamics-only MuJoCo model.
+
+    Damping, armature and friction loss are zero; set ``dof_damping`` and ``dof_armature`` at
+    ``dof_index`` for a simulation.
+
+    Parameters
+    ----------
+    robot :
+        The robot (its URDF text, locked joints and gravity are used).
+    timestep_s :
+        MuJoCo timestep [s].
+
+    Returns
+    -------
+    :
+        The model and the index maps of the robot's joints.
+
+    Raises
+    ------
+    ModelError
+        If MuJoCo cannot compile the URDF, or its moving joints differ from the robot's.
+    """
+    where = str(robot.urdf_path or robot.name)
+    try:
+        model = mujoco.MjModel.from_xml_string(dynamics_only_urdf(robot))
+    except ValueError as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise ModelError(f"{where}: MuJoCo cannot compile the URDF ({first}).") from e
+    mj_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(model.njnt)]
+    extra = sorted(set(mj_names) - set(robot.joint_names))
+    missing = sorted(set(robot.joint_names) - set(mj_names))
+    if extra or missing:
+        raise ModelError(
+            f"{where}: MuJoCo's joints differ from the robot's: "
+            + (f"not in the robot: {', '.join(extra)} (lock them); " if extra else "")
+            + (f"not in MuJoCo: {', '.join(missing)}; " if missing else "")
+            + "the simulator needs the same moving joints."
+        )
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in robot.joint_names]
+    for name, i in zip(robot.joint_names, ids, strict=True):
+        if int(model.jnt_type[i]) not in _ONE_DOF:
+            raise ModelError(f"{where}: joint {name!r} is not a 1-DoF joint in MuJoCo.")
+    model.opt.timestep = timestep_s
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    model.opt.gravity[:] = np.asarray(robot.model.gravity.linear, dtype=float)
+    model.opt.disableflags |= (
+        mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+        | mujoco.mjtDisableBit.mjDSBL_SPRING
+        | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    )
+    model.jnt_limited[:] = 0
+    model.jnt_stiffness[:] = 0.0
+    model.dof_damping[:] = 0.0
+    model.dof_armature[:] = 0.0
+    model.dof_frictionloss[:] = 0.0
+    model.body_gravcomp[:] = 0.0
+    return MujocoRobot(
+        model=model,
+        joint_names=tuple(robot.joint_names),
+        qpos_index=np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64),
+        dof_index=np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64),
+    )

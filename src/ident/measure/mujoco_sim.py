@@ -1,0 +1,475 @@
+"""Closed-loop MuJoCo simulation of an excitation, logged as a robot controller would.
+
+The simulated robot is the URDF's rigid bodies (:mod:`ident.measure.mujoco_model`) plus, per
+joint ``j``, what the ``measurement:`` config adds (:mod:`ident.measure.mujoco_config`):
+
+- rotor inertia ``Ia_j`` reflected to the joint (MuJoCo's ``dof_armature``);
+- viscous friction ``fv_j dq_j`` (``dof_damping``, integrated explicitly);
+- Coulomb friction ``fs_j sign(dq_j)`` (``sign(0) = 0``), the velocity taken at the start of
+  every MuJoCo step, applied through ``qfrc_applied``.
+
+So at every MuJoCo step, with ``dq`` the velocity before the step and ``ddq`` the acceleration
+MuJoCo integrates (``qacc``)::
+
+    tau_cmd = RNEA_urdf(q, dq, ddq) + Ia * ddq + fv * dq + fs * sign(dq)      (the truth)
+
+and the semi-implicit Euler step ``dq' = dq + h ddq``, ``q' = q + h dq'``. With one MuJoCo step
+per controller period (the default) the second central difference of the logged true positions
+is exactly ``h^2 ddq``, and their backward difference exactly ``h dq``.
+
+A controller (computed torque on the nominal model, or PD plus gravity; see
+:class:`~ident.measure.mujoco_config.ControllerConfig`) tracks the reference at ``rate_hz`` from
+the encoder positions, its torque held over the period. It knows neither friction nor armature,
+so it tracks imperfectly, as on a real robot. The log holds, from the end of the settle periods
+on, one sample per controller period: the time stamp, the encoder positions, the commanded
+torque and the measured torque (commanded plus Gaussian noise) or current (measured torque over
+the torque constant). :func:`write_log` writes it as a CSV file with the ``log:`` section that
+``ident identify`` reads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+import yaml
+from scipy.interpolate import BPoly
+
+from ident.errors import DataError
+from ident.identify.measurements import quantize
+from ident.measure.mujoco_config import (
+    DEFAULT_DAMPING_RATIO,
+    DEFAULT_NATURAL_FREQUENCY_RAD_S,
+    MujocoMeasurement,
+    check_joint_counts,
+    per_joint,
+)
+from ident.measure.mujoco_model import load_mujoco
+from ident.model import Robot
+
+__all__ = [
+    "LOG_CSV",
+    "LOG_YAML",
+    "LogFiles",
+    "SimulatedLog",
+    "controller_gains",
+    "coulomb_law",
+    "log_columns",
+    "reference_at_rate",
+    "simulate",
+    "write_log",
+]
+
+FloatArray = npt.NDArray[np.float64]
+RngLike = np.random.Generator | int | None
+
+LOG_CSV = "log.csv"
+LOG_YAML = "log.yaml"
+
+# Relative tolerance on "the period is a whole number of controller periods" and "the reference
+# is already sampled at the controller rate" (time stamps printed with ~12 digits pass).
+_RATE_RTOL = 1e-9
+# Tracking error [rad or m] past which the simulation stops: a diverging loop reaches it long
+# before MuJoCo's own instability warning (which also writes MUJOCO_LOG.TXT into the folder).
+_MAX_TRACKING_ERROR = 1.0
+
+
+def coulomb_law(dq: FloatArray) -> FloatArray:
+    """The simulator's Coulomb friction shape: ``sign(dq)``, 0 at ``dq == 0``, any shape."""
+    return np.sign(dq)
+
+
+@dataclass(frozen=True, eq=False)
+class SimulatedLog:
+    """What the simulated controller logged, and the truth behind it.
+
+    Attributes
+    ----------
+    t :
+        Time stamps [s] of the simulation clock (0 at the start of the settle periods),
+        shape (n_samples,).
+    q :
+        Measured (encoder) joint positions [rad], shape (n_samples, nq).
+    tau_cmd :
+        Commanded joint torques [N*m], held over each controller period, shape (n_samples, nv).
+    tau_measured :
+        Measured joint torques [N*m]: ``tau_cmd`` plus Gaussian noise, shape (n_samples, nv).
+    current :
+        Logged currents [A] ``tau_measured / torque_constants``, shape (n_samples, nv), or
+        ``None`` when torques are logged.
+    torque_constants :
+        Joint-side torque constants [N*m/A], shape (nv,), or ``None``.
+    joint_names :
+        The robot's joint names, in column order.
+    rate_hz :
+        Controller and log rate [Hz].
+    truth :
+        ``viscous`` [N*m*s/rad], ``coulomb`` [N*m], ``armature`` [kg*m^2] and
+        ``torque_noise_std`` [N*m] per joint, each shape (nv,).
+    q_true, dq_true, ddq_true :
+        Simulated state at each time stamp before the step, and MuJoCo's acceleration of that
+        step [rad, rad/s, rad/s^2], shapes (n_samples, nq), (n_samples, nv), (n_samples, nv).
+    q_reference, dq_reference, ddq_reference :
+        The reference tracked at each time stamp, same shapes.
+    """
+
+    t: FloatArray
+    q: FloatArray
+    tau_cmd: FloatArray
+    tau_measured: FloatArray
+    current: FloatArray | None
+    torque_constants: FloatArray | None
+    joint_names: tuple[str, ...]
+    rate_hz: float
+    truth: dict[str, FloatArray]
+    q_true: FloatArray
+    dq_true: FloatArray
+    ddq_true: FloatArray
+    q_reference: FloatArray
+    dq_reference: FloatArray
+    ddq_reference: FloatArray
+
+    def __post_init__(self) -> None:
+        arrays = [
+            self.t,
+            self.q,
+            self.tau_cmd,
+            self.tau_measured,
+            self.q_true,
+            self.dq_true,
+            self.ddq_true,
+            self.q_reference,
+            self.dq_reference,
+            self.ddq_reference,
+            *self.truth.values(),
+        ]
+        for a in (self.current, self.torque_constants):
+            if a is not None:
+                arrays.append(a)
+        for a in arrays:
+            a.setflags(write=False)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of logged samples."""
+        return int(self.t.shape[0])
+
+    def tracking_rms(self) -> FloatArray:
+        """RMS of the true tracking error ``q_true - q_reference`` per joint [rad], (nq,)."""
+        return np.sqrt(np.mean((self.q_true - self.q_reference) ** 2, axis=0))
+
+
+def reference_at_rate(
+    t: FloatArray, q: FloatArray, dq: FloatArray, ddq: FloatArray, rate_hz: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """One period of a periodic reference, sampled at the controller rate.
+
+    The period is ``T = n_samples * dt`` (samples at ``t_0 + k dt``, ``k = 0..n_samples-1``, the
+    end point excluded, as :func:`ident.excitation.family.sample_times` gives them). A reference
+    already at ``rate_hz`` is returned as given; otherwise it is interpolated by the periodic
+    quintic Hermite spline through the samples' positions, velocities and accelerations (exact
+    for quintic polynomials, C2).
+
+    Parameters
+    ----------
+    t :
+        Uniform sample times [s], shape (n_samples,).
+    q, dq, ddq :
+        Positions [rad], velocities [rad/s], accelerations [rad/s^2], each
+        shape (n_samples, n_joints).
+    rate_hz :
+        Controller rate [Hz]; ``T * rate_hz`` must be a whole number.
+
+    Returns
+    -------
+    q, dq, ddq :
+        At ``k / rate_hz`` after ``t_0``, ``k = 0..T*rate_hz - 1``, shape (T*rate_hz, n_joints).
+
+    Raises
+    ------
+    DataError
+        For non-uniform or too few samples, mismatched shapes, non-finite values, or a period
+        that is not a whole number of controller periods.
+    """
+    t = np.asarray(t, dtype=float)
+    q, dq, ddq = (np.asarray(a, dtype=float) for a in (q, dq, ddq))
+    n = t.shape[0] if t.ndim == 1 else 0
+    if n < 2 or any(a.ndim != 2 or a.shape[0] != n or a.shape != q.shape for a in (q, dq, ddq)):
+        raise DataError(
+            f"reference: need t of shape (n,), n >= 2, and q, dq, ddq of one shape (n, n_joints); "
+            f"got t {t.shape}, q {q.shape}, dq {dq.shape}, ddq {ddq.shape}."
+        )
+    if not all(np.all(np.isfinite(a)) for a in (t, q, dq, ddq)):
+        raise DataError("reference: the trajectory contains NaN or infinite values.")
+    steps = np.diff(t)
+    dt = (t[-1] - t[0]) / (n - 1)
+    if not dt > 0.0 or np.max(np.abs(steps - dt)) > 1e-6 * dt:
+        raise DataError("reference: sample times must be increasing and uniformly spaced.")
+    period = n * dt
+    n_ctrl = int(round(period * rate_hz))
+    if n_ctrl < 2 or abs(n_ctrl - period * rate_hz) > _RATE_RTOL * period * rate_hz:
+        raise DataError(
+            f"reference: the period {period:g} s is not a whole number of controller periods "
+            f"(1 / {rate_hz:g} Hz); choose a period that is a multiple of {1.0 / rate_hz:g} s."
+        )
+    if n_ctrl == n:
+        return q.copy(), dq.copy(), ddq.copy()
+    knots = np.append(np.arange(n) * dt, period)
+    tc = np.arange(n_ctrl) / rate_hz
+    out = [np.empty((n_ctrl, q.shape[1])) for _ in range(3)]
+    for j in range(q.shape[1]):  # BPoly interpolates one scalar signal at a time
+        derivatives = np.stack([q[:, j], dq[:, j], ddq[:, j]], axis=1)
+        spline = BPoly.from_derivatives(knots, np.vstack([derivatives, derivatives[:1]]))
+        for order in range(3):
+            out[order][:, j] = spline(tc, nu=order)
+    return out[0], out[1], out[2]
+
+
+def controller_gains(
+    robot: Robot, config: MujocoMeasurement, q_reference: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The controller's ``kp``, ``kd`` per joint, shape (nv,) each (defaults filled in).
+
+    Defaults (``null`` in the config), with ``w`` = :data:`DEFAULT_NATURAL_FREQUENCY_RAD_S` and
+    ``z`` = :data:`DEFAULT_DAMPING_RATIO`: ``kp = w^2`` [1/s^2], ``kd = 2 z w`` [1/s] for computed
+    torque; ``kp = w^2 m_j`` [N*m/rad], ``kd = 2 z w m_j`` [N*m*s/rad] for PD, where
+    ``m_j = min_k 1 / (M^-1(q_k))_jj`` is the smallest effective inertia of joint ``j`` (the
+    inertia it shows when the other joints move freely) of the nominal model along ``q_reference``
+    (shape (n_samples, nq), at most 200 samples of it are used).
+    """
+    w, z = DEFAULT_NATURAL_FREQUENCY_RAD_S, DEFAULT_DAMPING_RATIO
+    scale = np.ones(robot.nv)
+    if config.controller.kind == "pd":
+        data = robot.model.createData()
+        stride = max(1, q_reference.shape[0] // 200)
+        inverse_diagonal = [
+            np.diag(pin.computeMinverse(robot.model, data, q)).copy() for q in q_reference[::stride]
+        ]
+        scale = 1.0 / np.max(inverse_diagonal, axis=0)
+    kp = scale * w**2 if config.controller.kp is None else per_joint(config.controller.kp, robot.nv)
+    kd = (
+        scale * 2.0 * z * w
+        if config.controller.kd is None
+        else per_joint(config.controller.kd, robot.nv)
+    )
+    return kp, kd
+
+
+def simulate(
+    robot: Robot,
+    t: FloatArray,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    config: MujocoMeasurement,
+    *,
+    rng: RngLike = None,
+) -> SimulatedLog:
+    """Simulate the robot tracking a periodic reference in closed loop and log it.
+
+    The robot starts in the reference's initial state (position and velocity), is simulated for
+    ``settle_periods + n_periods`` periods and logged over the last ``n_periods``.
+
+    Parameters
+    ----------
+    robot :
+        The robot (URDF inertials; its locked joints are fixed in MuJoCo at their values).
+    t, q, dq, ddq :
+        One period of the reference: uniform times [s], shape (n_samples,); positions [rad],
+        velocities [rad/s], accelerations [rad/s^2], shape (n_samples, nq). Sampled at
+        ``config.rate_hz`` (used as is) or coarser (interpolated, see
+        :func:`reference_at_rate`).
+    config :
+        The ``measurement:`` section.
+    rng :
+        Generator or seed of the torque noise (the only random draw; the motion itself is
+        deterministic).
+
+    Returns
+    -------
+    :
+        The log and the truth.
+
+    Raises
+    ------
+    ConfigError
+        If a per-joint list of ``config`` does not have one entry per joint.
+    DataError
+        For a malformed reference, or when a tracking error reaches 1 rad (unstable gains).
+    ModelError
+        If MuJoCo cannot compile the robot.
+    """
+    nv = robot.nv
+    check_joint_counts(config, nv, joint_names=robot.joint_names)
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2 or q.shape[1] != robot.nq:
+        raise DataError(
+            f"reference: q has shape {q.shape}, the robot {robot.name!r} has nq = {robot.nq}."
+        )
+    rate = float(config.rate_hz)
+    q_ref, dq_ref, ddq_ref = reference_at_rate(t, q, dq, ddq, rate)
+    n_ctrl = q_ref.shape[0]
+    viscous = per_joint(config.friction.viscous, nv)
+    coulomb = per_joint(config.friction.coulomb, nv)
+    armature = per_joint(config.armature, nv)
+    noise_std = per_joint(config.torque_noise_std, nv)
+    kp, kd = controller_gains(robot, config, q_ref)
+    computed_torque = config.controller.kind == "computed_torque"
+    counts = config.encoder_counts_per_rev
+
+    mj = load_mujoco(robot, timestep_s=1.0 / (rate * config.substeps))
+    model, qi, di = mj.model, mj.qpos_index, mj.dof_index
+    model.dof_damping[di] = viscous
+    model.dof_armature[di] = armature
+    # A diverging simulation must fail loudly, not restart from qpos0.
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    data = mujoco.MjData(model)
+    data.qpos[qi] = q_ref[0]
+    data.qvel[di] = dq_ref[0]
+
+    nominal = robot.model.copy()  # the controller's model: URDF inertials only
+    nominal.armature[:] = 0.0
+    nominal_data = nominal.createData()
+
+    k0 = config.settle_periods * n_ctrl
+    n_total = k0 + config.n_periods * n_ctrl
+    n_log = n_total - k0
+    q_true = np.empty((n_log, robot.nq))
+    dq_true = np.empty((n_log, nv))
+    ddq_true = np.empty((n_log, nv))
+    q_meas = np.empty((n_log, robot.nq))
+    tau_cmd = np.empty((n_log, nv))
+    q_prev = None
+    for k in range(n_total):
+        j = k % n_ctrl
+        q_now = data.qpos[qi]
+        q_m = quantize(q_now, counts) if counts is not None else q_now.copy()
+        dq_m = dq_ref[0] if q_prev is None else (q_m - q_prev) * rate
+        error, derror = q_ref[j] - q_m, dq_ref[j] - dq_m
+        if not np.max(np.abs(error)) < _MAX_TRACKING_ERROR:  # also catches NaN
+            joint = robot.joint_names[int(np.argmax(~(np.abs(error) < _MAX_TRACKING_ERROR)))]
+            raise DataError(
+                f"MuJoCo simulation of {robot.name!r}: the tracking error of joint {joint!r} "
+                f"reached {_MAX_TRACKING_ERROR:g} rad at t = {k / rate:g} s (unstable or too weak "
+                "control); change measurement.controller.kp/kd, raise measurement.substeps or "
+                "slow the excitation down."
+            )
+        if computed_torque:
+            tau = pin.rnea(nominal, nominal_data, q_m, dq_m, ddq_ref[j] + kp * error + kd * derror)
+        else:
+            tau = pin.computeGeneralizedGravity(nominal, nominal_data, q_m) + kp * error
+            tau += kd * derror
+        tau = np.array(tau)  # Pinocchio returns a view of its data
+        if k >= k0:
+            i = k - k0
+            q_true[i], dq_true[i], q_meas[i], tau_cmd[i] = q_now, data.qvel[di], q_m, tau
+        for s in range(config.substeps):
+            data.qfrc_applied[di] = tau - coulomb * coulomb_law(data.qvel[di])
+            mujoco.mj_step(model, data)
+            if s == 0 and k >= k0:
+                ddq_true[k - k0] = data.qacc[di]  # the acceleration of the state before the step
+        q_prev = q_m
+
+    rng = np.random.default_rng(rng)
+    # Draw even for zero std so that the random stream does not depend on the noise level.
+    tau_measured = tau_cmd + rng.standard_normal(tau_cmd.shape) * noise_std
+    current = torque_constants = None
+    if config.current is not None:
+        torque_constants = per_joint(config.current.torque_constants, nv)
+        current = tau_measured / torque_constants
+    index = np.arange(k0, n_total) % n_ctrl
+    return SimulatedLog(
+        t=np.arange(k0, n_total) / rate,
+        q=q_meas,
+        tau_cmd=tau_cmd,
+        tau_measured=tau_measured,
+        current=current,
+        torque_constants=torque_constants,
+        joint_names=tuple(robot.joint_names),
+        rate_hz=rate,
+        truth={
+            "viscous": viscous,
+            "coulomb": coulomb,
+            "armature": armature,
+            "torque_noise_std": noise_std,
+        },
+        q_true=q_true,
+        dq_true=dq_true,
+        ddq_true=ddq_true,
+        q_reference=q_ref[index],
+        dq_reference=dq_ref[index],
+        ddq_reference=ddq_ref[index],
+    )
+
+
+@dataclass(frozen=True)
+class LogFiles:
+    """The files :func:`write_log` wrote."""
+
+    csv: Path  # the log: t, q_<joint>..., tau_<joint>... (or current_<joint>...), tau_cmd_...
+    yaml: Path  # the ``log:`` (and, for currents, ``transmission:``) sections for identify
+
+
+def log_columns(log: SimulatedLog) -> tuple[list[str], list[str], list[str]]:
+    """Column names of the position, measured-signal and commanded-torque blocks."""
+    measured = "current" if log.current is not None else "tau"
+    return (
+        [f"q_{name}" for name in log.joint_names],
+        [f"{measured}_{name}" for name in log.joint_names],
+        [f"tau_cmd_{name}" for name in log.joint_names],
+    )
+
+
+def write_log(folder: str | Path, log: SimulatedLog) -> LogFiles:
+    """Write the log as ``log.csv`` and its ``log:`` section as ``log.yaml`` into ``folder``.
+
+    ``log.csv``: a header ``t,q_<joint>...,tau_<joint>...,tau_cmd_<joint>...`` (``current_<joint>``
+    [A] in place of ``tau_<joint>`` [N*m] when currents are logged), then one row per sample;
+    every value is printed with 17 significant digits, so reading it back gives the same floats
+    bit for bit. ``log.yaml``: the ``log:`` section of an ``ident identify`` config for this file
+    (time column ``t``, joint-side positions in rad, torques in N*m or currents in A), plus
+    ``transmission: {torque_constants: [...]}`` for currents; its paths are relative to
+    ``folder``, so the YAML is valid where it lies.
+
+    Returns
+    -------
+    :
+        The two paths.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    q_cols, measured_cols, cmd_cols = log_columns(log)
+    measured = log.current if log.current is not None else log.tau_measured
+    table = np.column_stack([log.t, log.q, measured, log.tau_cmd])
+    csv_path = folder / LOG_CSV
+    np.savetxt(
+        csv_path,
+        table,
+        fmt="%.17g",
+        delimiter=",",
+        header=",".join(["t", *q_cols, *measured_cols, *cmd_cols]),
+        comments="",
+    )
+    section: dict = {
+        "log": {
+            "time": {"path": LOG_CSV, "column": "t"},
+            "position": {"path": LOG_CSV, "columns": q_cols},
+            "torque": {"path": LOG_CSV, "columns": measured_cols},
+            "position_unit": "rad",
+            "torque_unit": "A" if log.current is not None else "N*m",
+            "side": "joint",
+        }
+    }
+    if log.torque_constants is not None:
+        section["transmission"] = {"torque_constants": log.torque_constants.tolist()}
+    yaml_path = folder / LOG_YAML
+    header = (
+        f"# Simulated controller log ({log.n_samples} samples at {log.rate_hz:g} Hz, "
+        f"MuJoCo {mujoco.__version__}); paths relative to this file.\n"
+    )
+    yaml_path.write_text(header + yaml.safe_dump(section, sort_keys=False), encoding="utf-8")
+    return LogFiles(csv=csv_path, yaml=yaml_path)
