@@ -18,11 +18,19 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, Field, field_validator
+from pydantic import AfterValidator, Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError
 from ident.excitation.registry import check_family_name
+from ident.identify.config import (
+    EssentialConfig,
+    EstimationConfig,
+    ModelConfig,
+    PreprocessConfig,
+    ValidationConfig,
+)
+from ident.measure.mujoco_config import MujocoMeasurement
 from ident.robot.selection import RobotSelection
 
 __all__ = [
@@ -30,6 +38,7 @@ __all__ = [
     "EmupsoSection",
     "EstimationSection",
     "ExcitationSection",
+    "LogIdentificationSection",
     "MeasurementSection",
     "QuickSection",
     "RunConfig",
@@ -133,7 +142,8 @@ class EmupsoSection(StrictModel):
 
 
 class MeasurementSection(StrictModel):
-    """Simulated measurement noise (see :mod:`ident.identify.measurements`).
+    """``measurement: {source: ideal, ...}``: Pinocchio's RNEA on the true parameters plus
+    noise (see :mod:`ident.identify.measurements`); the default source.
 
     Attributes
     ----------
@@ -145,6 +155,7 @@ class MeasurementSection(StrictModel):
         Low-pass cut-off before numerical differentiation of encoder positions; ``null``: none.
     """
 
+    source: Literal["ideal"] = "ideal"
     torque_noise_std: float | list[float] = 0.0
     encoder_counts_per_rev: int | None = Field(default=None, ge=1)
     filter_cutoff_hz: float | None = Field(default=None, gt=0.0)
@@ -179,6 +190,21 @@ class EstimationSection(StrictModel):
         if not value:
             raise ValueError("give at least one estimator (ols, wls)")
         return list(dict.fromkeys(value))
+
+
+#: ``measurement.source``: ``ideal`` (RNEA + noise, the default) or ``mujoco`` (closed-loop
+#: simulation writing a controller-like log, identified like a measured log).
+Measurement = Annotated[MeasurementSection | MujocoMeasurement, Field(discriminator="source")]
+
+
+class LogIdentificationSection(StrictModel):
+    """How a simulated log (``measurement.source: mujoco``) is identified: the sections of an
+    ``ident identify`` config, which the run writes next to the log (``identify.yaml``)."""
+
+    preprocess: PreprocessConfig = PreprocessConfig()
+    model: ModelConfig = ModelConfig(offset=False)
+    estimation: EstimationConfig = EstimationConfig(essential=EssentialConfig(enabled=False))
+    validation: ValidationConfig = ValidationConfig()
 
 
 class QuickSection(StrictModel):
@@ -237,9 +263,18 @@ class RunConfig(StrictModel):
     excitation: ExcitationSection
     elites: ElitesSection = ElitesSection()
     emupso: EmupsoSection = EmupsoSection()
-    measurement: MeasurementSection = MeasurementSection()
+    measurement: Measurement = MeasurementSection()
     estimation: EstimationSection = EstimationSection()
+    identification: LogIdentificationSection = LogIdentificationSection()
     quick: QuickSection = QuickSection()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_source(cls, data: Any) -> Any:
+        """A ``measurement`` section without ``source`` is the ideal one."""
+        if isinstance(data, dict) and isinstance(data.get("measurement"), dict):
+            data = {**data, "measurement": {"source": "ideal", **data["measurement"]}}
+        return data
 
     def quick_version(self) -> RunConfig:
         """The same run with the ``quick`` settings (``--quick``)."""

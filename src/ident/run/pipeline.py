@@ -32,18 +32,32 @@ result depends only on the config and the seed.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from threadpoolctl import threadpool_limits
 
-from ident.errors import IdentError, NotIdentifiable, TrajectoryError
+from ident.errors import IdentError, TrajectoryError
+from ident.excitation.objective import ExcitationObjective
+from ident.optim import minimize
+from ident.optim.elites import find_feasible_elites, spawn_from_elites
 from ident.run.config import RunConfig
+from ident.run.elite_identification import identify_elite
+from ident.run.results import (
+    EliteOutcome,
+    FrameBaseInfo,
+    OptimizerRun,
+    Progress,
+    ProgressCallback,
+    RunInterrupted,
+    RunResult,
+    StageInfo,
+)
 from ident.run.setup import RunSetup, prepare_run
+from ident.run.stage_info import build_stage_info
 
-__all__ = [
+__all__ = [  # the run's result types are re-exported: they are what run_pipeline returns
     "EliteOutcome",
     "FrameBaseInfo",
     "OptimizerRun",
@@ -51,6 +65,7 @@ __all__ = [
     "RunInterrupted",
     "RunResult",
     "StageInfo",
+    "build_stage_info",
     "identify_elite",
     "run_pipeline",
 ]
@@ -58,414 +73,6 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 _DISTINCT_TOL = 1e-3
-_N_STRUCTURE_SAMPLES = 500
-
-
-@dataclass(frozen=True)
-class Progress:
-    """A progress report of :func:`run_pipeline`.
-
-    Attributes
-    ----------
-    phase :
-        ``"elites"`` (an iteration of the initial elite search), ``"elites_done"`` (the
-        elites were found; ``payload`` holds them), ``"optimize"`` (an eMuPSO iteration),
-        ``"run_done"`` (an eMuPSO run finished; ``payload`` is its :class:`OptimizerRun`),
-        ``"identify"`` (an elite was measured and identified).
-    step, total :
-        Progress within the phase (for ``optimize``: iterations over all runs).
-    run :
-        0-based index of the eMuPSO run, or ``None``.
-    best :
-        Best value so far in the phase (violation for ``elites``, fitness otherwise).
-    payload :
-        Phase-specific data.
-    """
-
-    phase: str
-    step: int
-    total: int
-    run: int | None = None
-    best: float = float("nan")
-    payload: Any = None
-
-
-ProgressCallback = Callable[[Progress], Any]
-
-
-@dataclass(frozen=True, eq=False)
-class OptimizerRun:
-    """One finished eMuPSO run.
-
-    Attributes
-    ----------
-    index :
-        0-based run index.
-    x, fun :
-        Best design and its fitness.
-    history :
-        Best fitness after each iteration, index 0 the initial swarm, shape (nit + 1,).
-    mutation_iterations :
-        Iterations whose population came from a mutation.
-    archive_x, archive_fun :
-        The run's elite archive, shapes (k, n_vars) and (k,).
-    nit, nfev :
-        Iterations and objective evaluations.
-    message :
-        Why the run ended.
-    """
-
-    index: int
-    x: FloatArray
-    fun: float
-    history: FloatArray
-    mutation_iterations: tuple[int, ...]
-    archive_x: FloatArray
-    archive_fun: FloatArray
-    nit: int
-    nfev: int
-    message: str
-
-
-@dataclass(frozen=True, eq=False)
-class BaseParameterSet:
-    """A stage's standard parameters split by a base-parameter reduction.
-
-    Attributes
-    ----------
-    standard_names :
-        Names of the stage's standard parameters, in the column order used.
-    true_standard :
-        Their true values (SI), shape (n_cols,).
-    independent, dependent, unidentifiable :
-        Names of the standard parameters in each class.
-    base_names, base_expressions :
-        Names of the base parameters (the independent standard parameter each starts from)
-        and their readable expressions in the standard ones.
-    true_base :
-        True base parameters (projection of ``true_standard``), shape (n_base,).
-    """
-
-    standard_names: tuple[str, ...]
-    true_standard: FloatArray
-    independent: tuple[str, ...]
-    dependent: tuple[str, ...]
-    unidentifiable: tuple[str, ...]
-    base_names: tuple[str, ...]
-    base_expressions: tuple[str, ...]
-    true_base: FloatArray
-
-    @property
-    def counts(self) -> tuple[int, int, int]:
-        """(independent, in linear combination, unidentifiable)."""
-        return len(self.independent), len(self.dependent), len(self.unidentifiable)
-
-
-def _base_set_fields(
-    base: Any, names: tuple[str, ...], true_standard: FloatArray
-) -> dict[str, Any]:
-    """The :class:`BaseParameterSet` fields of a ``BaseParameters`` reduction of ``names``."""
-    return {
-        "standard_names": names,
-        "true_standard": true_standard,
-        "independent": tuple(names[i] for i in base.independent),
-        "dependent": tuple(names[i] for i in base.dependent),
-        "unidentifiable": tuple(names[i] for i in base.unidentifiable),
-        "base_names": tuple(base.base_names),
-        "base_expressions": tuple(base.expressions()),
-        "true_base": np.asarray(base.project(true_standard), dtype=float),
-    }
-
-
-@dataclass(frozen=True, eq=False)
-class FrameBaseInfo(BaseParameterSet):
-    """Base parameters of the stage in another parameterization (the paper's DH frames).
-
-    Only for the comparison with the paper: the estimate uses :class:`StageInfo`'s body-frame
-    base parameters. Columns are taken in the paper's eq. 14 order per body
-    (``m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz``) and reduced by the paper's
-    sequential rank test, so the kept names are those the paper's procedure would keep.
-
-    Attributes
-    ----------
-    frames :
-        ``"DH"``.
-    method :
-        Base-parameter method (``"sequential"``).
-
-    The :class:`BaseParameterSet` fields hold the DH-frame names and true values.
-    """
-
-    frames: str
-    method: str
-
-
-@dataclass(frozen=True, eq=False)
-class StageInfo(BaseParameterSet):
-    """The stage's parameters: standard columns, base parameters, true values.
-
-    Attributes
-    ----------
-    name :
-        ``wrist`` or ``arm``.
-    rows :
-        Torque rows (joint indices, 0-based) of the stage.
-    columns :
-        Indices of the stage's standard parameters in the robot's parameter vector (the
-        :class:`BaseParameterSet` fields hold their names and true values, body frames).
-    alone :
-        Per base parameter: True if it is a standard parameter identifiable alone.
-    base_method :
-        ``qr`` or ``sequential``.
-    known_bodies_note :
-        How bodies outside the stage were handled.
-    base :
-        The ``BaseParameters`` object (``base_columns(W)``, ``project(params)``).
-    dh_frames :
-        The same stage's base parameters about the paper's DH frames
-        (:class:`FrameBaseInfo`), for robots built from a DH config; else ``None``.
-    reference_share :
-        Per base parameter, ``|true_i| ||W_i|| / ||W_b true||`` on the random states of the
-        stage's motion (the robot at full capability): the share of the stage's torques a
-        parameter explains, independent of the trajectory and unit-free, shape (n_base,).
-        Parameters with a share of at least 1e-2 are the stage's *major* parameters.
-    """
-
-    name: str
-    rows: tuple[int, ...]
-    columns: tuple[int, ...]
-    alone: tuple[bool, ...]
-    base_method: str
-    known_bodies_note: str
-    base: Any = None
-    dh_frames: FrameBaseInfo | None = None
-    reference_share: FloatArray | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class EliteOutcome:
-    """A reported elite: its trajectory, measurements and estimates.
-
-    Attributes
-    ----------
-    rank :
-        1-based rank by fitness (1 = best = chosen).
-    x :
-        Design vector, shape (n_vars,).
-    fitness :
-        Objective value (eq. 15 + penalties).
-    details :
-        Objective details of this design (condition number, singular values, ...).
-    t, q, dq, ddq :
-        Commanded trajectory, shapes (n_samples,), (n_samples, nq) x 3.
-    traced_points :
-        Cartesian path of the traced point [m], shape (n_samples, 3), or None.
-    tau :
-        Measured (simulated, noisy) torques [N*m], shape (n_samples, nv).
-    estimates :
-        ``{method: Estimate}`` for the estimators that succeeded.
-    failures :
-        ``{method: message}`` for the estimators that could not run (rank deficiency, ...).
-    base_column_norms :
-        ``||W_b[:, i]||`` of the base observation matrix on the measured states, shape (n_base,).
-    true_torque_norm :
-        ``||W_b @ true_base||`` [N*m]: the norm of the torques the stage's base parameters
-        explain.
-    """
-
-    rank: int
-    x: FloatArray
-    fitness: float
-    details: dict[str, float]
-    t: FloatArray
-    q: FloatArray
-    dq: FloatArray
-    ddq: FloatArray
-    traced_points: FloatArray | None
-    tau: FloatArray
-    estimates: dict[str, Any]
-    failures: dict[str, str]
-    base_column_norms: FloatArray | None = None
-    true_torque_norm: float | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class RunResult:
-    """Everything a run found; the report writer turns it into files.
-
-    ``status`` is ``complete`` or ``incomplete`` (interrupted or failed; ``message`` says
-    where, and only what finished is filled in).
-    """
-
-    config: RunConfig
-    status: str
-    message: str
-    robot_name: str
-    joint_names: tuple[str, ...]
-    q_limits: FloatArray
-    dq_limits: FloatArray
-    ddq_limits: FloatArray
-    urdf_text: str
-    variable_names: tuple[str, ...]
-    bounds: FloatArray
-    traced_frame: str | None
-    moving_joints: tuple[int, ...]
-    stage: StageInfo | None = None
-    initial_elites: FloatArray | None = None
-    elite_search_message: str = ""
-    runs: tuple[OptimizerRun, ...] = ()
-    elites: tuple[EliteOutcome, ...] = ()
-    warnings: tuple[str, ...] = field(default_factory=tuple)
-
-
-class RunInterrupted(Exception):
-    """A run stopped early (Ctrl-C or an error); ``partial`` holds what had finished."""
-
-    def __init__(self, partial: RunResult, cause: BaseException) -> None:
-        super().__init__(partial.message)
-        self.partial = partial
-        self.cause = cause
-
-
-# --------------------------------------------------------------------------------------
-# Building blocks (heavy modules imported lazily: `import ident.run.pipeline` stays cheap)
-
-
-def stage_matrix(
-    robot: Any,
-    rows: tuple[int, ...],
-    columns: tuple[int, ...],
-    q: FloatArray,
-    dq: FloatArray,
-    ddq: FloatArray,
-) -> tuple[FloatArray, FloatArray]:
-    """Stage observation matrix and the known torque contribution of the other bodies.
-
-    Returns
-    -------
-    W :
-        Shape (n_samples * n_rows, n_cols), sample-major.
-    known :
-        Torques of the parameters outside the stage on the stage's rows, with their true
-        values [N*m], shape (n_samples, n_rows).
-    """
-    Y = stage_regressor(robot, rows, q, dq, ddq)
-    params = np.asarray(robot.parameters(), dtype=float)
-    other = np.setdiff1d(np.arange(Y.shape[2]), np.asarray(columns, dtype=int))
-    known = Y[:, :, other] @ params[other]
-    W = Y[:, :, list(columns)].reshape(-1, len(columns))
-    return W, known
-
-
-def stage_regressor(
-    robot: Any, rows: tuple[int, ...], q: FloatArray, dq: FloatArray, ddq: FloatArray
-) -> FloatArray:
-    """Rows ``rows`` of the joint-torque regressor, shape (n_samples, n_rows, n_params)."""
-    return np.asarray(robot.regressor(q, dq, ddq))[:, list(rows), :]
-
-
-def dh_frame_base(
-    robot: Any,
-    rows: tuple[int, ...],
-    columns: tuple[int, ...],
-    q: FloatArray,
-    dq: FloatArray,
-    ddq: FloatArray,
-) -> FrameBaseInfo | None:
-    """Base parameters of a stage about the paper's DH frames (``None`` without a DH table).
-
-    The regressor in the DH parameterization is ``Y @ robot.dh_to_model_parameters()``
-    (docs/paper-notes.md, "Eq. 14: parameter order and frames"); its stage columns are put in
-    the paper's eq. 14 order per body and reduced by the paper's sequential rank test.
-    """
-    if getattr(robot, "dh", None) is None:
-        return None
-    from ident.dynamics.base_parameters import compute_base_parameters
-    from ident.robot.inertia import PAPER_ORDER, PINOCCHIO_ORDER
-
-    M = np.asarray(robot.dh_to_model_parameters(), dtype=float)
-    Y = stage_regressor(robot, rows, q, dq, ddq) @ M
-    names_all = tuple(robot.parameter_names())
-    # eq. 14 order within each body (the stage's columns are whole bodies, 10 each)
-    to_paper = [PINOCCHIO_ORDER.index(label) for label in PAPER_ORDER]
-    order = [c - c % 10 + to_paper[c % 10] for c in columns]
-    if sorted(order) != sorted(columns):
-        raise IdentError("the stage's parameter columns are not whole bodies of 10 parameters")
-    W = Y[:, :, order].reshape(-1, len(order))
-    names = tuple(names_all[c] for c in order)
-    base = compute_base_parameters(W, names, method="sequential")
-    true_standard = np.asarray(robot.parameters_dh(), dtype=float)[order]
-    return FrameBaseInfo(
-        frames="DH", method="sequential", **_base_set_fields(base, names, true_standard)
-    )
-
-
-def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng: Any) -> StageInfo:
-    """Base parameters of the stage, from random states of the stage's motion.
-
-    The states span the moving joints' position, velocity and acceleration limits, the held
-    joints sit where the family holds them; the classification is structural (it holds for
-    almost every motion of the stage), and a trajectory that does not excite a base
-    parameter shows up as a rank-deficient estimate, reported per elite.
-    """
-    from ident.dynamics.base_parameters import compute_base_parameters
-
-    names_all = tuple(robot.parameter_names())
-    params = np.asarray(robot.parameters(), dtype=float)
-    rows = tuple(int(r) for r in stage.torque_rows)
-    columns = tuple(int(c) for c in stage.columns)
-    q, dq, ddq = _structure_states(robot, family, rng)
-    W, _ = stage_matrix(robot, rows, columns, q, dq, ddq)
-    names = tuple(names_all[c] for c in columns)
-    base = compute_base_parameters(W, names, method=base_method)
-    fields = _base_set_fields(base, names, params[list(columns)])
-    true_base, base_names = fields["true_base"], fields["base_names"]
-    Wb = np.asarray(base.base_columns(W), dtype=float)
-    total = float(np.linalg.norm(Wb @ true_base))
-    reference_share = np.abs(true_base) * np.linalg.norm(Wb, axis=0) / (total if total > 0 else 1.0)
-    # ident.dynamics.base_parameters suffixes "R" to a base parameter with others combined in
-    alone = tuple(b == names[i] for b, i in zip(base_names, base.independent, strict=True))
-    others = np.setdiff1d(np.arange(params.shape[0]), np.asarray(columns))
-    known_note = (
-        "all bodies are unknown in this stage"
-        if others.size == 0
-        else "the bodies outside the stage are known (identified in the other stage; here "
-        "their true parameters): their torque contribution on the stage's rows is computed "
-        "and subtracted before the estimate"
-    )
-    return StageInfo(
-        name=str(stage.name),
-        rows=rows,
-        columns=columns,
-        alone=alone,
-        base_method=base_method,
-        known_bodies_note=known_note,
-        base=base,
-        dh_frames=dh_frame_base(robot, rows, columns, q, dq, ddq),
-        reference_share=reference_share,
-        **fields,
-    )
-
-
-def _structure_states(
-    robot: Any, family: Any, rng: Any
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Random states of the stage's motion: moving joints within their limits, others held."""
-    from ident.excitation import JointLimits
-
-    gen = np.random.default_rng(rng)
-    limits = JointLimits.from_robot(robot)
-    lower, upper = limits.finite_position_box()
-    dq_max = np.where(np.isfinite(limits.dq_max), limits.dq_max, 1.0)
-    ddq_max = np.where(np.isfinite(limits.ddq_max), limits.ddq_max, 10.0)
-    n, nq = _N_STRUCTURE_SAMPLES, limits.nq
-    moving = np.zeros(nq, dtype=bool)
-    moving[list(family.moving_joints)] = True
-    held = np.asarray(family.held_positions, dtype=float)
-    q = np.where(moving, gen.uniform(lower, upper, (n, nq)), held)
-    dq = np.where(moving, gen.uniform(-dq_max, dq_max, (n, nq)), 0.0)
-    ddq = np.where(moving, gen.uniform(-ddq_max, ddq_max, (n, nq)), 0.0)
-    return q, dq, ddq
 
 
 _DETAIL_KEYS = ("fitness", "criterion", "cond", "sigma_min", "sigma_max", "logdet", "penalty")
@@ -510,10 +117,6 @@ def run_pipeline(
     IdentError
         For invalid input found before anything ran (robot, stage, family options).
     """
-    from ident.excitation import ExcitationObjective
-    from ident.optim import minimize
-    from ident.optim.elites import find_feasible_elites, spawn_from_elites
-
     notify = progress or (lambda _p: None)
     setup = config if isinstance(config, RunSetup) else prepare_run(config)
     config, robot, stage, family = setup.config, setup.robot, setup.stage, setup.family
@@ -668,8 +271,6 @@ def _small_blas() -> Any:
     times slower than one thread (measured 41-160 ms vs 1.3-3.4 ms, docs/run.md). The
     objective's Gram-matrix kernel (numba) is not BLAS and is left alone.
     """
-    from threadpoolctl import threadpool_limits
-
     return threadpool_limits(limits=1, user_api="blas")
 
 
@@ -739,73 +340,4 @@ def _elite_failure(search: Any, family: Any, objective: Any, bounds: FloatArray)
         f"initial elite search: {search.message}{worst}. No trajectory in the excitation "
         "bounds meets the constraints: check that the Cartesian circle is reachable, "
         "narrow excitation.bounds, or relax the joint limits of the robot config."
-    )
-
-
-def identify_elite(
-    config: RunConfig,
-    robot: Any,
-    family: Any,
-    stage: StageInfo,
-    index: int,
-    x: FloatArray,
-    fitness: float,
-    details: dict[str, float],
-    seed: Any,
-) -> EliteOutcome:
-    """Measure (simulate) one elite trajectory and estimate the stage's base parameters.
-
-    Estimator failures (rank-deficient base matrix on this trajectory, ...) are recorded in
-    ``failures`` with their message; they do not raise.
-    """
-    from ident.identify.estimate import least_squares
-    from ident.identify.measurements import NoiseModel, simulate_measurements
-
-    batch = family.trajectories(x[None, :])
-    t = np.asarray(batch.t, dtype=float)
-    q, dq, ddq = (np.asarray(a[0], dtype=float) for a in (batch.q, batch.dq, batch.ddq))
-    traced = None if batch.traced_points is None else np.asarray(batch.traced_points[0])
-    m = config.measurement
-    std = m.torque_noise_std
-    noise = NoiseModel(
-        torque_std=tuple(std) if isinstance(std, list) else float(std),
-        encoder_counts_per_rev=m.encoder_counts_per_rev,
-        filter_cutoff_hz=m.filter_cutoff_hz,
-    )
-    meas = simulate_measurements(robot.model, t, q, dq, ddq, noise, rng=np.random.default_rng(seed))
-    W, known = stage_matrix(robot, stage.rows, stage.columns, meas.q, meas.dq, meas.ddq)
-    y = (meas.tau[:, list(stage.rows)] - known).reshape(-1)
-    estimates: dict[str, Any] = {}
-    failures: dict[str, str] = {}
-    Wb = np.asarray(stage.base.base_columns(W), dtype=float)
-    for method in config.estimation.methods:
-        try:
-            est = least_squares(
-                Wb, y, stage.base_names, method=method, rows_per_sample=len(stage.rows)
-            )
-        except NotIdentifiable as e:
-            failures[method] = f"not identifiable on this trajectory: {e}"
-            continue
-        except IdentError as e:
-            failures[method] = str(e)
-            continue
-        if not est.success:
-            failures[method] = est.message
-            continue
-        estimates[method] = est
-    return EliteOutcome(
-        rank=index + 1,
-        x=x,
-        fitness=fitness,
-        details=details,
-        t=t,
-        q=q,
-        dq=dq,
-        ddq=ddq,
-        traced_points=traced,
-        tau=np.asarray(meas.tau),
-        estimates=estimates,
-        failures=failures,
-        base_column_norms=np.linalg.norm(Wb, axis=0),
-        true_torque_norm=float(np.linalg.norm(Wb @ stage.true_base)),
     )

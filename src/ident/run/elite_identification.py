@@ -1,0 +1,91 @@
+"""The ideal measurement of an elite trajectory and its least-squares estimate.
+
+``measurement.source: ideal``: joint torques from Pinocchio's RNEA on the true parameters plus
+the configured noise (:mod:`ident.identify.measurements`), then OLS/WLS on the stage's base
+parameters (:func:`ident.identify.estimate.least_squares`). Bodies outside the stage are known:
+their torque contribution is computed from their true parameters and subtracted.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ident.errors import IdentError, NotIdentifiable
+from ident.identify.estimate import least_squares
+from ident.identify.measurements import NoiseModel, simulate_measurements
+from ident.run.config import RunConfig
+from ident.run.results import EliteOutcome, StageInfo
+from ident.run.stage_info import stage_matrix
+
+__all__ = ["identify_elite"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def identify_elite(
+    config: RunConfig,
+    robot: Any,
+    family: Any,
+    stage: StageInfo,
+    index: int,
+    x: FloatArray,
+    fitness: float,
+    details: dict[str, float],
+    seed: Any,
+) -> EliteOutcome:
+    """Measure (simulate) one elite trajectory and estimate the stage's base parameters.
+
+    Estimator failures (rank-deficient base matrix on this trajectory, ...) are recorded in
+    ``failures`` with their message; they do not raise.
+    """
+    batch = family.trajectories(x[None, :])
+    t = np.asarray(batch.t, dtype=float)
+    q, dq, ddq = (np.asarray(a[0], dtype=float) for a in (batch.q, batch.dq, batch.ddq))
+    traced = None if batch.traced_points is None else np.asarray(batch.traced_points[0])
+    m = config.measurement
+    std = m.torque_noise_std
+    noise = NoiseModel(
+        torque_std=tuple(std) if isinstance(std, list) else float(std),
+        encoder_counts_per_rev=m.encoder_counts_per_rev,
+        filter_cutoff_hz=m.filter_cutoff_hz,
+    )
+    meas = simulate_measurements(robot.model, t, q, dq, ddq, noise, rng=np.random.default_rng(seed))
+    W, known = stage_matrix(robot, stage.rows, stage.columns, meas.q, meas.dq, meas.ddq)
+    y = (meas.tau[:, list(stage.rows)] - known).reshape(-1)
+    estimates: dict[str, Any] = {}
+    failures: dict[str, str] = {}
+    Wb = np.asarray(stage.base.base_columns(W), dtype=float)
+    for method in config.estimation.methods:
+        try:
+            est = least_squares(
+                Wb, y, stage.base_names, method=method, rows_per_sample=len(stage.rows)
+            )
+        except NotIdentifiable as e:
+            failures[method] = f"not identifiable on this trajectory: {e}"
+            continue
+        except IdentError as e:
+            failures[method] = str(e)
+            continue
+        if not est.success:
+            failures[method] = est.message
+            continue
+        estimates[method] = est
+    return EliteOutcome(
+        rank=index + 1,
+        x=x,
+        fitness=fitness,
+        details=details,
+        t=t,
+        q=q,
+        dq=dq,
+        ddq=ddq,
+        traced_points=traced,
+        tau=np.asarray(meas.tau),
+        estimates=estimates,
+        failures=failures,
+        base_column_norms=np.linalg.norm(Wb, axis=0),
+        true_torque_norm=float(np.linalg.norm(Wb @ stage.true_base)),
+    )

@@ -1,0 +1,205 @@
+"""``measurement.source: mujoco``: simulate a controller log, then identify it like a real one.
+
+For each reported elite, the closed-loop MuJoCo simulation (:mod:`ident.measure.mujoco_sim`)
+writes the log a robot controller would write; the log is read back by the same reader as a
+measured log (:func:`ident.identify.logs.read_log`) and identified by the same function as
+``ident identify`` (:func:`ident.identify.real.identify_log`), with the run config's
+``identification`` sections. The run folder keeps the log and an ``identify.yaml`` next to it,
+so ``ident identify elites/elite_<k>/identify.yaml`` gives the run's estimate again.
+
+The truth is the URDF's inertials plus the configured friction and rotor inertia (armature);
+offsets are zero. Its base-parameter projection is what the estimate is compared with.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import yaml
+
+from ident.dynamics.chain import random_states
+from ident.dynamics.friction import ExtraTerms
+from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
+from ident.identify.logs import read_log
+from ident.identify.real import (
+    IdentifyResult,
+    ParameterModel,
+    identify_log,
+)
+from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
+from ident.model import Robot
+from ident.run.config import RunConfig
+
+__all__ = [
+    "LogOutcome",
+    "extra_terms",
+    "identify_config",
+    "measure_and_identify",
+    "true_parameters",
+    "write_identify_files",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: The folder of a run's files relative to an elite's log folder (``elites/elite_<k>/``).
+_RUN_FOLDER_FROM_LOG = Path("..") / ".."
+
+#: Random states of the structural base parameters (as :func:`build_parameter_model` draws).
+_N_SHARE_STATES = 200
+
+
+@dataclass(frozen=True, eq=False)
+class LogOutcome:
+    """One elite measured by the simulator and identified from its log.
+
+    Attributes
+    ----------
+    log :
+        The simulated log and its truth.
+    result :
+        The identification of the log (the same object ``ident identify`` builds).
+    config :
+        The identify config used (its ``log`` section points to a temporary copy; the run
+        folder's ``identify.yaml`` points to the saved one).
+    """
+
+    log: SimulatedLog
+    result: IdentifyResult
+    config: IdentifyConfig
+
+
+def extra_terms(config: RunConfig, n_joints: int) -> ExtraTerms:
+    """The friction / rotor / offset terms of the identification model of a run config."""
+    model = config.identification.model
+    return ExtraTerms.from_options(
+        n_joints,
+        rotor_inertia=model.rotor_inertia,
+        viscous=model.viscous,
+        coulomb=model.coulomb,
+        offset=model.offset,
+        coupled_wrist=model.coupled_wrist,
+    )
+
+
+def true_parameters(pm: ParameterModel, log: SimulatedLog) -> FloatArray:
+    """The simulator's truth over the model's parameters ``pm.names``, shape (n_all,).
+
+    Inertial parameters from the URDF (``pm.nominal``), ``fv<j>`` / ``fs<j>`` / ``Ia<j>`` from
+    the configured viscous friction, Coulomb friction and armature of joint j, offsets 0.
+    """
+    source = {"fv": "viscous", "fs": "coulomb", "Ia": "armature"}
+    truth = np.array(pm.nominal, dtype=float)
+    for i, name in enumerate(pm.names):
+        kind = name.rstrip("0123456789")
+        if pm.extra_index[i] >= 0 and kind in source:
+            joint = int(name[len(kind) :]) - 1
+            truth[i] = float(log.truth[source[kind]][joint])
+    return truth
+
+
+def reference_share(
+    pm: ParameterModel, truth: FloatArray, robot: Robot, rng: int = 0
+) -> FloatArray:
+    """Share of the torques each base parameter explains, on random states of the robot.
+
+    ``|beta_i| ||W_i|| / ||W_b beta||`` with ``W_b`` the base columns on the random states the
+    base parameters were found on: unit-free and independent of the trajectory, shape (n_base,).
+    """
+    from ident.dynamics.friction import extra_columns
+    from ident.dynamics.regressor import joint_torque_regressor
+
+    q, dq, ddq = random_states(robot.chain, _N_SHARE_STATES, rng=rng)
+    Yb = pm.columns(
+        joint_torque_regressor(robot.chain, q, dq, ddq),
+        extra_columns(pm.terms, dq, ddq),
+        pm.base.independent,
+    ).reshape(-1, len(pm.base.independent))
+    beta = pm.base.project(truth)
+    total = float(np.linalg.norm(Yb @ beta))
+    return np.abs(beta) * np.linalg.norm(Yb, axis=0) / (total if total > 0 else 1.0)
+
+
+def identify_config(
+    config: RunConfig, log_section: dict[str, Any], *, robot_path: Path | None = None
+) -> IdentifyConfig:
+    """The ``ident identify`` config of a simulated log.
+
+    ``log_section`` is the ``log:`` (and ``transmission:``) mapping :func:`write_log` wrote;
+    ``robot_path`` replaces the run's robot file (the run folder's copy of the URDF).
+    """
+    robot = config.robot
+    if robot_path is not None:
+        robot = robot.model_copy(update={"urdf": robot_path, "description": None})
+    ident = config.identification
+    return IdentifyConfig(
+        name=f"{config.name}-log",
+        robot=robot,
+        log=LogConfig.model_validate(log_section["log"]),
+        transmission=TransmissionConfig.model_validate(log_section.get("transmission", {})),
+        preprocess=ident.preprocess,
+        model=ident.model,
+        estimation=ident.estimation,
+        validation=ident.validation,
+    )
+
+
+def _absolute(section: dict[str, Any], folder: Path) -> dict[str, Any]:
+    """``log:`` paths made absolute (they are relative to the log's folder)."""
+    log = dict(section["log"])
+    for key in ("time", "position", "torque"):
+        if isinstance(log.get(key), dict):
+            log[key] = {**log[key], "path": str(folder / log[key]["path"])}
+    return {**section, "log": log}
+
+
+def measure_and_identify(
+    config: RunConfig,
+    robot: Robot,
+    t: FloatArray,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    *,
+    seed: Any,
+) -> LogOutcome:
+    """Simulate one period of a trajectory in MuJoCo, write its log, read and identify it.
+
+    Raises
+    ------
+    IdentError
+        From the simulator (diverging controller), the reader or the identification (a
+        trajectory that does not excite every base parameter: ``NotIdentifiable``).
+    """
+    log = simulate(robot, t, q, dq, ddq, config.measurement, rng=np.random.default_rng(seed))
+    with tempfile.TemporaryDirectory(prefix="ident-log-") as tmp:
+        files = write_log(tmp, log)
+        section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))
+        cfg = identify_config(config, section)
+        read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
+    result = identify_log(cfg, read, model=robot.model)
+    return LogOutcome(log=log, result=result, config=cfg)
+
+
+def write_identify_files(folder: Path, config: RunConfig, outcome: LogOutcome) -> Path:
+    """Save an elite's log and the ``identify.yaml`` that identifies it again; return its path.
+
+    ``folder`` is ``<run>/elites/elite_<k>``; the robot is the run folder's ``robot.urdf``.
+    """
+    files = write_log(folder, outcome.log)
+    section = yaml.safe_load(files.yaml.read_text(encoding="utf-8"))
+    cfg = identify_config(config, section, robot_path=_RUN_FOLDER_FROM_LOG / "robot.urdf")
+    data = cfg.model_dump(mode="json", exclude={"source"})
+    data["robot"] = {k: v for k, v in data["robot"].items() if v not in (None, [], {})}
+    data["robot"].pop("inertia_check", None) if config.robot.inertia_check else None
+    path = folder / "identify.yaml"
+    header = (
+        "# ident identify elites/.../identify.yaml: identifies this simulated log again, as\n"
+        "# 'ident run' did (same reader, same settings). Paths relative to this file.\n"
+    )
+    path.write_text(header + yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    return path
