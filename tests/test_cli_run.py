@@ -303,7 +303,7 @@ def test_a_crash_keeps_the_folder_consistent_and_surfaces(tmp_path, monkeypatch)
 
 
 def test_no_identifiable_elite_exits_1_with_a_plain_report(tmp_path, monkeypatch):
-    import ident.identify.estimate as estimate
+    import ident.run.elite_identification as estimate
     from ident.errors import NotIdentifiable
 
     def rank_deficient(*args, **kwargs):
