@@ -48,6 +48,7 @@ def run(
     from ident.errors import IdentError
     from ident.report.run_report import save_run, write_replay, write_report
     from ident.run.config import load_run_config
+    from ident.run.log_measurement import save_logs
     from ident.run.pipeline import RunInterrupted, run_pipeline
     from ident.run.rundir import create_run_dir
     from ident.run.setup import prepare_run
@@ -89,6 +90,7 @@ def run(
             raise
         try:
             save_run(result, rundir.path)
+            save_logs(result, rundir.path)
             replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
             rundir.update(replay=replay_note)
         except BaseException:
@@ -131,9 +133,11 @@ def report(
 def _save_partial(partial: Any, rundir: Any) -> None:
     """Save what an interrupted run finished; never hide the original problem."""
     from ident.report.run_report import save_run, write_report
+    from ident.run.log_measurement import save_logs
 
     try:
         save_run(partial, rundir.path)
+        save_logs(partial, rundir.path)
         rundir.finish("incomplete", partial.message)
         write_report(rundir.path)
     except BaseException as e:  # noqa: BLE001 - the folder must still be marked

@@ -26,6 +26,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from pydantic import model_validator
 
 from ident.config import StrictModel
@@ -56,6 +57,10 @@ class RobotSelection(StrictModel):
     inertia_check :
         Check the inertials of the moving links (default); ``false`` is the override for a
         file with broken inertials.
+    acceleration_limits :
+        Joint acceleration limits [rad/s^2 or m/s^2], one value or one per joint of the chain
+        (URDFs carry none; a DH description has its own). Excitation trajectories keep within
+        them.
     """
 
     urdf: Path | None = None
@@ -66,6 +71,7 @@ class RobotSelection(StrictModel):
     lock: dict[str, float] = {}
     joints: list[str] | None = None
     inertia_check: bool = True
+    acceleration_limits: float | list[float] | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -91,6 +97,17 @@ class RobotSelection(StrictModel):
         for name, value in self.lock.items():
             if not math.isfinite(value):
                 raise ValueError(f"robot.lock.{name} = {value}: give a finite position")
+        limits = self.acceleration_limits
+        values = limits if isinstance(limits, list) else [] if limits is None else [limits]
+        if any(not (math.isfinite(v) and v > 0) for v in values):
+            raise ValueError(
+                f"robot.acceleration_limits = {limits}: give positive, finite values [rad/s^2]"
+            )
+        if self.description is not None and limits is not None:
+            raise ValueError(
+                "robot.acceleration_limits: a DH description sets its own (ddq_max); give "
+                "them there"
+            )
         return self
 
     @property
@@ -136,6 +153,16 @@ def load_robot(selection: RobotSelection, *, source: str | Path = "config") -> R
         )
     else:
         robot = Robot.from_config(selection.path)
+    if selection.acceleration_limits is not None:
+        limits = np.atleast_1d(np.asarray(selection.acceleration_limits, dtype=float))
+        if limits.size not in (1, robot.nv):
+            raise ConfigError(
+                f"{source}: robot.acceleration_limits has {limits.size} values, the chain has "
+                f"{robot.nv} joints ({', '.join(robot.joint_names)}); give one or one per joint."
+            )
+        ddq_max = np.broadcast_to(limits, (robot.nv,)).copy()
+        ddq_max.setflags(write=False)
+        robot.ddq_max = ddq_max
     if selection.joints is not None and list(selection.joints) != list(robot.joint_names):
         raise ConfigError(
             f"{source}: robot.joints = {selection.joints} must list the selected chain's joints "

@@ -24,19 +24,26 @@ import yaml
 
 from ident.dynamics.chain import random_states
 from ident.dynamics.friction import ExtraTerms
+from ident.errors import IdentError
 from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
 from ident.identify.logs import read_log
 from ident.identify.real import (
     IdentifyResult,
     ParameterModel,
+    build_parameter_model,
     identify_log,
 )
+from ident.measure.mujoco_config import per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
 from ident.run.config import RunConfig
+from ident.run.results import EliteOutcome, StageInfo, base_set_fields
 
 __all__ = [
     "LogOutcome",
+    "identify_elite_log",
+    "log_stage_info",
+    "save_logs",
     "extra_terms",
     "identify_config",
     "measure_and_identify",
@@ -86,20 +93,54 @@ def extra_terms(config: RunConfig, n_joints: int) -> ExtraTerms:
     )
 
 
-def true_parameters(pm: ParameterModel, log: SimulatedLog) -> FloatArray:
+def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
     """The simulator's truth over the model's parameters ``pm.names``, shape (n_all,).
 
     Inertial parameters from the URDF (``pm.nominal``), ``fv<j>`` / ``fs<j>`` / ``Ia<j>`` from
     the configured viscous friction, Coulomb friction and armature of joint j, offsets 0.
     """
-    source = {"fv": "viscous", "fs": "coulomb", "Ia": "armature"}
+    m = config.measurement
+    n = pm.terms.n_joints
+    values = {
+        "fv": per_joint(m.friction.viscous, n),  # type: ignore[union-attr]
+        "fs": per_joint(m.friction.coulomb, n),  # type: ignore[union-attr]
+        "Ia": per_joint(m.armature, n),  # type: ignore[union-attr]
+    }
     truth = np.array(pm.nominal, dtype=float)
     for i, name in enumerate(pm.names):
         kind = name.rstrip("0123456789")
-        if pm.extra_index[i] >= 0 and kind in source:
-            joint = int(name[len(kind) :]) - 1
-            truth[i] = float(log.truth[source[kind]][joint])
+        if pm.extra_index[i] >= 0 and kind in values:
+            truth[i] = float(values[kind][int(name[len(kind) :]) - 1])
     return truth
+
+
+def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, ParameterModel]:
+    """The stage of a simulated-log run: every body, friction and rotor terms, their truth.
+
+    The parameter model is the one :func:`identify_log` builds for the log (same terms, same
+    random states), so names and base parameters match the estimates.
+    """
+    pm = build_parameter_model(robot.model, extra_terms(config, robot.nv))
+    truth = true_parameters(pm, config)
+    rows = tuple(range(robot.nv))
+    names = pm.names
+    alone = tuple(
+        b == names[i] for b, i in zip(pm.base.base_names, pm.base.independent, strict=True)
+    )
+    info = StageInfo(
+        name="whole",
+        rows=rows,
+        columns=(),
+        alone=alone,
+        base_method=pm.base.method,
+        known_bodies_note="all bodies are unknown; friction and rotor inertia are identified "
+        "with them (the simulator's truth: the URDF's inertials plus the configured friction "
+        "and armature)",
+        base=pm.base,
+        reference_share=reference_share(pm, truth, robot),
+        **base_set_fields(pm.base, names, truth),
+    )
+    return info, pm
 
 
 def reference_share(
@@ -185,6 +226,58 @@ def measure_and_identify(
     return LogOutcome(log=log, result=result, config=cfg)
 
 
+def identify_elite_log(
+    config: RunConfig,
+    robot: Robot,
+    family: Any,
+    stage: StageInfo,
+    index: int,
+    x: FloatArray,
+    fitness: float,
+    details: dict[str, float],
+    seed: Any,
+) -> EliteOutcome:
+    """Simulate one elite in MuJoCo, identify its log; failures are recorded, not raised.
+
+    The outcome's ``tau`` is the logged (measured) torque of the first logged period at the
+    trajectory's sample times; ``log`` holds the whole simulation for the run folder.
+    """
+    batch = family.trajectories(x[None, :])
+    t = np.asarray(batch.t, dtype=float)
+    q, dq, ddq = (np.asarray(a[0], dtype=float) for a in (batch.q, batch.dq, batch.ddq))
+    traced = None if batch.traced_points is None else np.asarray(batch.traced_points[0])
+    method = config.identification.estimation.method
+    estimates: dict[str, Any] = {}
+    failures: dict[str, str] = {}
+    outcome: LogOutcome | None = None
+    tau = np.full((t.shape[0], robot.nv), np.nan)
+    try:
+        outcome = measure_and_identify(config, robot, t, q, dq, ddq, seed=seed)
+        estimates[method] = outcome.result.estimate
+        log = outcome.log
+        start = log.t[0]
+        tau = np.column_stack(
+            [np.interp(start + t, log.t, log.tau_measured[:, j]) for j in range(robot.nv)]
+        )
+    except IdentError as e:
+        failures[method] = str(e)
+    return EliteOutcome(
+        rank=index + 1,
+        x=x,
+        fitness=fitness,
+        details=details,
+        t=t,
+        q=q,
+        dq=dq,
+        ddq=ddq,
+        traced_points=traced,
+        tau=tau,
+        estimates=estimates,
+        failures=failures,
+        log=outcome,
+    )
+
+
 def write_identify_files(folder: Path, config: RunConfig, outcome: LogOutcome) -> Path:
     """Save an elite's log and the ``identify.yaml`` that identifies it again; return its path.
 
@@ -195,7 +288,8 @@ def write_identify_files(folder: Path, config: RunConfig, outcome: LogOutcome) -
     cfg = identify_config(config, section, robot_path=_RUN_FOLDER_FROM_LOG / "robot.urdf")
     data = cfg.model_dump(mode="json", exclude={"source"})
     data["robot"] = {k: v for k, v in data["robot"].items() if v not in (None, [], {})}
-    data["robot"].pop("inertia_check", None) if config.robot.inertia_check else None
+    if config.robot.inertia_check:
+        data["robot"].pop("inertia_check", None)
     path = folder / "identify.yaml"
     header = (
         "# ident identify elites/.../identify.yaml: identifies this simulated log again, as\n"
@@ -203,3 +297,16 @@ def write_identify_files(folder: Path, config: RunConfig, outcome: LogOutcome) -
     )
     path.write_text(header + yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     return path
+
+
+def save_logs(result: Any, run_dir: Path) -> list[Path]:
+    """Save the simulated log of every measured elite with its ``identify.yaml``.
+
+    Returns the ``identify.yaml`` paths (empty for an ideal measurement).
+    """
+    written = []
+    for elite in result.elites:
+        if elite.log is not None:
+            folder = Path(run_dir) / "elites" / f"elite_{elite.rank}"
+            written.append(write_identify_files(folder, result.config, elite.log))
+    return written

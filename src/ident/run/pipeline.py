@@ -44,6 +44,7 @@ from ident.optim import minimize
 from ident.optim.elites import find_feasible_elites, spawn_from_elites
 from ident.run.config import RunConfig
 from ident.run.elite_identification import identify_elite
+from ident.run.log_measurement import identify_elite_log, log_stage_info
 from ident.run.results import (
     EliteOutcome,
     FrameBaseInfo,
@@ -134,6 +135,11 @@ def run_pipeline(
         criterion=config.excitation.criterion,
         base_columns=[stage_info.columns[i] for i in stage_info.base.independent],
     )
+    measure = identify_elite
+    if config.measurement.source == "mujoco":  # a simulated log, identified as a measured one
+        with _small_blas():
+            stage_info, _ = log_stage_info(config, robot)
+        measure = identify_elite_log
     bounds = np.asarray(family.bounds, dtype=float)
 
     state: dict[str, Any] = {"runs": [], "elites": None, "elite_message": "", "outcomes": []}
@@ -232,7 +238,7 @@ def run_pipeline(
         for i in range(chosen_x.shape[0]):
             phase = f"identification of elite {i + 1}"
             with _small_blas():
-                outcome = identify_elite(
+                outcome = measure(
                     config,
                     robot,
                     family,

@@ -255,6 +255,7 @@ class EliteOutcome:
     failures: dict[str, str]
     base_column_norms: FloatArray | None = None
     true_torque_norm: float | None = None
+    log: Any = None  # measurement.source mujoco: the LogOutcome (simulated log + identification)
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,6 +19,7 @@ import numpy.typing as npt
 from ident.dynamics.stage import Stage, select_stage
 from ident.errors import ConfigError, IdentError, ModelError
 from ident.excitation.registry import build_family
+from ident.measure.mujoco_config import check_joint_counts
 from ident.model import Robot
 from ident.robot.selection import load_robot
 from ident.run.config import RunConfig
@@ -69,7 +70,7 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
         spec = config.stage if isinstance(config.stage, str) else config.stage.model_dump()
         stage = select_stage(robot, spec)
         family = make_family(config, robot, stage)
-        _check_measurement(config, robot)
+        _check_measurement(config, robot, stage)
     except IdentError as e:
         message = str(e)
         if not message.startswith(str(source)):
@@ -124,8 +125,17 @@ def _override_bounds(
     return bounds
 
 
-def _check_measurement(config: RunConfig, robot: Robot) -> None:
+def _check_measurement(config: RunConfig, robot: Robot, stage: Stage) -> None:
     """Per-joint measurement settings must have one value per joint of the robot."""
+    if config.measurement.source == "mujoco":
+        check_joint_counts(config.measurement, robot.nv, joint_names=robot.joint_names)
+        if len(stage.moving_joints) != robot.nv:
+            raise ConfigError(
+                f"measurement.source: mujoco identifies every body of the chain from its log, "
+                f"so every joint must move; stage '{stage.name}' holds some. Use stage: whole, "
+                "or select a shorter chain (robot.base_link / robot.tip_link)."
+            )
+        return
     std = config.measurement.torque_noise_std
     if isinstance(std, list) and len(std) != robot.nv:
         raise ConfigError(
