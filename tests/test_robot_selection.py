@@ -17,7 +17,7 @@ from ident.cli.verify import run_verification
 from ident.dynamics.friction import ExtraTerms
 from ident.errors import ConfigError, IdentError, ModelError
 from ident.identify.real import build_parameter_model
-from ident.robot.selection import RobotSelection, load_robot, selection_from_flags
+from ident.model.selection import RobotSelection, load_robot, selection_from_flags
 from ident.robot.urdf_load import suggested_locks
 from ident.run.config import RunConfig
 from ident.run.pipeline import build_stage_info

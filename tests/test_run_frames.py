@@ -11,7 +11,7 @@ import pytest
 
 from ident.dynamics.base_parameters import compute_base_parameters
 from ident.dynamics.stage import select_stage
-from ident.robot.selection import load_robot
+from ident.model.selection import load_robot
 from ident.run.config import load_run_config
 from ident.run.pipeline import build_stage_info
 from ident.run.setup import make_family

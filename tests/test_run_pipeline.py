@@ -5,7 +5,7 @@ import pytest
 
 from ident.dynamics.stage import select_stage
 from ident.errors import TrajectoryError
-from ident.robot.selection import load_robot
+from ident.model.selection import load_robot
 from ident.run.config import load_run_config
 from ident.run.pipeline import RunInterrupted, build_stage_info, identify_elite, run_pipeline
 from ident.run.setup import make_family

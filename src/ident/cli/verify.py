@@ -10,7 +10,7 @@ import typer
 
 from ident.cli._common import user_errors
 from ident.errors import ConfigError
-from ident.robot.selection import RobotSelection, load_robot, selection_from_flags
+from ident.model.selection import RobotSelection, load_robot, selection_from_flags
 
 __all__ = ["parse_locks", "register", "run_verification", "verify"]
 

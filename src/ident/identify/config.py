@@ -25,7 +25,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError
-from ident.robot.selection import RobotSelection
+from ident.model.selection import RobotSelection
 
 __all__ = [
     "CouplingEntry",

@@ -56,7 +56,7 @@ from ident.identify.validation import (
     time_split,
 )
 from ident.model import Robot
-from ident.robot.selection import load_robot
+from ident.model.selection import load_robot
 from ident.trajectory import JointTrajectory
 
 __all__ = [

@@ -40,7 +40,7 @@ import yaml
 from scipy.interpolate import BPoly
 
 from ident.errors import DataError
-from ident.identify.measurements import quantize
+from ident.measure.ideal import quantize
 from ident.measure.mujoco_config import (
     DEFAULT_DAMPING_RATIO,
     DEFAULT_NATURAL_FREQUENCY_RAD_S,

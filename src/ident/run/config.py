@@ -31,7 +31,7 @@ from ident.identify.config import (
     ValidationConfig,
 )
 from ident.measure.mujoco_config import MujocoMeasurement
-from ident.robot.selection import RobotSelection
+from ident.model.selection import RobotSelection
 
 __all__ = [
     "ElitesSection",
@@ -143,7 +143,7 @@ class EmupsoSection(StrictModel):
 
 class MeasurementSection(StrictModel):
     """``measurement: {source: ideal, ...}``: Pinocchio's RNEA on the true parameters plus
-    noise (see :mod:`ident.identify.measurements`); the default source.
+    noise (see :mod:`ident.measure.ideal`); the default source.
 
     Attributes
     ----------
@@ -246,7 +246,7 @@ class RunConfig(StrictModel):
     name :
         Run name, the prefix of the run folder; defaults to the config file's stem.
     robot :
-        The robot selection (:mod:`ident.robot.selection`): a DH description (``.yaml``) or
+        The robot selection (:mod:`ident.model.selection`): a DH description (``.yaml``) or
         a URDF path relative to this config file, or a mapping with the chain to identify.
     stage :
         Stage to identify: ``whole`` (every joint moves, every body is unknown: the default),

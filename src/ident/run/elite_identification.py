@@ -1,7 +1,7 @@
 """The ideal measurement of an elite trajectory and its least-squares estimate.
 
 ``measurement.source: ideal``: joint torques from Pinocchio's RNEA on the true parameters plus
-the configured noise (:mod:`ident.identify.measurements`), then OLS/WLS on the stage's base
+the configured noise (:mod:`ident.measure.ideal`), then OLS/WLS on the stage's base
 parameters (:func:`ident.identify.estimate.least_squares`). Bodies outside the stage are known:
 their torque contribution is computed from their true parameters and subtracted.
 """
@@ -15,7 +15,7 @@ import numpy.typing as npt
 
 from ident.errors import IdentError, NotIdentifiable
 from ident.identify.estimate import least_squares
-from ident.identify.measurements import NoiseModel, simulate_measurements
+from ident.measure.ideal import NoiseModel, simulate_measurements
 from ident.run.config import RunConfig
 from ident.run.results import EliteOutcome, StageInfo
 from ident.run.stage_info import stage_matrix

@@ -16,7 +16,7 @@ The paper's procedure (section 4.1) for one stage, as one pure function
    ``emupso.n_report_elites`` are kept. Elite 1 (lowest fitness) is the *chosen* trajectory.
 4. **Measurements.** Along each reported elite, joint torques are simulated with Pinocchio's
    RNEA on the true parameters of the robot, with the configured noise
-   (:mod:`ident.identify.measurements`).
+   (:mod:`ident.measure.ideal`).
 5. **Estimate.** The stage's observation matrix on the *measured* states, reduced to the
    stage's base parameters (computed once, on random states of the stage, by the configured
    method), is solved by OLS and/or WLS (:func:`ident.identify.estimate.least_squares`).

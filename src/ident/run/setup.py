@@ -21,7 +21,7 @@ from ident.errors import ConfigError, IdentError, ModelError
 from ident.excitation.registry import build_family
 from ident.measure.mujoco_config import check_joint_counts
 from ident.model import Robot
-from ident.robot.selection import load_robot
+from ident.model.selection import load_robot
 from ident.run.config import RunConfig
 
 __all__ = ["RunSetup", "load_run", "make_family", "prepare_run"]

@@ -31,7 +31,7 @@ from pydantic import model_validator
 
 from ident.config import StrictModel
 from ident.errors import ConfigError
-from ident.model import Robot
+from ident.model.robot import Robot
 
 __all__ = ["RobotSelection", "load_robot", "selection_from_flags"]
 

@@ -5,7 +5,7 @@ import pinocchio as pin
 import pytest
 
 from ident.errors import DataError
-from ident.identify.measurements import (
+from ident.measure.ideal import (
     NoiseModel,
     differentiate,
     inverse_dynamics,
