@@ -1,0 +1,77 @@
+"""Shared set-up of the constrained estimators: weights, scaled least-squares terms.
+
+Both constrained estimators minimize, over the standard parameters ``theta``,
+
+``(1/m) sum_j w_j^2 ||R_j K theta - z_j||^2 + lambda ||D (theta - theta_nominal)||^2``
+
+with ``m`` the number of rows and ``w_j = 1 / sigma_j`` the WLS weights (so the first term is
+about 1 at the WLS optimum: the mean squared *standardized* residual), ``D`` the diagonal of
+:meth:`~ident.identify.estimators.problem.ParameterStructure.prior_weights`. They work on
+``theta = nominal + S u`` with ``S = diag(scale)`` so that every unknown is of order one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ident.identify.estimate import least_squares_reduced
+from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
+
+__all__ = ["ScaledProblem", "scaled_problem"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class ScaledProblem:
+    """``min ||A u - b||^2 + lambda ||P u||^2`` with ``theta = nominal + scale * u``.
+
+    Attributes
+    ----------
+    A, b :
+        Data term, shapes (n, n_std) and (n,).
+    prior :
+        Diagonal ``P = D S`` of the prior term, shape (n_std,) (1 on inertial parameters).
+    scale :
+        ``S``, shape (n_std,).
+    sigma :
+        Per-group noise standard deviation behind the weights [N*m], shape (n_groups,).
+    structure :
+        The parameter structure.
+    """
+
+    A: FloatArray
+    b: FloatArray
+    prior: FloatArray
+    scale: FloatArray
+    sigma: FloatArray
+    structure: ParameterStructure
+
+    def theta(self, u: npt.ArrayLike) -> FloatArray:
+        """Standard parameters of the scaled unknowns."""
+        return self.structure.nominal + self.scale * np.asarray(u, dtype=float)
+
+
+def scaled_problem(problem: EstimationProblem, method: str) -> ScaledProblem:
+    """Weights (given, or from WLS), stacked triangle and scaling of ``problem``."""
+    structure = problem.require_structure(method)
+    obs = problem.observations
+    if problem.weights is not None:
+        weights = np.asarray(problem.weights, dtype=float)
+        with np.errstate(divide="ignore"):
+            sigma = np.where(weights > 0, 1.0 / weights, np.inf)
+    else:
+        wls = least_squares_reduced(obs, problem.names, method="wls", wls_passes=problem.wls_passes)
+        sigma = np.asarray(wls.sigma, dtype=float)
+        weights = np.where(obs.n_rows > 0, 1.0 / sigma, 0.0)
+    Rs, zs = obs.stacked(weights)
+    scale = structure.scales()
+    RK = Rs @ problem.K
+    root_m = np.sqrt(max(problem.n_rows, 1))
+    A = RK * scale[None, :] / root_m
+    b = (zs - RK @ structure.nominal) / root_m
+    prior = structure.prior_weights() * scale
+    return ScaledProblem(A=A, b=b, prior=prior, scale=scale, sigma=sigma, structure=structure)
