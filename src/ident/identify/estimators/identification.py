@@ -22,6 +22,9 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ident.dynamics.chain import chain_from_model
+from ident.dynamics.friction import extra_columns
+from ident.dynamics.regressor import joint_torque_regressor
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
 from ident.identify.estimators.registry import get_estimator
@@ -37,6 +40,8 @@ __all__ = [
     "ConsistentIdentification",
     "body_link_names",
     "consistent_identification",
+    "problem_from_states",
+    "standard_regressor",
     "structure_from_parameter_model",
 ]
 
@@ -93,6 +98,51 @@ def structure_from_parameter_model(
         nonnegative=nonnegative,
         nominal=np.asarray(pm.nominal, dtype=float),
         ellipsoids=tuple(ellipsoids),
+    )
+
+
+def standard_regressor(
+    model: pin.Model, pm: Any, q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> FloatArray:
+    """Regressor of every standard parameter of ``pm`` (its ``names`` order).
+
+    ``q, dq, ddq`` of shapes (n_samples, nv) give a regressor of shape
+    (n_samples, nv, n_std) with ``Y @ theta`` the joint torques [N*m]: rigid bodies plus
+    the extra (friction, rotor, offset) columns.
+    """
+    Y_rigid = joint_torque_regressor(chain_from_model(model), q, dq, ddq)
+    Y_extra = extra_columns(pm.terms, dq, ddq)
+    return pm.columns(Y_rigid, Y_extra, np.arange(len(pm.names)))
+
+
+def problem_from_states(
+    model: pin.Model,
+    pm: Any,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    tau: FloatArray,
+    **fields: Any,
+) -> EstimationProblem:
+    """The base-coordinate :class:`EstimationProblem` of states and measured torques.
+
+    Parameters
+    ----------
+    model, pm :
+        The robot and its parameter model (:func:`ident.identify.real.build_parameter_model`).
+    q, dq, ddq, tau :
+        States and torques [SI], shapes (n_samples, nv).
+    **fields :
+        Further :class:`EstimationProblem` fields (``regularization``, ``options``, ...).
+    """
+    Y = standard_regressor(model, pm, q, dq, ddq)
+    obs = ReducedObservations.from_samples(Y[:, :, pm.base.independent], tau)
+    return EstimationProblem(
+        observations=obs,
+        names=tuple(pm.base_names),
+        structure=structure_from_parameter_model(pm, body_link_names(model)),
+        base_map=pm.base.projection,
+        **fields,
     )
 
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from ident.identify.consistency import PSEUDO_INERTIA_BASIS
 from ident.identify.estimate import Estimate
-from ident.identify.estimators.constrained import scaled_problem
+from ident.identify.estimators.constrained import scaled_problem, single_threaded_blas
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
 from ident.identify.estimators.registry import register_estimator
 
@@ -47,6 +47,11 @@ _TIE_BREAK = 1e-9
 @register_estimator("lmi")
 def lmi(problem: EstimationProblem) -> Estimate:
     """Physically consistent WLS estimate by an SDP (see the module docstring)."""
+    with single_threaded_blas():
+        return _lmi(problem)
+
+
+def _lmi(problem: EstimationProblem) -> Estimate:
     import cvxpy as cp  # optional dependency: only this estimator needs it
 
     sp = scaled_problem(problem, "lmi")

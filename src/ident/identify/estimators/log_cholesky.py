@@ -13,7 +13,7 @@ problem, solved by ``scipy.optimize.least_squares`` (trust region) with the exac
 cross-checks :mod:`ident.identify.estimators.lmi`; being local, it starts from the nominal
 bodies (made positive definite when they are not) and the unconstrained extras.
 
-Options (``problem.options``): ``max_nfev`` (default 500), ``start`` (a ``theta`` to start from).
+Options (``problem.options``): ``max_nfev`` (default 300), ``start`` (a ``theta`` to start from).
 
 References
 ----------
@@ -30,7 +30,7 @@ import scipy.optimize
 
 from ident.identify.consistency import parameters_from_pseudo_inertia, pseudo_inertia
 from ident.identify.estimate import Estimate, least_squares_reduced
-from ident.identify.estimators.constrained import scaled_problem
+from ident.identify.estimators.constrained import scaled_problem, single_threaded_blas
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
 from ident.identify.estimators.registry import register_estimator
 
@@ -91,6 +91,11 @@ def _positive_definite(theta_b: FloatArray, scale_b: FloatArray) -> FloatArray:
 @register_estimator("log_cholesky")
 def log_cholesky(problem: EstimationProblem) -> Estimate:
     """Physically consistent WLS estimate by the log-Cholesky parametrization."""
+    with single_threaded_blas():
+        return _log_cholesky(problem)
+
+
+def _log_cholesky(problem: EstimationProblem) -> Estimate:
     sp = scaled_problem(problem, "log_cholesky")
     structure = sp.structure
     n_std = structure.n_std
@@ -147,14 +152,23 @@ def log_cholesky(problem: EstimationProblem) -> Estimate:
         jac=jacobian,
         method="trf",
         x_scale="jac",
-        max_nfev=int(problem.options.get("max_nfev", 500)),
-        ftol=1e-12,
-        xtol=1e-12,
+        max_nfev=int(problem.options.get("max_nfev", 300)),
+        ftol=1e-10,
+        xtol=1e-10,
         gtol=1e-10,
     )
     theta, _ = theta_and_jacobian(solution.x)
-    success = bool(solution.status > 0 and np.all(np.isfinite(theta)))
-    message = "ok" if success else f"log-Cholesky: {solution.message}"
+    # Every finite point of the parametrization is consistent, so an estimate stopped by the
+    # evaluation budget is usable: that happens when the optimum lies on the consistency
+    # boundary (a degenerate body), which the parametrization reaches only asymptotically.
+    success = bool(solution.status >= 0 and np.all(np.isfinite(theta)))
+    if solution.status == 0:
+        message = (
+            f"log-Cholesky: stopped after {solution.nfev} evaluations, still approaching the "
+            "consistency boundary (a body near degenerate); the LMI estimator reaches it exactly"
+        )
+    else:
+        message = "ok" if success else f"log-Cholesky: {solution.message}"
     return result_from_theta(
         problem,
         theta,
