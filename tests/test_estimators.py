@@ -214,3 +214,29 @@ def test_log_cholesky_roundtrip_with_pinocchio():
         np.testing.assert_allclose(
             log_cholesky_from_parameters(parameters_from_log_cholesky(psi)), psi, atol=1e-9
         )
+
+
+def test_lmi_with_bounding_ellipsoids_keeps_the_mass_inside():
+    from ident.identify.consistency import pseudo_inertia
+    from ident.identify.urdf_update import parse_urdf
+    from ident.robot.ellipsoids import link_ellipsoids
+
+    problem, *_ = _ur5_problem(noise=5.0, inconsistent=True, regularization=1e-3)
+    structure = problem.structure
+    ellipsoids = link_ellipsoids(
+        parse_urdf(robots.UR5_URDF.read_text()),
+        structure.body_names,
+        package_dirs=[robots.ERD_SHARE],
+    )
+    assert all(e is not None for e in ellipsoids)
+    bounded = dataclasses.replace(
+        problem, structure=dataclasses.replace(structure, ellipsoids=ellipsoids)
+    )
+    est = get_estimator("lmi")(bounded)
+    assert est.success, est.message
+    assert est.consistent
+    for index, e in zip(structure.bodies, ellipsoids, strict=True):
+        J = pseudo_inertia(est.theta[index])
+        assert np.trace(J @ e.homogeneous_matrix()) >= -1e-9 * np.abs(J).max()
+    free = get_estimator("lmi")(problem)
+    assert est.relative_residual >= free.relative_residual * (1 - 1e-6)  # tighter set
