@@ -241,8 +241,9 @@ def test_whole_model_write_back_reproduces_the_estimate_torques(tmp_path):
 def test_whole_model_write_back_loads_in_yourdfpy_and_mujoco(tmp_path):
     import re
 
-    import mujoco
     import yourdfpy
+
+    mujoco = pytest.importorskip("mujoco")
 
     from ident.identify.urdf_update import write_identified_model
 
