@@ -15,7 +15,8 @@ dimensionless. The program is written with cvxpy and solved by Clarabel, an inte
 conic solver: a few hundredths of a second for a 6-joint arm, whatever the log length.
 
 Options (``problem.options``): ``epsilon`` (default 1e-6), ``ellipsoids`` (default True: use
-the structure's ellipsoids when it has some).
+the structure's ellipsoids when it has some), ``prior_floor`` (see
+:mod:`ident.identify.estimators.constrained`).
 
 References
 ----------
@@ -32,16 +33,17 @@ import numpy as np
 
 from ident.identify.consistency import PSEUDO_INERTIA_BASIS
 from ident.identify.estimate import Estimate
-from ident.identify.estimators.constrained import scaled_problem, single_threaded_blas
+from ident.identify.estimators.constrained import (
+    prior_weight,
+    scaled_problem,
+    single_threaded_blas,
+)
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
 from ident.identify.estimators.registry import register_estimator
 
 __all__ = ["DEFAULT_EPSILON", "lmi"]
 
 DEFAULT_EPSILON = 1e-6
-# Below this relative weight the prior only breaks ties: it keeps the optimum unique without
-# moving it measurably.
-_TIE_BREAK = 1e-9
 
 
 @register_estimator("lmi")
@@ -81,7 +83,7 @@ def _lmi(problem: EstimationProblem) -> Estimate:
             cp.multiply(sp.scale[nonnegative], u[nonnegative]) >= -structure.nominal[nonnegative]
         )
     weight = problem.regularization
-    objective = cp.sum_squares(sp.A @ u - sp.b) + (weight + _TIE_BREAK) * cp.sum_squares(
+    objective = cp.sum_squares(sp.A @ u - sp.b) + prior_weight(problem) * cp.sum_squares(
         cp.multiply(np.sqrt(np.maximum(sp.prior, 0.0)), u)
     )
     program = cp.Problem(cp.Minimize(objective), constraints)

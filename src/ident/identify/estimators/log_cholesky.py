@@ -13,7 +13,9 @@ problem, solved by ``scipy.optimize.least_squares`` (trust region) with the exac
 cross-checks :mod:`ident.identify.estimators.lmi`; being local, it starts from the nominal
 bodies (made positive definite when they are not) and the unconstrained extras.
 
-Options (``problem.options``): ``max_nfev`` (default 300), ``start`` (a ``theta`` to start from).
+Options (``problem.options``): ``prior_floor`` (see
+:mod:`ident.identify.estimators.constrained`), ``max_nfev`` (default 300), ``start`` (a
+``theta`` to start from).
 
 References
 ----------
@@ -30,7 +32,11 @@ import scipy.optimize
 
 from ident.identify.consistency import parameters_from_pseudo_inertia, pseudo_inertia
 from ident.identify.estimate import Estimate, least_squares_reduced
-from ident.identify.estimators.constrained import scaled_problem, single_threaded_blas
+from ident.identify.estimators.constrained import (
+    prior_weight,
+    scaled_problem,
+    single_threaded_blas,
+)
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
 from ident.identify.estimators.registry import register_estimator
 
@@ -104,7 +110,7 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     nonnegative = structure.nonnegative
     free = np.setdiff1d(np.setdiff1d(np.arange(n_std), inertial), nonnegative)
     weight = problem.regularization
-    sqrt_prior = np.sqrt(weight * np.maximum(sp.prior, 0.0))
+    sqrt_prior = np.sqrt(prior_weight(problem) * np.maximum(sp.prior, 0.0))
     # the data term in theta: A_theta = A / scale
     A_theta = sp.A / sp.scale[None, :]
     b_theta = sp.b + A_theta @ structure.nominal
