@@ -83,7 +83,7 @@ def parameters_from_pseudo_inertia(J: npt.ArrayLike) -> FloatArray:
 
 def pseudo_inertia_min_eigenvalue(theta: npt.ArrayLike) -> FloatArray:
     """Smallest eigenvalue of the pseudo-inertia of parameters (..., 10), shape (...)."""
-    return np.linalg.eigvalsh(pseudo_inertia(theta))[..., 0]
+    return np.asarray(np.linalg.eigvalsh(pseudo_inertia(theta))[..., 0], dtype=np.float64)
 
 
 def triangle_inequality_margin(theta: npt.ArrayLike) -> FloatArray:

@@ -172,7 +172,7 @@ def _inertial_element(link: ET.Element, phi: FloatArray) -> None:
     if old is not None:
         link.remove(old)
     inertial = ET.SubElement(link, "inertial")
-    ET.SubElement(inertial, "mass", value=_fmt(mass))
+    ET.SubElement(inertial, "mass", value=_fmt(float(mass)))
     ET.SubElement(inertial, "origin", rpy="0 0 0", xyz=" ".join(_fmt(c) for c in com))
     ET.SubElement(
         inertial,
@@ -400,7 +400,7 @@ def write_identified_model(
         element = joints.get(joint)
         child = element.find("child") if element is not None else None
         link_name = child.get("link") if child is not None else None
-        if link_name is None or link_name not in links:
+        if element is None or link_name is None or link_name not in links:
             raise ModelError(f"{source}: joint {joint!r} or its child link not found.")
         body = np.array([theta[index[f"{label}{j}"]] for label in _LABELS])
         body_nominal = np.array([nominal[index[f"{label}{j}"]] for label in _LABELS])
@@ -464,5 +464,5 @@ def write_identified_model(
     return IdentifiedModel(
         text=text + "\n",
         sidecar=sidecar,
-        links=tuple(link.get("name") for _, link, _ in plan),
+        links=tuple(str(link.get("name")) for _, link, _ in plan),
     )

@@ -168,12 +168,11 @@ def _shape_points(
     cylinder = geometry.find("cylinder")
     if cylinder is not None:
         radius = float(cylinder.get("radius", 0.0)) / np.cos(np.pi / _CYLINDER_SIDES)
-        half = 0.5 * float(cylinder.get("length", 0.0))
+        half_length = 0.5 * float(cylinder.get("length", 0.0))
         angles = 2.0 * np.pi * np.arange(_CYLINDER_SIDES) / _CYLINDER_SIDES
         ring = np.column_stack([radius * np.cos(angles), radius * np.sin(angles)])
-        return np.vstack(
-            [np.column_stack([ring, np.full(len(ring), z)]) for z in (-half, half)]
-        ), None
+        ends = (-half_length, half_length)
+        return np.vstack([np.column_stack([ring, np.full(len(ring), z)]) for z in ends]), None
     sphere = geometry.find("sphere")
     if sphere is not None:
         r = float(sphere.get("radius", 0.0))
@@ -190,7 +189,8 @@ def _shape_points(
             return None
         loaded = trimesh.load(str(path), force="mesh")
         scale = np.array([float(v) for v in mesh.get("scale", "1 1 1").split()])
-        return np.asarray(loaded.vertices, dtype=float) * scale, None
+        vertices = loaded.vertices  # type: ignore[attr-defined]  # force="mesh": a Trimesh
+        return np.asarray(vertices, dtype=np.float64) * scale, None
     return None
 
 
@@ -244,7 +244,8 @@ def link_ellipsoids(
     out: list[Ellipsoid | None] = []
     for name in link_names:
         if name not in links:
-            raise ModelError(f"URDF: link {name!r} not found (links: {', '.join(links)}).")
+            known = ", ".join(str(k) for k in links)
+            raise ModelError(f"URDF: link {name!r} not found (links: {known}).")
         found = link_geometry_points(
             links[name], package_dirs=package_dirs, base=None if base is None else Path(base)
         )
