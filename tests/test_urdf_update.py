@@ -10,7 +10,7 @@ import yaml
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.identify.real import load_robot_model
 from ident.identify.urdf_update import update_urdf_inertials
-from ident.robot.inertia import consistency_problems
+from ident.robot.inertia import PINOCCHIO_ORDER, consistency_problems
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "staubli-tx40"
@@ -159,3 +159,139 @@ def test_tx40_identification_written_back_safely(tx40_result, tmp_path, threshol
             if link.problem:
                 assert not link.written
                 assert link.rejected
+
+
+# ---- whole-model write-back of a consistent estimate ----------------------------------------
+def _tx40_parameter_model():
+    from ident.dynamics.friction import ExtraTerms
+    from ident.identify.real import build_parameter_model
+
+    model = load_robot_model(URDF)
+    terms = ExtraTerms.from_options(
+        6, rotor_inertia=[1, 2, 3, 4, 5], coupled_wrist=[5, 6]
+    )  # as configs/tx40.yaml
+    return model, build_parameter_model(model, terms)
+
+
+def _consistent_theta(pm, seed=0):
+    """Nominal bodies plus a small box each (consistent), positive friction, any offsets."""
+    import pinocchio as pin
+
+    rng = np.random.default_rng(seed)
+    theta = pm.nominal.copy()
+    index = {n: i for i, n in enumerate(pm.names)}
+    for j in range(1, 7):
+        box = pin.Inertia.FromBox(rng.uniform(0.1, 1.0), *rng.uniform(0.02, 0.2, size=3))
+        extra = np.asarray(pin.SE3.Random().act(box).toDynamicParameters())
+        extra[1:4] *= 0.1  # keep it near the link
+        extra = np.asarray(pin.Inertia.FromDynamicParameters(extra).toDynamicParameters())
+        for k, label in enumerate(PINOCCHIO_ORDER):
+            theta[index[f"{label}{j}"]] += extra[k]
+    for i, name in enumerate(pm.names):
+        if pm.inertial_index[i] < 0:
+            theta[i] = rng.uniform(0.05, 2.0) if not name.startswith("off") else rng.normal()
+    return theta
+
+
+def test_whole_model_write_back_reproduces_the_estimate_torques(tmp_path):
+    import pinocchio as pin
+
+    from ident.dynamics.chain import chain_from_model, random_states
+    from ident.identify.estimators.identification import standard_regressor
+    from ident.identify.urdf_update import write_identified_model
+
+    model, pm = _tx40_parameter_model()
+    theta = _consistent_theta(pm)
+    written = write_identified_model(URDF.read_text(), JOINTS, theta, pm.names, pm.nominal)
+    assert written.links == tuple(f"link_{j}" for j in range(1, 7))
+    new = pin.buildModelFromXML(written.text)
+    q, dq, ddq = random_states(chain_from_model(model), 50, rng=3)
+    expected = standard_regressor(model, pm, q, dq, ddq) @ theta
+    data = new.createData()
+    rnea = np.array([pin.rnea(new, data, q[k], dq[k], ddq[k]) for k in range(50)])
+    side = written.sidecar
+    extras = np.zeros_like(rnea)
+    for j, joint in enumerate(JOINTS):
+        e = side["joints"][joint]
+        extras[:, j] = (
+            e["rotor_inertia"] * ddq[:, j]
+            + e["viscous"] * dq[:, j]
+            + e["coulomb"] * np.sign(dq[:, j])
+            + e["offset"]
+        )
+    (motor,) = side["coupled_motors"]
+    assert motor["motor_joint"] == "joint_6"
+    for j in (4, 5):  # rows of joints 5 and 6
+        extras[:, j] += (
+            motor["rotor_inertia"] * (ddq[:, 4] + ddq[:, 5])
+            + motor["viscous"] * (dq[:, 4] + dq[:, 5])
+            + motor["coulomb"] * np.sign(dq[:, 4] + dq[:, 5])
+        )
+    np.testing.assert_allclose(
+        rnea + extras, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max()
+    )
+    # URDF <dynamics> holds the joint friction; Pinocchio reads it
+    index = {n: i for i, n in enumerate(pm.names)}
+    np.testing.assert_allclose(new.damping, [theta[index[f"fv{j}"]] for j in range(1, 7)])
+    np.testing.assert_allclose(new.friction, [theta[index[f"fs{j}"]] for j in range(1, 7)])
+    json_text = __import__("json").dumps(side)  # the sidecar is JSON-ready
+    assert "rotor_inertia" in json_text
+
+
+def test_whole_model_write_back_loads_in_yourdfpy_and_mujoco(tmp_path):
+    import re
+
+    import yourdfpy
+
+    mujoco = pytest.importorskip("mujoco")
+
+    from ident.identify.urdf_update import write_identified_model
+
+    _, pm = _tx40_parameter_model()
+    theta = _consistent_theta(pm, seed=1)
+    text = write_identified_model(URDF.read_text(), JOINTS, theta, pm.names, pm.nominal).text
+    path = tmp_path / "identified.urdf"
+    path.write_text(text)
+    robot = yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False)
+    index = {n: i for i, n in enumerate(pm.names)}
+    assert robot.link_map["link_3"].inertial.mass == pytest.approx(theta[index["m3"]])
+    # the meshes of this URDF are not shipped: MuJoCo reads the dynamics without geometry
+    bare = re.sub(r"<(visual|collision)>.*?</\1>", "", text, flags=re.S)
+    mj = mujoco.MjModel.from_xml_string(bare)
+    body = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, "link_3")
+    assert mj.body_mass[body] == pytest.approx(theta[index["m3"]])
+    dof = mj.jnt_dofadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, "joint_3")]
+    assert mj.dof_damping[dof] == pytest.approx(theta[index["fv3"]])
+    assert mj.dof_frictionloss[dof] == pytest.approx(theta[index["fs3"]])
+
+
+def test_whole_model_write_back_refuses_an_inconsistent_estimate():
+    from ident.errors import ModelError
+    from ident.identify.urdf_update import write_identified_model
+
+    _, pm = _tx40_parameter_model()
+    theta = pm.nominal.copy()
+    theta[pm.names.index("Izz3")] = -1.0
+    with pytest.raises(
+        ModelError, match=r"link_3.*not physically consistent|not physically consistent.*link_3"
+    ):
+        write_identified_model(URDF.read_text(), JOINTS, theta, pm.names, pm.nominal)
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ('<?xml version="1.0"?><!DOCTYPE robot [<!ENTITY m "1.0">]><robot name="r"/>', "DOCTYPE"),
+        ("<robot name='r'><link name='a'></robot>", "not well-formed"),
+        ("<sdf/>", "expected <robot>"),
+    ],
+)
+def test_odd_xml_is_refused_with_a_message(text, match):
+    from ident.errors import ModelError
+    from ident.identify.urdf_update import write_identified_model
+
+    _, pm = _tx40_parameter_model()
+    with pytest.raises(ModelError, match=match):
+        write_identified_model(text, JOINTS, pm.nominal, pm.names, pm.nominal)
+    with pytest.raises(ModelError, match=match):
+        update_urdf_inertials(text, JOINTS, _nominal(), {})

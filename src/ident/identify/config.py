@@ -25,6 +25,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError
+from ident.identify.estimators import get_estimator
 from ident.model.selection import RobotSelection
 
 __all__ = [
@@ -37,6 +38,7 @@ __all__ = [
     "ModelConfig",
     "PreprocessConfig",
     "ReferenceConfig",
+    "RegularizationConfig",
     "SignalFile",
     "TimeColumn",
     "TransmissionConfig",
@@ -172,11 +174,50 @@ class EssentialConfig(StrictModel):
     max_residual_increase: float = Field(default=0.05, ge=0.0)
 
 
-class EstimationConfig(StrictModel):
-    """Estimator choice."""
+class RegularizationConfig(StrictModel):
+    """Prior toward the nominal (URDF) parameters of the constrained estimators.
 
-    method: Literal["ols", "wls"] = "wls"
+    ``weight``: ``lambda`` of ``lambda ||D (theta - theta_nominal)||^2``, a number >= 0 or
+    ``auto`` (chosen on the last 20 % of the identification part from a grid and reported; see
+    :mod:`ident.identify.estimators.regularization`).
+    """
+
+    weight: float | Literal["auto"] = "auto"
+    prior: Literal["nominal"] = "nominal"
+
+    @field_validator("weight")
+    @classmethod
+    def _nonnegative(cls, value: float | str) -> float | str:
+        if not isinstance(value, str) and not value >= 0.0:
+            raise ValueError("regularization.weight must be >= 0 or 'auto'")
+        return value
+
+
+class EstimationConfig(StrictModel):
+    """Estimator choice: a name of the estimator registry (:mod:`ident.identify.estimators`).
+
+    ``ols`` and ``wls`` estimate the base parameters; constrained estimators (``lmi``,
+    ``log_cholesky``) estimate physically consistent standard parameters, WLS-weighted, next to
+    the WLS estimate (which the essential parameters and the reference comparison use).
+    """
+
+    method: str = "wls"
     essential: EssentialConfig = Field(default_factory=EssentialConfig)
+    regularization: RegularizationConfig = Field(default_factory=RegularizationConfig)
+
+    @field_validator("method")
+    @classmethod
+    def _registered(cls, value: str) -> str:
+        try:
+            get_estimator(value)
+        except ConfigError as e:
+            raise ValueError(str(e)) from e
+        return value
+
+    @property
+    def least_squares_method(self) -> str:
+        """``ols`` or ``wls``: the unconstrained estimate (``wls`` beside constrained ones)."""
+        return self.method if self.method in ("ols", "wls") else "wls"
 
 
 class ValidationConfig(StrictModel):

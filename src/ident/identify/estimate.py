@@ -25,8 +25,9 @@ import numpy.typing as npt
 import scipy.linalg
 
 from ident.errors import DataError, NotIdentifiable
+from ident.identify.observations import ReducedObservations
 
-__all__ = ["Estimate", "least_squares", "rank_report"]
+__all__ = ["Estimate", "least_squares", "least_squares_reduced", "rank_report"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -75,6 +76,19 @@ class Estimate:
         Number of observation rows ``m`` of ``W``.
     covariance :
         Parameter covariance matrix, shape (n_params, n_params).
+    theta :
+        Standard parameters behind ``x`` (``x = K theta``), shape (n_std,), when the estimator
+        works on them (:mod:`ident.identify.estimators`); empty otherwise.
+    consistency :
+        Per-body physical consistency of ``theta``
+        (:class:`~ident.identify.consistency.BodyConsistency`); empty without ``theta``.
+    group_residual_ss :
+        Squared residual per row group ``||W_j x - y_j||^2`` [N^2*m^2], shape (n_groups,).
+    regularization :
+        Weight of the prior toward the nominal parameters (0: none).
+    distance_to_nominal :
+        Scaled distance ``||D (theta - theta_nominal)||`` (see
+        :class:`~ident.identify.estimators.ParameterStructure`), NaN without ``theta``.
     """
 
     x: FloatArray
@@ -91,9 +105,30 @@ class Estimate:
     message: str
     n_observations: int = 0
     covariance: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    theta: FloatArray = field(default_factory=lambda: np.zeros(0))
+    consistency: tuple = ()
+    group_residual_ss: FloatArray = field(default_factory=lambda: np.zeros(0))
+    regularization: float = 0.0
+    distance_to_nominal: float = float("nan")
+
+    @property
+    def consistent(self) -> bool | None:
+        """Every body consistent (None when the estimate carries no standard parameters)."""
+        if not self.consistency:
+            return None
+        return all(c.consistent for c in self.consistency)
 
     def __post_init__(self) -> None:
-        for name in ("x", "std", "relative_std", "residual_rms", "sigma", "covariance"):
+        for name in (
+            "x",
+            "std",
+            "relative_std",
+            "residual_rms",
+            "sigma",
+            "covariance",
+            "theta",
+            "group_residual_ss",
+        ):
             value = getattr(self, name)
             if isinstance(value, np.ndarray):
                 value.flags.writeable = False
@@ -375,4 +410,124 @@ def least_squares(
         message=message,
         n_observations=m,
         covariance=cov,
+    )
+
+
+def least_squares_reduced(
+    observations: ReducedObservations,
+    names: tuple[str, ...] | list[str],
+    *,
+    method: str = "ols",
+    wls_passes: int = 2,
+    n_samples: int | None = None,
+) -> Estimate:
+    """:func:`least_squares` on rows already reduced per group (joint).
+
+    Gives the same estimate, standard deviations, per-group sigma, residuals and condition
+    number as :func:`least_squares` on the rows (up to round-off), from
+    :class:`~ident.identify.observations.ReducedObservations` whose size does not depend on
+    the number of rows: ``||W_j x - y_j||^2 = ||R_j x - z_j||^2 + rho_j``.
+
+    Parameters
+    ----------
+    observations :
+        The reduced rows, one group per joint.
+    names :
+        Parameter names, length n_params.
+    method, wls_passes :
+        As in :func:`least_squares`.
+    n_samples :
+        Reported ``n_samples`` (default: the number of rows, as :func:`least_squares` with
+        ``groups``).
+
+    Raises
+    ------
+    DataError, NotIdentifiable
+        As :func:`least_squares`.
+    """
+    if method not in METHODS:
+        raise DataError(f"method={method!r} is not one of {', '.join(METHODS)}.")
+    obs = observations
+    n = obs.n_params
+    names = tuple(names)
+    if len(names) != n:
+        raise DataError(f"{len(names)} names for {n} columns of W.")
+    rows_in_group = obs.n_rows.astype(float)
+    m = int(obs.n_rows.sum())
+    if not (np.all(np.isfinite(obs.R)) and np.all(np.isfinite(obs.z))):
+        raise DataError("reduced observations contain NaN/inf; clean or trim the log.")
+    if m <= n:
+        raise DataError(
+            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
+            "use a longer log, less decimation, or fewer parameters."
+        )
+    R_all = obs.R.reshape(-1, n)  # same column norms and singular values as W
+    problem = rank_report(R_all, names)
+    if problem is not None:
+        raise NotIdentifiable(problem)
+    R, z = obs.stacked()
+    x = scipy.linalg.solve_triangular(R, z, check_finite=False)
+    s = np.linalg.svd(R, compute_uv=False)
+    condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    if not np.isfinite(condition_number) or condition_number > 1.0 / np.finfo(float).eps:
+        singular = f"observation matrix is singular (cond={condition_number})."
+        raise NotIdentifiable(rank_report(R_all, names) or singular)
+    dof = m - n
+    ss_group = obs.residual_ss(x)
+    sigma_pooled = float(np.sqrt(ss_group.sum() / dof))
+    n_groups = obs.n_groups
+    message = "ok"
+    if method == "ols":
+        cov = sigma_pooled**2 * _covariance_unit(R)
+        sigma = np.full(n_groups, sigma_pooled)
+    else:
+        zero = np.zeros(n_groups, dtype=bool)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tau_rms = np.sqrt(obs.yty / rows_in_group)
+        for _ in range(wls_passes):
+            with np.errstate(invalid="ignore", divide="ignore"):
+                sigma = np.sqrt(ss_group / (rows_in_group * dof / m))
+            zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
+            if zero.any():
+                sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
+            sigma = np.where(rows_in_group > 0, sigma, np.nan)
+            # empty groups carry no rows: any finite weight leaves the solution unchanged
+            weight = np.where(rows_in_group > 0, 1.0 / sigma, 0.0)
+            Rs, zs = obs.stacked(weight)
+            x = scipy.linalg.solve_triangular(Rs, zs, check_finite=False)
+            ss_group = obs.residual_ss(x)
+        if zero.any():
+            message = (
+                "WLS: zero residual variance on group(s) "
+                + ", ".join(str(j) for j in np.flatnonzero(zero))
+                + " (noise-free data); used the pooled OLS weight there."
+            )
+        sigma_w2 = float(np.sum(weight**2 * ss_group) / dof)
+        cov = sigma_w2 * _covariance_unit(Rs)
+        sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative_std = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
+        residual_rms = np.sqrt(ss_group / rows_in_group)
+    tau_norm = float(np.sqrt(obs.yty.sum()))
+    relative_residual = float(np.sqrt(ss_group.sum()) / tau_norm) if tau_norm > 0 else float("inf")
+    success = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(std)))
+    if not success:
+        message = "non-finite estimate or standard deviation; check the data scaling."
+    return Estimate(
+        x=x,
+        names=names,
+        std=std,
+        relative_std=relative_std,
+        method=method,
+        residual_rms=residual_rms,
+        relative_residual=relative_residual,
+        sigma=sigma,
+        condition_number=condition_number,
+        n_samples=m if n_samples is None else int(n_samples),
+        success=success,
+        message=message,
+        n_observations=m,
+        covariance=cov,
+        group_residual_ss=ss_group,
     )

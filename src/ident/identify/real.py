@@ -46,6 +46,7 @@ from ident.identify import preprocess
 from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
 from ident.identify.estimate import Estimate, least_squares, rank_report
+from ident.identify.estimators import ConsistentIdentification, consistent_identification
 from ident.identify.logs import RobotLog, read_log
 from ident.identify.motion import measured_motion
 from ident.identify.reference import ReferenceParameter, expression_to_vector, read_reference
@@ -245,6 +246,9 @@ class IdentifyResult:
         replay, or None when the log is too short to decimate it (see ``motion_note``).
     motion_note :
         Why ``motion`` is None, else empty.
+    consistent :
+        Per-estimator physical consistency and the constrained estimate (``estimation.method``
+        ``lmi`` or ``log_cholesky``; see :mod:`ident.identify.estimators.identification`).
     warnings :
         Plain-language problems with the result (held-out prediction worse than the URDF's
         nominal parameters, or above ``validation.max_relative_residual``); empty when none.
@@ -270,6 +274,7 @@ class IdentifyResult:
     motion: JointTrajectory | None = None
     motion_note: str = ""
     warnings: tuple[str, ...] = ()
+    consistent: ConsistentIdentification | None = None
 
     @property
     def status(self) -> str:
@@ -575,7 +580,9 @@ def _identify_log(
     groups = np.broadcast_to(np.arange(nv), keep_id.shape)[keep_id]
     base_names = pm.base_names
     try:
-        est = least_squares(W_id, tau_id, base_names, method=cfg.estimation.method, groups=groups)
+        est = least_squares(
+            W_id, tau_id, base_names, method=cfg.estimation.least_squares_method, groups=groups
+        )
     except NotIdentifiable as e:
         idle = ", ".join(joints[j] for j in range(nv) if not keep_id[:, j].any())
         if not idle:
@@ -590,6 +597,15 @@ def _identify_log(
         ) from e
     except DataError as e:
         raise DataError(f"{source}: {e}") from e
+    consistent = consistent_identification(
+        model,
+        pm,
+        W_id,
+        tau_id,
+        groups,
+        method=cfg.estimation.method,
+        weight=cfg.estimation.regularization.weight,
+    )
     timings["estimate"] = time.perf_counter() - t5
 
     essential = None
@@ -599,7 +615,7 @@ def _identify_log(
             W_id,
             tau_id,
             base_names,
-            method=cfg.estimation.method,
+            method=cfg.estimation.least_squares_method,
             groups=groups,
             max_relative_std_pct=cfg.estimation.essential.max_relative_std_pct,
             max_residual_increase=cfg.estimation.essential.max_residual_increase,
@@ -621,6 +637,8 @@ def _identify_log(
         )
 
     add("identified", Yb_d[part] @ est.x)
+    if consistent.constrained is not None:
+        add(consistent.method, Yb_d[part] @ consistent.constrained.x)
     if essential is not None:
         add("essential", Yb_d[part][:, :, list(essential.kept)] @ essential.estimate.x)
     comparison: list[dict] = []
@@ -672,4 +690,5 @@ def _identify_log(
         motion=motion,
         motion_note=motion_note,
         warnings=tuple(problems),
+        consistent=consistent,
     )

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
+from ident.identify.estimators.summary import consistency_summary, identified_model
 from ident.identify.real import IdentifyResult
 from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
 
@@ -247,6 +248,7 @@ def result_dict(
                 for link in urdf.links
             ],
         }
+    out["consistency"] = consistency_summary(result)
     return out
 
 
@@ -414,6 +416,7 @@ def _markdown(
                 + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
             ]
     lines += _urdf_section(urdf, urdf_name)
+    lines += _consistency_section(result)
     lines += [
         "",
         "## Timings",
@@ -475,6 +478,51 @@ def _urdf_section(urdf: UrdfUpdate, urdf_name: str) -> list[str]:
             "",
             "Nothing was written: the copy has the URDF's inertial parameters (the base "
             "parameters above are what the data support).",
+        ]
+    return lines
+
+
+def _consistency_section(result: IdentifyResult) -> list[str]:
+    """Per estimator and link: physically consistent or not (data from
+    :func:`~ident.identify.estimators.summary.consistency_summary`)."""
+    summary = consistency_summary(result)
+    if summary is None:
+        return []
+    stem = Path(result.config.robot.urdf).stem
+    estimators = summary["estimators"]
+    links = [c["link"] for c in next(iter(estimators.values()))["links"]]
+    lines = [
+        "",
+        "## Physical consistency",
+        "",
+        "Per link: consistent (mass > 0, inertia about the centre of mass positive "
+        "semi-definite, triangle inequality) and the smallest eigenvalue of the 4x4 "
+        "pseudo-inertia. OLS/WLS estimate base parameters only: their links are the standard "
+        "parameters closest to the URDF's with the same base values. Residuals are relative "
+        "(identification rows; held-out rows above the velocity threshold).",
+        "",
+        "| estimator | residual | held-out | distance to URDF | " + " | ".join(links) + " |",
+        "| --- | --- | --- | --- | " + " | ".join("---" for _ in links) + " |",
+    ]
+    for name, e in estimators.items():
+        cells = [
+            ("yes" if c["consistent"] else "**no**")
+            + f" ({_num(c['min_pseudo_inertia_eigenvalue'], 3)})"
+            for c in e["links"]
+        ]
+        lines.append(
+            f"| {name} | {_num(e['relative_residual'])} | {_num(e['held_out_relative_residual'])} "
+            f"| {_num(e['distance_to_nominal'], 3)} | " + " | ".join(cells) + " |"
+        )
+    reg = summary["regularization"]
+    if reg is not None:
+        how = f"chosen on the {reg['chosen_on']}" if reg["chosen_on"] else "from the config"
+        lines += [
+            "",
+            f"{summary['method']}: prior weight {reg['weight']:g} toward the URDF ({how}); "
+            f"{summary['seconds']:.2f} s. Whole model: `{stem}_consistent.urdf` (every link's "
+            f"inertial, joint damping/friction) and `{stem}_joint_extras.json` (all per-joint "
+            "extras).",
         ]
     return lines
 
@@ -551,4 +599,13 @@ def write_identify_report(
             ),
         ),
     ]
+    model = identified_model(result)
+    if model is not None:
+        stem = Path(result.config.robot.urdf).stem
+        written += [
+            atomic_write_text(folder / f"{stem}_consistent.urdf", model.text),
+            atomic_write_text(
+                folder / f"{stem}_joint_extras.json", json.dumps(model.sidecar, indent=2) + "\n"
+            ),
+        ]
     return written

@@ -1,0 +1,45 @@
+"""Estimators of the identification model, behind one registry.
+
+Every estimator is a function ``estimate(problem: EstimationProblem) -> Estimate`` registered
+by name (``estimation.method`` in an identify config):
+
+``ols``, ``wls``
+    Unconstrained least squares of the base parameters (:mod:`.least_squares`).
+``lmi``
+    Physically consistent standard parameters by semidefinite programming (:mod:`.lmi`).
+``log_cholesky``
+    The same problem through a smooth unconstrained parametrization (:mod:`.log_cholesky`).
+
+See ``docs/consistent-identification.md`` ("Extending") to add one.
+"""
+
+from ident.identify.estimators import least_squares, lmi, log_cholesky  # noqa: F401 (register)
+from ident.identify.estimators.identification import (
+    ConsistentIdentification,
+    consistent_identification,
+)
+from ident.identify.estimators.problem import (
+    EstimationProblem,
+    ParameterStructure,
+    result_from_theta,
+)
+from ident.identify.estimators.registry import ESTIMATORS, get_estimator, register_estimator
+from ident.identify.estimators.regularization import (
+    DEFAULT_GRID,
+    RegularizationChoice,
+    choose_regularization,
+)
+
+__all__ = [
+    "DEFAULT_GRID",
+    "ESTIMATORS",
+    "ConsistentIdentification",
+    "EstimationProblem",
+    "ParameterStructure",
+    "RegularizationChoice",
+    "choose_regularization",
+    "consistent_identification",
+    "get_estimator",
+    "register_estimator",
+    "result_from_theta",
+]

@@ -1,0 +1,267 @@
+"""Constrained estimation inside ``ident identify``: problem set-up, weight choice, comparison.
+
+:func:`consistent_identification` takes the identification rows of the pipeline (base
+columns, kept rows, joint of each row), reduces them once per joint, and returns
+
+- the OLS and WLS estimates of the same rows with the per-link consistency of the standard
+  parameters they stand for (closest to the nominal ones);
+- for a constrained method (``lmi``, ``log_cholesky``): its estimate on all identification
+  rows, with the prior weight either given or chosen on the last ``validation_fraction`` of
+  the identification rows (:func:`~ident.identify.estimators.regularization.choose_regularization`),
+  so the pipeline's own held-out part stays unseen.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ident.dynamics.chain import chain_from_model
+from ident.dynamics.friction import extra_columns
+from ident.dynamics.regressor import joint_torque_regressor
+from ident.identify.estimate import Estimate
+from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
+from ident.identify.estimators.registry import get_estimator
+from ident.identify.estimators.regularization import (
+    DEFAULT_GRID,
+    RegularizationChoice,
+    choose_regularization,
+)
+from ident.identify.observations import ReducedObservations
+
+__all__ = [
+    "NONNEGATIVE_PREFIXES",
+    "ConsistentIdentification",
+    "body_link_names",
+    "consistent_identification",
+    "problem_from_states",
+    "standard_regressor",
+    "structure_from_parameter_model",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Extra parameters that must be >= 0: rotor inertia, viscous and Coulomb friction (also of a
+#: coupled motor). Offsets (``off``) are free.
+NONNEGATIVE_PREFIXES = ("Iam", "fvm", "fsm", "Ia", "fv", "fs")
+_LABELS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+
+
+def body_link_names(model: pin.Model) -> tuple[str, ...]:
+    """Name of the link carried by each joint 1..n (its first body frame)."""
+    names = []
+    for i in range(1, model.njoints):
+        frames = [
+            f.name for f in model.frames if f.parentJoint == i and f.type == pin.FrameType.BODY
+        ]
+        names.append(frames[0] if frames else model.names[i])
+    return tuple(names)
+
+
+def structure_from_parameter_model(
+    pm: Any, body_names: tuple[str, ...], ellipsoids: tuple[Any, ...] = ()
+) -> ParameterStructure:
+    """The :class:`ParameterStructure` of an identify parameter model.
+
+    Parameters
+    ----------
+    pm :
+        :class:`ident.identify.real.ParameterModel` (names ``m1``, ``mcx1``, ..., extras).
+    body_names :
+        Link of each joint, in joint order.
+    ellipsoids :
+        Optional bounding ellipsoid per body.
+    """
+    index = {name: i for i, name in enumerate(pm.names)}
+    bodies = np.array(
+        [[index[f"{label}{b + 1}"] for label in _LABELS] for b in range(len(body_names))],
+        dtype=np.intp,
+    )
+    nonnegative = np.array(
+        [
+            i
+            for i, name in enumerate(pm.names)
+            if pm.inertial_index[i] < 0 and name.rstrip("0123456789") in NONNEGATIVE_PREFIXES
+        ],
+        dtype=np.intp,
+    )
+    return ParameterStructure(
+        names=tuple(pm.names),
+        bodies=bodies,
+        body_names=tuple(body_names),
+        nonnegative=nonnegative,
+        nominal=np.asarray(pm.nominal, dtype=float),
+        ellipsoids=tuple(ellipsoids),
+    )
+
+
+def standard_regressor(
+    model: pin.Model, pm: Any, q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> FloatArray:
+    """Regressor of every standard parameter of ``pm`` (its ``names`` order).
+
+    ``q, dq, ddq`` of shapes (n_samples, nv) give a regressor of shape
+    (n_samples, nv, n_std) with ``Y @ theta`` the joint torques [N*m]: rigid bodies plus
+    the extra (friction, rotor, offset) columns.
+    """
+    Y_rigid = joint_torque_regressor(chain_from_model(model), q, dq, ddq)
+    Y_extra = extra_columns(pm.terms, dq, ddq)
+    return pm.columns(Y_rigid, Y_extra, np.arange(len(pm.names)))
+
+
+def problem_from_states(
+    model: pin.Model,
+    pm: Any,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    tau: FloatArray,
+    **fields: Any,
+) -> EstimationProblem:
+    """The base-coordinate :class:`EstimationProblem` of states and measured torques.
+
+    Parameters
+    ----------
+    model, pm :
+        The robot and its parameter model (:func:`ident.identify.real.build_parameter_model`).
+    q, dq, ddq, tau :
+        States and torques [SI], shapes (n_samples, nv).
+    **fields :
+        Further :class:`EstimationProblem` fields (``regularization``, ``options``, ...).
+    """
+    Y = standard_regressor(model, pm, q, dq, ddq)
+    obs = ReducedObservations.from_samples(Y[:, :, pm.base.independent], tau)
+    return EstimationProblem(
+        observations=obs,
+        names=tuple(pm.base_names),
+        structure=structure_from_parameter_model(pm, body_link_names(model)),
+        base_map=pm.base.projection,
+        **fields,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ConsistentIdentification:
+    """Constrained estimate and the consistency of every estimator, for the report.
+
+    Attributes
+    ----------
+    method :
+        The configured estimator.
+    estimates :
+        ``{"ols": ..., "wls": ..., method: ...}`` on the identification rows, each with
+        ``theta`` and per-link ``consistency``.
+    constrained :
+        The constrained estimate, or None for ``ols``/``wls``.
+    regularization :
+        The weight choice when ``weight: auto``, else None.
+    structure :
+        The standard parameters.
+    seconds :
+        Wall time of the constrained estimate (weight choice included) [s].
+    problem :
+        The reduced problem of the identification rows (WLS weights set for a constrained
+        method).
+    """
+
+    method: str
+    estimates: dict[str, Estimate]
+    constrained: Estimate | None
+    regularization: RegularizationChoice | None
+    structure: ParameterStructure
+    seconds: float
+    problem: EstimationProblem
+
+
+def consistent_identification(
+    model: pin.Model,
+    pm: Any,
+    W_rows: FloatArray,
+    tau_rows: FloatArray,
+    groups: npt.ArrayLike,
+    *,
+    method: str,
+    weight: float | str = "auto",
+    validation_fraction: float = 0.2,
+    grid: tuple[float, ...] = DEFAULT_GRID,
+    ellipsoids: tuple[Any, ...] = (),
+) -> ConsistentIdentification:
+    """Constrained estimate and per-estimator consistency of identification rows.
+
+    Parameters
+    ----------
+    model :
+        The robot (link names).
+    pm :
+        The parameter model (standard names, base map, nominal values).
+    W_rows :
+        Base-column observation rows, sample-major, shape (m, n_base).
+    tau_rows :
+        Measured torques of the rows [N*m], shape (m,).
+    groups :
+        Joint of every row, shape (m,).
+    method :
+        Registered estimator name.
+    weight :
+        Prior weight, or ``"auto"``.
+    validation_fraction :
+        Last fraction of the rows that chooses the weight when ``weight == "auto"``.
+    grid :
+        Weights tried when ``weight == "auto"``.
+    ellipsoids :
+        Optional bounding ellipsoid per body (None entries for none).
+    """
+    nv = model.nv
+    groups = np.asarray(groups, dtype=np.int64)
+    structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
+    obs = ReducedObservations.from_rows(W_rows, tau_rows, groups, nv)
+    problem = EstimationProblem(
+        observations=obs,
+        names=tuple(pm.base_names),
+        structure=structure,
+        base_map=pm.base.projection,
+    )
+    estimates = {name: get_estimator(name)(problem) for name in ("ols", "wls")}
+    constrained = None
+    choice = None
+    seconds = 0.0
+    if method not in estimates:
+        t0 = time.perf_counter()
+        weights = 1.0 / np.asarray(estimates["wls"].sigma)
+        problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
+        if weight == "auto":
+            split = int(round((1.0 - validation_fraction) * W_rows.shape[0]))
+            first = EstimationProblem(
+                observations=ReducedObservations.from_rows(
+                    W_rows[:split], tau_rows[:split], groups[:split], nv
+                ),
+                names=problem.names,
+                structure=structure,
+                base_map=problem.base_map,
+                weights=problem.weights,
+            )
+            last = ReducedObservations.from_rows(
+                W_rows[split:], tau_rows[split:], groups[split:], nv
+            )
+            choice = choose_regularization(first, last, method=method, grid=grid)
+            weight = choice.weight
+        constrained = get_estimator(method)(
+            dataclasses.replace(problem, regularization=float(weight))
+        )
+        estimates[method] = constrained
+        seconds = time.perf_counter() - t0
+    return ConsistentIdentification(
+        method=method,
+        estimates=estimates,
+        constrained=constrained,
+        regularization=choice,
+        structure=structure,
+        seconds=seconds,
+        problem=problem,
+    )

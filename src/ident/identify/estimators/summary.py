@@ -1,0 +1,102 @@
+"""What the report shows of the constrained estimation: per estimator and link, JSON-ready.
+
+Pure functions of an :class:`~ident.identify.real.IdentifyResult` (nothing is written here):
+:func:`consistency_summary` for ``result.json`` and the report table, :func:`identified_model`
+for the whole-model URDF and its sidecar.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from ident.identify.urdf_update import IdentifiedModel, write_identified_model
+
+__all__ = ["consistency_summary", "identified_model"]
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def consistency_summary(result: Any) -> dict | None:
+    """Per-estimator residuals and per-link consistency of an identify result (JSON-ready).
+
+    ``held_out_relative_residual`` is the pipeline's held-out prediction (rows above the
+    velocity threshold) where it was computed: the configured least-squares estimate
+    (``identified``) and the constrained one. None when the result has no consistency data.
+    """
+    consistent = result.consistent
+    if consistent is None:
+        return None
+    held_out = {}
+    ls_method = result.config.estimation.least_squares_method
+    if "identified" in result.predictions:
+        held_out[ls_method] = result.predictions["identified"].metrics.total_relative_residual
+    if consistent.method in result.predictions:
+        metrics = result.predictions[consistent.method].metrics
+        held_out[consistent.method] = metrics.total_relative_residual
+    estimators = {}
+    for name, est in consistent.estimates.items():
+        value = held_out.get(name)
+        estimators[name] = {
+            "success": bool(est.success),
+            "message": est.message,
+            "relative_residual": est.relative_residual,
+            "held_out_relative_residual": None if value is None else _finite(value),
+            "consistent": est.consistent,
+            "distance_to_nominal": _finite(est.distance_to_nominal),
+            "regularization": est.regularization,
+            "links": [
+                {
+                    "link": c.body,
+                    "consistent": c.consistent,
+                    "min_pseudo_inertia_eigenvalue": _finite(c.min_eigenvalue),
+                    "mass": _finite(c.mass),
+                    "problems": list(c.problems),
+                }
+                for c in est.consistency
+            ],
+        }
+    choice = consistent.regularization
+    out: dict = {
+        "method": consistent.method,
+        "seconds": consistent.seconds,
+        "estimators": estimators,
+        "regularization": None,
+    }
+    if consistent.constrained is not None:
+        out["regularization"] = {
+            "weight": consistent.constrained.regularization,
+            "prior": "nominal",
+            "chosen_on": None if choice is None else "last 20 % of the identification rows",
+            "grid": None if choice is None else choice.grid.tolist(),
+            "validation_relative_residual": None
+            if choice is None
+            else [_finite(v) for v in choice.validation_residual],
+        }
+    return out
+
+
+def identified_model(result: Any) -> IdentifiedModel | None:
+    """Whole-model URDF and sidecar of the constrained estimate, or None without one.
+
+    Raises
+    ------
+    ModelError
+        If the constrained estimate is inconsistent (it should not be) or the URDF unreadable.
+    """
+    consistent = result.consistent
+    if consistent is None or consistent.constrained is None:
+        return None
+    est = consistent.constrained
+    urdf = Path(result.config.robot.urdf)
+    return write_identified_model(
+        urdf.read_text(encoding="utf-8"),
+        tuple(result.joint_names),
+        est.theta,
+        consistent.structure.names,
+        consistent.structure.nominal,
+        source=str(urdf),
+    )
