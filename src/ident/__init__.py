@@ -1,6 +1,18 @@
 """ident: dynamic parameter identification of serial robot arms.
 
-The heavy parts (Pinocchio, numba) are imported on first use, so ``import ident`` is cheap.
+The library API, one name per step of the workflow (the heavy parts, Pinocchio, numba, MuJoCo,
+are imported on first use, so ``import ident`` is cheap)::
+
+    import ident
+
+    robot = ident.load_robot(ident.RobotSelection(urdf="robot/urdf/ur5.urdf"))
+    stage = ident.select_stage(robot, "whole")
+    setup = ident.load_run("configs/ur5.yaml")        # a run config, checked
+    result = ident.run_pipeline(setup)                 # design, measure, identify
+    identified = ident.identify(ident.load_identify_config("configs/tx40.yaml"))
+
+Extension points are registries: :func:`register_family` (excitation families),
+:func:`register_estimator` (estimators), ``ident.optim.minimize`` (optimizers).
 """
 
 from __future__ import annotations
@@ -8,14 +20,47 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__all__ = ["Robot", "__version__"]
+__all__ = [
+    "Robot",
+    "RobotSelection",
+    "__version__",
+    "identify",
+    "identify_log",
+    "least_squares",
+    "load_identify_config",
+    "load_robot",
+    "load_run",
+    "minimize",
+    "register_estimator",
+    "register_family",
+    "run_pipeline",
+    "select_stage",
+]
 
 __version__ = "0.1.0"
 
-_LAZY = {"Robot": "ident.model"}
+_LAZY = {
+    "Robot": "ident.model",
+    "RobotSelection": "ident.model.selection",
+    "load_robot": "ident.model.selection",
+    "select_stage": "ident.dynamics.stage",
+    "register_family": "ident.excitation.registry",
+    "minimize": "ident.optim",
+    "register_estimator": "ident.identify.estimators",
+    "least_squares": "ident.identify.estimate",
+    "load_identify_config": "ident.identify.config",
+    "identify": "ident.identify.real",
+    "identify_log": "ident.identify.real",
+    "load_run": "ident.run.setup",
+    "run_pipeline": "ident.run.pipeline",
+}
 
 
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'ident' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
