@@ -38,7 +38,13 @@ import scipy.linalg
 from ident.dynamics.chain import FloatArray, IntArray
 from ident.errors import DataError
 
-__all__ = ["METHODS", "RANK_RTOL", "BaseParameters", "compute_base_parameters"]
+__all__ = [
+    "METHODS",
+    "RANK_RTOL",
+    "BaseParameters",
+    "compute_base_parameters",
+    "torque_shares",
+]
 
 METHODS = ("qr", "sequential")
 
@@ -319,3 +325,26 @@ def compute_base_parameters(
         scores=scores,
         _K_normalized=k_normalized,
     )
+
+
+def torque_shares(W_base: FloatArray, beta: FloatArray) -> FloatArray:
+    """Share of the torques each base parameter explains: ``|beta_i| ||W_i|| / ||W beta||``.
+
+    Unit-free; on random states of a robot's motion it does not depend on a trajectory.
+    Parameters with a share of at least 1e-2 are a stage's *major* parameters.
+
+    Parameters
+    ----------
+    W_base :
+        Base observation matrix, shape (n_rows, n_base).
+    beta :
+        Base parameter values, shape (n_base,).
+
+    Returns
+    -------
+    :
+        Shape (n_base,); zeros-safe (a zero torque norm divides by 1).
+    """
+    beta = np.asarray(beta, dtype=float)
+    total = float(np.linalg.norm(W_base @ beta))
+    return np.abs(beta) * np.linalg.norm(W_base, axis=0) / (total if total > 0 else 1.0)

@@ -24,6 +24,7 @@ __all__ = [
     "custom_stage",
     "default_held_positions",
     "paper_stages",
+    "random_stage_states",
     "select_stage",
     "spherical_wrist_gap",
     "stage_observation_matrix",
@@ -263,6 +264,28 @@ def select_stage(robot: object, spec: str | dict) -> Stage:
             "torques depend on the arm's bodies. Use stage: whole, or a custom stage."
         )
     return paper_stages(chain)[spec]
+
+
+def random_stage_states(
+    robot: object,
+    moving_joints: Sequence[int],
+    held_positions: Sequence[float],
+    n_samples: int,
+    rng: np.random.Generator | int | None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Random states of a stage's motion: moving joints uniform within the robot's limits
+    (:meth:`ident.model.Robot.random_configurations`), the others held at rest.
+
+    Returns
+    -------
+    :
+        ``q, dq, ddq``, each of shape (n_samples, nq).
+    """
+    q, dq, ddq = robot.random_configurations(n_samples, rng=rng)  # type: ignore[attr-defined]
+    moving = np.zeros(q.shape[1], dtype=bool)
+    moving[list(moving_joints)] = True
+    q = np.where(moving, q, np.asarray(held_positions, dtype=float))
+    return q, np.where(moving, dq, 0.0), np.where(moving, ddq, 0.0)
 
 
 def stage_states(

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from ident.dynamics.base_parameters import torque_shares
 from ident.dynamics.chain import random_states
 from ident.dynamics.friction import ExtraTerms
 from ident.errors import IdentError
@@ -160,9 +161,7 @@ def reference_share(
         extra_columns(pm.terms, dq, ddq),
         pm.base.independent,
     ).reshape(-1, len(pm.base.independent))
-    beta = pm.base.project(truth)
-    total = float(np.linalg.norm(Yb @ beta))
-    return np.abs(beta) * np.linalg.norm(Yb, axis=0) / (total if total > 0 else 1.0)
+    return torque_shares(Yb, pm.base.project(truth))
 
 
 def identify_config(

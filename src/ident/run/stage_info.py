@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ident.dynamics.base_parameters import compute_base_parameters
+from ident.dynamics.base_parameters import compute_base_parameters, torque_shares
+from ident.dynamics.stage import random_stage_states
 from ident.errors import IdentError
-from ident.excitation.constraints import JointLimits
 from ident.robot.inertia import PAPER_ORDER, PINOCCHIO_ORDER
 from ident.run.results import FrameBaseInfo, StageInfo, base_set_fields
 
@@ -103,15 +103,15 @@ def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng:
     params = np.asarray(robot.parameters(), dtype=float)
     rows = tuple(int(r) for r in stage.torque_rows)
     columns = tuple(int(c) for c in stage.columns)
-    q, dq, ddq = _structure_states(robot, family, rng)
+    q, dq, ddq = random_stage_states(
+        robot, family.moving_joints, family.held_positions, _N_STRUCTURE_SAMPLES, rng
+    )
     W, _ = stage_matrix(robot, rows, columns, q, dq, ddq)
     names = tuple(names_all[c] for c in columns)
     base = compute_base_parameters(W, names, method=base_method)
     fields = base_set_fields(base, names, params[list(columns)])
     true_base, base_names = fields["true_base"], fields["base_names"]
-    Wb = np.asarray(base.base_columns(W), dtype=float)
-    total = float(np.linalg.norm(Wb @ true_base))
-    reference_share = np.abs(true_base) * np.linalg.norm(Wb, axis=0) / (total if total > 0 else 1.0)
+    reference_share = torque_shares(np.asarray(base.base_columns(W), dtype=float), true_base)
     # ident.dynamics.base_parameters suffixes "R" to a base parameter with others combined in
     alone = tuple(b == names[i] for b, i in zip(base_names, base.independent, strict=True))
     others = np.setdiff1d(np.arange(params.shape[0]), np.asarray(columns))
@@ -134,22 +134,3 @@ def build_stage_info(robot: Any, stage: Any, family: Any, base_method: str, rng:
         reference_share=reference_share,
         **fields,
     )
-
-
-def _structure_states(
-    robot: Any, family: Any, rng: Any
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Random states of the stage's motion: moving joints within their limits, others held."""
-    gen = np.random.default_rng(rng)
-    limits = JointLimits.from_robot(robot)
-    lower, upper = limits.finite_position_box()
-    dq_max = np.where(np.isfinite(limits.dq_max), limits.dq_max, 1.0)
-    ddq_max = np.where(np.isfinite(limits.ddq_max), limits.ddq_max, 10.0)
-    n, nq = _N_STRUCTURE_SAMPLES, limits.nq
-    moving = np.zeros(nq, dtype=bool)
-    moving[list(family.moving_joints)] = True
-    held = np.asarray(family.held_positions, dtype=float)
-    q = np.where(moving, gen.uniform(lower, upper, (n, nq)), held)
-    dq = np.where(moving, gen.uniform(-dq_max, dq_max, (n, nq)), 0.0)
-    ddq = np.where(moving, gen.uniform(-ddq_max, ddq_max, (n, nq)), 0.0)
-    return q, dq, ddq
