@@ -3,7 +3,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from ident.errors import ConfigError
+from ident.errors import ConfigError, IdentError
 from ident.run.config import RunConfig, load_run_config
 from ident.run.setup import load_run
 
@@ -155,3 +155,23 @@ def test_fourier_configs_use_the_papers_procedure_and_noise(name):
     assert fourier.excitation.n_samples == paper.excitation.n_samples
     for section in ("elites", "emupso", "measurement", "estimation", "quick", "seed"):
         assert getattr(fourier, section) == getattr(paper, section), section
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (
+            "measurement: {encoder_counts_per_rev: 4096, filter_cutoff_hz: 30.0}\n",
+            "filter_cutoff_hz = 30 Hz is at or above the Nyquist frequency 25 Hz",
+        ),
+        ("measurement: {torque_noise_std: [0.1, 0.1]}\n", "torque_noise_std has 2 values"),
+        ("stage: arm\n", "paper_wrist.*use stage: wrist"),
+        ("stage: {moving: [joint_9]}\n", "stage.moving: 'joint_9' is not a joint"),
+    ],
+)
+def test_settings_that_need_the_robot_are_checked_before_the_run(tmp_path, extra, match):
+    robot = CONFIGS / "paper6r.yaml"
+    text = f"robot: {robot}\nexcitation: {{family: paper_wrist}}\n"
+    text = text if "stage" in extra else text + "stage: wrist\n"
+    with pytest.raises(IdentError, match=match):
+        load_run(_write(tmp_path, text + extra, robot=False))

@@ -71,6 +71,7 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
         stage = select_stage(robot, spec)
         family = make_family(config, robot, stage)
         _check_measurement(config, robot, stage)
+        _check_sampling(config, family)
     except IdentError as e:
         message = str(e)
         if not message.startswith(str(source)):
@@ -123,6 +124,32 @@ def _override_bounds(
             )
         bounds[names.index(name)] = (low, high)
     return bounds
+
+
+def _check_sampling(config: RunConfig, family: Any) -> None:
+    """Filter cut-offs below the Nyquist frequency of the samples they filter."""
+    m = config.measurement
+    if m.source == "ideal":
+        period = getattr(family, "period", None)
+        if m.filter_cutoff_hz is not None and period:
+            nyquist = 0.5 * config.excitation.n_samples / float(period)
+            if m.filter_cutoff_hz >= nyquist:
+                raise ConfigError(
+                    f"measurement.filter_cutoff_hz = {m.filter_cutoff_hz:g} Hz is at or above the "
+                    f"Nyquist frequency {nyquist:g} Hz of the trajectory's samples "
+                    f"(excitation.n_samples = {config.excitation.n_samples} per {period:g} s); "
+                    "lower the cut-off or sample more."
+                )
+        return
+    nyquist = 0.5 * m.rate_hz
+    pre = config.identification.preprocess
+    for key, section in (("lowpass", pre.lowpass), ("torque_lowpass", pre.torque_lowpass)):
+        if section is not None and section.cutoff_hz >= nyquist:
+            raise ConfigError(
+                f"identification.preprocess.{key}.cutoff_hz = {section.cutoff_hz:g} Hz is at or "
+                f"above the Nyquist frequency {nyquist:g} Hz of measurement.rate_hz = "
+                f"{m.rate_hz:g}; lower it."
+            )
 
 
 def _check_measurement(config: RunConfig, robot: Robot, stage: Stage) -> None:
