@@ -300,8 +300,6 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
         warnings.insert(0, f"incomplete run: {data['message']}")
     if elite:
         warnings += [f"elite 1, {m}: {msg}" for m, msg in elite["failures"].items()]
-    if est and est.get("message") not in (None, "ok"):
-        warnings.append(f"{method}: {est['message']}")
     v = verdict(worst_pct, residual, warnings=len(warnings))
     cond = "—"
     if elite:
@@ -319,6 +317,8 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
                 f"{100 * (est.get('within_3std') or 0):.0f} % within 3σ of the true value",
             ]
         )
+    if est and est.get("message") not in (None, "ok"):
+        extra.append(["Estimator note", str(est["message"])])
     return Headline(
         verdict=v,
         rule=VERDICT_RULE,
