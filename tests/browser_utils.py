@@ -147,3 +147,35 @@ def robot_mask(page: object, visuals_path: str, time_s: float) -> tuple[np.ndarr
     hidden = canvas_pixels(page)
     set_visible(page, visuals_path, True)
     return changed_mask(shown, hidden), float(changed_mask(shown, again).mean())
+
+
+REPORT_VIEWPORT = {"width": 1400, "height": 900}
+
+
+def report_layout(context: object, html_path: Path) -> dict:
+    """Open a report at 1400x900: the bottom of its headline table [px] and clipped cells.
+
+    Returns ``{"summary_bottom": float | None, "clipped": [cell texts], "wide_tables": n}``:
+    a cell is clipped when its content is wider than the cell (``scrollWidth >
+    clientWidth``), a table is too wide when it overflows its container.
+    """
+    page = context.new_page()
+    page.set_viewport_size(REPORT_VIEWPORT)
+    page.goto(html_path.resolve().as_uri())
+    out = page.evaluate(
+        """() => {
+            const h = document.getElementById("summary");
+            const t = h && h.nextElementSibling;
+            const cells = [...document.querySelectorAll("th, td")];
+            return {
+                summary_bottom:
+                    t && t.tagName === "TABLE" ? t.getBoundingClientRect().bottom : null,
+                clipped: cells.filter(c => c.scrollWidth > c.clientWidth + 1)
+                              .map(c => c.textContent.slice(0, 60)),
+                wide_tables: [...document.querySelectorAll("table")]
+                              .filter(t => t.scrollWidth > document.body.clientWidth + 1).length,
+            };
+        }"""
+    )
+    page.close()
+    return out

@@ -20,7 +20,7 @@ def test_markdown_subset_to_html():
         "- one\n- two\n\n> **warning**: noise-free\n\n```\nraw <b>\n```\n"
     )
     body = _body(markdown_to_html(md, title="R"))
-    assert "<h1>Title</h1>" in body
+    assert '<h1 id="title">Title</h1>' in body
     assert "<em>it</em>" in body
     assert "<strong>bold</strong>" in body
     assert "<code>x&lt;y</code>" in body
@@ -79,7 +79,8 @@ import json  # noqa: E402
 import pytest  # noqa: E402
 
 from ident.errors import IdentError  # noqa: E402
-from ident.report.run_report import error_measures, render_markdown, write_report  # noqa: E402
+from ident.identify.metrics import error_measures  # noqa: E402
+from ident.report.run_report import render_markdown, write_report  # noqa: E402
 
 
 def test_error_measures_handle_zero_true_values():
@@ -181,7 +182,8 @@ def test_markdown_tables_of_an_estimate():
         **error_measures(np.array([1.1]), np.array([0.1]), np.array([1.0])),
     }
     md = render_markdown(_data({"ols": est}, {}))
-    assert "| `m1` (alone) | 1 | 1.1 | 0.1 | 0.1 | 10 | 1 |" in md
+    assert "| `m1` (alone) | kg | 1 | 1.1 | 0.1 | 9.09 | 10 | 1 | — |  |" in md
+    assert "## Summary" in md.split("## Identified")[0]
     assert "Standard parameters identifiable alone" in md
     assert "| paper (its 6R robot, DH frames) | 15 | 7 | 8 |" in md
     assert "no DH table" in md  # this stage has no DH-frame comparison

@@ -1,4 +1,4 @@
-"""Command-line interface: ``ident urdf | verify | run | report | identify | bench | replay``.
+"""Command-line interface: ``ident robot | verify | run | report | identify | bench | replay``.
 
 Each command lives in its own module of this package and adds itself to :data:`app`
 through a ``register(app)`` function; this keeps every command thin and the modules
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+from typing import Annotated
 
 import typer
 
@@ -19,17 +20,57 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     add_completion=False,
+    rich_markup_mode=None,  # plain help: no "<bool>" after flags
     help="Identify the dynamic parameters of serial robot arms.",
 )
 
 
+def _plain_argument_usage() -> None:
+    """Show required arguments as ``CONFIG`` in the usage line (typer writes ``{config}``,
+    which reads like a literal placeholder); optional ones stay ``[NAME]``."""
+    try:
+        from typer.core import TyperArgument
+    except ImportError:  # another typer: keep its usage line
+        return
+    if not hasattr(TyperArgument, "_usage_display_name"):
+        return
+
+    def usage(self: TyperArgument) -> str:
+        name = self.display_name_raw.upper()
+        name = name if self.required else f"[{name}]"
+        return name + ("..." if self.nargs != 1 else "")
+
+    TyperArgument._usage_display_name = usage  # type: ignore[method-assign]
+
+
+_plain_argument_usage()
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            typer.echo(f"ident {version('ident')}")
+        except PackageNotFoundError:
+            typer.echo("ident (not installed: no package metadata)")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,
+) -> None:
     """Identify the dynamic parameters of serial robot arms."""
 
 
 # Order of the commands in `ident --help`.
-_COMMAND_MODULES = ("robot", "verify", "run", "identify", "bench", "replay")
+_COMMAND_MODULES = ("robot", "verify", "run", "report", "identify", "bench", "replay")
 
 for _name in _COMMAND_MODULES:
     _module_name = f"{__name__}.{_name}"

@@ -1,4 +1,4 @@
-"""``ident run CONFIG`` and ``ident report RUN_DIR``.
+"""``ident run CONFIG``.
 
 ``ident run`` validates the config, creates a new run folder ``<out>/<name>-<timestamp>/``,
 runs :func:`ident.run.pipeline.run_pipeline` with a progress bar (stderr), saves the data,
@@ -6,8 +6,7 @@ the replay and the report, and prints a one-screen summary (stdout). Ctrl-C or a
 during the run saves what finished and marks the folder incomplete (``run.json`` status,
 ``INCOMPLETE`` file) before exiting (130 for Ctrl-C, 2 for a user error).
 
-``ident report RUN_DIR`` regenerates ``report.md``, ``report.html`` and the figures from the
-saved data of a run folder.
+``ident report RUN_DIR`` (:mod:`ident.cli.report`) regenerates the report from the saved data.
 """
 
 from __future__ import annotations
@@ -26,9 +25,8 @@ EXIT_NOT_IDENTIFIED = 1
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``run`` and ``report`` to the ``ident`` command line."""
+    """Add ``run`` to the ``ident`` command line (``report`` is in :mod:`ident.cli.report`)."""
     app.command("run")(run)
-    app.command("report")(report)
 
 
 def run(
@@ -114,20 +112,6 @@ def run(
             for warning in result.warnings:
                 typer.echo(f"error: {warning}", err=True)
             raise typer.Exit(code=EXIT_NOT_IDENTIFIED)
-
-
-def report(
-    run_dir: Annotated[Path, typer.Argument(help="A run folder written by 'ident run'.")],
-) -> None:
-    """Regenerate report.md, report.html and the figures of RUN_DIR from its saved data."""
-    from ident.report.run_report import write_replay, write_report
-    from ident.run.rundir import read_status
-
-    with user_errors():
-        read_status(run_dir)  # a clear message for a folder that is not a run
-        if not (run_dir / "replay.html").is_file():
-            typer.echo(write_replay(run_dir), err=True)
-        typer.echo(str(write_report(run_dir)))
 
 
 def _save_partial(partial: Any, rundir: Any) -> None:

@@ -29,15 +29,18 @@ from pathlib import Path
 __all__ = ["embed_png", "markdown_to_html"]
 
 _CSS = """
-body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 2em auto;
-       max-width: 72em; padding: 0 1em; color: #222; line-height: 1.45; }
-h1, h2, h3 { line-height: 1.2; } h2 { border-bottom: 1px solid #ddd; padding-bottom: .2em; }
-table { border-collapse: collapse; margin: 1em 0; font-size: .9em; display: block;
-        overflow-x: auto; }
-th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: right; white-space: nowrap; }
-th { background: #f3f3f3; } td:first-child, th:first-child { text-align: left; }
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 1.2em auto;
+       max-width: 80em; padding: 0 1em; color: #222; line-height: 1.4; }
+h1, h2, h3 { line-height: 1.2; } h1 { font-size: 1.6em; margin: .3em 0; }
+h2 { border-bottom: 1px solid #ddd; padding-bottom: .2em; }
+table { border-collapse: collapse; margin: .8em 0; font-size: .9em; max-width: 100%; }
+th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: left; vertical-align: top;
+         overflow-wrap: anywhere; }
+th { background: #f3f3f3; }
+h2#summary + table td:first-child { font-weight: 600; white-space: normal; width: 16em; }
+h2#summary + table { font-size: 1em; }
 code, pre { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: .9em; }
-pre { background: #f6f6f6; padding: .8em; overflow-x: auto; }
+pre { background: #f6f6f6; padding: .8em; overflow-x: auto; white-space: pre-wrap; }
 blockquote { border-left: 4px solid #d9822b; background: #fff6ec; margin: 1em 0;
              padding: .4em 1em; }
 img { max-width: 100%; height: auto; }
@@ -178,7 +181,9 @@ def _blocks(lines: list[str], resolver: _ImageResolver) -> list[str]:
         heading = _HEADING.match(line)
         if heading:
             level = len(heading.group(1))
-            out.append(f"<h{level}>{_inline(heading.group(2), resolver)}</h{level}>")
+            text = heading.group(2)
+            anchor = re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+            out.append(f'<h{level} id="{anchor}">{_inline(text, resolver)}</h{level}>')
             i += 1
             continue
         if "|" in line and i + 1 < n and _TABLE_SEP.match(lines[i + 1]):

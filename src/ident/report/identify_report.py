@@ -18,8 +18,11 @@ import numpy as np
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.estimators.summary import consistency_summary, identified_model
+from ident.identify.metrics import VERDICT_RULE_REAL, parameter_unit, verdict
 from ident.identify.real import IdentifyResult
 from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
+from ident.report.format import pct
+from ident.report.headline import Headline, headline_markdown
 
 __all__ = [
     "identified_urdf",
@@ -46,43 +49,16 @@ def _finite(value: float) -> float | None:
 
 def torque_png(result: IdentifyResult) -> bytes:
     """Measured vs predicted torque per joint on the held-out part, as PNG bytes."""
-    from matplotlib.figure import Figure
+    from ident.report.plots import torque_png as plot
 
-    nv = result.tau_validate.shape[1]
-    fig = Figure(figsize=(9.0, 1.9 * nv), layout="constrained")
-    axes = fig.subplots(nv, 1, sharex=True, squeeze=False)[:, 0]
-    styles = {"identified": ("C3", "-"), "reference": ("C0", "--"), "essential": ("C2", ":")}
-    t = result.t_validate
-    for j, ax in enumerate(axes):
-        ax.plot(t, result.tau_validate[:, j], color="k", lw=1.2, label="measured")
-        for label in _PLOT_LABELS:
-            if label in result.predictions:
-                color, ls = styles[label]
-                ax.plot(
-                    t,
-                    result.predictions[label].tau_pred[:, j],
-                    color=color,
-                    ls=ls,
-                    lw=1.0,
-                    label=label,
-                )
-        slow = ~result.keep_validate[:, j]
-        if slow.any():
-            ax.plot(
-                t[slow],
-                result.tau_validate[slow, j],
-                "x",
-                color="0.6",
-                ms=3,
-                label="below velocity threshold",
-            )
-        ax.set_ylabel(f"{result.joint_names[j]}\n[N*m]")
-        ax.grid(alpha=0.3)
-    axes[0].legend(loc="upper right", fontsize=7, ncol=4)
-    axes[-1].set_xlabel("time [s] (held-out part)")
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=90, metadata={"Software": None})
-    return buffer.getvalue()
+    return plot(
+        result.t_validate,
+        result.tau_validate,
+        {k: result.predictions[k].tau_pred for k in _PLOT_LABELS if k in result.predictions},
+        result.joint_names,
+        excluded=~result.keep_validate,
+        xlabel="time [s] (held-out part; crosses: below the velocity threshold, not compared)",
+    )
 
 
 def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
@@ -263,22 +239,21 @@ def _markdown(
         "",
         f"Config: `{result.config.source}`. URDF: `{Path(result.config.robot.urdf).name}`. "
         f"Estimator: **{est.method.upper()}** on {est.n_observations} rows "
-        f"({len(pm.base_names)} base parameters, condition number {est.condition_number:.4g}).",
-        "",
-        f"**Relative residual (identification rows): {est.relative_residual:.4f}**. "
+        f"({len(pm.base_names)} base parameters). "
         + (
-            est.message
-            if not result.warnings
-            else f"(Least-squares solve: {est.message}; the result is NOT ok, see below.)"
-        ),
-        "",
-        *[f"**Warning: {w}**\n" for w in result.warnings],
-        (
             "Motion replay: [replay.html](replay.html) (the measured motion, opens offline in a "
             f"browser; `ident replay` on this folder shows it live). {replay_note}"
             if replay_note.startswith("replay.html written")
             else f"Motion replay: not available. {replay_note}"
         ),
+        "",
+        *headline_markdown(_headline(result, urdf)),
+        "## Identified vs reference parameters",
+        "",
+        "![Identified base parameters: relative deviation from the reference (or the URDF's "
+        "nominal values) with ±3σ bars](figures/parameters.png)",
+        "",
+        "![measured vs predicted torque](figures/torque_validation.png)",
         "",
         "## Processing",
         "",
@@ -326,15 +301,15 @@ def _markdown(
         lines.append(
             f"| {label} | " + " | ".join(_num(v, 3) for v in p.metrics.relative_residual) + " |"
         )
-    lines += ["", "![measured vs predicted torque](figures/torque_validation.png)", ""]
+    lines += [""]
     lines += [
         "## Base parameters",
         "",
         result.reference_note,
         "",
-        "| # | base parameter | value | rel. std [%] | reference | ref. rel. std [%] | "
+        "| # | base parameter | unit | value | σ [%] | reference | ref. σ [%] | "
         "URDF nominal | expression |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| ---: | :--- | :--- | ---: | ---: | ---: | ---: | ---: | :--- |",
     ]
     by_ours = {row["ours"]: row for row in result.comparison if row["ours"]}
     expressions = pm.base.expressions()
@@ -346,7 +321,8 @@ def _markdown(
         # round-off of the structural K times nominal inertias (friction has no nominal value)
         nominal = 0.0 if abs(nominal) < 1e-12 else nominal
         lines.append(
-            f"| {k + 1} | {name} | {_num(est.x[k])} | {_num(est.relative_std[k], 3)} | {ref} | "
+            f"| {k + 1} | {name} | {parameter_unit(name) or '-'} | {_num(est.x[k])} | "
+            f"{_num(est.relative_std[k], 3)} | {ref} | "
             f"{ref_std} | {_num(nominal)} | `{expressions[k]}` |"
         )
     sums = [row for row in result.comparison if row["match"] == "coupling basis"]
@@ -580,9 +556,11 @@ def write_identify_report(
     urdf = identified_urdf(result)
     urdf_name = Path(result.config.robot.urdf).stem + "_identified.urdf"
     png = torque_png(result)
+    params_png = parameters_figure(result)
     markdown = _markdown(result, urdf, urdf_name, replay_note)
     written = [
         atomic_write_bytes(folder / "figures" / "torque_validation.png", png),
+        atomic_write_bytes(folder / "figures" / "parameters.png", params_png),
         atomic_write_text(folder / urdf_name, urdf.text),
         atomic_write_text(folder / "parameters.csv", _parameters_csv(result)),
         atomic_write_text(
@@ -595,7 +573,10 @@ def write_identify_report(
             markdown_to_html(
                 markdown,
                 title=f"ident identify: {result.config.name}",
-                images={"figures/torque_validation.png": png},
+                images={
+                    "figures/torque_validation.png": png,
+                    "figures/parameters.png": params_png,
+                },
             ),
         ),
     ]
@@ -609,3 +590,97 @@ def write_identify_report(
             ),
         ]
     return written
+
+
+def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
+    """The headline facts of a real-robot identification (no true values: σ and held-out)."""
+    est = result.estimate
+    ess = result.essential
+    if ess is not None:
+        names, rel = list(ess.estimate.names), np.asarray(ess.estimate.relative_std, float)
+        what = "essential parameters"
+    else:
+        names, rel = list(est.names), np.asarray(est.relative_std, float)
+        what = "base parameters"
+    finite = np.where(np.isfinite(rel), rel, np.inf)
+    worst_i = int(np.argmax(finite)) if finite.size else None
+    worst = None if worst_i is None else float(finite[worst_i])
+    pred = result.predictions.get("identified")
+    residual = None if pred is None else float(pred.metrics.total_relative_residual)
+    others = ", ".join(
+        f"{label}: {pct(100 * p.metrics.total_relative_residual)}"
+        for label, p in result.predictions.items()
+        if label != "identified"
+    )
+    v = verdict(worst, residual, what=f"worst σ of the {what}", warnings=len(result.warnings))
+    written = [link for link in urdf.links if link.status == "updated"]
+    rejected = [link for link in urdf.links if link.status == "nominal (inconsistent)"]
+    if written or rejected:
+        consistency = (
+            f"{len(written)} URDF links updated and physically consistent; {len(rejected)} kept "
+            "nominal because the identified values are inconsistent"
+        )
+    else:
+        consistency = (
+            "not checked: no standard parameter is determined well enough to be written to "
+            "the URDF (see the URDF section)"
+        )
+    extra = [
+        (
+            "Least squares",
+            est.message
+            if not result.warnings
+            else f"{est.message}; the result is NOT ok (warnings below)",
+        ),
+        ("Fit on the identification rows", f"relative residual {pct(100 * est.relative_residual)}"),
+    ]
+    return Headline(
+        verdict=v,
+        rule=VERDICT_RULE_REAL,
+        worst=("—" if worst is None else f"σ {pct(worst)} ({names[worst_i]}; {len(names)} {what})"),
+        worst_label=f"Worst relative std, {what}",
+        residual=(
+            "—"
+            if residual is None
+            else f"{pct(100 * residual)} on the held-out part of the log"
+            + (f" ({others})" if others else "")
+        ),
+        residual_label="Torque residual, held-out data",
+        condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
+        consistency=consistency,
+        safety="not checked (a measured log: the motion was already executed)",
+        warnings=list(result.warnings),
+        extra=extra,
+    )
+
+
+def parameters_figure(result: IdentifyResult) -> bytes:
+    """Identified base parameters vs the dataset's reference (else the URDF's nominal)."""
+    from ident.report.plots import parameters_png
+
+    pm = result.parameters
+    est = result.estimate
+    ref = np.array([float(pm.base.projection[k] @ pm.nominal) for k in range(len(est.x))])
+    label = "nominal"
+    by_ours = {row["ours"]: row for row in result.comparison if row.get("ours")}
+    if by_ours:
+        label = "reference"
+        ref = np.array(
+            [
+                by_ours[n]["reference_value"]
+                if n in by_ours and by_ours[n].get("reference_value") is not None
+                else np.nan
+                for n in pm.base_names
+            ],
+            dtype=float,
+        )
+    ok = np.isfinite(ref)
+    return parameters_png(
+        list(pm.base_names),
+        est.x,
+        est.std,
+        np.where(ok, ref, 0.0),
+        include=ok,
+        reference_label=label,
+        title=f"{est.method.upper()}: identified vs {label}",
+    )

@@ -20,7 +20,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["convergence_png", "estimate_png", "figure_png", "trajectory_png"]
+__all__ = [
+    "convergence_png",
+    "estimate_png",
+    "figure_png",
+    "parameters_png",
+    "torque_png",
+    "trajectory_png",
+]
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -211,3 +218,137 @@ def estimate_png(
     ax.set_title(title)
     ax.legend(fontsize="small")
     return figure_png(fig)
+
+
+def parameters_png(
+    names: Sequence[str],
+    x: FloatArray,
+    std: FloatArray,
+    reference: FloatArray,
+    *,
+    highlight: Sequence[bool] | None = None,
+    include: Sequence[bool] | None = None,
+    reference_label: str = "true",
+    bands: Sequence[float] = (5.0, 20.0),
+    title: str = "Identified vs true",
+) -> bytes:
+    """Relative deviation of each parameter from its reference, with ±3σ bars [%].
+
+    Parameters
+    ----------
+    names :
+        Parameter names, length n (only those with a non-zero reference are drawn).
+    x, std, reference :
+        Estimate, its standard deviations and the reference (true or nominal) values, same
+        unit per entry, shape (n,).
+    include :
+        Parameters drawn at all (e.g. the significant ones), length n; None: all.
+    highlight :
+        Parameters drawn in the strong colour (the major ones), length n; None: all.
+    reference_label :
+        What the reference is, for the axis label ("true", "nominal", "reference").
+    bands :
+        Deviations [%] drawn as dashed lines (the verdict's thresholds).
+
+    Returns
+    -------
+    :
+        PNG bytes. The y axis is symmetric-logarithmic (linear within ±1 %), so 0.01 % and
+        500 % errors are both readable; a bar reaching across zero means "consistent with
+        the reference within 3σ".
+    """
+    x, std, ref = (np.asarray(a, dtype=float) for a in (x, std, reference))
+    scale = float(np.max(np.abs(ref), initial=0.0))
+    drawn = np.abs(ref) > 1e-9 * scale
+    if include is not None:
+        drawn &= np.asarray(include, bool)
+    keep = np.flatnonzero(drawn)
+    strong = np.ones(len(names), bool) if highlight is None else np.asarray(highlight, bool)
+    n = len(keep)
+    fig = _figure(max(7.0, 0.32 * n + 2.5), 4.2)
+    ax = fig.add_subplot()
+    if n:
+        dev = 100.0 * (x[keep] - ref[keep]) / np.abs(ref[keep])
+        bar = 300.0 * std[keep] / np.abs(ref[keep])
+        pos = np.arange(n)
+        for mask, color, label in (
+            (strong[keep], "C3", "major (torque share >= 1 %)"),
+            (~strong[keep], "0.55", "minor"),
+        ):
+            if mask.any():
+                ax.errorbar(
+                    pos[mask],
+                    dev[mask],
+                    yerr=bar[mask],
+                    fmt="o",
+                    ms=4,
+                    color=color,
+                    ecolor=color,
+                    capsize=2,
+                    label=label if highlight is not None else None,
+                )
+        for b in bands:
+            ax.axhline(b, color="0.4", ls="--", lw=0.7)
+            ax.axhline(-b, color="0.4", ls="--", lw=0.7)
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set_yscale("symlog", linthresh=1.0)
+        ax.set_xticks(pos, [names[i] for i in keep], rotation=60, ha="right", fontsize="small")
+        if highlight is not None:
+            ax.legend(fontsize="small", loc="best")
+    else:
+        ax.text(
+            0.5, 0.5, "no parameter with a reference value", ha="center", transform=ax.transAxes
+        )
+    ax.set_ylabel(f"(identified - {reference_label}) / |{reference_label}| [%]")
+    ax.set_title(title + f" (bars ±3σ; dashed ±{', ±'.join(f'{b:g}' for b in bands)} %)")
+    ax.grid(alpha=0.3, axis="y")
+    return figure_png(fig)
+
+
+def torque_png(
+    t: FloatArray,
+    tau: FloatArray,
+    predictions: Mapping[str, FloatArray],
+    joint_labels: Sequence[str],
+    *,
+    excluded: npt.NDArray[np.bool_] | None = None,
+    xlabel: str = "time [s]",
+) -> bytes:
+    """Measured vs predicted joint torques, one panel per joint.
+
+    Parameters
+    ----------
+    t :
+        Time [s], shape (n_samples,).
+    tau :
+        Measured torques [N*m], shape (n_samples, nv).
+    predictions :
+        Predicted torques by label, each shape (n_samples, nv); the first is drawn solid red.
+    joint_labels :
+        Panel labels, length nv.
+    excluded :
+        Samples not used in the error measures (e.g. below a velocity threshold), shape
+        (n_samples, nv), drawn as grey crosses.
+
+    Returns
+    -------
+    :
+        PNG bytes.
+    """
+    tau = np.asarray(tau, dtype=float)
+    nv = tau.shape[1]
+    fig = _figure(11.0, 1.6 * nv + 0.6)
+    axes = fig.subplots(nv, 1, sharex=True, squeeze=False)[:, 0]
+    styles = [("C3", "-"), ("C0", "--"), ("C2", ":"), ("C1", "-.")]
+    for j, ax in enumerate(axes):
+        ax.plot(t, tau[:, j], color="k", lw=1.2, label="measured")
+        for (label, pred), (color, ls) in zip(predictions.items(), styles, strict=False):
+            ax.plot(t, np.asarray(pred)[:, j], color=color, ls=ls, lw=1.0, label=label)
+        if excluded is not None and np.asarray(excluded)[:, j].any():
+            ex = np.asarray(excluded)[:, j]
+            ax.plot(t[ex], tau[ex, j], "x", color="0.6", ms=3, label="not compared")
+        ax.set_ylabel(f"{joint_labels[j]}\n[N*m]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize=7, ncol=5)
+    axes[-1].set_xlabel(xlabel)
+    return figure_png(fig, dpi=90)

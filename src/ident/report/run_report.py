@@ -1,529 +1,63 @@
-"""The run folder of ``ident run``: saved data, then the report made from it.
+"""The report of an ``ident run`` folder, written from its saved data only.
 
-:func:`save_run` writes the data of a :class:`~ident.run.pipeline.RunResult`:
+:func:`write_report` reads ``result.json`` (:mod:`ident.report.run_data`) and writes
+``figures/*.png``, ``report.md`` and ``report.html`` (figures embedded); ``ident report
+RUN_DIR`` calls it, so a report can always be regenerated from the saved data.
 
-- ``result.json``: every number of the report, machine-readable (no times: the same config
-  and seed give a byte-identical file; non-finite numbers are ``null``);
-- ``config.yaml``: the effective config (after ``--quick`` / ``--seed``);
-- ``robot.urdf``: the robot's URDF text (for the replay);
-- ``trajectory.csv``: the chosen elite (``ident.trajectory`` format: t, q, dq, ddq of the
-  commanded motion, all joints, and the simulated measured torques tau);
-- ``elites/elite_<k>.csv`` (same format) and ``elites/elite_<k>_path.csv`` (t, x, y, z of
-  the traced point [m]) for every reported elite.
-
-:func:`write_report` reads only those files back and writes ``figures/*.png``,
-``report.md`` and ``report.html`` (figures embedded); ``ident report RUN_DIR`` calls it, so a
-report can always be regenerated from the saved data. :func:`write_replay` writes
-``replay.html`` (``ident.viz.replay``).
-
-Error measures (per base parameter, true = projection of the true standard parameters):
-absolute error ``x - true``; relative error ``|x - true| / |true|`` [%] where ``|true|`` is
-above ``1e-9`` times the largest ``|true|`` (otherwise the true value is zero up to
-round-off and only the absolute error is shown); normalized error ``(x - true) / std``.
-Unit-free measures on the trajectory's base matrix ``W_b``: the *torque share*
-``|true_i| ||W_i|| / ||W_b true||`` of a parameter (how much of the torque it explains) and its
-*torque error* ``|x_i - true_i| ||W_i|| / ||W_b true||``. ``max_torque_error`` is the largest
-torque error; ``max_rel_error`` the largest relative error among the parameters with a torque
-share of at least 1e-4. (The paper robot has base parameters of 1e-7 of the largest, products
-of its 1e-6 kg*m first moments: their relative error is limited by ``cond(W_b) * eps`` over
-their share, not by the method.)
-``error_sum`` is the sum of the relative errors [%] (the paper's "Error(22)"),
-``error_sum_best`` the same without the two largest (the paper's "Error(20)" for 22 base
-parameters).
+Order of the report: the headline block (:mod:`ident.report.headline`: verdict, worst error
+of the major parameters, torque residual, condition number, checks, warnings), the plots
+(identified vs true with ±3σ bars; measured vs predicted torque on the validation
+trajectory when the run has one), the parameter table with units and σ [%], the comparison
+with the paper (Tables 2-3 side by side, base-parameter counts), then the details
+(procedure, optimization, elites, base-parameter expressions, configuration). Every number
+comes from ``result.json``; the measures are computed by :mod:`ident.identify.metrics`
+when the run is saved.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 import yaml
 
-from ident.errors import IdentError
 from ident.fileio import atomic_write_bytes, atomic_write_text
-from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
+from ident.identify.metrics import (
+    MAJOR_SHARE,
+    VERDICT_RULE,
+    error_measures,
+    parameter_unit,
+    verdict,
+)
+from ident.report.format import fmt as _fmt
+from ident.report.format import pct
+from ident.report.format import table as _table
+from ident.report.headline import NOT_CHECKED, Headline, headline_markdown
+from ident.report.paper import _base_section, _dh_section, paper_tables_section
+from ident.report.run_data import FORMAT, load_run, result_to_dict, save_run, write_replay
+from ident.trajectory import read_trajectory_csv
 
 __all__ = [
     "FORMAT",
     "error_measures",
+    "render_markdown",
     "result_to_dict",
     "save_run",
     "write_replay",
     "write_report",
 ]
 
-FloatArray = npt.NDArray[np.float64]
-FORMAT = "ident-run/1"
-ZERO_RTOL = 1e-9
-SIGNIFICANT_SHARE = 1e-4
-MAJOR_SHARE = 1e-2
-PAPER_COUNTS = {"wrist": (15, 7, 8), "arm": (20, 2, 8)}
-PAPER_COUNTS_NOTE = (
-    "The paper reports wrist 15 independent / 7 in combination / 8 unidentifiable and arm "
-    "20 / 2 / 8 (section 4.1); docs/paper-notes.md explains the differences."
-)
-#: The paper's named lists (section 4.1), in its spelling mapped to ours ("mx5" = mcx5,
-#: "mm6" = m6). Wrist: 15 independent and 7 in combination (Iyz6 is in both lists, so 21
-#: distinct names). Arm: 22 identified names, not split into independent and combined.
-PAPER_NAMES: dict[str, dict[str, tuple[str, ...]]] = {
-    "wrist": {
-        "independent": tuple(
-            "Iyy4 Ixz4 mcx5 Ixx5 Iyy5 Izz5 Ixy5 Ixz5 Iyz5 mcx6 mcy6 Iyy6 Izz6 Ixz6 Iyz6".split()
-        ),
-        "dependent": tuple("mcy4 mcy5 mcz5 m6 mcz6 Ixx6 Iyz6".split()),
-    },
-    "arm": {
-        "identified": tuple(
-            "mcy1 Iyy1 m2 mcx2 mcy2 mcz2 Iyy2 Izz2 Ixz2 Iyz2 m3 mcx3 mcy3 mcz3 Ixx3 Iyy3 "
-            "Izz3 Ixy3 Ixz3 Iyz3 Ixz1 Ixx2".split()
-        ),
-    },
-}
-_CLASS_LABEL = {
-    "independent": "independent",
-    "dependent": "in combination",
-    "unidentifiable": "unidentifiable",
-    "identified": "identified (independent or in combination)",
-}
-
-
-# ----------------------------------------------------------------------------- numbers
-
-
-def _num(value: Any) -> Any:
-    """JSON-safe number: non-finite -> None; numpy scalars -> Python."""
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
-def _arr(a: Any) -> Any:
-    a = np.asarray(a)
-    if a.ndim == 0:
-        return _num(a)
-    return [_arr(v) for v in a]
-
-
-def error_measures(
-    x: FloatArray,
-    std: FloatArray,
-    true: FloatArray,
-    column_norms: FloatArray | None = None,
-    true_torque_norm: float | None = None,
-    reference_share: FloatArray | None = None,
-) -> dict[str, Any]:
-    """Errors of an estimate against the true values (see the module docstring).
-
-    Parameters
-    ----------
-    x, std, true :
-        Estimate, its standard deviations and the true values, shape (n,).
-    column_norms :
-        Norms of the base observation matrix columns ``||W_b[:, i]||`` on the trajectory,
-        shape (n,); with ``true_torque_norm = ||W_b @ true||`` they give unit-free measures.
-    true_torque_norm :
-        See ``column_norms``.
-    reference_share :
-        Torque share of each parameter on the stage's reference motion (trajectory
-        independent, :attr:`ident.run.pipeline.StageInfo.reference_share`), shape (n,).
-
-    Returns
-    -------
-    :
-        ``abs_error`` (n,), ``rel_error_percent`` (n, None where true ~ 0),
-        ``normalized_error`` (n, None where std = 0), ``error_sum_percent``,
-        ``error_sum_best_percent``, ``within_3std`` (share of parameters with
-        ``|x - true| <= 3 std``), and, with the column norms: ``torque_share`` (n,)
-        ``|true_i| ||W_i|| / ||W_b true||``, ``torque_error`` (n,)
-        ``|x_i - true_i| ||W_i|| / ||W_b true||``, ``max_torque_error`` and
-        ``max_rel_error`` (the largest relative error of the parameters whose torque share is
-        at least ``SIGNIFICANT_SHARE``), ``error_sum_significant_percent`` (the sum of their
-        relative errors [%]); without them ``max_rel_error`` is over the
-        parameters whose ``|true|`` is at least that fraction of the largest. With
-        ``reference_share``: ``max_rel_error_major``, the largest relative error of the
-        stage's *major* parameters (reference share at least ``MAJOR_SHARE``), the same set
-        whatever the trajectory, so trajectories can be compared.
-    """
-    x, std, true = (np.asarray(a, dtype=float) for a in (x, std, true))
-    err = x - true
-    scale = float(np.max(np.abs(true), initial=0.0))
-    nonzero = np.abs(true) > ZERO_RTOL * scale
-    rel = np.full(true.shape, np.nan)
-    rel[nonzero] = np.abs(err[nonzero]) / np.abs(true[nonzero])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        normalized = np.where(std > 0, err / std, np.nan)
-    within = np.abs(err) <= 3.0 * std
-    rel_sorted = np.sort(100.0 * rel[nonzero])
-    out = {
-        "abs_error": _arr(err),
-        "rel_error_percent": _arr(100.0 * rel),
-        "normalized_error": _arr(normalized),
-        "error_sum_percent": _num(rel_sorted.sum()),
-        "error_sum_best_percent": _num(rel_sorted[: max(0, rel_sorted.size - 2)].sum()),
-        "within_3std": _num(float(np.mean(within)) if within.size else 0.0),
-    }
-    if column_norms is not None and true_torque_norm is not None and true_torque_norm > 0:
-        norms = np.asarray(column_norms, dtype=float)
-        share = np.abs(true) * norms / true_torque_norm
-        torque_error = np.abs(err) * norms / true_torque_norm
-        significant = share >= SIGNIFICANT_SHARE
-        out["torque_share"] = _arr(share)
-        out["torque_error"] = _arr(torque_error)
-        out["max_torque_error"] = _num(float(torque_error.max(initial=0.0)))
-        out["error_sum_significant_percent"] = _num(
-            float(np.sum(100.0 * np.abs(err[significant]) / np.abs(true[significant])))
-        )
-    else:
-        significant = np.abs(true) >= SIGNIFICANT_SHARE * scale
-    out["max_rel_error"] = _num(
-        float(np.max(np.abs(err[significant]) / np.abs(true[significant]), initial=0.0))
-    )
-    if reference_share is not None:
-        major = (np.asarray(reference_share, dtype=float) >= MAJOR_SHARE) & nonzero
-        out["max_rel_error_major"] = _num(
-            float(np.max(np.abs(err[major]) / np.abs(true[major]), initial=0.0))
-        )
-    return out
-
-
-# ----------------------------------------------------------------------------- saving
-
-
-def result_to_dict(result: Any) -> dict[str, Any]:
-    """The machine-readable content of ``result.json`` (see :func:`save_run`)."""
-    config = result.config
-    out: dict[str, Any] = {
-        "format": FORMAT,
-        "status": result.status,
-        "message": result.message,
-        "name": config.name,
-        "seed": config.seed,
-        "config": json.loads(config.model_dump_json()),
-        "robot": {
-            "name": result.robot_name,
-            "joint_names": list(result.joint_names),
-            "q_limits": _arr(result.q_limits),
-            "dq_limits": _arr(result.dq_limits),
-            "ddq_limits": _arr(result.ddq_limits),
-        },
-        "excitation": {
-            "family": config.excitation.family,
-            "criterion": config.excitation.criterion,
-            "variable_names": list(result.variable_names),
-            "bounds": _arr(result.bounds),
-            "traced_frame": result.traced_frame,
-            "moving_joints": list(result.moving_joints),
-        },
-        "warnings": list(result.warnings),
-    }
-    stage = result.stage
-    if stage is not None:
-        counts = stage.counts
-        out["stage"] = {
-            "name": stage.name,
-            "torque_rows": list(stage.rows),
-            "standard_names": list(stage.standard_names),
-            "true_standard": _arr(stage.true_standard),
-            "base_method": stage.base_method,
-            "known_bodies": stage.known_bodies_note,
-            "counts": {
-                "independent": counts[0],
-                "dependent": counts[1],
-                "unidentifiable": counts[2],
-                "n_base": len(stage.base_names),
-            },
-            "paper_counts": _paper_counts(stage.name),
-            "independent": list(stage.independent),
-            "dependent": list(stage.dependent),
-            "unidentifiable": list(stage.unidentifiable),
-            "base_names": list(stage.base_names),
-            "base_expressions": list(stage.base_expressions),
-            "true_base": _arr(stage.true_base),
-            "identifiable_alone": list(stage.alone),
-            "reference_torque_share": None
-            if stage.reference_share is None
-            else _arr(stage.reference_share),
-            "major_share": MAJOR_SHARE,
-            "frames": "body",
-            "dh_frames": _frame_base_dict(stage.dh_frames),
-            "paper_comparison": _paper_comparison(stage),
-        }
-    out["initial_elites"] = {
-        "x": None if result.initial_elites is None else _arr(result.initial_elites),
-        "message": result.elite_search_message,
-    }
-    out["optimization"] = {
-        "n_runs_finished": len(result.runs),
-        "runs": [
-            {
-                "index": r.index,
-                "best_fitness": _num(r.fun),
-                "x": _arr(r.x),
-                "history": _arr(r.history),
-                "mutation_iterations": list(r.mutation_iterations),
-                "nit": r.nit,
-                "nfev": r.nfev,
-                "message": r.message,
-                "archive": {"x": _arr(r.archive_x), "fitness": _arr(r.archive_fun)},
-            }
-            for r in result.runs
-        ],
-    }
-    elites = []
-    for e in result.elites:
-        estimates = {}
-        for method, est in e.estimates.items():
-            entry = {
-                "x": _arr(est.x),
-                "std": _arr(est.std),
-                "relative_std_percent": _arr(est.relative_std),
-                "condition_number": _num(est.condition_number),
-                "residual_rms": _arr(est.residual_rms),
-                "relative_residual": _num(est.relative_residual),
-                "sigma": _arr(est.sigma),
-                "n_samples": int(est.n_samples),
-                "message": est.message,
-            }
-            if stage is not None:
-                entry.update(
-                    error_measures(
-                        est.x,
-                        est.std,
-                        stage.true_base,
-                        e.base_column_norms,
-                        e.true_torque_norm,
-                        stage.reference_share,
-                    )
-                )
-            estimates[method] = entry
-        elites.append(
-            {
-                "rank": e.rank,
-                "x": _arr(e.x),
-                "fitness": _num(e.fitness),
-                "objective": {k: _num(v) for k, v in e.details.items()},
-                "estimates": estimates,
-                "failures": dict(e.failures),
-                "trajectory_csv": f"elites/elite_{e.rank}.csv",
-                "path_csv": None if e.traced_points is None else f"elites/elite_{e.rank}_path.csv",
-            }
-        )
-    out["elites"] = elites
-    out["chosen_elite"] = 1 if elites else None
-    return out
-
-
-def _frame_base_dict(info: Any) -> dict[str, Any] | None:
-    """``result.json`` entry of a :class:`~ident.run.pipeline.FrameBaseInfo` (or None)."""
-    if info is None:
-        return None
-    counts = info.counts
-    return {
-        "frames": info.frames,
-        "method": info.method,
-        "column_order": "eq. 14 (m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz per body)",
-        "counts": {
-            "independent": counts[0],
-            "dependent": counts[1],
-            "unidentifiable": counts[2],
-            "n_base": len(info.base_names),
-        },
-        "standard_names": list(info.standard_names),
-        "true_standard": _arr(info.true_standard),
-        "independent": list(info.independent),
-        "dependent": list(info.dependent),
-        "unidentifiable": list(info.unidentifiable),
-        "base_names": list(info.base_names),
-        "base_expressions": list(info.base_expressions),
-        "true_base": _arr(info.true_base),
-    }
-
-
-def classify(name: str, independent: Any, dependent: Any, unidentifiable: Any) -> str:
-    """``independent``, ``dependent`` or ``unidentifiable`` (``?`` if in none)."""
-    for label, group in (
-        ("independent", independent),
-        ("dependent", dependent),
-        ("unidentifiable", unidentifiable),
-    ):
-        if name in group:
-            return label
-    return "?"
-
-
-def _paper_comparison(stage: Any) -> list[dict[str, Any]] | None:
-    """Per standard parameter of the stage: its class in the paper's lists, ours in DH frames
-    and ours in body frames (``None`` for a stage without the paper's lists)."""
-    lists = PAPER_NAMES.get(stage.name)
-    if lists is None:
-        return None
-    dh = stage.dh_frames
-    names = dh.standard_names if dh is not None else stage.standard_names
-    rows = []
-    for name in names:
-        paper = [label for label, group in lists.items() if name in group]
-        rows.append(
-            {
-                "name": name,
-                "paper": paper or ["not listed"],
-                "dh": None
-                if dh is None
-                else classify(name, dh.independent, dh.dependent, dh.unidentifiable),
-                "body": classify(name, stage.independent, stage.dependent, stage.unidentifiable),
-            }
-        )
-    return rows
-
-
-def _paper_counts(stage_name: str) -> dict[str, int] | None:
-    if stage_name not in PAPER_COUNTS:
-        return None
-    keys = ("independent", "dependent", "unidentifiable")
-    return dict(zip(keys, PAPER_COUNTS[stage_name], strict=True))
-
-
-def _joint_trajectory(result: Any, elite: Any) -> JointTrajectory:
-    return JointTrajectory(
-        t=np.array(elite.t, dtype=float),
-        q=np.array(elite.q, dtype=float),
-        dq=np.array(elite.dq, dtype=float),
-        ddq=np.array(elite.ddq, dtype=float),
-        joint_names=tuple(result.joint_names),
-        tau=np.array(elite.tau, dtype=float),
-    )
-
-
-def save_run(result: Any, run_dir: str | Path) -> None:
-    """Write the data files of a run (see the module docstring) into ``run_dir``."""
-    run_dir = Path(run_dir)
-    data = result_to_dict(result)
-    atomic_write_text(
-        run_dir / "config.yaml",
-        yaml.safe_dump(data["config"], sort_keys=False, default_flow_style=None),
-    )
-    atomic_write_text(run_dir / "robot.urdf", result.urdf_text)
-    for elite in result.elites:
-        csv = trajectory_to_csv(_joint_trajectory(result, elite))
-        atomic_write_text(run_dir / "elites" / f"elite_{elite.rank}.csv", csv)
-        if elite.traced_points is not None:
-            rows = np.column_stack([elite.t, elite.traced_points])
-            lines = ["t,x,y,z"] + [",".join(f"{v:.17g}" for v in row) for row in rows]
-            atomic_write_text(
-                run_dir / "elites" / f"elite_{elite.rank}_path.csv", "\n".join(lines) + "\n"
-            )
-        if elite.rank == 1:
-            atomic_write_text(run_dir / "trajectory.csv", csv)
-    # result.json last: its presence means the data files above are complete
-    text = json.dumps(data, indent=1, allow_nan=False) + "\n"
-    atomic_write_text(run_dir / "result.json", text)
-
-
-def write_replay(run_dir: str | Path) -> str:
-    """Write ``replay.html`` for the chosen elite; return a one-line note of what happened.
-
-    The traced point is the excitation family's (``result.json`` ``excitation.traced_frame``:
-    the flange for the paper's wrist family, the wrist centre for its arm family); for a
-    family without one (joint space), the wrist centre for the arm stage (the point the arm
-    positions) and the replay's default (the flange) otherwise. The note names the frame.
-    Never raises for a missing or failing replay module: the report says so instead.
-    """
-    run_dir = Path(run_dir)
-    trajectory_path = run_dir / "trajectory.csv"
-    if not trajectory_path.is_file():
-        return "no replay: the run has no chosen trajectory."
-    try:
-        from ident.viz.replay import replay_html
-    except ImportError as e:
-        return f"no replay: ident.viz.replay is not available ({e})."
-    trajectory = read_trajectory_csv(trajectory_path)
-    traced_frame, label = None, "elite 1"
-    try:
-        data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
-        traced_frame = data["excitation"].get("traced_frame")
-        stage = data["config"]["stage"]
-        label = f"elite 1 of {data.get('name')} ({stage} stage)"
-        if traced_frame is None and stage == "arm":
-            traced_frame = "wrist_centre"
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
-    page, problem = None, ""
-    for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
-        try:
-            page = replay_html(
-                run_dir / "robot.urdf", [trajectory], traced_frame=frame, labels=[label]
-            )
-            break
-        except Exception as e:  # the replay is a convenience: a failure must not lose the run
-            problem = f"no replay: {type(e).__name__}: {e}"
-    if page is None:
-        return problem
-    atomic_write_text(run_dir / "replay.html", page)
-    return f"replay.html written (traced frame: {frame or _default_frame(run_dir)})."
-
-
-def _default_frame(run_dir: Path) -> str:
-    """Name of the frame the replay traces by default for the run's robot."""
-    try:
-        import pinocchio as pin
-
-        from ident.viz.replay import default_traced_frame
-
-        return default_traced_frame(pin.buildModelFromUrdf(str(run_dir / "robot.urdf")))
-    except Exception:  # only a label: never fail the replay for it
-        return "default"
-
-
-# ----------------------------------------------------------------------------- report
-
-
-def _load(run_dir: Path) -> dict[str, Any]:
-    path = run_dir / "result.json"
-    if not path.is_file():
-        raise IdentError(
-            f"{run_dir}: no result.json; the run did not get far enough to save results "
-            "(see run.json for its status)."
-        )
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as e:
-        raise IdentError(f"{path}: not valid JSON ({e}); the run folder is damaged.") from e
-    if data.get("format") != FORMAT:
-        raise IdentError(f"{path}: format {data.get('format')!r} is not {FORMAT!r}.")
-    return data
-
-
-def _fmt(value: Any, digits: int = 4) -> str:
-    if value is None:
-        return "—"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, int):
-        return str(value)
-    value = float(value)
-    if value == 0.0:
-        return "0"
-    if 1e-3 <= abs(value) < 1e5:
-        return f"{value:.{digits}g}"
-    return f"{value:.{digits - 1}e}"
-
-
-def _table(header: list[str], rows: list[list[str]], left: tuple[int, ...] = ()) -> list[str]:
-    """A Markdown pipe table; columns in ``left`` are left-aligned (text), others default."""
-    seps = [":---" if k in left else "---" for k in range(len(header))]
-    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(seps) + "|"]
-    lines += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in rows]
-    return lines + [""]
-
 
 def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
-    from ident.report.plots import convergence_png, estimate_png, trajectory_png
+    from ident.report.plots import (
+        convergence_png,
+        estimate_png,
+        parameters_png,
+        torque_png,
+        trajectory_png,
+    )
 
     figures: dict[str, bytes] = {}
     runs = data["optimization"]["runs"]
@@ -571,239 +105,21 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
                 },
                 title="Elite 1: (identified - true) / std per base parameter",
             )
-    return figures
-
-
-def write_report(run_dir: str | Path) -> Path:
-    """Write ``figures/*.png``, ``report.md`` and ``report.html`` from the saved data.
-
-    Returns
-    -------
-    :
-        Path of ``report.html``.
-
-    Raises
-    ------
-    IdentError
-        If ``result.json`` is missing or damaged.
-    """
-    from ident.report.html import markdown_to_html
-    from ident.run.rundir import RUN_STATE_FILE
-
-    run_dir = Path(run_dir)
-    data = _load(run_dir)
-    figures = _figures(run_dir, data)
-    for name, png in figures.items():
-        atomic_write_bytes(run_dir / name, png)
-    state = {}
-    if (run_dir / RUN_STATE_FILE).is_file():
-        try:
-            state = json.loads((run_dir / RUN_STATE_FILE).read_text(encoding="utf-8"))
-        except json.JSONDecodeError:
-            state = {}
-    markdown = render_markdown(
-        data, figures=set(figures), run_state=state, has_replay=(run_dir / "replay.html").is_file()
-    )
-    atomic_write_text(run_dir / "report.md", markdown)
-    page = markdown_to_html(
-        markdown, title=f"ident run {data.get('name', '')}", images=figures, base_dir=run_dir
-    )
-    return atomic_write_text(run_dir / "report.html", page)
-
-
-def render_markdown(
-    data: dict[str, Any],
-    *,
-    figures: set[str] | frozenset[str] = frozenset(),
-    run_state: dict[str, Any] | None = None,
-    has_replay: bool = False,
-) -> str:
-    """The report text (Markdown) from the content of ``result.json``."""
-    md: list[str] = []
-    config = data["config"]
-    stage = data.get("stage")
-    stage_name = stage["name"] if stage else config["stage"]
-    md += [f"# ident run: {data.get('name')} ({stage_name} stage)", ""]
-    if data["status"] != "complete":
-        md += [f"> **Incomplete run**: {data['message']}. Only what finished is reported.", ""]
-    for warning in data.get("warnings", []):
-        md += [f"> **Warning**: {warning}", ""]
-    state = run_state or {}
-    md += [
-        f"- Robot: `{data['robot']['name']}` ({len(data['robot']['joint_names'])} joints), "
-        f"config `{config['robot']}`",
-        f"- Stage: **{stage_name}**, excitation family `{config['excitation']['family']}`, "
-        f"criterion `{config['excitation']['criterion']}`, "
-        f"{config['excitation']['n_samples']} samples per period",
-        f"- Seed: **{data['seed']}**",
-        f"- Procedure: initial elites ({config['elites']['n_particles']} particles until "
-        f"{config['elites']['n_elites']} elites), then {config['emupso']['n_runs']} eMuPSO runs "
-        f"of {config['emupso']['n_particles']} particles x {config['emupso']['maxiter']} "
-        f"iterations, G = {config['emupso']['stagnation']}",
-        f"- Measurement noise: torque std {config['measurement']['torque_noise_std']} N*m, "
-        f"encoder {config['measurement']['encoder_counts_per_rev'] or 'exact'}",
-    ]
-    if state.get("wall_time_s") is not None:
-        md.append(f"- Wall time: {state['wall_time_s']:.1f} s (started {state.get('started_at')})")
-    if has_replay:
-        md.append("- Motion replay: [replay.html](replay.html) (opens offline in a browser)")
-    else:
-        md.append("- Motion replay: not available (see run.json / the run's output)")
-    md += ["- Data: `result.json`, `trajectory.csv`, `elites/`, `config.yaml`, `robot.urdf`", ""]
-
-    md += _base_section(stage) if stage else []
-    md += _optimization_section(data, figures)
-    md += _elites_section(data, stage)
-    if data["elites"] and stage:
-        md += _identification_section(data, stage, figures)
-    md += [
-        "## Configuration snapshot",
-        "",
-        "```",
-        yaml.safe_dump(config, sort_keys=False).rstrip(),
-        "```",
-        "",
-    ]
-    return "\n".join(md)
-
-
-def _count_row(label: str, c: dict[str, int]) -> list[str]:
-    return [label, str(c["independent"]), str(c["dependent"]), str(c["unidentifiable"])]
-
-
-def _base_section(stage: dict[str, Any]) -> list[str]:
-    c = stage["counts"]
-    dh = stage.get("dh_frames")
-    md = ["## Base parameters of the stage", ""]
-    paper = stage.get("paper_counts")
-    rows = [_count_row("this run, body frames (the estimate)", c)]
-    if dh:
-        rows.append(_count_row("this run, DH frames (the paper's frames)", dh["counts"]))
-    if paper:
-        rows.append(_count_row("paper (its 6R robot, DH frames)", paper))
-    md += _table(["", "independent", "in linear combination", "unidentifiable"], rows)
-    method = {"qr": "QR with column pivoting", "sequential": "the paper's sequential rank test"}
-    md += [
-        f"Reduction: {method.get(stage['base_method'], stage['base_method'])} on column-"
-        "normalized random states of the stage's motion (structural); "
-        f"{len(stage['base_names'])} base parameters. Torque rows: joints "
-        f"{', '.join(str(r + 1) for r in stage['torque_rows'])}; {stage['known_bodies']}.",
-        "",
-        "**Frames.** The estimate uses parameters about Pinocchio's body (joint) frames, the "
-        "project's convention (the URDF's inertials). Which *named* parameters are "
-        "unidentifiable or combined depends on the frames (the rank does not); the paper's "
-        "names are about its DH frames, so "
-        + (
-            "the comparison with the paper below uses the same random states with the "
-            "regressor in DH frames (`W @ Robot.dh_to_model_parameters()`), columns in the "
-            "paper's eq. 14 order, reduced by the paper's sequential rank test."
-            if dh
-            else "names cannot be compared with the paper's here: the robot has no DH table "
-            "(loaded from a URDF)."
-        ),
-        "",
-    ]
-    if paper:
-        md += [PAPER_COUNTS_NOTE, ""]
-    md += [
-        "### The estimate's base parameters (body frames)",
-        "",
-        f"- Unidentifiable: {', '.join(stage['unidentifiable']) or 'none'}",
-        f"- In linear combination: {', '.join(stage['dependent']) or 'none'}",
-        "",
-    ]
-    md += _expression_table(stage, "body frames, SI")
-    if dh:
-        md += _dh_section(stage, dh)
-    return md
-
-
-def _expression_table(entry: dict[str, Any], what: str) -> list[str]:
-    return _table(
-        ["base parameter", f"expression ({what})", "true value"],
-        [
-            [f"`{n}`", f"`{e}`", _fmt(t)]
-            for n, e, t in zip(
-                entry["base_names"], entry["base_expressions"], entry["true_base"], strict=True
+            method = _headline_method(data["elites"][0])
+            est = estimates[method]
+            figures["figures/parameters.png"] = parameters_png(
+                data["stage"]["base_names"],
+                np.array([np.nan if v is None else v for v in est["x"]], dtype=float),
+                np.array([np.nan if v is None else v for v in est["std"]], dtype=float),
+                true,
+                highlight=est.get("major"),
+                include=est.get("significant"),
+                title=f"Elite 1, {method.upper()}: identified vs true",
             )
-        ],
-        left=(1,),
-    )
-
-
-def _dh_section(stage: dict[str, Any], dh: dict[str, Any]) -> list[str]:
-    md = [
-        "### Comparison with the paper (DH frames)",
-        "",
-        f"- Independent ({len(dh['independent'])}): {', '.join(dh['independent']) or 'none'}",
-        f"- In linear combination ({len(dh['dependent'])}): {', '.join(dh['dependent']) or 'none'}",
-        f"- Unidentifiable ({len(dh['unidentifiable'])}): "
-        f"{', '.join(dh['unidentifiable']) or 'none'}",
-        "",
-    ]
-    md += _expression_table(dh, "DH frames, SI")
-    comparison = stage.get("paper_comparison")
-    if not comparison:
-        return md
-    classes = ["independent", "dependent", "unidentifiable"]
-    present = {p for row in comparison for p in row["paper"]}
-    order = ("independent", "dependent", "identified", "not listed")
-    paper_classes = [p for p in order if p in present]
-    rows = []
-    for pc in paper_classes:
-        members = [r for r in comparison if pc in r["paper"]]
-        rows.append(
-            [
-                f"paper: {_CLASS_LABEL.get(pc, pc)} ({len(members)})",
-                *[
-                    ", ".join(r["name"] for r in members if r["dh"] == cls) or "—"
-                    for cls in classes
-                ],
-            ]
-        )
-    md += [
-        "Where the paper's names fall in our DH-frame classes (the paper's lists of section "
-        "4.1; `mx5` read as mcx5, `mm` as m; parameters the paper does not list are its "
-        "unidentifiable ones, which it does not name). Which member of a combination is "
-        "called independent depends on the column order and the method, so compare "
-        "independent + in combination (identified) against unidentifiable first:",
-        "",
-    ]
-    md += _table(
-        ["", "ours: independent", "ours: in combination", "ours: unidentifiable"],
-        rows,
-        left=(0, 1, 2, 3),
-    )
-    if stage["name"] == "wrist":
-        md += [
-            "The paper lists Iyz6 both as independent and in combination and does not list "
-            "Ixy6 (21 distinct names for 22 identified parameters): one of the two Iyz6 is "
-            "probably Ixy6.",
-            "",
-        ]
-    md += [
-        "Per parameter (paper / ours in DH frames / ours in body frames, where the estimate's "
-        "names can differ only because of the frames):",
-        "",
-    ]
-    md += _table(
-        ["parameter", "paper", "ours, DH frames", "ours, body frames"],
-        [
-            [
-                f"`{r['name']}`",
-                " and ".join(_CLASS_LABEL.get(p, p) for p in r["paper"]),
-                _CLASS_LABEL.get(r["dh"], str(r["dh"])),
-                _CLASS_LABEL.get(r["body"], r["body"]),
-            ]
-            for r in comparison
-        ],
-        left=(0, 1, 2, 3),
-    )
-    md += [
-        'docs/paper-notes.md ("Base parameters of the paper\'s stages") explains each difference.',
-        "",
-    ]
-    return md
+    val_path = run_dir / "validation.csv"
+    if val_path.is_file():
+        figures["figures/validation.png"] = _validation_png(val_path, torque_png)
+    return figures
 
 
 def _optimization_section(data: dict[str, Any], figures: set[str] | frozenset[str]) -> list[str]:
@@ -920,85 +236,367 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
     return md
 
 
-def _identification_section(
-    data: dict[str, Any], stage: dict[str, Any], figures: set[str] | frozenset[str]
-) -> list[str]:
-    elite = data["elites"][0]
-    md = ["## Identified vs true parameters (elite 1)", ""]
+# ----------------------------------------------------------------------------- page
+
+
+def _headline_method(elite: dict[str, Any] | None) -> str | None:
+    """The estimator the headline reports: WLS when it ran, else the first one."""
+    if not elite or not elite["estimates"]:
+        return None
+    return "wls" if "wls" in elite["estimates"] else next(iter(elite["estimates"]))
+
+
+def _check_text(entry: Any) -> str:
+    """A consistency / safety entry of result.json as text (``not checked`` when absent)."""
+    if entry is None:
+        return NOT_CHECKED
+    if isinstance(entry, str):
+        return entry
+    if isinstance(entry, dict):
+        ok = entry.get("ok", entry.get("consistent", entry.get("safe")))
+        note = entry.get("message") or entry.get("summary") or ""
+        state = "ok" if ok else "**violated**" if ok is not None else ""
+        return ", ".join(s for s in (state, note) if s) or json.dumps(entry)[:200]
+    return str(entry)
+
+
+def _validation(data: dict[str, Any], method: str | None) -> dict[str, Any] | None:
+    """The run's validation entry (a second trajectory), when it has one."""
+    val = data.get("validation")
+    if not isinstance(val, dict):
+        return None
+    by_method = val.get("estimates", val)
+    entry = by_method.get(method) if method and isinstance(by_method, dict) else None
+    return entry if isinstance(entry, dict) else None
+
+
+def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
+    elite = data["elites"][0] if data["elites"] else None
+    method = _headline_method(elite)
+    est = elite["estimates"][method] if elite and method else {}
+    names = stage["base_names"] if stage else []
+    worst_pct = est.get("max_rel_error_major_percent")
+    if worst_pct is None and est.get("max_rel_error_major") is not None:
+        worst_pct = 100.0 * est["max_rel_error_major"]
+    worst_i = est.get("worst_major")
+    worst = pct(worst_pct)
+    if worst_i is not None and worst_i < len(names):
+        n_major = sum(est.get("major") or [])
+        worst += f" ({names[worst_i]}; {n_major} major parameters of {len(names)})"
+    val = _validation(data, method)
+    if val is not None and val.get("relative_residual") is not None:
+        residual = float(val["relative_residual"])
+        residual_label = "Torque residual, validation trajectory"
+        residual_text = pct(100 * residual) + " (a second trajectory, not used to identify)"
+    else:
+        residual = est.get("relative_residual")
+        residual_label = "Torque residual, identification trajectory"
+        residual_text = (
+            pct(None if residual is None else 100 * residual)
+            + " (no validation trajectory in this run)"
+        )
+    warnings = list(data.get("warnings", []))
+    if data["status"] != "complete":
+        warnings.insert(0, f"incomplete run: {data['message']}")
+    if elite:
+        warnings += [f"elite 1, {m}: {msg}" for m, msg in elite["failures"].items()]
+    v = verdict(worst_pct, residual, warnings=len(warnings))
+    cond = "—"
+    if elite:
+        cond = (
+            f"{_fmt(est.get('condition_number'))} (SI base matrix, {(method or '').upper()}); "
+            f"{_fmt(elite['objective'].get('cond'))} (scaled, the excitation objective)"
+        )
+    extra = []
+    if method:
+        extra.append(
+            [
+                "Estimate",
+                f"{method.upper()} on elite 1 (fitness {_fmt(elite['fitness'])}), "
+                f"{len(names)} base parameters, "
+                f"{100 * (est.get('within_3std') or 0):.0f} % within 3σ of the true value",
+            ]
+        )
+    if est and est.get("message") not in (None, "ok"):
+        extra.append(["Estimator note", str(est["message"])])
+    return Headline(
+        verdict=v,
+        rule=VERDICT_RULE,
+        worst=worst,
+        worst_label="Worst error, major parameters",
+        residual=residual_text,
+        residual_label=residual_label,
+        condition=cond,
+        consistency=_check_text(data.get("consistency")),
+        safety=_check_text(data.get("safety")),
+        warnings=warnings,
+        extra=[tuple(e) for e in extra],
+    )
+
+
+def render_markdown(
+    data: dict[str, Any],
+    *,
+    figures: set[str] | frozenset[str] = frozenset(),
+    run_state: dict[str, Any] | None = None,
+    has_replay: bool = False,
+) -> str:
+    """The report text (Markdown) from the content of ``result.json``."""
+    config = data["config"]
+    stage = data.get("stage")
+    stage_name = stage["name"] if stage else config["stage"]
+    excitation = config["excitation"]
+    md = [
+        f"# ident run: {data.get('name')} ({stage_name} stage)",
+        "",
+        f"Robot `{data['robot']['name']}`, {stage_name} stage, excitation "
+        f"`{excitation['family']}`, seed {data['seed']}, simulated torques with noise std "
+        f"{config['measurement']['torque_noise_std']} N*m. "
+        + (
+            "Motion replay: [replay.html](replay.html)."
+            if has_replay
+            else "Motion replay: not available (see run.json)."
+        ),
+        "",
+    ]
+    if data["status"] != "complete":
+        md += [f"> **Incomplete run**: {data['message']}. Only what finished is reported.", ""]
+    md += headline_markdown(_headline(data, stage))
+    if data["elites"] and stage:
+        md += _parameter_section(data, stage, figures)
+    else:
+        md += ["No elite trajectory was identified.", ""]
+    md += ["## Comparison with the paper", ""]
+    if stage and stage["name"] in ("wrist", "arm"):
+        method = _headline_method(data["elites"][0] if data["elites"] else None)
+        md += paper_tables_section(data, method)
+    else:
+        md += [
+            "This stage is not one of the paper's (wrist, arm): Tables 2-3 do not apply.",
+            "",
+        ]
+    md += _base_section(stage) if stage else []
+    md += ["## Details", ""]
+    md += _run_facts(data, run_state or {})
     if "figures/trajectory.png" in figures:
         md += [
             "![Excitation trajectory of elite 1: Cartesian path, joint positions and "
             "velocities with limits](figures/trajectory.png)",
             "",
         ]
-    if not elite["estimates"]:
-        return md + ["> **No estimate**: every estimator failed on this trajectory (above).", ""]
-    true = stage["true_base"]
-    for m, est in elite["estimates"].items():
+    md += _optimization_section(data, figures)
+    md += _elites_section(data, stage)
+    if data["elites"] and stage:
+        md += _alone_section(data, stage, figures)
+    if stage and stage.get("dh_frames"):
+        md += _dh_section(stage, stage["dh_frames"])
+    md += [
+        "## Configuration snapshot",
+        "",
+        "```",
+        yaml.safe_dump(config, sort_keys=False).rstrip(),
+        "```",
+        "",
+    ]
+    return "\n".join(md)
+
+
+def _run_facts(data: dict[str, Any], state: dict[str, Any]) -> list[str]:
+    config = data["config"]
+    md = [
+        f"- Robot: `{data['robot']['name']}` ({len(data['robot']['joint_names'])} joints), "
+        f"config `{config['robot']}`",
+        f"- Excitation family `{config['excitation']['family']}`, criterion "
+        f"`{config['excitation']['criterion']}`, {config['excitation']['n_samples']} samples "
+        "per period",
+        f"- Seed: **{data['seed']}**",
+        f"- Procedure: initial elites ({config['elites']['n_particles']} particles until "
+        f"{config['elites']['n_elites']} elites), then {config['emupso']['n_runs']} eMuPSO runs "
+        f"of {config['emupso']['n_particles']} particles x {config['emupso']['maxiter']} "
+        f"iterations, G = {config['emupso']['stagnation']}",
+        f"- Measurement noise: torque std {config['measurement']['torque_noise_std']} N*m, "
+        f"encoder {config['measurement']['encoder_counts_per_rev'] or 'exact'}",
+    ]
+    traced = data["excitation"].get("traced_frame")
+    if traced:
+        md.append(f"- Traced point (path plot and replay): frame `{traced}`")
+    if state.get("wall_time_s") is not None:
+        md.append(f"- Wall time: {state['wall_time_s']:.1f} s (started {state.get('started_at')})")
+    md += ["- Data: `result.json`, `trajectory.csv`, `elites/`, `config.yaml`, `robot.urdf`", ""]
+    return md
+
+
+def _parameter_section(
+    data: dict[str, Any], stage: dict[str, Any], figures: set[str] | frozenset[str]
+) -> list[str]:
+    elite = data["elites"][0]
+    md = ["## Identified vs true parameters (elite 1)", ""]
+    if "figures/parameters.png" in figures:
         md += [
-            f"### {m.upper()}",
-            "",
-            f"Residual: relative {_fmt(est['relative_residual'])}, RMS per joint "
-            f"{', '.join(_fmt(v) for v in est['residual_rms'])} N*m; condition number "
-            f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
-            f"errors within 3 std; largest torque error {_fmt(est.get('max_torque_error'))}, "
-            f"largest relative error of the parameters with a torque share >= 1e-4 "
-            f"{_fmt(est.get('max_rel_error'))}; largest relative error of the stage's major "
-            f"parameters (reference torque share >= {MAJOR_SHARE:g}) "
-            f"{_fmt(est.get('max_rel_error_major'))}. "
-            f"{'' if est['message'] == 'ok' else est['message']}",
+            "![Identified vs true base parameters, relative deviation with ±3σ bars]"
+            "(figures/parameters.png)",
             "",
         ]
+    if "figures/validation.png" in figures:
+        md += [
+            "![Measured vs predicted torque on the validation trajectory](figures/validation.png)",
+            "",
+        ]
+    else:
+        md += [
+            "Measured vs predicted torque on a validation trajectory: this run has no "
+            "validation trajectory.",
+            "",
+        ]
+    if not elite["estimates"]:
+        return md + ["> **No estimate**: every estimator failed on this trajectory (below).", ""]
+    true = stage["true_base"]
+    names = stage["base_names"]
+    for m, est in elite["estimates"].items():
+        major = est.get("major") or [False] * len(names)
+        share = est.get("torque_share") or [None] * len(names)
         rows = []
-        share = est.get("torque_share") or [None] * len(stage["base_names"])
-        for i, name in enumerate(stage["base_names"]):
+        for i, name in enumerate(names):
             rows.append(
                 [
                     f"`{name}`" + (" (alone)" if stage["identifiable_alone"][i] else ""),
+                    parameter_unit(name) or "—",
                     _fmt(true[i]),
                     _fmt(est["x"][i]),
                     _fmt(est["std"][i]),
-                    _fmt(est["abs_error"][i]),
-                    _fmt(est["rel_error_percent"][i]),
+                    _fmt(_rel_std(est, i), 3),
+                    _fmt(est["rel_error_percent"][i], 3),
                     _fmt(est["normalized_error"][i], 3),
-                    _fmt(share[i], 2),
+                    _fmt(None if share[i] is None else 100 * share[i], 2),
+                    "yes" if major[i] else "",
                 ]
             )
+        md += [
+            f"### {m.upper()}",
+            "",
+            f"Relative residual {pct(100 * (est['relative_residual'] or 0))}, RMS per joint "
+            f"{', '.join(_fmt(v) for v in est['residual_rms'])} N*m; condition number "
+            f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
+            f"errors within 3σ. {'' if est['message'] == 'ok' else est['message']}",
+            "",
+        ]
         md += _table(
             [
                 "base parameter",
+                "unit",
                 "true",
                 "identified",
-                "std",
-                "error",
-                "rel. error [%]",
-                "error / std",
-                "torque share",
+                "σ",
+                "σ [%]",
+                "error [%]",
+                "error / σ",
+                "torque share [%]",
+                "major",
             ],
             rows,
+            left=(0, 1, 9),
         )
+    md += [
+        "Units SI; a base parameter has the unit of the parameter it is named after. "
+        "σ: standard deviation of the estimate; σ [%] = σ / |identified|. Error [%] = "
+        "|identified - true| / |true|, shown as — where the true value is zero up to "
+        f"round-off. Major: torque share >= {100 * MAJOR_SHARE:g} % on the stage's reference "
+        "motion (the same set for every trajectory); torque share: the part of the stage's "
+        "torques the parameter explains on this trajectory. *(alone)*: a standard parameter "
+        "identifiable alone.",
+        "",
+    ]
+    return md
+
+
+def _rel_std(est: dict[str, Any], i: int) -> float | None:
+    rel = est.get("relative_std_percent")
+    if rel is not None:
+        return rel[i]
+    x, s = est["x"][i], est["std"][i]
+    return None if x in (None, 0) or s is None else 100 * abs(s / x)
+
+
+def _alone_section(
+    data: dict[str, Any], stage: dict[str, Any], figures: set[str] | frozenset[str]
+) -> list[str]:
+    elite = data["elites"][0]
+    md: list[str] = []
+    true = stage["true_base"]
     alone = [i for i, a in enumerate(stage["identifiable_alone"]) if a]
-    if alone:
+    if alone and elite["estimates"]:
         md += ["### Standard parameters identifiable alone", ""]
         rows = []
         for i in alone:
-            cells = [f"`{stage['base_names'][i]}`", _fmt(true[i])]
+            name = stage["base_names"][i]
+            cells = [f"`{name}`", parameter_unit(name) or "—", _fmt(true[i])]
             for est in elite["estimates"].values():
                 cells += [_fmt(est["x"][i]), _fmt(est["std"][i]), _fmt(est["rel_error_percent"][i])]
             rows.append(cells)
-        header = ["parameter", "true"]
+        header = ["parameter", "unit", "true"]
         for m in elite["estimates"]:
-            header += [f"{m} identified", f"{m} std", f"{m} rel. error [%]"]
-        md += _table(header, rows)
-    md += [
-        "Parameters marked *(alone)* are standard parameters identifiable alone (no other "
-        "parameter is combined into them): their row is also their standard-parameter "
-        "estimate. A relative error is shown as — where the true value is zero up to "
-        "round-off. Torque share: the part of the stage's torques the parameter explains on "
-        "this trajectory; a parameter with a tiny share is barely observable, whatever the "
-        "estimator.",
-        "",
-    ]
+            header += [f"{m} identified", f"{m} σ", f"{m} error [%]"]
+        md += _table(header, rows, left=(0, 1))
     if "figures/estimate.png" in figures:
         md += ["![Errors in standard deviations](figures/estimate.png)", ""]
     return md
+
+
+def write_report(run_dir: str | Path) -> Path:
+    """Write ``figures/*.png``, ``report.md`` and ``report.html`` from the saved data.
+
+    Returns
+    -------
+    :
+        Path of ``report.html``.
+
+    Raises
+    ------
+    IdentError
+        If ``result.json`` is missing or damaged.
+    """
+    from ident.report.html import markdown_to_html
+    from ident.run.rundir import RUN_STATE_FILE
+
+    run_dir = Path(run_dir)
+    data = load_run(run_dir)
+    figures = _figures(run_dir, data)
+    for name, png in figures.items():
+        atomic_write_bytes(run_dir / name, png)
+    state = {}
+    if (run_dir / RUN_STATE_FILE).is_file():
+        try:
+            state = json.loads((run_dir / RUN_STATE_FILE).read_text(encoding="utf-8"))
+        except json.JSONDecodeError:
+            state = {}
+    markdown = render_markdown(
+        data, figures=set(figures), run_state=state, has_replay=(run_dir / "replay.html").is_file()
+    )
+    atomic_write_text(run_dir / "report.md", markdown)
+    page = markdown_to_html(
+        markdown, title=f"ident run {data.get('name', '')}", images=figures, base_dir=run_dir
+    )
+    return atomic_write_text(run_dir / "report.html", page)
+
+
+def _validation_png(path: Path, torque_png: Any) -> bytes:
+    """Measured vs predicted torque from ``validation.csv`` (t, tau_<joint>, <label>_<joint>)."""
+    header = path.read_text(encoding="utf-8").splitlines()[0].split(",")
+    values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    measured = [k for k, h in enumerate(header) if h.startswith("tau_")]
+    joints = [header[k][4:] for k in measured]
+    labels = dict.fromkeys(
+        h.rsplit("_", 1)[0] for h in header[1:] if not h.startswith("tau_") and "_" in h
+    )
+    predictions = {}
+    for label in labels:
+        cols = [header.index(f"{label}_{j}") for j in joints if f"{label}_{j}" in header]
+        if len(cols) == len(joints):
+            predictions[label] = values[:, cols]
+    return torque_png(
+        values[:, 0],
+        values[:, measured],
+        predictions,
+        joints,
+        xlabel="time [s] (validation trajectory, not used to identify)",
+    )

@@ -1,0 +1,85 @@
+"""``ident report RUN_DIR``: rewrite the report of a run folder from its saved data.
+
+- an ``ident run`` folder (``result.json`` format ``ident-run/1``): ``figures/*.png``,
+  ``report.md`` and ``report.html`` from ``result.json`` and the CSV files, and
+  ``replay.html`` when it is missing;
+- an ``ident identify`` folder: ``report.html`` from ``report.md`` and ``figures/*.png``
+  (the identification itself is not repeated; run ``ident identify`` again for that).
+
+Anything else (a bench folder, a file, a folder without ``run.json``) is a user error: exit 2
+with one ``error:`` line.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ident.cli._common import user_errors
+
+__all__ = ["register", "report"]
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``report`` to the ``ident`` command line."""
+    app.command("report")(report)
+
+
+def report(
+    run_dir: Annotated[
+        Path, typer.Argument(help="A run folder written by 'ident run' or 'ident identify'.")
+    ],
+) -> None:
+    """Rewrite report.md, report.html and the figures of RUN_DIR from its saved data."""
+    from ident.errors import IdentError
+    from ident.run.rundir import read_status
+
+    with user_errors():
+        if not run_dir.is_dir():
+            raise IdentError(
+                f"{run_dir}: not a folder; give a run folder of 'ident run' or 'ident identify'."
+            )
+        read_status(run_dir)  # a clear message for a folder that is not a run
+        kind = _kind(run_dir)
+        if kind == "run":
+            from ident.report.run_report import write_replay, write_report
+
+            if not (run_dir / "replay.html").is_file():
+                typer.echo(write_replay(run_dir), err=True)
+            typer.echo(str(write_report(run_dir)))
+        else:
+            from ident.fileio import atomic_write_text
+            from ident.report.html import markdown_to_html
+
+            markdown = (run_dir / "report.md").read_text(encoding="utf-8")
+            name = json.loads((run_dir / "result.json").read_text(encoding="utf-8")).get("name")
+            page = markdown_to_html(markdown, title=f"ident identify: {name}", base_dir=run_dir)
+            typer.echo(str(atomic_write_text(run_dir / "report.html", page)))
+
+
+def _kind(run_dir: Path) -> str:
+    """``run`` or ``identify``; IdentError for any other folder."""
+    from ident.errors import IdentError
+    from ident.report.run_data import FORMAT
+
+    path = run_dir / "result.json"
+    if not path.is_file():
+        raise IdentError(
+            f"{run_dir}: no result.json; not a finished run of 'ident run' or 'ident identify' "
+            "(a bench folder's report is written by 'ident bench')."
+        )
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise IdentError(f"{path}: not valid JSON ({e}); the run folder is damaged.") from e
+    if isinstance(data, dict) and data.get("format") == FORMAT:
+        return "run"
+    if isinstance(data, dict) and "base_parameters" in data and (run_dir / "report.md").is_file():
+        return "identify"
+    raise IdentError(
+        f"{path}: neither an 'ident run' result (format {FORMAT}) nor an 'ident identify' "
+        "result with its report.md; a bench folder's report is written by 'ident bench'."
+    )

@@ -1,0 +1,375 @@
+"""The data files of an ``ident run`` folder, written from a RunResult and read back.
+
+:func:`save_run` writes the data of a :class:`~ident.run.pipeline.RunResult`:
+
+- ``result.json``: every number of the report, machine-readable (no times: the same config
+  and seed give a byte-identical file; non-finite numbers are ``null``); the error measures
+  of :mod:`ident.identify.metrics` per elite and estimator;
+- ``config.yaml``: the effective config (after ``--quick`` / ``--seed``);
+- ``robot.urdf``: the robot's URDF text (for the replay);
+- ``trajectory.csv``: the chosen elite (``ident.trajectory`` format: t, q, dq, ddq of the
+  commanded motion, all joints, and the simulated measured torques tau);
+- ``elites/elite_<k>.csv`` (same format) and ``elites/elite_<k>_path.csv`` (t, x, y, z of
+  the traced point [m]) for every reported elite;
+- ``validation.csv`` when the result has a validation trajectory (t, measured torques,
+  predicted torques per estimator).
+
+:func:`write_replay` writes ``replay.html`` (``ident.viz.replay``); :func:`load_run` reads
+``result.json`` back for the report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ident.errors import IdentError
+from ident.fileio import atomic_write_text
+from ident.identify.metrics import MAJOR_SHARE, _arr, _num, error_measures
+from ident.report.paper import _paper_comparison, _paper_counts
+from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
+
+__all__ = ["FORMAT", "load_run", "result_to_dict", "save_run", "write_replay"]
+
+FORMAT = "ident-run/1"
+
+
+def result_to_dict(result: Any) -> dict[str, Any]:
+    """The machine-readable content of ``result.json`` (see :func:`save_run`)."""
+    config = result.config
+    out: dict[str, Any] = {
+        "format": FORMAT,
+        "status": result.status,
+        "message": result.message,
+        "name": config.name,
+        "seed": config.seed,
+        "config": json.loads(config.model_dump_json()),
+        "robot": {
+            "name": result.robot_name,
+            "joint_names": list(result.joint_names),
+            "q_limits": _arr(result.q_limits),
+            "dq_limits": _arr(result.dq_limits),
+            "ddq_limits": _arr(result.ddq_limits),
+        },
+        "excitation": {
+            "family": config.excitation.family,
+            "criterion": config.excitation.criterion,
+            "variable_names": list(result.variable_names),
+            "bounds": _arr(result.bounds),
+            "traced_frame": result.traced_frame,
+            "moving_joints": list(result.moving_joints),
+        },
+        "warnings": list(result.warnings),
+    }
+    stage = result.stage
+    if stage is not None:
+        counts = stage.counts
+        out["stage"] = {
+            "name": stage.name,
+            "torque_rows": list(stage.rows),
+            "standard_names": list(stage.standard_names),
+            "true_standard": _arr(stage.true_standard),
+            "base_method": stage.base_method,
+            "known_bodies": stage.known_bodies_note,
+            "counts": {
+                "independent": counts[0],
+                "dependent": counts[1],
+                "unidentifiable": counts[2],
+                "n_base": len(stage.base_names),
+            },
+            "paper_counts": _paper_counts(stage.name),
+            "independent": list(stage.independent),
+            "dependent": list(stage.dependent),
+            "unidentifiable": list(stage.unidentifiable),
+            "base_names": list(stage.base_names),
+            "base_expressions": list(stage.base_expressions),
+            "true_base": _arr(stage.true_base),
+            "identifiable_alone": list(stage.alone),
+            "reference_torque_share": None
+            if stage.reference_share is None
+            else _arr(stage.reference_share),
+            "major_share": MAJOR_SHARE,
+            "frames": "body",
+            "dh_frames": _frame_base_dict(stage.dh_frames),
+            "paper_comparison": _paper_comparison(stage),
+        }
+    out["initial_elites"] = {
+        "x": None if result.initial_elites is None else _arr(result.initial_elites),
+        "message": result.elite_search_message,
+    }
+    out["optimization"] = {
+        "n_runs_finished": len(result.runs),
+        "runs": [
+            {
+                "index": r.index,
+                "best_fitness": _num(r.fun),
+                "x": _arr(r.x),
+                "history": _arr(r.history),
+                "mutation_iterations": list(r.mutation_iterations),
+                "nit": r.nit,
+                "nfev": r.nfev,
+                "message": r.message,
+                "archive": {"x": _arr(r.archive_x), "fitness": _arr(r.archive_fun)},
+            }
+            for r in result.runs
+        ],
+    }
+    elites = []
+    for e in result.elites:
+        estimates = {}
+        for method, est in e.estimates.items():
+            entry = {
+                "x": _arr(est.x),
+                "std": _arr(est.std),
+                "relative_std_percent": _arr(est.relative_std),
+                "condition_number": _num(est.condition_number),
+                "residual_rms": _arr(est.residual_rms),
+                "relative_residual": _num(est.relative_residual),
+                "sigma": _arr(est.sigma),
+                "n_samples": int(est.n_samples),
+                "message": est.message,
+            }
+            if stage is not None:
+                entry.update(
+                    error_measures(
+                        est.x,
+                        est.std,
+                        stage.true_base,
+                        e.base_column_norms,
+                        e.true_torque_norm,
+                        stage.reference_share,
+                    )
+                )
+            estimates[method] = entry
+        elites.append(
+            {
+                "rank": e.rank,
+                "x": _arr(e.x),
+                "fitness": _num(e.fitness),
+                "objective": {k: _num(v) for k, v in e.details.items()},
+                "estimates": estimates,
+                "failures": dict(e.failures),
+                "trajectory_csv": f"elites/elite_{e.rank}.csv",
+                "path_csv": None if e.traced_points is None else f"elites/elite_{e.rank}_path.csv",
+            }
+        )
+    out["elites"] = elites
+    out["chosen_elite"] = 1 if elites else None
+    # optional results of later pipeline steps (read with defaults: older results lack them)
+    for key in ("consistency", "safety"):
+        entry = _plain(getattr(result, key, None))
+        if entry is not None:
+            out[key] = entry
+    validation = _validation_entry(result)
+    if validation is not None:
+        out["validation"] = validation
+    return out
+
+
+def _frame_base_dict(info: Any) -> dict[str, Any] | None:
+    """``result.json`` entry of a :class:`~ident.run.pipeline.FrameBaseInfo` (or None)."""
+    if info is None:
+        return None
+    counts = info.counts
+    return {
+        "frames": info.frames,
+        "method": info.method,
+        "column_order": "eq. 14 (m, mcx, mcy, mcz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz per body)",
+        "counts": {
+            "independent": counts[0],
+            "dependent": counts[1],
+            "unidentifiable": counts[2],
+            "n_base": len(info.base_names),
+        },
+        "standard_names": list(info.standard_names),
+        "true_standard": _arr(info.true_standard),
+        "independent": list(info.independent),
+        "dependent": list(info.dependent),
+        "unidentifiable": list(info.unidentifiable),
+        "base_names": list(info.base_names),
+        "base_expressions": list(info.base_expressions),
+        "true_base": _arr(info.true_base),
+    }
+
+
+def _joint_trajectory(result: Any, elite: Any) -> JointTrajectory:
+    return JointTrajectory(
+        t=np.array(elite.t, dtype=float),
+        q=np.array(elite.q, dtype=float),
+        dq=np.array(elite.dq, dtype=float),
+        ddq=np.array(elite.ddq, dtype=float),
+        joint_names=tuple(result.joint_names),
+        tau=np.array(elite.tau, dtype=float),
+    )
+
+
+def save_run(result: Any, run_dir: str | Path) -> None:
+    """Write the data files of a run (see the module docstring) into ``run_dir``."""
+    run_dir = Path(run_dir)
+    data = result_to_dict(result)
+    atomic_write_text(
+        run_dir / "config.yaml",
+        yaml.safe_dump(data["config"], sort_keys=False, default_flow_style=None),
+    )
+    atomic_write_text(run_dir / "robot.urdf", result.urdf_text)
+    for elite in result.elites:
+        csv = trajectory_to_csv(_joint_trajectory(result, elite))
+        atomic_write_text(run_dir / "elites" / f"elite_{elite.rank}.csv", csv)
+        if elite.traced_points is not None:
+            rows = np.column_stack([elite.t, elite.traced_points])
+            lines = ["t,x,y,z"] + [",".join(f"{v:.17g}" for v in row) for row in rows]
+            atomic_write_text(
+                run_dir / "elites" / f"elite_{elite.rank}_path.csv", "\n".join(lines) + "\n"
+            )
+        if elite.rank == 1:
+            atomic_write_text(run_dir / "trajectory.csv", csv)
+    validation = getattr(result, "validation", None)
+    if validation is not None and _validation_entry(result) is not None:
+        atomic_write_text(run_dir / "validation.csv", _validation_csv(result, validation))
+    # result.json last: its presence means the data files above are complete
+    text = json.dumps(data, indent=1, allow_nan=False) + "\n"
+    atomic_write_text(run_dir / "result.json", text)
+
+
+def write_replay(run_dir: str | Path) -> str:
+    """Write ``replay.html`` for the chosen elite; return a one-line note of what happened.
+
+    The traced point is the excitation family's (``result.json`` ``excitation.traced_frame``:
+    the flange for the paper's wrist family, the wrist centre for its arm family); for a
+    family without one (joint space), the wrist centre for the arm stage (the point the arm
+    positions) and the replay's default (the flange) otherwise. The note names the frame.
+    Never raises for a missing or failing replay module: the report says so instead.
+    """
+    run_dir = Path(run_dir)
+    trajectory_path = run_dir / "trajectory.csv"
+    if not trajectory_path.is_file():
+        return "no replay: the run has no chosen trajectory."
+    try:
+        from ident.viz.replay import replay_html
+    except ImportError as e:
+        return f"no replay: ident.viz.replay is not available ({e})."
+    trajectory = read_trajectory_csv(trajectory_path)
+    traced_frame, label = None, "elite 1"
+    try:
+        data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
+        traced_frame = data["excitation"].get("traced_frame")
+        stage = data["config"]["stage"]
+        label = f"elite 1 of {data.get('name')} ({stage} stage)"
+        if traced_frame is None and stage == "arm":
+            traced_frame = "wrist_centre"
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    page, problem = None, ""
+    for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
+        try:
+            page = replay_html(
+                run_dir / "robot.urdf", [trajectory], traced_frame=frame, labels=[label]
+            )
+            break
+        except Exception as e:  # the replay is a convenience: a failure must not lose the run
+            problem = f"no replay: {type(e).__name__}: {e}"
+    if page is None:
+        return problem
+    atomic_write_text(run_dir / "replay.html", page)
+    return f"replay.html written (traced frame: {frame or _default_frame(run_dir)})."
+
+
+def _default_frame(run_dir: Path) -> str:
+    """Name of the frame the replay traces by default for the run's robot."""
+    try:
+        import pinocchio as pin
+
+        from ident.viz.replay import default_traced_frame
+
+        return default_traced_frame(pin.buildModelFromUrdf(str(run_dir / "robot.urdf")))
+    except Exception:  # only a label: never fail the replay for it
+        return "default"
+
+
+def load_run(run_dir: Path) -> dict[str, Any]:
+    path = run_dir / "result.json"
+    if not path.is_file():
+        raise IdentError(
+            f"{run_dir}: no result.json; the run did not get far enough to save results "
+            "(see run.json for its status)."
+        )
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise IdentError(f"{path}: not valid JSON ({e}); the run folder is damaged.") from e
+    if data.get("format") != FORMAT:
+        raise IdentError(f"{path}: format {data.get('format')!r} is not {FORMAT!r}.")
+    return data
+
+
+def _plain(entry: Any) -> Any:
+    """A consistency / safety result as JSON-ready data (dataclass, dict, str or bool)."""
+    if entry is None:
+        return None
+    if dataclasses.is_dataclass(entry) and not isinstance(entry, type):
+        entry = dataclasses.asdict(entry)
+    if isinstance(entry, dict):
+        return {str(k): _plain_value(v) for k, v in entry.items()}
+    return _plain_value(entry)
+
+
+def _plain_value(v: Any) -> Any:
+    if isinstance(v, (str, bool)) or v is None:
+        return v
+    if isinstance(v, dict):
+        return {str(k): _plain_value(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain_value(x) for x in v]
+    try:
+        return _arr(v)
+    except (TypeError, ValueError):
+        return str(v)
+
+
+def _validation_entry(result: Any) -> dict[str, Any] | None:
+    """Prediction errors on the run's validation trajectory (``result.validation``: ``t``
+    (n,), measured ``tau`` (n, n_rows) and ``tau_pred`` ``{method: (n, n_rows)}``)."""
+    from ident.identify.validation import prediction_metrics
+
+    val = getattr(result, "validation", None)
+    if val is None:
+        return None
+    try:
+        tau = np.asarray(val.tau, dtype=float)
+        entries = {
+            m: prediction_metrics(tau, np.asarray(pred, dtype=float)).as_dict()
+            for m, pred in dict(val.tau_pred).items()
+        }
+    except (AttributeError, TypeError, ValueError):
+        return None
+    return {
+        "n_samples": int(tau.shape[0]),
+        "estimates": {
+            m: {**e, "relative_residual": e["total_relative_residual"]} for m, e in entries.items()
+        },
+    }
+
+
+def _validation_csv(result: Any, val: Any) -> str:
+    """``validation.csv``: t, tau_<joint> (measured), <method>_<joint> (predicted)."""
+    tau = np.asarray(val.tau, dtype=float)
+    stage = result.stage
+    rows = list(stage.rows) if stage is not None and len(stage.rows) == tau.shape[1] else None
+    joints = (
+        [result.joint_names[r] for r in rows]
+        if rows is not None
+        else list(result.joint_names[: tau.shape[1]])
+    )
+    cols = [np.asarray(val.t, dtype=float)[:, None], tau]
+    header = ["t", *[f"tau_{j}" for j in joints]]
+    for m, pred in dict(val.tau_pred).items():
+        cols.append(np.asarray(pred, dtype=float))
+        header += [f"{m}_{j}" for j in joints]
+    body = np.column_stack(cols)
+    lines = [",".join(header)] + [",".join(f"{v:.17g}" for v in row) for row in body]
+    return "\n".join(lines) + "\n"
