@@ -55,7 +55,11 @@ def identify(
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify as run_identify
-    from ident.report.identify_report import write_identify_report, write_measured_replay
+    from ident.report.identify_report import (
+        save_identify_data,
+        write_identify_report,
+        write_measured_replay,
+    )
     from ident.run.rundir import create_run_dir
 
     package_dirs = list(package_dir or ())
@@ -70,6 +74,7 @@ def identify(
             info["package_dirs"] = [str(d) for d in package_dirs]
         rundir = create_run_dir(out, f"{cfg.name}", info={**info, "started_at": started_at})
         try:
+            save_identify_data(result, rundir.path)  # the estimate is safe before the rest
             t0 = time.perf_counter()
             replay_note = write_measured_replay(
                 result, rundir.path, replay=replay, package_dirs=package_dirs

@@ -27,6 +27,7 @@ from ident.report.headline import Headline, headline_markdown
 __all__ = [
     "identified_urdf",
     "result_dict",
+    "save_identify_data",
     "torque_png",
     "write_identify_report",
     "write_measured_replay",
@@ -520,6 +521,23 @@ def _parameters_csv(result: IdentifyResult) -> str:
             ]
         )
     return buffer.getvalue()
+
+
+def save_identify_data(result: IdentifyResult, folder: str | Path) -> list[Path]:
+    """Save the estimate before anything that can fail afterwards (write-back, replay, report).
+
+    ``parameters.csv`` and a first ``result.json`` (without the URDF write-back and the replay,
+    which :func:`write_identify_report` adds when it rewrites it).
+    """
+    folder = Path(folder)
+    return [
+        atomic_write_text(folder / "parameters.csv", _parameters_csv(result)),
+        atomic_write_text(
+            folder / "result.json",
+            json.dumps(result_dict(result, None, "not written yet"), indent=2, allow_nan=False)
+            + "\n",
+        ),
+    ]
 
 
 def write_identify_report(
