@@ -453,3 +453,24 @@ def test_full_log_agrees_with_reference_within_two_percent(tmp_path):
             assert row["value"] == pytest.approx(row["reference_value"], rel=0.02), row
             compared += 1
     assert compared >= 18
+
+
+def test_a_failing_report_keeps_the_saved_estimate(tmp_path, monkeypatch):
+    """The estimate is written before the write-back, replay and report that can fail."""
+    import ident.report.identify_report as identify_report
+
+    def broken(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(identify_report, "identified_urdf", broken)
+    config = _config(tmp_path, log={"max_samples": 20000}, validation={"identify_fraction": 0.8})
+    result = CliRunner().invoke(
+        app, ["identify", str(config), "--out", str(tmp_path / "runs"), "--no-replay"]
+    )
+    assert result.exit_code == 2
+    (run,) = (tmp_path / "runs").iterdir()
+    saved = json.loads((run / "result.json").read_text())
+    assert len(saved["base_parameters"]) > 20
+    assert (run / "parameters.csv").is_file()
+    assert json.loads((run / "run.json").read_text())["status"] == "incomplete"
+    assert not (run / "report.md").exists()
