@@ -11,8 +11,11 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ident.dynamics.base_parameters import METHODS, compute_base_parameters
 from ident.dynamics.chain import FloatArray, chain_from_model
-from ident.dynamics.parameters import parameters_from_model
+from ident.dynamics.parameters import parameter_names, parameters_from_model
+from ident.dynamics.regressor import joint_torque_regressor
+from ident.dynamics.stage import paper_stages, stage_observation_matrix, stage_states
 
 __all__ = [
     "compare_with_pinocchio",
@@ -84,8 +87,6 @@ def compare_with_pinocchio(
         ``Y @ parameters_from_model(model)`` against ``pin.rnea`` [N*m or N];
         ``n_samples``.
     """
-    from ident.dynamics.regressor import joint_torque_regressor
-
     q, dq, ddq = _as_samples(q, dq, ddq)
     chain = chain_from_model(model)
     ours = joint_torque_regressor(chain, q, dq, ddq)
@@ -107,8 +108,6 @@ def compare_with_pinocchio(
 
 
 def _counts_both_methods(W: FloatArray, names: list[str]) -> dict[str, dict[str, int]]:
-    from ident.dynamics.base_parameters import METHODS, compute_base_parameters
-
     return {method: compute_base_parameters(W, names, method=method).counts() for method in METHODS}
 
 
@@ -148,10 +147,6 @@ def verification_report(
         ``torque_rows``, ``bodies`` (1-based), ``held_positions`` [rad or m] and the counts of
         both methods; empty otherwise.
     """
-    from ident.dynamics.parameters import parameter_names
-    from ident.dynamics.regressor import joint_torque_regressor
-    from ident.dynamics.stage import paper_stages, stage_observation_matrix, stage_states
-
     q, dq, ddq = _as_samples(q, dq, ddq)
     report: dict[str, Any] = {"robot": model.name, "n_joints": model.nv}
     report.update(compare_with_pinocchio(model, q, dq, ddq))

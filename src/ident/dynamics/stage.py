@@ -9,12 +9,15 @@ and its columns are not part of this stage's observation matrix).
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from ident.dynamics.chain import FloatArray, IntArray, KinematicChain
+from ident.dynamics.gram import selected_rows
 from ident.errors import DataError, ModelError
 
 __all__ = [
@@ -162,8 +165,6 @@ def custom_stage(
 
     def index(joint: str, key: str) -> int:
         if joint not in names:
-            import difflib
-
             close = difflib.get_close_matches(joint, names, n=1)
             hint = f"did you mean '{close[0]}'? " if close else ""
             raise ModelError(
@@ -195,8 +196,6 @@ def spherical_wrist_gap(model: object, rng: int = 0) -> float:
     point (the paper's geometry); evaluated at a few random postures, so a coincidence at
     one posture does not count.
     """
-    import pinocchio as pin
-
     data = model.createData()  # type: ignore[attr-defined]
     gen = np.random.default_rng(rng)
     worst = 0.0
@@ -350,6 +349,4 @@ def stage_observation_matrix(
         ``W`` of shape (n_samples * len(torque_rows), len(columns)); sample-major: row
         ``k * len(torque_rows) + r`` is joint ``torque_rows[r]`` at sample ``k``.
     """
-    from ident.dynamics.gram import selected_rows
-
     return selected_rows(chain, q, dq, ddq, rows=stage.torque_rows, columns=stage.columns)

@@ -31,9 +31,10 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+from threadpoolctl import threadpool_limits
 
-from ident.dynamics.base_parameters import BaseParameters
-from ident.dynamics.chain import KinematicChain
+from ident.dynamics.base_parameters import BaseParameters, compute_base_parameters
+from ident.dynamics.chain import KinematicChain, chain_from_model, random_states
 from ident.dynamics.friction import (
     KINDS,
     ExtraTerms,
@@ -41,6 +42,8 @@ from ident.dynamics.friction import (
     extra_names,
     figaroh_coupling_columns,
 )
+from ident.dynamics.parameters import parameter_names, parameters_from_model
+from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import ConfigError, DataError, NotIdentifiable
 from ident.identify import preprocess
 from ident.identify.config import IdentifyConfig
@@ -147,8 +150,6 @@ def _gather_columns(
 def _regressors(
     chain: KinematicChain, terms: ExtraTerms, q: FloatArray, dq: FloatArray, ddq: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    from ident.dynamics.regressor import joint_torque_regressor
-
     return joint_torque_regressor(chain, q, dq, ddq), extra_columns(terms, dq, ddq)
 
 
@@ -164,10 +165,6 @@ def build_parameter_model(model: pin.Model, terms: ExtraTerms, *, rng: int = 0) 
     rng :
         Seed of the random states used to find the structural base parameters.
     """
-    from ident.dynamics.base_parameters import compute_base_parameters
-    from ident.dynamics.chain import chain_from_model, random_states
-    from ident.dynamics.parameters import parameter_names, parameters_from_model
-
     n = model.nv
     chain = chain_from_model(model)
     rigid_names = parameter_names(n)
@@ -448,8 +445,6 @@ def identify_log(
     IdentError
         Subclasses naming the file, column or parameter: bad config, rank deficiency.
     """
-    from threadpoolctl import threadpool_limits
-
     with threadpool_limits(limits=1, user_api="blas"):
         return _identify_log(cfg, log, model=model, rng=rng, read_s=read_s)
 
@@ -525,7 +520,6 @@ def _identify_log(
     timings["base_parameters"] = time.perf_counter() - t2
 
     t3 = time.perf_counter()
-    from ident.dynamics.chain import chain_from_model
 
     Y_rigid, Y_extra = _regressors(chain_from_model(model), terms, q, dq, ddq)
     reference = (

@@ -14,17 +14,26 @@ the linear map between the two.
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import functools
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ident.dynamics.chain import chain_from_model, random_states
+from ident.dynamics.parameters import parameter_names, parameters_from_model
+from ident.dynamics.pinocchio_check import pinocchio_rnea
+from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, ModelError
 from ident.robot.dh import DHTable
+from ident.robot.inertia import transform_matrix
+from ident.robot.robot_config import RobotDescription, load_robot_config
+from ident.robot.urdf import dh_frame_in_link, urdf_from_description
 from ident.robot.urdf_load import (
     URDF_INERTIA_RTOL,
     build_model,
@@ -36,9 +45,6 @@ from ident.robot.urdf_load import (
     parse_xml,
     suggested_locks,
 )
-
-if TYPE_CHECKING:
-    from ident.robot.robot_config import RobotDescription
 
 __all__ = ["URDF_INERTIA_RTOL", "Robot", "continuous_as_revolute", "suggested_locks"]
 
@@ -225,15 +231,11 @@ class Robot:
         ConfigError
             For a missing, malformed or inconsistent description file.
         """
-        from ident.robot.robot_config import load_robot_config
-
         return cls.from_description(load_robot_config(path))
 
     @classmethod
     def from_description(cls, description: RobotDescription) -> Robot:
         """Build a robot from an already loaded :class:`RobotDescription`."""
-        from ident.robot.urdf import urdf_from_description
-
         text = urdf_from_description(description)
         model = build_model(text, str(description.source or description.name))
         model.gravity.linear = np.array(description.gravity, dtype=float)
@@ -263,8 +265,6 @@ class Robot:
     @functools.cached_property
     def chain(self) -> Any:
         """Kinematic chain arrays for the regressor (``ident.dynamics.chain.chain_from_model``)."""
-        from ident.dynamics.chain import chain_from_model
-
         return chain_from_model(self.model)
 
     def parameters(self) -> FloatArray:
@@ -273,14 +273,10 @@ class Robot:
         Pinocchio order per body, about the origin of each body (joint) frame, in its axes
         [kg, kg*m, kg*m^2]; the labels are :meth:`parameter_names`.
         """
-        from ident.dynamics.parameters import parameters_from_model
-
         return parameters_from_model(self.model)
 
     def parameter_names(self) -> tuple[str, ...]:
         """Labels of :meth:`parameters`: ``m1, mcx1, mcy1, mcz1, Ixx1, ..., Izz<n>``."""
-        from ident.dynamics.parameters import parameter_names
-
         return parameter_names(self.n_bodies)
 
     def dh_to_model_parameters(self) -> FloatArray:
@@ -298,9 +294,6 @@ class Robot:
         ModelError
             If the robot was not built from a DH description.
         """
-        from ident.robot.inertia import transform_matrix
-        from ident.robot.urdf import dh_frame_in_link
-
         dh = self._require_description("dh_to_model_parameters").dh
         out = np.zeros((10 * self.n_bodies, 10 * self.n_bodies))
         for i in range(self.n_bodies):
@@ -342,8 +335,6 @@ class Robot:
             Shape (n_samples, nv, 10 * n_bodies); ``regressor @ parameters()`` gives the joint
             torques [N*m or N] of :meth:`rnea`.
         """
-        from ident.dynamics.regressor import joint_torque_regressor
-
         q, dq, ddq = self._states(q, dq, ddq)
         return joint_torque_regressor(self.chain, q, dq, ddq)
 
@@ -361,8 +352,6 @@ class Robot:
         :
             Joint torques [N*m or N], shape (n_samples, nv).
         """
-        from ident.dynamics.pinocchio_check import pinocchio_rnea
-
         return pinocchio_rnea(self.model, *self._states(q, dq, ddq))
 
     # ------------------------------------------------------------------ kinematics
@@ -405,8 +394,6 @@ class Robot:
 
     def _frame_id(self, frame: str) -> int:
         if not self.model.existFrame(frame):
-            import difflib
-
             names = [n for n in dict.fromkeys(self.frame_names()) if n != "universe"]
             close = difflib.get_close_matches(frame, names, n=1)
             hint = f"did you mean '{close[0]}'? " if close else ""
@@ -436,10 +423,6 @@ class Robot:
             ``+-1`` m where unknown), ``dq`` in ``[-dq_max, dq_max]`` (``+-1`` where unknown),
             ``ddq`` in ``[-ddq_max, ddq_max]`` (``+-10`` where unknown).
         """
-        import dataclasses
-
-        from ident.dynamics.chain import random_states
-
         # The robot's limits (a one-sided unknown position limit makes both sides unknown here,
         # while chain_from_model keeps the known side).
         limited = dataclasses.replace(

@@ -24,7 +24,8 @@ import yaml
 
 from ident.dynamics.base_parameters import torque_shares
 from ident.dynamics.chain import random_states
-from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.friction import ExtraTerms, extra_columns
+from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
 from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
 from ident.identify.logs import read_log
@@ -152,9 +153,6 @@ def reference_share(
     ``|beta_i| ||W_i|| / ||W_b beta||`` with ``W_b`` the base columns on the random states the
     base parameters were found on: unit-free and independent of the trajectory, shape (n_base,).
     """
-    from ident.dynamics.friction import extra_columns
-    from ident.dynamics.regressor import joint_torque_regressor
-
     q, dq, ddq = random_states(robot.chain, _N_SHARE_STATES, rng=rng)
     Yb = pm.columns(
         joint_torque_regressor(robot.chain, q, dq, ddq),

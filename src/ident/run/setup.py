@@ -22,7 +22,7 @@ from ident.excitation.registry import build_family
 from ident.measure.mujoco_config import check_joint_counts
 from ident.model import Robot
 from ident.model.selection import load_robot
-from ident.run.config import RunConfig
+from ident.run.config import RunConfig, load_run_config
 
 __all__ = ["RunSetup", "load_run", "make_family", "prepare_run"]
 
@@ -82,8 +82,6 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
 
 def load_run(path: str | Path) -> RunSetup:
     """Load a run config file and prepare it (:func:`prepare_run`), errors naming the file."""
-    from ident.run.config import load_run_config
-
     return prepare_run(load_run_config(path), source=path)
 
 
