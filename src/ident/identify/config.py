@@ -236,6 +236,11 @@ class PreprocessConfig(StrictModel):
     trim_samples: int = Field(default=20, ge=0)
     decimation: list[int] = Field(default_factory=list)
     velocity_threshold: list[float] | None = None
+    # bounded memory (see ident.identify.accumulate): "auto" chunks logs with several
+    # segments or a regressor above max_regressor_mb; chunk_samples null = automatic
+    chunked: Literal["auto", "always", "never"] = "auto"
+    max_regressor_mb: float = Field(default=1024.0, gt=0.0)
+    chunk_samples: int | None = Field(default=None, ge=16)
 
     @field_validator("decimation")
     @classmethod

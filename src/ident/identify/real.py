@@ -42,7 +42,7 @@ from ident.dynamics.friction import (
     figaroh_coupling_columns,
 )
 from ident.errors import ConfigError, DataError, ModelError, NotIdentifiable
-from ident.identify import preprocess
+from ident.identify import accumulate, preprocess
 from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
 from ident.identify.estimate import Estimate, least_squares, rank_report
@@ -400,7 +400,7 @@ def _reference_prediction(
     return tau, missing
 
 
-def identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
+def identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None) -> IdentifyResult:
     """Run the identification described by ``cfg`` (see :func:`_identify`).
 
     The least-squares problems here are small (thousands of rows, tens of columns) and many
@@ -410,12 +410,12 @@ def identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # pragma: no cover - optional speed-up
-        return _identify(cfg, rng=rng)
+        return _identify(cfg, rng=rng, scheduler=scheduler)
     with threadpool_limits(limits=1, user_api="blas"):
-        return _identify(cfg, rng=rng)
+        return _identify(cfg, rng=rng, scheduler=scheduler)
 
 
-def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
+def _identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None) -> IdentifyResult:
     """Run the identification described by ``cfg``.
 
     Parameters
@@ -444,6 +444,19 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
         )
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
     timings["read"] = time.perf_counter() - t0
+    if accumulate.use_chunks(log, cfg.preprocess, 10 * model.nv + 4 * model.nv):
+        fields = accumulate.identify_chunked(
+            cfg,
+            log,
+            model,
+            joints,
+            source=source,
+            rng=rng,
+            timings=timings,
+            t0=t0,
+            scheduler=scheduler,
+        )
+        return IdentifyResult(**fields)
     records = list(log.records)
     fs = log.sampling_rate_hz
     q, tau = log.q, log.tau
