@@ -63,7 +63,7 @@ FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
 # Impulse responses are followed until they fall below this fraction of their peak.
-_DECAY_RTOL = 1e-17
+_DECAY_RTOL = 1e-14
 
 
 def _decay_length(sos: FloatArray, max_len: int = 2_000_000) -> int:
@@ -240,7 +240,10 @@ def _cholesky_qr2(A: FloatArray, n: int) -> tuple[FloatArray, FloatArray, float]
     As = A / scale
     try:
         R1 = scipy.linalg.cholesky(As.T @ As, lower=False, check_finite=False)
-        Q1 = scipy.linalg.solve_triangular(R1, As.T, trans="T", check_finite=False).T
+        # Q1 = As R1^-1 through the small inverse: one GEMM (a triangular solve with this many
+        # right-hand sides is 10x slower); the second pass restores orthogonality
+        R1_inv = scipy.linalg.solve_triangular(R1, np.eye(R1.shape[0]), check_finite=False)
+        Q1 = As @ R1_inv
         R2 = scipy.linalg.cholesky(Q1.T @ Q1, lower=False, check_finite=False)
     except np.linalg.LinAlgError:
         return _householder(A, n)
@@ -264,9 +267,15 @@ def reduce_chunk(Yb: FloatArray, tau: FloatArray, keep: BoolArray) -> ReducedObs
     n_rows = np.zeros(nv, dtype=np.int64)
     for j in range(nv):
         rows = keep[:, j]
-        A = np.column_stack([Yb[rows, j, :], tau[rows, j]])
-        R[j], z[j], rho[j] = _cholesky_qr2(A, p)
-        yty[j] = float(A[:, p] @ A[:, p])
+        Wj = Yb[rows, j, :]
+        # joint j carries no term of the bodies before it: reduce only the columns it has
+        # (the reduction of [0 W'] is [0 R']), a third of the work on average
+        cols = np.flatnonzero(np.any(Wj != 0.0, axis=0))
+        A = np.column_stack([Wj[:, cols], tau[rows, j]])
+        k = cols.size
+        Rj, z[j, :k], rho[j] = _cholesky_qr2(A, k)
+        R[j][np.ix_(np.arange(k), cols)] = Rj
+        yty[j] = float(A[:, k] @ A[:, k])
         n_rows[j] = int(rows.sum())
     return ReducedObservations(R=R, z=z, rho=rho, yty=yty, n_rows=n_rows)
 
@@ -531,10 +540,10 @@ def _run(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -> li
 
 
 def default_chunk_samples(plan_margins: tuple[int, int], nv: int, n_columns: int) -> int:
-    """Raw samples per chunk: at least 4 margins (so margins cost at most half the work),
+    """Raw samples per chunk: at least the margins (so margins cost at most 2/3 of the work),
     and about 64 MB of base regressor."""
     by_memory = max(1024, (64 << 20) // (8 * nv * max(n_columns, 1)))
-    return max(by_memory, 4 * sum(plan_margins))
+    return max(by_memory, sum(plan_margins))
 
 
 def fit_chunked(
