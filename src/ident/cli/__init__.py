@@ -29,7 +29,7 @@ def _root() -> None:
 
 
 # Order of the commands in `ident --help`.
-_COMMAND_MODULES = ("robot", "verify", "run", "identify", "bench", "replay")
+_COMMAND_MODULES = ("robot", "verify", "run", "identify", "bench", "replay", "logs")
 
 for _name in _COMMAND_MODULES:
     _module_name = f"{__name__}.{_name}"
