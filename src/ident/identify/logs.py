@@ -320,6 +320,8 @@ class _Sources:
         self.by_path: dict[Path, list[LogTable]] = {}
         for f in cfg.sources():
             options = f.model_dump(exclude={"path", "format"})
+            if options.get("time_column") is None and cfg.time is not None:
+                options["time_column"] = cfg.time.column
             self.by_path[Path(f.path)] = read_tables(f.path, f.format, **options)
         self.all = [t for tables in self.by_path.values() for t in tables]
 
@@ -328,14 +330,20 @@ class _Sources:
     ) -> tuple[FloatArray, LogTable]:
         if signal.path is not None:
             tables = self.by_path[Path(signal.path)]
-            table = tables[0] if signal.columns is None else _find(tables, signal.columns[0])
         elif signal.columns is None:
             raise ConfigError(
                 f"log.{what}.columns is missing: name the {n_joints} {what} columns "
-                "(`ident logs inspect FILE` lists them), or give log.{what}.path."
+                f"(`ident logs inspect FILE` lists them), or give log.{what}.path."
             )
         else:
-            table = _find(self.all, signal.columns[0])
+            tables = self.all
+        if signal.columns is None:
+            table = tables[0]
+        else:
+            owners = [_find(tables, c) for c in signal.columns]
+            table = owners[0]
+            if any(o is not table for o in owners):
+                table = _side_by_side(owners, signal.columns, what)
         data, _ = _select(table, signal.columns, n_joints, what)
         if data.shape[1] != n_joints:
             raise DataError(
@@ -343,6 +351,32 @@ class _Sources:
                 f"{n_joints} joints ({', '.join(joint_names)})."
             )
         return data, table
+
+
+def _side_by_side(owners: list[LogTable], columns: list[str], what: str) -> LogTable:
+    """One table of columns that come from several files sampled together (one value per
+    line per file): equal lengths, and equal time columns when they have any."""
+    first = owners[0]
+    for table in owners[1:]:
+        same_time = (table.time is None and first.time is None) or (
+            table.time is not None
+            and first.time is not None
+            and np.array_equal(table.columns[table.time], first.columns[first.time])
+        )
+        if table.n_samples != first.n_samples or not same_time:
+            raise DataError(
+                f"{what} columns come from {first.source} ({first.n_samples} samples) and "
+                f"{table.source} ({table.n_samples} samples) with different time stamps; "
+                "columns of one signal must be sampled together."
+            )
+    cols = {c: o.columns[c] for c, o in zip(columns, owners, strict=True)}
+    if first.time is not None:
+        cols[first.time] = first.columns[first.time]
+    return LogTable(
+        columns=cols,
+        time=first.time,
+        source=", ".join(dict.fromkeys(o.source for o in owners)),
+    )
 
 
 def _time_of(table: LogTable, cfg: LogConfig) -> FloatArray | None:
@@ -448,7 +482,7 @@ def read_log(
         q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
         dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
         t = None if t is None else t[: cfg.max_samples]
-    files = ", ".join(sorted({Path(p[1].source.split(" ")[0]).name for p in parts}))
+    files = ", ".join(Path(f.path).name for f in cfg.sources())
     records: list[dict] = []
 
     # units, scale, sign: once, per signal

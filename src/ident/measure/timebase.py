@@ -14,7 +14,10 @@ given). For a signal with a bounded fourth derivative the interpolation error is
 ``A`` that is ``A * 5/384 * (2 pi f h_max)^4``: with ``f = fs/20`` and steps up to 1.25 times
 the nominal (+-25 % jitter) about ``3e-4 A``, and ``1e-7 A`` at ``f = fs/100``, the band an
 identification uses. Noise is interpolated as well (a spline does not filter); the low-pass
-that follows does.
+that follows does. A jump is not band-limited: the Coulomb torque's step at a velocity
+reversal is smeared over one step and rings for two or three, so drop the rows near zero
+velocity (``preprocess.velocity_threshold``); with it a log with +-25 % jitter identifies as
+well as its uniformly sampled twin (tests/test_logs_examples.py).
 
 A gap is a step longer than ``gap_factor`` times the median step (default 5) or than
 ``max_gap_s`` when given; each side becomes its own segment and no sample is invented in it.

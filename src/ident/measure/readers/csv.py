@@ -96,7 +96,13 @@ def _parse(
                 if not _is_number(cell):
                     raise DataError(
                         f"{path}: line {n}, column '{header[j]}' (field {j + 1}): "
-                        f"{cell!r} is not a number; clean or trim the log."
+                        f"{cell!r} is not a number; clean or trim the log"
+                        + (
+                            " (text in a column: for one row per sample and joint use "
+                            "format: csv_long)."
+                            if line is lines[0][1]
+                            else "."
+                        )
                     ) from e
         raise DataError(f"{path}: a value could not be read as a number.") from e
     if data.shape[1] != len(header):
