@@ -61,14 +61,16 @@ def test_csv_delimiters_and_header_detection(tmp_path, delimiter):
     with gzip.open(path, "wt") as f:
         f.write("\n".join(rows) + "\n")
     (table,) = read_tables(path)
-    assert list(table.columns) == ["t", "q1", "q2"] and table.time == "t"
+    assert list(table.columns) == ["t", "q1", "q2"]
+    assert table.time == "t"
     np.testing.assert_array_equal(table.columns["q2"], -np.arange(5.0))
 
 
 def test_headerless_files_are_named_after_the_file(tmp_path):
     (tmp_path / "q3.txt").write_text("1.0\n2.0\n\n3.0\n")
     (table,) = read_tables(tmp_path / "q3.txt")
-    assert list(table.columns) == ["q3"] and table.time is None
+    assert list(table.columns) == ["q3"]
+    assert table.time is None
     (tmp_path / "m.csv").write_text("1,2\n3,4\n")
     (table,) = read_tables(tmp_path / "m.csv")
     assert list(table.columns) == ["m:1", "m:2"]
@@ -110,7 +112,9 @@ def test_rosbag_and_mcap_read_joint_states():
             np.testing.assert_array_equal(bag.columns[key], mcap.columns[key])
     # header stamps, relative to the first message; +-25 % jitter around 10 ms
     t = bag.columns["/joint_states/t"]
-    assert t[0] == 0.0 and 0.0074 < np.diff(t).min() and np.diff(t).max() < 0.0126
+    assert t[0] == 0.0
+    assert 0.0074 < np.diff(t).min()
+    assert np.diff(t).max() < 0.0126
     with pytest.raises(DataError, match="topic.* /nope"):
         read_tables(EXAMPLES / "bag", topics=["/nope"])
 
@@ -120,7 +124,8 @@ def test_units_sides_scale_sign(tmp_path):
     t = np.arange(n) / 100.0
     q = np.column_stack([np.sin(t), np.cos(t)])
     rows = ["t,p1,p2,c1,c2"] + [
-        f"{t[k]},{np.rad2deg(q[k, 0]) * 50},{-np.rad2deg(q[k, 1]) * 1000},{k},{2 * k}" for k in range(n)
+        f"{t[k]},{np.rad2deg(q[k, 0]) * 50},{-np.rad2deg(q[k, 1]) * 1000},{k},{2 * k}"
+        for k in range(n)
     ]
     (tmp_path / "w.csv").write_text("\n".join(rows) + "\n")
     cfg = LogConfig.model_validate(

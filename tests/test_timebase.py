@@ -51,7 +51,8 @@ def test_gaps_split_and_windows_select():
     assert windows == [(10, 51), (110, 150)]
     assert timebase.windows_to_segments(t, segments, []) == segments
     summary = timebase.summarize_time(t)
-    assert summary.n_gaps == 1 and summary.longest_gap_s == pytest.approx(0.101)
+    assert summary.n_gaps == 1
+    assert summary.longest_gap_s == pytest.approx(0.101)
     assert summary.rate_hz == pytest.approx(FS)
 
 
@@ -62,4 +63,5 @@ def test_velocity_mismatch_flags_wrong_unit():
     logged = dq_true * [1.0, 180 / np.pi]  # joint 2 logged in deg/s
     dq = np.gradient(q, 1 / FS, axis=0)
     mismatch = timebase.velocity_mismatch(logged, dq)
-    assert mismatch[0] < 1e-3 and mismatch[1] > 10
+    assert mismatch[0] < 1e-3
+    assert mismatch[1] > 10
