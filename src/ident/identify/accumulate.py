@@ -700,6 +700,7 @@ def identify_chunked(
     from ident.dynamics.chain import chain_from_model
     from ident.dynamics.friction import ExtraTerms
     from ident.errors import ConfigError
+    from ident.identify import sanity
     from ident.identify.motion import measured_motion
     from ident.identify.real import (
         ModelPrediction,
@@ -832,6 +833,22 @@ def identify_chunked(
         in_sample=fit.in_sample,
         n_rows=int(fit.reduction.n_rows.sum()),
         n_params=len(pm.base_names),
+    )
+    red = fit.reduction
+    problems += sanity.result_warnings(
+        joint_names=tuple(joints),
+        units=sanity.joint_units(model),  # type: ignore[arg-type]
+        names=pm.base_names,
+        x=fit.estimate.x,
+        std=fit.estimate.std,
+        relative_std=fit.estimate.relative_std,
+        projection=pm.base.projection,
+        all_names=pm.names,
+        column_norms=np.sqrt(np.einsum("gij,gij->j", red.R, red.R)),
+        tau_norm=float(np.sqrt(red.yty.sum())),
+        tau_validate=fit.tau_validate,
+        tau_pred=fit.predictions["identified"],
+        keep_validate=fit.keep_validate,
     )
     timings["total"] = time.perf_counter() - t0
     return {

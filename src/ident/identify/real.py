@@ -42,7 +42,7 @@ from ident.dynamics.friction import (
     figaroh_coupling_columns,
 )
 from ident.errors import ConfigError, DataError, ModelError, NotIdentifiable
-from ident.identify import accumulate, preprocess
+from ident.identify import accumulate, preprocess, sanity
 from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
 from ident.identify.estimate import Estimate, least_squares, rank_report
@@ -643,6 +643,21 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None
         in_sample=part is ident_part,
         n_rows=int(W_id.shape[0]),
         n_params=len(base_names),
+    )
+    problems += sanity.result_warnings(
+        joint_names=tuple(joints),
+        units=sanity.joint_units(model),
+        names=base_names,
+        x=est.x,
+        std=est.std,
+        relative_std=est.relative_std,
+        projection=base.projection,
+        all_names=pm.names,
+        column_norms=np.linalg.norm(W_id, axis=0),
+        tau_norm=float(np.linalg.norm(tau_id)),
+        tau_validate=tau_val,
+        tau_pred=predictions["identified"].tau_pred,
+        keep_validate=keep_val,
     )
     timings["total"] = time.perf_counter() - t0
     return IdentifyResult(
