@@ -62,6 +62,8 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
+# Longest stretch of a chunked log shown in the replay [s].
+MOTION_MAX_S = 600.0
 # Impulse responses are followed until they fall below this fraction of their peak.
 _DECAY_RTOL = 1e-14
 
@@ -805,9 +807,11 @@ def identify_chunked(
             members = row["ours"].split(" + ") if row["ours"] else []
             row["in_our_essential_set"] = bool(members) and all(m in kept for m in members)
             reference_essential.append(row)
-    # the replay's measured motion: the first segment, processed in memory (n x nv arrays)
+    # the replay's measured motion: the first segment (at most its first MOTION_MAX_S),
+    # processed in memory (a few (n, nv) arrays)
     motion, motion_note = None, ""
     a, b = log.segments[0]  # type: ignore[attr-defined]
+    b = min(b, a + int(MOTION_MAX_S * fs))
     try:
         from ident.identify import preprocess as pre
 

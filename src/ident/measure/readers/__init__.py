@@ -14,6 +14,7 @@ Readers live in :data:`READERS`, keyed by the ``format:`` name of a log config; 
 ``csv_long``  CSV with one row per sample and joint: a time, a joint-name and value columns
 ``rosbag``    ROS 2 bag folder (sqlite3 or mcap storage) read with ``rosbags``
 ``mcap``      a bare ``.mcap`` file with ROS 2 (CDR) messages read with ``mcap-ros2-support``
+``npz``       a numpy archive (1-D arrays are columns, 2-D ``name`` -> ``name/0``, ...)
 ============  ===========================================================================
 
 Add a format with :func:`register_reader` (see ``docs/logs.md``, "Extending").
@@ -171,12 +172,14 @@ def read_tables(path: str | Path, fmt: str | None = None, **options: Any) -> lis
 
 def _register_builtins() -> None:
     from ident.measure.readers import csv as _csv
+    from ident.measure.readers import npz as _npz
     from ident.measure.readers import ros as _ros
 
     register_reader(
         "rosbag", _ros.read_rosbag, detect=_ros.is_rosbag, description="ROS 2 bag folder"
     )
     register_reader("mcap", _ros.read_mcap, detect=_ros.is_mcap, description="bare .mcap file")
+    register_reader("npz", _npz.read_npz, detect=_npz.is_npz, description="numpy archive")
     register_reader(
         "csv_long",
         _csv.read_csv_long,
