@@ -229,12 +229,19 @@ class FilterConfig(StrictModel):
 
 
 class PreprocessConfig(StrictModel):
-    """Signal processing before the regressor is built (see :mod:`ident.identify.preprocess`)."""
+    """Signal processing before the regressor is built (see :mod:`ident.identify.preprocess`).
 
-    lowpass: FilterConfig | None = None
+    ``lowpass`` and ``decimation`` default to ``auto``: chosen from the sampling rate and the
+    excitation band (``excitation_band_hz``, the highest frequency of the motion; estimated
+    from the positions when null), and recorded. ``lowpass: null`` leaves the positions
+    unfiltered (a warning), ``decimation: []`` keeps the rate.
+    """
+
+    lowpass: FilterConfig | Literal["auto"] | None = "auto"
     torque_lowpass: FilterConfig | None = None
     trim_samples: int = Field(default=20, ge=0)
-    decimation: list[int] = Field(default_factory=list)
+    decimation: list[int] | Literal["auto"] = "auto"
+    excitation_band_hz: float | None = Field(default=None, gt=0.0)
     velocity_threshold: list[float] | None = None
     # bounded memory (see ident.identify.accumulate): "auto" chunks logs with several
     # segments or a regressor above max_regressor_mb; chunk_samples null = automatic
@@ -244,8 +251,8 @@ class PreprocessConfig(StrictModel):
 
     @field_validator("decimation")
     @classmethod
-    def _factors(cls, value: list[int]) -> list[int]:
-        if any(f < 1 for f in value):
+    def _factors(cls, value: list[int] | str) -> list[int] | str:
+        if not isinstance(value, str) and any(f < 1 for f in value):
             raise ValueError("decimation factors must be >= 1")
         return value
 

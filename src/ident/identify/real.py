@@ -24,6 +24,7 @@ Nothing here writes files; :mod:`ident.report.identify_report` does.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -444,6 +445,15 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None
         )
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
     timings["read"] = time.perf_counter() - t0
+    first = slice(*log.segments[0])  # automatic settings: from the first segment
+    settings, auto_records, auto_warnings = preprocess.resolve_defaults(
+        cfg.preprocess,
+        log.q[first],
+        log.sampling_rate_hz,
+        None if log.dq is None else log.dq[first],
+    )
+    cfg = cfg.model_copy(update={"preprocess": settings})
+    log = dataclasses.replace(log, records=(*log.records, *auto_records))
     if accumulate.use_chunks(log, cfg.preprocess, 10 * model.nv + 4 * model.nv):
         fields = accumulate.identify_chunked(
             cfg,
@@ -456,6 +466,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None
             t0=t0,
             scheduler=scheduler,
         )
+        fields["warnings"] = (*auto_warnings, *fields["warnings"])
         return IdentifyResult(**fields)
     records = list(log.records)
     fs = log.sampling_rate_hz
@@ -644,6 +655,7 @@ def _identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None
         n_rows=int(W_id.shape[0]),
         n_params=len(base_names),
     )
+    problems = [*auto_warnings, *problems]
     problems += sanity.result_warnings(
         joint_names=tuple(joints),
         units=sanity.joint_units(model),
