@@ -138,3 +138,66 @@ def test_tx40_chunked_equals_in_memory():
         np.testing.assert_allclose(
             b.predictions[label].tau_pred, a.predictions[label].tau_pred, rtol=0, atol=1e-9
         )
+
+
+def test_dask_scheduler_gives_the_local_result():
+    distributed = pytest.importorskip("distributed")
+    cfg = load_identify_config(ROOT / "configs" / "examples" / "wide-csv.yaml")
+    pp = cfg.preprocess.model_copy(update={"chunked": "always", "chunk_samples": 300})
+    cfg = cfg.model_copy(update={"preprocess": pp})
+    from ident.identify.real import identify
+
+    local = identify(cfg)
+    with distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=None) as lc:
+        remote = identify(cfg, scheduler=lc.scheduler_address)
+    np.testing.assert_array_equal(remote.estimate.x, local.estimate.x)
+    np.testing.assert_array_equal(
+        remote.predictions["identified"].tau_pred, local.predictions["identified"].tau_pred
+    )
+
+
+def test_segments_of_one_log_merge(tmp_path):
+    # a gap splits the example log in two segments: identified together, by chunks
+    import yaml
+
+    data = (ROOT / "data" / "examples" / "wide.csv").read_text().splitlines()
+    header, rows = data[0], data[1:]
+    shifted = [
+        ",".join([f"{float(r.split(',')[0]) + (5.0 if k >= 800 else 0.0):.7g}", *r.split(",")[1:]])
+        for k, r in enumerate(rows)
+    ]
+    (tmp_path / "gap.csv").write_text("\n".join([header, *shifted]) + "\n")
+    cfg = yaml.safe_load((ROOT / "configs" / "examples" / "wide-jitter.yaml").read_text())
+    cfg["robot"]["urdf"] = str(ROOT / "data" / "examples" / "arm3.urdf")
+    cfg["log"]["path"] = str(tmp_path / "gap.csv")
+    (tmp_path / "gap.yaml").write_text(yaml.safe_dump(cfg))
+    from ident.identify.real import identify
+
+    result = identify(load_identify_config(tmp_path / "gap.yaml"))
+    assert result.log.segments == ((0, 800), (800, 1600))
+    assert any(r["step"] == "chunked accumulation" for r in result.records)
+    assert result.warnings == ()
+    x = dict(zip(result.estimate.names, result.estimate.x, strict=True))
+    assert x["fv1"] == pytest.approx(0.8, rel=0.06)
+
+
+@pytest.mark.slow
+def test_long_log_benchmark_short_version():
+    import os
+    import re
+    import subprocess
+    import sys
+
+    args = ["--minutes", "0.5", "--per-sample", "300", "--compare-minutes", "0.3"]
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "bench_identify_long.py"), *args],
+        capture_output=True,
+        text=True,
+        env=os.environ,
+        check=False,
+        cwd=ROOT,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "ident identify (chunked): wall" in proc.stdout
+    diff = float(re.search(r"difference \(norm\) ([0-9.e+-]+)", proc.stdout).group(1))
+    assert diff < 1e-9
