@@ -19,7 +19,9 @@ def _run(name):
     return identify(load_identify_config(EXAMPLES / f"{name}.yaml"))
 
 
-@pytest.mark.parametrize("name", ["wide-csv", "wide-jitter", "long-csv", "lines", "rosbag", "mcap"])
+@pytest.mark.parametrize(
+    "name", ["wide-csv", "wide-jitter", "long-csv", "lines", "rosbag", "mcap", "two-logs"]
+)
 def test_example_identifies(name):
     result = _run(name)
     assert result.warnings == ()
@@ -63,3 +65,14 @@ def test_example_files_are_small():
     for path in data.rglob("*"):
         if path.is_file():
             assert path.stat().st_size < 300_000, path
+
+
+def test_two_logs_merge_into_one_identification():
+    both = _run("two-logs")
+    assert len(both.log.segments) == 2
+    assert any(r["step"] == "chunked accumulation" for r in both.records)
+    single = _run("wide-csv")
+    k = [both.estimate.names.index(n) for n in TRUE]
+    # twice the rows: standard deviations shrink by about sqrt(2)
+    ratio = both.estimate.std[k] / single.estimate.std[k]
+    assert np.all((ratio > 0.55) & (ratio < 0.85)), ratio

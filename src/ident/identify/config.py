@@ -146,6 +146,23 @@ class LogConfig(StrictModel):
     gap_factor: float = Field(default=5.0, gt=1.0)
     max_gap_s: float | None = Field(default=None, gt=0.0)
     resample_hz: float | None = Field(default=None, gt=0.0)
+    # further logs of the same robot (other trajectories or days), identified together: each
+    # entry is a partial log section, the keys it omits are this section's
+    more: list[dict] = Field(default_factory=list)
+
+    def all_logs(self) -> list[LogConfig]:
+        """This log and the ``more`` ones, each a complete section (without ``more``)."""
+        first = self.model_copy(update={"more": []})
+        base = first.model_dump(exclude_defaults=True)
+        out = [first]
+        for entry in self.more:
+            merged = {**base, **entry}
+            if "files" in entry or "path" in entry:  # new files: not the first log's signals'
+                for key in ("position", "torque", "velocity"):
+                    if key in merged and key not in entry and isinstance(merged[key], dict):
+                        merged[key] = {k: v for k, v in merged[key].items() if k != "path"}
+            out.append(LogConfig.model_validate(merged))
+        return out
 
     @model_validator(mode="after")
     def _one_time_base(self) -> LogConfig:
@@ -383,7 +400,11 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
     path = Path(path)
     cfg = load_config_file(IdentifyConfig, path)
     base = path.resolve().parent
-    log = _resolve_log(cfg.log, base)
+    try:
+        logs = [_resolve_log(entry, base) for entry in cfg.log.all_logs()]
+    except ValueError as e:
+        raise ConfigError(f"{path}: log.more: {e}") from e
+    log = logs[0].model_copy(update={"more": [x.model_dump() for x in logs[1:]]})
     reference = cfg.reference.model_copy(
         update={
             "base_parameters": _resolve(cfg.reference.base_parameters, base),
@@ -392,13 +413,15 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
     )
     robot = cfg.robot.model_copy(update={"urdf": _resolve(cfg.robot.urdf, base)})
     checks = [("robot.urdf", robot.urdf)]
-    if log.path is not None:
-        checks.append(("log.path", log.path))
-    checks += [(f"log.files[{k}].path", f.path) for k, f in enumerate(log.files)]
-    for key in ("position", "torque", "velocity", "time"):
-        value = getattr(log, key)
-        if value is not None and value.path is not None:
-            checks.append((f"log.{key}.path", value.path))
+    for n, entry in enumerate(logs):
+        where = "log" if n == 0 else f"log.more[{n - 1}]"
+        if entry.path is not None:
+            checks.append((f"{where}.path", entry.path))
+        checks += [(f"{where}.files[{k}].path", f.path) for k, f in enumerate(entry.files)]
+        for key in ("position", "torque", "velocity", "time"):
+            value = getattr(entry, key)
+            if value is not None and value.path is not None:
+                checks.append((f"{where}.{key}.path", value.path))
     for key in ("base_parameters", "essential_parameters"):
         value = getattr(reference, key)
         if value is not None:

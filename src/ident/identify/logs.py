@@ -437,6 +437,87 @@ def read_log(
     *,
     source: str = "config",
 ) -> RobotLog:
+    """Read the log of a config (and its ``more`` logs) as joint-side SI signals.
+
+    Several logs become segments of one :class:`RobotLog` (time continues after each log's
+    end plus one second, so plots keep them apart); logs at another rate are resampled onto
+    the first log's rate. See :func:`_read_one` for one log.
+    """
+    logs = cfg.all_logs()
+    first = _read_one(logs[0], transmission, joint_names, source=source)
+    if len(logs) == 1:
+        return first
+    fs = first.sampling_rate_hz
+    parts = [first]
+    for k, entry in enumerate(logs[1:]):
+        try:
+            log = _read_one(entry, transmission, joint_names, source=source)
+        except (DataError, ConfigError) as e:
+            raise type(e)(f"log.more[{k}]: {e}") from e
+        if abs(log.sampling_rate_hz - fs) > 1e-9 * fs:
+            log = _to_rate(log, fs)
+        parts.append(log)
+    t, q, tau, dq, segments, records = [], [], [], [], [], list(first.records)
+    offset, start = 0.0, 0
+    for k, log in enumerate(parts):
+        t.append(log.t - log.t[0] + offset)
+        offset = t[-1][-1] + 1.0
+        q.append(log.q)
+        tau.append(log.tau)
+        dq.append(log.dq)
+        segments += [(a + start, b + start) for a, b in log.segments]
+        start += log.n_samples
+        if k:
+            records += [{**r, "step": f"log {k + 1}: {r['step']}"} for r in log.records]
+    has_dq = all(d is not None for d in dq)
+    return RobotLog(
+        t=np.concatenate(t),
+        q=np.concatenate(q),
+        tau=np.concatenate(tau),
+        sampling_rate_hz=fs,
+        joint_names=first.joint_names,
+        records=tuple(records),
+        segments=tuple(segments),
+        dq=np.concatenate(dq) if has_dq else None,
+    )
+
+
+def _to_rate(log: RobotLog, rate_hz: float) -> RobotLog:
+    """``log`` resampled per segment onto ``rate_hz`` (cubic spline)."""
+    signals = [log.q, log.tau] + ([log.dq] if log.dq is not None else [])
+    t_out, x_out, segments, start = [], [], [], 0
+    for a, b in log.segments:
+        tg, xg = timebase.resample(
+            log.t[a:b], np.concatenate([x[a:b] for x in signals], 1), rate_hz
+        )
+        t_out.append(tg)
+        x_out.append(xg)
+        segments.append((start, start + tg.size))
+        start += tg.size
+    x = np.concatenate(x_out)
+    parts = np.split(x, len(signals), axis=1)
+    return RobotLog(
+        t=np.concatenate(t_out),
+        q=parts[0],
+        tau=parts[1],
+        sampling_rate_hz=rate_hz,
+        joint_names=log.joint_names,
+        records=(
+            *log.records,
+            {"step": "resample", "detail": f"onto the first log's rate {rate_hz:g} Hz"},
+        ),
+        segments=tuple(segments),
+        dq=parts[2] if log.dq is not None else None,
+    )
+
+
+def _read_one(
+    cfg: LogConfig,
+    transmission: TransmissionConfig,
+    joint_names: list[str] | tuple[str, ...],
+    *,
+    source: str = "config",
+) -> RobotLog:
     """Read the log of a config and convert it to joint-side SI signals on a uniform grid.
 
     Parameters
