@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -34,7 +35,7 @@ import pinocchio as pin
 import yaml
 
 from ident.dynamics.chain import chain_from_model
-from ident.dynamics.friction import ExtraTerms, extra_columns
+from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameters import parameters_from_model
 from ident.dynamics.regressor import joint_torque_regressor
 
@@ -130,8 +131,10 @@ from ident.cli import app
 try:
     app(sys.argv[1:], standalone_mode=False)
 finally:
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(json.dumps({"wall_s": time.perf_counter() - t0, "peak_mb": peak}))
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = usage.ru_utime + usage.ru_stime
+    print(json.dumps({"wall_s": time.perf_counter() - t0, "cpu_s": cpu,
+                      "peak_mb": usage.ru_maxrss / 1024}))
 """
 
 
@@ -146,7 +149,7 @@ def run_cli(cfg: Path, out: Path) -> dict:
 
 def per_sample(urdf: Path, n: int) -> tuple[float, float]:
     """Seconds per sample: the chunked path's regressor + reduction, and Pinocchio's loop."""
-    from ident.identify.accumulate import reduce_chunk
+    from ident.identify.accumulate import BaseColumns, reduce_chunk
     from ident.identify.real import build_parameter_model
 
     model = pin.buildModelFromUrdf(str(urdf))
@@ -157,14 +160,10 @@ def per_sample(urdf: Path, n: int) -> tuple[float, float]:
     q, dq, ddq = rng.normal(size=(3, n, 7))
     tau = rng.normal(size=(n, 7))
     keep = np.ones((n, 7), dtype=bool)
-    joint_torque_regressor(chain, q[:10], dq[:10], ddq[:10])  # compile outside the timing
+    columns = BaseColumns(chain, pm)
+    columns(q[:10], dq[:10], ddq[:10])  # compile outside the timing
     t0 = time.perf_counter()
-    Yb = pm.columns(
-        joint_torque_regressor(chain, q, dq, ddq),
-        extra_columns(terms, dq, ddq),
-        pm.base.independent,
-    )
-    reduce_chunk(Yb, tau, keep)
+    reduce_chunk(columns(q, dq, ddq), tau, keep)
     ours = (time.perf_counter() - t0) / n
     data = model.createData()
     gram = np.zeros((70, 70))
@@ -219,8 +218,9 @@ def main() -> None:
         (rundir,) = (folder / "runs").iterdir()
         result = json.loads((rundir / "result.json").read_text())
         print(
-            f"ident identify (chunked): wall {run['wall_s']:.1f} s, peak memory "
-            f"{run['peak_mb']:.0f} MB (targets < 60 s, < 2048 MB)"
+            f"ident identify (chunked): wall {run['wall_s']:.1f} s, CPU {run['cpu_s']:.1f} s, "
+            f"peak memory {run['peak_mb']:.0f} MB (targets < 60 s, < 2048 MB); machine load "
+            f"average {os.getloadavg()[0]:.1f}"
         )
         print(
             f"  relative residual {result['relative_residual']:.4f}; "

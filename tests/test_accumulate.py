@@ -52,14 +52,14 @@ def test_chunks_equal_the_whole_log(decimation):
     )
     (tau_d, Y_d, dq_d), _, _ = preprocess.decimate([tf, Y, dq], decimation, fs)
 
-    def columns(Y_rigid, Y_extra):
-        return np.concatenate([Y_rigid, Y_extra], axis=2)
+    def columns(q, dq, ddq):
+        return np.concatenate(
+            [joint_torque_regressor(chain, q, dq, ddq), extra_columns(terms, dq, ddq)], axis=2
+        )
 
     plan = accumulate.make_plan(n, pp, fs, chunk_samples=700)
     assert plan.n_decimated == tau_d.shape[0]
-    chunks = list(
-        accumulate.iter_chunks(plan, q, tau, fs, pp, chain, columns, terms, plan.ranges())
-    )
+    chunks = list(accumulate.iter_chunks(plan, q, tau, fs, pp, columns, plan.ranges()))
     assert len(chunks) > 3
     Yc = np.concatenate([c.Yb for c in chunks])
     scale = np.abs(Y_d).max()

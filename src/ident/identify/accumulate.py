@@ -41,7 +41,6 @@ from scipy import signal
 
 from ident.dynamics.chain import KinematicChain
 from ident.dynamics.friction import extra_columns
-from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, NotIdentifiable
 from ident.identify import preprocess
 from ident.identify.config import PreprocessConfig
@@ -177,12 +176,13 @@ def iter_chunks(
     tau: FloatArray,
     sampling_rate_hz: float,
     pp: PreprocessConfig,
-    chain: KinematicChain,
-    base_columns: Callable[[FloatArray, FloatArray], FloatArray],
-    terms: object,
+    columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
     ranges: list[tuple[int, int]],
 ) -> Iterator[Chunk]:
-    """Process the decimated ranges of one segment (raw ``q``, ``tau``: (n_samples, nv))."""
+    """Process the decimated ranges of one segment (raw ``q``, ``tau``: (n_samples, nv)).
+
+    ``columns(q, dq, ddq)`` gives the regressor columns to keep, shape (n, nv, p).
+    """
     fs = sampling_rate_hz
     n, n_edge, step = plan.n_samples, plan.n_edge, plan.step
     n_trim = n - 2 * n_edge
@@ -201,10 +201,7 @@ def iter_chunks(
         dq_c, ddq_c, _ = preprocess.differentiate(q_c, fs)
         a, b = s + n_edge - r0, e + n_edge - r0
         q_c, dq_c, ddq_c, tau_c = q_c[a:b], dq_c[a:b], ddq_c[a:b], tau_c[a:b]
-        Y_rigid = joint_torque_regressor(chain, q_c, dq_c, ddq_c)
-        Y_extra = extra_columns(terms, dq_c, ddq_c)  # type: ignore[arg-type]
-        Yb = base_columns(Y_rigid, Y_extra)
-        del Y_rigid, Y_extra
+        Yb = columns(q_c, dq_c, ddq_c)
         bank, _, _ = preprocess.decimate([tau_c, Yb, dq_c], pp.decimation, fs)
         k0 = d0 - s // step
         k1 = k0 + (d1 - d0)
@@ -481,29 +478,61 @@ class _Task:
     d1: int
 
     def chunk(self) -> Chunk:
-        pm = self.pm
-
-        def base_columns(Y_rigid: FloatArray, Y_extra: FloatArray) -> FloatArray:
-            return pm.columns(Y_rigid, Y_extra, pm.base.independent)  # type: ignore[attr-defined]
-
         (out,) = iter_chunks(
             self.plan,
             self.q,
             self.tau,
             self.fs,
             self.pp,
-            self.chain,
-            base_columns,
-            pm.terms,  # type: ignore[attr-defined]
+            BaseColumns(self.chain, self.pm),
             [(self.d0, self.d1)],
         )
         return out
 
 
+class BaseColumns:
+    """The base regressor columns straight from the kernels, in *kernel order*: the rigid-body
+    columns computed alone (``selected_rows``, no full regressor and no gather of it), then
+    the extra columns. ``order[i]`` is the base parameter of kernel column ``i``."""
+
+    def __init__(self, chain: KinematicChain, pm: object) -> None:
+        independent = np.asarray(pm.base.independent)  # type: ignore[attr-defined]
+        rigid = pm.inertial_index[independent] >= 0  # type: ignore[attr-defined]
+        self.chain = chain
+        self.terms = pm.terms  # type: ignore[attr-defined]
+        self.rigid_columns = pm.inertial_index[independent[rigid]]  # type: ignore[attr-defined]
+        self.extra_columns = pm.extra_index[independent[~rigid]]  # type: ignore[attr-defined]
+        self.order = np.concatenate([np.flatnonzero(rigid), np.flatnonzero(~rigid)])
+
+    def __call__(self, q: FloatArray, dq: FloatArray, ddq: FloatArray) -> FloatArray:
+        from ident.dynamics.gram import selected_rows
+
+        n, nv = dq.shape
+        out = np.empty((n, nv, self.order.size))
+        a = self.rigid_columns.size
+        if a:
+            out[:, :, :a] = selected_rows(
+                self.chain, q, dq, ddq, columns=self.rigid_columns
+            ).reshape(n, nv, a)
+        if self.extra_columns.size:
+            out[:, :, a:] = extra_columns(self.terms, dq, ddq)[:, :, self.extra_columns]
+        return out
+
+    def to_base(self, red: ReducedObservations) -> ReducedObservations:
+        """A reduction of kernel-order columns as one of base-order columns."""
+        R = np.zeros_like(red.R)
+        z = np.zeros_like(red.z)
+        R[:, :, self.order] = red.R
+        z[:] = red.z  # rows are unchanged, only the columns move
+        return ReducedObservations(
+            R=R, z=z, rho=red.rho.copy(), yty=red.yty.copy(), n_rows=red.n_rows.copy()
+        )
+
+
 def _reduce_task(task: _Task) -> ReducedObservations:
     c = task.chunk()
     keep, _ = preprocess.velocity_mask(c.dq, task.pp.velocity_threshold)
-    return reduce_chunk(c.Yb, c.tau, keep)
+    return BaseColumns(task.chain, task.pm).to_base(reduce_chunk(c.Yb, c.tau, keep))
 
 
 def _predict_task(
@@ -511,7 +540,8 @@ def _predict_task(
 ) -> tuple[FloatArray, BoolArray, dict[str, FloatArray]]:
     c = task.chunk()
     keep, _ = preprocess.velocity_mask(c.dq, task.pp.velocity_threshold)
-    return c.tau, keep, {label: c.Yb @ x for label, x in vectors.items()}
+    order = BaseColumns(task.chain, task.pm).order
+    return c.tau, keep, {label: c.Yb @ x[order] for label, x in vectors.items()}
 
 
 def _run(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -> list:
@@ -543,8 +573,8 @@ def _run(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -> li
 
 def default_chunk_samples(plan_margins: tuple[int, int], nv: int, n_columns: int) -> int:
     """Raw samples per chunk: at least the margins (so margins cost at most 2/3 of the work),
-    and about 64 MB of base regressor."""
-    by_memory = max(1024, (64 << 20) // (8 * nv * max(n_columns, 1)))
+    and about 128 MB of base regressor."""
+    by_memory = max(1024, (128 << 20) // (8 * nv * max(n_columns, 1)))
     return max(by_memory, sum(plan_margins))
 
 
