@@ -131,3 +131,68 @@ def test_measured_motion_too_short_log():
     x = np.zeros((20, 2))
     with pytest.raises(DataError, match="measured motion: 20 samples are too few"):
         measured_motion(np.arange(20) / 5000.0, x, x, x, x, 5000.0, ("a", "b"))
+
+
+# --- automatic settings and data warnings (preprocess.resolve_defaults) -----------------------
+
+from ident.identify import preprocess  # noqa: E402
+from ident.identify.config import PreprocessConfig  # noqa: E402
+
+
+def _motion(fs=1000.0, seconds=20.0, f=0.5):
+    t = np.arange(int(fs * seconds)) / fs
+    q = np.column_stack([np.sin(2 * np.pi * f * t), 0.5 * np.cos(2 * np.pi * 2 * f * t)])
+    dq = (
+        2 * np.pi * f * np.column_stack([np.cos(2 * np.pi * f * t), -np.sin(2 * np.pi * 2 * f * t)])
+    )
+    return t, q, dq
+
+
+def test_auto_settings_follow_the_excitation_band():
+    _, q, _ = _motion()
+    settings, records, warnings = preprocess.resolve_defaults(PreprocessConfig(), q, 1000.0)
+    band = preprocess.excitation_band(q, 1000.0)
+    assert 0.9 < band < 1.2  # the 1 Hz harmonic of joint 2
+    assert settings.lowpass.cutoff_hz == pytest.approx(5.0 * band)
+    factor = int(np.prod(settings.decimation))  # 1000 Hz -> >= 4 x cutoff, stages <= 10
+    assert max(settings.decimation) <= 10
+    assert 1000.0 / factor >= 4 * settings.lowpass.cutoff_hz
+    assert factor >= 20
+    assert [r["step"] for r in records] == ["auto settings", "auto settings"]
+    assert "low-pass cutoff" in records[0]["detail"]
+    assert warnings == []
+
+
+def test_explicit_settings_are_kept_and_unfiltered_warns():
+    _, q, _ = _motion()
+    explicit = PreprocessConfig(lowpass={"cutoff_hz": 25.0}, decimation=[10, 10])
+    settings, records, warnings = preprocess.resolve_defaults(explicit, q, 1000.0)
+    assert settings == explicit
+    assert records == []
+    assert warnings == []
+    _, _, warnings = preprocess.resolve_defaults(
+        PreprocessConfig(lowpass=None, decimation=[]), q, 1000.0
+    )
+    (w,) = warnings
+    assert w.startswith("positions are not low-pass filtered")
+
+
+def test_aliased_positions_warn():
+    t, q, _ = _motion()
+    q = q.copy()
+    q[:, 1] += 0.05 * np.sin(2 * np.pi * 400.0 * t)  # content near Nyquist
+    _, _, warnings = preprocess.resolve_defaults(PreprocessConfig(), q, 1000.0)
+    (w,) = warnings
+    assert w.startswith("joint(s) 2: positions have")
+    assert "aliased" in w
+
+
+def test_logged_velocity_checked():
+    _, q, dq = _motion()
+    _, records, warnings = preprocess.resolve_defaults(PreprocessConfig(), q, 1000.0, dq)
+    assert warnings == []
+    assert records[-1]["step"] == "velocity check"
+    wrong = dq * [1.0, 180.0 / np.pi]  # joint 2 logged in deg/s
+    _, _, warnings = preprocess.resolve_defaults(PreprocessConfig(), q, 1000.0, wrong)
+    (w,) = warnings
+    assert w.startswith("joint(s) 2: logged velocities differ")

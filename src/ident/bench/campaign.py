@@ -40,6 +40,7 @@ from pydantic import Field, ValidationInfo, field_validator
 from ident.bench.functions import appendix_functions, get_function, table_functions
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError, IdentError, OptimizationError
+from ident.identify.accumulate import DASK_CONNECT_TIMEOUT
 
 __all__ = [
     "CampaignConfig",
@@ -59,7 +60,6 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 ALL_METHODS = ("emupso", "pso", "woa", "gwo", "goa", "de")
-DASK_CONNECT_TIMEOUT = "10s"  # how long to wait for a --scheduler before giving up
 
 
 class CampaignConfig(StrictModel):

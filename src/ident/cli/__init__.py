@@ -70,7 +70,7 @@ def _root(
 
 
 # Order of the commands in `ident --help`.
-_COMMAND_MODULES = ("robot", "verify", "run", "report", "identify", "bench", "replay")
+_COMMAND_MODULES = ("robot", "verify", "run", "report", "identify", "logs", "bench", "replay")
 
 for _name in _COMMAND_MODULES:
     _module_name = f"{__name__}.{_name}"

@@ -39,8 +39,10 @@ __all__ = [
     "PreprocessConfig",
     "ReferenceConfig",
     "RegularizationConfig",
+    "LogFile",
     "SignalFile",
     "TimeColumn",
+    "TimeWindow",
     "TransmissionConfig",
     "UrdfUpdateConfig",
     "ValidationConfig",
@@ -48,44 +50,154 @@ __all__ = [
 ]
 
 
-class SignalFile(StrictModel):
-    """One CSV file (plain or ``.gz``) holding one signal for every joint.
+# Units a log may use per signal; ``ident.identify.logs`` converts them to SI once.
+POSITION_UNITS = ("rad", "deg", "mrad", "m", "mm", "ticks")
+TORQUE_UNITS = ("N*m", "N", "A", "mA")
+VELOCITY_UNITS = ("rad/s", "deg/s", "rpm", "m/s", "mm/s", "ticks/s")
 
-    ``columns`` names the header columns in joint order; ``null`` takes every column (their
-    count must equal the number of joints). Several signals may share one wide file.
+
+class SignalFile(StrictModel):
+    """Where one signal (positions, torques or velocities) is, and in which units.
+
+    ``columns`` names the columns in joint order (CSV header names, ``<value>/<joint>`` of a
+    long CSV, ``<topic>/position/<joint>`` of a ROS log; ``ident logs inspect`` lists them);
+    ``null`` takes every column of ``path`` (their count must equal the number of joints).
+    ``path`` is optional when the columns are in the log's ``path``/``files``. ``unit`` and
+    ``side`` override the log-wide ``*_unit`` and ``side``; ``scale`` (one value or one per
+    joint) and ``sign`` (+1/-1 per joint) multiply the values after the unit conversion, and
+    ``counts_per_rev`` gives the encoder resolution of ``unit: ticks``.
     """
 
-    path: Path
+    path: Path | None = None
     columns: list[str] | None = None
-    delimiter: str = ","
+    delimiter: str | None = None
+    unit: str | None = None
+    side: Literal["motor", "joint"] | None = None
+    scale: float | list[float] = 1.0
+    sign: list[float] | None = None
+    counts_per_rev: float | None = Field(default=None, gt=0.0)
+
+    @field_validator("sign")
+    @classmethod
+    def _signs(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and any(v not in (1.0, -1.0) for v in value):
+            raise ValueError("sign takes +1 or -1 per joint")
+        return value
 
 
 class TimeColumn(StrictModel):
-    """A time column [s] (strictly increasing, uniform sampling)."""
+    """A time column: in ``path`` when given, else in the log's files; ``unit`` s, ms, us, ns.
+
+    Non-uniform steps are resampled (see :mod:`ident.measure.timebase`)."""
+
+    path: Path | None = None
+    column: str
+    unit: Literal["s", "ms", "us", "ns"] = "s"
+
+
+class LogFile(StrictModel):
+    """One log source and the options of its reader (see :mod:`ident.measure.readers`)."""
 
     path: Path
-    column: str
+    format: str | None = None
+    delimiter: str | None = None
+    header: bool | None = None
+    names: list[str] | None = None
+    topics: list[str] | None = None
+    joint_column: str | None = None
+    time_column: str | None = None
+
+
+class TimeWindow(StrictModel):
+    """A part of the log to use, in seconds from its first sample (``null``: open end)."""
+
+    start_s: float | None = None
+    end_s: float | None = None
 
 
 class LogConfig(StrictModel):
-    """Where the measured signals are and in which units."""
+    """Where the measured signals are, in which units, and which parts of the time to use.
 
+    Files: ``path`` (one file or bag; ``format`` optional, detected from the file) and/or
+    ``files`` (several, joined on time), and/or a ``path`` per signal (the historic form).
+    Time: a ``time`` column, a column the reader recognises (``t``, ``time``, ROS stamps), or
+    ``sampling_rate_hz`` for logs without time.
+    """
+
+    path: Path | None = None
+    format: str | None = None
+    files: list[LogFile] = Field(default_factory=list)
     position: SignalFile
     torque: SignalFile
+    velocity: SignalFile | None = None
     time: TimeColumn | None = None
     sampling_rate_hz: float | None = Field(default=None, gt=0.0)
-    position_unit: Literal["rad", "deg"] = "rad"
-    torque_unit: Literal["N*m", "A"] = "N*m"
+    position_unit: str = "rad"
+    torque_unit: str = "N*m"
+    velocity_unit: str = "rad/s"
     side: Literal["motor", "joint"] = "joint"
     max_samples: int | None = Field(default=None, gt=0)
+    windows: list[TimeWindow] = Field(default_factory=list)
+    gap_factor: float = Field(default=5.0, gt=1.0)
+    max_gap_s: float | None = Field(default=None, gt=0.0)
+    resample_hz: float | None = Field(default=None, gt=0.0)
+    # further logs of the same robot (other trajectories or days), identified together: each
+    # entry is a partial log section, the keys it omits are this section's
+    more: list[dict] = Field(default_factory=list)
+
+    def all_logs(self) -> list[LogConfig]:
+        """This log and the ``more`` ones, each a complete section (without ``more``)."""
+        first = self.model_copy(update={"more": []})
+        base = first.model_dump(exclude_defaults=True)
+        out = [first]
+        for entry in self.more:
+            merged = {**base, **entry}
+            if "files" in entry or "path" in entry:  # new files: not the first log's signals'
+                for key in ("position", "torque", "velocity"):
+                    if key in merged and key not in entry and isinstance(merged[key], dict):
+                        merged[key] = {k: v for k, v in merged[key].items() if k != "path"}
+            out.append(LogConfig.model_validate(merged))
+        return out
 
     @model_validator(mode="after")
     def _one_time_base(self) -> LogConfig:
-        if (self.time is None) == (self.sampling_rate_hz is None):
+        if self.time is not None and self.sampling_rate_hz is not None:
             raise ValueError(
                 "give exactly one of log.time (a time column) and log.sampling_rate_hz"
             )
+        if self.time is None and self.sampling_rate_hz is None and not self._has_log_files():
+            raise ValueError(
+                "give exactly one of log.time (a time column) and log.sampling_rate_hz"
+            )
+        for key, value, allowed in (
+            ("position_unit", self.position_unit, POSITION_UNITS),
+            ("torque_unit", self.torque_unit, TORQUE_UNITS),
+            ("velocity_unit", self.velocity_unit, VELOCITY_UNITS),
+            ("position.unit", self.position.unit, POSITION_UNITS),
+            ("torque.unit", self.torque.unit, TORQUE_UNITS),
+            ("velocity.unit", self.velocity.unit if self.velocity else None, VELOCITY_UNITS),
+        ):
+            if value is not None and value not in allowed:
+                raise ValueError(f"log.{key} = {value!r}; allowed: {', '.join(allowed)}")
         return self
+
+    def _has_log_files(self) -> bool:
+        return self.path is not None or bool(self.files)
+
+    def sources(self) -> list[LogFile]:
+        """Every file to read: ``path``, ``files``, then the signals' and time's own paths."""
+        out = list(self.files)
+        if self.path is not None:
+            out.insert(0, LogFile(path=self.path, format=self.format))
+        for signal in (self.position, self.torque, self.velocity):
+            if signal is not None and signal.path is not None:
+                out.append(LogFile(path=signal.path, delimiter=signal.delimiter))
+        if self.time is not None and self.time.path is not None:
+            out.append(LogFile(path=self.time.path))
+        seen: dict[Path, LogFile] = {}
+        for f in out:
+            seen.setdefault(Path(f.path), f)
+        return list(seen.values())
 
 
 class CouplingEntry(StrictModel):
@@ -129,18 +241,30 @@ class FilterConfig(StrictModel):
 
 
 class PreprocessConfig(StrictModel):
-    """Signal processing before the regressor is built (see :mod:`ident.identify.preprocess`)."""
+    """Signal processing before the regressor is built (see :mod:`ident.identify.preprocess`).
 
-    lowpass: FilterConfig | None = None
+    ``lowpass`` and ``decimation`` default to ``auto``: chosen from the sampling rate and the
+    excitation band (``excitation_band_hz``, the highest frequency of the motion; estimated
+    from the positions when null), and recorded. ``lowpass: null`` leaves the positions
+    unfiltered (a warning), ``decimation: []`` keeps the rate.
+    """
+
+    lowpass: FilterConfig | Literal["auto"] | None = "auto"
     torque_lowpass: FilterConfig | None = None
     trim_samples: int = Field(default=20, ge=0)
-    decimation: list[int] = Field(default_factory=list)
+    decimation: list[int] | Literal["auto"] = "auto"
+    excitation_band_hz: float | None = Field(default=None, gt=0.0)
     velocity_threshold: list[float] | None = None
+    # bounded memory (see ident.identify.accumulate): "auto" chunks logs with several
+    # segments or a regressor above max_regressor_mb; chunk_samples null = automatic
+    chunked: Literal["auto", "always", "never"] = "auto"
+    max_regressor_mb: float = Field(default=1024.0, gt=0.0)
+    chunk_samples: int | None = Field(default=None, ge=16)
 
     @field_validator("decimation")
     @classmethod
-    def _factors(cls, value: list[int]) -> list[int]:
-        if any(f < 1 for f in value):
+    def _factors(cls, value: list[int] | str) -> list[int] | str:
+        if not isinstance(value, str) and any(f < 1 for f in value):
             raise ValueError("decimation factors must be >= 1")
         return value
 
@@ -279,6 +403,26 @@ def _resolve(path: Path | None, base: Path) -> Path | None:
     return path if path.is_absolute() else (base / path)
 
 
+def _resolve_log(log: LogConfig, base: Path) -> LogConfig:
+    """The log section with every path made absolute (relative to the config's folder)."""
+
+    def signal(s: SignalFile | None) -> SignalFile | None:
+        return None if s is None else s.model_copy(update={"path": _resolve(s.path, base)})
+
+    return log.model_copy(
+        update={
+            "path": _resolve(log.path, base),
+            "files": [f.model_copy(update={"path": _resolve(f.path, base)}) for f in log.files],
+            "position": signal(log.position),
+            "torque": signal(log.torque),
+            "velocity": signal(log.velocity),
+            "time": None
+            if log.time is None
+            else log.time.model_copy(update={"path": _resolve(log.time.path, base)}),
+        }
+    )
+
+
 def load_identify_config(path: str | Path) -> IdentifyConfig:
     """Load an identify config; make its paths absolute (relative to the config file).
 
@@ -290,19 +434,11 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
     path = Path(path)
     cfg = load_config_file(IdentifyConfig, path)
     base = path.resolve().parent
-    log = cfg.log.model_copy(
-        update={
-            "position": cfg.log.position.model_copy(
-                update={"path": _resolve(cfg.log.position.path, base)}
-            ),
-            "torque": cfg.log.torque.model_copy(
-                update={"path": _resolve(cfg.log.torque.path, base)}
-            ),
-            "time": None
-            if cfg.log.time is None
-            else cfg.log.time.model_copy(update={"path": _resolve(cfg.log.time.path, base)}),
-        }
-    )
+    try:
+        logs = [_resolve_log(entry, base) for entry in cfg.log.all_logs()]
+    except ValueError as e:
+        raise ConfigError(f"{path}: log.more: {e}") from e
+    log = logs[0].model_copy(update={"more": [x.model_dump() for x in logs[1:]]})
     reference = cfg.reference.model_copy(
         update={
             "base_parameters": _resolve(cfg.reference.base_parameters, base),
@@ -310,19 +446,22 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
         }
     )
     robot = cfg.robot.resolved(base)
-    checks = [
-        ("robot.urdf" if robot.urdf is not None else "robot.description", robot.path),
-        ("log.position.path", log.position.path),
-        ("log.torque.path", log.torque.path),
-    ]
-    if log.time is not None:
-        checks.append(("log.time.path", log.time.path))
+    checks = [("robot.urdf" if robot.urdf is not None else "robot.description", robot.path)]
+    for n, entry in enumerate(logs):
+        where = "log" if n == 0 else f"log.more[{n - 1}]"
+        if entry.path is not None:
+            checks.append((f"{where}.path", entry.path))
+        checks += [(f"{where}.files[{k}].path", f.path) for k, f in enumerate(entry.files)]
+        for key in ("position", "torque", "velocity", "time"):
+            value = getattr(entry, key)
+            if value is not None and value.path is not None:
+                checks.append((f"{where}.{key}.path", value.path))
     for key in ("base_parameters", "essential_parameters"):
         value = getattr(reference, key)
         if value is not None:
             checks.append((f"reference.{key}", value))
     for key, file in checks:
-        if not Path(file).is_file():
+        if not Path(file).exists():
             raise ConfigError(f"{path}: {key} = {file}: file not found; fix the path.")
     return cfg.model_copy(
         update={"robot": robot, "log": log, "reference": reference, "source": path}

@@ -1,9 +1,14 @@
 """Reading robot logs declared in a config, and converting them to joint-side SI signals.
 
-A log is one or more CSV files (plain or gzip-compressed, with a header line): positions and
-torques for every joint, either one file per signal or columns of one wide file; time comes
-from a time column or from a sampling rate. The transmission converts motor-side signals to
-the joint side:
+A log is one or more sources read by the registered readers (:mod:`ident.measure.readers`:
+CSV/TSV wide or long, one value per line, ROS 2 bags, MCAP; plain or gzip-compressed): the
+config maps columns to positions, torques and optionally velocities for every joint. Tables of
+several sources are joined on time (cubic-spline interpolation onto the time stamps of the
+position source). Time comes from a time column or a sampling rate; gaps split the log into
+segments, windows select parts, non-uniform stamps are resampled onto a uniform grid
+(:mod:`ident.measure.timebase`). Units are converted to SI per signal (deg, mrad, ticks, mm;
+A, mA through the torque constants; scale and sign), once. The transmission converts
+motor-side signals to the joint side:
 
 - positions: ``q = Rq^-1 q_motor + zero_offsets`` with ``Rq = diag(gear_ratios) + coupling``;
 - torques: ``tau = Rt (k * y)`` with ``k`` the current-to-torque constants [N*m/A] and
@@ -14,8 +19,6 @@ This is the only module that reads log files; everything after it is in SI units
 
 from __future__ import annotations
 
-import gzip
-import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,6 +27,8 @@ import numpy.typing as npt
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import LogConfig, SignalFile, TransmissionConfig
+from ident.measure import timebase
+from ident.measure.readers import LogTable, read_tables
 
 __all__ = [
     "RobotLog",
@@ -34,9 +39,6 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-
-# Relative spread of the sampling intervals above which a time column counts as non-uniform.
-_UNIFORM_RTOL = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,10 +147,101 @@ def _matrix(a: FloatArray) -> str:
     return "[" + "; ".join(" ".join(f"{v:g}" for v in row) for row in a) + "]"
 
 
-def _open_text(path: Path) -> io.TextIOBase:
-    if path.suffix == ".gz":
-        return io.TextIOWrapper(gzip.open(path, "rb"), encoding="utf-8")
-    return open(path, encoding="utf-8")  # noqa: SIM115 - closed by the caller's with
+@dataclass(frozen=True, eq=False)
+class RobotLog:
+    """A log converted to joint-side SI signals on a uniform time grid.
+
+    Attributes
+    ----------
+    t :
+        Time [s], shape (n_samples,), starting at 0, uniform inside each segment.
+    q :
+        Joint positions [rad or m], shape (n_samples, n_joints).
+    tau :
+        Joint torques [N*m or N], shape (n_samples, n_joints).
+    sampling_rate_hz :
+        Sampling rate [Hz] (the same in every segment).
+    joint_names :
+        Model joint names, in column order.
+    records :
+        Human-readable description of every conversion applied, for the report.
+    segments :
+        ``(start, stop)`` sample ranges without gaps (windows applied), in time order; the
+        arrays are their concatenation. One segment ``(0, n_samples)`` for a plain log.
+    dq :
+        Logged joint velocities [rad/s or m/s], shape (n_samples, n_joints), or None.
+    """
+
+    t: FloatArray
+    q: FloatArray
+    tau: FloatArray
+    sampling_rate_hz: float
+    joint_names: tuple[str, ...]
+    records: tuple[dict, ...] = field(default_factory=tuple)
+    segments: tuple[tuple[int, int], ...] = ()
+    dq: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        if not self.segments:
+            object.__setattr__(self, "segments", ((0, int(self.t.shape[0])),))
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples."""
+        return int(self.t.shape[0])
+
+
+# Factor from a unit to SI, per signal kind ("ticks" needs counts_per_rev: handled apart).
+_UNIT_SCALE = {
+    "rad": 1.0,
+    "deg": np.pi / 180.0,
+    "mrad": 1e-3,
+    "m": 1.0,
+    "mm": 1e-3,
+    "N*m": 1.0,
+    "N": 1.0,
+    "A": 1.0,
+    "mA": 1e-3,
+    "rad/s": 1.0,
+    "deg/s": np.pi / 180.0,
+    "rpm": 2.0 * np.pi / 60.0,
+    "m/s": 1.0,
+    "mm/s": 1e-3,
+}
+_TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+
+def _per_joint(value: float | list[float] | None, n: int, key: str, source: str) -> FloatArray:
+    if value is None:
+        return np.ones(n)
+    if isinstance(value, int | float):
+        return np.full(n, float(value))
+    if len(value) != n:
+        raise ConfigError(
+            f"{source}: log.{key} has {len(value)} entries, give one per joint ({n})."
+        )
+    return np.asarray(value, dtype=float)
+
+
+def _to_si(
+    raw: FloatArray, signal: SignalFile, unit: str, what: str, source: str
+) -> tuple[FloatArray, str]:
+    """Unit, scale and sign of one signal -> SI values and a note for the records."""
+    n = raw.shape[1]
+    if unit in ("ticks", "ticks/s"):
+        if signal.counts_per_rev is None:
+            raise ConfigError(
+                f"{source}: log.{what}.unit = {unit} needs log.{what}.counts_per_rev "
+                "(encoder counts per revolution)."
+            )
+        factor = 2.0 * np.pi / signal.counts_per_rev
+    else:
+        factor = _UNIT_SCALE[unit]
+    gain = factor * _per_joint(signal.scale, n, f"{what}.scale", source)
+    gain = gain * _per_joint(signal.sign, n, f"{what}.sign", source)
+    if np.all(gain == 1.0):
+        return raw, ""
+    return raw * gain, f"{what} {unit} x {gain.tolist()}"
 
 
 def read_csv_columns(
@@ -159,178 +252,182 @@ def read_csv_columns(
     delimiter: str = ",",
     what: str = "signal",
 ) -> tuple[FloatArray, list[str]]:
-    """Read named columns of a CSV file with a header line.
+    """Read named columns of a text log with a header line (see :func:`_select`).
 
-    Parameters
-    ----------
-    path :
-        CSV file, optionally ``.gz``.
-    columns :
-        Header names to read, in order; None reads every column.
-    n_expected :
-        Required number of columns when ``columns`` is None (one per joint).
-    delimiter :
-        Field separator.
-    what :
-        Name of the signal, for messages.
-
-    Returns
-    -------
-    :
-        Values of shape (n_samples, n_columns) and the column names.
-
-    Raises
-    ------
-    DataError
-        Naming the file and column: missing file or column, wrong column count, a row with a
-        different number of fields or a non-number, NaN or inf values. Positions in a message
-        are file line numbers (the header is line 1; blank lines count).
+    Returns the values, shape (n_samples, n_columns), and the column names.
     """
-    data, names, _ = _read_csv_lines(
-        path, columns, n_expected=n_expected, delimiter=delimiter, what=what
-    )
-    return data, names
-
-
-def _read_csv_lines(
-    path: str | Path,
-    columns: list[str] | None,
-    *,
-    n_expected: int | None = None,
-    delimiter: str = ",",
-    what: str = "signal",
-) -> tuple[FloatArray, list[str], npt.NDArray[np.int64]]:
-    """:func:`read_csv_columns` plus the file line number of every sample, shape (n_samples,)."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise DataError(f"{path}: {what} file not found.")
-    try:
-        with _open_text(path) as f:
-            header_line = f.readline()
-            text = f.read()
-    except (OSError, UnicodeDecodeError, EOFError) as e:
-        raise DataError(f"{path}: cannot read {what} file ({e}).") from e
-    header = [h.strip() for h in header_line.strip().split(delimiter)]
+    (table,) = read_tables(path, "csv", delimiter=delimiter, header=True)
+    return _select(table, columns, n_expected, what)
+
+
+def _select(
+    table: LogTable, columns: list[str] | None, n_expected: int | None, what: str
+) -> tuple[FloatArray, list[str]]:
+    """Columns of one table, in order; None takes every column but the time column."""
     if columns is None:
-        if n_expected is not None and len(header) != n_expected:
+        names = [c for c in table.columns if c != table.time]
+        if n_expected is not None and len(names) != n_expected:
             raise DataError(
-                f"{path}: {what} file has {len(header)} columns ({', '.join(header)}), expected "
-                f"{n_expected} (one per joint); list the columns to use in the config."
+                f"{table.source}: {what} file has {len(names)} columns ({', '.join(names)}), "
+                f"expected {n_expected} (one per joint); list the columns to use in the config."
             )
-        index = list(range(len(header)))
-        names = header
     else:
-        missing = [c for c in columns if c not in header]
-        if missing:
-            raise DataError(
-                f"{path}: column '{missing[0]}' not found; the header has {', '.join(header)}."
-            )
-        index = [header.index(c) for c in columns]
         names = list(columns)
-    numbered = [(k + 2, line) for k, line in enumerate(text.splitlines()) if line.strip()]
-    if not numbered:
-        raise DataError(f"{path}: {what} file has a header but no samples.")
-    line_no = np.array([n for n, _ in numbered], dtype=np.int64)
-    rows = [line for _, line in numbered]
-    try:
-        data = np.loadtxt(rows, delimiter=delimiter, ndmin=2, dtype=float)
-    except ValueError as e:
-        raise _bad_row(path, header, numbered, delimiter) from e
-    if data.shape[1] != len(header):
-        raise DataError(
-            f"{path}: rows have {data.shape[1]} fields, the header has {len(header)} columns."
-        )
-    data = data[:, index]
+        for c in names:
+            if c not in table.columns:
+                raise DataError(
+                    f"{table.source}: column '{c}' not found; the header has "
+                    f"{', '.join(table.columns)}."
+                )
+    data = np.column_stack([table.columns[c] for c in names])
     bad = ~np.isfinite(data)
     if bad.any():
         row, col = np.argwhere(bad)[0]
-        raise DataError(
-            f"{path}: column '{names[col]}' has {int(bad[:, col].sum())} NaN/inf value(s), the "
-            f"first on line {line_no[row]}; clean or trim the log."
+        where = (
+            f"line {table.line_numbers[row]}" if table.line_numbers is not None else f"sample {row}"
         )
-    return data, names, line_no
+        raise DataError(
+            f"{table.source}: column '{names[col]}' has {int(bad[:, col].sum())} NaN/inf "
+            f"value(s), the first on {where}; clean or trim the log."
+        )
+    return data, names
 
 
-def _bad_row(
-    path: Path, header: list[str], numbered: list[tuple[int, str]], delimiter: str
-) -> DataError:
-    """The error for the first line that numpy could not read: field count or a non-number."""
-    for n, line in numbered:
-        fields = line.split(delimiter)
-        if len(fields) != len(header):
-            return DataError(
-                f"{path}: line {n} has {len(fields)} fields, the header has {len(header)} columns."
+def _find(tables: list[LogTable], name: str) -> LogTable:
+    for table in tables:
+        if name in table.columns:
+            return table
+    available = [c for t in tables for c in t.columns]
+    raise DataError(_missing_message(name, available, tables))
+
+
+def _missing_message(name: str, available: list[str], tables: list[LogTable]) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, available, n=3)
+    hint = f" (closest: {', '.join(close)})" if close else ""
+    files = ", ".join(sorted({t.source for t in tables}))
+    return f"{files}: column '{name}' not found{hint}; `ident logs inspect FILE` lists the columns."
+
+
+class _Sources:
+    """The tables of every file a log config names, read once."""
+
+    def __init__(self, cfg: LogConfig) -> None:
+        self.by_path: dict[Path, list[LogTable]] = {}
+        for f in cfg.sources():
+            options = f.model_dump(exclude={"path", "format"})
+            if options.get("time_column") is None and cfg.time is not None:
+                options["time_column"] = cfg.time.column
+            self.by_path[Path(f.path)] = read_tables(f.path, f.format, **options)
+        self.all = [t for tables in self.by_path.values() for t in tables]
+
+    def signal(
+        self, signal: SignalFile, n_joints: int, what: str, joint_names: tuple[str, ...]
+    ) -> tuple[FloatArray, LogTable]:
+        if signal.path is not None:
+            tables = self.by_path[Path(signal.path)]
+        elif signal.columns is None:
+            raise ConfigError(
+                f"log.{what}.columns is missing: name the {n_joints} {what} columns "
+                f"(`ident logs inspect FILE` lists them), or give log.{what}.path."
             )
-        for j, cell in enumerate(fields):
-            try:
-                float(cell)
-            except ValueError:
-                return DataError(
-                    f"{path}: line {n}, column '{header[j]}' (field {j + 1}): "
-                    f"{cell.strip()!r} is not a number; clean or trim the log."
+        else:
+            tables = self.all
+        if signal.columns is None:
+            table = tables[0]
+        else:
+            owners = [_find(tables, c) for c in signal.columns]
+            table = owners[0]
+            if any(o is not table for o in owners):
+                table = _side_by_side(owners, signal.columns, what)
+        data, _ = _select(table, signal.columns, n_joints, what)
+        if data.shape[1] != n_joints:
+            raise DataError(
+                f"{table.source}: {data.shape[1]} {what} columns listed, the robot has "
+                f"{n_joints} joints ({', '.join(joint_names)})."
+            )
+        return data, table
+
+
+def _side_by_side(owners: list[LogTable], columns: list[str], what: str) -> LogTable:
+    """One table of columns that come from several files sampled together (one value per
+    line per file): equal lengths, and equal time columns when they have any."""
+    first = owners[0]
+    for table in owners[1:]:
+        same_time = (table.time is None and first.time is None) or (
+            table.time is not None
+            and first.time is not None
+            and np.array_equal(table.columns[table.time], first.columns[first.time])
+        )
+        if table.n_samples != first.n_samples or not same_time:
+            raise DataError(
+                f"{what} columns come from {first.source} ({first.n_samples} samples) and "
+                f"{table.source} ({table.n_samples} samples) with different time stamps; "
+                "columns of one signal must be sampled together."
+            )
+    cols = {c: o.columns[c] for c, o in zip(columns, owners, strict=True)}
+    if first.time is not None:
+        cols[first.time] = first.columns[first.time]
+    return LogTable(
+        columns=cols,
+        time=first.time,
+        source=", ".join(dict.fromkeys(o.source for o in owners)),
+    )
+
+
+def _time_of(table: LogTable, cfg: LogConfig) -> FloatArray | None:
+    if cfg.time is not None and cfg.time.column in table.columns:
+        return table.columns[cfg.time.column] * _TIME_SCALE[cfg.time.unit]
+    if table.time is not None and cfg.sampling_rate_hz is None:
+        return table.columns[table.time]
+    return None
+
+
+def _join(
+    parts: list[tuple[FloatArray, LogTable]], cfg: LogConfig
+) -> tuple[list[FloatArray], FloatArray | None, str]:
+    """Bring every signal onto the samples of the first (positions): same table or equal
+    length without time -> as is; else cubic-spline interpolation onto its time stamps."""
+    ref_data, ref_table = parts[0]
+    t_ref = _time_of(ref_table, cfg)
+    out = [ref_data]
+    notes = []
+    keep = np.ones(ref_data.shape[0], dtype=bool)
+    for data, table in parts[1:]:
+        if table is ref_table:
+            out.append(data)
+            continue
+        t_other = _time_of(table, cfg)
+        if t_ref is None or t_other is None or np.array_equal(t_ref, t_other):
+            if data.shape[0] != ref_data.shape[0]:
+                raise DataError(
+                    f"{ref_table.source} has {ref_data.shape[0]} samples but {table.source} has "
+                    f"{data.shape[0]}; the signals must be sampled together (or give both a "
+                    "time column to join them on)."
                 )
-    return DataError(f"{path}: a value could not be read as a number.")  # pragma: no cover
+            out.append(data)
+            continue
+        from scipy.interpolate import make_interp_spline
 
-
-@dataclass(frozen=True, eq=False)
-class RobotLog:
-    """A log converted to joint-side SI signals.
-
-    Attributes
-    ----------
-    t :
-        Time [s], shape (n_samples,), starting at 0, uniform.
-    q :
-        Joint angles [rad], shape (n_samples, n_joints).
-    tau :
-        Joint torques [N*m], shape (n_samples, n_joints).
-    sampling_rate_hz :
-        Sampling rate [Hz].
-    joint_names :
-        Model joint names, in column order.
-    records :
-        Human-readable description of every conversion applied, for the report.
-    """
-
-    t: FloatArray
-    q: FloatArray
-    tau: FloatArray
-    sampling_rate_hz: float
-    joint_names: tuple[str, ...]
-    records: tuple[dict, ...] = field(default_factory=tuple)
-
-    @property
-    def n_samples(self) -> int:
-        """Number of samples."""
-        return int(self.t.shape[0])
-
-
-def _time_base(cfg: LogConfig, n_samples: int) -> tuple[FloatArray, float, str]:
-    if cfg.time is None:
-        assert cfg.sampling_rate_hz is not None  # guaranteed by LogConfig validation
-        fs = float(cfg.sampling_rate_hz)
-        return np.arange(n_samples) / fs, fs, f"sampling rate {fs:g} Hz (no time column)"
-    data, _, line_no = _read_csv_lines(cfg.time.path, [cfg.time.column], what="time")
-    t = data[:, 0]
-    if t.shape[0] != n_samples:
-        raise DataError(
-            f"{cfg.time.path}: time column '{cfg.time.column}' has {t.shape[0]} samples, the "
-            f"signals have {n_samples}."
-        )
-    dt = np.diff(t)
-    if np.any(dt <= 0):
-        k = int(np.flatnonzero(dt <= 0)[0])
-        raise DataError(
-            f"{cfg.time.path}: time column '{cfg.time.column}' is not strictly increasing at "
-            f"line {line_no[k + 1]} ({t[k]:g} s then {t[k + 1]:g} s); sort or clean the log."
-        )
-    step = float(np.median(dt))
-    if np.max(np.abs(dt - step)) > _UNIFORM_RTOL * step:
-        raise DataError(
-            f"{cfg.time.path}: time column '{cfg.time.column}' is not uniformly sampled "
-            f"(intervals {dt.min():g} to {dt.max():g} s); resample the log first."
-        )
-    return t - t[0], 1.0 / step, f"time column '{cfg.time.column}', {1.0 / step:g} Hz"
+        order = np.argsort(t_other, kind="stable")
+        spline = make_interp_spline(t_other[order], data[order], k=3, axis=0)
+        inside = (t_ref >= t_other.min()) & (t_ref <= t_other.max())
+        keep &= inside
+        out.append(spline(t_ref))
+        notes.append(f"{table.source} joined on time (cubic spline onto the position stamps)")
+    if not keep.all():
+        if not keep.any():
+            raise DataError(
+                f"{ref_table.source}: the log files do not overlap in time; check the time columns."
+            )
+        out = [d[keep] for d in out]
+        t_ref = t_ref[keep] if t_ref is not None else None
+        notes.append(f"kept the {int(keep.sum())} position samples where every source has data")
+    return out, t_ref, "; ".join(notes)
 
 
 def read_log(
@@ -340,7 +437,88 @@ def read_log(
     *,
     source: str = "config",
 ) -> RobotLog:
-    """Read the log of a config and convert it to joint-side SI signals.
+    """Read the log of a config (and its ``more`` logs) as joint-side SI signals.
+
+    Several logs become segments of one :class:`RobotLog` (time continues after each log's
+    end plus one second, so plots keep them apart); logs at another rate are resampled onto
+    the first log's rate. See :func:`_read_one` for one log.
+    """
+    logs = cfg.all_logs()
+    first = _read_one(logs[0], transmission, joint_names, source=source)
+    if len(logs) == 1:
+        return first
+    fs = first.sampling_rate_hz
+    parts = [first]
+    for k, entry in enumerate(logs[1:]):
+        try:
+            log = _read_one(entry, transmission, joint_names, source=source)
+        except (DataError, ConfigError) as e:
+            raise type(e)(f"log.more[{k}]: {e}") from e
+        if abs(log.sampling_rate_hz - fs) > 1e-9 * fs:
+            log = _to_rate(log, fs)
+        parts.append(log)
+    t, q, tau, dq, segments, records = [], [], [], [], [], list(first.records)
+    offset, start = 0.0, 0
+    for k, log in enumerate(parts):
+        t.append(log.t - log.t[0] + offset)
+        offset = t[-1][-1] + 1.0
+        q.append(log.q)
+        tau.append(log.tau)
+        dq.append(log.dq)
+        segments += [(a + start, b + start) for a, b in log.segments]
+        start += log.n_samples
+        if k:
+            records += [{**r, "step": f"log {k + 1}: {r['step']}"} for r in log.records]
+    has_dq = all(d is not None for d in dq)
+    return RobotLog(
+        t=np.concatenate(t),
+        q=np.concatenate(q),
+        tau=np.concatenate(tau),
+        sampling_rate_hz=fs,
+        joint_names=first.joint_names,
+        records=tuple(records),
+        segments=tuple(segments),
+        dq=np.concatenate(dq) if has_dq else None,
+    )
+
+
+def _to_rate(log: RobotLog, rate_hz: float) -> RobotLog:
+    """``log`` resampled per segment onto ``rate_hz`` (cubic spline)."""
+    signals = [log.q, log.tau] + ([log.dq] if log.dq is not None else [])
+    t_out, x_out, segments, start = [], [], [], 0
+    for a, b in log.segments:
+        tg, xg = timebase.resample(
+            log.t[a:b], np.concatenate([x[a:b] for x in signals], 1), rate_hz
+        )
+        t_out.append(tg)
+        x_out.append(xg)
+        segments.append((start, start + tg.size))
+        start += tg.size
+    x = np.concatenate(x_out)
+    parts = np.split(x, len(signals), axis=1)
+    return RobotLog(
+        t=np.concatenate(t_out),
+        q=parts[0],
+        tau=parts[1],
+        sampling_rate_hz=rate_hz,
+        joint_names=log.joint_names,
+        records=(
+            *log.records,
+            {"step": "resample", "detail": f"onto the first log's rate {rate_hz:g} Hz"},
+        ),
+        segments=tuple(segments),
+        dq=parts[2] if log.dq is not None else None,
+    )
+
+
+def _read_one(
+    cfg: LogConfig,
+    transmission: TransmissionConfig,
+    joint_names: list[str] | tuple[str, ...],
+    *,
+    source: str = "config",
+) -> RobotLog:
+    """Read the log of a config and convert it to joint-side SI signals on a uniform grid.
 
     Parameters
     ----------
@@ -358,64 +536,187 @@ def read_log(
     DataError
         For missing or malformed files, columns, NaN/inf values, or a bad time column.
     ConfigError
-        For an inconsistent transmission.
+        For an inconsistent transmission or unit.
     """
+    joint_names = tuple(joint_names)
     n_joints = len(joint_names)
-
-    def read(signal: SignalFile, what: str) -> FloatArray:
-        data, _ = read_csv_columns(
-            signal.path, signal.columns, n_expected=n_joints, delimiter=signal.delimiter, what=what
-        )
-        if data.shape[1] != n_joints:
+    sources = _Sources(cfg)
+    parts = [
+        sources.signal(cfg.position, n_joints, "position", joint_names),
+        sources.signal(cfg.torque, n_joints, "torque", joint_names),
+    ]
+    if cfg.velocity is not None:
+        parts.append(sources.signal(cfg.velocity, n_joints, "velocity", joint_names))
+    if cfg.time is not None and cfg.time.path is not None:
+        t_table = sources.by_path[Path(cfg.time.path)][0]
+        t_table.column(cfg.time.column)
+        if t_table.n_samples != parts[0][0].shape[0]:
             raise DataError(
-                f"{signal.path}: {len(signal.columns or [])} {what} columns listed, the robot "
-                f"has {n_joints} joints ({', '.join(joint_names)})."
+                f"{cfg.time.path}: time column '{cfg.time.column}' has {t_table.n_samples} "
+                f"samples, the signals have {parts[0][0].shape[0]}."
             )
-        return data
-
-    q_raw = read(cfg.position, "position")
-    tau_raw = read(cfg.torque, "torque")
-    if q_raw.shape[0] != tau_raw.shape[0]:
-        raise DataError(
-            f"{cfg.position.path} has {q_raw.shape[0]} samples but {cfg.torque.path} has "
-            f"{tau_raw.shape[0]}; the signals must be sampled together."
-        )
+        parts[0] = (parts[0][0], t_table if t_table is parts[0][1] else _with_time(parts, t_table))
+    arrays, t, join_note = _join(parts, cfg)
+    q_raw, tau_raw = arrays[0], arrays[1]
+    dq_raw = arrays[2] if cfg.velocity is not None else None
     if cfg.max_samples is not None:
         q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
-    t, fs, time_note = _time_base(cfg, q_raw.shape[0])
-    records: list[dict] = [
-        {
-            "step": "read",
-            "detail": f"{q_raw.shape[0]} samples x {n_joints} joints from "
-            f"{Path(cfg.position.path).name} and {Path(cfg.torque.path).name}; {time_note}",
-        }
-    ]
-    if cfg.position_unit == "deg":
-        q_raw = np.deg2rad(q_raw)
-        records.append({"step": "units", "detail": "positions deg -> rad"})
-    if cfg.torque_unit == "A" and transmission.torque_constants is None:
-        raise ConfigError(
-            f"{source}: log.torque_unit = A needs transmission.torque_constants [N*m/A], one "
-            "per joint."
+        dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
+        t = None if t is None else t[: cfg.max_samples]
+    files = ", ".join(Path(f.path).name for f in cfg.sources())
+    records: list[dict] = []
+
+    # units, scale, sign: once, per signal
+    notes = []
+    pos_unit = cfg.position.unit or cfg.position_unit
+    trq_unit = cfg.torque.unit or cfg.torque_unit
+    q_raw, note = _to_si(q_raw, cfg.position, pos_unit, "position", source)
+    notes.append(note)
+    tau_raw, note = _to_si(tau_raw, cfg.torque, trq_unit, "torque", source)
+    notes.append(note)
+    if dq_raw is not None:
+        assert cfg.velocity is not None
+        dq_raw, note = _to_si(
+            dq_raw, cfg.velocity, cfg.velocity.unit or cfg.velocity_unit, "velocity", source
         )
-    trans = transmission_from_config(transmission, n_joints, side=cfg.side, source=source)
-    q = trans.joint_positions(q_raw)
-    tau = trans.joint_torques(tau_raw)
+        notes.append(note)
+    if trq_unit in ("A", "mA") and transmission.torque_constants is None:
+        raise ConfigError(
+            f"{source}: log.torque_unit = {trq_unit} needs transmission.torque_constants "
+            "[N*m/A], one per joint."
+        )
+    pos_side = cfg.position.side or cfg.side
+    trq_side = cfg.torque.side or cfg.side
+    vel_side = (cfg.velocity.side if cfg.velocity else None) or cfg.side
+    any_motor = "motor" in (pos_side, trq_side, vel_side if dq_raw is not None else "joint")
+    trans = transmission_from_config(
+        transmission, n_joints, side="motor" if any_motor else "joint", source=source
+    )
+    identity = Transmission(
+        position_matrix=np.eye(n_joints),
+        torque_matrix=np.eye(n_joints),
+        torque_constants=trans.torque_constants,
+        zero_offsets=trans.zero_offsets,
+    )
+    q = (trans if pos_side == "motor" else identity).joint_positions(q_raw)
+    tau = (trans if trq_side == "motor" else identity).joint_torques(tau_raw)
+    dq = None
+    if dq_raw is not None:
+        Rq = trans.position_matrix if vel_side == "motor" else np.eye(n_joints)
+        dq = np.linalg.solve(Rq, dq_raw.T).T
+    unit_note = "; ".join(n for n in notes if n)
+    if unit_note:
+        records.append({"step": "units", "detail": unit_note})
     records.append(
         {
             "step": "transmission",
-            "detail": f"{cfg.side}-side signals; q = Rq^-1 q_motor + offsets, tau = Rt (k y); "
+            "detail": f"positions {pos_side} side, torques {trq_side} side"
+            + (f", velocities {vel_side} side" if dq is not None else "")
+            + "; q = Rq^-1 q_motor + offsets, tau = Rt (k y); "
             f"Rq = {_matrix(trans.position_matrix)}; "
             f"Rt = {_matrix(trans.torque_matrix)}; "
             f"k = {trans.torque_constants.tolist()}; "
             f"zero offsets [rad] = {trans.zero_offsets.tolist()}",
         }
     )
+
+    # time: given rate, or time stamps -> segments, windows, uniform grid
+    windows = [(w.start_s, w.end_s) for w in cfg.windows]
+    n = q.shape[0]
+    if t is None:
+        if cfg.sampling_rate_hz is None:
+            raise DataError(
+                f"{files}: no time column found; set log.time.column or log.sampling_rate_hz."
+            )
+        fs = float(cfg.sampling_rate_hz)
+        t = np.arange(n) / fs
+        time_note = f"sampling rate {fs:g} Hz (no time column)"
+        segments = timebase.windows_to_segments(t, [(0, n)], windows)
+        signals = [q, tau] + ([dq] if dq is not None else [])
+    else:
+        what = f"time column '{cfg.time.column}'" if cfg.time is not None else "time column"
+        t_file = cfg.time.path if cfg.time is not None and cfg.time.path is not None else files
+        timebase.check_increasing(t, f"{t_file}: {what}", parts[0][1].line_numbers)
+        t = t - t[0]
+        summary = timebase.summarize_time(t, gap_factor=cfg.gap_factor)
+        raw_segments = timebase.find_segments(t, gap_factor=cfg.gap_factor, max_gap_s=cfg.max_gap_s)
+        segments = timebase.windows_to_segments(t, raw_segments, windows)
+        fs = cfg.resample_hz or summary.rate_hz
+        time_note = f"{what}: {summary.text()}"
+        signals = [q, tau] + ([dq] if dq is not None else [])
+        uniform = all(timebase.is_uniform(t[a:b]) for a, b in segments)
+        if cfg.resample_hz is None and uniform:
+            fs = 1.0 / float(np.median(np.diff(t)))
+        else:
+            out_t, out_x, new_segments = [], [[] for _ in signals], []
+            for a, b in segments:
+                if b - a < 4:
+                    continue
+                stacked = np.concatenate([x[a:b] for x in signals], axis=1)
+                tg, xg = timebase.resample(t[a:b], stacked, fs)
+                start = sum(len(x) for x in out_t)
+                out_t.append(tg)
+                new_segments.append((start, start + tg.size))
+                for k, x in enumerate(np.split(xg, len(signals), axis=1)):
+                    out_x[k].append(x)
+            if not new_segments:
+                raise DataError(f"{files}: no segment has enough samples to resample.")
+            t = np.concatenate(out_t)
+            signals = [np.concatenate(x) for x in out_x]
+            segments = new_segments
+            records.append(
+                {
+                    "step": "resample",
+                    "detail": f"non-uniform time stamps resampled onto a uniform {fs:g} Hz grid "
+                    "(not-a-knot cubic spline per segment; error <= 5/384 (2 pi f h_max)^4 "
+                    "of the amplitude at frequency f)",
+                }
+            )
+    if len(segments) != 1 or segments[0] != (0, n):
+        kept = [(a, b) for a, b in segments if b > a]
+        index = np.concatenate([np.arange(a, b) for a, b in kept])
+        lengths = [b - a for a, b in kept]
+        starts = np.concatenate([[0], np.cumsum(lengths)])
+        segments = [(int(s), int(s + m)) for s, m in zip(starts[:-1], lengths, strict=True)]
+        t = t[index]
+        signals = [x[index] for x in signals]
+        records.append(
+            {
+                "step": "segments",
+                "detail": f"{len(segments)} segment(s) of "
+                f"{', '.join(f'{m / fs:.3g} s' for m in lengths)} (gaps split the log"
+                + (f"; windows {windows}" if windows else "")
+                + ")",
+            }
+        )
+    q, tau = signals[0], signals[1]
+    dq = signals[2] if dq is not None else None
+    records.insert(
+        0,
+        {
+            "step": "read",
+            "detail": f"{q.shape[0]} samples x {n_joints} joints from {files}; {time_note}"
+            + (f"; {join_note}" if join_note else ""),
+        },
+    )
     return RobotLog(
         t=t,
         q=q,
         tau=tau,
         sampling_rate_hz=fs,
-        joint_names=tuple(joint_names),
+        joint_names=joint_names,
         records=tuple(records),
+        segments=tuple(segments),
+        dq=dq,
+    )
+
+
+def _with_time(parts: list[tuple[FloatArray, LogTable]], t_table: LogTable) -> LogTable:
+    """The position table with the separate time file's columns added (same sample count)."""
+    table = parts[0][1]
+    return LogTable(
+        columns={**table.columns, **t_table.columns},
+        time=t_table.time,
+        source=table.source,
+        line_numbers=t_table.line_numbers,
     )

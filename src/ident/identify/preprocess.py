@@ -243,3 +243,150 @@ def velocity_mask(
         f"{kept.tolist()} of {n_samples}",
         "kept": kept.tolist(),
     }
+
+
+# Automatic settings (``lowpass: auto``, ``decimation: auto``): the position low-pass cuts at
+# CUTOFF_PER_BAND times the excitation band (a 4th-order zero-phase Butterworth attenuates the
+# band itself by less than 1e-5), and decimation keeps at least RATE_PER_CUTOFF samples per
+# period of the cutoff (the anti-aliasing filter passes 0.8 of the new Nyquist frequency).
+CUTOFF_PER_BAND = 5.0
+RATE_PER_CUTOFF = 4.0
+MAX_STAGE = 10
+# Fraction of the positions' power above a quarter of the sampling rate that means aliasing.
+ALIAS_POWER = 1e-4
+# Relative mismatch of logged and differentiated velocities that is worth a warning.
+VELOCITY_MISMATCH = 0.2
+
+
+def excitation_band(q: FloatArray, sampling_rate_hz: float, energy: float = 0.999) -> float:
+    """Frequency [Hz] below which ``energy`` of the detrended positions' power lies (largest
+    over joints); ``q`` of shape (n_samples, n_joints)."""
+    freqs, power = _spectrum(q, sampling_rate_hz)
+    total = power.sum(axis=0)
+    band = 0.0
+    for j in range(q.shape[1]):
+        if total[j] <= 0:
+            continue
+        cumulative = np.cumsum(power[:, j]) / total[j]
+        band = max(band, float(freqs[np.searchsorted(cumulative, energy)]))
+    return band if band > 0 else float(freqs[1] if freqs.size > 1 else sampling_rate_hz / 4)
+
+
+def _spectrum(q: FloatArray, sampling_rate_hz: float) -> tuple[FloatArray, FloatArray]:
+    """Frequencies [Hz] and power of the detrended positions, Blackman-Harris windowed (the
+    ends of a log do not match: without a window their jump leaks power to every
+    frequency)."""
+    x = signal.detrend(q, axis=0) * signal.windows.blackmanharris(q.shape[0])[:, None]
+    return np.fft.rfftfreq(q.shape[0], 1.0 / sampling_rate_hz), np.abs(np.fft.rfft(x, axis=0)) ** 2
+
+
+def _stages(factor: int) -> list[int]:
+    """Decimation factors of at most MAX_STAGE whose product is at most ``factor``."""
+    out: list[int] = []
+    while factor >= 2:
+        stage = min(factor, MAX_STAGE)
+        out.append(stage)
+        factor //= stage
+    return out
+
+
+def resolve_defaults(pp, q: FloatArray, sampling_rate_hz: float, dq_logged=None):  # noqa: ANN001, ANN201
+    """The preprocessing settings with ``auto`` replaced, their records and warnings.
+
+    Parameters
+    ----------
+    pp :
+        The ``preprocess`` section (:class:`~ident.identify.config.PreprocessConfig`).
+    q :
+        Raw joint positions [rad], shape (n_samples, n_joints), uniformly sampled.
+    sampling_rate_hz :
+        Sampling rate [Hz].
+    dq_logged :
+        Logged velocities [rad/s] of the same shape, or None: checked against the
+        differentiated (filtered) positions.
+
+    Returns
+    -------
+    :
+        ``(settings, records, warnings)``: a PreprocessConfig without ``auto``, records for
+        the report and plain-language warnings for the result.
+    """
+    from ident.identify.config import FilterConfig
+
+    fs = sampling_rate_hz
+    records: list[dict] = []
+    warnings: list[str] = []
+    band = pp.excitation_band_hz
+    band_note = "configured"
+    if band is None and (pp.lowpass == "auto" or pp.decimation == "auto"):
+        band = excitation_band(q, fs)
+        band_note = "estimated: 99.9 % of the positions' power"
+    update: dict = {}
+    if pp.lowpass == "auto":
+        cutoff = min(CUTOFF_PER_BAND * band, 0.25 * fs)
+        update["lowpass"] = FilterConfig(cutoff_hz=cutoff, order=4)
+        records.append(
+            {
+                "step": "auto settings",
+                "detail": f"low-pass cutoff {cutoff:.4g} Hz = min({CUTOFF_PER_BAND:g} x excitation "
+                f"band {band:.4g} Hz ({band_note}), fs/4)",
+            }
+        )
+    cutoff = update.get("lowpass", pp.lowpass)
+    cutoff_hz = cutoff.cutoff_hz if isinstance(cutoff, FilterConfig) else None
+    if pp.decimation == "auto":
+        target = RATE_PER_CUTOFF * (cutoff_hz if cutoff_hz is not None else 5.0 * band)
+        factors = _stages(int(fs // target)) if target > 0 else []
+        update["decimation"] = factors
+        records.append(
+            {
+                "step": "auto settings",
+                "detail": f"decimation {' x '.join(map(str, factors)) or 'none'}: keeps at least "
+                f"{RATE_PER_CUTOFF:g} samples per period of {target / RATE_PER_CUTOFF:.4g} Hz "
+                f"({fs:g} -> {fs / max(1, int(np.prod(factors) if factors else 1)):.4g} Hz)",
+            }
+        )
+    if cutoff is None:
+        warnings.append(
+            "positions are not low-pass filtered (preprocess.lowpass: null): accelerations from "
+            "raw encoder steps amplify noise; remove the line to get a filter chosen from the "
+            "excitation band."
+        )
+    freqs, power = _spectrum(q, fs)
+    total = power.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        high = power[freqs > 0.25 * fs].sum(axis=0) / total
+    aliased = np.flatnonzero(high > ALIAS_POWER)
+    if aliased.size:
+        warnings.append(
+            f"joint(s) {', '.join(str(j + 1) for j in aliased)}: positions have "
+            f"{100 * float(high[aliased].max()):.2g} % of their power above fs/4 = {fs / 4:g} Hz: "
+            "the motion is too fast for the sampling rate (aliased) or the positions are noisy; "
+            "log faster or check the encoder signal."
+        )
+    if dq_logged is not None:
+        qf = q
+        if cutoff_hz is not None and cutoff_hz < 0.5 * fs:
+            qf, _ = lowpass(q, fs, cutoff_hz, 4)
+        dq, _, _ = differentiate(qf, fs)
+        from ident.measure.timebase import velocity_mismatch
+
+        dqf = dq_logged
+        if cutoff_hz is not None and cutoff_hz < 0.5 * fs:
+            dqf, _ = lowpass(dq_logged, fs, cutoff_hz, 4, what="dq")
+        mismatch = velocity_mismatch(dqf, dq)
+        records.append(
+            {
+                "step": "velocity check",
+                "detail": "logged velocities vs differentiated positions, relative difference "
+                f"per joint {[round(float(m), 4) for m in mismatch]}",
+            }
+        )
+        bad = np.flatnonzero(mismatch > VELOCITY_MISMATCH)
+        if bad.size:
+            warnings.append(
+                f"joint(s) {', '.join(str(j + 1) for j in bad)}: logged velocities differ from "
+                f"the differentiated positions by {100 * float(mismatch[bad].max()):.3g} %: check "
+                "the velocity columns' unit, sign, side (gear ratio) and their time alignment."
+            )
+    return pp.model_copy(update=update), records, warnings

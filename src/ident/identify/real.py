@@ -24,6 +24,7 @@ Nothing here writes files; :mod:`ident.report.identify_report` does.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,7 +46,7 @@ from ident.dynamics.friction import (
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import ConfigError, DataError, NotIdentifiable
-from ident.identify import preprocess
+from ident.identify import accumulate, preprocess, sanity
 from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
 from ident.identify.estimate import Estimate, least_squares, rank_report
@@ -391,8 +392,10 @@ def _reference_prediction(
     return tau, missing
 
 
-def identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
+def identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None) -> IdentifyResult:
     """Run the identification described by ``cfg``: read its log, then :func:`identify_log`.
+
+    ``scheduler``: a dask.distributed scheduler address for the chunks of a long log.
 
     Raises
     ------
@@ -404,7 +407,9 @@ def identify(cfg: IdentifyConfig, *, rng: int = 0) -> IdentifyResult:
     model = load_robot(cfg.robot, source=source).model
     joints = [model.names[i] for i in range(1, model.njoints)]
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
-    return identify_log(cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0)
+    return identify_log(
+        cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
+    )
 
 
 def identify_log(
@@ -414,6 +419,7 @@ def identify_log(
     model: pin.Model | None = None,
     rng: int = 0,
     read_s: float = 0.0,
+    scheduler: str | None = None,
 ) -> IdentifyResult:
     """Identify from a log already read and converted to joint-side SI signals.
 
@@ -439,6 +445,9 @@ def identify_log(
         not depend on it beyond round-off).
     read_s :
         Seconds spent reading the log, for the timings.
+    scheduler :
+        A dask.distributed scheduler address for the chunks of a long log
+        (:mod:`ident.identify.accumulate`).
 
     Raises
     ------
@@ -446,11 +455,17 @@ def identify_log(
         Subclasses naming the file, column or parameter: bad config, rank deficiency.
     """
     with threadpool_limits(limits=1, user_api="blas"):
-        return _identify_log(cfg, log, model=model, rng=rng, read_s=read_s)
+        return _identify_log(cfg, log, model=model, rng=rng, read_s=read_s, scheduler=scheduler)
 
 
 def _identify_log(
-    cfg: IdentifyConfig, log: RobotLog, *, model: pin.Model | None, rng: int, read_s: float
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    *,
+    model: pin.Model | None,
+    rng: int,
+    read_s: float,
+    scheduler: str | None,
 ) -> IdentifyResult:
     timings: dict[str, float] = {"read": read_s}
     t0 = time.perf_counter() - read_s
@@ -463,6 +478,29 @@ def _identify_log(
             f"{source}: the log's joints ({', '.join(log.joint_names)}) are not the robot's "
             f"({', '.join(joints)})."
         )
+    first = slice(*log.segments[0])  # automatic settings: from the first segment
+    settings, auto_records, auto_warnings = preprocess.resolve_defaults(
+        cfg.preprocess,
+        log.q[first],
+        log.sampling_rate_hz,
+        None if log.dq is None else log.dq[first],
+    )
+    cfg = cfg.model_copy(update={"preprocess": settings})
+    log = dataclasses.replace(log, records=(*log.records, *auto_records))
+    if accumulate.use_chunks(log, cfg.preprocess, 10 * model.nv + 4 * model.nv):
+        fields = accumulate.identify_chunked(
+            cfg,
+            log,
+            model,
+            joints,
+            source=source,
+            rng=rng,
+            timings=timings,
+            t0=t0,
+            scheduler=scheduler,
+        )
+        fields["warnings"] = (*auto_warnings, *fields["warnings"])
+        return IdentifyResult(**fields)
     records = list(log.records)
     fs = log.sampling_rate_hz
     q, tau = log.q, log.tau
@@ -661,6 +699,22 @@ def _identify_log(
         in_sample=part is ident_part,
         n_rows=int(W_id.shape[0]),
         n_params=len(base_names),
+    )
+    problems = [*auto_warnings, *problems]
+    problems += sanity.result_warnings(
+        joint_names=tuple(joints),
+        units=sanity.joint_units(model),
+        names=base_names,
+        x=est.x,
+        std=est.std,
+        relative_std=est.relative_std,
+        projection=base.projection,
+        all_names=pm.names,
+        column_norms=np.linalg.norm(W_id, axis=0),
+        tau_norm=float(np.linalg.norm(tau_id)),
+        tau_validate=tau_val,
+        tau_pred=predictions["identified"].tau_pred,
+        keep_validate=keep_val,
     )
     timings["total"] = time.perf_counter() - t0
     return IdentifyResult(

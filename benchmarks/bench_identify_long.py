@@ -1,0 +1,244 @@
+"""Long logs in bounded memory: one hour at 1 kHz of a 7-joint arm, end to end.
+
+    PYTHONPATH=src python benchmarks/bench_identify_long.py [--minutes 60] [--rate 1000]
+
+1. Generates the log of a Franka Panda with its fingers removed (7 joints): a random
+   joint-space Fourier trajectory (5 harmonics of 0.1 Hz), ideal rigid-body torques (the
+   numba regressor times the URDF's inertial parameters, checked against ``pinocchio.rnea``)
+   plus viscous and Coulomb friction and white noise, written as a numpy archive
+   (``format: npz``).
+2. Runs ``ident identify`` on it in a subprocess (the log is longer than
+   ``preprocess.max_regressor_mb`` allows in memory, so the chunked path runs) and prints
+   its wall time and peak resident memory (targets: < 60 s and < 2 GB on 2 cores).
+3. Per sample: the chunked path (regressor kernel + extra columns + base columns +
+   reduction) against a Python loop over ``pinocchio.computeJointTorqueRegressor`` plus the
+   matrix product ``Y^T Y``, measured in this run (target: >= 8x).
+4. On a short log (``--compare-minutes``), the chunked estimate against the in-memory one
+   (target: equal to 1e-10 relative).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import yaml
+
+from ident.dynamics.chain import chain_from_model
+from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.parameters import parameters_from_model
+from ident.dynamics.regressor import joint_torque_regressor
+
+PANDA = (
+    Path(
+        str(importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share"))
+    )
+    / "example-robot-data/robots/panda_description/urdf/panda.urdf"
+)
+FV = np.array([0.6, 0.6, 0.5, 0.5, 0.3, 0.3, 0.2])  # N*m*s/rad
+FS = np.array([0.8, 0.8, 0.6, 0.6, 0.4, 0.4, 0.3])  # N*m
+NOISE = 0.05  # N*m
+
+
+def panda7(folder: Path) -> Path:
+    """The Panda URDF without its two finger joints and links (7 revolute joints)."""
+    tree = ET.parse(PANDA)
+    root = tree.getroot()
+    fingers = [j for j in root.findall("joint") if j.get("type") == "prismatic"]
+    for joint in fingers:
+        child = joint.find("child").get("link")
+        root.remove(joint)
+        for link in root.findall("link"):
+            if link.get("name") == child:
+                root.remove(link)
+    path = folder / "panda7.urdf"
+    tree.write(path)
+    return path
+
+
+def fourier(t: np.ndarray, coeffs: np.ndarray) -> tuple[np.ndarray, ...]:
+    """q, dq, ddq of ``q = sum_k a_k sin(k w t) + b_k cos(k w t)`` (coeffs (2, 5, nv))."""
+    w = 2 * np.pi * 0.1 * np.arange(1, 6)
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    a, b = coeffs
+    return s @ a + c @ b, (c * w) @ a - (s * w) @ b, -(s * w**2) @ a - (c * w**2) @ b
+
+
+def generate(urdf: Path, minutes: float, rate: float, path: Path, seed: int = 0) -> None:
+    """Write the log (t, q, tau) as ``path`` (npz), computed in blocks of one minute."""
+    model = pin.buildModelFromUrdf(str(urdf))
+    chain = chain_from_model(model)
+    phi = parameters_from_model(model)
+    rng = np.random.default_rng(seed)
+    coeffs = rng.normal(scale=0.4, size=(2, 5, model.nv)) / np.arange(1, 6)[None, :, None]
+    n = int(minutes * 60 * rate)
+    t = np.arange(n) / rate
+    q = np.empty((n, model.nv))
+    tau = np.empty((n, model.nv))
+    block = int(60 * rate)
+    for a in range(0, n, block):
+        b = min(n, a + block)
+        qa, dqa, ddqa = fourier(t[a:b], coeffs)
+        q[a:b] = qa
+        tau[a:b] = joint_torque_regressor(chain, qa, dqa, ddqa) @ phi + FV * dqa + FS * np.sign(dqa)
+        if a == 0:  # the regressor's torques are Pinocchio's RNEA
+            data = model.createData()
+            for k in (0, 17, b - a - 1):
+                rnea = pin.rnea(model, data, qa[k], dqa[k], ddqa[k])
+                friction = FV * dqa[k] + FS * np.sign(dqa[k])
+                assert np.allclose(rnea + friction, tau[a + k], atol=1e-9), "RNEA mismatch"
+    tau += rng.normal(size=tau.shape) * NOISE
+    np.savez(path, t=t, q=q, tau=tau)
+
+
+def config(urdf: Path, log: Path, path: Path, **preprocess: object) -> Path:
+    nv = 7
+    cfg = {
+        "name": "panda-long",
+        "robot": {"urdf": str(urdf)},
+        "log": {
+            "path": str(log),
+            "position": {"columns": [f"q/{k}" for k in range(nv)]},
+            "torque": {"columns": [f"tau/{k}" for k in range(nv)]},
+        },
+        "preprocess": {
+            "lowpass": {"cutoff_hz": 10.0, "order": 4},
+            "trim_samples": 20,
+            **preprocess,
+        },
+        "model": {"viscous": True, "coulomb": True, "offset": False, "rotor_inertia": False},
+        "estimation": {"method": "wls", "essential": {"enabled": False}},
+        "validation": {"identify_fraction": 0.9},
+    }
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+_RUNNER = """
+import resource, sys, time, json
+t0 = time.perf_counter()
+from ident.cli import app
+try:
+    app(sys.argv[1:], standalone_mode=False)
+finally:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = usage.ru_utime + usage.ru_stime
+    print(json.dumps({"wall_s": time.perf_counter() - t0, "cpu_s": cpu,
+                      "peak_mb": usage.ru_maxrss / 1024}))
+"""
+
+
+def run_cli(cfg: Path, out: Path) -> dict:
+    args = [sys.executable, "-c", _RUNNER, "identify", str(cfg), "--out", str(out), "--no-replay"]
+    proc = subprocess.run(args, capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        raise SystemExit(f"ident identify failed:\n{proc.stdout}\n{proc.stderr}")
+    last = proc.stdout.strip().splitlines()[-1]
+    return {**json.loads(last), "output": proc.stdout, "stderr": proc.stderr}
+
+
+def per_sample(urdf: Path, n: int) -> tuple[float, float]:
+    """Seconds per sample: the chunked path's regressor + reduction, and Pinocchio's loop."""
+    from ident.identify.accumulate import BaseColumns, reduce_chunk
+    from ident.identify.real import build_parameter_model
+
+    model = pin.buildModelFromUrdf(str(urdf))
+    chain = chain_from_model(model)
+    terms = ExtraTerms.from_options(7, rotor_inertia=False, offset=False)
+    pm = build_parameter_model(model, terms)
+    rng = np.random.default_rng(1)
+    q, dq, ddq = rng.normal(size=(3, n, 7))
+    tau = rng.normal(size=(n, 7))
+    keep = np.ones((n, 7), dtype=bool)
+    columns = BaseColumns(chain, pm)
+    columns(q[:10], dq[:10], ddq[:10])  # compile outside the timing
+    t0 = time.perf_counter()
+    reduce_chunk(columns(q, dq, ddq), tau, keep)
+    ours = (time.perf_counter() - t0) / n
+    data = model.createData()
+    gram = np.zeros((70, 70))
+    t0 = time.perf_counter()
+    for k in range(n):
+        Y = pin.computeJointTorqueRegressor(model, data, q[k], dq[k], ddq[k])
+        gram += Y.T @ Y
+    theirs = (time.perf_counter() - t0) / n
+    return ours, theirs
+
+
+def compare(urdf: Path, folder: Path, minutes: float, rate: float) -> float:
+    """Relative difference ``||x_chunked - x_memory|| / ||x_memory||`` on a short log."""
+    from ident.identify.config import load_identify_config
+    from ident.identify.real import identify
+
+    log = folder / "short.npz"
+    generate(urdf, minutes, rate, log, seed=3)
+    estimates = []
+    for mode in ("never", "always"):
+        cfg = load_identify_config(
+            config(urdf, log, folder / f"short-{mode}.yaml", chunked=mode, chunk_samples=4096)
+        )
+        estimates.append(identify(cfg).estimate.x)
+    a, b = estimates
+    return float(np.linalg.norm(a - b) / np.linalg.norm(a))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=60.0)
+    parser.add_argument("--rate", type=float, default=1000.0)
+    parser.add_argument("--compare-minutes", type=float, default=1.0)
+    parser.add_argument("--per-sample", type=int, default=20000)
+    args = parser.parse_args()
+    from threadpoolctl import threadpool_limits
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        urdf = panda7(folder)
+        t0 = time.perf_counter()
+        log = folder / "long.npz"
+        generate(urdf, args.minutes, args.rate, log)
+        n = int(args.minutes * 60 * args.rate)
+        print(
+            f"generated {n} samples ({args.minutes:g} min at {args.rate:g} Hz, 7 joints) in "
+            f"{time.perf_counter() - t0:.1f} s; log {log.stat().st_size / 2**20:.0f} MB"
+        )
+        run = run_cli(
+            config(urdf, log, folder / "long.yaml", max_regressor_mb=256.0), folder / "runs"
+        )
+        (rundir,) = (folder / "runs").iterdir()
+        result = json.loads((rundir / "result.json").read_text())
+        print(
+            f"ident identify (chunked): wall {run['wall_s']:.1f} s, CPU {run['cpu_s']:.1f} s, "
+            f"peak memory {run['peak_mb']:.0f} MB (targets < 60 s, < 2048 MB); machine load "
+            f"average {os.getloadavg()[0]:.1f}"
+        )
+        print(
+            f"  relative residual {result['relative_residual']:.4f}; "
+            f"timings {json.loads((rundir / 'run.json').read_text()).get('timings_s')}"
+        )
+        with threadpool_limits(limits=1, user_api="blas"):
+            ours, theirs = per_sample(urdf, args.per_sample)
+        print(
+            f"per sample: chunked regressor + reduction {ours * 1e6:.2f} us, Pinocchio "
+            f"computeJointTorqueRegressor + Y^T Y loop {theirs * 1e6:.2f} us: "
+            f"{theirs / ours:.1f}x (target >= 8x)"
+        )
+        diff = compare(urdf, folder, args.compare_minutes, args.rate)
+        print(
+            f"chunked vs in-memory estimate on {args.compare_minutes:g} min: max relative "
+            f"difference (norm) {diff:.2e} (target <= 1e-10)"
+        )
+
+
+if __name__ == "__main__":
+    main()
