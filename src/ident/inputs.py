@@ -83,7 +83,7 @@ def check_number(
     integer :
         Require an integer.
     hint :
-        Appended to the message (how to change a ceiling, for instance).
+        Appended to the message before its final period (how to change a limit).
 
     Raises
     ------
@@ -93,16 +93,16 @@ def check_number(
     kind = "an integer" if integer else "a number"
     ok_type = isinstance(value, Integral) if integer else isinstance(value, Real)
     if isinstance(value, bool) or not ok_type:
-        raise ConfigError(f"{name} = {short_repr(value)} must be {kind}.{_tail(hint)}")
+        raise ConfigError(f"{name} = {short_repr(value)} must be {kind}{_tail(hint)}.")
     if not math.isfinite(float(value)):
-        raise ConfigError(f"{name} = {value} must be a finite number.{_tail(hint)}")
+        raise ConfigError(f"{name} = {value} must be a finite number{_tail(hint)}.")
     too_low = low is not None and (value < low if low_inclusive else value <= low)
     too_high = high is not None and value > high
     if too_low or too_high:
         lo = "" if low is None else (f">= {low:g}" if low_inclusive else f"> {low:g}")
         hi = "" if high is None else f"<= {high:g}"
         allowed = " and ".join(x for x in (lo, hi) if x)
-        raise ConfigError(f"{name} = {value:g} must be {allowed}.{_tail(hint)}")
+        raise ConfigError(f"{name} = {value:g} must be {allowed}{_tail(hint)}.")
     return value
 
 
@@ -166,7 +166,9 @@ def check_output_dir(path: str | Path, name: str, *, must_be_new_or_empty: bool 
     path = Path(path)
     root = _pseudo_file_system(path)
     if root is not None:
-        raise ConfigError(f"{name} {path}: lies under {root}, which holds no files; choose a folder.")
+        raise ConfigError(
+            f"{name} {path}: lies under {root}, which holds no files; choose a folder."
+        )
     if path.exists() and not path.is_dir():
         raise ConfigError(f"{name} {path}: exists and is not a folder; choose a folder.")
     if must_be_new_or_empty and path.is_dir() and any(path.iterdir()):
