@@ -237,7 +237,8 @@ class JobEstimate:
 
     def describe(self) -> str:
         """One line: ``what: about 1.2 GB of memory and 3.4 min``."""
-        return f"{self.what}: about {_bytes(self.memory_bytes)} of memory and {_duration(self.seconds)}"
+        memory, time = _bytes(self.memory_bytes), _duration(self.seconds)
+        return f"{self.what}: about {memory} of memory and {time}"
 
 
 def _bytes(n: float) -> str:

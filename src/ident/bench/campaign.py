@@ -364,8 +364,8 @@ def run_campaign(
     Raises
     ------
     IdentError
-        If ``workers`` is not between 1 and the CPU count, or a scheduler is given but ``dask.distributed`` is missing or
-        unreachable.
+        If ``workers`` is not between 1 and the CPU count, or a scheduler is given but
+        ``dask.distributed`` is missing or unreachable.
     """
     if scheduler is None:
         check_workers(workers)
