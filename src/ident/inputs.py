@@ -28,8 +28,8 @@ from numbers import Integral, Real
 from pathlib import Path
 from typing import Any
 
-from ident.config import short_repr
-from ident.errors import ConfigError
+from ident.config import read_text_input, short_repr
+from ident.errors import ConfigError, ModelError
 
 __all__ = [
     "DEFAULT_MAX_HOURS",
@@ -42,6 +42,7 @@ __all__ = [
     "check_output_dir",
     "check_output_file",
     "max_workers",
+    "read_urdf_text",
     "resource_ceilings",
     "safe_component",
 ]
@@ -54,6 +55,8 @@ _DEFAULT_MEMORY_SHARE = 0.5
 _PSEUDO_FILE_SYSTEMS = (Path("/proc"), Path("/sys"), Path("/dev"))
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 _MAX_COMPONENT = 80
+MAX_URDF_BYTES = 64 << 20  # URDFs are text; meshes live in other files
+_DTD = re.compile(r"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 
 
 class ResourceLimitError(ConfigError):
@@ -205,6 +208,33 @@ def check_output_file(path: str | Path, name: str) -> Path:
         raise ConfigError(f"{name} {path}: {ancestor} is a file, not a folder.")
     _probe_writable(ancestor, name, path)
     return path
+
+
+def read_urdf_text(path: str | Path) -> str:
+    """Read a URDF as UTF-8 text and refuse what not every parser of ``ident`` reads alike.
+
+    A document type declaration (``<!DOCTYPE ...>``, ``<!ENTITY ...>``) is refused: Pinocchio
+    (urdfdom) and Python's XML parser disagree on entities, so a model could load in one
+    step and fail (or differ) in a later one, after the work is done.
+
+    Raises
+    ------
+    ModelError
+        Missing, binary, non-UTF-8 or oversized file, or a DTD declaration.
+    """
+    path = Path(path)
+    try:
+        text = read_text_input(path, what="URDF", max_bytes=MAX_URDF_BYTES)
+    except ConfigError as e:
+        raise ModelError(str(e)) from e
+    match = _DTD.search(text)
+    if match:
+        line = text[: match.start()].count("\n") + 1
+        raise ModelError(
+            f"{path}: line {line}: a <!{match.group(1).upper()}> declaration; URDFs "
+            "with a DTD or entities are not supported, write the values out."
+        )
+    return text
 
 
 def safe_component(name: str, *, default: str = "run") -> str:
