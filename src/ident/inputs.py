@@ -41,6 +41,7 @@ __all__ = [
     "check_number",
     "check_output_dir",
     "check_output_file",
+    "check_urdf_numbers",
     "max_workers",
     "read_urdf_text",
     "resource_ceilings",
@@ -102,11 +103,17 @@ def check_number(
     too_low = low is not None and (value < low if low_inclusive else value <= low)
     too_high = high is not None and value > high
     if too_low or too_high:
-        lo = "" if low is None else (f">= {low:g}" if low_inclusive else f"> {low:g}")
-        hi = "" if high is None else f"<= {high:g}"
+        lo = "" if low is None else (f">= {_fmt(low)}" if low_inclusive else f"> {_fmt(low)}")
+        hi = "" if high is None else f"<= {_fmt(high)}"
         allowed = " and ".join(x for x in (lo, hi) if x)
-        raise ConfigError(f"{name} = {value:g} must be {allowed}{_tail(hint)}.")
+        raise ConfigError(f"{name} = {_fmt(value)} must be {allowed}{_tail(hint)}.")
     return value
+
+
+def _fmt(value: float) -> str:
+    if isinstance(value, Integral) and abs(int(value)) < 10**21:
+        return str(int(value))
+    return f"{float(value):g}"
 
 
 def _tail(hint: str) -> str:
@@ -235,6 +242,33 @@ def read_urdf_text(path: str | Path) -> str:
             "with a DTD or entities are not supported, write the values out."
         )
     return text
+
+
+def check_urdf_numbers(text: str, source: str) -> None:
+    """Refuse URDF text holding a non-finite number (``inf``, ``nan``) in any attribute.
+
+    Pinocchio refuses such a file when it loads it, so a writer checks its output first.
+
+    Raises
+    ------
+    ModelError
+        Naming the element, its ``name`` and the attribute.
+    """
+    import xml.etree.ElementTree as ET
+
+    for element in ET.fromstring(text).iter():
+        for key, value in element.attrib.items():
+            for word in value.split():
+                try:
+                    number = float(word)
+                except ValueError:
+                    continue
+                if not math.isfinite(number):
+                    owner = element.get("name") or element.tag
+                    raise ModelError(
+                        f"{source}: the URDF would hold {key}={value!r} in <{element.tag}> "
+                        f"({owner}); give finite values (limits, inertials, origins)."
+                    )
 
 
 def safe_component(name: str, *, default: str = "run") -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -15,6 +16,8 @@ __all__ = ["parse_locks", "register", "run_verification", "verify"]
 
 # Largest relative error (to the scale of the regressor tensor and of the torques) accepted.
 DEFAULT_TOLERANCE = 1e-9
+# The regressor of every state is held at once (about 3 KB per state for 6 joints).
+MAX_SAMPLES = 100_000
 
 
 def verify(
@@ -76,12 +79,17 @@ def run_verification(
     ``lock_joints`` (joint name -> position [rad or m]) applies to ``urdf`` only.
     """
     from ident.dynamics.pinocchio_check import verification_report
+    from ident.inputs import check_number, read_urdf_text
     from ident.model import Robot
 
     if (robot_config is None) == (urdf is None):
         raise ConfigError("give exactly one of --robot CONFIG or --urdf PATH.")
-    if samples < 1:
-        raise ConfigError(f"--samples must be at least 1, got {samples}.")
+    check_number(samples, "--samples", low=1, high=MAX_SAMPLES, integer=True)
+    check_number(seed, "--seed", low=0, high=2**63 - 1, integer=True)
+    # NaN would make every comparison fail (FAILED on a correct regressor); < 0 never passes
+    check_number(tolerance, "--tolerance", low=0.0, high=1.0)
+    if urdf is not None:
+        read_urdf_text(urdf)  # binary, non-UTF-8 or DTD: one clear line before any work
     if lock_joints and robot_config is not None:
         raise ConfigError(
             "--lock works with --urdf only; a --robot config describes a serial chain already."
@@ -115,7 +123,7 @@ def parse_locks(specs: list[str]) -> dict[str, float]:
     Raises
     ------
     ConfigError
-        For an empty name, a value that is not a number, or a joint given twice.
+        For an empty name, a value that is not a finite number, or a joint given twice.
     """
     out: dict[str, float] = {}
     for spec in specs:
@@ -129,6 +137,8 @@ def parse_locks(specs: list[str]) -> dict[str, float]:
             raise ConfigError(
                 f"--lock {spec!r}: {text!r} is not a number; give NAME=VALUE in rad or m."
             ) from e
+        if not math.isfinite(value):
+            raise ConfigError(f"--lock {spec!r}: the value must be finite (rad or m).")
         if name in out:
             raise ConfigError(f"--lock {spec!r}: joint {name!r} is locked twice; lock it once.")
         out[name] = value
