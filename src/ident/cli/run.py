@@ -52,6 +52,9 @@ def run(
     from ident.run.rundir import create_run_dir
 
     with user_errors():
+        from ident.inputs import check_output_dir
+
+        check_output_dir(out, "--out")
         cfg = load_run_config(config)
         if quick:
             cfg = cfg.quick_version()

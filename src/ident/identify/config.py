@@ -62,7 +62,7 @@ class SignalFile(StrictModel):
 
     path: Path
     columns: list[str] | None = None
-    delimiter: str = ","
+    delimiter: str = Field(",", min_length=1, max_length=1)  # np.loadtxt: one character
 
 
 class TimeColumn(StrictModel):

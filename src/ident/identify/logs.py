@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import gzip
 import io
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -208,7 +209,7 @@ def _read_csv_lines(
         with _open_text(path) as f:
             header_line = f.readline()
             text = f.read()
-    except (OSError, UnicodeDecodeError, EOFError) as e:
+    except (OSError, UnicodeDecodeError, EOFError, zlib.error) as e:  # zlib: damaged .gz
         raise DataError(f"{path}: cannot read {what} file ({e}).") from e
     header = [h.strip() for h in header_line.strip().split(delimiter)]
     if columns is None:

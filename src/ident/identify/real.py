@@ -86,6 +86,9 @@ def load_robot_model(urdf: str | Path) -> pin.Model:
     ModelError
         If the URDF cannot be parsed or is not a chain of 1-DoF joints.
     """
+    from ident.inputs import read_urdf_text
+
+    read_urdf_text(urdf)  # UTF-8 text without a DTD: Pinocchio and the write-back agree
     try:
         model = pin.buildModelFromUrdf(str(urdf))
     except (RuntimeError, ValueError) as e:

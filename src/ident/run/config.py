@@ -21,7 +21,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
-from ident.errors import ConfigError
+from ident.errors import ConfigError, OptimizationError
 
 __all__ = [
     "ElitesSection",
@@ -77,7 +77,7 @@ class ExcitationSection(StrictModel):
 
     family: Literal["paper_wrist", "paper_arm", "joint_fourier"]
     criterion: Literal["paper", "logdet"] = "paper"
-    n_samples: int = Field(default=500, ge=16)
+    n_samples: int = Field(default=500, ge=16, le=1_000_000)
     options: dict[str, Any] = Field(default_factory=dict)
     bounds: dict[str, Bound] | None = None
 
@@ -85,9 +85,9 @@ class ExcitationSection(StrictModel):
 class ElitesSection(StrictModel):
     """Initial elites: a constraint-compliance PSO swarm (paper section 4.1)."""
 
-    n_particles: int = Field(default=10, ge=2)
-    n_elites: int = Field(default=5, ge=1)
-    maxiter: int = Field(default=100, ge=1)
+    n_particles: int = Field(default=10, ge=2, le=10_000)
+    n_elites: int = Field(default=5, ge=1, le=1000)
+    maxiter: int = Field(default=100, ge=1, le=100_000)
 
 
 class EmupsoSection(StrictModel):
@@ -113,13 +113,26 @@ class EmupsoSection(StrictModel):
         Further keyword arguments of ``ident.optim.minimize(method="emupso")``.
     """
 
-    n_particles: int = Field(default=20, ge=2)
-    maxiter: int = Field(default=30, ge=1)
-    stagnation: int = Field(default=10, ge=1)
-    n_runs: int = Field(default=5, ge=1)
+    n_particles: int = Field(default=20, ge=2, le=10_000)
+    maxiter: int = Field(default=30, ge=1, le=100_000)
+    stagnation: int = Field(default=10, ge=1, le=100_000)
+    n_runs: int = Field(default=5, ge=1, le=1000)
     sigma_fraction: float = Field(default=0.1, gt=0.0, le=1.0)
-    n_report_elites: int = Field(default=6, ge=1)
+    n_report_elites: int = Field(default=6, ge=1, le=100)
     options: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("options")
+    @classmethod
+    def _known_options(cls, value: dict[str, Any]) -> dict[str, Any]:
+        # names and types now, not after the run folder exists (also for quick.emupso)
+        from ident.optim import method_defaults
+        from ident.optim._common import check_options
+
+        try:
+            check_options("emupso", value, method_defaults("emupso"))
+        except OptimizationError as e:
+            raise ValueError(str(e)) from e
+        return value
 
 
 class MeasurementSection(StrictModel):
@@ -178,7 +191,7 @@ class QuickSection(StrictModel):
     emupso: EmupsoSection = EmupsoSection(
         n_particles=8, maxiter=6, stagnation=3, n_runs=2, n_report_elites=2
     )
-    n_samples: int = Field(default=120, ge=16)
+    n_samples: int = Field(default=120, ge=16, le=1_000_000)
 
 
 class RunConfig(StrictModel):
