@@ -55,6 +55,7 @@ _MAX_SCALAR_CHARS = 64  # text of one number
 _SHORT = 60  # characters of a value quoted in a message
 
 _MERGE_TAG = "tag:yaml.org,2002:merge"
+_FLOAT_TAG = "tag:yaml.org,2002:float"
 
 
 class StrictModel(BaseModel):
@@ -130,12 +131,6 @@ class _BoundedLoader(yaml.SafeLoader):
             seen[key] = line
         return node
 
-    def get_single_node(self) -> Any:
-        node = super().get_single_node()
-        if node is not None:
-            _check_expanded_size(node)
-        return node
-
     def construct_yaml_int(self, node: Any) -> int:
         text = str(node.value).replace("_", "")
         digits = text.lstrip("+-")
@@ -160,26 +155,29 @@ class _BoundedLoader(yaml.SafeLoader):
                 "characters",
                 node.start_mark,
             )
-        value = super().construct_yaml_float(node)
-        if not math.isfinite(value):
-            raise _LimitExceeded(
-                f"{short_repr(node.value, 24)} is not a finite number; give a finite value "
-                "(or null for an unset one)",
-                node.start_mark,
-            )
-        return value
+        return float(super().construct_yaml_float(node))
+
+    def get_single_node(self) -> Any:
+        node = super().get_single_node()
+        if node is not None:
+            _check_tree(self, node)
+        return node
 
 
 _BoundedLoader.add_constructor("tag:yaml.org,2002:int", _BoundedLoader.construct_yaml_int)
 _BoundedLoader.add_constructor("tag:yaml.org,2002:float", _BoundedLoader.construct_yaml_float)
 
 
-def _check_expanded_size(root: Any) -> None:
-    """Refuse a node graph whose expansion (aliases written out) exceeds :data:`MAX_NODES`."""
+def _check_tree(loader: _BoundedLoader, root: Any) -> None:
+    """Walk the composed nodes once: expanded size, recursion, non-finite floats.
+
+    A node reached through an alias is counted again (its expanded size), but walked once.
+    Non-finite floats (``.nan``, ``.inf``, ``1.0e999``) are refused with their key path.
+    """
     sizes: dict[int, int] = {}
     active: set[int] = set()
 
-    def size(node: Any) -> int:
+    def size(node: Any, where: str) -> int:
         key = id(node)
         if key in sizes:
             return sizes[key]
@@ -188,9 +186,20 @@ def _check_expanded_size(root: Any) -> None:
         active.add(key)
         total = 1
         if isinstance(node, yaml.SequenceNode):
-            total += sum(size(child) for child in node.value)
+            total += sum(size(child, f"{where}[{k}]") for k, child in enumerate(node.value))
         elif isinstance(node, yaml.MappingNode):
-            total += sum(size(k) + size(v) for k, v in node.value)
+            for k, v in node.value:
+                label = str(k.value) if isinstance(k, yaml.ScalarNode) else "?"
+                total += size(k, where) + size(v, f"{where}.{label}" if where else label)
+        elif node.tag == _FLOAT_TAG and len(str(node.value)) <= _MAX_SCALAR_CHARS:
+            value = yaml.SafeLoader.construct_yaml_float(loader, node)
+            if not math.isfinite(value):
+                raise _LimitExceeded(
+                    f"{short_repr(where or '<top level>', 80)[1:-1]} = "
+                    f"{short_repr(node.value, 24)} is not a finite number; give a finite "
+                    "value (or null for an unset one)",
+                    node.start_mark,
+                )
         active.discard(key)
         if total > MAX_NODES:
             raise _LimitExceeded(
@@ -199,7 +208,7 @@ def _check_expanded_size(root: Any) -> None:
         sizes[key] = total
         return total
 
-    size(root)
+    size(root, "")
 
 
 def read_text_input(path: str | Path, *, what: str = "file", max_bytes: int | None = None) -> str:
@@ -267,7 +276,8 @@ def read_yaml(path: str | Path) -> dict[str, Any]:
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
         if isinstance(e, _LimitExceeded):
-            raise ConfigError(f"{path}{where}: {problem}.") from e
+            at = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+            raise ConfigError(f"{path}: {problem}{at}.") from e
         raise ConfigError(f"{path}: malformed YAML{where}: {problem}; fix the syntax.") from e
     except RecursionError as e:  # pragma: no cover - the depth bound comes first
         raise ConfigError(f"{path}: nested too deeply.") from e

@@ -56,7 +56,7 @@ GENERIC_YAML: dict[str, bytes] = {
     "deep_mapping_flow": ("a: " + "{b: " * 2000 + "1" + "}" * 2000 + "\n").encode(),
     "int_5000_digits": ("name: x\nseed: " + "9" * 5000 + "\n").encode(),
     "int_hex_huge": ("seed: 0x" + "f" * 400 + "\n").encode(),
-    "float_overflow": b"seed: 1.0e999\n",
+    "float_overflow": b"seed: 1.0e+999\n",
     "nan_value": b"seed: .nan\n",
     "inf_value": b"seed: -.inf\n",
     "binary": bytes(range(256)) * 4,
