@@ -359,6 +359,15 @@ def validate_config(model: type[ModelT], data: Mapping[str, Any], source: str | 
                 hint = f"; did you mean '{close[0]}'?" if close else ""
                 valid = f" Valid keys: {', '.join(allowed)}." if allowed else ""
                 messages.append(f"unknown key '{where}'{hint}{valid}")
+            elif err["type"] == "finite_number":
+                # name the field, not the element: "links[1].com", as hand-written checks do
+                field = loc
+                while field and isinstance(field[-1], int):
+                    field = field[:-1]
+                messages.append(
+                    f"{_location(field)}: values are not finite ({short_repr(err.get('input'))}); "
+                    "give finite numbers"
+                )
             elif err["type"] == "missing":
                 messages.append(f"missing required key '{where}'; add it")
             else:

@@ -466,7 +466,7 @@ def _base_files() -> None:
     _write(base / "ragged.csv", "shoulder,slider\n1.0,2.0\n3.0\n4.0,5.0,6.0\n")
     _write(base / "binary.csv", bytes(range(256)) * 8)
     _write(base / "latin1.csv", "shoulder,slid\u00e9r\n1.0,2.0\n3.0,4.0\n".encode("latin-1"))
-    good_gz = gzip.compress(_csv(["shoulder", "slider"], q).encode())
+    good_gz = gzip.compress(_csv(["shoulder", "slider"], q).encode(), mtime=0)
     _write(base / "damaged.csv.gz", good_gz[: len(good_gz) // 2] + b"\x00garbage" * 10)
     _write(base / "plain_named.csv.gz", _csv(["shoulder", "slider"], q))
     traj = _csv(["t", "q_shoulder", "q_slider"], [[s, *qq] for s, qq in zip(t, q, strict=True)])
