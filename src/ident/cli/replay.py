@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-import signal
 import time
 import webbrowser
 from pathlib import Path
@@ -86,10 +85,6 @@ def _inputs(
         # The chosen trajectory is usually also an elite: show each motion once.
         csvs += [p for p in others if p.read_bytes() != chosen.read_bytes()]
     return urdf, csvs, _traced_frame_of_run(run_dir)
-
-
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
 
 
 def replay(
@@ -183,8 +178,7 @@ def replay(
             typer.echo(f"open {server.web_url}  (Ctrl-C to stop)")
             if open_browser and not webbrowser.open(server.web_url, new=2):
                 typer.echo("no system browser found: open the URL above yourself", err=True)
-            # SIGTERM (kill, systemd) stops the server like Ctrl-C does.
-            signal.signal(signal.SIGTERM, _interrupt)
+            # SIGTERM (kill, systemd) stops the server like Ctrl-C does (user_errors).
             while True:  # the server runs in a daemon thread; Ctrl-C ends this loop
                 time.sleep(0.5)
 

@@ -20,8 +20,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, Field, field_validator, model_validator
 
-from ident.config import StrictModel, load_config_file
+from ident.config import StrictModel, load_config_file, read_yaml
 from ident.errors import ConfigError, OptimizationError
+from ident.inputs import read_urdf_text
 
 __all__ = [
     "ElitesSection",
@@ -273,6 +274,10 @@ def load_run_config(path: str | Path) -> RunConfig:
         raise ConfigError(
             f"{path}: robot = '{config.robot}' must be a robot config (.yaml) or a URDF (.urdf)."
         )
+    if robot.suffix.lower() == ".urdf":  # unreadable robots: one line before any run folder
+        read_urdf_text(robot)
+    else:
+        read_yaml(robot)
     config = config.model_copy(update={"robot": robot, "name": config.name or path.stem})
     if config.excitation.bounds:
         check_bound_names(config, path)

@@ -135,10 +135,7 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
     "stage_unknown": RUN_BASE.replace("stage: wrist", "stage: elbow"),
     "robot_missing": RUN_BASE.replace(PAPER_ROBOT, "nowhere.yaml"),
     "robot_traversal_dir": RUN_BASE.replace(PAPER_ROBOT, "../../../../"),
-    "robot_binary": (
-        RUN_BASE.replace(PAPER_ROBOT, "../yaml/binary.yaml"),
-        "the robot file is read inside the pipeline, after the run folder is created",
-    ),
+    "robot_binary": RUN_BASE.replace(PAPER_ROBOT, "../yaml/binary.yaml"),
     "robot_zero_joint_urdf": (
         RUN_BASE.replace(PAPER_ROBOT, "../urdf/zero_joints.urdf"),
         "the stage is checked against the robot inside the pipeline, after the run folder "
@@ -154,10 +151,7 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
         "the stage is checked against the robot inside the pipeline, after the run folder "
         "is created",
     ),
-    "robot_dtd_urdf": (
-        RUN_BASE.replace(PAPER_ROBOT, "../urdf/dtd_entity.urdf"),
-        "the robot is loaded inside the pipeline, after the run folder is created",
-    ),
+    "robot_dtd_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/dtd_entity.urdf"),
     "name_traversal_and_bad_key": RUN_BASE + "name: ../../escape\nsed: 1\n",
     "unknown_section": RUN_BASE + "filters: {}\n",
     "bounds_inverted": RUN_BASE.replace(
