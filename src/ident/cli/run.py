@@ -45,10 +45,16 @@ def run(
     ] = True,
 ) -> None:
     """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
-    from ident.errors import IdentError
+    from ident.errors import ConfigError, IdentError
     from ident.report.run_report import save_run, write_replay, write_report
     from ident.run.config import load_run_config
-    from ident.run.pipeline import RunInterrupted, run_pipeline
+    from ident.run.pipeline import (
+        RunInterrupted,
+        get_stage,
+        load_robot,
+        make_family,
+        run_pipeline,
+    )
     from ident.run.rundir import create_run_dir
 
     with user_errors():
@@ -61,6 +67,15 @@ def run(
         if seed is not None:
             cfg = cfg.with_seed(seed)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
+        # robot, stage and family options are checked before the run folder exists
+        robot = load_robot(Path(cfg.robot))
+        make_family(cfg, robot, get_stage(robot, cfg.stage))
+        std = cfg.measurement.torque_noise_std
+        if isinstance(std, list) and len(std) != robot.model.nv:
+            raise ConfigError(
+                f"{config}: measurement.torque_noise_std has {len(std)} values for "
+                f"{robot.model.nv} joints; give one per joint, or one value for all."
+            )
         rundir = create_run_dir(
             out,
             name,

@@ -114,20 +114,11 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
         "n_report_elites: 1}", "n_report_elites: 1, options: {c7: 1.0}}"
     ),
     "quick_bad_option": RUN_BASE + "quick: {emupso: {options: {c1: [1, 2]}}}\n",
-    "excitation_bad_option": (
-        RUN_BASE.replace("amplitude_bound: 0.3", "amplitude_bound: 0.3, nonsense: 1"),
-        "excitation.options are checked by the family inside the pipeline, after the run "
-        "folder is created (cli/run.py)",
+    "excitation_bad_option": RUN_BASE.replace(
+        "amplitude_bound: 0.3", "amplitude_bound: 0.3, nonsense: 1"
     ),
-    "excitation_option_string": (
-        RUN_BASE.replace("n_harmonics: 3", "n_harmonics: lots"),
-        "excitation.options are checked by the family inside the pipeline, after the run "
-        "folder is created (cli/run.py)",
-    ),
-    "noise_wrong_length": (
-        RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: [0.1, 0.2]"),
-        "the noise list length is checked in the pipeline, after the run folder is created",
-    ),
+    "excitation_option_string": RUN_BASE.replace("n_harmonics: 3", "n_harmonics: lots"),
+    "noise_wrong_length": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: [0.1, 0.2]"),
     "noise_negative": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: -1.0"),
     "noise_nan_string": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: nan"),
     "sigma_inf_string": RUN_BASE.replace("n_runs: 1,", "n_runs: 1, sigma_fraction: inf,"),
@@ -136,21 +127,9 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
     "robot_missing": RUN_BASE.replace(PAPER_ROBOT, "nowhere.yaml"),
     "robot_traversal_dir": RUN_BASE.replace(PAPER_ROBOT, "../../../../"),
     "robot_binary": RUN_BASE.replace(PAPER_ROBOT, "../yaml/binary.yaml"),
-    "robot_zero_joint_urdf": (
-        RUN_BASE.replace(PAPER_ROBOT, "../urdf/zero_joints.urdf"),
-        "the stage is checked against the robot inside the pipeline, after the run folder "
-        "is created",
-    ),
-    "robot_three_joint_urdf": (
-        RUN_BASE.replace(PAPER_ROBOT, "../urdf/three_joints.urdf"),
-        "the stage is checked against the robot inside the pipeline, after the run folder "
-        "is created",
-    ),
-    "robot_thirty_joint_urdf": (
-        RUN_BASE.replace(PAPER_ROBOT, "../urdf/thirty_joints.urdf"),
-        "the stage is checked against the robot inside the pipeline, after the run folder "
-        "is created",
-    ),
+    "robot_zero_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/zero_joints.urdf"),
+    "robot_three_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/three_joints.urdf"),
+    "robot_thirty_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/thirty_joints.urdf"),
     "robot_dtd_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/dtd_entity.urdf"),
     "name_traversal_and_bad_key": RUN_BASE + "name: ../../escape\nsed: 1\n",
     "unknown_section": RUN_BASE + "filters: {}\n",
