@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from ident.cli._common import user_errors
 from ident.errors import ConfigError
 
-__all__ = ["parse_locks", "register", "run_verification", "verify"]
+if TYPE_CHECKING:
+    from ident.inputs import JobEstimate
+
+__all__ = ["estimate_verification", "parse_locks", "register", "run_verification", "verify"]
 
 # Largest relative error (to the scale of the regressor tensor and of the torques) accepted.
 DEFAULT_TOLERANCE = 1e-9
@@ -55,7 +59,13 @@ def verify(
     with user_errors():
         locks = parse_locks(lock or [])
         report = run_verification(
-            robot, urdf, samples=samples, seed=seed, tolerance=tolerance, lock_joints=locks
+            robot,
+            urdf,
+            samples=samples,
+            seed=seed,
+            tolerance=tolerance,
+            lock_joints=locks,
+            announce=lambda line: typer.echo(line, err=True),
         )
     if as_json:
         typer.echo(json.dumps(report))
@@ -73,13 +83,16 @@ def run_verification(
     seed: int,
     tolerance: float = DEFAULT_TOLERANCE,
     lock_joints: dict[str, float] | None = None,
+    announce: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Load the robot, draw states and build the report of :func:`verification_report`.
 
-    ``lock_joints`` (joint name -> position [rad or m]) applies to ``urdf`` only.
+    ``lock_joints`` (joint name -> position [rad or m]) applies to ``urdf`` only. The job is
+    refused above the ceilings of :func:`ident.inputs.check_job`; ``announce`` receives the
+    estimate of a large one (over 10 s or 1 GB) before it starts.
     """
     from ident.dynamics.pinocchio_check import verification_report
-    from ident.inputs import check_number, read_urdf_text
+    from ident.inputs import check_job, check_number, read_urdf_text
     from ident.model import Robot
 
     if (robot_config is None) == (urdf is None):
@@ -101,6 +114,9 @@ def run_verification(
         assert urdf is not None
         loaded = Robot.from_urdf(urdf, lock_joints=lock_joints or None)
         source = str(urdf)
+    estimate = check_job(estimate_verification(loaded.model.nv, samples))
+    if announce is not None and (estimate.seconds > 10.0 or estimate.memory_bytes > 1e9):
+        announce(f"estimate: {estimate.describe()}")
     q, dq, ddq = loaded.random_configurations(samples, rng=seed)
     parameter_map = loaded.dh_to_model_parameters() if loaded.dh is not None else None
     report = verification_report(loaded.model, q, dq, ddq, parameter_map=parameter_map)
@@ -115,6 +131,21 @@ def run_verification(
         and report["ranks_agree"]
     )
     return report
+
+
+def estimate_verification(nv: int, samples: int) -> JobEstimate:
+    """Rough peak memory and time of a verification of ``samples`` states of ``nv`` joints.
+
+    The stacked regressor has ``samples * nv`` rows and about ``10 * nv`` columns, held a few
+    times over (the Pinocchio one, the hand-derived one, the QR factors of the base-parameter
+    counts); the QR costs ``2 m n^2`` flops, counted at 1 GFlop/s.
+    """
+    from ident.inputs import JobEstimate
+
+    rows, cols = samples * nv, 10 * nv
+    memory = 6 * 8.0 * rows * cols + 200e6
+    seconds = 4 * rows * cols**2 / 1e9 + 2e-4 * samples * nv
+    return JobEstimate(f"verify: {samples} states of {nv} joints", memory, seconds)
 
 
 def parse_locks(specs: list[str]) -> dict[str, float]:

@@ -293,6 +293,7 @@ VERIFY_CASES: dict[str, list[str] | tuple[list[str], str]] = {
     "urdf_dir": ["--urdf", "{data}/urdf"],
     "urdf_missing": ["--urdf", "{data}/urdf/nope.urdf"],
     "robot_bomb": ["--robot", "{data}/yaml/bomb.yaml"],
+    "robot_300_joints": ["--robot", "{data}/urdf/many_joints.yaml"],  # above the job ceilings
     "robot_and_urdf": ["--robot", "{data}/urdf/base.yaml", "--urdf", "{data}/base/rp2.urdf"],
     "neither": [],
 }
@@ -471,6 +472,21 @@ def _urdf_files() -> None:
     _write(d / "not_robot.urdf", '<?xml version="1.0"?>\n<html><body/></html>\n')
     _write(d / "inf_limit.urdf", _urdf_chain(2).replace('upper="1"', 'upper="inf"'))
     _write(d / "base.yaml", URDF_BASE)
+    n = 300
+    _write(
+        d / "many_joints.yaml",
+        "name: many\nunits: {length: m, angle: rad, mass: kg}\n"
+        "dh:\n  convention: standard\n  columns: [a, d, alpha, theta]\n  rows:\n"
+        + "    - [0.1, 0.0, 0.0, 0.0]\n" * n
+        + "joints:\n"
+        + "".join(
+            f"  - {{name: j{k}, lower: -1.0, upper: 1.0, velocity: 1.0, acceleration: 1.0}}\n"
+            for k in range(n)
+        )
+        + "links:\n"
+        + "  - {mass: 1.0, com: [0.0, 0.0, 0.0], inertia_com: {xx: 0.01, yy: 0.01, zz: 0.01}}\n"
+        * n,
+    )
 
 
 def _run_folders() -> None:
