@@ -69,7 +69,15 @@ def run(
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
         # robot, stage and family options are checked before the run folder exists
         robot = load_robot(Path(cfg.robot))
-        make_family(cfg, robot, get_stage(robot, cfg.stage))
+        family = make_family(cfg, robot, get_stage(robot, cfg.stage))
+        cutoff = cfg.measurement.filter_cutoff_hz
+        rate_hz = getattr(family, "n_samples", cfg.excitation.n_samples) / family.period
+        if cutoff is not None and cutoff >= 0.5 * rate_hz:
+            raise ConfigError(
+                f"{config}: measurement.filter_cutoff_hz = {cutoff:g} Hz is not below the "
+                f"Nyquist frequency {0.5 * rate_hz:.4g} Hz of the sampled trajectory "
+                f"({rate_hz:.4g} Hz); choose a lower cutoff or more excitation.n_samples."
+            )
         std = cfg.measurement.torque_noise_std
         if isinstance(std, list) and len(std) != robot.model.nv:
             raise ConfigError(

@@ -119,6 +119,12 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
     ),
     "excitation_option_string": RUN_BASE.replace("n_harmonics: 3", "n_harmonics: lots"),
     "noise_wrong_length": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: [0.1, 0.2]"),
+    "cutoff_above_nyquist": RUN_BASE.replace(
+        "torque_noise_std: 0.0", "torque_noise_std: 0.1, filter_cutoff_hz: 100000.0"
+    ),
+    "encoder_counts_huge": RUN_BASE.replace(
+        "torque_noise_std: 0.0", "torque_noise_std: 0.0, encoder_counts_per_rev: " + "9" * 30
+    ),
     "noise_negative": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: -1.0"),
     "noise_nan_string": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: nan"),
     "sigma_inf_string": RUN_BASE.replace("n_runs: 1,", "n_runs: 1, sigma_fraction: inf,"),
