@@ -125,6 +125,8 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
     "encoder_counts_huge": RUN_BASE.replace(
         "torque_noise_std: 0.0", "torque_noise_std: 0.0, encoder_counts_per_rev: " + "9" * 30
     ),
+    "harmonics_huge": RUN_BASE.replace("n_harmonics: 3", "n_harmonics: 1000000000"),
+    "amplitude_nan": RUN_BASE.replace("amplitude_bound: 0.3", "amplitude_bound: .nan"),
     "noise_negative": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: -1.0"),
     "noise_nan_string": RUN_BASE.replace("torque_noise_std: 0.0", "torque_noise_std: nan"),
     "sigma_inf_string": RUN_BASE.replace("n_runs: 1,", "n_runs: 1, sigma_fraction: inf,"),
@@ -194,6 +196,14 @@ IDENTIFY_CASES: dict[str, tuple[str, str] | str] = {
     "lowpass_above_nyquist": IDENTIFY_BASE + "preprocess: {lowpass: {cutoff_hz: 400.0}}\n",
     "gear_ratio_string": IDENTIFY_BASE + "transmission: {gear_ratios: [x, y]}\n",
     "unknown_key": IDENTIFY_BASE + "estimaton: {method: ols}\n",
+    "decimation_huge": IDENTIFY_BASE + "preprocess: {decimation: [1000000]}\n",
+    "gear_ratios_zero": IDENTIFY_BASE + "transmission: {gear_ratios: [0, 0]}\n",
+    "gear_ratios_wrong_length": IDENTIFY_BASE + "transmission: {gear_ratios: [1, 2, 3]}\n",
+    "velocity_threshold_nan": IDENTIFY_BASE + "preprocess: {velocity_threshold: [nan, 1]}\n",
+    "trim_all_samples": IDENTIFY_BASE + "preprocess: {trim_samples: 1000000}\n",
+    "columns_missing": IDENTIFY_BASE.replace(
+        "{path: ../base/q.csv}", "{path: ../base/q.csv, columns: [a, b]}"
+    ),
 }
 IDENTIFY_FLAG_CASES = {
     "seed_negative": ["identify", "{data}/identify/base.yaml", "--seed", "-1", "--out", "{tmp}/r"],
