@@ -41,12 +41,19 @@ from ident.bench.functions import appendix_functions, get_function, table_functi
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError, IdentError, OptimizationError
 from ident.identify.accumulate import DASK_CONNECT_TIMEOUT
+from ident.inputs import JobEstimate, check_number, max_workers, safe_component
 
 __all__ = [
     "CampaignConfig",
     "CampaignResult",
+    "MAX_CURVE_POINTS",
+    "MAX_NFEV",
+    "MAX_POPSIZE",
+    "MAX_RUNS",
     "RunRecord",
     "RunTask",
+    "check_workers",
+    "estimate_campaign",
     "load_campaign_config",
     "make_tasks",
     "run_campaign",
@@ -60,6 +67,16 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 ALL_METHODS = ("emupso", "pso", "woa", "gwo", "goa", "de")
+# Hard bounds of a campaign config; within them, estimate_campaign() and check_job() decide.
+MAX_RUNS = 1000
+MAX_POPSIZE = 100_000
+MAX_NFEV = 1_000_000_000
+MAX_CURVE_POINTS = 10_000
+# Cost model of estimate_campaign(): measured on 36 runs of 30000 evaluations (popsize 30,
+# dimension 30), 5.3 s on one worker; an order of magnitude, not a promise.
+_SECONDS_PER_ITERATION = 1.2e-4
+_SECONDS_PER_EVALUATION = 1e-6
+_BYTES_PER_WORKER = 200e6  # an interpreter with numpy and scipy loaded
 
 
 class CampaignConfig(StrictModel):
@@ -71,15 +88,21 @@ class CampaignConfig(StrictModel):
 
     name: str = "bench"
     seed: int = Field(2026, ge=0)
-    runs: int = Field(30, ge=2)
-    popsize: int = Field(30, ge=4)
-    max_nfev: int = Field(30_000, ge=1)
+    runs: int = Field(30, ge=2, le=MAX_RUNS)
+    popsize: int = Field(30, ge=4, le=MAX_POPSIZE)
+    max_nfev: int = Field(30_000, ge=1, le=MAX_NFEV)
     methods: list[str] = Field(default_factory=lambda: list(ALL_METHODS))
     functions: Literal["table", "appendix"] | list[str] = "table"
     method_options: dict[str, dict[str, Any]] = Field(default_factory=dict)
-    curve_points: int = Field(51, ge=2)
+    curve_points: int = Field(51, ge=2, le=MAX_CURVE_POINTS)
     alpha: float = Field(0.05, gt=0.0, lt=1.0)
     tie_atol: float = Field(0.0, ge=0.0)
+
+    @field_validator("name")
+    @classmethod
+    def _one_path_component(cls, v: str) -> str:
+        # the name becomes a folder name: never a path that leaves the campaigns folder
+        return safe_component(v, default="bench")
 
     @field_validator("methods")
     @classmethod
@@ -157,6 +180,51 @@ class CampaignConfig(StrictModel):
 def load_campaign_config(path: str | Path) -> CampaignConfig:
     """Read and validate a campaign YAML file."""
     return load_config_file(CampaignConfig, path)
+
+
+def check_workers(workers: int) -> int:
+    """``--workers`` between 1 and the CPUs available to this process.
+
+    Raises
+    ------
+    ConfigError
+        Outside that range.
+    """
+    return int(
+        check_number(
+            workers,
+            "--workers",
+            low=1,
+            high=max_workers(),
+            integer=True,
+            hint=f"(this machine has {max_workers()} CPUs for this process)",
+        )
+    )
+
+
+def estimate_campaign(config: CampaignConfig, workers: int = 1) -> JobEstimate:
+    """Rough peak memory and wall time of a campaign, for :func:`ident.inputs.check_job`.
+
+    Time: per run, a fixed cost per iteration plus a cost per evaluation, divided among the
+    workers. Memory: an interpreter per worker, the population and the per-iteration history
+    of the runs in flight, and the convergence curves of every finished run.
+    """
+    from ident.bench.functions import get_function
+
+    n_tasks = len(config.methods) * len(config.function_keys()) * config.runs
+    dim = max(get_function(f).dim for f in config.function_keys())
+    iterations = config.maxiter + 1
+    per_run_s = iterations * _SECONDS_PER_ITERATION + config.max_nfev * _SECONDS_PER_EVALUATION
+    seconds = n_tasks * per_run_s / max(workers, 1)
+    per_run_bytes = 20 * 8.0 * config.popsize * dim + 4 * 8.0 * iterations
+    memory = workers * (_BYTES_PER_WORKER + per_run_bytes) + n_tasks * (
+        16.0 * config.curve_points + 512
+    )
+    return JobEstimate(
+        f"{n_tasks} runs of {config.max_nfev} evaluations on {workers} worker(s)",
+        memory,
+        seconds,
+    )
 
 
 @dataclass(frozen=True)
@@ -297,11 +365,11 @@ def run_campaign(
     Raises
     ------
     IdentError
-        If ``workers < 1``, or a scheduler is given but ``dask.distributed`` is missing or
-        unreachable.
+        If ``workers`` is not between 1 and the CPU count, or a scheduler is given but
+        ``dask.distributed`` is missing or unreachable.
     """
-    if workers < 1:
-        raise ConfigError(f"--workers must be >= 1, got {workers}")
+    if scheduler is None:
+        check_workers(workers)
     tasks = make_tasks(config)
     results: list[RunRecord | None] = [None] * len(tasks)
     t0 = time.perf_counter()

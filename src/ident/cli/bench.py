@@ -1,10 +1,17 @@
 """``ident bench CONFIG``: the optimizer comparison campaign (paper Tables 4-9, Figures 5-7).
 
 Runs every method on every function of CONFIG for the configured number of seeded runs, on
-local worker processes (``--workers``) or on a running dask.distributed scheduler
-(``--scheduler tcp://HOST:PORT``, needs ``pip install 'ident[dask]'``), with a progress bar,
-then writes a new campaign folder (never overwriting one): ``campaigns/<name>-<timestamp>/``
-or ``--out DIR`` (which must not exist or be empty).
+local worker processes (``--workers``, at most the CPU count) or on a running
+dask.distributed scheduler (``--scheduler tcp://HOST:PORT``, needs
+``pip install 'ident[dask]'``), with a progress bar, then writes a new campaign folder (never
+overwriting one): ``campaigns/<name>-<timestamp>/`` or ``--out DIR`` (which must not exist or
+be empty).
+
+Everything is checked before the first run: the config, ``--workers``, that the output folder
+can be created, and the estimated memory and time (printed, and refused above the ceilings
+``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS``). A failed or interrupted campaign leaves no
+folder. A finished campaign is never thrown away: if ``--out`` was taken meanwhile (another
+campaign wrote there), the results go to a new folder beside it and the command says where.
 """
 
 from __future__ import annotations
@@ -19,6 +26,8 @@ from ident.cli._common import user_errors
 
 __all__ = ["bench", "register"]
 
+DEFAULT_PARENT = Path("campaigns")
+
 
 def register(app: typer.Typer) -> None:
     """Add ``bench`` to the ``ident`` command line."""
@@ -26,34 +35,44 @@ def register(app: typer.Typer) -> None:
 
 
 def _check_out(out: Path | None) -> None:
-    from ident.errors import ConfigError
+    """The campaign folder can be created: new or empty, in a writable place."""
+    from ident.inputs import check_output_dir
 
-    if out is not None and out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise ConfigError(
-            f"--out {out}: exists and is not an empty folder; campaigns are never "
-            "overwritten, choose a new folder."
-        )
+    if out is not None:
+        check_output_dir(out, "--out", must_be_new_or_empty=True)
+    else:
+        check_output_dir(DEFAULT_PARENT, "campaigns folder")
+
+
+def _create(folder: Path) -> bool:
+    """Create ``folder`` (or take it if it is an empty folder); False if it is taken."""
+    try:
+        folder.mkdir(parents=True)
+        return True
+    except FileExistsError:
+        return folder.is_dir() and not any(folder.iterdir())
 
 
 def _new_folder(out: Path | None, name: str) -> Path:
-    """Create the campaign folder (after the runs: a failed campaign leaves nothing)."""
-    _check_out(out)
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        return out
+    """Create the campaign folder (after the runs: a failed campaign leaves nothing).
+
+    ``--out`` taken meanwhile gives ``<out>-2``, ``<out>-3``, ...: a finished campaign is
+    never lost and never overwrites another.
+    """
     stamp = time.strftime("%Y%m%d-%H%M%S")
-    base = Path("campaigns") / f"{name}-{stamp}"
-    folder, k = base, 1
-    while folder.exists():
-        k += 1
-        folder = base.with_name(f"{base.name}-{k}")
-    folder.mkdir(parents=True)
-    return folder
+    base = out if out is not None else DEFAULT_PARENT / f"{name}-{stamp}"
+    for k in range(1, 1000):
+        folder = base if k == 1 else base.with_name(f"{base.name}-{k}")
+        if _create(folder):
+            return folder
+    raise OSError(f"no free campaign folder name next to {base}")  # pragma: no cover
 
 
 def bench(
     config: Annotated[Path, typer.Argument(help="Campaign config (e.g. configs/bench.yaml).")],
-    workers: Annotated[int, typer.Option(help="Local worker processes.")] = 1,
+    workers: Annotated[
+        int, typer.Option(help="Local worker processes (1 to the number of CPUs).")
+    ] = 1,
     out: Annotated[
         Path | None, typer.Option(help="Campaign folder (new or empty); default campaigns/.")
     ] = None,
@@ -66,17 +85,28 @@ def bench(
     """Compare eMuPSO with PSO, WOA, GWO, GOA and DE on the benchmark functions of CONFIG."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from ident.bench.campaign import load_campaign_config, make_tasks, run_campaign
+    from ident.bench.campaign import (
+        check_workers,
+        estimate_campaign,
+        load_campaign_config,
+        make_tasks,
+        run_campaign,
+    )
     from ident.bench.report import disagreements, write_campaign
+    from ident.inputs import check_job
 
     with user_errors():
         cfg = load_campaign_config(config)
-        total = len(make_tasks(cfg))
+        if scheduler is None:
+            check_workers(workers)
         _check_out(out)
+        estimate = check_job(estimate_campaign(cfg, workers if scheduler is None else 1))
+        total = len(make_tasks(cfg))
         typer.echo(
             f"{total} runs: {len(cfg.methods)} methods x {len(cfg.function_keys())} functions "
             f"x {cfg.runs} runs, {cfg.max_nfev} evaluations each"
         )
+        typer.echo(f"estimate: {estimate.describe()}")
         with Progress(
             TextColumn("[progress.description]{task.description}"),
             BarColumn(),
@@ -91,8 +121,21 @@ def bench(
                 scheduler=scheduler,
                 progress=lambda done, _total: bar.update(task, completed=done),
             )
-        folder = _new_folder(out, cfg.name)
-        write_campaign(result, folder)
+        try:
+            folder = _new_folder(out, cfg.name)
+            if out is not None and folder != out:
+                typer.echo(f"{out} was taken meanwhile: results in {folder}", err=True)
+            write_campaign(result, folder)
+        except OSError as e:
+            # the campaign finished: keep it somewhere writable rather than lose it
+            import tempfile
+
+            folder = Path(tempfile.mkdtemp(prefix=f"ident-bench-{cfg.name}-"))
+            write_campaign(result, folder)
+            typer.echo(
+                f"could not write the campaign folder ({e}); results saved in {folder}",
+                err=True,
+            )
         typer.echo(f"wall time {result.wall_seconds:.1f} s")
         for line in disagreements(result)[:10]:
             typer.echo(f"  {line}")

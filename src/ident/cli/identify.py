@@ -64,6 +64,10 @@ def identify(
 
     package_dirs = list(package_dir or ())
     with user_errors():
+        from ident.inputs import check_number, check_output_dir
+
+        check_number(seed, "--seed", low=0, high=2**63 - 1, integer=True)
+        check_output_dir(out, "--out")
         for d in package_dirs:
             if not d.is_dir():
                 raise IdentError(f"--package-dir {d}: not a folder.")

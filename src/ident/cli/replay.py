@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-import signal
 import time
 import webbrowser
 from pathlib import Path
@@ -12,8 +11,14 @@ from typing import Annotated
 
 import typer
 
-from ident.cli._common import user_errors
+from ident.cli._common import one_line, user_errors
 from ident.errors import DataError
+
+# Bounds of a replay: the animation holds one keyframe per 1/fps s of replay time for every
+# robot, and the page (or the browser) holds all of them.
+MIN_SPEED, MAX_SPEED = 1e-3, 1e3
+MAX_KEYFRAMES = 200_000  # about 1.9 h of replay at 30 keyframes per second
+_MAX_TRAJECTORY_BYTES = 500 << 20
 
 __all__ = ["register", "replay"]
 
@@ -35,9 +40,19 @@ def _traced_frame_of_run(run_dir: Path) -> str | None:
         return None
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise DataError(f"{path}: not valid JSON ({e}); pass --frame to choose the frame.") from e
-    frame = data.get("traced_frame") or (data.get("excitation") or {}).get("traced_frame")
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
+        raise DataError(
+            f"{path}: not valid JSON ({one_line(e)[:200]}); pass --frame to choose the frame."
+        ) from e
+    if not isinstance(data, dict):
+        raise DataError(
+            f"{path}: expected a JSON object, got {type(data).__name__}; the run folder is "
+            "damaged, pass --frame to choose the frame."
+        )
+    excitation = data.get("excitation")
+    frame = data.get("traced_frame") or (
+        excitation.get("traced_frame") if isinstance(excitation, dict) else None
+    )
     return frame if isinstance(frame, str) else None
 
 
@@ -70,10 +85,6 @@ def _inputs(
         # The chosen trajectory is usually also an elite: show each motion once.
         csvs += [p for p in others if p.read_bytes() != chosen.read_bytes()]
     return urdf, csvs, _traced_frame_of_run(run_dir)
-
-
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
 
 
 def replay(
@@ -115,14 +126,33 @@ def replay(
     Without --html, serves the viewer on http://127.0.0.1:<port>/static/ until Ctrl-C.
     """
     with user_errors():
+        from ident.config import read_text_input
         from ident.fileio import atomic_write_text
+        from ident.inputs import check_number, check_output_file, read_urdf_text
         from ident.trajectory import read_trajectory_csv
-        from ident.viz.replay import build_replay_scene
+        from ident.viz.replay import DEFAULT_FPS, build_replay_scene
         from ident.viz.server import LoopbackMeshcatServer
 
+        check_number(speed, "--speed", low=MIN_SPEED, high=MAX_SPEED, hint="(1 = true speed)")
+        if html is None:
+            check_number(port, "--port", low=0, high=65535, integer=True, hint="(0: any free)")
+        else:
+            check_output_file(html, "--html")
         urdf_path, csvs, run_frame = _inputs(run_dir, urdf, trajectory, elites)
+        read_urdf_text(urdf_path)
+        for p in csvs:  # one clear line for a binary, non-UTF-8 or huge file
+            read_text_input(p, what="trajectory", max_bytes=_MAX_TRAJECTORY_BYTES)
         # positions suffice to replay: a log t, q_* is read too (dq, ddq derived, unused)
         trajectories = [read_trajectory_csv(p, allow_positions_only=True) for p in csvs]
+        for p, traj in zip(csvs, trajectories, strict=True):
+            span = float(traj.t[-1] - traj.t[0])
+            if span / speed * DEFAULT_FPS > MAX_KEYFRAMES:
+                raise DataError(
+                    f"{p}: {span:.3g} s at --speed {speed:g} is "
+                    f"{span / speed / 3600:.3g} h of replay, more than the "
+                    f"{MAX_KEYFRAMES / DEFAULT_FPS / 3600:.2g} h a replay holds; raise --speed "
+                    "or cut the trajectory."
+                )
         scene = build_replay_scene(
             urdf_path,
             trajectories,
@@ -148,8 +178,7 @@ def replay(
             typer.echo(f"open {server.web_url}  (Ctrl-C to stop)")
             if open_browser and not webbrowser.open(server.web_url, new=2):
                 typer.echo("no system browser found: open the URL above yourself", err=True)
-            # SIGTERM (kill, systemd) stops the server like Ctrl-C does.
-            signal.signal(signal.SIGTERM, _interrupt)
+            # SIGTERM (kill, systemd) stops the server like Ctrl-C does (user_errors).
             while True:  # the server runs in a daemon thread; Ctrl-C ends this loop
                 time.sleep(0.5)
 

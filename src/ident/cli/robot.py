@@ -21,11 +21,14 @@ def urdf(
     """Write the URDF of the robot described in CONFIG (e.g. configs/paper6r.yaml)."""
     with user_errors():
         from ident.fileio import atomic_write_text
+        from ident.inputs import check_output_file, check_urdf_numbers
         from ident.robot.robot_config import load_robot_config
         from ident.robot.urdf import urdf_from_description
 
+        check_output_file(output, "--output")
         description = load_robot_config(config)
         text = urdf_from_description(description)
+        check_urdf_numbers(text, str(config))  # never write a URDF Pinocchio then refuses
         atomic_write_text(output, text)
         typer.echo(
             f"wrote {output} ({description.name}: {description.n_joints} joints, "

@@ -44,6 +44,7 @@ def run(
 ) -> None:
     """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
     from ident.errors import IdentError
+    from ident.inputs import check_output_dir
     from ident.report.run_report import save_run, write_replay, write_report
     from ident.run.config import load_run_config
     from ident.run.log_measurement import save_logs
@@ -52,6 +53,7 @@ def run(
     from ident.run.setup import prepare_run
 
     with user_errors():
+        check_output_dir(out, "--out")
         cfg = load_run_config(config)
         if quick:
             cfg = cfg.quick_version()

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -12,10 +14,15 @@ from ident.cli._common import user_errors
 from ident.errors import ConfigError
 from ident.model.selection import RobotSelection, load_robot, selection_from_flags
 
-__all__ = ["parse_locks", "register", "run_verification", "verify"]
+if TYPE_CHECKING:
+    from ident.inputs import JobEstimate
+
+__all__ = ["estimate_verification", "parse_locks", "register", "run_verification", "verify"]
 
 # Largest relative error (to the scale of the regressor tensor and of the torques) accepted.
 DEFAULT_TOLERANCE = 1e-9
+# The regressor of every state is held at once (about 3 KB per state for 6 joints).
+MAX_SAMPLES = 100_000
 
 
 def verify(
@@ -72,7 +79,13 @@ def verify(
             tip_link=tip_link,
             inertia_check=inertia_check,
         )
-        report = run_verification(selection, samples=samples, seed=seed, tolerance=tolerance)
+        report = run_verification(
+            selection,
+            samples=samples,
+            seed=seed,
+            tolerance=tolerance,
+            announce=lambda line: typer.echo(line, err=True),
+        )
     if as_json:
         typer.echo(json.dumps(report))
     else:
@@ -87,14 +100,25 @@ def run_verification(
     samples: int,
     seed: int,
     tolerance: float = DEFAULT_TOLERANCE,
+    announce: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
-    """Load the selected robot, draw states and build the report of :func:`verification_report`."""
-    from ident.dynamics.pinocchio_check import verification_report
+    """Load the selected robot, draw states and build the report of :func:`verification_report`.
 
-    if samples < 1:
-        raise ConfigError(f"--samples must be at least 1, got {samples}.")
+    The job is refused above the ceilings of :func:`ident.inputs.check_job`; ``announce``
+    receives the estimate of a large one (over 10 s or 1 GB) before it starts.
+    """
+    from ident.dynamics.pinocchio_check import verification_report
+    from ident.inputs import check_job, check_number
+
+    check_number(samples, "--samples", low=1, high=MAX_SAMPLES, integer=True)
+    check_number(seed, "--seed", low=0, high=2**63 - 1, integer=True)
+    # NaN would make every comparison fail (FAILED on a correct regressor); < 0 never passes
+    check_number(tolerance, "--tolerance", low=0.0, high=1.0)
     loaded = load_robot(selection)
     source = str(selection.path)
+    estimate = check_job(estimate_verification(loaded.model.nv, samples))
+    if announce is not None and (estimate.seconds > 10.0 or estimate.memory_bytes > 1e9):
+        announce(f"estimate: {estimate.describe()}")
     q, dq, ddq = loaded.random_configurations(samples, rng=seed)
     parameter_map = loaded.dh_to_model_parameters() if loaded.dh is not None else None
     report = verification_report(loaded.model, q, dq, ddq, parameter_map=parameter_map)
@@ -111,13 +135,28 @@ def run_verification(
     return report
 
 
+def estimate_verification(nv: int, samples: int) -> JobEstimate:
+    """Rough peak memory and time of a verification of ``samples`` states of ``nv`` joints.
+
+    The stacked regressor has ``samples * nv`` rows and about ``10 * nv`` columns, held a few
+    times over (the Pinocchio one, the hand-derived one, the QR factors of the base-parameter
+    counts); the QR costs ``2 m n^2`` flops, counted at 1 GFlop/s.
+    """
+    from ident.inputs import JobEstimate
+
+    rows, cols = samples * nv, 10 * nv
+    memory = 6 * 8.0 * rows * cols + 200e6
+    seconds = 4 * rows * cols**2 / 1e9 + 2e-4 * samples * nv
+    return JobEstimate(f"verify: {samples} states of {nv} joints", memory, seconds)
+
+
 def parse_locks(specs: list[str]) -> dict[str, float]:
     """``["NAME", "NAME=VALUE", ...]`` -> ``{NAME: VALUE}`` (0 where no value is given).
 
     Raises
     ------
     ConfigError
-        For an empty name, a value that is not a number, or a joint given twice.
+        For an empty name, a value that is not a finite number, or a joint given twice.
     """
     out: dict[str, float] = {}
     for spec in specs:
@@ -131,6 +170,8 @@ def parse_locks(specs: list[str]) -> dict[str, float]:
             raise ConfigError(
                 f"--lock {spec!r}: {text!r} is not a number; give NAME=VALUE in rad or m."
             ) from e
+        if not math.isfinite(value):
+            raise ConfigError(f"--lock {spec!r}: the value must be finite (rad or m).")
         if name in out:
             raise ConfigError(f"--lock {spec!r}: joint {name!r} is locked twice; lock it once.")
         out[name] = value

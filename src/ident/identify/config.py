@@ -70,7 +70,7 @@ class SignalFile(StrictModel):
 
     path: Path | None = None
     columns: list[str] | None = None
-    delimiter: str | None = None
+    delimiter: str | None = Field(None, min_length=1, max_length=1)  # one character
     unit: str | None = None
     side: Literal["motor", "joint"] | None = None
     scale: float | list[float] = 1.0

@@ -30,6 +30,7 @@ from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.pinocchio_check import pinocchio_rnea
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, ModelError
+from ident.inputs import read_urdf_text
 from ident.robot.dh import DHTable
 from ident.robot.inertia import transform_matrix
 from ident.robot.robot_config import RobotDescription, load_robot_config
@@ -181,10 +182,8 @@ class Robot:
         where = str(path)
         if not path.is_file():
             raise ModelError(f"{path}: URDF file not found; check the path.")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
-            raise ModelError(f"{path}: cannot read the URDF ({e}); check the file.") from e
+        # UTF-8, bounded, no DTD: what every parser of ident (Pinocchio, the write-back) reads
+        text = read_urdf_text(path)
         root = parse_xml(text, where)
         revolute_text, continuous = continuous_as_revolute(root, text)
         model = build_model(revolute_text, where)

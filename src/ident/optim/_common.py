@@ -127,9 +127,33 @@ def check_options(method: str, options: Mapping[str, Any], defaults: Mapping[str
             raise OptimizationError(
                 f"unknown option '{name}' for method '{method}'{hint}; valid options: {valid}."
             )
+    for name, value in options.items():
+        _check_option_type(method, name, value, defaults[name])
     merged = dict(defaults)
     merged.update(options)
     return merged
+
+
+def _check_option_type(method: str, name: str, value: Any, default: Any) -> None:
+    """An option takes the kind of its default: a finite number, an integer, a bool, a name."""
+    if isinstance(default, bool):
+        ok, kind = isinstance(value, bool), "true or false"
+    elif isinstance(default, int):
+        ok, kind = isinstance(value, int) and not isinstance(value, bool), "an integer"
+    elif isinstance(default, float) or default is None:
+        ok = (default is None and value is None) or (
+            isinstance(value, (int, float))
+            and not isinstance(value, bool)
+            and bool(np.isfinite(value))
+        )
+        kind = "a finite number" + (" or null" if default is None else "")
+    elif isinstance(default, str):
+        ok, kind = isinstance(value, str), "a name"
+    else:
+        return
+    if not ok:
+        text = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+        raise OptimizationError(f"option '{name}' of method '{method}' must be {kind}, got {text}.")
 
 
 def _eval_rows(fun: Callable[[FloatArray], float], x: FloatArray) -> FloatArray:

@@ -20,8 +20,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, Field, field_validator, model_validator
 
-from ident.config import StrictModel, load_config_file
-from ident.errors import ConfigError
+from ident.config import StrictModel, load_config_file, read_yaml
+from ident.errors import ConfigError, OptimizationError
 from ident.excitation.registry import check_family_name
 from ident.identify.config import (
     EssentialConfig,
@@ -30,6 +30,7 @@ from ident.identify.config import (
     PreprocessConfig,
     ValidationConfig,
 )
+from ident.inputs import read_urdf_text
 from ident.measure.mujoco_config import MujocoMeasurement
 from ident.model.selection import RobotSelection
 
@@ -88,7 +89,7 @@ class ExcitationSection(StrictModel):
 
     family: str
     criterion: Literal["paper", "logdet"] = "paper"
-    n_samples: int = Field(default=500, ge=16)
+    n_samples: int = Field(default=500, ge=16, le=1_000_000)
     options: dict[str, Any] = Field(default_factory=dict)
     bounds: dict[str, Bound] | None = None
 
@@ -104,9 +105,9 @@ class ExcitationSection(StrictModel):
 class ElitesSection(StrictModel):
     """Initial elites: a constraint-compliance PSO swarm (paper section 4.1)."""
 
-    n_particles: int = Field(default=10, ge=2)
-    n_elites: int = Field(default=5, ge=1)
-    maxiter: int = Field(default=100, ge=1)
+    n_particles: int = Field(default=10, ge=2, le=10_000)
+    n_elites: int = Field(default=5, ge=1, le=1000)
+    maxiter: int = Field(default=100, ge=1, le=100_000)
 
 
 class EmupsoSection(StrictModel):
@@ -132,13 +133,26 @@ class EmupsoSection(StrictModel):
         Further keyword arguments of ``ident.optim.minimize(method="emupso")``.
     """
 
-    n_particles: int = Field(default=20, ge=2)
-    maxiter: int = Field(default=30, ge=1)
-    stagnation: int = Field(default=10, ge=1)
-    n_runs: int = Field(default=5, ge=1)
+    n_particles: int = Field(default=20, ge=2, le=10_000)
+    maxiter: int = Field(default=30, ge=1, le=100_000)
+    stagnation: int = Field(default=10, ge=1, le=100_000)
+    n_runs: int = Field(default=5, ge=1, le=1000)
     sigma_fraction: float = Field(default=0.1, gt=0.0, le=1.0)
-    n_report_elites: int = Field(default=6, ge=1)
+    n_report_elites: int = Field(default=6, ge=1, le=100)
     options: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("options")
+    @classmethod
+    def _known_options(cls, value: dict[str, Any]) -> dict[str, Any]:
+        # names and types now, not after the run folder exists (also for quick.emupso)
+        from ident.optim import method_defaults
+        from ident.optim._common import check_options
+
+        try:
+            check_options("emupso", value, method_defaults("emupso"))
+        except OptimizationError as e:
+            raise ValueError(str(e)) from e
+        return value
 
 
 class MeasurementSection(StrictModel):
@@ -214,7 +228,7 @@ class QuickSection(StrictModel):
     emupso: EmupsoSection = EmupsoSection(
         n_particles=8, maxiter=6, stagnation=3, n_runs=2, n_report_elites=2
     )
-    n_samples: int = Field(default=120, ge=16)
+    n_samples: int = Field(default=120, ge=16, le=1_000_000)
 
 
 class StageSection(StrictModel):
@@ -321,4 +335,8 @@ def load_run_config(path: str | Path) -> RunConfig:
             f"{path}: robot = '{config.robot.path}' must be a robot description (.yaml) or a "
             "URDF (.urdf)."
         )
+    if robot.urdf is not None:  # unreadable robots: one line before any run folder
+        read_urdf_text(robot.path)
+    else:
+        read_yaml(robot.path)
     return config.model_copy(update={"robot": robot, "name": config.name or path.stem})

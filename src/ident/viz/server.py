@@ -7,6 +7,12 @@ interface: anyone on the network could watch (and the viewer's websocket accepts
 loopback host, and runs it in a daemon thread of this process instead of meshcat's
 ``meshcat-server`` subprocess: nothing outlives the process, and :meth:`stop` (or leaving the
 ``with`` block, Ctrl-C included) closes both sockets.
+
+Binding to loopback is not enough against DNS rebinding: a web page from another site can make
+the browser resolve its own name to 127.0.0.1 and then read the viewer or drive its websocket.
+Every request (page and websocket) must therefore carry a loopback ``Host`` header
+(``127.0.0.1``, ``localhost`` or ``[::1]``, with the server's port); any other gets 403. The
+websocket also refuses a non-loopback ``Origin``.
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ import contextlib
 import socket
 import threading
 from typing import Any
+from urllib.parse import urlsplit
 
 import tornado.web
 import zmq
@@ -24,26 +31,66 @@ from meshcat.servers import zmqserver
 from ident.errors import IdentError
 from ident.viz.recorder import SceneRecorder
 
-__all__ = ["DEFAULT_PORT", "LoopbackMeshcatServer", "find_free_port"]
+__all__ = ["DEFAULT_PORT", "LoopbackMeshcatServer", "find_free_port", "is_loopback_host"]
 
 DEFAULT_PORT = 7000  # meshcat's default web port
 _LOOPBACK = "127.0.0.1"
 _PORT_ATTEMPTS = 100
 _REPLY_TIMEOUT_MS = 10_000
+_LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 
 
 class ServerError(IdentError):
     """The live meshcat server could not start or did not answer."""
 
 
+def is_loopback_host(host: str | None, port: int | None) -> bool:
+    """True if an HTTP ``Host`` header names this machine's loopback (and ``port``, if given).
+
+    ``127.0.0.1``, ``localhost`` and ``[::1]`` are accepted, case-insensitively, without a
+    port or with ``port``; anything else (a DNS name that resolves to 127.0.0.1 included) is not.
+    """
+    if not host:
+        return False
+    text = host.strip().lower()
+    if text.startswith("["):  # IPv6 literal, "[::1]" or "[::1]:7000"
+        end = text.find("]")
+        if end < 0:
+            return False
+        name, rest = text[: end + 1], text[end + 1 :]
+    else:
+        name, sep, port_text = text.partition(":")
+        rest = sep + port_text
+    if name not in _LOOPBACK_NAMES:
+        return False
+    if not rest:
+        return True
+    if not (rest.startswith(":") and rest[1:].isdigit()):
+        return False
+    return port is None or int(rest[1:]) == port
+
+
+def _is_loopback_origin(origin: str, port: int | None) -> bool:
+    parts = urlsplit(origin)
+    return parts.scheme in ("http", "https") and is_loopback_host(parts.netloc, port)
+
+
 def find_free_port(start: int, host: str = _LOOPBACK, attempts: int = _PORT_ATTEMPTS) -> int:
     """First port >= ``start`` where a TCP server can listen on ``host``.
+
+    ``start = 0`` asks the system for any free port (and returns its number).
 
     Raises
     ------
     ServerError
-        No free port among ``attempts`` consecutive ports.
+        ``start`` outside 0..65535, or no free port among ``attempts`` consecutive ports.
     """
+    if isinstance(start, bool) or not isinstance(start, int) or not 0 <= start <= 65535:
+        raise ServerError(f"--port {start!r}: give a port in 0..65535 (0: any free port).")
+    if start == 0:
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            probe.bind((host, 0))
+            return int(probe.getsockname()[1])
     for port in range(start, min(start + attempts, 65536)):
         with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
             try:
@@ -62,12 +109,27 @@ class _LoopbackApplication(tornado.web.Application):
     def __init__(self, handlers: list[Any], host: str) -> None:
         super().__init__(handlers)
         self.host = host
+        self.port: int | None = None
         self.http_server: Any = None
 
     def listen(self, port: int, address: str | None = None, **kwargs: Any) -> Any:
         """Listen on ``self.host`` whatever address the caller passes (meshcat passes none)."""
+        self.port = port
         self.http_server = super().listen(port, address=self.host, **kwargs)
         return self.http_server
+
+    def find_handler(self, request: Any, **kwargs: Any) -> Any:
+        """Route only requests with a loopback ``Host`` header; others get 403."""
+        if not is_loopback_host(request.host, getattr(self, "port", None)):
+            return self.get_handler_delegate(request, _Forbidden)
+        return super().find_handler(request, **kwargs)
+
+
+class _Forbidden(tornado.web.RequestHandler):
+    """403 for a request whose Host header is not this machine's loopback (DNS rebinding)."""
+
+    def prepare(self) -> None:
+        raise tornado.web.HTTPError(403, reason="Host not allowed")
 
 
 class _QuietWebSocketHandler(zmqserver.WebSocketHandler):
@@ -79,6 +141,10 @@ class _QuietWebSocketHandler(zmqserver.WebSocketHandler):
 
     def on_close(self) -> None:
         self.bridge.websocket_pool.discard(self)
+
+    def check_origin(self, origin: str) -> bool:
+        """Accept a websocket only from a page served on loopback."""
+        return _is_loopback_origin(origin, getattr(self.application, "port", None))
 
 
 class _NoFavicon(tornado.web.RequestHandler):

@@ -1,0 +1,272 @@
+"""Every command on every hostile input of ``tests/data/hostile/``: one clear line, nothing left.
+
+Each case of ``tests/data/hostile/manifest.yaml`` names a command line. Every case must end
+with exit code 2, exactly one ``error:`` line on stderr, no traceback, and no file or folder
+left in its (empty) working folder or in the corpus.
+
+The cases run in worker subprocesses (this file run as a script) under an address-space and a
+CPU-time limit, a few hundred cases per interpreter through typer's ``CliRunner`` so that the
+start-up cost (Pinocchio, numpy) is paid once per worker; a case that hangs, crashes or blows
+the limits kills only its worker, which is restarted for the remaining cases. Cases marked
+``xfail`` in the manifest are known gaps (strict: they turn into failures once fixed, so the
+mark is removed).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+HERE = Path(__file__).resolve().parent
+CORPUS = HERE / "data" / "hostile"
+ROOT = HERE.parent
+
+MEMORY_LIMIT_BYTES = 3 << 30  # address space of a worker
+CPU_LIMIT_S = 300  # CPU seconds of a worker (all its cases)
+CASE_TIMEOUT_S = 60  # wall time of one case
+N_WORKERS = 2
+
+
+def _manifest() -> list[dict]:
+    return yaml.safe_load((CORPUS / "manifest.yaml").read_text(encoding="utf-8"))
+
+
+def _expand(args: list[str], tmp: Path) -> list[str]:
+    return [a.replace("{data}", str(CORPUS)).replace("{tmp}", str(tmp)) for a in args]
+
+
+def _tree(folder: Path) -> dict[str, tuple[int, int]]:
+    """Relative path -> (size, mtime_ns) of every file and folder under ``folder``."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(folder):
+        for name in dirnames + filenames:
+            p = Path(dirpath) / name
+            st = p.lstat()
+            out[str(p.relative_to(folder))] = (st.st_size, st.st_mtime_ns)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# worker side (this file run as a script)
+
+
+def _limit_resources() -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT_BYTES, MEMORY_LIMIT_BYTES))
+    resource.setrlimit(resource.RLIMIT_CPU, (CPU_LIMIT_S, CPU_LIMIT_S))
+
+
+def _worker_main() -> None:
+    """Read one JSON case per line on stdin, answer one JSON result per line on stdout.
+
+    A case runs the console entry point ``ident.cli.main`` in this process, as a user's
+    shell would (argv, exit code, stderr), with stdout and stderr captured.
+    """
+    import contextlib
+    import io
+    import signal
+    import traceback
+
+    _limit_resources()
+    sys.path.insert(0, str(ROOT / "src"))
+    from ident.cli import main
+
+    class _Timeout(BaseException):
+        pass
+
+    def _alarm(signum, frame):
+        raise _Timeout
+
+    signal.signal(signal.SIGALRM, _alarm)
+    out = sys.stdout
+    out.write(json.dumps({"ready": True}) + "\n")
+    out.flush()
+    for line in sys.stdin:
+        case = json.loads(line)
+        os.chdir(case["tmp"])
+        err = io.StringIO()
+        t0 = time.perf_counter()
+        signal.alarm(CASE_TIMEOUT_S)
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                sys.argv = ["ident", *case["args"]]
+                main()
+            exit_code = 0
+        except SystemExit as e:
+            exit_code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+        except _Timeout:
+            exit_code = -1
+            err.write(f"timeout after {CASE_TIMEOUT_S} s")
+        except BaseException as e:  # noqa: BLE001 - what a user would see as a traceback
+            exit_code = 1
+            err.write("".join(traceback.format_exception(e)))
+        finally:
+            signal.alarm(0)
+        record = {
+            "id": case["id"],
+            "exit_code": exit_code,
+            "stderr": err.getvalue()[-4000:],
+            "seconds": time.perf_counter() - t0,
+        }
+        out.write(json.dumps(record) + "\n")
+        out.flush()
+
+
+# ---------------------------------------------------------------------------------------------
+# pytest side
+
+
+class _Worker:
+    def __init__(self) -> None:
+        env = {
+            **os.environ,
+            "PYTHONPATH": str(ROOT / "src"),
+            "COLUMNS": "200",
+            # ceilings of ident.inputs.check_job: a job planned beyond them is refused
+            "IDENT_MAX_HOURS": "0.05",
+            "IDENT_MAX_MEMORY_GB": "2",
+        }
+        self.proc = subprocess.Popen(
+            [sys.executable, str(Path(__file__).resolve())],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+            env=env,
+            cwd=ROOT,
+        )
+        self._lines: queue.Queue[str | None] = queue.Queue()
+        threading.Thread(target=self._read, daemon=True).start()
+        self._next(120.0)  # {"ready": true}
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self._lines.put(line)
+        self._lines.put(None)
+
+    def _next(self, timeout: float) -> dict | None:
+        try:
+            line = self._lines.get(timeout=timeout)
+        except queue.Empty:
+            return None
+        return None if line is None else json.loads(line)
+
+    def run(self, case_id: str, args: list[str], tmp: Path) -> dict | None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(json.dumps({"id": case_id, "args": args, "tmp": str(tmp)}) + "\n")
+        self.proc.stdin.flush()
+        return self._next(CASE_TIMEOUT_S + 30.0)
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+
+
+def _run_all(cases: list[dict], base: Path) -> dict[str, dict]:
+    todo: queue.Queue[dict] = queue.Queue()
+    for c in cases:
+        todo.put(c)
+    results: dict[str, dict] = {}
+
+    def serve() -> None:
+        worker = _Worker()
+        try:
+            while True:
+                try:
+                    case = todo.get_nowait()
+                except queue.Empty:
+                    return
+                tmp = base / case["id"]
+                tmp.mkdir()
+                before = _tree(CORPUS)
+                try:
+                    record = worker.run(case["id"], _expand(case["args"], tmp), tmp)
+                except (BrokenPipeError, OSError):
+                    record = None
+                if record is None:  # crashed, killed by a limit or hung: a new worker
+                    code = worker.proc.poll()
+                    worker.close()
+                    record = {
+                        "id": case["id"],
+                        "exit_code": -2,
+                        "stderr": f"worker died (exit {code}) or hung",
+                        "seconds": float("nan"),
+                    }
+                    worker = _Worker()
+                record["left"] = sorted(_tree(tmp))
+                record["corpus_changed"] = sorted(
+                    k for k, v in _tree(CORPUS).items() if before.get(k) != v
+                ) + sorted(set(before) - set(_tree(CORPUS)))
+                results[case["id"]] = record
+        finally:
+            worker.close()
+
+    threads = [threading.Thread(target=serve) for _ in range(N_WORKERS)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return results
+
+
+CASES = _manifest()
+
+
+@pytest.fixture(scope="module")
+def outcomes():
+    with tempfile.TemporaryDirectory(prefix="ident-hostile-") as base:
+        t0 = time.perf_counter()
+        results = _run_all(CASES, Path(base))
+        wall = time.perf_counter() - t0
+        slowest = sorted(results.values(), key=lambda r: -(r["seconds"] or 0))[:5]
+        print(
+            f"\n{len(results)} hostile cases in {wall:.1f} s on {N_WORKERS} workers; slowest: "
+            + ", ".join(f"{r['id']} {r['seconds']:.1f} s" for r in slowest)
+        )
+        yield results
+
+
+def test_corpus_is_large_and_covers_every_command():
+    commands = {c["args"][0] for c in CASES}
+    assert commands == {"run", "identify", "verify", "urdf", "replay", "bench", "report"}
+    assert len(CASES) >= 100
+    assert len({c["id"] for c in CASES}) == len(CASES)
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        pytest.param(
+            c,
+            id=c["id"],
+            marks=[pytest.mark.xfail(strict=True, reason=c["xfail"])] if c.get("xfail") else [],
+        )
+        for c in CASES
+    ],
+)
+def test_hostile_input_is_one_clear_error(case, outcomes):
+    r = outcomes[case["id"]]
+    stderr = r["stderr"]
+    errors = [line for line in stderr.splitlines() if line.startswith("error:")]
+    assert "Traceback" not in stderr, stderr
+    assert r["exit_code"] == 2, stderr
+    assert len(errors) == 1, stderr
+    assert r["left"] == [], f"left behind: {r['left']}"
+    assert r["corpus_changed"] == [], f"corpus changed: {r['corpus_changed']}"
+
+
+if __name__ == "__main__":
+    _worker_main()
