@@ -9,6 +9,7 @@ import robots
 
 from ident.dynamics.chain import chain_from_model, random_states
 from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError, DataError
 from ident.identify.estimate import least_squares, least_squares_reduced
 from ident.identify.estimators import (
@@ -25,7 +26,6 @@ from ident.identify.estimators.log_cholesky import (
     parameters_from_log_cholesky,
 )
 from ident.identify.observations import ReducedObservations
-from ident.identify.real import build_parameter_model
 
 
 # ---- registry -------------------------------------------------------------------------------

@@ -15,8 +15,8 @@ from robots import ERD_ROBOTS, PANDA_URDF, UR5_URDF
 
 from ident.cli.verify import run_verification
 from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError, IdentError, ModelError
-from ident.identify.real import build_parameter_model
 from ident.model.selection import RobotSelection, load_robot, selection_from_flags
 from ident.robot.urdf_load import suggested_locks
 from ident.run.config import RunConfig

@@ -164,7 +164,7 @@ def test_tx40_identification_written_back_safely(tx40_result, tmp_path, threshol
 # ---- whole-model write-back of a consistent estimate ----------------------------------------
 def _tx40_parameter_model():
     from ident.dynamics.friction import ExtraTerms
-    from ident.identify.real import build_parameter_model
+    from ident.dynamics.parameter_model import build_parameter_model
 
     model = load_robot_model(URDF)
     terms = ExtraTerms.from_options(

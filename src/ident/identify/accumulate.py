@@ -733,16 +733,12 @@ def identify_chunked(
 
     from ident.dynamics.chain import chain_from_model
     from ident.dynamics.friction import ExtraTerms
+    from ident.dynamics.parameter_model import build_parameter_model
     from ident.errors import ConfigError
     from ident.identify import sanity
     from ident.identify.motion import measured_motion
-    from ident.identify.real import (
-        ModelPrediction,
-        _compare_with_reference,
-        build_parameter_model,
-    )
-    from ident.identify.reference import read_reference
-    from ident.identify.validation import held_out_warnings, prediction_metrics
+    from ident.identify.reference import compare_with_reference, read_reference
+    from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
 
     pp = cfg.preprocess  # type: ignore[attr-defined]
     fs = log.sampling_rate_hz  # type: ignore[attr-defined]
@@ -826,12 +822,12 @@ def identify_chunked(
     reference_essential: list[dict] = []
     ref_cfg = cfg.reference  # type: ignore[attr-defined]
     if ref_cfg.base_parameters is not None:
-        comparison, note = _compare_with_reference(
+        comparison, note = compare_with_reference(
             pm, fit.estimate, read_reference(ref_cfg.base_parameters), ref_cfg.column
         )
         note += " (Chunked path: the reference's held-out prediction is not computed.)"
     if ref_cfg.essential_parameters is not None:
-        rows, _ = _compare_with_reference(
+        rows, _ = compare_with_reference(
             pm, fit.estimate, read_reference(ref_cfg.essential_parameters), ref_cfg.column
         )
         kept = set(fit.essential.estimate.names) if fit.essential is not None else set()  # type: ignore[attr-defined]

@@ -34,17 +34,16 @@ import numpy.typing as npt
 import pinocchio as pin
 from threadpoolctl import threadpool_limits
 
-from ident.dynamics.base_parameters import BaseParameters, compute_base_parameters
-from ident.dynamics.chain import KinematicChain, chain_from_model, random_states
+from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import (
-    KINDS,
     ExtraTerms,
-    extra_columns,
-    extra_names,
-    figaroh_coupling_columns,
 )
-from ident.dynamics.parameters import parameter_names, parameters_from_model
-from ident.dynamics.regressor import joint_torque_regressor
+from ident.dynamics.parameter_model import (
+    PRIORITY_LABELS,
+    ParameterModel,
+    build_parameter_model,
+    model_regressors,
+)
 from ident.errors import ConfigError, DataError, NotIdentifiable
 from ident.identify import accumulate, preprocess, sanity
 from ident.identify.config import IdentifyConfig
@@ -53,9 +52,13 @@ from ident.identify.estimate import Estimate, least_squares, rank_report
 from ident.identify.estimators import ConsistentIdentification, consistent_identification
 from ident.identify.logs import RobotLog, read_log
 from ident.identify.motion import measured_motion
-from ident.identify.reference import ReferenceParameter, expression_to_vector, read_reference
+from ident.identify.reference import (
+    compare_with_reference,
+    read_reference,
+    reference_prediction,
+)
 from ident.identify.validation import (
-    PredictionMetrics,
+    ModelPrediction,
     held_out_warnings,
     prediction_metrics,
     time_split,
@@ -75,11 +78,8 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
+
 # Per-joint priority of the sequential base-parameter choice (figaroh's column order).
-PRIORITY_LABELS = ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz", "mcx", "mcy", "mcz", "m")
-_N_RANDOM_STATES = 200  # random states for the structural base parameters
-
-
 def load_robot_model(urdf: str | Path) -> pin.Model:
     """The Pinocchio model of a URDF, loaded as every command loads it
     (:meth:`ident.model.Robot.from_urdf`: same checks, continuous joints as revolute).
@@ -90,123 +90,6 @@ def load_robot_model(urdf: str | Path) -> pin.Model:
         If the URDF cannot be parsed or is not a chain of 1-DoF joints.
     """
     return Robot.from_urdf(urdf).model
-
-
-@dataclass(frozen=True, eq=False)
-class ParameterModel:
-    """All parameters of the identification model and its base parameters.
-
-    Attributes
-    ----------
-    names :
-        Every parameter in priority order (see module docstring), length n_all.
-    inertial_index :
-        For each name, its column in the rigid-body regressor (Pinocchio order), or -1.
-    extra_index :
-        For each name, its column in :func:`~ident.dynamics.friction.extra_columns`, or -1.
-    terms :
-        The extra terms.
-    base :
-        :class:`~ident.dynamics.base_parameters.BaseParameters` over ``names``.
-    nominal :
-        Nominal values of ``names`` (URDF inertias, zero friction), shape (n_all,).
-    """
-
-    names: tuple[str, ...]
-    inertial_index: npt.NDArray[np.intp]
-    extra_index: npt.NDArray[np.intp]
-    terms: ExtraTerms
-    base: BaseParameters
-    nominal: FloatArray
-
-    @property
-    def base_names(self) -> tuple[str, ...]:
-        """Names of the base parameters (independent name, ``R`` suffix when regrouped)."""
-        return self.base.base_names
-
-    def columns(self, Y_rigid: FloatArray, Y_extra: FloatArray, index: npt.ArrayLike) -> FloatArray:
-        """Regressor columns of the parameters ``index`` (into :attr:`names`).
-
-        ``Y_rigid`` (n, nv, 10 n) and ``Y_extra`` (n, nv, n_extra) -> (n, nv, len(index)).
-        """
-        return _gather_columns(self.inertial_index, self.extra_index, Y_rigid, Y_extra, index)
-
-
-def _gather_columns(
-    inertial_index: npt.NDArray[np.intp],
-    extra_index: npt.NDArray[np.intp],
-    Y_rigid: FloatArray,
-    Y_extra: FloatArray,
-    index: npt.ArrayLike,
-) -> FloatArray:
-    """Columns ``index`` of the parameter list from the rigid-body and extra regressors."""
-    index = np.asarray(index, dtype=np.intp)
-    out = np.empty((*Y_rigid.shape[:2], index.size))
-    rigid = inertial_index[index] >= 0
-    out[:, :, rigid] = Y_rigid[:, :, inertial_index[index[rigid]]]
-    out[:, :, ~rigid] = Y_extra[:, :, extra_index[index[~rigid]]]
-    return out
-
-
-def _regressors(
-    chain: KinematicChain, terms: ExtraTerms, q: FloatArray, dq: FloatArray, ddq: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    return joint_torque_regressor(chain, q, dq, ddq), extra_columns(terms, dq, ddq)
-
-
-def build_parameter_model(model: pin.Model, terms: ExtraTerms, *, rng: int = 0) -> ParameterModel:
-    """Name, order and reduce to base parameters every parameter of the model.
-
-    Parameters
-    ----------
-    model :
-        Pinocchio model.
-    terms :
-        Extra (friction, offset, rotor, coupling) terms.
-    rng :
-        Seed of the random states used to find the structural base parameters.
-    """
-    n = model.nv
-    chain = chain_from_model(model)
-    rigid_names = parameter_names(n)
-    extras = extra_names(terms)
-    names: list[str] = []
-    for j in range(1, n + 1):
-        names += [f"{label}{j}" for label in PRIORITY_LABELS]
-        names += [f"{kind}{j}" for kind in KINDS if j - 1 in terms.per_joint[kind]]
-    names += [e for e in extras if e.startswith(("Iam", "fvm", "fsm"))]
-    inertial_index = np.array(
-        [rigid_names.index(nm) if nm in rigid_names else -1 for nm in names], dtype=np.intp
-    )
-    extra_index = np.array(
-        [extras.index(nm) if nm in extras else -1 for nm in names], dtype=np.intp
-    )
-    q, dq, ddq = random_states(chain, _N_RANDOM_STATES, rng=rng)
-    Y_rigid, Y_extra = _regressors(chain, terms, q, dq, ddq)
-    W = _gather_columns(
-        inertial_index, extra_index, Y_rigid, Y_extra, np.arange(len(names))
-    ).reshape(-1, len(names))
-    base = compute_base_parameters(W, names, method="sequential")
-    rigid_nominal = parameters_from_model(model)
-    nominal = np.where(inertial_index >= 0, rigid_nominal[np.maximum(inertial_index, 0)], 0.0)
-    return ParameterModel(
-        names=tuple(names),
-        inertial_index=inertial_index,
-        extra_index=extra_index,
-        terms=terms,
-        base=base,
-        nominal=nominal,
-    )
-
-
-@dataclass(frozen=True, eq=False)
-class ModelPrediction:
-    """A parameter set judged on the held-out part."""
-
-    label: str
-    metrics: PredictionMetrics  # rows above the velocity threshold (as identified)
-    metrics_all: PredictionMetrics  # every held-out sample, standstill included
-    tau_pred: FloatArray
 
 
 @dataclass(frozen=True, eq=False)
@@ -278,118 +161,6 @@ class IdentifyResult:
     def status(self) -> str:
         """``"ok"``, or ``"warning"`` when :attr:`warnings` is not empty."""
         return "warning" if self.warnings else "ok"
-
-
-def _coupling_convention_map(pm: ParameterModel) -> dict[str, list[str]]:
-    """Our parameters summing to a reference (figaroh-basis) parameter of the coupled wrist."""
-    pair = pm.terms.coupled_wrist
-    if pair is None:
-        return {}
-    a, b = (j + 1 for j in pair)
-    out = {}
-    for kind, motor in (("fv", f"fvm{b}"), ("Ia", f"Iam{b}")):
-        for j in (a, b):
-            if f"{kind}{j}" in pm.names:
-                out[f"{kind}{j}"] = [f"{kind}{j}", motor]
-    return out
-
-
-def _compare_with_reference(
-    pm: ParameterModel, est: Estimate, reference: list[ReferenceParameter], column: str
-) -> tuple[list[dict], str]:
-    """Match reference base parameters to ours: same expression, or a documented sum."""
-    base = pm.base
-    projection = base.projection
-    base_names = pm.base_names
-    coupled = _coupling_convention_map(pm)
-    rows = []
-    for ref in reference:
-        vector = expression_to_vector(ref.terms, pm.names)
-        ref_value, ref_rel = ref.value(column)
-        row = {
-            "reference": ref.expression,
-            "reference_value": ref_value,
-            "reference_relative_std_pct": ref_rel,
-            "ours": None,
-            "value": None,
-            "relative_std_pct": None,
-            "match": "none",
-            "nominal": None,
-        }
-        if ref.lead in coupled:
-            members = [base_names.index(n) for n in coupled[ref.lead] if n in base_names]
-            if len(members) == len(coupled[ref.lead]):
-                weights = np.zeros(len(base_names))
-                weights[members] = 1.0
-                value = float(weights @ est.x)
-                std = float(np.sqrt(weights @ est.covariance @ weights))
-                row.update(
-                    ours=" + ".join(coupled[ref.lead]),
-                    value=value,
-                    relative_std_pct=100.0 * std / abs(value) if value else float("inf"),
-                    match="coupling basis",
-                )
-        elif vector is not None:
-            for k in range(projection.shape[0]):
-                scale = np.max(np.abs(projection[k]))
-                if np.allclose(projection[k], vector, atol=2e-4 * max(scale, 1.0), rtol=1e-3):
-                    row.update(
-                        ours=base_names[k],
-                        value=float(est.x[k]),
-                        relative_std_pct=float(est.relative_std[k]),
-                        match="same expression",
-                        nominal=float(projection[k] @ pm.nominal),
-                    )
-                    break
-        rows.append(row)
-    note = (
-        f"Reference values: the '{column}' column. Values are compared where the reference "
-        "expression equals one of our base parameters (coefficients within 2e-4, the "
-        "reference prints 4-5 digits). The coupled wrist uses another basis in the reference "
-        "(see ident.dynamics.friction): its fv/Ia of the wrist joints equal our sums "
-        "'fv_j + fvm', 'Ia_j + Iam'."
-    )
-    return rows, note
-
-
-def _reference_prediction(
-    pm: ParameterModel,
-    reference: list[ReferenceParameter],
-    values: FloatArray,
-    Y_rigid: FloatArray,
-    Y_extra: FloatArray,
-    dq: FloatArray,
-    ddq: FloatArray,
-) -> tuple[FloatArray, list[str]]:
-    """Torques [N*m] (n, nv) predicted by the reference's base parameters ``values``.
-
-    The reference's base parameter ``k`` multiplies the column of its first (independent)
-    term; the coupled-wrist terms use the reference's own basis
-    (:func:`~ident.dynamics.friction.figaroh_coupling_columns`). Also returns the reference
-    parameters that have no column here (they contribute nothing).
-    """
-    index = {n: i for i, n in enumerate(pm.names)}
-    wrist = ("Iam", "fvm", "fsm")
-    weights_rigid = np.zeros(Y_rigid.shape[2])
-    weights_extra = np.zeros(Y_extra.shape[2])
-    weights_wrist = np.zeros(3)
-    missing = []
-    for ref, value in zip(reference, values, strict=True):
-        stem = ref.lead.rstrip("0123456789")
-        if pm.terms.coupled_wrist is not None and stem in wrist:
-            weights_wrist[wrist.index(stem)] += value
-        elif ref.lead in index:
-            i = index[ref.lead]
-            if pm.inertial_index[i] >= 0:
-                weights_rigid[pm.inertial_index[i]] += value
-            else:
-                weights_extra[pm.extra_index[i]] += value
-        else:
-            missing.append(ref.lead)
-    tau = Y_rigid @ weights_rigid + Y_extra @ weights_extra
-    if pm.terms.coupled_wrist is not None:
-        tau += figaroh_coupling_columns(dq, ddq, pm.terms.coupled_wrist) @ weights_wrist
-    return tau, missing
 
 
 def identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None) -> IdentifyResult:
@@ -559,7 +330,7 @@ def _identify_log(
 
     t3 = time.perf_counter()
 
-    Y_rigid, Y_extra = _regressors(chain_from_model(model), terms, q, dq, ddq)
+    Y_rigid, Y_extra = model_regressors(chain_from_model(model), terms, q, dq, ddq)
     reference = (
         read_reference(cfg.reference.base_parameters)
         if cfg.reference.base_parameters is not None
@@ -570,7 +341,7 @@ def _identify_log(
     bank = [tau, Y_rigid, Y_extra, dq]
     if reference:
         values = np.array([r.value(cfg.reference.column)[0] for r in reference])
-        tau_ref, missing_ref = _reference_prediction(
+        tau_ref, missing_ref = reference_prediction(
             pm, reference, values, Y_rigid, Y_extra, dq, ddq
         )
         bank.append(tau_ref)
@@ -677,13 +448,13 @@ def _identify_log(
     note = ""
     if reference:
         add("reference", bank[4][part])
-        comparison, note = _compare_with_reference(pm, est, reference, cfg.reference.column)
+        comparison, note = compare_with_reference(pm, est, reference, cfg.reference.column)
         if missing_ref:
             note += f" Reference parameters without a column here: {', '.join(missing_ref)}."
     add("URDF nominal", Yb_d[part] @ base.project(pm.nominal))
     reference_essential: list[dict] = []
     if cfg.reference.essential_parameters is not None:
-        rows, _ = _compare_with_reference(
+        rows, _ = compare_with_reference(
             pm, est, read_reference(cfg.reference.essential_parameters), cfg.reference.column
         )
         kept = set(essential.estimate.names) if essential is not None else set()

@@ -15,7 +15,10 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ident.dynamics.friction import figaroh_coupling_columns
+from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
+from ident.identify.estimate import Estimate
 
 __all__ = ["ReferenceParameter", "expression_to_vector", "parse_expression", "read_reference"]
 
@@ -139,3 +142,115 @@ def expression_to_vector(terms: dict[str, float], names: tuple[str, ...]) -> Flo
             return None
         vector[index[name]] = coefficient
     return vector
+
+
+def coupling_convention_map(pm: ParameterModel) -> dict[str, list[str]]:
+    """Our parameters summing to a reference (figaroh-basis) parameter of the coupled wrist."""
+    pair = pm.terms.coupled_wrist
+    if pair is None:
+        return {}
+    a, b = (j + 1 for j in pair)
+    out = {}
+    for kind, motor in (("fv", f"fvm{b}"), ("Ia", f"Iam{b}")):
+        for j in (a, b):
+            if f"{kind}{j}" in pm.names:
+                out[f"{kind}{j}"] = [f"{kind}{j}", motor]
+    return out
+
+
+def compare_with_reference(
+    pm: ParameterModel, est: Estimate, reference: list[ReferenceParameter], column: str
+) -> tuple[list[dict], str]:
+    """Match reference base parameters to ours: same expression, or a documented sum."""
+    base = pm.base
+    projection = base.projection
+    base_names = pm.base_names
+    coupled = coupling_convention_map(pm)
+    rows = []
+    for ref in reference:
+        vector = expression_to_vector(ref.terms, pm.names)
+        ref_value, ref_rel = ref.value(column)
+        row = {
+            "reference": ref.expression,
+            "reference_value": ref_value,
+            "reference_relative_std_pct": ref_rel,
+            "ours": None,
+            "value": None,
+            "relative_std_pct": None,
+            "match": "none",
+            "nominal": None,
+        }
+        if ref.lead in coupled:
+            members = [base_names.index(n) for n in coupled[ref.lead] if n in base_names]
+            if len(members) == len(coupled[ref.lead]):
+                weights = np.zeros(len(base_names))
+                weights[members] = 1.0
+                value = float(weights @ est.x)
+                std = float(np.sqrt(weights @ est.covariance @ weights))
+                row.update(
+                    ours=" + ".join(coupled[ref.lead]),
+                    value=value,
+                    relative_std_pct=100.0 * std / abs(value) if value else float("inf"),
+                    match="coupling basis",
+                )
+        elif vector is not None:
+            for k in range(projection.shape[0]):
+                scale = np.max(np.abs(projection[k]))
+                if np.allclose(projection[k], vector, atol=2e-4 * max(scale, 1.0), rtol=1e-3):
+                    row.update(
+                        ours=base_names[k],
+                        value=float(est.x[k]),
+                        relative_std_pct=float(est.relative_std[k]),
+                        match="same expression",
+                        nominal=float(projection[k] @ pm.nominal),
+                    )
+                    break
+        rows.append(row)
+    note = (
+        f"Reference values: the '{column}' column. Values are compared where the reference "
+        "expression equals one of our base parameters (coefficients within 2e-4, the "
+        "reference prints 4-5 digits). The coupled wrist uses another basis in the reference "
+        "(see ident.dynamics.friction): its fv/Ia of the wrist joints equal our sums "
+        "'fv_j + fvm', 'Ia_j + Iam'."
+    )
+    return rows, note
+
+
+def reference_prediction(
+    pm: ParameterModel,
+    reference: list[ReferenceParameter],
+    values: FloatArray,
+    Y_rigid: FloatArray,
+    Y_extra: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+) -> tuple[FloatArray, list[str]]:
+    """Torques [N*m] (n, nv) predicted by the reference's base parameters ``values``.
+
+    The reference's base parameter ``k`` multiplies the column of its first (independent)
+    term; the coupled-wrist terms use the reference's own basis
+    (:func:`~ident.dynamics.friction.figaroh_coupling_columns`). Also returns the reference
+    parameters that have no column here (they contribute nothing).
+    """
+    index = {n: i for i, n in enumerate(pm.names)}
+    wrist = ("Iam", "fvm", "fsm")
+    weights_rigid = np.zeros(Y_rigid.shape[2])
+    weights_extra = np.zeros(Y_extra.shape[2])
+    weights_wrist = np.zeros(3)
+    missing = []
+    for ref, value in zip(reference, values, strict=True):
+        stem = ref.lead.rstrip("0123456789")
+        if pm.terms.coupled_wrist is not None and stem in wrist:
+            weights_wrist[wrist.index(stem)] += value
+        elif ref.lead in index:
+            i = index[ref.lead]
+            if pm.inertial_index[i] >= 0:
+                weights_rigid[pm.inertial_index[i]] += value
+            else:
+                weights_extra[pm.extra_index[i]] += value
+        else:
+            missing.append(ref.lead)
+    tau = Y_rigid @ weights_rigid + Y_extra @ weights_extra
+    if pm.terms.coupled_wrist is not None:
+        tau += figaroh_coupling_columns(dq, ddq, pm.terms.coupled_wrist) @ weights_wrist
+    return tau, missing

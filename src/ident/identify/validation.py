@@ -188,3 +188,13 @@ def held_out_warnings(
             f"validation.max_relative_residual = {max_relative_residual:g}{rows}."
         )
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class ModelPrediction:
+    """A parameter set judged on the held-out part."""
+
+    label: str
+    metrics: PredictionMetrics  # rows above the velocity threshold (as identified)
+    metrics_all: PredictionMetrics  # every held-out sample, standstill included
+    tau_pred: FloatArray

@@ -25,16 +25,12 @@ import yaml
 from ident.dynamics.base_parameters import torque_shares
 from ident.dynamics.chain import random_states
 from ident.dynamics.friction import ExtraTerms, extra_columns
+from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
 from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
 from ident.identify.logs import read_log
-from ident.identify.real import (
-    IdentifyResult,
-    ParameterModel,
-    build_parameter_model,
-    identify_log,
-)
+from ident.identify.real import IdentifyResult, identify_log
 from ident.measure.mujoco_config import per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import gzip
 import io
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import DataError
-from ident.measure.readers import TIME_NAMES, LogTable
+from ident.measure.readers.registry import TIME_NAMES, LogTable
 
 __all__ = ["is_text", "open_text", "read_csv", "read_csv_long", "sniff_delimiter"]
 
@@ -68,7 +69,7 @@ def _read_text(path: Path) -> tuple[str, str]:
         with open_text(path) as f:
             first = f.readline()
             rest = f.read()
-    except (OSError, UnicodeDecodeError, EOFError) as e:
+    except (OSError, UnicodeDecodeError, EOFError, zlib.error) as e:  # zlib: a damaged .gz
         raise DataError(f"{path}: cannot read the log file ({e}).") from e
     return first, rest
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ident.errors import DataError
-from ident.measure.readers import TIME_NAMES, LogTable
+from ident.measure.readers.registry import TIME_NAMES, LogTable
 
 __all__ = ["is_npz", "read_npz"]
 

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ident.errors import DataError
-from ident.measure.readers import LogTable
+from ident.measure.readers.registry import LogTable
 
 __all__ = ["is_mcap", "is_rosbag", "read_mcap", "read_rosbag"]
 
