@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import sys
 from typing import Annotated
 
 import typer
@@ -79,5 +80,19 @@ for _name in _COMMAND_MODULES:
 
 
 def main() -> None:
-    """Console-script entry point."""
-    app()
+    """Console-script entry point: usage errors are one ``error:`` line too (exit 2)."""
+    try:
+        code = app(standalone_mode=False)
+    except typer.TyperException as e:  # usage errors of typer's own click
+        if type(e).__name__ == "NoArgsIsHelpError":  # `ident` alone: the help text, as before
+            typer.echo(e.ctx.get_help())  # type: ignore[attr-defined]
+            sys.exit(getattr(e, "exit_code", 2))
+        ctx = getattr(e, "ctx", None)
+        hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+        message = " ".join(e.format_message().split())  # type: ignore[attr-defined]
+        typer.echo(f"error: {message}{hint}", err=True)
+        code = getattr(e, "exit_code", 2)
+    except typer.Abort:
+        typer.echo("interrupted", err=True)
+        code = 130
+    sys.exit(code if isinstance(code, int) else 0)

@@ -99,9 +99,10 @@ def identify(
             warnings=list(result.warnings),
         )
         message = est.message if not result.warnings else "; ".join(result.warnings)
-        rundir.finish("complete", message)
-        # wall time of the whole command (config, identification, replay, report)
+        # wall time of the whole command (config, identification, replay, report); the run is
+        # complete with its last write
         rundir.update(wall_time_s=round(time.monotonic() - t_start, 3))
+        rundir.finish("complete", message, stamp_wall_time=False)
         typer.echo(f"run folder: {rundir.path}")
         typer.echo(
             f"{est.method.upper()}: {len(est.names)} base parameters, relative residual "

@@ -28,6 +28,7 @@ from typing import Any
 
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
+from ident.inputs import safe_component
 
 __all__ = [
     "INCOMPLETE_MARKER",
@@ -136,7 +137,7 @@ def create_run_dir(
     """
     out = Path(out)
     now = now or datetime.now(timezone.utc)
-    stem = f"{_SAFE.sub('_', name) or 'run'}-{now.strftime('%Y%m%d-%H%M%S')}"
+    stem = f"{safe_component(name, default='run')}-{now.strftime('%Y%m%d-%H%M%S')}"
     try:
         out.mkdir(parents=True, exist_ok=True)
         for k in range(1, 1000):
@@ -173,7 +174,7 @@ def read_status(path: str | Path) -> dict[str, Any]:
         )
     try:
         state = json.loads(state_file.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
         raise IdentError(f"{state_file}: unreadable ({e}); the run folder is damaged.") from e
     if not isinstance(state, dict):
         raise IdentError(f"{state_file}: expected a JSON object.")
