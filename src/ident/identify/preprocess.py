@@ -26,6 +26,7 @@ import numpy.typing as npt
 from scipy import signal
 
 from ident.errors import ConfigError, DataError
+from ident.signals import central_differences, zero_phase_lowpass
 
 __all__ = ["decimate", "differentiate", "lowpass", "trim", "velocity_mask"]
 
@@ -69,14 +70,13 @@ def lowpass(
             f"cutoff_hz = {cutoff_hz:g} Hz is not below the Nyquist frequency {nyquist:g} Hz of "
             f"the sampling rate {sampling_rate_hz:g} Hz; choose a cutoff below {nyquist:g} Hz."
         )
-    sos = signal.butter(order, cutoff_hz, fs=sampling_rate_hz, output="sos")
-    padlen = 3 * (2 * len(sos) + 1)  # sosfiltfilt's default padding
+    padlen = 3 * (2 * ((order + 1) // 2) + 1)  # sosfiltfilt's default padding
     if x.shape[0] <= padlen:
         raise DataError(
             f"{what}: {x.shape[0]} samples are too few for the order-{order} zero-phase filter "
             f"(needs more than {padlen})."
         )
-    y = signal.sosfiltfilt(sos, x, axis=0)
+    y = zero_phase_lowpass(x, sampling_rate_hz, cutoff_hz, order)
     record = {
         "step": f"low-pass {what}",
         "detail": f"zero-phase Butterworth, order {order}, cutoff {cutoff_hz:g} Hz "
@@ -105,9 +105,7 @@ def differentiate(q: FloatArray, sampling_rate_hz: float) -> tuple[FloatArray, F
     """
     if q.shape[0] < 3:
         raise DataError(f"need at least 3 samples to differentiate, got {q.shape[0]}.")
-    step = 1.0 / sampling_rate_hz
-    dq = np.gradient(q, step, axis=0, edge_order=2)
-    ddq = np.gradient(dq, step, axis=0, edge_order=2)
+    dq, ddq = central_differences(q, sampling_rate_hz)
     return (
         dq,
         ddq,

@@ -24,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import DataError
+from ident.signals import central_differences, zero_phase_lowpass
 
 __all__ = [
     "Measurements",
@@ -218,18 +219,14 @@ def differentiate(
     if timestep_s <= 0.0 or np.max(np.abs(steps - timestep_s)) > 1e-9 * max(1.0, t[-1]):
         raise DataError("differentiate: time stamps must be increasing and uniformly spaced.")
     if filter_cutoff_hz is not None:
-        from scipy import signal
-
         sampling_rate_hz = 1.0 / timestep_s
         if filter_cutoff_hz >= 0.5 * sampling_rate_hz:
             raise DataError(
                 f"differentiate: filter_cutoff_hz = {filter_cutoff_hz} Hz is at or above the "
                 f"Nyquist frequency {0.5 * sampling_rate_hz:g} Hz of the sampling; lower it."
             )
-        sos = signal.butter(filter_order, filter_cutoff_hz, fs=sampling_rate_hz, output="sos")
-        q = signal.sosfiltfilt(sos, q, axis=0)
-    dq = np.gradient(q, timestep_s, axis=0, edge_order=2)
-    ddq = np.gradient(dq, timestep_s, axis=0, edge_order=2)
+        q = zero_phase_lowpass(q, sampling_rate_hz, filter_cutoff_hz, filter_order)
+    dq, ddq = central_differences(q, 1.0 / timestep_s)
     return q, dq, ddq
 
 
