@@ -84,10 +84,10 @@ class ConstraintCheck:
         """One line: what, when, by how much."""
         unit = "m" if self.kind == "clearance" else ""
         if self.kind == "clearance":
-            return (
-                f"{self.name}: clearance {self.value:.4f} m at t = {self.time:.3f} s, "
-                f"below the {self.limit:.3f} m margin by {self.excess:.4f} m"
-            )
+            where = f"{self.name}: clearance {self.value:.4f} m at t = {self.time:.3f} s"
+            if self.ok:
+                return f"{where} (margin {self.limit:.3f} m)"
+            return f"{where}, below the {self.limit:.3f} m margin by {self.excess:.4f} m"
         if self.kind == "position":
             return (
                 f"{self.name}: {self.value:.4f} at t = {self.time:.3f} s, past the limit "
@@ -158,7 +158,7 @@ class SafetyReport:
         if self.usable:
             worst = self.min_clearance
             extra = f"; smallest clearance {worst.describe()}" if worst is not None else ""
-            return f"usable at {self.rate_hz:g} Hz{extra}".replace("below the", "margin")
+            return f"usable at {self.rate_hz:g} Hz{extra}"
         fails = self.failures()
         shown = "; ".join(c.describe() for c in fails[:3])
         more = f" (+{len(fails) - 3} more)" if len(fails) > 3 else ""

@@ -470,7 +470,10 @@ def build_safety_model(
 
 
 def clearances(safety: SafetyModel, q: npt.ArrayLike) -> FloatArray:
-    """Signed link-pair distances [m], shape (n_samples, n_pairs); see :meth:`SafetyModel.clearances`."""
+    """Signed link-pair distances [m], shape (n_samples, n_pairs).
+
+    See :meth:`SafetyModel.clearances`.
+    """
     return safety.clearances(q)
 
 
