@@ -62,7 +62,9 @@ def test_config_schema_rejects_ambiguous_obstacles():
         }
     )
     assert [o.kind for o in cfg.obstacles] == ["box", "sphere", "plane"]
-    assert cfg.floor.enabled and cfg.clearance_m == 0.03 and cfg.check_rate_hz == 1000
+    assert cfg.floor.enabled
+    assert cfg.clearance_m == 0.03
+    assert cfg.check_rate_hz == 1000
     with pytest.raises(ValidationError, match="exactly one"):
         SafetyConfig.model_validate(
             {"obstacles": [{"box": {"size": [1, 1, 1]}, "sphere": {"radius": 1}}]}
@@ -143,14 +145,17 @@ def test_paper_arm_trajectory_through_the_pedestal_is_detected(paper, safety):
     batch = family.trajectories(x[None])
     assert batch.violations.feasible()[0]  # the paper's constraints alone accept it
     wc = batch.traced_points[0]
-    assert np.max(np.abs(wc[:, 2])) < 0.02 and np.max(np.hypot(wc[:, 0], wc[:, 1])) < 0.12
+    assert np.max(np.abs(wc[:, 2])) < 0.02
+    assert np.max(np.hypot(wc[:, 0], wc[:, 1])) < 0.12
     report = check_trajectory(paper, safety, *dense_family_states(family, x, 1000.0))
-    assert not report.usable and report.resampling == "none"
+    assert not report.usable
+    assert report.resampling == "none"
     assert report.t[1] - report.t[0] <= 1e-3
     pedestal = [c for c in report.failures() if c.name.startswith("clearance:base_link|")]
     assert pedestal, report.summary()
     worst = min(pedestal, key=lambda c: c.value)
-    assert worst.value < 0.0 and worst.excess > safety.clearance_m
+    assert worst.value < 0.0
+    assert worst.excess > safety.clearance_m
     assert 0.0 <= worst.time < family.period
     i = int(np.argmin(np.abs(report.t - worst.time)))
     assert report.clearance[i, report.pair_names.index(worst.name[len("clearance:") :])] == (
@@ -161,7 +166,8 @@ def test_paper_arm_trajectory_through_the_pedestal_is_detected(paper, safety):
     objective = ExcitationObjective(paper, None, family, safety=safety, n_reference_samples=200)
     assert objective.violation(x[None])[0] > 0.0
     detail = objective.details(x[None])[0]
-    assert not detail.feasible and any(k.startswith("clearance:") for k in detail.violations)
+    assert not detail.feasible
+    assert any(k.startswith("clearance:") for k in detail.violations)
 
 
 def test_safe_trajectory_confirmed_by_plain_pinocchio_and_coal(paper, safety):
@@ -229,14 +235,17 @@ def test_velocity_and_position_violations_are_reported(paper, safety):
     t, q, dq, ddq = dense_family_states(family, x, 1000.0)
     fast = check_trajectory(paper, safety, t / 20.0, q, dq * 20.0, ddq * 400.0, rate_hz=20000)
     kinds = {c.kind for c in fast.failures()}
-    assert {"velocity", "acceleration"} <= kinds and not fast.usable
+    assert {"velocity", "acceleration"} <= kinds
+    assert not fast.usable
     v = fast.check("velocity:joint_5")
     assert v.ratio == pytest.approx(np.max(np.abs(dq[:, 4])) * 20.0 / paper.dq_max[4])
     q_bad = q.copy()
     q_bad[500, 3] = paper.q_upper[3] + 0.1
     bad = check_trajectory(paper, safety, t, q_bad, dq, ddq)
     p = bad.check("position:joint_4")
-    assert not bad.usable and p.excess == pytest.approx(0.1) and p.time == pytest.approx(t[500])
+    assert not bad.usable
+    assert p.excess == pytest.approx(0.1)
+    assert p.time == pytest.approx(t[500])
     nan = q.copy()
     nan[3, 0] = np.nan
     assert not check_trajectory(paper, safety, t, nan, dq, ddq).usable
@@ -269,5 +278,6 @@ def test_cheap_term_uses_evenly_spread_samples(paper, safety):
     x = _safe_design(family)
     batch = family.trajectories(np.vstack([x, x]))
     v = collision_violations(safety, batch.q, n_check=10)
-    assert v.values.shape == (2, safety.n_pairs) and np.all(v.values == 0.0)
+    assert v.values.shape == (2, safety.n_pairs)
+    assert np.all(v.values == 0.0)
     assert v.names[0].startswith("clearance:")
