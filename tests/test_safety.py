@@ -273,11 +273,51 @@ def test_torque_limits_with_the_nominal_model():
     assert torque_violations(off, q, dq, ddq).values.shape == (2, 0)
 
 
-def test_cheap_term_uses_evenly_spread_samples(paper, safety):
+def test_cheap_term_is_the_margin_excess_at_evenly_spread_samples(paper, safety):
     family = _wrist_family(paper)
     x = _safe_design(family)
     batch = family.trajectories(np.vstack([x, x]))
     v = collision_violations(safety, batch.q, n_check=10)
     assert v.values.shape == (2, safety.n_pairs)
-    assert np.all(v.values == 0.0)
     assert v.names[0].startswith("clearance:")
+    idx = np.arange(0, 200, 20)  # 10 samples evenly spread over the 200
+    d = safety.fast_clearances(batch.q[0, idx]).min(axis=0)
+    expected = np.maximum(safety.clearance_m - d, 0.0) / safety.clearance_m
+    np.testing.assert_allclose(v.values[0], expected, atol=1e-12)
+    np.testing.assert_array_equal(v.values[0], v.values[1])
+    # geometrically conservative: never below the violation of the exact distances
+    exact = safety.clearances(batch.q[0, idx]).min(axis=0)
+    assert np.all(v.values[0] >= np.maximum(safety.clearance_m - exact, 0.0) / 0.03 - 1e-9)
+
+
+def test_fast_clearances_bound_the_exact_ones(paper):
+    """The vectorized term: exact for the floor (cylinder's lowest point) and for pairs coal
+    handles (the box), a lower bound for cylinders (capsules) everywhere else."""
+    s = build_safety_model(
+        paper,
+        {
+            "obstacles": [
+                {"name": "ball", "sphere": {"radius": 0.2, "position": [0.8, 0, 0.5]}},
+                {"name": "crate", "box": {"size": [0.3, 0.3, 0.3], "position": [0, 0.9, 0.4]}},
+            ]
+        },
+    )
+    q = np.random.default_rng(0).uniform(paper.q_lower, paper.q_upper, (200, 6))
+    exact, fast = s.clearances(q), s.fast_clearances(q)
+    assert np.all(fast <= exact + 1e-9)
+    for k, name in enumerate(s.pair_names):
+        if name.endswith(("|floor", "|crate")):
+            np.testing.assert_allclose(fast[:, k], exact[:, k], atol=1e-9, err_msg=name)
+    # capsules around the cylinders: at most a radius-sized underestimate
+    assert np.max(exact - fast) < 0.2
+
+
+def test_segment_distance_closed_forms():
+    from ident.excitation._fast_clearance import segment_distances
+
+    p = np.array([[0.0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]])
+    q = np.array([[1.0, 0, 0], [1, 0, 0], [1, 0, 0], [0, 0, 0]])
+    a = np.array([[0.5, 1, -1], [2, 0, 1], [0.5, 2, 0], [3, 4, 0]])
+    b = np.array([[0.5, 1, 1], [3, 0, 1], [0.7, 2, 0], [3, 4, 0]])
+    expected = [1.0, np.hypot(1, 1), 2.0, 5.0]  # crossing, end-end, parallel, two points
+    np.testing.assert_allclose(segment_distances(p, q, a, b), expected, atol=1e-12)

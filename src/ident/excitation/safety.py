@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -377,6 +377,114 @@ class SafetyModel:
         self.effort_max: FloatArray = np.where(known, effort, np.inf)
         self.effort_max.setflags(write=False)
 
+        self._prepare_fast()
+
+    def _prepare_fast(self) -> None:
+        """Sort the active geometry pairs into the vectorized ones and the coal ones."""
+        import coal
+
+        from ident.dynamics.chain import chain_from_model
+
+        chain = chain_from_model(self.model)
+        self._placements, self._axes, self._prismatic = (
+            chain.placements,
+            chain.axes,
+            chain.prismatic,
+        )
+        objects = self.geometry_model.geometryObjects
+        segments: dict[int, int] = {}  # geometry index -> row of the segment tables
+        joint, centre, axis, half, radius, cylinder = [], [], [], [], [], []
+        for i, obj in enumerate(objects):
+            shape = obj.geometry
+            if isinstance(shape, (coal.Cylinder, coal.Capsule)):
+                h = float(shape.halfLength)
+            elif isinstance(shape, coal.Sphere):
+                h = 0.0
+            else:
+                continue
+            segments[i] = len(joint)
+            pose = obj.placement.homogeneous
+            joint.append(int(obj.parentJoint))
+            centre.append(np.append(pose[:3, 3], 1.0))
+            axis.append(np.append(pose[:3, 2], 0.0))
+            half.append(h)
+            radius.append(float(shape.radius))
+            cylinder.append(isinstance(shape, coal.Cylinder))
+        self._seg = (
+            np.array(joint, dtype=int),
+            np.array(centre).reshape(-1, 4),
+            np.array(axis).reshape(-1, 4),
+            np.array(half),
+            np.array(radius),
+            np.array(cylinder, dtype=bool),
+        )
+        seg_pairs, plane_pairs, plane_normals, plane_offsets, slow = [], [], [], [], []
+        for p, pair in enumerate(self.geometry_model.collisionPairs):
+            a, b = int(pair.first), int(pair.second)
+            if a in segments and b in segments:
+                seg_pairs.append((p, segments[a], segments[b]))
+            elif a in segments and isinstance(objects[b].geometry, coal.Halfspace):
+                plane_pairs.append((p, segments[a]))
+                plane_normals.append(np.asarray(objects[b].geometry.n, dtype=float))
+                plane_offsets.append(float(objects[b].geometry.d))
+            else:
+                slow.append(p)
+        self._seg_pairs = np.array(seg_pairs, dtype=int).reshape(-1, 3)
+        self._plane_pairs = np.array(plane_pairs, dtype=int).reshape(-1, 2)
+        self._plane_normals = np.array(plane_normals).reshape(-1, 3)
+        self._plane_offsets = np.array(plane_offsets)
+        self._slow_pairs = tuple(slow)
+
+    def fast_clearances(self, q: npt.ArrayLike) -> FloatArray:
+        """Clearances of the link pairs, vectorized over postures, for the cheap term [m].
+
+        Cylinder, capsule and sphere geometry is handled as array code
+        (:mod:`ident.excitation._fast_clearance`): exact against half-spaces (the floor,
+        planes), spheres and capsules, a lower bound for pairs of cylinders (their capsules);
+        every other pair through coal. So ``fast_clearances(q) <= clearances(q)`` up to
+        round-off. Shape (n_samples, n_pairs).
+        """
+        from ident.excitation._fast_clearance import joint_frames, segment_distances
+
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        n = q.shape[0]
+        finite = np.all(np.isfinite(q), axis=1)
+        q = np.where(finite[:, None], q, 0.0)
+        distances = np.empty((n, len(self.geometry_model.collisionPairs)))
+        joint, centre, axis, half, radius, cylinder = self._seg
+        if joint.size:
+            frames = joint_frames(self._placements, self._axes, self._prismatic, q)
+            frames = np.concatenate([np.broadcast_to(np.eye(4), (n, 1, 4, 4)), frames], axis=1)
+            f = frames[:, joint]  # (n, n_seg, 4, 4)
+            c = np.einsum("nkij,kj->nki", f, centre)[..., :3]
+            u = np.einsum("nkij,kj->nki", f, axis)[..., :3]
+            ends = (c - half[:, None] * u, c + half[:, None] * u)
+            if self._seg_pairs.size:
+                p, i, k = self._seg_pairs.T
+                d = segment_distances(ends[0][:, i], ends[1][:, i], ends[0][:, k], ends[1][:, k])
+                distances[:, p] = d - radius[i] - radius[k]
+            if self._plane_pairs.size:
+                p, i = self._plane_pairs.T
+                nu = np.einsum("nkj,kj->nk", u[:, i], self._plane_normals)
+                side = np.where(
+                    cylinder[i], radius[i] * np.sqrt(np.maximum(1.0 - nu * nu, 0.0)), radius[i]
+                )
+                height = np.einsum("nkj,kj->nk", c[:, i], self._plane_normals)
+                distances[:, p] = height - self._plane_offsets - half[i] * np.abs(nu) - side
+        if self._slow_pairs:
+            data = self.model.createData()
+            gdata = pin.GeometryData(self.geometry_model)
+            for s in range(n):  # coal: one posture at a time
+                pin.updateGeometryPlacements(self.model, data, self.geometry_model, gdata, q[s])
+                for p in self._slow_pairs:
+                    distances[s, p] = pin.computeDistance(
+                        self.geometry_model, gdata, p
+                    ).min_distance
+        out = np.full((n, self.n_pairs), np.inf)
+        np.minimum.at(out.T, self._group, distances.T)
+        out[~finite] = -np.inf
+        return out
+
     @property
     def n_pairs(self) -> int:
         """Number of checked link pairs."""
@@ -432,7 +540,7 @@ class SafetyModel:
 
 def build_safety_model(
     robot: Any,
-    config: SafetyConfig | None = None,
+    config: SafetyConfig | Mapping[str, Any] | None = None,
     *,
     urdf: str | Path | None = None,
     package_dirs: Sequence[str | Path] = (),
@@ -445,7 +553,8 @@ def build_safety_model(
     robot :
         An :class:`ident.Robot` (or an object with ``model`` and the limits, plus ``urdf``).
     config :
-        The ``safety`` section; default ``SafetyConfig()`` (floor at z = 0, 0.03 m margin,
+        The ``safety`` section (a :class:`SafetyConfig` or its mapping); default
+        ``SafetyConfig()`` (floor at z = 0, 0.03 m margin,
         self-collision and torque limits on).
     urdf :
         URDF path or text with the collision geometry; default ``robot.urdf_text``.
@@ -460,9 +569,13 @@ def build_safety_model(
     ModelError
         If the collision geometry cannot be loaded or does not match the robot's joints.
     """
+    if config is None:
+        config = SafetyConfig()
+    elif not isinstance(config, SafetyConfig):
+        config = SafetyConfig.model_validate(config)
     return SafetyModel(
         robot,
-        SafetyConfig() if config is None else config,
+        config,
         urdf=urdf,
         package_dirs=package_dirs,
         reference_q=reference_q,
@@ -496,6 +609,9 @@ def collision_violations(
 ) -> ConstraintViolations:
     """Cheap clearance constraint of a swarm: distances at ``n_check`` samples per trajectory.
 
+    Uses :meth:`SafetyModel.fast_clearances` (vectorized over the swarm; lower bounds for
+    pairs of cylinders, so the term errs on the safe side).
+
     Parameters
     ----------
     safety :
@@ -515,7 +631,7 @@ def collision_violations(
     n_check = safety.config.check_samples if n_check is None else int(n_check)
     idx = _subsample(q.shape[1], n_check)
     sub = q[:, idx].reshape(-1, q.shape[2])
-    d = safety.clearances(sub).reshape(q.shape[0], idx.size, safety.n_pairs).min(axis=1)
+    d = safety.fast_clearances(sub).reshape(q.shape[0], idx.size, safety.n_pairs).min(axis=1)
     scale = safety.clearance_m if safety.clearance_m > 0.0 else 0.01
     values = np.maximum(safety.clearance_m - d, 0.0) / scale
     values = np.where(np.isfinite(values), values, NONFINITE_VIOLATION)
