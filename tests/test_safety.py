@@ -285,14 +285,17 @@ def test_cheap_term_is_the_margin_excess_at_evenly_spread_samples(paper, safety)
     expected = np.maximum(safety.clearance_m - d, 0.0) / safety.clearance_m
     np.testing.assert_allclose(v.values[0], expected, atol=1e-12)
     np.testing.assert_array_equal(v.values[0], v.values[1])
-    # geometrically conservative: never below the violation of the exact distances
+    # the same as with the exact distances at those samples
     exact = safety.clearances(batch.q[0, idx]).min(axis=0)
-    assert np.all(v.values[0] >= np.maximum(safety.clearance_m - exact, 0.0) / 0.03 - 1e-9)
+    np.testing.assert_allclose(
+        v.values[0], np.maximum(safety.clearance_m - exact, 0.0) / 0.03, atol=1e-4
+    )
+    assert np.all(v.values == 0.0)  # a safe trajectory
 
 
-def test_fast_clearances_bound_the_exact_ones(paper):
-    """The vectorized term: exact for the floor (cylinder's lowest point) and for pairs coal
-    handles (the box), a lower bound for cylinders (capsules) everywhere else."""
+def test_fast_clearances_are_exact_within_the_margin(paper):
+    """The vectorized term: exact for the floor (cylinder's lowest point), for pairs coal
+    handles (the box) and wherever a pair is within the margin; a lower bound elsewhere."""
     s = build_safety_model(
         paper,
         {
@@ -304,12 +307,14 @@ def test_fast_clearances_bound_the_exact_ones(paper):
     )
     q = np.random.default_rng(0).uniform(paper.q_lower, paper.q_upper, (200, 6))
     exact, fast = s.clearances(q), s.fast_clearances(q)
-    assert np.all(fast <= exact + 1e-9)
+    gjk = 1e-6  # coal's GJK/EPA tolerance: computeDistance and computeDistances differ by it
+    assert np.all(fast <= exact + gjk)
+    near = (exact < s.clearance_m) | (fast < s.clearance_m)
+    assert near.sum() > 100
+    np.testing.assert_allclose(fast[near], exact[near], atol=gjk)
     for k, name in enumerate(s.pair_names):
         if name.endswith(("|floor", "|crate")):
             np.testing.assert_allclose(fast[:, k], exact[:, k], atol=1e-9, err_msg=name)
-    # capsules around the cylinders: at most a radius-sized underestimate
-    assert np.max(exact - fast) < 0.2
 
 
 def test_segment_distance_closed_forms():

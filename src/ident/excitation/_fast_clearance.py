@@ -11,7 +11,9 @@ over all postures:
   ``n.c - h |n.u| - r sqrt(1 - (n.u)^2)``, a capsule's ``n.c - h |n.u| - r``);
 - between two of them, and to a sphere obstacle, the distance is that of the swept spheres
   (segment-segment distance minus the radii): exact for capsules and spheres, a *lower bound*
-  for cylinders (the capsule contains the cylinder), so the cheap term errs on the safe side.
+  for cylinders (the capsule contains the cylinder). Where that bound is within the margin,
+  :meth:`ident.excitation.safety.SafetyModel.fast_clearances` asks coal for the exact value
+  (a broad phase: most pairs of a swarm are far apart).
 
 Other pairs (meshes, boxes) stay with coal. The dense check never uses this module.
 """
