@@ -304,7 +304,7 @@ def check_trajectory(
     else:
         tau = np.full(dq.shape, np.inf)
     torque_ratio = _ratio(tau, safety.effort_max)
-    for kind, value, limit, ratio in (
+    for kind, series, limit, ratio in (
         ("velocity", dq, limits.dq_max, velocity_ratio),
         ("acceleration", ddq, limits.ddq_max, acceleration_ratio),
         ("torque", tau, safety.effort_max, torque_ratio),
@@ -313,7 +313,7 @@ def check_trajectory(
             if not np.isfinite(limit[j]):
                 continue
             i = int(np.argmax(ratio[:, j])) if finite else 0
-            peak = float(abs(value[i, j])) if finite else float("inf")
+            peak = float(abs(series[i, j])) if finite else float("inf")
             checks.append(
                 ConstraintCheck(
                     f"{kind}:{joint}",

@@ -197,8 +197,10 @@ def executable_trajectory(
     )
     n_in = int(round(approach_time / dt))
     n_out = int(round(return_time / dt))
-    t_in = np.arange(n_in) * dt  # the approach's end is the excitation's first sample
-    t_out = np.arange(n_out + 1) * dt  # the return starts at the end of the last period
+    # the approach's end is the excitation's first sample; the return starts at the end of
+    # the last period
+    t_in = np.arange(n_in, dtype=np.float64) * dt
+    t_out = np.arange(n_out + 1, dtype=np.float64) * dt
     a = quintic((home, rest, rest), first, n_in * dt, t_in)
     r = quintic(first, (home, rest, rest), n_out * dt, t_out)
     parts = [
@@ -206,7 +208,7 @@ def executable_trajectory(
     ]
     total = parts[0].shape[0]
     return JointTrajectory(
-        t=np.arange(total) * dt,
+        t=np.arange(total, dtype=np.float64) * dt,
         q=parts[0],
         dq=parts[1],
         ddq=parts[2],

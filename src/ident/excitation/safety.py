@@ -393,7 +393,12 @@ class SafetyModel:
         )
         objects = self.geometry_model.geometryObjects
         segments: dict[int, int] = {}  # geometry index -> row of the segment tables
-        joint, centre, axis, half, radius, cylinder = [], [], [], [], [], []
+        joint: list[int] = []
+        centre: list[FloatArray] = []
+        axis: list[FloatArray] = []
+        half: list[float] = []
+        radius: list[float] = []
+        cylinder: list[bool] = []
         for i, obj in enumerate(objects):
             shape = obj.geometry
             if isinstance(shape, (coal.Cylinder, coal.Capsule)):
