@@ -13,6 +13,18 @@ It checks that both give the same fitness (relative difference below 1e-8), prin
 and their ratio, and the time of the optimizer budget of the paper (initial elites + 5 runs x
 30 iterations x 20 particles) predicted from one swarm evaluation.
 
+Then the same with the safety constraints (floor, self-collision, torque limits of
+:mod:`ident.excitation.safety`, clearances at ``check_samples`` samples per trajectory):
+
+- ``ident``: the objective with ``safety=``: the clearances of the whole swarm's sampled
+  postures in one vectorized call (exact against the floor, capsule lower bounds between the
+  cylinders of the generated URDF);
+- reference: the per-sample loop above plus, at the same samples, ``pin.computeDistances``
+  (coal) per posture and ``pin.rnea`` per sample.
+
+Both must agree on which particles are feasible where the reference's exact distances keep
+the margin by more than the capsules' slack (the cheap term is conservative).
+
 Run: ``python benchmarks/bench_objective.py [--samples 500] [--repeat 5]``. Timings are noisy
 on a shared machine: the best of ``--repeat`` runs is reported.
 """
@@ -30,6 +42,7 @@ from ident.dynamics.stage import paper_stages
 from ident.excitation.constraints import penalty
 from ident.excitation.mfs import PaperArmFamily
 from ident.excitation.objective import CRITERION_CAP, ExcitationObjective
+from ident.excitation.safety import build_safety_model
 from ident.excitation.wrist import PaperWristFamily
 
 
@@ -54,6 +67,31 @@ def reference_fitness(objective: ExcitationObjective, x: np.ndarray) -> np.ndarr
     return out + penalty(batch.violations, objective.penalty_weight)
 
 
+def reference_safety_violation(objective: ExcitationObjective, x: np.ndarray) -> np.ndarray:
+    """Worst clearance excess per particle with coal, one posture at a time (+ rnea)."""
+    from ident.excitation.safety import _subsample
+
+    safety = objective.safety
+    model, geom = safety.model, safety.geometry_model
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    dyn = safety.robot_model.createData()
+    batch = objective.family.trajectories(x)
+    idx = _subsample(batch.n_samples, safety.config.check_samples)
+    out = np.zeros(batch.n_particles)
+    for i in range(batch.n_particles):
+        for k in idx:
+            pin.computeDistances(model, data, geom, gdata, batch.q[i, k])
+            d = min(r.min_distance for r in gdata.distanceResults)
+            pin.rnea(safety.robot_model, dyn, batch.q[i, k], batch.dq[i, k], batch.ddq[i, k])
+            out[i] = max(out[i], safety.clearance_m - d)
+    return out
+
+
+def reference_fitness_safe(objective: ExcitationObjective, x: np.ndarray) -> np.ndarray:
+    """The reference objective plus the coal clearance check at the same samples."""
+    return reference_fitness(objective, x), reference_safety_violation(objective, x)
+
+
 def best_time(fn, repeat: int) -> float:
     times = []
     for _ in range(repeat):
@@ -71,6 +109,7 @@ def main() -> None:
     args = parser.parse_args()
 
     robot = Robot.from_config("configs/paper6r.yaml")
+    safety = build_safety_model(robot)
     rng = np.random.default_rng(0)
     print(f"paper robot, {args.particles} particles, {args.samples} samples per 10 s period")
     for name, family_type in (("wrist", PaperWristFamily), ("arm", PaperArmFamily)):
@@ -99,6 +138,25 @@ def main() -> None:
         )
         if not rel < 1e-8:
             raise SystemExit(f"fitness mismatch: {rel:.2e} >= 1e-8")
+
+        # with the safety constraints (floor, self-collision, torque limits)
+        safe = ExcitationObjective(
+            robot, stage, family, safety=safety, base_columns=objective.columns
+        )
+        safe(x)
+        t_safe = best_time(lambda: safe(x), args.repeat)  # noqa: B023
+        t_ref = best_time(lambda: reference_fitness_safe(safe, x), max(1, args.repeat // 2))  # noqa: B023
+        cheap = safe.violation(x) > objective.violation(x)
+        _, excess = reference_fitness_safe(safe, x)
+        disagree = np.flatnonzero(~cheap & (excess > 0.0))  # coal sees a violation, ident not
+        print(
+            f"       + safety ({safety.n_pairs} link pairs, {safety.config.check_samples} "
+            f"samples/particle): ident {1e3 * t_safe:7.1f} ms   pinocchio loop + svd + coal "
+            f"{1e3 * t_ref:7.1f} ms   ratio {t_ref / t_safe:5.1f}x   "
+            f"{int(cheap.sum())}/{len(cheap)} particles unsafe"
+        )
+        if disagree.size:
+            raise SystemExit(f"cheap term missed violations coal sees: particles {disagree}")
 
 
 if __name__ == "__main__":

@@ -151,7 +151,7 @@ def test_unknown_method_message_reads_well_without_a_close_match():
     with pytest.raises(OptimizationError) as e:
         minimize(sphere, [(0, 1)], "nelder-mead")
     assert str(e.value) == (
-        "unknown method 'nelder-mead'; valid methods: emupso, pso, woa, gwo, goa, de."
+        "unknown method 'nelder-mead'; valid methods: emupso, pso, woa, gwo, goa, de, cma."
     )
     with pytest.raises(OptimizationError) as e:
         minimize(sphere, [(0, 1)], "emupos")

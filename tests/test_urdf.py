@@ -130,3 +130,27 @@ def test_name_clash_with_generated_frames():
     data["links"][1]["name"] = "flange"
     with pytest.raises(ModelError, match="flange"):
         urdf_from_description(description_from_mapping(data, "x.yaml"))
+
+
+@pytest.mark.parametrize("path", CONFIGS, ids=lambda p: p.stem)
+def test_collision_geometry_is_the_visual_geometry_plus_nothing_else(path):
+    """Every visual cylinder is repeated as a collision primitive (same pose and size), and
+    the pedestal is a base_link column standing on z = 0 around joint 1's axis."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(urdf_from_description(load_robot_config(path)))
+    for link in root.findall("link"):
+        visuals, collisions = link.findall("visual"), link.findall("collision")
+        assert len(visuals) == len(collisions)
+        for v, c in zip(visuals, collisions, strict=True):
+            assert v.find("origin").attrib == c.find("origin").attrib
+            assert v.find("geometry/cylinder").attrib == c.find("geometry/cylinder").attrib
+    base = root.find("link[@name='base_link']/collision")
+    z = float(base.find("origin").get("xyz").split()[2])
+    length = float(base.find("geometry/cylinder").get("length"))
+    assert z - 0.5 * length == pytest.approx(0.0, abs=1e-12)  # stands on the base plane
+    model = pin.buildModelFromXML(ET.tostring(root, encoding="unicode"))
+    geom = pin.buildGeomFromUrdfString(
+        model, ET.tostring(root, encoding="unicode"), pin.GeometryType.COLLISION
+    )
+    assert geom.ngeoms == len(root.findall("link/collision"))

@@ -1,5 +1,6 @@
 """Excitation trajectories: families (paper's Cartesian MFS, joint-space Fourier), constraints
-and the excitation objective (paper eq. 15).
+(limits, collisions, floor, obstacles, torques), the excitation objective (paper eq. 15), the
+dense safety check and the controller's trajectory.
 
 The public names are imported lazily so that ``import ident.excitation`` stays cheap.
 """
@@ -18,7 +19,14 @@ __all__ = [
     "ObjectiveDetails",
     "PaperArmFamily",
     "PaperWristFamily",
+    "SafetyConfig",
+    "SafetyModel",
+    "SafetyReport",
     "TrajectoryBatch",
+    "build_safety_model",
+    "check_trajectory",
+    "dense_family_states",
+    "executable_trajectory",
 ]
 
 _LAZY = {
@@ -31,6 +39,13 @@ _LAZY = {
     "ObjectiveDetails": "ident.excitation.objective",
     "PaperArmFamily": "ident.excitation.mfs",
     "PaperWristFamily": "ident.excitation.wrist",
+    "SafetyConfig": "ident.excitation.safety",
+    "SafetyModel": "ident.excitation.safety",
+    "build_safety_model": "ident.excitation.safety",
+    "SafetyReport": "ident.excitation.check",
+    "check_trajectory": "ident.excitation.check",
+    "dense_family_states": "ident.excitation.check",
+    "executable_trajectory": "ident.excitation.executable",
 }
 
 

@@ -21,6 +21,7 @@ amplitudes).
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from typing import Any
 
@@ -172,6 +173,18 @@ class JointFourierFamily:
                     rows.append((-amp[k], amp[k]))
         self.variable_names = tuple(names)
         self.bounds = np.array(rows, dtype=float)
+
+    def with_samples(self, n_samples: int) -> JointFourierFamily:
+        """The same family (bounds, held joints, variables) sampled ``n_samples`` times per period.
+
+        Used to evaluate a design at a controller's rate in closed form.
+        """
+        if n_samples < 2 * self.n_harmonics + 1:
+            raise ValueError(f"n_samples must be >= {2 * self.n_harmonics + 1}, got {n_samples}")
+        clone = copy.copy(self)
+        clone.n_samples = int(n_samples)
+        clone.t = sample_times(clone.n_samples, self.period)
+        return clone
 
     def coefficients(self, x: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Full coefficient arrays from design vectors.

@@ -21,6 +21,7 @@ numbers of Tables 2-3 can be entered as printed); they are converted to SI once,
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 import numpy as np
@@ -180,6 +181,21 @@ class _CartesianFamily:
         held[held_joints] = hold_array
         held.setflags(write=False)
         self.held_positions = held
+
+    def with_samples(self, n_samples: int) -> Any:
+        """The same family (bounds, holds, variables) sampled ``n_samples`` times per period.
+
+        Used to evaluate a design at a controller's rate in closed form (eq. 16-22 are
+        formulas of ``t``; the paper wrist's joint 6, eq. 23, is built from the samples, so its
+        dense version is the same construction on the finer grid).
+        """
+        if n_samples < 8:
+            raise ValueError(f"n_samples must be >= 8, got {n_samples}")
+        clone = copy.copy(self)
+        clone.n_samples = int(n_samples)
+        clone.t = sample_times(clone.n_samples, self.period)
+        clone._t_ext = np.append(clone.t, self.period)
+        return clone
 
     def _cartesian_path(self, x: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Eq. 16-18 on the extended grid [m, m/s, m/s^2], (n_particles, n + 1, 3)."""

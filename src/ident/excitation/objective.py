@@ -38,7 +38,13 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.excitation.constraints import JointLimits, penalty
-from ident.excitation.family import ExcitationFamily, FloatArray, check_design
+from ident.excitation.family import (
+    ConstraintViolations,
+    ExcitationFamily,
+    FloatArray,
+    TrajectoryBatch,
+    check_design,
+)
 
 __all__ = [
     "CRITERION_CAP",
@@ -280,6 +286,11 @@ class ExcitationObjective:
         Random states of the reference motion.
     rng :
         Seed or generator of the reference motion.
+    safety :
+        A :class:`ident.excitation.safety.SafetyModel`: adds the cheap clearance and torque
+        constraints (``clearance:<pair>``, ``torque:<joint>``, evaluated at
+        ``safety.config.check_samples`` samples per trajectory) to the family's constraints,
+        with the same penalty. ``None`` (default): the family's constraints only.
     """
 
     def __init__(
@@ -295,6 +306,7 @@ class ExcitationObjective:
         scaled: bool = True,
         n_reference_samples: int = 2000,
         rng: np.random.Generator | int | None = 0,
+        safety: Any = None,
     ) -> None:
         if criterion not in ("paper", "logdet"):
             raise ValueError(f"criterion must be 'paper' or 'logdet', got {criterion!r}")
@@ -303,6 +315,7 @@ class ExcitationObjective:
         self.criterion: Criterion = criterion
         self.penalty_weight = float(penalty_weight)
         self.scaled = bool(scaled)
+        self.safety = safety
         self.chain = _chain_of(robot)
         nv = len(robot.joint_names)
         n_params = 10 * nv
@@ -375,9 +388,24 @@ class ExcitationObjective:
             g = g * (np.outer(self.column_scale, self.column_scale) / (q.shape[1] * len(self.rows)))
         return g
 
-    def _evaluate(self, x: npt.ArrayLike) -> tuple[Any, tuple[FloatArray, ...], FloatArray]:
+    def _batch(self, x: npt.ArrayLike) -> tuple[TrajectoryBatch, ConstraintViolations]:
+        """The family's trajectories and all their constraints (the safety terms included)."""
         x = check_design(x, len(self.family.variable_names))
         batch = self.family.trajectories(x)
+        if self.safety is None:
+            return batch, batch.violations
+        from ident.excitation.safety import collision_violations, torque_violations
+
+        extra = [
+            collision_violations(self.safety, batch.q),
+            torque_violations(self.safety, batch.q, batch.dq, batch.ddq),
+        ]
+        return batch, ConstraintViolations.concatenate(batch.violations, *extra)
+
+    def _evaluate(
+        self, x: npt.ArrayLike
+    ) -> tuple[TrajectoryBatch, ConstraintViolations, tuple[FloatArray, ...], FloatArray]:
+        batch, violations = self._batch(x)
         finite = np.all(
             np.isfinite(batch.q) & np.isfinite(batch.dq) & np.isfinite(batch.ddq), axis=(1, 2)
         )
@@ -390,9 +418,9 @@ class ExcitationObjective:
             ddq[bad] = 0.0
         stats = criterion_from_gram(self.gram(q, dq, ddq), self.criterion)
         value = np.where(finite, stats[0], CRITERION_CAP)
-        pen = penalty(batch.violations, self.penalty_weight)
+        pen = penalty(violations, self.penalty_weight)
         pen = np.where(finite, pen, self.penalty_weight * 2.0)
-        return batch, (value, *stats[1:]), pen
+        return batch, violations, (value, *stats[1:]), pen
 
     def __call__(self, x: npt.ArrayLike) -> FloatArray:
         """Fitness of each particle (lower is better), shape (n_particles,), always finite.
@@ -402,13 +430,13 @@ class ExcitationObjective:
         x :
             Designs, shape (n_particles, n_vars) (or (n_vars,) for one particle).
         """
-        _, stats, pen = self._evaluate(x)
+        _, _, stats, pen = self._evaluate(x)
         return stats[0] + pen
 
     def details(self, x: npt.ArrayLike) -> list[ObjectiveDetails]:
         """Per-particle breakdown of the fitness (criterion, singular values, violations)."""
-        batch, (value, cond, smin, smax, logdet), pen = self._evaluate(x)
-        feasible = batch.violations.feasible()
+        batch, violations, (value, cond, smin, smax, logdet), pen = self._evaluate(x)
+        feasible = violations.feasible()
         return [
             ObjectiveDetails(
                 fitness=float(value[i] + pen[i]),
@@ -419,7 +447,7 @@ class ExcitationObjective:
                 logdet=float(logdet[i]),
                 penalty=float(pen[i]),
                 feasible=bool(feasible[i]),
-                violations=batch.violations.as_dict(i),
+                violations=violations.as_dict(i),
             )
             for i in range(batch.n_particles)
         ]
@@ -428,7 +456,7 @@ class ExcitationObjective:
         """Total constraint violation of each particle (0 = compliant), shape (n_particles,).
 
         Only the trajectories and their constraints are computed (no regressor): this is the
-        fitness of the paper's initial-elite search.
+        fitness of the paper's initial-elite search. The safety terms count when the objective
+        has a safety model.
         """
-        x = check_design(x, len(self.family.variable_names))
-        return self.family.trajectories(x).violations.total()
+        return self._batch(x)[1].total()

@@ -1,7 +1,8 @@
 """Population-based optimizers behind one ``scipy.optimize``-like function, :func:`minimize`.
 
 Methods: ``emupso`` (the paper's eMuPSO), ``pso`` (standard PSO), ``woa``, ``gwo``, ``goa``,
-``de`` (DE/rand/1/bin). See ``docs/optimizers.md`` and each module's docstring for the
+``de`` (DE/rand/1/bin), ``cma`` (CMA-ES through the ``cma`` package). More are added with
+:func:`register_method`. See ``docs/optimizers.md`` and each module's docstring for the
 equations, defaults and boundary handling. :mod:`ident.optim.elites` adds the paper's
 "initial elites" stage for constrained problems.
 """
@@ -11,7 +12,8 @@ from __future__ import annotations
 import difflib
 import importlib
 import pickle
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -33,34 +35,107 @@ __all__ = [
     "METHODS",
     "EliteArchive",
     "IntermediateResult",
+    "MethodSpec",
     "OptimizeHistory",
     "OptimizeResult",
     "method_defaults",
     "minimize",
+    "register_method",
 ]
 
-#: Method name -> module implementing ``run(problem, x0, **options)``.
-METHODS: dict[str, str] = {
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """How :func:`minimize` runs one method.
+
+    Attributes
+    ----------
+    run :
+        ``run(problem, x0, **options) -> dict``: iterates on a
+        :class:`ident.optim._common.Problem` (``problem.initial_population(x0)``,
+        ``problem.evaluate(x)``, ``problem.end_iteration(t)`` until it returns True or
+        ``t == problem.maxiter``) and returns method-specific extras (``radius``,
+        ``stagnation``, ``mutation_iterations``, ``archive``; all optional).
+    defaults :
+        The method's options and their defaults (unknown options are rejected).
+    default_popsize, min_popsize :
+        Population size when the caller gives none, and the smallest one accepted.
+    """
+
+    run: Callable[..., dict[str, Any]]
+    defaults: Mapping[str, Any] = field(default_factory=dict)
+    default_popsize: int = 30
+    min_popsize: int = 1
+
+
+#: Method name -> a :class:`MethodSpec`, or the module of a built-in method (imported on
+#: first use; it defines ``run``, ``DEFAULTS``, ``DEFAULT_POPSIZE`` and maybe ``MIN_POPSIZE``).
+METHODS: dict[str, MethodSpec | str] = {
     "emupso": "ident.optim.emupso",
     "pso": "ident.optim.pso",
     "woa": "ident.optim.woa",
     "gwo": "ident.optim.gwo",
     "goa": "ident.optim.goa",
     "de": "ident.optim.de",
+    "cma": "ident.optim.cma_es",
 }
 
 #: Options every method accepts.
 COMMON_OPTIONS: dict[str, Any] = {"f_target": None, "target_tol": 1e-8}
 
 
-def _module(method: str) -> Any:
+def register_method(
+    name: str,
+    run: Callable[..., dict[str, Any]],
+    *,
+    defaults: Mapping[str, Any] | None = None,
+    default_popsize: int = 30,
+    min_popsize: int = 1,
+) -> MethodSpec:
+    """Make ``run`` available as ``minimize(..., method=name)``.
+
+    Parameters
+    ----------
+    name :
+        The method's name (also the name a run config gives).
+    run :
+        ``run(problem, x0, **options) -> dict``, see :class:`MethodSpec`.
+    defaults :
+        The method's options and their defaults.
+    default_popsize, min_popsize :
+        See :class:`MethodSpec`.
+
+    Returns
+    -------
+    :
+        The registered spec.
+
+    Raises
+    ------
+    OptimizationError
+        If ``name`` is already registered.
+    """
+    if name in METHODS:
+        raise OptimizationError(f"optimizer method {name!r} is registered twice")
+    spec = MethodSpec(run, dict(defaults or {}), int(default_popsize), int(min_popsize))
+    METHODS[name] = spec
+    return spec
+
+
+def _module(method: str) -> MethodSpec:
     if method not in METHODS:
         close = difflib.get_close_matches(str(method), list(METHODS), n=1)
         hint = f" (did you mean '{close[0]}'?)" if close else ""
         raise OptimizationError(
             f"unknown method '{method}'{hint}; valid methods: {', '.join(METHODS)}."
         )
-    return importlib.import_module(METHODS[method])
+    entry = METHODS[method]
+    if isinstance(entry, MethodSpec):
+        return entry
+    mod = importlib.import_module(entry)
+    return MethodSpec(
+        mod.run, mod.DEFAULTS, int(mod.DEFAULT_POPSIZE), int(getattr(mod, "MIN_POPSIZE", 1))
+    )
 
 
 def _check_workers(workers: Any, fun: Callable[..., Any]) -> int:
@@ -87,8 +162,7 @@ def _check_workers(workers: Any, fun: Callable[..., Any]) -> int:
 
 def method_defaults(method: str) -> dict[str, Any]:
     """Default options of ``method`` (including the common ``f_target``, ``target_tol``)."""
-    mod = _module(method)
-    return {**COMMON_OPTIONS, **mod.DEFAULTS}
+    return {**COMMON_OPTIONS, **_module(method).defaults}
 
 
 def minimize(
@@ -154,10 +228,10 @@ def minimize(
         >= 1, or (``workers > 1``) an objective that cannot be pickled.
     """
     mod = _module(method)
-    opts = check_options(method, options, {**COMMON_OPTIONS, **mod.DEFAULTS})
+    opts = check_options(method, options, {**COMMON_OPTIONS, **mod.defaults})
     lower, upper = parse_bounds(bounds)
-    popsize = int(mod.DEFAULT_POPSIZE if popsize is None else popsize)
-    min_pop = getattr(mod, "MIN_POPSIZE", 1)
+    popsize = int(mod.default_popsize if popsize is None else popsize)
+    min_pop = mod.min_popsize
     if popsize < min_pop:
         raise OptimizationError(f"method '{method}' needs popsize >= {min_pop}, got {popsize}")
     n_iter = plan_iterations(popsize, maxiter, max_nfev, default_maxiter=DEFAULT_MAXITER)

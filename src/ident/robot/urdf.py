@@ -19,6 +19,10 @@ When the last three joints are revolute and their axes meet in one point (a sphe
 fixed joint ``wrist_centre_joint`` adds the frame ``wrist_centre`` at that point, attached to the
 link of the first wrist joint (for the paper's robot: the origin of DH frame 4).
 
+Every visual is a primitive cylinder and is repeated as the link's ``<collision>`` geometry;
+``base_link`` carries the pedestal, a column standing on the base plane ``z = 0`` around joint
+1's axis. Collision geometry has no mass: forward kinematics and inertials do not depend on it.
+
 Velocity and effort limits the description does not know are written as ``0`` (URDF requires the
 attributes); :class:`ident.model.Robot` reads ``0`` as "unknown".
 """
@@ -170,17 +174,24 @@ def _z_to(direction: FloatArray) -> FloatArray:
 def _cylinder(
     link: ET.Element, start: FloatArray, end: FloatArray, radius: float, colour: str
 ) -> None:
+    """A cylinder from ``start`` to ``end`` [m] (link frame): the visual and the same collision.
+
+    The collision primitive is the visual cylinder itself, so what the replay shows is what
+    the clearance check (:mod:`ident.excitation.safety`) measures.
+    """
     length = float(np.linalg.norm(end - start))
     if length < 1e-9:
         return
     pose = np.eye(4)
     pose[:3, :3] = _z_to((end - start) / length)
     pose[:3, 3] = 0.5 * (start + end)
-    visual = ET.SubElement(link, "visual")
-    _origin(visual, pose)
-    geometry = ET.SubElement(visual, "geometry")
-    ET.SubElement(geometry, "cylinder", radius=_fmt(radius), length=_fmt(length))
-    ET.SubElement(visual, "material", name=colour)
+    for kind in ("visual", "collision"):
+        element = ET.SubElement(link, kind)
+        _origin(element, pose)
+        geometry = ET.SubElement(element, "geometry")
+        ET.SubElement(geometry, "cylinder", radius=_fmt(radius), length=_fmt(length))
+        if kind == "visual":
+            ET.SubElement(element, "material", name=colour)
 
 
 def _polyline(steps: tuple[Step, ...]) -> list[FloatArray]:
@@ -245,8 +256,11 @@ def urdf_from_description(robot: RobotDescription) -> str:
         ET.SubElement(ET.SubElement(root, "material", name=name), "color", rgba=rgba)
 
     base = ET.SubElement(root, "link", name=BASE_LINK)
+    # the pedestal: a column on the base plane (z = 0, the floor of the safety model) up to
+    # the housing of joint 1, wider than every link, so that a motion through the robot's own
+    # base is a collision with base_link
     plinth = 1.6 * radii[0]
-    _cylinder(base, np.array([0, 0, -plinth]), np.zeros(3), 1.6 * radii[0], _JOINT_COLOUR[0])
+    _cylinder(base, np.zeros(3), np.array([0, 0, plinth]), plinth, _JOINT_COLOUR[0])
 
     mass, com, inertia_com = robot.mass, robot.com, robot.inertia_com
     parent = BASE_LINK

@@ -1,0 +1,340 @@
+"""Dense safety check of a trajectory at the controller's rate, before anything is reported.
+
+:func:`check_trajectory` evaluates every constraint a robot needs at every sample of a grid at
+least as fine as ``rate_hz`` (default 1 kHz): the clearance of every checked link pair and
+obstacle of a :class:`~ident.excitation.safety.SafetyModel`, the joint position, velocity and
+acceleration limits, and the torque limits (nominal inverse dynamics). A trajectory is
+``usable`` only when every one of them holds at every sample; a trajectory with a non-finite
+state is never usable.
+
+Where the samples come from (say which, :attr:`SafetyReport.resampling`):
+
+- ``"none"``: the given samples are already at least as fine as ``rate_hz`` and are checked as
+  they are. This is the case for a family evaluated at the dense times
+  (:func:`dense_family_states`: the excitation families are closed forms, so this is exact) and
+  for the executable trajectory of :mod:`ident.excitation.executable`.
+- ``"cubic_hermite"``: coarser samples are interpolated on a uniform grid at ``rate_hz``:
+  ``q`` by the cubic Hermite interpolant of ``(q, dq)``, ``dq`` by that of ``(dq, ddq)``, and
+  ``ddq`` by a not-a-knot cubic spline. Between samples this is an approximation; prefer the
+  family's closed form.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ident.excitation.family import FloatArray
+from ident.excitation.safety import SafetyModel, joint_torques
+
+__all__ = [
+    "MIN_CHECK_RATE_HZ",
+    "ConstraintCheck",
+    "SafetyReport",
+    "check_trajectory",
+    "dense_family_states",
+]
+
+MIN_CHECK_RATE_HZ = 1000.0
+
+
+@dataclass(frozen=True)
+class ConstraintCheck:
+    """The worst sample of one constraint.
+
+    Attributes
+    ----------
+    name :
+        ``clearance:<link>|<link or obstacle>``, ``position:<joint>``, ``velocity:<joint>``,
+        ``acceleration:<joint>`` or ``torque:<joint>``.
+    kind :
+        ``clearance``, ``position``, ``velocity``, ``acceleration`` or ``torque``.
+    value :
+        The worst value: the smallest clearance [m], or the largest ``|dq|``, ``|ddq|``,
+        ``|tau|``, or the position farthest past (or closest to) a bound [SI].
+    limit :
+        The required clearance [m], or the limit the value is compared with [SI].
+    time :
+        When the worst value occurs [s].
+    excess :
+        By how much the limit is violated (> 0) or kept (<= 0), in the unit of ``value``:
+        ``clearance_m - clearance``, ``|dq| - dq_max``, ``max(q - upper, lower - q)``, ...
+    ratio :
+        ``value / limit`` for velocity, acceleration and torque (<= 1 is within the limit),
+        ``nan`` otherwise.
+    """
+
+    name: str
+    kind: str
+    value: float
+    limit: float
+    time: float
+    excess: float
+    ratio: float = float("nan")
+
+    @property
+    def ok(self) -> bool:
+        """True when the constraint holds at every sample."""
+        return bool(np.isfinite(self.excess) and self.excess <= 0.0)
+
+    def describe(self) -> str:
+        """One line: what, when, by how much."""
+        unit = "m" if self.kind == "clearance" else ""
+        if self.kind == "clearance":
+            where = f"{self.name}: clearance {self.value:.4f} m at t = {self.time:.3f} s"
+            if self.ok:
+                return f"{where} (margin {self.limit:.3f} m)"
+            return f"{where}, below the {self.limit:.3f} m margin by {self.excess:.4f} m"
+        if self.kind == "position":
+            return (
+                f"{self.name}: {self.value:.4f} at t = {self.time:.3f} s, past the limit "
+                f"{self.limit:.4f} by {self.excess:.4f}{unit}"
+            )
+        return (
+            f"{self.name}: {self.value:.4g} at t = {self.time:.3f} s, {self.ratio:.3f} x the "
+            f"limit {self.limit:.4g}"
+        )
+
+
+@dataclass(frozen=True, eq=False)  # arrays: no field-wise ==
+class SafetyReport:
+    """Result of :func:`check_trajectory`; ``usable`` is the verdict.
+
+    Attributes
+    ----------
+    usable :
+        True when every constraint holds at every checked sample.
+    rate_hz :
+        Rate of the checked grid [Hz].
+    resampling :
+        ``"none"`` or ``"cubic_hermite"`` (see the module docstring).
+    t :
+        Checked times [s], shape (n_checked,).
+    pair_names :
+        Link pairs, columns of ``clearance``.
+    clearance :
+        Signed distances [m], shape (n_checked, n_pairs).
+    velocity_ratio, acceleration_ratio, torque_ratio :
+        ``|dq| / dq_max``, ``|ddq| / ddq_max``, ``|tau| / effort`` per joint, shape
+        (n_checked, nq); 0 where the limit is unknown.
+    checks :
+        The worst sample of every constraint.
+    """
+
+    usable: bool
+    rate_hz: float
+    resampling: str
+    t: FloatArray
+    pair_names: tuple[str, ...]
+    clearance: FloatArray
+    velocity_ratio: FloatArray
+    acceleration_ratio: FloatArray
+    torque_ratio: FloatArray
+    checks: tuple[ConstraintCheck, ...]
+
+    def failures(self) -> tuple[ConstraintCheck, ...]:
+        """The violated constraints, worst clearance first."""
+        bad = [c for c in self.checks if not c.ok]
+        return tuple(sorted(bad, key=lambda c: (c.kind != "clearance", -c.excess)))
+
+    def check(self, name: str) -> ConstraintCheck:
+        """The check named ``name``."""
+        for c in self.checks:
+            if c.name == name:
+                return c
+        raise KeyError(f"no check named {name!r}; checks: {', '.join(c.name for c in self.checks)}")
+
+    @property
+    def min_clearance(self) -> ConstraintCheck | None:
+        """The link pair or obstacle with the smallest clearance (``None`` without pairs)."""
+        pairs = [c for c in self.checks if c.kind == "clearance"]
+        return min(pairs, key=lambda c: c.value) if pairs else None
+
+    def summary(self) -> str:
+        """``"usable (...)"`` or ``"unsafe: <worst failure>; ..."`` in one line."""
+        if self.usable:
+            worst = self.min_clearance
+            extra = f"; smallest clearance {worst.describe()}" if worst is not None else ""
+            return f"usable at {self.rate_hz:g} Hz{extra}"
+        fails = self.failures()
+        shown = "; ".join(c.describe() for c in fails[:3])
+        more = f" (+{len(fails) - 3} more)" if len(fails) > 3 else ""
+        return f"unsafe: {shown}{more}"
+
+
+def dense_family_states(
+    family: Any, x: npt.ArrayLike, rate_hz: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """One period of a family's trajectory evaluated at ``rate_hz`` or finer, in closed form.
+
+    The family is re-sampled with ``n = ceil(period * rate_hz)`` samples per period
+    (``family.with_samples(n)``), so every state is the family's formula at the dense times;
+    the grid step is ``period / n <= 1 / rate_hz``.
+
+    Returns
+    -------
+    :
+        ``t`` [s] shape (n,), ``q, dq, ddq`` shape (n, nq).
+
+    Raises
+    ------
+    TypeError
+        If the family cannot be re-sampled (no ``with_samples``); interpolate its samples
+        with :func:`check_trajectory` instead.
+    """
+    with_samples = getattr(family, "with_samples", None)
+    if with_samples is None:
+        raise TypeError(f"{type(family).__name__} has no with_samples(n_samples)")
+    n = int(np.ceil(float(family.period) * float(rate_hz) - 1e-9))
+    batch = with_samples(n).trajectories(np.asarray(x, dtype=float)[None, :])
+    return batch.t, batch.q[0], batch.dq[0], batch.ddq[0]
+
+
+def _resample(
+    t: FloatArray, q: FloatArray, dq: FloatArray, ddq: FloatArray, rate_hz: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    from scipy.interpolate import CubicHermiteSpline, CubicSpline
+
+    n = int(np.ceil((t[-1] - t[0]) * rate_hz - 1e-9)) + 1
+    dense = np.linspace(t[0], t[-1], n)
+    return (
+        dense,
+        CubicHermiteSpline(t, q, dq, axis=0)(dense),
+        CubicHermiteSpline(t, dq, ddq, axis=0)(dense),
+        CubicSpline(t, ddq, axis=0)(dense),
+    )
+
+
+def _ratio(value: FloatArray, limit: FloatArray) -> FloatArray:
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(np.isfinite(limit), np.abs(value) / limit, 0.0)
+
+
+def check_trajectory(
+    robot: Any,
+    safety: SafetyModel,
+    t: npt.ArrayLike,
+    q: npt.ArrayLike,
+    dq: npt.ArrayLike,
+    ddq: npt.ArrayLike,
+    rate_hz: float = MIN_CHECK_RATE_HZ,
+) -> SafetyReport:
+    """Check every constraint of a trajectory at ``rate_hz`` (>= 1 kHz).
+
+    Parameters
+    ----------
+    robot :
+        The robot (its names; the limits and the nominal model come from ``safety``).
+    safety :
+        The safety model (collision geometry, environment, margin, limits).
+    t :
+        Times [s], shape (n_samples,), increasing.
+    q, dq, ddq :
+        Joint states [rad, rad/s, rad/s^2], shape (n_samples, nq).
+    rate_hz :
+        Check rate [Hz], at least :data:`MIN_CHECK_RATE_HZ`; coarser input is interpolated
+        (see the module docstring).
+
+    Returns
+    -------
+    :
+        The report; ``usable`` is False when any constraint is violated at any sample or a
+        state is not finite.
+
+    Raises
+    ------
+    ValueError
+        For ``rate_hz`` below 1 kHz, or arrays of inconsistent shapes.
+    """
+    del robot  # the safety model carries the robot's model, names and limits
+    if not rate_hz >= MIN_CHECK_RATE_HZ:
+        raise ValueError(f"rate_hz must be >= {MIN_CHECK_RATE_HZ:g} Hz, got {rate_hz}")
+    t = np.asarray(t, dtype=float)
+    q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+    nq = safety.limits.nq
+    if t.ndim != 1 or any(a.shape != (t.shape[0], nq) for a in (q, dq, ddq)):
+        raise ValueError(
+            f"t must have shape (n,) and q, dq, ddq shape (n, {nq}); got {t.shape}, "
+            f"{q.shape}, {dq.shape}, {ddq.shape}"
+        )
+    finite = bool(np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.isfinite(ddq)))
+    resampling = "none"
+    if t.shape[0] > 1 and finite and np.max(np.diff(t)) > (1.0 + 1e-9) / rate_hz:
+        t, q, dq, ddq = _resample(t, q, dq, ddq, rate_hz)
+        resampling = "cubic_hermite"
+    limits = safety.limits
+    names = limits.joint_names
+    checks: list[ConstraintCheck] = []
+
+    clearance = safety.clearances(q)
+    for k, pair in enumerate(safety.pair_names):
+        i = int(np.argmin(clearance[:, k]))
+        value = float(clearance[i, k])
+        checks.append(
+            ConstraintCheck(
+                f"clearance:{pair}",
+                "clearance",
+                value,
+                safety.clearance_m,
+                float(t[i]),
+                safety.clearance_m - value,
+            )  # fmt: skip
+        )
+    lower, upper = limits.q_lower, limits.q_upper
+    with np.errstate(invalid="ignore"):
+        past = np.maximum(q - upper, lower - q)
+    for j, joint in enumerate(names):
+        if not (np.isfinite(lower[j]) or np.isfinite(upper[j])):
+            continue
+        i = int(np.nanargmax(past[:, j])) if finite else 0
+        bound = upper[j] if q[i, j] - upper[j] >= lower[j] - q[i, j] else lower[j]
+        excess = float(past[i, j]) if finite else float("inf")
+        checks.append(
+            ConstraintCheck(
+                f"position:{joint}", "position", float(q[i, j]), float(bound), float(t[i]), excess
+            )  # fmt: skip
+        )
+    velocity_ratio = _ratio(dq, limits.dq_max)
+    acceleration_ratio = _ratio(ddq, limits.ddq_max)
+    if finite:
+        tau = joint_torques(safety.robot_model, q, dq, ddq)
+    else:
+        tau = np.full(dq.shape, np.inf)
+    torque_ratio = _ratio(tau, safety.effort_max)
+    for kind, series, limit, ratio in (
+        ("velocity", dq, limits.dq_max, velocity_ratio),
+        ("acceleration", ddq, limits.ddq_max, acceleration_ratio),
+        ("torque", tau, safety.effort_max, torque_ratio),
+    ):
+        for j, joint in enumerate(names):
+            if not np.isfinite(limit[j]):
+                continue
+            i = int(np.argmax(ratio[:, j])) if finite else 0
+            peak = float(abs(series[i, j])) if finite else float("inf")
+            checks.append(
+                ConstraintCheck(
+                    f"{kind}:{joint}",
+                    kind,
+                    peak,
+                    float(limit[j]),
+                    float(t[i]),
+                    peak - float(limit[j]),
+                    peak / float(limit[j]),
+                )  # fmt: skip
+            )
+    usable = finite and all(c.ok for c in checks)
+    return SafetyReport(
+        usable=bool(usable),
+        rate_hz=float(rate_hz),
+        resampling=resampling,
+        t=t,
+        pair_names=safety.pair_names,
+        clearance=clearance,
+        velocity_ratio=velocity_ratio,
+        acceleration_ratio=acceleration_ratio,
+        torque_ratio=torque_ratio,
+        checks=tuple(checks),
+    )
