@@ -29,7 +29,9 @@ def _only(folder: Path) -> Path:
 def _errors(result: dict, share_min: float) -> dict[str, float]:
     """Relative error [%] of the chosen elite's base parameters with a torque share >= min."""
     stage = result["stage"]
-    est = result["elites"][0]["estimates"]["wls"]
+    chosen = result["chosen_elite"]
+    assert chosen is not None, "no safe elite"
+    est = result["elites"][chosen - 1]["estimates"]["wls"]
     out = {}
     for name, true, value, share in zip(
         stage["base_names"],
@@ -81,7 +83,9 @@ def test_friction_and_rotor_inertia_are_recovered_from_the_simulated_log(quick_r
 def test_mujoco_needs_every_joint_moving_and_one_value_per_joint(tmp_path) -> None:
     text = QUICK.read_text().replace("../../../robot", str(REPO / "robot"))
     held = tmp_path / "held.yaml"
-    held.write_text(text + "stage: {moving: [shoulder_pan_joint, elbow_joint]}\n")
+    held.write_text(
+        text + "stage: {moving: [shoulder_pan_joint, shoulder_lift_joint, elbow_joint]}\n"
+    )
     with pytest.raises(ConfigError, match="every joint must move"):
         load_run(held)
     short = tmp_path / "short.yaml"

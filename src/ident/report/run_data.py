@@ -155,11 +155,18 @@ def result_to_dict(result: Any) -> dict[str, Any]:
                 "estimates": estimates,
                 "failures": dict(e.failures),
                 "trajectory_csv": f"elites/elite_{e.rank}.csv",
+                "safety": None
+                if getattr(e, "safety_check", None) is None
+                else {"usable": bool(e.safety_check.usable), "summary": e.safety_check.summary()},
                 "path_csv": None if e.traced_points is None else f"elites/elite_{e.rank}_path.csv",
             }
         )
     out["elites"] = elites
-    out["chosen_elite"] = 1 if elites else None
+    plan = getattr(result, "executable", None)
+    if plan is not None:  # the elite the robot may run (the best one that passed the check)
+        out["chosen_elite"] = plan.elite
+    else:
+        out["chosen_elite"] = 1 if elites else None
     # optional results of later pipeline steps (read with defaults: older results lack them)
     for key in ("consistency", "safety"):
         entry = _plain(getattr(result, key, None))
@@ -226,8 +233,10 @@ def save_run(result: Any, run_dir: str | Path) -> None:
             atomic_write_text(
                 run_dir / "elites" / f"elite_{elite.rank}_path.csv", "\n".join(lines) + "\n"
             )
-        if elite.rank == 1:
-            atomic_write_text(run_dir / "trajectory.csv", csv)
+    plan = getattr(result, "executable", None)
+    if plan is not None and plan.trajectory is not None:
+        # what the controller runs: approach, periods, return, checked as a whole
+        atomic_write_text(run_dir / "trajectory.csv", trajectory_to_csv(plan.trajectory))
     validation = getattr(result, "validation", None)
     if validation is not None and _validation_entry(result) is not None:
         atomic_write_text(run_dir / "validation.csv", _validation_csv(result, validation))
@@ -246,24 +255,29 @@ def write_replay(run_dir: str | Path) -> str:
     Never raises for a missing or failing replay module: the report says so instead.
     """
     run_dir = Path(run_dir)
-    trajectory_path = run_dir / "trajectory.csv"
-    if not trajectory_path.is_file():
-        return "no replay: the run has no chosen trajectory."
     try:
         from ident.viz.replay import replay_html
     except ImportError as e:
         return f"no replay: ident.viz.replay is not available ({e})."
-    trajectory = read_trajectory_csv(trajectory_path)
-    traced_frame, label = None, "elite 1"
+    traced_frame, label, data = None, "elite 1", {}
     try:
         data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
         traced_frame = data["excitation"].get("traced_frame")
         stage = data["config"]["stage"]
-        label = f"elite 1 of {data.get('name')} ({stage} stage)"
         if traced_frame is None and stage == "arm":
             traced_frame = "wrist_centre"
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        stage = None
+    # one period of the elite the robot may run; without one, elite 1, marked unsafe
+    chosen = data.get("chosen_elite") if isinstance(data, dict) else None
+    rank = chosen if isinstance(chosen, int) else 1
+    trajectory_path = run_dir / "elites" / f"elite_{rank}.csv"
+    if not trajectory_path.is_file():
+        return "no replay: the run has no elite trajectory."
+    trajectory = read_trajectory_csv(trajectory_path)
+    label = f"elite {rank} of {data.get('name')} ({stage} stage)" if data else label
+    if not isinstance(chosen, int) and data.get("safety") is not None:
+        label += " - UNSAFE, not for the robot"
     page, problem = None, ""
     for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
         try:

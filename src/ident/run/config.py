@@ -14,6 +14,7 @@ file.
 
 from __future__ import annotations
 
+import difflib
 import math
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -23,6 +24,7 @@ from pydantic import AfterValidator, Field, field_validator, model_validator
 from ident.config import StrictModel, load_config_file, read_yaml
 from ident.errors import ConfigError, OptimizationError
 from ident.excitation.registry import check_family_name
+from ident.excitation.safety import SafetyConfig
 from ident.identify.config import (
     EssentialConfig,
     EstimationConfig,
@@ -33,11 +35,13 @@ from ident.identify.config import (
 from ident.inputs import read_urdf_text
 from ident.measure.mujoco_config import MujocoMeasurement
 from ident.model.selection import RobotSelection
+from ident.optim import METHODS
 
 __all__ = [
     "ElitesSection",
     "EmupsoSection",
     "EstimationSection",
+    "ControllerSection",
     "ExcitationSection",
     "LogIdentificationSection",
     "MeasurementSection",
@@ -221,6 +225,25 @@ class LogIdentificationSection(StrictModel):
     validation: ValidationConfig = ValidationConfig()
 
 
+class ControllerSection(StrictModel):
+    """The trajectory a controller runs (``trajectory.csv``): rate, periods, home posture.
+
+    Attributes
+    ----------
+    rate_hz :
+        Controller rate [Hz] of ``trajectory.csv``.
+    n_periods :
+        Excitation periods between the approach from home and the return to it.
+    home :
+        Home posture [rad or m], one value per joint; ``null``: the excitation's start
+        posture (the approach then only brings the robot up to speed).
+    """
+
+    rate_hz: float = Field(default=1000.0, gt=0.0, le=100_000.0, allow_inf_nan=False)
+    n_periods: int = Field(default=1, ge=1, le=1000)
+    home: list[float] | None = None
+
+
 class QuickSection(StrictModel):
     """Small settings for ``--quick``: a first look in seconds."""
 
@@ -268,6 +291,17 @@ class RunConfig(StrictModel):
         custom stage (:class:`StageSection`).
     seed :
         Seed of every random draw of the run.
+    optimizer :
+        Method of ``ident.optim.minimize`` for the runs started from the elites: ``emupso``
+        (the paper's, with the ``emupso`` section's options) or any registered method
+        (``cma``, ``pso``, ``de``, ...; options in ``optimizer_options``). The swarm size,
+        iterations and runs come from the ``emupso`` section for every method.
+    safety :
+        The collision, floor, obstacle and torque constraints (docs/safety.md). Given, they
+        enter the optimization; absent, the defaults (floor at z = 0, self-collision, 0.03 m)
+        still decide, at the controller's rate, which reported trajectory is usable.
+    controller :
+        Rate, periods and home posture of ``trajectory.csv`` (:class:`ControllerSection`).
     """
 
     name: str | None = None
@@ -277,10 +311,23 @@ class RunConfig(StrictModel):
     excitation: ExcitationSection
     elites: ElitesSection = ElitesSection()
     emupso: EmupsoSection = EmupsoSection()
+    optimizer: str = "emupso"
+    optimizer_options: dict[str, Any] = Field(default_factory=dict)
+    safety: SafetyConfig | None = None
+    controller: ControllerSection = ControllerSection()
     measurement: Measurement = MeasurementSection()
     estimation: EstimationSection = EstimationSection()
     identification: LogIdentificationSection = LogIdentificationSection()
     quick: QuickSection = QuickSection()
+
+    @field_validator("optimizer")
+    @classmethod
+    def _known_method(cls, value: str) -> str:
+        if value not in METHODS:
+            close = difflib.get_close_matches(value, list(METHODS), n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ValueError(f"unknown optimizer; {hint}methods: {', '.join(METHODS)}")
+        return value
 
     @model_validator(mode="before")
     @classmethod

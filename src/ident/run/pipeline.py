@@ -55,6 +55,7 @@ from ident.run.results import (
     RunResult,
     StageInfo,
 )
+from ident.run.safety_check import check_elites, plan_executable
 from ident.run.setup import RunSetup, prepare_run
 from ident.run.stage_info import build_stage_info
 
@@ -134,6 +135,7 @@ def run_pipeline(
         family,
         criterion=config.excitation.criterion,
         base_columns=[stage_info.columns[i] for i in stage_info.base.independent],
+        safety=setup.safety if config.safety is not None else None,
     )
     measure = identify_elite
     if config.measurement.source == "mujoco":  # a simulated log, identified as a measured one
@@ -142,7 +144,13 @@ def run_pipeline(
         measure = identify_elite_log
     bounds = np.asarray(family.bounds, dtype=float)
 
-    state: dict[str, Any] = {"runs": [], "elites": None, "elite_message": "", "outcomes": []}
+    state: dict[str, Any] = {
+        "runs": [],
+        "elites": None,
+        "elite_message": "",
+        "outcomes": [],
+        "safety": [],
+    }
     base = RunResult(
         config=config,
         status="incomplete",
@@ -196,7 +204,8 @@ def run_pipeline(
         cfg_o = config.emupso
         total = cfg_o.n_runs * cfg_o.maxiter
         for k in range(cfg_o.n_runs):
-            phase = f"eMuPSO run {k + 1} of {cfg_o.n_runs}"
+            label = "eMuPSO" if config.optimizer == "emupso" else config.optimizer
+            phase = f"{label} run {k + 1} of {cfg_o.n_runs}"
             gen = np.random.default_rng(run_streams[k])
             x0 = spawn_from_elites(
                 search.elites, cfg_o.n_particles, bounds, cfg_o.sigma_fraction, gen
@@ -205,11 +214,14 @@ def run_pipeline(
             def on_iteration(r: Any, k: int = k) -> None:
                 notify(Progress("optimize", k * cfg_o.maxiter + r.nit, total, run=k, best=r.fun))
 
-            options = {"stall_threshold": cfg_o.stagnation, **cfg_o.options}
+            if config.optimizer == "emupso":
+                options = {"stall_threshold": cfg_o.stagnation, **cfg_o.options}
+            else:
+                options = dict(config.optimizer_options)
             res = minimize(
                 objective,
                 bounds,
-                method="emupso",
+                method=config.optimizer,
                 rng=gen,
                 maxiter=cfg_o.maxiter,
                 popsize=cfg_o.n_particles,
@@ -232,6 +244,10 @@ def run_pipeline(
                 "widen the limits or narrow the excitation bounds."
             )
 
+        # the dense check at the controller's rate decides which elites a robot may run
+        phase = "dense safety check"
+        state["safety"] = check_elites(config, robot, family, setup.safety, chosen_x)
+
         # 4-5. measurements and estimates
         details = _details(objective, chosen_x)
         meas_streams = streams[2].spawn(chosen_x.shape[0])
@@ -249,8 +265,11 @@ def run_pipeline(
                     details[i],
                     meas_streams[i],
                 )
+            outcome = dataclasses.replace(outcome, safety_check=state["safety"][i])
             state["outcomes"].append(outcome)
             notify(Progress("identify", i + 1, chosen_x.shape[0], best=outcome.fitness))
+        phase = "executable trajectory"
+        plan = plan_executable(config, robot, family, setup.safety, chosen_x, state["safety"])
     except KeyboardInterrupt as e:
         raise RunInterrupted(partial(f"interrupted (Ctrl-C) during the {phase}"), e) from e
     except IdentError as e:
@@ -266,8 +285,17 @@ def run_pipeline(
             "no elite trajectory identifies the stage's base parameters (see the failures "
             "per elite); the estimates are missing, not zero."
         )
+    if not plan.usable:  # never reported as usable: the robot must not run it
+        warnings.append(plan.message)
     result = partial("")
-    return _replace(result, status="complete", message="run complete", warnings=tuple(warnings))
+    return _replace(
+        result,
+        status="complete",
+        message="run complete",
+        warnings=tuple(warnings),
+        executable=plan,
+        safety={"ok": plan.usable, "message": plan.message},
+    )
 
 
 def _small_blas() -> Any:

@@ -256,6 +256,7 @@ class EliteOutcome:
     base_column_norms: FloatArray | None = None
     true_torque_norm: float | None = None
     log: Any = None  # measurement.source mujoco: the LogOutcome (simulated log + identification)
+    safety_check: Any = None  # the dense SafetyReport of one period (ident.excitation.check)
 
 
 @dataclass(frozen=True, eq=False)
@@ -285,6 +286,8 @@ class RunResult:
     runs: tuple[OptimizerRun, ...] = ()
     elites: tuple[EliteOutcome, ...] = ()
     warnings: tuple[str, ...] = field(default_factory=tuple)
+    executable: Any = None  # the run.safety_check.ExecutablePlan (trajectory.csv), or None
+    safety: dict[str, Any] | None = None  # {"ok": bool, "message": str} for the report
 
 
 class RunInterrupted(Exception):

@@ -19,6 +19,7 @@ import numpy.typing as npt
 from ident.dynamics.stage import Stage, select_stage
 from ident.errors import ConfigError, IdentError, ModelError
 from ident.excitation.registry import build_family
+from ident.excitation.safety import SafetyConfig, SafetyModel, build_safety_model
 from ident.measure.mujoco_config import check_joint_counts
 from ident.model import Robot
 from ident.model.selection import load_robot
@@ -43,12 +44,16 @@ class RunSetup:
         The stage to identify.
     family :
         The excitation family, with ``excitation.bounds`` applied to its ``bounds``.
+    safety :
+        The collision, floor, obstacle and torque model (the config's ``safety`` section, or
+        the defaults), which checks every reported trajectory.
     """
 
     config: RunConfig
     robot: Robot
     stage: Stage
     family: Any
+    safety: SafetyModel
 
     @property
     def bounds(self) -> FloatArray:
@@ -72,12 +77,16 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
         family = make_family(config, robot, stage)
         _check_measurement(config, robot, stage)
         _check_sampling(config, family)
+        _check_controller(config, robot)
+        safety = build_safety_model(
+            robot, config.safety or SafetyConfig(), package_dirs=robot.package_dirs
+        )
     except IdentError as e:
         message = str(e)
         if not message.startswith(str(source)):
             message = f"{source}: {message}"
         raise type(e)(message) from e
-    return RunSetup(config=config, robot=robot, stage=stage, family=family)
+    return RunSetup(config=config, robot=robot, stage=stage, family=family, safety=safety)
 
 
 def load_run(path: str | Path) -> RunSetup:
@@ -122,6 +131,25 @@ def _override_bounds(
             )
         bounds[names.index(name)] = (low, high)
     return bounds
+
+
+def _check_controller(config: RunConfig, robot: Robot) -> None:
+    """A home posture has one position per joint, within the position limits."""
+    home = config.controller.home
+    if home is None:
+        return
+    if len(home) != robot.nq:
+        raise ConfigError(
+            f"controller.home has {len(home)} values, the robot has {robot.nq} joints "
+            f"({', '.join(robot.joint_names)}); give one position per joint [rad or m]."
+        )
+    for name, value, low, high in zip(
+        robot.joint_names, home, robot.q_lower, robot.q_upper, strict=True
+    ):
+        if not (np.isfinite(value) and low <= value <= high):
+            raise ConfigError(
+                f"controller.home: {name} = {value} is outside its limits [{low:g}, {high:g}]."
+            )
 
 
 def _check_sampling(config: RunConfig, family: Any) -> None:

@@ -1,0 +1,117 @@
+"""Which reported trajectories a robot may run: the dense safety check and ``trajectory.csv``.
+
+Every reported elite is checked at the controller's rate (at least 1 kHz) against the robot's
+own links, the floor, the config's obstacles, and the position, velocity, acceleration and
+torque limits (:func:`ident.excitation.check.check_trajectory`, on the family's closed form at
+the dense times). The best elite that passes becomes the executable trajectory: an approach
+from the home posture, the excitation periods and the return, at the controller's rate,
+checked again as a whole. A trajectory that fails is never reported as usable; when none
+passes, the run says which pair or limit, when and by how much, and writes no
+``trajectory.csv``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ident.excitation.check import SafetyReport, check_trajectory, dense_family_states
+from ident.excitation.executable import executable_trajectory
+from ident.excitation.safety import SafetyModel
+from ident.run.config import RunConfig
+from ident.trajectory import JointTrajectory
+
+__all__ = ["ExecutablePlan", "check_elites", "plan_executable"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class ExecutablePlan:
+    """The trajectory a controller runs, or why there is none.
+
+    Attributes
+    ----------
+    elite :
+        1-based rank of the elite it executes, or None.
+    trajectory :
+        Approach + periods + return at the controller's rate, or None.
+    report :
+        Its dense safety check, or None.
+    message :
+        One line: what was chosen, or why nothing is usable.
+    """
+
+    elite: int | None
+    trajectory: JointTrajectory | None
+    report: SafetyReport | None
+    message: str
+
+    @property
+    def usable(self) -> bool:
+        """True when a checked trajectory is ready for the controller."""
+        return self.report is not None and self.report.usable
+
+
+def check_elites(
+    config: RunConfig, robot: Any, family: Any, safety: SafetyModel, xs: FloatArray
+) -> list[SafetyReport]:
+    """The dense safety check of every design in ``xs`` (shape (n, n_vars)), one period each."""
+    rate = max(safety.config.check_rate_hz, config.controller.rate_hz)
+    return [
+        check_trajectory(robot, safety, *_period_states(family, x, rate), rate_hz=rate)
+        for x in np.atleast_2d(xs)
+    ]
+
+
+def _period_states(family: Any, x: FloatArray, rate_hz: float) -> tuple[FloatArray, ...]:
+    """One period at ``rate_hz``: the family's closed form where it offers ``with_samples``
+    (exact), else its samples, which the check interpolates (cubic Hermite)."""
+    if hasattr(family, "with_samples"):
+        return dense_family_states(family, x, rate_hz)
+    batch = family.trajectories(np.atleast_2d(x))
+    return batch.t, batch.q[0], batch.dq[0], batch.ddq[0]
+
+
+def plan_executable(
+    config: RunConfig,
+    robot: Any,
+    family: Any,
+    safety: SafetyModel,
+    xs: FloatArray,
+    reports: list[SafetyReport],
+) -> ExecutablePlan:
+    """The executable trajectory of the best elite whose excitation passed the dense check."""
+    ctl = config.controller
+    rate = max(safety.config.check_rate_hz, ctl.rate_hz)
+    tried = []
+    for rank, (x, report) in enumerate(zip(np.atleast_2d(xs), reports, strict=True), start=1):
+        if not report.usable:
+            continue
+        if not hasattr(family, "with_samples"):
+            tried.append(f"elite {rank}: the family has no closed form for the controller's rate")
+            continue
+        start = np.asarray(family.trajectories(x[None, :]).q[0, 0], dtype=float)
+        home = start if ctl.home is None else np.asarray(ctl.home, dtype=float)
+        trajectory = executable_trajectory(
+            family, x, home, rate_hz=ctl.rate_hz, n_periods=ctl.n_periods
+        )
+        full = check_trajectory(
+            robot, safety, trajectory.t, trajectory.q, trajectory.dq, trajectory.ddq, rate_hz=rate
+        )
+        if full.usable:
+            return ExecutablePlan(
+                rank,
+                trajectory,
+                full,
+                f"elite {rank}: approach, {ctl.n_periods} period(s) and return at "
+                f"{ctl.rate_hz:g} Hz, {full.summary()}",
+            )
+        tried.append(f"elite {rank}'s approach or return: {full.summary()}")
+    if not tried:
+        worst = reports[0].summary() if reports else "no elite"
+        return ExecutablePlan(None, None, None, f"no elite trajectory is safe; elite 1 is {worst}")
+    return ExecutablePlan(None, None, None, "no safe executable trajectory: " + "; ".join(tried))

@@ -1,0 +1,77 @@
+"""``ident run`` never reports an unsafe trajectory as usable.
+
+References: the written ``trajectory.csv`` re-checked independently with plain Pinocchio + coal
+(the URDF's collision geometry and a floor half-space) at its 1 kHz samples, and the robot's
+limits; and the paper's arm stage, whose trajectories go through the floor and the pedestal.
+"""
+
+from pathlib import Path
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+from typer.testing import CliRunner
+
+from ident.cli import app
+from ident.model import Robot
+from ident.trajectory import read_trajectory_csv
+
+REPO = Path(__file__).resolve().parents[1]
+runner = CliRunner()
+
+
+def _only(folder: Path) -> Path:
+    (path,) = [p for p in folder.iterdir() if p.is_dir()]
+    return path
+
+
+def test_written_trajectory_keeps_clear_of_the_floor_and_within_limits(tmp_path) -> None:
+    config = REPO / "tests" / "data" / "run" / "quick-wrist.yaml"
+    result = runner.invoke(app, ["run", str(config), "--out", str(tmp_path), "--no-replay"])
+    assert result.exit_code == 0, result.output
+    run = _only(tmp_path)
+    traj = read_trajectory_csv(run / "trajectory.csv")
+    assert np.all(np.diff(traj.t) <= 1e-3 + 1e-12)  # the controller's rate, 1 kHz
+    # it starts and ends at rest (approach and return)
+    np.testing.assert_allclose(traj.dq[[0, -1]], 0.0, atol=1e-9)
+    robot = Robot.from_config("configs/paper6r.yaml")
+    assert np.all(traj.q >= robot.q_lower - 1e-9)
+    assert np.all(traj.q <= robot.q_upper + 1e-9)
+    assert np.all(np.abs(traj.dq) <= robot.dq_max + 1e-9)
+    assert np.all(np.abs(traj.ddq) <= robot.ddq_max + 1e-9)
+    # independent: every link's collision geometry above the floor by the 3 cm margin
+    text = (run / "robot.urdf").read_text()
+    model = pin.buildModelFromXML(text)
+    geom = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION)
+    n_robot = len(geom.geometryObjects)
+    floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0)
+    geom.addGeometryObject(pin.GeometryObject("floor", 0, 0, pin.SE3.Identity(), floor))
+    # the pedestal stands on the floor and link 1 turns about its vertical axis on it: their
+    # height never changes; every link from joint 2 on can go down
+    moving = [
+        k
+        for k, o in enumerate(geom.geometryObjects[:n_robot])
+        if model.frames[o.parentFrame].parentJoint >= 2
+    ]
+    for k in moving:
+        geom.addCollisionPair(pin.CollisionPair(k, n_robot))
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    smallest = np.inf
+    for q in traj.q:
+        pin.computeDistances(model, data, geom, gdata, q)
+        smallest = min(smallest, min(r.min_distance for r in gdata.distanceResults))
+    assert smallest >= 0.03 - 1e-6
+
+
+@pytest.mark.slow
+def test_the_papers_arm_stage_is_reported_unsafe_with_pair_and_time(tmp_path) -> None:
+    result = runner.invoke(
+        app, ["run", "configs/arm.yaml", "--quick", "--out", str(tmp_path), "--no-replay"]
+    )
+    assert result.exit_code == 1, result.output
+    assert "error: no elite trajectory is safe; elite 1 is unsafe: clearance:" in result.stderr
+    assert " at t = " in result.stderr
+    run = _only(tmp_path)
+    assert not (run / "trajectory.csv").exists()  # nothing a robot could be given
+    assert (run / "result.json").is_file()  # the design data are kept for inspection
