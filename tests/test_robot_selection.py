@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from robots import ERD_ROBOTS, PANDA_URDF, UR5_URDF
+from robots import ERD_ROBOTS, ERD_SHARE, PANDA_URDF, UR5_URDF
 
 from ident.cli.verify import run_verification
 from ident.dynamics.friction import ExtraTerms
@@ -105,7 +105,7 @@ def _erd_selection(path: Path) -> RobotSelection:
         idx = model.joints[model.getJointId(name)].idx_q
         low, high = model.lowerPositionLimit[idx], model.upperPositionLimit[idx]
         lock[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
-    return RobotSelection(urdf=path, lock=lock)
+    return RobotSelection(urdf=path, lock=lock, package_dirs=[ERD_SHARE])  # run's collision meshes
 
 
 def _verdicts(selection: RobotSelection) -> dict[str, object]:
