@@ -1,7 +1,7 @@
 """The benchmark functions of the paper's Tables 4-6, in an extensible registry.
 
-The canonical definitions are those of ``benchmark-functions.md`` (the project's spec, checked
-against Jamil & Yang 2013, Surjanovic & Bingham, Gavana/scipy, Adorio MVF, Molga &
+The definitions are the formulas of this module, with the bounds and optima of their registry
+entries (checked against Jamil & Yang 2013, Surjanovic & Bingham, Gavana/scipy, Adorio MVF, Molga &
 Smutnicki, Mirjalili's benchmark file). Every function maps a population ``(n_pop, dim)`` to
 ``(n_pop,)``; a 1-D ``x`` is one point. Functions defined for a fixed number ``k`` of variables
 read columns ``0..k-1`` and ignore the others (so the paper's "Dim 30" vectors still work).
@@ -9,7 +9,7 @@ read columns ``0..k-1`` and ignore the others (so the paper's "Dim 30" vectors s
 Two orders are available: :func:`table_functions` (the 36 rows of Tables 4-6/8: the appendix set
 minus Schwefel 2.26, plus Pen Holder as table F16, with the appendix F16-F23 shifted to table
 F17-F24) and :func:`appendix_functions` (appendix F1-F36, with Schwefel 2.26 as F24). Each entry
-carries both IDs. Documented alternatives of the spec are registered too (``step2_floor``,
+carries both IDs. Documented alternative definitions are registered too (``step2_floor``,
 ``cosine_mixture_jy``, ``hartmann3_paper_bounds``, ``langerman5_paper``); they are in neither
 order. Users add their own with :func:`register_function`.
 """
@@ -64,7 +64,7 @@ class BenchmarkFunction:
     appendix_id, table_id :
         IDs in the paper's appendix and in its tables (``None`` where absent).
     tol :
-        Tolerance of ``f(x_star) - f_star`` (the spec's check 1: 1e-6).
+        Tolerance of ``f(x_star) - f_star`` (the registry's check: 1e-6).
     note :
         Where the definition departs from the paper's appendix, in one line.
     """
@@ -122,7 +122,7 @@ def register_function(
 
     ``x_star`` (if given) is checked: it must have ``dim`` finite values inside the bounds
     (closed box, no tolerance) and satisfy ``|f(x_star) - f_star| <= tol`` (absolute; the
-    default ``tol = 1e-6`` is the spec's check). Pass a larger ``tol`` for a minimiser known
+    default ``tol = 1e-6`` is the registry's check). Pass a larger ``tol`` for a minimiser known
     only to a few digits.
 
     Raises
@@ -225,7 +225,7 @@ def appendix_functions() -> list[BenchmarkFunction]:
 
 
 # ---------------------------------------------------------------------------------------------
-# definitions (1-based formulas of the spec, 0-based columns here)
+# definitions (1-based formulas as documented, 0-based columns here)
 
 
 def _c(x: FloatArray, k: int) -> FloatArray:
@@ -233,34 +233,34 @@ def _c(x: FloatArray, k: int) -> FloatArray:
 
 
 def sphere(x: FloatArray) -> FloatArray:
-    """Sphere: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Sphere: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(x**2, axis=1)
 
 
 def beale(x: FloatArray) -> FloatArray:
-    """Beale: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Beale: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return (1.5 - a + a * b) ** 2 + (2.25 - a + a * b**2) ** 2 + (2.625 - a + a * b**3) ** 2
 
 
 def matyas(x: FloatArray) -> FloatArray:
-    """Matyas: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Matyas: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return 0.26 * (a**2 + b**2) - 0.48 * a * b
 
 
 def rosenbrock(x: FloatArray) -> FloatArray:
-    """Rosenbrock: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Rosenbrock: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(100.0 * (x[:, 1:] - x[:, :-1] ** 2) ** 2 + (x[:, :-1] - 1.0) ** 2, axis=1)
 
 
 def step2(x: FloatArray) -> FloatArray:
-    """Step2: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Step2: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum((x + 0.5) ** 2, axis=1)
 
 
 def step2_floor(x: FloatArray) -> FloatArray:
-    """Step2 floor: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Step2 floor: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(np.floor(x + 0.5) ** 2, axis=1)
 
 
@@ -269,29 +269,29 @@ def _schaffer_den(a: FloatArray, b: FloatArray) -> FloatArray:
 
 
 def schaffer2(x: FloatArray) -> FloatArray:
-    """Schaffer2: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Schaffer2: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return 0.5 + (np.sin(a**2 - b**2) ** 2 - 0.5) / _schaffer_den(a, b)
 
 
 def schaffer3(x: FloatArray) -> FloatArray:
-    """Schaffer3: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Schaffer3: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return 0.5 + (np.sin(np.cos(np.abs(a**2 - b**2))) ** 2 - 0.5) / _schaffer_den(a, b)
 
 
 def schwefel12(x: FloatArray) -> FloatArray:
-    """Schwefel12: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Schwefel12: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(np.cumsum(x, axis=1) ** 2, axis=1)
 
 
 def schwefel221(x: FloatArray) -> FloatArray:
-    """Schwefel221: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Schwefel221: ``(n_pop, dim) -> (n_pop,)``."""
     return np.max(np.abs(x), axis=1)
 
 
 def schwefel222(x: FloatArray) -> FloatArray:
-    """Schwefel222: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Schwefel222: ``(n_pop, dim) -> (n_pop,)``."""
     ax = np.abs(x)
     return np.sum(ax, axis=1) + np.prod(ax, axis=1)
 
@@ -301,33 +301,33 @@ def _i(x: FloatArray) -> FloatArray:
 
 
 def dejong4(x: FloatArray) -> FloatArray:
-    """Dejong4: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Dejong4: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(_i(x) * x**4, axis=1)
 
 
 def axis_parallel(x: FloatArray) -> FloatArray:
-    """Axis parallel: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Axis parallel: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(_i(x) * x**2, axis=1)
 
 
 def easom(x: FloatArray) -> FloatArray:
-    """Easom: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Easom: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return -np.cos(a) * np.cos(b) * np.exp(-((a - np.pi) ** 2) - (b - np.pi) ** 2)
 
 
 def griewank(x: FloatArray) -> FloatArray:
-    """Griewank: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Griewank: ``(n_pop, dim) -> (n_pop,)``."""
     return 1.0 + np.sum(x**2, axis=1) / 4000.0 - np.prod(np.cos(x / np.sqrt(_i(x))), axis=1)
 
 
 def rastrigin(x: FloatArray) -> FloatArray:
-    """Rastrigin: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Rastrigin: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(x**2 - 10.0 * np.cos(2.0 * np.pi * x) + 10.0, axis=1)
 
 
 def pen_holder(x: FloatArray) -> FloatArray:
-    """Pen holder: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Pen holder: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     inner = np.abs(np.cos(a) * np.cos(b) * np.exp(np.abs(1.0 - np.hypot(a, b) / np.pi)))
     with np.errstate(divide="ignore"):
@@ -335,13 +335,13 @@ def pen_holder(x: FloatArray) -> FloatArray:
 
 
 def test_tube_holder(x: FloatArray) -> FloatArray:
-    """Test tube holder: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Test tube holder: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return -4.0 * np.abs(np.sin(a) * np.cos(b) * np.exp(np.abs(np.cos((a**2 + b**2) / 200.0))))
 
 
 def egg_holder(x: FloatArray) -> FloatArray:
-    """Egg holder: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Egg holder: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return -(b + 47.0) * np.sin(np.sqrt(np.abs(b + a / 2.0 + 47.0))) - a * np.sin(
         np.sqrt(np.abs(a - b - 47.0))
@@ -349,7 +349,7 @@ def egg_holder(x: FloatArray) -> FloatArray:
 
 
 def damavandi(x: FloatArray) -> FloatArray:
-    """Damavandi: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Damavandi: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     # np.sinc(t) = sin(pi t) / (pi t) with the removable singularity handled
     return (1.0 - np.abs(np.sinc(a - 2.0) * np.sinc(b - 2.0)) ** 5) * (
@@ -358,36 +358,36 @@ def damavandi(x: FloatArray) -> FloatArray:
 
 
 def cross_leg_table(x: FloatArray) -> FloatArray:
-    """Cross leg table: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Cross leg table: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     e = np.exp(np.abs(100.0 - np.hypot(a, b) / np.pi))
     return -((np.abs(np.sin(a) * np.sin(b) * e) + 1.0) ** -0.1)
 
 
 def bukin4(x: FloatArray) -> FloatArray:
-    """Bukin4: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Bukin4: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return 100.0 * b**2 + 0.01 * np.abs(a + 10.0)
 
 
 def bukin6(x: FloatArray) -> FloatArray:
-    """Bukin6: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Bukin6: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return 100.0 * np.sqrt(np.abs(b - 0.01 * a**2)) + 0.01 * np.abs(a + 10.0)
 
 
 def cosine_mixture(x: FloatArray) -> FloatArray:
-    """Cosine mixture: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Cosine mixture: ``(n_pop, dim) -> (n_pop,)``."""
     return np.sum(x**2, axis=1) - 0.1 * np.sum(np.cos(5.0 * np.pi * x), axis=1)
 
 
 def cosine_mixture_jy(x: FloatArray) -> FloatArray:
-    """Cosine mixture jy: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Cosine mixture jy: ``(n_pop, dim) -> (n_pop,)``."""
     return -0.1 * np.sum(np.cos(5.0 * np.pi * x), axis=1) - np.sum(x**2, axis=1)
 
 
 def modified_rosenbrock(x: FloatArray) -> FloatArray:
-    """Modified rosenbrock: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Modified rosenbrock: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return (
         74.0
@@ -398,12 +398,12 @@ def modified_rosenbrock(x: FloatArray) -> FloatArray:
 
 
 def schwefel226(x: FloatArray) -> FloatArray:
-    """Schwefel226: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Schwefel226: ``(n_pop, dim) -> (n_pop,)``."""
     return -np.mean(x * np.sin(np.sqrt(np.abs(x))), axis=1)
 
 
 def paviani(x: FloatArray) -> FloatArray:
-    """Paviani: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Paviani: ``(n_pop, dim) -> (n_pop,)``."""
     y = x[:, :10]
     with np.errstate(divide="ignore", invalid="ignore"):
         return (
@@ -412,19 +412,19 @@ def paviani(x: FloatArray) -> FloatArray:
 
 
 def modified_ackley(x: FloatArray) -> FloatArray:
-    """Modified ackley: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Modified ackley: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return math.exp(-0.2) * np.hypot(a, b) + 3.0 * (np.cos(2.0 * a) + np.sin(2.0 * b))
 
 
 def camel6(x: FloatArray) -> FloatArray:
-    """Camel6: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Camel6: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return (4.0 - 2.1 * a**2 + a**4 / 3.0) * a**2 + a * b + (-4.0 + 4.0 * b**2) * b**2
 
 
 def branin(x: FloatArray) -> FloatArray:
-    """Branin: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Branin: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     return (
         (b - 5.1 / (4.0 * np.pi**2) * a**2 + 5.0 / np.pi * a - 6.0) ** 2
@@ -456,12 +456,12 @@ def _hartmann(x: FloatArray, a: FloatArray, p: FloatArray) -> FloatArray:
 
 
 def hartmann3(x: FloatArray) -> FloatArray:
-    """Hartmann3: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Hartmann3: ``(n_pop, dim) -> (n_pop,)``."""
     return _hartmann(x, _H3_A, _H3_P)
 
 
 def hartmann6(x: FloatArray) -> FloatArray:
-    """Hartmann6: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Hartmann6: ``(n_pop, dim) -> (n_pop,)``."""
     return _hartmann(x, _H6_A, _H6_P)
 
 
@@ -478,22 +478,22 @@ def _shekel(x: FloatArray, m: int) -> FloatArray:
 
 
 def shekel5(x: FloatArray) -> FloatArray:
-    """Shekel5: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Shekel5: ``(n_pop, dim) -> (n_pop,)``."""
     return _shekel(x, 5)
 
 
 def shekel7(x: FloatArray) -> FloatArray:
-    """Shekel7: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Shekel7: ``(n_pop, dim) -> (n_pop,)``."""
     return _shekel(x, 7)
 
 
 def shekel10(x: FloatArray) -> FloatArray:
-    """Shekel10: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Shekel10: ``(n_pop, dim) -> (n_pop,)``."""
     return _shekel(x, 10)
 
 
 def perm(x: FloatArray, beta: float = 0.5) -> FloatArray:
-    """Perm: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Perm: ``(n_pop, dim) -> (n_pop,)``."""
     y = x[:, :4]
     d = y.shape[1]
     j = np.arange(1, d + 1, dtype=float)
@@ -503,7 +503,7 @@ def perm(x: FloatArray, beta: float = 0.5) -> FloatArray:
 
 
 def goldstein_price(x: FloatArray) -> FloatArray:
-    """Goldstein price: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Goldstein price: ``(n_pop, dim) -> (n_pop,)``."""
     a, b = _c(x, 0), _c(x, 1)
     f1 = 1.0 + (a + b + 1.0) ** 2 * (19 - 14 * a + 3 * a**2 - 14 * b + 6 * a * b + 3 * b**2)
     f2 = 30.0 + (2 * a - 3 * b) ** 2 * (18 - 32 * a + 12 * a**2 + 48 * b - 36 * a * b + 27 * b**2)
@@ -527,12 +527,12 @@ def _langerman(x: FloatArray, c: FloatArray) -> FloatArray:
 
 
 def langerman5(x: FloatArray) -> FloatArray:
-    """Langerman5: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Langerman5: ``(n_pop, dim) -> (n_pop,)``."""
     return -_langerman(x, _LANG_C)
 
 
 def langerman5_paper(x: FloatArray) -> FloatArray:
-    """Langerman5 paper: ``(n_pop, dim) -> (n_pop,)`` (definition in the spec)."""
+    """Langerman5 paper: ``(n_pop, dim) -> (n_pop,)``."""
     return _langerman(x, _LANG_C_PAPER)
 
 

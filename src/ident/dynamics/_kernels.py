@@ -1,7 +1,8 @@
 """Compiled (numba) kernels of the Newton-Euler regressor; private.
 
 Scalar arithmetic, scratch buffers allocated once per call, nothing allocated in the sample
-loop (DESIGN.md, performance notes). The math is the one documented in
+loop: past a few thousand samples, writing a regressor tensor costs more than computing it
+(benchmarks/bench_regressor.py). The math is the one documented in
 :mod:`ident.dynamics.regressor`; :func:`ident.dynamics.regressor.joint_torque_regressor_numpy`
 is the readable reference it is tested against.
 """

@@ -11,7 +11,7 @@ Every component of section 3 of the paper, each parameter an option with the pap
   over the finite personal bests). The global best here is the swarm's own (it restarts after
   a mutation), as in the paper. (A MATLAB "Yarpiz"-style code, which the paper's names
   ``GlobalBestCost``/``BestCost`` suggest, stores the best-cost *history* in ``BestCost``; we
-  follow the reading of DESIGN.md: the personal best costs of the current swarm.)
+  read it as the personal best costs of the current swarm, which a swarm radius measures.)
 * **Stagnation counter (eq. 6)** with a *relative* tolerance instead of exact equality:
   ``g += 1`` if ``|rad_{t-1} - rad_t| <= stall_rtol * max(|rad_{t-1}|, |rad_t|)`` (or they are
   equal), else ``g = 0``.
@@ -54,9 +54,10 @@ Choices the paper leaves open (documented and tested):
 
 References
 ----------
-Paper of this project: "Parameter Estimation for Industrial Robot Manipulators Using an Improved
-Particle Swarm Optimization Algorithm with Gaussian Mutation and Archived Elite Learning",
-section 3 (eq. 3-8), in ``../shared/seed/`` beside this repository.
+A. Umar, Z. Shi, L. Zheng, A. Khlil, Z. I. B. Farouk, "Parameter Estimation for Industrial Robot
+Manipulators Using an Improved Particle Swarm Optimization Algorithm with Gaussian Mutation and
+Archived Elite Learning", Advances in Science, Technology and Engineering Systems Journal 5(6),
+1436-1457, 2020, doi:10.25046/aj0506174; section 3 (eq. 3-8).
 """
 
 from __future__ import annotations
