@@ -56,7 +56,7 @@ class BenchmarkFunction:
     bounds :
         ``(low, high)`` per variable, length ``dim``.
     f_star :
-        Exact global minimum (spec column "f* (spec)").
+        Exact global minimum (not the paper's rounded f_min).
     x_star :
         One global minimiser, shape (dim,), or ``None`` if unknown.
     group :
@@ -331,7 +331,7 @@ def pen_holder(x: FloatArray) -> FloatArray:
     a, b = _c(x, 0), _c(x, 1)
     inner = np.abs(np.cos(a) * np.cos(b) * np.exp(np.abs(1.0 - np.hypot(a, b) / np.pi)))
     with np.errstate(divide="ignore"):
-        return -np.exp(-1.0 / inner)  # inner = 0 -> -exp(-inf) = -0 (spec)
+        return -np.exp(-1.0 / inner)  # inner = 0 -> -exp(-inf) = -0, the limit
 
 
 def test_tube_holder(x: FloatArray) -> FloatArray:

@@ -218,14 +218,14 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
         "",
         "## How to read this against the paper",
         "",
-        "- Errors are `f(x_best) - f*` with the exact `f*` of the spec "
-        "(`benchmark-functions.md`). The paper's Tables 4-6 report `f - f_min(paper)` with the "
+        "- Errors are `f(x_best) - f*` with the exact `f*` of each function's registry entry "
+        "(`ident.bench.functions`). The paper's Tables 4-6 report `f - f_min(paper)` with the "
         "appendix's rounded or wrong `f_min`: its negative entries (e.g. Test-tube -2.04e-08, "
         "Shekel 7 -20.8, Hartmann 3 -1.78e-05) and its constant offsets (Modified Rosenbrock "
         "3.404, Langerman 0.303) come from that constant, not from the optimizers. Such paper "
         "values are shown but not compared.",
-        '- 2-D functions are run in 2-D (the paper\'s "Dim 30" for them is not meaningful, see '
-        "the spec); the paper's evaluation budget is not stated, ours is above.",
+        '- 2-D functions are run in 2-D (the paper\'s "Dim 30" for them is not meaningful: they '
+        "read two variables); the paper's evaluation budget is not stated, ours is above.",
         "- The paper's NaN rows (DE on Easom, Pen Holder, Egg Holder, Paviani) come from "
         "evaluating its formulas at singular points; our definitions are NaN-free on the boxes.",
         "- Table 7 counts wins/ties/losses of the minimum error, Table 9 of the Wilcoxon test "
