@@ -6,14 +6,16 @@ evaluation budget (``max_nfev``, population ``popsize``). The seed of a run depe
 ``spawn_key``, so results do not depend on the number of workers, on the scheduler, on the
 order of completion, or on which other functions and methods are in the config.
 
-Statistics (what the paper's tables hold; the errors are ``f(x_best) - f_star`` with the exact minimum of each function):
+Statistics (what the paper's tables hold; the errors are ``f(x_best) - f_star`` with the exact
+minimum of each function):
 
 * Tables 4-6: minimum, mean and standard deviation (``ddof=1``, like MATLAB's ``std``) of the
   final error over the runs.
 * Table 8: the best algorithm of a function is the one with the lowest mean error (ties: the
   lower median, then config order); it is compared with every other algorithm by a two-sided
-  Wilcoxon signed-rank test on the paired runs, with MATLAB ``signrank`` semantics: zero differences dropped, exact distribution for at most 15 non-zero pairs,
-  normal approximation without continuity correction otherwise, ``p = 1`` if all pairs tie.
+  Wilcoxon signed-rank test on the paired runs, with MATLAB ``signrank`` semantics: zero
+  differences dropped, exact distribution for at most 15 non-zero pairs, normal approximation
+  without continuity correction otherwise, ``p = 1`` if all pairs tie.
 * Table 7 (by minimum error): an algorithm *wins* a function if its minimum error is the lowest
   and no other algorithm has the same (within ``tie_atol``), *ties* if it shares the lowest,
   *loses* otherwise.

@@ -1,7 +1,8 @@
 """The paper's published benchmark results (Tables 4-9), transcribed from the paper's text.
 
 Values are as printed (the "Min/Ave/StDev" of Tables 4-6 are errors ``f - f_min(paper)``, where
-``f_min(paper)`` is the appendix's rounded or sometimes wrong minimum: e.g. Shekel 7's -20.80588 and the tiny negative minima
+``f_min(paper)`` is the appendix's rounded or sometimes wrong minimum: e.g. Shekel 7's -20.80588
+and the tiny negative minima
 come from the subtracted constant, not from the optimizers). ``NaN`` is printed "NaN" in the
 paper; ``None`` in Table 8 is the paper's "NA" (the best-by-mean algorithm of that row). Rows
 are keyed by the *table* ID (F16 = Pen Holder, F17-F24 = appendix F16-F23). Column order is
