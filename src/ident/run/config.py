@@ -292,9 +292,10 @@ class RunConfig(StrictModel):
     seed :
         Seed of every random draw of the run.
     optimizer :
-        Method of ``ident.optim.minimize`` for the runs started from the elites: ``emupso``
-        (the paper's, with the ``emupso`` section's options) or any registered method
-        (``cma``, ``pso``, ``de``, ...; options in ``optimizer_options``). The swarm size,
+        Method of ``ident.optim.minimize`` for the runs started from the elites: ``cma`` (the
+        default: CMA-ES wins on ident's excitation problems, docs/optimizers.md), ``emupso``
+        (the paper's, with the ``emupso`` section's options; the paper's configs use it) or
+        any registered method (``pso``, ``de``, ...; options in ``optimizer_options``). The swarm size,
         iterations and runs come from the ``emupso`` section for every method.
     safety :
         The collision, floor, obstacle and torque constraints (docs/safety.md). Given, they
@@ -311,7 +312,7 @@ class RunConfig(StrictModel):
     excitation: ExcitationSection
     elites: ElitesSection = ElitesSection()
     emupso: EmupsoSection = EmupsoSection()
-    optimizer: str = "emupso"
+    optimizer: str = "cma"
     optimizer_options: dict[str, Any] = Field(default_factory=dict)
     safety: SafetyConfig | None = None
     controller: ControllerSection = ControllerSection()
