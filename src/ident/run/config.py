@@ -295,8 +295,8 @@ class RunConfig(StrictModel):
         Method of ``ident.optim.minimize`` for the runs started from the elites: ``cma`` (the
         default: CMA-ES wins on ident's excitation problems, docs/optimizers.md), ``emupso``
         (the paper's, with the ``emupso`` section's options; the paper's configs use it) or
-        any registered method (``pso``, ``de``, ...; options in ``optimizer_options``). The swarm size,
-        iterations and runs come from the ``emupso`` section for every method.
+        any registered method (``pso``, ``de``, ...; options in ``optimizer_options``). The
+        swarm size, iterations and runs come from the ``emupso`` section for every method.
     safety :
         The collision, floor, obstacle and torque constraints (docs/safety.md). Given, they
         enter the optimization; absent, the defaults (floor at z = 0, self-collision, 0.03 m)
