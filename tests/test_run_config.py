@@ -175,3 +175,14 @@ def test_settings_that_need_the_robot_are_checked_before_the_run(tmp_path, extra
     text = text if "stage" in extra else text + "stage: wrist\n"
     with pytest.raises(IdentError, match=match):
         load_run(_write(tmp_path, text + extra, robot=False))
+
+
+def test_a_run_above_the_time_ceiling_is_refused_before_it_starts(tmp_path, monkeypatch):
+    monkeypatch.setenv("IDENT_MAX_HOURS", "0.001")  # 3.6 s
+    config = load_run_config(CONFIGS / "wrist.yaml")
+    with pytest.raises(ConfigError, match=r"run: .* objective evaluations .*IDENT_MAX_HOURS"):
+        load_run(CONFIGS / "wrist.yaml")
+    monkeypatch.setenv("IDENT_MAX_HOURS", "1")
+    setup = load_run(CONFIGS / "wrist.yaml")
+    assert 1.0 < setup.estimate.seconds < 100.0  # measured: about 8 s on 2 cores
+    assert config.emupso.n_runs == 5

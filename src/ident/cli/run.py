@@ -61,6 +61,8 @@ def run(
             cfg = cfg.with_seed(seed)
         # everything that can be wrong with the config is found before the folder exists
         setup = prepare_run(cfg, source=config)
+        if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
+            typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
         rundir = create_run_dir(
             out,
