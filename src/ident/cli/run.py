@@ -223,12 +223,16 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
         )
     table.add_row("eMuPSO runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
     if result.elites:
-        best = result.elites[0]
+        plan = result.executable
+        chosen = plan.elite if plan is not None and plan.elite is not None else 1
+        best = result.elites[chosen - 1]
         table.add_row(
-            "chosen elite",
-            f"fitness {best.fitness:.6g}, "
+            "chosen elite" if plan is not None and plan.usable else "elite 1 (UNSAFE)",
+            f"{chosen}: fitness {best.fitness:.6g}, "
             f"cond (scaled) {best.details.get('cond', float('nan')):.4g}",
         )
+        if plan is not None:
+            table.add_row("safety", plan.message)
         for method, est in best.estimates.items():
             m = error_measures(
                 est.x,
@@ -241,8 +245,8 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
             major = m.get("max_rel_error_major")
             table.add_row(
                 method.upper(),
-                f"max rel. error {m['max_rel_error']:.3g} (torque share >= 1e-4), "
-                + ("" if major is None else f"{major:.3g} (major parameters), ")
+                ("" if major is None else f"worst error {100 * major:.3g} % (major parameters), ")
+                + f"{100 * m['max_rel_error']:.3g} % (torque share >= 1e-4), "
                 + f"{100 * m['within_3std']:.0f} % within 3 std, cond {est.condition_number:.4g}",
             )
         for method, message in best.failures.items():
