@@ -155,6 +155,12 @@ def test_fourier_configs_use_the_papers_procedure_and_noise(name):
     assert fourier.excitation.n_samples == paper.excitation.n_samples
     for section in ("elites", "emupso", "measurement", "estimation", "quick", "seed"):
         assert getattr(fourier, section) == getattr(paper, section), section
+    # beyond the paper: the optimization keeps clear of the floor (the paper's does not)
+    assert paper.safety is None
+    assert fourier.safety is not None
+    assert fourier.safety.floor.enabled
+    assert fourier.safety.floor.z == 0.0
+    assert fourier.safety.clearance_m == 0.03
 
 
 @pytest.mark.parametrize(

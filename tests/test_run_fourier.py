@@ -46,15 +46,18 @@ def _pair(stage, quick):
 
 
 def test_fourier_wrist_identifies_far_better_than_the_papers_quick():
-    """Quick settings, seed 0, torque noise 0.02 N*m. Measured: major max relative error
-    0.27 (Fourier) vs 90 (paper), SI cond 9.0 vs 4550; seeds 0-4: 0.27-2.0 vs 9.8-352."""
+    """Quick settings, seed 0, torque noise 0.02 N*m, the Fourier config with its held arm
+    posture above the floor and the safety terms. Measured: major max relative error 2.2
+    (Fourier) vs 90 (paper), SI cond 12.8 vs 4550; Fourier seeds 0-4: 0.16-2.2 (paper:
+    9.8-352). At the quick settings (120 samples, 2 short eMuPSO runs) the error spreads
+    over seeds; the full settings give 0.13 (docs/run.md)."""
     paper, fourier = _pair("wrist", quick=True)
     m_paper, est_paper, _ = _chosen(paper)
     m_fourier, est_fourier, elite = _chosen(fourier)
     assert fourier.stage.reference_share is not None
     major = fourier.stage.reference_share >= 1e-2
     assert 4 <= major.sum() <= 10  # a stable, non-trivial set of parameters
-    assert m_fourier["max_rel_error_major"] < 1.0
+    assert m_fourier["max_rel_error_major"] < 5.0
     assert m_paper["max_rel_error_major"] > 20.0
     assert m_paper["max_rel_error_major"] > 10.0 * m_fourier["max_rel_error_major"]
     assert est_fourier.condition_number < 50.0
@@ -66,12 +69,16 @@ def test_fourier_wrist_identifies_far_better_than_the_papers_quick():
     speed = np.abs(elite.dq[:, list(fourier.moving_joints)]).max(axis=0)
     assert np.all(speed <= limits * (1 + 1e-9))
     assert speed.max() > 0.2 * limits.max()
+    # ... and keeps clear of the floor and of itself (the dense 1 kHz check)
+    assert elite.safety_check is not None
+    assert elite.safety_check.usable
+    assert fourier.safety["ok"]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("stage", "fourier_bound", "paper_bound"),
-    # measured (seed 0, full settings): wrist 0.33 vs 6.4, arm 0.038 vs 5.8
+    # measured (seed 0, full settings, safety terms on): wrist 0.13 vs 6.4, arm 0.022 vs 5.8
     [("wrist", 1.0, 2.0), ("arm", 0.2, 1.0)],
 )
 def test_fourier_configs_at_full_settings(stage, fourier_bound, paper_bound):
@@ -81,6 +88,7 @@ def test_fourier_configs_at_full_settings(stage, fourier_bound, paper_bound):
     assert m_fourier["max_rel_error_major"] < fourier_bound
     assert m_paper["max_rel_error_major"] > paper_bound
     assert est.condition_number < 50.0
+    assert fourier.safety["ok"]  # a reported elite passes the dense check: trajectory.csv
     for elite in fourier.elites:
         assert elite.details["penalty"] == 0.0
         for e in elite.estimates.values():
