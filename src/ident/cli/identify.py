@@ -6,7 +6,10 @@ identification leaves nothing that looks like a result), the measured motion
 (``trajectory.csv``, ``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``;
 a failing replay is reported, never fatal). If writing the report fails, the folder is marked
 incomplete. ``--scheduler ADDRESS`` hands the chunks of a long log (see
-:mod:`ident.identify.accumulate`) to a running dask.distributed scheduler.
+:mod:`ident.identify.accumulate`) to a running dask.distributed scheduler. Once the log is read,
+the estimated memory and time of the identification are printed when above a minute or 2 GB,
+and refused above the ceilings ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS`` (before any run
+folder).
 
 Exit codes: 0 success (warnings, e.g. a held-out prediction worse than the URDF's nominal
 parameters, are printed and recorded in ``result.json``); 1 a warning with
@@ -19,11 +22,14 @@ from __future__ import annotations
 import time
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from ident.cli._common import user_errors
+
+if TYPE_CHECKING:
+    from ident.inputs import JobEstimate
 
 __all__ = ["identify", "register"]
 
@@ -31,6 +37,12 @@ __all__ = ["identify", "register"]
 def register(app: typer.Typer) -> None:
     """Add ``identify`` to the ``ident`` command line."""
     app.command("identify")(identify)
+
+
+def _print_estimate(estimate: JobEstimate) -> None:
+    """Print the estimate of a long identification (above a minute or 2 GB), as ``ident run``."""
+    if estimate.seconds > 60.0 or estimate.memory_bytes > 2e9:
+        typer.echo(f"estimate: {estimate.describe()}", err=True)
 
 
 def identify(
@@ -86,7 +98,7 @@ def identify(
                 "tcp://127.0.0.1:8786, or drop --scheduler."
             )
         cfg = load_identify_config(config)
-        result = run_identify(cfg, rng=seed, scheduler=scheduler)
+        result = run_identify(cfg, rng=seed, scheduler=scheduler, on_estimate=_print_estimate)
         info = {"command": "identify", "config": str(config), "seed": seed}
         if scheduler is not None:
             info["scheduler"] = scheduler
