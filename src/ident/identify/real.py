@@ -166,9 +166,10 @@ class IdentifyResult:
         return "warning" if self.warnings else "ok"
 
 
-# Cost model of estimate_identify (measured on 2 cores: configs/examples/long-csv.yaml,
-# 1600 samples x 3 joints in 0.13 s by either path, fixed costs included, so an upper bound).
-_SECONDS_PER_SAMPLE_JOINT2 = 1e-5
+# Cost model of estimate_identify, from benchmarks/bench_identify_long.py (one hour at 1 kHz of a
+# 7-joint arm, 3.6 million samples, by chunks: 144 s of CPU, 372 s wall on a loaded 2-core
+# machine, peak 1.57 GB; the wall time is used, so the estimate errs long).
+_SECONDS_PER_SAMPLE_JOINT2 = 2e-6
 _BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba
 _LOG_ARRAYS = 8  # t, q, tau, filtered q and tau, dq, ddq, mask: (n_samples, nv) each
 
