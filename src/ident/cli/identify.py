@@ -5,7 +5,11 @@ creates a new run folder ``<out>/<name>-<timestamp>/`` with the report (so a fai
 identification leaves nothing that looks like a result), the measured motion
 (``trajectory.csv``, ``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``;
 a failing replay is reported, never fatal). If writing the report fails, the folder is marked
-incomplete.
+incomplete. ``--scheduler ADDRESS`` hands the chunks of a long log (see
+:mod:`ident.identify.accumulate`) to a running dask.distributed scheduler. Once the log is read,
+the estimated memory and time of the identification are printed when above a minute or 2 GB,
+and refused above the ceilings ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS`` (before any run
+folder).
 
 Exit codes: 0 success (warnings, e.g. a held-out prediction worse than the URDF's nominal
 parameters, are printed and recorded in ``result.json``); 1 a warning with
@@ -18,11 +22,14 @@ from __future__ import annotations
 import time
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from ident.cli._common import user_errors
+
+if TYPE_CHECKING:
+    from ident.inputs import JobEstimate
 
 __all__ = ["identify", "register"]
 
@@ -30,6 +37,12 @@ __all__ = ["identify", "register"]
 def register(app: typer.Typer) -> None:
     """Add ``identify`` to the ``ident`` command line."""
     app.command("identify")(identify)
+
+
+def _print_estimate(estimate: JobEstimate) -> None:
+    """Print the estimate of a long identification (above a minute or 2 GB), as ``ident run``."""
+    if estimate.seconds > 60.0 or estimate.memory_bytes > 2e9:
+        typer.echo(f"estimate: {estimate.describe()}", err=True)
 
 
 def identify(
@@ -48,6 +61,13 @@ def identify(
             help="Folder holding the URDF's package:// mesh packages, for replay.html (repeatable)."
         ),
     ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="dask.distributed scheduler address (e.g. tcp://127.0.0.1:8786) for the chunks "
+            "of long logs (needs pip install 'ident[dask]'); the result is the same as without."
+        ),
+    ] = None,
 ) -> None:
     """Identify base, friction and actuator parameters from CONFIG's measured log."""
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
@@ -56,6 +76,7 @@ def identify(
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify as run_identify
     from ident.report.identify_report import (
+        joint_torque_units,
         save_identify_data,
         write_identify_report,
         write_measured_replay,
@@ -71,9 +92,16 @@ def identify(
         for d in package_dirs:
             if not d.is_dir():
                 raise IdentError(f"--package-dir {d}: not a folder.")
+        if scheduler is not None and not scheduler.strip():
+            raise IdentError(
+                "--scheduler: empty address; give a dask.distributed scheduler address such as "
+                "tcp://127.0.0.1:8786, or drop --scheduler."
+            )
         cfg = load_identify_config(config)
-        result = run_identify(cfg, rng=seed)
+        result = run_identify(cfg, rng=seed, scheduler=scheduler, on_estimate=_print_estimate)
         info = {"command": "identify", "config": str(config), "seed": seed}
+        if scheduler is not None:
+            info["scheduler"] = scheduler
         if package_dirs:
             info["package_dirs"] = [str(d) for d in package_dirs]
         rundir = create_run_dir(out, f"{cfg.name}", info={**info, "started_at": started_at})
@@ -109,11 +137,12 @@ def identify(
             f"{est.relative_residual:.4f}, condition number {est.condition_number:.4g}, "
             f"{result.timings['total']:.1f} s"
         )
+        units = joint_torque_units(result)  # N*m per revolute joint, N per prismatic
         for label, p in result.predictions.items():
-            rmse = ", ".join(f"{v:.3g}" for v in p.metrics.rmse)
+            rmse = ", ".join(f"{v:.3g} {u}" for v, u in zip(p.metrics.rmse, units, strict=True))
             typer.echo(
                 f"held-out {label}: relative residual {p.metrics.total_relative_residual:.4f}; "
-                f"RMSE per joint [N*m] {rmse}"
+                f"RMSE per joint {rmse}"
             )
         typer.echo(replay_note)
         typer.echo(f"report: {rundir.path / 'report.html'}")

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -63,6 +64,7 @@ from ident.identify.validation import (
     prediction_metrics,
     time_split,
 )
+from ident.inputs import JobEstimate, check_job
 from ident.model import Robot
 from ident.model.selection import load_robot
 from ident.trajectory import JointTrajectory
@@ -72,6 +74,7 @@ __all__ = [
     "IdentifyResult",
     "ParameterModel",
     "build_parameter_model",
+    "estimate_identify",
     "identify",
     "load_robot_model",
 ]
@@ -163,21 +166,68 @@ class IdentifyResult:
         return "warning" if self.warnings else "ok"
 
 
-def identify(cfg: IdentifyConfig, *, rng: int = 0, scheduler: str | None = None) -> IdentifyResult:
+# Cost model of estimate_identify, from benchmarks/bench_identify_long.py (one hour at 1 kHz of a
+# 7-joint arm, 3.6 million samples, by chunks: 144 s of CPU, 372 s wall on a loaded 2-core
+# machine, peak 1.57 GB; the wall time is used, so the estimate errs long).
+_SECONDS_PER_SAMPLE_JOINT2 = 2e-6
+_BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba
+_LOG_ARRAYS = 8  # t, q, tau, filtered q and tau, dq, ddq, mask: (n_samples, nv) each
+
+
+def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
+    """Rough peak memory and wall time of identifying ``log`` (n_samples, nv).
+
+    Time: ``n_samples * nv^2`` (the regressor's rows and columns). Memory: the log's arrays
+    and either the whole regressor (in memory) or one chunk's
+    (:func:`ident.identify.accumulate.use_chunks` decides, as :func:`identify_log` does).
+    """
+    n_samples, nv = log.q.shape
+    n_columns = 10 * nv + 4 * nv  # rigid bodies and the extra terms, as identify_log counts
+    log_bytes = 8.0 * _LOG_ARRAYS * n_samples * nv
+    if accumulate.use_chunks(log, cfg.preprocess, n_columns):
+        chunk = cfg.preprocess.chunk_samples or accumulate.default_chunk_samples(
+            (0, 0), nv, n_columns
+        )
+        regressor = accumulate.regressor_bytes(min(n_samples, chunk), nv, n_columns)
+        path = "by chunks"
+    else:
+        regressor = accumulate.regressor_bytes(n_samples, nv, n_columns)
+        path = "in memory"
+    return JobEstimate(
+        f"identify: {n_samples} samples x {nv} joints, {path}",
+        _BYTES_BASE + log_bytes + regressor,
+        n_samples * nv**2 * _SECONDS_PER_SAMPLE_JOINT2,
+    )
+
+
+def identify(
+    cfg: IdentifyConfig,
+    *,
+    rng: int = 0,
+    scheduler: str | None = None,
+    on_estimate: Callable[[JobEstimate], None] | None = None,
+) -> IdentifyResult:
     """Run the identification described by ``cfg``: read its log, then :func:`identify_log`.
 
     ``scheduler``: a dask.distributed scheduler address for the chunks of a long log.
+    ``on_estimate``: called with the memory and time estimate (:func:`estimate_identify`)
+    once the log is read, before the identification (``ident identify`` prints it).
 
     Raises
     ------
     IdentError
         Subclasses naming the file, column or parameter: bad log, bad config, rank deficiency.
+    ResourceLimitError
+        If the estimate is above the ceilings (:func:`ident.inputs.check_job`).
     """
     t0 = time.perf_counter()
     source = str(cfg.source or "config")
     model = load_robot(cfg.robot, source=source).model
     joints = [model.names[i] for i in range(1, model.njoints)]
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
+    estimate = check_job(estimate_identify(cfg, log))
+    if on_estimate is not None:
+        on_estimate(estimate)
     return identify_log(
         cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
     )

@@ -26,6 +26,7 @@ from ident.report.headline import Headline, headline_markdown
 
 __all__ = [
     "identified_urdf",
+    "joint_torque_units",
     "result_dict",
     "save_identify_data",
     "torque_png",
@@ -46,6 +47,17 @@ def _num(value: float | None, digits: int = 4) -> str:
 
 def _finite(value: float) -> float | None:
     return float(value) if np.isfinite(value) else None
+
+
+def joint_torque_units(result: IdentifyResult) -> tuple[str, ...]:
+    """Unit of each joint's torque, residuals and errors: ``"N*m"`` for a revolute joint,
+    ``"N"`` for a prismatic one (:func:`ident.identify.sanity.joint_units` of the robot the
+    config selects, the robot that was identified)."""
+    from ident.identify.sanity import joint_units
+    from ident.model.selection import load_robot
+
+    model = load_robot(result.config.robot, source=result.config.source or "config").model
+    return joint_units(model)
 
 
 def torque_png(result: IdentifyResult) -> bytes:
@@ -159,6 +171,8 @@ def result_dict(
         "condition_number": est.condition_number,
         "residual_rms": dict(zip(result.joint_names, est.residual_rms.tolist(), strict=True)),
         "sigma": dict(zip(result.joint_names, est.sigma.tolist(), strict=True)),
+        # residual_rms, sigma and the held-out errors: N*m per revolute joint, N per prismatic
+        "joint_units": dict(zip(result.joint_names, joint_torque_units(result), strict=True)),
         "message": est.message,
         "status": result.status,
         "warnings": list(result.warnings),
@@ -235,6 +249,7 @@ def _markdown(
     pm = result.parameters
     est = result.estimate
     names = result.joint_names
+    units = joint_torque_units(result)
     lines = [
         f"# Identification of `{result.config.name}` from a measured log",
         "",
@@ -266,11 +281,12 @@ def _markdown(
         "",
         "## Residuals on the identification part",
         "",
-        "| joint | residual RMS [N*m] | sigma used [N*m] |",
+        "| joint | residual RMS | sigma used |",
         "| --- | --- | --- |",
     ]
     lines += [
-        f"| {n} | {_num(est.residual_rms[j])} | {_num(est.sigma[j])} |" for j, n in enumerate(names)
+        f"| {n} | {_num(est.residual_rms[j])} {units[j]} | {_num(est.sigma[j])} {units[j]} |"
+        for j, n in enumerate(names)
     ]
     lines += [
         "",
@@ -282,7 +298,7 @@ def _markdown(
         "identified on the whole log, held-out part included.",
         "",
         "| parameters | "
-        + " | ".join(f"RMSE {n} [N*m]" for n in names)
+        + " | ".join(f"RMSE {n} [{u}]" for n, u in zip(names, units, strict=True))
         + " | relative residual | all samples: relative residual |",
         "| --- |" + " --- |" * (len(names) + 2),
     ]

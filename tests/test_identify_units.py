@@ -1,0 +1,112 @@
+"""Residuals and held-out errors carry each joint's torque unit: N*m for a revolute joint, N
+for a prismatic one, in the terminal summary, report.md and result.json of ``ident identify``."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from ident.cli import app
+from ident.measure.ideal import NoiseModel, simulate_measurements
+
+ROOT = Path(__file__).resolve().parents[1]
+URDF = ROOT / "tests" / "data" / "urdf" / "rp2.urdf"
+RATE_HZ = 100.0
+
+
+def _rp2_log(tmp_path: Path) -> Path:
+    """A 12 s log of the revolute-prismatic rp2 arm (wide CSV) and its identify config."""
+    model = pin.buildModelFromUrdf(str(URDF))
+    t = np.arange(int(12 * RATE_HZ)) / RATE_HZ
+    w = 2.0 * np.pi * 0.25 * np.array([1.0, 2.0, 3.0])
+    # shoulder: +-1 rad; slider: +-0.15 m, inside its limits
+    amp = np.array([[0.6, 0.08], [0.3, 0.05], [0.15, 0.02]])
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    q, dq, ddq = s @ amp, (c * w) @ amp, -(s * w**2) @ amp
+    m = simulate_measurements(model, t, q, dq, ddq, NoiseModel(torque_std=(0.02, 0.05)), rng=3)
+    tau = m.tau + np.array([0.4, 2.0]) * dq + np.array([0.3, 1.5]) * np.sign(dq)
+    header = "t,q_shoulder,q_slider,tau_shoulder,tau_slider"
+    rows = np.column_stack([t, m.q, tau])
+    log = tmp_path / "rp2.csv"
+    log.write_text(header + "\n" + "\n".join(",".join(f"{v:.9g}" for v in r) for r in rows))
+    cfg = {
+        "name": "rp2",
+        "robot": {"urdf": str(URDF)},
+        "log": {
+            "time": {"path": str(log), "column": "t"},
+            "position": {"path": str(log), "columns": ["q_shoulder", "q_slider"]},
+            "torque": {"path": str(log), "columns": ["tau_shoulder", "tau_slider"]},
+        },
+        "transmission": {},
+        "preprocess": {"lowpass": {"cutoff_hz": 10.0, "order": 4}, "trim_samples": 10},
+        "model": {"viscous": True, "coulomb": True, "offset": False, "rotor_inertia": False},
+        "estimation": {"method": "wls", "essential": {"enabled": False}},
+        "validation": {"identify_fraction": 0.7},
+    }
+    path = tmp_path / "rp2.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+@pytest.fixture(scope="module")
+def rp2_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("rp2")
+    res = CliRunner().invoke(
+        app, ["identify", str(_rp2_log(tmp)), "--out", str(tmp / "runs"), "--no-replay"]
+    )
+    assert res.exit_code == 0, res.output
+    (run_dir,) = (tmp / "runs").iterdir()
+    return res.output, run_dir
+
+
+def _urdf_units() -> dict[str, str]:
+    """The reference: each moving joint's type as the URDF file declares it."""
+    import xml.etree.ElementTree as ET
+
+    unit = {"revolute": "N*m", "continuous": "N*m", "prismatic": "N"}
+    joints = ET.parse(URDF).getroot().iter("joint")
+    return {j.get("name"): unit[j.get("type")] for j in joints if j.get("type") != "fixed"}
+
+
+def test_joint_units_follow_the_urdf_joint_types():
+    from ident.identify.sanity import joint_units
+
+    model = pin.buildModelFromUrdf(str(URDF))
+    names = [model.names[i] for i in range(1, model.njoints)]
+    assert dict(zip(names, joint_units(model), strict=True)) == _urdf_units()
+    assert _urdf_units() == {"shoulder": "N*m", "slider": "N"}
+
+
+def test_terminal_shows_each_joints_unit(rp2_run):
+    output, run_dir = rp2_run
+    data = json.loads((run_dir / "result.json").read_text())
+    lines = [line for line in output.splitlines() if "RMSE per joint" in line]
+    assert lines
+    for line in lines:
+        assert "[N*m]" not in line
+        values = re.search(r"RMSE per joint (.*)$", line).group(1)
+        assert re.fullmatch(r"\S+ N\*m, \S+ N", values), line
+    # the numbers are result.json's held-out errors (3 digits)
+    identified = next(line for line in lines if line.startswith("held-out identified"))
+    rmse = [float(v.split()[0]) for v in identified.split("RMSE per joint ")[1].split(", ")]
+    expected = data["validation"]["identified"]["above_velocity_threshold"]["rmse"]
+    np.testing.assert_allclose(rmse, expected, rtol=5e-3)
+
+
+def test_report_and_result_json_show_each_joints_unit(rp2_run):
+    _, run_dir = rp2_run
+    md = (run_dir / "report.md").read_text()
+    assert "| RMSE shoulder [N*m] | RMSE slider [N] |" in md
+    assert re.search(r"^\| shoulder \| \S+ N\*m \| \S+ N\*m \|$", md, re.MULTILINE)
+    assert re.search(r"^\| slider \| \S+ N \| \S+ N \|$", md, re.MULTILINE)
+    assert "[N*m]" not in md.split("## Residuals on the identification part")[1].split("##")[0]
+    data = json.loads((run_dir / "result.json").read_text())
+    assert data["joint_units"] == _urdf_units()
+    assert "RMSE slider [N]" in (run_dir / "report.html").read_text()
