@@ -159,6 +159,7 @@ def result_to_dict(result: Any) -> dict[str, Any]:
                 if getattr(e, "safety_check", None) is None
                 else {"usable": bool(e.safety_check.usable), "summary": e.safety_check.summary()},
                 "path_csv": None if e.traced_points is None else f"elites/elite_{e.rank}_path.csv",
+                "safety_series": _safety_series(getattr(e, "safety_check", None)),
             }
         )
     out["elites"] = elites
@@ -176,6 +177,15 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     if validation is not None:
         out["validation"] = validation
     return out
+
+
+def _safety_series(report: Any) -> dict[str, Any] | None:
+    """The compact safety time series of an elite's dense check (None when unchecked)."""
+    if report is None:
+        return None
+    from ident.excitation.safety_series import safety_series
+
+    return safety_series(report)
 
 
 def _frame_base_dict(info: Any) -> dict[str, Any] | None:
