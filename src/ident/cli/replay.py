@@ -33,11 +33,11 @@ def _elite_csvs(run_dir: Path) -> list[Path]:
     return [p for _, p in sorted(found)]
 
 
-def _traced_frame_of_run(run_dir: Path) -> str | None:
-    """The traced frame recorded in ``result.json`` (top level or ``excitation``), if any."""
+def _result_of_run(run_dir: Path) -> dict:
+    """The run's ``result.json`` (``{}`` when it has none)."""
     path = run_dir / "result.json"
     if not path.is_file():
-        return None
+        return {}
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as e:
@@ -49,23 +49,19 @@ def _traced_frame_of_run(run_dir: Path) -> str | None:
             f"{path}: expected a JSON object, got {type(data).__name__}; the run folder is "
             "damaged, pass --frame to choose the frame."
         )
-    excitation = data.get("excitation")
-    frame = data.get("traced_frame") or (
-        excitation.get("traced_frame") if isinstance(excitation, dict) else None
-    )
-    return frame if isinstance(frame, str) else None
+    return data
 
 
 def _inputs(
     run_dir: Path | None, urdf: Path | None, trajectory: Path | None, elites: bool
-) -> tuple[Path, list[Path], str | None]:
-    """Resolve the URDF, the trajectory CSVs and the run's traced frame."""
+) -> tuple[Path, list[Path], dict]:
+    """Resolve the URDF, the trajectory CSVs and the run's ``result.json`` (or ``{}``)."""
     if run_dir is None:
         if urdf is None or trajectory is None:
             raise DataError(
                 "give a run folder (ident replay runs/<name>) or both --urdf and --trajectory."
             )
-        return urdf, [trajectory], None
+        return urdf, [trajectory], {}
     if not run_dir.is_dir():
         raise DataError(f"{run_dir}: run folder not found.")
     urdf = urdf or run_dir / "robot.urdf"
@@ -84,7 +80,13 @@ def _inputs(
             raise DataError(f"{run_dir}: --elites given but no elites/elite_<k>.csv found.")
         # The chosen trajectory is usually also an elite: show each motion once.
         csvs += [p for p in others if p.read_bytes() != chosen.read_bytes()]
-    return urdf, csvs, _traced_frame_of_run(run_dir)
+    return urdf, csvs, _result_of_run(run_dir)
+
+
+def _elite_rank(path: Path) -> int | None:
+    """``k`` of ``elite_<k>.csv``, else None."""
+    match = re.fullmatch(r"elite_(\d+)\.csv", path.name)
+    return int(match.group(1)) if match else None
 
 
 def replay(
@@ -130,6 +132,12 @@ def replay(
         from ident.fileio import atomic_write_text
         from ident.inputs import check_number, check_output_file, read_urdf_text
         from ident.trajectory import read_trajectory_csv
+        from ident.viz.environment import (
+            ReplayEnvironment,
+            run_clearance_mark,
+            run_environment,
+            run_traced_frame,
+        )
         from ident.viz.replay import DEFAULT_FPS, build_replay_scene
         from ident.viz.server import LoopbackMeshcatServer
 
@@ -138,7 +146,13 @@ def replay(
             check_number(port, "--port", low=0, high=65535, integer=True, hint="(0: any free)")
         else:
             check_output_file(html, "--html")
-        urdf_path, csvs, run_frame = _inputs(run_dir, urdf, trajectory, elites)
+        urdf_path, csvs, run_data = _inputs(run_dir, urdf, trajectory, elites)
+        run_frame = run_traced_frame(run_data)
+        # the run's floor and obstacles (a floor at z = 0 without a run); the least
+        # clearance of an elite's own file (trajectory.csv has its own time axis)
+        environment = run_environment(run_data) if run_data else ReplayEnvironment()
+        ranks = [_elite_rank(p) for p in csvs]
+        marks = [None if r is None else run_clearance_mark(run_data, r) for r in ranks]
         read_urdf_text(urdf_path)
         for p in csvs:  # one clear line for a binary, non-UTF-8 or huge file
             read_text_input(p, what="trajectory", max_bytes=_MAX_TRAJECTORY_BYTES)
@@ -161,6 +175,8 @@ def replay(
             loop=loop,
             package_dirs=package_dir or (),
             labels=[p.name for p in csvs],
+            environment=environment,
+            marks=marks,
         )
         what = f"{len(trajectories)} trajectory(ies), {scene.duration:.2f} s at speed {speed:g}"
         if html is not None:

@@ -9,6 +9,9 @@ so no backend is selected globally and nothing leaks between calls.
   velocities with their limits (the paper's Figures 3-4).
 - :func:`estimate_png`: estimation error of every base parameter in units of its reported
   standard deviation, per estimator.
+- :func:`clearance_png` and :func:`limits_png`: the dense safety check of a trajectory, the
+  smallest clearance against the margin and the velocity / acceleration / torque ratios
+  against 1.
 """
 
 from __future__ import annotations
@@ -21,9 +24,11 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "clearance_png",
     "convergence_png",
     "estimate_png",
     "figure_png",
+    "limits_png",
     "parameters_png",
     "torque_png",
     "trajectory_png",
@@ -352,3 +357,81 @@ def torque_png(
     axes[0].legend(loc="upper right", fontsize=7, ncol=5)
     axes[-1].set_xlabel(xlabel)
     return figure_png(fig, dpi=90)
+
+
+def _array(values: Sequence[float | None]) -> FloatArray:
+    """A JSON series (``None`` for non-finite) as floats (``nan``)."""
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+def clearance_png(
+    t: Sequence[float | None],
+    min_clearance: Sequence[float | None],
+    *,
+    clearance_m: float | None,
+    closest: tuple[str, float, float] | None = None,
+    title: str = "Clearance over time",
+) -> bytes:
+    """Smallest clearance over the checked pairs per sample, with the required margin.
+
+    Parameters
+    ----------
+    t :
+        Times [s], length n.
+    min_clearance :
+        Smallest clearance over the link pairs and obstacles at each time [m], length n.
+    clearance_m :
+        Required clearance [m], drawn dashed (``None``: not drawn).
+    closest :
+        ``(pair, time [s], clearance [m])`` of the smallest clearance overall, marked and named.
+    title :
+        Figure title.
+    """
+    fig = _figure(7.0, 3.6)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot(_array(t), 1000.0 * _array(min_clearance), lw=1.2, color="C0", label="min clearance")
+    if clearance_m is not None:
+        ax.axhline(1000.0 * clearance_m, color="C3", ls="--", lw=1.0, label="required margin")
+    ax.axhline(0.0, color="k", lw=0.6)
+    if closest is not None:
+        pair, when, value = closest
+        ax.plot([when], [1000.0 * value], "o", color="C3", ms=6, label=f"closest: {pair}")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("clearance [mm]")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return figure_png(fig)
+
+
+def limits_png(
+    t: Sequence[float | None],
+    ratios: Mapping[str, Sequence[float | None]],
+    *,
+    title: str = "Limits",
+) -> bytes:
+    """Largest ``|value| / limit`` over the joints per sample, per quantity, against 1.
+
+    Parameters
+    ----------
+    t :
+        Times [s], length n.
+    ratios :
+        ``{"velocity": ..., "acceleration": ..., "torque": ...}``, each of length n (0 where
+        no limit is known).
+    title :
+        Figure title.
+    """
+    fig = _figure(7.0, 3.6)
+    ax = fig.add_subplot(1, 1, 1)
+    times = _array(t)
+    for k, (name, values) in enumerate(ratios.items()):
+        ax.plot(times, _array(values), lw=1.2, color=f"C{k}", label=f"{name} / limit")
+    ax.axhline(1.0, color="C3", ls="--", lw=1.0, label="limit")
+    ax.set_ylim(bottom=0.0)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("largest |value| / limit over the joints")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    return figure_png(fig)

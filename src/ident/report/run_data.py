@@ -159,6 +159,7 @@ def result_to_dict(result: Any) -> dict[str, Any]:
                 if getattr(e, "safety_check", None) is None
                 else {"usable": bool(e.safety_check.usable), "summary": e.safety_check.summary()},
                 "path_csv": None if e.traced_points is None else f"elites/elite_{e.rank}_path.csv",
+                "safety_series": _safety_series(getattr(e, "safety_check", None)),
             }
         )
     out["elites"] = elites
@@ -176,6 +177,15 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     if validation is not None:
         out["validation"] = validation
     return out
+
+
+def _safety_series(report: Any) -> dict[str, Any] | None:
+    """The compact safety time series of an elite's dense check (None when unchecked)."""
+    if report is None:
+        return None
+    from ident.excitation.safety_series import safety_series
+
+    return safety_series(report)
 
 
 def _frame_base_dict(info: Any) -> dict[str, Any] | None:
@@ -248,28 +258,35 @@ def save_run(result: Any, run_dir: str | Path) -> None:
 def write_replay(run_dir: str | Path) -> str:
     """Write ``replay.html`` for the chosen elite; return a one-line note of what happened.
 
-    The traced point is the excitation family's (``result.json`` ``excitation.traced_frame``:
-    the flange for the paper's wrist family, the wrist centre for its arm family); for a
-    family without one (joint space), the wrist centre for the arm stage (the point the arm
-    positions) and the replay's default (the flange) otherwise. The note names the frame.
+    The traced point is :func:`ident.viz.environment.run_traced_frame` (the excitation
+    family's; for a family without one, the wrist centre for the arm stage and the replay's
+    default, the flange, otherwise), as for ``ident replay RUN``. The floor and obstacles of
+    the config's ``safety`` section are drawn, and the moment of the elite's smallest
+    clearance is marked and named in the title. The note names the frame.
     Never raises for a missing or failing replay module: the report says so instead.
     """
     run_dir = Path(run_dir)
     try:
+        from ident.viz.environment import (
+            run_clearance_mark,
+            run_environment,
+            run_traced_frame,
+        )
         from ident.viz.replay import replay_html
     except ImportError as e:
         return f"no replay: ident.viz.replay is not available ({e})."
-    traced_frame, label, data = None, "elite 1", {}
+    label, data = "elite 1", {}
     try:
         data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
-        traced_frame = data["excitation"].get("traced_frame")
-        stage = data["config"]["stage"]
-        if traced_frame is None and stage == "arm":
-            traced_frame = "wrist_centre"
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        stage = None
+        if not isinstance(data, dict):
+            data = {}
+    except (OSError, ValueError):
+        data = {}
+    traced_frame = run_traced_frame(data)
+    config = data.get("config")
+    stage = config.get("stage") if isinstance(config, dict) else None
     # one period of the elite the robot may run; without one, elite 1, marked unsafe
-    chosen = data.get("chosen_elite") if isinstance(data, dict) else None
+    chosen = data.get("chosen_elite")
     rank = chosen if isinstance(chosen, int) else 1
     trajectory_path = run_dir / "elites" / f"elite_{rank}.csv"
     if not trajectory_path.is_file():
@@ -278,11 +295,22 @@ def write_replay(run_dir: str | Path) -> str:
     label = f"elite {rank} of {data.get('name')} ({stage} stage)" if data else label
     if not isinstance(chosen, int) and data.get("safety") is not None:
         label += " - UNSAFE, not for the robot"
+    environment = run_environment(data)
+    mark = run_clearance_mark(data, rank)
+    title = f"ident replay: {data.get('name') or run_dir.name}, elite {rank}"
+    if mark is not None:
+        title += f", {mark.describe()}"
     page, problem = None, ""
     for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
         try:
             page = replay_html(
-                run_dir / "robot.urdf", [trajectory], traced_frame=frame, labels=[label]
+                run_dir / "robot.urdf",
+                [trajectory],
+                traced_frame=frame,
+                labels=[label],
+                environment=environment,
+                marks=[mark],
+                title=title,
             )
             break
         except Exception as e:  # the replay is a convenience: a failure must not lose the run

@@ -37,6 +37,7 @@ from ident.report.format import table as _table
 from ident.report.headline import NOT_CHECKED, Headline, headline_markdown
 from ident.report.paper import _base_section, _dh_section, paper_tables_section
 from ident.report.run_data import FORMAT, load_run, result_to_dict, save_run, write_replay
+from ident.report.safety_section import safety_figures, safety_headline, safety_section
 from ident.trajectory import read_trajectory_csv
 
 __all__ = [
@@ -116,6 +117,7 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
                 include=est.get("significant"),
                 title=f"Elite 1, {method.upper()}: identified vs true",
             )
+    figures.update(safety_figures(data))
     val_path = run_dir / "validation.csv"
     if val_path.is_file():
         figures["figures/validation.png"] = _validation_png(val_path, torque_png)
@@ -260,6 +262,19 @@ def _check_text(entry: Any) -> str:
     return str(entry)
 
 
+def _safety_text(data: dict[str, Any]) -> str:
+    """The headline's safety line: the run's verdict, the executed elite, its clearance."""
+    text = _check_text(data.get("safety"))
+    executed = safety_headline(data)
+    if executed is None:
+        return text
+    if text == NOT_CHECKED:
+        return executed
+    ok = (data.get("safety") or {}).get("ok") if isinstance(data.get("safety"), dict) else None
+    state = "ok" if ok else "**violated**" if ok is not None else text
+    return f"{state}: {executed}"
+
+
 def _validation(data: dict[str, Any], method: str | None) -> dict[str, Any] | None:
     """The run's validation entry (a second trajectory), when it has one."""
     val = data.get("validation")
@@ -328,7 +343,7 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
         residual_label=residual_label,
         condition=cond,
         consistency=_check_text(data.get("consistency")),
-        safety=_check_text(data.get("safety")),
+        safety=_safety_text(data),
         warnings=warnings,
         extra=[tuple(e) for e in extra],
     )
@@ -384,6 +399,7 @@ def render_markdown(
             "velocities with limits](figures/trajectory.png)",
             "",
         ]
+    md += safety_section(data, figures)
     md += _optimization_section(data, figures)
     md += _elites_section(data, stage)
     if data["elites"] and stage:

@@ -17,6 +17,9 @@ Scene layout (meshcat paths)::
     /meshcat/replay/robot_<k>/visuals/<geometry>  animated link geometry (Pinocchio names)
     /meshcat/replay/robot_<k>/path                line through the traced frame's positions
     /meshcat/replay/robot_<k>/marker              animated sphere at the traced frame
+    /meshcat/replay/floor                         the floor (:mod:`ident.viz.environment`)
+    /meshcat/replay/robot_<k>/environment/<name>  obstacles of robot k
+    /meshcat/replay/robot_<k>/closest             closest link at the least clearance
 """
 
 from __future__ import annotations
@@ -41,6 +44,12 @@ from pinocchio.visualize.meshcat_visualizer import loadMesh
 
 from ident.errors import DataError, IdentWarning, ModelError
 from ident.trajectory import JointTrajectory
+from ident.viz.environment import (
+    CLOSEST_COLOR,
+    ClearanceMark,
+    ReplayEnvironment,
+    draw_environment,
+)
 from ident.viz.recorder import SceneRecorder
 
 __all__ = [
@@ -58,8 +67,9 @@ FloatArray = npt.NDArray[np.float64]
 DEFAULT_FPS = 30.0
 # Frames tried, in order, when no traced frame is given (the paper robot's flange first).
 _PREFERRED_TRACED_FRAMES = ("flange", "tool0", "tool", "ee_link", "wrist_centre")
-# Line colours of robots 0, 1, ... (0xRRGGBB), cycled.
-_PATH_COLORS = (0xF03E9E, 0xFFD43B, 0x40C057, 0x15AABF, 0xFFFFFF, 0xBE4BDB)
+# Line colours of robots 0, 1, ... (0xRRGGBB), cycled: dark and saturated, so they stand out
+# on meshcat's light sky and on the grey floor (no white, no yellow).
+_PATH_COLORS = (0xC2255C, 0x1971C2, 0x2B8A3E, 0xD9480F, 0x6741D9, 0x0B7285)
 _ROOT = "replay"
 # Keep the path line light: a 1 kHz, 60 s log is decimated to at most this many points.
 _MAX_PATH_POINTS = 4000
@@ -95,6 +105,8 @@ class ReplayScene:
     fallback_geometry: bool
     labels: tuple[str, ...] = ()
     colors: tuple[int, ...] = ()
+    environment_paths: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
     def caption_html(self) -> str:
         """One line per robot: its path colour, label and duration, for the static page."""
@@ -103,7 +115,7 @@ class ReplayScene:
             for k, (label, color) in enumerate(zip(self.labels, self.colors, strict=True))
         ]
         head = f"traced frame {html.escape(self.traced_frame)}, {self.duration:.2f} s"
-        return "<br>".join([head, *rows])
+        return "<br>".join([head, *rows, *(html.escape(n) for n in self.notes)])
 
 
 class _BakedMeshVisualizer(MeshcatVisualizer):
@@ -386,6 +398,8 @@ def build_replay_scene(
     package_dirs: Sequence[str | Path] = (),
     spacing: float | None = None,
     labels: Sequence[str] | None = None,
+    environment: ReplayEnvironment | None = None,
+    marks: Sequence[ClearanceMark | None] | None = None,
 ) -> ReplayScene:
     """Record a meshcat scene replaying one or more trajectories of the robot of a URDF.
 
@@ -409,6 +423,12 @@ def build_replay_scene(
         Distance between robots [m] (``None``: 1.2 times the largest extent of the motion).
     labels :
         Name of each trajectory (default ``trajectory 0``, ...), shown in the page's caption.
+    environment :
+        Floor and obstacles (:class:`~ident.viz.environment.ReplayEnvironment`; ``None``: a
+        floor at z = 0 and no obstacle).
+    marks :
+        Per trajectory, the moment of its smallest clearance (or ``None``): a sphere at the
+        closest link at that time, and a caption line.
 
     Returns
     -------
@@ -431,6 +451,10 @@ def build_replay_scene(
         labels = [f"trajectory {k}" for k in range(len(trajectories))]
     if len(labels) != len(trajectories):
         raise DataError(f"{len(labels)} labels for {len(trajectories)} trajectories.")
+    if marks is None:
+        marks = [None] * len(trajectories)
+    if len(marks) != len(trajectories):
+        raise DataError(f"{len(marks)} clearance marks for {len(trajectories)} trajectories.")
     if not (math.isfinite(fps) and fps >= 1.0):
         raise DataError(f"fps = {fps} must be >= 1 keyframe per second.")
     model, visual_model, fallback = load_visual_robot(urdf_path, package_dirs)
@@ -455,6 +479,7 @@ def build_replay_scene(
     marker_radius = float(np.clip(0.015 * _characteristic_length(model), 0.004, 0.03))
     robot_paths = []
     camera_points = []
+    notes: list[str] = []
     for k, (q_frames, path) in enumerate(zip(keyframes, paths, strict=True)):
         root = f"{_ROOT}/robot_{k}"
         offset = np.array([0.0, k * spacing, 0.0])
@@ -481,6 +506,24 @@ def build_replay_scene(
                 frame_vis[f"{root}/marker"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
         robot_paths.append(f"/meshcat/{root}")
         camera_points.append(np.vstack([joints[k], path]) + offset)
+        mark = marks[k]
+        if mark is not None:
+            position = _mark_position(model, trajectories[k], configurations[k], mark)
+            if position is not None:
+                vis[f"{root}/closest"].set_object(
+                    mg.Sphere(2.0 * marker_radius), mg.MeshLambertMaterial(color=CLOSEST_COLOR)
+                )
+                vis[f"{root}/closest"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
+            notes.append(f"robot {k}: {mark.describe()} (red sphere)")
+
+    everything = np.vstack(camera_points)
+    environment_paths = draw_environment(
+        vis,
+        _ROOT,
+        [f"{_ROOT}/robot_{k}" for k in range(len(trajectories))],
+        environment if environment is not None else ReplayEnvironment(),
+        (everything.min(axis=0), everything.max(axis=0)),
+    )
 
     vis.window.send(SetAnimation(animation, play=True, repetitions=math.inf if loop else 1))
     _set_camera(vis, np.vstack(camera_points), len(trajectories))
@@ -494,7 +537,20 @@ def build_replay_scene(
         fallback_geometry=fallback,
         labels=tuple(labels),
         colors=tuple(_PATH_COLORS[k % len(_PATH_COLORS)] for k in range(len(trajectories))),
+        environment_paths=environment_paths,
+        notes=tuple(notes),
     )
+
+
+def _mark_position(
+    model: pin.Model, trajectory: JointTrajectory, q: FloatArray, mark: ClearanceMark
+) -> FloatArray | None:
+    """Position [m] of the first frame named in ``mark.pair`` at ``mark.time`` (or None)."""
+    frame = next((n for n in mark.pair.split("|") if model.existFrame(n)), None)
+    if frame is None or not math.isfinite(mark.time):
+        return None
+    at = np.array([np.interp(mark.time, trajectory.t, q[:, k]) for k in range(q.shape[1])])
+    return _frame_positions(model, at[None, :], int(model.getFrameId(frame)))[0]
 
 
 def _animate_robot(
@@ -534,13 +590,17 @@ def replay_html(
     loop: bool = True,
     fps: float = DEFAULT_FPS,
     labels: Sequence[str] | None = None,
+    environment: ReplayEnvironment | None = None,
+    marks: Sequence[ClearanceMark | None] | None = None,
+    title: str | None = None,
 ) -> str:
     """Self-contained HTML page replaying trajectories of a robot (meshcat's static export).
 
     The page inlines meshcat's viewer and the scene (robot, animation, traced path, camera);
     it opens from disk, with no server and no network access. Arguments as in
     :func:`build_replay_scene`. Writing the file is the caller's job
-    (``ident.fileio.atomic_write_text``).
+    (``ident.fileio.atomic_write_text``). ``title`` is the page's title (default: ``ident
+    replay: <urdf stem>``).
     """
     scene = build_replay_scene(
         urdf_path,
@@ -551,6 +611,8 @@ def replay_html(
         fps=fps,
         package_dirs=package_dirs,
         labels=labels,
+        environment=environment,
+        marks=marks,
     )
-    title = f"ident replay: {Path(urdf_path).stem}"
+    title = title or f"ident replay: {Path(urdf_path).stem}"
     return scene.recorder.static_html(title=title, caption_html=scene.caption_html())
