@@ -85,14 +85,13 @@ def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
         if alone:
             identified[pm.names[i]] = (float(est.x[k]), float(est.relative_std[k]))
     from ident.dynamics.parameters import parameters_from_model
-    from ident.identify.real import load_robot_model
+    from ident.model.selection import load_robot
 
-    model = load_robot_model(result.config.robot.urdf)
-    text = Path(result.config.robot.urdf).read_text(encoding="utf-8")
+    robot = load_robot(result.config.robot)  # the robot the identification used (chain, locks)
     return update_urdf_inertials(
-        text,
+        robot.urdf_text,
         result.joint_names,
-        parameters_from_model(model),
+        parameters_from_model(robot.model),
         identified,
         max_relative_std_pct=result.config.urdf_update.max_relative_std_pct,
     )
