@@ -44,7 +44,7 @@ from ident.dynamics.friction import extra_columns
 from ident.errors import DataError, NotIdentifiable
 from ident.identify import preprocess
 from ident.identify.config import PreprocessConfig
-from ident.identify.estimate import _ZERO_SIGMA_RTOL, Estimate, rank_report
+from ident.identify.estimate import Estimate, least_squares_reduced
 from ident.identify.observations import ReducedObservations
 
 __all__ = [
@@ -303,9 +303,8 @@ def estimate_reduced(
     method: str = "ols",
     wls_passes: int = 2,
 ) -> Estimate:
-    """OLS/WLS from a reduction, with the formulas of
-    :func:`ident.identify.estimate.least_squares` (rows grouped by joint): the same ``x``,
-    standard deviations, per-joint residuals and WLS weights as on the rows themselves.
+    """OLS/WLS from a reduction: :func:`ident.identify.estimate.least_squares_reduced` (the
+    formulas of :func:`ident.identify.estimate.least_squares`, rows grouped by joint).
 
     Raises
     ------
@@ -314,88 +313,7 @@ def estimate_reduced(
     NotIdentifiable
         Rank deficiency (the message names the parameters).
     """
-    names = tuple(names)
-    n = red.n_params
-    m = int(red.n_rows.sum())
-    if m <= n:
-        raise DataError(
-            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
-            "use a longer log, less decimation, or fewer parameters."
-        )
-    rows_in_group = red.n_rows.astype(float)
-    R0, z0 = red.stacked()
-    s = np.linalg.svd(R0, compute_uv=False)
-    condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-    if not np.isfinite(condition_number) or condition_number > 1.0 / np.finfo(float).eps:
-        stacked_rows = red.R.reshape(-1, n)
-        raise NotIdentifiable(
-            rank_report(stacked_rows, names)
-            or f"observation matrix is singular (cond={condition_number})."
-        )
-    x = scipy.linalg.solve_triangular(R0, z0, check_finite=False)
-    ss = red.residual_ss(x)
-    dof = m - n
-    sigma_pooled = float(np.sqrt(ss.sum() / dof))
-    message = "ok"
-
-    def cov_unit(R: FloatArray) -> FloatArray:
-        R_inv = scipy.linalg.solve_triangular(R, np.eye(n), check_finite=False)
-        return R_inv @ R_inv.T
-
-    if method == "ols":
-        cov = sigma_pooled**2 * cov_unit(R0)
-        sigma = np.full(red.n_groups, sigma_pooled)
-    elif method == "wls":
-        zero = np.zeros(red.n_groups, dtype=bool)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            tau_rms = np.sqrt(red.yty / rows_in_group)
-        for _ in range(wls_passes):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                sigma = np.sqrt(ss / (rows_in_group * dof / m))
-            zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
-            if zero.any():
-                sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
-            sigma = np.where(rows_in_group > 0, sigma, np.nan)
-            weight = np.where(rows_in_group > 0, 1.0 / sigma, 0.0)
-            Rs, zs = red.stacked(weight)
-            x = scipy.linalg.solve_triangular(Rs, zs, check_finite=False)
-            ss = red.residual_ss(x)
-        if zero.any():
-            message = (
-                "WLS: zero residual variance on group(s) "
-                + ", ".join(str(j) for j in np.flatnonzero(zero))
-                + " (noise-free data); used the pooled OLS weight there."
-            )
-        sigma_w2 = float(np.sum(weight**2 * ss) / dof)
-        cov = sigma_w2 * cov_unit(Rs)
-        sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
-    else:
-        raise DataError(f"method={method!r} is not one of ols, wls.")
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        relative_std = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
-        residual_rms = np.sqrt(ss / rows_in_group)
-    tau_norm = float(np.sqrt(red.yty.sum()))
-    relative_residual = float(np.sqrt(ss.sum()) / tau_norm) if tau_norm > 0 else float("inf")
-    success = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(std)))
-    if not success:
-        message = "non-finite estimate or standard deviation; check the data scaling."
-    return Estimate(
-        x=x,
-        names=names,
-        std=std,
-        relative_std=relative_std,
-        method=method,
-        residual_rms=residual_rms,
-        relative_residual=relative_residual,
-        sigma=sigma,
-        condition_number=condition_number,
-        n_samples=m,
-        success=success,
-        message=message,
-        n_observations=m,
-        covariance=cov,
-    )
+    return least_squares_reduced(red, names, method=method, wls_passes=wls_passes)
 
 
 def essential_reduced(
