@@ -44,6 +44,7 @@ from ident.dynamics.friction import extra_columns
 from ident.errors import DataError, NotIdentifiable
 from ident.identify import preprocess
 from ident.identify.config import PreprocessConfig
+from ident.identify.essential import backward_elimination
 from ident.identify.estimate import Estimate, least_squares_reduced
 from ident.identify.observations import ReducedObservations
 
@@ -327,41 +328,15 @@ def essential_reduced(
     """:func:`ident.identify.essential.essential_parameters` on a reduction (same rule:
     backward elimination of the largest relative std while the residual stays within
     ``1 + max_residual_increase`` of the full set's)."""
-    from ident.identify.essential import EssentialResult
-
-    kept = list(range(len(names)))
 
     def fit(columns: list[int]) -> Estimate:
         return estimate_reduced(_subset(red, columns), [names[i] for i in columns], method=method)
 
-    current = fit(kept)
-    limit = current.relative_residual * (1.0 + max_residual_increase)
-    dropped: list[dict] = []
-    stop_reason = "every parameter has a relative std within the bound"
-    while len(kept) > 1:
-        worst = int(np.argmax(current.relative_std))
-        if current.relative_std[worst] <= max_relative_std_pct:
-            break
-        trial_columns = kept[:worst] + kept[worst + 1 :]
-        trial = fit(trial_columns)
-        if trial.relative_residual > limit:
-            stop_reason = (
-                f"dropping {names[kept[worst]]} would raise the relative residual to "
-                f"{trial.relative_residual:.4g} (limit {limit:.4g})"
-            )
-            break
-        dropped.append(
-            {
-                "name": names[kept[worst]],
-                "relative_std_pct": float(current.relative_std[worst]),
-                "relative_residual_after": float(trial.relative_residual),
-            }
-        )
-        kept, current = trial_columns, trial
-    else:
-        stop_reason = "one parameter left"
-    return EssentialResult(
-        estimate=current, kept=tuple(kept), dropped=tuple(dropped), stop_reason=stop_reason
+    return backward_elimination(
+        fit,
+        names,
+        max_relative_std_pct=max_relative_std_pct,
+        max_residual_increase=max_residual_increase,
     )
 
 

@@ -9,6 +9,7 @@ uncertainty (Pham and Gautier, "Essential parameters of robots", CDC 1991).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,7 @@ import numpy.typing as npt
 
 from ident.identify.estimate import Estimate, least_squares
 
-__all__ = ["EssentialResult", "essential_parameters"]
+__all__ = ["EssentialResult", "backward_elimination", "essential_parameters"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -79,7 +80,6 @@ def essential_parameters(
         The :class:`EssentialResult`.
     """
     names = tuple(names)
-    kept = list(range(len(names)))
 
     def fit(columns: list[int]) -> Estimate:
         return least_squares(
@@ -91,6 +91,29 @@ def essential_parameters(
             rows_per_sample=rows_per_sample,
         )
 
+    return backward_elimination(
+        fit,
+        names,
+        max_relative_std_pct=max_relative_std_pct,
+        max_residual_increase=max_residual_increase,
+    )
+
+
+def backward_elimination(
+    fit: Callable[[list[int]], Estimate],
+    names: Sequence[str],
+    *,
+    max_relative_std_pct: float,
+    max_residual_increase: float,
+) -> EssentialResult:
+    """The essential-parameter rule on any fit of a subset of the parameters.
+
+    Starting from every parameter, drop the one with the largest relative standard deviation
+    while it is above ``max_relative_std_pct`` and the relative residual stays within
+    ``1 + max_residual_increase`` of the full set's. ``fit(columns)`` estimates the parameters
+    ``columns`` (indices into ``names``); rows or a reduction of them, the rule is the same.
+    """
+    kept = list(range(len(names)))
     current = fit(kept)
     limit = current.relative_residual * (1.0 + max_residual_increase)
     dropped: list[dict] = []
