@@ -44,6 +44,7 @@ __all__ = [
     "check_urdf_numbers",
     "max_workers",
     "read_urdf_text",
+    "refuse_dtd",
     "resource_ceilings",
     "safe_component",
 ]
@@ -234,14 +235,28 @@ def read_urdf_text(path: str | Path) -> str:
         text = read_text_input(path, what="URDF", max_bytes=MAX_URDF_BYTES)
     except ConfigError as e:
         raise ModelError(str(e)) from e
+    refuse_dtd(text, path)
+    return text
+
+
+def refuse_dtd(text: str, where: str | Path) -> None:
+    """Refuse URDF text with a document type declaration (``<!DOCTYPE>``, ``<!ENTITY>``).
+
+    Pinocchio (urdfdom) and Python's XML parser disagree on entities: the one rule every
+    reader of URDF text in ``ident`` applies.
+
+    Raises
+    ------
+    ModelError
+        Naming ``where`` and the line of the declaration.
+    """
     match = _DTD.search(text)
     if match:
         line = text[: match.start()].count("\n") + 1
         raise ModelError(
-            f"{path}: line {line}: a <!{match.group(1).upper()}> declaration; URDFs "
+            f"{where}: line {line}: a <!{match.group(1).upper()}> declaration; URDFs "
             "with a DTD or entities are not supported, write the values out."
         )
-    return text
 
 
 def check_urdf_numbers(text: str, source: str) -> None:

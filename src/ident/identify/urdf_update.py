@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ModelError
+from ident.inputs import refuse_dtd
 
 __all__ = [
     "DEFAULT_MAX_RELATIVE_STD_PCT",
@@ -143,12 +144,7 @@ def parse_urdf(urdf_text: str, source: str = "URDF") -> ET.Element:
         For a document type declaration (entities), malformed XML, or a root other than
         ``<robot>``; nothing has been changed then.
     """
-    head = urdf_text[: urdf_text.find("<robot")] if "<robot" in urdf_text else urdf_text
-    if "<!DOCTYPE" in head or "<!ENTITY" in urdf_text:
-        raise ModelError(
-            f"{source}: has a document type declaration (<!DOCTYPE>/<!ENTITY>), which the "
-            "robot loader does not expand; write the values in place and remove it."
-        )
+    refuse_dtd(urdf_text, source)  # the rule of every URDF reader (ident.inputs)
     try:
         root = ET.fromstring(urdf_text)
     except ET.ParseError as e:
