@@ -20,9 +20,21 @@ from ident.run.config import RunConfig
 from ident.run.results import EliteOutcome, StageInfo
 from ident.run.stage_info import stage_matrix
 
-__all__ = ["identify_elite"]
+__all__ = ["elite_trajectory", "identify_elite"]
 
 FloatArray = npt.NDArray[np.float64]
+
+
+def elite_trajectory(
+    family: Any, x: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray | None]:
+    """One period of a design: ``t`` (n,), ``q, dq, ddq`` (n, nq) and the traced points
+    (n, 3) [m] or None."""
+    batch = family.trajectories(x[None, :])
+    t = np.asarray(batch.t, dtype=float)
+    q, dq, ddq = (np.asarray(a[0], dtype=float) for a in (batch.q, batch.dq, batch.ddq))
+    traced = None if batch.traced_points is None else np.asarray(batch.traced_points[0])
+    return t, q, dq, ddq, traced
 
 
 def identify_elite(
@@ -41,10 +53,7 @@ def identify_elite(
     Estimator failures (rank-deficient base matrix on this trajectory, ...) are recorded in
     ``failures`` with their message; they do not raise.
     """
-    batch = family.trajectories(x[None, :])
-    t = np.asarray(batch.t, dtype=float)
-    q, dq, ddq = (np.asarray(a[0], dtype=float) for a in (batch.q, batch.dq, batch.ddq))
-    traced = None if batch.traced_points is None else np.asarray(batch.traced_points[0])
+    t, q, dq, ddq, traced = elite_trajectory(family, x)
     m = config.measurement
     std = m.torque_noise_std
     noise = NoiseModel(

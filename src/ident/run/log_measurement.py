@@ -35,6 +35,7 @@ from ident.measure.mujoco_config import per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
 from ident.run.config import RunConfig
+from ident.run.elite_identification import elite_trajectory
 from ident.run.results import EliteOutcome, StageInfo, base_set_fields
 
 __all__ = [
@@ -235,10 +236,7 @@ def identify_elite_log(
     The outcome's ``tau`` is the logged (measured) torque of the first logged period at the
     trajectory's sample times; ``log`` holds the whole simulation for the run folder.
     """
-    batch = family.trajectories(x[None, :])
-    t = np.asarray(batch.t, dtype=float)
-    q, dq, ddq = (np.asarray(a[0], dtype=float) for a in (batch.q, batch.dq, batch.ddq))
-    traced = None if batch.traced_points is None else np.asarray(batch.traced_points[0])
+    t, q, dq, ddq, traced = elite_trajectory(family, x)
     method = config.identification.estimation.method
     estimates: dict[str, Any] = {}
     failures: dict[str, str] = {}
