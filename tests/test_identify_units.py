@@ -110,3 +110,31 @@ def test_report_and_result_json_show_each_joints_unit(rp2_run):
     data = json.loads((run_dir / "result.json").read_text())
     assert data["joint_units"] == _urdf_units()
     assert "RMSE slider [N]" in (run_dir / "report.html").read_text()
+
+
+def test_parameter_units_follow_the_joint_type(rp2_run):
+    """parameters.csv and the report's base-parameter table: the slider's friction in N*s/m
+    and N (a revolute-only labelling would say N*m*s/rad and N*m), the shoulder's in N*m."""
+    import csv
+
+    _, run_dir = rp2_run
+    with (run_dir / "parameters.csv").open() as f:
+        units = {row["name"]: row["unit"] for row in csv.DictReader(f)}
+    # 1-based joint numbers in the URDF's order: 1 shoulder (revolute), 2 slider (prismatic)
+    expected = {"fv1": "N*m*s/rad", "fs1": "N*m", "fv2": "N*s/m", "fs2": "N"}
+    assert {k: units[k] for k in expected} == expected
+    assert all(units[name] for name in units), units  # every base parameter has a unit
+    md = (run_dir / "report.md").read_text()
+    assert re.search(r"^\| \d+ \| fv2 \| N\*s/m \|", md, re.MULTILINE)
+    assert re.search(r"^\| \d+ \| fs1 \| N\*m \|", md, re.MULTILINE)
+
+
+def test_parameter_unit_without_joint_types_is_revolute():
+    from ident.identify.metrics import parameter_unit
+
+    assert parameter_unit("fv2") == "N*m*s/rad"
+    assert parameter_unit("fv2", ("N*m", "N")) == "N*s/m"
+    assert parameter_unit("Ia2R", ("N*m", "N")) == "kg"
+    assert parameter_unit("off1", ("N*m", "N")) == "N*m"
+    assert parameter_unit("fvm2", ("N*m", "N")) == "N*m*s/rad"  # motors turn
+    assert parameter_unit("Izz2R", ("N*m", "N")) == "kg*m^2"

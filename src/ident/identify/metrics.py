@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -227,6 +228,9 @@ def verdict(
     return Verdict("not identified", reason)
 
 
+# joint-space parameters of joint k (1-based): fv3, fs3, fc3, off3, Ia3 (and base names fv3R)
+_JOINT_PARAMETER = re.compile(r"^(fv|fs|fc|off|Ia)(\d+)")
+_PRISMATIC_UNITS = {"fv": "N*s/m", "fs": "N", "fc": "N", "off": "N", "Ia": "kg"}
 _UNITS = (
     (re.compile(r"^(fv|fvm)\d"), "N*m*s/rad"),
     (re.compile(r"^(fs|fsm|fc|fcm)\d"), "N*m"),
@@ -238,14 +242,24 @@ _UNITS = (
 )
 
 
-def parameter_unit(name: str) -> str:
+def parameter_unit(name: str, joint_units: Sequence[str] = ()) -> str:
     """SI unit of a named (standard or base) parameter, e.g. ``Ixx5R`` -> ``kg*m^2``.
 
     A base parameter has the unit of the standard parameter it is named after (its
     combination's coefficients carry the rest). Names: ``m``, ``mcx``..``mcz``,
     ``Ixx``..``Izz``, rotor inertia ``Ia``/``Iam``, viscous ``fv``/``fvm``, Coulomb
     ``fs``/``fc``, offset ``off``, each followed by the joint number; ``""`` when unknown.
+
+    ``joint_units`` (the torque unit of each joint, ``"N"`` for a prismatic joint, see
+    :func:`ident.identify.sanity.joint_units`) gives the joint-space parameters of a prismatic
+    joint their own units: ``fv`` in N*s/m, ``fs``/``off`` in N, ``Ia`` (reflected rotor
+    mass) in kg. Motor-side parameters (``Iam``, ``fvm``, ``fsm``) belong to rotary motors.
     """
+    joint = _JOINT_PARAMETER.match(name)
+    if joint and joint_units:
+        j = int(joint.group(2)) - 1
+        if 0 <= j < len(joint_units) and joint_units[j] == "N":
+            return _PRISMATIC_UNITS[joint.group(1)]
     for pattern, unit in _UNITS:
         if pattern.match(name):
             return unit

@@ -337,7 +337,7 @@ def _markdown(
         # round-off of the structural K times nominal inertias (friction has no nominal value)
         nominal = 0.0 if abs(nominal) < 1e-12 else nominal
         lines.append(
-            f"| {k + 1} | {name} | {parameter_unit(name) or '-'} | {_num(est.x[k])} | "
+            f"| {k + 1} | {name} | {parameter_unit(name, units) or '-'} | {_num(est.x[k])} | "
             f"{_num(est.relative_std[k], 3)} | {ref} | "
             f"{ref_std} | {_num(nominal)} | `{expressions[k]}` |"
         )
@@ -522,14 +522,16 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
 def _parameters_csv(result: IdentifyResult) -> str:
     pm = result.parameters
     est = result.estimate
+    units = joint_torque_units(result)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(["name", "value", "std", "relative_std_pct", "expression"])
+    writer.writerow(["name", "value", "unit", "std", "relative_std_pct", "expression"])
     for k, expr in enumerate(pm.base.expressions()):
         writer.writerow(
             [
                 pm.base_names[k],
                 repr(float(est.x[k])),
+                parameter_unit(pm.base_names[k], units),
                 repr(float(est.std[k])),
                 repr(float(est.relative_std[k])),
                 expr,
