@@ -98,14 +98,10 @@ def test_mujoco_needs_every_joint_moving_and_one_value_per_joint(tmp_path) -> No
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["ur5", "panda"])
-def test_shipped_robot_configs_identify_within_5_percent(name, tmp_path) -> None:
-    """The issue's bar: every base parameter with >= 1 % of the torques within 5 %, the
+def test_shipped_robot_configs_identify_within_5_percent(name, shipped_run) -> None:
+    """Every base parameter with >= 1 % of the torques within 5 %, the
     friction and rotor inertias within 5 %, from MuJoCo data with friction, armature, noise."""
-    result = runner.invoke(
-        app, ["run", str(REPO / "configs" / f"{name}.yaml"), "--out", str(tmp_path), "--no-replay"]
-    )
-    assert result.exit_code == 0, result.output
-    run = json.loads((_only(tmp_path) / "result.json").read_text())
+    run = json.loads((shipped_run(name) / "result.json").read_text())
     major = _errors(run, 0.01)
     assert max(major.values()) < 5.0, major
     extras = {n: e for n, e in _errors(run, 0.0).items() if n[:2] in ("fv", "fs", "Ia")}

@@ -20,11 +20,23 @@ __all__ = ["inspect", "register", "skeleton"]
 
 logs_app = typer.Typer(no_args_is_help=True, help="Look into robot logs before identifying.")
 
-# Column-name patterns of each signal, tried in order (case-insensitive).
+# Column-name patterns of each signal, tried in order (case-insensitive). A name part is
+# delimited by anything but a letter: ``q3``, ``q[0]``, ``joint/pos``, ``i_2 (A)``.
+_WORD = r"(^|[^a-z])({})([^a-z]|$)"
 _PATTERNS = {
-    "position": (r"(^|[/_.])(q|pos|position|angle|joint_pos)([/_.]|\d|$)",),
-    "velocity": (r"(^|[/_.])(dq|qd|vel|velocity|speed)([/_.]|\d|$)",),
-    "torque": (r"(^|[/_.])(tau|torque|effort|cur|current|trq|i)([/_.]|\d|$)",),
+    "position": _WORD.format("q|pos|position|angle|joint_pos"),
+    "velocity": _WORD.format("dq|qd|vel|velocity|speed"),
+    "torque": _WORD.format("tau|torque|effort|trq|cur|current|curr|amp|i|ia|ma"),
+}
+_CURRENT = re.compile(_WORD.format("cur|current|curr|amp|amps|i|ia|ma"))
+_TIME = re.compile(_WORD.format("t|time|stamp|timestamp|sec|secs|seconds"))
+# unit hints in a name, e.g. ``pos_deg``, ``q[0] (rad)``, ``time[ms]``, ``cur_mA``
+_TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_UNIT_HINTS = {
+    "position": (("deg", "deg"), ("degree", "deg"), ("mrad", "mrad"), ("rad", "rad"), ("mm", "mm")),
+    "velocity": (("deg/s", "deg/s"), ("degs", "deg/s"), ("rpm", "rpm"), ("rad/s", "rad/s")),
+    "torque": (("nm", "N*m"), ("n*m", "N*m"), ("ma", "mA"), ("a", "A")),
+    "time": (("ms", "ms"), ("us", "us"), ("ns", "ns"), ("s", "s")),
 }
 
 
@@ -37,45 +49,102 @@ def _classify(name: str) -> str | None:
     lower = name.lower()
     if re.search(r"(cmd|command|des|ref|target)", lower):
         return None  # commanded values are not measurements
-    for kind, patterns in _PATTERNS.items():
-        if any(re.search(p, lower) for p in patterns):
+    for kind, pattern in _PATTERNS.items():
+        if re.search(pattern, lower):
             return kind
     return None
 
 
+def _unit_hint(name: str, kind: str) -> str | None:
+    """The unit a column name states (as a name part: ``_deg``, ``[ms]``, ``(A)``), if any."""
+    parts = set(re.split(r"[^a-z/*]+", name.lower()))
+    return next((unit for hint, unit in _UNIT_HINTS[kind] if hint in parts), None)
+
+
+def _time_candidate(table) -> tuple[str, str] | None:  # noqa: ANN001
+    """A strictly increasing column named like time, and its unit, when the reader found none."""
+    if table.time is not None:
+        return table.time, "s"
+    for name, values in table.columns.items():
+        if _TIME.search(name.lower()) and values.size > 1 and np.all(np.diff(values) > 0):
+            return name, _unit_hint(name, "time") or "s"
+    return None
+
+
+def _position_unit(name: str, values: np.ndarray) -> tuple[str, str]:
+    """Unit of a position column: from its name, else from its range (beyond 2 pi: degrees?)."""
+    hint = _unit_hint(name, "position")
+    if hint is not None:
+        return hint, "from the column name"
+    if np.max(np.abs(values)) > 2.0 * np.pi:
+        return "deg", "values beyond 2 pi: degrees? or motor side, or ticks"
+    return "rad", "check"
+
+
 def skeleton(tables: list, path: Path, fmt: str | None) -> str:
-    """A ``log:`` YAML section naming the columns that look like each signal."""
+    """A ``log:`` YAML section naming the columns that look like each signal, with the
+    units their names (or ranges) suggest; currents get a ``transmission`` to fill in."""
     found: dict[str, list[str]] = {"position": [], "velocity": [], "torque": []}
-    time_note = None
+    values: dict[str, np.ndarray] = {}
+    time = None
     for table in tables:
-        if time_note is None and table.time is not None:
-            time_note = table.time
-        for name in table.columns:
-            kind = _classify(name) if name != table.time else None
+        candidate = _time_candidate(table)
+        if time is None and candidate is not None:
+            time = candidate
+        for name, column in table.columns.items():
+            kind = _classify(name) if candidate is None or name != candidate[0] else None
             if kind is not None:
                 found[kind].append(name)
+                values[name] = column
     lines = ["log:", f"  path: {path}"]
     if fmt is not None:
         lines.append(f"  format: {fmt}")
-    if time_note is not None:
-        lines.append(f"  time: {{column: {_yaml(time_note)}}}   # seconds; unit: ms|us|ns")
+    if time is not None:
+        lines.append(f"  time: {{column: {_yaml(time[0])}, unit: {time[1]}}}   # s|ms|us|ns")
     else:
         lines.append("  sampling_rate_hz: 1000.0   # no time column found: set the rate")
-    for kind, unit in (("position", "rad"), ("velocity", "rad/s"), ("torque", "N*m")):
+    currents = False
+    for kind in ("position", "velocity", "torque"):
         cols = found[kind]
         if not cols and kind == "velocity":
             continue
         listed = "[" + ", ".join(_yaml(c) for c in cols) + "]" if cols else "[...]"
-        lines.append(f"  {kind}: {{columns: {listed}, unit: {unit}}}   # one per joint, in order")
-    lines.append("  side: joint   # or motor (then set transmission.gear_ratios)")
+        if kind == "position" and cols:
+            unit, why = _position_unit(cols[0], np.concatenate([values[c] for c in cols]))
+        elif kind == "torque" and cols and all(_CURRENT.search(c.lower()) for c in cols):
+            currents = True
+            unit = _unit_hint(cols[0], "torque") or "A"
+            unit, why = ("mA", "milliamperes") if unit == "mA" else ("A", "motor currents?")
+        else:
+            unit = (_unit_hint(cols[0], kind) if cols else None) or {
+                "position": "rad", "velocity": "rad/s", "torque": "N*m"
+            }[kind]  # fmt: skip
+            why = "check"
+        side = "  side: motor" if kind == "torque" and currents else ""
+        lines.append(
+            f"  {kind}: {{columns: {listed}, unit: {unit}{', ' + side.strip() if side else ''}}}"
+            f"   # one per joint, in order; unit: {why}"
+        )
+    lines.append("  side: joint   # positions on the joint side? else motor (transmission)")
+    if currents:
+        lines += [
+            "transmission:                 # currents: tau = N k i on the motor side",
+            "  gear_ratios: [...]          # one per joint, q_motor = N q_joint",
+            "  torque_constants: [...]     # N*m/A of each motor",
+        ]
     return "\n".join(lines)
 
 
 def _yaml(name: str) -> str:
-    """Quote a column name when YAML would not read it back as the same string."""
+    """Quote a column name unless YAML reads it back as the same string inside a flow
+    sequence (``[q1, q2]``; ``q[0]`` and ``a: b`` need quotes there)."""
     import yaml
 
-    return name if yaml.safe_load(name) == name and ":" not in name else repr(name)
+    try:
+        plain = yaml.safe_load(f"[{name}]") == [name]
+    except yaml.YAMLError:
+        plain = False
+    return name if plain else "'" + name.replace("'", "''") + "'"
 
 
 def inspect(
@@ -99,19 +168,22 @@ def inspect(
         typer.echo(f"{file}: format {fmt}, {len(tables)} table(s)")
         for table in tables:
             typer.echo(f"\n{table.source}: {table.n_samples} samples, {len(table.columns)} columns")
-            if table.time is not None:
-                t = table.columns[table.time]
-                if np.all(np.diff(t) > 0):
-                    typer.echo(f"  time '{table.time}': {timebase.summarize_time(t).text()}")
-                else:
-                    typer.echo(f"  time '{table.time}': not strictly increasing")
+            time = _time_candidate(table)
+            if table.time is not None and time is None:
+                typer.echo(f"  time '{table.time}': not strictly increasing")
+            elif time is not None:
+                name, unit = time
+                t = table.columns[name] * _TIME_SCALE[unit]
+                typer.echo(f"  time '{name}' [{unit}]: {timebase.summarize_time(t).text()}")
             else:
                 typer.echo("  no time column: give log.sampling_rate_hz (or log.time.column)")
             for k, (name, values) in enumerate(table.columns.items()):
                 if k == max_columns:
                     typer.echo(f"  ... {len(table.columns) - max_columns} more")
                     break
-                kind = _classify(name) if name != table.time else "time"
+                kind = "time" if time is not None and name == time[0] else _classify(name)
+                if kind == "torque" and _CURRENT.search(name.lower()):
+                    kind = "current"
                 typer.echo(
                     f"  {name:<40s} min {np.min(values):<12.6g} max {np.max(values):<12.6g}"
                     + (f" ({kind}?)" if kind else "")

@@ -1,0 +1,113 @@
+"""``ident logs inspect``: a new user's log, its skeleton, and an identification from it.
+
+The log is one a controller might write and that no example config describes: semicolons,
+column names with brackets (``time[s]``, ``q[0]``, ``i[0]``), time stamps that start at 1234.5 s
+with +-30 % jitter, joint-side positions in degrees and motor currents in A. The reference is
+the simulation's truth (Pinocchio RNEA of the URDF's inertials + the friction below).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from ident.cli import app
+
+REPO = Path(__file__).resolve().parents[1]
+URDF = REPO / "data" / "examples" / "arm3.urdf"
+FV = np.array([0.8, 0.6, 0.3])  # N*m*s/rad
+FS = np.array([1.5, 1.0, 0.5])  # N*m
+GEAR = np.array([100.0, 80.0, 50.0])
+KT = np.array([0.05, 0.04, 0.03])  # N*m/A
+runner = CliRunner()
+
+
+def _log(path: Path, n: int = 12000, rate_hz: float = 500.0) -> Path:
+    rng = np.random.default_rng(11)
+    t = 1234.5 + np.concatenate([[0.0], np.cumsum(rng.uniform(0.7, 1.3, n - 1) / rate_hz)])
+    w = 2.0 * np.pi * 0.125 * np.arange(1, 6)
+    a, b = rng.normal(scale=0.5, size=(2, 5, 3)) / np.arange(1, 6)[None, :, None]
+    s, c = np.sin(np.outer(t - t[0], w)), np.cos(np.outer(t - t[0], w))
+    q, dq, ddq = s @ a + c @ b, (c * w) @ a - (s * w) @ b, -(s * w**2) @ a - (c * w**2) @ b
+    model = pin.buildModelFromUrdf(str(URDF))
+    data = model.createData()
+    tau = np.array([pin.rnea(model, data, *x) for x in zip(q, dq, ddq, strict=True)])
+    tau += FV * dq + FS * np.sign(dq) + rng.normal(scale=0.03, size=tau.shape)
+    current = tau / (GEAR * KT)  # tau = N k i
+    rows = np.column_stack([t, np.degrees(q), current, current * 1.1])
+    header = "time[s];q[0];q[1];q[2];i[0];i[1];i[2];i_cmd[0];i_cmd[1];i_cmd[2]"
+    path.write_text(header + "\n" + "\n".join(";".join(f"{v:.9g}" for v in r) for r in rows))
+    return path
+
+
+@pytest.fixture(scope="module")
+def inspected(tmp_path_factory) -> tuple[Path, str]:
+    log = _log(tmp_path_factory.mktemp("log") / "robot_log.csv")
+    result = runner.invoke(app, ["logs", "inspect", str(log)])
+    assert result.exit_code == 0, result.output
+    return log, result.output
+
+
+def test_inspect_finds_time_rate_and_jitter(inspected) -> None:
+    _, output = inspected
+    line = next(x for x in output.splitlines() if x.startswith("  time 'time[s]'"))
+    assert "12000 samples" in line
+    rate = float(re.search(r"([\d.]+) Hz \(median step\)", line).group(1))
+    assert rate == pytest.approx(500.0, rel=0.01)
+    jitter = float(re.search(r"jitter max ([\d.]+) %", line).group(1))
+    assert 25 <= jitter <= 32  # the steps vary by +-30 % about their median
+
+
+def test_skeleton_names_the_columns_units_and_transmission(inspected) -> None:
+    log, output = inspected
+    cfg = yaml.safe_load(output.split("config skeleton (check every line):")[1])
+    section = cfg["log"]
+    assert section["time"] == {"column": "time[s]", "unit": "s"}
+    assert section["position"]["columns"] == ["q[0]", "q[1]", "q[2]"]
+    assert section["position"]["unit"] == "deg"  # values up to ~100: not radians
+    # measured currents, not the commanded ones
+    assert section["torque"] == {"columns": ["i[0]", "i[1]", "i[2]"], "unit": "A", "side": "motor"}
+    assert set(cfg["transmission"]) == {"gear_ratios", "torque_constants"}
+
+
+def test_the_completed_skeleton_identifies_the_friction(inspected, tmp_path) -> None:
+    """What the docs tell a new user: fill in the robot, the transmission and the model."""
+    log, output = inspected
+    cfg = yaml.safe_load(output.split("config skeleton (check every line):")[1])
+    cfg["transmission"] = {"gear_ratios": GEAR.tolist(), "torque_constants": KT.tolist()}
+    cfg |= {"name": "new-user", "robot": {"urdf": str(URDF)}}
+    cfg["model"] = {"viscous": True, "coulomb": True}
+    path = tmp_path / "new-user.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    result = runner.invoke(app, ["identify", str(path), "--out", str(tmp_path), "--no-replay"])
+    assert result.exit_code == 0, result.output
+    (run,) = [p for p in tmp_path.iterdir() if p.is_dir()]
+    import csv
+
+    with (run / "parameters.csv").open() as f:
+        x = {row["name"]: float(row["value"]) for row in csv.DictReader(f)}
+    np.testing.assert_allclose([x[f"fv{j}"] for j in (1, 2, 3)], FV, rtol=0.05)
+    np.testing.assert_allclose([x[f"fs{j}"] for j in (1, 2, 3)], FS, rtol=0.05)
+
+
+def test_skeleton_of_a_log_in_radians_and_newton_metres(tmp_path) -> None:
+    """No currents: no transmission to fill in; a name's unit wins over the range."""
+    path = tmp_path / "plain.csv"
+    t = np.arange(200) / 100.0
+    rows = np.column_stack([t, np.sin(t), 10 * np.cos(t), np.cos(t), np.sin(t)])
+    path.write_text(
+        "t,pos_rad_1,pos_rad_2,tau_1,tau_2\n" + "\n".join(",".join(map(str, r)) for r in rows)
+    )
+    result = runner.invoke(app, ["logs", "inspect", str(path)])
+    assert result.exit_code == 0, result.output
+    cfg = yaml.safe_load(result.output.split("config skeleton (check every line):")[1])
+    assert cfg["log"]["time"] == {"column": "t", "unit": "s"}
+    assert cfg["log"]["position"] == {"columns": ["pos_rad_1", "pos_rad_2"], "unit": "rad"}
+    assert cfg["log"]["torque"] == {"columns": ["tau_1", "tau_2"], "unit": "N*m"}
+    assert "transmission" not in cfg
