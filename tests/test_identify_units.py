@@ -138,3 +138,20 @@ def test_parameter_unit_without_joint_types_is_revolute():
     assert parameter_unit("off1", ("N*m", "N")) == "N*m"
     assert parameter_unit("fvm2", ("N*m", "N")) == "N*m*s/rad"  # motors turn
     assert parameter_unit("Izz2R", ("N*m", "N")) == "kg*m^2"
+
+
+def test_torque_plot_labels_each_joints_unit(monkeypatch):
+    """The held-out torque figure: the slider's panel in N, the shoulder's in N*m."""
+    from ident.report import plots
+
+    captured = {}
+
+    def capture(fig, **_kw):
+        captured["labels"] = [ax.get_ylabel() for ax in fig.axes]
+        return b""
+
+    monkeypatch.setattr(plots, "figure_png", capture)
+    t = np.linspace(0.0, 1.0, 20)
+    tau = np.zeros((20, 2))
+    plots.torque_png(t, tau, {"wls": tau}, ["shoulder", "slider"], units=("N*m", "N"))
+    assert captured["labels"] == ["shoulder\n[N*m]", "slider\n[N]"]

@@ -71,6 +71,7 @@ def torque_png(result: IdentifyResult) -> bytes:
         result.joint_names,
         excluded=~result.keep_validate,
         xlabel="time [s] (held-out part; crosses: below the velocity threshold, not compared)",
+        units=joint_torque_units(result),
     )
 
 

@@ -318,6 +318,7 @@ def torque_png(
     *,
     excluded: npt.NDArray[np.bool_] | None = None,
     xlabel: str = "time [s]",
+    units: Sequence[str] | None = None,
 ) -> bytes:
     """Measured vs predicted joint torques, one panel per joint.
 
@@ -334,6 +335,8 @@ def torque_png(
     excluded :
         Samples not used in the error measures (e.g. below a velocity threshold), shape
         (n_samples, nv), drawn as grey crosses.
+    units :
+        Torque unit per joint (``"N"`` for a prismatic joint); default ``"N*m"`` for all.
 
     Returns
     -------
@@ -352,7 +355,7 @@ def torque_png(
         if excluded is not None and np.asarray(excluded)[:, j].any():
             ex = np.asarray(excluded)[:, j]
             ax.plot(t[ex], tau[ex, j], "x", color="0.6", ms=3, label="not compared")
-        ax.set_ylabel(f"{joint_labels[j]}\n[N*m]")
+        ax.set_ylabel(f"{joint_labels[j]}\n[{'N*m' if units is None else units[j]}]")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=7, ncol=5)
     axes[-1].set_xlabel(xlabel)
