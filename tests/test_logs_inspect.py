@@ -111,3 +111,20 @@ def test_skeleton_of_a_log_in_radians_and_newton_metres(tmp_path) -> None:
     assert cfg["log"]["position"] == {"columns": ["pos_rad_1", "pos_rad_2"], "unit": "rad"}
     assert cfg["log"]["torque"] == {"columns": ["tau_1", "tau_2"], "unit": "N*m"}
     assert "transmission" not in cfg
+
+
+def test_long_csv_with_a_millisecond_stamp_column() -> None:
+    """The documented ``--format csv_long`` call on the shipped example: the stamp column
+    ``time_ms`` orders the rows and is proposed with its unit (never taken for seconds)."""
+    from ident.measure.readers import read_tables
+
+    path = REPO / "data" / "examples" / "long.csv.gz"
+    result = runner.invoke(app, ["logs", "inspect", str(path), "--format", "csv_long"])
+    assert result.exit_code == 0, result.output
+    cfg = yaml.safe_load(result.output.split("config skeleton (check every line):")[1])
+    assert cfg["log"]["time"] == {"column": "time_ms", "unit": "ms"}
+    assert cfg["log"]["position"]["unit"] == "deg"
+    assert cfg["log"]["torque"]["unit"] == "mA"
+    (table,) = read_tables(path, "csv_long")
+    assert table.time is None  # its unit is unknown to the reader: the config says it
+    assert np.all(np.diff(table.columns["time_ms"]) == 10.0)  # 100 Hz, in ms

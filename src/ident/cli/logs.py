@@ -57,14 +57,15 @@ def _classify(name: str) -> str | None:
 
 def _unit_hint(name: str, kind: str) -> str | None:
     """The unit a column name states (as a name part: ``_deg``, ``[ms]``, ``(A)``), if any."""
-    parts = set(re.split(r"[^a-z/*]+", name.lower()))
+    lower = name.lower()  # parts split at "/" too (``pos_deg/j1``), and kept whole (``deg/s``)
+    parts = set(re.split(r"[^a-z*]+", lower)) | set(re.split(r"[^a-z/*]+", lower))
     return next((unit for hint, unit in _UNIT_HINTS[kind] if hint in parts), None)
 
 
 def _time_candidate(table) -> tuple[str, str] | None:  # noqa: ANN001
     """A strictly increasing column named like time, and its unit, when the reader found none."""
     if table.time is not None:
-        return table.time, "s"
+        return table.time, _unit_hint(table.time, "time") or "s"
     for name, values in table.columns.items():
         if _TIME.search(name.lower()) and values.size > 1 and np.all(np.diff(values) > 0):
             return name, _unit_hint(name, "time") or "s"
@@ -109,28 +110,27 @@ def skeleton(tables: list, path: Path, fmt: str | None) -> str:
         if not cols and kind == "velocity":
             continue
         listed = "[" + ", ".join(_yaml(c) for c in cols) + "]" if cols else "[...]"
+        side = ""
         if kind == "position" and cols:
             unit, why = _position_unit(cols[0], np.concatenate([values[c] for c in cols]))
         elif kind == "torque" and cols and all(_CURRENT.search(c.lower()) for c in cols):
-            currents = True
-            unit = _unit_hint(cols[0], "torque") or "A"
-            unit, why = ("mA", "milliamperes") if unit == "mA" else ("A", "motor currents?")
+            currents, side = True, ", side: motor"
+            unit = "mA" if _unit_hint(cols[0], "torque") == "mA" else "A"
+            why = "motor currents?"
         else:
-            unit = (_unit_hint(cols[0], kind) if cols else None) or {
-                "position": "rad", "velocity": "rad/s", "torque": "N*m"
-            }[kind]  # fmt: skip
+            default = {"position": "rad", "velocity": "rad/s", "torque": "N*m"}[kind]
+            unit = (_unit_hint(cols[0], kind) if cols else None) or default
             why = "check"
-        side = "  side: motor" if kind == "torque" and currents else ""
         lines.append(
-            f"  {kind}: {{columns: {listed}, unit: {unit}{', ' + side.strip() if side else ''}}}"
+            f"  {kind}: {{columns: {listed}, unit: {unit}{side}}}"
             f"   # one per joint, in order; unit: {why}"
         )
     lines.append("  side: joint   # positions on the joint side? else motor (transmission)")
     if currents:
         lines += [
-            "transmission:                 # currents: tau = N k i on the motor side",
+            "transmission:   # currents: tau = N k i (motor side), or tau = k i (side: joint)",
             "  gear_ratios: [...]          # one per joint, q_motor = N q_joint",
-            "  torque_constants: [...]     # N*m/A of each motor",
+            "  torque_constants: [...]     # N*m/A of each motor (or at the joint)",
         ]
     return "\n".join(lines)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import gzip
 import io
+import re
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
@@ -195,6 +196,13 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     header = [f.strip().strip('"') for f in _split(first, delimiter)]
     joint_col = options.get("joint_column", "joint")
     time_col = _time_name(header, options)
+    # a stamp column in other units (``time_ms``) orders the rows but is not taken for seconds:
+    # the config names it with its unit (``log.time: {column: time_ms, unit: ms}``)
+    unit_unknown = time_col is None and options.get("time_column") is None
+    if unit_unknown:
+        time_col = next(
+            (h for h in header if re.split(r"[^a-z]+", h.lower())[0] in TIME_NAMES), None
+        )
     for what, name in (("joint_column", joint_col), ("time_column", time_col)):
         if name is None or name not in header:
             raise DataError(
@@ -228,4 +236,4 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
         for k, name in enumerate(numeric_header):
             if name != time_col:
                 columns[f"{name}/{joint}"] = np.ascontiguousarray(data[rows[order], k])
-    return [LogTable(columns=columns, time=time_col, source=str(path))]
+    return [LogTable(columns=columns, time=None if unit_unknown else time_col, source=str(path))]
