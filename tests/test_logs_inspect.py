@@ -128,3 +128,22 @@ def test_long_csv_with_a_millisecond_stamp_column() -> None:
     (table,) = read_tables(path, "csv_long")
     assert table.time is None  # its unit is unknown to the reader: the config says it
     assert np.all(np.diff(table.columns["time_ms"]) == 10.0)  # 100 Hz, in ms
+
+
+def test_controller_channels_that_are_not_joints_are_left_out(tmp_path) -> None:
+    """A UR RTDE-style recording: TCP pose and speed, robot current, speed scaling and the
+    target (commanded) values are not joint measurements."""
+    groups = ("target_q", "target_current", "actual_q", "actual_qd", "actual_current")
+    names = ["timestamp"] + [f"{g}_{k}" for g in groups for k in range(6)]
+    names += [f"actual_TCP_{g}_{k}" for g in ("pose", "speed") for k in range(6)]
+    names += ["actual_robot_current", "speed_scaling", "joint_temperatures_0"]
+    t = 1.7e9 + np.arange(50) * 0.008
+    rows = np.column_stack([t, np.random.default_rng(0).normal(size=(50, len(names) - 1))])
+    path = tmp_path / "rtde.csv"
+    path.write_text(" ".join(names) + "\n" + "\n".join(" ".join(map(repr, r)) for r in rows))
+    result = runner.invoke(app, ["logs", "inspect", str(path)])
+    assert result.exit_code == 0, result.output
+    log = yaml.safe_load(result.output.split("config skeleton (check every line):")[1])["log"]
+    assert log["position"]["columns"] == [f"actual_q_{k}" for k in range(6)]
+    assert log["velocity"]["columns"] == [f"actual_qd_{k}" for k in range(6)]
+    assert log["torque"]["columns"] == [f"actual_current_{k}" for k in range(6)]

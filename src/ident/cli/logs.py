@@ -49,6 +49,8 @@ def _classify(name: str) -> str | None:
     lower = name.lower()
     if re.search(r"(cmd|command|des|ref|target)", lower):
         return None  # commanded values are not measurements
+    if re.search(r"(tcp|tool|cartesian|pose|robot_|main_|scaling|temperature|voltage)", lower):
+        return None  # not per joint (a robot controller's TCP, supply, scaling channels)
     for kind, pattern in _PATTERNS.items():
         if re.search(pattern, lower):
             return kind
