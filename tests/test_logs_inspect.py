@@ -140,7 +140,9 @@ def test_controller_channels_that_are_not_joints_are_left_out(tmp_path) -> None:
     t = 1.7e9 + np.arange(50) * 0.008
     rows = np.column_stack([t, np.random.default_rng(0).normal(size=(50, len(names) - 1))])
     path = tmp_path / "rtde.csv"
-    path.write_text(" ".join(names) + "\n" + "\n".join(" ".join(map(repr, r)) for r in rows))
+    path.write_text(
+        " ".join(names) + "\n" + "\n".join(" ".join(f"{v:.12g}" for v in r) for r in rows)
+    )
     result = runner.invoke(app, ["logs", "inspect", str(path)])
     assert result.exit_code == 0, result.output
     log = yaml.safe_load(result.output.split("config skeleton (check every line):")[1])["log"]
