@@ -155,3 +155,15 @@ def test_torque_plot_labels_each_joints_unit(monkeypatch):
     tau = np.zeros((20, 2))
     plots.torque_png(t, tau, {"wls": tau}, ["shoulder", "slider"], units=("N*m", "N"))
     assert captured["labels"] == ["shoulder\n[N*m]", "slider\n[N]"]
+
+
+def test_run_result_json_carries_each_joints_unit():
+    """``ident run``'s result.json (robot.joint_units) and so its report's residual RMS: from the
+    URDF's joint types, for the joints the run uses."""
+    from types import SimpleNamespace
+
+    from ident.report.run_data import _joint_units
+
+    result = SimpleNamespace(urdf_text=URDF.read_text(), joint_names=("shoulder", "slider"))
+    assert _joint_units(result) == [_urdf_units()[n] for n in ("shoulder", "slider")]
+    assert _joint_units(result) == ["N*m", "N"]

@@ -39,6 +39,17 @@ __all__ = ["FORMAT", "load_run", "result_to_dict", "save_run", "write_replay"]
 FORMAT = "ident-run/1"
 
 
+def _joint_units(result: Any) -> list[str]:
+    """Torque unit of each joint of the run: ``"N"`` (prismatic) or ``"N*m"``, from the URDF."""
+    import pinocchio as pin
+
+    from ident.identify.sanity import joint_units
+
+    model = pin.buildModelFromXML(str(result.urdf_text))
+    units = dict(zip(model.names[1:], joint_units(model), strict=True))
+    return [units.get(name, "N*m") for name in result.joint_names]
+
+
 def result_to_dict(result: Any) -> dict[str, Any]:
     """The machine-readable content of ``result.json`` (see :func:`save_run`)."""
     config = result.config
@@ -52,6 +63,7 @@ def result_to_dict(result: Any) -> dict[str, Any]:
         "robot": {
             "name": result.robot_name,
             "joint_names": list(result.joint_names),
+            "joint_units": _joint_units(result),
             "q_limits": _arr(result.q_limits),
             "dq_limits": _arr(result.dq_limits),
             "ddq_limits": _arr(result.ddq_limits),

@@ -468,6 +468,9 @@ def _parameter_section(
         return md + ["> **No estimate**: every estimator failed on this trajectory (below).", ""]
     true = stage["true_base"]
     names = stage["base_names"]
+    # residuals per torque row of the stage; older result.json files have no joint units
+    all_units = data["robot"].get("joint_units") or ["N*m"] * len(data["robot"]["joint_names"])
+    units = [all_units[r] for r in stage["torque_rows"]]
     for m, est in elite["estimates"].items():
         major = est.get("major") or [False] * len(names)
         share = est.get("torque_share") or [None] * len(names)
@@ -487,11 +490,12 @@ def _parameter_section(
                     "yes" if major[i] else "",
                 ]
             )
+        rms = zip(est["residual_rms"], units, strict=True)
         md += [
             f"### {m.upper()}",
             "",
             f"Relative residual {pct(100 * (est['relative_residual'] or 0))}, RMS per joint "
-            f"{', '.join(_fmt(v) for v in est['residual_rms'])} N*m; condition number "
+            f"{', '.join(f'{_fmt(v)} {u}' for v, u in rms)}; condition number "
             f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
             f"errors within 3σ. {'' if est['message'] == 'ok' else est['message']}",
             "",
