@@ -67,7 +67,7 @@ def _mesh_vertices(geom: pin.GeometryModel) -> dict[int, np.ndarray]:
         shape = obj.geometry
         if isinstance(shape, coal.BVHModelBase):
             vertices[k] = np.array(shape.vertices(), dtype=float).reshape(-1, 3)
-            shape.buildConvexHull(True, "Qt")  # qhull: the hull, not the mesh relabelled
+            shape.buildConvexHull(False, "")  # qhull: the hull, not the mesh relabelled
             obj.geometry = shape.convex
     return vertices
 

@@ -259,17 +259,31 @@ def _kinematic_model_and_geometry(
 def _convexify(geom: pin.GeometryModel) -> None:
     """Replace mesh geometry by its convex hull (GJK/EPA then give penetration depths).
 
-    The hull is computed (qhull, ``buildConvexHull``). ``buildConvexRepresentation`` would
-    only relabel the mesh as convex: for a non-convex mesh the support function's hill
-    climbing then stops at local extrema, and distances come out too large (by up to 0.44 m
-    on the UR5's upper arm against the floor plane), i.e. unsafe.
+    The hull is computed (qhull through ``buildConvexHull``, facets not triangulated: a
+    triangulated hull of a finely tessellated cylinder gives one vertex more neighbours than
+    coal stores, "Too many neighbors"). ``buildConvexRepresentation`` would only relabel the
+    mesh as convex: for a non-convex mesh the support function's hill climbing then stops at
+    local extrema, and distances come out too large (by up to 0.44 m on the UR5's upper arm
+    against the floor plane), i.e. unsafe.
+
+    Raises
+    ------
+    ModelError
+        If qhull cannot build a mesh's hull.
     """
     import coal
 
     for obj in geom.geometryObjects:
         shape = obj.geometry
         if isinstance(shape, coal.BVHModelBase):
-            shape.buildConvexHull(True, "Qt")
+            try:
+                shape.buildConvexHull(False, "")
+            except RuntimeError as e:
+                raise ModelError(
+                    f"collision mesh of {obj.name}: its convex hull cannot be built "
+                    f"({str(e).splitlines()[-1].strip()}); simplify the mesh or give the link a "
+                    "primitive <collision> (box, cylinder, sphere)."
+                ) from e
             obj.geometry = shape.convex
 
 
