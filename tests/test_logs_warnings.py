@@ -1,5 +1,7 @@
 """Warnings a user must see: each triggered by a case and absent from a good one."""
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 
@@ -77,3 +79,42 @@ def test_significant_parameter_with_large_std():
 def test_units_of_revolute_and_prismatic_joints():
     model = pin.buildModelFromUrdf("tests/data/urdf/rp2.urdf")
     assert joint_units(model) == ("N*m", "N")
+
+
+def _example_with_torque_sign(tmp_path, sign):
+    """configs/examples/wide-csv.yaml on a copy of its log with joint 3's torque times sign."""
+    import yaml
+
+    from ident.identify.config import load_identify_config
+
+    root = Path(__file__).resolve().parents[1]
+    lines = (root / "data/examples/wide.csv").read_text().splitlines()
+    k = lines[0].split(",").index("tau_j3")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[k] = repr(sign * float(row[k]))
+    log = tmp_path / "wide.csv"
+    log.write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    cfg = yaml.safe_load((root / "configs/examples/wide-csv.yaml").read_text())
+    cfg["robot"]["urdf"] = str(root / "data/examples/arm3.urdf")
+    for key in ("time", "position", "torque"):
+        cfg["log"][key]["path"] = str(log)
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
+    return load_identify_config(tmp_path / "config.yaml")
+
+
+def test_impossible_links_only_when_no_consistent_fit_exists(tmp_path):
+    from ident.identify.real import identify
+
+    # the simulated arm is a physical body: the WLS estimate completed with the URDF's values
+    # makes link2 violate the triangle inequality, but a consistent set fits as well: no warning
+    good = identify(_example_with_torque_sign(tmp_path, 1.0))
+    assert not good.consistent.estimates["wls"].consistent  # the completion is impossible...
+    assert not any("physically consistent" in w for w in good.warnings)  # ...the data are not
+    # joint 3's torque logged with the wrong sign: no physical body explains it
+    bad = identify(_example_with_torque_sign(tmp_path, -1.0))
+    (warning,) = [w for w in bad.warnings if "no physically consistent parameters" in w]
+    assert "link3" in warning
+    assert "wrong sign" in warning
+    increase = float(warning.split("(+")[1].split(" %")[0])
+    assert increase > 20.0  # measured +54 %

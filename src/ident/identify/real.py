@@ -537,6 +537,9 @@ def _identify_log(
         tau_pred=predictions["identified"].tau_pred,
         keep_validate=keep_val,
     )
+    if consistent.constrained is None:  # a constrained estimate is consistent by construction
+        ls_method = cfg.estimation.least_squares_method
+        problems += sanity.inconsistency_warnings(consistent, ls_method)
     timings["total"] = time.perf_counter() - t0
     return IdentifyResult(
         config=cfg,

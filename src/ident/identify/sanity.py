@@ -15,22 +15,30 @@ written to the report and ``result.json``). Residuals are quoted in each joint's
 - a base parameter that carries at least ``min_contribution`` of the torques but whose
   relative standard deviation exceeds ``max_relative_std_pct``: a significant term the log
   does not determine (parameters too small to matter are left to the essential-parameter
-  reduction).
+  reduction);
+- links that the least-squares estimate makes physically impossible (mass not positive, inertia
+  about the centre of mass not positive semi-definite or violating the triangle inequality)
+  when no physically consistent parameters fit the torques as well
+  (:func:`inconsistency_warnings`).
 """
 
 from __future__ import annotations
+
+import dataclasses
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-__all__ = ["MAX_RELATIVE_STD_PCT", "joint_units", "result_warnings"]
+__all__ = ["MAX_RELATIVE_STD_PCT", "inconsistency_warnings", "joint_units", "result_warnings"]
 
 FloatArray = npt.NDArray[np.float64]
 
 MAX_RELATIVE_STD_PCT = 50.0  # [%]
 MIN_CONTRIBUTION = 0.01  # fraction of the torque norm
 MIN_SNR = 0.5
+MAX_CONSISTENT_INCREASE = 0.02  # relative residual, best consistent fit vs least squares
 # Standard parameters that cannot be negative (prefixes of the parameter names).
 NON_NEGATIVE = ("m", "Ixx", "Iyy", "Izz", "Ia", "fv", "fs")
 
@@ -134,3 +142,57 @@ def result_warnings(
             "separate them; use a richer excitation before trusting them."
         )
     return out
+
+
+def inconsistency_warnings(
+    consistent: Any, method: str, rtol: float = MAX_CONSISTENT_INCREASE
+) -> list[str]:
+    """One warning when no physically consistent parameters fit the log as the estimate does.
+
+    The least-squares estimate determines base parameters only. Its links are checked on the
+    standard parameters closest to the nominal ones that reproduce it (what a URDF write-back
+    would hold); when one is impossible, the best *consistent* fit is computed (the ``lmi``
+    estimator, WLS-weighted, with only its small prior floor). If that fit's relative residual
+    exceeds the estimate's by more than ``rtol``, no physical body explains the torques as
+    well: the warning names the links and the cost. Otherwise the impossibility is one of the
+    completions only (the data do not decide it) and the report's consistency section shows
+    it; ``estimation.method: lmi`` gives consistent parameters at no cost in fit.
+
+    Parameters
+    ----------
+    consistent :
+        The :class:`~ident.identify.estimators.ConsistentIdentification` of the rows.
+    method :
+        The least-squares estimator (``"ols"`` or ``"wls"``).
+    rtol :
+        Relative increase of the residual that counts as a worse fit.
+
+    Returns
+    -------
+    :
+        Empty, or one sentence.
+    """
+    from ident.identify.estimators import get_estimator  # cvxpy: imported only when needed
+
+    estimate = consistent.estimates[method]
+    bad = [c for c in estimate.consistency if not c.consistent]
+    if not bad:
+        return []
+    problem = consistent.problem
+    sigma = np.asarray(consistent.estimates["wls"].sigma, dtype=float)
+    weights = np.where(problem.observations.n_rows > 0, 1.0 / sigma, 0.0)
+    best = get_estimator("lmi")(dataclasses.replace(problem, weights=weights, regularization=0.0))
+    increase = best.relative_residual / estimate.relative_residual - 1.0
+    if not best.success or increase <= rtol:
+        return []
+    listed = "; ".join(f"{c.body}: {c.problems[0]}" for c in bad[:3]) + (
+        f"; and {len(bad) - 3} more" if len(bad) > 3 else ""
+    )
+    return [
+        f"no physically consistent parameters fit the torques as well as {method.upper()}: "
+        f"the best consistent fit has relative residual {best.relative_residual:.4g} "
+        f"({100 * increase:+.1f} % over {estimate.relative_residual:.4g}); {method.upper()}'s "
+        f"parameters make {len(bad)} of {len(estimate.consistency)} links impossible "
+        f"({listed}). The model misses a term (friction, offset, coupling) "
+        "or a signal has a wrong sign, unit or delay."
+    ]
