@@ -357,6 +357,7 @@ class ChunkedFit:
     in_sample: bool
     sampling_rate_hz: float
     records: tuple[dict, ...]
+    consistent: object | None = None  # ConsistentIdentification of the reduced rows
 
 
 @dataclass(frozen=True, eq=False)
@@ -488,6 +489,8 @@ def fit_chunked(
     essential: dict | None = None,
     chunk_samples: int | None = None,
     scheduler: str | None = None,
+    consistent: Callable[[ReducedObservations, ReducedObservations], object] | None = None,
+    validation_fraction: float = 0.2,
 ) -> ChunkedFit:
     """Identify from raw joint-side signals in chunks (module docstring).
 
@@ -508,6 +511,11 @@ def fit_chunked(
         Raw samples per chunk (default :func:`default_chunk_samples`).
     scheduler :
         Dask scheduler address to run the chunks on, or None (this process).
+    consistent :
+        Called with the identification rows reduced in two parts (each segment's first
+        ``1 - validation_fraction`` of its identification samples, and the rest), returns a
+        :class:`~ident.identify.estimators.ConsistentIdentification`; a constrained estimate
+        in it is predicted on the held-out part like the least-squares one.
     """
     from ident.identify.validation import time_split
 
@@ -517,6 +525,7 @@ def fit_chunked(
     margins = margin_samples(pp, fs)
     size = chunk_samples or default_chunk_samples(margins, nv, len(names))
     fit_tasks: list[_Task] = []
+    n_first: list[bool] = []  # per fit task: in the first part (else the last, see consistent)
     val_tasks: list[_Task] = []
     val_time: list[FloatArray] = []
     records: list[dict] = []
@@ -529,7 +538,11 @@ def fit_chunked(
             continue
         ident_part, val_part = time_split(plan.n_decimated, identify_fraction)
         args = (plan, q[a:b], tau[a:b], fs, pp, chain, pm)
-        fit_tasks += [_Task(*args, d0, d1) for d0, d1 in plan.ranges(0, ident_part.stop)]
+        split = int(round((1.0 - validation_fraction) * ident_part.stop))
+        for lo, hi in ((0, split), (split, ident_part.stop)):
+            ranges = list(plan.ranges(lo, hi)) if hi > lo else []
+            fit_tasks += [_Task(*args, d0, d1) for d0, d1 in ranges]
+            n_first += [lo == 0] * len(ranges)
         part = val_part if val_part.stop > val_part.start else ident_part
         val_tasks += [_Task(*args, d0, d1) for d0, d1 in plan.ranges(part.start, part.stop)]
         val_time.append(t[a + plan.n_edge + plan.step * np.arange(part.start, part.stop)])
@@ -537,9 +550,15 @@ def fit_chunked(
         raise DataError("no log segment is long enough to identify from: " + "; ".join(skipped))
     in_sample = identify_fraction >= 1.0
     reductions = _run(_reduce_task, fit_tasks, scheduler)
-    red = reductions[0]
-    for r in reductions[1:]:
-        red = red.merge(r)
+    halves: list[ReducedObservations | None] = []  # first and last part of the rows
+    for first in (True, False):
+        mine = [r for r, f in zip(reductions, n_first, strict=True) if f == first]
+        half = mine[0] if mine else None
+        for r in mine[1:]:
+            half = half.merge(r)
+        halves.append(half)
+    head, tail = halves
+    red = tail if head is None else head if tail is None else head.merge(tail)
     if red.n_rows.sum() <= red.n_params:
         raise DataError(
             f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters."
@@ -562,6 +581,11 @@ def fit_chunked(
         x_ess[list(ess.kept)] = ess.estimate.x  # type: ignore[attr-defined]
         vectors["essential"] = x_ess
     vectors["URDF nominal"] = pm.base.project(pm.nominal)  # type: ignore[attr-defined]
+    cons = None
+    if consistent is not None and head is not None and tail is not None:
+        cons = consistent(head, tail)
+        if cons.constrained is not None:  # type: ignore[attr-defined]
+            vectors[cons.method] = cons.constrained.x  # type: ignore[attr-defined]
     parts = _run(_predict_task, val_tasks, scheduler, vectors)
     tau_val = np.concatenate([p[0] for p in parts])
     keep_val = np.concatenate([p[1] for p in parts])
@@ -589,6 +613,7 @@ def fit_chunked(
         in_sample=in_sample,
         sampling_rate_hz=fs / step,
         records=tuple(records),
+        consistent=cons,
     )
 
 
@@ -629,6 +654,7 @@ def identify_chunked(
     from ident.dynamics.parameter_model import build_parameter_model
     from ident.errors import ConfigError
     from ident.identify import sanity
+    from ident.identify.estimators import consistent_identification_reduced
     from ident.identify.motion import measured_motion
     from ident.identify.reference import compare_with_reference, read_reference
     from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
@@ -680,7 +706,15 @@ def identify_chunked(
         pp,
         chain_from_model(model),  # type: ignore[arg-type]
         pm,
-        method=cfg.estimation.method,  # type: ignore[attr-defined]
+        method=cfg.estimation.least_squares_method,  # type: ignore[attr-defined]
+        consistent=lambda first, last: consistent_identification_reduced(
+            model,  # type: ignore[arg-type]
+            pm,
+            first,
+            last,
+            method=cfg.estimation.method,  # type: ignore[attr-defined]
+            weight=cfg.estimation.regularization.weight,  # type: ignore[attr-defined]
+        ),
         identify_fraction=cfg.validation.identify_fraction,  # type: ignore[attr-defined]
         essential={
             "max_relative_std_pct": ess_cfg.max_relative_std_pct,
@@ -775,6 +809,9 @@ def identify_chunked(
         tau_pred=fit.predictions["identified"],
         keep_validate=fit.keep_validate,
     )
+    cons = fit.consistent
+    if cons is not None and cons.constrained is None:  # type: ignore[attr-defined]
+        problems += sanity.inconsistency_warnings(cons, cfg.estimation.least_squares_method)  # type: ignore[attr-defined]
     timings["total"] = time.perf_counter() - t0
     return {
         "config": cfg,
@@ -797,4 +834,5 @@ def identify_chunked(
         "motion": motion,
         "motion_note": motion_note,
         "warnings": tuple(problems),
+        "consistent": cons,
     }

@@ -17,6 +17,7 @@ from ident.identify.estimators import least_squares, lmi, log_cholesky  # noqa: 
 from ident.identify.estimators.identification import (
     ConsistentIdentification,
     consistent_identification,
+    consistent_identification_reduced,
 )
 from ident.identify.estimators.problem import (
     EstimationProblem,
@@ -39,6 +40,7 @@ __all__ = [
     "RegularizationChoice",
     "choose_regularization",
     "consistent_identification",
+    "consistent_identification_reduced",
     "get_estimator",
     "register_estimator",
     "result_from_theta",

@@ -40,6 +40,7 @@ __all__ = [
     "ConsistentIdentification",
     "body_link_names",
     "consistent_identification",
+    "consistent_identification_reduced",
     "problem_from_states",
     "standard_regressor",
     "structure_from_parameter_model",
@@ -219,8 +220,37 @@ def consistent_identification(
     """
     nv = model.nv
     groups = np.asarray(groups, dtype=np.int64)
+    split = int(round((1.0 - validation_fraction) * W_rows.shape[0]))
+    first = ReducedObservations.from_rows(W_rows[:split], tau_rows[:split], groups[:split], nv)
+    last = ReducedObservations.from_rows(W_rows[split:], tau_rows[split:], groups[split:], nv)
+    return consistent_identification_reduced(
+        model, pm, first, last, method=method, weight=weight, grid=grid, ellipsoids=ellipsoids
+    )
+
+
+def consistent_identification_reduced(
+    model: pin.Model,
+    pm: Any,
+    first: ReducedObservations,
+    last: ReducedObservations,
+    *,
+    method: str,
+    weight: float | str = "auto",
+    grid: tuple[float, ...] = DEFAULT_GRID,
+    ellipsoids: tuple[Any, ...] = (),
+) -> ConsistentIdentification:
+    """:func:`consistent_identification` on reduced rows (the chunked path of long logs).
+
+    Parameters
+    ----------
+    first, last :
+        The identification rows reduced in two parts: ``last`` (the later rows) chooses the
+        prior weight when ``weight == "auto"``; the estimate uses both (merged).
+    model, pm, method, weight, grid, ellipsoids :
+        As in :func:`consistent_identification`.
+    """
     structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
-    obs = ReducedObservations.from_rows(W_rows, tau_rows, groups, nv)
+    obs = first.merge(last)
     problem = EstimationProblem(
         observations=obs,
         names=tuple(pm.base_names),
@@ -236,20 +266,8 @@ def consistent_identification(
         weights = 1.0 / np.asarray(estimates["wls"].sigma)
         problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
         if weight == "auto":
-            split = int(round((1.0 - validation_fraction) * W_rows.shape[0]))
-            first = EstimationProblem(
-                observations=ReducedObservations.from_rows(
-                    W_rows[:split], tau_rows[:split], groups[:split], nv
-                ),
-                names=problem.names,
-                structure=structure,
-                base_map=problem.base_map,
-                weights=problem.weights,
-            )
-            last = ReducedObservations.from_rows(
-                W_rows[split:], tau_rows[split:], groups[split:], nv
-            )
-            choice = choose_regularization(first, last, method=method, grid=grid)
+            first_problem = dataclasses.replace(problem, observations=first)
+            choice = choose_regularization(first_problem, last, method=method, grid=grid)
             weight = choice.weight
         constrained = get_estimator(method)(
             dataclasses.replace(problem, regularization=float(weight))
