@@ -32,7 +32,34 @@ def test_impossible_constraint_reports_failure():
     assert not res.success
     assert res.elites.shape == (0, 3)
     assert "only 0 of 5" in res.message
-    assert res.nfev == 10 * 21
+    assert res.nfev == 10 * 21 * 4  # the first swarm and 3 restarts, 21 evaluations each
+    once = find_feasible_elites(
+        lambda x: 1.0 + np.sum(x**2, 1), [(-1, 1)] * 3, rng=0, maxiter=20, restarts=0
+    )
+    assert once.nfev == 10 * 21
+
+
+def _trap(x):
+    """Violation with a wide basin above zero at x = -0.5 and a narrow feasible window at 0.9:
+    a swarm settles in the basin; only fresh random points find the window."""
+    x = x[:, 0]
+    return np.where(np.abs(x - 0.9) < 0.02, 0.0, 0.1 + (x + 0.5) ** 2)
+
+
+def test_a_stalled_swarm_restarts_and_a_quick_search_is_unchanged():
+    kwargs = {"n_particles": 10, "n_elites": 1, "maxiter": 30, "rng": 3}
+    stuck = find_feasible_elites(_trap, [(-1, 1)], restarts=0, **kwargs)
+    assert not stuck.success  # settled in the basin
+    found = find_feasible_elites(_trap, [(-1, 1)], restarts=20, **kwargs)
+    assert found.success
+    assert abs(found.elites[0, 0] - 0.9) < 0.02
+    assert "restart" in found.message
+    # a search that succeeds within maxiter draws nothing more: identical with or without
+    a = find_feasible_elites(disc_violation, [(-10, 10)] * 2, rng=0, maxiter=50, restarts=0)
+    b = find_feasible_elites(disc_violation, [(-10, 10)] * 2, rng=0, maxiter=50)
+    assert a.success
+    np.testing.assert_array_equal(a.elites, b.elites)
+    assert a.nfev == b.nfev
 
 
 def test_spawn_from_elites_seeds_emupso():
