@@ -16,16 +16,23 @@ over all postures:
   (a broad phase: most pairs of a swarm are far apart).
 
 Other pairs (meshes, boxes) stay with coal. The dense check never uses this module.
+
+:func:`primitive_distances` is the compiled (numba) kernel of the last two items, one posture
+at a time with scalar arithmetic; :func:`segment_distances` is the same segment distance over
+arrays (tested against closed forms).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["joint_frames", "segment_distances"]
+__all__ = ["joint_frames", "primitive_distances", "segment_distances"]
 
 _EPS = 1e-12
 
@@ -70,32 +77,106 @@ def joint_frames(
     return out
 
 
+@njit(cache=True)
+def _clip01(x: float) -> float:
+    return min(max(x, 0.0), 1.0)
+
+
+@njit(cache=True)
+def _segment_distance(p1, q1, p2, q2) -> float:  # noqa: ANN001 (numba: float64 (3,) arrays)
+    """Distance between segments ``[p1, q1]`` and ``[p2, q2]`` (Ericson 5.1.9), scalar."""
+    a = e = f = c = b = 0.0
+    for i in range(3):
+        d1, d2, r = q1[i] - p1[i], q2[i] - p2[i], p1[i] - p2[i]
+        a += d1 * d1
+        e += d2 * d2
+        f += d2 * r
+        c += d1 * r
+        b += d1 * d2
+    if a <= _EPS and e <= _EPS:  # two points
+        s = t = 0.0
+    elif a <= _EPS:  # the first segment is a point: closest point of the second to it
+        s, t = 0.0, _clip01(f / e)
+    elif e <= _EPS:  # the second segment is a point
+        s, t = _clip01(-c / a), 0.0
+    else:
+        denom = a * e - b * b
+        s = _clip01((b * f - c * e) / denom) if denom > _EPS * max(a * e, _EPS) else 0.0
+        t = (b * s + f) / e
+        if t < 0.0:
+            s, t = _clip01(-c / a), 0.0
+        elif t > 1.0:
+            s, t = _clip01((b - c) / a), 1.0
+    out = 0.0
+    for i in range(3):
+        dx = (p1[i] + s * (q1[i] - p1[i])) - (p2[i] + t * (q2[i] - p2[i]))
+        out += dx * dx
+    return math.sqrt(out)
+
+
+@njit(cache=True)
+def _segment_distances_flat(p1, q1, p2, q2, out) -> None:  # noqa: ANN001
+    for n in range(out.shape[0]):
+        out[n] = _segment_distance(p1[n], q1[n], p2[n], q2[n])
+
+
 def segment_distances(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray) -> FloatArray:
     """Distance between segments ``[p1, q1]`` and ``[p2, q2]``, shapes (..., 3) -> (...).
 
     Closest points of two segments (Ericson, *Real-Time Collision Detection*, 5.1.9), with the
-    degenerate cases (a segment of length 0) handled by the clamps.
+    degenerate cases (a segment of length 0) handled apart.
     """
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a = np.einsum("...i,...i", d1, d1)
-    e = np.einsum("...i,...i", d2, d2)
-    f = np.einsum("...i,...i", d2, r)
-    c = np.einsum("...i,...i", d1, r)
-    b = np.einsum("...i,...i", d1, d2)
-    denom = a * e - b * b
-    safe_a = np.where(a > _EPS, a, 1.0)
-    safe_e = np.where(e > _EPS, e, 1.0)
-    s = np.where(denom > _EPS * np.maximum(a * e, _EPS), (b * f - c * e) / np.where(
-        denom > 0.0, denom, 1.0), 0.0)  # fmt: skip
-    s = np.clip(s, 0.0, 1.0)
-    t = (b * s + f) / safe_e
-    s = np.where(t < 0.0, np.clip(-c / safe_a, 0.0, 1.0), np.where(t > 1.0, np.clip(
-        (b - c) / safe_a, 0.0, 1.0), s))  # fmt: skip
-    t = np.clip(t, 0.0, 1.0)
-    # degenerate first segment: closest point of the second one to p1
-    s = np.where(a > _EPS, s, 0.0)
-    t = np.where(a > _EPS, t, np.clip(f / safe_e, 0.0, 1.0))
-    t = np.where(e > _EPS, t, 0.0)
-    s = np.where((e <= _EPS) & (a > _EPS), np.clip(-c / safe_a, 0.0, 1.0), s)
-    closest = (p1 + s[..., None] * d1) - (p2 + t[..., None] * d2)
-    return np.sqrt(np.einsum("...i,...i", closest, closest))
+    arrays = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (p1, q1, p2, q2)))
+    shape = arrays[0].shape[:-1]
+    flat = [np.ascontiguousarray(x.reshape(-1, 3)) for x in arrays]
+    out = np.empty(flat[0].shape[0])
+    _segment_distances_flat(*flat, out)
+    return out.reshape(shape)
+
+
+@njit(cache=True)
+def primitive_distances(  # noqa: PLR0913
+    frames,  # noqa: ANN001 (numba: float64 (n, n_joints + 1, 4, 4), world first)
+    joint,  # noqa: ANN001 (int64 (n_seg,): frame of each segment)
+    centre,  # noqa: ANN001 (float64 (n_seg, 4): centre in its frame, homogeneous)
+    axis,  # noqa: ANN001 (float64 (n_seg, 4): unit axis in its frame)
+    half,  # noqa: ANN001 (float64 (n_seg,): half-length, 0 for a sphere)
+    radius,  # noqa: ANN001 (float64 (n_seg,))
+    cylinder,  # noqa: ANN001 (bool (n_seg,))
+    seg_pairs,  # noqa: ANN001 (int64 (n_sp, 3): column, segment, segment)
+    plane_pairs,  # noqa: ANN001 (int64 (n_pp, 2): column, segment)
+    normals,  # noqa: ANN001 (float64 (n_pp, 3): unit normal of the half-space)
+    offsets,  # noqa: ANN001 (float64 (n_pp,): d of each half-space n.x <= d)
+    out,  # noqa: ANN001 (float64 (n, n_columns): written at the pairs' columns)
+) -> None:
+    """Distances of segment pairs (swept spheres) and of segments to half-spaces, per posture.
+
+    The formulas of the module docstring; the same as the array code they replace, to
+    round-off.
+    """
+    n_seg = joint.shape[0]
+    ends = np.empty((n_seg, 2, 3))
+    cs = np.empty((n_seg, 3))
+    us = np.empty((n_seg, 3))
+    for n in range(frames.shape[0]):
+        for k in range(n_seg):
+            f = frames[n, joint[k]]
+            for i in range(3):
+                ci = f[i, 3]
+                ui = 0.0
+                for j in range(3):
+                    ci += f[i, j] * centre[k, j]
+                    ui += f[i, j] * axis[k, j]
+                cs[k, i], us[k, i] = ci, ui
+                ends[k, 0, i] = ci - half[k] * ui
+                ends[k, 1, i] = ci + half[k] * ui
+        for m in range(seg_pairs.shape[0]):
+            col, i, k = seg_pairs[m, 0], seg_pairs[m, 1], seg_pairs[m, 2]
+            d = _segment_distance(ends[i, 0], ends[i, 1], ends[k, 0], ends[k, 1])
+            out[n, col] = d - radius[i] - radius[k]
+        for m in range(plane_pairs.shape[0]):
+            col, i = plane_pairs[m, 0], plane_pairs[m, 1]
+            nu = us[i, 0] * normals[m, 0] + us[i, 1] * normals[m, 1] + us[i, 2] * normals[m, 2]
+            height = cs[i, 0] * normals[m, 0] + cs[i, 1] * normals[m, 1] + cs[i, 2] * normals[m, 2]
+            side = radius[i] * math.sqrt(max(1.0 - nu * nu, 0.0)) if cylinder[i] else radius[i]
+            out[n, col] = height - offsets[m] - half[i] * abs(nu) - side

@@ -463,7 +463,7 @@ class SafetyModel:
     def fast_clearances(self, q: npt.ArrayLike) -> FloatArray:
         """Clearances of the link pairs, vectorized over postures, for the cheap term [m].
 
-        Cylinder, capsule and sphere geometry is handled as array code
+        Cylinder, capsule and sphere geometry is handled by compiled code over all postures
         (:mod:`ident.excitation._fast_clearance`): exact against half-spaces (the floor,
         planes); for a cylinder against another geometry, the capsule around it gives a lower
         bound, and where that bound is within the margin coal computes the exact distance
@@ -471,7 +471,7 @@ class SafetyModel:
         ``fast_clearances(q)`` equals ``clearances(q)`` wherever either is below the margin,
         and never exceeds it. Shape (n_samples, n_pairs).
         """
-        from ident.excitation._fast_clearance import joint_frames, segment_distances
+        from ident.excitation._fast_clearance import joint_frames, primitive_distances
 
         q = np.atleast_2d(np.asarray(q, dtype=float))
         n = q.shape[0]
@@ -482,26 +482,17 @@ class SafetyModel:
         if joint.size:
             frames = joint_frames(self._placements, self._axes, self._prismatic, q)
             frames = np.concatenate([np.broadcast_to(np.eye(4), (n, 1, 4, 4)), frames], axis=1)
-            f = frames[:, joint]  # (n, n_seg, 4, 4)
-            c = np.einsum("nkij,kj->nki", f, centre)[..., :3]
-            u = np.einsum("nkij,kj->nki", f, axis)[..., :3]
-            ends = (c - half[:, None] * u, c + half[:, None] * u)
+            primitive_distances(
+                frames, joint, centre, axis, half, radius, cylinder, self._seg_pairs,
+                self._plane_pairs, self._plane_normals, self._plane_offsets, distances,
+            )  # fmt: skip
+            refine = {}
             if self._seg_pairs.size:
                 p, i, k = self._seg_pairs.T
-                d = segment_distances(ends[0][:, i], ends[1][:, i], ends[0][:, k], ends[1][:, k])
-                distances[:, p] = d - radius[i] - radius[k]
                 # a cylinder's capsule is a lower bound: where it is within the margin, the
                 # exact distance decides (coal, only for those postures and pairs)
                 bound = (cylinder[i] | cylinder[k])[None, :] & (distances[:, p] < self.clearance_m)
                 refine = {int(r): p[bound[r]] for r in np.flatnonzero(bound.any(axis=1))}
-            if self._plane_pairs.size:
-                p, i = self._plane_pairs.T
-                nu = np.einsum("nkj,kj->nk", u[:, i], self._plane_normals)
-                side = np.where(
-                    cylinder[i], radius[i] * np.sqrt(np.maximum(1.0 - nu * nu, 0.0)), radius[i]
-                )
-                height = np.einsum("nkj,kj->nk", c[:, i], self._plane_normals)
-                distances[:, p] = height - self._plane_offsets - half[i] * np.abs(nu) - side
         else:
             refine = {}
         slow = np.asarray(self._slow_pairs, dtype=int)
