@@ -50,6 +50,8 @@ FloatArray = npt.NDArray[np.float64]
 #: Extra parameters that must be >= 0: rotor inertia, viscous and Coulomb friction (also of a
 #: coupled motor). Offsets (``off``) are free.
 NONNEGATIVE_PREFIXES = ("Iam", "fvm", "fsm", "Ia", "fv", "fs")
+#: Viscous and Coulomb friction (also of a coupled motor).
+FRICTION_PREFIXES = ("fvm", "fsm", "fv", "fs")
 _LABELS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 
 
@@ -83,21 +85,24 @@ def structure_from_parameter_model(
         [[index[f"{label}{b + 1}"] for label in _LABELS] for b in range(len(body_names))],
         dtype=np.intp,
     )
-    nonnegative = np.array(
-        [
-            i
-            for i, name in enumerate(pm.names)
-            if pm.inertial_index[i] < 0 and name.rstrip("0123456789") in NONNEGATIVE_PREFIXES
-        ],
-        dtype=np.intp,
-    )
+    def extras(prefixes: tuple[str, ...]) -> npt.NDArray[np.intp]:
+        return np.array(
+            [
+                i
+                for i, name in enumerate(pm.names)
+                if pm.inertial_index[i] < 0 and name.rstrip("0123456789") in prefixes
+            ],
+            dtype=np.intp,
+        )
+
     return ParameterStructure(
         names=tuple(pm.names),
         bodies=bodies,
         body_names=tuple(body_names),
-        nonnegative=nonnegative,
+        nonnegative=extras(NONNEGATIVE_PREFIXES),
         nominal=np.asarray(pm.nominal, dtype=float),
         ellipsoids=tuple(ellipsoids),
+        friction=extras(FRICTION_PREFIXES),
     )
 
 

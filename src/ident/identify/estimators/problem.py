@@ -65,6 +65,11 @@ class ParameterStructure:
     ellipsoids :
         Optional bounding ellipsoid per body (:class:`~ident.robot.ellipsoids.Ellipsoid`
         or None), empty for none.
+    friction :
+        Indices of the viscous and Coulomb friction parameters (a subset of
+        ``nonnegative``), empty for none: the constrained estimators keep those that the
+        least-squares fit finds positive at its values (see
+        :mod:`ident.identify.estimators.constrained`).
     """
 
     names: tuple[str, ...]
@@ -73,9 +78,11 @@ class ParameterStructure:
     nonnegative: IntArray
     nominal: FloatArray
     ellipsoids: tuple[Any, ...] = ()
+    friction: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
     def __post_init__(self) -> None:
-        for name in ("bodies", "nonnegative", "nominal"):
+        object.__setattr__(self, "friction", np.asarray(self.friction, dtype=np.intp))
+        for name in ("bodies", "nonnegative", "nominal", "friction"):
             value = np.array(getattr(self, name), copy=True)
             value.setflags(write=False)
             object.__setattr__(self, name, value)
