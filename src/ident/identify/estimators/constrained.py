@@ -55,7 +55,6 @@ __all__ = [
     "PRIOR_DIRECTIONS",
     "PRIOR_FLOOR",
     "ScaledProblem",
-    "prior_weight",
     "scaled_problem",
     "single_threaded_blas",
 ]
@@ -83,7 +82,7 @@ def single_threaded_blas() -> contextlib.AbstractContextManager:
 
 @dataclass(frozen=True, eq=False)
 class ScaledProblem:
-    """``min ||A u - b||^2 + lambda ||G P u||^2`` with ``theta = nominal + scale * u``.
+    """``min ||A u - b||^2 + ||M u||^2`` with ``theta = nominal + scale * u``.
 
     Subject to ``u[fixed] = fixed_u`` (and each estimator's consistency constraints).
 
@@ -93,8 +92,9 @@ class ScaledProblem:
         Data term, shapes (n, n_std) and (n,).
     prior :
         Diagonal ``P = D S`` of the prior term, shape (n_std,) (1 on inertial parameters).
-    prior_matrix :
-        ``G P`` (see the module docstring), shape (n_prior, n_std).
+    prior_rows :
+        ``M``, the weighted prior: rows ``sqrt(lambda_0) P`` (every inertial direction) over
+        ``sqrt(lambda) G P`` (see the module docstring), shape (n_prior, n_std).
     fixed :
         Indices of ``theta`` kept at their least-squares values (friction), shape (n_fixed,).
     fixed_u :
@@ -110,7 +110,7 @@ class ScaledProblem:
     A: FloatArray
     b: FloatArray
     prior: FloatArray
-    prior_matrix: FloatArray
+    prior_rows: FloatArray
     fixed: npt.NDArray[np.intp]
     fixed_u: FloatArray
     scale: FloatArray
@@ -120,11 +120,6 @@ class ScaledProblem:
     def theta(self, u: npt.ArrayLike) -> FloatArray:
         """Standard parameters of the scaled unknowns."""
         return self.structure.nominal + self.scale * np.asarray(u, dtype=float)
-
-
-def prior_weight(problem: EstimationProblem) -> float:
-    """``lambda + lambda_0``: the problem's weight plus the floor (option ``prior_floor``)."""
-    return float(problem.regularization) + float(problem.options.get("prior_floor", PRIOR_FLOOR))
 
 
 def scaled_problem(problem: EstimationProblem, method: str) -> ScaledProblem:
@@ -161,12 +156,20 @@ def scaled_problem(problem: EstimationProblem, method: str) -> ScaledProblem:
     A = RK * scale[None, :] / root_m
     b = (zs - RK @ structure.nominal) / root_m
     prior = structure.prior_weights() * scale
-    prior_matrix = np.diag(prior)
+    G = np.eye(structure.n_std)
     if directions == "unseen":
         # rows spanning the null space of K S: the directions no data see
         _, s, Vt = np.linalg.svd(K * scale[None, :])
         rank = int(np.sum(s > s[0] * max(K.shape) * np.finfo(float).eps)) if s.size else 0
-        prior_matrix = Vt[rank:] * prior[None, :]
+        G = Vt[rank:]
+    floor = float(problem.options.get("prior_floor", PRIOR_FLOOR))
+    inertial = np.flatnonzero(prior)
+    prior_rows = np.vstack(
+        [
+            np.sqrt(floor) * np.diag(prior)[inertial],
+            np.sqrt(float(problem.regularization)) * G * prior[None, :],
+        ]
+    )
     fixed = np.zeros(0, dtype=np.intp)
     fixed_theta = np.zeros(0)
     if friction == "least_squares" and structure.friction.size:
@@ -175,7 +178,7 @@ def scaled_problem(problem: EstimationProblem, method: str) -> ScaledProblem:
         A=A,
         b=b,
         prior=prior,
-        prior_matrix=prior_matrix,
+        prior_rows=prior_rows,
         fixed=fixed,
         fixed_u=(fixed_theta - structure.nominal[fixed]) / scale[fixed],
         scale=scale,

@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,6 +27,7 @@ import pinocchio as pin
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
+from ident.errors import ConfigError, ModelError
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
 from ident.identify.estimators.registry import get_estimator
@@ -39,6 +42,7 @@ __all__ = [
     "NONNEGATIVE_PREFIXES",
     "ConsistentIdentification",
     "body_link_names",
+    "bounding_ellipsoids",
     "consistent_identification",
     "problem_from_states",
     "standard_regressor",
@@ -66,6 +70,49 @@ def body_link_names(model: pin.Model) -> tuple[str, ...]:
     return tuple(names)
 
 
+def bounding_ellipsoids(
+    model: pin.Model,
+    urdf: str | Path,
+    *,
+    package_dirs: Sequence[str | Path] = (),
+    source: str = "config",
+) -> tuple[Any, ...]:
+    """Bounding ellipsoid of each moving link of ``model`` from the URDF's geometry.
+
+    For ``estimation.ellipsoids: true`` (:mod:`ident.robot.ellipsoids`): one
+    :class:`~ident.robot.ellipsoids.Ellipsoid` per joint's link (:func:`body_link_names`).
+
+    Raises
+    ------
+    ConfigError
+        If the URDF cannot be read or a link has no ``<collision>`` or ``<visual>`` geometry
+        that bounds a volume (the message names the link and the fix).
+    """
+    from ident.identify.urdf_update import parse_urdf
+    from ident.robot.ellipsoids import link_ellipsoids
+
+    urdf = Path(urdf)
+    links = body_link_names(model)
+    try:
+        found = link_ellipsoids(
+            parse_urdf(urdf.read_text(encoding="utf-8")),
+            links,
+            package_dirs=package_dirs,
+            base=urdf.parent,
+        )
+    except (OSError, ModelError) as e:
+        raise ConfigError(f"{source}: estimation.ellipsoids: {urdf}: {e}") from e
+    missing = [link for link, e in zip(links, found, strict=True) if e is None]
+    if missing:
+        raise ConfigError(
+            f"{source}: estimation.ellipsoids: {urdf} has no <collision> or <visual> geometry "
+            f"bounding a volume for link(s) {', '.join(missing)} (box, cylinder, sphere, or a "
+            "mesh found through robot.package_dirs); add it, or set estimation.ellipsoids: "
+            "false."
+        )
+    return found
+
+
 def structure_from_parameter_model(
     pm: Any, body_names: tuple[str, ...], ellipsoids: tuple[Any, ...] = ()
 ) -> ParameterStructure:
@@ -85,6 +132,7 @@ def structure_from_parameter_model(
         [[index[f"{label}{b + 1}"] for label in _LABELS] for b in range(len(body_names))],
         dtype=np.intp,
     )
+
     def extras(prefixes: tuple[str, ...]) -> npt.NDArray[np.intp]:
         return np.array(
             [
@@ -196,6 +244,7 @@ def consistent_identification(
     validation_fraction: float = 0.2,
     grid: tuple[float, ...] = DEFAULT_GRID,
     ellipsoids: tuple[Any, ...] = (),
+    options: dict[str, Any] | None = None,
 ) -> ConsistentIdentification:
     """Constrained estimate and per-estimator consistency of identification rows.
 
@@ -221,6 +270,8 @@ def consistent_identification(
         Weights tried when ``weight == "auto"``.
     ellipsoids :
         Optional bounding ellipsoid per body (None entries for none).
+    options :
+        Options of the constrained estimator (e.g. ``friction``).
     """
     nv = model.nv
     groups = np.asarray(groups, dtype=np.int64)
@@ -240,6 +291,8 @@ def consistent_identification(
         t0 = time.perf_counter()
         weights = 1.0 / np.asarray(estimates["wls"].sigma)
         problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
+        if options:
+            problem = dataclasses.replace(problem, options=dict(options))
         if weight == "auto":
             split = int(round((1.0 - validation_fraction) * W_rows.shape[0]))
             first = EstimationProblem(
@@ -250,6 +303,7 @@ def consistent_identification(
                 structure=structure,
                 base_map=problem.base_map,
                 weights=problem.weights,
+                options=problem.options,
             )
             last = ReducedObservations.from_rows(
                 W_rows[split:], tau_rows[split:], groups[split:], nv

@@ -34,7 +34,6 @@ import numpy as np
 from ident.identify.consistency import PSEUDO_INERTIA_BASIS
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.constrained import (
-    prior_weight,
     scaled_problem,
     single_threaded_blas,
 )
@@ -85,9 +84,7 @@ def _lmi(problem: EstimationProblem) -> Estimate:
     if sp.fixed.size:
         constraints.append(u[sp.fixed] == sp.fixed_u)
     weight = problem.regularization
-    objective = cp.sum_squares(sp.A @ u - sp.b) + prior_weight(problem) * cp.sum_squares(
-        sp.prior_matrix @ u
-    )
+    objective = cp.sum_squares(sp.A @ u - sp.b) + cp.sum_squares(sp.prior_rows @ u)
     program = cp.Problem(cp.Minimize(objective), constraints)
     try:
         with warnings.catch_warnings():  # an inaccurate optimum is said in the message

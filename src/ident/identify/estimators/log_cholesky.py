@@ -33,7 +33,6 @@ import scipy.optimize
 from ident.identify.consistency import parameters_from_pseudo_inertia, pseudo_inertia
 from ident.identify.estimate import Estimate, least_squares_reduced
 from ident.identify.estimators.constrained import (
-    prior_weight,
     scaled_problem,
     single_threaded_blas,
 )
@@ -110,8 +109,8 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     nonnegative = structure.nonnegative
     free = np.setdiff1d(np.setdiff1d(np.arange(n_std), inertial), nonnegative)
     weight = problem.regularization
-    # prior rows sqrt(lambda) G P u with u = (theta - nominal) / scale
-    G = np.sqrt(prior_weight(problem)) * sp.prior_matrix / sp.scale[None, :]
+    # prior rows M u with u = (theta - nominal) / scale
+    G = sp.prior_rows / sp.scale[None, :]
     # the data term in theta: A_theta = A / scale
     A_theta = sp.A / sp.scale[None, :]
     b_theta = sp.b + A_theta @ structure.nominal
@@ -161,17 +160,9 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         jac = jac[:, active]
         return np.vstack([A_theta @ jac, G @ jac])
 
-    solution = scipy.optimize.least_squares(
-        residual,
-        v0[active],
-        jac=jacobian,
-        method="trf",
-        x_scale="jac",
-        max_nfev=int(problem.options.get("max_nfev", 300)),
-        ftol=1e-10,
-        xtol=1e-10,
-        gtol=1e-10,
-    )
+    # a trial step may overflow exp(); the trust region then shrinks it (not an error)
+    with np.errstate(over="ignore", invalid="ignore"):
+        solution = _solve(residual, jacobian, v0[active], problem)
     theta, _ = theta_and_jacobian(full(solution.x))
     # Every finite point of the parametrization is consistent, so an estimate stopped by the
     # evaluation budget is usable: that happens when the optimum lies on the consistency
@@ -192,4 +183,19 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         success=success,
         message=message,
         regularization=weight,
+    )
+
+
+def _solve(residual, jacobian, v0: FloatArray, problem: EstimationProblem):
+    """``scipy.optimize.least_squares`` (trust region, exact Jacobian) from ``v0``."""
+    return scipy.optimize.least_squares(
+        residual,
+        v0,
+        jac=jacobian,
+        method="trf",
+        x_scale="jac",
+        max_nfev=int(problem.options.get("max_nfev", 300)),
+        ftol=1e-10,
+        xtol=1e-10,
+        gtol=1e-10,
     )
