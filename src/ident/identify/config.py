@@ -301,7 +301,8 @@ class EssentialConfig(StrictModel):
 class RegularizationConfig(StrictModel):
     """Prior toward the nominal (URDF) parameters of the constrained estimators.
 
-    ``weight``: ``lambda`` of ``lambda ||D (theta - theta_nominal)||^2``, a number >= 0 or
+    ``weight``: ``lambda`` of ``lambda ||G D (theta - theta_nominal)||^2`` (``G``: the
+    directions no data see, :mod:`ident.identify.estimators.constrained`), a number >= 0 or
     ``auto`` (chosen on the last 20 % of the identification part from a grid and reported; see
     :mod:`ident.identify.estimators.regularization`).
     """

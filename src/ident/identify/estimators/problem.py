@@ -148,8 +148,9 @@ class EstimationProblem:
         Per-group row weights ``1 / sigma_j`` for the constrained estimators, shape
         (n_groups,); None: take them from a WLS fit of the same problem.
     regularization :
-        Weight ``lambda`` of the prior ``lambda ||D (theta - nominal)||^2`` added to the
-        mean weighted squared residual (constrained estimators).
+        Weight ``lambda`` of the prior ``lambda ||G D (theta - nominal)||^2`` added to the
+        mean weighted squared residual (constrained estimators; ``G`` and the fixed floor:
+        :mod:`ident.identify.estimators.constrained`).
     wls_passes :
         Weighted solves of WLS (see :func:`~ident.identify.estimate.least_squares`).
     n_samples :
