@@ -95,6 +95,8 @@ class ParameterStructure:
             raise DataError("one body name per body is needed.")
         if self.ellipsoids and len(self.ellipsoids) != self.bodies.shape[0]:
             raise DataError("ellipsoids: one entry (or None) per body is needed.")
+        if not np.isin(self.friction, self.nonnegative).all():
+            raise DataError("friction: every friction index must also be in nonnegative.")
 
     @property
     def n_std(self) -> int:
