@@ -86,6 +86,8 @@ def test_cli_writes_the_consistent_model(tmp_path, result):
     (folder,) = out.iterdir()
     data = json.loads((folder / "result.json").read_text())
     assert data["consistency"]["estimators"]["lmi"]["consistent"] is True
+    regularization = data["consistency"]["regularization"]
+    assert (regularization["directions"], regularization["friction"]) == ("unseen", "least_squares")
     assert "## Physical consistency" in (folder / "report.md").read_text()
     extras = json.loads((folder / "tx40_mdh_modified_joint_extras.json").read_text())
     assert set(extras["joints"]) == {f"joint_{j}" for j in range(1, 7)}
