@@ -5,13 +5,14 @@ chosen on held-out rows) on the full log and prints, against WLS on the same row
 the constrained estimate adds (target < 5 s on 2 cores), the relative residual on the
 identification rows and on the held-out part (targets: within 2 %), friction and rotor
 inertia (target: friction within 2 % where WLS's is positive), per-link consistency; then the
-same with the whole log identifying, and the log-Cholesky estimator on the same problem as a
-cross-check.
+same with the whole log identifying, and with ``estimation.friction: free``; each with the
+log-Cholesky estimator on the same problem as a cross-check.
 
 Part ``simulated`` identifies a UR5 (example-robot-data) from ideal Pinocchio torques plus
 friction and noise, on a poorly and a well exciting trajectory, and compares OLS, WLS, LMI
-without prior (``lmi``) and with the prior weight chosen on held-out rows (``lmi+prior``):
-errors of the standard and base parameters and torque prediction on another trajectory.
+without prior, with the prior floor only, with the prior weight chosen on held-out rows, the
+same with friction estimated jointly (``estimation.friction: free``) and log-Cholesky: errors
+of the standard and base parameters and torque prediction on another trajectory.
 
     python benchmarks/bench_consistent.py [--part tx40|simulated|all] [--seeds 3]
 """
@@ -38,18 +39,24 @@ BUDGET_S = 5.0
 
 
 # ---- TX40 -----------------------------------------------------------------------------------
-def _tx40(fraction: float | None) -> None:
+def _tx40(fraction: float | None, friction: str = "least_squares") -> None:
     cfg = load_identify_config(ROOT / "configs" / "tx40-consistent.yaml")
     if fraction is not None:
         cfg = cfg.model_copy(
             update={"validation": cfg.validation.model_copy(update={"identify_fraction": fraction})}
         )
+    cfg = cfg.model_copy(
+        update={"estimation": cfg.estimation.model_copy(update={"friction": friction})}
+    )
     t0 = time.perf_counter()
     result = identify(cfg)
     total = time.perf_counter() - t0
     c = result.consistent
     wls, lmi = c.estimates["wls"], c.constrained
-    print(f"\n## TX40, identify_fraction = {cfg.validation.identify_fraction}")
+    print(
+        f"\n## TX40, identify_fraction = {cfg.validation.identify_fraction}, "
+        f"estimation.friction = {friction}"
+    )
     print(
         f"identify total {total:.2f} s; constrained estimate adds {c.seconds:.2f} s "
         f"(weight choice included) = {c.seconds / BUDGET_S:.2f} of the {BUDGET_S:g} s budget; "
@@ -155,7 +162,16 @@ def _simulated(seeds: int) -> None:
         "poor": dict(amplitude=0.15, n_harmonics=2, base_hz=0.1),
         "good": dict(amplitude=1.2, n_harmonics=5, base_hz=0.1),
     }
-    methods = ("ols", "wls", "lmi, no prior", "lmi, floor only", "lmi", "log_cholesky")
+    methods = (
+        "ols",
+        "wls",
+        "lmi, no prior",
+        "lmi, floor only",
+        "lmi",
+        "lmi, friction free",
+        "log_cholesky",
+    )
+    free = {"friction": "free"}
     table = {(case, m): [] for case in cases for m in methods}
     chosen: list[float] = []
     for seed in range(seeds):
@@ -181,11 +197,19 @@ def _simulated(seeds: int) -> None:
             scales = full.structure.scales()
             inertial = full.structure.bodies.reshape(-1)
             weight = choose_regularization(first, last.observations).weight
+            weight_free = choose_regularization(
+                dataclasses.replace(first, options=free), last.observations
+            ).weight
             for m in methods:
                 if m == "lmi, no prior":
                     est = get_estimator("lmi")(
                         dataclasses.replace(full, options={"prior_floor": 0.0})
                     )
+                elif m == "lmi, friction free":
+                    est = get_estimator("lmi")(
+                        dataclasses.replace(full, regularization=weight_free, options=free)
+                    )
+                    chosen.append(weight_free)
                 elif m == "lmi, floor only":
                     est = get_estimator("lmi")(full)
                 elif m in ("lmi", "log_cholesky"):  # weight chosen on held-out rows
@@ -224,6 +248,7 @@ def main() -> None:
     if args.part in ("tx40", "all"):
         _tx40(None)
         _tx40(1.0)
+        _tx40(None, friction="free")
     if args.part in ("simulated", "all"):
         _simulated(args.seeds)
 

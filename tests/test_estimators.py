@@ -240,3 +240,41 @@ def test_lmi_with_bounding_ellipsoids_keeps_the_mass_inside():
         assert np.trace(J @ e.homogeneous_matrix()) >= -1e-9 * np.abs(J).max()
     free = get_estimator("lmi")(problem)
     assert est.relative_residual >= free.relative_residual * (1 - 1e-6)  # tighter set
+
+
+def test_prior_on_unseen_directions_leaves_the_seen_ones_to_the_data():
+    # consistent data (the constraints inactive): with the prior only on the directions no
+    # data see (default), a heavy weight leaves the base values at WLS's; on every direction
+    # ("all") it drags them toward the prior by 1e3 times more
+    problem, *_ = _ur5_problem(noise=0.05, regularization=1e3)
+    wls = get_estimator("wls")(problem)
+    scale = np.abs(wls.x).max()
+    unseen = get_estimator("lmi")(dataclasses.replace(problem, options={"prior_floor": 0.0}))
+    every = get_estimator("lmi")(
+        dataclasses.replace(problem, options={"prior_floor": 0.0, "prior_directions": "all"})
+    )
+    assert unseen.consistent
+    assert np.abs(unseen.x - wls.x).max() < 1e-8 * scale
+    assert np.abs(every.x - wls.x).max() > 1e-5 * scale
+    # the unseen directions are at the prior: the standard parameters are the ones closest
+    # to the nominal among those with these base values
+    np.testing.assert_allclose(
+        unseen.theta, problem.standard_completion(unseen.x), atol=1e-9 * np.abs(unseen.theta).max()
+    )
+
+
+def test_positive_friction_is_held_at_its_wls_value():
+    problem, *_ = _ur5_problem(noise=2.0, inconsistent=True, regularization=0.1)
+    wls = get_estimator("wls")(problem)
+    structure = problem.structure
+    index = {n: k for k, n in enumerate(problem.names)}
+    held = [structure.names[i] for i in structure.friction if wls.x[index[structure.names[i]]] > 0]
+    assert held
+    for name, options in (("lmi", {}), ("log_cholesky", {})):
+        est = get_estimator(name)(dataclasses.replace(problem, options=options))
+        for n in held:
+            assert est.x[index[n]] == pytest.approx(wls.x[index[n]], rel=1e-6), (name, n)
+    free = get_estimator("lmi")(dataclasses.replace(problem, options={"friction": "free"}))
+    assert max(abs(free.x[index[n]] / wls.x[index[n]] - 1) for n in held) > 1e-3
+    with pytest.raises(DataError, match="friction"):
+        get_estimator("lmi")(dataclasses.replace(problem, options={"friction": "wls"}))

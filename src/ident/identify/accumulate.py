@@ -639,13 +639,16 @@ def identify_chunked(
     timings: dict[str, float],
     t0: float,
     scheduler: str | None = None,
+    ellipsoids: tuple = (),
 ) -> dict:
     """The fields of an :class:`~ident.identify.real.IdentifyResult` by the chunked path.
 
     Same steps and records as the in-memory path (read, low-pass, differentiate, trim,
     regressor, decimate, velocity threshold, split, estimate, essential, held-out prediction),
-    with the chunked accumulation in the middle. The reference parameters' held-out
-    prediction is not computed here (the comparison table is).
+    with the chunked accumulation in the middle, and the constrained estimate
+    (``estimation.method``, ``ellipsoids``: the links' bounding ellipsoids or ``()``) on the
+    reduction. The reference parameters' held-out prediction is not computed here (the
+    comparison table is).
     """
     import time
 
@@ -714,6 +717,8 @@ def identify_chunked(
             last,
             method=cfg.estimation.method,  # type: ignore[attr-defined]
             weight=cfg.estimation.regularization.weight,  # type: ignore[attr-defined]
+            ellipsoids=ellipsoids,
+            options={"friction": cfg.estimation.friction},  # type: ignore[attr-defined]
         ),
         identify_fraction=cfg.validation.identify_fraction,  # type: ignore[attr-defined]
         essential={

@@ -301,7 +301,8 @@ class EssentialConfig(StrictModel):
 class RegularizationConfig(StrictModel):
     """Prior toward the nominal (URDF) parameters of the constrained estimators.
 
-    ``weight``: ``lambda`` of ``lambda ||D (theta - theta_nominal)||^2``, a number >= 0 or
+    ``weight``: ``lambda`` of ``lambda ||G D (theta - theta_nominal)||^2`` (``G``: the
+    directions no data see, :mod:`ident.identify.estimators.constrained`), a number >= 0 or
     ``auto`` (chosen on the last 20 % of the identification part from a grid and reported; see
     :mod:`ident.identify.estimators.regularization`).
     """
@@ -323,11 +324,19 @@ class EstimationConfig(StrictModel):
     ``ols`` and ``wls`` estimate the base parameters; constrained estimators (``lmi``,
     ``log_cholesky``) estimate physically consistent standard parameters, WLS-weighted, next to
     the WLS estimate (which the essential parameters and the reference comparison use).
+    ``ellipsoids: true`` (``lmi`` only) also keeps each link's mass inside the bounding
+    ellipsoid of its URDF geometry (:mod:`ident.robot.ellipsoids`); every moving link then
+    needs ``<collision>`` or ``<visual>`` geometry. ``friction`` (constrained estimators):
+    ``least_squares`` keeps every friction parameter the WLS fit finds positive at its WLS
+    value, ``free`` estimates friction jointly with the constrained inertial parameters
+    (:mod:`ident.identify.estimators.constrained`).
     """
 
     method: str = "wls"
     essential: EssentialConfig = Field(default_factory=EssentialConfig)
     regularization: RegularizationConfig = Field(default_factory=RegularizationConfig)
+    ellipsoids: bool = False
+    friction: Literal["least_squares", "free"] = "least_squares"
 
     @field_validator("method")
     @classmethod
@@ -337,6 +346,15 @@ class EstimationConfig(StrictModel):
         except ConfigError as e:
             raise ValueError(str(e)) from e
         return value
+
+    @model_validator(mode="after")
+    def _ellipsoids_need_lmi(self) -> EstimationConfig:
+        if self.ellipsoids and self.method != "lmi":
+            raise ValueError(
+                f"ellipsoids: true needs method: lmi (the estimator with the ellipsoid "
+                f"constraint), not {self.method!r}"
+            )
+        return self
 
     @property
     def least_squares_method(self) -> str:

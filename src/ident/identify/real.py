@@ -50,7 +50,11 @@ from ident.identify import accumulate, preprocess, sanity
 from ident.identify.config import IdentifyConfig
 from ident.identify.essential import EssentialResult, essential_parameters
 from ident.identify.estimate import Estimate, least_squares, rank_report
-from ident.identify.estimators import ConsistentIdentification, consistent_identification
+from ident.identify.estimators import (
+    ConsistentIdentification,
+    bounding_ellipsoids,
+    consistent_identification,
+)
 from ident.identify.logs import RobotLog, read_log
 from ident.identify.motion import measured_motion
 from ident.identify.reference import (
@@ -299,6 +303,16 @@ def _identify_log(
             f"{source}: the log's joints ({', '.join(log.joint_names)}) are not the robot's "
             f"({', '.join(joints)})."
         )
+    ellipsoids: tuple = ()
+    if cfg.estimation.ellipsoids:  # before any work: a missing geometry is a config error
+        if cfg.robot.urdf is None:
+            raise ConfigError(
+                f"{source}: estimation.ellipsoids needs a URDF with link geometry "
+                "(robot.urdf); a DH description has none. Set estimation.ellipsoids: false."
+            )
+        ellipsoids = bounding_ellipsoids(
+            model, cfg.robot.urdf, package_dirs=cfg.robot.package_dirs, source=source
+        )
     first = slice(*log.segments[0])  # automatic settings: from the first segment
     settings, auto_records, auto_warnings = preprocess.resolve_defaults(
         cfg.preprocess,
@@ -319,6 +333,7 @@ def _identify_log(
             timings=timings,
             t0=t0,
             scheduler=scheduler,
+            ellipsoids=ellipsoids,
         )
         fields["warnings"] = (*auto_warnings, *fields["warnings"])
         return IdentifyResult(**fields)
@@ -458,6 +473,8 @@ def _identify_log(
         groups,
         method=cfg.estimation.method,
         weight=cfg.estimation.regularization.weight,
+        ellipsoids=ellipsoids,
+        options={"friction": cfg.estimation.friction},
     )
     timings["estimate"] = time.perf_counter() - t5
 

@@ -512,8 +512,19 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
         how = f"chosen on the {reg['chosen_on']}" if reg["chosen_on"] else "from the config"
         lines += [
             "",
-            f"{summary['method']}: prior weight {reg['weight']:g} toward the URDF ({how}); "
-            f"{summary['seconds']:.2f} s. Whole model: `{stem}_consistent.urdf` (every link's "
+            f"{summary['method']}: prior weight {reg['weight']:g} toward the URDF ({how}) on "
+            + (
+                "the directions the data do not see"
+                if reg["directions"] == "unseen"
+                else "every inertial direction"
+            )
+            + "; friction "
+            + (
+                "held at the WLS values where positive"
+                if reg["friction"] == "least_squares"
+                else "estimated with the constraints"
+            )
+            + f"; {summary['seconds']:.2f} s. Whole model: `{stem}_consistent.urdf` (every link's "
             f"inertial, joint damping/friction) and `{stem}_joint_extras.json` (all per-joint "
             "extras).",
         ]

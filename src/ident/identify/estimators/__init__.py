@@ -16,6 +16,7 @@ See ``docs/consistent-identification.md`` ("Extending") to add one.
 from ident.identify.estimators import least_squares, lmi, log_cholesky  # noqa: F401 (register)
 from ident.identify.estimators.identification import (
     ConsistentIdentification,
+    bounding_ellipsoids,
     consistent_identification,
     consistent_identification_reduced,
 )
@@ -38,6 +39,7 @@ __all__ = [
     "EstimationProblem",
     "ParameterStructure",
     "RegularizationChoice",
+    "bounding_ellipsoids",
     "choose_regularization",
     "consistent_identification",
     "consistent_identification_reduced",

@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,6 +27,7 @@ import pinocchio as pin
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
+from ident.errors import ConfigError, ModelError
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
 from ident.identify.estimators.registry import get_estimator
@@ -39,6 +42,7 @@ __all__ = [
     "NONNEGATIVE_PREFIXES",
     "ConsistentIdentification",
     "body_link_names",
+    "bounding_ellipsoids",
     "consistent_identification",
     "consistent_identification_reduced",
     "problem_from_states",
@@ -51,6 +55,8 @@ FloatArray = npt.NDArray[np.float64]
 #: Extra parameters that must be >= 0: rotor inertia, viscous and Coulomb friction (also of a
 #: coupled motor). Offsets (``off``) are free.
 NONNEGATIVE_PREFIXES = ("Iam", "fvm", "fsm", "Ia", "fv", "fs")
+#: Viscous and Coulomb friction (also of a coupled motor).
+FRICTION_PREFIXES = ("fvm", "fsm", "fv", "fs")
 _LABELS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 
 
@@ -63,6 +69,49 @@ def body_link_names(model: pin.Model) -> tuple[str, ...]:
         ]
         names.append(frames[0] if frames else model.names[i])
     return tuple(names)
+
+
+def bounding_ellipsoids(
+    model: pin.Model,
+    urdf: str | Path,
+    *,
+    package_dirs: Sequence[str | Path] = (),
+    source: str = "config",
+) -> tuple[Any, ...]:
+    """Bounding ellipsoid of each moving link of ``model`` from the URDF's geometry.
+
+    For ``estimation.ellipsoids: true`` (:mod:`ident.robot.ellipsoids`): one
+    :class:`~ident.robot.ellipsoids.Ellipsoid` per joint's link (:func:`body_link_names`).
+
+    Raises
+    ------
+    ConfigError
+        If the URDF cannot be read or a link has no ``<collision>`` or ``<visual>`` geometry
+        that bounds a volume (the message names the link and the fix).
+    """
+    from ident.identify.urdf_update import parse_urdf
+    from ident.robot.ellipsoids import link_ellipsoids
+
+    urdf = Path(urdf)
+    links = body_link_names(model)
+    try:
+        found = link_ellipsoids(
+            parse_urdf(urdf.read_text(encoding="utf-8")),
+            links,
+            package_dirs=package_dirs,
+            base=urdf.parent,
+        )
+    except (OSError, ModelError) as e:
+        raise ConfigError(f"{source}: estimation.ellipsoids: {urdf}: {e}") from e
+    missing = [link for link, e in zip(links, found, strict=True) if e is None]
+    if missing:
+        raise ConfigError(
+            f"{source}: estimation.ellipsoids: {urdf} has no <collision> or <visual> geometry "
+            f"bounding a volume for link(s) {', '.join(missing)} (box, cylinder, sphere, or a "
+            "mesh found through robot.package_dirs); add it, or set estimation.ellipsoids: "
+            "false."
+        )
+    return found
 
 
 def structure_from_parameter_model(
@@ -84,21 +133,25 @@ def structure_from_parameter_model(
         [[index[f"{label}{b + 1}"] for label in _LABELS] for b in range(len(body_names))],
         dtype=np.intp,
     )
-    nonnegative = np.array(
-        [
-            i
-            for i, name in enumerate(pm.names)
-            if pm.inertial_index[i] < 0 and name.rstrip("0123456789") in NONNEGATIVE_PREFIXES
-        ],
-        dtype=np.intp,
-    )
+
+    def extras(prefixes: tuple[str, ...]) -> npt.NDArray[np.intp]:
+        return np.array(
+            [
+                i
+                for i, name in enumerate(pm.names)
+                if pm.inertial_index[i] < 0 and name.rstrip("0123456789") in prefixes
+            ],
+            dtype=np.intp,
+        )
+
     return ParameterStructure(
         names=tuple(pm.names),
         bodies=bodies,
         body_names=tuple(body_names),
-        nonnegative=nonnegative,
+        nonnegative=extras(NONNEGATIVE_PREFIXES),
         nominal=np.asarray(pm.nominal, dtype=float),
         ellipsoids=tuple(ellipsoids),
+        friction=extras(FRICTION_PREFIXES),
     )
 
 
@@ -192,6 +245,7 @@ def consistent_identification(
     validation_fraction: float = 0.2,
     grid: tuple[float, ...] = DEFAULT_GRID,
     ellipsoids: tuple[Any, ...] = (),
+    options: dict[str, Any] | None = None,
 ) -> ConsistentIdentification:
     """Constrained estimate and per-estimator consistency of identification rows.
 
@@ -217,6 +271,8 @@ def consistent_identification(
         Weights tried when ``weight == "auto"``.
     ellipsoids :
         Optional bounding ellipsoid per body (None entries for none).
+    options :
+        Options of the constrained estimator (e.g. ``friction``).
     """
     nv = model.nv
     groups = np.asarray(groups, dtype=np.int64)
@@ -224,7 +280,15 @@ def consistent_identification(
     first = ReducedObservations.from_rows(W_rows[:split], tau_rows[:split], groups[:split], nv)
     last = ReducedObservations.from_rows(W_rows[split:], tau_rows[split:], groups[split:], nv)
     return consistent_identification_reduced(
-        model, pm, first, last, method=method, weight=weight, grid=grid, ellipsoids=ellipsoids
+        model,
+        pm,
+        first,
+        last,
+        method=method,
+        weight=weight,
+        grid=grid,
+        ellipsoids=ellipsoids,
+        options=options,
     )
 
 
@@ -238,6 +302,7 @@ def consistent_identification_reduced(
     weight: float | str = "auto",
     grid: tuple[float, ...] = DEFAULT_GRID,
     ellipsoids: tuple[Any, ...] = (),
+    options: dict[str, Any] | None = None,
 ) -> ConsistentIdentification:
     """:func:`consistent_identification` on reduced rows (the chunked path of long logs).
 
@@ -246,7 +311,7 @@ def consistent_identification_reduced(
     first, last :
         The identification rows reduced in two parts: ``last`` (the later rows) chooses the
         prior weight when ``weight == "auto"``; the estimate uses both (merged).
-    model, pm, method, weight, grid, ellipsoids :
+    model, pm, method, weight, grid, ellipsoids, options :
         As in :func:`consistent_identification`.
     """
     structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
@@ -265,6 +330,8 @@ def consistent_identification_reduced(
         t0 = time.perf_counter()
         weights = 1.0 / np.asarray(estimates["wls"].sigma)
         problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
+        if options:
+            problem = dataclasses.replace(problem, options=dict(options))
         if weight == "auto":
             first_problem = dataclasses.replace(problem, observations=first)
             choice = choose_regularization(first_problem, last, method=method, grid=grid)

@@ -15,8 +15,8 @@ dimensionless. The program is written with cvxpy and solved by Clarabel, an inte
 conic solver: a few hundredths of a second for a 6-joint arm, whatever the log length.
 
 Options (``problem.options``): ``epsilon`` (default 1e-6), ``ellipsoids`` (default True: use
-the structure's ellipsoids when it has some), ``prior_floor`` (see
-:mod:`ident.identify.estimators.constrained`).
+the structure's ellipsoids when it has some), ``prior_floor``, ``prior_directions`` and
+``friction`` (see :mod:`ident.identify.estimators.constrained`).
 
 References
 ----------
@@ -34,7 +34,6 @@ import numpy as np
 from ident.identify.consistency import PSEUDO_INERTIA_BASIS
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.constrained import (
-    prior_weight,
     scaled_problem,
     single_threaded_blas,
 )
@@ -82,10 +81,10 @@ def _lmi(problem: EstimationProblem) -> Estimate:
         constraints.append(
             cp.multiply(sp.scale[nonnegative], u[nonnegative]) >= -structure.nominal[nonnegative]
         )
+    if sp.fixed.size:
+        constraints.append(u[sp.fixed] == sp.fixed_u)
     weight = problem.regularization
-    objective = cp.sum_squares(sp.A @ u - sp.b) + prior_weight(problem) * cp.sum_squares(
-        cp.multiply(np.sqrt(np.maximum(sp.prior, 0.0)), u)
-    )
+    objective = cp.sum_squares(sp.A @ u - sp.b) + cp.sum_squares(sp.prior_rows @ u)
     program = cp.Problem(cp.Minimize(objective), constraints)
     try:
         with warnings.catch_warnings():  # an inaccurate optimum is said in the message

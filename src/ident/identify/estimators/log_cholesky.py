@@ -13,7 +13,7 @@ problem, solved by ``scipy.optimize.least_squares`` (trust region) with the exac
 cross-checks :mod:`ident.identify.estimators.lmi`; being local, it starts from the nominal
 bodies (made positive definite when they are not) and the unconstrained extras.
 
-Options (``problem.options``): ``prior_floor`` (see
+Options (``problem.options``): ``prior_floor``, ``prior_directions`` and ``friction`` (see
 :mod:`ident.identify.estimators.constrained`), ``max_nfev`` (default 300), ``start`` (a
 ``theta`` to start from).
 
@@ -33,7 +33,6 @@ import scipy.optimize
 from ident.identify.consistency import parameters_from_pseudo_inertia, pseudo_inertia
 from ident.identify.estimate import Estimate, least_squares_reduced
 from ident.identify.estimators.constrained import (
-    prior_weight,
     scaled_problem,
     single_threaded_blas,
 )
@@ -110,7 +109,8 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     nonnegative = structure.nonnegative
     free = np.setdiff1d(np.setdiff1d(np.arange(n_std), inertial), nonnegative)
     weight = problem.regularization
-    sqrt_prior = np.sqrt(prior_weight(problem) * np.maximum(sp.prior, 0.0))
+    # prior rows M u with u = (theta - nominal) / scale
+    G = sp.prior_rows / sp.scale[None, :]
     # the data term in theta: A_theta = A / scale
     A_theta = sp.A / sp.scale[None, :]
     b_theta = sp.b + A_theta @ structure.nominal
@@ -129,6 +129,14 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         v0[index] = log_cholesky_from_parameters(body)
     v0[nonnegative] = np.sqrt(np.maximum(start[nonnegative], 0.0)) + 1e-6
     v0[free] = start[free]
+    # friction kept at its least-squares value (all in ``nonnegative``: theta = v^2)
+    v0[sp.fixed] = np.sqrt(structure.nominal[sp.fixed] + sp.scale[sp.fixed] * sp.fixed_u)
+    active = np.setdiff1d(np.arange(n_std), sp.fixed)
+
+    def full(v_active: FloatArray) -> FloatArray:
+        v = v0.copy()
+        v[active] = v_active
+        return v
 
     def theta_and_jacobian(v: FloatArray) -> tuple[FloatArray, FloatArray]:
         theta = np.empty(n_std)
@@ -143,27 +151,19 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         jac[free, free] = 1.0
         return theta, jac
 
-    def residual(v: FloatArray) -> FloatArray:
-        theta, _ = theta_and_jacobian(v)
-        prior = sqrt_prior * (theta - structure.nominal) / sp.scale
-        return np.concatenate([A_theta @ theta - b_theta, prior])
+    def residual(v_active: FloatArray) -> FloatArray:
+        theta, _ = theta_and_jacobian(full(v_active))
+        return np.concatenate([A_theta @ theta - b_theta, G @ (theta - structure.nominal)])
 
-    def jacobian(v: FloatArray) -> FloatArray:
-        _, jac = theta_and_jacobian(v)
-        return np.vstack([A_theta @ jac, (sqrt_prior / sp.scale)[:, None] * jac])
+    def jacobian(v_active: FloatArray) -> FloatArray:
+        _, jac = theta_and_jacobian(full(v_active))
+        jac = jac[:, active]
+        return np.vstack([A_theta @ jac, G @ jac])
 
-    solution = scipy.optimize.least_squares(
-        residual,
-        v0,
-        jac=jacobian,
-        method="trf",
-        x_scale="jac",
-        max_nfev=int(problem.options.get("max_nfev", 300)),
-        ftol=1e-10,
-        xtol=1e-10,
-        gtol=1e-10,
-    )
-    theta, _ = theta_and_jacobian(solution.x)
+    # a trial step may overflow exp(); the trust region then shrinks it (not an error)
+    with np.errstate(over="ignore", invalid="ignore"):
+        solution = _solve(residual, jacobian, v0[active], problem)
+    theta, _ = theta_and_jacobian(full(solution.x))
     # Every finite point of the parametrization is consistent, so an estimate stopped by the
     # evaluation budget is usable: that happens when the optimum lies on the consistency
     # boundary (a degenerate body), which the parametrization reaches only asymptotically.
@@ -183,4 +183,19 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         success=success,
         message=message,
         regularization=weight,
+    )
+
+
+def _solve(residual, jacobian, v0: FloatArray, problem: EstimationProblem):
+    """``scipy.optimize.least_squares`` (trust region, exact Jacobian) from ``v0``."""
+    return scipy.optimize.least_squares(
+        residual,
+        v0,
+        jac=jacobian,
+        method="trf",
+        x_scale="jac",
+        max_nfev=int(problem.options.get("max_nfev", 300)),
+        ftol=1e-10,
+        xtol=1e-10,
+        gtol=1e-10,
     )

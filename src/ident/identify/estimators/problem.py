@@ -65,6 +65,11 @@ class ParameterStructure:
     ellipsoids :
         Optional bounding ellipsoid per body (:class:`~ident.robot.ellipsoids.Ellipsoid`
         or None), empty for none.
+    friction :
+        Indices of the viscous and Coulomb friction parameters (a subset of
+        ``nonnegative``), empty for none: the constrained estimators keep those that the
+        least-squares fit finds positive at its values (see
+        :mod:`ident.identify.estimators.constrained`).
     """
 
     names: tuple[str, ...]
@@ -73,9 +78,11 @@ class ParameterStructure:
     nonnegative: IntArray
     nominal: FloatArray
     ellipsoids: tuple[Any, ...] = ()
+    friction: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
     def __post_init__(self) -> None:
-        for name in ("bodies", "nonnegative", "nominal"):
+        object.__setattr__(self, "friction", np.asarray(self.friction, dtype=np.intp))
+        for name in ("bodies", "nonnegative", "nominal", "friction"):
             value = np.array(getattr(self, name), copy=True)
             value.setflags(write=False)
             object.__setattr__(self, name, value)
@@ -88,6 +95,8 @@ class ParameterStructure:
             raise DataError("one body name per body is needed.")
         if self.ellipsoids and len(self.ellipsoids) != self.bodies.shape[0]:
             raise DataError("ellipsoids: one entry (or None) per body is needed.")
+        if not np.isin(self.friction, self.nonnegative).all():
+            raise DataError("friction: every friction index must also be in nonnegative.")
 
     @property
     def n_std(self) -> int:
@@ -141,8 +150,9 @@ class EstimationProblem:
         Per-group row weights ``1 / sigma_j`` for the constrained estimators, shape
         (n_groups,); None: take them from a WLS fit of the same problem.
     regularization :
-        Weight ``lambda`` of the prior ``lambda ||D (theta - nominal)||^2`` added to the
-        mean weighted squared residual (constrained estimators).
+        Weight ``lambda`` of the prior ``lambda ||G D (theta - nominal)||^2`` added to the
+        mean weighted squared residual (constrained estimators; ``G`` and the fixed floor:
+        :mod:`ident.identify.estimators.constrained`).
     wls_passes :
         Weighted solves of WLS (see :func:`~ident.identify.estimate.least_squares`).
     n_samples :

@@ -70,6 +70,8 @@ def consistency_summary(result: Any) -> dict | None:
         out["regularization"] = {
             "weight": consistent.constrained.regularization,
             "prior": "nominal",
+            "directions": consistent.problem.options.get("prior_directions", "unseen"),
+            "friction": consistent.problem.options.get("friction", "least_squares"),
             "chosen_on": None if choice is None else "last 20 % of the identification rows",
             "grid": None if choice is None else choice.grid.tolist(),
             "validation_relative_residual": None
