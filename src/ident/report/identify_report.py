@@ -662,16 +662,27 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
     v = verdict(worst, residual, what=f"worst σ of the {what}", warnings=len(result.warnings))
     written = [link for link in urdf.links if link.status == "updated"]
     rejected = [link for link in urdf.links if link.status == "nominal (inconsistent)"]
+    cons = result.consistent
+    constrained = None if cons is None else cons.constrained
     if written or rejected:
         consistency = (
             f"{len(written)} URDF links updated and physically consistent; {len(rejected)} kept "
             "nominal because the identified values are inconsistent"
         )
-    else:
+    elif constrained is None:
         consistency = (
             "not checked: no standard parameter is determined well enough to be written to "
             "the URDF (see the URDF section)"
         )
+    else:
+        consistency = ""
+    if constrained is not None:  # the whole-model estimate comes first
+        n_ok = sum(c.consistent for c in constrained.consistency)
+        whole = (
+            f"{cons.method}: {n_ok} of {len(constrained.consistency)} links physically "
+            "consistent, every link's identified inertial in `*_consistent.urdf`"
+        )
+        consistency = whole + (f"; cautious write-back: {consistency}" if consistency else "")
     extra = [
         (
             "Least squares",
