@@ -36,15 +36,14 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from threadpoolctl import threadpool_limits
 
 from ident.errors import IdentError, TrajectoryError
-from ident.excitation.objective import ExcitationObjective
 from ident.optim import minimize
 from ident.optim.elites import find_feasible_elites, spawn_from_elites
 from ident.run.config import RunConfig
 from ident.run.elite_identification import identify_elite
 from ident.run.log_measurement import identify_elite_log, log_stage_info
+from ident.run.problem import excitation_problem, small_blas
 from ident.run.results import (
     EliteOutcome,
     FrameBaseInfo,
@@ -121,28 +120,16 @@ def run_pipeline(
     """
     notify = progress or (lambda _p: None)
     setup = config if isinstance(config, RunSetup) else prepare_run(config)
-    config, robot, stage, family = setup.config, setup.robot, setup.stage, setup.family
+    config, robot, family = setup.config, setup.robot, setup.family
     streams = np.random.SeedSequence(config.seed).spawn(4)
     run_streams = streams[1].spawn(config.emupso.n_runs)
-    with _small_blas():
-        stage_info = build_stage_info(
-            robot, stage, family, config.estimation.base_method, np.random.default_rng(streams[3])
-        )
-    # the objective scores the same base columns the estimate uses
-    objective = ExcitationObjective(
-        robot,
-        stage,
-        family,
-        criterion=config.excitation.criterion,
-        base_columns=[stage_info.columns[i] for i in stage_info.base.independent],
-        safety=setup.safety if config.safety is not None else None,
-    )
+    problem = excitation_problem(setup, np.random.default_rng(streams[3]))
+    stage_info, objective, bounds = problem.stage_info, problem.objective, problem.bounds
     measure = identify_elite
     if config.measurement.source == "mujoco":  # a simulated log, identified as a measured one
-        with _small_blas():
+        with small_blas():
             stage_info, _ = log_stage_info(config, robot)
         measure = identify_elite_log
-    bounds = np.asarray(family.bounds, dtype=float)
 
     state: dict[str, Any] = {
         "runs": [],
@@ -253,7 +240,7 @@ def run_pipeline(
         meas_streams = streams[2].spawn(chosen_x.shape[0])
         for i in range(chosen_x.shape[0]):
             phase = f"identification of elite {i + 1}"
-            with _small_blas():
+            with small_blas():
                 outcome = measure(
                     config,
                     robot,
@@ -296,16 +283,6 @@ def run_pipeline(
         executable=plan,
         safety={"ok": plan.usable, "message": plan.message},
     )
-
-
-def _small_blas() -> Any:
-    """Single-threaded BLAS for the small least-squares problems of the estimate.
-
-    OpenBLAS threads a (1500 x 17) WLS solve; on a loaded 2-core machine that made it 15-50
-    times slower than one thread (measured 41-160 ms vs 1.3-3.4 ms, docs/run.md). The
-    objective's Gram-matrix kernel (numba) is not BLAS and is left alone.
-    """
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _replace(result: RunResult, **changes: Any) -> RunResult:
