@@ -1,184 +1,252 @@
-"""Optimizers on ident's own excitation problems, at equal evaluation budgets.
+"""Optimizers on the excitation problems `ident run` solves, at equal evaluation budgets.
 
-For each problem (the shipped run configs ``configs/wrist.yaml``, ``arm.yaml``,
-``wrist-fourier.yaml``, ``arm-fourier.yaml``, and UR5 from example-robot-data with a joint
-Fourier family over its six joints) and each seed:
+Each problem is a shipped run config, optimized exactly as the pipeline does it
+(:func:`ident.run.problem.excitation_problem`: eq. 15 on the scaled base Gram matrix, the
+family's constraint penalties and, with a ``safety:`` section, the clearance and torque terms):
+``wrist``, ``arm`` (the paper's), ``wrist-fourier``, ``arm-fourier``, ``wrist-box``,
+``arm-box`` (the paper robot beyond the paper) and ``ur5`` (a robot from its URDF, mesh
+collision geometry; ``panda`` on request). Per problem and seed:
 
-1. the initial elites are searched once (the pipeline's constraint-compliance swarm,
-   :func:`ident.optim.elites.find_feasible_elites`) and every method starts from the same
-   population spawned from them (:func:`ident.optim.elites.spawn_from_elites`, 20 points);
-2. every method (``emupso``, ``pso``, ``de``, ``woa``, ``gwo``, ``goa``, ``cma``) minimizes
-   the excitation objective (the pipeline's: eq. 15, scaled, with the constraint penalty) with
-   a population of 20 and the budget of the pipeline: 5 runs x (30 + 1) iterations x 20 =
-   3100 evaluations (``--budget-factor 10``: 31 000), in ONE run;
-3. ``emupso-5x`` is what the pipeline does: 5 independent eMuPSO runs of 620 evaluations
-   (each spawned from the elites with its own draw), the best of the five.
+1. the initial elites are searched once with the config's elite settings
+   (:func:`ident.optim.elites.find_feasible_elites`) and every method starts from the same
+   population of 20 spawned from them (:func:`ident.optim.elites.spawn_from_elites`);
+2. every method (``emupso pso de woa gwo goa cma``) minimizes the objective in ONE run of the
+   budget: the paper pipeline's 5 runs x (30 + 1) iterations x 20 = 3100 evaluations
+   (``--budget-factor 10``: 31 000); ``emupso-5x`` is what the paper's pipeline does, 5
+   independent eMuPSO runs of 620 evaluations, each from its own spawn of the elites, best of
+   five;
+3. each method's best point is identified as the pipeline identifies an elite
+   (:func:`ident.run.elite_identification.identify_elite`: Pinocchio torques plus the config's
+   noise, the same noise draw for every method, OLS), and the error of the stage's *major*
+   parameters (those explaining at least 1 % of the stage's torques) is its largest relative
+   error. ``ur5``'s config measures with MuJoCo (about a minute per trajectory); here it is
+   the ideal measurement with the config's noise levels and encoder.
 
-Printed per problem: median and interquartile range of the best fitness over the seeds, the
-number of seeds whose best point is feasible, the mean rank, a Friedman test over all methods
-and a one-sided Wilcoxon signed-rank test of every method against ``emupso`` (the pipeline's
-method, one long run) and of ``emupso`` against ``emupso-5x``. Lower fitness is better.
+Printed per problem: median and interquartile range of the best fitness and of the major
+parameters' error, the number of seeds whose best point is feasible (every constraint, safety
+included), the mean rank of the fitness, Friedman's test over the methods, and Wilcoxon's
+signed-rank test (two-sided) of every method against ``emupso`` (one long run), for the
+fitness and for the error; ``<`` / ``>``: the method's median is lower / higher. Lower is
+better for both. Also how many seeds' elite search found every elite.
 
 Run: ``python benchmarks/bench_excitation.py [--seeds 10] [--budget-factor 1]
-[--problems wrist arm ...] [--quick]``; ``--quick`` = 2 seeds, 3 problems, a smoke check of a
-few minutes. The full run (10 seeds, 5 problems, 8 methods) takes about half an hour per
-budget factor on one core.
+[--problems wrist arm ...] [--methods emupso cma ...] [--save FILE.json] [--quick]``.
+``--quick``: 2 seeds, budget 620, problems wrist and wrist-fourier (a smoke run of a minute).
+The full run (10 seeds, 7 problems, 8 methods) takes about 40 minutes on one core; the 10x
+budget ten times that, so run it on a subset (``--methods emupso emupso-5x pso cma``).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 from scipy import stats
 
-from ident.excitation import ExcitationObjective, JointFourierFamily
 from ident.optim import minimize
 from ident.optim.elites import find_feasible_elites, spawn_from_elites
+from ident.run.config import MeasurementSection, load_run_config
+from ident.run.elite_identification import identify_elite
+from ident.run.problem import ExcitationProblem, excitation_problem, small_blas
+from ident.run.setup import RunSetup, prepare_run
 
+ROOT = Path(__file__).resolve().parents[1]
 METHODS = ("emupso", "pso", "de", "woa", "gwo", "goa", "cma")
-CONFIGS = ("wrist", "arm", "wrist-fourier", "arm-fourier")
+ALL_METHODS = (*METHODS, "emupso-5x")
+PROBLEMS = ("wrist", "arm", "wrist-fourier", "arm-fourier", "wrist-box", "arm-box", "ur5")
 POPSIZE = 20
 PIPELINE_BUDGET = 5 * (30 + 1) * POPSIZE  # 3100
+MAJOR_SHARE = 1e-2
 
 
-def paper_problem(name: str) -> tuple[ExcitationObjective, np.ndarray]:
-    """The objective and bounds `ident run configs/<name>.yaml` optimizes."""
-    from ident.run.config import load_run_config
-    from ident.run.pipeline import build_stage_info, get_stage, load_robot, make_family
-
-    config = load_run_config(Path("configs") / f"{name}.yaml")
-    robot = load_robot(Path(config.robot))
-    stage = get_stage(robot, config.stage)
-    family = make_family(config, robot, stage)
-    info = build_stage_info(
-        robot, stage, family, config.estimation.base_method, np.random.default_rng(0)
-    )
-    objective = ExcitationObjective(
-        robot,
-        stage,
-        family,
-        criterion=config.excitation.criterion,
-        base_columns=[info.columns[i] for i in info.base.independent],
-    )
-    return objective, np.asarray(family.bounds, dtype=float)
+def load_problem(name: str) -> tuple[RunSetup, ExcitationProblem]:
+    """The prepared config ``configs/<name>.yaml`` (ideal measurement) and its problem."""
+    config = load_run_config(ROOT / "configs" / f"{name}.yaml")
+    m = config.measurement
+    if m.source != "ideal":  # the simulator's noise and encoder, measured ideally
+        config = config.model_copy(
+            update={
+                "measurement": MeasurementSection(
+                    torque_noise_std=m.torque_noise_std,
+                    encoder_counts_per_rev=getattr(m, "encoder_counts_per_rev", None),
+                )
+            }
+        )
+    setup = prepare_run(config)
+    # the pipeline's stream for the stage's base parameters: the very objective it optimizes
+    stream = np.random.SeedSequence(config.seed).spawn(4)[3]
+    return setup, excitation_problem(setup, np.random.default_rng(stream))
 
 
-def ur5_problem() -> tuple[ExcitationObjective, np.ndarray]:
-    """UR5 (example-robot-data), joint Fourier series over all six joints, 10 s period."""
-    import importlib.metadata
+def major_error(setup: RunSetup, problem: ExcitationProblem, x: np.ndarray, seed: int) -> float:
+    """Largest relative error of the major base parameters when ``x`` is identified (OLS)."""
+    info = problem.stage_info
+    with small_blas():
+        outcome = identify_elite(
+            setup.config, setup.robot, setup.family, info, 1, x, float("nan"), {}, seed
+        )
+    est = outcome.estimates.get("ols") or next(iter(outcome.estimates.values()), None)
+    if est is None:
+        return float("inf")
+    true = np.asarray(info.true_base, dtype=float)
+    major = np.asarray(info.reference_share) >= MAJOR_SHARE
+    return float(np.max(np.abs(np.asarray(est.x)[major] - true[major]) / np.abs(true[major])))
 
-    from ident import Robot
 
-    share = Path(
-        str(importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share"))
-    )
-    robot = Robot.from_urdf(share / "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
-    # the URDF has no acceleration limits: 10 rad/s^2 (a UR5 reaches ~ 15)
-    limits = SimpleNamespace(
-        joint_names=robot.joint_names,
-        q_lower=robot.q_lower,
-        q_upper=robot.q_upper,
-        dq_max=robot.dq_max,
-        ddq_max=np.full(6, 10.0),
-    )
-    family = JointFourierFamily(
-        limits, range(6), n_harmonics=4, base_frequency=2 * np.pi / 10, n_samples=250,
-        amplitude_bound=0.4,
+@dataclass
+class ProblemResult:
+    """Per method, one value per seed."""
+
+    fitness: dict[str, list[float]] = field(default_factory=dict)
+    error: dict[str, list[float]] = field(default_factory=dict)
+    feasible: dict[str, list[bool]] = field(default_factory=dict)
+    elites_found: list[bool] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def _run_method(
+    problem: ExcitationProblem, method: str, x0: np.ndarray, budget: int, rng, stall: int
+):  # noqa: ANN001, ANN202
+    options = {"stall_threshold": stall} if method == "emupso" else {}
+    return minimize(
+        problem.objective, problem.bounds, method, rng=rng, popsize=POPSIZE, max_nfev=budget,
+        x0=x0, **options,
     )  # fmt: skip
-    return ExcitationObjective(robot, None, family), np.asarray(family.bounds, dtype=float)
 
 
 def run_problem(
-    objective: ExcitationObjective, bounds: np.ndarray, seeds: list[int], budget: int
-) -> dict[str, np.ndarray]:
-    """Best fitness and feasibility per method and seed."""
-    names = (*METHODS, "emupso-5x")
-    best = {m: np.full(len(seeds), np.nan) for m in names}
-    feasible = {m: np.zeros(len(seeds), dtype=bool) for m in names}
-    for s, seed in enumerate(seeds):
-        streams = np.random.SeedSequence(seed).spawn(3)
+    name: str, seeds: list[int], budget: int, methods: tuple[str, ...]
+) -> ProblemResult:
+    """Every method on every seed of one problem (module docstring)."""
+    start = time.perf_counter()
+    setup, problem = load_problem(name)
+    cfg = setup.config
+    out = ProblemResult()
+    for m in methods:
+        out.fitness[m], out.error[m], out.feasible[m] = [], [], []
+    for seed in seeds:
+        streams = np.random.SeedSequence(seed).spawn(4)
         search = find_feasible_elites(
-            objective.violation, bounds, n_particles=10, n_elites=5, maxiter=100,
+            problem.objective.violation, problem.bounds, n_particles=cfg.elites.n_particles,
+            n_elites=cfg.elites.n_elites, maxiter=cfg.elites.maxiter,
             rng=np.random.default_rng(streams[0]),
         )  # fmt: skip
-        elites = np.asarray(search.elites) if search.success else bounds.mean(axis=1)[None]
-        gen = np.random.default_rng(streams[1])
-        x0 = spawn_from_elites(elites, POPSIZE, bounds, 0.1, gen)
-        for method in METHODS:
-            res = minimize(
-                objective, bounds, method, rng=np.random.default_rng(streams[2]),
-                popsize=POPSIZE, max_nfev=budget, x0=x0,
-            )  # fmt: skip
-            best[method][s] = res.fun
-            feasible[method][s] = objective.violation(res.x[None])[0] <= 0.0
-        # the pipeline: 5 independent short runs, each from its own spawn of the elites
-        runs = []
-        for k, stream in enumerate(np.random.SeedSequence(seed).spawn(5)):
-            g = np.random.default_rng(stream)
-            start = x0 if k == 0 else spawn_from_elites(elites, POPSIZE, bounds, 0.1, g)
-            runs.append(
-                minimize(
-                    objective,
-                    bounds,
-                    "emupso",
-                    rng=g,
-                    popsize=POPSIZE,
-                    max_nfev=budget // 5,
-                    x0=start,
-                )  # fmt: skip
-            )
-        top = min(runs, key=lambda r: r.fun)
-        best["emupso-5x"][s] = top.fun
-        feasible["emupso-5x"][s] = objective.violation(top.x[None])[0] <= 0.0
-    return {"best": best, "feasible": feasible}
+        out.elites_found.append(bool(search.success))
+        elites = np.asarray(search.elites) if len(search.elites) else problem.bounds.mean(1)[None]
+        sigma = cfg.emupso.sigma_fraction
+        x0 = spawn_from_elites(elites, POPSIZE, problem.bounds, sigma, streams[1])
+        noise_seed = int(streams[3].generate_state(1)[0])
+        for method in methods:
+            if method == "emupso-5x":  # the paper's pipeline: 5 short runs, best of five
+                runs = []
+                for k, child in enumerate(streams[2].spawn(5)):
+                    gen = np.random.default_rng(child)
+                    start_x = (
+                        x0
+                        if k == 0
+                        else spawn_from_elites(elites, POPSIZE, problem.bounds, sigma, gen)
+                    )
+                    runs.append(
+                        _run_method(
+                            problem, "emupso", start_x, budget // 5, gen, cfg.emupso.stagnation
+                        )
+                    )
+                res = min(runs, key=lambda r: r.fun)
+            else:
+                gen = np.random.default_rng(streams[2])
+                res = _run_method(problem, method, x0, budget, gen, cfg.emupso.stagnation)
+            out.fitness[method].append(float(res.fun))
+            out.feasible[method].append(bool(problem.objective.violation(res.x[None])[0] <= 0.0))
+            out.error[method].append(major_error(setup, problem, res.x, noise_seed))
+    out.seconds = time.perf_counter() - start
+    return out
 
 
-def report(name: str, result: dict, seconds: float) -> None:
-    best, feasible = result["best"], result["feasible"]
-    names = list(best)
-    table = np.column_stack([best[m] for m in names])  # (n_seeds, n_methods)
+def wilcoxon_vs(values: dict[str, list[float]], method: str, reference: str) -> str:
+    """Two-sided Wilcoxon p-value of ``method`` vs ``reference`` and the side of the median."""
+    a, b = np.asarray(values[method]), np.asarray(values[reference])
+    if method == reference or a.size < 5:
+        return "-"
+    diff = a - b
+    if np.all(diff == 0):
+        return "="
+    p = stats.wilcoxon(a, b).pvalue
+    return f"{p:.3f} {'<' if np.median(diff) < 0 else '>'}"
+
+
+def mean_ranks(values: dict[str, list[float]]) -> dict[str, float]:
+    """Mean rank (1 = lowest) of each method over the seeds."""
+    names = list(values)
+    table = np.column_stack([values[m] for m in names])
     ranks = stats.rankdata(table, axis=1).mean(axis=0)
-    print(f"\n== {name}  ({table.shape[0]} seeds, {seconds:.0f} s)")
-    print(f"{'method':10s} {'median':>12s} {'q25':>12s} {'q75':>12s} {'feasible':>9s} {'rank':>5s}"
-          f" {'vs emupso (p)':>14s}")  # fmt: skip
-    for k, m in enumerate(names):
-        q25, med, q75 = np.percentile(best[m], [25, 50, 75])
-        if m == "emupso" or table.shape[0] < 5:
-            p = "-"
-        else:
-            other = best["emupso"]
-            diff = best[m] - other
-            p = "=" if np.all(diff == 0) else f"{stats.wilcoxon(best[m], other).pvalue:.3f}"
-            p += " <" if np.median(diff) < 0 else " >"
-        print(f"{m:10s} {med:12.5g} {q25:12.5g} {q75:12.5g} {int(feasible[m].sum()):9d} "
-              f"{ranks[k]:5.2f} {p:>14s}")  # fmt: skip
-    if table.shape[0] >= 3:
-        f = stats.friedmanchisquare(*table.T)
-        print(f"Friedman chi2 = {f.statistic:.1f}, p = {f.pvalue:.2g} (all methods)")
-    order = [names[i] for i in np.argsort(ranks)]
-    print("by mean rank: " + " < ".join(order))
+    return dict(zip(names, ranks.tolist(), strict=True))
 
 
-def main() -> None:
+def report(name: str, result: ProblemResult) -> list[str]:
+    """The printed table of one problem."""
+    n = len(result.elites_found)
+    ranks = mean_ranks(result.fitness)
+    ref = "emupso" if "emupso" in result.fitness else next(iter(result.fitness))
+    lines = [
+        f"\n== {name}  ({n} seeds, {result.seconds:.0f} s; elite search found every elite on "
+        f"{sum(result.elites_found)} of {n} seeds)",
+        f"{'method':10s} {'fitness':>10s} {'IQR':>21s} {'rank':>5s} {'feas.':>5s} "
+        f"{'vs ' + ref + ' (p)':>16s}  {'major err':>9s} {'IQR':>17s} {'vs ' + ref + ' (p)':>16s}",
+    ]
+    for m in result.fitness:
+        f = np.percentile(result.fitness[m], [25, 50, 75])
+        e = np.percentile(result.error[m], [25, 50, 75])
+        lines.append(
+            f"{m:10s} {f[1]:10.5g} [{f[0]:9.4g}, {f[2]:9.4g}] {ranks[m]:5.2f} "
+            f"{sum(result.feasible[m]):5d} {wilcoxon_vs(result.fitness, m, ref):>16s}  "
+            f"{e[1]:9.3g} [{e[0]:7.3g}, {e[2]:7.3g}] {wilcoxon_vs(result.error, m, ref):>16s}"
+        )
+    if n >= 3 and len(result.fitness) >= 3:
+        fit = stats.friedmanchisquare(*result.fitness.values())
+        err = stats.friedmanchisquare(*result.error.values())
+        lines.append(
+            f"Friedman: fitness chi2 = {fit.statistic:.1f}, p = {fit.pvalue:.2g}; major error "
+            f"chi2 = {err.statistic:.1f}, p = {err.pvalue:.2g}"
+        )
+    lines.append("by mean fitness rank: " + " < ".join(sorted(ranks, key=ranks.get)))
+    return lines
+
+
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--budget-factor", type=int, default=1, help="1: 3100 evaluations")
-    parser.add_argument("--problems", nargs="*", default=[*CONFIGS, "ur5"])
-    parser.add_argument("--quick", action="store_true", help="2 seeds, 3 problems")
-    args = parser.parse_args()
+    parser.add_argument("--budget-factor", type=float, default=1.0, help="1: 3100 evaluations")
+    parser.add_argument("--problems", nargs="*", default=list(PROBLEMS))
+    parser.add_argument("--methods", nargs="*", default=list(ALL_METHODS))
+    parser.add_argument("--save", type=Path, default=None, help="write the raw values (JSON)")
+    parser.add_argument("--quick", action="store_true", help="2 seeds, 620 evaluations")
+    args = parser.parse_args(argv)
+    unknown = sorted(set(args.methods) - set(ALL_METHODS))
+    if unknown:
+        parser.error(f"unknown method(s) {unknown}; choose from {list(ALL_METHODS)}")
     seeds = list(range(2 if args.quick else args.seeds))
-    problems = ["wrist", "wrist-fourier", "ur5"] if args.quick else args.problems
-    budget = PIPELINE_BUDGET * args.budget_factor
-    print(f"budget {budget} evaluations per method and seed, population {POPSIZE}")
+    problems = ["wrist", "wrist-fourier"] if args.quick else args.problems
+    budget = int(PIPELINE_BUDGET * (0.2 if args.quick else args.budget_factor))
+    print(f"budget {budget} evaluations per method and seed, population {POPSIZE}", flush=True)
+    saved = {}
     for name in problems:
-        start = time.perf_counter()
-        objective, bounds = ur5_problem() if name == "ur5" else paper_problem(name)
-        result = run_problem(objective, bounds, seeds, budget)
-        report(name, result, time.perf_counter() - start)
+        result = run_problem(name, seeds, budget, tuple(args.methods))
+        print("\n".join(report(name, result)), flush=True)
+        saved[name] = {
+            "budget": budget,
+            "seeds": seeds,
+            "seconds": result.seconds,
+            "elites_found": result.elites_found,
+            "fitness": result.fitness,
+            "major_error": result.error,
+            "feasible": result.feasible,
+        }
+        if args.save is not None:  # after every problem: nothing finished is lost
+            args.save.write_text(json.dumps(saved, indent=1))
 
 
 if __name__ == "__main__":
