@@ -3,15 +3,23 @@
 The ideal measurement (encoder positions differentiated), the preprocessing of a measured log
 and the chunked path all call these, so a log and a simulation are filtered and differentiated
 the same way. Signals are uniformly sampled, samples on axis 0.
+
+:func:`sosfiltfilt` is scipy's ``sosfiltfilt(sos, x, axis=0)`` (odd padding of its default
+length, the steady-state initial conditions of ``sosfilt_zi``, the same recursion) compiled
+for signals with many columns, samples on axis 0: the columns are the inner loop, nothing is
+transposed or copied per column, and only every ``step``-th output sample is written (the
+decimation of a long log's regressor filters hundreds of columns: scipy moves the axis and
+copies the array on every pass).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 from scipy import signal
 
-__all__ = ["central_differences", "zero_phase_lowpass"]
+__all__ = ["central_differences", "sosfiltfilt", "zero_phase_lowpass"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -39,7 +47,56 @@ def zero_phase_lowpass(
         The filtered signal, same shape.
     """
     sos = signal.butter(order, cutoff_hz, fs=sampling_rate_hz, output="sos")
-    return np.asarray(signal.sosfiltfilt(sos, x, axis=0), dtype=float)
+    return sosfiltfilt(sos, x)
+
+
+def sosfiltfilt(
+    sos: npt.ArrayLike, x: npt.ArrayLike, step: int = 1, *, skip_zero_columns: bool = False
+) -> FloatArray:
+    """Forward-backward filtering along axis 0, every ``step``-th sample of the result.
+
+    Equal to ``scipy.signal.sosfiltfilt(sos, x, axis=0)[::step]`` (to round-off; the same
+    operations in the same order, see the module docstring).
+
+    Parameters
+    ----------
+    sos :
+        Second-order sections, shape (n_sections, 6), ``a0 = 1``.
+    x :
+        Signal, shape (n_samples, ...), n_samples above the padding ``3 (2 n_sections + 1)``
+        (fewer when sections have zero ``b2`` and ``a2``, as scipy counts them).
+    step :
+        Keep samples ``0, step, 2 step, ...``.
+    skip_zero_columns :
+        Find the columns (of ``x`` flattened to (n_samples, -1)) that are zero throughout and
+        leave them zero without filtering (exactly what filtering gives): a joint's regressor
+        row has no term of the bodies before it, about half of a serial arm's columns.
+
+    Returns
+    -------
+    :
+        Shape (ceil(n_samples / step), ...).
+    """
+    sos = np.ascontiguousarray(sos, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    n = x.shape[0]
+    ntaps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    edge = 3 * ntaps
+    if n <= edge:
+        raise ValueError(
+            f"The length of the input vector x must be greater than padlen, which is {edge}."
+        )
+    flat = x.reshape(n, -1)
+    if not flat.flags.c_contiguous:
+        flat = np.ascontiguousarray(flat)
+    columns = (
+        _nonzero_columns(flat) if skip_zero_columns else np.arange(flat.shape[1], dtype=np.int64)
+    )
+    out = np.zeros(((n + step - 1) // step, flat.shape[1]))
+    if columns.size:
+        zi = np.ascontiguousarray(signal.sosfilt_zi(sos))
+        _sosfiltfilt(sos, zi, flat, columns, edge, step, out)
+    return out.reshape(-1, *x.shape[1:])
 
 
 def central_differences(q: npt.ArrayLike, sampling_rate_hz: float) -> tuple[FloatArray, FloatArray]:
@@ -65,3 +122,75 @@ def central_differences(q: npt.ArrayLike, sampling_rate_hz: float) -> tuple[Floa
     dq = np.gradient(q, step, axis=0, edge_order=2)
     ddq = np.gradient(dq, step, axis=0, edge_order=2)
     return dq, ddq
+
+
+@njit(cache=True)
+def _nonzero_columns(x):  # noqa: ANN001, ANN202 (numba: float64 (n, c) -> int64 (k,))
+    found = np.zeros(x.shape[1], dtype=np.bool_)
+    for i in range(x.shape[0]):
+        for c in range(x.shape[1]):
+            if x[i, c] != 0.0:
+                found[c] = True
+    return np.flatnonzero(found)
+
+
+@njit(cache=True)
+def _sections(sos, zi, x, y) -> None:  # noqa: ANN001 (numba: float64 arrays)
+    """``sosfilt`` of every column of ``x`` (n, c) into ``y``, state ``zi`` (n_sections, 2, c)
+    updated in place: direct form II transposed, section by section (scipy's loop)."""
+    n_sections = sos.shape[0]
+    for i in range(x.shape[0]):
+        for c in range(x.shape[1]):
+            x_cur = x[i, c]
+            for s in range(n_sections):
+                x_new = sos[s, 0] * x_cur + zi[s, 0, c]
+                zi[s, 0, c] = sos[s, 1] * x_cur - sos[s, 4] * x_new + zi[s, 1, c]
+                zi[s, 1, c] = sos[s, 2] * x_cur - sos[s, 5] * x_new
+                x_cur = x_new
+            y[i, c] = x_cur
+
+
+@njit(cache=True)
+def _sosfiltfilt(sos, zi0, x, columns, edge, step, out) -> None:  # noqa: ANN001, PLR0913
+    """Odd extension, forward pass, backward pass of ``x[:, columns]``; writes
+    ``out[:, columns]`` (every ``step``-th sample)."""
+    n = x.shape[0]
+    cols = columns.size
+    n_sections = sos.shape[0]
+    m = n + 2 * edge
+    ext = np.empty((m, cols))  # odd extension, as scipy's odd_ext
+    for i in range(n):
+        for c in range(cols):
+            ext[edge + i, c] = x[i, columns[c]]
+    for i in range(edge):
+        for c in range(cols):
+            k = columns[c]
+            ext[i, c] = 2.0 * x[0, k] - x[edge - i, k]
+            ext[n + edge + i, c] = 2.0 * x[n - 1, k] - x[n - 2 - i, k]
+    zi = np.empty((n_sections, 2, cols))
+    for s in range(n_sections):
+        for k in range(2):
+            for c in range(cols):
+                zi[s, k, c] = zi0[s, k] * ext[0, c]
+    _sections(sos, zi, ext, ext)  # forward, in place
+    for s in range(n_sections):
+        for k in range(2):
+            for c in range(cols):
+                zi[s, k, c] = zi0[s, k] * ext[m - 1, c]
+    # backward: sample i of the reversed signal is ext[m - 1 - i]; the result at original
+    # sample j = m - 1 - i - edge is kept when j is in range and a multiple of step
+    y = np.empty(cols)
+    for i in range(m):
+        r = m - 1 - i
+        for c in range(cols):
+            x_cur = ext[r, c]
+            for s in range(n_sections):
+                x_new = sos[s, 0] * x_cur + zi[s, 0, c]
+                zi[s, 0, c] = sos[s, 1] * x_cur - sos[s, 4] * x_new + zi[s, 1, c]
+                zi[s, 1, c] = sos[s, 2] * x_cur - sos[s, 5] * x_new
+                x_cur = x_new
+            y[c] = x_cur
+        j = r - edge
+        if 0 <= j < n and j % step == 0:
+            for c in range(cols):
+                out[j // step, columns[c]] = y[c]

@@ -26,7 +26,7 @@ import numpy.typing as npt
 from scipy import signal
 
 from ident.errors import ConfigError, DataError
-from ident.signals import central_differences, zero_phase_lowpass
+from ident.signals import central_differences, sosfiltfilt, zero_phase_lowpass
 
 __all__ = ["decimate", "differentiate", "lowpass", "trim", "velocity_mask"]
 
@@ -169,7 +169,9 @@ def decimate(
                 "anti-aliasing filter; use a longer log or less decimation."
             )
         out = [
-            signal.sosfiltfilt(sos, a.reshape(n, -1), axis=0)[::factor].reshape(-1, *a.shape[1:])
+            sosfiltfilt(sos, a.reshape(n, -1), factor, skip_zero_columns=True).reshape(
+                -1, *a.shape[1:]
+            )
             for a in out
         ]
         fs /= factor
