@@ -407,9 +407,10 @@ class BaseColumns:
         n, nv = dq.shape
         out = np.empty((n, nv, self.order.size))
         a = self.rigid_columns.size
-        if a:  # the kernel writes into the block of the result (no copy of n x nv x a floats)
-            block = out.reshape(n * nv, self.order.size)[:, :a]
-            selected_rows(self.chain, q, dq, ddq, columns=self.rigid_columns, out=block)
+        if a:
+            out[:, :, :a] = selected_rows(
+                self.chain, q, dq, ddq, columns=self.rigid_columns
+            ).reshape(n, nv, a)
         if self.extra_columns.size:
             out[:, :, a:] = extra_columns(self.terms, dq, ddq)[:, :, self.extra_columns]
         return out
