@@ -54,7 +54,6 @@ def selected_rows(
     rows: Sequence[int] | np.ndarray | None = None,
     columns: Sequence[int] | np.ndarray | None = None,
     row_weights: FloatArray | None = None,
-    out: FloatArray | None = None,
 ) -> FloatArray:
     """Stacked observation matrix of selected regressor rows and columns.
 
@@ -71,9 +70,6 @@ def selected_rows(
     row_weights :
         Weight of every joint row, shape (nv,) (e.g. 1 / torque noise std [1/(N*m)]);
         default 1.
-    out :
-        Where to write the result (any strides, e.g. a block of a wider array), shape as
-        returned; default a new array.
 
     Returns
     -------
@@ -87,11 +83,7 @@ def selected_rows(
     if q.ndim != 2:
         raise DataError(f"q must have shape (n_samples, {chain.n_joints}), got {q.shape}")
     rows_i, cols_i, weights = _selection(chain, rows, columns, row_weights)
-    shape = (q.shape[0] * rows_i.size, cols_i.size)
-    if out is None:
-        out = np.empty(shape)
-    elif out.shape != shape or out.dtype != np.float64:
-        raise DataError(f"out must be a float64 array of shape {shape}, got {out.shape}")
+    out = np.empty((q.shape[0] * rows_i.size, cols_i.size))
     _kernels.selected_rows_into(
         *_kernels.chain_arrays(chain), q, dq, ddq, 0, q.shape[0], rows_i, cols_i, weights, out
     )
