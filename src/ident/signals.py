@@ -124,7 +124,7 @@ def central_differences(q: npt.ArrayLike, sampling_rate_hz: float) -> tuple[Floa
     return dq, ddq
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _nonzero_columns(x):  # noqa: ANN001, ANN202 (numba: float64 (n, c) -> int64 (k,))
     found = np.zeros(x.shape[1], dtype=np.bool_)
     for i in range(x.shape[0]):
@@ -134,7 +134,7 @@ def _nonzero_columns(x):  # noqa: ANN001, ANN202 (numba: float64 (n, c) -> int64
     return np.flatnonzero(found)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sections(sos, zi, x, y) -> None:  # noqa: ANN001 (numba: float64 arrays)
     """``sosfilt`` of every column of ``x`` (n, c) into ``y``, state ``zi`` (n_sections, 2, c)
     updated in place: direct form II transposed, section by section (scipy's loop)."""
@@ -150,7 +150,7 @@ def _sections(sos, zi, x, y) -> None:  # noqa: ANN001 (numba: float64 arrays)
             y[i, c] = x_cur
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _sosfiltfilt(sos, zi0, x, columns, edge, step, out) -> None:  # noqa: ANN001, PLR0913
     """Odd extension, forward pass, backward pass of ``x[:, columns]``; writes
     ``out[:, columns]`` (every ``step``-th sample)."""

@@ -212,7 +212,7 @@ def _sample(
             y[j, c + 9] = rz * bz + gz * wz
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def regressor_into(
     placements: Arr, axes: Arr, prismatic: Arr, gravity: Arr, q: Arr, dq: Arr, ddq: Arr, out: Arr
 ) -> None:
@@ -243,7 +243,7 @@ def regressor_into(
         )
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def selected_rows_into(
     placements: Arr,
     axes: Arr,

@@ -31,6 +31,7 @@ equilibration), falling back to Householder QR when the Gram matrix is not posit
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -441,10 +442,34 @@ def _predict_task(
     return c.tau, keep, {label: c.Yb @ x[order] for label, x in vectors.items()}
 
 
+def local_workers() -> int:
+    """Threads for the chunks of a local run: one per core this process may use, at most 4.
+
+    The heavy parts of a chunk (the regressor and filter kernels, compiled with ``nogil``;
+    BLAS; large numpy operations) release the GIL, so threads share the work without copying
+    the log.
+    """
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(4, cores))
+
+
 def _run(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -> list:
-    """``[fn(task, *extra) for task in tasks]``, locally or on a Dask scheduler."""
+    """``[fn(task, *extra) for task in tasks]``, locally (:func:`local_workers` threads, the
+    results in task order, so the merges and the estimate do not depend on the thread count)
+    or on a Dask scheduler."""
     if scheduler is None:
-        return [fn(task, *extra) for task in tasks]
+        workers = min(local_workers(), len(tasks))
+        if workers <= 1:
+            return [fn(task, *extra) for task in tasks]
+        from concurrent.futures import ThreadPoolExecutor
+
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(workers) as pool:
+            return list(pool.map(lambda task: fn(task, *extra), tasks))
     from ident.errors import IdentError
 
     try:
@@ -469,8 +494,10 @@ def _run(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -> li
 
 def default_chunk_samples(plan_margins: tuple[int, int], nv: int, n_columns: int) -> int:
     """Raw samples per chunk: at least the margins (so margins cost at most 2/3 of the work),
-    and about 128 MB of base regressor."""
-    by_memory = max(1024, (128 << 20) // (8 * nv * max(n_columns, 1)))
+    and about 128 MB of base regressor in all the chunks processed at once
+    (:func:`local_workers`)."""
+    budget = (128 << 20) // local_workers()
+    by_memory = max(1024, budget // (8 * nv * max(n_columns, 1)))
     return max(by_memory, sum(plan_margins))
 
 
