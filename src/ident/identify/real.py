@@ -192,7 +192,9 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
         chunk = cfg.preprocess.chunk_samples or accumulate.default_chunk_samples(
             (0, 0), nv, n_columns
         )
-        regressor = accumulate.regressor_bytes(min(n_samples, chunk), nv, n_columns)
+        # one chunk in flight per thread
+        in_flight = min(accumulate.local_workers(), -(-n_samples // chunk))
+        regressor = in_flight * accumulate.regressor_bytes(min(n_samples, chunk), nv, n_columns)
         path = "by chunks"
     else:
         regressor = accumulate.regressor_bytes(n_samples, nv, n_columns)
