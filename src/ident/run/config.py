@@ -292,8 +292,9 @@ class RunConfig(StrictModel):
     seed :
         Seed of every random draw of the run.
     optimizer :
-        Method of ``ident.optim.minimize`` for the runs started from the elites: ``cma`` (the
-        default: CMA-ES wins on ident's excitation problems, docs/optimizers.md), ``emupso``
+        Method of ``ident.optim.minimize`` for the runs started from the elites: ``pso`` (the
+        default: the best on the robots from a URDF, UR5 and Panda, and shared-best with CMA-ES
+        over all of ident's excitation problems, docs/optimizers.md), ``emupso``
         (the paper's, with the ``emupso`` section's options; the paper's configs use it) or
         any registered method (``pso``, ``de``, ...; options in ``optimizer_options``). The
         swarm size, iterations and runs come from the ``emupso`` section for every method.
@@ -312,7 +313,7 @@ class RunConfig(StrictModel):
     excitation: ExcitationSection
     elites: ElitesSection = ElitesSection()
     emupso: EmupsoSection = EmupsoSection()
-    optimizer: str = "cma"
+    optimizer: str = "pso"
     optimizer_options: dict[str, Any] = Field(default_factory=dict)
     safety: SafetyConfig | None = None
     controller: ControllerSection = ControllerSection()
