@@ -33,7 +33,12 @@ def report(
         Path, typer.Argument(help="A run folder written by 'ident run' or 'ident identify'.")
     ],
 ) -> None:
-    """Rewrite report.md, report.html and the figures of RUN_DIR from its saved data."""
+    """Rewrite the report of RUN_DIR from its saved data.
+
+    A run of 'ident run': report.md, report.html and the figures (and the replay if missing).
+    A run of 'ident identify': report.html from report.md (its figures are written once, when
+    the identification runs, from arrays that are not kept).
+    """
     from ident.errors import IdentError
     from ident.run.rundir import read_status
 
