@@ -134,63 +134,69 @@ def _nonzero_columns(x):  # noqa: ANN001, ANN202 (numba: float64 (n, c) -> int64
     return np.flatnonzero(found)
 
 
-@njit(cache=True, nogil=True)
-def _sections(sos, zi, x, y) -> None:  # noqa: ANN001 (numba: float64 arrays)
-    """``sosfilt`` of every column of ``x`` (n, c) into ``y``, state ``zi`` (n_sections, 2, c)
-    updated in place: direct form II transposed, section by section (scipy's loop)."""
-    n_sections = sos.shape[0]
-    for i in range(x.shape[0]):
-        for c in range(x.shape[1]):
-            x_cur = x[i, c]
-            for s in range(n_sections):
-                x_new = sos[s, 0] * x_cur + zi[s, 0, c]
-                zi[s, 0, c] = sos[s, 1] * x_cur - sos[s, 4] * x_new + zi[s, 1, c]
-                zi[s, 1, c] = sos[s, 2] * x_cur - sos[s, 5] * x_new
-                x_cur = x_new
-            y[i, c] = x_cur
+@njit(cache=True, nogil=True, inline="always")
+def _filter_row(sos, z0s, z1s, v) -> None:  # noqa: ANN001 (numba: float64 arrays)
+    """One sample ``v`` (c,) of every column through the sections, in place; direct form II
+    transposed with the states ``z0s``, ``z1s`` (n_sections, c), updated.
+
+    Per column the arithmetic is scipy's, so the result is equal bit for bit; the loop over
+    columns is innermost and runs on separate contiguous state arrays, which LLVM vectorizes
+    (3x faster than one (n_sections, 2, c) state array, whose views it cannot prove apart).
+    """
+    for s in range(sos.shape[0]):
+        b0, b1, b2, a1, a2 = sos[s, 0], sos[s, 1], sos[s, 2], sos[s, 4], sos[s, 5]
+        z0 = z0s[s]
+        z1 = z1s[s]
+        for c in range(v.size):
+            x_cur = v[c]
+            x_new = b0 * x_cur + z0[c]
+            z0[c] = b1 * x_cur - a1 * x_new + z1[c]
+            z1[c] = b2 * x_cur - a2 * x_new
+            v[c] = x_new
 
 
 @njit(cache=True, nogil=True)
 def _sosfiltfilt(sos, zi0, x, columns, edge, step, out) -> None:  # noqa: ANN001, PLR0913
     """Odd extension, forward pass, backward pass of ``x[:, columns]``; writes
-    ``out[:, columns]`` (every ``step``-th sample)."""
+    ``out[:, columns]`` (every ``step``-th sample).
+
+    The forward pass reads each extended row as it goes (gather and filter in one sweep) into
+    the buffer that the backward pass then filters in place, from its last row to its first.
+    """
     n = x.shape[0]
     cols = columns.size
     n_sections = sos.shape[0]
     m = n + 2 * edge
-    ext = np.empty((m, cols))  # odd extension, as scipy's odd_ext
-    for i in range(n):
-        for c in range(cols):
-            ext[edge + i, c] = x[i, columns[c]]
-    for i in range(edge):
-        for c in range(cols):
-            k = columns[c]
-            ext[i, c] = 2.0 * x[0, k] - x[edge - i, k]
-            ext[n + edge + i, c] = 2.0 * x[n - 1, k] - x[n - 2 - i, k]
-    zi = np.empty((n_sections, 2, cols))
+    ext = np.empty((m, cols))  # the forward pass of scipy's odd extension (odd_ext)
+    z0s = np.empty((n_sections, cols))
+    z1s = np.empty((n_sections, cols))
     for s in range(n_sections):
-        for k in range(2):
-            for c in range(cols):
-                zi[s, k, c] = zi0[s, k] * ext[0, c]
-    _sections(sos, zi, ext, ext)  # forward, in place
-    for s in range(n_sections):
-        for k in range(2):
-            for c in range(cols):
-                zi[s, k, c] = zi0[s, k] * ext[m - 1, c]
-    # backward: sample i of the reversed signal is ext[m - 1 - i]; the result at original
-    # sample j = m - 1 - i - edge is kept when j is in range and a multiple of step
-    y = np.empty(cols)
-    for i in range(m):
-        r = m - 1 - i
         for c in range(cols):
-            x_cur = ext[r, c]
-            for s in range(n_sections):
-                x_new = sos[s, 0] * x_cur + zi[s, 0, c]
-                zi[s, 0, c] = sos[s, 1] * x_cur - sos[s, 4] * x_new + zi[s, 1, c]
-                zi[s, 1, c] = sos[s, 2] * x_cur - sos[s, 5] * x_new
-                x_cur = x_new
-            y[c] = x_cur
+            first = 2.0 * x[0, columns[c]] - x[edge, columns[c]]  # ext[0]
+            z0s[s, c] = zi0[s, 0] * first
+            z1s[s, c] = zi0[s, 1] * first
+    for r in range(m):
+        v = ext[r]
+        if r < edge:
+            for c in range(cols):
+                v[c] = 2.0 * x[0, columns[c]] - x[edge - r, columns[c]]
+        elif r < n + edge:
+            for c in range(cols):
+                v[c] = x[r - edge, columns[c]]
+        else:
+            i = r - n - edge
+            for c in range(cols):
+                v[c] = 2.0 * x[n - 1, columns[c]] - x[n - 2 - i, columns[c]]
+        _filter_row(sos, z0s, z1s, v)
+    for s in range(n_sections):
+        for c in range(cols):
+            z0s[s, c] = zi0[s, 0] * ext[m - 1, c]
+            z1s[s, c] = zi0[s, 1] * ext[m - 1, c]
+    # backward: row r of the buffer is original sample j = r - edge, kept at multiples of step
+    for r in range(m - 1, -1, -1):
+        v = ext[r]
+        _filter_row(sos, z0s, z1s, v)
         j = r - edge
         if 0 <= j < n and j % step == 0:
             for c in range(cols):
-                out[j // step, columns[c]] = y[c]
+                out[j // step, columns[c]] = v[c]

@@ -54,6 +54,7 @@ def selected_rows(
     rows: Sequence[int] | np.ndarray | None = None,
     columns: Sequence[int] | np.ndarray | None = None,
     row_weights: FloatArray | None = None,
+    out: FloatArray | None = None,
 ) -> FloatArray:
     """Stacked observation matrix of selected regressor rows and columns.
 
@@ -70,6 +71,9 @@ def selected_rows(
     row_weights :
         Weight of every joint row, shape (nv,) (e.g. 1 / torque noise std [1/(N*m)]);
         default 1.
+    out :
+        Written in place and returned when given: shape (n_samples * len(rows),
+        len(columns)), any strides (a view into a larger array saves a copy).
 
     Returns
     -------
@@ -83,7 +87,11 @@ def selected_rows(
     if q.ndim != 2:
         raise DataError(f"q must have shape (n_samples, {chain.n_joints}), got {q.shape}")
     rows_i, cols_i, weights = _selection(chain, rows, columns, row_weights)
-    out = np.empty((q.shape[0] * rows_i.size, cols_i.size))
+    shape = (q.shape[0] * rows_i.size, cols_i.size)
+    if out is None:
+        out = np.empty(shape)
+    elif out.shape != shape:
+        raise ValueError(f"out must have shape {shape}, got {out.shape}")
     _kernels.selected_rows_into(
         *_kernels.chain_arrays(chain), q, dq, ddq, 0, q.shape[0], rows_i, cols_i, weights, out
     )

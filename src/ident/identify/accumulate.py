@@ -409,9 +409,9 @@ class BaseColumns:
         out = np.empty((n, nv, self.order.size))
         a = self.rigid_columns.size
         if a:
-            out[:, :, :a] = selected_rows(
-                self.chain, q, dq, ddq, columns=self.rigid_columns
-            ).reshape(n, nv, a)
+            # straight into the block of ``out`` (a strided view of it): no copy
+            view = out[:, :, :a].reshape(n * nv, a)
+            selected_rows(self.chain, q, dq, ddq, columns=self.rigid_columns, out=view)
         if self.extra_columns.size:
             out[:, :, a:] = extra_columns(self.terms, dq, ddq)[:, :, self.extra_columns]
         return out

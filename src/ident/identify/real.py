@@ -171,10 +171,10 @@ class IdentifyResult:
 
 
 # Cost model of estimate_identify, from benchmarks/bench_identify_long.py (one hour at 1 kHz of a
-# 7-joint arm, 3.6 million samples, by chunks on a quiet 2-core machine: 58 s wall, 96 s of CPU,
-# peak 1.63 GB). The CPU time is used (the wall time on one core), so on more cores the estimate
-# errs long, as an estimate that may refuse a job should.
-_SECONDS_PER_SAMPLE_JOINT2 = 6e-7
+# 7-joint arm, 3.6 million samples, by chunks on a quiet 2-core machine: 37 s wall, 60 s of CPU,
+# peak 1.63 GB). The CPU time, rounded up, is used (the wall time on one core), so on more cores
+# the estimate errs long, as an estimate that may refuse a job should.
+_SECONDS_PER_SAMPLE_JOINT2 = 4e-7
 _BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba
 _LOG_ARRAYS = 8  # t, q, tau, filtered q and tau, dq, ddq, mask: (n_samples, nv) each
 
