@@ -469,7 +469,8 @@ class SafetyModel:
         bound, and where that bound is within the margin coal computes the exact distance
         (only for those postures and pairs); every other pair goes through coal. So
         ``fast_clearances(q)`` equals ``clearances(q)`` wherever either is below the margin,
-        and never exceeds it. Shape (n_samples, n_pairs).
+        and never exceeds it. Shape (n_samples, n_pairs). Each posture's row depends on that
+        posture alone (not on the others passed with it).
         """
         from ident.excitation._fast_clearance import joint_frames, primitive_distances
 
@@ -506,6 +507,7 @@ class SafetyModel:
                     continue
                 pin.updateGeometryPlacements(self.model, data, geom, gdata, q[s])
                 for p in pairs:
+                    _fresh_gjk_start(gdata, int(p))
                     distances[s, p] = pin.computeDistance(geom, gdata, int(p)).min_distance
         out = np.full((n, self.n_pairs), np.inf)
         np.minimum.at(out.T, self._group, distances.T)
@@ -537,6 +539,8 @@ class SafetyModel:
         data = self.model.createData()
         gdata = pin.GeometryData(self.geometry_model)
         for k in range(q.shape[0]):  # coal evaluates one posture at a time
+            for p in range(n_pairs):
+                _fresh_gjk_start(gdata, p)
             pin.computeDistances(self.model, data, self.geometry_model, gdata, q[k])
             out[k] = [r.min_distance for r in gdata.distanceResults]
         return out
@@ -629,6 +633,21 @@ def _subsample(n_samples: int, n_check: int) -> npt.NDArray[np.int64]:
     if n_check >= n_samples:
         return np.arange(n_samples)
     return np.unique(np.round(np.linspace(0, n_samples, n_check, endpoint=False)).astype(int))
+
+
+_GJK_START = np.array([1.0, 0.0, 0.0])  # coal's default initial GJK direction
+
+
+def _fresh_gjk_start(gdata: pin.GeometryData, pair: int) -> None:
+    """Start the next GJK of ``pair`` from coal's default direction.
+
+    Pinocchio keeps each pair's last GJK direction in its request and coal starts from it, so
+    a distance (exact to GJK's tolerance, ~1e-6 m) would depend on the posture computed before
+    it: the cheap term of one particle on the other particles of the swarm (an optimizer on
+    the margin then keeps a point that is infeasible on its own), the dense check on the
+    sampling rate. From a fixed start, a posture's distances depend on that posture alone.
+    """
+    gdata.distanceRequests[pair].cached_gjk_guess = _GJK_START
 
 
 def collision_violations(
