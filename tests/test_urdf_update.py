@@ -295,3 +295,192 @@ def test_odd_xml_is_refused_with_a_message(text, match):
         write_identified_model(text, JOINTS, pm.nominal, pm.names, pm.nominal)
     with pytest.raises(ModelError, match=match):
         update_urdf_inertials(text, JOINTS, _nominal(), {})
+
+
+# ---- write-back on real files: transmissions, welded and locked bodies ----------------------
+import robots  # noqa: E402  (tests/robots.py: example-robot-data paths)
+
+ROBOTS = {
+    "paper6r": (ROOT / "robot" / "urdf" / "paper6r.urdf", {}),
+    "ur5": (ROOT / "robot" / "urdf" / "ur5.urdf", {}),  # <transmission> blocks
+    "panda-hand-locked": (
+        ROOT / "robot" / "urdf" / "panda.urdf",
+        {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.03},
+    ),
+    "tx40": (URDF, {}),
+    # example-robot-data: transmissions and a gripper welded by fixed joints
+    "erd-ur5-gripper": (robots.ERD_ROBOTS / "ur_description/urdf/ur5_gripper.urdf", {}),
+    # transmissions and a locked gripper joint
+    "erd-z1-gripper-locked": (
+        robots.ERD_ROBOTS / "z1_description/urdf/z1.urdf",
+        {"jointGripper": -0.5},
+    ),
+    "erd-panda-hand-locked": (
+        robots.PANDA_URDF,
+        {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.04},
+    ),
+}
+
+
+def _robot(key):
+    from ident.model import Robot
+
+    path, locks = ROBOTS[key]
+    return Robot.from_urdf(path, lock_joints=locks or None)
+
+
+def _extras_names(n):
+    return tuple(f"{label}{j}" for j in range(1, n + 1) for label in ("Ia", "fv", "fs", "off"))
+
+
+def perturbed_theta(robot, seed, *, scale=None):
+    """A consistent estimate: each nominal body plus a random box, or times ``scale``; extras
+    random positive (offsets any sign). Returns (theta, names)."""
+    import pinocchio as pin
+
+    rng = np.random.default_rng(seed)
+    pin.seed(seed)
+    bodies = robot.parameters().reshape(-1, 10).copy()
+    for j, body in enumerate(bodies):
+        if scale is not None and j in scale:
+            bodies[j] = body * scale[j]
+            continue
+        box = pin.Inertia.FromBox(rng.uniform(0.05, 0.5), *rng.uniform(0.02, 0.2, size=3))
+        placement = pin.SE3(pin.SE3.Random().rotation, rng.uniform(-0.05, 0.05, size=3))
+        bodies[j] = body + np.asarray(placement.act(box).toDynamicParameters())
+        assert consistency_problems(bodies[j]) == []
+    extras = rng.uniform(0.01, 1.0, size=4 * robot.n_bodies)
+    extras[3::4] = rng.normal(size=robot.n_bodies)
+    names = robot.parameter_names() + _extras_names(robot.n_bodies)
+    return np.concatenate([bodies.reshape(-1), extras]), names
+
+
+def _without_edited_elements(text):
+    """The text minus every top-level link's <inertial> and joint's <dynamics>, no blanks."""
+    from ident.identify.urdf_edit import spans
+
+    found = spans(text)
+    cuts = [s.inertial for s in found.links.values() if s.inertial is not None]
+    cuts += [s.dynamics for s in found.joints.values() if s.dynamics is not None]
+    data = found.data
+    kept, at = [], 0
+    for cut in sorted(cuts, key=lambda c: c.start):
+        kept.append(data[at : cut.start])
+        at = cut.end
+    kept.append(data[at:])
+    return b"".join(b"".join(kept).split())
+
+
+def _reload_parity(robot, written_text, theta, tmp_path):
+    """Pinocchio RNEA of the reloaded file (same locks) against regressor @ theta."""
+    from ident.model import Robot
+
+    path = tmp_path / "identified.urdf"
+    path.write_text(written_text)
+    new = Robot.from_urdf(path, lock_joints=robot.locked_joints or None)
+    assert new.joint_names == robot.joint_names
+    q, dq, ddq = robot.random_configurations(40, rng=7)
+    expected = robot.regressor(q, dq, ddq) @ theta[: 10 * robot.n_bodies]
+    got = new.rnea(q, dq, ddq)
+    scale = np.abs(expected).max()
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * scale)
+    # and the wrong answer is far: the nominal model
+    assert np.abs(robot.rnea(q, dq, ddq) - expected).max() > 1e-4 * scale
+    return new
+
+
+@pytest.mark.parametrize("key", list(ROBOTS))
+def test_whole_model_write_back_reload_parity(key, tmp_path):
+    from ident.identify.urdf_update import identified_urdf
+
+    robot = _robot(key)
+    theta, names = perturbed_theta(robot, seed=len(key))
+    written = identified_urdf(
+        robot.urdf_text, robot.model, theta, names, nominal=robot.parameters()
+    )
+    new = _reload_parity(robot, written.text, theta, tmp_path)
+    # every link keeps a positive mass (welded links kept here: the boxes only add mass)
+    assert written.welded_scale == {}
+    # the rest of the file is unchanged: transmissions, gazebo blocks, meshes, comments
+    assert _without_edited_elements(written.text) == _without_edited_elements(robot.urdf_text)
+    assert written.text.count("<transmission") == robot.urdf_text.count("<transmission")
+    # Pinocchio reads the friction written into <dynamics>
+    index = {n: i for i, n in enumerate(names)}
+    np.testing.assert_allclose(
+        new.model.damping, [theta[index[f"fv{j}"]] for j in range(1, robot.n_bodies + 1)]
+    )
+    np.testing.assert_allclose(
+        new.model.friction, [theta[index[f"fs{j}"]] for j in range(1, robot.n_bodies + 1)]
+    )
+
+
+@pytest.mark.parametrize("key", ["panda-hand-locked", "erd-panda-hand-locked"])
+def test_a_light_body_scales_its_welded_links_never_a_negative_mass(key, tmp_path):
+    """A body lighter than its welded hand/gripper: the carrying link cannot take body minus
+    nominal hand (negative mass); the welded links are scaled down, the sum stays exact."""
+    from ident.identify.urdf_update import _own_inertial, identified_urdf, parse_urdf
+
+    robot = _robot(key)
+    last = robot.n_bodies - 1
+    theta, names = perturbed_theta(robot, seed=3, scale={last: 0.1})
+    written = identified_urdf(robot.urdf_text, robot.model, theta, names)
+    (carrier,) = written.welded_scale
+    assert 0.0 <= written.welded_scale[carrier] < 1.0
+    _reload_parity(robot, written.text, theta, tmp_path)
+    root = parse_urdf(written.text)
+    for link in root.findall("link"):
+        own = _own_inertial(link)
+        assert own[0] >= 0.0, link.get("name")
+        if own[0] > 0:
+            assert consistency_problems(own) == [], link.get("name")
+
+
+def test_write_back_refuses_a_model_with_other_locks():
+    from ident.errors import ModelError
+    from ident.identify.urdf_update import write_identified_model
+
+    robot = _robot("panda-hand-locked")
+    theta, names = perturbed_theta(robot, seed=0)
+    with pytest.raises(ModelError, match="lock the same joints"):
+        write_identified_model(
+            robot.urdf_text, robot.joint_names, theta, names, theta
+        )  # the fingers not locked: nine joints, not seven
+    # locked at other positions: the nominal fused hand differs
+    nominal = np.concatenate([robot.parameters(), np.zeros(len(names) - 10 * robot.n_bodies)])
+    with pytest.raises(ModelError, match="not the sum of its links"):
+        write_identified_model(
+            robot.urdf_text,
+            robot.joint_names,
+            theta,
+            names,
+            nominal,
+            locked={"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0},
+        )
+    # with the identification's locks it is written
+    write_identified_model(
+        robot.urdf_text, robot.joint_names, theta, names, nominal, locked=robot.locked_joints
+    )
+
+
+def test_cautious_copy_composes_the_welded_hand(tmp_path):
+    """The cautious copy changes the fused body by the candidates only (the hand stays)."""
+    robot = _robot("erd-panda-hand-locked")
+    nominal = robot.parameters()
+    names = robot.parameter_names()
+    k = names.index("mcx7")
+    identified = {"mcx7": (nominal[k] + 0.01, 1.0)}
+    update = update_urdf_inertials(
+        robot.urdf_text, robot.joint_names, nominal, identified, model=robot.model
+    )
+    assert set(update.written) == {"mcx7"}
+    (link7,) = [link for link in update.links if link.joint == "panda_joint7"]
+    assert "panda_hand" in link7.welded
+    assert link7.welded_scale == 1.0
+    path = tmp_path / "cautious.urdf"
+    path.write_text(update.text)
+    from ident.model import Robot
+
+    values = Robot.from_urdf(path, lock_joints=robot.locked_joints).parameters()
+    expected = nominal.copy()
+    expected[k] += 0.01
+    np.testing.assert_allclose(values, expected, rtol=1e-12, atol=1e-12)
