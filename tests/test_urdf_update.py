@@ -322,7 +322,7 @@ ROBOTS = {
 }
 
 
-def _robot(key):
+def robot_under_test(key):
     from ident.model import Robot
 
     path, locks = ROBOTS[key]
@@ -393,7 +393,7 @@ def _reload_parity(robot, written_text, theta, tmp_path):
 def test_whole_model_write_back_reload_parity(key, tmp_path):
     from ident.identify.urdf_update import identified_urdf
 
-    robot = _robot(key)
+    robot = robot_under_test(key)
     theta, names = perturbed_theta(robot, seed=len(key))
     written = identified_urdf(
         robot.urdf_text, robot.model, theta, names, nominal=robot.parameters()
@@ -420,7 +420,7 @@ def test_a_light_body_scales_its_welded_links_never_a_negative_mass(key, tmp_pat
     nominal hand (negative mass); the welded links are scaled down, the sum stays exact."""
     from ident.identify.urdf_update import _own_inertial, identified_urdf, parse_urdf
 
-    robot = _robot(key)
+    robot = robot_under_test(key)
     last = robot.n_bodies - 1
     theta, names = perturbed_theta(robot, seed=3, scale={last: 0.1})
     written = identified_urdf(robot.urdf_text, robot.model, theta, names)
@@ -439,7 +439,7 @@ def test_write_back_refuses_a_model_with_other_locks():
     from ident.errors import ModelError
     from ident.identify.urdf_update import write_identified_model
 
-    robot = _robot("panda-hand-locked")
+    robot = robot_under_test("panda-hand-locked")
     theta, names = perturbed_theta(robot, seed=0)
     with pytest.raises(ModelError, match="lock the same joints"):
         write_identified_model(
@@ -464,7 +464,7 @@ def test_write_back_refuses_a_model_with_other_locks():
 
 def test_cautious_copy_composes_the_welded_hand(tmp_path):
     """The cautious copy changes the fused body by the candidates only (the hand stays)."""
-    robot = _robot("erd-panda-hand-locked")
+    robot = robot_under_test("erd-panda-hand-locked")
     nominal = robot.parameters()
     names = robot.parameter_names()
     k = names.index("mcx7")

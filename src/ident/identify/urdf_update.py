@@ -16,11 +16,12 @@ parameters (``Izz1R = Izz1 + Ia1 + Iyy2 + ...``) do not: the data fix only the s
 Links without written values keep their ``<inertial>`` element untouched, so every link of the
 copy is as consistent as the URDF's.
 
-:func:`identified_urdf` (and its wrapper :func:`write_identified_model`) is the other write-back, for physically consistent estimates of
-the standard parameters (:mod:`ident.identify.estimators`, ``lmi`` or ``log_cholesky``): every
-identified link gets its identified inertial, the joints' viscous and Coulomb friction go into
-``<dynamics damping friction>``, and all per-joint extras (rotor inertia, offsets, coupled-motor
-terms) into a sidecar mapping. It refuses an inconsistent estimate.
+:func:`identified_urdf` (and its wrapper :func:`write_identified_model`) is the other
+write-back, for physically consistent estimates of the standard parameters
+(:mod:`ident.identify.estimators`, ``lmi`` or ``log_cholesky``): every identified link gets its
+identified inertial, the joints' viscous and Coulomb friction go into ``<dynamics damping
+friction>``, and all per-joint extras (rotor inertia, offsets, coupled-motor terms) into a
+sidecar mapping. It refuses an inconsistent estimate.
 
 Both read the URDF as urdfdom (Pinocchio, MuJoCo) does: only the top-level ``<robot>/<link>``
 and ``<robot>/<joint>`` elements are kinematics (a ``<joint>`` in a ``<transmission>`` is not).

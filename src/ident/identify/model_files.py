@@ -1,0 +1,137 @@
+"""The identified model's files: URDF, MJCF and joint extras, from a robot and an estimate.
+
+:func:`model_files` computes the three texts (nothing is written; any error is raised before a
+file exists); :func:`write_model_files` writes them into a folder as
+``<stem>_identified.urdf``, ``<stem>_identified.xml`` and ``<stem>_joint_extras.json``.
+See :mod:`ident.identify.urdf_update` (URDF, links fused through fixed or locked joints) and
+:mod:`ident.identify.mjcf` (MJCF, the mapping of the joint extras to MuJoCo).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from ident.fileio import atomic_write_text
+from ident.identify.mjcf import identified_mjcf
+from ident.identify.urdf_update import IdentifiedModel, identified_urdf
+from ident.model import Robot
+
+__all__ = ["ModelFiles", "model_files", "write_model_files"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ModelFiles:
+    """The identified model as texts, and where they were written (if they were).
+
+    Attributes
+    ----------
+    urdf :
+        The identified URDF and its sidecar (:class:`IdentifiedModel`).
+    mjcf :
+        The MJCF text.
+    extras_json :
+        The joint-extras file's text (the sidecar as JSON).
+    paths :
+        ``{"urdf", "mjcf", "joint_extras": path}`` once written, else empty.
+    """
+
+    urdf: IdentifiedModel
+    mjcf: str
+    extras_json: str
+    paths: dict[str, Path]
+
+    @property
+    def urdf_text(self) -> str:
+        """The identified URDF."""
+        return self.urdf.text
+
+
+def model_files(
+    robot: Robot,
+    theta: npt.ArrayLike,
+    names: tuple[str, ...],
+    *,
+    nominal: npt.ArrayLike | None = None,
+) -> ModelFiles:
+    """The identified URDF, MJCF and joint-extras texts of a consistent estimate.
+
+    Parameters
+    ----------
+    robot :
+        The identified robot (its URDF text, Pinocchio model with the locked joints removed,
+        locked joints and gravity are used).
+    theta :
+        Standard parameters (per body ``m, mcx, ..., Izz`` about the joint frame, then the
+        extras ``Ia{j}``, ``fv{j}``, ``fs{j}``, ``off{j}``, ``Iam{b}``...), shape (n_std,) [SI].
+    names :
+        Names of ``theta``.
+    nominal :
+        Optional nominal parameters in the order of ``names``, checked against the file.
+
+    Raises
+    ------
+    ModelError
+        If the estimate is physically inconsistent, the URDF does not match the robot, or
+        MuJoCo cannot compile the model.
+    """
+    source = str(robot.urdf_path or robot.name)
+    urdf = identified_urdf(
+        robot.urdf_text,
+        robot.model,
+        np.asarray(theta, dtype=float),
+        names,
+        nominal=None if nominal is None else np.asarray(nominal, dtype=float),
+        source=source,
+    )
+    mjcf = identified_mjcf(
+        urdf.text,
+        tuple(robot.joint_names),
+        urdf.sidecar["joints"],
+        locked_joints=robot.locked_joints,
+        gravity=np.asarray(robot.model.gravity.linear, dtype=float),
+        source=source,
+    )
+    extras = dict(urdf.sidecar)
+    if robot.locked_joints:
+        extras["locked_joints"] = dict(robot.locked_joints)
+    if urdf.welded_scale:
+        extras["welded_links_scaled"] = dict(urdf.welded_scale)
+    return ModelFiles(
+        urdf=urdf, mjcf=mjcf, extras_json=json.dumps(extras, indent=2) + "\n", paths={}
+    )
+
+
+def write_model_files(
+    robot: Robot,
+    theta: npt.ArrayLike,
+    names: tuple[str, ...],
+    out_dir: str | Path,
+    stem: str,
+    *,
+    nominal: npt.ArrayLike | None = None,
+) -> ModelFiles:
+    """Write ``<stem>_identified.urdf``, ``<stem>_identified.xml``, ``<stem>_joint_extras.json``.
+
+    Everything is computed first (:func:`model_files`); on an error nothing is written. Each
+    file is written atomically into the existing folder ``out_dir``.
+
+    Returns
+    -------
+    :
+        The texts and their ``paths``.
+    """
+    files = model_files(robot, theta, names, nominal=nominal)
+    folder = Path(out_dir)
+    paths = {
+        "urdf": atomic_write_text(folder / f"{stem}_identified.urdf", files.urdf.text),
+        "mjcf": atomic_write_text(folder / f"{stem}_identified.xml", files.mjcf),
+        "joint_extras": atomic_write_text(folder / f"{stem}_joint_extras.json", files.extras_json),
+    }
+    return ModelFiles(urdf=files.urdf, mjcf=files.mjcf, extras_json=files.extras_json, paths=paths)

@@ -1,0 +1,97 @@
+"""The identified model's MJCF: loads without meshes, and MuJoCo's inverse dynamics equals the
+estimate's prediction (rigid body + rotor inertia + viscous friction) to 1e-9 relative."""
+
+import json
+
+import mujoco
+import numpy as np
+import pytest
+from test_urdf_update import perturbed_theta, robot_under_test
+
+from ident.errors import ModelError
+from ident.identify.model_files import model_files, write_model_files
+
+PARITY = ["paper6r", "ur5", "panda-hand-locked", "tx40", "erd-z1-gripper-locked"]
+
+
+def _mj_inverse(model, joint_names, q, dq, ddq):
+    """MuJoCo's inverse dynamics at the robot's joints, shape (n_samples, nv)."""
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in joint_names]
+    qpos = np.array([model.jnt_qposadr[i] for i in ids])
+    dof = np.array([model.jnt_dofadr[i] for i in ids])
+    assert model.nv == len(joint_names)  # the locked joints are fixed
+    data = mujoco.MjData(model)
+    out = np.empty_like(dq)
+    for k in range(q.shape[0]):
+        data.qpos[qpos], data.qvel[dof], data.qacc[dof] = q[k], dq[k], ddq[k]
+        mujoco.mj_inverse(model, data)
+        out[k] = data.qfrc_inverse[dof]
+    return out, dof
+
+
+@pytest.mark.parametrize("key", PARITY)
+def test_mjcf_inverse_dynamics_equals_the_estimate(key):
+    robot = robot_under_test(key)
+    theta, names = perturbed_theta(robot, seed=11 + len(key))
+    files = model_files(robot, theta, names, nominal=None)
+    assert "<mesh" not in files.mjcf
+    assert "<geom" not in files.mjcf
+    model = mujoco.MjModel.from_xml_string(files.mjcf)  # no mesh file needed
+    index = {n: i for i, n in enumerate(names)}
+    n = robot.n_bodies
+    ia, fv, fs = (
+        np.array([theta[index[f"{p}{j}"]] for j in range(1, n + 1)]) for p in ("Ia", "fv", "fs")
+    )
+    q, dq, ddq = robot.random_configurations(40, rng=5)
+    expected = robot.regressor(q, dq, ddq) @ theta[: 10 * n] + ia * ddq + fv * dq
+    # friction loss is a constraint: off for the rigid-body + armature + damping comparison
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    got, dof = _mj_inverse(model, robot.joint_names, q, dq, ddq)
+    scale = np.abs(expected).max()
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * scale)
+    # the extras land where MuJoCo reads them
+    np.testing.assert_array_equal(model.dof_armature[dof], ia)
+    np.testing.assert_array_equal(model.dof_damping[dof], fv)
+    np.testing.assert_array_equal(model.dof_frictionloss[dof], fs)
+    # gravity and limits kept
+    np.testing.assert_array_equal(model.opt.gravity, robot.model.gravity.linear)
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in robot.joint_names]
+    limited = np.isfinite(robot.q_lower)
+    np.testing.assert_array_equal(model.jnt_range[ids][limited, 0], robot.q_lower[limited])
+    np.testing.assert_array_equal(model.jnt_range[ids][limited, 1], robot.q_upper[limited])
+
+
+def test_mjcf_of_a_light_body_with_a_scaled_hand():
+    """Welded links scaled down (body lighter than the nominal hand): still exact."""
+    robot = robot_under_test("panda-hand-locked")
+    theta, names = perturbed_theta(robot, seed=3, scale={6: 0.1})
+    files = model_files(robot, theta, names)
+    assert files.urdf.welded_scale
+    model = mujoco.MjModel.from_xml_string(files.mjcf)
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    model.dof_damping[:] = model.dof_armature[:] = 0.0
+    q, dq, ddq = robot.random_configurations(20, rng=2)
+    expected = robot.regressor(q, dq, ddq) @ theta[:70]
+    got, _ = _mj_inverse(model, robot.joint_names, q, dq, ddq)
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+
+
+def test_write_model_files_writes_three_files_or_none(tmp_path):
+    robot = robot_under_test("ur5")
+    theta, names = perturbed_theta(robot, seed=1)
+    files = write_model_files(robot, theta, names, tmp_path, "ur5")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "ur5_identified.urdf",
+        "ur5_identified.xml",
+        "ur5_joint_extras.json",
+    ]
+    extras = json.loads(files.paths["joint_extras"].read_text())
+    index = {n: i for i, n in enumerate(names)}
+    assert extras["joints"]["elbow_joint"]["offset"] == theta[index["off3"]]
+    # an inconsistent estimate: an error and no file
+    theta[0] = -1.0
+    out = tmp_path / "bad"
+    out.mkdir()
+    with pytest.raises(ModelError, match="not physically consistent"):
+        write_model_files(robot, theta, names, out, "ur5")
+    assert list(out.iterdir()) == []
