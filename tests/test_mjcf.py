@@ -11,7 +11,7 @@ from test_urdf_update import perturbed_theta, robot_under_test
 from ident.errors import ModelError
 from ident.identify.model_files import model_files, write_model_files
 
-PARITY = ["paper6r", "ur5", "panda-hand-locked", "tx40", "erd-z1-gripper-locked"]
+PARITY = ["paper6r", "ur5", "panda-hand-locked", "tx40", "erd-z1-gripper-locked", "erd-kinova"]
 
 
 def _mj_inverse(model, joint_names, q, dq, ddq):

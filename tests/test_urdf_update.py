@@ -315,6 +315,8 @@ ROBOTS = {
         robots.ERD_ROBOTS / "z1_description/urdf/z1.urdf",
         {"jointGripper": -0.5},
     ),
+    # transmissions, continuous joints, fingers welded by fixed joints
+    "erd-kinova": (robots.ERD_ROBOTS / "kinova_description/robots/kinova.urdf", {}),
     "erd-panda-hand-locked": (
         robots.PANDA_URDF,
         {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.04},
@@ -484,3 +486,79 @@ def test_cautious_copy_composes_the_welded_hand(tmp_path):
     expected = nominal.copy()
     expected[k] += 0.01
     np.testing.assert_allclose(values, expected, rtol=1e-12, atol=1e-12)
+
+
+ODD_URDF = """<?xml version="1.0"?>
+<!-- a comment that stays -->
+<robot name="odd">
+  <transmission name="t1">
+    <type>transmission_interface/SimpleTransmission</type>
+    <joint name="j1"><hardwareInterface>EffortJointInterface</hardwareInterface></joint>
+    <actuator name="m1"><mechanicalReduction>100</mechanicalReduction></actuator>
+  </transmission>
+  <link name="base"/>
+  <joint name="j1" type="continuous">
+    <parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/>
+  </joint>
+  <link name="l1">
+    <visual><geometry><mesh filename="package://missing/l1.stl"/></geometry></visual>
+  </link>
+  <joint name="j2" type="revolute">
+    <parent link="l1"/><child link="l2"/>
+    <origin xyz="0.3 0 0" rpy="1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="10" velocity="3"/>
+    <dynamics damping="0.5" friction="0.1" simulator_only='a &gt; b'/>
+  </joint>
+  <link name="l2"><inertial><mass value="2"/><origin xyz="0.1 0 0" rpy="0.3 0.2 0.1"/>
+    <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.04"/></inertial></link>
+  <joint name="tool_joint" type="fixed">
+    <parent link="l2"/><child link="tool"/><origin xyz="0.2 0 0" rpy="0 0.5 0"/>
+  </joint>
+  <link name="tool"><inertial><mass value="0.5"/><origin xyz="0 0 0.05"/>
+    <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.0005"/></inertial></link>
+  <gazebo reference="l2"><link name="not_a_link"/><joint name="j2"/></gazebo>
+</robot>
+"""
+
+
+def test_write_back_of_an_odd_file(tmp_path):
+    """Transmission before the joints, a continuous joint, a moving link without <inertial>
+    and a missing mesh, a <dynamics> with a simulator attribute, a welded tool, a gazebo
+    block naming a link and a joint: the reloaded bodies are the estimate's, the rest stays."""
+    import pinocchio as pin
+
+    from ident.identify.urdf_update import identified_urdf
+    from ident.model import Robot
+
+    source = tmp_path / "odd.urdf"
+    source.write_text(ODD_URDF)
+    robot = Robot.from_urdf(source, inertia_check=False)
+    assert robot.joint_names == ("j1", "j2")
+    bodies = []
+    for j in range(2):
+        box = pin.Inertia.FromBox(1.0 + j, 0.1, 0.2, 0.3)
+        placement = pin.SE3(pin.utils.rotate("x", 0.4 * j), np.array([0.05, 0.02, -0.01]))
+        base = robot.parameters()[10 * j : 10 * j + 10]
+        bodies.append(base + np.asarray(placement.act(box).toDynamicParameters()))
+    theta = np.concatenate(bodies + [np.array([0.2, 0.3])])
+    names = robot.parameter_names() + ("fv1", "fs2")
+    written = identified_urdf(ODD_URDF, robot.model, theta, names)
+    path = tmp_path / "written.urdf"
+    path.write_text(written.text)
+    new = Robot.from_urdf(path)
+    np.testing.assert_allclose(new.parameters(), theta[:20], rtol=1e-12, atol=1e-15)
+    text = written.text
+    for kept in (
+        "<!-- a comment that stays -->",
+        ODD_URDF[ODD_URDF.index("  <transmission") : ODD_URDF.index('  <link name="base"/>')],
+        '<gazebo reference="l2"><link name="not_a_link"/><joint name="j2"/></gazebo>',
+        '<mesh filename="package://missing/l1.stl"/>',
+        "simulator_only='a &gt; b'",
+        '<joint name="j1" type="continuous">',
+        ODD_URDF[ODD_URDF.index('  <link name="tool">') : ODD_URDF.index("  <gazebo")],
+    ):
+        assert kept in text
+    assert new.model.damping.tolist() == [0.2, 0.0]  # absent extras are 0
+    assert new.model.friction.tolist() == [0.0, 0.3]
+    assert written.links == ("l1", "l2")

@@ -12,6 +12,7 @@ Offsets are in UTF-8 bytes of the text (what expat reports); edits are applied t
 
 from __future__ import annotations
 
+import re
 import xml.parsers.expat
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -263,11 +264,32 @@ def inertial_edit(
     return _put_child(urdf.data, spans_.span, spans_.inertial, text, urdf.child_indent)
 
 
+def _set_attributes(data: bytes, span: ElementSpan, values: dict[str, str]) -> bytes:
+    """The start tag of ``span`` with ``values`` set (other attributes and spacing kept)."""
+    tag = data[span.start : span.start_tag_end].decode("utf-8")
+    for key, value in values.items():
+        pattern = re.compile(rf"(\s{key}\s*=\s*)(\"[^\"]*\"|'[^']*')")
+        if pattern.search(tag):
+            tag = pattern.sub(lambda m, v=value: f'{m.group(1)}"{v}"', tag, count=1)
+        else:
+            end = len(tag) - (2 if tag.endswith("/>") else 1)
+            head = tag[:end].rstrip()
+            tag = f'{head} {key}="{value}"{tag[end:]}'
+    return tag.encode("utf-8")
+
+
 def dynamics_edit(
     urdf: UrdfSpans, joint: str, damping: float, friction: float
 ) -> tuple[int, int, bytes]:
-    """The edit that gives ``joint`` this ``<dynamics>`` (replacing or adding the element)."""
+    """The edit that sets ``joint``'s ``<dynamics damping friction>``.
+
+    An existing element keeps its other attributes (e.g. a simulator's); else one is added.
+    """
     spans_ = urdf.joints[joint]
+    old = spans_.dynamics
+    if old is not None:
+        values = {"damping": _fmt(damping), "friction": _fmt(friction)}
+        return old.start, old.start_tag_end, _set_attributes(urdf.data, old, values)
     return _put_child(
-        urdf.data, spans_.span, spans_.dynamics, dynamics_text(damping, friction), urdf.child_indent
+        urdf.data, spans_.span, None, dynamics_text(damping, friction), urdf.child_indent
     )
