@@ -269,8 +269,9 @@ def _set_attributes(data: bytes, span: ElementSpan, values: dict[str, str]) -> b
     tag = data[span.start : span.start_tag_end].decode("utf-8")
     for key, value in values.items():
         pattern = re.compile(rf"(\s{key}\s*=\s*)(\"[^\"]*\"|'[^']*')")
-        if pattern.search(tag):
-            tag = pattern.sub(lambda m, v=value: f'{m.group(1)}"{v}"', tag, count=1)
+        found = pattern.search(tag)
+        if found:
+            tag = f'{tag[: found.start()]}{found.group(1)}"{value}"{tag[found.end() :]}'
         else:
             end = len(tag) - (2 if tag.endswith("/>") else 1)
             head = tag[:end].rstrip()
