@@ -6,12 +6,21 @@ import json
 import mujoco
 import numpy as np
 import pytest
-from test_urdf_update import perturbed_theta, robot_under_test
+from test_urdf_update import ROBOTS, perturbed_theta, robot_under_test
 
 from ident.errors import ModelError
 from ident.identify.model_files import model_files, write_model_files
+from ident.measure.mujoco_model import mujoco_urdf
 
-PARITY = ["paper6r", "ur5", "panda-hand-locked", "tx40", "erd-z1-gripper-locked", "erd-kinova"]
+PARITY = [
+    "erd-tiago-torso-arm",
+    "paper6r",
+    "ur5",
+    "panda-hand-locked",
+    "tx40",
+    "erd-z1-gripper-locked",
+    "erd-kinova",
+]
 
 
 def _mj_inverse(model, joint_names, q, dq, ddq):
@@ -95,3 +104,36 @@ def test_write_model_files_writes_three_files_or_none(tmp_path):
     with pytest.raises(ModelError, match="not physically consistent"):
         write_model_files(robot, theta, names, out, "ur5")
     assert list(out.iterdir()) == []
+
+
+def test_mjcf_does_not_depend_on_impossible_inertials_of_fused_or_fixed_links(tmp_path):
+    """Real files carry impossible inertials on links that never move or are welded to a
+    moving one (MuJoCo refuses them): the MJCF puts each identified body on its joint's child
+    link, the other links massless, and reproduces the estimate."""
+    from ident.model import Robot
+
+    text = ROBOTS["panda-hand-locked"][0].read_text()
+    text = text.replace('ixx="0.00315"', 'ixx="-0.5"', 1)  # panda_link0, fixed to the world
+    text = text.replace(  # panda_hand, welded to panda_link7: I1 + I2 < I3
+        'ixx="0.001" ixy="0" ixz="0" iyy="0.0025" iyz="0" izz="0.0017"',
+        'ixx="0.001" ixy="0" ixz="0" iyy="0.0025" iyz="0" izz="0.01"',
+        1,
+    )
+    path = tmp_path / "panda.urdf"
+    path.write_text(text)
+    robot = Robot.from_urdf(
+        path,
+        lock_joints=ROBOTS["panda-hand-locked"][1]["lock_joints"],
+        inertia_check=False,
+    )
+    with pytest.raises(ValueError, match="inertia"):  # the file's own inertials, no meshes
+        mujoco.MjModel.from_xml_string(mujoco_urdf(text, robot.locked_joints, "panda"))
+    theta, names = perturbed_theta(robot, seed=4)
+    files = model_files(robot, theta, names)
+    model = mujoco.MjModel.from_xml_string(files.mjcf)
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    model.dof_damping[:] = model.dof_armature[:] = 0.0
+    q, dq, ddq = robot.random_configurations(20, rng=1)
+    expected = robot.regressor(q, dq, ddq) @ theta[:70]
+    got, _ = _mj_inverse(model, robot.joint_names, q, dq, ddq)
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())

@@ -300,12 +300,12 @@ def test_odd_xml_is_refused_with_a_message(text, match):
 # ---- write-back on real files: transmissions, welded and locked bodies ----------------------
 import robots  # noqa: E402  (tests/robots.py: example-robot-data paths)
 
-ROBOTS = {
+ROBOTS = {  # name: (URDF, Robot.from_urdf options)
     "paper6r": (ROOT / "robot" / "urdf" / "paper6r.urdf", {}),
     "ur5": (ROOT / "robot" / "urdf" / "ur5.urdf", {}),  # <transmission> blocks
     "panda-hand-locked": (
         ROOT / "robot" / "urdf" / "panda.urdf",
-        {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.03},
+        {"lock_joints": {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.03}},
     ),
     "tx40": (URDF, {}),
     # example-robot-data: transmissions and a gripper welded by fixed joints
@@ -313,13 +313,19 @@ ROBOTS = {
     # transmissions and a locked gripper joint
     "erd-z1-gripper-locked": (
         robots.ERD_ROBOTS / "z1_description/urdf/z1.urdf",
-        {"jointGripper": -0.5},
+        {"lock_joints": {"jointGripper": -0.5}},
     ),
     # transmissions, continuous joints, fingers welded by fixed joints
     "erd-kinova": (robots.ERD_ROBOTS / "kinova_description/robots/kinova.urdf", {}),
     "erd-panda-hand-locked": (
         robots.PANDA_URDF,
-        {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.04},
+        {"lock_joints": {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.04}},
+    ),
+    # a mobile manipulator's torso and arm: transmissions, the base (continuous wheels), head
+    # and gripper locked (40 joints), a prismatic torso joint
+    "erd-tiago-torso-arm": (
+        robots.ERD_ROBOTS / "tiago_description/robots/tiago.urdf",
+        {"base_link": "torso_fixed_link", "tip_link": "arm_7_link"},
     ),
 }
 
@@ -327,8 +333,8 @@ ROBOTS = {
 def robot_under_test(key):
     from ident.model import Robot
 
-    path, locks = ROBOTS[key]
-    return Robot.from_urdf(path, lock_joints=locks or None)
+    path, options = ROBOTS[key]
+    return Robot.from_urdf(path, **options)
 
 
 def _extras_names(n):
@@ -349,6 +355,8 @@ def perturbed_theta(robot, seed, *, scale=None):
             continue
         box = pin.Inertia.FromBox(rng.uniform(0.05, 0.5), *rng.uniform(0.02, 0.2, size=3))
         placement = pin.SE3(pin.SE3.Random().rotation, rng.uniform(-0.05, 0.05, size=3))
+        if consistency_problems(body):  # a real file's impossible link: the box alone
+            body = np.zeros(10)
         bodies[j] = body + np.asarray(placement.act(box).toDynamicParameters())
         assert consistency_problems(bodies[j]) == []
     extras = rng.uniform(0.01, 1.0, size=4 * robot.n_bodies)

@@ -2,10 +2,14 @@
 
 The URDF is converted by MuJoCo's own URDF importer after the edits of
 :func:`ident.measure.mujoco_model.mujoco_urdf` (the conversion the simulator uses): no geometry,
-the identification's locked joints fixed at their positions, inertials exactly as written (no
+the identification's locked joints fixed at their positions, inertials exactly as given (no
 inertia from geometry, no balancing). Every link stays its own body (``fusestatic`` off), so the
 MJCF body tree is the URDF's link tree; limits (``range``) and effort limits
-(``actuatorfrcrange``) are kept.
+(``actuatorfrcrange``) are kept. Each moving joint's child link carries the whole identified
+body (the links welded or locked to it included, as Pinocchio fuses them); the other links are
+massless. So the MJCF does not depend on how the URDF splits a body between its links, nor on
+the file's inertials of links that never move (real files have inconsistent ones, which MuJoCo
+refuses).
 
 Joint extras, identified with the torque model
 ``tau_j = rnea_j + Ia_j ddq_j + fv_j dq_j + fs_j sign(dq_j) + off_j``, map to MuJoCo as:
@@ -70,6 +74,7 @@ def _compile(spec: mujoco.MjSpec, where: str) -> mujoco.MjModel:
 def identified_mjcf(
     urdf_text: str,
     joint_names: tuple[str, ...],
+    bodies: Mapping[str, npt.ArrayLike],
     extras: Mapping[str, Mapping[str, float]],
     *,
     locked_joints: Mapping[str, float] | None = None,
@@ -81,10 +86,15 @@ def identified_mjcf(
     Parameters
     ----------
     urdf_text :
-        The identified URDF (:func:`ident.identify.urdf_update.identified_urdf`); meshes are
-        not needed.
+        The robot's URDF (its kinematics, names and limits are used; meshes are not needed).
     joint_names :
         The moving joints, base to tip (``Robot.joint_names``).
+    bodies :
+        ``{link: parameters (10,)}``: each moving joint's child link and its identified body
+        about the link frame origin (Pinocchio order) [SI], the links welded or locked to it
+        included. Every other link gets no inertia: it is fused into one of these bodies, or
+        does not move (fixed to the world), as in Pinocchio's model; so the MJCF does not
+        depend on the file's inertials of those links (which MuJoCo may refuse).
     extras :
         ``{joint: {"rotor_inertia", "viscous", "coulomb"}}`` [kg*m^2, N*m*s/rad, N*m] (the
         sidecar's ``"joints"``); a missing joint or key counts as 0.
@@ -108,7 +118,7 @@ def identified_mjcf(
     ModelError
         If MuJoCo cannot compile the URDF, or its moving joints differ from ``joint_names``.
     """
-    text = mujoco_urdf(urdf_text, dict(locked_joints or {}), source)
+    text = mujoco_urdf(_with_bodies(urdf_text, bodies, source), dict(locked_joints or {}), source)
     try:
         spec = mujoco.MjSpec.from_string(text)
     except ValueError as e:
@@ -134,6 +144,36 @@ def identified_mjcf(
     ET.indent(root, space="  ")
     body = ET.tostring(root, encoding="unicode")
     return f"<!--{MJCF_NOTE}-->\n{body}\n"
+
+
+def _with_bodies(urdf_text: str, bodies: Mapping[str, npt.ArrayLike], source: str) -> str:
+    """The URDF with the ``bodies`` as the only inertials (all other links massless)."""
+    from ident.robot.inertia import com_and_inertia
+
+    root = ET.fromstring(urdf_text)
+    links = {link.get("name"): link for link in root.findall("link")}
+    missing = sorted(set(bodies) - set(links))
+    if missing:
+        raise ModelError(f"{source}: no link {', '.join(missing)} in the URDF.")
+    for link in links.values():
+        for element in link.findall("inertial"):
+            link.remove(element)
+    for name, params in bodies.items():
+        mass, com, inertia = com_and_inertia(np.asarray(params, dtype=float))
+        inertial = ET.SubElement(links[name], "inertial")
+        ET.SubElement(inertial, "origin", xyz=_fmt(com), rpy="0 0 0")
+        ET.SubElement(inertial, "mass", value=_fmt(mass))
+        ET.SubElement(
+            inertial,
+            "inertia",
+            ixx=_fmt(inertia[0, 0]),
+            ixy=_fmt(inertia[0, 1]),
+            ixz=_fmt(inertia[0, 2]),
+            iyy=_fmt(inertia[1, 1]),
+            iyz=_fmt(inertia[1, 2]),
+            izz=_fmt(inertia[2, 2]),
+        )
+    return ET.tostring(root, encoding="unicode")
 
 
 def _full_precision(root: ET.Element, model: mujoco.MjModel) -> None:

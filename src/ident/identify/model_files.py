@@ -20,6 +20,7 @@ from ident.fileio import atomic_write_text
 from ident.identify.mjcf import identified_mjcf
 from ident.identify.urdf_update import IdentifiedModel, identified_urdf
 from ident.model import Robot
+from ident.robot.inertia import PINOCCHIO_ORDER
 
 __all__ = ["ModelFiles", "model_files", "write_model_files"]
 
@@ -90,9 +91,16 @@ def model_files(
         nominal=None if nominal is None else np.asarray(nominal, dtype=float),
         source=source,
     )
+    theta = np.asarray(theta, dtype=float)
+    index = {name: i for i, name in enumerate(names)}
+    bodies = {
+        link: theta[[index[f"{label}{j}"] for label in PINOCCHIO_ORDER]]
+        for j, link in enumerate(urdf.links, start=1)
+    }
     mjcf = identified_mjcf(
-        urdf.text,
+        robot.urdf_text,
         tuple(robot.joint_names),
+        bodies,
         urdf.sidecar["joints"],
         locked_joints=robot.locked_joints,
         gravity=np.asarray(robot.model.gravity.linear, dtype=float),
