@@ -137,3 +137,24 @@ def test_mjcf_does_not_depend_on_impossible_inertials_of_fused_or_fixed_links(tm
     expected = robot.regressor(q, dq, ddq) @ theta[:70]
     got, _ = _mj_inverse(model, robot.joint_names, q, dq, ddq)
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+
+
+def test_reload_parity_reports_the_files_errors():
+    """The run-time check: ~1e-15 on the written files, large when a file is off."""
+    import dataclasses
+
+    from ident.identify.model_files import reload_parity
+
+    robot = robot_under_test("panda-hand-locked")
+    theta, names = perturbed_theta(robot, seed=9)
+    files = model_files(robot, theta, names)
+    parity = reload_parity(robot, files, theta, names, n_states=20)
+    assert parity.urdf_relative_error < 1e-12
+    assert parity.mjcf_relative_error < 1e-12
+    # a URDF and an MJCF written from another estimate
+    other_theta, _ = perturbed_theta(robot, seed=10)
+    other = model_files(robot, other_theta, names)
+    swapped = dataclasses.replace(files, urdf=other.urdf, mjcf=other.mjcf)
+    parity = reload_parity(robot, swapped, theta, names, n_states=20)
+    assert parity.urdf_relative_error > 1e-3
+    assert parity.mjcf_relative_error > 1e-3
