@@ -98,12 +98,19 @@ def test_write_model_files_writes_three_files_or_none(tmp_path):
     index = {n: i for i, n in enumerate(names)}
     assert extras["joints"]["elbow_joint"]["offset"] == theta[index["off3"]]
     # an inconsistent estimate: an error and no file
+    theta_ok = theta.copy()
     theta[0] = -1.0
     out = tmp_path / "bad"
     out.mkdir()
     with pytest.raises(ModelError, match="not physically consistent"):
         write_model_files(robot, theta, names, out, "ur5")
     assert list(out.iterdir()) == []
+    write_model_files(robot, theta_ok, names, out, "ur5", suffix="consistent")
+    assert sorted(p.name for p in out.iterdir()) == [
+        "ur5_consistent.urdf",
+        "ur5_consistent.xml",
+        "ur5_joint_extras.json",
+    ]
 
 
 def test_mjcf_does_not_depend_on_impossible_inertials_of_fused_or_fixed_links(tmp_path):

@@ -124,11 +124,14 @@ def write_model_files(
     stem: str,
     *,
     nominal: npt.ArrayLike | None = None,
+    suffix: str = "identified",
 ) -> ModelFiles:
     """Write ``<stem>_identified.urdf``, ``<stem>_identified.xml``, ``<stem>_joint_extras.json``.
 
     Everything is computed first (:func:`model_files`); on an error nothing is written. Each
-    file is written atomically into the existing folder ``out_dir``.
+    file is written atomically into the existing folder ``out_dir``. ``suffix`` replaces
+    ``identified`` in the model files' names (e.g. ``consistent``, where the cautious copy is
+    ``<stem>_identified.urdf``).
 
     Returns
     -------
@@ -138,8 +141,8 @@ def write_model_files(
     files = model_files(robot, theta, names, nominal=nominal)
     folder = Path(out_dir)
     paths = {
-        "urdf": atomic_write_text(folder / f"{stem}_identified.urdf", files.urdf.text),
-        "mjcf": atomic_write_text(folder / f"{stem}_identified.xml", files.mjcf),
+        "urdf": atomic_write_text(folder / f"{stem}_{suffix}.urdf", files.urdf.text),
+        "mjcf": atomic_write_text(folder / f"{stem}_{suffix}.xml", files.mjcf),
         "joint_extras": atomic_write_text(folder / f"{stem}_joint_extras.json", files.extras_json),
     }
     return ModelFiles(urdf=files.urdf, mjcf=files.mjcf, extras_json=files.extras_json, paths=paths)
