@@ -570,3 +570,27 @@ def test_write_back_of_an_odd_file(tmp_path):
     assert new.model.damping.tolist() == [0.2, 0.0]  # absent extras are 0
     assert new.model.friction.tolist() == [0.0, 0.3]
     assert written.links == ("l1", "l2")
+
+
+def test_compose_body_keeps_as_much_of_the_welded_links_as_it_can():
+    """s = 1 when body minus the welded links is consistent; else the largest s that keeps the
+    carrying link consistent (a rule that always put s = 0 would also be exact: it is not it)."""
+    import pinocchio as pin
+
+    from ident.identify.urdf_update import compose_body
+
+    hand = np.asarray(
+        pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.1]))
+        .act(pin.Inertia.FromBox(0.7, 0.1, 0.2, 0.05))
+        .toDynamicParameters()
+    )
+    link = np.asarray(pin.Inertia.FromBox(1.5, 0.1, 0.1, 0.3).toDynamicParameters())
+    own, s = compose_body(link + hand, hand)
+    assert s == 1.0
+    np.testing.assert_allclose(own, link, atol=1e-15)
+    light = 0.3 * (link + hand)  # lighter than the hand alone
+    own, s = compose_body(light, hand)
+    assert 0.0 < s < 1.0
+    np.testing.assert_allclose(own + s * hand, light, rtol=1e-15, atol=1e-15)
+    assert consistency_problems(own) == []
+    assert consistency_problems(light - min(1.0, s + 1e-3) * hand) != []

@@ -273,20 +273,8 @@ def fused_bodies(root: ET.Element, model: pin.Model, source: str = "URDF") -> li
     ]
 
 
-def _pseudo_inertia_min(params: FloatArray) -> float:
-    """Smallest eigenvalue of the 4x4 pseudo-inertia (>= 0 iff physically consistent)."""
-    from ident.robot.inertia import inertia_about_origin
-
-    inertia = inertia_about_origin(params)
-    pseudo = np.zeros((4, 4))
-    pseudo[:3, :3] = 0.5 * np.trace(inertia) * np.eye(3) - inertia
-    pseudo[:3, 3] = pseudo[3, :3] = params[1:4]
-    pseudo[3, 3] = params[0]
-    return float(np.linalg.eigvalsh(pseudo)[0])
-
-
-#: The welded links keep this fraction of the consistency margin of the body when they must be
-#: scaled down (see :func:`compose_body`), so that the carrying link is strictly consistent.
+#: When the welded links must be scaled down (:func:`compose_body`), the carrying link keeps at
+#: least this fraction of the body's smallest pseudo-inertia eigenvalue: strictly consistent.
 _MARGIN = 1e-6
 
 
@@ -313,17 +301,18 @@ def compose_body(body: FloatArray, welded: FloatArray) -> tuple[FloatArray, floa
     own, scale :
         The carrying link's parameters (10,) and ``s``; never a negative mass.
     """
+    from ident.identify.consistency import pseudo_inertia_min_eigenvalue
     from ident.robot.inertia import consistency_problems
 
     body = np.asarray(body, dtype=float)
     welded = np.asarray(welded, dtype=float)
     if not welded.any() or not consistency_problems(body - welded):
         return body - welded, 1.0
-    margin = _MARGIN * max(_pseudo_inertia_min(body), 0.0)
+    margin = _MARGIN * max(float(pseudo_inertia_min_eigenvalue(body)), 0.0)
 
     def feasible(s: float) -> bool:
         own = body - s * welded
-        return own[0] > 0 and _pseudo_inertia_min(own) >= margin
+        return bool(own[0] > 0 and float(pseudo_inertia_min_eigenvalue(own)) >= margin)
 
     low, high = 0.0, 1.0
     for _ in range(60):
