@@ -165,3 +165,34 @@ def test_reload_parity_reports_the_files_errors():
     parity = reload_parity(robot, swapped, theta, names, n_states=20)
     assert parity.urdf_relative_error > 1e-3
     assert parity.mjcf_relative_error > 1e-3
+
+
+def test_tx40_coupled_wrist_motor_is_a_tendon():
+    """The TX40's shared wrist motor (Iam6, fvm6 on joints 5 and 6) is a fixed tendon
+    q5 + q6 in the MJCF: mj_inverse has its inertia and viscous terms exactly."""
+    from ident.identify.model_files import reload_parity
+
+    robot = robot_under_test("tx40")
+    theta, names = perturbed_theta(robot, seed=21)
+    theta = np.concatenate([theta, [0.07, 0.4, 0.9]])
+    names = names + ("Iam6", "fvm6", "fsm6")
+    with pytest.raises(ModelError, match="coupled_pair"):
+        model_files(robot, theta, names)
+    files = model_files(robot, theta, names, coupled_pair=(4, 5))
+    (motor,) = json.loads(files.extras_json)["coupled_motors"]
+    assert motor["joints"] == ["joint_5", "joint_6"]
+    model = mujoco.MjModel.from_xml_string(files.mjcf)
+    assert model.ntendon == 1
+    assert (model.tendon_armature[0], model.tendon_damping[0]) == (0.07, 0.4)
+    assert model.tendon_frictionloss[0] == 0.9
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    index = {n: i for i, n in enumerate(names)}
+    q, dq, ddq = robot.random_configurations(30, rng=8)
+    ia, fv = (np.array([theta[index[f"{p}{j}"]] for j in range(1, 7)]) for p in ("Ia", "fv"))
+    expected = robot.regressor(q, dq, ddq) @ theta[:60] + ia * ddq + fv * dq
+    for j in (4, 5):  # as ident.dynamics.friction's coupled columns
+        expected[:, j] += 0.07 * (ddq[:, 4] + ddq[:, 5]) + 0.4 * (dq[:, 4] + dq[:, 5])
+    got, _ = _mj_inverse(model, robot.joint_names, q, dq, ddq)
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    parity = reload_parity(robot, files, theta, names, n_states=10)
+    assert max(parity.urdf_relative_error, parity.mjcf_relative_error) < 1e-12

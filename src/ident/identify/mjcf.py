@@ -22,8 +22,10 @@ Joint extras, identified with the torque model
 - Coulomb friction ``fs_j`` -> ``frictionloss``: approximate. MuJoCo's friction loss is a
   constraint force bounded by ``fs_j`` (dry friction with a soft, regularized stick phase), not
   the torque ``fs_j sign(dq_j)``: they agree while the joint slides, not near zero velocity;
-- offsets ``off_j`` and coupled-motor terms (one motor driving two joints) have no MJCF
-  counterpart: they stay in the joint-extras file only.
+- a coupled motor (one motor turning with ``q_a + q_b``, the TX40 wrist) -> a fixed tendon
+  ``q_a + q_b`` with ``armature`` = ``Iam``, ``damping`` = ``fvm`` (exact, rows ``a`` and ``b``)
+  and ``frictionloss`` = ``fsm`` (approximate, as above);
+- offsets ``off_j`` have no MJCF counterpart: they stay in the joint-extras file only.
 
 Numbers: MuJoCo's own MJCF writer prints 6 significant digits; every numeric attribute that
 changes the dynamics (body poses, inertials, joint axes and positions, damping, armature,
@@ -34,7 +36,8 @@ MJCF reloads to the same model (inverse dynamics equal to about 1e-15 relative).
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -54,13 +57,23 @@ MJCF_NOTE = """
   add geoms for contacts or display. Joints locked during the identification are fixed here.
   armature = rotor inertia (exact); damping = viscous friction (exact in inverse dynamics,
   integrated implicitly in simulation); frictionloss = Coulomb friction (approximate: a
-  constraint-based dry friction bounded by it, not the torque fs*sign(dq)). Torque offsets and
-  coupled-motor terms are not represented: see the joint-extras file.
+  constraint-based dry friction bounded by it, not the torque fs*sign(dq)). A coupled motor is
+  a fixed tendon q_a + q_b with its armature, damping and frictionloss. Torque offsets are not
+  represented: see the joint-extras file.
 """
 
 
 def _fmt(values: npt.ArrayLike) -> str:
     return " ".join(repr(float(v) + 0.0) for v in np.atleast_1d(np.asarray(values, float)))
+
+
+def _vector_or_scalar(current: Any, value: float) -> Any:
+    """``value`` in the shape of a spec attribute (MuJoCo 4 damping is a 3-vector)."""
+    if np.ndim(current) == 0:
+        return value
+    out = np.zeros(np.shape(current))
+    out[0] = value
+    return out
 
 
 def _compile(spec: mujoco.MjSpec, where: str) -> mujoco.MjModel:
@@ -77,6 +90,7 @@ def identified_mjcf(
     bodies: Mapping[str, npt.ArrayLike],
     extras: Mapping[str, Mapping[str, float]],
     *,
+    coupled_motors: Sequence[Mapping[str, Any]] = (),
     locked_joints: Mapping[str, float] | None = None,
     gravity: npt.ArrayLike = (0.0, 0.0, -9.81),
     source: str = "identified URDF",
@@ -98,6 +112,11 @@ def identified_mjcf(
     extras :
         ``{joint: {"rotor_inertia", "viscous", "coulomb"}}`` [kg*m^2, N*m*s/rad, N*m] (the
         sidecar's ``"joints"``); a missing joint or key counts as 0.
+    coupled_motors :
+        The sidecar's ``"coupled_motors"``: each ``{"joints": [a, b], "rotor_inertia",
+        "viscous", "coulomb"}`` becomes a fixed tendon ``q_a + q_b`` with that ``armature``,
+        ``damping`` and ``frictionloss``: exactly the coupled motor's ``Iam (ddq_a + ddq_b)``
+        and ``fvm (dq_a + dq_b)`` in rows ``a`` and ``b`` (``fsm`` as a friction loss).
     locked_joints :
         Joints held fixed (name -> position [rad or m]), as the identified robot.
     gravity :
@@ -135,8 +154,22 @@ def identified_mjcf(
         joint = spec.joint(name)
         values = extras.get(name, {})
         joint.armature = float(values.get("rotor_inertia", 0.0))
-        joint.damping = [float(values.get("viscous", 0.0)), 0.0, 0.0]
+        joint.damping = _vector_or_scalar(joint.damping, float(values.get("viscous", 0.0)))
         joint.frictionloss = float(values.get("coulomb", 0.0))
+    for k, motor in enumerate(coupled_motors):
+        pair = motor.get("joints")
+        if not pair or any(name not in joint_names for name in pair):
+            raise ModelError(
+                f"{source}: coupled motor {motor.get('motor_joint')!r} has no joint pair; "
+                "give the identification's coupled joints (coupled_pair)."
+            )
+        tendon = spec.add_tendon()
+        tendon.name = f"coupled_motor_{k + 1}"
+        for name in pair:
+            tendon.wrap_joint(name, 1.0)
+        tendon.armature = float(motor.get("rotor_inertia", 0.0))
+        tendon.damping = _vector_or_scalar(tendon.damping, float(motor.get("viscous", 0.0)))
+        tendon.frictionloss = float(motor.get("coulomb", 0.0))
     spec.option.gravity = np.asarray(gravity, dtype=float)
     model = _compile(spec, source)
     root = ET.fromstring(spec.to_xml())
@@ -198,7 +231,14 @@ def _full_precision(root: ET.Element, model: mujoco.MjModel) -> None:
         inertial.set("quat", _fmt(model.body_iquat[i]))
         inertial.set("mass", _fmt(model.body_mass[i]))
         inertial.set("diaginertia", _fmt(model.body_inertia[i]))
-    for element in root.iter("joint"):
+    for element in root.iter("fixed"):  # tendons
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, element.get("name", ""))
+        if i < 0:
+            raise ModelError(f"MJCF: tendon {element.get('name')!r} not in the compiled model.")
+        element.set("armature", _fmt(model.tendon_armature[i]))
+        element.set("damping", _fmt(model.tendon_damping[i]))
+        element.set("frictionloss", _fmt(model.tendon_frictionloss[i]))
+    for element in root.iterfind("worldbody//joint"):  # not a tendon's <joint joint=...>
         i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, element.get("name", ""))
         if i < 0:
             raise ModelError(f"MJCF: joint {element.get('name')!r} not in the compiled model.")

@@ -60,6 +60,7 @@ def model_files(
     names: tuple[str, ...],
     *,
     nominal: npt.ArrayLike | None = None,
+    coupled_pair: tuple[int, int] | None = None,
 ) -> ModelFiles:
     """The identified URDF, MJCF and joint-extras texts of a consistent estimate.
 
@@ -75,6 +76,9 @@ def model_files(
         Names of ``theta``.
     nominal :
         Optional nominal parameters in the order of ``names``, checked against the file.
+    coupled_pair :
+        The joints (0-based) sharing the coupled motor, if ``theta`` has ``Iam{b}``
+        (``ParameterModel.terms.coupled_wrist``); needed for the MJCF's tendon.
 
     Raises
     ------
@@ -89,6 +93,7 @@ def model_files(
         np.asarray(theta, dtype=float),
         names,
         nominal=None if nominal is None else np.asarray(nominal, dtype=float),
+        coupled_pair=coupled_pair,
         source=source,
     )
     theta = np.asarray(theta, dtype=float)
@@ -102,6 +107,7 @@ def model_files(
         tuple(robot.joint_names),
         bodies,
         urdf.sidecar["joints"],
+        coupled_motors=urdf.sidecar["coupled_motors"],
         locked_joints=robot.locked_joints,
         gravity=np.asarray(robot.model.gravity.linear, dtype=float),
         source=source,
@@ -124,6 +130,7 @@ def write_model_files(
     stem: str,
     *,
     nominal: npt.ArrayLike | None = None,
+    coupled_pair: tuple[int, int] | None = None,
     suffix: str = "identified",
 ) -> ModelFiles:
     """Write ``<stem>_identified.urdf``, ``<stem>_identified.xml``, ``<stem>_joint_extras.json``.
@@ -138,7 +145,7 @@ def write_model_files(
     :
         The texts and their ``paths``.
     """
-    files = model_files(robot, theta, names, nominal=nominal)
+    files = model_files(robot, theta, names, nominal=nominal, coupled_pair=coupled_pair)
     folder = Path(out_dir)
     paths = {
         "urdf": atomic_write_text(folder / f"{stem}_{suffix}.urdf", files.urdf.text),
@@ -181,7 +188,8 @@ def reload_parity(
     """Reload the written URDF (Pinocchio) and MJCF (MuJoCo) and compare with the estimate.
 
     The estimate's prediction is the robot's regressor times ``theta``'s body parameters
-    (plus ``Ia_j ddq_j + fv_j dq_j`` for MuJoCo) on ``n_states`` random states within the
+    (plus ``Ia_j ddq_j + fv_j dq_j`` and the coupled motors' inertia and viscous terms for
+    MuJoCo) on ``n_states`` random states within the
     robot's limits (:meth:`Robot.random_configurations`). Both errors are about 1e-15 for a
     correct file; the tests hold them below 1e-9.
     """
@@ -212,6 +220,12 @@ def reload_parity(
         )
 
     expected = rigid + extra("Ia") * ddq + extra("fv") * dq
+    for motor in files.urdf.sidecar["coupled_motors"]:  # a tendon q_a + q_b in the MJCF
+        a, b = (robot.joint_names.index(name) for name in motor["joints"])
+        shared = motor["rotor_inertia"] * (ddq[:, a] + ddq[:, b])
+        shared = shared + motor["viscous"] * (dq[:, a] + dq[:, b])
+        expected[:, a] += shared
+        expected[:, b] += shared
     model = mujoco.MjModel.from_xml_string(files.mjcf)
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in robot.joint_names]

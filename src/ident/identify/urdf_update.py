@@ -539,6 +539,7 @@ def identified_urdf(
     names: tuple[str, ...],
     *,
     nominal: FloatArray | None = None,
+    coupled_pair: tuple[int, int] | None = None,
     source: str = "URDF",
 ) -> IdentifiedModel:
     """Write a physically consistent estimate of the standard parameters into a URDF copy.
@@ -562,6 +563,9 @@ def identified_urdf(
         Optional check: the nominal parameters in the same order; each body must equal the sum
         of its links' inertials in the file (else the model is not this file's, e.g. other
         locks), to 1e-9 relative.
+    coupled_pair :
+        The two joints ``(a, b)`` (0-based, ``ExtraTerms.coupled_wrist``) that share the
+        coupled motor ``Iam{b+1}``; recorded as the motor's ``"joints"`` in the sidecar.
     source :
         Name of the URDF for messages.
 
@@ -651,9 +655,18 @@ def identified_urdf(
     for name in names:
         if name.startswith("Iam"):
             b = int(name[3:])
+            pair = None
+            if coupled_pair is not None:
+                if int(coupled_pair[1]) != b - 1:
+                    raise ModelError(
+                        f"{source}: coupled_pair {tuple(coupled_pair)} does not end at the "
+                        f"coupled motor's joint {b} ({name})."
+                    )
+                pair = [joint_names[int(k)] for k in coupled_pair]
             coupled.append(
                 {
                     "motor_joint": joint_names[b - 1],
+                    "joints": pair,
                     "rotor_inertia": extra(f"Iam{b}") or 0.0,
                     "viscous": extra(f"fvm{b}") or 0.0,
                     "coulomb": extra(f"fsm{b}") or 0.0,
@@ -687,6 +700,7 @@ def write_identified_model(
     *,
     source: str = "URDF",
     locked: Mapping[str, float] | None = None,
+    coupled_pair: tuple[int, int] | None = None,
 ) -> IdentifiedModel:
     """:func:`identified_urdf` for callers without the robot's model.
 
@@ -701,4 +715,6 @@ def write_identified_model(
             f"identified ones ({', '.join(joint_names)}); lock the same joints as the "
             "identification did."
         )
-    return identified_urdf(urdf_text, model, theta, names, nominal=nominal, source=source)
+    return identified_urdf(
+        urdf_text, model, theta, names, nominal=nominal, coupled_pair=coupled_pair, source=source
+    )

@@ -101,5 +101,6 @@ def identified_model(result: Any) -> IdentifiedModel | None:
         est.theta,
         consistent.structure.names,
         nominal=consistent.structure.nominal,
+        coupled_pair=result.parameters.terms.coupled_wrist,
         source=str(result.config.robot.urdf),
     )
