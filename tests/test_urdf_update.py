@@ -428,7 +428,8 @@ def test_whole_model_write_back_reload_parity(key, tmp_path):
 def test_a_light_body_scales_its_welded_links_never_a_negative_mass(key, tmp_path):
     """A body lighter than its welded hand/gripper: the carrying link cannot take body minus
     nominal hand (negative mass); the welded links are scaled down, the sum stays exact."""
-    from ident.identify.urdf_update import _own_inertial, identified_urdf, parse_urdf
+    from ident.identify.fused_bodies import link_inertial, parse_urdf
+    from ident.identify.urdf_update import identified_urdf
 
     robot = robot_under_test(key)
     last = robot.n_bodies - 1
@@ -439,7 +440,7 @@ def test_a_light_body_scales_its_welded_links_never_a_negative_mass(key, tmp_pat
     _reload_parity(robot, written.text, theta, tmp_path)
     root = parse_urdf(written.text)
     for link in root.findall("link"):
-        own = _own_inertial(link)
+        own = link_inertial(link)
         assert own[0] >= 0.0, link.get("name")
         if own[0] > 0:
             assert consistency_problems(own) == [], link.get("name")
