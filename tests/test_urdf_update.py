@@ -295,3 +295,303 @@ def test_odd_xml_is_refused_with_a_message(text, match):
         write_identified_model(text, JOINTS, pm.nominal, pm.names, pm.nominal)
     with pytest.raises(ModelError, match=match):
         update_urdf_inertials(text, JOINTS, _nominal(), {})
+
+
+# ---- write-back on real files: transmissions, welded and locked bodies ----------------------
+import robots  # noqa: E402  (tests/robots.py: example-robot-data paths)
+
+ROBOTS = {  # name: (URDF, Robot.from_urdf options)
+    "paper6r": (ROOT / "robot" / "urdf" / "paper6r.urdf", {}),
+    "ur5": (ROOT / "robot" / "urdf" / "ur5.urdf", {}),  # <transmission> blocks
+    "panda-hand-locked": (
+        ROOT / "robot" / "urdf" / "panda.urdf",
+        {"lock_joints": {"panda_finger_joint1": 0.02, "panda_finger_joint2": 0.03}},
+    ),
+    "tx40": (URDF, {}),
+    # example-robot-data: transmissions and a gripper welded by fixed joints
+    "erd-ur5-gripper": (robots.ERD_ROBOTS / "ur_description/urdf/ur5_gripper.urdf", {}),
+    # transmissions and a locked gripper joint
+    "erd-z1-gripper-locked": (
+        robots.ERD_ROBOTS / "z1_description/urdf/z1.urdf",
+        {"lock_joints": {"jointGripper": -0.5}},
+    ),
+    # transmissions, continuous joints, fingers welded by fixed joints
+    "erd-kinova": (robots.ERD_ROBOTS / "kinova_description/robots/kinova.urdf", {}),
+    "erd-panda-hand-locked": (
+        robots.PANDA_URDF,
+        {"lock_joints": {"panda_finger_joint1": 0.01, "panda_finger_joint2": 0.04}},
+    ),
+    # a mobile manipulator's torso and arm: transmissions, the base (continuous wheels), head
+    # and gripper locked (40 joints), a prismatic torso joint
+    "erd-tiago-torso-arm": (
+        robots.ERD_ROBOTS / "tiago_description/robots/tiago.urdf",
+        {"base_link": "torso_fixed_link", "tip_link": "arm_7_link"},
+    ),
+}
+
+
+def robot_under_test(key):
+    from ident.model import Robot
+
+    path, options = ROBOTS[key]
+    return Robot.from_urdf(path, **options)
+
+
+def _extras_names(n):
+    return tuple(f"{label}{j}" for j in range(1, n + 1) for label in ("Ia", "fv", "fs", "off"))
+
+
+def perturbed_theta(robot, seed, *, scale=None):
+    """A consistent estimate: each nominal body plus a random box, or times ``scale``; extras
+    random positive (offsets any sign). Returns (theta, names)."""
+    import pinocchio as pin
+
+    rng = np.random.default_rng(seed)
+    pin.seed(seed)
+    bodies = robot.parameters().reshape(-1, 10).copy()
+    for j, body in enumerate(bodies):
+        if scale is not None and j in scale:
+            bodies[j] = body * scale[j]
+            continue
+        box = pin.Inertia.FromBox(rng.uniform(0.05, 0.5), *rng.uniform(0.02, 0.2, size=3))
+        placement = pin.SE3(pin.SE3.Random().rotation, rng.uniform(-0.05, 0.05, size=3))
+        if consistency_problems(body):  # a real file's impossible link: the box alone
+            body = np.zeros(10)
+        bodies[j] = body + np.asarray(placement.act(box).toDynamicParameters())
+        assert consistency_problems(bodies[j]) == []
+    extras = rng.uniform(0.01, 1.0, size=4 * robot.n_bodies)
+    extras[3::4] = rng.normal(size=robot.n_bodies)
+    names = robot.parameter_names() + _extras_names(robot.n_bodies)
+    return np.concatenate([bodies.reshape(-1), extras]), names
+
+
+def _without_edited_elements(text):
+    """The text minus every top-level link's <inertial> and joint's <dynamics>, no blanks."""
+    from ident.identify.urdf_edit import spans
+
+    found = spans(text)
+    cuts = [s.inertial for s in found.links.values() if s.inertial is not None]
+    cuts += [s.dynamics for s in found.joints.values() if s.dynamics is not None]
+    data = found.data
+    kept, at = [], 0
+    for cut in sorted(cuts, key=lambda c: c.start):
+        kept.append(data[at : cut.start])
+        at = cut.end
+    kept.append(data[at:])
+    return b"".join(b"".join(kept).split())
+
+
+def _reload_parity(robot, written_text, theta, tmp_path):
+    """Pinocchio RNEA of the reloaded file (same locks) against regressor @ theta."""
+    from ident.model import Robot
+
+    path = tmp_path / "identified.urdf"
+    path.write_text(written_text)
+    new = Robot.from_urdf(path, lock_joints=robot.locked_joints or None)
+    assert new.joint_names == robot.joint_names
+    q, dq, ddq = robot.random_configurations(40, rng=7)
+    expected = robot.regressor(q, dq, ddq) @ theta[: 10 * robot.n_bodies]
+    got = new.rnea(q, dq, ddq)
+    scale = np.abs(expected).max()
+    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * scale)
+    # and the wrong answer is far: the nominal model
+    assert np.abs(robot.rnea(q, dq, ddq) - expected).max() > 1e-4 * scale
+    return new
+
+
+@pytest.mark.parametrize("key", list(ROBOTS))
+def test_whole_model_write_back_reload_parity(key, tmp_path):
+    from ident.identify.urdf_update import identified_urdf
+
+    robot = robot_under_test(key)
+    theta, names = perturbed_theta(robot, seed=len(key))
+    written = identified_urdf(
+        robot.urdf_text, robot.model, theta, names, nominal=robot.parameters()
+    )
+    new = _reload_parity(robot, written.text, theta, tmp_path)
+    # every link keeps a positive mass (welded links kept here: the boxes only add mass)
+    assert written.welded_scale == {}
+    # the rest of the file is unchanged: transmissions, gazebo blocks, meshes, comments
+    assert _without_edited_elements(written.text) == _without_edited_elements(robot.urdf_text)
+    assert written.text.count("<transmission") == robot.urdf_text.count("<transmission")
+    # Pinocchio reads the friction written into <dynamics>
+    index = {n: i for i, n in enumerate(names)}
+    np.testing.assert_allclose(
+        new.model.damping, [theta[index[f"fv{j}"]] for j in range(1, robot.n_bodies + 1)]
+    )
+    np.testing.assert_allclose(
+        new.model.friction, [theta[index[f"fs{j}"]] for j in range(1, robot.n_bodies + 1)]
+    )
+
+
+@pytest.mark.parametrize("key", ["panda-hand-locked", "erd-panda-hand-locked"])
+def test_a_light_body_scales_its_welded_links_never_a_negative_mass(key, tmp_path):
+    """A body lighter than its welded hand/gripper: the carrying link cannot take body minus
+    nominal hand (negative mass); the welded links are scaled down, the sum stays exact."""
+    from ident.identify.fused_bodies import link_inertial, parse_urdf
+    from ident.identify.urdf_update import identified_urdf
+
+    robot = robot_under_test(key)
+    last = robot.n_bodies - 1
+    theta, names = perturbed_theta(robot, seed=3, scale={last: 0.1})
+    written = identified_urdf(robot.urdf_text, robot.model, theta, names)
+    (carrier,) = written.welded_scale
+    assert 0.0 <= written.welded_scale[carrier] < 1.0
+    _reload_parity(robot, written.text, theta, tmp_path)
+    root = parse_urdf(written.text)
+    for link in root.findall("link"):
+        own = link_inertial(link)
+        assert own[0] >= 0.0, link.get("name")
+        if own[0] > 0:
+            assert consistency_problems(own) == [], link.get("name")
+
+
+def test_write_back_refuses_a_model_with_other_locks():
+    from ident.errors import ModelError
+    from ident.identify.urdf_update import write_identified_model
+
+    robot = robot_under_test("panda-hand-locked")
+    theta, names = perturbed_theta(robot, seed=0)
+    with pytest.raises(ModelError, match="lock the same joints"):
+        write_identified_model(
+            robot.urdf_text, robot.joint_names, theta, names, theta
+        )  # the fingers not locked: nine joints, not seven
+    # locked at other positions: the nominal fused hand differs
+    nominal = np.concatenate([robot.parameters(), np.zeros(len(names) - 10 * robot.n_bodies)])
+    with pytest.raises(ModelError, match="not the sum of its links"):
+        write_identified_model(
+            robot.urdf_text,
+            robot.joint_names,
+            theta,
+            names,
+            nominal,
+            locked={"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0},
+        )
+    # with the identification's locks it is written
+    write_identified_model(
+        robot.urdf_text, robot.joint_names, theta, names, nominal, locked=robot.locked_joints
+    )
+
+
+def test_cautious_copy_composes_the_welded_hand(tmp_path):
+    """The cautious copy changes the fused body by the candidates only (the hand stays)."""
+    robot = robot_under_test("erd-panda-hand-locked")
+    nominal = robot.parameters()
+    names = robot.parameter_names()
+    k = names.index("mcx7")
+    identified = {"mcx7": (nominal[k] + 0.01, 1.0)}
+    update = update_urdf_inertials(
+        robot.urdf_text, robot.joint_names, nominal, identified, model=robot.model
+    )
+    assert set(update.written) == {"mcx7"}
+    (link7,) = [link for link in update.links if link.joint == "panda_joint7"]
+    assert "panda_hand" in link7.welded
+    assert link7.welded_scale == 1.0
+    path = tmp_path / "cautious.urdf"
+    path.write_text(update.text)
+    from ident.model import Robot
+
+    values = Robot.from_urdf(path, lock_joints=robot.locked_joints).parameters()
+    expected = nominal.copy()
+    expected[k] += 0.01
+    np.testing.assert_allclose(values, expected, rtol=1e-12, atol=1e-12)
+
+
+ODD_URDF = """<?xml version="1.0"?>
+<!-- a comment that stays -->
+<robot name="odd">
+  <transmission name="t1">
+    <type>transmission_interface/SimpleTransmission</type>
+    <joint name="j1"><hardwareInterface>EffortJointInterface</hardwareInterface></joint>
+    <actuator name="m1"><mechanicalReduction>100</mechanicalReduction></actuator>
+  </transmission>
+  <link name="base"/>
+  <joint name="j1" type="continuous">
+    <parent link="base"/><child link="l1"/>
+    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 0 1"/>
+  </joint>
+  <link name="l1">
+    <visual><geometry><mesh filename="package://missing/l1.stl"/></geometry></visual>
+  </link>
+  <joint name="j2" type="revolute">
+    <parent link="l1"/><child link="l2"/>
+    <origin xyz="0.3 0 0" rpy="1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2" upper="2" effort="10" velocity="3"/>
+    <dynamics damping="0.5" friction="0.1" simulator_only='a &gt; b'/>
+  </joint>
+  <link name="l2"><inertial><mass value="2"/><origin xyz="0.1 0 0" rpy="0.3 0.2 0.1"/>
+    <inertia ixx="0.02" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.04"/></inertial></link>
+  <joint name="tool_joint" type="fixed">
+    <parent link="l2"/><child link="tool"/><origin xyz="0.2 0 0" rpy="0 0.5 0"/>
+  </joint>
+  <link name="tool"><inertial><mass value="0.5"/><origin xyz="0 0 0.05"/>
+    <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.0005"/></inertial></link>
+  <gazebo reference="l2"><link name="not_a_link"/><joint name="j2"/></gazebo>
+</robot>
+"""
+
+
+def test_write_back_of_an_odd_file(tmp_path):
+    """Transmission before the joints, a continuous joint, a moving link without <inertial>
+    and a missing mesh, a <dynamics> with a simulator attribute, a welded tool, a gazebo
+    block naming a link and a joint: the reloaded bodies are the estimate's, the rest stays."""
+    import pinocchio as pin
+
+    from ident.identify.urdf_update import identified_urdf
+    from ident.model import Robot
+
+    source = tmp_path / "odd.urdf"
+    source.write_text(ODD_URDF)
+    robot = Robot.from_urdf(source, inertia_check=False)
+    assert robot.joint_names == ("j1", "j2")
+    bodies = []
+    for j in range(2):
+        box = pin.Inertia.FromBox(1.0 + j, 0.1, 0.2, 0.3)
+        placement = pin.SE3(pin.utils.rotate("x", 0.4 * j), np.array([0.05, 0.02, -0.01]))
+        base = robot.parameters()[10 * j : 10 * j + 10]
+        bodies.append(base + np.asarray(placement.act(box).toDynamicParameters()))
+    theta = np.concatenate(bodies + [np.array([0.2, 0.3])])
+    names = robot.parameter_names() + ("fv1", "fs2")
+    written = identified_urdf(ODD_URDF, robot.model, theta, names)
+    path = tmp_path / "written.urdf"
+    path.write_text(written.text)
+    new = Robot.from_urdf(path)
+    np.testing.assert_allclose(new.parameters(), theta[:20], rtol=1e-12, atol=1e-15)
+    text = written.text
+    for kept in (
+        "<!-- a comment that stays -->",
+        ODD_URDF[ODD_URDF.index("  <transmission") : ODD_URDF.index('  <link name="base"/>')],
+        '<gazebo reference="l2"><link name="not_a_link"/><joint name="j2"/></gazebo>',
+        '<mesh filename="package://missing/l1.stl"/>',
+        "simulator_only='a &gt; b'",
+        '<joint name="j1" type="continuous">',
+        ODD_URDF[ODD_URDF.index('  <link name="tool">') : ODD_URDF.index("  <gazebo")],
+    ):
+        assert kept in text
+    assert new.model.damping.tolist() == [0.2, 0.0]  # absent extras are 0
+    assert new.model.friction.tolist() == [0.0, 0.3]
+    assert written.links == ("l1", "l2")
+
+
+def test_compose_body_keeps_as_much_of_the_welded_links_as_it_can():
+    """s = 1 when body minus the welded links is consistent; else the largest s that keeps the
+    carrying link consistent (a rule that always put s = 0 would also be exact: it is not it)."""
+    import pinocchio as pin
+
+    from ident.identify.urdf_update import compose_body
+
+    hand = np.asarray(
+        pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.1]))
+        .act(pin.Inertia.FromBox(0.7, 0.1, 0.2, 0.05))
+        .toDynamicParameters()
+    )
+    link = np.asarray(pin.Inertia.FromBox(1.5, 0.1, 0.1, 0.3).toDynamicParameters())
+    own, s = compose_body(link + hand, hand)
+    assert s == 1.0
+    np.testing.assert_allclose(own, link, atol=1e-15)
+    light = 0.3 * (link + hand)  # lighter than the hand alone
+    own, s = compose_body(light, hand)
+    assert 0.0 < s < 1.0
+    np.testing.assert_allclose(own + s * hand, light, rtol=1e-15, atol=1e-15)
+    assert consistency_problems(own) == []
+    assert consistency_problems(light - min(1.0, s + 1e-3) * hand) != []

@@ -16,34 +16,68 @@ parameters (``Izz1R = Izz1 + Ia1 + Iyy2 + ...``) do not: the data fix only the s
 Links without written values keep their ``<inertial>`` element untouched, so every link of the
 copy is as consistent as the URDF's.
 
-:func:`write_identified_model` is the other write-back, for physically consistent estimates of
-the standard parameters (:mod:`ident.identify.estimators`, ``lmi`` or ``log_cholesky``): every
-identified link gets its identified inertial, the joints' viscous and Coulomb friction go into
-``<dynamics damping friction>``, and all per-joint extras (rotor inertia, offsets, coupled-motor
-terms) into a sidecar mapping. It refuses an inconsistent estimate.
+:func:`identified_urdf` (and its wrapper :func:`write_identified_model`) is the other
+write-back, for physically consistent estimates of the standard parameters
+(:mod:`ident.identify.estimators`, ``lmi`` or ``log_cholesky``): every identified link gets its
+identified inertial, the joints' viscous and Coulomb friction go into ``<dynamics damping
+friction>``, and all per-joint extras (rotor inertia, offsets, coupled-motor terms) into a
+sidecar mapping. It refuses an inconsistent estimate.
 
-Both parse the URDF with the standard library's expat parser and refuse a document type
-declaration (``<!DOCTYPE``/``<!ENTITY``): the robot loader (urdfdom) does not expand
-entities, so such a file would not describe the same robot to every reader.
+Both read the URDF as urdfdom (Pinocchio, MuJoCo) does: only the top-level ``<robot>/<link>``
+and ``<robot>/<joint>`` elements are kinematics (a ``<joint>`` in a ``<transmission>`` is not).
+An identified body is Pinocchio's: the moving joint's child link plus every link fused into it
+through fixed or locked joints (:func:`fused_bodies`); it is split back exactly by
+:func:`compose_body` (the welded links keep their nominal inertials, or are scaled down when the
+carrying link would otherwise be inconsistent), so the reloaded model with the same locks has
+the written parameters. Only the edited ``<inertial>`` and ``<dynamics>`` elements change: the
+rest of the file is kept byte for byte (:mod:`ident.identify.urdf_edit`).
+
+Both refuse a document type declaration (``<!DOCTYPE``/``<!ENTITY``): the robot loader
+(urdfdom) does not expand entities, so such a file would not describe the same robot to every
+reader.
 """
 
 from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ModelError
-from ident.inputs import refuse_dtd
+from ident.identify.fused_bodies import (
+    FusedBody,
+    compose_body,
+    fused_bodies,
+    link_inertial,
+    model_of_urdf,
+    parse_urdf,
+)
+from ident.identify.urdf_edit import (
+    UrdfSpans,
+    apply_edits,
+    dynamics_edit,
+    inertial_edit,
+    spans,
+)
+
+if TYPE_CHECKING:
+    import pinocchio as pin
 
 __all__ = [
     "DEFAULT_MAX_RELATIVE_STD_PCT",
+    "FusedBody",
     "IdentifiedModel",
     "LinkUpdate",
     "UrdfUpdate",
+    "compose_body",
+    "fused_bodies",
+    "identified_urdf",
+    "model_of_urdf",
     "parse_urdf",
     "update_urdf_inertials",
     "write_identified_model",
@@ -77,6 +111,10 @@ class LinkUpdate:
         Why the link kept its nominal inertial although it had candidates, else ``""``.
     relative_std_pct :
         ``{parameter: relative std [%]}`` of every parameter determined alone.
+    welded :
+        The other links fused into this body (behind fixed or locked joints).
+    welded_scale :
+        The factor their inertials were scaled by (1: kept, see :func:`compose_body`).
     """
 
     link: str
@@ -87,6 +125,8 @@ class LinkUpdate:
     not_determined: tuple[str, ...]
     problem: str = ""
     relative_std_pct: dict[str, float] = field(default_factory=dict)
+    welded: tuple[str, ...] = ()
+    welded_scale: float = 1.0
 
     @property
     def status(self) -> str:
@@ -135,51 +175,41 @@ class UrdfUpdate:
         return {link.link: link.problem for link in self.links if link.problem}
 
 
-def parse_urdf(urdf_text: str, source: str = "URDF") -> ET.Element:
-    """Parse URDF text into an element tree, refusing what the robot loader would not read.
-
-    Raises
-    ------
-    ModelError
-        For a document type declaration (entities), malformed XML, or a root other than
-        ``<robot>``; nothing has been changed then.
-    """
-    refuse_dtd(urdf_text, source)  # the rule of every URDF reader (ident.inputs)
-    try:
-        root = ET.fromstring(urdf_text)
-    except ET.ParseError as e:
-        raise ModelError(f"{source}: not well-formed XML ({e}).") from e
-    if root.tag != "robot":
-        raise ModelError(f"{source}: the root element is <{root.tag}>, expected <robot>.")
-    return root
-
-
-def _fmt(value: float) -> str:
-    """Shortest text that reads back as the same float (write-back must not round)."""
-    return repr(float(value))
-
-
-def _inertial_element(link: ET.Element, phi: FloatArray) -> None:
-    """Replace ``link``'s ``<inertial>`` by the parameters ``phi`` (about the link origin)."""
+def _own_edits(urdf: UrdfSpans, link: str, own: FloatArray) -> tuple[int, int, bytes]:
+    """The edit writing ``own`` (about the link origin) as the link's ``<inertial>``."""
     from ident.robot.inertia import com_and_inertia
 
-    mass, com, inertia = com_and_inertia(phi)
-    old = link.find("inertial")
-    if old is not None:
-        link.remove(old)
-    inertial = ET.SubElement(link, "inertial")
-    ET.SubElement(inertial, "mass", value=_fmt(float(mass)))
-    ET.SubElement(inertial, "origin", rpy="0 0 0", xyz=" ".join(_fmt(c) for c in com))
-    ET.SubElement(
-        inertial,
-        "inertia",
-        ixx=_fmt(inertia[0, 0]),
-        ixy=_fmt(inertia[0, 1]),
-        ixz=_fmt(inertia[0, 2]),
-        iyy=_fmt(inertia[1, 1]),
-        iyz=_fmt(inertia[1, 2]),
-        izz=_fmt(inertia[2, 2]),
-    )
+    mass, com, inertia = com_and_inertia(own)
+    if not mass > 0:
+        com, inertia = np.zeros(3), np.zeros((3, 3))
+    return inertial_edit(urdf, link, float(mass), com, inertia)
+
+
+def _scaled_edit(
+    urdf: UrdfSpans, root: ET.Element, link: str, scale: float
+) -> tuple[int, int, bytes]:
+    """The edit scaling ``link``'s own inertial by ``scale`` (same centre of mass)."""
+    element = {e.get("name"): e for e in root.findall("link")}[link]
+    return _own_edits(urdf, link, scale * link_inertial(element))
+
+
+def _model_and_bodies(
+    urdf_text: str,
+    joint_names: tuple[str, ...],
+    model: pin.Model | None,
+    locked: Mapping[str, float] | None,
+    source: str,
+) -> tuple[ET.Element, list[FusedBody]]:
+    root = parse_urdf(urdf_text, source)
+    if model is None:
+        model = model_of_urdf(urdf_text, locked, source)
+    if tuple(model.names[1:]) != tuple(joint_names):
+        raise ModelError(
+            f"{source}: the model's moving joints ({', '.join(model.names[1:])}) are not the "
+            f"identified ones ({', '.join(joint_names)}); lock the same joints as the "
+            "identification did."
+        )
+    return root, fused_bodies(root, model, source)
 
 
 def update_urdf_inertials(
@@ -189,6 +219,8 @@ def update_urdf_inertials(
     identified: dict[str, tuple[float, float]],
     *,
     max_relative_std_pct: float = DEFAULT_MAX_RELATIVE_STD_PCT,
+    locked: Mapping[str, float] | None = None,
+    model: pin.Model | None = None,
 ) -> UrdfUpdate:
     """Return a URDF copy with the well-identified, consistent standard parameters replaced.
 
@@ -197,7 +229,8 @@ def update_urdf_inertials(
     urdf_text :
         Original URDF.
     joint_names :
-        Joints in chain order; body ``i`` is the child link of joint ``i``.
+        Joints in chain order; body ``i`` is carried by joint ``i`` (its child link, plus the
+        links fused into it: see :func:`fused_bodies`).
     nominal :
         Nominal standard parameters (about each joint frame's origin), Pinocchio order,
         shape (10 * n,).
@@ -207,28 +240,28 @@ def update_urdf_inertials(
         above the threshold.
     max_relative_std_pct :
         Only values with a relative standard deviation below this are written [%].
+    locked :
+        Joints the identification held fixed (name -> position), as in
+        :meth:`ident.model.Robot.from_urdf`; ignored when ``model`` is given.
+    model :
+        The identified robot's Pinocchio model (``Robot.model``); built from the text and
+        ``locked`` when omitted.
 
     Raises
     ------
     ModelError
-        If a joint or its child link is not in the URDF.
+        If a joint or its child link is not in the URDF, or the model's joints differ from
+        ``joint_names``.
     """
     from ident.robot.inertia import consistency_problems
 
     if not max_relative_std_pct > 0:
         raise ValueError(f"max_relative_std_pct = {max_relative_std_pct} must be > 0")
-    root = parse_urdf(urdf_text)
-    child_of = {
-        j.get("name"): j.find("child").get("link")  # type: ignore[union-attr]
-        for j in root.iter("joint")
-        if j.find("child") is not None
-    }
-    links = {link.get("name"): link for link in root.iter("link")}
+    root, bodies = _model_and_bodies(urdf_text, joint_names, model, locked, "URDF")
+    urdf = spans(urdf_text)
+    edits = []
     updates: list[LinkUpdate] = []
-    for i, joint in enumerate(joint_names):
-        link_name = child_of.get(joint)
-        if link_name is None or link_name not in links:
-            raise ModelError(f"URDF: joint {joint!r} or its child link not found.")
+    for i, fused in enumerate(bodies):
         phi = np.array(nominal[10 * i : 10 * i + 10], dtype=float)
         candidates: dict[str, tuple[float, float]] = {}
         uncertain: dict[str, float] = {}
@@ -249,6 +282,7 @@ def update_urdf_inertials(
         problem = ""
         written: dict[str, tuple[float, float]] = {}
         rejected: dict[str, tuple[float, float]] = {}
+        scale = 1.0
         if candidates:
             problems = consistency_problems(phi)
             if problems:
@@ -256,23 +290,26 @@ def update_urdf_inertials(
                 rejected = candidates
             else:
                 written = candidates
-                _inertial_element(links[link_name], phi)
+                own, scale = compose_body(phi, fused.welded_sum)
+                edits.append(_own_edits(urdf, fused.carrier, own))
+                if scale != 1.0:
+                    edits.extend(_scaled_edit(urdf, root, n, scale) for n, _ in fused.welded)
         updates.append(
             LinkUpdate(
-                link=link_name,
-                joint=joint,
+                link=fused.carrier,
+                joint=fused.joint,
                 written=written,
                 uncertain=uncertain,
                 rejected=rejected,
                 not_determined=tuple(not_determined),
                 problem=problem,
                 relative_std_pct=relative_std,
+                welded=tuple(n for n, _ in fused.welded),
+                welded_scale=scale,
             )
         )
-    ET.indent(root, space="  ")
-    text = '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode")
     return UrdfUpdate(
-        text=text + "\n",
+        text=apply_edits(urdf.data, edits),
         links=tuple(updates),
         max_relative_std_pct=float(max_relative_std_pct),
     )
@@ -289,54 +326,26 @@ class IdentifiedModel:
     sidecar :
         JSON-ready mapping of every per-joint extra (see :func:`write_identified_model`).
     links :
-        Identified link names, in joint order.
+        Identified (carrying) link names, in joint order.
+    welded_scale :
+        ``{carrying link: s}`` for the bodies whose welded links were scaled by ``s < 1``
+        (see :func:`compose_body`); empty when every welded link kept its nominal inertial.
     """
 
     text: str
     sidecar: dict
     links: tuple[str, ...]
+    welded_scale: dict[str, float] = field(default_factory=dict)
 
 
-def _own_inertial(link: ET.Element) -> FloatArray:
-    """The link's own ``<inertial>`` as parameters about its frame origin (10,) [SI]."""
-    import pinocchio as pin
-
-    from ident.robot.inertia import parameters_from_com
-
-    inertial = link.find("inertial")
-    if inertial is None:
-        return np.zeros(10)
-    mass_el = inertial.find("mass")
-    mass = float(mass_el.get("value", 0.0)) if mass_el is not None else 0.0
-    origin = inertial.find("origin")
-    xyz = np.zeros(3)
-    rotation = np.eye(3)
-    if origin is not None:
-        xyz = np.array([float(v) for v in origin.get("xyz", "0 0 0").split()])
-        rpy = np.array([float(v) for v in origin.get("rpy", "0 0 0").split()])
-        rotation = pin.rpy.rpyToMatrix(rpy)
-    el = inertial.find("inertia")
-    values = {
-        k: float(el.get(k, 0.0)) if el is not None else 0.0
-        for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-    }
-    inertia = np.array(
-        [
-            [values["ixx"], values["ixy"], values["ixz"]],
-            [values["ixy"], values["iyy"], values["iyz"]],
-            [values["ixz"], values["iyz"], values["izz"]],
-        ]
-    )
-    return parameters_from_com(mass, xyz, rotation @ inertia @ rotation.T)
-
-
-def write_identified_model(
+def identified_urdf(
     urdf_text: str,
-    joint_names: tuple[str, ...],
+    model: pin.Model,
     theta: FloatArray,
     names: tuple[str, ...],
-    nominal: FloatArray,
     *,
+    nominal: FloatArray | None = None,
+    coupled_pair: tuple[int, int] | None = None,
     source: str = "URDF",
 ) -> IdentifiedModel:
     """Write a physically consistent estimate of the standard parameters into a URDF copy.
@@ -344,10 +353,12 @@ def write_identified_model(
     Parameters
     ----------
     urdf_text :
-        Original URDF (the one the estimate's nominal parameters come from).
-    joint_names :
-        Moving joints in chain order; body ``j`` (names ``m{j}``, ``mcx{j}``, ...) is carried
-        by joint ``j``, its link is the joint's child.
+        The robot's URDF (the file as written: transmissions, gazebo blocks, continuous
+        joints and meshes are kept as they are).
+    model :
+        The identified robot's Pinocchio model (``Robot.model``: continuous joints as revolute,
+        locked joints removed); body ``j`` (names ``m{j}``, ``mcx{j}``, ...) is carried by its
+        joint ``j``.
     theta :
         Standard parameters, shape (n_std,): per body ``m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz,
         Iyz, Izz`` about the joint frame origin (Pinocchio), plus the extras ``Ia{j}``,
@@ -355,57 +366,69 @@ def write_identified_model(
     names :
         Names of ``theta``.
     nominal :
-        The URDF's body parameters in the same order (Pinocchio's, fixed children merged),
-        shape (n_std,).
+        Optional check: the nominal parameters in the same order; each body must equal the sum
+        of its links' inertials in the file (else the model is not this file's, e.g. other
+        locks), to 1e-9 relative.
+    coupled_pair :
+        The two joints ``(a, b)`` (0-based, ``ExtraTerms.coupled_wrist``) that share the
+        coupled motor ``Iam{b+1}``; recorded as the motor's ``"joints"`` in the sidecar.
     source :
         Name of the URDF for messages.
 
     Returns
     -------
     :
-        The URDF text (every identified link's ``<inertial>`` replaced: mass, centre of
-        mass, inertia about it in the link axes; each joint's ``<dynamics damping=fv_j
-        friction=fs_j>`` where identified) and the sidecar
-        ``{"joints": {name: {"rotor_inertia", "viscous", "coulomb", "offset"}},
-        "coupled_motors": [...], "torque_model": ...}`` [SI].
+        The URDF text and the sidecar ``{"joints": {name: {"rotor_inertia", "viscous",
+        "coulomb", "offset"}}, "coupled_motors": [...], "torque_model": ...}`` [SI].
+        Only the ``<inertial>`` of the links of identified bodies and the ``<dynamics>`` of
+        the moving joints change (the viscous and Coulomb friction go into ``damping`` and
+        ``friction``); every other byte of the file is kept.
 
     Notes
     -----
-    Pinocchio merges links fixed to a link into its body. The part of the nominal body that
-    comes from such fixed links is kept where the URDF puts it, and the link's own inertial is
-    the identified body minus that part; it must be consistent too.
+    Pinocchio fuses the links behind fixed and locked joints into the body of the moving
+    joint above them. Each body is split back by :func:`compose_body`: the welded links keep
+    their nominal inertials when the carrying link is then consistent, else they are scaled
+    down (``IdentifiedModel.welded_scale``); either way the sum is the identified body, so the
+    reloaded model (with the same locks) has the estimate's rigid-body torques, and no link has
+    a negative mass.
 
     Raises
     ------
     ModelError
         If a body of ``theta`` is physically inconsistent (use a constrained estimator, or
-        the cautious :func:`update_urdf_inertials`), if the URDF has a DTD or is malformed, or
-        if a joint or its child link is missing. Nothing is written then.
+        the cautious :func:`update_urdf_inertials`), if the URDF has a DTD or is malformed, if
+        a joint or its child link is missing, or if ``nominal`` does not match the file.
+        Nothing is written then.
     """
     from ident.robot.inertia import consistency_problems
 
-    root = parse_urdf(urdf_text, source)
+    joint_names = tuple(model.names[1:])
+    root, bodies = _model_and_bodies(urdf_text, joint_names, model, None, source)
+    urdf = spans(urdf_text, source)
     theta = np.asarray(theta, dtype=float)
-    nominal = np.asarray(nominal, dtype=float)
     index = {name: i for i, name in enumerate(names)}
-    joints = {j.get("name"): j for j in root.iter("joint")}
-    links = {link.get("name"): link for link in root.iter("link")}
     problems = []
     plan = []
-    for j, joint in enumerate(joint_names, start=1):
-        element = joints.get(joint)
-        child = element.find("child") if element is not None else None
-        link_name = child.get("link") if child is not None else None
-        if element is None or link_name is None or link_name not in links:
-            raise ModelError(f"{source}: joint {joint!r} or its child link not found.")
-        body = np.array([theta[index[f"{label}{j}"]] for label in _LABELS])
-        body_nominal = np.array([nominal[index[f"{label}{j}"]] for label in _LABELS])
-        fused = body_nominal - _own_inertial(links[link_name])
-        own = body - fused
-        issue = consistency_problems(body) or consistency_problems(own)
+    for j, fused in enumerate(bodies, start=1):
+        try:
+            body = np.array([theta[index[f"{label}{j}"]] for label in _LABELS])
+        except KeyError as e:
+            raise ModelError(f"{source}: the estimate has no parameter {e} of body {j}.") from e
+        if nominal is not None:
+            expected = np.array([nominal[index[f"{label}{j}"]] for label in _LABELS])
+            links = {e.get("name"): e for e in root.findall("link")}
+            found = link_inertial(links[fused.carrier]) + fused.welded_sum
+            if not np.allclose(found, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max()):
+                raise ModelError(
+                    f"{source}: the nominal body of joint {fused.joint!r} is not the sum of its "
+                    "links' inertials in this file; give the model with the same locked joints "
+                    "as the identification."
+                )
+        issue = consistency_problems(body)
         if issue:
-            problems.append(f"{link_name}: {'; '.join(issue)}")
-        plan.append((element, links[link_name], own))
+            problems.append(f"{fused.carrier}: {'; '.join(issue)}")
+        plan.append((fused, body))
     if problems:
         raise ModelError(
             f"{source}: the estimate is not physically consistent ({' | '.join(problems)}); "
@@ -416,17 +439,19 @@ def write_identified_model(
     def extra(name: str) -> float | None:
         return float(theta[index[name]]) if name in index else None
 
+    edits = []
+    scales = {}
     sidecar_joints = {}
-    for j, (element, link, own) in enumerate(plan, start=1):
-        _inertial_element(link, own)
+    for j, (fused, body) in enumerate(plan, start=1):
+        own, scale = compose_body(body, fused.welded_sum)
+        edits.append(_own_edits(urdf, fused.carrier, own))
+        if scale != 1.0:
+            scales[fused.carrier] = scale
+            edits.extend(_scaled_edit(urdf, root, n, scale) for n, _ in fused.welded)
         fv, fs = extra(f"fv{j}"), extra(f"fs{j}")
         if fv is not None or fs is not None:
-            dynamics = element.find("dynamics")
-            if dynamics is None:
-                dynamics = ET.SubElement(element, "dynamics")
-            dynamics.set("damping", _fmt(fv or 0.0))
-            dynamics.set("friction", _fmt(fs or 0.0))
-        sidecar_joints[joint_names[j - 1]] = {
+            edits.append(dynamics_edit(urdf, fused.joint, fv or 0.0, fs or 0.0))
+        sidecar_joints[fused.joint] = {
             "rotor_inertia": extra(f"Ia{j}") or 0.0,
             "viscous": fv or 0.0,
             "coulomb": fs or 0.0,
@@ -436,9 +461,18 @@ def write_identified_model(
     for name in names:
         if name.startswith("Iam"):
             b = int(name[3:])
+            pair = None
+            if coupled_pair is not None:
+                if int(coupled_pair[1]) != b - 1:
+                    raise ModelError(
+                        f"{source}: coupled_pair {tuple(coupled_pair)} does not end at the "
+                        f"coupled motor's joint {b} ({name})."
+                    )
+                pair = [joint_names[int(k)] for k in coupled_pair]
             coupled.append(
                 {
                     "motor_joint": joint_names[b - 1],
+                    "joints": pair,
                     "rotor_inertia": extra(f"Iam{b}") or 0.0,
                     "viscous": extra(f"fvm{b}") or 0.0,
                     "coulomb": extra(f"fsm{b}") or 0.0,
@@ -455,10 +489,38 @@ def write_identified_model(
         "joints": sidecar_joints,
         "coupled_motors": coupled,
     }
-    ET.indent(root, space="  ")
-    text = '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode")
     return IdentifiedModel(
-        text=text + "\n",
+        text=apply_edits(urdf.data, edits),
         sidecar=sidecar,
-        links=tuple(str(link.get("name")) for _, link, _ in plan),
+        links=tuple(fused.carrier for fused, _ in plan),
+        welded_scale=scales,
+    )
+
+
+def write_identified_model(
+    urdf_text: str,
+    joint_names: tuple[str, ...],
+    theta: FloatArray,
+    names: tuple[str, ...],
+    nominal: FloatArray,
+    *,
+    source: str = "URDF",
+    locked: Mapping[str, float] | None = None,
+    coupled_pair: tuple[int, int] | None = None,
+) -> IdentifiedModel:
+    """:func:`identified_urdf` for callers without the robot's model.
+
+    The model is built from ``urdf_text`` with the joints ``locked`` held
+    (:func:`model_of_urdf`); its moving joints must be ``joint_names``, and ``nominal`` must
+    be its bodies (checked).
+    """
+    model = model_of_urdf(urdf_text, locked, source)
+    if tuple(model.names[1:]) != tuple(joint_names):
+        raise ModelError(
+            f"{source}: the model's moving joints ({', '.join(model.names[1:])}) are not the "
+            f"identified ones ({', '.join(joint_names)}); lock the same joints as the "
+            "identification did."
+        )
+    return identified_urdf(
+        urdf_text, model, theta, names, nominal=nominal, coupled_pair=coupled_pair, source=source
     )

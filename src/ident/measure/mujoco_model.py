@@ -22,6 +22,7 @@ matched to the robot's by name; links fixed to the world are fused by MuJoCo (th
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import mujoco
@@ -32,7 +33,7 @@ import pinocchio as pin
 from ident.errors import ModelError
 from ident.model import Robot
 
-__all__ = ["MujocoRobot", "dynamics_only_urdf", "load_mujoco"]
+__all__ = ["MujocoRobot", "dynamics_only_urdf", "load_mujoco", "mujoco_urdf"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -105,7 +106,21 @@ def dynamics_only_urdf(robot: Robot) -> str:
     ModelError
         If a locked joint is not in the URDF.
     """
-    root = ET.fromstring(robot.urdf_text)
+    return mujoco_urdf(robot.urdf_text, robot.locked_joints, str(robot.urdf_path or robot.name))
+
+
+def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) -> str:
+    """URDF text prepared for MuJoCo: no geometry, locked joints fixed, no ``<dynamics>``.
+
+    The conversion of :func:`dynamics_only_urdf` for any URDF text (e.g. a written identified
+    model): see the module docstring.
+
+    Raises
+    ------
+    ModelError
+        If a locked joint is not in the URDF.
+    """
+    root = ET.fromstring(urdf_text)
     for link in root.findall("link"):
         for tag in ("visual", "collision"):
             for element in link.findall(tag):
@@ -113,9 +128,9 @@ def dynamics_only_urdf(robot: Robot) -> str:
     for element in root.findall("mujoco"):
         root.remove(element)
     joints = {joint.get("name"): joint for joint in root.findall("joint")}
-    for name, value in robot.locked_joints.items():
+    for name, value in locked_joints.items():
         if name not in joints:
-            raise ModelError(f"robot {robot.name!r}: locked joint {name!r} is not in its URDF.")
+            raise ModelError(f"{where}: locked joint {name!r} is not in the URDF.")
         _lock(joints[name], float(value))
     for joint in joints.values():
         for tag in ("dynamics", "mimic"):

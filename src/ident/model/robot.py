@@ -42,6 +42,7 @@ from ident.robot.urdf_load import (
     check_inertials,
     continuous_as_revolute,
     lock_values,
+    locked_model,
     moving_links,
     parse_xml,
     suggested_locks,
@@ -199,18 +200,7 @@ class Robot:
                 locked[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
         if inertia_check:
             check_inertials(root, where, moving_links(model, locked))
-        if locked:
-            reference = pin.neutral(model)
-            for name, value in locked.items():
-                reference[model.joints[model.getJointId(name)].idx_q] = value
-            ids = [model.getJointId(name) for name in locked]
-            try:
-                model = pin.buildReducedModel(model, ids, reference)
-            except (RuntimeError, ValueError) as e:  # e.g. a link and a joint share a name
-                raise ModelError(
-                    f"{where}: Pinocchio cannot lock {', '.join(locked)} in this file ({e}); "
-                    "rename the links or joints that share a name."
-                ) from e
+        model = locked_model(model, locked, where)
         robot = cls(model, text, urdf_path=path)
         robot.continuous_joints = continuous
         robot.locked_joints = locked

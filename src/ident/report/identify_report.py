@@ -95,6 +95,7 @@ def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
         parameters_from_model(robot.model),
         identified,
         max_relative_std_pct=result.config.urdf_update.max_relative_std_pct,
+        model=robot.model,  # its links fused through fixed and locked joints
     )
 
 

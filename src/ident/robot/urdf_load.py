@@ -30,6 +30,7 @@ __all__ = [
     "check_inertials",
     "continuous_as_revolute",
     "lock_values",
+    "locked_model",
     "moving_links",
     "parse_xml",
     "suggested_locks",
@@ -196,6 +197,33 @@ def lock_values(
                 f"[{lower:g}, {upper:g}]; give a value within them."
             )
     return values
+
+
+def locked_model(model: pin.Model, locked: Mapping[str, float], where: str) -> pin.Model:
+    """Pinocchio's reduced model with the joints ``locked`` held at their values.
+
+    The links behind a locked joint are fused into the body of the nearest moving joint above
+    it (``pin.buildReducedModel``), as are links behind fixed joints. ``model`` itself when
+    nothing is locked.
+
+    Raises
+    ------
+    ModelError
+        If Pinocchio cannot lock the joints (e.g. a link and a joint share a name).
+    """
+    if not locked:
+        return model
+    reference = pin.neutral(model)
+    for name, value in locked.items():
+        reference[model.joints[model.getJointId(name)].idx_q] = value
+    ids = [model.getJointId(name) for name in locked]
+    try:
+        return pin.buildReducedModel(model, ids, reference)
+    except (RuntimeError, ValueError) as e:
+        raise ModelError(
+            f"{where}: Pinocchio cannot lock {', '.join(locked)} in this file ({e}); "
+            "rename the links or joints that share a name."
+        ) from e
 
 
 def suggested_locks(model: pin.Model) -> tuple[str, ...]:

@@ -8,10 +8,9 @@ for the whole-model URDF and its sidecar.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any
 
-from ident.identify.urdf_update import IdentifiedModel, write_identified_model
+from ident.identify.urdf_update import IdentifiedModel, identified_urdf
 
 __all__ = ["consistency_summary", "identified_model"]
 
@@ -92,13 +91,16 @@ def identified_model(result: Any) -> IdentifiedModel | None:
     consistent = result.consistent
     if consistent is None or consistent.constrained is None:
         return None
+    from ident.model.selection import load_robot
+
     est = consistent.constrained
-    urdf = Path(result.config.robot.urdf)
-    return write_identified_model(
-        urdf.read_text(encoding="utf-8"),
-        tuple(result.joint_names),
+    robot = load_robot(result.config.robot)  # the robot the identification used (chain, locks)
+    return identified_urdf(
+        robot.urdf_text,
+        robot.model,
         est.theta,
         consistent.structure.names,
-        consistent.structure.nominal,
-        source=str(urdf),
+        nominal=consistent.structure.nominal,
+        coupled_pair=result.parameters.terms.coupled_wrist,
+        source=str(result.config.robot.urdf),
     )
