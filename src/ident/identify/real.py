@@ -323,6 +323,7 @@ def _identify_log(
         log.sampling_rate_hz,
         None if log.dq is None else log.dq[first],
     )
+    auto_warnings = [*log.warnings, *auto_warnings]  # what reading the log changed, first
     cfg = cfg.model_copy(update={"preprocess": settings})
     log = dataclasses.replace(log, records=(*log.records, *auto_records))
     if accumulate.use_chunks(log, cfg.preprocess, 10 * model.nv + 4 * model.nv):

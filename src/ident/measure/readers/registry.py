@@ -60,12 +60,18 @@ class LogTable:
         Name of the time column [s] when the source has one, else None.
     source :
         File (and topic) the table comes from, for messages.
+    line_numbers :
+        File line of each sample (text logs), for messages; None otherwise.
+    warnings :
+        What the reader did that a user must know (e.g. receive times used for messages
+        without a stamp), one sentence each with the count and the first place.
     """
 
     columns: Mapping[str, FloatArray]
     time: str | None = None
     source: str = ""
     line_numbers: npt.NDArray[np.int64] | None = field(default=None, repr=False)
+    warnings: tuple[str, ...] = ()
 
     @property
     def n_samples(self) -> int:
