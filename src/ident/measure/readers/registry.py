@@ -37,6 +37,7 @@ __all__ = [
     "READERS",
     "LogTable",
     "ReaderEntry",
+    "check_regular_file",
     "detect_format",
     "read_tables",
     "register_reader",
@@ -128,6 +129,19 @@ def register_reader(
         One line for ``ident logs inspect --formats`` and messages.
     """
     READERS[name] = ReaderEntry(read=read, detect=detect, description=description)
+
+
+def check_regular_file(path: Path) -> None:
+    """Refuse a path that is not a regular file (a device such as ``/dev/zero``, a pipe).
+
+    Raises
+    ------
+    DataError
+        Naming the path.
+    """
+    if not path.is_file():
+        kind = "a folder" if path.is_dir() else "not a regular file (a device or a pipe)"
+        raise DataError(f"{path}: is {kind}; give a log file.")
 
 
 def detect_format(path: str | Path) -> str:
