@@ -1,7 +1,8 @@
 """``ident logs inspect FILE``: what a log holds, and a config skeleton to start from.
 
-Lists the tables (files, ROS topics) with their columns, value ranges, sampling rate, jitter
-and gaps, then prints a ``log:`` section that names the columns that look like positions,
+Lists the tables (files, ROS topics) with their columns, value ranges, sampling rate, jitter,
+gaps and time anomalies (NaN/inf stamps, duplicates, backwards jumps: count and first place),
+then prints a ``log:`` section that names the columns that look like positions,
 velocities and torques. Reads through the same reader registry as ``ident identify``.
 """
 
@@ -176,9 +177,17 @@ def inspect(
             elif time is not None:
                 name, unit = time
                 t = table.columns[name] * _TIME_SCALE[unit]
-                typer.echo(f"  time '{name}' [{unit}]: {timebase.summarize_time(t).text()}")
+                summary = timebase.summarize_time(t)
+                typer.echo(f"  time '{name}' [{unit}]: {summary.text(table.line_numbers)}")
+                if summary.anomalies.any:
+                    typer.echo(
+                        "  time rule when identifying: NaN/inf stamps refused, duplicates "
+                        "dropped, backwards jumps split into segments (docs/logs.md)"
+                    )
             else:
                 typer.echo("  no time column: give log.sampling_rate_hz (or log.time.column)")
+            for warning in table.warnings:
+                typer.echo(f"  warning: {warning}")
             for k, (name, values) in enumerate(table.columns.items()):
                 if k == max_columns:
                     typer.echo(f"  ... {len(table.columns) - max_columns} more")

@@ -27,12 +27,14 @@ import numpy.typing as npt
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import LogConfig, SignalFile, TransmissionConfig
+from ident.inputs import JobEstimate
 from ident.measure import timebase
-from ident.measure.readers import LogTable, read_tables
+from ident.measure.readers import LogTable, estimate_read, read_tables
 
 __all__ = [
     "RobotLog",
     "Transmission",
+    "estimate_log",
     "read_csv_columns",
     "read_log",
     "transmission_from_config",
@@ -467,6 +469,30 @@ def _join(
     return out, None, "; ".join(notes), warnings
 
 
+# Reading holds the file's columns, then the converted signals (q, tau, dq, t) beside them.
+_READ_OVERHEAD = 2.0
+
+
+def estimate_log(cfg: LogConfig) -> JobEstimate:
+    """Memory and time of reading the log of a config (and its ``more`` logs), from the
+    files' sizes and headers (:func:`ident.measure.readers.estimate_read`), before reading.
+    """
+    memory, seconds, names = 0.0, 0.0, []
+    for entry in cfg.all_logs():
+        for f in entry.sources():
+            options = f.model_dump(exclude={"path", "format"})
+            estimate = estimate_read(f.path, f.format, **options)
+            if estimate is not None:
+                memory += estimate.memory_bytes
+                seconds += estimate.seconds
+                names.append(Path(f.path).name)
+    return JobEstimate(
+        f"reading the log ({', '.join(dict.fromkeys(names)) or 'no estimate'})",
+        _READ_OVERHEAD * memory,
+        seconds,
+    )
+
+
 def read_log(
     cfg: LogConfig,
     transmission: TransmissionConfig,
@@ -692,7 +718,7 @@ def _read_one(
         fs = float(cfg.sampling_rate_hz)
         t = np.arange(n) / fs
         time_note = f"sampling rate {fs:g} Hz (no time column)"
-        segments = _windowed(t, [(0, n)], windows, files)
+        segments = _windowed(t, [(0, n)], windows, files, source)
         signals = [q, tau] + ([dq] if dq is not None else [])
     else:
         unit = cfg.time.unit if cfg.time is not None else "s"
@@ -700,7 +726,7 @@ def _read_one(
         t = t - t[0]
         summary = timebase.summarize_time(t, gap_factor=cfg.gap_factor)
         raw_segments = timebase.find_segments(t, gap_factor=cfg.gap_factor, max_gap_s=cfg.max_gap_s)
-        segments = _windowed(t, raw_segments, windows, files)
+        segments = _windowed(t, raw_segments, windows, files, source)
         fs = cfg.resample_hz or summary.rate_hz
         time_note = f"{what}: {summary.text()}"
         signals = [q, tau] + ([dq] if dq is not None else [])
@@ -777,18 +803,20 @@ def _windowed(
     segments: list[tuple[int, int]],
     windows: list[tuple[float | None, float | None]],
     files: str,
+    source: str,
 ) -> list[tuple[int, int]]:
     """Segments cut to ``log.windows``; each window must be ordered, not negative, and hold
     samples of the log (its time from 0 to its end)."""
     for k, (start_s, end_s) in enumerate(windows):
         where = f"log.windows[{k}] = [{start_s}, {end_s}] s"
+        here = f"{source}: {where}"
         values = [v for v in (start_s, end_s) if v is not None]
         if any(not np.isfinite(v) or v < 0 for v in values):
             raise ConfigError(
-                f"{where}: times are seconds from the log's first sample, finite and >= 0."
+                f"{here}: times are seconds from the log's first sample, finite and >= 0."
             )
         if start_s is not None and end_s is not None and end_s <= start_s:
-            raise ConfigError(f"{where}: end_s must be after start_s; swap them.")
+            raise ConfigError(f"{here}: end_s must be after start_s; swap them.")
         if not timebase.windows_to_segments(t, segments, [(start_s, end_s)]):
             raise DataError(
                 f"{files}: {where} holds no sample: the log runs from 0 to {t[-1]:.6g} s; "

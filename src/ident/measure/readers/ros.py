@@ -50,6 +50,8 @@ __all__ = [
     "MAX_CHUNK_BYTES",
     "MAX_MESSAGE_BYTES",
     "MAX_VALUES",
+    "estimate_mcap",
+    "estimate_rosbag",
     "is_mcap",
     "is_rosbag",
     "read_mcap",
@@ -62,6 +64,7 @@ MAX_CHUNK_BYTES = 64 << 20
 MAX_MESSAGE_BYTES = 16 << 20
 MAX_VALUES = 100_000  # numbers per message, i.e. columns of a topic
 _FIRST_CAPACITY = 4096  # rows allocated for a topic whose message count is not declared
+_SECONDS_PER_MESSAGE = 1e-4  # decoding and flattening, measured: 70 us for a JointState
 
 
 def is_rosbag(path: Path) -> bool:
@@ -281,6 +284,45 @@ def _too_big(path: Path, what: str, size: int, limit: int) -> DataError:
         f"{path}: {what} declares {size} bytes once decompressed, more than {limit} allowed "
         "(a decompression bomb or a damaged file); re-record it with smaller chunks."
     )
+
+
+def _estimate(path: Path, n_messages: int, n_bytes: int) -> JobEstimate:
+    """Reading ``n_messages`` of ``n_bytes`` serialized: the columns take about as many bytes
+    as the messages (a 7-joint JointState: 290 bytes, 23 numbers of 8 bytes)."""
+    return JobEstimate(
+        f"reading {path.name}: {n_messages} messages",
+        1.5 * n_bytes,
+        n_messages * _SECONDS_PER_MESSAGE,
+    )
+
+
+def estimate_mcap(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    """Memory and time of reading the MCAP file ``path``, from its summary (or its size)."""
+    from mcap.reader import make_reader
+
+    size = path.stat().st_size
+    try:
+        with open(path, "rb") as f:
+            summary = make_reader(f).get_summary()
+    except Exception as e:  # the reader says what is wrong with the file
+        raise _damaged(path, "MCAP file", e) from e
+    if summary is None or summary.statistics is None:
+        return _estimate(path, size // 300, size)
+    n_bytes = sum(c.uncompressed_size for c in summary.chunk_indexes) or size
+    return _estimate(path, int(summary.statistics.message_count), n_bytes)
+
+
+def estimate_rosbag(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    """Memory and time of reading the bag folder ``path``, from its metadata and file sizes."""
+    from rosbags.rosbag2 import Reader
+
+    n_bytes = sum(p.stat().st_size for p in path.iterdir() if p.is_file())
+    try:
+        with Reader(path) as reader:
+            n_messages = int(reader.message_count)
+    except Exception as e:  # rosbags says what is wrong with the bag
+        raise _damaged(path, "ROS 2 bag", e) from e
+    return _estimate(path, n_messages, n_bytes)
 
 
 def read_rosbag(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
