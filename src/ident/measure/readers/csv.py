@@ -139,11 +139,13 @@ def _check_memory(path: Path, n_rows: int, n_columns: int) -> None:
 
 def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
     """Memory and time of reading the text log ``path`` (its size over its first line's)."""
-    first = ""
+    first = ""  # the first data line (the second non-blank one when there is a header)
+    seen = 0
     for _, line in _lines(path):
         if line.strip():
-            first = line
-            break
+            first, seen = line, seen + 1
+            if seen == 2:
+                break
     size = text_size(path)
     n_rows = size / max(len(first), 1)
     n_columns = max(len(_split(first, options.get("delimiter") or sniff_delimiter(first))), 1)
