@@ -427,7 +427,8 @@ def _join(
             out.append(data if rows is None else data[rows])
             continue
         t_other = _time_of(table, cfg)
-        if t_ref is None or t_other is None or np.array_equal(t_ref_raw, t_other):
+        same = t_ref_raw is not None and t_other is not None and np.array_equal(t_ref_raw, t_other)
+        if t_ref is None or t_other is None or same:
             if data.shape[0] != ref_data.shape[0]:
                 raise DataError(
                     f"{ref_table.source} has {ref_data.shape[0]} samples but {table.source} has "

@@ -104,7 +104,7 @@ def _flatten(
     """Append the numeric fields of ``msg`` as column names (unless ``keys`` is None: names
     are made once per topic) and values; ``shape`` gets what the names depend on (the joint
     names and array sizes), compared from message to message."""
-    names = getattr(msg, "name", None)
+    names: Any = getattr(msg, "name", None)
     by_name = (
         isinstance(names, list | tuple)
         and len(names) > 0
@@ -150,6 +150,9 @@ class _Topic:
     ) -> None:
         self.source, self.topic, self.keys, self.shape = source, topic, keys, shape
         self.n = 0
+        self.values: npt.NDArray[np.float64] = np.empty((0, len(keys)))
+        self.stamps: npt.NDArray[np.int64] = np.empty(0, dtype=np.int64)
+        self.recorded: npt.NDArray[np.int64] = np.empty(0, dtype=np.int64)
         self.has_header = False
         self.n_missing = 0
         self.first_missing: int | None = None
