@@ -49,10 +49,11 @@ def joint_states(
     names: Sequence[str] | None = None,
     chunk_size: int = 1 << 20,
     compression: str = "zstd",
+    efforts: np.ndarray | None = None,
 ) -> Path:
     """Write ``/joint_states`` messages: positions ``q`` (n, nj), velocity ``2 q``, effort
-    ``3 q``; ``stamps_s[k]`` is the header stamp [s] (None: zero, i.e. no stamp); message k is
-    recorded at ``RECORDED_T0_NS + k`` ms."""
+    ``efforts`` (default ``3 q``); ``stamps_s[k]`` is the header stamp [s] (None: zero, i.e.
+    no stamp); message k is recorded at ``RECORDED_T0_NS + k`` ms."""
     from mcap.writer import CompressionType, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -69,6 +70,7 @@ def joint_states(
             "sensor_msgs/msg/JointState", "ros2msg", JOINT_STATE.encode()
         )
         channel = writer.register_channel("/joint_states", "cdr", schema)
+        effort = 3.0 * q if efforts is None else efforts
         for k, (row, stamp) in enumerate(zip(q, stamps_s, strict=True)):
             sec = int(np.floor(stamp)) if stamp is not None else 0
             nanosec = int(round((stamp - sec) * 1e9)) if stamp is not None else 0
@@ -77,7 +79,7 @@ def joint_states(
                 name=names,
                 position=row,
                 velocity=2.0 * row,
-                effort=3.0 * row,
+                effort=np.asarray(effort[k], dtype=float),
             )
             ns = RECORDED_T0_NS + k * 1_000_000
             data = store.serialize_cdr(msg, "sensor_msgs/msg/JointState")
