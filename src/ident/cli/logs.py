@@ -162,11 +162,17 @@ def inspect(
 ) -> None:
     """List the columns/topics of FILE with rates, jitter, gaps and ranges; print a config
     skeleton."""
+    from ident.inputs import check_job
     from ident.measure import timebase
-    from ident.measure.readers import detect_format, read_tables
+    from ident.measure.readers import detect_format, estimate_read, read_tables
 
     with user_errors():
         fmt = format or detect_format(file)
+        estimate = estimate_read(file, fmt, topics=topic)
+        if estimate is not None:  # from the file's size and headers, before reading it
+            check_job(estimate)
+            if estimate.seconds > 60.0 or estimate.memory_bytes > 2e9:
+                typer.echo(f"estimate: {estimate.describe()}", err=True)
         tables = read_tables(file, fmt, topics=topic)
         typer.echo(f"{file}: format {fmt}, {len(tables)} table(s)")
         for table in tables:
