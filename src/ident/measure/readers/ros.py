@@ -163,11 +163,12 @@ class _Topic:
         check_job(
             JobEstimate(
                 f"{self.source}: {self.topic}: {capacity} messages x {len(self.keys)} values",
-                per_row * capacity * 1.5,  # the arrays and the columns made from them
+                per_row * capacity,  # the columns are views of these arrays
                 0.0,
             )
         )
-        values = np.empty((capacity, len(self.keys)))
+        # column-major: every column of the table is a contiguous view of this block
+        values = np.empty((capacity, len(self.keys)), order="F")
         stamps = np.empty(capacity, dtype=np.int64)
         recorded = np.empty(capacity, dtype=np.int64)
         if self.n:
@@ -261,9 +262,11 @@ def _tables(
     for topic, entry in built.items():
         ns, warning = times[topic]
         columns = {f"{topic}/t": (ns - t0).astype(float) * 1e-9}
+        block = entry.values
+        if entry.n < block.shape[0] // 2:  # far fewer messages than declared: trim the block
+            block = np.asfortranarray(block[: entry.n])
         for k, key in enumerate(entry.keys):
-            columns[key] = np.ascontiguousarray(entry.values[: entry.n, k])
-        entry.values = np.empty((0, 0))  # the columns are copies: free the block now
+            columns[key] = block[: entry.n, k]  # views, no copy
         tables.append(
             LogTable(
                 columns=columns,
