@@ -227,3 +227,36 @@ def test_sample_count_mismatch(tmp_path):
     )
     with pytest.raises(DataError, match="has 5 samples but .* has 6"):
         read_log(cfg, TransmissionConfig(), JOINTS)
+
+
+def test_second_file_joined_on_time_duplicates_dropped_and_more_logs_named(tmp_path):
+    """Torques in a second file with their own stamps, one duplicated: the duplicate is dropped
+    with a warning naming that file's line, and the torques are interpolated exactly (cubic
+    signals through a cubic spline); the same file as a ``more:`` log is named as such."""
+    t = np.arange(100) / 100.0
+    q = np.column_stack([t, t**2, t**3])
+    t2 = t + 0.004  # the torque logger runs 4 ms later
+    y = np.column_stack([t2, 2 * t2, t2**3])
+    t2[30] = t2[29]  # a duplicated stamp (the row carries another value: it is dropped)
+    _write(tmp_path / "q.csv", ["t", "q1", "q2", "q3"], np.column_stack([t, q]))
+    _write(tmp_path / "y.csv", ["t", "y1", "y2", "y3"], np.column_stack([t2, y]))
+    section = {
+        "files": [{"path": tmp_path / "q.csv"}, {"path": tmp_path / "y.csv"}],
+        "time": {"column": "t"},
+        "position": {"columns": ["q1", "q2", "q3"]},
+        "torque": {"columns": ["y1", "y2", "y3"]},
+    }
+    log = read_log(LogConfig.model_validate(section), TransmissionConfig(), JOINTS)
+    (warning,) = log.warnings
+    assert "y.csv: time column 't': 1 duplicated time stamp(s) dropped" in warning
+    assert "first at line 32" in warning
+    # only the span both files cover is kept: from the first position stamp after 0.004 s
+    t_abs = log.t + 0.01
+    np.testing.assert_allclose(log.q[:, 0], t_abs, atol=1e-12)
+    expected = np.column_stack([t_abs, 2 * t_abs, t_abs**3])
+    np.testing.assert_allclose(log.tau, expected, atol=1e-12)
+    # as a second log (more:), the warning says which
+    more = {**section, "more": [dict(section)]}
+    log = read_log(LogConfig.model_validate(more), TransmissionConfig(), JOINTS)
+    assert len(log.warnings) == 2
+    assert log.warnings[1].startswith("log.more[0]: ")
