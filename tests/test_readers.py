@@ -380,3 +380,51 @@ def test_npz_checked_from_its_headers(tmp_path, monkeypatch):
     np.savez(tmp_path / "ok.npz", t=np.arange(5.0), q=np.ones((5, 2)), rate=100.0)
     (table,) = read_tables(tmp_path / "ok.npz")
     assert list(table.columns) == ["t", "q/0", "q/1"]  # the scalar is not a column
+
+
+def test_bag_with_mcap_storage_is_checked_for_bombs_too(tmp_path):
+    import shutil
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection("/cmd", "std_msgs/msg/Float64MultiArray", typestore=store)
+        Array = store.types["std_msgs/msg/Float64MultiArray"]
+        Layout = store.types["std_msgs/msg/MultiArrayLayout"]
+        msg = Array(layout=Layout(dim=[], data_offset=0), data=np.zeros(3))
+        writer.write(conn, 1, store.serialize_cdr(msg, conn.msgtype))
+    (storage,) = bag.glob("*.mcap")
+    shutil.copy(HOSTILE_LOGS / "zstd_bomb.mcap", storage)  # same topic and type
+    with pytest.raises(DataError, match="a zstd chunk declares 160000502 bytes"):
+        read_tables(bag)
+
+
+def test_gzip_text_estimated_from_its_trailer_before_reading(tmp_path, monkeypatch):
+    """A .csv.gz whose trailer says 3 GiB of text (the issue's 11 MB bomb) is refused from the
+    estimate alone, before a byte is decompressed: ``ident identify`` checks it first."""
+    from ident.identify.logs import estimate_log
+    from ident.inputs import check_job
+
+    path = tmp_path / "bomb.csv.gz"
+    with gzip.open(path, "wb") as f:
+        f.write(b"t,q1,q2,tau1,tau2\n" + b"0,0,0,0,0\n" * 1000)
+    data = bytearray(path.read_bytes())
+    data[-4:] = (3 << 30).to_bytes(4, "little")  # what the real 3 GiB file's trailer holds
+    path.write_bytes(bytes(data))
+    cfg = LogConfig.model_validate(
+        {
+            "path": path,
+            "time": {"column": "t"},
+            "position": {"columns": ["q1", "q2"]},
+            "torque": {"columns": ["tau1", "tau2"]},
+        }
+    )
+    estimate = estimate_log(cfg)
+    rows = (3 << 30) / 10  # 10 characters per line
+    assert estimate.memory_bytes == pytest.approx(2 * 2 * 8 * 5 * rows, rel=0.01)
+    monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "2")
+    with pytest.raises(ConfigError, match=r"reading the log \(bomb.csv.gz\).*above the memory"):
+        check_job(estimate)

@@ -339,6 +339,11 @@ def read_rosbag(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     typestore = get_typestore(Stores.ROS2_HUMBLE)
     topics = options.get("topics")
     try:
+        for storage in sorted(path.glob("*.mcap")):  # mcap storage: chunks checked first
+            from mcap.reader import make_reader
+
+            with open(storage, "rb") as f:
+                _check_chunks(storage, f, make_reader(f).get_summary())
         with Reader(path) as reader:
             connections = [c for c in reader.connections if topics is None or c.topic in topics]
             counts: dict[str, int] = {}
