@@ -641,8 +641,11 @@ def _read_one(
             gap_factor=cfg.gap_factor,
             max_gap_s=cfg.max_gap_s,
         )
-        t, rows, t_join = cleaned.t, cleaned.index, t_raw[cleaned.index]
-        warnings += cleaned.warnings
+        t, warnings = cleaned.t, warnings + list(cleaned.warnings)
+        if cleaned.index.size == t_raw.size:  # every row kept: no copy of the signals
+            rows, t_join = None, t_raw
+        else:
+            rows, t_join = cleaned.index, t_raw[cleaned.index]
     arrays, keep, join_note, join_warnings = _join(parts, cfg, t_join, rows)
     warnings += join_warnings
     if keep is not None and t is not None:
