@@ -428,3 +428,20 @@ def test_gzip_text_estimated_from_its_trailer_before_reading(tmp_path, monkeypat
     monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "2")
     with pytest.raises(ConfigError, match=r"reading the log \(bomb.csv.gz\).*above the memory"):
         check_job(estimate)
+
+
+def test_long_csv_keeps_the_file_order_and_refuses_nan_stamps(tmp_path):
+    # two joints; the clock goes back after the third sample
+    times = [10.0, 10.01, 10.02, 5.0, 5.01]
+    rows = ["t,joint,pos"]
+    for k, t in enumerate(times):
+        rows += [f"{t},b,{k + 0.5}", f"{t},a,{k}"]  # joints in any order within a sample
+    (tmp_path / "l.csv").write_text("\n".join(rows) + "\n")
+    (table,) = read_tables(tmp_path / "l.csv", "csv_long")
+    np.testing.assert_array_equal(table.columns["t"], times)  # not sorted
+    np.testing.assert_array_equal(table.columns["pos/a"], [0, 1, 2, 3, 4])
+    np.testing.assert_array_equal(table.columns["pos/b"], [0.5, 1.5, 2.5, 3.5, 4.5])
+    rows[7] = "nan,b,9"  # line 8
+    (tmp_path / "l.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(DataError, match="NaN or infinite, the first at line 8"):
+        read_tables(tmp_path / "l.csv", "csv_long")

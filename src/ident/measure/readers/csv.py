@@ -295,8 +295,9 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
 
     Options: ``time_column`` (default: a column named like time), ``joint_column`` (default
     ``joint``), plus those of :func:`read_csv`. The joint column holds names (text) or numbers.
-    Every other column ``v`` becomes one column ``v/<joint>`` per joint, on the sorted set of
-    time stamps; every joint must have a row at every time stamp.
+    Every other column ``v`` becomes one column ``v/<joint>`` per joint, on the time stamps in
+    the order they first appear (never sorted); every joint must have one row at every time
+    stamp. NaN/inf stamps are refused naming the line.
     """
     lines = _lines(path)
     first = _first_line(lines)
@@ -333,20 +334,33 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     ]
     data = _parse(path, numeric_lines, delimiter or None, numeric_header)
     t = data[:, numeric_header.index(time_col)]
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise DataError(
+            f"{path}: time column '{time_col}': {bad.size} time stamp(s) are NaN or infinite, "
+            f"the first at line {numeric_lines[bad[0]][0]}; remove or repair those rows."
+        )
     joint_names = list(dict.fromkeys(joints_raw))
-    stamps = np.unique(t)
+    # samples in the order of the file (never sorted: the time rule handles a backwards jump)
+    unique, first, inverse = np.unique(t, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(order.size, dtype=np.int64)
+    rank[order] = np.arange(order.size)
+    stamps = unique[order]
     columns: dict[str, FloatArray] = {time_col: stamps}
     joints_arr = np.array(joints_raw)
     for joint in joint_names:
         rows = np.flatnonzero(joints_arr == joint)
-        tj = t[rows]
-        order = np.argsort(tj, kind="stable")
-        if rows.size != stamps.size or np.any(tj[order] != stamps):
+        position = rank[inverse[rows]]
+        if rows.size != stamps.size or np.any(np.bincount(position, minlength=stamps.size) != 1):
             raise DataError(
                 f"{path}: joint '{joint}' has {rows.size} rows for {stamps.size} time stamps; "
-                "every joint needs one row per time stamp in the long format."
+                "every joint needs one row per time stamp in the long format (a stamp "
+                "repeated after a clock reset: split the file into several logs, log.more)."
             )
         for k, name in enumerate(numeric_header):
             if name != time_col:
-                columns[f"{name}/{joint}"] = np.ascontiguousarray(data[rows[order], k])
+                column = np.empty(stamps.size)
+                column[position] = data[rows, k]
+                columns[f"{name}/{joint}"] = column
     return [LogTable(columns=columns, time=None if unit_unknown else time_col, source=str(path))]
