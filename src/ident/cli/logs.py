@@ -66,12 +66,16 @@ def _unit_hint(name: str, kind: str) -> str | None:
 
 
 def _time_candidate(table) -> tuple[str, str] | None:  # noqa: ANN001
-    """A strictly increasing column named like time, and its unit, when the reader found none."""
+    """A column named like time that mostly increases (its anomalies are reported), and its
+    unit, when the reader found none."""
     if table.time is not None:
         return table.time, _unit_hint(table.time, "time") or "s"
     for name, values in table.columns.items():
-        if _TIME.search(name.lower()) and values.size > 1 and np.all(np.diff(values) > 0):
-            return name, _unit_hint(name, "time") or "s"
+        if _TIME.search(name.lower()) and values.size > 1:
+            with np.errstate(invalid="ignore"):
+                forward = np.count_nonzero(np.diff(values) > 0)
+            if forward > 0.5 * (values.size - 1):
+                return name, _unit_hint(name, "time") or "s"
     return None
 
 
