@@ -318,6 +318,7 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
                 f"{path}: long format needs a {what.replace('_', ' ')} "
                 f"({name or 'time'}); the header has {', '.join(header)}."
             )
+    assert time_col is not None  # checked just above
     j_idx = header.index(joint_col)
     numbered = []
     for number, line in lines:  # the long format is pivoted in memory: bounded by the ceiling
@@ -343,10 +344,10 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     joint_names = list(dict.fromkeys(joints_raw))
     # samples in the order of the file (never sorted: the time rule handles a backwards jump)
     unique, first, inverse = np.unique(t, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
-    rank = np.empty(order.size, dtype=np.int64)
-    rank[order] = np.arange(order.size)
-    stamps = unique[order]
+    appearance = np.argsort(first, kind="stable")
+    rank = np.empty(appearance.size, dtype=np.int64)
+    rank[appearance] = np.arange(appearance.size)
+    stamps = unique[appearance]
     columns: dict[str, FloatArray] = {time_col: stamps}
     joints_arr = np.array(joints_raw)
     for joint in joint_names:
