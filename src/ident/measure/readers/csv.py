@@ -343,8 +343,8 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
         )
     joint_names = list(dict.fromkeys(joints_raw))
     # samples in the order of the file (never sorted: the time rule handles a backwards jump)
-    unique, first, inverse = np.unique(t, return_index=True, return_inverse=True)
-    appearance = np.argsort(first, kind="stable")
+    unique, first_row, inverse = np.unique(t, return_index=True, return_inverse=True)
+    appearance = np.argsort(first_row, kind="stable")
     rank = np.empty(appearance.size, dtype=np.int64)
     rank[appearance] = np.arange(appearance.size)
     stamps = unique[appearance]
