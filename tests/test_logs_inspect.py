@@ -241,3 +241,21 @@ def test_identify_warns_of_a_backwards_jump_and_still_identifies(tmp_path) -> No
     with (run / "parameters.csv").open() as f:
         x = {row["name"]: float(row["value"]) for row in csv.DictReader(f)}
     np.testing.assert_allclose([x[f"fv{j}"] for j in (1, 2, 3)], FV, rtol=0.05)
+
+
+def test_identify_checks_the_reading_estimate_before_reading(tmp_path, monkeypatch) -> None:
+    """The estimate of reading the log (from the MCAP summary: 1200 messages) is checked
+    before the file is read: under a tiny time ceiling the job is refused, naming it."""
+    import ident.measure.readers.ros as ros
+
+    def never(*args, **kwargs):
+        raise AssertionError("the log was read before its estimate was checked")
+
+    monkeypatch.setattr(ros, "_tables", never)
+    monkeypatch.setenv("IDENT_MAX_HOURS", "1e-5")  # 36 ms
+    config = REPO / "configs" / "examples" / "mcap.yaml"
+    result = runner.invoke(app, ["identify", str(config), "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 2, result.output
+    assert "reading the log (joint_states.mcap): about" in result.output
+    assert "above the time ceiling" in result.output
+    assert not (tmp_path / "runs").exists()
