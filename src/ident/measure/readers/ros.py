@@ -320,14 +320,19 @@ def estimate_mcap(path: Path, options: Mapping[str, Any]) -> JobEstimate:
 
 def estimate_rosbag(path: Path, options: Mapping[str, Any]) -> JobEstimate:
     """Memory and time of reading the bag folder ``path``, from its metadata and file sizes."""
-    from rosbags.rosbag2 import Reader
+    from ident.config import read_yaml
 
     n_bytes = sum(p.stat().st_size for p in path.iterdir() if p.is_file())
-    try:
-        with Reader(path) as reader:
-            n_messages = int(reader.message_count)
-    except Exception as e:  # rosbags says what is wrong with the bag
-        raise _damaged(path, "ROS 2 bag", e) from e
+    try:  # the metadata only: opening the bag would decompress a compressed one
+        info = read_yaml(path / "metadata.yaml")["rosbag2_bagfile_information"]
+        n_messages = int(info["message_count"])
+    except (IdentError, KeyError, TypeError, ValueError) as e:
+        raise DataError(
+            f"{path}/metadata.yaml: no rosbag2_bagfile_information.message_count ({e}); "
+            "the bag's metadata is damaged: copy the bag again or re-record it."
+        ) from e
+    if info.get("compression_mode") == "file":  # stored compressed: about 3x once read
+        n_bytes *= 3
     return _estimate(path, n_messages, n_bytes)
 
 
