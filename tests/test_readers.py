@@ -445,3 +445,26 @@ def test_long_csv_keeps_the_file_order_and_refuses_nan_stamps(tmp_path):
     (tmp_path / "l.csv").write_text("\n".join(rows) + "\n")
     with pytest.raises(DataError, match="NaN or infinite, the first at line 8"):
         read_tables(tmp_path / "l.csv", "csv_long")
+
+
+def test_mcap_cut_off_by_a_crash_reads_its_complete_chunks_with_a_warning(tmp_path):
+    import ros_logs
+
+    n = 3000
+    q = _ramp(n)
+    full = ros_logs.joint_states(
+        tmp_path / "full.mcap", q, 1.0 + 1e-3 * np.arange(n), chunk_size=20_000
+    )
+    data = full.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])  # no summary, no footer, half a chunk at the end
+    (table,) = read_tables(cut)
+    k = table.n_samples
+    assert 0 < k < n
+    np.testing.assert_array_equal(table.columns["/joint_states/position/j2"], q[:k, 1])
+    (warning,) = table.warnings
+    assert f"the file ends early or is damaged after {k} messages" in warning
+    # a file cut before its first complete chunk: nothing to read, one error
+    cut.write_bytes(data[:200])
+    with pytest.raises(DataError, match="cannot read the MCAP file"):
+        read_tables(cut)

@@ -310,8 +310,8 @@ def estimate_mcap(path: Path, options: Mapping[str, Any]) -> JobEstimate:
     try:
         with open(path, "rb") as f:
             summary = make_reader(f).get_summary()
-    except Exception as e:  # the reader says what is wrong with the file
-        raise _damaged(path, "MCAP file", e) from e
+    except Exception:  # no readable summary (a recording cut off): from the size
+        summary = None
     if summary is None or summary.statistics is None:
         return _estimate(path, size // 300, size)
     n_bytes = sum(c.uncompressed_size for c in summary.chunk_indexes) or size
@@ -437,29 +437,93 @@ class _Decoders:
         return lambda data: typestore.deserialize_cdr(data, name)
 
 
+def _linear_messages(path: Path, f: Any, cut: list[str]) -> Iterator[tuple[Any, Any, Any]]:
+    """``(schema, channel, message)`` of an MCAP file without a usable summary (a writer that
+    wrote none, or a recording cut off: no footer), record by record, chunks checked before
+    they are decompressed. At a damaged or missing end after at least one message, reading
+    stops and ``cut`` gets a warning; before any message, the error is raised."""
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    f.seek(0)
+    schemas: dict[int, Any] = {}
+    channels: dict[int, Any] = {}
+    n = 0
+    records = StreamReader(f, record_size_limit=MAX_CHUNK_BYTES).records
+    while True:
+        try:
+            record = next(records)
+            if isinstance(record, Chunk):
+                if record.uncompressed_size > MAX_CHUNK_BYTES:
+                    raise _too_big(
+                        path,
+                        f"a {record.compression} chunk",
+                        record.uncompressed_size,
+                        MAX_CHUNK_BYTES,
+                    )
+                inner = breakup_chunk(record, validate_crc=True)
+            else:
+                inner = [record]
+        except StopIteration:
+            return
+        except IdentError:
+            raise
+        except Exception as e:  # a file cut off mid-record, or damaged from here on
+            if n == 0:
+                raise
+            cut.append(
+                f"{path}: the file ends early or is damaged after {n} messages "
+                f"({type(e).__name__}); the messages before are read, the rest is lost "
+                "(a recording cut off?)"
+            )
+            return
+        for r in inner:
+            if isinstance(r, Schema):
+                schemas[r.id] = r
+            elif isinstance(r, Channel):
+                channels[r.id] = r
+            elif isinstance(r, Message) and r.channel_id in channels:
+                channel = channels[r.channel_id]
+                n += 1
+                yield schemas.get(channel.schema_id), channel, r
+
+
 def read_mcap(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     """Read a bare ``.mcap`` file of ROS 2 messages (in the order of the file: one chunk is
-    decompressed at a time)."""
+    decompressed at a time). A file without a readable summary (cut off by a crash) is read
+    record by record up to its damaged end, with a warning."""
+    import dataclasses
+
     from mcap.reader import make_reader
 
     topics = options.get("topics")
     try:
         with open(path, "rb") as f:
             reader = make_reader(f, validate_crcs=True)
-            summary = reader.get_summary()
-            _check_chunks(path, f, summary)
+            try:
+                summary = reader.get_summary()
+            except Exception:  # no footer: a recording cut off, read record by record
+                summary = None
             counts: dict[str, int] = {}
-            if summary is not None and summary.statistics is not None:
-                for channel_id, n in summary.statistics.channel_message_counts.items():
-                    channel = summary.channels.get(channel_id)
-                    if channel is not None:
-                        counts[channel.topic] = counts.get(channel.topic, 0) + int(n)
+            cut: list[str] = []
+            if summary is not None and summary.chunk_indexes:
+                _check_chunks(path, f, summary)
+                if summary.statistics is not None:
+                    for channel_id, n in summary.statistics.channel_message_counts.items():
+                        channel = summary.channels.get(channel_id)
+                        if channel is not None:
+                            counts[channel.topic] = counts.get(channel.topic, 0) + int(n)
+                found: Iterable[tuple[Any, Any, Any]] = reader.iter_messages(
+                    topics=topics, log_time_order=False
+                )
+            else:
+                found = _linear_messages(path, f, cut)
             decoders = _Decoders()
 
             def messages() -> Iterator[tuple[str, int, Any]]:
-                for schema, channel, message in reader.iter_messages(
-                    topics=topics, log_time_order=False
-                ):
+                for schema, channel, message in found:
+                    if topics is not None and channel.topic not in topics:
+                        continue
                     if len(message.data) > MAX_MESSAGE_BYTES:
                         raise _too_big(
                             path,
@@ -470,7 +534,8 @@ def read_mcap(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
                     decode = decoders.get(path, schema, channel)
                     yield channel.topic, message.log_time, decode(message.data)
 
-            return _tables(str(path), messages(), topics, counts)
+            tables = _tables(str(path), messages(), topics, counts)
+            return [dataclasses.replace(t, warnings=(*t.warnings, *cut)) for t in tables]
     except IdentError:
         raise
     except MemoryError as e:
