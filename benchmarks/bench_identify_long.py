@@ -1,6 +1,7 @@
 """Long logs in bounded memory: one hour at 1 kHz of a 7-joint arm, end to end.
 
     PYTHONPATH=src python benchmarks/bench_identify_long.py [--minutes 60] [--rate 1000]
+        [--mcap-minutes 60]
 
 1. Generates the log of a Franka Panda with its fingers removed (7 joints): a random
    joint-space Fourier trajectory (5 harmonics of 0.1 Hz), ideal rigid-body torques (the
@@ -15,6 +16,11 @@
    matrix product ``Y^T Y``, measured in this run (target: >= 8x).
 4. On a short log (``--compare-minutes``), the chunked estimate against the in-memory one
    (target: equal to 1e-10 relative).
+5. The same kind of log as a bare MCAP file of ``sensor_msgs/JointState`` messages at 1 kHz
+   (``--mcap-minutes``; 0 skips it), identified by ``ident identify`` in a subprocess: wall
+   time and peak memory (target: bounded like the numpy log, i.e. the log's columns plus the
+   chunked identification, not the decoded messages: the previous reader kept a dict per
+   message and reached 5.4 GB on one hour).
 """
 
 from __future__ import annotations
@@ -101,15 +107,58 @@ def generate(urdf: Path, minutes: float, rate: float, path: Path, seed: int = 0)
     np.savez(path, t=t, q=q, tau=tau)
 
 
-def config(urdf: Path, log: Path, path: Path, **preprocess: object) -> Path:
+def write_mcap(path: Path, npz: Path, joints: list[str]) -> int:
+    """The numpy log ``npz`` as a bare MCAP of JointState messages on ``/joint_states``
+    (header stamps from ``t``, recorded 0.2 ms later; zstd chunks of 1 MB); its size [bytes]."""
+    from mcap.writer import CompressionType, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    JointState = store.types["sensor_msgs/msg/JointState"]
+    Header = store.types["std_msgs/msg/Header"]
+    Time = store.types["builtin_interfaces/msg/Time"]
+    data = np.load(npz)
+    t, q, tau = data["t"], data["q"], data["tau"]
+    zero = np.zeros(q.shape[1])
+    t0_ns = 1_700_000_000_000_000_000
+    definition = (Path(__file__).parent / "joint_state.msg").read_bytes()
+    with open(path, "wb") as f:
+        writer = Writer(f, chunk_size=1 << 20, compression=CompressionType.ZSTD)
+        writer.start(profile="ros2", library="ident benchmark")
+        schema = writer.register_schema("sensor_msgs/msg/JointState", "ros2msg", definition)
+        channel = writer.register_channel("/joint_states", "cdr", schema)
+        for k in range(t.size):
+            ns = t0_ns + round(t[k] * 1e9)
+            msg = JointState(
+                header=Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                name=joints,
+                position=q[k],
+                velocity=zero,
+                effort=tau[k],
+            )
+            raw = bytes(store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+            writer.add_message(channel, log_time=ns + 200_000, data=raw, publish_time=ns)
+        writer.finish()
+    return path.stat().st_size
+
+
+def config(
+    urdf: Path,
+    log: Path,
+    path: Path,
+    *,
+    position: list[str] | None = None,
+    torque: list[str] | None = None,
+    **preprocess: object,
+) -> Path:
     nv = 7
     cfg = {
         "name": "panda-long",
         "robot": {"urdf": str(urdf)},
         "log": {
             "path": str(log),
-            "position": {"columns": [f"q/{k}" for k in range(nv)]},
-            "torque": {"columns": [f"tau/{k}" for k in range(nv)]},
+            "position": {"columns": position or [f"q/{k}" for k in range(nv)]},
+            "torque": {"columns": torque or [f"tau/{k}" for k in range(nv)]},
         },
         "preprocess": {
             "lowpass": {"cutoff_hz": 10.0, "order": 4},
@@ -198,12 +247,18 @@ def main() -> None:
     parser.add_argument("--rate", type=float, default=1000.0)
     parser.add_argument("--compare-minutes", type=float, default=1.0)
     parser.add_argument("--per-sample", type=int, default=20000)
+    parser.add_argument("--mcap-minutes", type=float, default=60.0)
+    parser.add_argument("--skip-npz", action="store_true", help="only the MCAP case")
     args = parser.parse_args()
     from threadpoolctl import threadpool_limits
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         urdf = panda7(folder)
+        if args.mcap_minutes > 0:
+            mcap_case(urdf, folder, args.mcap_minutes, args.rate)
+        if args.skip_npz:
+            return
         t0 = time.perf_counter()
         log = folder / "long.npz"
         generate(urdf, args.minutes, args.rate, log)
@@ -238,6 +293,45 @@ def main() -> None:
             f"chunked vs in-memory estimate on {args.compare_minutes:g} min: max relative "
             f"difference (norm) {diff:.2e} (target <= 1e-10)"
         )
+
+
+def mcap_case(urdf: Path, folder: Path, minutes: float, rate: float) -> None:
+    """Step 5: the log as a bare MCAP, identified in bounded memory."""
+    model = pin.buildModelFromUrdf(str(urdf))
+    joints = [model.names[i] for i in range(1, model.njoints)]
+    npz = folder / "mcap-source.npz"
+    generate(urdf, minutes, rate, npz, seed=5)
+    t0 = time.perf_counter()
+    path = folder / "long.mcap"
+    size = write_mcap(path, npz, joints)
+    npz.unlink()
+    n = int(minutes * 60 * rate)
+    print(
+        f"MCAP: {n} JointState messages ({minutes:g} min at {rate:g} Hz, 7 joints) written in "
+        f"{time.perf_counter() - t0:.1f} s; {size / 2**20:.0f} MB"
+    )
+    cfg = config(
+        urdf,
+        path,
+        folder / "mcap.yaml",
+        position=[f"/joint_states/position/{j}" for j in joints],
+        torque=[f"/joint_states/effort/{j}" for j in joints],
+        max_regressor_mb=256.0,
+    )
+    out = folder / "runs-mcap"
+    run = run_cli(cfg, out)
+    (rundir,) = out.iterdir()
+    result = json.loads((rundir / "result.json").read_text())
+    estimates = [x for x in run["stderr"].splitlines() if x.startswith("estimate:")]
+    print(
+        f"ident identify on the MCAP: wall {run['wall_s']:.1f} s, CPU {run['cpu_s']:.1f} s, "
+        f"peak memory {run['peak_mb']:.0f} MB ({run['peak_mb'] * 2**20 / n:.0f} bytes per "
+        f"message); relative residual {result['relative_residual']:.4f}; load average "
+        f"{os.getloadavg()[0]:.1f}"
+    )
+    for line in estimates:
+        print(f"  printed before the work: {line}")
+    path.unlink()
 
 
 if __name__ == "__main__":

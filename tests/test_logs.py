@@ -109,9 +109,17 @@ def test_line_numbers_are_file_lines_with_blank_lines(tmp_path):
     cfg = _log_cfg(
         tmp_path, q, q, sampling_rate_hz=None, time={"path": tmp_path / "t.csv", "column": "time"}
     )
-    with pytest.raises(
-        DataError, match=r"not strictly increasing at line 6 \(0.02 s then 0.02 s\)"
-    ):
+    # a duplicated stamp: the later sample is dropped, the warning names its file line
+    log = read_log(cfg, TransmissionConfig(), JOINTS)
+    # 5 stamps left (0.03 missing): resampled onto the uniform 100 Hz grid
+    np.testing.assert_allclose(log.t, np.arange(6) * 0.01, atol=1e-12)
+    assert any(r["step"] == "resample" for r in log.records)
+    (warning,) = log.warnings
+    assert "1 duplicated time stamp(s) dropped" in warning
+    assert "first at line 6 (t = 0.02 s)" in warning
+    # a NaN stamp is refused, naming its file line
+    (tmp_path / "t.csv").write_text("time\n0.0\n0.01\n\n0.02\nnan\n0.04\n0.05\n")
+    with pytest.raises(DataError, match=r"NaN or infinite, the first at line 6 \(nan\)"):
         read_log(cfg, TransmissionConfig(), JOINTS)
 
 
@@ -167,11 +175,27 @@ def test_time_column_checks(tmp_path):
     )
     log = read_log(cfg, TransmissionConfig(), JOINTS)
     assert log.sampling_rate_hz == pytest.approx(100.0)
+    # a backwards jump: split there, the parts kept in their order, and said where
     t_bad = t.copy()
-    t_bad[5] = t_bad[4]
+    t_bad[5:] -= 0.1
     _write(tmp_path / "t.csv", ["time"], t_bad[:, None])
-    with pytest.raises(DataError, match=r"t\.csv: time column 'time' is not strictly increasing"):
-        read_log(cfg, TransmissionConfig(), JOINTS)
+    log = read_log(cfg, TransmissionConfig(), JOINTS)
+    assert log.segments == ((0, 5), (5, 10))
+    (warning,) = log.warnings
+    assert "t.csv: time column 'time': time goes back 1 time(s)" in warning
+    assert "first at line 7 (0.04 s then -0.05 s)" in warning
+    assert log.t[5] - log.t[4] >= 1.0  # the later part starts after the earlier one
+    # seconds read as ns: refused, naming the unit
+    cfg_ns = _log_cfg(
+        tmp_path,
+        q,
+        q,
+        sampling_rate_hz=None,
+        time={"path": tmp_path / "t.csv", "column": "time", "unit": "ns"},
+    )
+    _write(tmp_path / "t.csv", ["time"], t[:, None])
+    with pytest.raises(DataError, match=r"unit ns.*rate of 1e\+11 Hz.*check log.time.unit"):
+        read_log(cfg_ns, TransmissionConfig(), JOINTS)
     t_bad = t.copy()
     t_bad[5:] += 0.003
     _write(tmp_path / "t.csv", ["time"], t_bad[:, None])
@@ -203,3 +227,36 @@ def test_sample_count_mismatch(tmp_path):
     )
     with pytest.raises(DataError, match="has 5 samples but .* has 6"):
         read_log(cfg, TransmissionConfig(), JOINTS)
+
+
+def test_second_file_joined_on_time_duplicates_dropped_and_more_logs_named(tmp_path):
+    """Torques in a second file with their own stamps, one duplicated: the duplicate is dropped
+    with a warning naming that file's line, and the torques are interpolated exactly (cubic
+    signals through a cubic spline); the same file as a ``more:`` log is named as such."""
+    t = np.arange(100) / 100.0
+    q = np.column_stack([t, t**2, t**3])
+    t2 = t + 0.004  # the torque logger runs 4 ms later
+    y = np.column_stack([t2, 2 * t2, t2**3])
+    t2[30] = t2[29]  # a duplicated stamp (the row carries another value: it is dropped)
+    _write(tmp_path / "q.csv", ["t", "q1", "q2", "q3"], np.column_stack([t, q]))
+    _write(tmp_path / "y.csv", ["t", "y1", "y2", "y3"], np.column_stack([t2, y]))
+    section = {
+        "files": [{"path": tmp_path / "q.csv"}, {"path": tmp_path / "y.csv"}],
+        "time": {"column": "t"},
+        "position": {"columns": ["q1", "q2", "q3"]},
+        "torque": {"columns": ["y1", "y2", "y3"]},
+    }
+    log = read_log(LogConfig.model_validate(section), TransmissionConfig(), JOINTS)
+    (warning,) = log.warnings
+    assert "y.csv: time column 't': 1 duplicated time stamp(s) dropped" in warning
+    assert "first at line 32" in warning
+    # only the span both files cover is kept: from the first position stamp after 0.004 s
+    t_abs = log.t + 0.01
+    np.testing.assert_allclose(log.q[:, 0], t_abs, atol=1e-12)
+    expected = np.column_stack([t_abs, 2 * t_abs, t_abs**3])
+    np.testing.assert_allclose(log.tau, expected, atol=1e-12)
+    # as a second log (more:), the warning says which
+    more = {**section, "more": [dict(section)]}
+    log = read_log(LogConfig.model_validate(more), TransmissionConfig(), JOINTS)
+    assert len(log.warnings) == 2
+    assert log.warnings[1].startswith("log.more[0]: ")

@@ -46,6 +46,22 @@ def _log(path: Path, n: int = 12000, rate_hz: float = 500.0) -> Path:
     return path
 
 
+def _simulated(n: int, rate_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Uniform time [s], joint angles [rad] and joint torques [N*m] (RNEA + friction + noise)
+    of the Fourier motion of :func:`_log`."""
+    rng = np.random.default_rng(12)
+    t = np.arange(n) / rate_hz
+    w = 2.0 * np.pi * 0.125 * np.arange(1, 6)
+    a, b = rng.normal(scale=0.5, size=(2, 5, 3)) / np.arange(1, 6)[None, :, None]
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    q, dq, ddq = s @ a + c @ b, (c * w) @ a - (s * w) @ b, -(s * w**2) @ a - (c * w**2) @ b
+    model = pin.buildModelFromUrdf(str(URDF))
+    data = model.createData()
+    tau = np.array([pin.rnea(model, data, *x) for x in zip(q, dq, ddq, strict=True)])
+    tau += FV * dq + FS * np.sign(dq) + rng.normal(scale=0.03, size=tau.shape)
+    return t, q, tau
+
+
 @pytest.fixture(scope="module")
 def inspected(tmp_path_factory) -> tuple[Path, str]:
     log = _log(tmp_path_factory.mktemp("log") / "robot_log.csv")
@@ -149,3 +165,97 @@ def test_controller_channels_that_are_not_joints_are_left_out(tmp_path) -> None:
     assert log["position"]["columns"] == [f"actual_q_{k}" for k in range(6)]
     assert log["velocity"]["columns"] == [f"actual_qd_{k}" for k in range(6)]
     assert log["torque"]["columns"] == [f"actual_current_{k}" for k in range(6)]
+
+
+def test_inspect_reports_every_time_anomaly_with_count_and_line(tmp_path) -> None:
+    """Duplicates, a backwards jump and a NaN stamp: each with its count and first file line
+    (never "inf Hz"), and the rule identify applies."""
+    t = np.arange(300) / 100.0
+    t[41] = t[40]  # duplicate: file line 43 (header on line 1)
+    t[42] = t[40]  # and again
+    t[200:] -= 1.0  # back: line 202
+    t[250] = np.nan  # line 252
+    rows = np.column_stack([t, np.sin(t), np.cos(t)])
+    path = tmp_path / "bad.csv"
+    path.write_text("t,q1,tau1\n" + "\n".join(",".join(map(str, r)) for r in rows))
+    result = runner.invoke(app, ["logs", "inspect", str(path)])
+    assert result.exit_code == 0, result.output
+    (line,) = [x for x in result.output.splitlines() if x.startswith("  time 't'")]
+    assert "100 Hz (median step)" in line
+    assert "inf Hz" not in result.output
+    assert "1 NaN/inf stamp(s), first at line 252" in line
+    assert "2 duplicated stamp(s), first at line 43" in line
+    assert "1 backwards jump(s) (largest 0.99 s), first at line 202" in line
+    assert "backwards jumps split into segments" in result.output
+
+
+def test_inspect_names_messages_without_stamps(tmp_path) -> None:
+    import ros_logs
+
+    stamps = [None if k < 5 else 2.0 + 0.01 * k for k in range(40)]
+    path = ros_logs.joint_states(tmp_path / "m.mcap", np.zeros((40, 2)), stamps)
+    result = runner.invoke(app, ["logs", "inspect", str(path)])
+    assert result.exit_code == 0, result.output
+    assert (
+        "warning: " + str(path) + ": /joint_states: 5 of 40 messages have no header.stamp, "
+        "the first is message 0" in result.output
+    )
+
+
+def test_identify_warns_of_a_backwards_jump_and_still_identifies(tmp_path) -> None:
+    """A bare MCAP whose stamps jump back 5 s half way: one warning naming the place, the
+    parts kept as two segments, and the friction identified as on a clean log."""
+    import ros_logs
+
+    t, q, tau = _simulated(4000, 200.0)
+    stamps = 50.0 + t
+    stamps[2000:] -= 5.0 + t[2000] - t[0]  # the second half restarts before the first
+    path = tmp_path / "jump.mcap"
+    ros_logs.joint_states(path, q, stamps, efforts=tau)
+    joints = [f"j{k + 1}" for k in range(3)]
+    cfg = {
+        "name": "jump",
+        "robot": {"urdf": str(URDF)},
+        "log": {
+            "path": str(path),
+            "position": {"columns": [f"/joint_states/position/{j}" for j in joints]},
+            "torque": {"columns": [f"/joint_states/effort/{j}" for j in joints]},
+        },
+        "preprocess": {"lowpass": {"cutoff_hz": 10.0, "order": 4}, "trim_samples": 10},
+        "model": {"viscous": True, "coulomb": True},
+        "validation": {"identify_fraction": 0.7},
+    }
+    (tmp_path / "jump.yaml").write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "runs"
+    result = runner.invoke(
+        app, ["identify", str(tmp_path / "jump.yaml"), "--out", str(out), "--no-replay"]
+    )
+    assert result.exit_code == 0, result.output
+    warnings = [x for x in result.output.splitlines() if x.startswith("warning:")]
+    assert any(
+        "time goes back 1 time(s)" in w and "the first at sample 2000" in w for w in warnings
+    ), result.output
+    (run,) = list(out.iterdir())
+    import csv
+
+    with (run / "parameters.csv").open() as f:
+        x = {row["name"]: float(row["value"]) for row in csv.DictReader(f)}
+    np.testing.assert_allclose([x[f"fv{j}"] for j in (1, 2, 3)], FV, rtol=0.05)
+
+
+def test_identify_checks_the_reading_estimate_before_reading(tmp_path, monkeypatch) -> None:
+    """The estimate of reading the log (from the MCAP summary: 1200 messages) is checked
+    before the file is read: under a tiny time ceiling the job is refused, naming it."""
+    import ident.measure.readers.ros as ros
+
+    def never(*args, **kwargs):
+        raise AssertionError("the log was read before its estimate was checked")
+
+    monkeypatch.setattr(ros, "_tables", never)
+    monkeypatch.setenv("IDENT_MAX_HOURS", "1e-5")  # 36 ms
+    config = REPO / "configs" / "examples" / "mcap.yaml"
+    result = runner.invoke(app, ["identify", str(config), "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 2, result.output
+    assert "reading the log (joint_states.mcap): about" in result.output
+    assert "above the time ceiling" in result.output
+    assert not (tmp_path / "runs").exists()

@@ -1,6 +1,7 @@
 """The log-reader registry and the built-in readers (CSV wide/long/headerless, ROS 2)."""
 
 import gzip
+import os
 from pathlib import Path
 
 import numpy as np
@@ -168,3 +169,302 @@ def test_gap_and_windows_make_segments(tmp_path):
     log = read_log(windowed, TransmissionConfig(), ["j"])
     assert log.segments == ((0, 101),)
     np.testing.assert_allclose(log.q[:, 0], np.sin(np.arange(100, 201) / 100.0))
+
+
+# ---------------------------------------------------------------------------------------------
+# bounds and time as it goes wrong (issue 27): ROS 2 logs, text, numpy archives
+
+HOSTILE_LOGS = Path(__file__).resolve().parent / "data" / "hostile" / "logs"
+ROS_JOINTS = ("j1", "j2", "j3")
+
+
+def _ramp(n: int, nj: int = 3) -> np.ndarray:
+    return np.arange(n)[:, None] * 0.001 + np.arange(nj)[None, :]
+
+
+def test_mcap_keeps_recorded_order_and_the_time_rule_splits_a_jump(tmp_path):
+    import ros_logs
+
+    n = 400
+    stamps = 100.0 + np.arange(n) * 0.01
+    stamps[200:] -= 5.0  # the clock goes back 5 s half way
+    path = ros_logs.joint_states(tmp_path / "jump.mcap", _ramp(n), stamps, names=ROS_JOINTS)
+    (table,) = read_tables(path)
+    # not sorted: the table keeps the order of the recording
+    np.testing.assert_allclose(table.columns["/joint_states/position/j1"], _ramp(n)[:, 0])
+    t = table.columns["/joint_states/t"]
+    assert t[199] > t[200]
+    cfg = LogConfig.model_validate(
+        {
+            "path": path,
+            "position": {"columns": [f"/joint_states/position/{j}" for j in ROS_JOINTS]},
+            "torque": {"columns": [f"/joint_states/effort/{j}" for j in ROS_JOINTS]},
+        }
+    )
+    log = read_log(cfg, TransmissionConfig(), ROS_JOINTS)
+    assert log.segments == ((0, 200), (200, 400))
+    np.testing.assert_allclose(log.q[200], _ramp(n)[200])  # the sample after the jump
+    (warning,) = log.warnings
+    assert "time goes back 1 time(s) (largest jump 4.99 s), the first at sample 200" in warning
+
+
+def test_missing_stamps_use_the_recorded_time_for_the_whole_topic(tmp_path):
+    import ros_logs
+
+    n = 60
+    stamps = [None if k % 4 == 1 else 3.0 + 0.01 * k for k in range(n)]  # sim time, some unset
+    path = ros_logs.joint_states(tmp_path / "s.mcap", _ramp(n), stamps, names=ROS_JOINTS)
+    (table,) = read_tables(path)
+    t = table.columns["/joint_states/t"]
+    # the recorder's clock (1 ms steps), never a mix of two clocks 1.7e9 s apart
+    np.testing.assert_allclose(t, np.arange(n) * 1e-3, atol=1e-12)
+    (warning,) = table.warnings
+    assert "15 of 60 messages have no header.stamp, the first is message 1" in warning
+    # every stamp set: the stamps
+    path = ros_logs.joint_states(
+        tmp_path / "ok.mcap", _ramp(n), 3.0 + 0.01 * np.arange(n), names=ROS_JOINTS
+    )
+    (table,) = read_tables(path)
+    np.testing.assert_allclose(table.columns["/joint_states/t"], 0.01 * np.arange(n), atol=1e-9)
+    assert table.warnings == ()
+
+
+def test_repeated_joint_name_is_refused_naming_it():
+    with pytest.raises(DataError, match="name lists joint 'shoulder' 3 times"):
+        read_tables(HOSTILE_LOGS / "repeated_name.mcap")
+
+
+def test_mcap_bomb_refused_before_decompression():
+    path = HOSTILE_LOGS / "zstd_bomb.mcap"
+    assert path.stat().st_size < 20_000  # 2 x 160 MB of zeros inside
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        with pytest.raises(DataError, match=r"declares 160000502 bytes once decompressed"):
+            read_tables(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20e6
+
+
+@pytest.mark.parametrize("compression", ["none", "zstd"])
+def test_flipped_bytes_end_in_one_data_error(tmp_path, compression):
+    import ros_logs
+
+    source = ros_logs.joint_states(
+        tmp_path / "a.mcap", _ramp(300), 1.0 + 0.01 * np.arange(300), compression=compression
+    )
+    for seed in range(12):
+        damaged = ros_logs.flip_bytes(source, tmp_path / f"f{seed}.mcap", n=6, seed=seed)
+        try:
+            tables = read_tables(damaged)
+        except DataError:
+            continue
+        assert tables  # read: the CRCs did not cover the flipped bytes (the summary)
+
+
+def test_bag_declaring_a_missing_compression():
+    with pytest.raises(DataError, match="cannot read the ROS 2 bag .*ZstdError"):
+        read_tables(HOSTILE_LOGS / "bag_zstd_declared")
+
+
+_RSS = """
+import resource, sys
+from ident.measure.readers import read_tables
+read_tables(sys.argv[1])  # imports, decoders: warm
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+(table,) = read_tables(sys.argv[2])
+after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print((after - before) * 1024, sum(c.nbytes for c in table.columns.values()))
+"""
+
+
+def test_mcap_streams_in_memory_proportional_to_its_columns(tmp_path):
+    """50 000 JointState messages of 7 joints: the reader's peak is a small multiple of the
+    columns it returns (9 MB), not of the decoded messages (the dict per message of the
+    previous reader: 150 MB)."""
+    import subprocess
+    import sys
+
+    import ros_logs
+
+    n = 50_000
+    q = np.random.default_rng(0).normal(size=(n, 7))
+    big = ros_logs.joint_states(tmp_path / "big.mcap", q, 1.0 + 1e-3 * np.arange(n))
+    small = ros_logs.joint_states(tmp_path / "small.mcap", q[:10], 1.0 + 1e-3 * np.arange(10))
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
+    out = subprocess.run(
+        [sys.executable, "-c", _RSS, str(small), str(big)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+    ).stdout.split()
+    growth, columns = float(out[0]), float(out[1])
+    assert columns == pytest.approx(n * 22 * 8)
+    assert growth < 4 * columns + 16e6, (growth, columns)
+
+
+def test_mcap_refused_above_the_memory_ceiling_before_allocating(tmp_path, monkeypatch):
+    import ros_logs
+
+    path = ros_logs.joint_states(tmp_path / "a.mcap", _ramp(2000, 7), 1.0 + 1e-3 * np.arange(2000))
+    monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "0.0001")  # 100 kB
+    with pytest.raises(ConfigError, match=r"2000 messages x 21 values.*IDENT_MAX_MEMORY_GB"):
+        read_tables(path)
+    from ident.measure.readers import estimate_read
+
+    estimate = estimate_read(path)
+    assert estimate is not None
+    assert "2000 messages" in estimate.what
+    assert 2000 * 22 * 8 < estimate.memory_bytes < 2000 * 600
+
+
+def test_csv_refuses_devices_long_lines_and_bombs(tmp_path, monkeypatch):
+    with pytest.raises(DataError, match="/dev/zero: is not a regular file"):
+        read_tables("/dev/zero", "csv")
+    # one line of 4 MB in a 4 kB .gz: refused at that line, before reading on
+    one_line = tmp_path / "line.csv.gz"
+    with gzip.open(one_line, "wb") as f:
+        f.write(b"t,q\n0,1\n" + b"1" * (4 << 20))
+    with pytest.raises(DataError, match="line 3 is longer than 1048576 characters"):
+        read_tables(one_line)
+    # many lines: 24 MB of "0,0,0" (a 3 GiB bomb scaled down): refused at the ceiling
+    many = tmp_path / "many.csv.gz"
+    with gzip.open(many, "wb", compresslevel=1) as f:
+        f.write(b"t,q1,q2\n")
+        f.write(b"0,0,0\n" * (4 << 20))
+    monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "0.01")
+    with pytest.raises(ConfigError, match="many.csv.gz: reading at least 262144 rows x 3 col"):
+        read_tables(many)
+    from ident.measure.readers import estimate_read
+
+    estimate = estimate_read(many)  # from the gzip trailer: 24 MB of text before reading it
+    assert estimate.memory_bytes == pytest.approx(2 * 8 * 3 * (4 << 20), rel=0.01)
+
+
+def test_csv_blocks_give_the_same_table_as_one_parse(tmp_path, monkeypatch):
+    from ident.measure.readers import csv as csv_reader
+
+    rng = np.random.default_rng(3)
+    data = rng.normal(size=(1000, 4))
+    lines = ["t,a,b,c"] + [",".join(repr(float(v)) for v in row) for row in data]
+    lines.insert(500, "")  # a blank line: file line numbers still count it
+    (tmp_path / "x.csv").write_text("\n".join(lines) + "\n")
+    monkeypatch.setattr(csv_reader, "BLOCK_LINES", 64)
+    (table,) = read_tables(tmp_path / "x.csv")
+    for k, name in enumerate("tabc"):
+        np.testing.assert_array_equal(table.columns[name], data[:, k])
+        assert table.columns[name].flags.c_contiguous
+    assert table.line_numbers[498] == 500
+    assert table.line_numbers[499] == 502
+
+
+def test_npz_checked_from_its_headers(tmp_path, monkeypatch):
+    for name, match in [
+        ("empty", "holds no arrays"),
+        ("not_zip", "not a numpy archive"),
+        ("object", "array 't' holds object values"),
+        ("string", "array 't' holds <U1 values"),
+        ("declares_100M", r"declares shape \(100000000,\).*holds 8128 bytes"),
+    ]:
+        with pytest.raises(DataError, match=match):
+            read_tables(HOSTILE_LOGS / f"{name}.npz")
+    # a real compressed archive of 10 million samples (800 kB on disk) above the ceiling
+    np.savez_compressed(tmp_path / "big.npz", t=np.zeros(10_000_000))
+    monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "0.1")
+    with pytest.raises(ConfigError, match="about 160 MB of memory.*IDENT_MAX_MEMORY_GB"):
+        read_tables(tmp_path / "big.npz")
+    np.savez(tmp_path / "ok.npz", t=np.arange(5.0), q=np.ones((5, 2)), rate=100.0)
+    (table,) = read_tables(tmp_path / "ok.npz")
+    assert list(table.columns) == ["t", "q/0", "q/1"]  # the scalar is not a column
+
+
+def test_bag_with_mcap_storage_is_checked_for_bombs_too(tmp_path):
+    import shutil
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection("/cmd", "std_msgs/msg/Float64MultiArray", typestore=store)
+        Array = store.types["std_msgs/msg/Float64MultiArray"]
+        Layout = store.types["std_msgs/msg/MultiArrayLayout"]
+        msg = Array(layout=Layout(dim=[], data_offset=0), data=np.zeros(3))
+        writer.write(conn, 1, store.serialize_cdr(msg, conn.msgtype))
+    (storage,) = bag.glob("*.mcap")
+    shutil.copy(HOSTILE_LOGS / "zstd_bomb.mcap", storage)  # same topic and type
+    with pytest.raises(DataError, match="a zstd chunk declares 160000502 bytes"):
+        read_tables(bag)
+
+
+def test_gzip_text_estimated_from_its_trailer_before_reading(tmp_path, monkeypatch):
+    """A .csv.gz whose trailer says 3 GiB of text (the issue's 11 MB bomb) is refused from the
+    estimate alone, before a byte is decompressed: ``ident identify`` checks it first."""
+    from ident.identify.logs import estimate_log
+    from ident.inputs import check_job
+
+    path = tmp_path / "bomb.csv.gz"
+    with gzip.open(path, "wb") as f:
+        f.write(b"t,q1,q2,tau1,tau2\n" + b"0,0,0,0,0\n" * 1000)
+    data = bytearray(path.read_bytes())
+    data[-4:] = (3 << 30).to_bytes(4, "little")  # what the real 3 GiB file's trailer holds
+    path.write_bytes(bytes(data))
+    cfg = LogConfig.model_validate(
+        {
+            "path": path,
+            "time": {"column": "t"},
+            "position": {"columns": ["q1", "q2"]},
+            "torque": {"columns": ["tau1", "tau2"]},
+        }
+    )
+    estimate = estimate_log(cfg)
+    rows = (3 << 30) / 10  # 10 characters per line
+    assert estimate.memory_bytes == pytest.approx(2 * 2 * 8 * 5 * rows, rel=0.01)
+    monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "2")
+    with pytest.raises(ConfigError, match=r"reading the log \(bomb.csv.gz\).*above the memory"):
+        check_job(estimate)
+
+
+def test_long_csv_keeps_the_file_order_and_refuses_nan_stamps(tmp_path):
+    # two joints; the clock goes back after the third sample
+    times = [10.0, 10.01, 10.02, 5.0, 5.01]
+    rows = ["t,joint,pos"]
+    for k, t in enumerate(times):
+        rows += [f"{t},b,{k + 0.5}", f"{t},a,{k}"]  # joints in any order within a sample
+    (tmp_path / "l.csv").write_text("\n".join(rows) + "\n")
+    (table,) = read_tables(tmp_path / "l.csv", "csv_long")
+    np.testing.assert_array_equal(table.columns["t"], times)  # not sorted
+    np.testing.assert_array_equal(table.columns["pos/a"], [0, 1, 2, 3, 4])
+    np.testing.assert_array_equal(table.columns["pos/b"], [0.5, 1.5, 2.5, 3.5, 4.5])
+    rows[7] = "nan,b,9"  # line 8
+    (tmp_path / "l.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(DataError, match="NaN or infinite, the first at line 8"):
+        read_tables(tmp_path / "l.csv", "csv_long")
+
+
+def test_mcap_cut_off_by_a_crash_reads_its_complete_chunks_with_a_warning(tmp_path):
+    import ros_logs
+
+    n = 3000
+    q = _ramp(n)
+    full = ros_logs.joint_states(
+        tmp_path / "full.mcap", q, 1.0 + 1e-3 * np.arange(n), chunk_size=20_000
+    )
+    data = full.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])  # no summary, no footer, half a chunk at the end
+    (table,) = read_tables(cut)
+    k = table.n_samples
+    assert 0 < k < n
+    np.testing.assert_array_equal(table.columns["/joint_states/position/j2"], q[:k, 1])
+    (warning,) = table.warnings
+    assert f"the file ends early or is damaged after {k} messages" in warning
+    # a file cut before its first complete chunk: nothing to read, one error
+    cut.write_bytes(data[:200])
+    with pytest.raises(DataError, match="cannot read the MCAP file"):
+        read_tables(cut)

@@ -27,12 +27,14 @@ import numpy.typing as npt
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import LogConfig, SignalFile, TransmissionConfig
+from ident.inputs import JobEstimate
 from ident.measure import timebase
-from ident.measure.readers import LogTable, read_tables
+from ident.measure.readers import LogTable, estimate_read, read_tables
 
 __all__ = [
     "RobotLog",
     "Transmission",
+    "estimate_log",
     "read_csv_columns",
     "read_log",
     "transmission_from_config",
@@ -170,6 +172,9 @@ class RobotLog:
         arrays are their concatenation. One segment ``(0, n_samples)`` for a plain log.
     dq :
         Logged joint velocities [rad/s or m/s], shape (n_samples, n_joints), or None.
+    warnings :
+        What reading changed in the data a user must know (duplicated stamps dropped, a
+        backwards jump split, receive times used for missing stamps): count and first place.
     """
 
     t: FloatArray
@@ -180,6 +185,7 @@ class RobotLog:
     records: tuple[dict, ...] = field(default_factory=tuple)
     segments: tuple[tuple[int, int], ...] = ()
     dq: FloatArray | None = None
+    warnings: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.segments:
@@ -387,35 +393,69 @@ def _time_of(table: LogTable, cfg: LogConfig) -> FloatArray | None:
     return None
 
 
+def _time_name(table: LogTable, cfg: LogConfig) -> str:
+    """``file: time column 'x'`` for messages."""
+    name = cfg.time.column if cfg.time is not None else table.time
+    return f"{table.source}: time column '{name}'"
+
+
 def _join(
-    parts: list[tuple[FloatArray, LogTable]], cfg: LogConfig
-) -> tuple[list[FloatArray], FloatArray | None, str]:
+    parts: list[tuple[FloatArray, LogTable]],
+    cfg: LogConfig,
+    t_ref: FloatArray | None,
+    rows: npt.NDArray[np.int64] | None,
+) -> tuple[list[FloatArray], npt.NDArray[np.bool_] | None, str, list[str]]:
     """Bring every signal onto the samples of the first (positions): same table or equal
-    length without time -> as is; else cubic-spline interpolation onto its time stamps."""
+    length without time -> as is; else cubic-spline interpolation onto its time stamps.
+
+    ``t_ref``: the position stamps as logged [s] of the rows ``rows`` the time rule keeps
+    (:func:`ident.measure.timebase.clean_time`); None without time. Another source joined on
+    time has its duplicated stamps dropped (warned) and must otherwise increase.
+
+    Returns the signals on the kept rows, the mask of those rows where every source has data
+    (None: all), a note for the records and the warnings.
+    """
     ref_data, ref_table = parts[0]
-    t_ref = _time_of(ref_table, cfg)
-    out = [ref_data]
-    notes = []
-    keep = np.ones(ref_data.shape[0], dtype=bool)
+    t_ref_raw = _time_of(ref_table, cfg)
+    out = [ref_data if rows is None else ref_data[rows]]
+    n = out[0].shape[0]
+    notes: list[str] = []
+    warnings: list[str] = []
+    keep = np.ones(n, dtype=bool)
     for data, table in parts[1:]:
         if table is ref_table:
-            out.append(data)
+            out.append(data if rows is None else data[rows])
             continue
         t_other = _time_of(table, cfg)
-        if t_ref is None or t_other is None or np.array_equal(t_ref, t_other):
+        same = t_ref_raw is not None and t_other is not None and np.array_equal(t_ref_raw, t_other)
+        if t_ref is None or t_other is None or same:
             if data.shape[0] != ref_data.shape[0]:
                 raise DataError(
                     f"{ref_table.source} has {ref_data.shape[0]} samples but {table.source} has "
                     f"{data.shape[0]}; the signals must be sampled together (or give both a "
                     "time column to join them on)."
                 )
-            out.append(data)
+            out.append(data if rows is None else data[rows])
             continue
         from scipy.interpolate import make_interp_spline
 
-        order = np.argsort(t_other, kind="stable")
-        spline = make_interp_spline(t_other[order], data[order], k=3, axis=0)
-        inside = (t_ref >= t_other.min()) & (t_ref <= t_other.max())
+        what = _time_name(table, cfg)
+        found = timebase.find_anomalies(t_other)
+        if found.n_backwards and not found.n_nonfinite:
+            assert found.first_backwards is not None
+            raise DataError(
+                f"{what}: time goes back {found.n_backwards} time(s), the first at "
+                f"{timebase.place(found.first_backwards, table.line_numbers)}; a file joined "
+                "on time needs increasing stamps: split it into several logs (log.more) or "
+                "fix its clock."
+            )
+        cleaned = timebase.clean_time(t_other, what, table.line_numbers)
+        t_sorted = cleaned.t
+        warnings += cleaned.warnings
+        if t_sorted.size < 4:
+            raise DataError(f"{what}: {t_sorted.size} distinct stamps, at least 4 to join on.")
+        spline = make_interp_spline(t_sorted, data[cleaned.index], k=3, axis=0)
+        inside = (t_ref >= t_sorted[0]) & (t_ref <= t_sorted[-1])
         keep &= inside
         out.append(spline(t_ref))
         notes.append(f"{table.source} joined on time (cubic spline onto the position stamps)")
@@ -425,9 +465,33 @@ def _join(
                 f"{ref_table.source}: the log files do not overlap in time; check the time columns."
             )
         out = [d[keep] for d in out]
-        t_ref = t_ref[keep] if t_ref is not None else None
         notes.append(f"kept the {int(keep.sum())} position samples where every source has data")
-    return out, t_ref, "; ".join(notes)
+        return out, keep, "; ".join(notes), warnings
+    return out, None, "; ".join(notes), warnings
+
+
+# Reading holds the file's columns, then the converted signals (q, tau, dq, t) beside them.
+_READ_OVERHEAD = 2.0
+
+
+def estimate_log(cfg: LogConfig) -> JobEstimate:
+    """Memory and time of reading the log of a config (and its ``more`` logs), from the
+    files' sizes and headers (:func:`ident.measure.readers.estimate_read`), before reading.
+    """
+    memory, seconds, names = 0.0, 0.0, []
+    for entry in cfg.all_logs():
+        for f in entry.sources():
+            options = f.model_dump(exclude={"path", "format"})
+            estimate = estimate_read(f.path, f.format, **options)
+            if estimate is not None:
+                memory += estimate.memory_bytes
+                seconds += estimate.seconds
+                names.append(Path(f.path).name)
+    return JobEstimate(
+        f"reading the log ({', '.join(dict.fromkeys(names)) or 'no estimate'})",
+        _READ_OVERHEAD * memory,
+        seconds,
+    )
 
 
 def read_log(
@@ -458,6 +522,7 @@ def read_log(
             log = _to_rate(log, fs)
         parts.append(log)
     t, q, tau, dq, segments, records = [], [], [], [], [], list(first.records)
+    warnings = list(first.warnings)
     offset, start = 0.0, 0
     for k, log in enumerate(parts):
         t.append(log.t - log.t[0] + offset)
@@ -469,6 +534,7 @@ def read_log(
         start += log.n_samples
         if k:
             records += [{**r, "step": f"log {k + 1}: {r['step']}"} for r in log.records]
+            warnings += [f"log.more[{k - 1}]: {w}" for w in log.warnings]
     has_dq = all(d is not None for d in dq)
     return RobotLog(
         t=np.concatenate(t),
@@ -479,6 +545,7 @@ def read_log(
         records=tuple(records),
         segments=tuple(segments),
         dq=np.concatenate(dq) if has_dq else None,
+        warnings=tuple(warnings),
     )
 
 
@@ -508,6 +575,7 @@ def _to_rate(log: RobotLog, rate_hz: float) -> RobotLog:
         ),
         segments=tuple(segments),
         dq=parts[2] if log.dq is not None else None,
+        warnings=log.warnings,
     )
 
 
@@ -556,14 +624,37 @@ def _read_one(
                 f"samples, the signals have {parts[0][0].shape[0]}."
             )
         parts[0] = (parts[0][0], t_table if t_table is parts[0][1] else _with_time(parts, t_table))
-    arrays, t, join_note = _join(parts, cfg)
+    files = ", ".join(Path(f.path).name for f in cfg.sources())
+    ref_table = parts[0][1]
+    warnings = list(dict.fromkeys(w for _, table in parts for w in table.warnings))
+    # time: the one rule for stamps (NaN refused, duplicates dropped, backwards jumps split)
+    t_raw = _time_of(ref_table, cfg)
+    t_file = cfg.time.path if cfg.time is not None and cfg.time.path is not None else files
+    what = f"time column '{cfg.time.column}'" if cfg.time is not None else "time column"
+    t, rows, t_join = None, None, None
+    if t_raw is not None:
+        limit = cfg.max_samples or t_raw.size
+        cleaned = timebase.clean_time(
+            t_raw[:limit],
+            f"{t_file}: {what}",
+            ref_table.line_numbers,
+            gap_factor=cfg.gap_factor,
+            max_gap_s=cfg.max_gap_s,
+        )
+        t, warnings = cleaned.t, warnings + list(cleaned.warnings)
+        if cleaned.index.size == t_raw.size:  # every row kept: no copy of the signals
+            rows, t_join = None, t_raw
+        else:
+            rows, t_join = cleaned.index, t_raw[cleaned.index]
+    arrays, keep, join_note, join_warnings = _join(parts, cfg, t_join, rows)
+    warnings += join_warnings
+    if keep is not None and t is not None:
+        t = t[keep]
     q_raw, tau_raw = arrays[0], arrays[1]
     dq_raw = arrays[2] if cfg.velocity is not None else None
-    if cfg.max_samples is not None:
+    if cfg.max_samples is not None and t is None:
         q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
         dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
-        t = None if t is None else t[: cfg.max_samples]
-    files = ", ".join(Path(f.path).name for f in cfg.sources())
     records: list[dict] = []
 
     # units, scale, sign: once, per signal
@@ -631,16 +722,15 @@ def _read_one(
         fs = float(cfg.sampling_rate_hz)
         t = np.arange(n) / fs
         time_note = f"sampling rate {fs:g} Hz (no time column)"
-        segments = timebase.windows_to_segments(t, [(0, n)], windows)
+        segments = _windowed(t, [(0, n)], windows, files, source)
         signals = [q, tau] + ([dq] if dq is not None else [])
     else:
-        what = f"time column '{cfg.time.column}'" if cfg.time is not None else "time column"
-        t_file = cfg.time.path if cfg.time is not None and cfg.time.path is not None else files
-        timebase.check_increasing(t, f"{t_file}: {what}", parts[0][1].line_numbers)
+        unit = cfg.time.unit if cfg.time is not None else "s"
+        timebase.check_rate(t, f"{t_file}: {what}", unit)
         t = t - t[0]
         summary = timebase.summarize_time(t, gap_factor=cfg.gap_factor)
         raw_segments = timebase.find_segments(t, gap_factor=cfg.gap_factor, max_gap_s=cfg.max_gap_s)
-        segments = timebase.windows_to_segments(t, raw_segments, windows)
+        segments = _windowed(t, raw_segments, windows, files, source)
         fs = cfg.resample_hz or summary.rate_hz
         time_note = f"{what}: {summary.text()}"
         signals = [q, tau] + ([dq] if dq is not None else [])
@@ -708,7 +798,35 @@ def _read_one(
         records=tuple(records),
         segments=tuple(segments),
         dq=dq,
+        warnings=tuple(warnings),
     )
+
+
+def _windowed(
+    t: FloatArray,
+    segments: list[tuple[int, int]],
+    windows: list[tuple[float | None, float | None]],
+    files: str,
+    source: str,
+) -> list[tuple[int, int]]:
+    """Segments cut to ``log.windows``; each window must be ordered, not negative, and hold
+    samples of the log (its time from 0 to its end)."""
+    for k, (start_s, end_s) in enumerate(windows):
+        where = f"log.windows[{k}] = [{start_s}, {end_s}] s"
+        here = f"{source}: {where}"
+        values = [v for v in (start_s, end_s) if v is not None]
+        if any(not np.isfinite(v) or v < 0 for v in values):
+            raise ConfigError(
+                f"{here}: times are seconds from the log's first sample, finite and >= 0."
+            )
+        if start_s is not None and end_s is not None and end_s <= start_s:
+            raise ConfigError(f"{here}: end_s must be after start_s; swap them.")
+        if not timebase.windows_to_segments(t, segments, [(start_s, end_s)]):
+            raise DataError(
+                f"{files}: {where} holds no sample: the log runs from 0 to {t[-1]:.6g} s; "
+                "choose a window inside it (ident logs inspect shows the duration)."
+            )
+    return timebase.windows_to_segments(t, segments, windows)
 
 
 def _with_time(parts: list[tuple[FloatArray, LogTable]], t_table: LogTable) -> LogTable:

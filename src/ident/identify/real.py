@@ -55,7 +55,7 @@ from ident.identify.estimators import (
     bounding_ellipsoids,
     consistent_identification,
 )
-from ident.identify.logs import RobotLog, read_log
+from ident.identify.logs import RobotLog, estimate_log, read_log
 from ident.identify.motion import measured_motion
 from ident.identify.reference import (
     compare_with_reference,
@@ -217,8 +217,10 @@ def identify(
     """Run the identification described by ``cfg``: read its log, then :func:`identify_log`.
 
     ``scheduler``: a dask.distributed scheduler address for the chunks of a long log.
-    ``on_estimate``: called with the memory and time estimate (:func:`estimate_identify`)
-    once the log is read, before the identification (``ident identify`` prints it).
+    ``on_estimate``: called with the estimate of reading the log (from the files' sizes,
+    :func:`ident.identify.logs.estimate_log`) before reading it, then with the memory and time
+    estimate (:func:`estimate_identify`) once the log is read, before the identification
+    (``ident identify`` prints them); each is checked against the ceilings first.
 
     Raises
     ------
@@ -231,6 +233,9 @@ def identify(
     source = str(cfg.source or "config")
     model = load_robot(cfg.robot, source=source).model
     joints = [model.names[i] for i in range(1, model.njoints)]
+    reading = check_job(estimate_log(cfg.log))  # from the files' sizes, before reading
+    if on_estimate is not None:
+        on_estimate(reading)
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
     estimate = check_job(estimate_identify(cfg, log))
     if on_estimate is not None:
@@ -323,6 +328,7 @@ def _identify_log(
         log.sampling_rate_hz,
         None if log.dq is None else log.dq[first],
     )
+    auto_warnings = [*log.warnings, *auto_warnings]  # what reading the log changed, first
     cfg = cfg.model_copy(update={"preprocess": settings})
     log = dataclasses.replace(log, records=(*log.records, *auto_records))
     if accumulate.use_chunks(log, cfg.preprocess, 10 * model.nv + 4 * model.nv):

@@ -21,6 +21,22 @@ well as its uniformly sampled twin (tests/test_logs_examples.py).
 
 A gap is a step longer than ``gap_factor`` times the median step (default 5) or than
 ``max_gap_s`` when given; each side becomes its own segment and no sample is invented in it.
+
+Stamps as they really go wrong (one rule for every reader, applied by :func:`clean_time`)
+----------------------------------------------------------------------------------------
+- NaN or infinite stamp: refused, naming the row (line or sample) and the count;
+- duplicated stamp (a step of exactly 0): the later sample is dropped, with a warning naming
+  the count and the first place;
+- backwards jump (a negative step: a clock reset, two runs appended): the log is split there
+  into segments, each kept in its own order (never sorted, never interleaved); every later
+  part is moved to start after the previous part's end plus a gap, so segments stay apart and
+  windows read the continued time; a warning names the count and the first place;
+- a rate above :data:`MAX_RATE_HZ` or below :data:`MIN_RATE_HZ` (a time unit mistaken, e.g.
+  ``unit: ns`` on a seconds column): refused, naming the rate and the unit to check.
+
+Missing stamps (ROS messages without ``header.stamp``) are handled where they are read
+(:mod:`ident.measure.readers.ros`): the topic uses the time each message was recorded, with
+a warning.
 """
 
 from __future__ import annotations
@@ -34,9 +50,17 @@ from scipy.interpolate import make_interp_spline
 from ident.errors import DataError
 
 __all__ = [
+    "MAX_RATE_HZ",
+    "MIN_RATE_HZ",
+    "CleanTime",
+    "TimeAnomalies",
     "TimingSummary",
+    "check_rate",
+    "clean_time",
+    "find_anomalies",
     "find_segments",
     "is_uniform",
+    "place",
     "resample",
     "summarize_time",
     "velocity_mismatch",
@@ -49,6 +73,199 @@ Segment = tuple[int, int]  # sample indices [start, stop)
 # Relative spread of the steps below which a time column counts as uniform.
 UNIFORM_RTOL = 1e-3
 GAP_FACTOR = 5.0
+# Sampling rates a controller log can have; outside: a time unit mistaken (ns read as s, ...).
+MAX_RATE_HZ = 1e6
+MIN_RATE_HZ = 1e-2
+IntArray = npt.NDArray[np.int64]
+
+
+def place(k: int, line_numbers: npt.ArrayLike | None) -> str:
+    """``line N`` of the file when known, else ``sample k`` (0-based)."""
+    if line_numbers is not None:
+        return f"line {int(np.asarray(line_numbers)[k])}"
+    return f"sample {k}"
+
+
+@dataclass(frozen=True)
+class TimeAnomalies:
+    """Stamps that break a strictly increasing time column (0-based sample indices).
+
+    ``first_*`` is the index of the offending sample (the later one of a step), None when
+    there is none.
+    """
+
+    n_nonfinite: int = 0
+    first_nonfinite: int | None = None
+    n_duplicates: int = 0
+    first_duplicate: int | None = None
+    n_backwards: int = 0
+    first_backwards: int | None = None
+    largest_backwards_s: float = 0.0
+
+    @property
+    def any(self) -> bool:
+        """True when the column has any anomaly."""
+        return bool(self.n_nonfinite or self.n_duplicates or self.n_backwards)
+
+    def text(self, line_numbers: npt.ArrayLike | None = None) -> str:
+        """The anomalies with counts and first places, ``;``-separated ("" when none)."""
+        parts = []
+        if self.n_nonfinite:
+            assert self.first_nonfinite is not None
+            parts.append(
+                f"{self.n_nonfinite} NaN/inf stamp(s), first at "
+                f"{place(self.first_nonfinite, line_numbers)}"
+            )
+        if self.n_duplicates:
+            assert self.first_duplicate is not None
+            parts.append(
+                f"{self.n_duplicates} duplicated stamp(s), first at "
+                f"{place(self.first_duplicate, line_numbers)}"
+            )
+        if self.n_backwards:
+            assert self.first_backwards is not None
+            parts.append(
+                f"{self.n_backwards} backwards jump(s) (largest {self.largest_backwards_s:.4g} s), "
+                f"first at {place(self.first_backwards, line_numbers)}"
+            )
+        return "; ".join(parts)
+
+
+def find_anomalies(t: FloatArray) -> TimeAnomalies:
+    """Count NaN/inf stamps, duplicated stamps and backwards jumps of ``t`` [s], (n_samples,).
+
+    Steps are taken between consecutive finite stamps.
+    """
+    t = np.asarray(t, dtype=float)
+    finite = np.isfinite(t)
+    bad = np.flatnonzero(~finite)
+    idx = np.flatnonzero(finite)
+    dt = np.diff(t[idx])
+    dup = np.flatnonzero(dt == 0) + 1
+    back = np.flatnonzero(dt < 0) + 1
+    return TimeAnomalies(
+        n_nonfinite=int(bad.size),
+        first_nonfinite=int(bad[0]) if bad.size else None,
+        n_duplicates=int(dup.size),
+        first_duplicate=int(idx[dup[0]]) if dup.size else None,
+        n_backwards=int(back.size),
+        first_backwards=int(idx[back[0]]) if back.size else None,
+        largest_backwards_s=float(-dt[back - 1].min()) if back.size else 0.0,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class CleanTime:
+    """A time column after the rule of the module docstring.
+
+    Attributes
+    ----------
+    t :
+        Strictly increasing time [s], shape (n_kept,); parts after a backwards jump moved
+        to continue after the previous part (plus a gap).
+    index :
+        Rows of the input kept, in their order, shape (n_kept,).
+    warnings :
+        One sentence per anomaly handled (count and first place).
+    """
+
+    t: FloatArray
+    index: IntArray
+    warnings: tuple[str, ...] = ()
+
+
+def clean_time(
+    t: FloatArray,
+    source: str,
+    line_numbers: npt.ArrayLike | None = None,
+    *,
+    gap_factor: float = GAP_FACTOR,
+    max_gap_s: float | None = None,
+) -> CleanTime:
+    """Apply the time rule (module docstring) to the time column ``t`` [s], (n_samples,).
+
+    Parameters
+    ----------
+    t :
+        Stamps as logged [s].
+    source :
+        File and column for messages (``run.csv: time column 't'``).
+    line_numbers :
+        File line of each sample, for messages (else sample indices are named).
+    gap_factor, max_gap_s :
+        The gap rule of :func:`find_segments`; parts after a backwards jump are moved apart by
+        more than it, so they become separate segments.
+
+    Raises
+    ------
+    DataError
+        For NaN/inf stamps (naming the first row and the count), or fewer than 2 stamps left.
+    """
+    t = np.asarray(t, dtype=float)
+    found = find_anomalies(t)
+    if found.n_nonfinite:
+        k = found.first_nonfinite
+        assert k is not None
+        raise DataError(
+            f"{source}: {found.n_nonfinite} time stamp(s) are NaN or infinite, the first at "
+            f"{place(k, line_numbers)} ({t[k]}); remove or repair those rows."
+        )
+    index = np.arange(t.size, dtype=np.int64)
+    warnings = []
+    if found.n_duplicates:
+        keep = np.concatenate([[True], np.diff(t) != 0])
+        index = index[keep]
+        k = found.first_duplicate
+        assert k is not None
+        warnings.append(
+            f"{source}: {found.n_duplicates} duplicated time stamp(s) dropped (the later sample "
+            f"of each pair), the first at {place(k, line_numbers)} (t = {t[k]:.9g} s)"
+        )
+    tk = t[index]
+    if found.n_backwards:
+        dt = np.diff(tk)
+        cuts = np.flatnonzero(dt < 0) + 1
+        forward = dt[dt > 0]
+        step = float(np.median(forward)) if forward.size else 1.0
+        gap = max(1.0, 2.0 * gap_factor * step, 2.0 * (max_gap_s or 0.0))
+        shift = np.zeros(tk.size)
+        bounds = [0, *cuts.tolist(), tk.size]
+        offset = 0.0
+        for a, b in zip(bounds[1:-1], bounds[2:], strict=True):
+            offset += tk[a - 1] - tk[a] + gap  # part starts gap after the previous end
+            shift[a:b] = offset
+        tk = tk + shift
+        k = found.first_backwards
+        assert k is not None
+        warnings.append(
+            f"{source}: time goes back {found.n_backwards} time(s) (largest jump "
+            f"{found.largest_backwards_s:.4g} s), the first at {place(k, line_numbers)} "
+            f"({t[k - 1] if k else t[k]:.9g} s then {t[k]:.9g} s); the log is split there "
+            f"into {found.n_backwards + 1} segments, each in its own order"
+        )
+    if tk.size < 2:
+        raise DataError(f"{source}: fewer than 2 distinct time stamps; the log has no timing.")
+    return CleanTime(t=tk, index=index, warnings=tuple(warnings))
+
+
+def check_rate(t: FloatArray, source: str, unit: str = "s") -> float:
+    """The median rate [Hz] of the increasing time ``t`` [s]; refuse an implausible one.
+
+    Raises
+    ------
+    DataError
+        If the rate is above :data:`MAX_RATE_HZ` or below :data:`MIN_RATE_HZ` (the message
+        names the unit to check).
+    """
+    dt = np.diff(t)
+    rate = 1.0 / float(np.median(dt)) if dt.size else float("nan")
+    if not (MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+        raise DataError(
+            f"{source}: read with unit {unit}, the stamps give a rate of {rate:.4g} Hz (median "
+            f"step {1.0 / rate if rate else float('inf'):.4g} s), outside {MIN_RATE_HZ:g} to "
+            f"{MAX_RATE_HZ:g} Hz; check log.time.unit (s, ms, us, ns) against the column."
+        )
+    return rate
 
 
 def check_increasing(t: FloatArray, source: str, line_numbers: npt.ArrayLike | None = None) -> None:
@@ -164,39 +381,52 @@ class TimingSummary:
     n_gaps: int
     longest_gap_s: float
     uniform: bool
+    anomalies: TimeAnomalies = TimeAnomalies()
 
-    def text(self) -> str:
-        """One line."""
+    def text(self, line_numbers: npt.ArrayLike | None = None) -> str:
+        """One line (anomalies with counts and first places at its end)."""
         gaps = (
             f"{self.n_gaps} gap(s), longest {self.longest_gap_s:.4g} s"
             if self.n_gaps
             else "no gaps"
         )
+        rate = f"{self.rate_hz:.6g} Hz" if np.isfinite(self.rate_hz) else "no rate"
+        anomalies = self.anomalies.text(line_numbers)
         return (
-            f"{self.n_samples} samples over {self.duration_s:.4g} s, {self.rate_hz:.6g} Hz "
+            f"{self.n_samples} samples over {self.duration_s:.4g} s, {rate} "
             f"(median step), jitter max {self.jitter_pct:.3g} % / std "
             f"{self.jitter_std_pct:.3g} % of the step, {gaps}"
             + ("" if self.uniform else ", non-uniform")
+            + (f"; {anomalies}" if anomalies else "")
         )
 
 
 def summarize_time(t: FloatArray, *, gap_factor: float = GAP_FACTOR) -> TimingSummary:
-    """Rate, jitter and gaps of a time column [s], shape (n_samples,)."""
-    dt = np.diff(t)
+    """Rate, jitter, gaps and anomalies of a time column [s], shape (n_samples,).
+
+    Rate, jitter and gaps are those of the forward steps between finite stamps; NaN/inf
+    stamps, duplicates and backwards jumps are counted in :attr:`TimingSummary.anomalies`.
+    """
+    t = np.asarray(t, dtype=float)
+    anomalies = find_anomalies(t)
+    finite = t[np.isfinite(t)]
+    dt = np.diff(finite)
+    dt = dt[dt > 0]
     if dt.size == 0:
-        return TimingSummary(int(t.size), 0.0, float("nan"), 0.0, 0.0, 0, 0.0, True)
+        return TimingSummary(int(t.size), 0.0, float("nan"), 0.0, 0.0, 0, 0.0, True, anomalies)
     step = float(np.median(dt))
     gaps = dt > gap_factor * step
     inside = dt[~gaps] if (~gaps).any() else dt
     return TimingSummary(
         n_samples=int(t.size),
-        duration_s=float(t[-1] - t[0]),
-        rate_hz=1.0 / step if step > 0 else float("inf"),
-        jitter_pct=float(100.0 * np.max(np.abs(inside - step)) / step) if step > 0 else 0.0,
-        jitter_std_pct=float(100.0 * np.std(inside) / step) if step > 0 else 0.0,
+        duration_s=float(dt.sum()),
+        rate_hz=1.0 / step,
+        jitter_pct=float(100.0 * np.max(np.abs(inside - step)) / step),
+        jitter_std_pct=float(100.0 * np.std(inside) / step),
         n_gaps=int(gaps.sum()),
         longest_gap_s=float(dt[gaps].max()) if gaps.any() else 0.0,
-        uniform=is_uniform(t),
+        uniform=is_uniform(finite) and not anomalies.any,
+        anomalies=anomalies,
     )
 
 

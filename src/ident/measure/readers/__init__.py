@@ -16,6 +16,7 @@ from ident.measure.readers.registry import (
     LogTable,
     ReaderEntry,
     detect_format,
+    estimate_read,
     read_tables,
     register_reader,
 )
@@ -26,18 +27,42 @@ __all__ = [
     "LogTable",
     "ReaderEntry",
     "detect_format",
+    "estimate_read",
     "read_tables",
     "register_reader",
 ]
 
-register_reader("rosbag", _ros.read_rosbag, detect=_ros.is_rosbag, description="ROS 2 bag folder")
-register_reader("mcap", _ros.read_mcap, detect=_ros.is_mcap, description="bare .mcap file")
-register_reader("npz", _npz.read_npz, detect=_npz.is_npz, description="numpy archive")
+register_reader(
+    "rosbag",
+    _ros.read_rosbag,
+    detect=_ros.is_rosbag,
+    description="ROS 2 bag folder",
+    estimate=_ros.estimate_rosbag,
+)
+register_reader(
+    "mcap",
+    _ros.read_mcap,
+    detect=_ros.is_mcap,
+    description="bare .mcap file",
+    estimate=_ros.estimate_mcap,
+)
+register_reader(
+    "npz",
+    _npz.read_npz,
+    detect=_npz.is_npz,
+    description="numpy archive",
+    estimate=_npz.estimate_npz,
+)
 register_reader(
     "csv_long",
     _csv.read_csv_long,
     description="CSV, one row per sample and joint (time, joint, values)",
+    estimate=_csv.estimate_csv,
 )
 register_reader(
-    "csv", _csv.read_csv, detect=_csv.is_text, description="CSV/TSV/text, header optional"
+    "csv",
+    _csv.read_csv,
+    detect=_csv.is_text,
+    description="CSV/TSV/text, header optional",
+    estimate=_csv.estimate_csv,
 )

@@ -32,12 +32,15 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ConfigError, DataError
+from ident.inputs import JobEstimate
 
 __all__ = [
     "READERS",
     "LogTable",
     "ReaderEntry",
+    "check_regular_file",
     "detect_format",
+    "estimate_read",
     "read_tables",
     "register_reader",
 ]
@@ -60,12 +63,18 @@ class LogTable:
         Name of the time column [s] when the source has one, else None.
     source :
         File (and topic) the table comes from, for messages.
+    line_numbers :
+        File line of each sample (text logs), for messages; None otherwise.
+    warnings :
+        What the reader did that a user must know (e.g. receive times used for messages
+        without a stamp), one sentence each with the count and the first place.
     """
 
     columns: Mapping[str, FloatArray]
     time: str | None = None
     source: str = ""
     line_numbers: npt.NDArray[np.int64] | None = field(default=None, repr=False)
+    warnings: tuple[str, ...] = ()
 
     @property
     def n_samples(self) -> int:
@@ -88,22 +97,31 @@ def _missing(name: str, available: list[str], source: str) -> str:
 
 Reader = Callable[[Path, Mapping[str, Any]], list[LogTable]]
 Detector = Callable[[Path], bool]
+Estimator = Callable[[Path, Mapping[str, Any]], JobEstimate]
 
 
 @dataclass(frozen=True)
 class ReaderEntry:
-    """A registered reader: ``read(path, options) -> [LogTable, ...]`` and its detector."""
+    """A registered reader: ``read(path, options) -> [LogTable, ...]``, its detector and its
+    cheap ``estimate(path, options)`` of the memory and time of reading (from the file's size
+    and what it declares, without reading it)."""
 
     read: Reader
     detect: Detector | None = None
     description: str = ""
+    estimate: Estimator | None = None
 
 
 READERS: dict[str, ReaderEntry] = {}
 
 
 def register_reader(
-    name: str, read: Reader, *, detect: Detector | None = None, description: str = ""
+    name: str,
+    read: Reader,
+    *,
+    detect: Detector | None = None,
+    description: str = "",
+    estimate: Estimator | None = None,
 ) -> None:
     """Register a log reader under the ``format:`` name ``name``.
 
@@ -120,8 +138,26 @@ def register_reader(
         tried in registration order.
     description :
         One line for ``ident logs inspect --formats`` and messages.
+    estimate :
+        Optional ``estimate(path, options) -> JobEstimate``: memory and time of reading,
+        from the file's size and headers only (printed and checked before reading).
     """
-    READERS[name] = ReaderEntry(read=read, detect=detect, description=description)
+    READERS[name] = ReaderEntry(
+        read=read, detect=detect, description=description, estimate=estimate
+    )
+
+
+def check_regular_file(path: Path) -> None:
+    """Refuse a path that is not a regular file (a device such as ``/dev/zero``, a pipe).
+
+    Raises
+    ------
+    DataError
+        Naming the path.
+    """
+    if not path.is_file():
+        kind = "a folder" if path.is_dir() else "not a regular file (a device or a pipe)"
+        raise DataError(f"{path}: is {kind}; give a log file.")
 
 
 def detect_format(path: str | Path) -> str:
@@ -142,6 +178,22 @@ def detect_format(path: str | Path) -> str:
         f"{path}: no reader recognises this file; set format: to one of "
         f"{', '.join(READERS)} in the log config."
     )
+
+
+def estimate_read(path: str | Path, fmt: str | None = None, **options: Any) -> JobEstimate | None:
+    """The reader's estimate of reading ``path`` (None when the reader gives none).
+
+    Raises
+    ------
+    DataError
+        For a missing or unrecognised file, or one whose headers are malformed.
+    """
+    path = Path(path)
+    name = fmt if fmt is not None else detect_format(path)
+    entry = READERS.get(name)
+    if entry is None or entry.estimate is None or not path.exists():
+        return None
+    return entry.estimate(path, {k: v for k, v in options.items() if v is not None})
 
 
 def read_tables(path: str | Path, fmt: str | None = None, **options: Any) -> list[LogTable]:
