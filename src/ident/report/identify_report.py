@@ -18,9 +18,17 @@ import numpy as np
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.estimators.summary import consistency_summary, identified_model
-from ident.identify.metrics import VERDICT_RULE_REAL, parameter_unit, verdict
+from ident.identify.metrics import MAJOR_SHARE, parameter_unit
 from ident.identify.real import IdentifyResult
 from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
+from ident.identify.verdict import (
+    VERDICT_RULE,
+    VERDICT_RULE_REAL,
+    Verdict,
+    identify_verdict,
+    log_evidence,
+    truth_from_config,
+)
 from ident.report.format import pct
 from ident.report.headline import Headline, headline_markdown
 
@@ -240,7 +248,33 @@ def result_dict(
             ],
         }
     out["consistency"] = consistency_summary(result)
+    out["verdict"] = verdict_entry(result)
     return out
+
+
+def verdict_entry(result: IdentifyResult) -> dict:
+    """The ``verdict`` entry of ``result.json``: :func:`~ident.identify.verdict.identify_verdict`
+    and the evidence it used (the report's summary shows the same value)."""
+    v = identify_verdict(result)
+    e = log_evidence(result, truth=truth_from_config(result.config.validation.truth))
+    return {
+        **v.as_dict(),
+        "method": result.estimate.method,
+        "residual": _finite_or_none(e.residual),
+        "residual_where": e.residual_where,
+        "nominal_residual": _finite_or_none(e.nominal_residual),
+        "worst_error_percent": _finite_or_none(e.worst_error_percent),
+        "worst_error_name": e.worst_error_name,
+        "worst_std_percent": _finite_or_none(e.worst_std_percent),
+        "worst_std_name": e.worst_std_name,
+        "n_inconsistent": e.n_inconsistent,
+        "n_links": e.n_links,
+        "warnings": list(e.warnings),
+    }
+
+
+def _finite_or_none(value: float | None) -> float | None:
+    return None if value is None else _finite(value)
 
 
 def _markdown(
@@ -640,74 +674,74 @@ def write_identify_report(
 
 
 def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
-    """The headline facts of a real-robot identification (no true values: σ and held-out)."""
+    """The headline facts of an identification from a log, from its verdict entry (the one
+    :func:`result_dict` writes; :mod:`ident.identify.verdict`)."""
     est = result.estimate
-    ess = result.essential
-    if ess is not None:
-        names, rel = list(ess.estimate.names), np.asarray(ess.estimate.relative_std, float)
-        what = "essential parameters"
-    else:
-        names, rel = list(est.names), np.asarray(est.relative_std, float)
-        what = "base parameters"
-    finite = np.where(np.isfinite(rel), rel, np.inf)
-    worst_i = int(np.argmax(finite)) if finite.size else None
-    worst = None if worst_i is None else float(finite[worst_i])
-    pred = result.predictions.get("identified")
-    residual = None if pred is None else float(pred.metrics.total_relative_residual)
+    v = verdict_entry(result)
+    residual = v["residual"]
     others = ", ".join(
         f"{label}: {pct(100 * p.metrics.total_relative_residual)}"
         for label, p in result.predictions.items()
         if label != "identified"
     )
-    v = verdict(worst, residual, what=f"worst σ of the {what}", warnings=len(result.warnings))
+    where = (
+        "held-out part of the log"
+        if v["residual_where"] == "held-out data"
+        else ("identification rows (no held-out part)")
+    )
     written = [link for link in urdf.links if link.status == "updated"]
     rejected = [link for link in urdf.links if link.status == "nominal (inconsistent)"]
-    cons = result.consistent
-    constrained = None if cons is None else cons.constrained
-    if written or rejected:
+    if v["n_links"]:
+        n_bad = v["n_inconsistent"] or 0
         consistency = (
-            f"{len(written)} URDF links updated and physically consistent; {len(rejected)} kept "
-            "nominal because the identified values are inconsistent"
+            f"{est.method.upper()}: {v['n_links'] - n_bad} of {v['n_links']} links physically "
+            "consistent (see the consistency section)"
         )
-    elif constrained is None:
-        consistency = (
-            "not checked: no standard parameter is determined well enough to be written to "
-            "the URDF (see the URDF section)"
-        )
+        if n_bad:
+            consistency = "**violated**, " + consistency
     else:
-        consistency = ""
-    if constrained is not None:  # the whole-model estimate comes first
-        n_ok = sum(c.consistent for c in constrained.consistency)
-        whole = (
-            f"{cons.method}: {n_ok} of {len(constrained.consistency)} links physically "
-            "consistent, every link's identified inertial in `*_consistent.urdf`"
+        consistency = "not checked"
+    if written or rejected:
+        consistency += (
+            f"; URDF write-back: {len(written)} links updated and consistent, {len(rejected)} "
+            "kept nominal because the identified values are inconsistent"
         )
-        consistency = whole + (f"; cautious write-back: {consistency}" if consistency else "")
-    extra = [
+    extra: list[tuple[str, str]] = [
         (
             "Least squares",
             est.message
-            if not result.warnings
+            if not v["warnings"]
             else f"{est.message}; the result is NOT ok (warnings below)",
         ),
         ("Fit on the identification rows", f"relative residual {pct(100 * est.relative_residual)}"),
+        (
+            f"Worst relative std, parameters carrying >= {100 * MAJOR_SHARE:g} % of the torques",
+            "—"
+            if v["worst_std_percent"] is None
+            else f"σ {pct(v['worst_std_percent'])} ({v['worst_std_name']})",
+        ),
     ]
+    truth = v["rule"] == "truth"
     return Headline(
-        verdict=v,
-        rule=VERDICT_RULE_REAL,
-        worst=("—" if worst is None else f"σ {pct(worst)} ({names[worst_i]}; {len(names)} {what})"),
-        worst_label=f"Worst relative std, {what}",
+        verdict=Verdict(v["label"], v["reason"], v["rule"]),
+        rule=VERDICT_RULE if truth else VERDICT_RULE_REAL,
+        worst=(
+            pct(v["worst_error_percent"]) + f" ({v['worst_error_name']}; against the "
+            "simulator's truth, validation.truth)"
+            if truth
+            else "— (a real log: no true values; see the relative std below)"
+        ),
+        worst_label="Worst error, major parameters",
         residual=(
             "—"
             if residual is None
-            else f"{pct(100 * residual)} on the held-out part of the log"
-            + (f" ({others})" if others else "")
+            else f"{pct(100 * residual)} on the {where}" + (f" ({others})" if others else "")
         ),
         residual_label="Torque residual, held-out data",
         condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
         consistency=consistency,
         safety="not checked (a measured log: the motion was already executed)",
-        warnings=list(result.warnings),
+        warnings=list(v["warnings"]),
         extra=extra,
     )
 
