@@ -46,6 +46,7 @@ ZERO_RTOL = 1e-9
 SIGNIFICANT_SHARE = 1e-4
 MAJOR_SHARE = 1e-2
 
+
 def _num(value: Any) -> Any:
     """JSON-safe number: non-finite -> None; numpy scalars -> Python."""
     if isinstance(value, (bool, np.bool_)):

@@ -160,6 +160,9 @@ class Evidence:
         The result's warnings (every one of them is shown with the verdict).
     safe :
         The executed trajectory passed its safety check (None: not checked, a measured log).
+    truth :
+        Whether true values are known (None: whether ``worst_error_percent`` is set); with
+        the truth known and no error, the verdict is ``not identified``.
     """
 
     estimated: bool = True
@@ -174,11 +177,13 @@ class Evidence:
     n_links: int | None = None
     warnings: tuple[str, ...] = field(default_factory=tuple)
     safe: bool | None = None
+    truth: bool | None = None
 
     @property
     def truth_known(self) -> bool:
-        """True when the evidence has errors against true values."""
-        return self.worst_error_percent is not None
+        """True when the evidence has errors against true values (``truth``, else whether
+        ``worst_error_percent`` is set)."""
+        return self.worst_error_percent is not None if self.truth is None else self.truth
 
 
 def _pct(value: float | None) -> str:
@@ -213,7 +218,9 @@ def decide_verdict(e: Evidence) -> Verdict:
     if not e.estimated:
         return Verdict("not identified", "no estimate (every estimator failed)", rule)
     if e.truth_known:
-        worst = float(e.worst_error_percent)  # type: ignore[arg-type]
+        if e.worst_error_percent is None:
+            return Verdict("not identified", "no error against the truth (no estimate)", rule)
+        worst = float(e.worst_error_percent)
         what = f"worst major-parameter error {worst:.3g} %"
         if e.worst_error_name:
             what += f" ({e.worst_error_name})"

@@ -323,10 +323,11 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
             f"{_fmt(est.get('condition_number'))} (SI base matrix, {(method or '').upper()}); "
             f"{_fmt(elite['objective'].get('cond'))} (scaled, the excitation objective)"
         )
+    configured = data["config"].get("optimizer")
     extra = [
         [
             "Optimizer",
-            f"{optimizer_name(data)} (config: optimizer {data['config'].get('optimizer')})",
+            optimizer_name(data) + (f" (config `optimizer: {configured}`)" if configured else ""),
         ]
     ]
     if method and elite:
@@ -461,7 +462,8 @@ def _parameter_section(
     elite = executed_elite(data) or data["elites"][0]
     md = [f"## Identified vs true parameters (elite {elite['rank']}, executed)", ""]
     v = stored_verdict(data)
-    if v.get("residual_where") == "held-out data":  # a simulated log, identified as a real one
+    # a simulated log, identified as a real one
+    if v.get("residual_where") == "held-out data" and v.get("residual") is not None:
         label, text = _residual_text(v)
         md += [
             f"{label}: {text}. Physical consistency: {_consistency_text(data, v)}. Worst "

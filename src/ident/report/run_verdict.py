@@ -86,7 +86,13 @@ def _dict_evidence(data: dict[str, Any]) -> Evidence:
     method = headline_method(elite)
     warnings = tuple(run_warnings(data, elite))
     if elite is None or method is None:
-        return Evidence(estimated=False, warnings=warnings, safe=_safe(data))
+        return Evidence(
+            estimated=False,
+            residual_where="no estimate",
+            warnings=warnings,
+            safe=_safe(data),
+            truth=True,
+        )
     est = elite["estimates"][method]
     residual = validation_residual(data, method)
     where = "validation trajectory"
@@ -104,6 +110,7 @@ def _dict_evidence(data: dict[str, Any]) -> Evidence:
         worst_error_name=names[i] if isinstance(i, int) and i < len(names) else None,
         warnings=warnings,
         safe=_safe(data),
+        truth=True,
     )
 
 

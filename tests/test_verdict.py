@@ -1,0 +1,285 @@
+"""One verdict: the rule (docs/verdict.md), the evidence, and every renderer agreeing."""
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from ident.cli import app
+from ident.identify.config import load_identify_config
+from ident.identify.real import identify
+from ident.identify.verdict import (
+    THRESHOLDS,
+    Evidence,
+    covariance_torque_shares,
+    decide_verdict,
+    identify_verdict,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "configs" / "examples"
+QUICK = ROOT / "tests" / "data" / "run" / "quick-wrist.yaml"
+runner = CliRunner()
+
+
+# ----------------------------------------------------------------------------- the rule
+
+
+def test_documented_thresholds_are_the_code_constants():
+    text = (ROOT / "docs" / "verdict.md").read_text(encoding="utf-8")
+    table = text.split("## Thresholds")[1]
+    rows = re.findall(r"^\| `(\w+)` \| ([^|]+) \| ([^|]+) \|$", table, flags=re.M)
+    documented = {name: (float(value), unit.strip()) for name, value, unit in rows}
+    assert documented == THRESHOLDS
+    # every threshold the rule tables name is one of them
+    rule = text.split("## Thresholds")[0]
+    assert set(re.findall(r"`([A-Z_]+)`", rule)) <= set(THRESHOLDS)
+    assert "verdict.md" in (ROOT / "docs" / "run.md").read_text(encoding="utf-8")
+
+
+def _truth(worst, residual, **kw):
+    return decide_verdict(Evidence(worst_error_percent=worst, residual=residual, **kw)).label
+
+
+def _log(residual, std, nominal=0.5, **kw):
+    e = Evidence(residual=residual, worst_std_percent=std, nominal_residual=nominal, **kw)
+    return decide_verdict(e).label
+
+
+def test_truth_rule_thresholds():
+    good_e, usable_e = THRESHOLDS["GOOD_ERROR_PERCENT"][0], THRESHOLDS["USABLE_ERROR_PERCENT"][0]
+    good_r, usable_r = THRESHOLDS["GOOD_RESIDUAL"][0], THRESHOLDS["USABLE_RESIDUAL"][0]
+    assert _truth(good_e, good_r) == "good"
+    assert _truth(good_e * 1.01, good_r) == "usable"
+    assert _truth(good_e, good_r * 1.01) == "usable"
+    assert _truth(1.0, 0.01, warnings=("w",)) == "usable"  # any warning rules out good
+    assert _truth(usable_e, usable_r) == "usable"
+    assert _truth(usable_e * 1.01, 0.01) == "not identified"
+    assert _truth(1.0, usable_r * 1.01) == "not identified"
+    assert _truth(1.0, None) == "not identified"  # an unknown residual is not a small one
+
+
+def test_log_rule_thresholds():
+    good_s, usable_s = THRESHOLDS["GOOD_STD_PERCENT"][0], THRESHOLDS["USABLE_STD_PERCENT"][0]
+    assert _log(0.01, good_s) == "good"
+    assert _log(0.01, good_s * 1.01) == "usable"
+    assert _log(0.01, 1.0, n_inconsistent=1, n_links=3) == "usable"
+    assert _log(0.01, 1.0, n_inconsistent=0, n_links=3) == "good"
+    assert _log(0.01, 1.0, warnings=("w",)) == "usable"
+    assert _log(0.01, usable_s * 1.01) == "not identified"
+    assert _log(0.30, 1.0) == "not identified"
+    # not better than the URDF's nominal parameters: whatever else
+    assert _log(0.05, 1.0, nominal=0.05) == "not identified"
+    assert _log(0.05, 1.0, nominal=None) == "good"
+    assert decide_verdict(Evidence(residual=None, worst_std_percent=1.0)).label == (
+        "not identified"
+    )
+
+
+def test_unsafe_is_never_usable_and_no_estimate_is_not_identified():
+    assert _truth(0.0, 0.0, safe=False) == "unsafe"
+    assert _log(0.0, 0.0, safe=False) == "unsafe"
+    assert _truth(0.0, 0.0, safe=True) == "good"
+    assert decide_verdict(Evidence(estimated=False)).label == "not identified"
+
+
+def test_covariance_torque_shares_equal_column_norm_shares():
+    # independent reference: |x_i| ||W_i|| / ||W x|| on the (weighted) rows themselves
+    rng = np.random.default_rng(0)
+    W = rng.normal(size=(200, 5)) * np.array([1.0, 10.0, 0.1, 3.0, 1e-3])
+    w = rng.uniform(0.5, 2.0, size=200)
+    Ww = W * w[:, None]
+    x = np.array([1.0, -0.2, 5.0, 0.01, 3.0])
+    covariance = 0.3 * np.linalg.inv(Ww.T @ Ww)  # any noise scale: shares are unit-free
+    expected = np.abs(x) * np.linalg.norm(Ww, axis=0) / np.linalg.norm(Ww @ x)
+    np.testing.assert_allclose(covariance_torque_shares(x, covariance), expected, rtol=1e-6)
+    assert np.isnan(covariance_torque_shares(x, np.zeros((0, 0)))).all()
+
+
+# ----------------------------------------------------------------------- shipped examples
+
+NAMES = ["wide-csv", "wide-jitter", "long-csv", "lines", "rosbag", "mcap", "two-logs"]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_each_shipped_log_example_reads_as_its_numbers_say(name):
+    result = identify(load_identify_config(EXAMPLES / f"{name}.yaml"))
+    v = identify_verdict(result)
+    held_out = result.predictions["identified"].metrics.total_relative_residual
+    assert held_out < 0.01
+    assert result.warnings == ()
+    # predicts held-out torques to 1 % with no warning: identified
+    assert v.label in ("good", "usable"), v
+    assert v.rule == "log"
+    # the examples' WLS completion makes one link inconsistent: that alone rules out good
+    n_bad = sum(not c.consistent for c in result.consistent.estimates["wls"].consistency)
+    assert v.label == ("usable" if n_bad else "good"), v
+
+
+# ---------------------------------------------------- the summary agrees with its sections
+
+
+def _summary(md):
+    block = md.split("## Summary")[1].split("Verdict rule:")[0]
+    rows = {}
+    for line in block.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0] and not set(cells[0]) <= set(":-"):
+            rows[cells[0]] = " | ".join(cells[1:]).replace("\\|", "|")
+    return rows
+
+
+def _percent(text):
+    return float(re.match(r"σ?\s*([-\d.e+]+) %", text).group(1))
+
+
+def _warning_count(md, rows):
+    n = len(re.findall(r"^> \*\*Warning: ", md, flags=re.M))
+    assert rows["Warnings"] == ("none" if n == 0 else f"{n} (below)")
+    return n
+
+
+def _table(md):
+    """Rows (dicts by header) of the first base-parameter table of ``md``."""
+    lines = [ln for ln in md.splitlines() if ln.startswith("|")]
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("| base parameter"))
+    header = [c.strip() for c in lines[start].strip("|").split("|")]
+    out = []
+    for ln in lines[start + 2 :]:
+        cells = [c.strip() for c in ln.strip().strip("|").split("|")]
+        if len(cells) != len(header):
+            break
+        out.append(dict(zip(header, cells, strict=True)))
+    return out
+
+
+def _check_run_folder(run_dir):
+    md = (run_dir / "report.md").read_text(encoding="utf-8")
+    data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
+    rows = _summary(md)
+    v = data["verdict"]
+    assert rows["Verdict"] == f"**{v['label']}** ({v['reason']})"
+    # the executed elite: trajectory.csv's, the parameter section's and the summary's
+    rank = data["executed_elite"]
+    assert rank == data["chosen_elite"]
+    assert f"on elite {rank} " in rows["Estimate"]
+    assert f"## Identified vs true parameters (elite {rank}, executed)" in md
+    # worst error: the largest error [%] among the rows marked major in the section
+    method = v["method"]
+    section = md.split(f"### {method.upper()}")[1]
+    table = _table(section)
+    major = [float(r["error [%]"]) for r in table if r["major"] == "yes"]
+    worst = _percent(rows["Worst error, major parameters"])
+    assert worst == pytest.approx(max(major), rel=1e-2)
+    # residual: the section's number, on the data the summary names
+    residual = _percent(rows[next(k for k in rows if k.startswith("Torque residual"))])
+    if v["residual_where"] == "held-out data":
+        line = next(ln for ln in md.splitlines() if ln.startswith("Torque residual, held-out"))
+        assert _percent(line.split(": ", 1)[1]) == residual
+    else:
+        shown = re.search(r"Relative residual ([-\d.e+]+) %", section).group(1)
+        assert float(shown) == residual
+    assert residual == pytest.approx(100 * v["residual"], rel=1e-2)
+    # consistency and warnings
+    if v["n_links"]:
+        n_ok = v["n_links"] - v["n_inconsistent"]
+        assert (
+            f"{n_ok} of {v['n_links']} links physically consistent" in rows["Physical consistency"]
+        )
+    assert _warning_count(md, rows) == len(v["warnings"])
+    # the optimizer the config names, in the summary and the details
+    optimizer = data["config"]["optimizer"]
+    shown = "eMuPSO" if optimizer == "emupso" else optimizer.upper()
+    assert rows["Optimizer"].startswith(shown)
+    assert f"{shown} runs" in md.split("## Details")[1]
+    if optimizer != "emupso":
+        assert "eMuPSO" not in md.split("## Configuration snapshot")[0]
+    return v
+
+
+def _check_identify_folder(folder):
+    md = (folder / "report.md").read_text(encoding="utf-8")
+    data = json.loads((folder / "result.json").read_text(encoding="utf-8"))
+    rows = _summary(md)
+    v = data["verdict"]
+    assert rows["Verdict"] == f"**{v['label']}** ({v['reason']})"
+    # residual: the held-out table's "identified" row
+    held = next(
+        ln for ln in md.split("## Held-out validation")[1].splitlines() if "| identified |" in ln
+    )
+    cells = [c.strip() for c in held.strip("|").split("|")]
+    assert _percent(rows["Torque residual, held-out data"]) == pytest.approx(
+        100 * float(cells[-2]), abs=6e-3
+    )
+    # consistency: the consistency section's row of the reported estimator
+    cons = md.split("## Physical consistency")[1]
+    row = next(ln for ln in cons.splitlines() if ln.startswith(f"| {v['method']} |"))
+    n_no, n_yes = row.count("**no**"), row.count("| yes (")
+    assert f"{n_yes} of {n_yes + n_no} links physically consistent" in rows["Physical consistency"]
+    assert rows["Physical consistency"].startswith("**violated**") == (n_no > 0)
+    assert "not checked" not in rows["Physical consistency"]
+    assert _warning_count(md, rows) == len(v["warnings"]) == len(data["warnings"])
+    return v
+
+
+def test_ideal_run_folder_summary_agrees_with_its_sections(tmp_path):
+    result = runner.invoke(app, ["run", str(QUICK), "--out", str(tmp_path), "--no-replay"])
+    assert result.exit_code == 0, result.output
+    (run_dir,) = [d for d in tmp_path.iterdir() if d.is_dir()]
+    v = _check_run_folder(run_dir)
+    assert v["rule"] == "truth"
+    assert (
+        f"verdict │ {v['label']}"
+        in re.sub(r"\s+", " ", result.output).replace("│ verdict │", "verdict │")
+        or v["label"] in result.output
+    )
+
+
+@pytest.mark.slow
+def test_run_and_identify_on_the_same_log_give_the_same_verdict(tmp_path):
+    out = tmp_path / "runs"
+    res = runner.invoke(
+        app,
+        ["run", str(ROOT / "configs" / "ur5.yaml"), "--quick", "--out", str(out), "--no-replay"],
+    )
+    assert res.exit_code in (0, 1), res.output
+    (run_dir,) = [d for d in out.iterdir() if d.is_dir()]
+    run_v = _check_run_folder(run_dir)
+    rank = run_v["elite"]
+    res_id = runner.invoke(
+        app,
+        [
+            "identify",
+            str(run_dir / "elites" / f"elite_{rank}" / "identify.yaml"),
+            "--out",
+            str(tmp_path / "id"),
+            "--no-replay",
+        ],
+    )
+    assert res_id.exit_code == 0, res_id.output
+    (id_dir,) = [d for d in (tmp_path / "id").iterdir() if d.is_dir()]
+    id_v = _check_identify_folder(id_dir)
+    keys = ["label", "reason", "rule", "residual", "worst_error_percent", "worst_std_percent"]
+    assert {k: id_v[k] for k in keys} == {k: run_v[k] for k in keys}
+    assert run_v["rule"] == "truth"  # the simulator's truth travels with the log
+    assert f"verdict: {id_v['label']} ({id_v['reason']})" in res_id.output
+    # the identify report of the same log, regenerated by `ident report`, still says it
+    assert runner.invoke(app, ["report", str(id_dir)]).exit_code == 0
+    assert f"<strong>{id_v['label']}</strong>" in (id_dir / "report.html").read_text()
+    assert runner.invoke(app, ["report", str(run_dir)]).exit_code == 0
+    assert _check_run_folder(run_dir) == run_v
+
+
+def test_real_log_identify_folder_summary_agrees_with_its_sections(tmp_path):
+    res = runner.invoke(
+        app, ["identify", str(EXAMPLES / "wide-csv.yaml"), "--out", str(tmp_path), "--no-replay"]
+    )
+    assert res.exit_code == 0, res.output
+    (folder,) = [d for d in tmp_path.iterdir() if d.is_dir()]
+    v = _check_identify_folder(folder)
+    assert v["rule"] == "log"
+    assert v["label"] != "not identified"
+    assert f"verdict: {v['label']} ({v['reason']})" in res.output
