@@ -359,7 +359,7 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
         consistency=_consistency_text(data, v),
         safety=_safety_text(data),
         warnings=list(v.get("warnings") or []),
-        extra=[tuple(e) for e in extra],
+        extra=[(k, v) for k, v in extra],
     )
 
 
