@@ -63,14 +63,18 @@ def test_truth_rule_thresholds():
 
 
 def test_log_rule_thresholds():
-    good_s, usable_s = THRESHOLDS["GOOD_STD_PERCENT"][0], THRESHOLDS["USABLE_STD_PERCENT"][0]
-    assert _log(0.01, good_s) == "good"
+    good_s = THRESHOLDS["GOOD_STD_PERCENT"][0]
+    good_r, usable_r = THRESHOLDS["GOOD_RESIDUAL"][0], THRESHOLDS["USABLE_RESIDUAL"][0]
+    assert _log(good_r, good_s) == "good"
+    assert _log(good_r * 1.01, good_s) == "usable"
     assert _log(0.01, good_s * 1.01) == "usable"
     assert _log(0.01, 1.0, n_inconsistent=1, n_links=3) == "usable"
     assert _log(0.01, 1.0, n_inconsistent=0, n_links=3) == "good"
     assert _log(0.01, 1.0, warnings=("w",)) == "usable"
-    assert _log(0.01, usable_s * 1.01) == "not identified"
-    assert _log(0.30, 1.0) == "not identified"
+    # predicts held-out torques well: never "not identified", however uncertain a parameter
+    assert _log(0.07, 500.0, warnings=("w",), n_inconsistent=5, n_links=6) == "usable"
+    assert _log(usable_r, 1.0) == "usable"
+    assert _log(usable_r * 1.01, 1.0) == "not identified"
     # not better than the URDF's nominal parameters: whatever else
     assert _log(0.05, 1.0, nominal=0.05) == "not identified"
     assert _log(0.05, 1.0, nominal=None) == "good"

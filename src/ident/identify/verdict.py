@@ -44,7 +44,6 @@ __all__ = [
     "THRESHOLDS",
     "USABLE_ERROR_PERCENT",
     "USABLE_RESIDUAL",
-    "USABLE_STD_PERCENT",
     "VERDICT_RULE",
     "VERDICT_RULE_REAL",
     "Evidence",
@@ -64,7 +63,6 @@ FloatArray = npt.NDArray[np.float64]
 GOOD_ERROR_PERCENT = 5.0  # [%] worst relative error of the major parameters (truth known)
 USABLE_ERROR_PERCENT = 20.0
 GOOD_STD_PERCENT = 5.0  # [%] worst relative std of the torque-carrying parameters (no truth)
-USABLE_STD_PERCENT = 20.0
 GOOD_RESIDUAL = 0.10  # relative torque residual ||tau - tau_pred|| / ||tau||
 USABLE_RESIDUAL = 0.25
 
@@ -76,7 +74,6 @@ THRESHOLDS: dict[str, tuple[float, str]] = {
     "GOOD_ERROR_PERCENT": (GOOD_ERROR_PERCENT, "%"),
     "USABLE_ERROR_PERCENT": (USABLE_ERROR_PERCENT, "%"),
     "GOOD_STD_PERCENT": (GOOD_STD_PERCENT, "%"),
-    "USABLE_STD_PERCENT": (USABLE_STD_PERCENT, "%"),
     "GOOD_RESIDUAL": (GOOD_RESIDUAL, "fraction"),
     "USABLE_RESIDUAL": (USABLE_RESIDUAL, "fraction"),
 }
@@ -95,8 +92,9 @@ VERDICT_RULE_REAL = (
     f"parameters'; good: held-out residual below {100 * GOOD_RESIDUAL:g} %, every parameter "
     f"carrying >= {100 * MAJOR_SHARE:g} % of the torques with relative std (σ) below "
     f"{GOOD_STD_PERCENT:g} %, every link physically consistent and no warning; usable: "
-    f"residual below {100 * USABLE_RESIDUAL:g} % and σ below {USABLE_STD_PERCENT:g} %; "
-    "otherwise not identified (docs/verdict.md)"
+    f"held-out residual below {100 * USABLE_RESIDUAL:g} % (the parameters predict the "
+    "torques; the warnings say what to trust less); otherwise not identified "
+    "(docs/verdict.md)"
 )
 
 
@@ -247,7 +245,7 @@ def decide_verdict(e: Evidence) -> Verdict:
     )
     if good:
         return Verdict("good", reason, rule)
-    if res <= USABLE_RESIDUAL and std <= USABLE_STD_PERCENT:
+    if res <= USABLE_RESIDUAL:  # a log that predicts held-out torques is not "not identified"
         return Verdict("usable", reason, rule)
     return Verdict("not identified", reason, rule)
 
