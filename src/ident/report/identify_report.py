@@ -18,7 +18,7 @@ import numpy as np
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.estimators.summary import consistency_summary, identified_model
-from ident.identify.metrics import MAJOR_SHARE, parameter_unit
+from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
 from ident.identify.real import IdentifyResult
 from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
 from ident.identify.verdict import (
@@ -442,6 +442,7 @@ def _markdown(
                 "Dropped, in order: "
                 + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
             ]
+    lines += _truth_section(result)
     lines += _urdf_section(urdf, urdf_name)
     lines += _consistency_section(result)
     lines += [
@@ -453,6 +454,34 @@ def _markdown(
     ]
     lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
     return "\n".join(lines) + "\n"
+
+
+def _truth_section(result: IdentifyResult) -> list[str]:
+    """The major parameters against the simulator's truth (``validation.truth``), if any."""
+    truth = truth_from_config(result.config.validation.truth)
+    est = result.estimate
+    if truth is None or tuple(est.names) != truth.names:
+        return []
+    m = error_measures(est.x, est.std, truth.values, reference_share=truth.reference_share)
+    lines = [
+        "",
+        "## Major parameters against the simulator's truth",
+        "",
+        "The log was simulated (`validation.truth`, written by `ident run`): the verdict judges "
+        f"the base parameters with a reference torque share >= {100 * MAJOR_SHARE:g} % (the "
+        "run's major parameters) by their error against the true values.",
+        "",
+        "| base parameter | true | identified | σ [%] | error [%] |",
+        "| :--- | ---: | ---: | ---: | ---: |",
+    ]
+    for k, major in enumerate(m["major"]):
+        if major:
+            lines.append(
+                f"| {est.names[k]} | {_num(float(truth.values[k]))} | {_num(float(est.x[k]))} | "
+                f"{_num(float(est.relative_std[k]), 3)} | "
+                f"{_num(m['rel_error_percent'][k], 3)} |"
+            )
+    return lines
 
 
 def _urdf_section(urdf: UrdfUpdate, urdf_name: str) -> list[str]:
