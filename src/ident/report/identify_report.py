@@ -57,6 +57,20 @@ def _finite(value: float) -> float | None:
     return float(value) if np.isfinite(value) else None
 
 
+def _robot_file(result: IdentifyResult) -> Path:
+    """The robot file of the identification (a URDF, or a DH description)."""
+    return Path(result.config.robot.path)
+
+
+def _urdf_text(result: IdentifyResult) -> str:
+    """The URDF of the identified robot (the file's text; generated for a DH description)."""
+    if result.config.robot.urdf is not None:
+        return Path(result.config.robot.urdf).read_text(encoding="utf-8")
+    from ident.model.selection import load_robot
+
+    return str(load_robot(result.config.robot).urdf_text)
+
+
 def joint_torque_units(result: IdentifyResult) -> tuple[str, ...]:
     """Unit of each joint's torque, residuals and errors: ``"N*m"`` for a revolute joint,
     ``"N"`` for a prismatic one (:func:`ident.identify.sanity.joint_units` of the robot the
@@ -131,9 +145,7 @@ def write_measured_replay(
     if motion is None:
         return f"no replay: {result.motion_note or 'no measured motion'}."
     atomic_write_text(folder / "trajectory.csv", trajectory_to_csv(motion))
-    urdf_path = atomic_write_text(
-        folder / "robot.urdf", Path(result.config.robot.urdf).read_text(encoding="utf-8")
-    )
+    urdf_path = atomic_write_text(folder / "robot.urdf", _urdf_text(result))
     what = (
         f"measured motion, {motion.n_samples} samples at "
         f"{(motion.n_samples - 1) / (motion.t[-1] - motion.t[0]):.3g} Hz, "
@@ -146,7 +158,7 @@ def write_measured_replay(
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            source = Path(result.config.robot.urdf).resolve().parent
+            source = _robot_file(result).resolve().parent
             page = replay_html(
                 urdf_path,
                 [motion],
@@ -287,7 +299,7 @@ def _markdown(
     lines = [
         f"# Identification of `{result.config.name}` from a measured log",
         "",
-        f"Config: `{result.config.source}`. URDF: `{Path(result.config.robot.urdf).name}`. "
+        f"Config: `{result.config.source}`. URDF: `{_robot_file(result).name}`. "
         f"Estimator: **{est.method.upper()}** on {est.n_observations} rows "
         f"({len(pm.base_names)} base parameters). "
         + (
@@ -544,7 +556,7 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
     summary = consistency_summary(result)
     if summary is None:
         return []
-    stem = Path(result.config.robot.urdf).stem
+    stem = _robot_file(result).stem
     estimators = summary["estimators"]
     links = [c["link"] for c in next(iter(estimators.values()))["links"]]
     lines = [
@@ -664,7 +676,7 @@ def write_identify_report(
     if replay_note is None:
         replay_note = write_measured_replay(result, folder, replay=replay)
     urdf = identified_urdf(result)
-    urdf_name = Path(result.config.robot.urdf).stem + "_identified.urdf"
+    urdf_name = _robot_file(result).stem + "_identified.urdf"
     png = torque_png(result)
     params_png = parameters_figure(result)
     markdown = _markdown(result, urdf, urdf_name, replay_note)
@@ -692,7 +704,7 @@ def write_identify_report(
     ]
     model = identified_model(result)
     if model is not None:
-        stem = Path(result.config.robot.urdf).stem
+        stem = _robot_file(result).stem
         written += [
             atomic_write_text(folder / f"{stem}_consistent.urdf", model.text),
             atomic_write_text(
