@@ -735,7 +735,7 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
     if v["n_links"]:
         n_bad = v["n_inconsistent"] or 0
         consistency = (
-            f"{est.method.upper()}: {v['n_links'] - n_bad} of {v['n_links']} links physically "
+            f"{v['method']}: {v['n_links'] - n_bad} of {v['n_links']} links physically "
             "consistent (see the consistency section)"
         )
         if n_bad:

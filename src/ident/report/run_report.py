@@ -279,7 +279,7 @@ def _consistency_text(data: dict[str, Any], v: dict[str, Any]) -> str:
     if v.get("n_links"):
         n_bad = int(v.get("n_inconsistent") or 0)
         text = (
-            f"{(v.get('method') or '').upper()}: {v['n_links'] - n_bad} of {v['n_links']} links "
+            f"{v.get('method') or ''}: {v['n_links'] - n_bad} of {v['n_links']} links "
             "physically consistent"
         )
         return text if n_bad == 0 else f"**violated**, {text}"
