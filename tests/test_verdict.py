@@ -212,8 +212,9 @@ def _check_identify_folder(folder):
     v = data["verdict"]
     assert rows["Verdict"] == f"**{v['label']}** ({v['reason']})"
     # residual: the held-out table's "identified" row
+    label = re.search(r"on the [^,]+, ([^ (]+)", rows["Torque residual, held-out data"]).group(1)
     held = next(
-        ln for ln in md.split("## Held-out validation")[1].splitlines() if "| identified |" in ln
+        ln for ln in md.split("## Held-out validation")[1].splitlines() if f"| {label} |" in ln
     )
     cells = [c.strip() for c in held.strip("|").split("|")]
     assert _percent(rows["Torque residual, held-out data"]) == pytest.approx(

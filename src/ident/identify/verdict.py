@@ -52,6 +52,7 @@ __all__ = [
     "covariance_torque_shares",
     "decide_verdict",
     "identify_verdict",
+    "judged_method",
     "log_evidence",
     "thresholds_markdown",
     "truth_error",
@@ -161,6 +162,8 @@ class Evidence:
     truth :
         Whether true values are known (None: whether ``worst_error_percent`` is set); with
         the truth known and no error, the verdict is ``not identified``.
+    method :
+        The estimator judged (its residual and consistency).
     """
 
     estimated: bool = True
@@ -176,6 +179,7 @@ class Evidence:
     warnings: tuple[str, ...] = field(default_factory=tuple)
     safe: bool | None = None
     truth: bool | None = None
+    method: str | None = None
 
     @property
     def truth_known(self) -> bool:
@@ -333,9 +337,10 @@ def log_evidence(
         k = int(np.argmax(rel_c))
         worst_std = float(rel_c[k])
         worst_std_name = str(np.asarray(est.names)[carrying][k])
-    pred = result.predictions.get("identified")
+    method = judged_method(result)
+    pred = result.predictions.get(method, result.predictions.get("identified"))
     nominal = result.predictions.get("URDF nominal")
-    n_bad, n_links = _consistency_counts(result)
+    n_bad, n_links = _consistency_counts(result, method)
     in_sample = result.config.validation.identify_fraction >= 1.0  # no held-out part
     evidence = Evidence(
         estimated=True,
@@ -350,6 +355,7 @@ def log_evidence(
         n_links=n_links,
         warnings=(*extra_warnings, *result.warnings),
         safe=safe,
+        method=method,
     )
     if truth is not None:
         err = truth_error(x, np.asarray(est.std, dtype=float), est.names, truth)
@@ -382,17 +388,24 @@ def _replace(e: Evidence, **changes: Any) -> Evidence:
     return dataclasses.replace(e, **changes)
 
 
-def _consistency_counts(result: Any) -> tuple[int | None, int | None]:
-    """Inconsistent links of the reported estimate, and the number of links (None, None when
-    the result has no consistency data)."""
+def judged_method(result: Any) -> str:
+    """The estimator a log's verdict judges: the configured ``estimation.method`` when the
+    result has its consistency data (a constrained estimate beside least squares), else the
+    least-squares estimate's."""
+    configured = result.config.estimation.method
     consistent = getattr(result, "consistent", None)
-    if consistent is None:
+    if consistent is not None and configured in consistent.estimates:
+        return str(configured)
+    return str(result.estimate.method)
+
+
+def _consistency_counts(result: Any, method: str) -> tuple[int | None, int | None]:
+    """Inconsistent links of ``method``'s estimate, and the number of links (None, None when
+    the result has no consistency data for it)."""
+    consistent = getattr(result, "consistent", None)
+    if consistent is None or method not in consistent.estimates:
         return None, None
-    estimates = consistent.estimates
-    method = result.estimate.method if result.estimate.method in estimates else consistent.method
-    if method not in estimates:
-        return None, None
-    links = estimates[method].consistency
+    links = consistent.estimates[method].consistency
     return sum(not c.consistent for c in links), len(links)
 
 

@@ -271,7 +271,7 @@ def verdict_entry(result: IdentifyResult) -> dict:
     e = log_evidence(result, truth=truth_from_config(result.config.validation.truth))
     return {
         **v.as_dict(),
-        "method": result.estimate.method,
+        "method": e.method,
         "residual": _finite_or_none(e.residual),
         "residual_where": e.residual_where,
         "nominal_residual": _finite_or_none(e.nominal_residual),
@@ -720,10 +720,11 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
     est = result.estimate
     v = verdict_entry(result)
     residual = v["residual"]
+    judged = v["method"] if v["method"] in result.predictions else "identified"
     others = ", ".join(
         f"{label}: {pct(100 * p.metrics.total_relative_residual)}"
         for label, p in result.predictions.items()
-        if label != "identified"
+        if label != judged
     )
     where = (
         "held-out part of the log"
@@ -776,7 +777,8 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
         residual=(
             "—"
             if residual is None
-            else f"{pct(100 * residual)} on the {where}" + (f" ({others})" if others else "")
+            else f"{pct(100 * residual)} on the {where}, {judged}"
+            + (f" ({others})" if others else "")
         ),
         residual_label="Torque residual, held-out data",
         condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
