@@ -1,8 +1,10 @@
 """One verdict: the rule (docs/verdict.md), the evidence, and every renderer agreeing."""
 
+import dataclasses
 import json
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -11,6 +13,7 @@ from typer.testing import CliRunner
 
 from ident.cli import app
 from ident.identify.config import load_identify_config
+from ident.identify.metrics import error_measures
 from ident.identify.real import identify
 from ident.identify.verdict import (
     THRESHOLDS,
@@ -19,12 +22,13 @@ from ident.identify.verdict import (
     decide_verdict,
     identify_verdict,
 )
+from ident.report.run_report import render_markdown
+from ident.run.results import RunResult
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "configs" / "examples"
 QUICK = ROOT / "tests" / "data" / "run" / "quick-wrist.yaml"
 runner = CliRunner()
-
 
 # ----------------------------------------------------------------------------- the rule
 
@@ -308,3 +312,133 @@ def test_real_log_identify_folder_summary_agrees_with_its_sections(tmp_path):
     assert v["rule"] == "log"
     assert v["label"] != "not identified"
     assert f"verdict: {v['label']} ({v['reason']})" in res.output
+
+
+# ------------------------------------------------------------- the executed elite is judged
+
+
+def _report_data(estimates, failures):
+    """A minimal run result.json (one stage, one base parameter m1, true value 1)."""
+    return {
+        "format": "ident-run/1",
+        "status": "complete",
+        "message": "run complete",
+        "name": "t",
+        "seed": 1,
+        "config": {
+            "robot": "r.yaml",
+            "stage": "wrist",
+            "excitation": {"family": "joint_fourier", "criterion": "paper", "n_samples": 10},
+            "elites": {"n_particles": 2, "n_elites": 1},
+            "emupso": {"n_runs": 1, "n_particles": 2, "maxiter": 1, "stagnation": 1},
+            "measurement": {"torque_noise_std": 0.0, "encoder_counts_per_rev": None},
+            "estimation": {"methods": ["ols"]},
+        },
+        "robot": {"name": "r", "joint_names": ["a"], "q_limits": [[-1, 1]], "dq_limits": [1]},
+        "excitation": {"variable_names": ["v"], "moving_joints": [0]},
+        "warnings": [],
+        "stage": {
+            "name": "wrist",
+            "torque_rows": [0],
+            "base_method": "qr",
+            "known_bodies": "all bodies are unknown in this stage",
+            "counts": {"independent": 1, "dependent": 0, "unidentifiable": 0, "n_base": 1},
+            "paper_counts": {"independent": 15, "dependent": 7, "unidentifiable": 8},
+            "independent": ["m1"],
+            "dependent": [],
+            "unidentifiable": [],
+            "base_names": ["m1"],
+            "base_expressions": ["m1"],
+            "true_base": [1.0],
+            "identifiable_alone": [True],
+        },
+        "initial_elites": {"x": [[0.0]], "message": "1 elites found"},
+        "optimization": {"n_runs_finished": 1, "runs": []},
+        "elites": [
+            {
+                "rank": 1,
+                "x": [0.5],
+                "fitness": 3.0,
+                "objective": {"cond": 2.0},
+                "estimates": estimates,
+                "failures": failures,
+                "path_csv": None,
+            }
+        ],
+        "chosen_elite": 1,
+    }
+
+
+def _elite(rank, x, fitness):
+    est = {
+        "x": [x],
+        "std": [0.01],
+        "condition_number": 3.0,
+        "residual_rms": [0.2],
+        "relative_residual": 0.01,
+        "message": "ok",
+        **error_measures(np.array([x]), np.array([0.01]), np.array([1.0]), reference_share=[1.0]),
+    }
+    return {
+        "rank": rank,
+        "x": [0.5],
+        "fitness": fitness,
+        "objective": {"cond": 2.0},
+        "estimates": {"wls": est},
+        "failures": {},
+        "path_csv": None,
+    }
+
+
+def _run_data(executed, safe=True):
+    data = _report_data({}, {})
+    # elite 1 (best fitness) is 40 % off, elite 2 (the one trajectory.csv runs) 3 % off
+    data["elites"] = [_elite(1, 1.4, 3.0), _elite(2, 1.03, 4.0)]
+    data["config"]["estimation"] = {"methods": ["wls"]}
+    data["chosen_elite"] = data["executed_elite"] = executed
+    data["safety"] = {"ok": safe, "message": "checked"}
+    return data
+
+
+def test_the_report_judges_the_executed_elite_not_elite_1():
+    md = render_markdown(_run_data(2))
+    rows = _summary(md)
+    assert rows["Verdict"].startswith("**good** (worst major-parameter error 3 %")
+    assert rows["Worst error, major parameters"].startswith("3 % (m1")
+    assert "on elite 2 " in rows["Estimate"]
+    assert "## Identified vs true parameters (elite 2, executed)" in md
+    # the same data with elite 1 executed: 40 % off, not identified
+    assert _summary(render_markdown(_run_data(1)))["Verdict"].startswith("**not identified**")
+
+
+def test_an_unsafe_run_reads_unsafe_everywhere():
+    md = render_markdown(_run_data(2, safe=False))
+    assert _summary(md)["Verdict"].startswith("**unsafe**")
+
+
+def test_run_result_executed_rank_is_the_plans_elite():
+    @dataclasses.dataclass
+    class Plan:
+        elite: int | None
+
+    base = RunResult(
+        config=None,
+        status="complete",
+        message="",
+        robot_name="r",
+        joint_names=("a",),
+        q_limits=np.zeros((1, 2)),
+        dq_limits=np.ones(1),
+        ddq_limits=np.ones(1),
+        urdf_text="",
+        variable_names=("v",),
+        bounds=np.zeros((1, 2)),
+        traced_frame=None,
+        moving_joints=(0,),
+    )
+    assert base.executed_rank is None  # no elite
+    elites = tuple(SimpleNamespace(rank=k) for k in (1, 2, 3))
+    with_elites = dataclasses.replace(base, elites=elites)
+    assert dataclasses.replace(with_elites, executable=Plan(3)).executed_rank == 3
+    assert dataclasses.replace(with_elites, executable=Plan(None)).executed_rank == 1
+    assert with_elites.executed_rank == 1
