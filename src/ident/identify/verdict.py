@@ -25,6 +25,7 @@ In both, an unsafe trajectory gives ``unsafe`` (never ``usable``) and a missing 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -360,7 +361,9 @@ def log_evidence(
     if truth is not None:
         err = truth_error(x, np.asarray(est.std, dtype=float), est.names, truth)
         if err is not None:
-            evidence = _replace(evidence, worst_error_percent=err[0], worst_error_name=err[1])
+            evidence = dataclasses.replace(
+                evidence, worst_error_percent=err[0], worst_error_name=err[1]
+            )
     return evidence
 
 
@@ -380,12 +383,6 @@ def identify_verdict(result: Any) -> Verdict:
     ``result.json`` show): :func:`log_evidence` with the config's ``validation.truth``."""
     truth = truth_from_config(result.config.validation.truth)
     return decide_verdict(log_evidence(result, truth=truth))
-
-
-def _replace(e: Evidence, **changes: Any) -> Evidence:
-    import dataclasses
-
-    return dataclasses.replace(e, **changes)
 
 
 def judged_method(result: Any) -> str:
