@@ -75,6 +75,7 @@ def identify(
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify as run_identify
+    from ident.identify.verdict import identify_verdict
     from ident.report.identify_report import (
         joint_torque_units,
         save_identify_data,
@@ -145,6 +146,8 @@ def identify(
                 f"RMSE per joint {rmse}"
             )
         typer.echo(replay_note)
+        verdict = identify_verdict(result)  # the one the report and result.json show
+        typer.echo(f"verdict: {verdict.label} ({verdict.reason})")
         typer.echo(f"report: {rundir.path / 'report.html'}")
         for w in result.warnings:
             typer.echo(f"warning: {w}", err=True)

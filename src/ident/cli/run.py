@@ -163,8 +163,9 @@ class _ProgressDisplay:
         self.tasks["elites"] = self.progress.add_task(
             "initial elites", total=cfg.elites.maxiter, info=""
         )
+        name = "eMuPSO" if cfg.optimizer == "emupso" else cfg.optimizer
         self.tasks["optimize"] = self.progress.add_task(
-            "eMuPSO", total=cfg.emupso.n_runs * cfg.emupso.maxiter, info=""
+            name, total=cfg.emupso.n_runs * cfg.emupso.maxiter, info=""
         )
         self.tasks["identify"] = self.progress.add_task(
             "identification", total=cfg.emupso.n_report_elites, info=""
@@ -221,10 +222,15 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
             "paper's DH frames",
             f"{i}/{d}/{u}" + (f" (paper: {paper})" if paper else ""),
         )
-    table.add_row("eMuPSO runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
+    from ident.report.run_data import load_run
+    from ident.report.run_report import optimizer_name
+    from ident.report.run_verdict import stored_verdict
+
+    data = load_run(run_dir)  # the saved result: the verdict the reports show
+    table.add_row(f"{optimizer_name(data)} runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
     if result.elites:
         plan = result.executable
-        chosen = plan.elite if plan is not None and plan.elite is not None else 1
+        chosen = result.executed_rank or 1
         best = result.elites[chosen - 1]
         table.add_row(
             "chosen elite" if plan is not None and plan.usable else "elite 1 (UNSAFE)",
@@ -252,6 +258,10 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")
     table.add_row("replay", replay_note)
+    v = stored_verdict(data)
+    table.add_row("verdict", f"{v['label']} ({v['reason']})")
+    for warning in v.get("warnings") or []:
+        table.add_row("warning", warning)
     console.print(table)
     # plain lines, never truncated by the table layout
     typer.echo(f"Report: {report_path}")

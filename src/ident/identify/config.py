@@ -44,6 +44,7 @@ __all__ = [
     "TimeColumn",
     "TimeWindow",
     "TransmissionConfig",
+    "TruthConfig",
     "UrdfUpdateConfig",
     "ValidationConfig",
     "load_identify_config",
@@ -362,6 +363,16 @@ class EstimationConfig(StrictModel):
         return self.method if self.method in ("ols", "wls") else "wls"
 
 
+class TruthConfig(StrictModel):
+    """The true base parameters of a simulated log (``ident run`` writes them into the
+    ``identify.yaml`` of each log it simulates): with them the verdict judges the errors of the
+    major parameters, as ``ident run`` does (docs/verdict.md). A real log has none."""
+
+    base_names: list[str]
+    values: list[float]
+    reference_share: list[float]
+
+
 class ValidationConfig(StrictModel):
     """Time split: the first ``identify_fraction`` of the log identifies, the rest validates.
 
@@ -375,6 +386,7 @@ class ValidationConfig(StrictModel):
     identify_fraction: float = Field(default=0.7, gt=0.0, le=1.0)
     max_relative_residual: float | None = Field(default=None, gt=0.0)
     fail_on_warning: bool = False
+    truth: TruthConfig | None = None
 
 
 class ReferenceConfig(StrictModel):

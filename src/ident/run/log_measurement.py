@@ -28,7 +28,7 @@ from ident.dynamics.friction import ExtraTerms, extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
-from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
+from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig, TruthConfig
 from ident.identify.logs import read_log
 from ident.identify.real import IdentifyResult, identify_log
 from ident.measure.mujoco_config import per_joint
@@ -269,14 +269,27 @@ def identify_elite_log(
     )
 
 
-def write_identify_files(folder: Path, config: RunConfig, outcome: LogOutcome) -> Path:
+def write_identify_files(
+    folder: Path, config: RunConfig, outcome: LogOutcome, stage: StageInfo | None = None
+) -> Path:
     """Save an elite's log and the ``identify.yaml`` that identifies it again; return its path.
 
     ``folder`` is ``<run>/elites/elite_<k>``; the robot is the run folder's ``robot.urdf``.
+    With the run's ``stage``, ``validation.truth`` holds the simulator's true base parameters,
+    so ``ident identify`` judges the log by the same verdict rule as the run (docs/verdict.md).
     """
     files = write_log(folder, outcome.log)
     section = yaml.safe_load(files.yaml.read_text(encoding="utf-8"))
     cfg = identify_config(config, section, robot_path=_RUN_FOLDER_FROM_LOG / "robot.urdf")
+    if stage is not None and stage.reference_share is not None:
+        truth = TruthConfig(
+            base_names=list(stage.base_names),
+            values=[float(v) for v in stage.true_base],
+            reference_share=[float(v) for v in stage.reference_share],
+        )
+        cfg = cfg.model_copy(
+            update={"validation": cfg.validation.model_copy(update={"truth": truth})}
+        )
     data = cfg.model_dump(mode="json", exclude={"source"})
     data["robot"] = {k: v for k, v in data["robot"].items() if v not in (None, [], {})}
     if config.robot.inertia_check:
@@ -299,5 +312,5 @@ def save_logs(result: Any, run_dir: Path) -> list[Path]:
     for elite in result.elites:
         if elite.log is not None:
             folder = Path(run_dir) / "elites" / f"elite_{elite.rank}"
-            written.append(write_identify_files(folder, result.config, elite.log))
+            written.append(write_identify_files(folder, result.config, elite.log, result.stage))
     return written
