@@ -9,11 +9,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from robots import ERD_ROBOTS, UR5_URDF
+from typer.testing import CliRunner
 
+from ident.cli import app
 from ident.dynamics.base_parameters import (
     NEAR_DEPENDENCE_FLOOR,
     RANK_RTOL,
     compute_base_parameters,
+    nearly_aligned_axes,
 )
 from ident.dynamics.chain import chain_from_model, random_states
 from ident.dynamics.friction import ExtraTerms
@@ -182,3 +185,22 @@ def test_base_parameter_scores_keep_real_robots_far_from_the_tolerance():
     base = pm.base
     assert base.scores[base.independent].min() > 100 * RANK_RTOL
     assert base.scores[base.dependent].max() < NEAR_DEPENDENCE_FLOOR
+
+
+def test_nearly_aligned_axes_are_named_by_verify(tmp_path):
+    models = _xarm7_models(tmp_path)
+    pairs = nearly_aligned_axes(chain_from_model(models["rounded"]))
+    # every rpy="1.5708" joint: 90 deg from its parent's axis to within pi/2 - 1.5708
+    assert [(a, b, n) for a, b, _, n in pairs] == [
+        (f"joint{j}", f"joint{j - 1}", 90.0) for j in range(2, 8)
+    ]
+    np.testing.assert_allclose([d for *_, d, _ in pairs], 1.5708 - math.pi / 2, rtol=1e-6)
+    assert nearly_aligned_axes(chain_from_model(models["exact"])) == []
+
+    result = CliRunner().invoke(
+        app, ["verify", "--urdf", str(tmp_path / "xarm7_rounded.urdf"), "--samples", "20"]
+    )
+    assert result.exit_code == 0, result.output
+    text = " ".join(result.output.split())
+    assert "nearly aligned axes: joint2 and joint1 are 90 deg apart to within 3.7e-06 rad" in text
+    assert "| 43 |" in text.replace("│", "|")  # the exact model's rigid-body rank

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ident.dynamics.chain import FloatArray, IntArray
+from ident.dynamics.chain import FloatArray, IntArray, KinematicChain
 from ident.errors import DataError, IdentWarning
 
 __all__ = [
@@ -45,6 +45,7 @@ __all__ = [
     "RANK_RTOL",
     "BaseParameters",
     "compute_base_parameters",
+    "nearly_aligned_axes",
     "torque_shares",
 ]
 
@@ -393,3 +394,49 @@ def torque_shares(W_base: FloatArray, beta: FloatArray) -> FloatArray:
     beta = np.asarray(beta, dtype=float)
     total = float(np.linalg.norm(W_base @ beta))
     return np.abs(beta) * np.linalg.norm(W_base, axis=0) / (total if total > 0 else 1.0)
+
+
+def nearly_aligned_axes(
+    chain: KinematicChain, *, tolerance: float = RANK_RTOL
+) -> list[tuple[str, str, float, float]]:
+    """Joint axes that are parallel or perpendicular to within ``tolerance`` rad, not exactly.
+
+    Each joint's axis is compared with its parent joint's (the angle between them does not
+    depend on the parent's position) and a first joint's axis with gravity. A deviation
+    between :data:`NEAR_DEPENDENCE_FLOOR` and ``tolerance`` is what URDF angles rounded to 4-5
+    digits give (``rpy="1.5708"``: 3.7e-6 rad); the base parameters then treat the axes as
+    exactly aligned (:data:`RANK_RTOL`), and this list says which.
+
+    Parameters
+    ----------
+    chain :
+        The kinematic chain.
+    tolerance :
+        Largest deviation reported [rad].
+
+    Returns
+    -------
+    :
+        ``(joint, other, deviation_rad, nominal_deg)`` per pair, ``other`` a joint name or
+        ``"gravity"``, ``nominal_deg`` 0 (parallel) or 90 (perpendicular).
+    """
+    out = []
+    g = np.asarray(chain.gravity, dtype=float)
+    for i, name in enumerate(chain.joint_names):
+        axis = chain.placements[i, :3, :3] @ chain.axes[i]  # in the parent joint's frame
+        p = int(chain.parents[i])
+        if p >= 0:
+            other, reference = chain.joint_names[p], chain.axes[p]
+        elif np.linalg.norm(g) > 0:
+            other, reference = "gravity", g / np.linalg.norm(g)
+        else:
+            continue
+        # angle in [0, pi/2] between the lines, accurate near 0 and pi/2
+        angle = float(
+            np.arctan2(np.linalg.norm(np.cross(axis, reference)), abs(float(axis @ reference)))
+        )
+        for nominal in (0.0, np.pi / 2):
+            deviation = abs(angle - nominal)
+            if NEAR_DEPENDENCE_FLOOR < deviation <= tolerance:
+                out.append((name, other, deviation, float(np.degrees(nominal))))
+    return out
