@@ -352,31 +352,37 @@ def test_a_file_that_does_not_read_back_as_written_is_removed_and_refused(tmp_pa
     assert not (tmp_path / "rounded.txt").exists()
 
 
-def test_registry_toy_example_of_the_docs(tmp_path):
-    """The example of ident.run.exports.registry and docs/execute.md, "Extending"."""
+def test_registry_toy_example_of_the_docs(tmp_path, monkeypatch):
+    """The "Extending" example of docs/execute.md, read from the docs and run as written."""
+    from ident.run.config import ControllerSection
+    from ident.run.exports import registry
 
-    def prepare(trajectory, target):
-        s = resample_quintic(trajectory, 250.0)
-        return ExportSamples(s.t, s.q, None, None, s.joint_names)
-
-    def write(samples, folder):
-        path = folder / "q_250hz.txt"
-        np.savetxt(path, samples.q, fmt="%.17g")
-        return [path]
-
-    def read(path):
-        q = np.loadtxt(path, ndmin=2)
-        return ExportSamples(np.arange(len(q)) / 250.0, q, None, None, ("j1", "j2"))
-
-    register_exporter("q250", Exporter(prepare, write, read, "positions at 250 Hz"))
-    try:
-        with pytest.raises(ValueError, match="registered already"):
-            register_exporter("q250", Exporter(prepare, write, read))
-        plan, duration = rest_to_rest(np.zeros(2), np.ones(2), 0.5, 1e-3, ["j1", "j2"])
-        outcome = export_trajectory(["q250"], plan, target_from_urdf("<robot name='x'/>"), tmp_path)
-    finally:
-        del EXPORTERS["q250"]
+    monkeypatch.setattr(registry, "EXPORTERS", dict(registry.EXPORTERS))  # undone afterwards
+    text = (REPO / "docs" / "execute.md").read_text()
+    section = text[text.index("## Extending") :]
+    exec(re.search(r"```python\n(.*?)```", section, re.S).group(1), {})
+    assert "q250" in registry.EXPORTERS
+    with pytest.raises(ValueError, match="registered already"):
+        registry.register_exporter("q250", registry.EXPORTERS["q250"])
+    assert ControllerSection(export=["q250", "ros2"]).export == ["q250", "ros2"]
+    plan, duration = rest_to_rest(np.zeros(2), np.ones(2), 0.5, 1e-3, ["j1", "j2"])
+    outcome = registry.export_trajectory(
+        ["q250"], plan, target_from_urdf("<robot name='x'/>"), tmp_path
+    )
+    assert outcome.written == {"q250": [tmp_path / "q_250hz.txt"]}, outcome.refused
     q = np.loadtxt(tmp_path / "q_250hz.txt")
     t = np.arange(len(q)) / 250.0
     np.testing.assert_allclose(q, quintic_at(t, np.zeros(2), np.ones(2), duration)[0], atol=1e-12)
-    assert outcome.written == {"q250": [tmp_path / "q_250hz.txt"]}
+
+
+def test_yaml_floats_that_pyyaml_would_read_as_strings_are_spelled_as_floats(tmp_path):
+    """repr(1e-05) is '1e-05', a string for YAML 1.1 (PyYAML, ros2 topic pub)."""
+    names = urdf_joint_names(UR5_URDF)
+    plan, _ = rest_to_rest(np.zeros(6), np.full(6, 0.1), 0.5, 1e-3, names)
+    q = plan.q.copy()
+    q[0, :3] = [1e-05, -2e-07, 3e-300]
+    odd = JointTrajectory(t=plan.t, q=q, dq=plan.dq, ddq=plan.ddq, joint_names=names)
+    outcome = export_trajectory(["ros2"], odd, target_from_urdf(UR5_URDF.read_text()), tmp_path)
+    assert "ros2" in outcome.written, outcome.refused
+    message = yaml.safe_load((tmp_path / "joint_trajectory.yaml").read_text())
+    assert message["points"][0]["positions"][:3] == [1e-05, -2e-07, 3e-300]
