@@ -164,6 +164,11 @@ def resample_quintic(trajectory: JointTrajectory, rate_hz: float) -> ExportSampl
         grid point at or after the plan's end, where the robot rests at the final posture
         (held: zero velocity and acceleration). Positions, velocities, accelerations.
 
+    Raises
+    ------
+    ExportError
+        If the grid runs past a plan that does not end at rest.
+
     Notes
     -----
     When the plan is already on that grid (to 1e-12 s) its samples are returned unchanged.
@@ -177,6 +182,12 @@ def resample_quintic(trajectory: JointTrajectory, rate_hz: float) -> ExportSampl
             grid, trajectory.q.copy(), trajectory.dq.copy(), trajectory.ddq.copy(), names
         )
     inside = grid <= t[-1]
+    resting = max(np.max(np.abs(trajectory.dq[-1])), np.max(np.abs(trajectory.ddq[-1])))
+    if not inside.all() and not resting <= 1e-9:
+        raise ExportError(
+            f"the trajectory ends in motion (|dq|, |ddq| up to {resting:.3g}) between two "
+            f"samples of the {rate_hz:g} Hz grid; an export needs it to end at rest."
+        )
     out = [np.empty((n, trajectory.q.shape[1])) for _ in range(3)]
     for j in range(trajectory.q.shape[1]):  # BPoly interpolates one scalar signal at a time
         derivatives = np.stack([trajectory.q[:, j], trajectory.dq[:, j], trajectory.ddq[:, j]], 1)

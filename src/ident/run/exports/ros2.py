@@ -194,6 +194,32 @@ def _typestore() -> Any:
     return get_typestore(Stores.ROS2_HUMBLE)
 
 
+def _qos() -> Any:
+    """The QoS a default ROS 2 publisher offers (reliable, volatile, keep last), as rosbag2
+    records it; ``ros2 bag play`` publishes with it."""
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    infinite = QosTime(sec=2147483647, nsec=4294967295)
+    return Qos(
+        history=QosHistory.KEEP_LAST,
+        depth=1,
+        reliability=QosReliability.RELIABLE,
+        durability=QosDurability.VOLATILE,
+        deadline=infinite,
+        lifespan=infinite,
+        liveliness=QosLiveliness.AUTOMATIC,
+        liveliness_lease_duration=infinite,
+        avoid_ros_namespace_conventions=False,
+    )
+
+
 def write_ros2(samples: ExportSamples, folder: Path) -> list[Path]:
     """Write ``joint_trajectory.yaml`` and the bag folder into ``folder``; return both paths."""
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -205,7 +231,9 @@ def write_ros2(samples: ExportSamples, folder: Path) -> list[Path]:
     staging = Path(tempfile.mkdtemp(dir=folder, prefix=".bag-")) / BAG_FOLDER
     try:
         with Writer(staging, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
-            connection = writer.add_connection(TOPIC, MSGTYPE, typestore=typestore)
+            connection = writer.add_connection(
+                TOPIC, MSGTYPE, typestore=typestore, offered_qos_profiles=[_qos()]
+            )
             data = typestore.serialize_cdr(_message(samples, typestore), MSGTYPE)
             writer.write(connection, 0, data)
         if bag.exists():
