@@ -386,3 +386,43 @@ def test_yaml_floats_that_pyyaml_would_read_as_strings_are_spelled_as_floats(tmp
     assert "ros2" in outcome.written, outcome.refused
     message = yaml.safe_load((tmp_path / "joint_trajectory.yaml").read_text())
     assert message["points"][0]["positions"][:3] == [1e-05, -2e-07, 3e-300]
+
+
+def test_a_file_consistent_with_itself_but_not_with_the_plan_is_refused(tmp_path, monkeypatch):
+    """An exporter off by one sample writes and reads back its own samples exactly; the
+    comparison with the plan at the shared times catches it."""
+    from ident.run.exports import registry
+
+    def prepare(trajectory, target):
+        q = np.vstack([trajectory.q[:1], trajectory.q[:-1]])  # one sample late
+        return ExportSamples(trajectory.t, q, None, None, trajectory.joint_names)
+
+    def write(samples, folder):
+        path = folder / "late.txt"
+        np.savetxt(path, samples.q, fmt="%.17g")
+        return [path]
+
+    def read(path):
+        q = np.loadtxt(path, ndmin=2)
+        return ExportSamples(np.arange(len(q)) * 1e-3, q, None, None, ("a", "b"))
+
+    monkeypatch.setattr(registry, "EXPORTERS", dict(registry.EXPORTERS))
+    register = registry.register_exporter
+    register("late", Exporter(prepare, write, read))
+    plan, _ = rest_to_rest(np.zeros(2), np.ones(2), 0.5, 1e-3, ["a", "b"])
+    target = target_from_urdf("<robot name='x'/>")
+    outcome = registry.export_trajectory(["late"], plan, target, tmp_path)
+    assert outcome.written == {}
+    assert re.search(
+        r"joint 'a' position differs from the plan by .* at t = ", outcome.refused["late"]
+    )
+    assert not (tmp_path / "late.txt").exists()
+
+
+def test_resampled_files_are_compared_with_the_plan_where_times_coincide(written):
+    from ident.run.exports.common import compare_with_plan
+    from ident.run.exports.franka import read_franka
+
+    plan = written["panda"][0]  # 300 Hz plan, 1 kHz file: shared every 10 ms
+    reread = read_franka(written["folder"] / "panda/franka_q_1khz.csv")
+    assert compare_with_plan(reread, plan, "franka") == int(np.floor(plan.t[-1] / 0.01 + 1e-9)) + 1

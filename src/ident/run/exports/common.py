@@ -31,6 +31,7 @@ __all__ = [
     "ExportTarget",
     "UrdfJoint",
     "compare_samples",
+    "compare_with_plan",
     "first_violation",
     "resample_quintic",
     "target_from_urdf",
@@ -262,3 +263,37 @@ def compare_samples(written: ExportSamples, reread: ExportSamples, source: str) 
                 f"{error[k, j]:.3g} at sample {k} (t = {written.t[k]:.6g} s), more than "
                 f"{REREAD_TOLERANCE:g}."
             )
+
+
+def compare_with_plan(reread: ExportSamples, plan: JointTrajectory, source: str) -> int:
+    """Require the re-read positions to equal the plan's where their times coincide (1e-12 s).
+
+    A file resampled to a controller's rate shares the times of the plan's grid it can (all of
+    them at the plan's own rate, every other one at half of it); there its positions must be
+    the plan's to :data:`REREAD_TOLERANCE`, independently of the resampling.
+
+    Returns
+    -------
+    :
+        The number of samples compared.
+
+    Raises
+    ------
+    ExportError
+        Naming the file, the joint and the time that differ.
+    """
+    t = np.asarray(plan.t, dtype=float)
+    index = np.clip(np.searchsorted(t, reread.t), 1, t.shape[0] - 1)
+    nearest = np.where(
+        np.abs(t[index - 1] - reread.t) <= np.abs(t[index] - reread.t), index - 1, index
+    )
+    same = np.abs(t[nearest] - reread.t) <= 1e-12
+    error = np.abs(reread.q[same] - plan.q[nearest[same]])
+    if not np.all(error <= REREAD_TOLERANCE):
+        k, j = np.argwhere(~(error <= REREAD_TOLERANCE))[0]
+        time = reread.t[same][k]
+        raise ExportError(
+            f"{source}: joint {plan.joint_names[j]!r} position differs from the plan by "
+            f"{error[k, j]:.3g} at t = {time:.6g} s, more than {REREAD_TOLERANCE:g}."
+        )
+    return int(same.sum())

@@ -10,9 +10,9 @@ safe by the run) into the files a robot controller runs. It is three functions::
 ``prepare`` raises :class:`~ident.run.exports.common.ExportError` naming the joint, the
 quantity and the time when the controller's own rules are broken; nothing is written then.
 :func:`export_trajectory` runs every requested ``prepare`` first, then writes each export that
-passed, reads every written path back and compares it with the samples to 1e-9; a mismatch
-removes the files and refuses that export. Register a new format with
-:func:`register_exporter`; nothing else needs to know its name::
+passed, reads every written path back and compares it with the samples to 1e-9, and with the
+plan itself at the times they share; a mismatch removes the files and refuses that export.
+Register a new format with :func:`register_exporter`; nothing else needs to know its name::
 
     import numpy as np
     from ident.run.exports.common import ExportSamples, resample_quintic
@@ -53,6 +53,7 @@ from ident.run.exports.common import (
     ExportSamples,
     ExportTarget,
     compare_samples,
+    compare_with_plan,
 )
 from ident.run.exports.franka import accepts_franka, prepare_franka, read_franka, write_franka
 from ident.run.exports.ros2 import accepts_ros2, prepare_ros2, read_ros2, write_ros2
@@ -214,7 +215,9 @@ def export_trajectory(
         paths = EXPORTERS[name].write(samples, folder)
         try:
             for path in paths:
-                compare_samples(samples, EXPORTERS[name].read(path), str(path))
+                reread = EXPORTERS[name].read(path)
+                compare_samples(samples, reread, str(path))
+                compare_with_plan(reread, trajectory, str(path))
         except (ExportError, OSError, ValueError) as e:
             for path in paths:
                 if path.is_dir():
