@@ -422,7 +422,11 @@ def test_a_file_consistent_with_itself_but_not_with_the_plan_is_refused(tmp_path
 def test_resampled_files_are_compared_with_the_plan_where_times_coincide(written):
     from ident.run.exports.common import compare_with_plan
     from ident.run.exports.franka import read_franka
+    from ident.run.exports.ros2 import read_ros2
 
     plan = written["panda"][0]  # 300 Hz plan, 1 kHz file: shared every 10 ms
     reread = read_franka(written["folder"] / "panda/franka_q_1khz.csv")
     assert compare_with_plan(reread, plan, "franka") == int(np.floor(plan.t[-1] / 0.01 + 1e-9)) + 1
+    ur_plan = written["ur"][0]  # the ROS 2 message holds the plan's samples, ns-rounded times
+    bag = read_ros2(written["folder"] / "ur5/joint_trajectory_bag")
+    assert compare_with_plan(bag, ur_plan, "ros2") == ur_plan.n_samples

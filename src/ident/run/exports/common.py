@@ -266,7 +266,7 @@ def compare_samples(written: ExportSamples, reread: ExportSamples, source: str) 
 
 
 def compare_with_plan(reread: ExportSamples, plan: JointTrajectory, source: str) -> int:
-    """Require the re-read positions to equal the plan's where their times coincide (1e-12 s).
+    """Require the re-read positions to equal the plan's where their times coincide (1e-9 s).
 
     A file resampled to a controller's rate shares the times of the plan's grid it can (all of
     them at the plan's own rate, every other one at half of it); there its positions must be
@@ -287,7 +287,7 @@ def compare_with_plan(reread: ExportSamples, plan: JointTrajectory, source: str)
     nearest = np.where(
         np.abs(t[index - 1] - reread.t) <= np.abs(t[index] - reread.t), index - 1, index
     )
-    same = np.abs(t[nearest] - reread.t) <= 1e-12
+    same = np.abs(t[nearest] - reread.t) <= REREAD_TOLERANCE  # ns-rounded stamps coincide
     error = np.abs(reread.q[same] - plan.q[nearest[same]])
     if not np.all(error <= REREAD_TOLERANCE):
         k, j = np.argwhere(~(error <= REREAD_TOLERANCE))[0]
