@@ -251,7 +251,11 @@ def test_urscript_streams_servoj_at_500_hz_through_the_planned_motion(written):
     assert t[-1] >= duration - 1e-12 > t[-2]
     expected = quintic_at(t, start, start + 0.5, duration)[0]  # the closed form at 500 Hz
     np.testing.assert_allclose(q, expected, rtol=0, atol=REREAD_TOLERANCE)
-    assert text.rstrip().endswith("ident_trajectory()")
+    lines = text.splitlines()  # comments, one def ... end block, then the call
+    code = [line for line in lines if not line.startswith("#")]
+    assert code[0] == "def ident_trajectory():"
+    assert code[-2:] == ["end", "ident_trajectory()"]
+    assert all(line.startswith("  ") for line in code[1:-2])
     assert "halt" in text  # never moves to the start posture on its own
 
 
