@@ -117,23 +117,30 @@ def check_franka(samples: ExportSamples) -> None:
     """
     names, t, q = samples.joint_names, samples.t, samples.q
     accepts_franka(names)
-    fix = (
-        "; slow the excitation down (a lower excitation.options.base_frequency or "
-        "amplitude_bound) or lower the robot's velocity/acceleration limits in the config."
-    )
+    slower = "lower excitation.options.amplitude_bound or base_frequency"
+    fix = {
+        "position": "; give the URDF the Panda's joint ranges, or move the excitation's mean "
+        "posture (excitation.bounds q0[...])",
+        "velocity": f"; the run keeps the URDF's <limit velocity>, libfranka's is lower (a "
+        f"margin for 3 lost packets): lower it in the URDF to the values of docs/execute.md, "
+        f"or {slower}",
+        "acceleration": f"; set robot.acceleration_limits to libfranka's (docs/execute.md), "
+        f"or {slower}",
+        "jerk": f"; {slower} (the jerk grows with the cube of the frequency)",
+    }
     over = np.argwhere(q > PANDA_Q_MAX)
     if over.size:
         k, j = over[0]
         raise ExportError(
             f"franka: joint {names[j]!r} position {q[k, j]:.6g} rad is above the Panda's "
-            f"maximum {PANDA_Q_MAX[j]:.6g} rad at t = {t[k]:.6g} s{fix}"
+            f"maximum {PANDA_Q_MAX[j]:.6g} rad at t = {t[k]:.6g} s{fix['position']}."
         )
     under = np.argwhere(q < PANDA_Q_MIN)
     if under.size:
         k, j = under[0]
         raise ExportError(
             f"franka: joint {names[j]!r} position {q[k, j]:.6g} rad is below the Panda's "
-            f"minimum {PANDA_Q_MIN[j]:.6g} rad at t = {t[k]:.6g} s{fix}"
+            f"minimum {PANDA_Q_MIN[j]:.6g} rad at t = {t[k]:.6g} s{fix['position']}."
         )
     v, a, jerk = finite_differences(q)
     for values, limit, quantity, unit in (
@@ -142,17 +149,21 @@ def check_franka(samples: ExportSamples) -> None:
     ):
         problem = first_violation(values, limit, t, names, quantity, unit)
         if problem is not None:
-            raise ExportError(f"franka: libfranka's limitRate would clip: {problem}{fix}")
+            raise ExportError(
+                f"franka: libfranka's limitRate would clip: {problem}{fix[quantity]}."
+            )
     v_previous = np.vstack([np.zeros((1, q.shape[1])), v[:-1]])
     lower, upper = limit_rate_bounds(v_previous)
     bad = (a > upper) | (a < lower)
     if bad.any():
         k, j = np.argwhere(bad)[0]
+        # within A but not within (J/A)(V - v): the velocity comes too close to its limit
+        hint = fix["acceleration"] if abs(a[k, j]) > PANDA_ACCELERATION[j] else fix["velocity"]
         raise ExportError(
             f"franka: libfranka's limitRate would clip: joint {names[j]!r} acceleration "
             f"{a[k, j]:.6g} rad/s^2 is outside [{lower[k, j]:.6g}, {upper[k, j]:.6g}] rad/s^2 "
             f"(the limit {PANDA_ACCELERATION[j]:.6g} rad/s^2, reduced near the velocity limit "
-            f"{PANDA_VELOCITY[j]:.6g} rad/s) at t = {t[k]:.6g} s{fix}"
+            f"{PANDA_VELOCITY[j]:.6g} rad/s) at t = {t[k]:.6g} s{hint}."
         )
 
 
