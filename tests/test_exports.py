@@ -434,3 +434,24 @@ def test_resampled_files_are_compared_with_the_plan_where_times_coincide(written
     ur_plan = written["ur"][0]  # the ROS 2 message holds the plan's samples, ns-rounded times
     bag = read_ros2(written["folder"] / "ur5/joint_trajectory_bag")
     assert compare_with_plan(bag, ur_plan, "ros2") == ur_plan.n_samples
+
+
+def test_quintic_hermite_equals_scipy_bpoly_on_a_non_polynomial_signal():
+    from scipy.interpolate import BPoly
+
+    from ident.run.exports.common import quintic_hermite
+
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.002, 0.01, 200))  # non-uniform samples
+    w = np.array([3.0, 7.0])
+    q, dq, ddq = (
+        np.sin(w * t[:, None]),
+        w * np.cos(w * t[:, None]),
+        -(w**2) * np.sin(w * t[:, None]),
+    )
+    times = np.sort(rng.uniform(t[0], t[-1], 500))
+    ours = quintic_hermite(t, q, dq, ddq, times)
+    for j in range(2):
+        spline = BPoly.from_derivatives(t, np.stack([q[:, j], dq[:, j], ddq[:, j]], 1))
+        for order in range(3):
+            np.testing.assert_allclose(ours[order][:, j], spline(times, nu=order), atol=1e-9)

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.interpolate import BPoly
 
 from ident.errors import IdentError
 from ident.trajectory import JointTrajectory
@@ -33,6 +32,7 @@ __all__ = [
     "compare_samples",
     "compare_with_plan",
     "first_violation",
+    "quintic_hermite",
     "resample_quintic",
     "target_from_urdf",
 ]
@@ -190,16 +190,56 @@ def resample_quintic(trajectory: JointTrajectory, rate_hz: float) -> ExportSampl
             f"samples of the {rate_hz:g} Hz grid; an export needs it to end at rest."
         )
     out = [np.empty((n, trajectory.q.shape[1])) for _ in range(3)]
-    for j in range(trajectory.q.shape[1]):  # BPoly interpolates one scalar signal at a time
-        derivatives = np.stack([trajectory.q[:, j], trajectory.dq[:, j], trajectory.ddq[:, j]], 1)
-        spline = BPoly.from_derivatives(t, derivatives)
-        for order in range(3):
-            out[order][inside, j] = spline(grid[inside], nu=order)
+    for order, values in enumerate(
+        quintic_hermite(t, trajectory.q, trajectory.dq, trajectory.ddq, grid[inside])
+    ):
+        out[order][inside] = values
     # past the plan's end the robot rests at its final posture
     out[0][~inside] = trajectory.q[-1]
     out[1][~inside] = 0.0
     out[2][~inside] = 0.0
     return ExportSamples(grid, out[0], out[1], out[2], names)
+
+
+def quintic_hermite(
+    t: FloatArray, q: FloatArray, dq: FloatArray, ddq: FloatArray, times: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The piecewise quintic through ``(q, dq, ddq)`` at the samples ``t``, at ``times``.
+
+    On each interval ``[t_i, t_i + h]`` the quintic matching position, velocity and
+    acceleration at both ends (as :func:`ident.excitation.executable.quintic`), in closed form
+    for every interval at once: with ``dp = q_{i+1} - q_i``,
+    ``c3 = (20 dp - (8 v1 + 12 v0) h - (3 a0 - a1) h^2) / (2 h^3)``,
+    ``c4 = (-30 dp + (14 v1 + 16 v0) h + (3 a0 - 2 a1) h^2) / (2 h^4)``,
+    ``c5 = (12 dp - 6 (v1 + v0) h - (a0 - a1) h^2) / (2 h^5)``.
+
+    Parameters
+    ----------
+    t :
+        Increasing sample times [s], shape (n_samples,).
+    q, dq, ddq :
+        Positions, velocities, accelerations at ``t``, shape (n_samples, n_joints).
+    times :
+        Where to evaluate [s], within ``[t[0], t[-1]]``, shape (n_times,).
+
+    Returns
+    -------
+    :
+        ``q, dq, ddq`` at ``times``, each of shape (n_times, n_joints).
+    """
+    i = np.clip(np.searchsorted(t, times, side="right") - 1, 0, t.shape[0] - 2)
+    h = (t[i + 1] - t[i])[:, None]
+    tau = (times - t[i])[:, None]
+    p0, v0, a0 = q[i], dq[i], ddq[i]
+    p1, v1, a1 = q[i + 1], dq[i + 1], ddq[i + 1]
+    dp = p1 - p0
+    c3 = (20 * dp - (8 * v1 + 12 * v0) * h - (3 * a0 - a1) * h**2) / (2 * h**3)
+    c4 = (-30 * dp + (14 * v1 + 16 * v0) * h + (3 * a0 - 2 * a1) * h**2) / (2 * h**4)
+    c5 = (12 * dp - 6 * (v1 + v0) * h - (a0 - a1) * h**2) / (2 * h**5)
+    position = p0 + tau * (v0 + tau * (0.5 * a0 + tau * (c3 + tau * (c4 + tau * c5))))
+    velocity = v0 + tau * (a0 + tau * (3 * c3 + tau * (4 * c4 + tau * 5 * c5)))
+    acceleration = a0 + tau * (6 * c3 + tau * (12 * c4 + tau * 20 * c5))
+    return position, velocity, acceleration
 
 
 def first_violation(
