@@ -14,6 +14,8 @@ import yaml
 from typer.testing import CliRunner
 
 from ident.cli import app
+from ident.run.exports import registry
+from ident.run.exports.common import ExportError
 from ident.run.exports.registry import EXPORT_FOLDER
 from ident.run.exports.run_exports import export_run
 from ident.trajectory import read_trajectory_csv
@@ -30,20 +32,27 @@ def quick_config(tmp_path: Path, export: str) -> Path:
     return path
 
 
+def refuse(trajectory, target):
+    raise ExportError("toy: joint 'joint_4' velocity too high at t = 1 s")
+
+
 @pytest.fixture(scope="module")
 def exported_run(tmp_path_factory):
+    """One quick run with ros2 and a toy export that always refuses (registered for the run)."""
     tmp = tmp_path_factory.mktemp("exports-run")
-    result = runner.invoke(
-        app, ["run", str(quick_config(tmp, "[ros2]")), "--out", str(tmp / "runs"), "--no-replay"]
-    )
-    assert result.exit_code == 0, result.output
+    config = quick_config(tmp, "[ros2, toy]")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(registry, "EXPORTERS", dict(registry.EXPORTERS))
+        registry.register_exporter("toy", registry.Exporter(refuse, None, None))  # type: ignore[arg-type]
+        result = runner.invoke(app, ["run", str(config), "--out", str(tmp / "runs"), "--no-replay"])
     (run_dir,) = [d for d in (tmp / "runs").iterdir() if d.is_dir()]
-    return run_dir, result.output
+    return run_dir, result
 
 
 @pytest.mark.slow
 def test_run_writes_the_export_and_lists_it(exported_run):
-    run_dir, output = exported_run
+    run_dir, result = exported_run
+    output = result.output
     exports = run_dir / EXPORT_FOLDER
     assert sorted(p.name for p in exports.iterdir()) == [
         "joint_trajectory.yaml",
@@ -51,9 +60,27 @@ def test_run_writes_the_export_and_lists_it(exported_run):
     ]
     assert "Export ros2: exports/joint_trajectory.yaml, exports/joint_trajectory_bag" in output
     state = json.loads((run_dir / "run.json").read_text())
-    assert state["exports"] == ["ros2: exports/joint_trajectory.yaml, exports/joint_trajectory_bag"]
+    refusal = "toy: joint 'joint_4' velocity too high at t = 1 s"
+    assert state["exports"] == [
+        "ros2: exports/joint_trajectory.yaml, exports/joint_trajectory_bag",
+        f"REFUSED {refusal}",
+    ]
     report = (run_dir / "report.md").read_text()
     assert "- Exports (`docs/execute.md`): ros2: exports/joint_trajectory.yaml" in report
+    assert f"REFUSED {refusal}" in report
+
+
+@pytest.mark.slow
+def test_a_refused_export_is_an_error_line_and_exit_2_after_everything_is_saved(exported_run):
+    run_dir, result = exported_run
+    assert result.exit_code == 2, result.output
+    assert "error: export refused: toy: joint 'joint_4' velocity too high at t = 1 s" in (
+        result.output
+    )
+    state = json.loads((run_dir / "run.json").read_text())
+    assert state["status"] == "complete"
+    assert (run_dir / "report.md").is_file()
+    assert (run_dir / "trajectory.csv").is_file()
 
 
 @pytest.mark.slow
