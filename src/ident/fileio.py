@@ -49,8 +49,9 @@ def _create_temporary(path: Path) -> tuple[int, str]:
     return tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
 
 
-def _write_data(file: BinaryIO, data: bytes) -> None:
-    """Write all of ``data`` to an open file (the one primitive every writer goes through)."""
+def _write_data(file: BinaryIO, data: bytes, path: Path) -> None:
+    """Write all of ``data`` to an open file (the one primitive every writer goes through;
+    ``path`` is the file it will become)."""
     file.write(data)
     file.flush()
 
@@ -72,7 +73,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
         raise _named(e, path) from None
     try:
         with os.fdopen(fd, "wb") as f:
-            _write_data(f, data)
+            _write_data(f, data, path)
         # mkstemp creates 0600; give the file the permissions a plain open() would.
         os.chmod(tmp, 0o666 & ~_current_umask())
         os.replace(tmp, path)

@@ -11,6 +11,7 @@ one line naming the link, the file and the fix:
   one mirrors it inside out);
 - a file without vertices, or that the loader cannot read;
 - NaN or infinite vertex coordinates;
+- a mesh more than :data:`MAX_EXTENT_M` across (wrong units);
 - for collision meshes (whose convex hull the safety check builds): fewer than four vertices,
   or all vertices on one plane or one line (a zero-volume hull).
 
@@ -30,11 +31,24 @@ import numpy as np
 
 from ident.errors import ModelError
 
-__all__ = ["FLATNESS_TOLERANCE", "check_urdf_meshes", "mesh_problem", "resolve_mesh_path"]
+__all__ = [
+    "FLATNESS_TOLERANCE",
+    "MAX_EXTENT_M",
+    "check_urdf_meshes",
+    "mesh_problem",
+    "resolve_mesh_path",
+]
 
-FLATNESS_TOLERANCE = 1e-9
+FLATNESS_TOLERANCE = 1e-6
 """A collision mesh is flat when the smallest spread of its vertices (singular value of the
-centred vertex array) is below this fraction of the largest."""
+centred vertex array) is below this fraction of the largest. A plane stored in an STL's
+single-precision floats spreads by about 2e-8 of its size, and qhull then still crashes;
+a part 1e-6 as thick as it is long (1 micrometre per metre) is no part."""
+
+MAX_EXTENT_M = 100.0
+"""Largest size of a mesh [m] after its scale: beyond it the units are wrong (millimetres
+read as metres, a scale typed in the wrong unit), and coal's arithmetic overflows for absurd
+sizes."""
 
 _FIX = (
     "repair the mesh file, or replace the <mesh> by a <box>, <cylinder> or <sphere> that "
@@ -104,6 +118,12 @@ def mesh_problem(vertices: np.ndarray, *, needs_volume: bool) -> str | None:
     bad = ~np.isfinite(vertices).all(axis=1)
     if bad.any():
         return f"{int(bad.sum())} of its {len(vertices)} vertices are NaN or infinite"
+    extent = float(np.max(vertices.max(axis=0) - vertices.min(axis=0)))
+    if not extent <= MAX_EXTENT_M:
+        return (
+            f"it is {extent:.3g} m across, more than the {MAX_EXTENT_M:g} m of any robot part "
+            '(millimetres read as metres? set <mesh scale="0.001 0.001 0.001">)'
+        )
     if not needs_volume:
         return None
     if len(vertices) < 4:

@@ -162,7 +162,14 @@ def create_run_dir(
     except OSError as e:
         raise IdentError(f"{out}: cannot create the run folder ({e.strerror}); use --out.") from e
     run = RunDir(path, {"status": "running", "started_at": _now_iso(), **(info or {})})
-    run.update()
+    try:
+        run.update()
+    except OSError as e:  # a folder without run.json is no run: leave nothing behind
+        path.rmdir()
+        raise IdentError(
+            f"{path / RUN_STATE_FILE}: cannot write the run state ({e.strerror}); free some "
+            "space or use --out."
+        ) from e
     return run
 
 
