@@ -26,6 +26,7 @@ import os
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -90,16 +91,17 @@ def _vertices(path: str, mtime_ns: int, size: int) -> np.ndarray:
     del mtime_ns, size  # part of the cache key only
     import trimesh
 
+    vertices: np.ndarray | None
     try:
-        mesh = trimesh.load(path, force="mesh", process=False)
-        vertices = np.asarray(mesh.vertices, dtype=float).reshape(-1, 3)
+        mesh: Any = trimesh.load(path, force="mesh", process=False)
+        vertices = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
     except Exception:  # noqa: BLE001 - a format trimesh lacks (Collada): Pinocchio's loader
         vertices = None
     if vertices is None or (len(vertices) == 0 and not path.lower().endswith((".stl", ".obj"))):
         import coal
 
         model = coal.MeshLoader().load(path, np.ones(3))
-        vertices = np.asarray(model.vertices(), dtype=float).reshape(-1, 3)
+        vertices = np.asarray(model.vertices(), dtype=np.float64).reshape(-1, 3)
     return vertices
 
 
@@ -219,6 +221,6 @@ def _check_one(
         raise ModelError(
             f"{head} ({path}): cannot be read as a mesh ({first[-1] if first else e}); {_FIX}."
         ) from e
-    problem = mesh_problem(vertices * scale, needs_volume=kind == "collision")
-    if problem is not None:
-        raise ModelError(f"{head} ({path}): {problem}; {_FIX}.")
+    found = mesh_problem(vertices * scale, needs_volume=kind == "collision")
+    if found is not None:
+        raise ModelError(f"{head} ({path}): {found}; {_FIX}.")
