@@ -99,3 +99,22 @@ def test_cli_never_segfaults_on_a_bad_collision_mesh(name, tmp_path):
     assert "link 'link2'" in line
     assert "Traceback" not in proc.stderr
     assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").iterdir())
+
+
+@pytest.mark.parametrize(
+    ("name", "problem"),
+    [("flat", "one plane"), ("nan_vertex", "NaN"), ("garbage", "cannot be read as a mesh")],
+)
+def test_without_trimesh_coal_reads_the_same_meshes(name, problem, tmp_path, monkeypatch):
+    """trimesh is optional: coal's loader (Pinocchio's) gives the vertices, checked alike."""
+    import shutil
+
+    monkeypatch.setitem(sys.modules, "trimesh", None)
+    for f in MESHES.glob("*.stl"):  # fresh paths: nothing from the per-file cache
+        shutil.copy(f, tmp_path / f.name)
+    urdf = (MESHES / f"collision_{name}.urdf").read_text()
+    with pytest.raises(ModelError, match=problem):
+        check_urdf_meshes(urdf, [tmp_path])
+    check_urdf_meshes(
+        (MESHES / "collision_flat.urdf").read_text().replace("flat", "box"), [tmp_path]
+    )

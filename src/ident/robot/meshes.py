@@ -3,9 +3,9 @@
 Native code does not survive every mesh a URDF may name: qhull's convex hull of a collision
 mesh whose triangles lie in one plane, of a mesh with ``<mesh scale="0 0 0">`` or of one with
 NaN vertices kills the process (SIGSEGV, no message). :func:`check_urdf_meshes` resolves each
-``<mesh>`` of a URDF the way Pinocchio does, loads its vertices (trimesh; coal's own loader,
-the one Pinocchio uses, for formats trimesh cannot read such as Collada) and refuses, with
-one line naming the link, the file and the fix:
+``<mesh>`` of a URDF the way Pinocchio does, loads its vertices (trimesh when installed;
+coal's own loader, the one Pinocchio uses, for formats trimesh cannot read such as Collada)
+and refuses, with one line naming the link, the file and the fix:
 
 - a scale that is not three finite numbers > 0 (a zero scale collapses the mesh, a negative
   one mirrors it inside out);
@@ -37,6 +37,7 @@ __all__ = [
     "MAX_EXTENT_M",
     "check_urdf_meshes",
     "mesh_problem",
+    "mesh_vertices",
     "resolve_mesh_path",
 ]
 
@@ -89,13 +90,13 @@ def resolve_mesh_path(filename: str, package_dirs: Sequence[str | Path]) -> Path
 def _vertices(path: str, mtime_ns: int, size: int) -> np.ndarray:
     """Vertices [file units] of a mesh file, shape (n_vertices, 3); cached per file version."""
     del mtime_ns, size  # part of the cache key only
-    import trimesh
-
     vertices: np.ndarray | None
     try:
+        import trimesh  # optional: without it, coal's loader reads every format
+
         mesh: Any = trimesh.load(path, force="mesh", process=False)
         vertices = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
-    except Exception:  # noqa: BLE001 - a format trimesh lacks (Collada): Pinocchio's loader
+    except Exception:  # noqa: BLE001 - no trimesh, or a format it lacks (Collada): coal's
         vertices = None
     if vertices is None or (len(vertices) == 0 and not path.lower().endswith((".stl", ".obj"))):
         import coal
@@ -202,6 +203,48 @@ def check_urdf_meshes(
                     _check_one(mesh, link.get("name", "?"), kind, where, package_dirs)
 
 
+def mesh_vertices(path: str | Path, scale: str | None, *, where: str) -> np.ndarray:
+    """Vertices [m] of a mesh file after a URDF ``scale`` attribute, checked.
+
+    Parameters
+    ----------
+    path :
+        The resolved mesh file (:func:`resolve_mesh_path`).
+    scale :
+        The ``<mesh scale="...">`` text, or None (no scale).
+    where :
+        What names the mesh in an error (URDF, link, element, file name).
+
+    Returns
+    -------
+    :
+        Vertex coordinates, shape (n_vertices, 3), every one finite, the mesh at most
+        :data:`MAX_EXTENT_M` across.
+
+    Raises
+    ------
+    ModelError
+        A bad scale, an unreadable or empty file, NaN or infinite vertices, a huge mesh.
+    """
+    factors, problem = _scale(scale)
+    if factors is None:
+        raise ModelError(f"{where}: {problem}.")
+    path = Path(path)
+    stat = path.stat()
+    try:
+        vertices = _vertices(str(path), stat.st_mtime_ns, stat.st_size)
+    except Exception as e:  # noqa: BLE001 - any loader failure is the file's fault
+        lines = [x.strip() for x in str(e).strip().splitlines()] or [type(e).__name__]
+        # coal's message: "From file: ... message: Could not load resource ... Hint: ..."
+        said = next((x for x in lines if x.startswith("message:")), lines[0])
+        raise ModelError(f"{where} ({path}): cannot be read as a mesh ({said}); {_FIX}.") from e
+    scaled = vertices * factors
+    found = mesh_problem(scaled, needs_volume=False)
+    if found is not None:
+        raise ModelError(f"{where} ({path}): {found}; {_FIX}.")
+    return scaled
+
+
 def _check_one(
     mesh: ET.Element, link: str, kind: str, where: str, package_dirs: Sequence[str | Path]
 ) -> None:
@@ -213,14 +256,7 @@ def _check_one(
     path = resolve_mesh_path(filename, package_dirs)
     if path is None:
         return  # Pinocchio names the missing file
-    stat = path.stat()
-    try:
-        vertices = _vertices(str(path), stat.st_mtime_ns, stat.st_size)
-    except Exception as e:  # noqa: BLE001 - any loader failure is the file's fault
-        first = str(e).strip().splitlines()
-        raise ModelError(
-            f"{head} ({path}): cannot be read as a mesh ({first[-1] if first else e}); {_FIX}."
-        ) from e
-    found = mesh_problem(vertices * scale, needs_volume=kind == "collision")
+    vertices = mesh_vertices(path, mesh.get("scale"), where=head)
+    found = mesh_problem(vertices, needs_volume=kind == "collision")
     if found is not None:
         raise ModelError(f"{head} ({path}): {found}; {_FIX}.")
