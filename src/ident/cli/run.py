@@ -17,7 +17,7 @@ from typing import Annotated, Any
 
 import typer
 
-from ident.cli._common import EXIT_INTERRUPTED, EXIT_USER_ERROR, user_errors
+from ident.cli._common import EXIT_INTERRUPTED, EXIT_USER_ERROR, failure_note, user_errors
 
 __all__ = ["register"]
 
@@ -101,16 +101,19 @@ def run(
                 rundir.update(exports=exports.lines(rundir.path))
             replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
             rundir.update(replay=replay_note)
-        except BaseException:
-            rundir.finish("incomplete", "stopped while saving the results")
+        except BaseException as e:
+            rundir.finish("incomplete", f"stopped while saving the results: {failure_note(e)}")
             raise
         # the data are saved: if the report fails, 'ident report RUN_DIR' writes it again;
         # the run is complete only once its last file (the report) is written
         rundir.stamp_wall_time()
         try:
             report_path = write_report(rundir.path)
-        except BaseException:
-            rundir.finish("incomplete", "stopped while writing the report; the data are saved")
+        except BaseException as e:
+            rundir.finish(
+                "incomplete",
+                f"stopped while writing the report ({failure_note(e)}); the data are saved",
+            )
             typer.echo(
                 f"the data are saved; write the report with: ident report {rundir.path}",
                 err=True,

@@ -95,6 +95,9 @@ def parse_expression(expression: str) -> dict[str, float]:
     return terms
 
 
+_MAX_REFERENCE_BYTES = 16 << 20  # a table of base parameters is a few kB
+
+
 def read_reference(path: str | Path) -> list[ReferenceParameter]:
     """Read a figaroh base-parameter CSV.
 
@@ -104,8 +107,23 @@ def read_reference(path: str | Path) -> list[ReferenceParameter]:
         Naming the file and line for a malformed line.
     """
     path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: not a regular file; give the reference CSV.")
+    if path.stat().st_size > _MAX_REFERENCE_BYTES:
+        raise DataError(
+            f"{path}: {path.stat().st_size} bytes, more than the "
+            f"{_MAX_REFERENCE_BYTES >> 20} MB a reference parameter table can need."
+        )
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise DataError(
+            f"{path}: not UTF-8 text (byte {e.start}); save the reference CSV as UTF-8."
+        ) from e
+    except OSError as e:
+        raise DataError(f"{path}: cannot read the reference CSV ({e.strerror}).") from e
     out = []
-    for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    for k, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         fields = line.rsplit(",", 4)
