@@ -25,7 +25,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError
-from ident.identify.estimators import get_estimator
+from ident.identify.estimators import get_contract, get_estimator
 from ident.model.selection import RobotSelection
 
 __all__ = [
@@ -359,7 +359,7 @@ class EstimationConfig(StrictModel):
     @property
     def least_squares_method(self) -> str:
         """``ols`` or ``wls``: the unconstrained estimate (``wls`` beside constrained ones)."""
-        return self.method if self.method in ("ols", "wls") else "wls"
+        return self.method if get_contract(self.method).least_squares else "wls"
 
 
 class ValidationConfig(StrictModel):

@@ -162,7 +162,7 @@ def decimate(
         if factor == 1:
             continue
         n = out[0].shape[0]
-        sos = _antialias_sos(factor)
+        sos = antialias_sos(factor)
         if n <= 3 * (2 * len(sos) + 1):
             raise DataError(
                 f"decimation by {factor}: only {n} samples left, too few for the zero-phase "
@@ -188,7 +188,7 @@ def decimate(
     )
 
 
-def _antialias_sos(factor: int) -> FloatArray:
+def antialias_sos(factor: int) -> FloatArray:
     """scipy.signal.decimate's filter (Chebyshev I, order 8, 0.05 dB ripple, edge 0.8 of the
     new Nyquist) as second-order sections, rescaled so that the passband ripple is centred on
     0 dB (an even-order Chebyshev I sits at the ripple's minimum at 0 Hz: the forward-backward

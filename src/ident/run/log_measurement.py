@@ -3,7 +3,7 @@
 For each reported elite, the closed-loop MuJoCo simulation (:mod:`ident.measure.mujoco_sim`)
 writes the log a robot controller would write; the log is read back by the same reader as a
 measured log (:func:`ident.identify.logs.read_log`) and identified by the same function as
-``ident identify`` (:func:`ident.identify.real.identify_log`), with the run config's
+``ident identify`` (:func:`ident.identify.core.identify_measurements`), with the run config's
 ``identification`` sections. The run folder keeps the log and an ``identify.yaml`` next to it,
 so ``ident identify elites/elite_<k>/identify.yaml`` gives the run's estimate again.
 
@@ -29,8 +29,8 @@ from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
 from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
+from ident.identify.core import IdentifyResult, identify_measurements
 from ident.identify.logs import read_log
-from ident.identify.real import IdentifyResult, identify_log
 from ident.measure.mujoco_config import per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
@@ -116,8 +116,8 @@ def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
 def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, ParameterModel]:
     """The stage of a simulated-log run: every body, friction and rotor terms, their truth.
 
-    The parameter model is the one :func:`identify_log` builds for the log (same terms, same
-    random states), so names and base parameters match the estimates.
+    The parameter model is the one :func:`identify_measurements` builds for the log (same
+    terms, same random states), so names and base parameters match the estimates.
     """
     pm = build_parameter_model(robot.model, extra_terms(config, robot.nv))
     truth = true_parameters(pm, config)
@@ -216,7 +216,7 @@ def measure_and_identify(
         section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))
         cfg = identify_config(config, section)
         read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
-    result = identify_log(cfg, read, model=robot.model)
+    result = identify_measurements(cfg, read, model=robot.model)
     return LogOutcome(log=log, result=result, config=cfg)
 
 

@@ -1,7 +1,8 @@
 """Estimators of the identification model, behind one registry.
 
 Every estimator is a function ``estimate(problem: EstimationProblem) -> Estimate`` registered
-by name (``estimation.method`` in an identify config):
+by name (``estimation.method`` in an identify config) with a :class:`Contract` (consistent,
+needs a prior, supports chunks, is the least-squares estimate itself):
 
 ``ols``, ``wls``
     Unconstrained least squares of the base parameters (:mod:`.least_squares`).
@@ -25,7 +26,14 @@ from ident.identify.estimators.problem import (
     ParameterStructure,
     result_from_theta,
 )
-from ident.identify.estimators.registry import ESTIMATORS, get_estimator, register_estimator
+from ident.identify.estimators.registry import (
+    CONTRACTS,
+    ESTIMATORS,
+    Contract,
+    get_contract,
+    get_estimator,
+    register_estimator,
+)
 from ident.identify.estimators.regularization import (
     DEFAULT_GRID,
     RegularizationChoice,
@@ -33,9 +41,11 @@ from ident.identify.estimators.regularization import (
 )
 
 __all__ = [
+    "CONTRACTS",
     "DEFAULT_GRID",
     "ESTIMATORS",
     "ConsistentIdentification",
+    "Contract",
     "EstimationProblem",
     "ParameterStructure",
     "RegularizationChoice",
@@ -43,6 +53,7 @@ __all__ = [
     "choose_regularization",
     "consistent_identification",
     "consistent_identification_reduced",
+    "get_contract",
     "get_estimator",
     "register_estimator",
     "result_from_theta",

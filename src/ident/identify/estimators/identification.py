@@ -28,9 +28,10 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import ConfigError, ModelError
+from ident.identify.estimate import METHODS as LEAST_SQUARES
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
-from ident.identify.estimators.registry import get_estimator
+from ident.identify.estimators.registry import Contract, get_contract, get_estimator
 from ident.identify.estimators.regularization import (
     DEFAULT_GRID,
     RegularizationChoice,
@@ -208,11 +209,15 @@ class ConsistentIdentification:
     ----------
     method :
         The configured estimator.
+    contract :
+        Its :class:`~ident.identify.estimators.registry.Contract`.
     estimates :
         ``{"ols": ..., "wls": ..., method: ...}`` on the identification rows, each with
         ``theta`` and per-link ``consistency``.
     constrained :
-        The constrained estimate, or None for ``ols``/``wls``.
+        The configured estimator's estimate when it is not a least-squares one
+        (``contract.least_squares`` false), else None; physically consistent only when
+        ``contract.consistent``.
     regularization :
         The weight choice when ``weight: auto``, else None.
     structure :
@@ -225,6 +230,7 @@ class ConsistentIdentification:
     """
 
     method: str
+    contract: Contract
     estimates: dict[str, Estimate]
     constrained: Estimate | None
     regularization: RegularizationChoice | None
@@ -322,27 +328,30 @@ def consistent_identification_reduced(
         structure=structure,
         base_map=pm.base.projection,
     )
-    estimates = {name: get_estimator(name)(problem) for name in ("ols", "wls")}
+    # the two least-squares estimates, once each (the report compares every estimator)
+    estimates = {name: get_estimator(name)(problem) for name in LEAST_SQUARES}
+    contract = get_contract(method)
     constrained = None
     choice = None
     seconds = 0.0
-    if method not in estimates:
+    if not contract.least_squares:
         t0 = time.perf_counter()
         weights = 1.0 / np.asarray(estimates["wls"].sigma)
         problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
         if options:
             problem = dataclasses.replace(problem, options=dict(options))
-        if weight == "auto":
+        if contract.needs_prior and weight == "auto":
             first_problem = dataclasses.replace(problem, observations=first)
             choice = choose_regularization(first_problem, last, method=method, grid=grid)
             weight = choice.weight
-        constrained = get_estimator(method)(
-            dataclasses.replace(problem, regularization=float(weight))
-        )
+        if contract.needs_prior:
+            problem = dataclasses.replace(problem, regularization=float(weight))
+        constrained = get_estimator(method)(problem)
         estimates[method] = constrained
         seconds = time.perf_counter() - t0
     return ConsistentIdentification(
         method=method,
+        contract=contract,
         estimates=estimates,
         constrained=constrained,
         regularization=choice,

@@ -37,7 +37,7 @@ from ident.identify.estimators.constrained import (
     single_threaded_blas,
 )
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
-from ident.identify.estimators.registry import register_estimator
+from ident.identify.estimators.registry import Contract, register_estimator
 
 __all__ = ["log_cholesky", "log_cholesky_from_parameters", "parameters_from_log_cholesky"]
 
@@ -93,7 +93,7 @@ def _positive_definite(theta_b: FloatArray, scale_b: FloatArray) -> FloatArray:
     return parameters_from_pseudo_inertia(J) * scale_b
 
 
-@register_estimator("log_cholesky")
+@register_estimator("log_cholesky", contract=Contract(consistent=True, needs_prior=True))
 def log_cholesky(problem: EstimationProblem) -> Estimate:
     """Physically consistent WLS estimate by the log-Cholesky parametrization."""
     with single_threaded_blas():
