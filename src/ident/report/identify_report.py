@@ -678,10 +678,12 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
         consistency = ""
     if constrained is not None:  # the whole-model estimate comes first
         n_ok = sum(c.consistent for c in constrained.consistency)
-        whole = (
-            f"{cons.method}: {n_ok} of {len(constrained.consistency)} links physically "
-            "consistent, every link's identified inertial in `*_consistent.urdf`"
+        written_to = (  # the estimator's contract, never its name, says what was written
+            "every link's identified inertial in `*_consistent.urdf`"
+            if cons.contract.consistent and constrained.success
+            else "not written to a URDF (the estimator does not promise consistency)"
         )
+        whole = f"{cons.method}: {n_ok} of {len(constrained.consistency)} links physically consistent, {written_to}"
         consistency = whole + (f"; cautious write-back: {consistency}" if consistency else "")
     extra = [
         (
