@@ -49,4 +49,5 @@ def test_identify_config_is_the_core_on_the_log_it_reads():
 def test_docstring_example_names_exist():
     ident = importlib.import_module("ident")
     used = set(re.findall(r"ident\.([a-z_A-Z]+)\(", ident.__doc__))
-    assert used and used <= set(ident.__all__), used - set(ident.__all__)
+    assert used
+    assert used <= set(ident.__all__), used - set(ident.__all__)

@@ -51,7 +51,8 @@ def test_chunked_equals_whole_log_for_every_chunk_size(filters):
     for size in (16, 50, 137, 400):
         part = identify_measurements(_with(cfg, chunked="always", chunk_samples=size), log)
         n_chunks = re.search(r"in (\d+) chunks", part.records[-3]["detail"])
-        assert n_chunks and int(n_chunks.group(1)) > 3
+        assert n_chunks
+        assert int(n_chunks.group(1)) > 3
         scale = np.abs(gram).max()
         g = np.einsum("gki,gkj->ij", part.reduction.R, part.reduction.R)
         r = np.einsum("gki,gk->i", part.reduction.R, part.reduction.z)
@@ -135,5 +136,6 @@ def test_run_then_identify_its_log_same_estimate_with_an_unconstrained_toy(ridge
     x = np.array([p["value"] for p in result["base_parameters"]])
     np.testing.assert_allclose(np.array(run_x["ridge"]["x"]), x, rtol=1e-12, atol=0)
     cons = result["consistency"]
-    assert cons["method"] == "ridge" and "ridge" in cons["estimators"]
+    assert cons["method"] == "ridge"
+    assert "ridge" in cons["estimators"]
     assert not list(id_dir.glob("*_consistent.urdf"))  # no promise of consistency: no model

@@ -683,7 +683,8 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
             if cons.contract.consistent and constrained.success
             else "not written to a URDF (the estimator does not promise consistency)"
         )
-        whole = f"{cons.method}: {n_ok} of {len(constrained.consistency)} links physically consistent, {written_to}"
+        n_links = len(constrained.consistency)
+        whole = f"{cons.method}: {n_ok} of {n_links} links physically consistent, {written_to}"
         consistency = whole + (f"; cautious write-back: {consistency}" if consistency else "")
     extra = [
         (
