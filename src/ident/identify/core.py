@@ -195,22 +195,14 @@ def _identify(
     pm = _parameter_model(cfg, model, source, rng)
     timings["base_parameters"] = time.perf_counter() - t1
     t2 = time.perf_counter()
+    reference = _reference(cfg, pm)
+    chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
     records = [
         *log.records,
         *_preprocess_records(cfg.preprocess, log.sampling_rate_hz, model.nv, source),
+        accumulate.chunk_record(chunked, red),
+        *_row_records(cfg, chunked, red),
     ]
-    reference = _reference(cfg, pm)
-    columns = accumulate.BaseColumns(chain_from_model(model), pm, reference)
-    chunked = accumulate.plan_log(
-        log,
-        cfg.preprocess,
-        columns,
-        identify_fraction=cfg.validation.identify_fraction,
-        chunk_samples=_chunk_samples(log, cfg.preprocess, len(pm.base_names)),
-    )
-    first, last = accumulate.reduce_log(chunked, scheduler)
-    red = _merged(first, last)
-    records += [accumulate.chunk_record(chunked, red), *_row_records(cfg, chunked, red)]
     timings["accumulate"] = time.perf_counter() - t2
     t3 = time.perf_counter()
     cons = _estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
@@ -221,16 +213,7 @@ def _identify(
     timings["essential"] = time.perf_counter() - t4
     t5 = time.perf_counter()
     vectors = _vectors(est, essential, cons, pm)
-    tau_val, keep_val, tau_pred = accumulate.predict_log(chunked, vectors, scheduler)
-    predictions = {
-        label: ModelPrediction(
-            label,
-            prediction_metrics(tau_val, pred, keep_val),
-            prediction_metrics(tau_val, pred),
-            pred,
-        )
-        for label, pred in tau_pred.items()
-    }
+    tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
     comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
     timings["validate"] = time.perf_counter() - t5
     t6 = time.perf_counter()
@@ -266,6 +249,50 @@ def _identify(
         consistent=cons,
         reduction=red,
     )
+
+
+def _accumulate(
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    model: pin.Model,
+    pm: ParameterModel,
+    reference: ReferenceWeights | None,
+    scheduler: str | None,
+) -> tuple[
+    accumulate.ChunkedLog,
+    ReducedObservations | None,
+    ReducedObservations | None,
+    ReducedObservations,
+]:
+    """The log cut in chunks and its identification rows reduced: ``(chunked, first, last,
+    merged)`` (:func:`ident.identify.accumulate.reduce_log`)."""
+    columns = accumulate.BaseColumns(chain_from_model(model), pm, reference)
+    chunked = accumulate.plan_log(
+        log,
+        cfg.preprocess,
+        columns,
+        identify_fraction=cfg.validation.identify_fraction,
+        chunk_samples=_chunk_samples(log, cfg.preprocess, len(pm.base_names)),
+    )
+    first, last = accumulate.reduce_log(chunked, scheduler)
+    return chunked, first, last, _merged(first, last)
+
+
+def _predict(
+    chunked: accumulate.ChunkedLog, vectors: dict[str, FloatArray], scheduler: str | None
+) -> tuple[FloatArray, npt.NDArray[np.bool_], dict[str, ModelPrediction]]:
+    """Held-out torques, their mask and every vector's prediction with its metrics."""
+    tau_val, keep_val, tau_pred = accumulate.predict_log(chunked, vectors, scheduler)
+    predictions = {
+        label: ModelPrediction(
+            label,
+            prediction_metrics(tau_val, pred, keep_val),
+            prediction_metrics(tau_val, pred),
+            pred,
+        )
+        for label, pred in tau_pred.items()
+    }
+    return tau_val, keep_val, predictions
 
 
 def _check_joints(log: RobotLog, model: pin.Model, source: str) -> list[str]:

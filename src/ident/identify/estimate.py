@@ -337,6 +337,72 @@ def least_squares(
     )
 
 
+def _wls(
+    obs: ReducedObservations,
+    x: FloatArray,
+    ss_group: FloatArray,
+    sigma_pooled: float,
+    passes: int,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, str]:
+    """WLS passes from the OLS solution ``x`` (:func:`least_squares`, ``method="wls"``):
+    ``(x, covariance, sigma per group, residual sum of squares per group, message)``."""
+    n_groups, n = obs.n_groups, obs.n_params
+    rows_in_group = obs.n_rows.astype(float)
+    m = int(obs.n_rows.sum())
+    dof = m - n
+    zero = np.zeros(n_groups, dtype=bool)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tau_rms = np.sqrt(obs.yty / rows_in_group)
+    for _ in range(passes):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sigma = np.sqrt(ss_group / (rows_in_group * dof / m))
+        zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
+        if zero.any():
+            sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
+        sigma = np.where(rows_in_group > 0, sigma, np.nan)
+        # empty groups carry no rows: any finite weight leaves the solution unchanged
+        weight = np.where(rows_in_group > 0, 1.0 / sigma, 0.0)
+        Rs, zs = obs.stacked(weight)
+        x = scipy.linalg.solve_triangular(Rs, zs, check_finite=False)
+        ss_group = obs.residual_ss(x)
+    message = "ok"
+    if zero.any():
+        message = (
+            "WLS: zero residual variance on group(s) "
+            + ", ".join(str(j) for j in np.flatnonzero(zero))
+            + " (noise-free data); used the pooled OLS weight there."
+        )
+    sigma_w2 = float(np.sum(weight**2 * ss_group) / dof)
+    cov = sigma_w2 * _covariance_unit(Rs)
+    # the per-group std the covariance assumes: sigma_j * sigma_w (sigma_w ~ 1)
+    sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
+    return x, cov, sigma, ss_group, message
+
+
+def _checked(
+    obs: ReducedObservations, names: tuple[str, ...] | list[str], method: str
+) -> tuple[str, ...]:
+    """``names`` as a tuple, after the checks of :func:`least_squares_reduced`."""
+    if method not in METHODS:
+        raise DataError(f"method={method!r} is not one of {', '.join(METHODS)}.")
+    n = obs.n_params
+    names = tuple(names)
+    if len(names) != n:
+        raise DataError(f"{len(names)} names for {n} columns of W.")
+    m = int(obs.n_rows.sum())
+    if not (np.all(np.isfinite(obs.R)) and np.all(np.isfinite(obs.z))):
+        raise DataError("reduced observations contain NaN/inf; clean or trim the log.")
+    if m <= n:
+        raise DataError(
+            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
+            "use a longer log, less decimation, or fewer parameters."
+        )
+    problem = rank_report(obs.R.reshape(-1, n), names)
+    if problem is not None:
+        raise NotIdentifiable(problem)
+    return names
+
+
 def least_squares_reduced(
     observations: ReducedObservations,
     names: tuple[str, ...] | list[str],
@@ -369,26 +435,12 @@ def least_squares_reduced(
     DataError, NotIdentifiable
         As :func:`least_squares`.
     """
-    if method not in METHODS:
-        raise DataError(f"method={method!r} is not one of {', '.join(METHODS)}.")
     obs = observations
+    names = _checked(obs, names, method)
     n = obs.n_params
-    names = tuple(names)
-    if len(names) != n:
-        raise DataError(f"{len(names)} names for {n} columns of W.")
     rows_in_group = obs.n_rows.astype(float)
     m = int(obs.n_rows.sum())
-    if not (np.all(np.isfinite(obs.R)) and np.all(np.isfinite(obs.z))):
-        raise DataError("reduced observations contain NaN/inf; clean or trim the log.")
-    if m <= n:
-        raise DataError(
-            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
-            "use a longer log, less decimation, or fewer parameters."
-        )
     R_all = obs.R.reshape(-1, n)  # same column norms and singular values as W
-    problem = rank_report(R_all, names)
-    if problem is not None:
-        raise NotIdentifiable(problem)
     R, z = obs.stacked()
     x = scipy.linalg.solve_triangular(R, z, check_finite=False)
     s = np.linalg.svd(R, compute_uv=False)
@@ -399,36 +451,12 @@ def least_squares_reduced(
     dof = m - n
     ss_group = obs.residual_ss(x)
     sigma_pooled = float(np.sqrt(ss_group.sum() / dof))
-    n_groups = obs.n_groups
     message = "ok"
     if method == "ols":
         cov = sigma_pooled**2 * _covariance_unit(R)
-        sigma = np.full(n_groups, sigma_pooled)
+        sigma = np.full(obs.n_groups, sigma_pooled)
     else:
-        zero = np.zeros(n_groups, dtype=bool)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            tau_rms = np.sqrt(obs.yty / rows_in_group)
-        for _ in range(wls_passes):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                sigma = np.sqrt(ss_group / (rows_in_group * dof / m))
-            zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
-            if zero.any():
-                sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
-            sigma = np.where(rows_in_group > 0, sigma, np.nan)
-            # empty groups carry no rows: any finite weight leaves the solution unchanged
-            weight = np.where(rows_in_group > 0, 1.0 / sigma, 0.0)
-            Rs, zs = obs.stacked(weight)
-            x = scipy.linalg.solve_triangular(Rs, zs, check_finite=False)
-            ss_group = obs.residual_ss(x)
-        if zero.any():
-            message = (
-                "WLS: zero residual variance on group(s) "
-                + ", ".join(str(j) for j in np.flatnonzero(zero))
-                + " (noise-free data); used the pooled OLS weight there."
-            )
-        sigma_w2 = float(np.sum(weight**2 * ss_group) / dof)
-        cov = sigma_w2 * _covariance_unit(Rs)
-        sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
+        x, cov, sigma, ss_group, message = _wls(obs, x, ss_group, sigma_pooled, wls_passes)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         relative_std = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
