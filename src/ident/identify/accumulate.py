@@ -142,17 +142,17 @@ class ChunkPlan:
 def margin_samples(pp: PreprocessConfig, sampling_rate_hz: float) -> tuple[int, int]:
     """``(signal_margin, decimation_margin)`` in raw samples for the settings ``pp``."""
     signal_margin = 4  # np.gradient twice: two neighbours, edge formulas one further
-    for flt in (pp.lowpass, pp.torque_lowpass):
+    for flt in (preprocess.position_filter(pp), pp.torque_lowpass):
         if flt is not None:
             sos = signal.butter(flt.order, flt.cutoff_hz, fs=sampling_rate_hz, output="sos")
             signal_margin = max(signal_margin, 2 * _decay_length(sos) + 4)
     decimation_margin, scale = 0, 1
-    for factor in pp.decimation:
+    for factor in preprocess.decimation_factors(pp):
         if factor == 1:
             continue
         decimation_margin += scale * (2 * _decay_length(preprocess.antialias_sos(factor)) + 2)
         scale *= factor
-    step = int(np.prod(pp.decimation)) if pp.decimation else 1
+    step = preprocess.decimation_step(pp)
     decimation_margin = step * int(np.ceil(decimation_margin / step))
     return signal_margin, decimation_margin
 
@@ -161,12 +161,12 @@ def make_plan(
     n_samples: int, pp: PreprocessConfig, sampling_rate_hz: float, chunk_samples: int
 ) -> ChunkPlan:
     """The chunking of a segment of ``n_samples`` raw samples (see :class:`ChunkPlan`)."""
-    step = int(np.prod(pp.decimation)) if pp.decimation else 1
+    step = preprocess.decimation_step(pp)
     n_trim = n_samples - 2 * pp.trim_samples
     if n_trim <= 0:
         raise DataError(f"trim_samples = {pp.trim_samples} removes all {n_samples} samples.")
     n_dec = n_trim
-    for factor in pp.decimation:
+    for factor in preprocess.decimation_factors(pp):
         n_dec = -(-n_dec // factor)  # x[::f] keeps ceil(n / f)
     signal_margin, decimation_margin = margin_samples(pp, sampling_rate_hz)
     return ChunkPlan(
@@ -207,14 +207,15 @@ def iter_chunks(
     fs = sampling_rate_hz
     n, n_edge, step = plan.n_samples, plan.n_edge, plan.step
     n_trim = n - 2 * n_edge
+    position, factors = preprocess.position_filter(pp), preprocess.decimation_factors(pp)
     for d0, d1 in ranges:
         s = max(0, d0 * step - plan.decimation_margin)  # trimmed indices, multiple of step
         e = min(n_trim, d1 * step + plan.decimation_margin)
         r0 = max(0, s + n_edge - plan.signal_margin)  # raw indices
         r1 = min(n, e + n_edge + plan.signal_margin)
         q_c, tau_c = q[r0:r1], tau[r0:r1]
-        if pp.lowpass is not None:
-            q_c, _ = preprocess.lowpass(q_c, fs, pp.lowpass.cutoff_hz, pp.lowpass.order)
+        if position is not None:
+            q_c, _ = preprocess.lowpass(q_c, fs, position.cutoff_hz, position.order)
         if pp.torque_lowpass is not None:
             tau_c, _ = preprocess.lowpass(
                 tau_c, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
@@ -223,7 +224,7 @@ def iter_chunks(
         a, b = s + n_edge - r0, e + n_edge - r0
         q_c, dq_c, ddq_c, tau_c = q_c[a:b], dq_c[a:b], ddq_c[a:b], tau_c[a:b]
         Yb = columns(q_c, dq_c, ddq_c)
-        bank, _, _ = preprocess.decimate([tau_c, Yb, dq_c], pp.decimation, fs)
+        bank, _, _ = preprocess.decimate([tau_c, Yb, dq_c], factors, fs)
         k0 = d0 - s // step
         k1 = k0 + (d1 - d0)
         yield Chunk(

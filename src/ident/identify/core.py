@@ -224,7 +224,7 @@ def _identify(
         *_warnings(cfg, model, pm, est, cons, red, chunked, predictions, (tau_val, keep_val)),
     ]
     timings["total"] = time.perf_counter() - t0
-    step = int(np.prod(cfg.preprocess.decimation)) if cfg.preprocess.decimation else 1
+    step = preprocess.decimation_step(cfg.preprocess)
     return IdentifyResult(
         config=cfg,
         log=log,
@@ -367,7 +367,7 @@ def _preprocess_records(pp: PreprocessConfig, fs: float, nv: int, source: str) -
             f"has {nv} joints; give one per joint [rad/s]."
         )
     for key, flt, what in (
-        ("lowpass", pp.lowpass, "q"),
+        ("lowpass", preprocess.position_filter(pp), "q"),
         ("torque_lowpass", pp.torque_lowpass, "tau"),
     ):
         if not isinstance(flt, FilterConfig):
@@ -388,12 +388,13 @@ def _preprocess_records(pp: PreprocessConfig, fs: float, nv: int, source: str) -
     records.append(
         {"step": "trim", "detail": f"dropped {pp.trim_samples} samples at each end of a segment"}
     )
-    if pp.decimation:
-        step = int(np.prod(pp.decimation))
+    factors = preprocess.decimation_factors(pp)
+    if factors:
+        step = preprocess.decimation_step(pp)
         records.append(
             {
                 "step": "decimate",
-                "detail": f"zero-phase decimation by {' x '.join(map(str, pp.decimation))} "
+                "detail": f"zero-phase decimation by {' x '.join(map(str, factors))} "
                 "(Chebyshev I order 8, forward-backward) of torques and regressor rows alike, "
                 f"{fs:g} -> {fs / step:g} Hz",
             }
@@ -620,8 +621,9 @@ def replay_motion(
     b = min(b, a + int(MOTION_MAX_S * fs))
     q, tau = log.q[a:b], log.tau[a:b]
     try:
-        if isinstance(pp.lowpass, FilterConfig):
-            q, _ = preprocess.lowpass(q, fs, pp.lowpass.cutoff_hz, pp.lowpass.order)
+        position = preprocess.position_filter(pp)
+        if position is not None:
+            q, _ = preprocess.lowpass(q, fs, position.cutoff_hz, position.order)
         if pp.torque_lowpass is not None:
             tau, _ = preprocess.lowpass(
                 tau, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
