@@ -324,11 +324,6 @@ def least_squares(
         raise DataError(f"observation matrix has NaN/inf in the column(s) of {', '.join(bad)}.")
     if not np.all(np.isfinite(tau_flat)):
         raise DataError("measured torques contain NaN/inf values; clean or trim the log.")
-    if m <= n:
-        raise DataError(
-            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
-            "use a longer log, less decimation, or fewer parameters."
-        )
     # one implementation of the formulas: the rows reduced per group (a QR each), then
     # least_squares_reduced (same estimate, standard deviations and residuals)
     obs = ReducedObservations.from_rows(W, tau_flat, group_of_row, n_groups)
