@@ -82,8 +82,6 @@ DASK_CONNECT_TIMEOUT = "10s"
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-# Longest stretch of a chunked log shown in the replay [s].
-MOTION_MAX_S = 600.0
 # Impulse responses are followed until they fall below this fraction of their peak.
 _DECAY_RTOL = 1e-14
 

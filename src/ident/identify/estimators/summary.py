@@ -1,6 +1,6 @@
 """What the report shows of the constrained estimation: per estimator and link, JSON-ready.
 
-Pure functions of an :class:`~ident.identify.real.IdentifyResult` (nothing is written here):
+Pure functions of an :class:`~ident.identify.core.IdentifyResult` (nothing is written here):
 :func:`consistency_summary` for ``result.json`` and the report table, :func:`identified_model`
 for the whole-model URDF and its sidecar.
 """
