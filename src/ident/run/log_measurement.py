@@ -237,7 +237,9 @@ def identify_elite_log(
     trajectory's sample times; ``log`` holds the whole simulation for the run folder.
     """
     t, q, dq, ddq, traced = elite_trajectory(family, x)
-    method = config.identification.estimation.method
+    # the least-squares estimate, named by its own method (what ``ident identify`` reports
+    # as "the estimate"); a constrained or other estimator's result is in the log outcome
+    method = config.identification.estimation.least_squares_method
     estimates: dict[str, Any] = {}
     failures: dict[str, str] = {}
     outcome: LogOutcome | None = None
