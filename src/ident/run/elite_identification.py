@@ -19,7 +19,7 @@ from ident.errors import IdentError, NotIdentifiable
 from ident.identify.estimators import EstimationProblem, get_estimator
 from ident.identify.observations import ReducedObservations
 from ident.measure.ideal import NoiseModel, simulate_measurements
-from ident.run.config import RunConfig
+from ident.run.config import MeasurementSection, RunConfig
 from ident.run.results import EliteOutcome, StageInfo
 from ident.run.stage_info import stage_matrix
 
@@ -58,6 +58,8 @@ def identify_elite(
     """
     t, q, dq, ddq, traced = elite_trajectory(family, x)
     m = config.measurement
+    if not isinstance(m, MeasurementSection):
+        raise IdentError("the ideal measurement needs measurement.source: ideal")
     std = m.torque_noise_std
     noise = NoiseModel(
         torque_std=tuple(std) if isinstance(std, list) else float(std),

@@ -31,7 +31,7 @@ from ident.errors import IdentError
 from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
 from ident.identify.core import IdentifyResult, identify_measurements
 from ident.identify.logs import read_log
-from ident.measure.mujoco_config import per_joint
+from ident.measure.mujoco_config import MujocoMeasurement, per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
 from ident.run.config import RunConfig
@@ -210,7 +210,10 @@ def measure_and_identify(
         From the simulator (diverging controller), the reader or the identification (a
         trajectory that does not excite every base parameter: ``NotIdentifiable``).
     """
-    log = simulate(robot, t, q, dq, ddq, config.measurement, rng=np.random.default_rng(seed))
+    simulator = config.measurement
+    if not isinstance(simulator, MujocoMeasurement):
+        raise IdentError("the simulated log needs measurement.source: mujoco")
+    log = simulate(robot, t, q, dq, ddq, simulator, rng=np.random.default_rng(seed))
     with tempfile.TemporaryDirectory(prefix="ident-log-") as tmp:
         files = write_log(tmp, log)
         section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))

@@ -25,6 +25,8 @@ and Automation Letters 7(2), 2022.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -186,7 +188,12 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     )
 
 
-def _solve(residual, jacobian, v0: FloatArray, problem: EstimationProblem):
+def _solve(
+    residual: Callable[[FloatArray], FloatArray],
+    jacobian: Callable[[FloatArray], FloatArray],
+    v0: FloatArray,
+    problem: EstimationProblem,
+) -> scipy.optimize.OptimizeResult:
     """``scipy.optimize.least_squares`` (trust region, exact Jacobian) from ``v0``."""
     return scipy.optimize.least_squares(
         residual,
