@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import yaml
 from conftest import REPO_ROOT
+from pydantic import ValidationError
 from typer.testing import CliRunner
 
 from ident.cli import app
@@ -141,3 +142,29 @@ def test_run_then_identify_its_log_same_estimate_with_an_unconstrained_toy(ridge
     assert cons["method"] == "ridge"
     assert "ridge" in cons["estimators"]
     assert not list(id_dir.glob("*_consistent.urdf"))  # no promise of consistency: no model
+
+
+def test_contract_decides_what_is_reported_not_the_name(ridge):
+    # the toy promises no consistency: its estimate is reported beside WLS, checked for
+    # consistency, and no model file is built from it (the contract is read, not the name)
+    from ident.identify.estimators.summary import identified_model
+
+    cfg, log = _wide_log()
+    cfg = cfg.model_copy(
+        update={"estimation": cfg.estimation.model_copy(update={"method": "ridge"})}
+    )
+    result = identify_measurements(cfg, log)
+    cons = result.consistent
+    assert result.estimate is cons.estimates["wls"]  # the least-squares estimate stays
+    assert cons.constrained is cons.estimates["ridge"]
+    assert "ridge" in result.predictions
+    # ridge with a 1e-9 shrink is WLS-weighted least squares: same fit to 1e-6
+    np.testing.assert_allclose(cons.constrained.x, result.estimate.x, rtol=0, atol=1e-6)
+    assert identified_model(result) is None
+    registry.register_estimator(
+        "rows_only",
+        registry.get_estimator("ridge"),
+        contract=registry.Contract(consistent=False, needs_prior=False, supports_chunks=False),
+    )
+    with pytest.raises(ValidationError, match="supports_chunks"):
+        type(cfg.estimation).model_validate({"method": "rows_only"})

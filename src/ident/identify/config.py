@@ -345,6 +345,12 @@ class EstimationConfig(StrictModel):
             get_estimator(value)
         except ConfigError as e:
             raise ValueError(str(e)) from e
+        if not get_contract(value).supports_chunks:  # every log is reduced chunk by chunk
+            raise ValueError(
+                f"estimator {value!r} declares supports_chunks=False: the identification "
+                "gives every estimator the rows reduced per joint, never the rows; register "
+                "it with a contract that works on problem.observations."
+            )
         return value
 
     @model_validator(mode="after")

@@ -1,9 +1,10 @@
 """The identification core: measurements -> identified base parameters, one code path.
 
 :func:`identify_measurements` is what every command runs on joint-side measurements, whatever
-their source (a log read by :func:`ident.identify.logs.read_log`, the log ``ident run``'s
-MuJoCo simulator writes, or the ideal measurement of ``ident run`` converted by
-:func:`ident.measure.ideal.as_log`):
+their source (a log read by :func:`ident.identify.logs.read_log`: a robot's, or the one
+``ident run``'s MuJoCo simulator writes). ``ident run``'s ideal source (the paper's stages, with
+known bodies subtracted and exact states) runs the same estimators of the registry on its
+reduced rows (:mod:`ident.run.elite_identification`).
 
 1. automatic preprocessing settings (:func:`ident.identify.preprocess.resolve_defaults`);
 2. the parameter model (rigid bodies plus friction, offsets, rotor inertias, coupled wrist;
