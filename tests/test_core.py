@@ -120,7 +120,8 @@ def test_run_then_identify_its_log_same_estimate_with_an_unconstrained_toy(ridge
     assert out.exit_code == 0, out.output
     (run_dir,) = (tmp_path / "r").iterdir()
     assert json.loads((run_dir / "run.json").read_text())["status"] == "complete"
-    run_x = json.loads((run_dir / "result.json").read_text())["elites"][0]["estimates"]
+    run_json = json.loads((run_dir / "result.json").read_text())
+    run_x = run_json["elites"][0]["estimates"]
     out = runner.invoke(
         app,
         [
@@ -138,6 +139,8 @@ def test_run_then_identify_its_log_same_estimate_with_an_unconstrained_toy(ridge
     # the run's estimate is the least-squares one (WLS beside the toy), as identify's
     assert set(run_x) == {"wls"}
     np.testing.assert_allclose(np.array(run_x["wls"]["x"]), x, rtol=1e-12, atol=0)
+    # the run shows the warnings identify gives on the same log (was "Warnings: none")
+    assert {f"elite 1: {w}" for w in result["warnings"]} <= set(run_json["warnings"])
     cons = result["consistency"]
     assert cons["method"] == "ridge"
     assert "ridge" in cons["estimators"]
