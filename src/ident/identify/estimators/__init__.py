@@ -18,7 +18,6 @@ from ident.identify.estimators import least_squares, lmi, log_cholesky  # noqa: 
 from ident.identify.estimators.identification import (
     ConsistentIdentification,
     bounding_ellipsoids,
-    consistent_identification,
     consistent_identification_reduced,
 )
 from ident.identify.estimators.problem import (
@@ -51,7 +50,6 @@ __all__ = [
     "RegularizationChoice",
     "bounding_ellipsoids",
     "choose_regularization",
-    "consistent_identification",
     "consistent_identification_reduced",
     "get_contract",
     "get_estimator",

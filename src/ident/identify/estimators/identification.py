@@ -1,14 +1,14 @@
-"""Constrained estimation inside ``ident identify``: problem set-up, weight choice, comparison.
+"""The estimators of the identification core: problem set-up, weight choice, comparison.
 
-:func:`consistent_identification` takes the identification rows of the pipeline (base
-columns, kept rows, joint of each row), reduces them once per joint, and returns
+:func:`consistent_identification_reduced` takes the identification rows reduced per joint (in
+two parts, the later one for the choice of a prior weight) and returns
 
-- the OLS and WLS estimates of the same rows with the per-link consistency of the standard
+- the OLS and WLS estimates (once each) with the per-link consistency of the standard
   parameters they stand for (closest to the nominal ones);
-- for a constrained method (``lmi``, ``log_cholesky``): its estimate on all identification
-  rows, with the prior weight either given or chosen on the last ``validation_fraction`` of
-  the identification rows (:func:`~ident.identify.estimators.regularization.choose_regularization`),
-  so the pipeline's own held-out part stays unseen.
+- for any other registered estimator: its estimate on all identification rows, WLS-weighted,
+  with the prior weight (``Contract.needs_prior``) either given or chosen on the later part
+  (:func:`~ident.identify.estimators.regularization.choose_regularization`), so the core's own
+  held-out part stays unseen.
 """
 
 from __future__ import annotations
@@ -44,7 +44,6 @@ __all__ = [
     "ConsistentIdentification",
     "body_link_names",
     "bounding_ellipsoids",
-    "consistent_identification",
     "consistent_identification_reduced",
     "problem_from_states",
     "standard_regressor",
@@ -239,65 +238,6 @@ class ConsistentIdentification:
     problem: EstimationProblem
 
 
-def consistent_identification(
-    model: pin.Model,
-    pm: Any,
-    W_rows: FloatArray,
-    tau_rows: FloatArray,
-    groups: npt.ArrayLike,
-    *,
-    method: str,
-    weight: float | str = "auto",
-    validation_fraction: float = 0.2,
-    grid: tuple[float, ...] = DEFAULT_GRID,
-    ellipsoids: tuple[Any, ...] = (),
-    options: dict[str, Any] | None = None,
-) -> ConsistentIdentification:
-    """Constrained estimate and per-estimator consistency of identification rows.
-
-    Parameters
-    ----------
-    model :
-        The robot (link names).
-    pm :
-        The parameter model (standard names, base map, nominal values).
-    W_rows :
-        Base-column observation rows, sample-major, shape (m, n_base).
-    tau_rows :
-        Measured torques of the rows [N*m], shape (m,).
-    groups :
-        Joint of every row, shape (m,).
-    method :
-        Registered estimator name.
-    weight :
-        Prior weight, or ``"auto"``.
-    validation_fraction :
-        Last fraction of the rows that chooses the weight when ``weight == "auto"``.
-    grid :
-        Weights tried when ``weight == "auto"``.
-    ellipsoids :
-        Optional bounding ellipsoid per body (None entries for none).
-    options :
-        Options of the constrained estimator (e.g. ``friction``).
-    """
-    nv = model.nv
-    groups = np.asarray(groups, dtype=np.int64)
-    split = int(round((1.0 - validation_fraction) * W_rows.shape[0]))
-    first = ReducedObservations.from_rows(W_rows[:split], tau_rows[:split], groups[:split], nv)
-    last = ReducedObservations.from_rows(W_rows[split:], tau_rows[split:], groups[split:], nv)
-    return consistent_identification_reduced(
-        model,
-        pm,
-        first,
-        last,
-        method=method,
-        weight=weight,
-        grid=grid,
-        ellipsoids=ellipsoids,
-        options=options,
-    )
-
-
 def consistent_identification_reduced(
     model: pin.Model,
     pm: Any,
@@ -310,15 +250,27 @@ def consistent_identification_reduced(
     ellipsoids: tuple[Any, ...] = (),
     options: dict[str, Any] | None = None,
 ) -> ConsistentIdentification:
-    """:func:`consistent_identification` on reduced rows (the chunked path of long logs).
+    """OLS, WLS and the configured estimator on reduced identification rows (module docstring).
 
     Parameters
     ----------
+    model :
+        The robot (link names).
+    pm :
+        The parameter model (standard names, base map, nominal values).
     first, last :
         The identification rows reduced in two parts: ``last`` (the later rows) chooses the
         prior weight when ``weight == "auto"``; the estimate uses both (merged).
-    model, pm, method, weight, grid, ellipsoids, options :
-        As in :func:`consistent_identification`.
+    method :
+        Registered estimator name.
+    weight :
+        Prior weight, or ``"auto"`` (estimators whose contract needs a prior).
+    grid :
+        Weights tried when ``weight == "auto"``.
+    ellipsoids :
+        Optional bounding ellipsoid per body (None entries for none).
+    options :
+        Options of the estimator (e.g. ``friction``).
     """
     structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
     obs = first.merge(last)
