@@ -26,6 +26,7 @@ and Automation Letters 7(2), 2022.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -117,22 +118,7 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     A_theta = sp.A / sp.scale[None, :]
     b_theta = sp.b + A_theta @ structure.nominal
 
-    start = problem.options.get("start")
-    if start is None:
-        ls = least_squares_reduced(
-            problem.observations, problem.names, method="wls", wls_passes=problem.wls_passes
-        )
-        start = problem.standard_completion(ls.x)
-        start[inertial] = structure.nominal[inertial]
-    start = np.asarray(start, dtype=float)
-    v0 = np.empty(n_std)
-    for index in bodies:
-        body = _positive_definite(start[index], sp.scale[index])
-        v0[index] = log_cholesky_from_parameters(body)
-    v0[nonnegative] = np.sqrt(np.maximum(start[nonnegative], 0.0)) + 1e-6
-    v0[free] = start[free]
-    # friction kept at its least-squares value (all in ``nonnegative``: theta = v^2)
-    v0[sp.fixed] = np.sqrt(structure.nominal[sp.fixed] + sp.scale[sp.fixed] * sp.fixed_u)
+    v0 = _start(problem, sp, free)
     active = np.setdiff1d(np.arange(n_std), sp.fixed)
 
     def full(v_active: FloatArray) -> FloatArray:
@@ -186,6 +172,31 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         message=message,
         regularization=weight,
     )
+
+
+def _start(problem: EstimationProblem, sp: Any, free: npt.NDArray[np.intp]) -> FloatArray:
+    """The starting point in the log-Cholesky variables: ``options["start"]`` or the WLS
+    completion with nominal inertials, every body made positive definite."""
+    structure = sp.structure
+    inertial = structure.bodies.reshape(-1)
+    nonnegative = structure.nonnegative
+    start = problem.options.get("start")
+    if start is None:
+        ls = least_squares_reduced(
+            problem.observations, problem.names, method="wls", wls_passes=problem.wls_passes
+        )
+        start = problem.standard_completion(ls.x)
+        start[inertial] = structure.nominal[inertial]
+    start = np.asarray(start, dtype=float)
+    v0 = np.empty(structure.n_std)
+    for index in structure.bodies:
+        body = _positive_definite(start[index], sp.scale[index])
+        v0[index] = log_cholesky_from_parameters(body)
+    v0[nonnegative] = np.sqrt(np.maximum(start[nonnegative], 0.0)) + 1e-6
+    v0[free] = start[free]
+    # friction kept at its least-squares value (all in ``nonnegative``: theta = v^2)
+    v0[sp.fixed] = np.sqrt(structure.nominal[sp.fixed] + sp.scale[sp.fixed] * sp.fixed_u)
+    return v0
 
 
 def _solve(
