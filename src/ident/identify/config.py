@@ -26,7 +26,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError, DataError
-from ident.identify.estimators import get_estimator
+from ident.identify.estimators import get_contract, get_estimator
 from ident.identify.reference import read_reference
 from ident.model.selection import RobotSelection
 
@@ -363,6 +363,12 @@ class EstimationConfig(StrictModel):
             get_estimator(value)
         except ConfigError as e:
             raise ValueError(str(e)) from e
+        if not get_contract(value).supports_chunks:  # every log is reduced chunk by chunk
+            raise ValueError(
+                f"estimator {value!r} declares supports_chunks=False: the identification "
+                "gives every estimator the rows reduced per joint, never the rows; register "
+                "it with a contract that works on problem.observations."
+            )
         return value
 
     @model_validator(mode="after")
@@ -377,7 +383,7 @@ class EstimationConfig(StrictModel):
     @property
     def least_squares_method(self) -> str:
         """``ols`` or ``wls``: the unconstrained estimate (``wls`` beside constrained ones)."""
-        return self.method if self.method in ("ols", "wls") else "wls"
+        return self.method if get_contract(self.method).least_squares else "wls"
 
 
 class TruthConfig(StrictModel):
