@@ -83,7 +83,10 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
         _check_sampling(config, family)
         _check_controller(config, robot)
         safety = build_safety_model(
-            robot, config.safety or SafetyConfig(), package_dirs=robot.package_dirs
+            robot,
+            config.safety or SafetyConfig(),
+            package_dirs=robot.package_dirs,
+            home_q=config.controller.home,
         )
         estimate = check_job(estimate_run(config, robot, family))
     except IdentError as e:
