@@ -131,6 +131,10 @@ class SafetyReport:
         (n_checked, nq); 0 where the limit is unknown.
     checks :
         The worst sample of every constraint.
+    not_checked :
+        ``(pair, reason)`` of the pairs the check leaves out: the safety model's excluded
+        robot link pairs (adjacent, SRDF, reference contact, always in contact) and its
+        constant-distance environment pairs (judged once when the model was built).
     """
 
     usable: bool
@@ -143,6 +147,7 @@ class SafetyReport:
     acceleration_ratio: FloatArray
     torque_ratio: FloatArray
     checks: tuple[ConstraintCheck, ...]
+    not_checked: tuple[tuple[str, str], ...] = ()
 
     def failures(self) -> tuple[ConstraintCheck, ...]:
         """The violated constraints, worst clearance first."""
@@ -229,7 +234,8 @@ def step_displacements(
     bounded by ``max(|dq_j(t_k)|, |dq_j(t_k+1)|) + max(|ddq_j(t_k)|, |ddq_j(t_k+1)|) dt / 2``
     (the acceleration taken within its sampled values over one step); a point at most
     ``reach_j`` from the joint's origin moves by at most ``reach_j`` times that
-    (:attr:`SafetyModel.motion_coefficients`, summed over the joints and both bodies).
+    (:attr:`SafetyModel.motion_coefficients`, summed over the joints and both bodies, except
+    the joints above both bodies, which move them together).
 
     Returns
     -------
@@ -281,7 +287,7 @@ def certified_clearances(
     for k in np.flatnonzero(weak.any(axis=1)):
         pairs = np.flatnonzero(weak[k])
         fine = _hermite(t[k], t[k + 1], q[k], q[k + 1], dq[k], dq[k + 1], SUBDIVISIONS)
-        inner = safety.clearances(fine[1:-1])[:, pairs]
+        inner = safety.pair_clearances(fine[1:-1], pairs)
         d = np.vstack([clearance[k, pairs], inner, clearance[k + 1, pairs]])
         sub = 0.5 * (d[:-1] + d[1:] - step[k, pairs] / SUBDIVISIONS)
         bound[k, pairs] = sub.min(axis=0)
@@ -430,4 +436,11 @@ def check_trajectory(
         acceleration_ratio=acceleration_ratio,
         torque_ratio=torque_ratio,
         checks=tuple(checks),
+        not_checked=tuple(
+            (e.pair, e.reason)
+            for e in (
+                *getattr(safety, "excluded_pairs", ()),
+                *getattr(safety, "constant_pairs", ()),
+            )
+        ),
     )

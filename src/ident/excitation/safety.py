@@ -415,7 +415,8 @@ class SafetyModel:
         Required clearance [m].
     motion_coefficients :
         Shape (n_pairs, nv): a pair's relative displacement over a step is at most
-        ``motion_coefficients @ (|dq| dt)`` [m] (see :func:`_motion_coefficients`).
+        ``motion_coefficients @ (|dq| dt)`` [m] (see :func:`_motion_coefficients`; the joints
+        above both links of a pair move them together and count 0).
     reach_m :
         A bound on the distance of any point of the robot from its base [m].
     effort_max :
@@ -526,8 +527,11 @@ class SafetyModel:
         padded = np.vstack([coefficients, np.zeros((len(environment), model.nv))])
         for p, k in enumerate(kept):
             a, b = candidates[k][0], candidates[k][1]
+            # the joints above both bodies move them together: only the others change the
+            # pair's relative posture (for an environment pair, every joint above the link)
+            common = (padded[a] > 0.0) & (padded[b] > 0.0)
             row = self.motion_coefficients[self._group[p]]
-            np.maximum(row, padded[a] + padded[b], out=row)
+            np.maximum(row, np.where(common, 0.0, padded[a] + padded[b]), out=row)
         self.motion_coefficients.setflags(write=False)
         # pairs where the hull and the geometry differ (a mesh on either side): the exact
         # certificate measures them on the mesh
@@ -929,9 +933,8 @@ class SafetyModel:
             Optional, shape (n_samples, n_pairs) [m]: the exact distance is needed only where
             it is below these values. Elsewhere the convex hulls' distance (a lower bound: a
             hull contains its mesh) stands in, except that each pair's smallest value is made
-            exact (its hulls' distances are searched in increasing order until they exceed
-            the smallest exact distance found, or 32 postures are measured). Default: exact
-            everywhere.
+            exact (the postures are measured in increasing order of their hulls' distance
+            until it exceeds the smallest exact distance found). Default: exact everywhere.
 
         Returns
         -------
@@ -956,21 +959,43 @@ class SafetyModel:
             gdata = pin.GeometryData(self.exact_geometry_model)
             for s in np.flatnonzero(need.any(axis=1)):
                 self._exact_into(q[s], np.flatnonzero(need[s]), gdata, distances[s])
-            if within is not None:
+            if within is not None:  # each pair's smallest value exact
                 for p in np.flatnonzero(mesh):
                     known = need[:, p]
-                    for _ in range(32):
-                        best = distances[known, p].min() if known.any() else np.inf
-                        rest = np.flatnonzero(~known)
-                        if rest.size == 0:
-                            break
-                        s = int(rest[np.argmin(distances[rest, p])])
-                        if distances[s, p] >= best:
+                    best = distances[known, p].min() if known.any() else np.inf
+                    rest = np.flatnonzero(~known)
+                    for s in rest[np.argsort(distances[rest, p], kind="stable")]:
+                        if distances[s, p] >= best:  # hulls in increasing order: done
                             break
                         self._exact_into(q[s], [int(p)], gdata, distances[s])
-                        known[s] = True
+                        best = min(best, distances[s, p])
         np.minimum.at(out.T, self._group, distances.T)
         out[~finite] = -np.inf
+        return out
+
+    def pair_clearances(self, q: npt.ArrayLike, columns: Sequence[int]) -> FloatArray:
+        """Exact clearances of some link pairs only [m], shape (n_samples, len(columns)).
+
+        The same values as ``clearances(q)[:, columns]`` (a depth where meshes touch is
+        reported as 0 or less), for the few pairs :func:`ident.excitation.check` refines.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        columns = [int(c) for c in columns]
+        out = np.full((q.shape[0], len(columns)), np.inf)
+        where = {c: i for i, c in enumerate(columns)}
+        pairs = [p for p in range(self._group.size) if int(self._group[p]) in where]
+        geom = self.exact_geometry_model
+        data, gdata = self.model.createData(), pin.GeometryData(geom)
+        for s in range(q.shape[0]):
+            if not np.all(np.isfinite(q[s])):
+                out[s] = -np.inf
+                continue
+            pin.updateGeometryPlacements(self.model, data, geom, gdata, q[s])
+            for p in pairs:
+                _fresh_gjk_start(gdata, p)
+                d = pin.computeDistance(geom, gdata, p).min_distance
+                i = where[int(self._group[p])]
+                out[s, i] = min(out[s, i], d)
         return out
 
 
