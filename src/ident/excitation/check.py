@@ -287,7 +287,7 @@ def certified_clearances(
     for k in np.flatnonzero(weak.any(axis=1)):
         pairs = np.flatnonzero(weak[k])
         fine = _hermite(t[k], t[k + 1], q[k], q[k + 1], dq[k], dq[k + 1], SUBDIVISIONS)
-        inner = safety.pair_clearances(fine[1:-1], pairs)
+        inner = safety.pair_clearances(fine[1:-1], pairs.tolist())
         d = np.vstack([clearance[k, pairs], inner, clearance[k + 1, pairs]])
         sub = 0.5 * (d[:-1] + d[1:] - step[k, pairs] / SUBDIVISIONS)
         bound[k, pairs] = sub.min(axis=0)

@@ -580,9 +580,9 @@ class SafetyModel:
                 geometry_pairs.setdefault(key, []).append((a, b))
         if self.config.srdf is not None:
             links = set(link_of)
-            for a, b, reason in _read_srdf(Path(self.config.srdf)):
-                key = _pair_key(a, b)
-                if a in links and b in links and key not in excluded:
+            for first, second, reason in _read_srdf(Path(self.config.srdf)):
+                key = _pair_key(first, second)
+                if first in links and second in links and key not in excluded:
                     excluded[key] = f"SRDF ({reason})"
         tested = [k for k in geometry_pairs if k not in excluded]
         if not tested:
@@ -610,8 +610,9 @@ class SafetyModel:
             within = self._collisions(geom, pairs, self.postures, margin=self.clearance_m)
             by_link = np.zeros((within.shape[0], len(tested)), dtype=bool)
             np.logical_or.at(by_link.T, owner, within.T)
+            always = np.all(by_link, axis=0)
             for i, key in enumerate(tested):
-                if by_link.all(axis=0)[i]:
+                if always[i]:
                     raise ConfigError(
                         f"safety.clearance_m = {self.clearance_m:g} m: the links {key[0]} and "
                         f"{key[1]} are closer than that in every one of "
@@ -958,7 +959,7 @@ class SafetyModel:
                 need = mesh[None, :] & (distances < limit)
             gdata = pin.GeometryData(self.exact_geometry_model)
             for s in np.flatnonzero(need.any(axis=1)):
-                self._exact_into(q[s], np.flatnonzero(need[s]), gdata, distances[s])
+                self._exact_into(q[s], np.flatnonzero(need[s]).tolist(), gdata, distances[s])
             if within is not None:  # each pair's smallest value exact
                 for p in np.flatnonzero(mesh):
                     known = need[:, p]
