@@ -149,3 +149,20 @@ def test_a_margin_no_posture_keeps_is_refused_naming_the_pair() -> None:
     robot = load_robot(config.robot)
     with pytest.raises(ConfigError, match="base_link and upper_arm_link are closer than that"):
         build_safety_model(robot, {"clearance_m": 0.02}, package_dirs=robot.package_dirs)
+
+
+def test_srdf_of_a_run_config_is_read_relative_to_the_config(tmp_path) -> None:
+    from ident.run.setup import load_run
+
+    (tmp_path / "robot.srdf").write_text(
+        '<robot name="paper6r"><disable_collisions link1="base_link" link2="link_5" '
+        'reason="User"/></robot>'
+    )
+    base = (HOSTILE / "floor_z5.yaml").read_text().split("safety:")[0]
+    base = base.replace("../../../../configs/paper6r.yaml", str(REPO / "configs/paper6r.yaml"))
+    config = tmp_path / "run.yaml"
+    config.write_text(base + "safety: {srdf: robot.srdf}\n")
+    setup = load_run(config)
+    excluded = {e.pair: e.reason for e in setup.safety.excluded_pairs}
+    assert excluded["base_link|link_5"] == "SRDF (User)"
+    assert "base_link|link_5" not in setup.safety.pair_names
