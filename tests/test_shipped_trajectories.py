@@ -152,12 +152,16 @@ def _check(config: Path, run: Path) -> dict[str, float]:
     )
     assert keep.sum() >= n_robot // 2, "most pairs must be checked"
     kept = np.flatnonzero(keep)
+    on_mesh = {k for k, (a, b) in enumerate(candidates) if a in vertices or b in vertices}
     smallest, lowest = np.inf, np.inf
     for q in traj.q:
         pin.computeDistances(model, data, hull, hdata, q)  # hulls: a lower bound
         pin.updateGeometryPlacements(model, data, geom, gdata, q)
         for k in kept:
-            if hdata.distanceResults[int(k)].min_distance >= margin + 0.05:
+            d_hull = hdata.distanceResults[int(k)].min_distance
+            if k not in on_mesh:  # primitives: the hull copy is the geometry itself
+                smallest = min(smallest, d_hull)
+            if d_hull >= margin + 0.05:
                 continue
             gdata.distanceRequests[int(k)].cached_gjk_guess = np.array([1.0, 0.0, 0.0])
             smallest = min(smallest, pin.computeDistance(geom, gdata, int(k)).min_distance)
