@@ -7,6 +7,11 @@ acceleration limits, and the torque limits (nominal inverse dynamics). A traject
 ``usable`` only when every one of them holds at every sample; a trajectory with a non-finite
 state is never usable.
 
+Clearances are a certificate (:func:`certified_clearances`): measured on the exact collision
+geometry (meshes as coal BVH, primitives as primitives) for every pair the safety model checks,
+and bounded between the samples by the largest relative motion of the two bodies over each step
+(:func:`step_displacements`), so that a margin kept at the samples but not in between is found.
+
 Where the samples come from (say which, :attr:`SafetyReport.resampling`):
 
 - ``"none"``: the given samples are already at least as fine as ``rate_hz`` and are checked as

@@ -45,6 +45,7 @@ def check_entry(check: ConstraintCheck) -> dict[str, Any]:
         "time": _finite(np.array([check.time]))[0],
         "excess": _finite(np.array([check.excess]))[0],
         "ratio": _finite(np.array([check.ratio]))[0],
+        "between": _finite(np.array([check.between]))[0],
         "ok": check.ok,
     }
 
