@@ -111,3 +111,27 @@ def test_run_report_has_safety_figures_and_series(tmp_path):
     assert "figures/clearance.png" in md
     rank = data["chosen_elite"]
     assert f"elite {rank} executed; smallest clearance" in md
+
+
+def test_section_lists_the_pairs_not_checked_and_why():
+    from dataclasses import replace
+
+    report = replace(
+        _report(),
+        not_checked=(
+            ("base_link|link_1", "adjacent"),
+            ("link_5|link_7", "reference contact (in contact in the reference posture)"),
+            ("base_link_0|floor", "constant distance -0.0030 m (...); judged once"),
+        ),
+    )
+    s = safety_series(report)
+    assert s["not_checked"][1] == {
+        "pair": "link_5|link_7",
+        "reason": "reference contact (in contact in the reference posture)",
+    }
+    data = {"chosen_elite": 1, "elites": [{"rank": 1, "safety_series": s}]}
+    md = "\n".join(safety_section(data, set()))
+    assert "Pairs not checked along the trajectory" in md
+    # the table escapes the pipe of a pair name
+    assert "| link_5\\|link_7 | reference contact (in contact in the reference posture) |" in md
+    assert "| base_link_0\\|floor | constant distance -0.0030 m (...); judged once |" in md

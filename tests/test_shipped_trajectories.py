@@ -6,12 +6,14 @@ re-checked here with plain Pinocchio and coal, not with ``ident.excitation``:
 
 - position, velocity and acceleration limits of the selected robot, and the torque of
   ``pin.rnea`` with the URDF's inertials against the URDF's ``effort`` where it is given;
-- every collision geometry of the URDF against the floor plane, and every pair of geometries
-  on non-adjacent joints against each other, at every sample (1 kHz), at least the config's
-  clearance apart. Pairs already closer than the clearance at the home posture (the first
-  sample) are left out: they overlap by construction (a base standing on the floor, housings
-  around one joint), and a pair that the tool checks could not start there without the run
-  failing. The floor clearance is also computed from the meshes' vertices directly.
+- the URDF's collision geometry as loaded (meshes as coal BVH, never their hulls), at every
+  sample (1 kHz), at least the config's clearance apart: every pair of links on non-adjacent
+  joints except those in contact in the reference posture (0 clipped into the limits, the
+  MoveIt setup assistant's "default" rule), and every geometry against the floor except those
+  whose floor distance never changes and is below the margin (the base standing on it, a
+  first link turning on it). Hull distances (a hull contains its mesh: a lower bound) are a
+  broad phase: the mesh is measured wherever the hulls are within the margin + 5 cm. The
+  floor clearance is also computed from the meshes' vertices directly.
 
 ``configs/arm.yaml`` (the paper's arm stage) has no safe elite: the run exits 1 and writes no
 ``trajectory.csv`` (pinned in ``tests/test_run_safety.py``).
@@ -57,19 +59,23 @@ def _geometry(
 
 
 def _mesh_vertices(geom: pin.GeometryModel) -> dict[int, np.ndarray]:
-    """Vertices (n, 3) of every mesh geometry in its own frame; meshes become convex hulls.
+    """Vertices (n, 3) of every mesh geometry in its own frame."""
+    return {
+        k: np.array(obj.geometry.vertices(), dtype=float).reshape(-1, 3)
+        for k, obj in enumerate(geom.geometryObjects)
+        if isinstance(obj.geometry, coal.BVHModelBase)
+    }
 
-    Distances are then GJK distances between convex hulls (a hull contains its mesh, so the
-    meshes are at least that far apart); the vertices give the floor clearance exactly.
-    """
-    vertices = {}
-    for k, obj in enumerate(geom.geometryObjects):
+
+def _hulls(geom: pin.GeometryModel) -> pin.GeometryModel:
+    """A copy of ``geom`` with meshes replaced by their convex hulls (qhull), a broad phase."""
+    hull = geom.clone()
+    for obj in hull.geometryObjects:
         shape = obj.geometry
         if isinstance(shape, coal.BVHModelBase):
-            vertices[k] = np.array(shape.vertices(), dtype=float).reshape(-1, 3)
             shape.buildConvexHull(False, "")  # qhull: the hull, not the mesh relabelled
             obj.geometry = shape.convex
-    return vertices
+    return hull
 
 
 def _check(config: Path, run: Path) -> dict[str, float]:
@@ -119,18 +125,48 @@ def _check(config: Path, run: Path) -> dict[str, float]:
     ] + [(a, n_robot) for a in range(n_robot)]
     for a, b in candidates:
         geom.addCollisionPair(pin.CollisionPair(a, b))
-    data, gdata = model.createData(), pin.GeometryData(geom)
-    pin.computeDistances(model, data, geom, gdata, traj.q[0])
-    at_home = np.array([r.min_distance for r in gdata.distanceResults])
-    keep = at_home >= margin
+    hull = _hulls(geom)
+    data, gdata, hdata = model.createData(), pin.GeometryData(geom), pin.GeometryData(hull)
+    link = [model.frames[o.parentFrame].name for o in geom.geometryObjects[:n_robot]]
+    # robot pairs in contact in the reference posture: left out, by link pair
+    reference = np.clip(np.zeros(model.nq), model.lowerPositionLimit, model.upperPositionLimit)
+    pin.computeCollisions(model, data, geom, gdata, reference, False)
+    touching = {
+        frozenset((link[a], link[b]))
+        for (a, b), r in zip(candidates, gdata.collisionResults, strict=True)
+        if b < n_robot and r.isCollision()
+    }
+    # floor pairs: left out where the distance never changes and is below the margin
+    floor_d = []
+    for q in traj.q[:: max(1, len(traj.q) // 200)]:
+        pin.computeDistances(model, data, geom, gdata, q)
+        floor_d.append([r.min_distance for r in gdata.distanceResults])
+    floor_d = np.array(floor_d)
+    keep = np.array(
+        [
+            frozenset((link[a], link[b])) not in touching
+            if b < n_robot
+            else not (np.ptp(floor_d[:, k]) < 1e-9 and floor_d[0, k] < margin)
+            for k, (a, b) in enumerate(candidates)
+        ]
+    )
     assert keep.sum() >= n_robot // 2, "most pairs must be checked"
+    kept = np.flatnonzero(keep)
+    on_mesh = {k for k, (a, b) in enumerate(candidates) if a in vertices or b in vertices}
     smallest, lowest = np.inf, np.inf
     for q in traj.q:
-        pin.computeDistances(model, data, geom, gdata, q)
-        d = np.array([r.min_distance for r in gdata.distanceResults])
-        smallest = min(smallest, float(d[keep].min()))
-        for k, (a, b) in enumerate(candidates):  # oMg: placements of this q
-            if b == n_robot and keep[k] and a in vertices:
+        pin.computeDistances(model, data, hull, hdata, q)  # hulls: a lower bound
+        pin.updateGeometryPlacements(model, data, geom, gdata, q)
+        for k in kept:
+            d_hull = hdata.distanceResults[int(k)].min_distance
+            if k not in on_mesh:  # primitives: the hull copy is the geometry itself
+                smallest = min(smallest, d_hull)
+            if d_hull >= margin + 0.05:
+                continue
+            gdata.distanceRequests[int(k)].cached_gjk_guess = np.array([1.0, 0.0, 0.0])
+            smallest = min(smallest, pin.computeDistance(geom, gdata, int(k)).min_distance)
+            a, b = candidates[k]
+            if b == n_robot and a in vertices:
                 placed = vertices[a] @ gdata.oMg[a].rotation.T + gdata.oMg[a].translation
                 lowest = min(lowest, float(placed[:, 2].min()))
     assert smallest >= margin - 1e-6, (smallest, margin)

@@ -7,6 +7,11 @@ acceleration limits, and the torque limits (nominal inverse dynamics). A traject
 ``usable`` only when every one of them holds at every sample; a trajectory with a non-finite
 state is never usable.
 
+Clearances are a certificate (:func:`certified_clearances`): measured on the exact collision
+geometry (meshes as coal BVH, primitives as primitives) for every pair the safety model checks,
+and bounded between the samples by the largest relative motion of the two bodies over each step
+(:func:`step_displacements`), so that a margin kept at the samples but not in between is found.
+
 Where the samples come from (say which, :attr:`SafetyReport.resampling`):
 
 - ``"none"``: the given samples are already at least as fine as ``rate_hz`` and are checked as
@@ -34,8 +39,10 @@ __all__ = [
     "MIN_CHECK_RATE_HZ",
     "ConstraintCheck",
     "SafetyReport",
+    "certified_clearances",
     "check_trajectory",
     "dense_family_states",
+    "step_displacements",
 ]
 
 MIN_CHECK_RATE_HZ = 1000.0
@@ -65,6 +72,10 @@ class ConstraintCheck:
     ratio :
         ``value / limit`` for velocity, acceleration and torque (<= 1 is within the limit),
         ``nan`` otherwise.
+    between :
+        For a clearance: a certified lower bound of the clearance over the whole motion,
+        between the samples too (:func:`certified_clearances`) [m]; ``excess`` is measured
+        from it. ``nan`` otherwise.
     """
 
     name: str
@@ -74,6 +85,7 @@ class ConstraintCheck:
     time: float
     excess: float
     ratio: float = float("nan")
+    between: float = float("nan")
 
     @property
     def ok(self) -> bool:
@@ -85,6 +97,8 @@ class ConstraintCheck:
         unit = "m" if self.kind == "clearance" else ""
         if self.kind == "clearance":
             where = f"{self.name}: clearance {self.value:.4f} m at t = {self.time:.3f} s"
+            if np.isfinite(self.between) and self.between < self.value:
+                where += f" (>= {self.between:.4f} m between samples)"
             if self.ok:
                 return f"{where} (margin {self.limit:.3f} m)"
             return f"{where}, below the {self.limit:.3f} m margin by {self.excess:.4f} m"
@@ -122,6 +136,10 @@ class SafetyReport:
         (n_checked, nq); 0 where the limit is unknown.
     checks :
         The worst sample of every constraint.
+    not_checked :
+        ``(pair, reason)`` of the pairs the check leaves out: the safety model's excluded
+        robot link pairs (adjacent, SRDF, reference contact, always in contact) and its
+        constant-distance environment pairs (judged once when the model was built).
     """
 
     usable: bool
@@ -134,6 +152,7 @@ class SafetyReport:
     acceleration_ratio: FloatArray
     torque_ratio: FloatArray
     checks: tuple[ConstraintCheck, ...]
+    not_checked: tuple[tuple[str, str], ...] = ()
 
     def failures(self) -> tuple[ConstraintCheck, ...]:
         """The violated constraints, worst clearance first."""
@@ -208,6 +227,89 @@ def _resample(
     )
 
 
+SUBDIVISIONS = 8  # a step whose bound fails is cut into this many (cubic Hermite)
+
+
+def step_displacements(
+    safety: SafetyModel, t: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> FloatArray:
+    """A bound on how far the two bodies of each pair move relative to each other per step.
+
+    Over the step ``[t_k, t_k+1]`` joint ``j`` turns by at most ``|dq_j| dt``, with ``|dq_j|``
+    bounded by ``max(|dq_j(t_k)|, |dq_j(t_k+1)|) + max(|ddq_j(t_k)|, |ddq_j(t_k+1)|) dt / 2``
+    (the acceleration taken within its sampled values over one step); a point at most
+    ``reach_j`` from the joint's origin moves by at most ``reach_j`` times that
+    (:attr:`SafetyModel.motion_coefficients`, summed over the joints and both bodies, except
+    the joints above both bodies, which move them together).
+
+    Returns
+    -------
+    :
+        Shape (n - 1, n_pairs) [m].
+    """
+    dt = np.diff(t)[:, None]
+    speed = np.maximum(np.abs(dq[:-1]), np.abs(dq[1:]))
+    speed = speed + 0.5 * dt * np.maximum(np.abs(ddq[:-1]), np.abs(ddq[1:]))
+    return np.asarray((speed * dt) @ safety.motion_coefficients.T)
+
+
+def certified_clearances(
+    safety: SafetyModel, t: FloatArray, q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Exact clearances at the samples, and a certified lower bound between them.
+
+    Between samples ``k`` and ``k+1`` with clearances ``d_k`` and ``d_k+1``, whose bodies move
+    relative to each other by at most ``D_k`` (:func:`step_displacements`), the clearance is
+    at least ``(d_k + d_k+1 - D_k) / 2`` (a distance changes no faster than the bodies move).
+    Steps where this bound falls below the margin while both samples keep it are cut into
+    :data:`SUBDIVISIONS` (positions from the cubic Hermite interpolant of ``q`` and ``dq``,
+    whose error, ``dt^4 / 384`` times the largest fourth derivative of ``q``, is below 1e-9
+    rad at 1 kHz for the excitations here) and bounded again with ``D_k / SUBDIVISIONS``. The
+    exact (mesh) distance is computed wherever the hulls are within ``margin + 2 D + 1 mm``.
+
+    Returns
+    -------
+    :
+        The clearances at the samples [m], shape (n, n_pairs) (exact where they matter, a
+        lower bound elsewhere; each pair's smallest value exact), and each pair's certified
+        lower bound over the whole motion [m], shape (n_pairs,).
+    """
+    n, n_pairs = q.shape[0], safety.n_pairs
+    if n_pairs == 0:
+        return np.full((n, 0), np.inf), np.full(0, np.inf)
+    finite = bool(np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.isfinite(ddq)))
+    if n < 2 or not finite:
+        clearance = safety.clearances(q)
+        return clearance, clearance.min(axis=0)
+    step = step_displacements(safety, t, dq, ddq)
+    near = np.zeros((n, n_pairs))
+    near[:-1] = step
+    near[1:] = np.maximum(near[1:], step)
+    margin = safety.clearance_m
+    clearance = safety.clearances(q, within=margin + 2.0 * near + 1e-3)
+    bound = 0.5 * (clearance[:-1] + clearance[1:] - step)
+    weak = (bound < margin) & (clearance[:-1] >= margin) & (clearance[1:] >= margin)
+    for k in np.flatnonzero(weak.any(axis=1)):
+        pairs = np.flatnonzero(weak[k])
+        fine = _hermite(t[k], t[k + 1], q[k], q[k + 1], dq[k], dq[k + 1], SUBDIVISIONS)
+        inner = safety.pair_clearances(fine[1:-1], pairs.tolist())
+        d = np.vstack([clearance[k, pairs], inner, clearance[k + 1, pairs]])
+        sub = 0.5 * (d[:-1] + d[1:] - step[k, pairs] / SUBDIVISIONS)
+        bound[k, pairs] = sub.min(axis=0)
+    return clearance, bound.min(axis=0)
+
+
+def _hermite(
+    t0: float, t1: float, q0: FloatArray, q1: FloatArray, v0: FloatArray, v1: FloatArray, m: int
+) -> FloatArray:
+    """``m + 1`` postures of the cubic Hermite interpolant on ``[t0, t1]``, ends included."""
+    h = t1 - t0
+    s = np.linspace(0.0, 1.0, m + 1)[:, None]
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    return np.asarray(h00 * q0 + h10 * h * v0 + h01 * q1 + h11 * h * v1)
+
+
 def _ratio(value: FloatArray, limit: FloatArray) -> FloatArray:
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(np.isfinite(limit), np.abs(value) / limit, 0.0)
@@ -269,10 +371,11 @@ def check_trajectory(
     names = limits.joint_names
     checks: list[ConstraintCheck] = []
 
-    clearance = safety.clearances(q)
+    clearance, between = certified_clearances(safety, t, q, dq, ddq)
     for k, pair in enumerate(safety.pair_names):
         i = int(np.argmin(clearance[:, k]))
         value = float(clearance[i, k])
+        lowest = min(value, float(between[k]))
         checks.append(
             ConstraintCheck(
                 f"clearance:{pair}",
@@ -280,7 +383,8 @@ def check_trajectory(
                 value,
                 safety.clearance_m,
                 float(t[i]),
-                safety.clearance_m - value,
+                safety.clearance_m - lowest,
+                between=float(between[k]),
             )  # fmt: skip
         )
     lower, upper = limits.q_lower, limits.q_upper
@@ -337,4 +441,11 @@ def check_trajectory(
         acceleration_ratio=acceleration_ratio,
         torque_ratio=torque_ratio,
         checks=tuple(checks),
+        not_checked=tuple(
+            (e.pair, e.reason)
+            for e in (
+                *getattr(safety, "excluded_pairs", ()),
+                *getattr(safety, "constant_pairs", ()),
+            )
+        ),
     )

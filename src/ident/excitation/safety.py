@@ -2,8 +2,10 @@
 
 A :class:`SafetyModel` holds, for one robot,
 
-- its URDF **collision geometry** as a Pinocchio ``GeometryModel`` (coal computes the signed
-  distances; meshes are replaced by their convex hulls so that a penetration has a depth);
+- its URDF **collision geometry** as a Pinocchio ``GeometryModel`` (coal computes the
+  distances on the meshes as BVH, :meth:`SafetyModel.clearances`), and the same geometry with
+  meshes replaced by their convex hulls, a conservative proxy (a hull contains its mesh) for
+  the optimizer's cheap term and a broad phase;
 - the **floor**, a half-space ``z <= floor.z`` in the base frame (on by default);
 - the **obstacles** of the config: boxes, spheres and half-spaces (a table, a wall), fixed in
   the base frame;
@@ -11,18 +13,23 @@ A :class:`SafetyModel` holds, for one robot,
 - the **torque limits**, the URDF ``effort`` of each joint with the nominal model's inverse
   dynamics (``pin.rnea``), next to the position, velocity and acceleration limits.
 
-Checked pairs (the rule, applied once when the model is built):
+Checked pairs (the rule, applied once when the model is built, on the exact geometry: the
+meshes as loaded, coal BVH, and the URDF's primitives; never on a hull):
 
-1. every pair of robot geometries on different, non-adjacent joints (two geometries are
-   adjacent when they move with the same joint or with a joint and its parent: links welded by
-   a fixed joint belong to the same joint in Pinocchio);
-2. every robot geometry against the floor and every obstacle;
-3. minus the pairs that are closer than the margin in **every** posture of a seeded sample (the
-   reference posture, i.e. 0 clipped into the position limits, and
-   :data:`N_EXCLUSION_POSTURES` random postures within the position limits): such geometry
-   overlaps by construction (the housings around an elbow, the first link's housing on the
-   floor it rotates on, the base standing on the floor) and no motion could satisfy it. They
-   are listed in :attr:`SafetyModel.excluded_pairs` with the reason.
+1. every pair of robot links except those **excluded**: adjacent (a joint and its parent;
+   links welded by a fixed joint belong to the same joint in Pinocchio), named by the MoveIt
+   SRDF given as ``safety.srdf`` (``<disable_collisions>``), in contact in the reference
+   posture (0 clipped into the limits), or in contact in at least
+   :data:`ALWAYS_IN_CONTACT_FRACTION` of :data:`N_EXCLUSION_POSTURES` random postures (the
+   MoveIt setup assistant's rule). A remaining pair closer than the margin in every sampled
+   posture is an input error (no trajectory could keep the margin);
+2. every robot geometry against the floor and every obstacle: **never excluded**. A pair
+   whose distance no motion changes (the base on the floor, a first link turning about the
+   vertical) is judged once: partly inside is a mounting (the paper robot's joint-1 housing
+   sunk into its pedestal), deeper than the geometry's bounding radius (and
+   :data:`MOUNT_TOLERANCE_M`) is an input error (a robot inside an obstacle or under the floor).
+   Any other environment pair closer than the margin in every sampled posture, or at the
+   home posture, is an input error, as are absurd sizes (validation).
 
 Distances are reported per *link pair* (the URDF link names of the two geometries, or the
 obstacle name): the minimum over the geometry pairs of the two links.
@@ -48,13 +55,17 @@ import pinocchio as pin
 from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel
-from ident.errors import ModelError
+from ident.errors import ConfigError, ModelError
 from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
 from ident.excitation.family import ConstraintViolations, FloatArray
 from ident.robot.meshes import check_urdf_meshes
 
 __all__ = [
+    "ALWAYS_IN_CONTACT_FRACTION",
     "DEFAULT_CLEARANCE_M",
+    "MAX_CLEARANCE_M",
+    "MAX_OBSTACLES",
+    "MAX_SIZE_M",
     "N_EXCLUSION_POSTURES",
     "BoxObstacle",
     "FloorConfig",
@@ -71,10 +82,25 @@ __all__ = [
 ]
 
 DEFAULT_CLEARANCE_M = 0.03
-N_EXCLUSION_POSTURES = 100
+N_EXCLUSION_POSTURES = 1000  # random postures of the "always in contact" rule (MoveIt: 1000+)
+ALWAYS_IN_CONTACT_FRACTION = 0.95  # MoveIt setup assistant's default
+MAX_SIZE_M = 100.0  # obstacle sizes and positions, floor height [m]
+MAX_CLEARANCE_M = 10.0  # the margin [m]; also below the robot's reach
+MAX_OBSTACLES = 256
+MOUNT_TOLERANCE_M = 0.01  # a base (or a link turning in place) may sink this deep [m] ...
+# ... or, for a larger geometry, up to its bounding radius: deeper, it is inside the obstacle
 FLOOR = "floor"
 
 Vector3 = tuple[float, float, float]
+
+
+def _near_robot(value: Vector3) -> Vector3:
+    if max(abs(v) for v in value) > MAX_SIZE_M:
+        raise ValueError(
+            f"position {list(value)} is more than {MAX_SIZE_M:g} m from the robot's base "
+            "(millimetres typed as metres?)"
+        )
+    return value
 
 
 # ---------------------------------------------------------------------- config schema
@@ -82,7 +108,7 @@ class FloorConfig(StrictModel):
     """The floor: the half-space ``z <= z`` of the base frame [m]."""
 
     enabled: bool = True
-    z: float = 0.0
+    z: float = Field(default=0.0, ge=-MAX_SIZE_M, le=MAX_SIZE_M)
 
 
 class BoxObstacle(StrictModel):
@@ -95,16 +121,29 @@ class BoxObstacle(StrictModel):
     @field_validator("size")
     @classmethod
     def _positive(cls, value: Vector3) -> Vector3:
-        if min(value) <= 0.0:
-            raise ValueError(f"every box edge must be > 0 m, got {list(value)}")
+        if min(value) <= 0.0 or max(value) > MAX_SIZE_M:
+            raise ValueError(
+                f"every box edge must be in (0, {MAX_SIZE_M:g}] m, got {list(value)} "
+                "(millimetres typed as metres?)"
+            )
         return value
+
+    @field_validator("position")
+    @classmethod
+    def _near(cls, value: Vector3) -> Vector3:
+        return _near_robot(value)
 
 
 class SphereObstacle(StrictModel):
     """A sphere of ``radius`` [m] centred at ``position`` [m]."""
 
-    radius: float = Field(gt=0.0)
+    radius: float = Field(gt=0.0, le=MAX_SIZE_M)
     position: Vector3 = (0.0, 0.0, 0.0)
+
+    @field_validator("position")
+    @classmethod
+    def _near(cls, value: Vector3) -> Vector3:
+        return _near_robot(value)
 
 
 class PlaneObstacle(StrictModel):
@@ -116,7 +155,7 @@ class PlaneObstacle(StrictModel):
     """
 
     normal: Vector3
-    offset: float
+    offset: float = Field(ge=-MAX_SIZE_M, le=MAX_SIZE_M)
 
     @field_validator("normal")
     @classmethod
@@ -170,13 +209,18 @@ class SafetyConfig(StrictModel):
 
     ``check_samples`` is the number of samples per period at which the optimization's cheap
     constraint term measures the clearances; ``check_rate_hz`` (>= 1000) the rate of the
-    dense check of the chosen trajectories.
+    dense check of the chosen trajectories. ``srdf`` is a MoveIt SRDF whose
+    ``<disable_collisions link1= link2= reason=/>`` pairs are not checked (relative to the
+    config file). Sizes are bounded: obstacles and the floor within :data:`MAX_SIZE_M` of the
+    base, at most :data:`MAX_OBSTACLES` obstacles, ``clearance_m`` at most
+    :data:`MAX_CLEARANCE_M` (and below the robot's reach, checked with the robot).
     """
 
     floor: FloorConfig = FloorConfig()
-    obstacles: tuple[ObstacleConfig, ...] = ()
-    clearance_m: float = Field(default=DEFAULT_CLEARANCE_M, ge=0.0)
+    obstacles: tuple[ObstacleConfig, ...] = Field(default=(), max_length=MAX_OBSTACLES)
+    clearance_m: float = Field(default=DEFAULT_CLEARANCE_M, ge=0.0, le=MAX_CLEARANCE_M)
     self_collision: bool = True
+    srdf: Path | None = None
     torque_limits: bool = True
     check_rate_hz: float = Field(default=1000.0, ge=1000.0)
     check_samples: int = Field(default=16, ge=1)
@@ -289,6 +333,68 @@ def _convexify(geom: pin.GeometryModel) -> None:
             obj.geometry = shape.convex
 
 
+def _read_srdf(path: Path) -> list[tuple[str, str, str]]:
+    """The ``<disable_collisions link1= link2= reason=/>`` entries of a MoveIt SRDF.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read or parsed, or is larger than 10 MB.
+    """
+    try:
+        if path.stat().st_size > 10_000_000:
+            raise ConfigError(f"safety.srdf: {path} is larger than 10 MB; is it an SRDF?")
+        root = ET.fromstring(path.read_bytes())
+    except (OSError, ET.ParseError) as e:
+        raise ConfigError(
+            f"safety.srdf: cannot read {path} as an SRDF ({e}); give MoveIt's .srdf file."
+        ) from e
+    pairs = []
+    for node in root.iter("disable_collisions"):
+        a, b = node.get("link1"), node.get("link2")
+        if not a or not b:
+            raise ConfigError(
+                f"safety.srdf: {path}: a <disable_collisions> lacks link1 or link2; "
+                'write <disable_collisions link1="a" link2="b" reason="Adjacent"/>.'
+            )
+        pairs.append((a, b, node.get("reason") or "no reason given"))
+    return pairs
+
+
+def _bounding_radius(obj: pin.GeometryObject) -> float:
+    """Radius [m] of a ball about the parent joint's origin that holds the geometry."""
+    shape = obj.geometry
+    shape.computeLocalAABB()
+    centre = obj.placement.act(np.asarray(shape.aabb_center, dtype=float))
+    return float(np.linalg.norm(centre) + float(shape.aabb_radius))
+
+
+def _motion_coefficients(model: pin.Model, geom: pin.GeometryModel, n_robot: int) -> FloatArray:
+    """Per robot geometry, how far its points can move per unit of each joint's motion.
+
+    Row ``g``, column ``v``: for a revolute ancestor joint, a bound on the distance of the
+    geometry's points from the joint's origin [m] (the joint offsets along the chain plus the
+    geometry's bounding radius, whatever the posture); 1 for a prismatic ancestor; 0 for
+    joints that do not move it. A point's displacement over a step is at most
+    ``row . |dq| dt``. Shape (n_robot, nv).
+    """
+    out = np.zeros((n_robot, model.nv))
+    offsets = [
+        float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(model.njoints)
+    ]
+    for g in range(n_robot):
+        obj = geom.geometryObjects[g]
+        reach = _bounding_radius(obj)
+        j = int(obj.parentJoint)
+        while j > 0:
+            joint = model.joints[j]
+            prismatic = "P" in joint.shortname().replace("JointModel", "")[:2]
+            out[g, joint.idx_v] = 1.0 if prismatic else reach
+            reach += offsets[j]
+            j = int(model.parents[j])
+    return out
+
+
 class SafetyModel:
     """Collision geometry, environment and limits of one robot; see the module docstring.
 
@@ -302,11 +408,19 @@ class SafetyModel:
     pair_kinds :
         ``"self"``, ``"floor"`` or ``"obstacle"`` per link pair.
     excluded_pairs :
-        Pairs left out, with the reason: adjacent links (named by link), or geometries closer
-        than the margin in every sampled posture (named by Pinocchio geometry, e.g.
-        ``link_1_0|floor``, since the other geometries of the two links stay checked).
+        Robot link pairs left out, with the reason: ``adjacent``, ``SRDF``, ``reference
+        contact`` or ``always in contact`` (judged on the exact geometry, never on a hull).
+    constant_pairs :
+        Environment pairs whose distance no motion changes (the base on the floor, a first
+        link turning on it), judged once when the model is built, with their distance.
     clearance_m :
         Required clearance [m].
+    motion_coefficients :
+        Shape (n_pairs, nv): a pair's relative displacement over a step is at most
+        ``motion_coefficients @ (|dq| dt)`` [m] (see :func:`_motion_coefficients`; the joints
+        above both links of a pair move them together and count 0).
+    reach_m :
+        A bound on the distance of any point of the robot from its base [m].
     effort_max :
         Torque limits [N*m or N], shape (nv,); ``inf`` where unknown or when torque limits are
         off.
@@ -322,6 +436,7 @@ class SafetyModel:
         urdf: str | Path | None = None,
         package_dirs: Sequence[str | Path] = (),
         reference_q: npt.ArrayLike | None = None,
+        home_q: npt.ArrayLike | None = None,
         rng: np.random.Generator | int | None = 0,
     ) -> None:
         import coal
@@ -331,11 +446,28 @@ class SafetyModel:
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
         model, geom = _kinematic_model_and_geometry(robot, urdf, package_dirs)
-        _convexify(geom)
         self.model = model
         n_robot = len(geom.geometryObjects)
-        link_of = [model.frames[o.parentFrame].name for o in geom.geometryObjects]
-        joint_of = [int(o.parentJoint) for o in geom.geometryObjects]
+        objects = geom.geometryObjects
+        link_of = [model.frames[o.parentFrame].name for o in objects]
+        joint_of = [int(o.parentJoint) for o in objects]
+        coefficients = _motion_coefficients(model, geom, n_robot)
+        offsets = [float(np.linalg.norm(p.translation)) for p in model.jointPlacements]
+        self.reach_m = max(
+            (
+                float(coefficients[g, model.joints[1].idx_v]) + offsets[1]
+                if joint_of[g] > 0
+                else _bounding_radius(objects[g])
+                for g in range(n_robot)
+            ),
+            default=0.0,
+        )
+        if n_robot and self.clearance_m > self.reach_m:
+            raise ConfigError(
+                f"safety.clearance_m = {self.clearance_m:g} m is larger than the robot's reach "
+                f"({self.reach_m:.3f} m): no posture could keep it; give a margin of a few "
+                "centimetres (default 0.03)."
+            )
         # obstacles are attached to the universe (joint 0, frame 0), fixed in the base frame
         environment: list[str] = []
         if config.floor.enabled:
@@ -347,50 +479,69 @@ class SafetyModel:
             shape, pose = _obstacle_geometry(obstacle)
             geom.addGeometryObject(pin.GeometryObject(name, 0, 0, pose, shape))
             environment.append(name)
-        parents = list(model.parents)
+        self.postures = self._exclusion_postures(reference_q, rng)
+        excluded = (
+            self._self_exclusions(robot, geom, link_of, joint_of, n_robot)
+            if config.self_collision
+            else {}
+        )
         candidates: list[tuple[int, int, str, str]] = []  # (geom a, geom b, pair name, kind)
-        excluded: dict[str, str] = {}
         if config.self_collision:
             for a in range(n_robot):
                 for b in range(a + 1, n_robot):
-                    ja, jb = joint_of[a], joint_of[b]
                     name = f"{link_of[a]}|{link_of[b]}"
-                    if ja == jb or parents[ja] == jb or parents[jb] == ja:
-                        if link_of[a] != link_of[b]:
-                            excluded.setdefault(name, "adjacent links")
-                        continue
-                    candidates.append((a, b, name, "self"))
+                    if (
+                        link_of[a] != link_of[b]
+                        and _pair_key(link_of[a], link_of[b]) not in excluded
+                    ):
+                        candidates.append((a, b, name, "self"))
         for e, env_name in enumerate(environment):
             kind = "floor" if env_name == FLOOR else "obstacle"
             for a in range(n_robot):
                 candidates.append((a, n_robot + e, f"{link_of[a]}|{env_name}", kind))
-        for a, b, _, _ in candidates:
-            geom.addCollisionPair(pin.CollisionPair(a, b))
-        self.geometry_model = geom
-        # exclusion: pairs within the margin in every posture of a seeded sample
-        postures = self._exclusion_postures(reference_q, rng)
-        distances = self._geometry_distances(postures)
-        always = np.all(distances < self.clearance_m, axis=0)
-        kept = []
-        objects = geom.geometryObjects
-        for k, (a, b, _, _) in enumerate(candidates):
-            if always[k]:
-                excluded.setdefault(
-                    f"{objects[a].name}|{objects[b].name}",
-                    f"closer than {self.clearance_m:g} m in every one of "
-                    f"{postures.shape[0]} sampled postures (overlap by construction)",
-                )
-            else:
-                kept.append(k)
+        _estimate_environment(n_robot, len(environment))
+        constant = self._judge_candidates(geom, candidates, home_q)
+        kept = [k for k in range(len(candidates)) if k not in constant]
+        self.excluded_pairs = tuple(
+            ExcludedPair(f"{a}|{b}", reason) for (a, b), reason in excluded.items()
+        )
+        self.constant_pairs = tuple(
+            ExcludedPair(
+                f"{objects[candidates[k][0]].name}|{candidates[k][2].split('|', 1)[1]}",
+                f"constant distance {d:.4f} m (no joint moves one relative to the other); "
+                "judged once",
+            )
+            for k, d in constant.items()
+        )
         geom.removeAllCollisionPairs()
         for k in kept:
             geom.addCollisionPair(pin.CollisionPair(candidates[k][0], candidates[k][1]))
-        self.excluded_pairs = tuple(ExcludedPair(p, r) for p, r in excluded.items())
+        self.exact_geometry_model = geom
+        hull = geom.clone()
+        _convexify(hull)
+        self.geometry_model = hull
         geometry_pair_names = [candidates[k][2] for k in kept]
         self.pair_names: tuple[str, ...] = tuple(dict.fromkeys(geometry_pair_names))
         kinds = {candidates[k][2]: candidates[k][3] for k in kept}
         self.pair_kinds: tuple[str, ...] = tuple(kinds[n] for n in self.pair_names)
         self._group = np.array([self.pair_names.index(n) for n in geometry_pair_names], dtype=int)
+        self.motion_coefficients = np.zeros((self.n_pairs, model.nv))
+        padded = np.vstack([coefficients, np.zeros((len(environment), model.nv))])
+        for p, k in enumerate(kept):
+            a, b = candidates[k][0], candidates[k][1]
+            # the joints above both bodies move them together: only the others change the
+            # pair's relative posture (for an environment pair, every joint above the link)
+            common = (padded[a] > 0.0) & (padded[b] > 0.0)
+            row = self.motion_coefficients[self._group[p]]
+            np.maximum(row, np.where(common, 0.0, padded[a] + padded[b]), out=row)
+        self.motion_coefficients.setflags(write=False)
+        # pairs where the hull and the geometry differ (a mesh on either side): the exact
+        # certificate measures them on the mesh
+        is_mesh = [isinstance(o.geometry, coal.BVHModelBase) for o in geom.geometryObjects]
+        self._mesh_pairs = np.array(
+            [is_mesh[candidates[k][0]] or is_mesh[candidates[k][1]] for k in kept], dtype=bool
+        )
+        self._hull_proxy_poor = self._poor_hull_pairs()
         effort = np.asarray(getattr(robot.model, "effortLimit", np.zeros(0)), dtype=float)
         known = np.isfinite(effort) & (effort > 0.0) & (effort < 1e300)
         if effort.shape != (robot.model.nv,) or not config.torque_limits:
@@ -400,6 +551,197 @@ class SafetyModel:
         self.effort_max.setflags(write=False)
 
         self._prepare_fast()
+
+    # ------------------------------------------------------------------ building
+    def _self_exclusions(
+        self,
+        robot: Any,
+        geom: pin.GeometryModel,
+        link_of: list[str],
+        joint_of: list[int],
+        n_robot: int,
+    ) -> dict[tuple[str, str], str]:
+        """Robot link pairs left out, keyed by the sorted link names, with the reason.
+
+        Adjacent (parent and child joints, links welded by fixed joints included), named in
+        the SRDF, in contact (exact geometry) in the reference posture, or in contact in at
+        least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random postures. A remaining pair that
+        is closer than the margin in every posture is an input error.
+        """
+        parents = list(self.model.parents)
+        excluded: dict[tuple[str, str], str] = {}
+        geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]] = {}
+        for a in range(n_robot):
+            for b in range(a + 1, n_robot):
+                if link_of[a] == link_of[b]:
+                    continue
+                key = _pair_key(link_of[a], link_of[b])
+                ja, jb = joint_of[a], joint_of[b]
+                if ja == jb or parents[ja] == jb or parents[jb] == ja:
+                    excluded.setdefault(key, "adjacent")
+                geometry_pairs.setdefault(key, []).append((a, b))
+        if self.config.srdf is not None:
+            links = set(link_of)
+            for first, second, reason in _read_srdf(Path(self.config.srdf)):
+                key = _pair_key(first, second)
+                if first in links and second in links and key not in excluded:
+                    excluded[key] = f"SRDF ({reason})"
+        tested = [k for k in geometry_pairs if k not in excluded]
+        if not tested:
+            return excluded
+        pairs = [ab for k in tested for ab in geometry_pairs[k]]
+        owner = np.array([i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int)
+        contact = self._collisions(geom, pairs, self.postures, margin=0.0)  # (n, n_pairs)
+        by_link = np.zeros((contact.shape[0], len(tested)), dtype=bool)
+        np.logical_or.at(by_link.T, owner, contact.T)
+        n_random = self.postures.shape[0] - 1
+        for i, key in enumerate(tested):
+            fraction = float(np.mean(by_link[1:, i]))
+            if by_link[0, i]:
+                excluded[key] = "reference contact (in contact in the reference posture)"
+            elif fraction >= ALWAYS_IN_CONTACT_FRACTION:
+                excluded[key] = (
+                    f"always in contact (in {100 * fraction:.1f} % of {n_random} random postures)"
+                )
+        if self.clearance_m > 0.0:
+            tested = [k for k in tested if k not in excluded]
+            pairs = [ab for k in tested for ab in geometry_pairs[k]]
+            owner = np.array(
+                [i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int
+            )
+            within = self._collisions(geom, pairs, self.postures, margin=self.clearance_m)
+            by_link = np.zeros((within.shape[0], len(tested)), dtype=bool)
+            np.logical_or.at(by_link.T, owner, within.T)
+            always = np.all(by_link, axis=0)
+            for i, key in enumerate(tested):
+                if always[i]:
+                    raise ConfigError(
+                        f"safety.clearance_m = {self.clearance_m:g} m: the links {key[0]} and "
+                        f"{key[1]} are closer than that in every one of "
+                        f"{self.postures.shape[0]} postures (the reference and random ones), so "
+                        "no trajectory can keep it; lower safety.clearance_m, or disable the "
+                        "pair in a MoveIt SRDF (safety.srdf) if they may touch."
+                    )
+        return excluded
+
+    def _collisions(
+        self,
+        geom: pin.GeometryModel,
+        pairs: list[tuple[int, int]],
+        postures: FloatArray,
+        margin: float,
+    ) -> npt.NDArray[np.bool_]:
+        """Whether each geometry pair (exact geometry) is closer than ``margin`` [m], shape
+        (n_postures, n_pairs)."""
+        out = np.zeros((postures.shape[0], len(pairs)), dtype=bool)
+        if not pairs:
+            return out
+        geom.removeAllCollisionPairs()
+        for a, b in pairs:
+            geom.addCollisionPair(pin.CollisionPair(a, b))
+        data = self.model.createData()
+        gdata = pin.GeometryData(geom)
+        for request in gdata.collisionRequests:
+            request.security_margin = margin
+        for s, q in enumerate(postures):  # coal: one posture at a time
+            pin.computeCollisions(self.model, data, geom, gdata, q, False)
+            out[s] = [r.isCollision() for r in gdata.collisionResults]
+        geom.removeAllCollisionPairs()
+        return out
+
+    def _judge_candidates(
+        self,
+        geom: pin.GeometryModel,
+        candidates: list[tuple[int, int, str, str]],
+        home_q: npt.ArrayLike | None,
+    ) -> dict[int, float]:
+        """Check the environment pairs before any motion; return those of constant distance.
+
+        A robot geometry fixed to the base, or one whose distance to an obstacle no joint
+        changes (a first link turning on the floor), has one distance: below
+        ``-MOUNT_TOLERANCE_M`` (inside the floor or an obstacle) it is an input error;
+        otherwise the pair is judged once and not checked along trajectories. Any other
+        environment pair closer than the margin in every sampled posture, or at the home
+        posture when one is given, is an input error.
+        """
+        env = [k for k, c in enumerate(candidates) if c[3] != "self"]
+        constant: dict[int, float] = {}
+        if not env:
+            return constant
+        pairs = [(candidates[k][0], candidates[k][1]) for k in env]
+        n_env = min(self.postures.shape[0], 101)
+        within = self._collisions(geom, pairs, self.postures[:n_env], margin=self.clearance_m)
+        always = [env[i] for i in np.flatnonzero(within.all(axis=0))]
+        if always:
+            probe = self.postures[: min(n_env, 6)]
+            d = self._exact_distances(
+                geom, [(candidates[k][0], candidates[k][1]) for k in always], probe
+            )
+            for i, k in enumerate(always):
+                a, _, name, _ = candidates[k]
+                link, obstacle = name.split("|", 1)
+                if np.ptp(d[:, i]) <= 1e-6:
+                    shape = geom.geometryObjects[a].geometry
+                    shape.computeLocalAABB()
+                    if d[0, i] < -max(MOUNT_TOLERANCE_M, float(shape.aabb_radius)):
+                        raise ConfigError(
+                            f"safety: the robot's {link} is {-d[0, i]:.3f} m inside "
+                            f"{'the floor' if obstacle == FLOOR else repr(obstacle)} whatever "
+                            "its joints do; check the obstacle's position and size (and "
+                            "safety.floor.z) in metres."
+                        )
+                    constant[k] = float(d[0, i])
+                else:
+                    raise ConfigError(
+                        f"safety: the robot's {link} is closer than clearance_m = "
+                        f"{self.clearance_m:g} m to "
+                        f"{'the floor' if obstacle == FLOOR else repr(obstacle)} in every one "
+                        f"of {n_env} sampled postures (e.g. {d[0, i]:.3f} m in the reference "
+                        "posture); move the obstacle (positions in metres, base frame) or "
+                        "lower the margin."
+                    )
+        if home_q is not None:
+            rest = [k for k in env if k not in constant]
+            home = np.asarray(home_q, dtype=float)[None, :]
+            pairs = [(candidates[k][0], candidates[k][1]) for k in rest]
+            d = self._exact_distances(geom, pairs, home)[0]
+            for i, k in enumerate(rest):
+                if d[i] < self.clearance_m:
+                    link, obstacle = candidates[k][2].split("|", 1)
+                    raise ConfigError(
+                        f"controller.home: the robot's {link} is {d[i]:.3f} m from "
+                        f"{'the floor' if obstacle == FLOOR else repr(obstacle)}, below "
+                        f"safety.clearance_m = {self.clearance_m:g} m; choose another home "
+                        "posture or move the obstacle."
+                    )
+        return constant
+
+    def _exact_distances(
+        self, geom: pin.GeometryModel, pairs: list[tuple[int, int]], postures: FloatArray
+    ) -> FloatArray:
+        """Distances of geometry pairs on the given (exact) geometry [m], shape (n, n_pairs)."""
+        out = np.empty((postures.shape[0], len(pairs)))
+        geom.removeAllCollisionPairs()
+        for a, b in pairs:
+            geom.addCollisionPair(pin.CollisionPair(a, b))
+        data = self.model.createData()
+        gdata = pin.GeometryData(geom)
+        for s, q in enumerate(postures):
+            pin.updateGeometryPlacements(self.model, data, geom, gdata, q)
+            for p in range(len(pairs)):
+                _fresh_gjk_start(gdata, p)
+                out[s, p] = pin.computeDistance(geom, gdata, p).min_distance
+        geom.removeAllCollisionPairs()
+        return out
+
+    def _poor_hull_pairs(self) -> npt.NDArray[np.bool_]:
+        """Mesh pairs whose hulls are closer than the margin in at least half of 100 sampled
+        postures: the cheap term measures them on the meshes (a hull would forbid too much)."""
+        poor = np.zeros(self._mesh_pairs.shape, dtype=bool)
+        if not self._mesh_pairs.any() or self.clearance_m <= 0.0:
+            return poor
+        hull = self._distances(self.geometry_model, self.postures[:101])
+        return self._mesh_pairs & (np.mean(hull < self.clearance_m, axis=0) >= 0.5)
 
     def _prepare_fast(self) -> None:
         """Sort the active geometry pairs into the vectorized ones and the coal ones."""
@@ -465,14 +807,22 @@ class SafetyModel:
     def fast_clearances(self, q: npt.ArrayLike) -> FloatArray:
         """Clearances of the link pairs, vectorized over postures, for the cheap term [m].
 
-        Cylinder, capsule and sphere geometry is handled by compiled code over all postures
-        (:mod:`ident.excitation._fast_clearance`): exact against half-spaces (the floor,
-        planes); for a cylinder against another geometry, the capsule around it gives a lower
-        bound, and where that bound is within the margin coal computes the exact distance
-        (only for those postures and pairs); every other pair goes through coal. So
-        ``fast_clearances(q)`` equals ``clearances(q)`` wherever either is below the margin,
-        and never exceeds it. Shape (n_samples, n_pairs). Each posture's row depends on that
-        posture alone (not on the others passed with it).
+        Never more than the exact clearance (every proxy is conservative), and equal to it
+        wherever a pair is within the margin, except for meshes, whose convex hull stands in
+        (a hull contains its mesh, so its distance is a lower bound):
+
+        - cylinder, capsule and sphere geometry is handled by compiled code over all postures
+          (:mod:`ident.excitation._fast_clearance`): exact against half-spaces (the floor,
+          planes); for a cylinder against another geometry the capsule around it gives a
+          lower bound, and where that bound is within the margin coal computes the exact
+          distance (only for those postures and pairs);
+        - every other pair goes through coal, meshes as their convex hulls; where a pair's
+          hulls are closer than the margin in most postures (:meth:`_poor_hull_pairs`: the
+          UR5's forearm and wrist 2) the mesh itself is measured wherever the hulls are within
+          the margin.
+
+        Shape (n_samples, n_pairs). Each posture's row depends on that posture alone (not on
+        the others passed with it).
         """
         from ident.excitation._fast_clearance import joint_frames, primitive_distances
 
@@ -503,18 +853,42 @@ class SafetyModel:
             data = self.model.createData()
             gdata = pin.GeometryData(self.geometry_model)
             geom = self.geometry_model
+            exact_data = None
             for s in range(n):  # coal: one posture at a time
                 pairs = np.concatenate([slow, refine.get(s, np.zeros(0, dtype=int))])
                 if pairs.size == 0:
                     continue
                 pin.updateGeometryPlacements(self.model, data, geom, gdata, q[s])
+                on_mesh = []
                 for p in pairs:
                     _fresh_gjk_start(gdata, int(p))
-                    distances[s, p] = pin.computeDistance(geom, gdata, int(p)).min_distance
+                    d = pin.computeDistance(geom, gdata, int(p)).min_distance
+                    distances[s, p] = d
+                    if self._hull_proxy_poor[p] and d < self.clearance_m:
+                        on_mesh.append(int(p))
+                if on_mesh:
+                    if exact_data is None:
+                        exact_data = pin.GeometryData(self.exact_geometry_model)
+                    self._exact_into(q[s], on_mesh, exact_data, distances[s])
         out = np.full((n, self.n_pairs), np.inf)
         np.minimum.at(out.T, self._group, distances.T)
         out[~finite] = -np.inf
         return out
+
+    def _exact_into(
+        self, q: FloatArray, pairs: Sequence[int], gdata: pin.GeometryData, row: FloatArray
+    ) -> None:
+        """Replace the hull distances ``row[pairs]`` of one posture by the mesh distances.
+
+        coal reports meshes in contact as 0 (no depth): there the hulls' (negative) signed
+        distance is kept, so a penetration still has a depth for the penalty.
+        """
+        geom = self.exact_geometry_model
+        pin.updateGeometryPlacements(self.model, self.model.createData(), geom, gdata, q)
+        for p in pairs:
+            _fresh_gjk_start(gdata, int(p))
+            d = pin.computeDistance(geom, gdata, int(p)).min_distance
+            row[p] = d if d > 0.0 else min(d, row[p])
 
     @property
     def n_pairs(self) -> int:
@@ -524,6 +898,7 @@ class SafetyModel:
     def _exclusion_postures(
         self, reference_q: npt.ArrayLike | None, rng: np.random.Generator | int | None
     ) -> FloatArray:
+        """The reference posture (row 0) and :data:`N_EXCLUSION_POSTURES` random ones [rad]."""
         lower, upper = self.limits.finite_position_box()
         if reference_q is None:
             reference = np.clip(np.zeros(self.limits.nq), lower, upper)
@@ -533,42 +908,122 @@ class SafetyModel:
         sample = gen.uniform(lower, upper, (N_EXCLUSION_POSTURES, self.limits.nq))
         return np.vstack([reference[None, :], sample])
 
-    def _geometry_distances(self, q: FloatArray) -> FloatArray:
-        """Signed distances of every active geometry pair [m], shape (n_samples, n_geom_pairs)."""
+    def _distances(self, geom: pin.GeometryModel, q: FloatArray) -> FloatArray:
+        """Signed distances of every active pair of ``geom`` [m], shape (n_samples, n_pairs)."""
         q = np.asarray(q, dtype=float)
-        n_pairs = len(self.geometry_model.collisionPairs)
+        n_pairs = len(geom.collisionPairs)
         out = np.empty((q.shape[0], n_pairs))
         data = self.model.createData()
-        gdata = pin.GeometryData(self.geometry_model)
+        gdata = pin.GeometryData(geom)
         for k in range(q.shape[0]):  # coal evaluates one posture at a time
             for p in range(n_pairs):
                 _fresh_gjk_start(gdata, p)
-            pin.computeDistances(self.model, data, self.geometry_model, gdata, q[k])
+            pin.computeDistances(self.model, data, geom, gdata, q[k])
             out[k] = [r.min_distance for r in gdata.distanceResults]
         return out
 
-    def clearances(self, q: npt.ArrayLike) -> FloatArray:
-        """Signed distance of every checked link pair [m] (negative: penetration depth).
+    def clearances(self, q: npt.ArrayLike, within: npt.ArrayLike | None = None) -> FloatArray:
+        """Signed distance of every checked link pair on the exact geometry [m].
+
+        Meshes are measured as they are (coal BVH), primitives as primitives. Where two meshes
+        touch, coal gives 0: the value is then their hulls' signed distance (<= 0, a depth).
 
         Parameters
         ----------
         q :
             Joint positions [rad or m], shape (n_samples, nq).
+        within :
+            Optional, shape (n_samples, n_pairs) [m]: the exact distance is needed only where
+            it is below these values. Elsewhere the convex hulls' distance (a lower bound: a
+            hull contains its mesh) stands in, except that each pair's smallest value is made
+            exact (the postures are measured in increasing order of their hulls' distance
+            until it exceeds the smallest exact distance found). Default: exact everywhere.
 
         Returns
         -------
         :
-            Shape (n_samples, n_pairs), columns named by :attr:`pair_names`.
+            Shape (n_samples, n_pairs), columns named by :attr:`pair_names`; never more than
+            the exact distance.
         """
         q = np.atleast_2d(np.asarray(q, dtype=float))
         out = np.full((q.shape[0], self.n_pairs), np.inf)
         if self.n_pairs == 0:
             return out
         finite = np.all(np.isfinite(q), axis=1)
-        distances = self._geometry_distances(np.where(finite[:, None], q, 0.0))
+        q = np.where(finite[:, None], q, 0.0)
+        distances = self._distances(self.geometry_model, q)
+        mesh = self._mesh_pairs
+        if mesh.any():
+            if within is None:
+                need = np.broadcast_to(mesh, distances.shape).copy()
+            else:
+                limit = np.asarray(within, dtype=float)[:, self._group]
+                need = mesh[None, :] & (distances < limit)
+            gdata = pin.GeometryData(self.exact_geometry_model)
+            for s in np.flatnonzero(need.any(axis=1)):
+                self._exact_into(q[s], np.flatnonzero(need[s]).tolist(), gdata, distances[s])
+            if within is not None:  # each pair's smallest value exact
+                for p in np.flatnonzero(mesh):
+                    known = need[:, p]
+                    best = distances[known, p].min() if known.any() else np.inf
+                    rest = np.flatnonzero(~known)
+                    for s in rest[np.argsort(distances[rest, p], kind="stable")]:
+                        if distances[s, p] >= best:  # hulls in increasing order: done
+                            break
+                        self._exact_into(q[s], [int(p)], gdata, distances[s])
+                        best = min(best, distances[s, p])
         np.minimum.at(out.T, self._group, distances.T)
         out[~finite] = -np.inf
         return out
+
+    def pair_clearances(self, q: npt.ArrayLike, columns: Sequence[int]) -> FloatArray:
+        """Exact clearances of some link pairs only [m], shape (n_samples, len(columns)).
+
+        The same values as ``clearances(q)[:, columns]`` (a depth where meshes touch is
+        reported as 0 or less), for the few pairs :func:`ident.excitation.check` refines.
+        """
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        columns = [int(c) for c in columns]
+        out = np.full((q.shape[0], len(columns)), np.inf)
+        where = {c: i for i, c in enumerate(columns)}
+        pairs = [p for p in range(self._group.size) if int(self._group[p]) in where]
+        geom = self.exact_geometry_model
+        data, gdata = self.model.createData(), pin.GeometryData(geom)
+        for s in range(q.shape[0]):
+            if not np.all(np.isfinite(q[s])):
+                out[s] = -np.inf
+                continue
+            pin.updateGeometryPlacements(self.model, data, geom, gdata, q[s])
+            for p in pairs:
+                _fresh_gjk_start(gdata, p)
+                d = pin.computeDistance(geom, gdata, p).min_distance
+                i = where[int(self._group[p])]
+                out[s, i] = min(out[s, i], d)
+        return out
+
+
+def _pair_key(a: str, b: str) -> tuple[str, str]:
+    return (a, b) if a <= b else (b, a)
+
+
+def _estimate_environment(n_robot: int, n_environment: int) -> None:
+    """Warn with an estimate of the time when many environment pairs are checked."""
+    n_pairs = n_robot * n_environment
+    if n_pairs <= 200:
+        return
+    import warnings
+
+    from ident.errors import IdentWarning
+
+    seconds = n_pairs * 101 * 5e-6  # collision tests of the environment pairs, then distances
+    warnings.warn(
+        f"safety: {n_environment} environment objects (floor, obstacles) x {n_robot} robot "
+        f"geometries = {n_pairs} pairs: "
+        f"about {seconds:.0f} s to judge them, then about {n_pairs * 10e-6 * 1000:.0f} s per "
+        "1000 postures the optimizer or the check measures (the run's estimate includes it).",
+        IdentWarning,
+        stacklevel=3,
+    )
 
 
 def build_safety_model(
@@ -578,6 +1033,7 @@ def build_safety_model(
     urdf: str | Path | None = None,
     package_dirs: Sequence[str | Path] = (),
     reference_q: npt.ArrayLike | None = None,
+    home_q: npt.ArrayLike | None = None,
 ) -> SafetyModel:
     """The safety model of a robot (see :class:`SafetyModel` and the module docstring).
 
@@ -596,11 +1052,18 @@ def build_safety_model(
     reference_q :
         The reference posture of the exclusion rule [rad], shape (nq,); default 0 clipped into
         the position limits.
+    home_q :
+        The posture the robot starts from (``controller.home``) [rad], shape (nq,): closer
+        than the margin to the floor or an obstacle there is an input error.
 
     Raises
     ------
     ModelError
         If the collision geometry cannot be loaded or does not match the robot's joints.
+    ConfigError
+        If the environment or the margin cannot be kept whatever the robot does (a base inside
+        the floor or an obstacle, a link closer than the margin in every sampled posture, a
+        margin beyond the robot's reach), or the SRDF cannot be read.
     """
     if config is None:
         config = SafetyConfig()
@@ -612,6 +1075,7 @@ def build_safety_model(
         urdf=urdf,
         package_dirs=package_dirs,
         reference_q=reference_q,
+        home_q=home_q,
     )
 
 

@@ -45,6 +45,7 @@ def check_entry(check: ConstraintCheck) -> dict[str, Any]:
         "time": _finite(np.array([check.time]))[0],
         "excess": _finite(np.array([check.excess]))[0],
         "ratio": _finite(np.array([check.ratio]))[0],
+        "between": _finite(np.array([check.between]))[0],
         "ok": check.ok,
     }
 
@@ -88,7 +89,7 @@ def safety_series(report: SafetyReport, max_points: int = MAX_SERIES_POINTS) -> 
         required margin [m]); ``velocity_ratio``, ``acceleration_ratio``, ``torque_ratio``
         (n,), the largest ``|value| / limit`` over the joints at each sample (0 where no
         limit is known); ``worst_checks`` (:func:`worst_checks` as dicts); ``usable``,
-        ``rate_hz``.
+        ``rate_hz``; ``not_checked``, the pairs left out and why (``[{pair, reason}]``).
     """
     t = np.asarray(report.t, dtype=float)
     n = t.shape[0]
@@ -124,4 +125,5 @@ def safety_series(report: SafetyReport, max_points: int = MAX_SERIES_POINTS) -> 
         "clearance_m": float(margins[0]) if margins else None,
         **{name: _finite(r[index]) for name, r in ratios.items()},
         "worst_checks": [check_entry(c) for c in worst_checks(report)],
+        "not_checked": [{"pair": p, "reason": r} for p, r in report.not_checked],
     }

@@ -118,6 +118,25 @@ def safety_section(data: dict[str, Any], figures: set[str] | frozenset[str]) -> 
             rows,
             left=(0, 1),
         )
+    md += _not_checked(series)
+    return md
+
+
+def _not_checked(series: dict[str, Any]) -> list[str]:
+    """The pairs left out of the check and why (robot link pairs; environment pairs at a
+    constant distance, judged once)."""
+    entries = series.get("not_checked") or []
+    if not entries:
+        return []
+    md = [
+        "",
+        "Pairs not checked along the trajectory (the exact geometry is measured for every "
+        "other pair, between the samples too):",
+        "",
+    ]
+    md += _table(
+        ["pair", "why"], [[e.get("pair", ""), e.get("reason", "")] for e in entries], left=(0, 1)
+    )
     return md
 
 

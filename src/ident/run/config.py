@@ -402,4 +402,13 @@ def load_run_config(path: str | Path) -> RunConfig:
         read_urdf_text(robot.path)
     else:
         read_yaml(robot.path)
-    return config.model_copy(update={"robot": robot, "name": config.name or path.stem})
+    update: dict[str, Any] = {"robot": robot, "name": config.name or path.stem}
+    if config.safety is not None and config.safety.srdf is not None:
+        srdf = path.parent.resolve() / config.safety.srdf
+        if not srdf.is_file():
+            raise ConfigError(
+                f"{path}: safety.srdf = '{config.safety.srdf}' resolves to {srdf}, which does "
+                "not exist; give MoveIt's .srdf path relative to this config file."
+            )
+        update["safety"] = config.safety.model_copy(update={"srdf": srdf})
+    return config.model_copy(update=update)

@@ -83,9 +83,12 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
         _check_sampling(config, family)
         _check_controller(config, robot)
         safety = build_safety_model(
-            robot, config.safety or SafetyConfig(), package_dirs=robot.package_dirs
+            robot,
+            config.safety or SafetyConfig(),
+            package_dirs=robot.package_dirs,
+            home_q=config.controller.home,
         )
-        estimate = check_job(estimate_run(config, robot, family))
+        estimate = check_job(estimate_run(config, robot, family, safety))
     except IdentError as e:
         message = str(e)
         if not message.startswith(str(source)):
@@ -102,10 +105,13 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
 _SECONDS_PER_SAMPLE_JOINT2 = 5e-6 / 36.0
 _SECONDS_PER_SIMULATED_STEP = 40e-6
 _SECONDS_PER_LOG_SAMPLE = 30e-6
+_SECONDS_PER_PAIR_POSTURE = 10e-6  # coal, a robot mesh's hull and a sphere (UR5: 9 us)
 _BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba, MuJoCo
 
 
-def estimate_run(config: RunConfig, robot: Robot, family: Any) -> JobEstimate:
+def estimate_run(
+    config: RunConfig, robot: Robot, family: Any, safety: SafetyModel | None = None
+) -> JobEstimate:
     """Rough peak memory and wall time of a run of ``config`` on ``robot``.
 
     Time: objective evaluations (initial elites, then every run of the optimizer) times the
@@ -120,6 +126,12 @@ def estimate_run(config: RunConfig, robot: Robot, family: Any) -> JobEstimate:
     seconds = evaluations * n * nv**2 * _SECONDS_PER_SAMPLE_JOINT2
     if config.safety is not None:  # the clearance and torque terms of the objective
         seconds *= 3.0
+    if safety is not None:  # coal: about 10 us per geometry pair and posture (2 cores)
+        pairs = len(safety.geometry_model.collisionPairs)
+        checked = evaluations * min(safety.config.check_samples, n)
+        period = float(getattr(family, "period", 10.0) or 10.0)
+        checked += (o.n_report_elites + 1) * period * safety.config.check_rate_hz
+        seconds += checked * pairs * _SECONDS_PER_PAIR_POSTURE
     swarm_bytes = 8.0 * max(e.n_particles, o.n_particles) * n * nv * 6
     log_samples = n
     m = config.measurement
