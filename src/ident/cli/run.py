@@ -95,6 +95,8 @@ def run(
             save_logs(result, rundir.path)
             replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
             rundir.update(replay=replay_note)
+            if replay and not replay_note.startswith("replay.html written"):
+                typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
         except BaseException:
             rundir.finish("incomplete", "stopped while saving the results")
             raise
