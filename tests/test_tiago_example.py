@@ -38,7 +38,7 @@ def run(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as mp:  # the CLI imports identify when it runs
         mp.setattr(ident.identify.real, "identify", keep)
-        cli = CliRunner().invoke(app, ["identify", str(CONFIG), "--out", str(out), "--no-replay"])
+        cli = CliRunner().invoke(app, ["identify", str(CONFIG), "--out", str(out)])
     assert cli.exit_code == 0, cli.output
     (folder,) = out.iterdir()
     return cli.output, folder, json.loads((folder / "result.json").read_text()), seen[0]

@@ -340,7 +340,8 @@ def write_replay(run_dir: str | Path) -> str:
     if page is None:
         return problem
     atomic_write_text(run_dir / "replay.html", page)
-    notes = "".join(f"; {str(w.message).rstrip('.')}" for w in caught)
+    copy = str(run_dir / "robot.urdf")  # name the copy, not this folder's absolute path
+    notes = "".join(f"; {str(w.message).replace(copy, 'robot.urdf').rstrip('.')}" for w in caught)
     return f"replay.html written (traced frame: {frame or _default_frame(run_dir)}){notes}."
 
 
