@@ -113,7 +113,8 @@ def test_selection_package_dirs_load_meshes_and_the_warning_names_the_option():
     with warnings.catch_warnings():
         warnings.simplefilter("error", IdentWarning)  # meshes found through the selection
         scene = build_replay_scene(RobotSelection(urdf=UR5_URDF, package_dirs=[ERD_SHARE]), [traj])
-    assert not scene.fallback_geometry and scene.n_visuals == 7
+    assert not scene.fallback_geometry
+    assert scene.n_visuals == 7
     # no mesh folder: a stick figure, and the warning names the caller's option
     panda = panda_selection(package_dirs=[])
     with pytest.warns(IdentWarning, match=r"stick figure.*robot\.package_dirs in the config"):
@@ -139,8 +140,10 @@ def test_cli_lock_and_package_dir(tmp_path):
     base = ["--urdf", PANDA, "--trajectory", csv, "--html", out, "--package-dir", MESHES]
     # without --lock: the fingers are joints the trajectory does not move -> one error line
     result = _replay(*base)
-    assert result.exit_code == 2 and not out.exists()
-    assert "error:" in result.output and "--lock" in result.output
+    assert result.exit_code == 2
+    assert not out.exists()
+    assert "error:" in result.output
+    assert "--lock" in result.output
     result = _replay(
         *base,
         "--tip-link",
@@ -169,7 +172,8 @@ def test_run_folder_replay_uses_the_runs_locks(tmp_path):
     data = {"name": "panda", "chosen_elite": 1, "config": {"robot": robot}}
     (run / "result.json").write_text(json.dumps(data))
     note = write_replay(run)
-    assert note.startswith("replay.html written") and "collision geometry" in note, note
+    assert note.startswith("replay.html written"), note
+    assert "collision geometry" in note
     assert "robot.package_dirs" in note
     check_hand_at_lock_pose(html_commands((run / "replay.html").read_text()), traj)
     out = tmp_path / "again.html"
