@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import time
+import warnings
 import webbrowser
 from pathlib import Path
 from typing import Annotated
@@ -12,7 +13,7 @@ from typing import Annotated
 import typer
 
 from ident.cli._common import one_line, user_errors
-from ident.errors import DataError, IdentError
+from ident.errors import DataError, IdentError, IdentWarning
 
 # Bounds of a replay: the animation holds one keyframe per 1/fps s of replay time for every
 # robot, and the page (or the browser) holds all of them.
@@ -97,8 +98,12 @@ def _run_robot(run_dir: Path, run_data: dict) -> dict | None:
         path = Path(info["config"]) if info.get("command") == "identify" else None
     except (OSError, ValueError, KeyError, TypeError, RecursionError):
         return None
-    if path is None or not path.is_file():
+    if path is None:
         return None
+    if not path.is_file():  # relative to where ident ran: runs/<name> -> its parent's parent
+        path = run_dir.resolve().parent.parent / path
+        if not path.is_file():
+            return None
     from ident.identify.config import load_identify_config
 
     try:
@@ -230,16 +235,25 @@ def replay(
                     f"{MAX_KEYFRAMES / DEFAULT_FPS / 3600:.2g} h a replay holds; raise --speed "
                     "or cut the trajectory."
                 )
-        scene = build_replay_scene(
-            selection,
-            trajectories,
-            traced_frame=frame or run_frame,
-            speed=speed,
-            loop=loop,
-            labels=[p.name for p in csvs],
-            environment=environment,
-            marks=marks,
-        )
+        with warnings.catch_warnings(record=True) as caught:  # e.g. meshes not found
+            try:
+                warnings.simplefilter("always", IdentWarning)
+                scene = build_replay_scene(
+                    selection,
+                    trajectories,
+                    traced_frame=frame or run_frame,
+                    speed=speed,
+                    loop=loop,
+                    labels=[p.name for p in csvs],
+                    environment=environment,
+                    marks=marks,
+                )
+            finally:  # the mesh warnings also when the replay fails
+                for w in caught:
+                    if issubclass(w.category, IdentWarning):
+                        typer.echo(f"warning: {one_line(w.message)}", err=True)
+                    else:
+                        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         what = f"{len(trajectories)} trajectory(ies), {scene.duration:.2f} s at speed {speed:g}"
         if html is not None:
             page = scene.recorder.static_html(

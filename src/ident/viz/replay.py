@@ -336,11 +336,16 @@ def stick_figure(model: pin.Model) -> pin.GeometryModel:
     return geometry
 
 
-def default_traced_frame(model: pin.Model) -> str:
-    """Frame traced when none is given: ``flange``, ``tool0``, ... else the last frame."""
+def default_traced_frame(model: pin.Model, tip_link: str | None = None) -> str:
+    """Frame traced when none is given: ``flange``, ``tool0``, ...; else the last frame on the
+    body of ``tip_link`` (the chain's tip: its tool, a locked hand's centre), else the last
+    frame."""
     for name in _PREFERRED_TRACED_FRAMES:
         if model.existFrame(name):
             return name
+    if tip_link is not None and model.existFrame(tip_link):
+        joint = model.frames[model.getFrameId(tip_link)].parentJoint
+        return [f.name for f in model.frames if f.parentJoint == joint][-1]
     return model.frames[len(model.frames) - 1].name
 
 
@@ -615,7 +620,11 @@ def build_replay_scene(
     model, visual_model, fallback = load_visual_robot(
         selection, package_dirs, package_hint=package_hint
     )
-    frame_name = traced_frame if traced_frame is not None else default_traced_frame(model)
+    frame_name = (
+        traced_frame
+        if traced_frame is not None
+        else default_traced_frame(model, selection.tip_link)
+    )
     frame_id = _frame_id(model, frame_name, urdf_path)
     configurations = [joint_configurations(model, t, urdf_path=urdf_path) for t in trajectories]
 
