@@ -40,14 +40,17 @@ def report(
     the identification runs, from arrays that are not kept).
     """
     from ident.errors import IdentError
-    from ident.run.rundir import read_status
+    from ident.run.rundir import read_status, unfinished_note
 
     with user_errors():
         if not run_dir.is_dir():
             raise IdentError(
                 f"{run_dir}: not a folder; give a run folder of 'ident run' or 'ident identify'."
             )
-        read_status(run_dir)  # a clear message for a folder that is not a run
+        # a clear message for a folder that is not a run; a word for one that did not finish
+        note = unfinished_note(run_dir, read_status(run_dir))
+        if note is not None:
+            typer.echo(f"warning: {note}", err=True)
         kind = _kind(run_dir)
         if kind == "run":
             from ident.report.run_report import write_replay, write_report

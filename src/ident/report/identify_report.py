@@ -746,6 +746,14 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
             consistency = "**violated**, " + consistency
     else:
         consistency = "not checked"
+    cons = result.consistent
+    constrained = None if cons is None else cons.constrained
+    if cons is not None and constrained is not None:
+        consistency += (  # the estimator's contract, never its name, says what was written
+            "; every link's identified inertial in `*_consistent.urdf`"
+            if cons.contract.consistent and constrained.success
+            else "; not written to a URDF (the estimator does not promise consistency)"
+        )
     if written or rejected:
         consistency += (
             f"; URDF write-back: {len(written)} links updated and consistent, {len(rejected)} "

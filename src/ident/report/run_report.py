@@ -452,7 +452,10 @@ def _run_facts(data: dict[str, Any], state: dict[str, Any]) -> list[str]:
         md.append(f"- Traced point (path plot and replay): frame `{traced}`")
     if state.get("wall_time_s") is not None:
         md.append(f"- Wall time: {state['wall_time_s']:.1f} s (started {state.get('started_at')})")
-    md += ["- Data: `result.json`, `trajectory.csv`, `elites/`, `config.yaml`, `robot.urdf`", ""]
+    md += ["- Data: `result.json`, `trajectory.csv`, `elites/`, `config.yaml`, `robot.urdf`"]
+    if state.get("exports"):  # controller files (docs/execute.md), written by ident run
+        md.append("- Exports (`docs/execute.md`): " + "; ".join(map(str, state["exports"])))
+    md += [""]
     return md
 
 

@@ -46,6 +46,7 @@ from pinocchio.visualize.meshcat_visualizer import loadMesh
 from ident.errors import DataError, IdentWarning, ModelError
 from ident.measure.timebase import find_segments
 from ident.model.selection import RobotSelection, load_robot
+from ident.robot.meshes import check_urdf_meshes
 from ident.robot.urdf_load import build_model, continuous_as_revolute, parse_xml
 from ident.trajectory import JointTrajectory
 from ident.viz.environment import (
@@ -197,6 +198,7 @@ def load_visual_robot(
     text = robot_model.urdf_text
     where = str(urdf_path)
     model = build_model(continuous_as_revolute(parse_xml(text, where), text)[0], where)
+    check_urdf_meshes(urdf_path, dirs, collision=False)  # before coal: never a segfault
     try:
         visual_model = pin.buildGeomFromUrdf(
             model, str(urdf_path), pin.GeometryType.VISUAL, package_dirs=dirs
@@ -204,10 +206,11 @@ def load_visual_robot(
     except (RuntimeError, ValueError) as e:
         problem = str(e).strip()
         try:  # the collision meshes, when they are the ones shipped (configs/panda.yaml)
+            check_urdf_meshes(urdf_path, dirs, visual=False)  # before coal: never a segfault
             visual_model = pin.buildGeomFromUrdf(
                 model, str(urdf_path), pin.GeometryType.COLLISION, package_dirs=dirs
             )
-        except (RuntimeError, ValueError):
+        except (RuntimeError, ValueError, ModelError):
             visual_model = pin.GeometryModel()
         if len(visual_model.geometryObjects) == 0:
             warnings.warn(
