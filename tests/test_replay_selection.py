@@ -209,3 +209,41 @@ def test_two_segment_log_replays_both_segments():
         (ref,) = full_panda_placements(p.q[-1], ["panda_hand_0"])
         np.testing.assert_allclose(positions[start + p.n_samples - 1], ref.translation, atol=1e-9)
         start += p.n_samples
+
+
+def test_identify_motion_of_a_two_segment_log_replays_both_segments():
+    """``ident identify``'s measured motion holds every segment of the log (was: the first),
+    and the replay shows them one after another: keyframes = sum over the segments."""
+    from ident.identify.config import PreprocessConfig
+    from ident.identify.core import replay_motion
+    from ident.identify.logs import RobotLog
+
+    fs, joints = 100.0, ("j1", "j2", "j3")
+    urdf = ROOT / "data" / "examples" / "arm3.urdf"
+    n1, n2 = 1001, 601  # 10 s, then 6 s after a 2 s gap
+    t = np.concatenate([np.arange(n1) / fs, 12.0 + np.arange(n2) / fs])
+    q = np.column_stack([np.sin(0.5 * t + k) for k in range(3)])
+    log = RobotLog(
+        t=t,
+        q=q,
+        tau=np.zeros_like(q),
+        sampling_rate_hz=fs,
+        joint_names=joints,
+        segments=((0, n1), (n1, n1 + n2)),
+    )
+    pp = PreprocessConfig(lowpass={"cutoff_hz": 5.0, "order": 4}, trim_samples=10)
+    motion, note = replay_motion(log, pp, joints)
+    assert note == ""
+    assert motion is not None
+    # each segment trimmed by 10 samples at both ends, decimated 2:1 to 50 Hz
+    assert motion.t[0] == pytest.approx(0.10)
+    assert motion.t[-1] == pytest.approx(12.0 + (n2 - 11) / fs, abs=0.02)
+    scene = build_replay_scene(RobotSelection(urdf=urdf), [motion], fps=FPS, loop=False)
+    first = motion.t[motion.t < 11.0]
+    second = motion.t[motion.t > 11.0]
+    spans = (first[-1] - first[0], second[-1] - second[0])
+    frames = sum(int(np.floor(s * FPS + 1e-9)) + 1 for s in spans)
+    anim = animation_of([umsgpack.unpackb(c.data) for c in scene.recorder.commands])
+    times, _, _ = track(anim, "/meshcat/replay/robot_0/marker", "position")
+    assert len(times) == frames
+    assert any("2 segments" in n for n in scene.notes)
