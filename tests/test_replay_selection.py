@@ -197,7 +197,12 @@ def test_two_segment_log_replays_both_segments():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentWarning)
         scene = build_replay_scene(panda_selection(), [log], fps=FPS, loop=False)
-    anim = animation_of([umsgpack.unpackb(c.data) for c in scene.recorder.commands])
+    commands = [umsgpack.unpackb(c.data) for c in scene.recorder.commands]
+    anim = animation_of(commands)
+    # the traced path: one line per segment, none drawn across a jump or a gap
+    lines = [c["path"] for c in commands if c["type"] == "set_object" and "/path" in c["path"]]
+    root = "/meshcat/replay/robot_0"
+    assert sorted(lines) == [f"{root}/path", f"{root}/path_2", f"{root}/path_3"]
     frames = sum(p.n_samples for p in parts)  # 31 + 16 + 16: every segment, gaps skipped
     times, positions, _ = track(anim, "/meshcat/replay/robot_0/visuals/panda_hand_0", "position")
     assert len(times) == frames

@@ -81,6 +81,8 @@ _PATH_COLORS = (0xC2255C, 0x1971C2, 0x2B8A3E, 0xD9480F, 0x6741D9, 0x0B7285)
 _ROOT = "replay"
 # Keep the path line light: a 1 kHz, 60 s log is decimated to at most this many points.
 _MAX_PATH_POINTS = 4000
+# Segments of a log drawn as lines of their own (more: one line through all of them).
+_MAX_SEGMENT_LINES = 50
 
 
 @dataclass(frozen=True)
@@ -511,6 +513,17 @@ def _joint_positions(model: pin.Model, q: FloatArray) -> FloatArray:
     return out
 
 
+def _path_lines(
+    model: pin.Model, q: FloatArray, segments: list[tuple[int, int]], frame_id: int
+) -> list[FloatArray]:
+    """The traced frame's positions [m], one (n_points, 3) array per segment (a single one,
+    across the segments, beyond :data:`_MAX_SEGMENT_LINES` segments)."""
+    if len(segments) == 1 or len(segments) > _MAX_SEGMENT_LINES:
+        return [_frame_positions(model, _decimate(q, _MAX_PATH_POINTS), frame_id)]
+    budget = max(2, _MAX_PATH_POINTS // len(segments))
+    return [_frame_positions(model, _decimate(q[a:b], budget), frame_id) for a, b in segments]
+
+
 def _decimate(points: FloatArray, max_points: int) -> FloatArray:
     if points.shape[0] <= max_points:
         return points
@@ -635,9 +648,12 @@ def build_replay_scene(
         _resample(traj, q, fps, speed) for traj, q in zip(trajectories, configurations, strict=True)
     ]
     keyframes = [q for q, _ in resampled]
-    paths = [
-        _frame_positions(model, _decimate(q, _MAX_PATH_POINTS), frame_id) for q in configurations
+    # the traced path, one line per segment (at most _MAX_SEGMENT_LINES, else one line)
+    path_parts = [
+        _path_lines(model, q, replay_segments(traj.t), frame_id)
+        for traj, q in zip(trajectories, configurations, strict=True)
     ]
+    paths = [np.vstack(parts) for parts in path_parts]
     joints = [_joint_positions(model, q).reshape(-1, 3) for q in keyframes]
     extents = [np.ptp(np.vstack([j, p]), axis=0) for j, p in zip(joints, paths, strict=True)]
     if spacing is None:
@@ -664,9 +680,13 @@ def build_replay_scene(
         _animate_robot(viz, animation, vis, root, q_frames)
 
         color = _PATH_COLORS[k % len(_PATH_COLORS)]
-        vis[f"{root}/path"].set_object(
-            mg.Line(mg.PointsGeometry(path.T.astype(np.float32)), mg.LineBasicMaterial(color=color))
-        )
+        for s, line in enumerate(path_parts[k]):
+            vis[f"{root}/path" + (f"_{s + 1}" if s else "")].set_object(
+                mg.Line(
+                    mg.PointsGeometry(line.T.astype(np.float32)),
+                    mg.LineBasicMaterial(color=color),
+                )
+            )
         vis[f"{root}/marker"].set_object(
             mg.Sphere(marker_radius), mg.MeshLambertMaterial(color=color)
         )
