@@ -38,7 +38,7 @@ def run(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as mp:  # the CLI imports identify when it runs
         mp.setattr(ident.identify.real, "identify", keep)
-        cli = CliRunner().invoke(app, ["identify", str(CONFIG), "--out", str(out), "--no-replay"])
+        cli = CliRunner().invoke(app, ["identify", str(CONFIG), "--out", str(out)])
     assert cli.exit_code == 0, cli.output
     (folder,) = out.iterdir()
     return cli.output, folder, json.loads((folder / "result.json").read_text()), seen[0]
@@ -90,3 +90,21 @@ def test_tiago_consistent_model_is_written_and_reloads(run, tmp_path):
         estimated = theta[[index[f"{label}{j}"] for label in PINOCCHIO_ORDER]]
         np.testing.assert_allclose(written, estimated, rtol=1e-9, atol=1e-12)
         assert pseudo_inertia_min_eigenvalue(written) >= -1e-12
+
+
+def test_tiago_replay_is_written_with_the_locked_base_head_and_gripper(run, tmp_path):
+    """The measured motion replays on the identified chain (wheels, head, gripper locked):
+    in the run folder and again with ``ident replay`` on it (the config's selection)."""
+    from ident.trajectory import read_trajectory_csv
+
+    _, folder, _, _ = run
+    state = json.loads((folder / "run.json").read_text())
+    assert state["replay"].startswith("replay.html written"), state["replay"]
+    assert (folder / "replay.html").is_file()
+    out = tmp_path / "again.html"
+    cli = CliRunner().invoke(app, ["replay", str(folder), "--html", str(out)])
+    assert cli.exit_code == 0, cli.output
+    assert "traced frame" in cli.output
+    motion = read_trajectory_csv(folder / "trajectory.csv", allow_positions_only=True)
+    span = motion.t[-1] - motion.t[0]  # one segment: frames = span x 30 fps + 1
+    assert f"{span:.2f} s at speed 1" in cli.output

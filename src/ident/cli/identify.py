@@ -109,6 +109,8 @@ def identify(
                 result, rundir.path, replay=replay, package_dirs=package_dirs
             )
             rundir.update(replay=replay_note)
+            if replay and not replay_note.startswith("replay.html written"):
+                typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
             t1 = time.perf_counter()
             write_identify_report(result, rundir.path, replay_note=replay_note)
             timings = {**result.timings, "replay": t1 - t0, "report": time.perf_counter() - t1}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import time
+import warnings
 import webbrowser
 from pathlib import Path
 from typing import Annotated
@@ -12,7 +13,7 @@ from typing import Annotated
 import typer
 
 from ident.cli._common import one_line, user_errors
-from ident.errors import DataError
+from ident.errors import DataError, IdentError, IdentWarning
 
 # Bounds of a replay: the animation holds one keyframe per 1/fps s of replay time for every
 # robot, and the page (or the browser) holds all of them.
@@ -83,6 +84,34 @@ def _inputs(
     return urdf, csvs, _result_of_run(run_dir)
 
 
+def _run_robot(run_dir: Path, run_data: dict) -> dict | None:
+    """The run's ``robot`` config section (resolved paths), or None.
+
+    ``ident run`` keeps it in ``result.json`` (``config.robot``); ``ident identify`` names its
+    config in ``run.json``, read again if it is still there.
+    """
+    config = run_data.get("config")
+    if isinstance(config, dict) and isinstance(config.get("robot"), dict):
+        return config["robot"]
+    try:
+        info = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+        path = Path(info["config"]) if info.get("command") == "identify" else None
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        return None
+    if path is None:
+        return None
+    if not path.is_file():  # relative to where ident ran: runs/<name> -> its parent's parent
+        path = run_dir.resolve().parent.parent / path
+        if not path.is_file():
+            return None
+    from ident.identify.config import load_identify_config
+
+    try:
+        return load_identify_config(path).robot.model_dump()
+    except IdentError:
+        return None
+
+
 def _elite_rank(path: Path) -> int | None:
     """``k`` of ``elite_<k>.csv``, else None."""
     match = re.fullmatch(r"elite_(\d+)\.csv", path.name)
@@ -122,15 +151,35 @@ def replay(
         list[Path] | None,
         typer.Option(help="Folder holding package:// mesh packages (repeatable)."),
     ] = None,
+    lock: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--lock",
+            help="Hold joint NAME fixed at VALUE [rad or m] (0 if omitted), e.g. the fingers "
+            "of a gripper; repeatable. Replaces the run's chain selection.",
+            metavar="NAME[=VALUE]",
+        ),
+    ] = None,
+    base_link: Annotated[
+        str | None, typer.Option("--base-link", help="First link of the chain.")
+    ] = None,
+    tip_link: Annotated[
+        str | None, typer.Option("--tip-link", help="Last link of the chain.")
+    ] = None,
 ) -> None:
     """Replay the excitation motion of RUN_DIR (or --urdf/--trajectory) in meshcat.
 
-    Without --html, serves the viewer on http://127.0.0.1:<port>/static/ until Ctrl-C.
+    The trajectory moves the chain's joints; the URDF's other joints are held at their
+    --lock values (a run folder: the run's robot.lock, base_link and tip_link, unless one of
+    these flags is given). Without --html, serves the viewer on
+    http://127.0.0.1:<port>/static/ until Ctrl-C.
     """
     with user_errors():
+        from ident.cli.verify import parse_locks
         from ident.config import read_text_input
         from ident.fileio import atomic_write_text
         from ident.inputs import check_number, check_output_file, read_urdf_text
+        from ident.model.selection import selection_from_flags
         from ident.trajectory import read_trajectory_csv
         from ident.viz.environment import (
             ReplayEnvironment,
@@ -138,7 +187,12 @@ def replay(
             run_environment,
             run_traced_frame,
         )
-        from ident.viz.replay import DEFAULT_FPS, build_replay_scene
+        from ident.viz.replay import (
+            DEFAULT_FPS,
+            build_replay_scene,
+            replay_duration,
+            run_robot_selection,
+        )
         from ident.viz.server import LoopbackMeshcatServer
 
         check_number(speed, "--speed", low=MIN_SPEED, high=MAX_SPEED, hint="(1 = true speed)")
@@ -152,7 +206,21 @@ def replay(
                     f"--package-dir {folder}: not a folder; give the folder that holds the "
                     "package:// mesh packages (e.g. the parent of <package>/meshes)."
                 )
+        locks = parse_locks(lock or [])
         urdf_path, csvs, run_data = _inputs(run_dir, urdf, trajectory, elites)
+        if run_dir is not None and urdf is None and not (locks or base_link or tip_link):
+            # the run's own chain: its locked joints, their values and its mesh folders
+            selection = run_robot_selection(
+                run_dir, _run_robot(run_dir, run_data), package_dir or ()
+            )
+        else:
+            selection = selection_from_flags(
+                urdf=urdf_path,
+                lock=locks,
+                base_link=base_link,
+                tip_link=tip_link,
+                package_dirs=list(package_dir or ()),
+            )
         run_frame = run_traced_frame(run_data)
         # the run's floor and obstacles (a floor at z = 0 without a run); the least
         # clearance of an elite's own file (trajectory.csv has its own time axis)
@@ -168,7 +236,7 @@ def replay(
         # positions suffice to replay: a log t, q_* is read too (dq, ddq derived, unused)
         trajectories = [read_trajectory_csv(p, allow_positions_only=True) for p in csvs]
         for p, traj in zip(csvs, trajectories, strict=True):
-            span = float(traj.t[-1] - traj.t[0])
+            span = replay_duration(traj.t)  # the segments' spans (gaps are skipped)
             if span / speed * DEFAULT_FPS > MAX_KEYFRAMES:
                 raise DataError(
                     f"{p}: {span:.3g} s at --speed {speed:g} is "
@@ -176,17 +244,25 @@ def replay(
                     f"{MAX_KEYFRAMES / DEFAULT_FPS / 3600:.2g} h a replay holds; raise --speed "
                     "or cut the trajectory."
                 )
-        scene = build_replay_scene(
-            urdf_path,
-            trajectories,
-            traced_frame=frame or run_frame,
-            speed=speed,
-            loop=loop,
-            package_dirs=package_dir or (),
-            labels=[p.name for p in csvs],
-            environment=environment,
-            marks=marks,
-        )
+        with warnings.catch_warnings(record=True) as caught:  # e.g. meshes not found
+            try:
+                warnings.simplefilter("always", IdentWarning)
+                scene = build_replay_scene(
+                    selection,
+                    trajectories,
+                    traced_frame=frame or run_frame,
+                    speed=speed,
+                    loop=loop,
+                    labels=[p.name for p in csvs],
+                    environment=environment,
+                    marks=marks,
+                )
+            finally:  # the mesh warnings also when the replay fails
+                for w in caught:
+                    if issubclass(w.category, IdentWarning):
+                        typer.echo(f"warning: {one_line(w.message)}", err=True)
+                    else:
+                        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         what = f"{len(trajectories)} trajectory(ies), {scene.duration:.2f} s at speed {speed:g}"
         if html is not None:
             page = scene.recorder.static_html(

@@ -101,6 +101,8 @@ def run(
                 rundir.update(exports=exports.lines(rundir.path))
             replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
             rundir.update(replay=replay_note)
+            if replay and not replay_note.startswith("replay.html written"):
+                typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
         except BaseException as e:
             rundir.finish("incomplete", f"stopped while saving the results: {failure_note(e)}")
             raise

@@ -614,24 +614,47 @@ def _warnings(
 def replay_motion(
     log: RobotLog, pp: PreprocessConfig, joints: tuple[str, ...]
 ) -> tuple[JointTrajectory | None, str]:
-    """The measured motion of the replay: the first segment (at most its first
-    :data:`MOTION_MAX_S`), low-passed and differentiated as the identification does; or None
-    and the reason."""
+    """The measured motion of the replay: every segment of the log, one after another (at most
+    :data:`MOTION_MAX_S` in all), each low-passed, differentiated and trimmed as the
+    identification does; or None and the reason. The segments keep their time stamps (the
+    gaps between them), so the replay shows them one after another
+    (:func:`ident.viz.replay.replay_segments`); a segment too short to filter is left out."""
     fs = log.sampling_rate_hz
-    a, b = log.segments[0]
-    b = min(b, a + int(MOTION_MAX_S * fs))
-    q, tau = log.q[a:b], log.tau[a:b]
-    try:
-        position = preprocess.position_filter(pp)
-        if position is not None:
-            q, _ = preprocess.lowpass(q, fs, position.cutoff_hz, position.order)
-        if pp.torque_lowpass is not None:
-            tau, _ = preprocess.lowpass(
-                tau, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
+    budget = int(MOTION_MAX_S * fs)
+    parts: list[JointTrajectory] = []
+    problem = "no samples"
+    for a, b in log.segments:
+        b = min(b, a + budget)
+        if b <= a:
+            break
+        q, tau = log.q[a:b], log.tau[a:b]
+        try:
+            position = preprocess.position_filter(pp)
+            if position is not None:
+                q, _ = preprocess.lowpass(q, fs, position.cutoff_hz, position.order)
+            if pp.torque_lowpass is not None:
+                tau, _ = preprocess.lowpass(
+                    tau, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
+                )
+            dq, ddq, _ = preprocess.differentiate(q, fs)
+            (q, dq, ddq, tau, t), _ = preprocess.trim(
+                [q, dq, ddq, tau, log.t[a:b]], pp.trim_samples
             )
-        dq, ddq, _ = preprocess.differentiate(q, fs)
-        (q, dq, ddq, tau, t), _ = preprocess.trim([q, dq, ddq, tau, log.t[a:b]], pp.trim_samples)
-        motion, _ = measured_motion(t, q, dq, ddq, tau, fs, joints)
-    except (DataError, ConfigError) as e:
-        return None, f"measured motion not available: {e}"
-    return motion, ""
+            motion, _ = measured_motion(t, q, dq, ddq, tau, fs, joints)
+        except (DataError, ConfigError) as e:
+            problem = str(e)
+            continue
+        budget -= b - a
+        parts.append(motion)
+    if not parts:
+        return None, f"measured motion not available: {problem}"
+    if len(parts) == 1:
+        return parts[0], ""
+    return JointTrajectory(
+        t=np.concatenate([m.t for m in parts]),
+        q=np.vstack([m.q for m in parts]),
+        dq=np.vstack([m.dq for m in parts]),
+        ddq=np.vstack([m.ddq for m in parts]),
+        joint_names=joints,
+        tau=np.vstack([m.tau for m in parts if m.tau is not None]),
+    ), ""

@@ -155,16 +155,18 @@ def write_measured_replay(
     if not replay:
         return f"replay skipped (--no-replay); {what} in trajectory.csv."
     try:
-        from ident.viz.replay import replay_html
+        from ident.viz.replay import replay_html, run_robot_selection
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             source = _robot_file(result).resolve().parent
             page = replay_html(
-                urdf_path,
+                # the identified chain: locked joints at their values, robot.package_dirs
+                run_robot_selection(folder, result.config.robot, package_dirs),
                 [motion],
                 labels=[f"{result.config.name}: {what}"],
-                package_dirs=[*map(Path, package_dirs), source, source.parent],
+                package_dirs=[source, source.parent],
+                package_hint="robot.package_dirs in the config (or --package-dir)",
             )
     except Exception as e:  # the replay is a convenience: a failure must not lose the result
         return f"no replay: {type(e).__name__}: {e}"

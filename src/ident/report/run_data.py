@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -288,7 +289,7 @@ def write_replay(run_dir: str | Path) -> str:
             run_environment,
             run_traced_frame,
         )
-        from ident.viz.replay import replay_html
+        from ident.viz.replay import replay_html, run_robot_selection
     except ImportError as e:
         return f"no replay: ident.viz.replay is not available ({e})."
     label, data = "elite 1", {}
@@ -317,24 +318,31 @@ def write_replay(run_dir: str | Path) -> str:
     if mark is not None:
         title += f", {mark.describe()}"
     page, problem = None, ""
+    robot = config.get("robot") if isinstance(config, dict) else None
     for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
         try:
-            page = replay_html(
-                run_dir / "robot.urdf",
-                [trajectory],
-                traced_frame=frame,
-                labels=[label],
-                environment=environment,
-                marks=[mark],
-                title=title,
-            )
+            with warnings.catch_warnings(record=True) as caught:  # e.g. meshes not found
+                warnings.simplefilter("always")
+                page = replay_html(
+                    # the run's chain, locked joints and mesh folders (robot.package_dirs)
+                    run_robot_selection(run_dir, robot if isinstance(robot, dict) else None),
+                    [trajectory],
+                    traced_frame=frame,
+                    labels=[label],
+                    environment=environment,
+                    marks=[mark],
+                    title=title,
+                    package_hint="robot.package_dirs in the config",
+                )
             break
         except Exception as e:  # the replay is a convenience: a failure must not lose the run
             problem = f"no replay: {type(e).__name__}: {e}"
     if page is None:
         return problem
     atomic_write_text(run_dir / "replay.html", page)
-    return f"replay.html written (traced frame: {frame or _default_frame(run_dir)})."
+    copy = str(run_dir / "robot.urdf")  # name the copy, not this folder's absolute path
+    notes = "".join(f"; {str(w.message).replace(copy, 'robot.urdf').rstrip('.')}" for w in caught)
+    return f"replay.html written (traced frame: {frame or _default_frame(run_dir)}){notes}."
 
 
 def _default_frame(run_dir: Path) -> str:

@@ -250,12 +250,12 @@ def _check_one(
 ) -> None:
     filename = mesh.get("filename", "")
     head = f"{where}: link '{link}', <{kind}> mesh '{filename}'"
+    path = resolve_mesh_path(filename, package_dirs)
+    if path is None:
+        return  # Pinocchio names the missing file (a mesh not shipped, as TIAGo's)
     scale, problem = _scale(mesh.get("scale"))
     if scale is None:
         raise ModelError(f"{head}: {problem}.")
-    path = resolve_mesh_path(filename, package_dirs)
-    if path is None:
-        return  # Pinocchio names the missing file
     vertices = mesh_vertices(path, mesh.get("scale"), where=head)
     found = mesh_problem(vertices, needs_volume=kind == "collision")
     if found is not None:

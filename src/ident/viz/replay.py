@@ -28,9 +28,10 @@ import difflib
 import html
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import meshcat
 import meshcat.geometry as mg
@@ -43,7 +44,10 @@ from pinocchio.visualize import MeshcatVisualizer
 from pinocchio.visualize.meshcat_visualizer import loadMesh
 
 from ident.errors import DataError, IdentWarning, ModelError
+from ident.measure.timebase import find_segments
+from ident.model.selection import RobotSelection, load_robot
 from ident.robot.meshes import check_urdf_meshes
+from ident.robot.urdf_load import build_model, continuous_as_revolute, parse_xml
 from ident.trajectory import JointTrajectory
 from ident.viz.environment import (
     CLOSEST_COLOR,
@@ -60,7 +64,10 @@ __all__ = [
     "default_traced_frame",
     "joint_configurations",
     "load_visual_robot",
+    "replay_duration",
     "replay_html",
+    "replay_segments",
+    "run_robot_selection",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -74,6 +81,8 @@ _PATH_COLORS = (0xC2255C, 0x1971C2, 0x2B8A3E, 0xD9480F, 0x6741D9, 0x0B7285)
 _ROOT = "replay"
 # Keep the path line light: a 1 kHz, 60 s log is decimated to at most this many points.
 _MAX_PATH_POINTS = 4000
+# Segments of a log drawn as lines of their own (more: one line through all of them).
+_MAX_SEGMENT_LINES = 50
 
 
 @dataclass(frozen=True)
@@ -138,56 +147,145 @@ class _BakedMeshVisualizer(MeshcatVisualizer):
 
 
 def load_visual_robot(
-    urdf_path: str | Path, package_dirs: Sequence[str | Path] = ()
+    robot: str | Path | RobotSelection,
+    package_dirs: Sequence[str | Path] = (),
+    *,
+    package_hint: str = "--package-dir",
 ) -> tuple[pin.Model, pin.GeometryModel, bool]:
-    """Load a URDF's kinematics and visual geometry.
+    """Load the kinematics and visual geometry of a robot selection (a URDF and its chain).
+
+    The robot is chosen as for the identification (:func:`ident.model.selection.load_robot`:
+    the chain ``base_link``..``tip_link``, the locked joints and their values); the visual
+    geometry is the whole URDF's, with the links behind locked joints fixed at their lock
+    values (Pinocchio's reduced model and geometry, ``pin.buildReducedModel``), so a hand
+    locked half open is drawn half open and moves with the arm.
 
     Parameters
     ----------
-    urdf_path :
-        URDF file; meshes may be given as ``package://`` URIs or paths relative to the URDF.
+    robot :
+        A URDF file (nothing locked) or a :class:`~ident.model.selection.RobotSelection`
+        with resolved paths. Meshes may be ``package://`` URIs or paths relative to the URDF.
     package_dirs :
-        Directories that contain the ``package://`` roots (the URDF's folder and its parent
-        are always searched).
+        More folders that contain the ``package://`` roots, searched after the selection's
+        ``package_dirs`` (the URDF's folder and its parent are always searched).
+    package_hint :
+        The option that gives mesh folders in the calling command, named in the warning
+        when meshes are missing (``--package-dir``, or ``robot.package_dirs`` of a config).
 
     Returns
     -------
     model, visual_model, fallback :
-        Pinocchio model, visual geometry model and whether the geometry is a stick figure
-        built from the kinematics (URDF without visuals, or with meshes that cannot be found:
-        an :class:`IdentWarning` names the missing file).
+        Pinocchio model of the moving joints (the selection's chain, locked joints removed;
+        continuous joints as revolute), visual geometry model and whether the geometry is a
+        stick figure built from the kinematics (URDF without visuals, or with meshes that
+        cannot be found: an :class:`IdentWarning` names the missing file and the option).
 
     Raises
     ------
     ModelError
-        The file does not exist or is not a URDF Pinocchio can parse.
+        The file does not exist, is not a URDF Pinocchio can parse, or the selection is not
+        a serial chain (the message names the joints to lock).
     """
-    urdf_path = Path(urdf_path)
+    selection = robot if isinstance(robot, RobotSelection) else RobotSelection(urdf=Path(robot))
+    if selection.urdf is None:
+        raise ModelError(f"{selection.path}: the replay needs a URDF (robot.urdf).")
+    urdf_path = Path(selection.urdf)
     if not urdf_path.is_file():
         raise ModelError(f"{urdf_path}: URDF file not found.")
-    dirs = [str(Path(d)) for d in package_dirs]
+    dirs = [str(Path(d)) for d in (*package_dirs, *selection.package_dirs)]
     dirs += [str(urdf_path.parent.resolve()), str(urdf_path.parent.resolve().parent)]
-    try:
-        model = pin.buildModelFromUrdf(str(urdf_path))
-    except (RuntimeError, ValueError) as e:
-        raise ModelError(f"{urdf_path}: not a valid URDF for Pinocchio: {e}") from e
+    # the identification's robot: its checks, chain and lock values (inertials not needed)
+    robot_model = load_robot(selection.model_copy(update={"inertia_check": False}))
+    locked = dict(robot_model.locked_joints)
+    text = robot_model.urdf_text
+    where = str(urdf_path)
+    model = build_model(continuous_as_revolute(parse_xml(text, where), text)[0], where)
     check_urdf_meshes(urdf_path, dirs, collision=False)  # before coal: never a segfault
     try:
         visual_model = pin.buildGeomFromUrdf(
             model, str(urdf_path), pin.GeometryType.VISUAL, package_dirs=dirs
         )
     except (RuntimeError, ValueError) as e:
+        problem = str(e).strip()
+        try:  # the collision meshes, when they are the ones shipped (configs/panda.yaml)
+            check_urdf_meshes(urdf_path, dirs, visual=False)  # before coal: never a segfault
+            visual_model = pin.buildGeomFromUrdf(
+                model, str(urdf_path), pin.GeometryType.COLLISION, package_dirs=dirs
+            )
+        except (RuntimeError, ValueError, ModelError):
+            visual_model = pin.GeometryModel()
+        if len(visual_model.geometryObjects) == 0:
+            warnings.warn(
+                f"{urdf_path}: cannot load the visual geometry ({problem}); showing a stick "
+                "figure of the kinematic chain instead. Give the folder that contains the "
+                f"mesh package with {package_hint}.",
+                IdentWarning,
+                stacklevel=2,
+            )
+            return robot_model.model, stick_figure(robot_model.model), True
         warnings.warn(
-            f"{urdf_path}: cannot load the visual geometry ({e}); showing a stick figure of "
-            "the kinematic chain instead. Pass the folder that contains the mesh package "
-            "with --package-dir.",
+            f"{urdf_path}: cannot load the visual geometry ({problem}); showing the "
+            "collision geometry instead (the visual meshes' folder is given with "
+            f"{package_hint}).",
             IdentWarning,
             stacklevel=2,
         )
-        return model, stick_figure(model), True
+    if locked:
+        reference = pin.neutral(model)
+        for name, value in locked.items():
+            reference[model.joints[model.getJointId(name)].idx_q] = value
+        ids = [model.getJointId(name) for name in locked]
+        model, visual_model = pin.buildReducedModel(model, visual_model, ids, reference)
     if len(visual_model.geometryObjects) == 0:
         return model, stick_figure(model), True
     return model, visual_model, False
+
+
+def run_robot_selection(
+    run_dir: str | Path,
+    robot: Mapping[str, Any] | RobotSelection | None,
+    package_dirs: Sequence[str | Path] = (),
+) -> RobotSelection:
+    """The robot selection of a run folder's ``robot.urdf`` (the copy of the run's URDF).
+
+    Parameters
+    ----------
+    run_dir :
+        The run folder; its ``robot.urdf`` is the file loaded.
+    robot :
+        The run config's ``robot`` section with resolved paths (``result.json``'s
+        ``config.robot``, or the :class:`RobotSelection` itself), or ``None``.
+    package_dirs :
+        Folders searched first for ``package://`` meshes.
+
+    Returns
+    -------
+    :
+        The run's chain, locked joints and their values, on ``robot.urdf``; mesh folders:
+        ``package_dirs``, the section's ``package_dirs``, then the original URDF's folder and
+        its parent (meshes given relative to the original file). A DH description or no
+        section: ``robot.urdf`` alone.
+
+    Raises
+    ------
+    ModelError
+        The section is not a valid robot selection (a damaged ``result.json``).
+    """
+    urdf = Path(run_dir) / "robot.urdf"
+    dirs = [Path(d) for d in package_dirs]
+    if robot is None:
+        return RobotSelection(urdf=urdf, package_dirs=dirs)
+    try:
+        selection = (
+            robot if isinstance(robot, RobotSelection) else RobotSelection.model_validate(robot)
+        )
+    except ValueError as e:  # pydantic's ValidationError is a ValueError
+        raise ModelError(f"{run_dir}: the run's robot section is not valid ({e}).") from e
+    if selection.urdf is None:  # a DH description: robot.urdf is generated, nothing locked
+        return RobotSelection(urdf=urdf, package_dirs=dirs)
+    original = Path(selection.urdf)
+    dirs += [*selection.package_dirs, original.parent, original.parent.parent]
+    return selection.model_copy(update={"urdf": urdf, "package_dirs": dirs})
 
 
 def _characteristic_length(model: pin.Model) -> float:
@@ -243,11 +341,16 @@ def stick_figure(model: pin.Model) -> pin.GeometryModel:
     return geometry
 
 
-def default_traced_frame(model: pin.Model) -> str:
-    """Frame traced when none is given: ``flange``, ``tool0``, ... else the last frame."""
+def default_traced_frame(model: pin.Model, tip_link: str | None = None) -> str:
+    """Frame traced when none is given: ``flange``, ``tool0``, ...; else the last frame on the
+    body of ``tip_link`` (the chain's tip: its tool, a locked hand's centre), else the last
+    frame."""
     for name in _PREFERRED_TRACED_FRAMES:
         if model.existFrame(name):
             return name
+    if tip_link is not None and model.existFrame(tip_link):
+        joint = model.frames[model.getFrameId(tip_link)].parentJoint
+        return [f.name for f in model.frames if f.parentJoint == joint][-1]
     return model.frames[len(model.frames) - 1].name
 
 
@@ -311,10 +414,16 @@ def joint_configurations(
             what = f"the joints of {csv} {names} do not match the joints of {urdf} {model_joints}"
         details = [f"missing from the trajectory: {missing}"] if missing else []
         details += [f"unknown to the URDF: {extra}"] if extra else []
+        lock = (
+            "; or hold the joints the trajectory does not move fixed (--lock NAME=VALUE, "
+            "robot.lock in a config)"
+            if missing and not extra
+            else ""
+        )
         raise DataError(
             f"{what} ({'; '.join(details)}); the q_<joint> columns must name the URDF's "
             "joints (any order): rename the columns or use the URDF of the robot that made "
-            "the trajectory."
+            f"the trajectory{lock}."
         )
     q = np.tile(pin.neutral(model), (trajectory.n_samples, 1))
     for column, name in enumerate(names):
@@ -328,15 +437,60 @@ def joint_configurations(
     return q
 
 
-def _resample(trajectory: JointTrajectory, q: FloatArray, fps: float, speed: float) -> FloatArray:
-    """Configurations at replay times ``k / fps``: trajectory times ``t0 + k * speed / fps``."""
-    t = trajectory.t - trajectory.t[0]
-    n_frames = int(math.floor(t[-1] / speed * fps + 1e-9)) + 1
-    t_frames = np.arange(n_frames) * speed / fps
-    out = np.empty((n_frames, q.shape[1]))
-    for k in range(q.shape[1]):  # linear interpolation; keyframes are dense (fps >= 10)
-        out[:, k] = np.interp(t_frames, t, q[:, k])
+def replay_segments(t: npt.ArrayLike) -> list[tuple[int, int]]:
+    """Sample ranges of a trajectory that are replayed one after another.
+
+    A log is split where its time stops increasing (a backwards jump: two runs appended, a
+    clock reset) and at gaps (a step longer than :data:`ident.measure.timebase.GAP_FACTOR`
+    median steps, the rule of the log readers, :func:`ident.measure.timebase.find_segments`):
+    the replay shows each segment at its own speed and skips the time between them.
+
+    Parameters
+    ----------
+    t :
+        Time stamps [s], shape (n_samples,).
+
+    Returns
+    -------
+    :
+        ``[(start, stop), ...]`` index ranges covering ``0..n_samples`` in order.
+    """
+    t = np.asarray(t, dtype=float)
+    backwards = np.flatnonzero(np.diff(t) <= 0.0) + 1
+    bounds = [0, *backwards.tolist(), t.size]
+    out: list[tuple[int, int]] = []
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        out += [(a + c, a + d) for c, d in find_segments(t[a:b])]
     return out
+
+
+def replay_duration(t: npt.ArrayLike, speed: float = 1.0) -> float:
+    """Replay time [s] of a trajectory with time stamps ``t`` [s]: its segments' spans / speed."""
+    t = np.asarray(t, dtype=float)
+    return sum(float(t[b - 1] - t[a]) for a, b in replay_segments(t)) / speed
+
+
+def _resample(
+    trajectory: JointTrajectory, q: FloatArray, fps: float, speed: float
+) -> tuple[FloatArray, list[int]]:
+    """Configurations at replay times ``k / fps``, segment after segment.
+
+    Within a segment (:func:`replay_segments`) starting at ``t_s``, replay frame ``k`` shows
+    trajectory time ``t_s + k * speed / fps``; the next segment starts at the next frame.
+    Returns the configurations, shape (n_frames, nq), and the first frame of each segment.
+    """
+    parts, starts, n = [], [], 0
+    for a, b in replay_segments(trajectory.t):
+        t = trajectory.t[a:b] - trajectory.t[a]
+        n_frames = int(math.floor(t[-1] / speed * fps + 1e-9)) + 1
+        t_frames = np.arange(n_frames) * speed / fps
+        out = np.empty((n_frames, q.shape[1]))
+        for k in range(q.shape[1]):  # linear interpolation; keyframes are dense (fps >= 10)
+            out[:, k] = np.interp(t_frames, t, q[a:b, k])
+        parts.append(out)
+        starts.append(n)
+        n += n_frames
+    return np.vstack(parts), starts
 
 
 def _frame_positions(model: pin.Model, q: FloatArray, frame_id: int) -> FloatArray:
@@ -357,6 +511,17 @@ def _joint_positions(model: pin.Model, q: FloatArray) -> FloatArray:
         pin.forwardKinematics(model, data, q[k])
         out[k] = np.array([m.translation for m in data.oMi])
     return out
+
+
+def _path_lines(
+    model: pin.Model, q: FloatArray, segments: list[tuple[int, int]], frame_id: int
+) -> list[FloatArray]:
+    """The traced frame's positions [m], one (n_points, 3) array per segment (a single one,
+    across the segments, beyond :data:`_MAX_SEGMENT_LINES` segments)."""
+    if len(segments) == 1 or len(segments) > _MAX_SEGMENT_LINES:
+        return [_frame_positions(model, _decimate(q, _MAX_PATH_POINTS), frame_id)]
+    budget = max(2, _MAX_PATH_POINTS // len(segments))
+    return [_frame_positions(model, _decimate(q[a:b], budget), frame_id) for a, b in segments]
 
 
 def _decimate(points: FloatArray, max_points: int) -> FloatArray:
@@ -390,7 +555,7 @@ def _set_camera(vis: meshcat.Visualizer, points: FloatArray, n_robots: int) -> N
 
 
 def build_replay_scene(
-    urdf_path: str | Path,
+    robot: str | Path | RobotSelection,
     trajectories: Sequence[JointTrajectory],
     *,
     traced_frame: str | None = None,
@@ -402,16 +567,21 @@ def build_replay_scene(
     labels: Sequence[str] | None = None,
     environment: ReplayEnvironment | None = None,
     marks: Sequence[ClearanceMark | None] | None = None,
+    package_hint: str = "--package-dir",
 ) -> ReplayScene:
     """Record a meshcat scene replaying one or more trajectories of the robot of a URDF.
 
     Parameters
     ----------
-    urdf_path :
-        Robot description; visuals from primitives or meshes (``package://`` URIs are looked
-        up in ``package_dirs``).
+    robot :
+        A URDF, or a robot selection (:class:`~ident.model.selection.RobotSelection`: the
+        chain, the locked joints and their values, ``package_dirs``) as the identification
+        uses it (:func:`load_visual_robot`); visuals from primitives or meshes
+        (``package://`` URIs are looked up in the selection's and ``package_dirs``).
     trajectories :
-        Trajectories to replay; one robot each, side by side along world ``y``.
+        Trajectories of the moving joints to replay; one robot each, side by side along
+        world ``y``. A trajectory whose time jumps backwards or has gaps is replayed segment
+        after segment (:func:`replay_segments`), each start named in the caption.
     traced_frame :
         Pinocchio frame whose Cartesian path is drawn (``None``: ``flange``, ``tool0``, ...,
         else the model's last frame).
@@ -431,6 +601,9 @@ def build_replay_scene(
     marks :
         Per trajectory, the moment of its smallest clearance (or ``None``): a sphere at the
         closest link at that time, and a caption line.
+    package_hint :
+        The option of the calling command that gives mesh folders, named in the warning when
+        meshes are missing.
 
     Returns
     -------
@@ -444,7 +617,8 @@ def build_replay_scene(
     ModelError
         Unreadable URDF or unknown traced frame.
     """
-    urdf_path = Path(urdf_path)
+    selection = robot if isinstance(robot, RobotSelection) else RobotSelection(urdf=Path(robot))
+    urdf_path = Path(selection.path)
     if len(trajectories) == 0:
         raise DataError("no trajectory to replay.")
     if not (math.isfinite(speed) and speed > 0.0):
@@ -459,17 +633,27 @@ def build_replay_scene(
         raise DataError(f"{len(marks)} clearance marks for {len(trajectories)} trajectories.")
     if not (math.isfinite(fps) and fps >= 1.0):
         raise DataError(f"fps = {fps} must be >= 1 keyframe per second.")
-    model, visual_model, fallback = load_visual_robot(urdf_path, package_dirs)
-    frame_name = traced_frame if traced_frame is not None else default_traced_frame(model)
+    model, visual_model, fallback = load_visual_robot(
+        selection, package_dirs, package_hint=package_hint
+    )
+    frame_name = (
+        traced_frame
+        if traced_frame is not None
+        else default_traced_frame(model, selection.tip_link)
+    )
     frame_id = _frame_id(model, frame_name, urdf_path)
     configurations = [joint_configurations(model, t, urdf_path=urdf_path) for t in trajectories]
 
-    keyframes = [
+    resampled = [
         _resample(traj, q, fps, speed) for traj, q in zip(trajectories, configurations, strict=True)
     ]
-    paths = [
-        _frame_positions(model, _decimate(q, _MAX_PATH_POINTS), frame_id) for q in configurations
+    keyframes = [q for q, _ in resampled]
+    # the traced path, one line per segment (at most _MAX_SEGMENT_LINES, else one line)
+    path_parts = [
+        _path_lines(model, q, replay_segments(traj.t), frame_id)
+        for traj, q in zip(trajectories, configurations, strict=True)
     ]
+    paths = [np.vstack(parts) for parts in path_parts]
     joints = [_joint_positions(model, q).reshape(-1, 3) for q in keyframes]
     extents = [np.ptp(np.vstack([j, p]), axis=0) for j, p in zip(joints, paths, strict=True)]
     if spacing is None:
@@ -496,9 +680,13 @@ def build_replay_scene(
         _animate_robot(viz, animation, vis, root, q_frames)
 
         color = _PATH_COLORS[k % len(_PATH_COLORS)]
-        vis[f"{root}/path"].set_object(
-            mg.Line(mg.PointsGeometry(path.T.astype(np.float32)), mg.LineBasicMaterial(color=color))
-        )
+        for s, line in enumerate(path_parts[k]):
+            vis[f"{root}/path" + (f"_{s + 1}" if s else "")].set_object(
+                mg.Line(
+                    mg.PointsGeometry(line.T.astype(np.float32)),
+                    mg.LineBasicMaterial(color=color),
+                )
+            )
         vis[f"{root}/marker"].set_object(
             mg.Sphere(marker_radius), mg.MeshLambertMaterial(color=color)
         )
@@ -517,6 +705,13 @@ def build_replay_scene(
                 )
                 vis[f"{root}/closest"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
             notes.append(f"robot {k}: {mark.describe()} (red sphere)")
+        starts = resampled[k][1]
+        if len(starts) > 1:
+            at = ", ".join(f"{s / fps:.2f} s" for s in starts[1:])
+            notes.append(
+                f"robot {k}: {len(starts)} segments of the log (split at gaps or backwards "
+                f"time jumps), replayed one after another; segments 2.. start at {at}"
+            )
 
     everything = np.vstack(camera_points)
     environment_paths = draw_environment(
@@ -583,7 +778,7 @@ def _animate_robot(
 
 
 def replay_html(
-    urdf_path: Path,
+    robot: str | Path | RobotSelection,
     trajectories: Sequence[JointTrajectory],
     *,
     traced_frame: str | None = None,
@@ -595,6 +790,7 @@ def replay_html(
     environment: ReplayEnvironment | None = None,
     marks: Sequence[ClearanceMark | None] | None = None,
     title: str | None = None,
+    package_hint: str = "--package-dir",
 ) -> str:
     """Self-contained HTML page replaying trajectories of a robot (meshcat's static export).
 
@@ -605,7 +801,7 @@ def replay_html(
     replay: <urdf stem>``).
     """
     scene = build_replay_scene(
-        urdf_path,
+        robot,
         trajectories,
         traced_frame=traced_frame,
         speed=speed,
@@ -615,6 +811,8 @@ def replay_html(
         labels=labels,
         environment=environment,
         marks=marks,
+        package_hint=package_hint,
     )
-    title = title or f"ident replay: {Path(urdf_path).stem}"
+    stem = robot.path.stem if isinstance(robot, RobotSelection) else Path(robot).stem
+    title = title or f"ident replay: {stem}"
     return scene.recorder.static_html(title=title, caption_html=scene.caption_html())
