@@ -118,3 +118,12 @@ def test_without_trimesh_coal_reads_the_same_meshes(name, problem, tmp_path, mon
     check_urdf_meshes(
         (MESHES / "collision_flat.urdf").read_text().replace("flat", "box"), [tmp_path]
     )
+
+
+def test_a_half_turn_scale_is_a_rotation_and_a_mirror_is_refused():
+    """ROS URDFs (TIAGo) write ``scale="-1 -1 1"``: two negative factors turn the mesh by half a
+    turn and keep its triangles' orientation; one negative factor mirrors it inside out."""
+    text = (MESHES / "visual_scale_zero.urdf").read_text()
+    check_urdf_meshes(text.replace('scale="0 0 0"', 'scale="-1 -1 1"'), [MESHES])
+    with pytest.raises(ModelError, match=r'scale="-1 1 1".*odd number'):
+        check_urdf_meshes(text.replace('scale="0 0 0"', 'scale="-1 1 1"'), [MESHES])

@@ -7,8 +7,9 @@ NaN vertices kills the process (SIGSEGV, no message). :func:`check_urdf_meshes` 
 coal's own loader, the one Pinocchio uses, for formats trimesh cannot read such as Collada)
 and refuses, with one line naming the link, the file and the fix:
 
-- a scale that is not three finite numbers > 0 (a zero scale collapses the mesh, a negative
-  one mirrors it inside out);
+- a scale that is not three finite, non-zero numbers with an even number of negative ones (a
+  zero factor collapses the mesh, an odd number of negative ones mirrors it inside out; two
+  negative factors are a half turn, which ROS URDFs use);
 - a file without vertices, or that the loader cannot read;
 - NaN or infinite vertex coordinates;
 - a mesh more than :data:`MAX_EXTENT_M` across (wrong units);
@@ -150,10 +151,13 @@ def _scale(text: str | None) -> tuple[np.ndarray | None, str]:
         return None, f'scale="{text}" is not three numbers'
     if values.shape != (3,):
         return None, f'scale="{text}" is not three numbers'
-    if not np.isfinite(values).all() or (values <= 0.0).any():
+    # Two negative factors are a half turn (ROS URDFs use "-1 -1 1"); an odd number of them
+    # mirrors the mesh inside out.
+    if not np.isfinite(values).all() or (values == 0.0).any() or np.prod(values) < 0.0:
         return None, (
-            f'scale="{text}": each factor must be finite and > 0 (zero collapses the mesh, '
-            "a negative factor mirrors it inside out; mirror the file itself instead)"
+            f'scale="{text}": each factor must be finite and non-zero, with an even number of '
+            "negative ones (zero collapses the mesh, an odd number of negative factors mirrors "
+            "it inside out; mirror the file itself instead)"
         )
     return values, ""
 
