@@ -125,7 +125,7 @@ def central_differences(q: npt.ArrayLike, sampling_rate_hz: float) -> tuple[Floa
 
 
 @njit(cache=True, nogil=True)
-def _nonzero_columns(x):  # noqa: ANN001, ANN202 (numba: float64 (n, c) -> int64 (k,))
+def _nonzero_columns(x: FloatArray) -> npt.NDArray[np.int64]:  # numba: (n, c) -> (k,)
     found = np.zeros(x.shape[1], dtype=np.bool_)
     for i in range(x.shape[0]):
         for c in range(x.shape[1]):
@@ -135,7 +135,7 @@ def _nonzero_columns(x):  # noqa: ANN001, ANN202 (numba: float64 (n, c) -> int64
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _filter_row(sos, z0s, z1s, v) -> None:  # noqa: ANN001 (numba: float64 arrays)
+def _filter_row(sos: FloatArray, z0s: FloatArray, z1s: FloatArray, v: FloatArray) -> None:
     """One sample ``v`` (c,) of every column through the sections, in place; direct form II
     transposed with the states ``z0s``, ``z1s`` (n_sections, c), updated.
 
@@ -156,7 +156,15 @@ def _filter_row(sos, z0s, z1s, v) -> None:  # noqa: ANN001 (numba: float64 array
 
 
 @njit(cache=True, nogil=True)
-def _sosfiltfilt(sos, zi0, x, columns, edge, step, out) -> None:  # noqa: ANN001, PLR0913
+def _sosfiltfilt(  # noqa: PLR0913
+    sos: FloatArray,
+    zi0: FloatArray,
+    x: FloatArray,
+    columns: npt.NDArray[np.int64],
+    edge: int,
+    step: int,
+    out: FloatArray,
+) -> None:
     """Odd extension, forward pass, backward pass of ``x[:, columns]``; writes
     ``out[:, columns]`` (every ``step``-th sample).
 

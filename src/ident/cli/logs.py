@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import numpy as np
 import typer
 
 from ident.cli._common import user_errors
+
+if TYPE_CHECKING:  # the readers load lazily: ident logs --help stays fast
+    from ident.measure.readers import LogTable
 
 __all__ = ["inspect", "register", "skeleton"]
 
@@ -65,7 +68,7 @@ def _unit_hint(name: str, kind: str) -> str | None:
     return next((unit for hint, unit in _UNIT_HINTS[kind] if hint in parts), None)
 
 
-def _time_candidate(table) -> tuple[str, str] | None:  # noqa: ANN001
+def _time_candidate(table: LogTable) -> tuple[str, str] | None:
     """A column named like time that mostly increases (its anomalies are reported), and its
     unit, when the reader found none."""
     if table.time is not None:

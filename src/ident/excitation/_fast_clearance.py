@@ -31,6 +31,7 @@ import numpy.typing as npt
 from numba import njit
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 __all__ = ["joint_frames", "primitive_distances", "segment_distances"]
 
@@ -83,7 +84,7 @@ def _clip01(x: float) -> float:
 
 
 @njit(cache=True)
-def _segment_distance(p1, q1, p2, q2) -> float:  # noqa: ANN001 (numba: float64 (3,) arrays)
+def _segment_distance(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray) -> float:
     """Distance between segments ``[p1, q1]`` and ``[p2, q2]`` (Ericson 5.1.9), scalar."""
     a = e = f = c = b = 0.0
     for i in range(3):
@@ -115,7 +116,9 @@ def _segment_distance(p1, q1, p2, q2) -> float:  # noqa: ANN001 (numba: float64 
 
 
 @njit(cache=True)
-def _segment_distances_flat(p1, q1, p2, q2, out) -> None:  # noqa: ANN001
+def _segment_distances_flat(
+    p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatArray, out: FloatArray
+) -> None:
     for n in range(out.shape[0]):
         out[n] = _segment_distance(p1[n], q1[n], p2[n], q2[n])
 
@@ -130,24 +133,24 @@ def segment_distances(p1: FloatArray, q1: FloatArray, p2: FloatArray, q2: FloatA
     shape = arrays[0].shape[:-1]
     flat = [np.ascontiguousarray(x.reshape(-1, 3)) for x in arrays]
     out = np.empty(flat[0].shape[0])
-    _segment_distances_flat(*flat, out)
+    _segment_distances_flat(flat[0], flat[1], flat[2], flat[3], out)
     return out.reshape(shape)
 
 
 @njit(cache=True)
 def primitive_distances(  # noqa: PLR0913
-    frames,  # noqa: ANN001 (numba: float64 (n, n_joints + 1, 4, 4), world first)
-    joint,  # noqa: ANN001 (int64 (n_seg,): frame of each segment)
-    centre,  # noqa: ANN001 (float64 (n_seg, 4): centre in its frame, homogeneous)
-    axis,  # noqa: ANN001 (float64 (n_seg, 4): unit axis in its frame)
-    half,  # noqa: ANN001 (float64 (n_seg,): half-length, 0 for a sphere)
-    radius,  # noqa: ANN001 (float64 (n_seg,))
-    cylinder,  # noqa: ANN001 (bool (n_seg,))
-    seg_pairs,  # noqa: ANN001 (int64 (n_sp, 3): column, segment, segment)
-    plane_pairs,  # noqa: ANN001 (int64 (n_pp, 2): column, segment)
-    normals,  # noqa: ANN001 (float64 (n_pp, 3): unit normal of the half-space)
-    offsets,  # noqa: ANN001 (float64 (n_pp,): d of each half-space n.x <= d)
-    out,  # noqa: ANN001 (float64 (n, n_columns): written at the pairs' columns)
+    frames: FloatArray,  # (numba: float64 (n, n_joints + 1, 4, 4), world first)
+    joint: IntArray,  # (int64 (n_seg,): frame of each segment)
+    centre: FloatArray,  # (float64 (n_seg, 4): centre in its frame, homogeneous)
+    axis: FloatArray,  # (float64 (n_seg, 4): unit axis in its frame)
+    half: FloatArray,  # (float64 (n_seg,): half-length, 0 for a sphere)
+    radius: FloatArray,  # (float64 (n_seg,))
+    cylinder: npt.NDArray[np.bool_],  # (bool (n_seg,))
+    seg_pairs: IntArray,  # (int64 (n_sp, 3): column, segment, segment)
+    plane_pairs: IntArray,  # (int64 (n_pp, 2): column, segment)
+    normals: FloatArray,  # (float64 (n_pp, 3): unit normal of the half-space)
+    offsets: FloatArray,  # (float64 (n_pp,): d of each half-space n.x <= d)
+    out: FloatArray,  # (float64 (n, n_columns): written at the pairs' columns)
 ) -> None:
     """Distances of segment pairs (swept spheres) and of segments to half-spaces, per posture.
 

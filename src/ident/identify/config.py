@@ -154,7 +154,7 @@ class LogConfig(StrictModel):
         base = first.model_dump(exclude_defaults=True)
         out = [first]
         for k, entry in enumerate(self.more):
-            if "more" in entry:
+            if entry.get("more"):  # an empty list is what a resolved section holds
                 raise ValueError(
                     f"log.more[{k}] holds its own 'more:' list; list every further log "
                     "directly under log.more"
@@ -491,7 +491,7 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
         logs = [_resolve_log(entry, base) for entry in cfg.log.all_logs()]
     except ValueError as e:
         raise ConfigError(f"{path}: log.more: {e}") from e
-    log = logs[0].model_copy(update={"more": [x.model_dump() for x in logs[1:]]})
+    log = logs[0].model_copy(update={"more": [x.model_dump(exclude={"more"}) for x in logs[1:]]})
     reference = cfg.reference.model_copy(
         update={
             "base_parameters": _resolve(cfg.reference.base_parameters, base),

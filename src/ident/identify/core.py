@@ -197,10 +197,12 @@ def _identify(
     timings["base_parameters"] = time.perf_counter() - t1
     t2 = time.perf_counter()
     reference = _reference(cfg, pm)
+    # the processing's records check its settings (cutoff below Nyquist...) before any chunk
+    processing = _preprocess_records(cfg.preprocess, log.sampling_rate_hz, model.nv, source)
     chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
     records = [
         *log.records,
-        *_preprocess_records(cfg.preprocess, log.sampling_rate_hz, model.nv, source),
+        *processing,
         accumulate.chunk_record(chunked, red),
         *_row_records(cfg, chunked, red),
     ]

@@ -544,7 +544,7 @@ def read_log(
         joint_names=first.joint_names,
         records=tuple(records),
         segments=tuple(segments),
-        dq=np.concatenate(dq) if has_dq else None,
+        dq=np.concatenate([d for d in dq if d is not None]) if has_dq else None,
         warnings=tuple(warnings),
     )
 
@@ -738,13 +738,15 @@ def _read_one(
         if cfg.resample_hz is None and uniform:
             fs = 1.0 / float(np.median(np.diff(t)))
         else:
-            out_t, out_x, new_segments = [], [[] for _ in signals], []
+            out_t: list[FloatArray] = []
+            out_x: list[list[FloatArray]] = [[] for _ in signals]
+            new_segments: list[tuple[int, int]] = []
             for a, b in segments:
                 if b - a < 4:
                     continue
                 stacked = np.concatenate([x[a:b] for x in signals], axis=1)
                 tg, xg = timebase.resample(t[a:b], stacked, fs)
-                start = sum(len(x) for x in out_t)
+                start = sum(x.size for x in out_t)
                 out_t.append(tg)
                 new_segments.append((start, start + tg.size))
                 for k, x in enumerate(np.split(xg, len(signals), axis=1)):
@@ -752,7 +754,7 @@ def _read_one(
             if not new_segments:
                 raise DataError(f"{files}: no segment has enough samples to resample.")
             t = np.concatenate(out_t)
-            signals = [np.concatenate(x) for x in out_x]
+            signals = [np.concatenate(x).astype(np.float64, copy=False) for x in out_x]
             segments = new_segments
             records.append(
                 {
@@ -779,8 +781,9 @@ def _read_one(
                 + ")",
             }
         )
-    q, tau = signals[0], signals[1]
-    dq = signals[2] if dq is not None else None
+    # float64 already (no copy): asarray only tells the type checker
+    q, tau = (np.asarray(x, dtype=np.float64) for x in signals[:2])
+    dq_out = np.asarray(signals[2], dtype=np.float64) if dq is not None else None
     records.insert(
         0,
         {
@@ -797,7 +800,7 @@ def _read_one(
         joint_names=joint_names,
         records=tuple(records),
         segments=tuple(segments),
-        dq=dq,
+        dq=dq_out,
         warnings=tuple(warnings),
     )
 

@@ -181,7 +181,6 @@ def run_pipeline(
         )
     if not plan.usable:  # never reported as usable: the robot must not run it
         warnings.append(plan.message)
-    warnings += _identification_warnings(state.outcomes, plan.elite)
     return _replace(
         state.partial(base, ""),
         status="complete",
@@ -190,16 +189,6 @@ def run_pipeline(
         executable=plan,
         safety={"ok": plan.usable, "message": plan.message},
     )
-
-
-def _identification_warnings(outcomes: list[EliteOutcome], executed: int | None) -> list[str]:
-    """The warnings of the executed elite's identification (a simulated log identified by the
-    core gives the same warnings as ``ident identify`` on that log); elite 1 when none runs."""
-    rank = executed or 1
-    for outcome in outcomes:
-        if outcome.rank == rank and outcome.log is not None:
-            return [f"elite {rank}: {w}" for w in outcome.log.result.warnings]
-    return []
 
 
 def _base_result(setup: RunSetup, bounds: FloatArray, stage_info: StageInfo) -> RunResult:

@@ -67,7 +67,9 @@ def check_elites(
     ]
 
 
-def _period_states(family: Any, x: FloatArray, rate_hz: float) -> tuple[FloatArray, ...]:
+def _period_states(
+    family: Any, x: FloatArray, rate_hz: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """One period at ``rate_hz``: the family's closed form where it offers ``with_samples``
     (exact), else its samples, which the check interpolates (cubic Hermite)."""
     if hasattr(family, "with_samples"):
