@@ -221,8 +221,11 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         )
         rows.append(
             [
-                f"max rel. error, major parameters, {m}",
-                *[_fmt(e["estimates"].get(m, {}).get("max_rel_error_major")) for e in elites],
+                f"max rel. error, major parameters, {m} [%]",
+                *[
+                    _fmt(_percent(e["estimates"].get(m, {}).get("max_rel_error_major")))
+                    for e in elites
+                ],
             ]
         )
         rows.append(
@@ -236,6 +239,11 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         for m, message in e["failures"].items():
             md += [f"> **Elite {e['rank']}, {m}**: {message}", ""]
     return md
+
+
+def _percent(fraction: float | None) -> float | None:
+    """A fraction as a percentage (``None`` stays ``None``): one unit per table."""
+    return None if fraction is None else 100.0 * fraction
 
 
 # ----------------------------------------------------------------------------- page
