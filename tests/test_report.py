@@ -275,3 +275,24 @@ def test_relative_measures_in_tables_are_percent():
     assert unitless_labels_without_percent("| a | relative residual |\n|---|---|\n| x | 0.1 |") == [
         "relative residual"
     ]
+
+
+def _summary(md: str) -> str:
+    return md.split("## Summary")[1].split("\n## ")[0]
+
+
+def test_summary_of_a_paper_config_says_its_box_is_expected_and_names_the_box_config():
+    """configs/wrist.yaml (the paper's family in its own ±10 box) ends "not identified": the
+    summary says it is expected and which config gives a good result; a box of the user's or
+    another family gets no such line."""
+    data = _data({}, {})
+    data["config"]["excitation"].update(family="paper_wrist", bounds=None)
+    paper = _summary(render_markdown(data))
+    assert "| Paper's box | expected:" in paper
+    assert "`configs/wrist-box.yaml`" in paper
+    data["stage"]["name"] = data["config"]["stage"] = "arm"
+    data["config"]["excitation"]["family"] = "paper_arm"
+    assert "`configs/arm-box.yaml`" in _summary(render_markdown(data))
+    data["config"]["excitation"]["bounds"] = {"a0(1)": [-40.0, 40.0]}
+    assert "Paper's box" not in render_markdown(data)
+    assert "Paper's box" not in render_markdown(_data({}, {}))  # joint_fourier

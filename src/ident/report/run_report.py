@@ -30,7 +30,7 @@ from ident.report.format import fmt as _fmt
 from ident.report.format import pct
 from ident.report.format import table as _table
 from ident.report.headline import NOT_CHECKED, Headline, headline_markdown
-from ident.report.paper import _base_section, _dh_section, paper_tables_section
+from ident.report.paper import _base_section, _dh_section, paper_box_note, paper_tables_section
 from ident.report.run_data import FORMAT, load_run, result_to_dict, save_run, write_replay
 from ident.report.run_verdict import executed_elite, headline_method, stored_verdict
 from ident.report.safety_section import safety_figures, safety_headline, safety_section
@@ -332,7 +332,9 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
             f"{_fmt(elite['objective'].get('cond'))} (scaled, the excitation objective)"
         )
     configured = data["config"].get("optimizer")
-    extra = [
+    box = paper_box_note(data)
+    extra = [["Paper's box", box]] if box else []
+    extra += [
         [
             "Optimizer",
             optimizer_name(data) + (f" (config `optimizer: {configured}`)" if configured else ""),
