@@ -218,6 +218,9 @@ def test_wide_parameter_figures_are_split_into_panels_under_1210_px():
     assert all(len(c) <= MAX_PER_PANEL for c in chunks)
     # every cut falls between two links (12 parameters per link: 24 per panel)
     assert all(names[c[0]] == f"m{1 + c[0] // 12}" for c in chunks)
+    # grouped base parameters ("Izz2R") belong to their link too
+    grouped = [n + ("R" if n.startswith("I") else "") for n in names]
+    assert panel_chunks(grouped) == chunks
     rng = np.random.default_rng(0)
     ref = rng.normal(size=len(names))
     png = parameters_png(names, ref * 1.01, 0.01 * np.abs(ref), ref)

@@ -17,6 +17,7 @@ so no backend is selected globally and nothing leaks between calls.
 from __future__ import annotations
 
 import io
+import re
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
@@ -56,16 +57,16 @@ def _figure(width: float, height: float) -> Figure:
 
 
 def _link(name: str) -> str:
-    """The trailing number of a parameter name (its link or joint): ``Ixx3`` -> ``3``."""
-    digits = len(name) - len(name.rstrip("0123456789"))
-    return name[len(name) - digits :] if digits else ""
+    """The last number in a parameter name (its link or joint): ``Ixx3`` and ``Izz3R`` -> ``3``."""
+    numbers = re.findall(r"\d+", name)
+    return numbers[-1] if numbers else ""
 
 
 def panel_chunks(names: Sequence[str], max_per_panel: int = MAX_PER_PANEL) -> list[list[int]]:
     """Split parameter positions into panels of at most ``max_per_panel``, between links.
 
-    Panels are filled in order; a panel ends at the last change of link (trailing number of
-    the name) that keeps it at least half full, else at ``max_per_panel``. One panel when
+    Panels are filled in order; a panel ends at the last change of link (last number in the
+    name) that keeps it at least half full, else at ``max_per_panel``. One panel when
     everything fits.
 
     Returns
