@@ -1,8 +1,8 @@
 """Reports in a real headless Chromium at 1400x900: the headline block is on the first screen,
 no table cell is clipped, no word in a table is broken across lines, every figure is shown at
-100 % inside the window, and relative measures are in percent, for a run (wrist), a run with a
-joint-space Fourier excitation (arm stage), a URDF robot measured by MuJoCo (UR5) and an
-identification (TX40 log)."""
+100 % inside the window, and relative measures are in percent, for a run (wrist), the paper's
+wrist config (its summary's "Paper's box" row), a run with a joint-space Fourier excitation
+(arm stage), a URDF robot measured by MuJoCo (UR5) and an identification (TX40 log)."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "tests" / "data" / "run" / "quick-wrist.yaml"
 QUICK_UR5 = ROOT / "tests" / "data" / "run" / "quick-ur5-mujoco.yaml"
-KINDS = ["wrist", "arm-fourier", "ur5-mujoco", "identify"]
+KINDS = ["wrist", "wrist-paper", "arm-fourier", "ur5-mujoco", "identify"]
 
 
 def _arm_fourier(tmp_path: Path) -> Path:
@@ -51,6 +51,7 @@ def reports(tmp_path_factory) -> dict[str, Path]:
     base = tmp_path_factory.mktemp("reports")
     for kind, args in (
         ("wrist", ["run", str(QUICK), "--no-replay"]),
+        ("wrist-paper", ["run", str(ROOT / "configs" / "wrist.yaml"), "--quick", "--no-replay"]),
         ("arm-fourier", ["run", str(_arm_fourier(base)), "--no-replay"]),
         ("ur5-mujoco", ["run", str(QUICK_UR5), "--no-replay"]),
         ("identify", ["identify", str(ROOT / "configs" / "tx40.yaml"), "--no-replay"]),
@@ -70,6 +71,9 @@ def test_headline_on_first_screen_and_no_clipped_cell(chromium, reports, kind): 
     assert layout["summary_bottom"] <= REPORT_VIEWPORT["height"], layout
     assert layout["clipped"] == [], layout["clipped"][:5]
     assert layout["wide_tables"] == 0
+    if kind == "wrist-paper":  # the paper's box, said in the summary, on the first screen
+        summary = reports[kind].with_name("report.md").read_text(encoding="utf-8")
+        assert "| Paper's box | expected:" in summary.split("Verdict rule:")[0]
 
 
 def test_the_check_finds_a_clipped_cell(chromium, tmp_path):  # noqa: F811
