@@ -29,7 +29,7 @@ from ident.identify.verdict import (
     log_evidence,
     truth_from_config,
 )
-from ident.report.format import pct
+from ident.report.format import pct, percent
 from ident.report.headline import Headline, headline_markdown
 
 __all__ = [
@@ -51,11 +51,6 @@ def _num(value: float | None, digits: int = 4) -> str:
     if isinstance(value, float) and math.isinf(value):
         return "inf"
     return f"{value:.{digits}g}"
-
-
-def _percent(fraction: float | None) -> float | None:
-    """A fraction as a percentage (``None`` stays ``None``): one unit per table."""
-    return None if fraction is None else 100.0 * fraction
 
 
 def _finite(value: float) -> float | None:
@@ -588,8 +583,8 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
             for c in e["links"]
         ]
         lines.append(
-            f"| {name} | {_num(_percent(e['relative_residual']), 3)} | "
-            f"{_num(_percent(e['held_out_relative_residual']), 3)} "
+            f"| {name} | {_num(percent(e['relative_residual']), 3)} | "
+            f"{_num(percent(e['held_out_relative_residual']), 3)} "
             f"| {_num(e['distance_to_nominal'], 3)} | " + " | ".join(cells) + " |"
         )
     reg = summary["regularization"]

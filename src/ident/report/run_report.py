@@ -27,7 +27,7 @@ from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
 from ident.identify.verdict import VERDICT_RULE, VERDICT_RULE_REAL, Verdict
 from ident.report.format import fmt as _fmt
-from ident.report.format import pct
+from ident.report.format import pct, percent
 from ident.report.format import table as _table
 from ident.report.headline import NOT_CHECKED, Headline, headline_markdown
 from ident.report.paper import _base_section, _dh_section, paper_box_note, paper_tables_section
@@ -223,7 +223,7 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
             [
                 f"max rel. error, major parameters, {m} [%]",
                 *[
-                    _fmt(_percent(e["estimates"].get(m, {}).get("max_rel_error_major")))
+                    _fmt(percent(e["estimates"].get(m, {}).get("max_rel_error_major")))
                     for e in elites
                 ],
             ]
@@ -239,11 +239,6 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         for m, message in e["failures"].items():
             md += [f"> **Elite {e['rank']}, {m}**: {message}", ""]
     return md
-
-
-def _percent(fraction: float | None) -> float | None:
-    """A fraction as a percentage (``None`` stays ``None``): one unit per table."""
-    return None if fraction is None else 100.0 * fraction
 
 
 # ----------------------------------------------------------------------------- page
