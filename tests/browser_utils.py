@@ -179,3 +179,54 @@ def report_layout(context: object, html_path: Path) -> dict:
     )
     page.close()
     return out
+
+
+#: JavaScript: per table cell, the words (runs of characters between spaces and hyphens, where
+#: a line may legitimately break) whose characters lie on more than one line, measured with
+#: Range.getClientRects on each character; per figure, its natural and rendered size.
+_READABILITY_JS = """() => {
+    const broken = [];
+    for (const cell of document.querySelectorAll("th, td")) {
+        const walker = document.createTreeWalker(cell, NodeFilter.SHOW_TEXT);
+        for (let node = walker.nextNode(); node; node = walker.nextNode()) {
+            const text = node.textContent;
+            for (const m of text.matchAll(/[^\\s\\-\u2010-\u2014]+/g)) {
+                if (m[0].length < 2) continue;
+                const tops = new Set();
+                for (let k = m.index; k < m.index + m[0].length; k++) {
+                    const range = document.createRange();
+                    range.setStart(node, k);
+                    range.setEnd(node, k + 1);
+                    for (const r of range.getClientRects()) {
+                        if (r.width > 0) tops.add(Math.round(r.top));
+                    }
+                }
+                if (tops.size > 1) broken.push(m[0]);
+            }
+        }
+    }
+    const page = document.documentElement.clientWidth;
+    const figures = [...document.querySelectorAll("img")].map(img => {
+        const r = img.getBoundingClientRect();
+        return {alt: img.alt.slice(0, 60), natural: img.naturalWidth, shown: r.width,
+                right: r.right, page: page};
+    });
+    return {broken_words: broken, figures: figures};
+}"""
+
+
+def report_readability(context: object, html_path: Path) -> dict:
+    """Open a report at 1400x900 and measure what makes it hard to read.
+
+    Returns ``{"broken_words": [words], "figures": [{alt, natural, shown, right, page}]}``:
+    a word is broken when its characters are laid out on two lines or more (a word wrapped
+    at a hyphen or a space is not); a figure is shown at 100 % when ``shown >= natural`` and
+    fits when ``right <= page`` (all in CSS px at a device scale factor of 1).
+    """
+    page = context.new_page()
+    page.set_viewport_size(REPORT_VIEWPORT)
+    page.goto(html_path.resolve().as_uri())
+    page.wait_for_load_state("load")
+    out = page.evaluate(_READABILITY_JS)
+    page.close()
+    return out

@@ -195,3 +195,107 @@ def test_write_report_needs_result_json(tmp_path):
     (tmp_path / "result.json").write_text('{"format": "other"}')
     with pytest.raises(IdentError, match="format"):
         write_report(tmp_path)
+
+
+def _png_size(png: bytes) -> tuple[int, int]:
+    import io
+
+    from PIL import Image
+
+    return Image.open(io.BytesIO(png)).size
+
+
+def test_wide_parameter_figures_are_split_into_panels_under_1210_px():
+    """A 7-link arm with friction (84 parameters) used to give a 2300 px wide figure whose
+    labels shrank to 5 px in a 1400 px window: now panels are stacked, never wider than
+    MAX_WIDTH_IN at the report's dpi, cut where the link changes."""
+    from ident.report.plots import DPI, MAX_PER_PANEL, MAX_WIDTH_IN, panel_chunks, parameters_png
+
+    kinds = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz", "fv", "fs")
+    names = [f"{k}{link}" for link in range(1, 8) for k in kinds]
+    chunks = panel_chunks(names)
+    assert [i for c in chunks for i in c] == list(range(len(names)))
+    assert all(len(c) <= MAX_PER_PANEL for c in chunks)
+    # every cut falls between two links (12 parameters per link: 24 per panel)
+    assert all(names[c[0]] == f"m{1 + c[0] // 12}" for c in chunks)
+    # grouped base parameters ("Izz2R") belong to their link too
+    grouped = [n + ("R" if n.startswith("I") else "") for n in names]
+    assert panel_chunks(grouped) == chunks
+    rng = np.random.default_rng(0)
+    ref = rng.normal(size=len(names))
+    png = parameters_png(names, ref * 1.01, 0.01 * np.abs(ref), ref)
+    width, height = _png_size(png)
+    assert width <= MAX_WIDTH_IN * DPI
+    assert height > 3 * 4.2 * DPI  # stacked panels, not squeezed into one
+    small_w, small_h = _png_size(parameters_png(names[:10], ref[:10], ref[:10] * 0, ref[:10]))
+    assert small_h < 4.5 * DPI  # a short list stays one panel
+    wide = estimate_png(names, ref, {"ols": (ref * 1.01, 0.01 * np.abs(ref))})
+    assert _png_size(wide)[0] <= MAX_WIDTH_IN * DPI
+    t = np.linspace(0, 1, 50)
+    q = np.zeros((50, 3))
+    path = np.zeros((50, 3))
+    assert _png_size(trajectory_png(t, q, q, ["a", "b", "c"], path=path))[0] <= MAX_WIDTH_IN * DPI
+
+
+def unitless_labels_without_percent(markdown: str) -> list[str]:
+    """Labels (table headers and row labels) of relative measures that do not say ``[%]``.
+
+    Every relative measure in a report table is in percent, said in its label, so that no
+    table mixes fractions (0.12) with percents (12 %). The summary table writes units inline.
+    """
+    bad = []
+    lines = markdown.splitlines()
+    in_summary = False
+    for k, line in enumerate(lines):
+        if line.startswith("## "):
+            in_summary = line.strip() == "## Summary"
+        is_table = line.startswith("|") and not re.match(r"^\|[\s:|-]+\|$", line)
+        if not is_table or in_summary:
+            continue
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        header = k + 1 < len(lines) and re.match(r"^\|[\s:|-]+\|$", lines[k + 1])
+        labels = cells if header else cells[:1]
+        bad += [c for c in labels if re.search(r"\brel(ative|\.)", c) and "%" not in c]
+    return bad
+
+
+def test_relative_measures_in_tables_are_percent():
+    est = {
+        "x": [1.1],
+        "std": [0.1],
+        "condition_number": 3.0,
+        "residual_rms": [0.2],
+        "relative_residual": 0.01,
+        "message": "ok",
+        **error_measures(
+            np.array([1.1]), np.array([0.1]), np.array([1.0]), reference_share=np.array([1.0])
+        ),
+    }
+    md = render_markdown(_data({"ols": est}, {}))
+    assert "| max rel. error, major parameters, ols [%] | 10 |" in md
+    assert unitless_labels_without_percent(md) == []
+    # the check finds a fraction column
+    assert unitless_labels_without_percent("| a | relative residual |\n|---|---|\n| x | 0.1 |") == [
+        "relative residual"
+    ]
+
+
+def _summary(md: str) -> str:
+    return md.split("## Summary")[1].split("\n## ")[0]
+
+
+def test_summary_of_a_paper_config_says_its_box_is_expected_and_names_the_box_config():
+    """configs/wrist.yaml (the paper's family in its own ±10 box) ends "not identified": the
+    summary says it is expected and which config gives a good result; a box of the user's or
+    another family gets no such line."""
+    data = _data({}, {})
+    data["config"]["excitation"].update(family="paper_wrist", bounds=None)
+    paper = _summary(render_markdown(data))
+    assert "| Paper's box | expected:" in paper
+    assert "`configs/wrist-box.yaml`" in paper
+    data["stage"]["name"] = data["config"]["stage"] = "arm"
+    data["config"]["excitation"]["family"] = "paper_arm"
+    assert "`configs/arm-box.yaml`" in _summary(render_markdown(data))
+    data["config"]["excitation"]["bounds"] = {"a0(1)": [-40.0, 40.0]}
+    assert "Paper's box" not in render_markdown(data)
+    assert "Paper's box" not in render_markdown(_data({}, {}))  # joint_fourier

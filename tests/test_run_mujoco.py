@@ -106,3 +106,40 @@ def test_shipped_robot_configs_identify_within_5_percent(name, shipped_run) -> N
     assert max(major.values()) < 5.0, major
     extras = {n: e for n, e in _errors(run, 0.0).items() if n[:2] in ("fv", "fs", "Ia")}
     assert max(extras.values()) < 5.0, extras
+
+
+def test_torque_share_is_filled_and_matches_pinocchio_and_closed_form_friction(quick_run) -> None:
+    """The report's "torque share" of a simulated-log run, against an independent reference.
+
+    Reference: the true torque of the elite's designed trajectory is Pinocchio's RNEA on the
+    run's URDF plus ``fv dq + fs sign(dq) + Ia ddq`` (the configured truth), and the viscous
+    column of joint j is ``dq_j`` on row j, so ``share(fv_j) = fv_j ||dq_j|| / ||tau||``.
+    (It was empty on every URDF robot: only the ideal measurement stored the column norms.)
+    """
+    import pinocchio as pin
+
+    from ident.report.format import fmt
+
+    run = json.loads((quick_run / "result.json").read_text())
+    stage = run["stage"]
+    est = run["elites"][0]["estimates"]["wls"]
+    share = dict(zip(stage["base_names"], est["torque_share"], strict=True))
+    assert all(v is not None for v in share.values()), share
+    header = (quick_run / "elites" / "elite_1.csv").read_text().splitlines()[0].split(",")
+    data = np.loadtxt(quick_run / "elites" / "elite_1.csv", delimiter=",", skiprows=1)
+    q, dq, ddq = (
+        data[:, [k for k, h in enumerate(header) if h.startswith(p)]] for p in ("q_", "dq_", "ddq_")
+    )
+    model = pin.buildModelFromUrdf(str(quick_run / "robot.urdf"))
+    pdata = model.createData()
+    fv = np.array([3.0, 3.0, 2.0, 0.5, 0.5, 0.5])
+    fs = np.array([5.0, 5.0, 3.0, 1.0, 1.0, 1.0])
+    armature = np.array([0.5, 0.5, 0.3, 0.05, 0.05, 0.05])
+    tau = np.array([pin.rnea(model, pdata, *s).copy() for s in zip(q, dq, ddq, strict=True)])
+    tau += fv * dq + fs * np.sign(dq) + armature * ddq
+    expected = fv * np.linalg.norm(dq, axis=0) / np.linalg.norm(tau)
+    got = np.array([share[f"fv{j + 1}"] for j in range(6)])
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
+    # the report renders the column from these values (percent, never empty)
+    report = (quick_run / "report.md").read_text()
+    assert f"| {fmt(100 * share['fv1'], 2)} | yes |" in report

@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
-__all__ = ["fmt", "pct", "table"]
+__all__ = ["fmt", "pct", "percent", "table"]
 
 _NUMERIC = re.compile(r"^[-+]?(\d+(\.\d*)?|\.\d+)([eE][-+]?\d+)?( ?%)?$")
 
@@ -38,6 +38,11 @@ def pct(value: Any, digits: int = 3) -> str:
     """A percentage [%] with its sign (``12.3 %``); ``—`` for missing."""
     text = fmt(value, digits)
     return text if text == "—" else f"{text} %"
+
+
+def percent(fraction: float | None) -> float | None:
+    """A fraction as a percentage (``None`` stays ``None``): a table uses one of the two."""
+    return None if fraction is None else 100.0 * fraction
 
 
 def _is_numeric(cell: str) -> bool:

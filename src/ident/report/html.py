@@ -35,7 +35,8 @@ h1, h2, h3 { line-height: 1.2; } h1 { font-size: 1.6em; margin: .3em 0; }
 h2 { border-bottom: 1px solid #ddd; padding-bottom: .2em; }
 table { border-collapse: collapse; margin: .8em 0; font-size: .9em; max-width: 100%; }
 th, td { border: 1px solid #ccc; padding: .25em .6em; text-align: left; vertical-align: top;
-         overflow-wrap: anywhere; }
+         overflow-wrap: break-word; word-break: normal; hyphens: manual; }
+td code { overflow-wrap: anywhere; }
 th { background: #f3f3f3; }
 h2#summary + table td:first-child { font-weight: 600; white-space: normal; width: 16em; }
 h2#summary + table { font-size: 1em; }

@@ -29,7 +29,7 @@ from ident.identify.verdict import (
     log_evidence,
     truth_from_config,
 )
-from ident.report.format import pct
+from ident.report.format import pct, percent
 from ident.report.headline import Headline, headline_markdown
 
 __all__ = [
@@ -348,24 +348,26 @@ def _markdown(
         "",
         "| parameters | "
         + " | ".join(f"RMSE {n} [{u}]" for n, u in zip(names, units, strict=True))
-        + " | relative residual | all samples: relative residual |",
+        + " | relative residual [%] | all samples: relative residual [%] |",
         "| --- |" + " --- |" * (len(names) + 2),
     ]
     for label, p in result.predictions.items():
         lines.append(
             f"| {label} | "
             + " | ".join(_num(v) for v in p.metrics.rmse)
-            + f" | {p.metrics.total_relative_residual:.4f} | "
-            f"{p.metrics_all.total_relative_residual:.4f} |"
+            + f" | {_num(100 * p.metrics.total_relative_residual, 3)} | "
+            f"{_num(100 * p.metrics_all.total_relative_residual, 3)} |"
         )
     lines += [
         "",
-        "| parameters | " + " | ".join(f"rel. residual {n}" for n in names) + " |",
+        "| parameters | " + " | ".join(f"rel. residual {n} [%]" for n in names) + " |",
         "| --- |" + " --- |" * len(names),
     ]
     for label, p in result.predictions.items():
         lines.append(
-            f"| {label} | " + " | ".join(_num(v, 3) for v in p.metrics.relative_residual) + " |"
+            f"| {label} | "
+            + " | ".join(_num(100 * v, 3) for v in p.metrics.relative_residual)
+            + " |"
         )
     lines += [""]
     lines += [
@@ -572,7 +574,8 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
         "parameters closest to the URDF's with the same base values. Residuals are relative "
         "(identification rows; held-out rows above the velocity threshold).",
         "",
-        "| estimator | residual | held-out | distance to URDF | " + " | ".join(links) + " |",
+        "| estimator | relative residual [%] | held-out relative residual [%] | "
+        "distance to URDF | " + " | ".join(links) + " |",
         "| --- | --- | --- | --- | " + " | ".join("---" for _ in links) + " |",
     ]
     for name, e in estimators.items():
@@ -582,7 +585,8 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
             for c in e["links"]
         ]
         lines.append(
-            f"| {name} | {_num(e['relative_residual'])} | {_num(e['held_out_relative_residual'])} "
+            f"| {name} | {_num(percent(e['relative_residual']), 3)} | "
+            f"{_num(percent(e['held_out_relative_residual']), 3)} "
             f"| {_num(e['distance_to_nominal'], 3)} | " + " | ".join(cells) + " |"
         )
     reg = summary["regularization"]

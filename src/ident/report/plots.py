@@ -17,6 +17,7 @@ so no backend is selected globally and nothing leaks between calls.
 from __future__ import annotations
 
 import io
+import re
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
@@ -29,6 +30,7 @@ __all__ = [
     "estimate_png",
     "figure_png",
     "limits_png",
+    "panel_chunks",
     "parameters_png",
     "torque_png",
     "trajectory_png",
@@ -39,14 +41,59 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 
+#: Resolution of the report figures [dots per inch].
+DPI = 110
+#: Widest figure [in]: 11 in x 110 dpi = 1210 px, shown at 100 % in a 1400 px browser window
+#: (the report's text column is 80 em = 1280 px wide), so labels keep their size.
+MAX_WIDTH_IN = 11.0
+#: Most parameters on one panel of a parameter figure (0.32 in each: 28 fill 11 in).
+MAX_PER_PANEL = 28
+
 
 def _figure(width: float, height: float) -> Figure:
     from matplotlib.figure import Figure
 
-    return Figure(figsize=(width, height), layout="constrained")
+    return Figure(figsize=(min(width, MAX_WIDTH_IN), height), layout="constrained")
 
 
-def figure_png(fig: object, dpi: int = 110) -> bytes:
+def _link(name: str) -> str:
+    """The last number in a parameter name (its link or joint): ``Ixx3`` and ``Izz3R`` -> ``3``."""
+    numbers = re.findall(r"\d+", name)
+    return numbers[-1] if numbers else ""
+
+
+def panel_chunks(names: Sequence[str], max_per_panel: int = MAX_PER_PANEL) -> list[list[int]]:
+    """Split parameter positions into panels of at most ``max_per_panel``, between links.
+
+    Panels are filled in order; a panel ends at the last change of link (last number in the
+    name) that keeps it at least half full, else at ``max_per_panel``. One panel when
+    everything fits.
+
+    Returns
+    -------
+    :
+        Consecutive lists of positions into ``names`` covering ``range(len(names))``.
+    """
+    n = len(names)
+    if n <= max_per_panel:
+        return [list(range(n))]
+    chunks: list[list[int]] = []
+    start = 0
+    while start < n:
+        stop = min(n, start + max_per_panel)
+        if stop < n:
+            cuts = [
+                k
+                for k in range(start + max(1, max_per_panel // 2), stop + 1)
+                if _link(names[k - 1]) != _link(names[k])
+            ]
+            stop = cuts[-1] if cuts else stop
+        chunks.append(list(range(start, stop)))
+        start = stop
+    return chunks
+
+
+def figure_png(fig: object, dpi: int = DPI) -> bytes:
     """Render a matplotlib ``Figure`` to PNG bytes (no timestamp in the metadata)."""
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})  # type: ignore[attr-defined]
@@ -147,7 +194,7 @@ def trajectory_png(
         PNG bytes.
     """
     n_panels = 3 if path is not None else 2
-    fig = _figure(5.0 * n_panels, 4.2)
+    fig = _figure(5.0 * n_panels, 4.2)  # capped at MAX_WIDTH_IN
     fig.suptitle(title)
     colors = [f"C{k}" for k in range(len(joint_labels))]
     panel = 1
@@ -208,20 +255,29 @@ def estimate_png(
         PNG bytes; bars within the grey +-3 band are consistent with the reported std.
     """
     n = len(names)
-    fig = _figure(max(6.0, 0.35 * n + 2.0), 4.0)
-    ax = fig.add_subplot()
+    chunks = panel_chunks(names)
+    per = max(len(c) for c in chunks)
+    fig = _figure(max(6.0, 0.35 * per + 2.0), 4.0 * len(chunks))
+    axes = fig.subplots(len(chunks), 1, squeeze=False)[:, 0]
     width = 0.8 / max(1, len(estimates))
-    for k, (method, (x, std)) in enumerate(estimates.items()):
+    z_all = {}
+    for method, (x, std) in estimates.items():
         x, std = np.asarray(x, dtype=float), np.asarray(std, dtype=float)
         with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.where(std > 0, (x - true) / std, 0.0)
-        ax.bar(np.arange(n) + (k - (len(estimates) - 1) / 2) * width, z, width, label=method)
-    ax.axhspan(-3, 3, color="0.9", zorder=0)
-    ax.axhline(0, color="k", lw=0.8)
-    ax.set_xticks(np.arange(n), list(names), rotation=60, ha="right", fontsize="small")
-    ax.set_ylabel("(identified - true) / std")
-    ax.set_title(title)
-    ax.legend(fontsize="small")
+            z_all[method] = np.where(std > 0, (x - true) / std, 0.0)
+    for p_k, (ax, chunk) in enumerate(zip(axes, chunks, strict=True)):
+        pos = np.arange(len(chunk))
+        for k, (method, z) in enumerate(z_all.items()):
+            offset = (k - (len(estimates) - 1) / 2) * width
+            ax.bar(pos + offset, z[chunk], width, label=method)
+        ax.axhspan(-3, 3, color="0.9", zorder=0)
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_xticks(pos, [names[i] for i in chunk], rotation=60, ha="right")
+        ax.set_xlim(-0.6, max(per, 1) - 0.4)  # same bar width on every panel
+        ax.set_ylabel("(identified - true) / std")
+        if p_k == 0:
+            ax.set_title(title + (f" ({len(chunks)} panels, {n} parameters)" if n > per else ""))
+            ax.legend(fontsize="small")
     return figure_png(fig)
 
 
@@ -270,43 +326,51 @@ def parameters_png(
     keep = np.flatnonzero(drawn)
     strong = np.ones(len(names), bool) if highlight is None else np.asarray(highlight, bool)
     n = len(keep)
-    fig = _figure(max(7.0, 0.32 * n + 2.5), 4.2)
-    ax = fig.add_subplot()
+    chunks = panel_chunks([names[int(i)] for i in keep]) if n else [[]]
+    per = max(len(c) for c in chunks)
+    fig = _figure(max(7.0, 0.32 * per + 2.5), 4.2 * len(chunks))
+    axes = fig.subplots(len(chunks), 1, squeeze=False)[:, 0]
+    heading = title + f" (bars ±3σ; dashed ±{', ±'.join(f'{b:g}' for b in bands)} %)"
     if n:
         dev = 100.0 * (x[keep] - ref[keep]) / np.abs(ref[keep])
         bar = 300.0 * std[keep] / np.abs(ref[keep])
-        pos = np.arange(n)
-        for mask, color, label in (
-            (strong[keep], "C3", "major (torque share >= 1 %)"),
-            (~strong[keep], "0.55", "minor"),
-        ):
-            if mask.any():
-                ax.errorbar(
-                    pos[mask],
-                    dev[mask],
-                    yerr=bar[mask],
-                    fmt="o",
-                    ms=4,
-                    color=color,
-                    ecolor=color,
-                    capsize=2,
-                    label=label if highlight is not None else None,
-                )
-        for b in bands:
-            ax.axhline(b, color="0.4", ls="--", lw=0.7)
-            ax.axhline(-b, color="0.4", ls="--", lw=0.7)
-        ax.axhline(0.0, color="k", lw=0.8)
-        ax.set_yscale("symlog", linthresh=1.0)
-        ax.set_xticks(pos, [names[int(i)] for i in keep], rotation=60, ha="right", fontsize="small")
-        if highlight is not None:
-            ax.legend(fontsize="small", loc="best")
+        for p_k, (ax, chunk) in enumerate(zip(axes, chunks, strict=True)):
+            pos = np.arange(len(chunk))
+            for mask, color, label in (
+                (strong[keep][chunk], "C3", "major (torque share >= 1 %)"),
+                (~strong[keep][chunk], "0.55", "minor"),
+            ):
+                if mask.any():
+                    ax.errorbar(
+                        pos[mask],
+                        dev[chunk][mask],
+                        yerr=bar[chunk][mask],
+                        fmt="o",
+                        ms=4,
+                        color=color,
+                        ecolor=color,
+                        capsize=2,
+                        label=label if highlight is not None and p_k == 0 else None,
+                    )
+            for b in bands:
+                ax.axhline(b, color="0.4", ls="--", lw=0.7)
+                ax.axhline(-b, color="0.4", ls="--", lw=0.7)
+            ax.axhline(0.0, color="k", lw=0.8)
+            ax.set_yscale("symlog", linthresh=1.0)
+            ax.set_xticks(pos, [names[int(keep[i])] for i in chunk], rotation=60, ha="right")
+            ax.set_xlim(-0.6, per - 0.4)  # same spacing on every panel
+            if highlight is not None and p_k == 0:
+                ax.legend(fontsize="small", loc="best")
     else:
-        ax.text(
-            0.5, 0.5, "no parameter with a reference value", ha="center", transform=ax.transAxes
-        )
-    ax.set_ylabel(f"(identified - {reference_label}) / |{reference_label}| [%]")
-    ax.set_title(title + f" (bars ±3σ; dashed ±{', ±'.join(f'{b:g}' for b in bands)} %)")
-    ax.grid(alpha=0.3, axis="y")
+        ax0 = axes[0]
+        note = "no parameter with a reference value"
+        ax0.text(0.5, 0.5, note, ha="center", transform=ax0.transAxes)
+    for ax in axes:
+        ax.set_ylabel(f"(identified - {reference_label}) / |{reference_label}| [%]")
+        ax.grid(alpha=0.3, axis="y")
+    if len(chunks) > 1:
+        heading += f"\n{n} parameters in {len(chunks)} panels, split between links"
+    axes[0].set_title(heading)
     return figure_png(fig)
 
 

@@ -27,10 +27,10 @@ from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
 from ident.identify.verdict import VERDICT_RULE, VERDICT_RULE_REAL, Verdict
 from ident.report.format import fmt as _fmt
-from ident.report.format import pct
+from ident.report.format import pct, percent
 from ident.report.format import table as _table
 from ident.report.headline import NOT_CHECKED, Headline, headline_markdown
-from ident.report.paper import _base_section, _dh_section, paper_tables_section
+from ident.report.paper import _base_section, _dh_section, paper_box_note, paper_tables_section
 from ident.report.run_data import FORMAT, load_run, result_to_dict, save_run, write_replay
 from ident.report.run_verdict import executed_elite, headline_method, stored_verdict
 from ident.report.safety_section import safety_figures, safety_headline, safety_section
@@ -221,8 +221,11 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         )
         rows.append(
             [
-                f"max rel. error, major parameters, {m}",
-                *[_fmt(e["estimates"].get(m, {}).get("max_rel_error_major")) for e in elites],
+                f"max rel. error, major parameters, {m} [%]",
+                *[
+                    _fmt(percent(e["estimates"].get(m, {}).get("max_rel_error_major")))
+                    for e in elites
+                ],
             ]
         )
         rows.append(
@@ -324,7 +327,9 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
             f"{_fmt(elite['objective'].get('cond'))} (scaled, the excitation objective)"
         )
     configured = data["config"].get("optimizer")
-    extra = [
+    box = paper_box_note(data)
+    extra = [["Paper's box", box]] if box else []
+    extra += [
         [
             "Optimizer",
             optimizer_name(data) + (f" (config `optimizer: {configured}`)" if configured else ""),

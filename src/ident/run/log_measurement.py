@@ -44,6 +44,7 @@ __all__ = [
     "log_stage_info",
     "save_logs",
     "extra_terms",
+    "trajectory_column_norms",
     "identify_config",
     "measure_and_identify",
     "true_parameters",
@@ -159,6 +160,28 @@ def reference_share(
     return torque_shares(Yb, pm.base.project(truth))
 
 
+def trajectory_column_norms(
+    pm: ParameterModel,
+    robot: Robot,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    true_base: FloatArray,
+) -> tuple[FloatArray, float]:
+    """Base-column norms ``||W_i||`` on a trajectory and the true torque norm ``||W_b beta||``.
+
+    ``q, dq, ddq`` (n_samples, nq / nv) [rad, rad/s, rad/s^2] of the designed trajectory;
+    ``true_base`` (n_base,) the simulator's truth. With them :func:`error_measures` gives each
+    parameter's torque share on this trajectory (as the ideal measurement does).
+    """
+    Yb = pm.columns(
+        joint_torque_regressor(robot.chain, q, dq, ddq),
+        extra_columns(pm.terms, dq, ddq),
+        pm.base.independent,
+    ).reshape(-1, len(pm.base.independent))
+    return np.linalg.norm(Yb, axis=0), float(np.linalg.norm(Yb @ np.asarray(true_base)))
+
+
 def identify_config(
     config: RunConfig, log_section: dict[str, Any], *, robot_path: Path | None = None
 ) -> IdentifyConfig:
@@ -247,9 +270,14 @@ def identify_elite_log(
     failures: dict[str, str] = {}
     outcome: LogOutcome | None = None
     tau = np.full((t.shape[0], robot.nv), np.nan)
+    norms: FloatArray | None = None
+    true_norm: float | None = None
     try:
         outcome = measure_and_identify(config, robot, t, q, dq, ddq, seed=seed)
         estimates[method] = outcome.result.estimate
+        norms, true_norm = trajectory_column_norms(
+            outcome.result.parameters, robot, q, dq, ddq, stage.true_base
+        )
         log = outcome.log
         start = log.t[0]
         tau = np.column_stack(
@@ -271,6 +299,8 @@ def identify_elite_log(
         estimates=estimates,
         failures=failures,
         log=outcome,
+        base_column_norms=norms,
+        true_torque_norm=true_norm,
     )
 
 
