@@ -22,6 +22,7 @@ from ident.excitation.check import SafetyReport, check_trajectory, dense_family_
 from ident.excitation.executable import executable_trajectory
 from ident.excitation.safety import SafetyModel
 from ident.run.config import RunConfig
+from ident.run.exports.run_exports import check_export_targets
 from ident.trajectory import JointTrajectory
 
 __all__ = ["ExecutablePlan", "check_elites", "plan_executable"]
@@ -102,7 +103,12 @@ def plan_executable(
         full = check_trajectory(
             robot, safety, trajectory.t, trajectory.q, trajectory.dq, trajectory.ddq, rate_hz=rate
         )
-        if full.usable:
+        refusal = None
+        if full.usable:  # the export targets' own rules (libfranka's jerk, ...) hold too
+            refusal = check_export_targets(
+                ctl.export, trajectory, str(robot.urdf_text), getattr(robot, "ddq_max", None)
+            )
+        if full.usable and refusal is None:
             return ExecutablePlan(
                 rank,
                 trajectory,
@@ -110,6 +116,9 @@ def plan_executable(
                 f"elite {rank}: approach, {ctl.n_periods} period(s) and return at "
                 f"{ctl.rate_hz:g} Hz, {full.summary()}",
             )
+        if refusal is not None:
+            tried.append(f"elite {rank}: refused by controller.export: {refusal}")
+            continue
         tried.append(f"elite {rank}'s approach or return: {full.summary()}")
     if not tried:
         worst = reports[0].summary() if reports else "no elite"

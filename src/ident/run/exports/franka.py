@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ident.excitation.constraints import JointLimits
 from ident.fileio import atomic_write_text
 from ident.run.exports.common import (
     ExportError,
@@ -46,6 +47,7 @@ __all__ = [
     "accepts_franka",
     "PANDA_VELOCITY",
     "check_franka",
+    "franka_limits",
     "limit_rate_bounds",
     "prepare_franka",
     "read_franka",
@@ -71,6 +73,30 @@ PANDA_VELOCITY = (
 #: Joint ranges [rad] (Franka documentation, "Robot and interface specifications")
 PANDA_Q_MAX = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 PANDA_Q_MIN = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
+
+
+#: The velocity the design keeps [rad/s]: within it, every acceleration within
+#: ``kMaxJointAcceleration`` passes ``limitRate``'s velocity-dependent bound, since
+#: ``(J/A)(V - |v|) >= (J/A)(A^2/J) = A`` for ``|v| <= V - A^2/J``.
+PANDA_DESIGN_VELOCITY = PANDA_VELOCITY - PANDA_ACCELERATION**2 / PANDA_JERK
+
+
+def franka_limits(joint_names: tuple[str, ...], target: ExportTarget) -> JointLimits:
+    """The joint limits a design must keep for libfranka (one per trajectory joint).
+
+    Positions: the Panda's joint ranges; velocities: :data:`PANDA_DESIGN_VELOCITY`
+    (``kMaxJointVelocity`` less ``A^2/J``, so that ``limitRate``'s acceleration bound near the
+    velocity limit is never the binding one); accelerations: ``kMaxJointAcceleration``. The
+    jerk is checked on the 1 kHz commands (:func:`check_franka`), not here.
+    """
+    accepts_franka(joint_names, target)
+    return JointLimits(
+        joint_names=tuple(joint_names),
+        q_lower=PANDA_Q_MIN,
+        q_upper=PANDA_Q_MAX,
+        dq_max=PANDA_DESIGN_VELOCITY,
+        ddq_max=PANDA_ACCELERATION,
+    )
 
 
 def finite_differences(q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
