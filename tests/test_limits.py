@@ -285,3 +285,26 @@ measurement: {{torque_noise_std: 0.0}}
     state = json.loads((run_dir / "run.json").read_text())
     assert state["export_limits"][0].startswith("franka: velocity limits")
     assert "Limits tightened by the export targets: franka:" in (run_dir / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_robot_velocity_limits_below_the_design_are_kept_by_the_trajectory(tmp_path):
+    """quick-wrist.yaml's design reaches 1.64 rad/s on joint 4 and 1.01 rad/s on joint 5
+    (measured); with robot.velocity_limits {joint_4: 1.2, joint_5: 0.8} the executable
+    trajectory (1 kHz, approach and return included) keeps below both."""
+    limits = {"joint_4": 1.2, "joint_5": 0.8}
+    path = _config(
+        tmp_path,
+        QUICK,
+        "robot: ../../../configs/paper6r.yaml",
+        f"robot: {{description: {PAPER6R}, velocity_limits: {limits}}}",
+    )
+    result = runner.invoke(app, ["run", str(path), "--out", str(tmp_path / "runs"), "--no-replay"])
+    assert result.exit_code == 0, result.output
+    (run_dir,) = [d for d in (tmp_path / "runs").iterdir() if d.is_dir()]
+    trajectory = read_trajectory_csv(run_dir / "trajectory.csv")
+    assert np.all(np.diff(trajectory.t) <= 1e-3 + 1e-12)  # the controller's 1 kHz samples
+    peak = dict(zip(trajectory.joint_names, np.max(np.abs(trajectory.dq), axis=0), strict=True))
+    assert peak["joint_4"] <= 1.2
+    assert peak["joint_5"] <= 0.8
+    assert peak["joint_4"] > 0.5 and peak["joint_5"] > 0.4  # the joints do move

@@ -15,10 +15,10 @@ import numpy as np
 
 from ident.errors import ConfigError
 from ident.excitation.constraints import JointLimits, tighten_limits
+from ident.run.exports import registry
 from ident.run.exports.common import ExportError, target_from_urdf
 from ident.run.exports.registry import (
     EXPORT_FOLDER,
-    EXPORTERS,
     ExportOutcome,
     check_export_names,
     check_export_robot,
@@ -58,7 +58,7 @@ def effective_limits(
     try:
         target = target_from_urdf(str(robot.urdf_text), limits.ddq_max)
         for name in check_export_names(names):
-            published = EXPORTERS[name].limits
+            published = registry.EXPORTERS[name].limits
             if published is None:
                 continue
             limits, changed = tighten_limits(
@@ -74,19 +74,28 @@ def effective_limits(
 def check_export_targets(
     names: Sequence[str], trajectory: JointTrajectory, urdf_text: str, ddq_max: Any
 ) -> str | None:
-    """Run every requested export's own check on ``trajectory``; the first refusal, or None.
+    """Check ``trajectory`` against the limits of each export target that publishes its own.
 
-    The same ``prepare`` :func:`~ident.run.exports.registry.export_trajectory` runs before
-    writing (Franka: libfranka's ``limitRate`` on the 1 kHz commands, jerk included; UR: the
-    model's speeds and accelerations at 500 Hz), so a trajectory the run certifies is one its
-    exports accept. Nothing is written.
+    For every export in ``names`` with :attr:`~ident.run.exports.registry.Exporter.limits`
+    (``franka``, ``urscript``), the same ``prepare`` :func:`~ident.run.exports.registry.
+    export_trajectory` runs before writing (Franka: libfranka's ``limitRate`` on the 1 kHz
+    commands, jerk included; UR: the model's speeds and accelerations at 500 Hz), so that a
+    trajectory the run certifies is one these controllers run unchanged. Nothing is written.
+
+    Returns
+    -------
+    :
+        The first refusal (``"franka: ..."``), or None.
     """
     if not names:
         return None
     target = target_from_urdf(urdf_text, None if ddq_max is None else np.asarray(ddq_max))
     for name in check_export_names(names):
+        exporter = registry.EXPORTERS[name]
+        if exporter.limits is None:
+            continue
         try:
-            EXPORTERS[name].prepare(trajectory, target)
+            exporter.prepare(trajectory, target)
         except ExportError as e:
             return str(e) if str(e).startswith(f"{name}:") else f"{name}: {e}"
     return None
