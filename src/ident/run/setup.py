@@ -239,7 +239,9 @@ def _check_sampling(config: RunConfig, family: Any) -> None:
     nyquist = 0.5 * m.rate_hz
     pre = config.identification.preprocess
     for key, section in (("lowpass", pre.lowpass), ("torque_lowpass", pre.torque_lowpass)):
-        if section is not None and section.cutoff_hz >= nyquist:
+        if section is None or isinstance(section, str):  # 'auto': chosen from the log
+            continue
+        if section.cutoff_hz >= nyquist:
             raise ConfigError(
                 f"identification.preprocess.{key}.cutoff_hz = {section.cutoff_hz:g} Hz is at or "
                 f"above the Nyquist frequency {nyquist:g} Hz of measurement.rate_hz = "

@@ -147,9 +147,9 @@ def check_franka(samples: ExportSamples) -> None:
     fix = {
         "position": "; give the URDF the Panda's joint ranges, or move the excitation's mean "
         "posture (excitation.bounds q0[...])",
-        "velocity": f"; the run keeps the URDF's <limit velocity>, libfranka's is lower (a "
-        f"margin for 3 lost packets): lower it in the URDF to the values of docs/execute.md, "
-        f"or {slower}",
+        "velocity": f"; libfranka's limit is below the URDF's (a margin for 3 lost packets): "
+        f"a run with franka in controller.export designs within it (docs/execute.md, 'The "
+        f"limits a run keeps'); else set robot.velocity_limits, or {slower}",
         "acceleration": f"; set robot.acceleration_limits to libfranka's (docs/execute.md), "
         f"or {slower}",
         "jerk": f"; {slower} (the jerk grows with the cube of the frequency)",
