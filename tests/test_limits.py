@@ -24,9 +24,10 @@ from ident.run.exports.franka import (
     PANDA_VELOCITY,
     check_franka,
 )
+from ident.run.exports.run_exports import check_export_targets
 from ident.run.exports.urscript import UR_MODELS
 from ident.run.setup import prepare_run
-from ident.trajectory import read_trajectory_csv
+from ident.trajectory import JointTrajectory, read_trajectory_csv
 
 ROOT = Path(__file__).parents[1]
 QUICK = ROOT / "tests" / "data" / "run" / "quick-wrist.yaml"
@@ -309,3 +310,32 @@ def test_robot_velocity_limits_below_the_design_are_kept_by_the_trajectory(tmp_p
     assert peak["joint_5"] <= 0.8
     assert peak["joint_4"] > 0.5  # the joints do move
     assert peak["joint_5"] > 0.4
+
+
+def _ramp_trajectory(jerk: float) -> JointTrajectory:
+    """1 kHz plan from rest: joint 2's acceleration rises to 5 rad/s^2 at ``jerk`` [rad/s^3],
+    holds 0.2 s, and falls back; every velocity and acceleration far inside libfranka's."""
+    dt = 1e-3
+    ramp = np.arange(int(round(5.0 / jerk / dt)) + 1) * jerk * dt
+    a = np.concatenate([np.zeros(10), ramp, np.full(200, 5.0), ramp[::-1], np.zeros(10)])
+    n = a.size
+    dq = np.cumsum(a) * dt
+    q = np.cumsum(dq) * dt
+    names = tuple(f"panda_joint{k}" for k in range(1, 8))
+    start = np.array([0.0, 0.0, 0.0, -1.5, 0.0, 1.5, 0.0])
+    Q = np.tile(start, (n, 1))
+    Q[:, 1] += q
+    dQ, ddQ = np.zeros((n, 7)), np.zeros((n, 7))
+    dQ[:, 1], ddQ[:, 1] = dq, a
+    return JointTrajectory(np.arange(n) * dt, Q, dQ, ddQ, names)
+
+
+def test_the_dense_check_runs_the_franka_jerk_check_of_its_export():
+    urdf = (ROOT / "robot/urdf/panda.urdf").read_text()
+    smooth = _ramp_trajectory(jerk=1000.0)
+    assert check_export_targets(["ros2", "franka"], smooth, urdf, None) is None
+    steep = _ramp_trajectory(jerk=5000.0)  # joint 2's kMaxJointJerk is 3750 rad/s^3
+    refusal = check_export_targets(["ros2", "franka"], steep, urdf, None)
+    assert refusal is not None
+    assert refusal.startswith("franka: libfranka's limitRate would clip: joint 'panda_joint2' jerk")
+    assert check_export_targets(["ros2"], steep, urdf, None) is None  # ros2 publishes no limits

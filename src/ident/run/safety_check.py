@@ -5,9 +5,11 @@ own links, the floor, the config's obstacles, and the position, velocity, accele
 torque limits (:func:`ident.excitation.check.check_trajectory`, on the family's closed form at
 the dense times). The best elite that passes becomes the executable trajectory: an approach
 from the home posture, the excitation periods and the return, at the controller's rate,
-checked again as a whole. A trajectory that fails is never reported as usable; when none
-passes, the run says which pair or limit, when and by how much, and writes no
-``trajectory.csv``.
+checked again as a whole, and, for each ``controller.export`` target with published limits
+(libfranka, UR), by that export's own check (:func:`ident.run.exports.run_exports.
+check_export_targets`: libfranka's jerk included). A trajectory that fails is never reported
+as usable; when none passes, the run says which pair or limit, when and by how much, and
+writes no ``trajectory.csv``.
 """
 
 from __future__ import annotations
@@ -104,7 +106,7 @@ def plan_executable(
             robot, safety, trajectory.t, trajectory.q, trajectory.dq, trajectory.ddq, rate_hz=rate
         )
         refusal = None
-        if full.usable:  # the export targets' own rules (libfranka's jerk, ...) hold too
+        if full.usable and ctl.export:  # the export targets' own limits (libfranka's jerk)
             refusal = check_export_targets(
                 ctl.export, trajectory, str(robot.urdf_text), getattr(robot, "ddq_max", None)
             )
