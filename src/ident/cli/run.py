@@ -63,6 +63,8 @@ def run(
         # everything that can be wrong with the config is found before the folder exists
         setup = prepare_run(cfg, source=config)
         check_run_exports(cfg, setup.robot, config)
+        for note in setup.limit_notes:  # export targets' limits the design keeps
+            typer.echo(f"limits tightened by {note}", err=True)
         if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
             typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
@@ -74,6 +76,7 @@ def run(
                 "seed": cfg.seed,
                 "quick": quick,
                 "command": " ".join(["ident", *sys.argv[1:]]),
+                "export_limits": list(setup.limit_notes),
             },
         )
         typer.echo(f"run folder: {rundir.path}", err=True)

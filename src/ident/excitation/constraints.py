@@ -35,6 +35,7 @@ __all__ = [
     "evaluate_constraints",
     "limit_violations",
     "penalty",
+    "tighten_limits",
 ]
 
 CONTINUITY_TOLERANCE = 1e-8
@@ -94,6 +95,69 @@ class JointLimits:
         lower = np.where(np.isfinite(self.q_lower), self.q_lower, -np.pi)
         upper = np.where(np.isfinite(self.q_upper), self.q_upper, np.pi)
         return lower, upper
+
+
+_LIMIT_KINDS = (
+    ("q_lower", "position lower", "rad"),
+    ("q_upper", "position upper", "rad"),
+    ("dq_max", "velocity", "rad/s"),
+    ("ddq_max", "acceleration", "rad/s^2"),
+)
+
+
+def tighten_limits(
+    limits: JointLimits, bound: JointLimits, source: str
+) -> tuple[JointLimits, tuple[str, ...]]:
+    """The element-wise tighter of ``limits`` and ``bound``, and what ``bound`` changed.
+
+    The one place where joint limits of different origins (the URDF, the run config, an export
+    target such as libfranka) are combined: positions ``[max(lower), min(upper)]``, velocities
+    and accelerations ``min``; ``inf`` (``-inf`` for a lower bound) means no limit.
+
+    Parameters
+    ----------
+    limits :
+        The limits so far, shape (nq,) each.
+    bound :
+        Further limits for the same joints (same ``joint_names``).
+    source :
+        Who sets ``bound`` (``"franka"``, ``"robot.velocity_limits"``), for the notes.
+
+    Returns
+    -------
+    :
+        The tightened limits, and one note per kind of limit ``bound`` tightened by more than
+        round-off (1e-9 relative):
+        ``"<source>: velocity limits [rad/s] <joint> 2.175 -> 2.124, <joint> ..."``.
+
+    Raises
+    ------
+    ValueError
+        If the joint names differ.
+    """
+    if tuple(bound.joint_names) != tuple(limits.joint_names):
+        raise ValueError(
+            f"{source}: limits for joints {list(bound.joint_names)}, the robot's are "
+            f"{list(limits.joint_names)}"
+        )
+    values = {
+        "q_lower": np.maximum(limits.q_lower, bound.q_lower),
+        "q_upper": np.minimum(limits.q_upper, bound.q_upper),
+        "dq_max": np.minimum(limits.dq_max, bound.dq_max),
+        "ddq_max": np.minimum(limits.ddq_max, bound.ddq_max),
+    }
+    notes = []
+    for key, quantity, unit in _LIMIT_KINDS:
+        before, after = getattr(limits, key), values[key]
+        changed = [
+            f"{limits.joint_names[j]} {before[j]:.6g} -> {after[j]:.6g}"
+            for j in np.flatnonzero(before != after)
+            # round-off (a URDF's 6.28318530718 for 2 pi) is applied, not reported
+            if not abs(after[j] - before[j]) <= 1e-9 * max(1.0, abs(after[j]))
+        ]
+        if changed:
+            notes.append(f"{source}: {quantity} limits [{unit}] {', '.join(changed)}")
+    return JointLimits(joint_names=tuple(limits.joint_names), **values), tuple(notes)
 
 
 def _excess(value: FloatArray, limit: FloatArray) -> FloatArray:

@@ -16,6 +16,8 @@ YAML forms::
       tip_link: panda_link8
       lock: {panda_finger_joint1: 0.0}  # ... and joints held fixed (grippers, torsos)
       inertia_check: true               # false: load a file with broken inertials anyway
+      velocity_limits: [2.0, 2.0, ...]  # rad/s, lower than the URDF's (one, one per joint,
+      acceleration_limits: {j1: 10.0}   # rad/s^2  or a mapping joint name -> value)
 
 Relative paths are resolved against the folder of the config file.
 """
@@ -31,9 +33,16 @@ from pydantic import model_validator
 
 from ident.config import StrictModel
 from ident.errors import ConfigError
+from ident.excitation.constraints import JointLimits, tighten_limits
 from ident.model.robot import Robot
 
-__all__ = ["RobotSelection", "load_robot", "selection_from_flags"]
+__all__ = [
+    "RobotSelection",
+    "load_robot",
+    "per_joint_limits",
+    "selection_from_flags",
+    "set_robot_limits",
+]
 
 
 class RobotSelection(StrictModel):
@@ -58,9 +67,12 @@ class RobotSelection(StrictModel):
         Check the inertials of the moving links (default); ``false`` is the override for a
         file with broken inertials.
     acceleration_limits :
-        Joint acceleration limits [rad/s^2 or m/s^2], one value or one per joint of the chain
-        (URDFs carry none; a DH description has its own). Excitation trajectories keep within
-        them.
+        Joint acceleration limits [rad/s^2 or m/s^2]: one value, one per joint of the chain, or
+        a mapping joint name -> value (URDFs carry none; a DH description has its own).
+        Excitation trajectories keep within them.
+    velocity_limits :
+        Joint velocity limits [rad/s or m/s], in the same forms; they tighten the file's
+        (the lower of the two holds), e.g. to a controller's published limits.
     """
 
     urdf: Path | None = None
@@ -71,7 +83,8 @@ class RobotSelection(StrictModel):
     lock: dict[str, float] = {}
     joints: list[str] | None = None
     inertia_check: bool = True
-    acceleration_limits: float | list[float] | None = None
+    acceleration_limits: float | list[float] | dict[str, float] | None = None
+    velocity_limits: float | list[float] | dict[str, float] | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -97,12 +110,15 @@ class RobotSelection(StrictModel):
         for name, value in self.lock.items():
             if not math.isfinite(value):
                 raise ValueError(f"robot.lock.{name} = {value}: give a finite position")
+        for key, unit in (("acceleration_limits", "rad/s^2"), ("velocity_limits", "rad/s")):
+            given = getattr(self, key)
+            values = _limit_values(given)
+            if any(not (math.isfinite(v) and v > 0) for v in values):
+                raise ValueError(
+                    f"robot.{key} = {given}: give positive, finite values [{unit}], one, one "
+                    "per joint, or a mapping joint name -> value"
+                )
         limits = self.acceleration_limits
-        values = limits if isinstance(limits, list) else [] if limits is None else [limits]
-        if any(not (math.isfinite(v) and v > 0) for v in values):
-            raise ValueError(
-                f"robot.acceleration_limits = {limits}: give positive, finite values [rad/s^2]"
-            )
         if self.description is not None and limits is not None:
             raise ValueError(
                 "robot.acceleration_limits: a DH description sets its own (ddq_max); give "
@@ -153,22 +169,82 @@ def load_robot(selection: RobotSelection, *, source: str | Path = "config") -> R
         )
     else:
         robot = Robot.from_config(selection.path)
-    if selection.acceleration_limits is not None:
-        limits = np.atleast_1d(np.asarray(selection.acceleration_limits, dtype=float))
-        if limits.size not in (1, robot.nv):
-            raise ConfigError(
-                f"{source}: robot.acceleration_limits has {limits.size} values, the chain has "
-                f"{robot.nv} joints ({', '.join(robot.joint_names)}); give one or one per joint."
-            )
-        ddq_max = np.broadcast_to(limits, (robot.nv,)).copy()
-        ddq_max.setflags(write=False)
-        robot.ddq_max = ddq_max
+    dq_max = per_joint_limits(selection.velocity_limits, "velocity_limits", robot, source)
+    ddq_max = per_joint_limits(selection.acceleration_limits, "acceleration_limits", robot, source)
+    if dq_max is not None or ddq_max is not None:
+        no_limit = np.full(robot.nv, np.inf)
+        configured = JointLimits(
+            joint_names=tuple(robot.joint_names),
+            q_lower=-no_limit,
+            q_upper=no_limit,
+            dq_max=no_limit if dq_max is None else dq_max,
+            ddq_max=no_limit if ddq_max is None else ddq_max,
+        )
+        limits, _ = tighten_limits(JointLimits.from_robot(robot), configured, "robot")
+        set_robot_limits(robot, limits)
     if selection.joints is not None and list(selection.joints) != list(robot.joint_names):
         raise ConfigError(
             f"{source}: robot.joints = {selection.joints} must list the selected chain's joints "
             f"in order ({', '.join(robot.joint_names)}); fix the list or the chain selection."
         )
     return robot
+
+
+def _limit_values(given: float | list[float] | dict[str, float] | None) -> list[float]:
+    if given is None:
+        return []
+    if isinstance(given, dict):
+        return list(given.values())
+    return list(given) if isinstance(given, list) else [given]
+
+
+def per_joint_limits(
+    given: float | list[float] | dict[str, float] | None,
+    key: str,
+    robot: Robot,
+    source: str | Path = "config",
+) -> np.ndarray | None:
+    """``robot.<key>`` as one value per joint of the chain, shape (nv,); None when not given.
+
+    One value applies to every joint; a list gives one per joint in chain order; a mapping
+    names joints (the others keep ``inf``: no limit from the config).
+
+    Raises
+    ------
+    ConfigError
+        For a list of the wrong length or a mapping naming a joint the chain does not move.
+    """
+    if given is None:
+        return None
+    names = list(robot.joint_names)
+    if isinstance(given, dict):
+        unknown = [name for name in given if name not in names]
+        if unknown:
+            raise ConfigError(
+                f"{source}: robot.{key} names {unknown[0]!r}, not a moving joint of the chain; "
+                f"use one of {', '.join(names)}."
+            )
+        return np.array([float(given.get(name, np.inf)) for name in names])
+    values = np.atleast_1d(np.asarray(given, dtype=float))
+    if values.size not in (1, robot.nv):
+        raise ConfigError(
+            f"{source}: robot.{key} has {values.size} values, the chain has {robot.nv} joints "
+            f"({', '.join(names)}); give one, one per joint, or a mapping joint name -> value."
+        )
+    return np.broadcast_to(values, (robot.nv,)).copy()
+
+
+def set_robot_limits(robot: Robot, limits: JointLimits) -> None:
+    """Make ``limits`` the robot's (position, velocity, acceleration; read-only copies).
+
+    Everything that keeps a trajectory within limits reads them from the robot
+    (:meth:`ident.excitation.constraints.JointLimits.from_robot`): the excitation's constraints,
+    the approach and return, and the dense safety check.
+    """
+    for key in ("q_lower", "q_upper", "dq_max", "ddq_max"):
+        value = np.array(getattr(limits, key), dtype=float)
+        value.setflags(write=False)
+        setattr(robot, key, value)
 
 
 def selection_from_flags(

@@ -460,6 +460,8 @@ def _run_facts(data: dict[str, Any], state: dict[str, Any]) -> list[str]:
     md += ["- Data: `result.json`, `trajectory.csv`, `elites/`, `config.yaml`, `robot.urdf`"]
     if state.get("exports"):  # controller files (docs/execute.md), written by ident run
         md.append("- Exports (`docs/execute.md`): " + "; ".join(map(str, state["exports"])))
+    if state.get("export_limits"):  # limits the export targets tightened (docs/execute.md)
+        md.append("- Limits tightened by the export targets: " + "; ".join(state["export_limits"]))
     md += [""]
     return md
 

@@ -5,9 +5,11 @@ own links, the floor, the config's obstacles, and the position, velocity, accele
 torque limits (:func:`ident.excitation.check.check_trajectory`, on the family's closed form at
 the dense times). The best elite that passes becomes the executable trajectory: an approach
 from the home posture, the excitation periods and the return, at the controller's rate,
-checked again as a whole. A trajectory that fails is never reported as usable; when none
-passes, the run says which pair or limit, when and by how much, and writes no
-``trajectory.csv``.
+checked again as a whole, and, for each ``controller.export`` target with published limits
+(libfranka, UR), by that export's own check (:func:`ident.run.exports.run_exports.
+check_export_targets`: libfranka's jerk included). A trajectory that fails is never reported
+as usable; when none passes, the run says which pair or limit, when and by how much, and
+writes no ``trajectory.csv``.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from ident.excitation.check import SafetyReport, check_trajectory, dense_family_
 from ident.excitation.executable import executable_trajectory
 from ident.excitation.safety import SafetyModel
 from ident.run.config import RunConfig
+from ident.run.exports.run_exports import check_export_targets
 from ident.trajectory import JointTrajectory
 
 __all__ = ["ExecutablePlan", "check_elites", "plan_executable"]
@@ -104,7 +107,12 @@ def plan_executable(
         full = check_trajectory(
             robot, safety, trajectory.t, trajectory.q, trajectory.dq, trajectory.ddq, rate_hz=rate
         )
-        if full.usable:
+        refusal = None
+        if full.usable and ctl.export:  # the export targets' own limits (libfranka's jerk)
+            refusal = check_export_targets(
+                ctl.export, trajectory, str(robot.urdf_text), getattr(robot, "ddq_max", None)
+            )
+        if full.usable and refusal is None:
             return ExecutablePlan(
                 rank,
                 trajectory,
@@ -112,6 +120,9 @@ def plan_executable(
                 f"elite {rank}: approach, {ctl.n_periods} period(s) and return at "
                 f"{ctl.rate_hz:g} Hz, {full.summary()}",
             )
+        if refusal is not None:
+            tried.append(f"elite {rank}: refused by controller.export: {refusal}")
+            continue
         tried.append(f"elite {rank}'s approach or return: {full.summary()}")
     if not tried:
         worst = reports[0].summary() if reports else "no elite"

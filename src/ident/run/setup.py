@@ -23,8 +23,9 @@ from ident.excitation.safety import SafetyConfig, SafetyModel, build_safety_mode
 from ident.inputs import JobEstimate, check_job
 from ident.measure.mujoco_config import check_joint_counts
 from ident.model import Robot
-from ident.model.selection import load_robot
+from ident.model.selection import load_robot, set_robot_limits
 from ident.run.config import RunConfig, load_run_config
+from ident.run.exports.run_exports import effective_limits
 
 __all__ = ["RunSetup", "estimate_run", "load_run", "make_family", "prepare_run"]
 
@@ -50,6 +51,10 @@ class RunSetup:
         the defaults), which checks every reported trajectory.
     estimate :
         Rough memory and time of the run (:func:`estimate_run`), checked against the ceilings.
+    limit_notes :
+        One line per joint limit an export target tightened (``controller.export``; see
+        :func:`ident.run.exports.run_exports.effective_limits`); the robot carries the
+        tightened limits.
     """
 
     config: RunConfig
@@ -58,6 +63,7 @@ class RunSetup:
     family: Any
     safety: SafetyModel
     estimate: JobEstimate
+    limit_notes: tuple[str, ...] = ()
 
     @property
     def bounds(self) -> FloatArray:
@@ -76,6 +82,10 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
     """
     try:
         robot = load_robot(config.robot, source=source)
+        # the limits the design and the dense check keep: the robot's, tightened by those of
+        # each export target (libfranka, the UR model), set on the robot where all read them
+        limits, limit_notes = effective_limits(config.controller.export, robot, source)
+        set_robot_limits(robot, limits)
         spec = config.stage if isinstance(config.stage, str) else config.stage.model_dump()
         stage = select_stage(robot, spec)
         family = make_family(config, robot, stage)
@@ -95,7 +105,13 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
             message = f"{source}: {message}"
         raise type(e)(message) from e
     return RunSetup(
-        config=config, robot=robot, stage=stage, family=family, safety=safety, estimate=estimate
+        config=config,
+        robot=robot,
+        stage=stage,
+        family=family,
+        safety=safety,
+        estimate=estimate,
+        limit_notes=limit_notes,
     )
 
 
@@ -235,7 +251,9 @@ def _check_sampling(config: RunConfig, family: Any) -> None:
     nyquist = 0.5 * m.rate_hz
     pre = config.identification.preprocess
     for key, section in (("lowpass", pre.lowpass), ("torque_lowpass", pre.torque_lowpass)):
-        if section is not None and section.cutoff_hz >= nyquist:
+        if section is None or isinstance(section, str):  # 'auto': chosen from the log
+            continue
+        if section.cutoff_hz >= nyquist:
             raise ConfigError(
                 f"identification.preprocess.{key}.cutoff_hz = {section.cutoff_hz:g} Hz is at or "
                 f"above the Nyquist frequency {nyquist:g} Hz of measurement.rate_hz = "

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ident.excitation.constraints import JointLimits
 from ident.fileio import atomic_write_text
 from ident.run.exports.common import (
     ExportError,
@@ -46,6 +47,7 @@ __all__ = [
     "accepts_franka",
     "PANDA_VELOCITY",
     "check_franka",
+    "franka_limits",
     "limit_rate_bounds",
     "prepare_franka",
     "read_franka",
@@ -71,6 +73,30 @@ PANDA_VELOCITY = (
 #: Joint ranges [rad] (Franka documentation, "Robot and interface specifications")
 PANDA_Q_MAX = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
 PANDA_Q_MIN = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
+
+
+#: The velocity the design keeps [rad/s]: within it, every acceleration within
+#: ``kMaxJointAcceleration`` passes ``limitRate``'s velocity-dependent bound, since
+#: ``(J/A)(V - |v|) >= (J/A)(A^2/J) = A`` for ``|v| <= V - A^2/J``.
+PANDA_DESIGN_VELOCITY = PANDA_VELOCITY - PANDA_ACCELERATION**2 / PANDA_JERK
+
+
+def franka_limits(joint_names: tuple[str, ...], target: ExportTarget) -> JointLimits:
+    """The joint limits a design must keep for libfranka (one per trajectory joint).
+
+    Positions: the Panda's joint ranges; velocities: :data:`PANDA_DESIGN_VELOCITY`
+    (``kMaxJointVelocity`` less ``A^2/J``, so that ``limitRate``'s acceleration bound near the
+    velocity limit is never the binding one); accelerations: ``kMaxJointAcceleration``. The
+    jerk is checked on the 1 kHz commands (:func:`check_franka`), not here.
+    """
+    accepts_franka(joint_names, target)
+    return JointLimits(
+        joint_names=tuple(joint_names),
+        q_lower=PANDA_Q_MIN,
+        q_upper=PANDA_Q_MAX,
+        dq_max=PANDA_DESIGN_VELOCITY,
+        ddq_max=PANDA_ACCELERATION,
+    )
 
 
 def finite_differences(q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -121,9 +147,9 @@ def check_franka(samples: ExportSamples) -> None:
     fix = {
         "position": "; give the URDF the Panda's joint ranges, or move the excitation's mean "
         "posture (excitation.bounds q0[...])",
-        "velocity": f"; the run keeps the URDF's <limit velocity>, libfranka's is lower (a "
-        f"margin for 3 lost packets): lower it in the URDF to the values of docs/execute.md, "
-        f"or {slower}",
+        "velocity": f"; libfranka's limit is below the URDF's (a margin for 3 lost packets): "
+        f"a run with franka in controller.export designs within it (docs/execute.md, 'The "
+        f"limits a run keeps'); else set robot.velocity_limits, or {slower}",
         "acceleration": f"; set robot.acceleration_limits to libfranka's (docs/execute.md), "
         f"or {slower}",
         "jerk": f"; {slower} (the jerk grows with the cube of the frequency)",

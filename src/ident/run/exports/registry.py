@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import Any
 
 from ident.errors import ConfigError
+from ident.excitation.constraints import JointLimits
 from ident.run.exports.common import (
     ExportError,
     ExportSamples,
@@ -55,12 +56,19 @@ from ident.run.exports.common import (
     compare_samples,
     compare_with_plan,
 )
-from ident.run.exports.franka import accepts_franka, prepare_franka, read_franka, write_franka
+from ident.run.exports.franka import (
+    accepts_franka,
+    franka_limits,
+    prepare_franka,
+    read_franka,
+    write_franka,
+)
 from ident.run.exports.ros2 import accepts_ros2, prepare_ros2, read_ros2, write_ros2
 from ident.run.exports.urscript import (
     accepts_urscript,
     prepare_urscript,
     read_urscript,
+    urscript_limits,
     write_urscript,
 )
 from ident.trajectory import JointTrajectory
@@ -91,6 +99,11 @@ class Exporter:
     #: ``accepts(joint_names, target)`` raises ExportError for a robot the format cannot
     #: drive (checked by :func:`check_export_robot` before a run folder exists)
     accepts: Callable[[tuple[str, ...], ExportTarget], Any] | None = None
+    #: ``limits(joint_names, target)``: the controller's own joint limits
+    #: (:class:`~ident.excitation.constraints.JointLimits`, ``inf`` where it has none); a run
+    #: that exports to it designs and checks its trajectory within them
+    #: (:func:`ident.run.exports.run_exports.effective_limits`)
+    limits: Callable[[tuple[str, ...], ExportTarget], JointLimits] | None = None
 
 
 EXPORTERS: dict[str, Exporter] = {}
@@ -248,6 +261,7 @@ register_exporter(
         read_urscript,
         "URScript, servoj at 500 Hz",
         accepts_urscript,
+        urscript_limits,
     ),
 )
 register_exporter(
@@ -258,5 +272,6 @@ register_exporter(
         read_franka,
         "libfranka joint positions at 1 kHz (CSV)",
         accepts_franka,
+        franka_limits,
     ),
 )

@@ -7,21 +7,98 @@ ExecutablePlan` ``usable``): an unsafe run exports nothing, and says so.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ident.errors import ConfigError
+from ident.excitation.constraints import JointLimits, tighten_limits
+from ident.run.exports import registry
 from ident.run.exports.common import ExportError, target_from_urdf
 from ident.run.exports.registry import (
     EXPORT_FOLDER,
     ExportOutcome,
+    check_export_names,
     check_export_robot,
     export_trajectory,
 )
+from ident.trajectory import JointTrajectory
 
-__all__ = ["check_run_exports", "export_run"]
+__all__ = ["check_export_targets", "check_run_exports", "effective_limits", "export_run"]
+
+
+def effective_limits(
+    names: Sequence[str], robot: Any, source: str | Path = "config"
+) -> tuple[JointLimits, tuple[str, ...]]:
+    """The joint limits a run designs and checks within, and what each export target tightened.
+
+    The robot's limits (the URDF's, tightened by ``robot.velocity_limits`` and
+    ``robot.acceleration_limits``) and, element-wise, those of every export in ``names`` whose
+    controller publishes its own (:attr:`Exporter.limits`: ``franka``, ``urscript``):
+    :func:`ident.excitation.constraints.tighten_limits` applied once per target.
+
+    Returns
+    -------
+    :
+        The effective limits (shape (nq,) each) and one note per target and kind of limit it
+        tightened, ``"franka: velocity limits [rad/s] panda_joint1 2.175 -> 2.09901, ..."``.
+
+    Raises
+    ------
+    ConfigError
+        ``<source>: controller.export: <export>: <why>`` for a robot a controller cannot drive.
+    """
+    limits = JointLimits.from_robot(robot)
+    names = list(names)
+    if not names:
+        return limits, ()
+    notes: list[str] = []
+    try:
+        target = target_from_urdf(str(robot.urdf_text), limits.ddq_max)
+        for name in check_export_names(names):
+            published = registry.EXPORTERS[name].limits
+            if published is None:
+                continue
+            limits, changed = tighten_limits(
+                limits, published(tuple(limits.joint_names), target), name
+            )
+            notes.extend(changed)
+    except (ConfigError, ExportError) as e:
+        message = str(e) if str(e).startswith("controller.export") else f"controller.export: {e}"
+        raise ConfigError(f"{source}: {message}") from e
+    return limits, tuple(notes)
+
+
+def check_export_targets(
+    names: Sequence[str], trajectory: JointTrajectory, urdf_text: str, ddq_max: Any
+) -> str | None:
+    """Check ``trajectory`` against the limits of each export target that publishes its own.
+
+    For every export in ``names`` with :attr:`~ident.run.exports.registry.Exporter.limits`
+    (``franka``, ``urscript``), the same ``prepare`` :func:`~ident.run.exports.registry.
+    export_trajectory` runs before writing (Franka: libfranka's ``limitRate`` on the 1 kHz
+    commands, jerk included; UR: the model's speeds and accelerations at 500 Hz), so that a
+    trajectory the run certifies is one these controllers run unchanged. Nothing is written.
+
+    Returns
+    -------
+    :
+        The first refusal (``"franka: ..."``), or None.
+    """
+    if not names:
+        return None
+    target = target_from_urdf(urdf_text, None if ddq_max is None else np.asarray(ddq_max))
+    for name in check_export_names(names):
+        exporter = registry.EXPORTERS[name]
+        if exporter.limits is None:
+            continue
+        try:
+            exporter.prepare(trajectory, target)
+        except ExportError as e:
+            return str(e) if str(e).startswith(f"{name}:") else f"{name}: {e}"
+    return None
 
 
 def check_run_exports(config: Any, robot: Any, source: str | Path) -> None:

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ident.excitation.constraints import JointLimits
 from ident.fileio import atomic_write_text
 from ident.run.exports.common import (
     ExportError,
@@ -45,6 +46,7 @@ __all__ = [
     "accepts_urscript",
     "prepare_urscript",
     "read_urscript",
+    "urscript_limits",
     "write_urscript",
 ]
 
@@ -101,6 +103,25 @@ def accepts_urscript(joint_names: tuple[str, ...], target: ExportTarget) -> str:
             "remove urscript from controller.export."
         )
     return model
+
+
+def urscript_limits(joint_names: tuple[str, ...], target: ExportTarget) -> JointLimits:
+    """The joint limits a design must keep for the UR model (one per trajectory joint).
+
+    Velocities: the datasheet's maximum joint speeds (:data:`UR_MODELS`); accelerations:
+    :data:`FALLBACK_ACCELERATION` where the run configures none (what :func:`prepare_urscript`
+    checks); positions: +-360 deg.
+    """
+    model = accepts_urscript(joint_names, target)
+    n = len(joint_names)
+    configured = target.ddq_max is not None and np.all(np.isfinite(target.ddq_max))
+    return JointLimits(
+        joint_names=tuple(joint_names),
+        q_lower=np.full(n, -Q_RANGE),
+        q_upper=np.full(n, Q_RANGE),
+        dq_max=np.array(UR_MODELS[model]),
+        ddq_max=np.full(n, np.inf if configured else FALLBACK_ACCELERATION),
+    )
 
 
 def prepare_urscript(trajectory: JointTrajectory, target: ExportTarget) -> ExportSamples:
