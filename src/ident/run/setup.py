@@ -144,7 +144,7 @@ def estimate_run(
         seconds *= 3.0
     if safety is not None:  # coal: about 10 us per geometry pair and posture (2 cores)
         pairs = len(safety.geometry_model.collisionPairs)
-        checked = evaluations * min(safety.config.check_samples, n)
+        checked = float(evaluations * min(safety.config.check_samples, n))
         period = float(getattr(family, "period", 10.0) or 10.0)
         checked += (o.n_report_elites + 1) * period * safety.config.check_rate_hz
         seconds += checked * pairs * _SECONDS_PER_PAIR_POSTURE
