@@ -114,12 +114,15 @@ def _joint_states(t: np.ndarray, s: dict[str, np.ndarray], typestore):  # noqa: 
     for k in range(t.size):
         ns = t0_ns + int(round(t[k] * 1e9))
         header = Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="")
-        yield ns, JointState(
-            header=header,
-            name=["j1", "j2", "j3"],
-            position=s["q"][k].copy(),
-            velocity=s["dq"][k].copy(),
-            effort=s["tau"][k].copy(),
+        yield (
+            ns,
+            JointState(
+                header=header,
+                name=["j1", "j2", "j3"],
+                position=s["q"][k].copy(),
+                velocity=s["dq"][k].copy(),
+                effort=s["tau"][k].copy(),
+            ),
         )
 
 
