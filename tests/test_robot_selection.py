@@ -115,8 +115,17 @@ def _verdicts(selection: RobotSelection) -> dict[str, object]:
     except IdentError as e:
         out["verify"] = f"refused: {type(e).__name__}"
     try:
+        # the rank is the question here, not a safety margin: robots whose links sit within
+        # the default 3 cm in every posture, or legged robots whose feet start below z = 0,
+        # are refused by the safety section (tests/test_safety_environment.py); the safety
+        # model is still built on every robot's collision meshes
+        safety = {"clearance_m": 0.0, "floor": {"enabled": False}}
         setup = prepare_run(
-            RunConfig(robot=selection, excitation={"family": "joint_fourier", "n_samples": 40})
+            RunConfig(
+                robot=selection,
+                excitation={"family": "joint_fourier", "n_samples": 40},
+                safety=safety,
+            )
         )
         info = build_stage_info(
             setup.robot, setup.stage, setup.family, "qr", np.random.default_rng(0)
