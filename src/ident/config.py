@@ -369,7 +369,9 @@ def validate_config(model: type[ModelT], data: Mapping[str, Any], source: str | 
                     "give finite numbers"
                 )
             elif err["type"] == "missing":
-                messages.append(f"missing required key '{where}'; add it")
+                hint = getattr(model, "missing_key_hint", None)
+                text = hint(where) if callable(hint) else "add it"
+                messages.append(f"missing required key '{where}'; {text}")
             else:
                 msg = str(err["msg"]).replace("Value error, ", "")
                 if len(msg) > 400:

@@ -36,6 +36,7 @@ from ident.inputs import read_urdf_text
 from ident.measure.mujoco_config import MujocoMeasurement
 from ident.model.selection import RobotSelection
 from ident.optim import METHODS
+from ident.run.examples import missing_section_hint
 
 __all__ = [
     "ElitesSection",
@@ -321,6 +322,11 @@ class RunConfig(StrictModel):
     estimation: EstimationSection = EstimationSection()
     identification: LogIdentificationSection = LogIdentificationSection()
     quick: QuickSection = QuickSection()
+
+    @staticmethod
+    def missing_key_hint(key: str) -> str:
+        """A working example of a missing section (read by the loader's message)."""
+        return missing_section_hint(key)
 
     @field_validator("optimizer")
     @classmethod
