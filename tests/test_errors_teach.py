@@ -85,7 +85,8 @@ def test_fourier_advice_names_the_amplitude_joint_limit_and_a_fix_that_works():
     advice = feasibility_advice(family, ("velocity:j2s6s200_joint_1",))
     assert "excitation.options.amplitude_bound 0.4 rad/s" in advice
     assert "joint 1 (j2s6s200_joint_1)'s velocity limit 0.628 rad/s" in advice
-    assert "Cartesian" not in advice and "circle" not in advice
+    assert "Cartesian" not in advice
+    assert "circle" not in advice
     fix = float(re.search(r"amplitude_bound <= ([0-9.e-]+)", advice).group(1))
     assert fix == pytest.approx(0.628 / 12.43, rel=0.05)  # dq_max / c_v at 4 harmonics
     assert _velocity_violations(family, np.random.default_rng(0)) > 0.9
@@ -101,13 +102,15 @@ def test_fourier_advice_names_the_acceleration_when_it_binds():
         _kinova(acceleration=0.2), range(6), 4, 2 * np.pi / 10, amplitude_bound=0.04
     )
     advice = feasibility_advice(family, ("acceleration:j2s6s200_joint_1",))
-    assert "acceleration limit 0.2 rad/s^2" in advice and "amplitude_bound 0.04" in advice
+    assert "acceleration limit 0.2 rad/s^2" in advice
+    assert "amplitude_bound 0.04" in advice
 
 
 def test_fourier_advice_blames_nothing_of_its_own_when_the_fault_is_elsewhere():
     family = JointFourierFamily(_kinova(), range(6), 4, amplitude_bound=0.4)
     advice = feasibility_advice(family, ("clearance:j2s6s200_link_2|floor",))
-    assert "amplitude_bound 0.4" not in advice and "circle" not in advice
+    assert "amplitude_bound 0.4" not in advice
+    assert "circle" not in advice
     assert "excitation.bounds" in advice
 
 
@@ -116,8 +119,13 @@ def _kinova_config(tmp_path: Path, **changes) -> dict:
     data["quick"] = {
         "n_samples": 60,
         "elites": {"n_particles": 4, "n_elites": 1, "maxiter": 3},
-        "emupso": {"n_particles": 4, "maxiter": 2, "stagnation": 2, "n_runs": 1,
-                   "n_report_elites": 1},
+        "emupso": {
+            "n_particles": 4,
+            "maxiter": 2,
+            "stagnation": 2,
+            "n_runs": 1,
+            "n_report_elites": 1,
+        },
     }
     data["measurement"]["n_periods"] = 1
     for key, value in changes.items():
@@ -136,14 +144,17 @@ def test_infeasible_fourier_run_names_amplitude_bound_not_a_circle(tmp_path):
     assert res.exit_code == 2, res.output
     error = [line for line in res.output.splitlines() if line.startswith("error:")][0]
     assert "excitation.options.amplitude_bound 0.4 rad/s" in error
-    assert "velocity limit 0.628 rad/s" in error and "amplitude_bound <= 0.05" in error
-    assert "circle" not in error and "widen" not in error
+    assert "velocity limit 0.628 rad/s" in error
+    assert "amplitude_bound <= 0.05" in error
+    assert "circle" not in error
+    assert "widen" not in error
 
 
 def test_unsafe_advice_suggests_the_safety_section_only_when_absent():
     assert unsafe_run_advice(True) == ""
     advice = unsafe_run_advice(False)
-    assert "no safety: section" in advice and SECTION_EXAMPLES["safety"] in advice
+    assert "no safety: section" in advice
+    assert SECTION_EXAMPLES["safety"] in advice
 
 
 @pytest.mark.slow

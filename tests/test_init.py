@@ -127,8 +127,11 @@ def test_init_bad_input_one_error_line_nothing_written(tmp_path, args, needle):
     res = CliRunner().invoke(app, ["init", *args, "-o", str(out)])
     assert res.exit_code == 2
     lines = [s for s in res.output.splitlines() if s.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error:") and needle in lines[0]
-    assert not out.exists() and not out.parent.exists()
+    assert len(lines) == 1
+    assert lines[0].startswith("error:")
+    assert needle in lines[0]
+    assert not out.exists()
+    assert not out.parent.exists()
 
 
 ROBOTS = [
