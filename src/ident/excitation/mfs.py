@@ -186,8 +186,9 @@ class _CartesianFamily:
     def feasibility_advice(self, violated: Sequence[str] = ()) -> str:
         """What to change in this family's settings when no design meets the constraints."""
         return (
-            "check that the Cartesian circle of the paper's series is reachable, narrow "
-            "excitation.bounds, or relax the joint limits of the robot config"
+            "check that the Cartesian circle is reachable (its centre and radius in "
+            "excitation.bounds), narrow excitation.bounds, or relax the joint limits of the "
+            "robot config"
         )
 
     def with_samples(self, n_samples: int) -> Any:
