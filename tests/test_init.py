@@ -114,6 +114,15 @@ def test_init_tip_link_locks_the_rest(tmp_path):
     assert any("outside the chain" in n for n in result.notes)
 
 
+def test_init_cli_writes_into_a_new_folder_a_config_that_loads(tmp_path):
+    out = tmp_path / "new" / "kinova.yaml"
+    res = CliRunner().invoke(app, ["init", str(KINOVA), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "estimated wall time" in res.output
+    config = load_run_config(out)  # relative paths, resolved from the new folder
+    assert config.robot.urdf.resolve() == KINOVA.resolve()
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [

@@ -53,7 +53,8 @@ def init(
     typer.echo(
         f"wrote {output}; estimated wall time: 'ident run {output} --quick' about "
         f"{result.quick_seconds:.0f} s, 'ident run {output}' about {result.seconds:.0f} s "
-        "(plus the safety check and the report)"
+        "of design, plus 10-30 s for the safety check, the simulation and the report (measured "
+        "on a busy 2-core machine)"
     )
 
 

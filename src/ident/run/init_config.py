@@ -428,7 +428,7 @@ def init_config(
     add("  emupso: {n_particles: 6, maxiter: 4, stagnation: 2, n_runs: 1, n_report_elites: 1}")
     config_text = "\n".join(lines) + "\n"
 
-    seconds, quick_seconds = _validate(config_text, output, folder)
+    seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
     notes = [
         f"chain: {names[0]} .. {names[-1]} ({n} joints) of {urdf.name}",
         *[f"lock: {line}" for line in lock_notes],
@@ -444,13 +444,16 @@ def init_config(
     return InitResult(config_text, tuple(notes), seconds, quick_seconds)
 
 
-def _validate(text: str, output: Path, folder: Path) -> tuple[float, float]:
-    """Load ``text`` as ``ident run`` will and build the run; the estimated wall times [s]."""
+def _validate(text: str, output: Path, urdf: Path, dirs: list[Path]) -> tuple[float, float]:
+    """Load ``text`` as ``ident run`` will and build the run; the estimated wall times [s].
+
+    The relative paths of the text hold once ``output``'s folder exists; the check uses the
+    absolute ones (the folder may not exist yet).
+    """
     data = yaml.safe_load(text)
+    data["robot"] = {**data["robot"], "urdf": str(urdf), "package_dirs": [str(d) for d in dirs]}
     config = validate_config(RunConfig, data, output)
-    config = config.model_copy(
-        update={"robot": config.robot.resolved(folder), "name": config.name or output.stem}
-    )
+    config = config.model_copy(update={"name": config.name or output.stem})
     try:
         setup = prepare_run(config, source=output)
     except IdentError as e:
