@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import queue
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -67,6 +68,42 @@ def _limit_resources() -> None:
     resource.setrlimit(resource.RLIMIT_CPU, (CPU_LIMIT_S, CPU_LIMIT_S))
 
 
+def _inject_fault(fileio, primitives: dict, fault: dict) -> None:
+    """Make ``ident.fileio``'s write primitive fail as a full disk, a read-only folder, ... do.
+
+    ``fault``: ``errno`` (a name of :mod:`errno`), ``file`` (a glob on the name of the file
+    being written), ``step``: ``write`` (the disk fills half way through the data) or
+    ``create`` (the temporary file cannot be created: read-only folder, no permission).
+    """
+    import errno
+    import fnmatch
+
+    code = getattr(errno, fault["errno"])
+
+    def hit(path) -> bool:
+        return fnmatch.fnmatch(Path(path).name, fault["file"])
+
+    if fault.get("step", "write") == "create":
+        create = primitives["create"]
+
+        def failing_create(path):
+            if hit(path):
+                raise OSError(code, os.strerror(code), str(path.parent))
+            return create(path)
+
+        fileio._create_temporary = failing_create
+    else:
+        write = primitives["write"]
+
+        def failing_write(file, data, path):
+            if hit(path):
+                file.write(data[: len(data) // 2])
+                raise OSError(code, os.strerror(code))
+            return write(file, data, path)
+
+        fileio._write_data = failing_write
+
+
 def _worker_main() -> None:
     """Read one JSON case per line on stdin, answer one JSON result per line on stdout.
 
@@ -89,6 +126,9 @@ def _worker_main() -> None:
         raise _Timeout
 
     signal.signal(signal.SIGALRM, _alarm)
+    import ident.fileio as fileio
+
+    primitives = {"write": fileio._write_data, "create": fileio._create_temporary}
     out = sys.stdout
     out.write(json.dumps({"ready": True}) + "\n")
     out.flush()
@@ -98,6 +138,8 @@ def _worker_main() -> None:
         err = io.StringIO()
         t0 = time.perf_counter()
         signal.alarm(CASE_TIMEOUT_S)
+        if case.get("fault"):
+            _inject_fault(fileio, primitives, case["fault"])
         try:
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
                 sys.argv = ["ident", *case["args"]]
@@ -113,6 +155,8 @@ def _worker_main() -> None:
             err.write("".join(traceback.format_exception(e)))
         finally:
             signal.alarm(0)
+            fileio._write_data = primitives["write"]
+            fileio._create_temporary = primitives["create"]
         record = {
             "id": case["id"],
             "exit_code": exit_code,
@@ -163,9 +207,10 @@ class _Worker:
             return None
         return None if line is None else json.loads(line)
 
-    def run(self, case_id: str, args: list[str], tmp: Path) -> dict | None:
+    def run(self, case_id: str, args: list[str], tmp: Path, fault: dict | None) -> dict | None:
         assert self.proc.stdin is not None
-        self.proc.stdin.write(json.dumps({"id": case_id, "args": args, "tmp": str(tmp)}) + "\n")
+        case = {"id": case_id, "args": args, "tmp": str(tmp), "fault": fault}
+        self.proc.stdin.write(json.dumps(case) + "\n")
         self.proc.stdin.flush()
         return self._next(CASE_TIMEOUT_S + 30.0)
 
@@ -191,9 +236,16 @@ def _run_all(cases: list[dict], base: Path) -> dict[str, dict]:
                     return
                 tmp = base / case["id"]
                 tmp.mkdir()
+                setup = case.get("setup")
+                if setup:
+                    shutil.copytree(CORPUS / setup["copy"], tmp / setup["to"])
+                    if "run_json" in setup:
+                        (tmp / setup["to"] / "run.json").write_text(json.dumps(setup["run_json"]))
                 before = _tree(CORPUS)
                 try:
-                    record = worker.run(case["id"], _expand(case["args"], tmp), tmp)
+                    record = worker.run(
+                        case["id"], _expand(case["args"], tmp), tmp, case.get("fault")
+                    )
                 except (BrokenPipeError, OSError):
                     record = None
                 if record is None:  # crashed, killed by a limit or hung: a new worker
@@ -207,6 +259,16 @@ def _run_all(cases: list[dict], base: Path) -> dict[str, dict]:
                     }
                     worker = _Worker()
                 record["left"] = sorted(_tree(tmp))
+                record["left_files"] = sorted(
+                    str(p.relative_to(tmp)) for p in tmp.rglob("*") if not p.is_dir()
+                )
+                record["states"] = [
+                    json.loads(p.read_text(encoding="utf-8", errors="replace") or "null")
+                    if p.stat().st_size < 1 << 20
+                    else None
+                    for p in sorted(tmp.rglob("run.json"))
+                    if setup is None
+                ]
                 record["corpus_changed"] = sorted(
                     k for k, v in _tree(CORPUS).items() if before.get(k) != v
                 ) + sorted(set(before) - set(_tree(CORPUS)))
@@ -241,8 +303,10 @@ def outcomes():
 
 def test_corpus_is_large_and_covers_every_command():
     commands = {c["args"][0] for c in CASES}
-    assert commands == {"run", "identify", "verify", "urdf", "replay", "bench", "report"}
-    assert len(CASES) >= 100
+    assert commands >= {"run", "identify", "verify", "urdf", "replay", "bench", "report"}
+    assert len(CASES) >= 400
+    writers = {c["args"][0] for c in CASES if c.get("fault")}
+    assert writers >= {"run", "identify", "urdf", "replay", "bench", "report"}
     assert len({c["id"] for c in CASES}) == len(CASES)
 
 
@@ -259,12 +323,30 @@ def test_corpus_is_large_and_covers_every_command():
 )
 def test_hostile_input_is_one_clear_error(case, outcomes):
     r = outcomes[case["id"]]
+    expect = case.get("expect", {})
     stderr = r["stderr"]
     errors = [line for line in stderr.splitlines() if line.startswith("error:")]
     assert "Traceback" not in stderr, stderr
-    assert r["exit_code"] == 2, stderr
-    assert len(errors) == 1, stderr
-    assert r["left"] == [], f"left behind: {r['left']}"
+    assert r["exit_code"] == expect.get("exit", 2), stderr
+    assert len(errors) == (1 if expect.get("exit", 2) == 2 else 0), stderr
+    if expect.get("warning"):
+        assert any(line.startswith("warning:") for line in stderr.splitlines()), stderr
+    left = expect.get("left", "none")
+    if left == "none":
+        assert r["left"] == [], f"left behind: {r['left']}"
+    elif left == "dirs":  # empty parent folders may stay, never a file
+        assert r["left_files"] == [], f"left behind: {r['left_files']}"
+    # never a temporary file of an interrupted atomic write
+    assert not [f for f in r["left_files"] if Path(f).name.endswith(".tmp")], r["left_files"]
+    if "state" in expect:  # the run folder says what failed
+        assert r["states"], "no run.json"
+        (state,) = r["states"]
+        assert state["status"] == expect["state"], state
+        reason = os.strerror(getattr(__import__("errno"), case["fault"]["errno"]))
+        assert reason in state["message"], state
+    if case.get("fault"):  # the one error line says what happened to which file
+        reason = os.strerror(getattr(__import__("errno"), case["fault"]["errno"]))
+        assert reason in errors[0] or reason in stderr, stderr
     assert r["corpus_changed"] == [], f"corpus changed: {r['corpus_changed']}"
 
 

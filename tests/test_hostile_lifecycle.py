@@ -177,3 +177,150 @@ def test_urdf_writer_check_refuses_non_finite_numbers():
     check_urdf_numbers('<robot name="r"><joint name="j"><limit upper="1.5"/></joint></robot>', "c")
     with pytest.raises(ModelError, match=r"upper='inf' in <limit>"):
         check_urdf_numbers('<robot name="r"><limit upper="inf"/></robot>', "c.yaml")
+
+
+# ---------------------------------------------------------------------------------------------
+# Operating-system failures (issue 27): one line, nothing half-written, the run folder says why
+
+
+def _fail_writes(monkeypatch, code, name="*"):
+    """Make ident.fileio's write primitive fail with ``code`` for files matching ``name``."""
+    import fnmatch
+
+    import ident.fileio as fileio
+
+    write = fileio._write_data
+
+    def failing(file, data, path):
+        if fnmatch.fnmatch(path.name, name):
+            file.write(data[: len(data) // 2])
+            raise OSError(code, os.strerror(code))
+        return write(file, data, path)
+
+    monkeypatch.setattr(fileio, "_write_data", failing)
+
+
+def test_failed_write_names_the_file_and_leaves_the_old_one(tmp_path, monkeypatch):
+    import errno
+
+    from ident.fileio import atomic_write_text, describe_os_error
+
+    target = tmp_path / "report.html"
+    target.write_text("old report")
+    _fail_writes(monkeypatch, errno.ENOSPC)
+    with pytest.raises(OSError, match="No space left") as info:
+        atomic_write_text(target, "x" * 100_000)
+    assert info.value.errno == errno.ENOSPC
+    assert info.value.filename == str(target)  # the file, not the temporary one
+    assert target.read_text() == "old report"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
+    line = describe_os_error(info.value)
+    assert line.startswith(f"{target}: No space left on device (the disk is full")
+
+
+def test_run_folder_that_cannot_hold_run_json_is_removed(tmp_path, monkeypatch):
+    import errno
+
+    from ident.errors import IdentError
+    from ident.run.rundir import create_run_dir
+
+    _fail_writes(monkeypatch, errno.ENOSPC, "run.json")
+    with pytest.raises(IdentError, match=r"run\.json: cannot write the run state \(No space"):
+        create_run_dir(tmp_path / "runs", "x")
+    assert list((tmp_path / "runs").iterdir()) == []
+
+
+def test_marking_incomplete_on_a_full_disk_never_hides_the_first_error(tmp_path, monkeypatch):
+    import errno
+
+    from ident.run.rundir import create_run_dir, read_status
+
+    run = create_run_dir(tmp_path, "x")
+    _fail_writes(monkeypatch, errno.ENOSPC)  # now nothing can be written
+    run.finish("incomplete", "stopped while saving the results")  # no exception
+    assert read_status(run.path)["status"] == "running"  # what the disk still holds
+    monkeypatch.undo()
+    _fail_writes(monkeypatch, errno.ENOSPC, "INCOMPLETE")
+    run.finish("incomplete", "stopped while saving the results: disk full")
+    state = read_status(run.path)
+    assert (state["status"], state["message"]) == (
+        "incomplete",
+        "stopped while saving the results: disk full",
+    )
+
+
+def test_report_on_a_running_folder_says_so(tmp_path):
+    """A folder still marked running gets a warning; with nothing saved, one error as well."""
+    import json
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(ROOT / "tests/data/hostile/os/real_run", run)
+    (run / "run.json").write_text(json.dumps({"status": "running", "started_at": "t0"}))
+    res = CliRunner().invoke(app, ["report", str(run)])
+    assert res.exit_code == 0, res.output
+    assert "warning:" in res.output
+    assert "still running (run.json: status 'running' since t0)" in res.output
+    assert (run / "report.html").is_file()
+    (run / "run.json").write_text(json.dumps({"status": "complete"}))
+    res = CliRunner().invoke(app, ["report", str(run)])
+    assert res.exit_code == 0
+    assert "warning:" not in res.output
+
+
+def _mount_tmpfs(path: Path, size: str) -> bool:
+    """Mount a tmpfs of ``size`` on ``path`` (root only; False where that is not allowed)."""
+    if os.geteuid() != 0 or sys.platform != "linux":
+        return False
+    path.mkdir(parents=True, exist_ok=True)
+    proc = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(path)],
+        capture_output=True,
+        check=False,
+    )
+    return proc.returncode == 0
+
+
+def _disk(tmp_path, size):
+    disk = tmp_path / "disk"
+    if not _mount_tmpfs(disk, size):
+        pytest.skip("cannot mount a tmpfs here (needs root on Linux)")
+    try:
+        yield disk
+    finally:
+        subprocess.run(["umount", str(disk)], check=False)
+
+
+@pytest.fixture
+def tiny_disk(tmp_path):
+    """A real 64 kB file system: writes beyond it fail with ENOSPC from the kernel."""
+    yield from _disk(tmp_path, "64k")
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A real 2 MB file system (remounted read-only by the test)."""
+    yield from _disk(tmp_path, "2m")
+
+
+def test_a_really_full_disk_is_one_line_and_leaves_nothing(tiny_disk):
+    """The replay page (about 1 MB) on a 64 kB disk: the kernel's ENOSPC, not a simulated one."""
+    good = ROOT / "tests/data/hostile/runfolder/good"
+    res = CliRunner().invoke(app, ["replay", str(good), "--html", str(tiny_disk / "r.html")])
+    assert res.exit_code == 2, res.output
+    (line,) = [x for x in res.output.splitlines() if x.startswith("error:")]
+    assert f"{tiny_disk / 'r.html'}: No space left on device" in line
+    assert list(tiny_disk.iterdir()) == []
+
+
+def test_a_read_only_run_folder_is_one_line_for_report(small_disk):
+    import shutil
+
+    shutil.copytree(ROOT / "tests/data/hostile/os/real_run", small_disk / "run", dirs_exist_ok=True)
+    before = sorted(p.name for p in (small_disk / "run").rglob("*"))
+    subprocess.run(["mount", "-o", "remount,ro", str(small_disk)], check=True)
+    res = CliRunner().invoke(app, ["report", str(small_disk / "run")])
+    assert res.exit_code == 2, res.output
+    (line,) = [x for x in res.output.splitlines() if x.startswith("error:")]
+    assert "Read-only file system (the file system is read-only" in line
+    assert sorted(p.name for p in (small_disk / "run").rglob("*")) == before

@@ -9,7 +9,13 @@ are imported on first use, so ``import ident`` is cheap)::
     stage = ident.select_stage(robot, "whole")
     setup = ident.load_run("configs/ur5.yaml")        # a run config, checked
     result = ident.run_pipeline(setup)                 # design, measure, identify
-    identified = ident.identify(ident.load_identify_config("configs/tx40.yaml"))
+    identified = ident.identify_config(ident.load_identify_config("configs/tx40.yaml"))
+
+``ident.identify_config`` reads the log a config names and identifies it;
+``ident.identify_measurements`` identifies measurements already in memory (a
+:class:`~ident.identify.logs.RobotLog`): the one identification every command runs.
+``ident.identify`` is the sub-package, not a function. The stable API is this module's
+``__all__`` and the registries (docs/api.md); everything else is internal.
 
 Extension points are registries: :func:`register_family` (excitation families),
 :func:`register_estimator` (estimators), ``ident.optim.minimize`` (optimizers).
@@ -24,8 +30,8 @@ __all__ = [
     "Robot",
     "RobotSelection",
     "__version__",
-    "identify",
-    "identify_log",
+    "identify_config",
+    "identify_measurements",
     "least_squares",
     "load_identify_config",
     "load_robot",
@@ -49,16 +55,22 @@ _LAZY = {
     "register_estimator": "ident.identify.estimators",
     "least_squares": "ident.identify.estimate",
     "load_identify_config": "ident.identify.config",
-    "identify": "ident.identify.real",
-    "identify_log": "ident.identify.real",
+    "identify_config": "ident.identify.real",
+    "identify_measurements": "ident.identify.core",
     "load_run": "ident.run.setup",
     "run_pipeline": "ident.run.pipeline",
 }
 
 
+#: Public names that differ from the name in their module.
+_RENAMED = {"identify_config": "identify"}
+
+
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
+        return getattr(importlib.import_module(_LAZY[name]), _RENAMED.get(name, name))
+    if name == "identify":  # the sub-package, whether or not it was imported already
+        return importlib.import_module("ident.identify")
     raise AttributeError(f"module 'ident' has no attribute {name!r}")
 
 

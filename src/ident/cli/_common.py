@@ -12,8 +12,16 @@ from typing import Any
 import typer
 
 from ident.errors import IdentError
+from ident.fileio import describe_os_error
 
-__all__ = ["EXIT_INTERRUPTED", "EXIT_USER_ERROR", "one_line", "user_errors"]
+__all__ = [
+    "EXIT_INTERRUPTED",
+    "EXIT_USER_ERROR",
+    "check_scheduler_address",
+    "failure_note",
+    "one_line",
+    "user_errors",
+]
 
 EXIT_USER_ERROR = 2
 EXIT_INTERRUPTED = 130
@@ -24,6 +32,37 @@ def one_line(message: object) -> str:
     """``message`` on one line (newlines folded) and of bounded length."""
     text = " ".join(str(message).split("\n"))
     return text if len(text) <= _MAX_MESSAGE else text[: _MAX_MESSAGE - 3] + "..."
+
+
+_SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx", "inproc")
+
+
+def check_scheduler_address(address: str | None) -> None:
+    """Refuse a ``--scheduler`` that dask.distributed cannot parse, before any work.
+
+    Raises
+    ------
+    IdentError
+        An empty address, one with blanks, or a scheme dask does not know.
+    """
+    if address is None:
+        return
+    scheme, _, rest = address.partition("://") if "://" in address else ("tcp", "", address)
+    if not rest or any(c.isspace() for c in address) or scheme not in _SCHEDULER_SCHEMES:
+        raise IdentError(
+            f"--scheduler {address!r}: not a dask.distributed scheduler address; give "
+            f"[scheme://]host:port with scheme {', '.join(_SCHEDULER_SCHEMES)} (e.g. "
+            "tcp://127.0.0.1:8786), or drop --scheduler."
+        )
+
+
+def failure_note(error: BaseException) -> str:
+    """What stopped a run, for its ``run.json`` ``message`` (one line)."""
+    if isinstance(error, OSError):
+        return one_line(describe_os_error(error))
+    if isinstance(error, KeyboardInterrupt):
+        return "interrupted (Ctrl-C or SIGTERM)"
+    return one_line(f"{type(error).__name__}: {error}")
 
 
 def _terminate(signum: int, frame: Any) -> None:
@@ -50,13 +89,17 @@ def user_errors() -> Iterator[None]:
     Ctrl-C and SIGTERM exit with code 130 and a short note instead of a traceback (inside
     the block SIGTERM raises :class:`KeyboardInterrupt`, so that cleanup code written for
     Ctrl-C, such as marking a run folder incomplete, runs for both). Running out of memory
-    is reported on one line too.
+    and an operating-system failure (a full disk, a read-only folder, no permission:
+    :func:`ident.fileio.describe_os_error`) are reported on one line too.
     """
     try:
         with _sigterm_as_interrupt():
             yield
     except IdentError as e:
         typer.echo(f"error: {one_line(e)}", err=True)
+        raise typer.Exit(code=EXIT_USER_ERROR) from None
+    except OSError as e:  # a full disk, a read-only folder, no permission, ...
+        typer.echo(f"error: {one_line(describe_os_error(e))}", err=True)
         raise typer.Exit(code=EXIT_USER_ERROR) from None
     except MemoryError:
         typer.echo(

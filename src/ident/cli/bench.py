@@ -22,7 +22,7 @@ from typing import Annotated
 
 import typer
 
-from ident.cli._common import user_errors
+from ident.cli._common import check_scheduler_address, user_errors
 
 __all__ = ["bench", "register"]
 
@@ -96,6 +96,7 @@ def bench(
     from ident.inputs import check_job
 
     with user_errors():
+        check_scheduler_address(scheduler)
         cfg = load_campaign_config(config)
         if scheduler is None:
             check_workers(workers)

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from ident.cli._common import user_errors
+from ident.cli._common import check_scheduler_address, user_errors
 
 if TYPE_CHECKING:
     from ident.inputs import JobEstimate
@@ -75,6 +75,7 @@ def identify(
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify as run_identify
+    from ident.identify.verdict import identify_verdict
     from ident.report.identify_report import (
         joint_torque_units,
         save_identify_data,
@@ -92,11 +93,7 @@ def identify(
         for d in package_dirs:
             if not d.is_dir():
                 raise IdentError(f"--package-dir {d}: not a folder.")
-        if scheduler is not None and not scheduler.strip():
-            raise IdentError(
-                "--scheduler: empty address; give a dask.distributed scheduler address such as "
-                "tcp://127.0.0.1:8786, or drop --scheduler."
-            )
+        check_scheduler_address(scheduler)
         cfg = load_identify_config(config)
         result = run_identify(cfg, rng=seed, scheduler=scheduler, on_estimate=_print_estimate)
         info = {"command": "identify", "config": str(config), "seed": seed}
@@ -145,6 +142,8 @@ def identify(
                 f"RMSE per joint {rmse}"
             )
         typer.echo(replay_note)
+        verdict = identify_verdict(result)  # the one the report and result.json show
+        typer.echo(f"verdict: {verdict.label} ({verdict.reason})")
         typer.echo(f"report: {rundir.path / 'report.html'}")
         for w in result.warnings:
             typer.echo(f"warning: {w}", err=True)

@@ -146,13 +146,22 @@ def replay(
             check_number(port, "--port", low=0, high=65535, integer=True, hint="(0: any free)")
         else:
             check_output_file(html, "--html")
+        for folder in package_dir or ():
+            if not folder.is_dir():
+                raise DataError(
+                    f"--package-dir {folder}: not a folder; give the folder that holds the "
+                    "package:// mesh packages (e.g. the parent of <package>/meshes)."
+                )
         urdf_path, csvs, run_data = _inputs(run_dir, urdf, trajectory, elites)
         run_frame = run_traced_frame(run_data)
         # the run's floor and obstacles (a floor at z = 0 without a run); the least
         # clearance of an elite's own file (trajectory.csv has its own time axis)
-        environment = run_environment(run_data) if run_data else ReplayEnvironment()
-        ranks = [_elite_rank(p) for p in csvs]
-        marks = [None if r is None else run_clearance_mark(run_data, r) for r in ranks]
+        try:
+            environment = run_environment(run_data) if run_data else ReplayEnvironment()
+            ranks = [_elite_rank(p) for p in csvs]
+            marks = [None if r is None else run_clearance_mark(run_data, r) for r in ranks]
+        except DataError as e:
+            raise DataError(f"{run_dir}/{e}") from None
         read_urdf_text(urdf_path)
         for p in csvs:  # one clear line for a binary, non-UTF-8 or huge file
             read_text_input(p, what="trajectory", max_bytes=_MAX_TRAJECTORY_BYTES)

@@ -40,14 +40,17 @@ def report(
     the identification runs, from arrays that are not kept).
     """
     from ident.errors import IdentError
-    from ident.run.rundir import read_status
+    from ident.run.rundir import read_status, unfinished_note
 
     with user_errors():
         if not run_dir.is_dir():
             raise IdentError(
                 f"{run_dir}: not a folder; give a run folder of 'ident run' or 'ident identify'."
             )
-        read_status(run_dir)  # a clear message for a folder that is not a run
+        # a clear message for a folder that is not a run; a word for one that did not finish
+        note = unfinished_note(run_dir, read_status(run_dir))
+        if note is not None:
+            typer.echo(f"warning: {note}", err=True)
         kind = _kind(run_dir)
         if kind == "run":
             from ident.report.run_report import write_replay, write_report
@@ -55,6 +58,10 @@ def report(
             if not (run_dir / "replay.html").is_file():
                 typer.echo(write_replay(run_dir), err=True)
             typer.echo(str(write_report(run_dir)))
+            from ident.report.run_data import load_run
+            from ident.report.run_verdict import stored_verdict
+
+            _echo_verdict(stored_verdict(load_run(run_dir)))
         else:
             from ident.fileio import atomic_write_text
             from ident.report.html import markdown_to_html
@@ -63,6 +70,14 @@ def report(
             name = json.loads((run_dir / "result.json").read_text(encoding="utf-8")).get("name")
             page = markdown_to_html(markdown, title=f"ident identify: {name}", base_dir=run_dir)
             typer.echo(str(atomic_write_text(run_dir / "report.html", page)))
+            data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
+            if isinstance(data.get("verdict"), dict):  # older folders have none
+                _echo_verdict(data["verdict"])
+
+
+def _echo_verdict(entry: dict) -> None:
+    """The run's verdict as result.json stores it (stderr: stdout names the report)."""
+    typer.echo(f"verdict: {entry.get('label')} ({entry.get('reason')})", err=True)
 
 
 def _kind(run_dir: Path) -> str:

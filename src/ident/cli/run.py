@@ -17,7 +17,7 @@ from typing import Annotated, Any
 
 import typer
 
-from ident.cli._common import EXIT_INTERRUPTED, EXIT_USER_ERROR, user_errors
+from ident.cli._common import EXIT_INTERRUPTED, EXIT_USER_ERROR, failure_note, user_errors
 
 __all__ = ["register"]
 
@@ -47,6 +47,7 @@ def run(
     from ident.inputs import check_output_dir
     from ident.report.run_report import save_run, write_replay, write_report
     from ident.run.config import load_run_config
+    from ident.run.exports.run_exports import check_run_exports, export_run
     from ident.run.log_measurement import save_logs
     from ident.run.pipeline import RunInterrupted, run_pipeline
     from ident.run.rundir import create_run_dir
@@ -61,6 +62,7 @@ def run(
             cfg = cfg.with_seed(seed)
         # everything that can be wrong with the config is found before the folder exists
         setup = prepare_run(cfg, source=config)
+        check_run_exports(cfg, setup.robot, config)
         if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
             typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
@@ -93,29 +95,40 @@ def run(
         try:
             save_run(result, rundir.path)
             save_logs(result, rundir.path)
+            # controller files of the certified trajectory, checked, written, re-read
+            exports = export_run(result, rundir.path)
+            if exports is not None:
+                rundir.update(exports=exports.lines(rundir.path))
             replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
             rundir.update(replay=replay_note)
-        except BaseException:
-            rundir.finish("incomplete", "stopped while saving the results")
+        except BaseException as e:
+            rundir.finish("incomplete", f"stopped while saving the results: {failure_note(e)}")
             raise
         # the data are saved: if the report fails, 'ident report RUN_DIR' writes it again;
         # the run is complete only once its last file (the report) is written
         rundir.stamp_wall_time()
         try:
             report_path = write_report(rundir.path)
-        except BaseException:
-            rundir.finish("incomplete", "stopped while writing the report; the data are saved")
+        except BaseException as e:
+            rundir.finish(
+                "incomplete",
+                f"stopped while writing the report ({failure_note(e)}); the data are saved",
+            )
             typer.echo(
                 f"the data are saved; write the report with: ident report {rundir.path}",
                 err=True,
             )
             raise
         rundir.finish("complete", result.message, stamp_wall_time=False)
-        _summary(result, rundir.path, report_path, replay_note)
+        _summary(result, rundir.path, report_path, replay_note, exports)
+        for refusal in exports.refused.values() if exports is not None else ():
+            typer.echo(f"error: export refused: {refusal}", err=True)
         if result.warnings:
             for warning in result.warnings:
                 typer.echo(f"error: {warning}", err=True)
             raise typer.Exit(code=EXIT_NOT_IDENTIFIED)
+        if exports is not None and exports.refused:
+            raise typer.Exit(code=EXIT_USER_ERROR)
 
 
 def _save_partial(partial: Any, rundir: Any) -> None:
@@ -163,8 +176,9 @@ class _ProgressDisplay:
         self.tasks["elites"] = self.progress.add_task(
             "initial elites", total=cfg.elites.maxiter, info=""
         )
+        name = "eMuPSO" if cfg.optimizer == "emupso" else cfg.optimizer
         self.tasks["optimize"] = self.progress.add_task(
-            "eMuPSO", total=cfg.emupso.n_runs * cfg.emupso.maxiter, info=""
+            name, total=cfg.emupso.n_runs * cfg.emupso.maxiter, info=""
         )
         self.tasks["identify"] = self.progress.add_task(
             "identification", total=cfg.emupso.n_report_elites, info=""
@@ -198,7 +212,9 @@ class _ProgressDisplay:
             p.update(self.tasks["identify"], completed=event.step, total=event.total, info="")
 
 
-def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) -> None:
+def _summary(
+    result: Any, run_dir: Path, report_path: Path, replay_note: str, exports: Any = None
+) -> None:
     """One screen: the chosen elite, the estimate quality, where the files are."""
     from rich.console import Console
     from rich.table import Table
@@ -221,10 +237,15 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
             "paper's DH frames",
             f"{i}/{d}/{u}" + (f" (paper: {paper})" if paper else ""),
         )
-    table.add_row("eMuPSO runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
+    from ident.report.run_data import load_run
+    from ident.report.run_report import optimizer_name
+    from ident.report.run_verdict import stored_verdict
+
+    data = load_run(run_dir)  # the saved result: the verdict the reports show
+    table.add_row(f"{optimizer_name(data)} runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
     if result.elites:
         plan = result.executable
-        chosen = plan.elite if plan is not None and plan.elite is not None else 1
+        chosen = result.executed_rank or 1
         best = result.elites[chosen - 1]
         table.add_row(
             "chosen elite" if plan is not None and plan.usable else "elite 1 (UNSAFE)",
@@ -252,7 +273,14 @@ def _summary(result: Any, run_dir: Path, report_path: Path, replay_note: str) ->
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")
     table.add_row("replay", replay_note)
+    v = stored_verdict(data)
+    table.add_row("verdict", f"{v['label']} ({v['reason']})")
+    for warning in v.get("warnings") or []:
+        table.add_row("warning", warning)
     console.print(table)
+    if exports is not None:  # plain lines: paths are never truncated
+        for line in exports.lines(run_dir):
+            typer.echo(f"Export {line}")
     # plain lines, never truncated by the table layout
     typer.echo(f"Report: {report_path}")
     typer.echo(f"Run folder: {run_dir}")

@@ -236,6 +236,13 @@ def _print_table(report: dict[str, Any]) -> None:
             "frames: 'model' = parameters about the URDF link (joint) frames, 'DH' = about the "
             "DH frames of the config (the paper's)."
         )
+    for pair in report.get("nearly_aligned_axes", []):
+        console.print(
+            f"nearly aligned axes: {pair['joint']} and {pair['other']} are "
+            f"{pair['nominal_deg']:g} deg apart to within {pair['deviation_rad']:.2g} rad (URDF "
+            f"angles rounded?); the base parameters treat them as exactly aligned (rank "
+            f"tolerance {report['rank_tolerance']:g})"
+        )
     if not report["ranks_agree"]:
         console.print("[red]the two base-parameter methods disagree on the rank[/red]")
 

@@ -11,7 +11,12 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from ident.dynamics.base_parameters import METHODS, compute_base_parameters
+from ident.dynamics.base_parameters import (
+    METHODS,
+    RANK_RTOL,
+    compute_base_parameters,
+    nearly_aligned_axes,
+)
 from ident.dynamics.chain import FloatArray, chain_from_model
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.regressor import joint_torque_regressor
@@ -140,7 +145,9 @@ def verification_report(
     :
         The keys of :func:`compare_with_pinocchio`, plus ``rank``, ``n_independent``,
         ``n_dependent``, ``n_unidentifiable``, ``n_params`` (QR method, whole robot),
-        ``methods`` (counts of both methods), ``ranks_agree``, and ``stages``: for a 6-joint
+        ``methods`` (counts of both methods), ``ranks_agree``, ``rank_tolerance``,
+        ``nearly_aligned_axes`` (:func:`ident.dynamics.base_parameters.nearly_aligned_axes`
+        as dicts ``joint, other, deviation_rad, nominal_deg``), and ``stages``: for a 6-joint
         robot the paper's ``wrist`` and ``arm`` stages (moving joints from the same states,
         other joints held at 0.618 of their range, see
         :func:`ident.dynamics.stage.default_held_positions`), each with ``moving_joints``,
@@ -157,6 +164,12 @@ def verification_report(
     report.update(methods["qr"])
     report["methods"] = methods
     report["ranks_agree"] = len({counts["rank"] for counts in methods.values()}) == 1
+    # axes aligned up to rounding, which the rank tolerance treats as exactly aligned
+    report["rank_tolerance"] = RANK_RTOL
+    report["nearly_aligned_axes"] = [
+        {"joint": a, "other": b, "deviation_rad": d, "nominal_deg": n}
+        for a, b, d, n in nearly_aligned_axes(chain)
+    ]
     if parameter_map is not None:
         report[map_label] = _counts_both_methods(W @ parameter_map, names)
     stages: dict[str, Any] = {}

@@ -179,8 +179,9 @@ def select_base_columns(w: FloatArray, names: Sequence[str] | None = None) -> tu
 
     Delegates to :func:`ident.dynamics.base_parameters.compute_base_parameters` with
     ``method="qr"`` (columns normalized first, so the choice does not depend on the units of
-    the parameters; relative rank tolerance ``max(W.shape) * eps``), the same reduction the
-    identification uses.
+    the parameters) and its one rank tolerance
+    (:data:`ident.dynamics.base_parameters.RANK_RTOL`), the same reduction the identification
+    uses.
 
     Parameters
     ----------
@@ -199,12 +200,11 @@ def select_base_columns(w: FloatArray, names: Sequence[str] | None = None) -> tu
     from ident.dynamics.base_parameters import compute_base_parameters
 
     labels = tuple(names) if names is not None else tuple(f"c{i}" for i in range(w.shape[1]))
-    rtol = max(w.shape) * np.finfo(float).eps
     if w.shape[0] > w.shape[1]:
         # W = Q R with orthonormal Q: R has the same column norms and inner products, hence
         # the same pivots and rank, at the cost of a small matrix
         w = scipy.linalg.qr(w, mode="r")[0][: w.shape[1]]
-    base = compute_base_parameters(w, labels, method="qr", rtol=rtol)
+    base = compute_base_parameters(w, labels, method="qr")
     return tuple(sorted(int(i) for i in base.independent))
 
 

@@ -51,6 +51,7 @@ from ident.config import StrictModel
 from ident.errors import ModelError
 from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
 from ident.excitation.family import ConstraintViolations, FloatArray
+from ident.robot.meshes import check_urdf_meshes
 
 __all__ = [
     "DEFAULT_CLEARANCE_M",
@@ -223,6 +224,7 @@ def _kinematic_model_and_geometry(
     robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path]
 ) -> tuple[pin.Model, pin.GeometryModel]:
     """Pinocchio model (same joints as ``robot.model``) and its collision GeometryModel."""
+    check_urdf_meshes(urdf or getattr(robot, "urdf_text", None), package_dirs, visual=False)
     if urdf is None:
         text = getattr(robot, "urdf_text", None)
         if text is None:

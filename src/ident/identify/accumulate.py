@@ -1,8 +1,9 @@
-"""Identification of logs of any length in bounded memory: chunks reduced as they come.
+"""Accumulation of a log's observation rows in bounded memory: chunks reduced as they come.
 
-The in-memory path builds the regressor of every sample, ``(n_samples, nv, n_params)``
-floats: 14 GB for one hour at 1 kHz of a 7-joint arm. Here a log segment is processed in
-chunks of decimated samples; each chunk
+The one path of every identification (:func:`ident.identify.core.identify_measurements`): a
+log segment is processed in chunks of decimated samples (a whole segment is one chunk unless
+:func:`use_chunks` says otherwise; the regressor of every sample of one hour at 1 kHz of a
+7-joint arm would be 14 GB); each chunk
 
 1. takes its raw samples plus margins on both sides (``margin_samples``: long enough for the
    impulse responses of the zero-phase low-pass and of the decimation filters to decay below
@@ -19,10 +20,9 @@ chunks of decimated samples; each chunk
 
 Nothing per sample outlives a chunk except the held-out part's torques and predictions
 (``(n_validate, nv)`` each, for the report's plots), so memory is set by the chunk size and
-time is linear in the log length. The estimate (OLS/WLS with the same formulas as
-:func:`ident.identify.estimate.least_squares`) and the essential-parameter reduction work on
-the reduction alone. Several segments (gaps, windows) and several logs merge their reductions;
-``scheduler=`` hands the chunks to a Dask cluster.
+time is linear in the log length. The estimators (:mod:`ident.identify.estimators`) and the
+essential-parameter reduction work on the reduction alone. Several segments (gaps, windows)
+and several logs merge their reductions; ``scheduler=`` hands the chunks to a Dask cluster.
 
 Chunk reduction: CholeskyQR2 of the column-equilibrated ``[W | y]`` (two Gram products and a
 triangular solve, BLAS 3; as accurate as Householder QR for condition numbers below ~1e7 after
@@ -33,31 +33,47 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 import scipy.linalg
 from scipy import signal
+from threadpoolctl import threadpool_limits
 
 from ident.dynamics.chain import KinematicChain
 from ident.dynamics.friction import extra_columns
-from ident.errors import DataError, NotIdentifiable
+from ident.dynamics.gram import selected_rows
+from ident.dynamics.parameter_model import ParameterModel
+from ident.errors import DataError, IdentError
 from ident.identify import preprocess
 from ident.identify.config import PreprocessConfig
-from ident.identify.essential import backward_elimination
+from ident.identify.essential import EssentialResult, backward_elimination
 from ident.identify.estimate import Estimate, least_squares_reduced
-from ident.identify.observations import ReducedObservations
+from ident.identify.logs import RobotLog
+from ident.identify.observations import ReducedObservations, reduce_rows
+from ident.identify.reference import ReferenceWeights
+from ident.identify.validation import time_split
 
 __all__ = [
+    "BaseColumns",
     "Chunk",
     "ChunkPlan",
-    "estimate_reduced",
+    "ChunkedLog",
+    "chunk_record",
+    "default_chunk_samples",
     "essential_reduced",
+    "estimate_reduced",
     "iter_chunks",
+    "local_workers",
     "margin_samples",
+    "plan_log",
+    "predict_log",
     "reduce_chunk",
+    "reduce_log",
     "regressor_bytes",
+    "use_chunks",
 ]
 
 #: How long to wait for a --scheduler before giving up (here and in ``ident bench``).
@@ -66,8 +82,6 @@ DASK_CONNECT_TIMEOUT = "10s"
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-# Longest stretch of a chunked log shown in the replay [s].
-MOTION_MAX_S = 600.0
 # Impulse responses are followed until they fall below this fraction of their peak.
 _DECAY_RTOL = 1e-14
 
@@ -126,17 +140,17 @@ class ChunkPlan:
 def margin_samples(pp: PreprocessConfig, sampling_rate_hz: float) -> tuple[int, int]:
     """``(signal_margin, decimation_margin)`` in raw samples for the settings ``pp``."""
     signal_margin = 4  # np.gradient twice: two neighbours, edge formulas one further
-    for flt in (pp.lowpass, pp.torque_lowpass):
+    for flt in (preprocess.position_filter(pp), pp.torque_lowpass):
         if flt is not None:
             sos = signal.butter(flt.order, flt.cutoff_hz, fs=sampling_rate_hz, output="sos")
             signal_margin = max(signal_margin, 2 * _decay_length(sos) + 4)
     decimation_margin, scale = 0, 1
-    for factor in pp.decimation:
+    for factor in preprocess.decimation_factors(pp):
         if factor == 1:
             continue
-        decimation_margin += scale * (2 * _decay_length(preprocess._antialias_sos(factor)) + 2)
+        decimation_margin += scale * (2 * _decay_length(preprocess.antialias_sos(factor)) + 2)
         scale *= factor
-    step = int(np.prod(pp.decimation)) if pp.decimation else 1
+    step = preprocess.decimation_step(pp)
     decimation_margin = step * int(np.ceil(decimation_margin / step))
     return signal_margin, decimation_margin
 
@@ -145,12 +159,12 @@ def make_plan(
     n_samples: int, pp: PreprocessConfig, sampling_rate_hz: float, chunk_samples: int
 ) -> ChunkPlan:
     """The chunking of a segment of ``n_samples`` raw samples (see :class:`ChunkPlan`)."""
-    step = int(np.prod(pp.decimation)) if pp.decimation else 1
+    step = preprocess.decimation_step(pp)
     n_trim = n_samples - 2 * pp.trim_samples
     if n_trim <= 0:
         raise DataError(f"trim_samples = {pp.trim_samples} removes all {n_samples} samples.")
     n_dec = n_trim
-    for factor in pp.decimation:
+    for factor in preprocess.decimation_factors(pp):
         n_dec = -(-n_dec // factor)  # x[::f] keeps ceil(n / f)
     signal_margin, decimation_margin = margin_samples(pp, sampling_rate_hz)
     return ChunkPlan(
@@ -191,14 +205,15 @@ def iter_chunks(
     fs = sampling_rate_hz
     n, n_edge, step = plan.n_samples, plan.n_edge, plan.step
     n_trim = n - 2 * n_edge
+    position, factors = preprocess.position_filter(pp), preprocess.decimation_factors(pp)
     for d0, d1 in ranges:
         s = max(0, d0 * step - plan.decimation_margin)  # trimmed indices, multiple of step
         e = min(n_trim, d1 * step + plan.decimation_margin)
         r0 = max(0, s + n_edge - plan.signal_margin)  # raw indices
         r1 = min(n, e + n_edge + plan.signal_margin)
         q_c, tau_c = q[r0:r1], tau[r0:r1]
-        if pp.lowpass is not None:
-            q_c, _ = preprocess.lowpass(q_c, fs, pp.lowpass.cutoff_hz, pp.lowpass.order)
+        if position is not None:
+            q_c, _ = preprocess.lowpass(q_c, fs, position.cutoff_hz, position.order)
         if pp.torque_lowpass is not None:
             tau_c, _ = preprocess.lowpass(
                 tau_c, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
@@ -207,7 +222,7 @@ def iter_chunks(
         a, b = s + n_edge - r0, e + n_edge - r0
         q_c, dq_c, ddq_c, tau_c = q_c[a:b], dq_c[a:b], ddq_c[a:b], tau_c[a:b]
         Yb = columns(q_c, dq_c, ddq_c)
-        bank, _, _ = preprocess.decimate([tau_c, Yb, dq_c], pp.decimation, fs)
+        bank, _, _ = preprocess.decimate([tau_c, Yb, dq_c], factors, fs)
         k0 = d0 - s // step
         k1 = k0 + (d1 - d0)
         yield Chunk(
@@ -225,9 +240,7 @@ def regressor_bytes(n_samples: int, nv: int, n_columns: int) -> int:
 
 
 def _householder(A: FloatArray, n: int) -> tuple[FloatArray, FloatArray, float]:
-    from ident.identify.observations import _reduce
-
-    return _reduce(A[:, :n], A[:, n], n)
+    return reduce_rows(A[:, :n], A[:, n], n)
 
 
 def _cholesky_qr2(A: FloatArray, n: int) -> tuple[FloatArray, FloatArray, float]:
@@ -286,14 +299,12 @@ def reduce_chunk(Yb: FloatArray, tau: FloatArray, keep: BoolArray) -> ReducedObs
 
 def _subset(red: ReducedObservations, columns: list[int]) -> ReducedObservations:
     """The reduction of the same rows restricted to ``columns``: ``W_S = Q R[:, S]``."""
-    from ident.identify.observations import _reduce
-
     k = len(columns)
     R = np.zeros((red.n_groups, k, k))
     z = np.zeros((red.n_groups, k))
     rho = np.zeros(red.n_groups)
     for j in range(red.n_groups):
-        R[j], z[j], extra = _reduce(red.R[j][:, columns], red.z[j], k)
+        R[j], z[j], extra = reduce_rows(red.R[j][:, columns], red.z[j], k)
         rho[j] = red.rho[j] + extra
     return ReducedObservations(R=R, z=z, rho=rho, yty=red.yty.copy(), n_rows=red.n_rows.copy())
 
@@ -325,7 +336,7 @@ def essential_reduced(
     method: str,
     max_relative_std_pct: float,
     max_residual_increase: float,
-) -> object:
+) -> EssentialResult:
     """:func:`ident.identify.essential.essential_parameters` on a reduction (same rule:
     backward elimination of the largest relative std while the residual stays within
     ``1 + max_residual_increase`` of the full set's)."""
@@ -341,79 +352,40 @@ def essential_reduced(
     )
 
 
-@dataclass(frozen=True, eq=False)
-class ChunkedFit:
-    """What the chunked identification returns to :func:`ident.identify.real.identify`.
-
-    Arrays of the held-out part are concatenated over segments (decimated samples).
-    """
-
-    estimate: Estimate
-    essential: object | None
-    reduction: ReducedObservations
-    t_validate: FloatArray
-    tau_validate: FloatArray
-    keep_validate: BoolArray
-    predictions: dict[str, FloatArray]
-    in_sample: bool
-    sampling_rate_hz: float
-    records: tuple[dict, ...]
-    consistent: object | None = None  # ConsistentIdentification of the reduced rows
-
-
-@dataclass(frozen=True, eq=False)
-class _Task:
-    """One chunk of one segment, self-contained (shipped to a Dask worker as is)."""
-
-    plan: ChunkPlan
-    q: FloatArray  # the segment's raw samples (a view locally)
-    tau: FloatArray
-    fs: float
-    pp: PreprocessConfig
-    chain: KinematicChain
-    pm: object  # ParameterModel (gives the base columns)
-    d0: int
-    d1: int
-
-    def chunk(self) -> Chunk:
-        (out,) = iter_chunks(
-            self.plan,
-            self.q,
-            self.tau,
-            self.fs,
-            self.pp,
-            BaseColumns(self.chain, self.pm),
-            [(self.d0, self.d1)],
-        )
-        return out
-
-
 class BaseColumns:
     """The base regressor columns straight from the kernels, in *kernel order*: the rigid-body
     columns computed alone (``selected_rows``, no full regressor and no gather of it), then
-    the extra columns. ``order[i]`` is the base parameter of kernel column ``i``."""
+    the extra columns. ``order[i]`` is the base parameter of kernel column ``i``.
 
-    def __init__(self, chain: KinematicChain, pm: object) -> None:
-        independent = np.asarray(pm.base.independent)  # type: ignore[attr-defined]
-        rigid = pm.inertial_index[independent] >= 0  # type: ignore[attr-defined]
+    With ``reference`` (:class:`~ident.identify.reference.ReferenceWeights`), one more column
+    follows: the torques the reference's parameters predict, decimated like the rest.
+    """
+
+    def __init__(
+        self, chain: KinematicChain, pm: ParameterModel, reference: ReferenceWeights | None = None
+    ) -> None:
+        independent = np.asarray(pm.base.independent)
+        rigid = pm.inertial_index[independent] >= 0
         self.chain = chain
-        self.terms = pm.terms  # type: ignore[attr-defined]
-        self.rigid_columns = pm.inertial_index[independent[rigid]]  # type: ignore[attr-defined]
-        self.extra_columns = pm.extra_index[independent[~rigid]]  # type: ignore[attr-defined]
+        self.terms = pm.terms
+        self.rigid_columns = pm.inertial_index[independent[rigid]]
+        self.extra_columns = pm.extra_index[independent[~rigid]]
         self.order = np.concatenate([np.flatnonzero(rigid), np.flatnonzero(~rigid)])
+        self.reference = reference
 
     def __call__(self, q: FloatArray, dq: FloatArray, ddq: FloatArray) -> FloatArray:
-        from ident.dynamics.gram import selected_rows
-
         n, nv = dq.shape
-        out = np.empty((n, nv, self.order.size))
+        p = self.order.size
+        out = np.empty((n, nv, p + (self.reference is not None)))
         a = self.rigid_columns.size
         if a:
             # straight into the block of ``out`` (a strided view of it): no copy
             view = out[:, :, :a].reshape(n * nv, a)
             selected_rows(self.chain, q, dq, ddq, columns=self.rigid_columns, out=view)
         if self.extra_columns.size:
-            out[:, :, a:] = extra_columns(self.terms, dq, ddq)[:, :, self.extra_columns]
+            out[:, :, a:p] = extra_columns(self.terms, dq, ddq)[:, :, self.extra_columns]
+        if self.reference is not None:
+            out[:, :, p] = self.reference.torques(self.chain, self.terms, q, dq, ddq)
         return out
 
     def to_base(self, red: ReducedObservations) -> ReducedObservations:
@@ -427,19 +399,43 @@ class BaseColumns:
         )
 
 
+@dataclass(frozen=True, eq=False)
+class _Task:
+    """One chunk of one segment, self-contained (shipped to a Dask worker as is)."""
+
+    plan: ChunkPlan
+    q: FloatArray  # the segment's raw samples (a view locally)
+    tau: FloatArray
+    fs: float
+    pp: PreprocessConfig
+    columns: BaseColumns
+    d0: int
+    d1: int
+
+    def chunk(self) -> tuple[Chunk, BoolArray]:
+        """The chunk and its velocity-threshold mask (n, nv)."""
+        ranges = [(self.d0, self.d1)]
+        (out,) = iter_chunks(self.plan, self.q, self.tau, self.fs, self.pp, self.columns, ranges)
+        keep, _ = preprocess.velocity_mask(out.dq, self.pp.velocity_threshold)
+        return out, keep
+
+
 def _reduce_task(task: _Task) -> ReducedObservations:
-    c = task.chunk()
-    keep, _ = preprocess.velocity_mask(c.dq, task.pp.velocity_threshold)
-    return BaseColumns(task.chain, task.pm).to_base(reduce_chunk(c.Yb, c.tau, keep))
+    c, keep = task.chunk()
+    p = task.columns.order.size
+    return task.columns.to_base(reduce_chunk(c.Yb[:, :, :p], c.tau, keep))
 
 
 def _predict_task(
     task: _Task, vectors: dict[str, FloatArray]
 ) -> tuple[FloatArray, BoolArray, dict[str, FloatArray]]:
-    c = task.chunk()
-    keep, _ = preprocess.velocity_mask(c.dq, task.pp.velocity_threshold)
-    order = BaseColumns(task.chain, task.pm).order
-    return c.tau, keep, {label: c.Yb @ x[order] for label, x in vectors.items()}
+    c, keep = task.chunk()
+    order = task.columns.order
+    p = order.size
+    out = {label: c.Yb[:, :, :p] @ x[order] for label, x in vectors.items()}
+    if task.columns.reference is not None:
+        out["reference"] = c.Yb[:, :, p]
+    return c.tau, keep, out
 
 
 def local_workers() -> int:
@@ -464,14 +460,8 @@ def _run(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -> li
         workers = min(local_workers(), len(tasks))
         if workers <= 1:
             return [fn(task, *extra) for task in tasks]
-        from concurrent.futures import ThreadPoolExecutor
-
-        from threadpoolctl import threadpool_limits
-
         with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(workers) as pool:
             return list(pool.map(lambda task: fn(task, *extra), tasks))
-    from ident.errors import IdentError
-
     try:
         from distributed import Client
     except ImportError as e:
@@ -487,7 +477,7 @@ def _run(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -> li
         ) from e
     try:
         futures = client.map(fn, tasks, *[[x] * len(tasks) for x in extra], pure=False)
-        return client.gather(futures)
+        return list(client.gather(futures))
     finally:
         client.close()
 
@@ -501,370 +491,147 @@ def default_chunk_samples(plan_margins: tuple[int, int], nv: int, n_columns: int
     return max(by_memory, sum(plan_margins))
 
 
-def fit_chunked(
-    t: FloatArray,
-    q: FloatArray,
-    tau: FloatArray,
-    segments: tuple[tuple[int, int], ...],
-    sampling_rate_hz: float,
-    pp: PreprocessConfig,
-    chain: KinematicChain,
-    pm: object,
-    *,
-    method: str,
-    identify_fraction: float,
-    essential: dict | None = None,
-    chunk_samples: int | None = None,
-    scheduler: str | None = None,
-    consistent: Callable[[ReducedObservations, ReducedObservations], object] | None = None,
-    validation_fraction: float = 0.2,
-) -> ChunkedFit:
-    """Identify from raw joint-side signals in chunks (module docstring).
+def use_chunks(log: RobotLog, pp: PreprocessConfig, n_columns: int) -> bool:
+    """Whether a log is cut in chunks of ``preprocess.chunk_samples``: when asked
+    (``preprocess.chunked``), or in ``auto`` for several segments or a regressor above
+    ``preprocess.max_regressor_mb``. Otherwise each segment is one chunk (same code path)."""
+    if pp.chunked != "auto":
+        return pp.chunked == "always"
+    n, nv = log.q.shape
+    too_big = regressor_bytes(n, nv, n_columns) > pp.max_regressor_mb * 2**20
+    return len(log.segments) > 1 or too_big
 
-    Parameters
+
+@dataclass(frozen=True, eq=False)
+class ChunkedLog:
+    """A log cut in chunk tasks: the identification rows (in two parts, for the choice of a
+    prior weight) and the held-out rows.
+
+    Attributes
     ----------
-    t, q, tau :
-        Time [s], positions, torques of the log (segments concatenated), shapes (n,),
-        (n, nv), (n, nv).
-    segments :
-        ``(start, stop)`` ranges processed independently (gaps, windows, several logs); each
-        is split in time, its first ``identify_fraction`` identifies.
-    pm :
-        The :class:`~ident.identify.real.ParameterModel`.
-    essential :
-        Keyword arguments of :func:`essential_reduced` (``max_relative_std_pct``,
-        ``max_residual_increase``), or None to skip.
-    chunk_samples :
-        Raw samples per chunk (default :func:`default_chunk_samples`).
-    scheduler :
-        Dask scheduler address to run the chunks on, or None (this process).
-    consistent :
-        Called with the identification rows reduced in two parts (each segment's first
-        ``1 - validation_fraction`` of its identification samples, and the rest), returns a
-        :class:`~ident.identify.estimators.ConsistentIdentification`; a constrained estimate
-        in it is predicted on the held-out part like the least-squares one.
+    fit_tasks, first :
+        Chunks of the identification parts, and per chunk whether it is in the first
+        ``1 - validation_fraction`` of its segment's identification samples.
+    val_tasks, t_validate :
+        Chunks of the held-out parts (the identification part when a segment has none) and
+        their decimated sample times [s], shape (n_validate,).
+    chunk_samples, margins :
+        Raw samples per chunk and :func:`margin_samples`.
+    skipped :
+        Segments too short to identify from, with the reason.
+    in_sample :
+        True when ``identify_fraction == 1`` (no held-out part).
     """
-    from ident.identify.validation import time_split
 
-    fs = sampling_rate_hz
-    nv = q.shape[1]
-    names = pm.base_names  # type: ignore[attr-defined]
-    margins = margin_samples(pp, fs)
-    size = chunk_samples or default_chunk_samples(margins, nv, len(names))
-    fit_tasks: list[_Task] = []
-    n_first: list[bool] = []  # per fit task: in the first part (else the last, see consistent)
-    val_tasks: list[_Task] = []
+    fit_tasks: tuple[_Task, ...]
+    first: tuple[bool, ...]
+    val_tasks: tuple[_Task, ...]
+    t_validate: FloatArray
+    chunk_samples: int
+    margins: tuple[int, int]
+    skipped: tuple[str, ...]
+    in_sample: bool
+
+
+def plan_log(
+    log: RobotLog,
+    pp: PreprocessConfig,
+    columns: BaseColumns,
+    *,
+    identify_fraction: float,
+    chunk_samples: int,
+    validation_fraction: float = 0.2,
+) -> ChunkedLog:
+    """Cut every segment of ``log`` in chunks of ``chunk_samples`` raw samples (a chunk never
+    crosses the identification / validation boundary of its segment).
+
+    Raises
+    ------
+    DataError
+        If no segment is long enough to identify from.
+    """
+    fs = log.sampling_rate_hz
+    fit: list[_Task] = []
+    first: list[bool] = []
+    val: list[_Task] = []
     val_time: list[FloatArray] = []
-    records: list[dict] = []
     skipped = []
-    for a, b in segments:
+    for a, b in log.segments:
         try:
-            plan = make_plan(b - a, pp, fs, size)
+            plan = make_plan(b - a, pp, fs, chunk_samples)
         except DataError as e:
             skipped.append(f"{(b - a) / fs:.3g} s ({e})")
             continue
         ident_part, val_part = time_split(plan.n_decimated, identify_fraction)
-        args = (plan, q[a:b], tau[a:b], fs, pp, chain, pm)
+        args = (plan, log.q[a:b], log.tau[a:b], fs, pp, columns)
         split = int(round((1.0 - validation_fraction) * ident_part.stop))
         for lo, hi in ((0, split), (split, ident_part.stop)):
             ranges = list(plan.ranges(lo, hi)) if hi > lo else []
-            fit_tasks += [_Task(*args, d0, d1) for d0, d1 in ranges]
-            n_first += [lo == 0] * len(ranges)
+            fit += [_Task(*args, d0, d1) for d0, d1 in ranges]
+            first += [lo == 0] * len(ranges)
         part = val_part if val_part.stop > val_part.start else ident_part
-        val_tasks += [_Task(*args, d0, d1) for d0, d1 in plan.ranges(part.start, part.stop)]
-        val_time.append(t[a + plan.n_edge + plan.step * np.arange(part.start, part.stop)])
-    if not fit_tasks:
+        val += [_Task(*args, d0, d1) for d0, d1 in plan.ranges(part.start, part.stop)]
+        val_time.append(log.t[a + plan.n_edge + plan.step * np.arange(part.start, part.stop)])
+    if not fit:
         raise DataError("no log segment is long enough to identify from: " + "; ".join(skipped))
-    in_sample = identify_fraction >= 1.0
-    reductions = _run(_reduce_task, fit_tasks, scheduler)
-    halves: list[ReducedObservations | None] = []  # first and last part of the rows
-    for first in (True, False):
-        mine = [r for r, f in zip(reductions, n_first, strict=True) if f == first]
-        half = mine[0] if mine else None
-        for r in mine[1:]:
-            half = half.merge(r)
-        halves.append(half)
-    head, tail = halves
-    red = tail if head is None else head if tail is None else head.merge(tail)
-    if red.n_rows.sum() <= red.n_params:
-        raise DataError(
-            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters."
-        )
-    try:
-        est = estimate_reduced(red, names, method=method)
-    except NotIdentifiable as e:
-        idle = [j for j in range(nv) if red.n_rows[j] == 0]
-        if idle:
-            raise NotIdentifiable(
-                f"no sample of joint(s) {', '.join(str(j + 1) for j in idle)} reaches its "
-                f"velocity threshold (joint not moving?): {e}"
-            ) from e
-        raise
-    ess = None
-    vectors = {"identified": est.x}
-    if essential is not None:
-        ess = essential_reduced(red, tuple(names), method=method, **essential)
-        x_ess = np.zeros(len(names))
-        x_ess[list(ess.kept)] = ess.estimate.x  # type: ignore[attr-defined]
-        vectors["essential"] = x_ess
-    vectors["URDF nominal"] = pm.base.project(pm.nominal)  # type: ignore[attr-defined]
-    cons = None
-    if consistent is not None and head is not None and tail is not None:
-        cons = consistent(head, tail)
-        if cons.constrained is not None:  # type: ignore[attr-defined]
-            vectors[cons.method] = cons.constrained.x  # type: ignore[attr-defined]
-    parts = _run(_predict_task, val_tasks, scheduler, vectors)
+    return ChunkedLog(
+        fit_tasks=tuple(fit),
+        first=tuple(first),
+        val_tasks=tuple(val),
+        t_validate=np.concatenate(val_time),
+        chunk_samples=chunk_samples,
+        margins=margin_samples(pp, fs),
+        skipped=tuple(skipped),
+        in_sample=identify_fraction >= 1.0,
+    )
+
+
+def _merge_all(reductions: list[ReducedObservations]) -> ReducedObservations | None:
+    """The merge of ``reductions`` in order, or None for none."""
+    if not reductions:
+        return None
+    out = reductions[0]
+    for r in reductions[1:]:
+        out = out.merge(r)
+    return out
+
+
+def reduce_log(
+    chunked: ChunkedLog, scheduler: str | None = None
+) -> tuple[ReducedObservations | None, ReducedObservations | None]:
+    """The identification rows reduced per joint, in two parts ``(first, last)`` (either None
+    when empty); ``scheduler``: a Dask scheduler address, or None (this process)."""
+    reductions = _run(_reduce_task, list(chunked.fit_tasks), scheduler)
+    head = [r for r, f in zip(reductions, chunked.first, strict=True) if f]
+    tail = [r for r, f in zip(reductions, chunked.first, strict=True) if not f]
+    return _merge_all(head), _merge_all(tail)
+
+
+def predict_log(
+    chunked: ChunkedLog, vectors: dict[str, FloatArray], scheduler: str | None = None
+) -> tuple[FloatArray, BoolArray, dict[str, FloatArray]]:
+    """Held-out torques (n_validate, nv) [N*m], their velocity-threshold mask and the torques
+    predicted by each base-parameter vector of ``vectors`` (and ``"reference"`` when the
+    columns carry one)."""
+    parts = _run(_predict_task, list(chunked.val_tasks), scheduler, vectors)
     tau_val = np.concatenate([p[0] for p in parts])
     keep_val = np.concatenate([p[1] for p in parts])
-    predictions = {k: np.concatenate([p[2][k] for p in parts]) for k in vectors}
-    n_chunks = len(fit_tasks) + len(val_tasks)
-    records.append(
-        {
-            "step": "chunked accumulation",
-            "detail": f"{len(segments) - len(skipped)} segment(s) in {n_chunks} chunks of "
-            f"{size} raw samples (+ margins {margins[0]} raw / {margins[1]} trimmed samples "
-            "for the filters); identification rows reduced per joint (QR) chunk by chunk: "
-            f"{int(red.n_rows.sum())} rows, no per-sample regressor kept"
-            + (f"; skipped too-short segment(s): {'; '.join(skipped)}" if skipped else ""),
-        }
-    )
-    step = int(np.prod(pp.decimation)) if pp.decimation else 1
-    return ChunkedFit(
-        estimate=est,
-        essential=ess,
-        reduction=red,
-        t_validate=np.concatenate(val_time),
-        tau_validate=tau_val,
-        keep_validate=keep_val,
-        predictions=predictions,
-        in_sample=in_sample,
-        sampling_rate_hz=fs / step,
-        records=tuple(records),
-        consistent=cons,
-    )
+    labels = parts[0][2].keys()
+    predictions = {k: np.concatenate([p[2][k] for p in parts]) for k in labels}
+    return tau_val, keep_val, predictions
 
 
-def use_chunks(log: object, pp: PreprocessConfig, n_columns: int) -> bool:
-    """Whether :func:`ident.identify.real.identify` takes the chunked path: when asked
-    (``preprocess.chunked``), or in ``auto`` for several segments or a regressor above
-    ``preprocess.max_regressor_mb``."""
-    if pp.chunked != "auto":
-        return pp.chunked == "always"
-    n, nv = log.q.shape  # type: ignore[attr-defined]
-    too_big = regressor_bytes(n, nv, n_columns) > pp.max_regressor_mb * 2**20
-    return len(log.segments) > 1 or too_big  # type: ignore[attr-defined]
-
-
-def identify_chunked(
-    cfg: object,
-    log: object,
-    model: object,
-    joints: list[str],
-    *,
-    source: str,
-    rng: int,
-    timings: dict[str, float],
-    t0: float,
-    scheduler: str | None = None,
-    ellipsoids: tuple = (),
-) -> dict:
-    """The fields of an :class:`~ident.identify.real.IdentifyResult` by the chunked path.
-
-    Same steps and records as the in-memory path (read, low-pass, differentiate, trim,
-    regressor, decimate, velocity threshold, split, estimate, essential, held-out prediction),
-    with the chunked accumulation in the middle, and the constrained estimate
-    (``estimation.method``, ``ellipsoids``: the links' bounding ellipsoids or ``()``) on the
-    reduction. The reference parameters' held-out prediction is not computed here (the
-    comparison table is).
-    """
-    import time
-
-    from ident.dynamics.chain import chain_from_model
-    from ident.dynamics.friction import ExtraTerms
-    from ident.dynamics.parameter_model import build_parameter_model
-    from ident.errors import ConfigError
-    from ident.identify import sanity
-    from ident.identify.estimators import consistent_identification_reduced
-    from ident.identify.motion import measured_motion
-    from ident.identify.reference import compare_with_reference, read_reference
-    from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
-
-    pp = cfg.preprocess  # type: ignore[attr-defined]
-    fs = log.sampling_rate_hz  # type: ignore[attr-defined]
-    records = list(log.records)  # type: ignore[attr-defined]
-    t1 = time.perf_counter()
-    try:
-        terms = ExtraTerms.from_options(
-            model.nv,  # type: ignore[attr-defined]
-            rotor_inertia=cfg.model.rotor_inertia,  # type: ignore[attr-defined]
-            viscous=cfg.model.viscous,  # type: ignore[attr-defined]
-            coulomb=cfg.model.coulomb,  # type: ignore[attr-defined]
-            offset=cfg.model.offset,  # type: ignore[attr-defined]
-            coupled_wrist=cfg.model.coupled_wrist,  # type: ignore[attr-defined]
-        )
-    except ConfigError as e:
-        raise ConfigError(f"{source}: {e}") from e
-    pm = build_parameter_model(model, terms, rng=rng)  # type: ignore[arg-type]
-    timings["base_parameters"] = time.perf_counter() - t1
-    for flt, what in ((pp.lowpass, "q"), (pp.torque_lowpass, "tau")):
-        if flt is not None:
-            if not 0.0 < flt.cutoff_hz < 0.5 * fs:
-                raise ConfigError(
-                    f"{source}: preprocess.{'lowpass' if what == 'q' else 'torque_lowpass'}"
-                    f".cutoff_hz = {flt.cutoff_hz:g} Hz is not below the Nyquist frequency "
-                    f"{0.5 * fs:g} Hz; choose a lower cutoff."
-                )
-            records.append(
-                {
-                    "step": f"low-pass {what}",
-                    "detail": f"zero-phase Butterworth, order {flt.order}, cutoff "
-                    f"{flt.cutoff_hz:g} Hz at {fs:g} Hz (per chunk, margins included)",
-                }
-            )
-    records.append({"step": "differentiate", "detail": "central differences (np.gradient)"})
-    records.append(
-        {"step": "trim", "detail": f"dropped {pp.trim_samples} samples at each end of a segment"}
-    )
-    t2 = time.perf_counter()
-    ess_cfg = cfg.estimation.essential  # type: ignore[attr-defined]
-    fit = fit_chunked(
-        log.t,  # type: ignore[attr-defined]
-        log.q,  # type: ignore[attr-defined]
-        log.tau,  # type: ignore[attr-defined]
-        log.segments,  # type: ignore[attr-defined]
-        fs,
-        pp,
-        chain_from_model(model),  # type: ignore[arg-type]
-        pm,
-        method=cfg.estimation.least_squares_method,  # type: ignore[attr-defined]
-        consistent=lambda first, last: consistent_identification_reduced(
-            model,  # type: ignore[arg-type]
-            pm,
-            first,
-            last,
-            method=cfg.estimation.method,  # type: ignore[attr-defined]
-            weight=cfg.estimation.regularization.weight,  # type: ignore[attr-defined]
-            ellipsoids=ellipsoids,
-            options={"friction": cfg.estimation.friction},  # type: ignore[attr-defined]
-        ),
-        identify_fraction=cfg.validation.identify_fraction,  # type: ignore[attr-defined]
-        essential={
-            "max_relative_std_pct": ess_cfg.max_relative_std_pct,
-            "max_residual_increase": ess_cfg.max_residual_increase,
-        }
-        if ess_cfg.enabled
-        else None,
-        chunk_samples=pp.chunk_samples,
-        scheduler=scheduler,
-    )
-    timings["estimate"] = time.perf_counter() - t2
-    records += list(fit.records)
-    if pp.decimation:
-        records.append(
-            {
-                "step": "decimate",
-                "detail": f"zero-phase decimation by {' x '.join(map(str, pp.decimation))} "
-                "(Chebyshev I order 8, forward-backward) of torques and regressor rows alike, "
-                f"{fs:g} -> {fit.sampling_rate_hz:g} Hz",
-            }
-        )
-    predictions = {}
-    for label, tau_pred in fit.predictions.items():
-        predictions[label] = ModelPrediction(
-            label,
-            prediction_metrics(fit.tau_validate, tau_pred, fit.keep_validate),
-            prediction_metrics(fit.tau_validate, tau_pred),
-            tau_pred,
-        )
-    comparison: list[dict] = []
-    note = ""
-    reference_essential: list[dict] = []
-    ref_cfg = cfg.reference  # type: ignore[attr-defined]
-    if ref_cfg.base_parameters is not None:
-        comparison, note = compare_with_reference(
-            pm, fit.estimate, read_reference(ref_cfg.base_parameters), ref_cfg.column
-        )
-        note += " (Chunked path: the reference's held-out prediction is not computed.)"
-    if ref_cfg.essential_parameters is not None:
-        rows, _ = compare_with_reference(
-            pm, fit.estimate, read_reference(ref_cfg.essential_parameters), ref_cfg.column
-        )
-        kept = set(fit.essential.estimate.names) if fit.essential is not None else set()  # type: ignore[attr-defined]
-        for row in rows:
-            members = row["ours"].split(" + ") if row["ours"] else []
-            row["in_our_essential_set"] = bool(members) and all(m in kept for m in members)
-            reference_essential.append(row)
-    # the replay's measured motion: the first segment (at most its first MOTION_MAX_S),
-    # processed in memory (a few (n, nv) arrays)
-    motion, motion_note = None, ""
-    a, b = log.segments[0]  # type: ignore[attr-defined]
-    b = min(b, a + int(MOTION_MAX_S * fs))
-    try:
-        from ident.identify import preprocess as pre
-
-        q = log.q[a:b]  # type: ignore[attr-defined]
-        if pp.lowpass is not None:
-            q, _ = pre.lowpass(q, fs, pp.lowpass.cutoff_hz, pp.lowpass.order)
-        dq, ddq, _ = pre.differentiate(q, fs)
-        motion, _ = measured_motion(
-            log.t[a:b],  # type: ignore[attr-defined]
-            q,
-            dq,
-            ddq,
-            log.tau[a:b],  # type: ignore[attr-defined]
-            fs,
-            tuple(joints),
-        )
-    except (DataError, ConfigError) as e:
-        motion_note = f"measured motion not available: {e}"
-    problems = held_out_warnings(
-        predictions["identified"].metrics.total_relative_residual,
-        predictions["URDF nominal"].metrics.total_relative_residual,
-        max_relative_residual=cfg.validation.max_relative_residual,  # type: ignore[attr-defined]
-        in_sample=fit.in_sample,
-        n_rows=int(fit.reduction.n_rows.sum()),
-        n_params=len(pm.base_names),
-    )
-    red = fit.reduction
-    problems += sanity.result_warnings(
-        joint_names=tuple(joints),
-        units=sanity.joint_units(model),  # type: ignore[arg-type]
-        names=pm.base_names,
-        x=fit.estimate.x,
-        std=fit.estimate.std,
-        relative_std=fit.estimate.relative_std,
-        projection=pm.base.projection,
-        all_names=pm.names,
-        column_norms=np.sqrt(np.einsum("gij,gij->j", red.R, red.R)),
-        tau_norm=float(np.sqrt(red.yty.sum())),
-        tau_validate=fit.tau_validate,
-        tau_pred=fit.predictions["identified"],
-        keep_validate=fit.keep_validate,
-    )
-    cons = fit.consistent
-    if cons is not None and cons.constrained is None:  # type: ignore[attr-defined]
-        problems += sanity.inconsistency_warnings(cons, cfg.estimation.least_squares_method)  # type: ignore[attr-defined]
-    timings["total"] = time.perf_counter() - t0
+def chunk_record(chunked: ChunkedLog, red: ReducedObservations) -> dict:
+    """The report's record of the accumulation."""
+    skipped = chunked.skipped
+    n_segments = len({id(t.q) for t in chunked.fit_tasks})
+    n_chunks = len(chunked.fit_tasks) + len(chunked.val_tasks)
+    m = chunked.margins
     return {
-        "config": cfg,
-        "log": log,
-        "records": tuple(records),
-        "parameters": pm,
-        "estimate": fit.estimate,
-        "essential": fit.essential,
-        "t_validate": fit.t_validate,
-        "tau_validate": fit.tau_validate,
-        "keep_validate": fit.keep_validate,
-        "predictions": predictions,
-        "comparison": tuple(comparison),
-        "reference_note": note,
-        "joint_names": tuple(joints),
-        "sampling_rate_hz": fit.sampling_rate_hz,
-        "n_identify_rows": int(fit.reduction.n_rows.sum()),
-        "timings": timings,
-        "reference_essential": tuple(reference_essential),
-        "motion": motion,
-        "motion_note": motion_note,
-        "warnings": tuple(problems),
-        "consistent": cons,
+        "step": "chunked accumulation",
+        "detail": f"{n_segments} segment(s) in {n_chunks} chunks of at most "
+        f"{chunked.chunk_samples} raw samples (+ margins {m[0]} raw / {m[1]} trimmed samples "
+        "for the filters); identification rows reduced per joint (QR) chunk by chunk: "
+        f"{int(red.n_rows.sum())} rows, no per-sample regressor kept"
+        + (f"; skipped too-short segment(s): {'; '.join(skipped)}" if skipped else ""),
     }

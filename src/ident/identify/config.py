@@ -18,14 +18,16 @@ file. Example (``configs/tx40.yaml``)::
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
-from ident.errors import ConfigError
-from ident.identify.estimators import get_estimator
+from ident.errors import ConfigError, DataError
+from ident.identify.estimators import get_contract, get_estimator
+from ident.identify.reference import read_reference
 from ident.model.selection import RobotSelection
 
 __all__ = [
@@ -44,6 +46,7 @@ __all__ = [
     "TimeColumn",
     "TimeWindow",
     "TransmissionConfig",
+    "TruthConfig",
     "UrdfUpdateConfig",
     "ValidationConfig",
     "load_identify_config",
@@ -150,7 +153,12 @@ class LogConfig(StrictModel):
         first = self.model_copy(update={"more": []})
         base = first.model_dump(exclude_defaults=True)
         out = [first]
-        for entry in self.more:
+        for k, entry in enumerate(self.more):
+            if "more" in entry:
+                raise ValueError(
+                    f"log.more[{k}] holds its own 'more:' list; list every further log "
+                    "directly under log.more"
+                )
             merged = {**base, **entry}
             if "files" in entry or "path" in entry:  # new files: not the first log's signals'
                 for key in ("position", "torque", "velocity"):
@@ -261,6 +269,16 @@ class PreprocessConfig(StrictModel):
     max_regressor_mb: float = Field(default=1024.0, gt=0.0)
     chunk_samples: int | None = Field(default=None, ge=16)
 
+    @field_validator("velocity_threshold")
+    @classmethod
+    def _thresholds(cls, value: list[float] | None) -> list[float] | None:
+        if value is not None and not all(math.isfinite(v) and v >= 0.0 for v in value):
+            raise ValueError(
+                f"velocity thresholds are speeds [rad/s or m/s], each finite and >= 0 "
+                f"(0 keeps every sample), got {value}"
+            )
+        return value
+
     @field_validator("decimation")
     @classmethod
     def _factors(cls, value: list[int] | str) -> list[int] | str:
@@ -345,6 +363,12 @@ class EstimationConfig(StrictModel):
             get_estimator(value)
         except ConfigError as e:
             raise ValueError(str(e)) from e
+        if not get_contract(value).supports_chunks:  # every log is reduced chunk by chunk
+            raise ValueError(
+                f"estimator {value!r} declares supports_chunks=False: the identification "
+                "gives every estimator the rows reduced per joint, never the rows; register "
+                "it with a contract that works on problem.observations."
+            )
         return value
 
     @model_validator(mode="after")
@@ -359,7 +383,17 @@ class EstimationConfig(StrictModel):
     @property
     def least_squares_method(self) -> str:
         """``ols`` or ``wls``: the unconstrained estimate (``wls`` beside constrained ones)."""
-        return self.method if self.method in ("ols", "wls") else "wls"
+        return self.method if get_contract(self.method).least_squares else "wls"
+
+
+class TruthConfig(StrictModel):
+    """The true base parameters of a simulated log (``ident run`` writes them into the
+    ``identify.yaml`` of each log it simulates): with them the verdict judges the errors of the
+    major parameters, as ``ident run`` does (docs/verdict.md). A real log has none."""
+
+    base_names: list[str]
+    values: list[float]
+    reference_share: list[float]
 
 
 class ValidationConfig(StrictModel):
@@ -375,6 +409,7 @@ class ValidationConfig(StrictModel):
     identify_fraction: float = Field(default=0.7, gt=0.0, le=1.0)
     max_relative_residual: float | None = Field(default=None, gt=0.0)
     fail_on_warning: bool = False
+    truth: TruthConfig | None = None
 
 
 class ReferenceConfig(StrictModel):
@@ -481,6 +516,13 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
     for key, file in checks:
         if not Path(file).exists():
             raise ConfigError(f"{path}: {key} = {file}: file not found; fix the path.")
+    for key in ("base_parameters", "essential_parameters"):
+        file = getattr(reference, key)
+        if file is not None:  # read now: never a failure after the identification
+            try:
+                read_reference(file)
+            except DataError as e:
+                raise ConfigError(f"{path}: reference.{key}: {e}") from e
     return cfg.model_copy(
         update={"robot": robot, "log": log, "reference": reference, "source": path}
     )

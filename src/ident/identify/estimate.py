@@ -246,13 +246,6 @@ def rank_report(
     return "; ".join(parts) + "." + (f" {advice}" if advice else "")
 
 
-def _qr_solve(W: FloatArray, tau: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Solve ``min ||W x - tau||`` by economic QR; return x, residual and R."""
-    Q, R = scipy.linalg.qr(W, mode="economic", check_finite=False)
-    x = scipy.linalg.solve_triangular(R, Q.T @ tau, check_finite=False)
-    return x, tau - W @ x, R
-
-
 def _covariance_unit(R: FloatArray) -> FloatArray:
     """``(W^T W)^-1 = R^-1 R^-T`` from the triangular factor (no normal equations)."""
     R_inv = scipy.linalg.solve_triangular(R, np.eye(R.shape[0]), check_finite=False)
@@ -331,86 +324,78 @@ def least_squares(
         raise DataError(f"observation matrix has NaN/inf in the column(s) of {', '.join(bad)}.")
     if not np.all(np.isfinite(tau_flat)):
         raise DataError("measured torques contain NaN/inf values; clean or trim the log.")
+    # one implementation of the formulas: the rows reduced per group (a QR each), then
+    # least_squares_reduced (same estimate, standard deviations and residuals)
+    obs = ReducedObservations.from_rows(W, tau_flat, group_of_row, n_groups)
+    return least_squares_reduced(
+        obs, names, method=method, wls_passes=wls_passes, n_samples=n_samples
+    )
+
+
+def _wls(
+    obs: ReducedObservations,
+    x: FloatArray,
+    ss_group: FloatArray,
+    sigma_pooled: float,
+    passes: int,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, str]:
+    """WLS passes from the OLS solution ``x`` (:func:`least_squares`, ``method="wls"``):
+    ``(x, covariance, sigma per group, residual sum of squares per group, message)``."""
+    n_groups, n = obs.n_groups, obs.n_params
+    rows_in_group = obs.n_rows.astype(float)
+    m = int(obs.n_rows.sum())
+    dof = m - n
+    zero = np.zeros(n_groups, dtype=bool)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tau_rms = np.sqrt(obs.yty / rows_in_group)
+    for _ in range(passes):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            sigma = np.sqrt(ss_group / (rows_in_group * dof / m))
+        zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
+        if zero.any():
+            sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
+        sigma = np.where(rows_in_group > 0, sigma, np.nan)
+        # empty groups carry no rows: any finite weight leaves the solution unchanged
+        weight = np.where(rows_in_group > 0, 1.0 / sigma, 0.0)
+        Rs, zs = obs.stacked(weight)
+        x = scipy.linalg.solve_triangular(Rs, zs, check_finite=False)
+        ss_group = obs.residual_ss(x)
+    message = "ok"
+    if zero.any():
+        message = (
+            "WLS: zero residual variance on group(s) "
+            + ", ".join(str(j) for j in np.flatnonzero(zero))
+            + " (noise-free data); used the pooled OLS weight there."
+        )
+    sigma_w2 = float(np.sum(weight**2 * ss_group) / dof)
+    cov = sigma_w2 * _covariance_unit(Rs)
+    # the per-group std the covariance assumes: sigma_j * sigma_w (sigma_w ~ 1)
+    sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
+    return x, cov, sigma, ss_group, message
+
+
+def _checked(
+    obs: ReducedObservations, names: tuple[str, ...] | list[str], method: str
+) -> tuple[str, ...]:
+    """``names`` as a tuple, after the checks of :func:`least_squares_reduced`."""
+    if method not in METHODS:
+        raise DataError(f"method={method!r} is not one of {', '.join(METHODS)}.")
+    n = obs.n_params
+    names = tuple(names)
+    if len(names) != n:
+        raise DataError(f"{len(names)} names for {n} columns of W.")
+    m = int(obs.n_rows.sum())
+    if not (np.all(np.isfinite(obs.R)) and np.all(np.isfinite(obs.z))):
+        raise DataError("reduced observations contain NaN/inf; clean or trim the log.")
     if m <= n:
         raise DataError(
             f"too few observations: {m} rows for {n} parameters (need more than {n}); "
             "use a longer log, less decimation, or fewer parameters."
         )
-    problem = rank_report(W, names)
+    problem = rank_report(obs.R.reshape(-1, n), names)
     if problem is not None:
         raise NotIdentifiable(problem)
-
-    x, r, R = _qr_solve(W, tau_flat)
-    s = np.linalg.svd(R, compute_uv=False)
-    condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-    if not np.isfinite(condition_number) or condition_number > 1.0 / np.finfo(float).eps:
-        raise NotIdentifiable(
-            rank_report(W, names) or f"observation matrix is singular (cond={condition_number})."
-        )
-    dof = m - n
-    sigma_pooled = float(np.sqrt(r @ r / dof))
-    rows_in_group = np.bincount(group_of_row, minlength=n_groups).astype(float)
-    message = "ok"
-
-    if method == "ols":
-        cov = sigma_pooled**2 * _covariance_unit(R)
-        sigma = np.full(n_groups, sigma_pooled)
-    else:
-        zero = np.zeros(n_groups, dtype=bool)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            tau_rms = np.sqrt(
-                np.bincount(group_of_row, weights=tau_flat**2, minlength=n_groups) / rows_in_group
-            )
-        for _ in range(wls_passes):
-            ss_group = np.bincount(group_of_row, weights=r**2, minlength=n_groups)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                sigma = np.sqrt(ss_group / (rows_in_group * dof / m))
-            zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
-            if zero.any():
-                sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
-            sigma = np.where(rows_in_group > 0, sigma, np.nan)
-            weight = 1.0 / sigma[group_of_row]
-            Ws = W * weight[:, None]  # row scaling, never a dense diagonal matrix
-            x, rs, Rs = _qr_solve(Ws, tau_flat * weight)
-            r = tau_flat - W @ x
-        if zero.any():
-            message = (
-                "WLS: zero residual variance on group(s) "
-                + ", ".join(str(j) for j in np.flatnonzero(zero))
-                + " (noise-free data); used the pooled OLS weight there."
-            )
-        sigma_w2 = float(rs @ rs / dof)
-        cov = sigma_w2 * _covariance_unit(Rs)
-        # Report the per-group std the covariance assumes: sigma_j * sigma_w (sigma_w ~ 1).
-        sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
-
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        relative_std = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
-        residual_rms = np.sqrt(
-            np.bincount(group_of_row, weights=r**2, minlength=n_groups) / rows_in_group
-        )
-    tau_norm = float(np.linalg.norm(tau_flat))
-    relative_residual = float(np.linalg.norm(r) / tau_norm) if tau_norm > 0 else float("inf")
-    success = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(std)))
-    if not success:
-        message = "non-finite estimate or standard deviation; check the data scaling."
-    return Estimate(
-        x=x,
-        names=names,
-        std=std,
-        relative_std=relative_std,
-        method=method,
-        residual_rms=residual_rms,
-        relative_residual=relative_residual,
-        sigma=sigma,
-        condition_number=condition_number,
-        n_samples=n_samples,
-        success=success,
-        message=message,
-        n_observations=m,
-        covariance=cov,
-    )
+    return names
 
 
 def least_squares_reduced(
@@ -445,26 +430,12 @@ def least_squares_reduced(
     DataError, NotIdentifiable
         As :func:`least_squares`.
     """
-    if method not in METHODS:
-        raise DataError(f"method={method!r} is not one of {', '.join(METHODS)}.")
     obs = observations
+    names = _checked(obs, names, method)
     n = obs.n_params
-    names = tuple(names)
-    if len(names) != n:
-        raise DataError(f"{len(names)} names for {n} columns of W.")
     rows_in_group = obs.n_rows.astype(float)
     m = int(obs.n_rows.sum())
-    if not (np.all(np.isfinite(obs.R)) and np.all(np.isfinite(obs.z))):
-        raise DataError("reduced observations contain NaN/inf; clean or trim the log.")
-    if m <= n:
-        raise DataError(
-            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
-            "use a longer log, less decimation, or fewer parameters."
-        )
     R_all = obs.R.reshape(-1, n)  # same column norms and singular values as W
-    problem = rank_report(R_all, names)
-    if problem is not None:
-        raise NotIdentifiable(problem)
     R, z = obs.stacked()
     x = scipy.linalg.solve_triangular(R, z, check_finite=False)
     s = np.linalg.svd(R, compute_uv=False)
@@ -475,36 +446,12 @@ def least_squares_reduced(
     dof = m - n
     ss_group = obs.residual_ss(x)
     sigma_pooled = float(np.sqrt(ss_group.sum() / dof))
-    n_groups = obs.n_groups
     message = "ok"
     if method == "ols":
         cov = sigma_pooled**2 * _covariance_unit(R)
-        sigma = np.full(n_groups, sigma_pooled)
+        sigma = np.full(obs.n_groups, sigma_pooled)
     else:
-        zero = np.zeros(n_groups, dtype=bool)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            tau_rms = np.sqrt(obs.yty / rows_in_group)
-        for _ in range(wls_passes):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                sigma = np.sqrt(ss_group / (rows_in_group * dof / m))
-            zero = ~(sigma > _ZERO_SIGMA_RTOL * tau_rms) & (rows_in_group > 0)
-            if zero.any():
-                sigma = np.where(zero, sigma_pooled if sigma_pooled > 0 else 1.0, sigma)
-            sigma = np.where(rows_in_group > 0, sigma, np.nan)
-            # empty groups carry no rows: any finite weight leaves the solution unchanged
-            weight = np.where(rows_in_group > 0, 1.0 / sigma, 0.0)
-            Rs, zs = obs.stacked(weight)
-            x = scipy.linalg.solve_triangular(Rs, zs, check_finite=False)
-            ss_group = obs.residual_ss(x)
-        if zero.any():
-            message = (
-                "WLS: zero residual variance on group(s) "
-                + ", ".join(str(j) for j in np.flatnonzero(zero))
-                + " (noise-free data); used the pooled OLS weight there."
-            )
-        sigma_w2 = float(np.sum(weight**2 * ss_group) / dof)
-        cov = sigma_w2 * _covariance_unit(Rs)
-        sigma = sigma * np.sqrt(sigma_w2) if sigma_w2 > 0 else sigma
+        x, cov, sigma, ss_group, message = _wls(obs, x, ss_group, sigma_pooled, wls_passes)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         relative_std = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)

@@ -1,4 +1,4 @@
-"""Quality measures of an estimate: errors against true values, verdicts, parameter units.
+"""Quality measures of an estimate: errors against true values, parameter units.
 
 Pure functions of arrays (no files, no printing); the report writers call them and only
 format the numbers.
@@ -14,8 +14,8 @@ whatever the estimator (the paper robot has base parameters of 1e-7 of the large
 of its 1e-6 kg*m first moments), so the summaries leave such parameters out:
 
 - *major* parameters: reference torque share (the stage's reference motion, the same set
-  for every trajectory) of at least ``MAJOR_SHARE`` (1 %); the verdict and the worst error
-  are about them;
+  for every trajectory) of at least ``MAJOR_SHARE`` (1 %); the verdict
+  (:mod:`ident.identify.verdict`) and the worst error are about them;
 - *significant* parameters: torque share of at least ``SIGNIFICANT_SHARE`` (1e-4); the
   paper-style error sums add their relative errors [%]: ``Error(n)`` over the ``n``
   significant parameters, ``Error(n-2)`` without the two largest (our reading of the paper's
@@ -28,25 +28,16 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 __all__ = [
-    "GOOD_ERROR_PERCENT",
-    "GOOD_RESIDUAL",
     "MAJOR_SHARE",
     "SIGNIFICANT_SHARE",
-    "USABLE_ERROR_PERCENT",
-    "USABLE_RESIDUAL",
-    "VERDICT_RULE",
-    "VERDICT_RULE_REAL",
-    "Verdict",
     "error_measures",
     "parameter_unit",
-    "verdict",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -54,25 +45,6 @@ FloatArray = npt.NDArray[np.float64]
 ZERO_RTOL = 1e-9
 SIGNIFICANT_SHARE = 1e-4
 MAJOR_SHARE = 1e-2
-GOOD_ERROR_PERCENT = 5.0
-USABLE_ERROR_PERCENT = 20.0
-GOOD_RESIDUAL = 0.10
-USABLE_RESIDUAL = 0.25
-
-#: The verdict rule of a simulated run (true values known), as printed in the reports.
-VERDICT_RULE = (
-    f"good: every major parameter (torque share >= {100 * MAJOR_SHARE:g} %) within "
-    f"{GOOD_ERROR_PERCENT:g} % of its true value and a torque residual below "
-    f"{100 * GOOD_RESIDUAL:g} %; usable: within {USABLE_ERROR_PERCENT:g} % and below "
-    f"{100 * USABLE_RESIDUAL:g} %; otherwise not identified"
-)
-#: The verdict rule of a real robot (no true values: relative standard deviations instead).
-VERDICT_RULE_REAL = (
-    f"good: held-out torque residual below {100 * GOOD_RESIDUAL:g} %, no warning, and every "
-    f"essential parameter's relative std (σ) below {GOOD_ERROR_PERCENT:g} %; usable: "
-    f"residual below {100 * USABLE_RESIDUAL:g} % and σ below {USABLE_ERROR_PERCENT:g} %; "
-    "otherwise not identified"
-)
 
 
 def _num(value: Any) -> Any:
@@ -179,53 +151,6 @@ def error_measures(
             int(np.flatnonzero(major)[np.argmax(rel[major])]) if major.any() else None
         )
     return out
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """``label`` (``good``, ``usable`` or ``not identified``) and the reason in one sentence."""
-
-    label: str
-    reason: str
-
-
-def verdict(
-    worst_percent: float | None,
-    residual: float | None,
-    *,
-    what: str = "major-parameter error",
-    warnings: int = 0,
-) -> Verdict:
-    """Classify an identification by its worst parameter measure and its torque residual.
-
-    Parameters
-    ----------
-    worst_percent :
-        Worst relative error of the major parameters [%] (simulation), or the worst relative
-        std of the essential parameters [%] (real robot); None if unknown.
-    residual :
-        Relative torque residual ``||tau - tau_pred|| / ||tau||`` (validation or held-out
-        data when available), None if unknown.
-    what :
-        Name of ``worst_percent`` for the reason.
-    warnings :
-        Number of warnings of the result; any warning rules out ``good``.
-
-    Returns
-    -------
-    :
-        The verdict by :data:`VERDICT_RULE` (thresholds ``GOOD_*`` and ``USABLE_*``).
-    """
-    if worst_percent is None:
-        return Verdict("not identified", f"no {what} (no estimate)")
-    res = math.inf if residual is None else residual
-    res_text = "unknown" if residual is None else f"{100 * residual:.3g} %"
-    reason = f"{what} {worst_percent:.3g} %, torque residual {res_text}"
-    if worst_percent <= GOOD_ERROR_PERCENT and res <= GOOD_RESIDUAL and not warnings:
-        return Verdict("good", reason)
-    if worst_percent <= USABLE_ERROR_PERCENT and res <= USABLE_RESIDUAL:
-        return Verdict("usable", reason + ("; warnings" if warnings else ""))
-    return Verdict("not identified", reason)
 
 
 # joint-space parameters of joint k (1-based): fv3, fs3, fc3, off3, Ia3 (and base names fv3R)

@@ -202,7 +202,10 @@ def reload_parity(
     index = {name: i for i, name in enumerate(names)}
     n = robot.n_bodies
     q, dq, ddq = robot.random_configurations(n_states, rng=seed)
-    rigid = robot.regressor(q, dq, ddq) @ theta[: 10 * n]
+    # the bodies' parameters by name, in the regressor's (Pinocchio's) order: ``names`` may
+    # interleave them with the extras (the identification's priority order)
+    bodies = theta[[index[f"{label}{j}"] for j in range(1, n + 1) for label in PINOCCHIO_ORDER]]
+    rigid = robot.regressor(q, dq, ddq) @ bodies
     scale = max(float(np.abs(rigid).max()), np.finfo(float).tiny)
 
     reloaded = model_of_urdf(files.urdf.text, robot.locked_joints)

@@ -27,12 +27,12 @@ import scipy.linalg
 
 from ident.errors import DataError
 
-__all__ = ["ReducedObservations"]
+__all__ = ["ReducedObservations", "reduce_rows"]
 
 FloatArray = npt.NDArray[np.float64]
 
 
-def _reduce(W: FloatArray, y: FloatArray, n: int) -> tuple[FloatArray, FloatArray, float]:
+def reduce_rows(W: FloatArray, y: FloatArray, n: int) -> tuple[FloatArray, FloatArray, float]:
     """``(R, z, rho)`` of the rows ``W`` (m, n), ``y`` (m,): R (n, n) upper triangular, z (n,).
 
     One QR of ``[W | y]``: its triangle holds R, ``z = Q^T y`` in the last column and the
@@ -125,7 +125,7 @@ class ReducedObservations:
         n_rows = np.zeros(n_groups, dtype=np.int64)
         for j in range(n_groups):
             rows = groups == j
-            R[j], z[j], rho[j] = _reduce(W[rows], y[rows], n)
+            R[j], z[j], rho[j] = reduce_rows(W[rows], y[rows], n)
             yty[j] = float(y[rows] @ y[rows])
             n_rows[j] = int(rows.sum())
         return cls(R=R, z=z, rho=rho, yty=yty, n_rows=n_rows)
@@ -158,7 +158,7 @@ class ReducedObservations:
         for j in range(self.n_groups):
             # each part's own residual enters as a row (0, ..., 0 | sqrt(rho)): the merged QR
             # then carries the total residual in its corner
-            R[j], z[j], rho[j] = _reduce(
+            R[j], z[j], rho[j] = reduce_rows(
                 np.vstack([self.R[j], other.R[j], zero]),
                 np.concatenate([self.z[j], other.z[j], np.sqrt([self.rho[j], other.rho[j]])]),
                 n,
@@ -182,5 +182,5 @@ class ReducedObservations:
         w = np.ones(self.n_groups) if weights is None else np.asarray(weights, dtype=float)
         Rs = (self.R * w[:, None, None]).reshape(-1, self.n_params)
         zs = (self.z * w[:, None]).reshape(-1)
-        R, z, _ = _reduce(Rs, zs, self.n_params)
+        R, z, _ = reduce_rows(Rs, zs, self.n_params)
         return R, z

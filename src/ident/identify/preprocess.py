@@ -26,9 +26,21 @@ import numpy.typing as npt
 from scipy import signal
 
 from ident.errors import ConfigError, DataError
+from ident.identify.config import FilterConfig, PreprocessConfig
 from ident.signals import central_differences, sosfiltfilt, zero_phase_lowpass
 
-__all__ = ["decimate", "differentiate", "lowpass", "trim", "velocity_mask"]
+__all__ = [
+    "antialias_sos",
+    "decimate",
+    "decimation_factors",
+    "decimation_step",
+    "differentiate",
+    "lowpass",
+    "position_filter",
+    "resolve_defaults",
+    "trim",
+    "velocity_mask",
+]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -162,7 +174,7 @@ def decimate(
         if factor == 1:
             continue
         n = out[0].shape[0]
-        sos = _antialias_sos(factor)
+        sos = antialias_sos(factor)
         if n <= 3 * (2 * len(sos) + 1):
             raise DataError(
                 f"decimation by {factor}: only {n} samples left, too few for the zero-phase "
@@ -188,7 +200,7 @@ def decimate(
     )
 
 
-def _antialias_sos(factor: int) -> FloatArray:
+def antialias_sos(factor: int) -> FloatArray:
     """scipy.signal.decimate's filter (Chebyshev I, order 8, 0.05 dB ripple, edge 0.8 of the
     new Nyquist) as second-order sections, rescaled so that the passband ripple is centred on
     0 dB (an even-order Chebyshev I sits at the ripple's minimum at 0 Hz: the forward-backward
@@ -277,7 +289,9 @@ def _spectrum(q: FloatArray, sampling_rate_hz: float) -> tuple[FloatArray, Float
     ends of a log do not match: without a window their jump leaks power to every
     frequency)."""
     x = signal.detrend(q, axis=0) * signal.windows.blackmanharris(q.shape[0])[:, None]
-    return np.fft.rfftfreq(q.shape[0], 1.0 / sampling_rate_hz), np.abs(np.fft.rfft(x, axis=0)) ** 2
+    power = np.abs(np.fft.rfft(x, axis=0)) ** 2
+    freqs = np.fft.rfftfreq(q.shape[0], 1.0 / sampling_rate_hz)
+    return np.asarray(freqs, dtype=float), np.asarray(power, dtype=float)
 
 
 def _stages(factor: int) -> list[int]:
@@ -290,7 +304,31 @@ def _stages(factor: int) -> list[int]:
     return out
 
 
-def resolve_defaults(pp, q: FloatArray, sampling_rate_hz: float, dq_logged=None):  # noqa: ANN001, ANN201
+def position_filter(pp: PreprocessConfig) -> FilterConfig | None:
+    """The low-pass of the positions of resolved settings (:func:`resolve_defaults`)."""
+    if isinstance(pp.lowpass, str):
+        raise ConfigError("preprocess.lowpass: 'auto' is resolved by resolve_defaults first.")
+    return pp.lowpass
+
+
+def decimation_factors(pp: PreprocessConfig) -> list[int]:
+    """The decimation factors of resolved settings (:func:`resolve_defaults`)."""
+    if isinstance(pp.decimation, str):
+        raise ConfigError("preprocess.decimation: 'auto' is resolved by resolve_defaults first.")
+    return list(pp.decimation)
+
+
+def decimation_step(pp: PreprocessConfig) -> int:
+    """Raw samples per decimated sample of resolved settings (product of the factors)."""
+    return int(np.prod(decimation_factors(pp))) if decimation_factors(pp) else 1
+
+
+def resolve_defaults(
+    pp: PreprocessConfig,
+    q: FloatArray,
+    sampling_rate_hz: float,
+    dq_logged: FloatArray | None = None,
+) -> tuple[PreprocessConfig, list[dict], list[str]]:
     """The preprocessing settings with ``auto`` replaced, their records and warnings.
 
     Parameters
@@ -311,30 +349,48 @@ def resolve_defaults(pp, q: FloatArray, sampling_rate_hz: float, dq_logged=None)
         ``(settings, records, warnings)``: a PreprocessConfig without ``auto``, records for
         the report and plain-language warnings for the result.
     """
-    from ident.identify.config import FilterConfig
-
     fs = sampling_rate_hz
-    records: list[dict] = []
+    update, records = _auto_settings(pp, q, fs)
+    cutoff = update.get("lowpass", pp.lowpass)
+    cutoff_hz = cutoff.cutoff_hz if isinstance(cutoff, FilterConfig) else None
     warnings: list[str] = []
+    if cutoff is None:
+        warnings.append(
+            "positions are not low-pass filtered (preprocess.lowpass: null): accelerations from "
+            "raw encoder steps amplify noise; remove the line to get a filter chosen from the "
+            "excitation band."
+        )
+    warnings += _alias_warnings(q, fs)
+    if dq_logged is not None:
+        record, problems = _velocity_check(q, dq_logged, fs, cutoff_hz)
+        records.append(record)
+        warnings += problems
+    return pp.model_copy(update=update), records, warnings
+
+
+def _auto_settings(
+    pp: PreprocessConfig, q: FloatArray, fs: float
+) -> tuple[dict[str, object], list[dict]]:
+    """The ``auto`` low-pass and decimation chosen from the excitation band, and records."""
+    records: list[dict] = []
     band = pp.excitation_band_hz
     band_note = "configured"
     if band is None and (pp.lowpass == "auto" or pp.decimation == "auto"):
         band = excitation_band(q, fs)
         band_note = "estimated: 99.9 % of the positions' power"
-    update: dict = {}
-    if pp.lowpass == "auto":
-        cutoff = min(CUTOFF_PER_BAND * band, 0.25 * fs)
-        update["lowpass"] = FilterConfig(cutoff_hz=cutoff, order=4)
+    update: dict[str, object] = {}
+    cutoff_hz = pp.lowpass.cutoff_hz if isinstance(pp.lowpass, FilterConfig) else None
+    if pp.lowpass == "auto" and band is not None:
+        cutoff_hz = min(CUTOFF_PER_BAND * band, 0.25 * fs)
+        update["lowpass"] = FilterConfig(cutoff_hz=cutoff_hz, order=4)
         records.append(
             {
                 "step": "auto settings",
-                "detail": f"low-pass cutoff {cutoff:.4g} Hz = min({CUTOFF_PER_BAND:g} x excitation "
-                f"band {band:.4g} Hz ({band_note}), fs/4)",
+                "detail": f"low-pass cutoff {cutoff_hz:.4g} Hz = min({CUTOFF_PER_BAND:g} x "
+                f"excitation band {band:.4g} Hz ({band_note}), fs/4)",
             }
         )
-    cutoff = update.get("lowpass", pp.lowpass)
-    cutoff_hz = cutoff.cutoff_hz if isinstance(cutoff, FilterConfig) else None
-    if pp.decimation == "auto":
+    if pp.decimation == "auto" and band is not None:
         target = RATE_PER_CUTOFF * (cutoff_hz if cutoff_hz is not None else 5.0 * band)
         factors = _stages(int(fs // target)) if target > 0 else []
         update["decimation"] = factors
@@ -346,47 +402,48 @@ def resolve_defaults(pp, q: FloatArray, sampling_rate_hz: float, dq_logged=None)
                 f"({fs:g} -> {fs / max(1, int(np.prod(factors) if factors else 1)):.4g} Hz)",
             }
         )
-    if cutoff is None:
-        warnings.append(
-            "positions are not low-pass filtered (preprocess.lowpass: null): accelerations from "
-            "raw encoder steps amplify noise; remove the line to get a filter chosen from the "
-            "excitation band."
-        )
+    return update, records
+
+
+def _alias_warnings(q: FloatArray, fs: float) -> list[str]:
+    """A warning when positions carry power above fs/4 (aliased motion or noise)."""
     freqs, power = _spectrum(q, fs)
     total = power.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         high = power[freqs > 0.25 * fs].sum(axis=0) / total
     aliased = np.flatnonzero(high > ALIAS_POWER)
-    if aliased.size:
-        warnings.append(
-            f"joint(s) {', '.join(str(j + 1) for j in aliased)}: positions have "
-            f"{100 * float(high[aliased].max()):.2g} % of their power above fs/4 = {fs / 4:g} Hz: "
-            "the motion is too fast for the sampling rate (aliased) or the positions are noisy; "
-            "log faster or check the encoder signal."
-        )
-    if dq_logged is not None:
-        qf = q
-        if cutoff_hz is not None and cutoff_hz < 0.5 * fs:
-            qf, _ = lowpass(q, fs, cutoff_hz, 4)
-        dq, _, _ = differentiate(qf, fs)
-        from ident.measure.timebase import velocity_mismatch
+    if not aliased.size:
+        return []
+    return [
+        f"joint(s) {', '.join(str(j + 1) for j in aliased)}: positions have "
+        f"{100 * float(high[aliased].max()):.2g} % of their power above fs/4 = {fs / 4:g} Hz: "
+        "the motion is too fast for the sampling rate (aliased) or the positions are noisy; "
+        "log faster or check the encoder signal."
+    ]
 
-        dqf = dq_logged
-        if cutoff_hz is not None and cutoff_hz < 0.5 * fs:
-            dqf, _ = lowpass(dq_logged, fs, cutoff_hz, 4, what="dq")
-        mismatch = velocity_mismatch(dqf, dq)
-        records.append(
-            {
-                "step": "velocity check",
-                "detail": "logged velocities vs differentiated positions, relative difference "
-                f"per joint {[round(float(m), 4) for m in mismatch]}",
-            }
-        )
-        bad = np.flatnonzero(mismatch > VELOCITY_MISMATCH)
-        if bad.size:
-            warnings.append(
-                f"joint(s) {', '.join(str(j + 1) for j in bad)}: logged velocities differ from "
-                f"the differentiated positions by {100 * float(mismatch[bad].max()):.3g} %: check "
-                "the velocity columns' unit, sign, side (gear ratio) and their time alignment."
-            )
-    return pp.model_copy(update=update), records, warnings
+
+def _velocity_check(
+    q: FloatArray, dq_logged: FloatArray, fs: float, cutoff_hz: float | None
+) -> tuple[dict, list[str]]:
+    """Logged velocities against the differentiated positions: the record and warnings."""
+    from ident.measure.timebase import velocity_mismatch
+
+    qf, dqf = q, dq_logged
+    if cutoff_hz is not None and cutoff_hz < 0.5 * fs:
+        qf, _ = lowpass(q, fs, cutoff_hz, 4)
+        dqf, _ = lowpass(dq_logged, fs, cutoff_hz, 4, what="dq")
+    dq, _, _ = differentiate(qf, fs)
+    mismatch = velocity_mismatch(dqf, dq)
+    record = {
+        "step": "velocity check",
+        "detail": "logged velocities vs differentiated positions, relative difference "
+        f"per joint {[round(float(m), 4) for m in mismatch]}",
+    }
+    bad = np.flatnonzero(mismatch > VELOCITY_MISMATCH)
+    if not bad.size:
+        return record, []
+    return record, [
+        f"joint(s) {', '.join(str(j + 1) for j in bad)}: logged velocities differ from "
+        f"the differentiated positions by {100 * float(mismatch[bad].max()):.3g} %: check "
+        "the velocity columns' unit, sign, side (gear ratio) and their time alignment."
+    ]

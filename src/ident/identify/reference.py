@@ -15,12 +15,26 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from ident.dynamics.friction import figaroh_coupling_columns
+from ident.dynamics.chain import KinematicChain
+from ident.dynamics.friction import (
+    ExtraTerms,
+    extra_columns,
+    extra_names,
+    figaroh_coupling_columns,
+)
+from ident.dynamics.gram import selected_rows
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
 from ident.identify.estimate import Estimate
 
-__all__ = ["ReferenceParameter", "expression_to_vector", "parse_expression", "read_reference"]
+__all__ = [
+    "ReferenceParameter",
+    "ReferenceWeights",
+    "expression_to_vector",
+    "parse_expression",
+    "read_reference",
+    "reference_weights",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -95,6 +109,9 @@ def parse_expression(expression: str) -> dict[str, float]:
     return terms
 
 
+_MAX_REFERENCE_BYTES = 16 << 20  # a table of base parameters is a few kB
+
+
 def read_reference(path: str | Path) -> list[ReferenceParameter]:
     """Read a figaroh base-parameter CSV.
 
@@ -104,8 +121,23 @@ def read_reference(path: str | Path) -> list[ReferenceParameter]:
         Naming the file and line for a malformed line.
     """
     path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: not a regular file; give the reference CSV.")
+    if path.stat().st_size > _MAX_REFERENCE_BYTES:
+        raise DataError(
+            f"{path}: {path.stat().st_size} bytes, more than the "
+            f"{_MAX_REFERENCE_BYTES >> 20} MB a reference parameter table can need."
+        )
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise DataError(
+            f"{path}: not UTF-8 text (byte {e.start}); save the reference CSV as UTF-8."
+        ) from e
+    except OSError as e:
+        raise DataError(f"{path}: cannot read the reference CSV ({e.strerror}).") from e
     out = []
-    for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    for k, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         fields = line.rsplit(",", 4)
@@ -216,26 +248,59 @@ def compare_with_reference(
     return rows, note
 
 
-def reference_prediction(
-    pm: ParameterModel,
-    reference: list[ReferenceParameter],
-    values: FloatArray,
-    Y_rigid: FloatArray,
-    Y_extra: FloatArray,
-    dq: FloatArray,
-    ddq: FloatArray,
-) -> tuple[FloatArray, list[str]]:
-    """Torques [N*m] (n, nv) predicted by the reference's base parameters ``values``.
+@dataclass(frozen=True, eq=False)
+class ReferenceWeights:
+    """The reference's base parameters as weights of our regressor columns.
 
     The reference's base parameter ``k`` multiplies the column of its first (independent)
     term; the coupled-wrist terms use the reference's own basis
-    (:func:`~ident.dynamics.friction.figaroh_coupling_columns`). Also returns the reference
-    parameters that have no column here (they contribute nothing).
+    (:func:`~ident.dynamics.friction.figaroh_coupling_columns`).
+
+    Attributes
+    ----------
+    rigid, extra :
+        Weights of the rigid-body and of the extra (friction, rotor, offset) columns.
+    wrist :
+        Weights of the figaroh coupled-wrist columns ``Iam, fvm, fsm``, shape (3,).
+    missing :
+        Reference parameters without a column here (they contribute nothing).
     """
+
+    rigid: FloatArray
+    extra: FloatArray
+    wrist: FloatArray
+    missing: tuple[str, ...]
+
+    def torques(
+        self,
+        chain: KinematicChain,
+        terms: ExtraTerms,
+        q: FloatArray,
+        dq: FloatArray,
+        ddq: FloatArray,
+    ) -> FloatArray:
+        """Torques [N*m] (n, nv) the reference predicts on the states (n, nv)."""
+        n, nv = dq.shape
+        tau = np.zeros((n, nv))
+        cols = np.flatnonzero(self.rigid)
+        if cols.size:
+            Y = selected_rows(chain, q, dq, ddq, columns=cols).reshape(n, nv, cols.size)
+            tau += Y @ self.rigid[cols]
+        if np.any(self.extra):
+            tau += extra_columns(terms, dq, ddq) @ self.extra
+        if terms.coupled_wrist is not None:
+            tau += figaroh_coupling_columns(dq, ddq, terms.coupled_wrist) @ self.wrist
+        return tau
+
+
+def reference_weights(
+    pm: ParameterModel, reference: list[ReferenceParameter], values: FloatArray
+) -> ReferenceWeights:
+    """The column weights (:class:`ReferenceWeights`) of the reference's base parameters."""
     index = {n: i for i, n in enumerate(pm.names)}
     wrist = ("Iam", "fvm", "fsm")
-    weights_rigid = np.zeros(Y_rigid.shape[2])
-    weights_extra = np.zeros(Y_extra.shape[2])
+    weights_rigid = np.zeros(10 * pm.terms.n_joints)
+    weights_extra = np.zeros(len(extra_names(pm.terms)))
     weights_wrist = np.zeros(3)
     missing = []
     for ref, value in zip(reference, values, strict=True):
@@ -250,7 +315,4 @@ def reference_prediction(
                 weights_extra[pm.extra_index[i]] += value
         else:
             missing.append(ref.lead)
-    tau = Y_rigid @ weights_rigid + Y_extra @ weights_extra
-    if pm.terms.coupled_wrist is not None:
-        tau += figaroh_coupling_columns(dq, ddq, pm.terms.coupled_wrist) @ weights_wrist
-    return tau, missing
+    return ReferenceWeights(weights_rigid, weights_extra, weights_wrist, tuple(missing))

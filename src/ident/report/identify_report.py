@@ -18,9 +18,17 @@ import numpy as np
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.estimators.summary import consistency_summary, identified_model
-from ident.identify.metrics import VERDICT_RULE_REAL, parameter_unit, verdict
+from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
 from ident.identify.real import IdentifyResult
 from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
+from ident.identify.verdict import (
+    VERDICT_RULE,
+    VERDICT_RULE_REAL,
+    Verdict,
+    identify_verdict,
+    log_evidence,
+    truth_from_config,
+)
 from ident.report.format import pct
 from ident.report.headline import Headline, headline_markdown
 
@@ -47,6 +55,20 @@ def _num(value: float | None, digits: int = 4) -> str:
 
 def _finite(value: float) -> float | None:
     return float(value) if np.isfinite(value) else None
+
+
+def _robot_file(result: IdentifyResult) -> Path:
+    """The robot file of the identification (a URDF, or a DH description)."""
+    return Path(result.config.robot.path)
+
+
+def _urdf_text(result: IdentifyResult) -> str:
+    """The URDF of the identified robot (the file's text; generated for a DH description)."""
+    if result.config.robot.urdf is not None:
+        return Path(result.config.robot.urdf).read_text(encoding="utf-8")
+    from ident.model.selection import load_robot
+
+    return str(load_robot(result.config.robot).urdf_text)
 
 
 def joint_torque_units(result: IdentifyResult) -> tuple[str, ...]:
@@ -124,9 +146,7 @@ def write_measured_replay(
     if motion is None:
         return f"no replay: {result.motion_note or 'no measured motion'}."
     atomic_write_text(folder / "trajectory.csv", trajectory_to_csv(motion))
-    urdf_path = atomic_write_text(
-        folder / "robot.urdf", Path(result.config.robot.urdf).read_text(encoding="utf-8")
-    )
+    urdf_path = atomic_write_text(folder / "robot.urdf", _urdf_text(result))
     what = (
         f"measured motion, {motion.n_samples} samples at "
         f"{(motion.n_samples - 1) / (motion.t[-1] - motion.t[0]):.3g} Hz, "
@@ -139,7 +159,7 @@ def write_measured_replay(
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            source = Path(result.config.robot.urdf).resolve().parent
+            source = _robot_file(result).resolve().parent
             page = replay_html(
                 urdf_path,
                 [motion],
@@ -241,7 +261,33 @@ def result_dict(
             ],
         }
     out["consistency"] = consistency_summary(result)
+    out["verdict"] = verdict_entry(result)
     return out
+
+
+def verdict_entry(result: IdentifyResult) -> dict:
+    """The ``verdict`` entry of ``result.json``: :func:`~ident.identify.verdict.identify_verdict`
+    and the evidence it used (the report's summary shows the same value)."""
+    v = identify_verdict(result)
+    e = log_evidence(result, truth=truth_from_config(result.config.validation.truth))
+    return {
+        **v.as_dict(),
+        "method": e.method,
+        "residual": _finite_or_none(e.residual),
+        "residual_where": e.residual_where,
+        "nominal_residual": _finite_or_none(e.nominal_residual),
+        "worst_error_percent": _finite_or_none(e.worst_error_percent),
+        "worst_error_name": e.worst_error_name,
+        "worst_std_percent": _finite_or_none(e.worst_std_percent),
+        "worst_std_name": e.worst_std_name,
+        "n_inconsistent": e.n_inconsistent,
+        "n_links": e.n_links,
+        "warnings": list(e.warnings),
+    }
+
+
+def _finite_or_none(value: float | None) -> float | None:
+    return None if value is None else _finite(value)
 
 
 def _markdown(
@@ -254,7 +300,7 @@ def _markdown(
     lines = [
         f"# Identification of `{result.config.name}` from a measured log",
         "",
-        f"Config: `{result.config.source}`. URDF: `{Path(result.config.robot.urdf).name}`. "
+        f"Config: `{result.config.source}`. URDF: `{_robot_file(result).name}`. "
         f"Estimator: **{est.method.upper()}** on {est.n_observations} rows "
         f"({len(pm.base_names)} base parameters). "
         + (
@@ -409,6 +455,7 @@ def _markdown(
                 "Dropped, in order: "
                 + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
             ]
+    lines += _truth_section(result)
     lines += _urdf_section(urdf, urdf_name)
     lines += _consistency_section(result)
     lines += [
@@ -420,6 +467,34 @@ def _markdown(
     ]
     lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
     return "\n".join(lines) + "\n"
+
+
+def _truth_section(result: IdentifyResult) -> list[str]:
+    """The major parameters against the simulator's truth (``validation.truth``), if any."""
+    truth = truth_from_config(result.config.validation.truth)
+    est = result.estimate
+    if truth is None or tuple(est.names) != truth.names:
+        return []
+    m = error_measures(est.x, est.std, truth.values, reference_share=truth.reference_share)
+    lines = [
+        "",
+        "## Major parameters against the simulator's truth",
+        "",
+        "The log was simulated (`validation.truth`, written by `ident run`): the verdict judges "
+        f"the base parameters with a reference torque share >= {100 * MAJOR_SHARE:g} % (the "
+        "run's major parameters) by their error against the true values.",
+        "",
+        "| base parameter | true | identified | σ [%] | error [%] |",
+        "| :--- | ---: | ---: | ---: | ---: |",
+    ]
+    for k, major in enumerate(m["major"]):
+        if major:
+            lines.append(
+                f"| {est.names[k]} | {_num(float(truth.values[k]))} | {_num(float(est.x[k]))} | "
+                f"{_num(float(est.relative_std[k]), 3)} | "
+                f"{_num(m['rel_error_percent'][k], 3)} |"
+            )
+    return lines
 
 
 def _urdf_section(urdf: UrdfUpdate, urdf_name: str) -> list[str]:
@@ -482,7 +557,7 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
     summary = consistency_summary(result)
     if summary is None:
         return []
-    stem = Path(result.config.robot.urdf).stem
+    stem = _robot_file(result).stem
     estimators = summary["estimators"]
     links = [c["link"] for c in next(iter(estimators.values()))["links"]]
     lines = [
@@ -602,7 +677,7 @@ def write_identify_report(
     if replay_note is None:
         replay_note = write_measured_replay(result, folder, replay=replay)
     urdf = identified_urdf(result)
-    urdf_name = Path(result.config.robot.urdf).stem + "_identified.urdf"
+    urdf_name = _robot_file(result).stem + "_identified.urdf"
     png = torque_png(result)
     params_png = parameters_figure(result)
     markdown = _markdown(result, urdf, urdf_name, replay_note)
@@ -630,7 +705,7 @@ def write_identify_report(
     ]
     model = identified_model(result)
     if model is not None:
-        stem = Path(result.config.robot.urdf).stem
+        stem = _robot_file(result).stem
         written += [
             atomic_write_text(folder / f"{stem}_consistent.urdf", model.text),
             atomic_write_text(
@@ -641,74 +716,84 @@ def write_identify_report(
 
 
 def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
-    """The headline facts of a real-robot identification (no true values: σ and held-out)."""
+    """The headline facts of an identification from a log, from its verdict entry (the one
+    :func:`result_dict` writes; :mod:`ident.identify.verdict`)."""
     est = result.estimate
-    ess = result.essential
-    if ess is not None:
-        names, rel = list(ess.estimate.names), np.asarray(ess.estimate.relative_std, float)
-        what = "essential parameters"
-    else:
-        names, rel = list(est.names), np.asarray(est.relative_std, float)
-        what = "base parameters"
-    finite = np.where(np.isfinite(rel), rel, np.inf)
-    worst_i = int(np.argmax(finite)) if finite.size else None
-    worst = None if worst_i is None else float(finite[worst_i])
-    pred = result.predictions.get("identified")
-    residual = None if pred is None else float(pred.metrics.total_relative_residual)
+    v = verdict_entry(result)
+    residual = v["residual"]
+    judged = v["method"] if v["method"] in result.predictions else "identified"
     others = ", ".join(
         f"{label}: {pct(100 * p.metrics.total_relative_residual)}"
         for label, p in result.predictions.items()
-        if label != "identified"
+        if label != judged
     )
-    v = verdict(worst, residual, what=f"worst σ of the {what}", warnings=len(result.warnings))
+    where = (
+        "held-out part of the log"
+        if v["residual_where"] == "held-out data"
+        else ("identification rows (no held-out part)")
+    )
     written = [link for link in urdf.links if link.status == "updated"]
     rejected = [link for link in urdf.links if link.status == "nominal (inconsistent)"]
+    if v["n_links"]:
+        n_bad = v["n_inconsistent"] or 0
+        consistency = (
+            f"{v['method']}: {v['n_links'] - n_bad} of {v['n_links']} links physically "
+            "consistent (see the consistency section)"
+        )
+        if n_bad:
+            consistency = "**violated**, " + consistency
+    else:
+        consistency = "not checked"
     cons = result.consistent
     constrained = None if cons is None else cons.constrained
+    if cons is not None and constrained is not None:
+        consistency += (  # the estimator's contract, never its name, says what was written
+            "; every link's identified inertial in `*_consistent.urdf`"
+            if cons.contract.consistent and constrained.success
+            else "; not written to a URDF (the estimator does not promise consistency)"
+        )
     if written or rejected:
-        consistency = (
-            f"{len(written)} URDF links updated and physically consistent; {len(rejected)} kept "
-            "nominal because the identified values are inconsistent"
+        consistency += (
+            f"; URDF write-back: {len(written)} links updated and consistent, {len(rejected)} "
+            "kept nominal because the identified values are inconsistent"
         )
-    elif constrained is None:
-        consistency = (
-            "not checked: no standard parameter is determined well enough to be written to "
-            "the URDF (see the URDF section)"
-        )
-    else:
-        consistency = ""
-    if constrained is not None:  # the whole-model estimate comes first
-        n_ok = sum(c.consistent for c in constrained.consistency)
-        whole = (
-            f"{cons.method}: {n_ok} of {len(constrained.consistency)} links physically "
-            "consistent, every link's identified inertial in `*_consistent.urdf`"
-        )
-        consistency = whole + (f"; cautious write-back: {consistency}" if consistency else "")
-    extra = [
+    extra: list[tuple[str, str]] = [
         (
             "Least squares",
             est.message
-            if not result.warnings
+            if not v["warnings"]
             else f"{est.message}; the result is NOT ok (warnings below)",
         ),
         ("Fit on the identification rows", f"relative residual {pct(100 * est.relative_residual)}"),
+        (
+            f"Worst relative std, parameters carrying >= {100 * MAJOR_SHARE:g} % of the torques",
+            "—"
+            if v["worst_std_percent"] is None
+            else f"σ {pct(v['worst_std_percent'])} ({v['worst_std_name']})",
+        ),
     ]
+    truth = v["rule"] == "truth"
     return Headline(
-        verdict=v,
-        rule=VERDICT_RULE_REAL,
-        worst=("—" if worst is None else f"σ {pct(worst)} ({names[worst_i]}; {len(names)} {what})"),
-        worst_label=f"Worst relative std, {what}",
+        verdict=Verdict(v["label"], v["reason"], v["rule"]),
+        rule=VERDICT_RULE if truth else VERDICT_RULE_REAL,
+        worst=(
+            pct(v["worst_error_percent"]) + f" ({v['worst_error_name']}; against the "
+            "simulator's truth, validation.truth)"
+            if truth
+            else "— (a real log: no true values; see the relative std below)"
+        ),
+        worst_label="Worst error, major parameters",
         residual=(
             "—"
             if residual is None
-            else f"{pct(100 * residual)} on the held-out part of the log"
+            else f"{pct(100 * residual)} on the {where}, {judged}"
             + (f" ({others})" if others else "")
         ),
         residual_label="Torque residual, held-out data",
         condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
         consistency=consistency,
         safety="not checked (a measured log: the motion was already executed)",
-        warnings=list(result.warnings),
+        warnings=list(v["warnings"]),
         extra=extra,
     )
 

@@ -297,7 +297,7 @@ def parameters_png(
             ax.axhline(-b, color="0.4", ls="--", lw=0.7)
         ax.axhline(0.0, color="k", lw=0.8)
         ax.set_yscale("symlog", linthresh=1.0)
-        ax.set_xticks(pos, [names[i] for i in keep], rotation=60, ha="right", fontsize="small")
+        ax.set_xticks(pos, [names[int(i)] for i in keep], rotation=60, ha="right", fontsize="small")
         if highlight is not None:
             ax.legend(fontsize="small", loc="best")
     else:

@@ -32,6 +32,7 @@ from ident.errors import IdentError
 from ident.fileio import atomic_write_text
 from ident.identify.metrics import MAJOR_SHARE, _arr, _num, error_measures
 from ident.report.paper import _paper_comparison, _paper_counts
+from ident.report.run_verdict import verdict_entry
 from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
 
 __all__ = ["FORMAT", "load_run", "result_to_dict", "save_run", "write_replay"]
@@ -188,6 +189,9 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     validation = _validation_entry(result)
     if validation is not None:
         out["validation"] = validation
+    # the one verdict every renderer shows, on the elite trajectory.csv executes
+    out["executed_elite"] = result.executed_rank
+    out["verdict"] = verdict_entry(result, out)
     return out
 
 

@@ -24,19 +24,15 @@ import numpy as np
 import yaml
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
-from ident.identify.metrics import (
-    MAJOR_SHARE,
-    VERDICT_RULE,
-    error_measures,
-    parameter_unit,
-    verdict,
-)
+from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
+from ident.identify.verdict import VERDICT_RULE, VERDICT_RULE_REAL, Verdict
 from ident.report.format import fmt as _fmt
 from ident.report.format import pct
 from ident.report.format import table as _table
 from ident.report.headline import NOT_CHECKED, Headline, headline_markdown
 from ident.report.paper import _base_section, _dh_section, paper_tables_section
 from ident.report.run_data import FORMAT, load_run, result_to_dict, save_run, write_replay
+from ident.report.run_verdict import executed_elite, headline_method, stored_verdict
 from ident.report.safety_section import safety_figures, safety_headline, safety_section
 from ident.trajectory import read_trajectory_csv
 
@@ -68,11 +64,14 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
     ]
     figures["figures/convergence.png"] = convergence_png(
         histories,
-        title=f"Convergence of eMuPSO ({stage_name} stage): all runs and their mean",
+        title=f"Convergence of {optimizer_name(data)} ({stage_name} stage): all runs and their "
+        "mean",
         mutations=[r["mutation_iterations"] for r in runs],
     )
     traj_path = run_dir / "trajectory.csv"
-    if data["elites"] and traj_path.is_file():
+    elite = executed_elite(data)
+    if elite is not None and traj_path.is_file():
+        rank = elite["rank"]
         traj = read_trajectory_csv(traj_path)
         moving = data["excitation"]["moving_joints"] or list(range(len(traj.joint_names)))
         robot = data["robot"]
@@ -81,7 +80,7 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
         )
         dq_lim = np.array([np.inf if v is None else v for v in robot["dq_limits"]], dtype=float)
         path = None
-        path_csv = data["elites"][0].get("path_csv")
+        path_csv = elite.get("path_csv")
         if path_csv and (run_dir / path_csv).is_file():
             path = np.loadtxt(run_dir / path_csv, delimiter=",", skiprows=1, ndmin=2)[:, 1:4]
         figures["figures/trajectory.png"] = trajectory_png(
@@ -92,9 +91,9 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
             q_limits=q_lim[moving],
             dq_limits=dq_lim[moving],
             path=path,
-            title=f"Excitation trajectory of elite 1 ({stage_name} stage)",
+            title=f"Executed trajectory, elite {rank} ({stage_name} stage)",
         )
-        estimates = data["elites"][0]["estimates"]
+        estimates = elite["estimates"]
         if estimates and "stage" in data:
             true = np.array(data["stage"]["true_base"], dtype=float)
             figures["figures/estimate.png"] = estimate_png(
@@ -104,9 +103,9 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
                     m: (np.array(e["x"], dtype=float), np.array(e["std"], dtype=float))
                     for m, e in estimates.items()
                 },
-                title="Elite 1: (identified - true) / std per base parameter",
+                title=f"Elite {rank}: (identified - true) / std per base parameter",
             )
-            method = _headline_method(data["elites"][0])
+            method = headline_method(elite)
             est = estimates[method]
             figures["figures/parameters.png"] = parameters_png(
                 data["stage"]["base_names"],
@@ -115,7 +114,7 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
                 true,
                 highlight=est.get("major"),
                 include=est.get("significant"),
-                title=f"Elite 1, {method.upper()}: identified vs true",
+                title=f"Elite {rank}, {(method or '').upper()}: identified vs true",
             )
     figures.update(safety_figures(data))
     val_path = run_dir / "validation.csv"
@@ -146,7 +145,7 @@ def _optimization_section(data: dict[str, Any], figures: set[str] | frozenset[st
             ],
         )
     else:
-        md += ["No eMuPSO run finished.", ""]
+        md += [f"No {optimizer_name(data)} run finished.", ""]
     if "figures/convergence.png" in figures:
         md += [
             "![Convergence: best fitness per iteration, all runs and their mean]"
@@ -163,7 +162,8 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         return md + ["No elite trajectory was identified.", ""]
     md += [
         "Elites are the best distinct feasible members of all runs' archives, best fitness "
-        "first; elite 1 is the chosen trajectory. Condition numbers: of the scaled base "
+        f"first; elite {data.get('executed_elite') or 1} is the executed trajectory (the best "
+        "that passed the safety check, in trajectory.csv). Condition numbers: of the scaled base "
         "observation matrix the objective uses (eq. 15), and of the SI base matrix of the "
         "estimate. Error sums: sums of the relative errors [%] of all base parameters with a "
         "non-zero true value (Error(all), the paper's Error(22)), over the parameters that explain "
@@ -241,11 +241,10 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
 # ----------------------------------------------------------------------------- page
 
 
-def _headline_method(elite: dict[str, Any] | None) -> str | None:
-    """The estimator the headline reports: WLS when it ran, else the first one."""
-    if not elite or not elite["estimates"]:
-        return None
-    return "wls" if "wls" in elite["estimates"] else next(iter(elite["estimates"]))
+def optimizer_name(data: dict[str, Any]) -> str:
+    """The configured optimizer as the reports name it (``eMuPSO`` for ``emupso``)."""
+    name = str(data.get("config", {}).get("optimizer", "emupso"))
+    return "eMuPSO" if name == "emupso" else name.upper() if len(name) <= 4 else name
 
 
 def _check_text(entry: Any) -> str:
@@ -275,77 +274,92 @@ def _safety_text(data: dict[str, Any]) -> str:
     return f"{state}: {executed}"
 
 
-def _validation(data: dict[str, Any], method: str | None) -> dict[str, Any] | None:
-    """The run's validation entry (a second trajectory), when it has one."""
-    val = data.get("validation")
-    if not isinstance(val, dict):
-        return None
-    by_method = val.get("estimates", val)
-    entry = by_method.get(method) if method and isinstance(by_method, dict) else None
-    return entry if isinstance(entry, dict) else None
+def _consistency_text(data: dict[str, Any], v: dict[str, Any]) -> str:
+    """The headline's consistency line: the verdict's link count, else result.json's entry."""
+    if v.get("n_links"):
+        n_bad = int(v.get("n_inconsistent") or 0)
+        text = (
+            f"{v.get('method') or ''}: {v['n_links'] - n_bad} of {v['n_links']} links "
+            "physically consistent"
+        )
+        return text if n_bad == 0 else f"**violated**, {text}"
+    return _check_text(data.get("consistency"))
+
+
+def _residual_text(v: dict[str, Any]) -> tuple[str, str]:
+    """(label, text) of the headline's residual row, from the verdict's evidence."""
+    where = v.get("residual_where") or ""
+    residual = v.get("residual")
+    text = pct(None if residual is None else 100 * residual)
+    if where == "validation trajectory":
+        return "Torque residual, validation trajectory", (
+            text + " (a second trajectory, not used to identify)"
+        )
+    if where == "held-out data":
+        nominal = v.get("nominal_residual")
+        extra = "" if nominal is None else f"; URDF nominal {pct(100 * nominal)}"
+        return "Torque residual, held-out data", (
+            text + f" (the last part of the simulated log, not used to identify{extra})"
+        )
+    return "Torque residual, identification trajectory", (
+        text + " (no validation trajectory in this run)"
+    )
 
 
 def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
-    elite = data["elites"][0] if data["elites"] else None
-    method = _headline_method(elite)
-    est = elite["estimates"][method] if elite and method else {}
+    v = stored_verdict(data)
+    elite = executed_elite(data)
+    method = v.get("method")
+    est = elite["estimates"][method] if elite and method in elite["estimates"] else {}
     names = stage["base_names"] if stage else []
-    worst_pct = est.get("max_rel_error_major_percent")
-    if worst_pct is None and est.get("max_rel_error_major") is not None:
-        worst_pct = 100.0 * est["max_rel_error_major"]
-    worst_i = est.get("worst_major")
-    worst = pct(worst_pct)
-    if worst_i is not None and worst_i < len(names):
+    worst = pct(v.get("worst_error_percent"))
+    if v.get("worst_error_name"):
         n_major = sum(est.get("major") or [])
-        worst += f" ({names[worst_i]}; {n_major} major parameters of {len(names)})"
-    val = _validation(data, method)
-    if val is not None and val.get("relative_residual") is not None:
-        residual = float(val["relative_residual"])
-        residual_label = "Torque residual, validation trajectory"
-        residual_text = pct(100 * residual) + " (a second trajectory, not used to identify)"
-    else:
-        residual = est.get("relative_residual")
-        residual_label = "Torque residual, identification trajectory"
-        residual_text = (
-            pct(None if residual is None else 100 * residual)
-            + " (no validation trajectory in this run)"
-        )
-    warnings = list(data.get("warnings", []))
-    if data["status"] != "complete":
-        warnings.insert(0, f"incomplete run: {data['message']}")
-    if elite:
-        warnings += [f"elite 1, {m}: {msg}" for m, msg in elite["failures"].items()]
-    v = verdict(worst_pct, residual, warnings=len(warnings))
+        worst += f" ({v['worst_error_name']}; {n_major} major parameters of {len(names)})"
+    residual_label, residual_text = _residual_text(v)
     cond = "—"
     if elite:
         cond = (
             f"{_fmt(est.get('condition_number'))} (SI base matrix, {(method or '').upper()}); "
             f"{_fmt(elite['objective'].get('cond'))} (scaled, the excitation objective)"
         )
-    extra = []
-    if method:
+    configured = data["config"].get("optimizer")
+    extra = [
+        [
+            "Optimizer",
+            optimizer_name(data) + (f" (config `optimizer: {configured}`)" if configured else ""),
+        ]
+    ]
+    if method and elite:
         extra.append(
             [
                 "Estimate",
-                f"{method.upper()} on elite 1 (fitness {_fmt(elite['fitness'])}), "
+                f"{method.upper()} on elite {elite['rank']} (fitness {_fmt(elite['fitness'])}), "
                 f"{len(names)} base parameters, "
                 f"{100 * (est.get('within_3std') or 0):.0f} % within 3σ of the true value",
+            ]
+        )
+    if v.get("worst_std_percent") is not None:
+        extra.append(
+            [
+                "Worst relative std, torque-carrying parameters",
+                f"σ {pct(v['worst_std_percent'])} ({v.get('worst_std_name')})",
             ]
         )
     if est and est.get("message") not in (None, "ok"):
         extra.append(["Estimator note", str(est["message"])])
     return Headline(
-        verdict=v,
-        rule=VERDICT_RULE,
+        verdict=Verdict(v["label"], v["reason"], v.get("rule", "truth")),
+        rule=VERDICT_RULE if v.get("rule", "truth") == "truth" else VERDICT_RULE_REAL,
         worst=worst,
         worst_label="Worst error, major parameters",
         residual=residual_text,
         residual_label=residual_label,
         condition=cond,
-        consistency=_check_text(data.get("consistency")),
+        consistency=_consistency_text(data, v),
         safety=_safety_text(data),
-        warnings=warnings,
-        extra=[tuple(e) for e in extra],
+        warnings=list(v.get("warnings") or []),
+        extra=[(k, v) for k, v in extra],
     )
 
 
@@ -383,8 +397,7 @@ def render_markdown(
         md += ["No elite trajectory was identified.", ""]
     md += ["## Comparison with the paper", ""]
     if stage and stage["name"] in ("wrist", "arm"):
-        method = _headline_method(data["elites"][0] if data["elites"] else None)
-        md += paper_tables_section(data, method)
+        md += paper_tables_section(data, headline_method(executed_elite(data)))
     else:
         md += [
             "This stage is not one of the paper's (wrist, arm): Tables 2-3 do not apply.",
@@ -395,7 +408,7 @@ def render_markdown(
     md += _run_facts(data, run_state or {})
     if "figures/trajectory.png" in figures:
         md += [
-            "![Excitation trajectory of elite 1: Cartesian path, joint positions and "
+            "![Executed trajectory: Cartesian path, joint positions and "
             "velocities with limits](figures/trajectory.png)",
             "",
         ]
@@ -427,7 +440,8 @@ def _run_facts(data: dict[str, Any], state: dict[str, Any]) -> list[str]:
         "per period",
         f"- Seed: **{data['seed']}**",
         f"- Procedure: initial elites ({config['elites']['n_particles']} particles until "
-        f"{config['elites']['n_elites']} elites), then {config['emupso']['n_runs']} eMuPSO runs "
+        f"{config['elites']['n_elites']} elites), then {config['emupso']['n_runs']} "
+        f"{optimizer_name(data)} runs "
         f"of {config['emupso']['n_particles']} particles x {config['emupso']['maxiter']} "
         f"iterations, G = {config['emupso']['stagnation']}",
         f"- Measurement noise: torque std {config['measurement']['torque_noise_std']} N*m, "
@@ -438,15 +452,28 @@ def _run_facts(data: dict[str, Any], state: dict[str, Any]) -> list[str]:
         md.append(f"- Traced point (path plot and replay): frame `{traced}`")
     if state.get("wall_time_s") is not None:
         md.append(f"- Wall time: {state['wall_time_s']:.1f} s (started {state.get('started_at')})")
-    md += ["- Data: `result.json`, `trajectory.csv`, `elites/`, `config.yaml`, `robot.urdf`", ""]
+    md += ["- Data: `result.json`, `trajectory.csv`, `elites/`, `config.yaml`, `robot.urdf`"]
+    if state.get("exports"):  # controller files (docs/execute.md), written by ident run
+        md.append("- Exports (`docs/execute.md`): " + "; ".join(map(str, state["exports"])))
+    md += [""]
     return md
 
 
 def _parameter_section(
     data: dict[str, Any], stage: dict[str, Any], figures: set[str] | frozenset[str]
 ) -> list[str]:
-    elite = data["elites"][0]
-    md = ["## Identified vs true parameters (elite 1)", ""]
+    elite = executed_elite(data) or data["elites"][0]
+    md = [f"## Identified vs true parameters (elite {elite['rank']}, executed)", ""]
+    v = stored_verdict(data)
+    # a simulated log, identified as a real one
+    if v.get("residual_where") == "held-out data" and v.get("residual") is not None:
+        label, text = _residual_text(v)
+        md += [
+            f"{label}: {text}. Physical consistency: {_consistency_text(data, v)}. Worst "
+            f"relative std of the parameters carrying >= {100 * MAJOR_SHARE:g} % of the "
+            f"torques: {pct(v.get('worst_std_percent'))} ({v.get('worst_std_name')}).",
+            "",
+        ]
     if "figures/parameters.png" in figures:
         md += [
             "![Identified vs true base parameters, relative deviation with ±3σ bars]"
@@ -540,7 +567,7 @@ def _rel_std(est: dict[str, Any], i: int) -> float | None:
 def _alone_section(
     data: dict[str, Any], stage: dict[str, Any], figures: set[str] | frozenset[str]
 ) -> list[str]:
-    elite = data["elites"][0]
+    elite = executed_elite(data) or data["elites"][0]
     md: list[str] = []
     true = stage["true_base"]
     alone = [i for i, a in enumerate(stage["identifiable_alone"]) if a]

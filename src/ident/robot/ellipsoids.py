@@ -15,7 +15,8 @@ The ellipsoid of a link is the minimum-volume ellipsoid (Khachiyan's algorithm, 
 contain every point exactly) of points whose convex hull holds the link's ``<collision>``
 geometry (``<visual>`` when it has none): box corners, a prism circumscribing each cylinder,
 the bounding-cube corners of a sphere (a lone sphere is its own ellipsoid), mesh vertices
-(read with trimesh when it is installed and the file resolves).
+(read and checked by :func:`ident.robot.meshes.mesh_vertices` when the file resolves: a bad
+scale, NaN vertices or an unreadable file is a :class:`~ident.errors.ModelError`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ModelError
+from ident.robot.meshes import mesh_vertices
 
 __all__ = ["Ellipsoid", "link_ellipsoids", "link_geometry_points", "minimum_volume_ellipsoid"]
 
@@ -183,14 +185,8 @@ def _shape_points(
         path = _resolve(mesh.get("filename", ""), package_dirs, base)
         if path is None:
             return None
-        try:
-            import trimesh
-        except ImportError:  # optional: meshes need trimesh
-            return None
-        loaded = trimesh.load(str(path), force="mesh")
-        scale = np.array([float(v) for v in mesh.get("scale", "1 1 1").split()])
-        vertices = loaded.vertices  # type: ignore[attr-defined]  # force="mesh": a Trimesh
-        return np.asarray(vertices, dtype=np.float64) * scale, None
+        where = f"URDF mesh '{mesh.get('filename', '')}'"
+        return mesh_vertices(path, mesh.get("scale"), where=where), None
     return None
 
 

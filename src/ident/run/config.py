@@ -37,6 +37,7 @@ from ident.measure.mujoco_config import MujocoMeasurement
 from ident.model.selection import RobotSelection
 from ident.optim import METHODS
 from ident.run.examples import missing_section_hint
+from ident.run.exports.registry import check_export_names
 
 __all__ = [
     "ElitesSection",
@@ -238,11 +239,24 @@ class ControllerSection(StrictModel):
     home :
         Home posture [rad or m], one value per joint; ``null``: the excitation's start
         posture (the approach then only brings the robot up to speed).
+    export :
+        Controller files written besides ``trajectory.csv`` into ``<run>/exports/``, from
+        :mod:`ident.run.exports.registry` (``ros2``, ``urscript``, ``franka``; see
+        ``docs/execute.md``); default none.
     """
 
     rate_hz: float = Field(default=1000.0, gt=0.0, le=100_000.0, allow_inf_nan=False)
     n_periods: int = Field(default=1, ge=1, le=1000)
     home: list[float] | None = None
+    export: list[str] = Field(default_factory=list)
+
+    @field_validator("export")
+    @classmethod
+    def _registered_exports(cls, value: list[str]) -> list[str]:
+        try:
+            return check_export_names(value)
+        except ConfigError as e:
+            raise ValueError(str(e).removeprefix("controller.export: ")) from e
 
 
 class QuickSection(StrictModel):

@@ -2,8 +2,10 @@
 
 ``measurement.source: ideal``: joint torques from Pinocchio's RNEA on the true parameters plus
 the configured noise (:mod:`ident.measure.ideal`), then OLS/WLS on the stage's base
-parameters (:func:`ident.identify.estimate.least_squares`). Bodies outside the stage are known:
-their torque contribution is computed from their true parameters and subtracted.
+parameters: the estimators of the registry (:mod:`ident.identify.estimators`) on the rows
+reduced per joint, as :func:`ident.identify.core.identify_measurements` runs them. Bodies
+outside the stage are known: their torque contribution is computed from their true parameters
+and subtracted.
 """
 
 from __future__ import annotations
@@ -14,9 +16,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import IdentError, NotIdentifiable
-from ident.identify.estimate import least_squares
+from ident.identify.estimators import EstimationProblem, get_estimator
+from ident.identify.observations import ReducedObservations
 from ident.measure.ideal import NoiseModel, simulate_measurements
-from ident.run.config import RunConfig
+from ident.run.config import MeasurementSection, RunConfig
 from ident.run.results import EliteOutcome, StageInfo
 from ident.run.stage_info import stage_matrix
 
@@ -55,6 +58,8 @@ def identify_elite(
     """
     t, q, dq, ddq, traced = elite_trajectory(family, x)
     m = config.measurement
+    if not isinstance(m, MeasurementSection):
+        raise IdentError("the ideal measurement needs measurement.source: ideal")
     std = m.torque_noise_std
     noise = NoiseModel(
         torque_std=tuple(std) if isinstance(std, list) else float(std),
@@ -67,11 +72,17 @@ def identify_elite(
     estimates: dict[str, Any] = {}
     failures: dict[str, str] = {}
     Wb = np.asarray(stage.base.base_columns(W), dtype=float)
+    n_rows = len(stage.rows)
+    problem = EstimationProblem(
+        observations=ReducedObservations.from_samples(
+            Wb.reshape(-1, n_rows, Wb.shape[1]), y.reshape(-1, n_rows)
+        ),
+        names=tuple(stage.base_names),
+        n_samples=t.shape[0],
+    )
     for method in config.estimation.methods:
         try:
-            est = least_squares(
-                Wb, y, stage.base_names, method=method, rows_per_sample=len(stage.rows)
-            )
+            est = get_estimator(method)(problem)
         except NotIdentifiable as e:
             failures[method] = f"not identifiable on this trajectory: {e}"
             continue

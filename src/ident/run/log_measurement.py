@@ -3,7 +3,7 @@
 For each reported elite, the closed-loop MuJoCo simulation (:mod:`ident.measure.mujoco_sim`)
 writes the log a robot controller would write; the log is read back by the same reader as a
 measured log (:func:`ident.identify.logs.read_log`) and identified by the same function as
-``ident identify`` (:func:`ident.identify.real.identify_log`), with the run config's
+``ident identify`` (:func:`ident.identify.core.identify_measurements`), with the run config's
 ``identification`` sections. The run folder keeps the log and an ``identify.yaml`` next to it,
 so ``ident identify elites/elite_<k>/identify.yaml`` gives the run's estimate again.
 
@@ -28,10 +28,10 @@ from ident.dynamics.friction import ExtraTerms, extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
-from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig
+from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig, TruthConfig
+from ident.identify.core import IdentifyResult, identify_measurements
 from ident.identify.logs import read_log
-from ident.identify.real import IdentifyResult, identify_log
-from ident.measure.mujoco_config import per_joint
+from ident.measure.mujoco_config import MujocoMeasurement, per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
 from ident.run.config import RunConfig
@@ -116,8 +116,8 @@ def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
 def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, ParameterModel]:
     """The stage of a simulated-log run: every body, friction and rotor terms, their truth.
 
-    The parameter model is the one :func:`identify_log` builds for the log (same terms, same
-    random states), so names and base parameters match the estimates.
+    The parameter model is the one :func:`identify_measurements` builds for the log (same
+    terms, same random states), so names and base parameters match the estimates.
     """
     pm = build_parameter_model(robot.model, extra_terms(config, robot.nv))
     truth = true_parameters(pm, config)
@@ -210,13 +210,16 @@ def measure_and_identify(
         From the simulator (diverging controller), the reader or the identification (a
         trajectory that does not excite every base parameter: ``NotIdentifiable``).
     """
-    log = simulate(robot, t, q, dq, ddq, config.measurement, rng=np.random.default_rng(seed))
+    simulator = config.measurement
+    if not isinstance(simulator, MujocoMeasurement):
+        raise IdentError("the simulated log needs measurement.source: mujoco")
+    log = simulate(robot, t, q, dq, ddq, simulator, rng=np.random.default_rng(seed))
     with tempfile.TemporaryDirectory(prefix="ident-log-") as tmp:
         files = write_log(tmp, log)
         section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))
         cfg = identify_config(config, section)
         read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
-    result = identify_log(cfg, read, model=robot.model)
+    result = identify_measurements(cfg, read, model=robot.model)
     return LogOutcome(log=log, result=result, config=cfg)
 
 
@@ -237,7 +240,9 @@ def identify_elite_log(
     trajectory's sample times; ``log`` holds the whole simulation for the run folder.
     """
     t, q, dq, ddq, traced = elite_trajectory(family, x)
-    method = config.identification.estimation.method
+    # the least-squares estimate, named by its own method (what ``ident identify`` reports
+    # as "the estimate"); a constrained or other estimator's result is in the log outcome
+    method = config.identification.estimation.least_squares_method
     estimates: dict[str, Any] = {}
     failures: dict[str, str] = {}
     outcome: LogOutcome | None = None
@@ -269,14 +274,27 @@ def identify_elite_log(
     )
 
 
-def write_identify_files(folder: Path, config: RunConfig, outcome: LogOutcome) -> Path:
+def write_identify_files(
+    folder: Path, config: RunConfig, outcome: LogOutcome, stage: StageInfo | None = None
+) -> Path:
     """Save an elite's log and the ``identify.yaml`` that identifies it again; return its path.
 
     ``folder`` is ``<run>/elites/elite_<k>``; the robot is the run folder's ``robot.urdf``.
+    With the run's ``stage``, ``validation.truth`` holds the simulator's true base parameters,
+    so ``ident identify`` judges the log by the same verdict rule as the run (docs/verdict.md).
     """
     files = write_log(folder, outcome.log)
     section = yaml.safe_load(files.yaml.read_text(encoding="utf-8"))
     cfg = identify_config(config, section, robot_path=_RUN_FOLDER_FROM_LOG / "robot.urdf")
+    if stage is not None and stage.reference_share is not None:
+        truth = TruthConfig(
+            base_names=list(stage.base_names),
+            values=[float(v) for v in stage.true_base],
+            reference_share=[float(v) for v in stage.reference_share],
+        )
+        cfg = cfg.model_copy(
+            update={"validation": cfg.validation.model_copy(update={"truth": truth})}
+        )
     data = cfg.model_dump(mode="json", exclude={"source"})
     data["robot"] = {k: v for k, v in data["robot"].items() if v not in (None, [], {})}
     if config.robot.inertia_check:
@@ -299,5 +317,5 @@ def save_logs(result: Any, run_dir: Path) -> list[Path]:
     for elite in result.elites:
         if elite.log is not None:
             folder = Path(run_dir) / "elites" / f"elite_{elite.rank}"
-            written.append(write_identify_files(folder, result.config, elite.log))
+            written.append(write_identify_files(folder, result.config, elite.log, result.stage))
     return written

@@ -92,6 +92,29 @@ def _details(objective: Any, x: FloatArray) -> list[dict[str, float]]:
 # --------------------------------------------------------------------------------------
 
 
+@dataclasses.dataclass
+class _State:
+    """What a run has finished so far (kept when it stops), and the phase it is in."""
+
+    phase: str = "initial elite search"
+    runs: list[OptimizerRun] = dataclasses.field(default_factory=list)
+    elites: FloatArray | None = None
+    elite_message: str = ""
+    outcomes: list[EliteOutcome] = dataclasses.field(default_factory=list)
+    safety: list[Any] = dataclasses.field(default_factory=list)
+
+    def partial(self, base: RunResult, message: str) -> RunResult:
+        return _replace(
+            base,
+            status="incomplete",
+            message=message,
+            initial_elites=self.elites,
+            elite_search_message=self.elite_message,
+            runs=tuple(self.runs),
+            elites=tuple(self.outcomes),
+        )
+
+
 def run_pipeline(
     config: RunConfig | RunSetup, *, progress: ProgressCallback | None = None
 ) -> RunResult:
@@ -122,25 +145,69 @@ def run_pipeline(
     """
     notify = progress or (lambda _p: None)
     setup = config if isinstance(config, RunSetup) else prepare_run(config)
-    config, robot, family = setup.config, setup.robot, setup.family
+    config = setup.config
     streams = np.random.SeedSequence(config.seed).spawn(4)
-    run_streams = streams[1].spawn(config.emupso.n_runs)
     problem = excitation_problem(setup, np.random.default_rng(streams[3]))
-    stage_info, objective, bounds = problem.stage_info, problem.objective, problem.bounds
-    measure = identify_elite
+    stage_info, measure = problem.stage_info, identify_elite
     if config.measurement.source == "mujoco":  # a simulated log, identified as a measured one
         with small_blas():
-            stage_info, _ = log_stage_info(config, robot)
+            stage_info, _ = log_stage_info(config, setup.robot)
         measure = identify_elite_log
+    base = _base_result(setup, problem.bounds, stage_info)
+    state = _State()
+    try:
+        _search_elites(setup, problem, streams[0], state, notify)
+        _optimize(setup, problem, streams[1], state, notify)
+        chosen_x, chosen_f = _choose(setup, problem, state)
+        _measure(setup, problem, stage_info, measure, chosen_x, chosen_f, streams[2], state, notify)
+        state.phase = "executable trajectory"
+        plan = plan_executable(
+            config, setup.robot, setup.family, setup.safety, chosen_x, state.safety
+        )
+    except KeyboardInterrupt as e:
+        raise RunInterrupted(
+            state.partial(base, f"interrupted (Ctrl-C) during the {state.phase}"), e
+        ) from e
+    except IdentError as e:
+        raise RunInterrupted(
+            state.partial(base, f"stopped during the {state.phase}: {e}"), e
+        ) from e
+    except Exception as e:  # a crash: keep what finished, then let it surface
+        message = f"crashed during the {state.phase}: {type(e).__name__}: {e}"
+        raise RunInterrupted(state.partial(base, message), e) from e
+    warnings = []
+    if all(not o.estimates for o in state.outcomes):
+        warnings.append(
+            "no elite trajectory identifies the stage's base parameters (see the failures "
+            "per elite); the estimates are missing, not zero."
+        )
+    if not plan.usable:  # never reported as usable: the robot must not run it
+        warnings.append(plan.message + unsafe_run_advice(config.safety is not None))
+    warnings += _identification_warnings(state.outcomes, plan.elite)
+    return _replace(
+        state.partial(base, ""),
+        status="complete",
+        message="run complete",
+        warnings=tuple(warnings),
+        executable=plan,
+        safety={"ok": plan.usable, "message": plan.message},
+    )
 
-    state: dict[str, Any] = {
-        "runs": [],
-        "elites": None,
-        "elite_message": "",
-        "outcomes": [],
-        "safety": [],
-    }
-    base = RunResult(
+
+def _identification_warnings(outcomes: list[EliteOutcome], executed: int | None) -> list[str]:
+    """The warnings of the executed elite's identification (a simulated log identified by the
+    core gives the same warnings as ``ident identify`` on that log); elite 1 when none runs."""
+    rank = executed or 1
+    for outcome in outcomes:
+        if outcome.rank == rank and outcome.log is not None:
+            return [f"elite {rank}: {w}" for w in outcome.log.result.warnings]
+    return []
+
+
+def _base_result(setup: RunSetup, bounds: FloatArray, stage_info: StageInfo) -> RunResult:
+    """The run's fixed facts (robot, design variables, stage), before anything ran."""
+    config, robot, family = setup.config, setup.robot, setup.family
+    return RunResult(
         config=config,
         status="incomplete",
         message="",
@@ -159,132 +226,119 @@ def run_pipeline(
         stage=stage_info,
     )
 
-    def partial(message: str) -> RunResult:
-        return _replace(
-            base,
-            status="incomplete",
-            message=message,
-            initial_elites=state["elites"],
-            elite_search_message=state["elite_message"],
-            runs=tuple(state["runs"]),
-            elites=tuple(state["outcomes"]),
-        )
 
-    phase = "initial elite search"
-    try:
-        # 1. initial elites
-        cfg_e = config.elites
-        search = find_feasible_elites(
-            objective.violation,
-            bounds,
-            n_particles=cfg_e.n_particles,
-            n_elites=cfg_e.n_elites,
-            rng=np.random.default_rng(streams[0]),
-            maxiter=cfg_e.maxiter,
-            callback=lambda r: notify(Progress("elites", r.nit, cfg_e.maxiter, best=r.fun)),
-        )
-        state["elite_message"] = search.message
-        if not search.success:
-            raise TrajectoryError(_elite_failure(search, family, objective, bounds))
-        state["elites"] = np.asarray(search.elites)
-        notify(Progress("elites_done", search.nit, cfg_e.maxiter, best=0.0, payload=search.elites))
-
-        # 2. eMuPSO runs
-        cfg_o = config.emupso
-        total = cfg_o.n_runs * cfg_o.maxiter
-        for k in range(cfg_o.n_runs):
-            label = "eMuPSO" if config.optimizer == "emupso" else config.optimizer
-            phase = f"{label} run {k + 1} of {cfg_o.n_runs}"
-            gen = np.random.default_rng(run_streams[k])
-            x0 = spawn_from_elites(
-                search.elites, cfg_o.n_particles, bounds, cfg_o.sigma_fraction, gen
-            )
-
-            def on_iteration(r: Any, k: int = k) -> None:
-                notify(Progress("optimize", k * cfg_o.maxiter + r.nit, total, run=k, best=r.fun))
-
-            if config.optimizer == "emupso":
-                options = {"stall_threshold": cfg_o.stagnation, **cfg_o.options}
-            else:
-                options = dict(config.optimizer_options)
-            res = minimize(
-                objective,
-                bounds,
-                method=config.optimizer,
-                rng=gen,
-                maxiter=cfg_o.maxiter,
-                popsize=cfg_o.n_particles,
-                callback=on_iteration,
-                vectorized=True,
-                x0=x0,
-                **options,
-            )
-            run = _optimizer_run(k, res)
-            state["runs"].append(run)
-            notify(Progress("run_done", k + 1, cfg_o.n_runs, run=k, best=run.fun, payload=run))
-
-        # 3. reported elites
-        phase = "selection of the elites"
-        chosen_x, chosen_f = _select_elites(state["runs"], objective, bounds, cfg_o.n_report_elites)
-        if chosen_x.shape[0] == 0:
-            raise TrajectoryError(
-                "no optimized trajectory satisfies the constraints (every archive member "
-                "violates a joint limit, continuity or reachability); raise the penalty, "
-                "widen the limits or narrow the excitation bounds."
-            )
-
-        # the dense check at the controller's rate decides which elites a robot may run
-        phase = "dense safety check"
-        state["safety"] = check_elites(config, robot, family, setup.safety, chosen_x)
-
-        # 4-5. measurements and estimates
-        details = _details(objective, chosen_x)
-        meas_streams = streams[2].spawn(chosen_x.shape[0])
-        for i in range(chosen_x.shape[0]):
-            phase = f"identification of elite {i + 1}"
-            with small_blas():
-                outcome = measure(
-                    config,
-                    robot,
-                    family,
-                    stage_info,
-                    i,
-                    chosen_x[i],
-                    float(chosen_f[i]),
-                    details[i],
-                    meas_streams[i],
-                )
-            outcome = dataclasses.replace(outcome, safety_check=state["safety"][i])
-            state["outcomes"].append(outcome)
-            notify(Progress("identify", i + 1, chosen_x.shape[0], best=outcome.fitness))
-        phase = "executable trajectory"
-        plan = plan_executable(config, robot, family, setup.safety, chosen_x, state["safety"])
-    except KeyboardInterrupt as e:
-        raise RunInterrupted(partial(f"interrupted (Ctrl-C) during the {phase}"), e) from e
-    except IdentError as e:
-        raise RunInterrupted(partial(f"stopped during the {phase}: {e}"), e) from e
-    except Exception as e:  # a crash: keep what finished, then let it surface
-        raise RunInterrupted(
-            partial(f"crashed during the {phase}: {type(e).__name__}: {e}"), e
-        ) from e
-
-    warnings = []
-    if all(not o.estimates for o in state["outcomes"]):
-        warnings.append(
-            "no elite trajectory identifies the stage's base parameters (see the failures "
-            "per elite); the estimates are missing, not zero."
-        )
-    if not plan.usable:  # never reported as usable: the robot must not run it
-        warnings.append(plan.message + unsafe_run_advice(config.safety is not None))
-    result = partial("")
-    return _replace(
-        result,
-        status="complete",
-        message="run complete",
-        warnings=tuple(warnings),
-        executable=plan,
-        safety={"ok": plan.usable, "message": plan.message},
+def _search_elites(
+    setup: RunSetup, problem: Any, stream: Any, state: _State, notify: ProgressCallback
+) -> None:
+    """1. The initial feasible elites (``state.elites``)."""
+    state.phase = "initial elite search"
+    cfg_e = setup.config.elites
+    search = find_feasible_elites(
+        problem.objective.violation,
+        problem.bounds,
+        n_particles=cfg_e.n_particles,
+        n_elites=cfg_e.n_elites,
+        rng=np.random.default_rng(stream),
+        maxiter=cfg_e.maxiter,
+        callback=lambda r: notify(Progress("elites", r.nit, cfg_e.maxiter, best=r.fun)),
     )
+    state.elite_message = search.message
+    if not search.success:
+        raise TrajectoryError(
+            _elite_failure(search, setup.family, problem.objective, problem.bounds)
+        )
+    state.elites = np.asarray(search.elites)
+    notify(Progress("elites_done", search.nit, cfg_e.maxiter, best=0.0, payload=search.elites))
+
+
+def _optimize(
+    setup: RunSetup, problem: Any, stream: Any, state: _State, notify: ProgressCallback
+) -> None:
+    """2. The optimizer runs from the elites (``state.runs``)."""
+    config = setup.config
+    cfg_o = config.emupso
+    run_streams = stream.spawn(cfg_o.n_runs)
+    total = cfg_o.n_runs * cfg_o.maxiter
+    label = "eMuPSO" if config.optimizer == "emupso" else config.optimizer
+    for k in range(cfg_o.n_runs):
+        state.phase = f"{label} run {k + 1} of {cfg_o.n_runs}"
+        gen = np.random.default_rng(run_streams[k])
+        x0 = spawn_from_elites(
+            state.elites, cfg_o.n_particles, problem.bounds, cfg_o.sigma_fraction, gen
+        )
+
+        def on_iteration(r: Any, k: int = k) -> None:
+            notify(Progress("optimize", k * cfg_o.maxiter + r.nit, total, run=k, best=r.fun))
+
+        if config.optimizer == "emupso":
+            options = {"stall_threshold": cfg_o.stagnation, **cfg_o.options}
+        else:
+            options = dict(config.optimizer_options)
+        res = minimize(
+            problem.objective,
+            problem.bounds,
+            method=config.optimizer,
+            rng=gen,
+            maxiter=cfg_o.maxiter,
+            popsize=cfg_o.n_particles,
+            callback=on_iteration,
+            vectorized=True,
+            x0=x0,
+            **options,
+        )
+        run = _optimizer_run(k, res)
+        state.runs.append(run)
+        notify(Progress("run_done", k + 1, cfg_o.n_runs, run=k, best=run.fun, payload=run))
+
+
+def _choose(setup: RunSetup, problem: Any, state: _State) -> tuple[FloatArray, FloatArray]:
+    """3. The reported elites, and the dense safety check of each (``state.safety``)."""
+    state.phase = "selection of the elites"
+    n_report = setup.config.emupso.n_report_elites
+    chosen_x, chosen_f = _select_elites(state.runs, problem.objective, problem.bounds, n_report)
+    if chosen_x.shape[0] == 0:
+        raise TrajectoryError(
+            "no optimized trajectory satisfies the constraints (every archive member "
+            "violates a joint limit, continuity or reachability); raise the penalty, "
+            "widen the limits or narrow the excitation bounds."
+        )
+    # the dense check at the controller's rate decides which elites a robot may run
+    state.phase = "dense safety check"
+    state.safety = check_elites(setup.config, setup.robot, setup.family, setup.safety, chosen_x)
+    return chosen_x, chosen_f
+
+
+def _measure(
+    setup: RunSetup,
+    problem: Any,
+    stage_info: StageInfo,
+    measure: Any,
+    chosen_x: FloatArray,
+    chosen_f: FloatArray,
+    stream: Any,
+    state: _State,
+    notify: ProgressCallback,
+) -> None:
+    """4-5. Measure and identify every reported elite (``state.outcomes``)."""
+    details = _details(problem.objective, chosen_x)
+    meas_streams = stream.spawn(chosen_x.shape[0])
+    for i in range(chosen_x.shape[0]):
+        state.phase = f"identification of elite {i + 1}"
+        with small_blas():
+            outcome = measure(
+                setup.config,
+                setup.robot,
+                setup.family,
+                stage_info,
+                i,
+                chosen_x[i],
+                float(chosen_f[i]),
+                details[i],
+                meas_streams[i],
+            )
+        outcome = dataclasses.replace(outcome, safety_check=state.safety[i])
+        state.outcomes.append(outcome)
+        notify(Progress("identify", i + 1, chosen_x.shape[0], best=outcome.fitness))
 
 
 def _replace(result: RunResult, **changes: Any) -> RunResult:
@@ -333,7 +387,8 @@ def _select_elites(
 
 def _elite_failure(search: Any, family: Any, objective: Any, bounds: FloatArray) -> str:
     """A message naming the constraints that no candidate could meet."""
-    worst, violated = "", ()
+    worst = ""
+    violated: tuple[str, ...] = ()
     try:
         probe = np.random.default_rng(0).uniform(bounds[:, 0], bounds[:, 1], (50, bounds.shape[0]))
         batch = family.trajectories(probe)

@@ -289,6 +289,17 @@ class RunResult:
     executable: Any = None  # the run.safety_check.ExecutablePlan (trajectory.csv), or None
     safety: dict[str, Any] | None = None  # {"ok": bool, "message": str} for the report
 
+    @property
+    def executed_rank(self) -> int | None:
+        """Rank of the elite the report judges: the one ``trajectory.csv`` executes (the
+        executable plan's), else elite 1 (then judged ``unsafe`` when the plan has none);
+        None without elites."""
+        if not self.elites:
+            return None
+        plan = self.executable
+        rank = getattr(plan, "elite", None)
+        return rank if isinstance(rank, int) and 1 <= rank <= len(self.elites) else 1
+
 
 class RunInterrupted(Exception):
     """A run stopped early (Ctrl-C or an error); ``partial`` holds what had finished."""

@@ -36,6 +36,7 @@ __all__ = [
     "RunDir",
     "create_run_dir",
     "read_status",
+    "unfinished_note",
 ]
 
 RUN_STATE_FILE = "run.json"
@@ -94,15 +95,24 @@ class RunDir:
         """
         if status not in STATUSES[1:]:
             raise ValueError(f"final status must be complete or incomplete, got {status!r}")
-        marker = self.path / INCOMPLETE_MARKER
-        if status == "incomplete":
-            atomic_write_text(marker, (message or "run did not finish") + "\n")
-        else:
-            marker.unlink(missing_ok=True)
         fields: dict[str, Any] = {"status": status, "message": message, "finished_at": _now_iso()}
         if stamp_wall_time or "wall_time_s" not in self._state:
             fields["wall_time_s"] = round(time.monotonic() - self._t0, 3)
-        self.update(**fields)
+        marker = self.path / INCOMPLETE_MARKER
+        if status == "complete":
+            marker.unlink(missing_ok=True)
+            self.update(**fields)
+            return
+        # on the way out of a failure (often a full disk): best effort, never a second error
+        # that hides the first; run.json first, the marker (a convenience for ls) second
+        for write in (
+            lambda: self.update(**fields),
+            lambda: atomic_write_text(marker, (message or "run did not finish") + "\n"),
+        ):
+            try:
+                write()
+            except OSError:
+                pass
 
 
 def create_run_dir(
@@ -152,8 +162,34 @@ def create_run_dir(
     except OSError as e:
         raise IdentError(f"{out}: cannot create the run folder ({e.strerror}); use --out.") from e
     run = RunDir(path, {"status": "running", "started_at": _now_iso(), **(info or {})})
-    run.update()
+    try:
+        run.update()
+    except OSError as e:  # a folder without run.json is no run: leave nothing behind
+        path.rmdir()
+        raise IdentError(
+            f"{path / RUN_STATE_FILE}: cannot write the run state ({e.strerror}); free some "
+            "space or use --out."
+        ) from e
     return run
+
+
+def unfinished_note(path: str | Path, state: dict[str, Any]) -> str | None:
+    """What a reader of run folder ``path`` must know when the run did not complete, or None.
+
+    ``state`` is its ``run.json`` content (:func:`read_status`).
+    """
+    status = state.get("status", "running")
+    if status == "complete":
+        return None
+    if status == "running":
+        since = state.get("started_at", "an unknown time")
+        return (
+            f"{path}: the run is still running (run.json: status 'running' since {since}), or "
+            "its process died without a word; what it saved so far is all there is, and its "
+            "files may still change"
+        )
+    message = state.get("message") or "no reason recorded"
+    return f"{path}: the run is {status} ({message}); only what it finished is shown"
 
 
 def read_status(path: str | Path) -> dict[str, Any]:

@@ -27,6 +27,8 @@ import meshcat.geometry as mg
 import numpy as np
 import pinocchio as pin
 
+from ident.errors import DataError
+
 __all__ = [
     "ClearanceMark",
     "ReplayEnvironment",
@@ -107,8 +109,40 @@ def run_traced_frame(data: Mapping[str, Any]) -> str | None:
     return None
 
 
+def _damaged(field: str, value: Any, expected: str) -> DataError:
+    return DataError(
+        f"result.json: {field} is {str(value)[:80]!r}, not {expected}; the run folder is "
+        "damaged (replay it with --urdf and --trajectory, or run it again)."
+    )
+
+
+def _number(value: Any, field: str) -> float:
+    """``value`` as a finite float, else :class:`DataError` naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _damaged(field, value, "a number")
+    number = float(value)
+    if not math.isfinite(number):
+        raise _damaged(field, value, "a finite number")
+    return number
+
+
+def _objects(value: Any, field: str) -> list[Mapping[str, Any]]:
+    """``value`` as a list of JSON objects (``None``: empty), else :class:`DataError`."""
+    if value is None:
+        return []
+    if not isinstance(value, list) or not all(isinstance(v, Mapping) for v in value):
+        raise _damaged(field, value, "a list of objects")
+    return value
+
+
 def run_environment(data: Mapping[str, Any]) -> ReplayEnvironment:
-    """The floor and obstacles of a run's ``config.safety`` (defaults: a floor at z = 0)."""
+    """The floor and obstacles of a run's ``config.safety`` (defaults: a floor at z = 0).
+
+    Raises
+    ------
+    DataError
+        A field of ``result.json`` that is not what ``ident run`` writes.
+    """
     config = data.get("config")
     safety = config.get("safety") if isinstance(config, Mapping) else None
     if not isinstance(safety, Mapping):
@@ -116,22 +150,41 @@ def run_environment(data: Mapping[str, Any]) -> ReplayEnvironment:
     floor = safety.get("floor")
     floor_z: float | None = 0.0
     if isinstance(floor, Mapping):
-        floor_z = float(floor.get("z", 0.0)) if floor.get("enabled", True) else None
-    obstacles = tuple(o for o in safety.get("obstacles") or () if isinstance(o, Mapping))
+        enabled = floor.get("enabled", True)
+        floor_z = _number(floor.get("z", 0.0), "config.safety.floor.z") if enabled else None
+    obstacles = tuple(_objects(safety.get("obstacles"), "config.safety.obstacles"))
+    for k, obstacle in enumerate(obstacles):
+        try:
+            made = obstacle_object(obstacle)
+        except (TypeError, ValueError, KeyError, IndexError) as e:
+            raise _damaged(f"config.safety.obstacles[{k}]", obstacle, f"an obstacle ({e})") from e
+        if made is not None and not np.isfinite(made[1]).all():
+            raise _damaged(f"config.safety.obstacles[{k}]", obstacle, "a finite pose")
     return ReplayEnvironment(floor_z=floor_z, obstacles=obstacles)
 
 
 def run_clearance_mark(data: Mapping[str, Any], rank: int) -> ClearanceMark | None:
-    """The smallest clearance of elite ``rank`` (its ``safety_series``), or ``None``."""
-    for elite in data.get("elites") or ():
-        if isinstance(elite, Mapping) and elite.get("rank") == rank:
+    """The smallest clearance of elite ``rank`` (its ``safety_series``), or ``None``.
+
+    Raises
+    ------
+    DataError
+        ``elites`` or the elite's ``safety_series`` is not what ``ident run`` writes.
+    """
+    for k, elite in enumerate(_objects(data.get("elites"), "elites")):
+        if elite.get("rank") == rank:
             series = elite.get("safety_series")
             if not isinstance(series, Mapping):
                 return None
             when, pair = series.get("closest_time"), series.get("closest_pair")
             value = series.get("closest_clearance")
             if isinstance(pair, str) and when is not None and value is not None:
-                return ClearanceMark(float(when), pair, float(value))
+                field = f"elites[{k}].safety_series"
+                return ClearanceMark(
+                    _number(when, f"{field}.closest_time"),
+                    pair,
+                    _number(value, f"{field}.closest_clearance"),
+                )
     return None
 
 

@@ -43,6 +43,7 @@ from pinocchio.visualize import MeshcatVisualizer
 from pinocchio.visualize.meshcat_visualizer import loadMesh
 
 from ident.errors import DataError, IdentWarning, ModelError
+from ident.robot.meshes import check_urdf_meshes
 from ident.trajectory import JointTrajectory
 from ident.viz.environment import (
     CLOSEST_COLOR,
@@ -170,6 +171,7 @@ def load_visual_robot(
         model = pin.buildModelFromUrdf(str(urdf_path))
     except (RuntimeError, ValueError) as e:
         raise ModelError(f"{urdf_path}: not a valid URDF for Pinocchio: {e}") from e
+    check_urdf_meshes(urdf_path, dirs, collision=False)  # before coal: never a segfault
     try:
         visual_model = pin.buildGeomFromUrdf(
             model, str(urdf_path), pin.GeometryType.VISUAL, package_dirs=dirs

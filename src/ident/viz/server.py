@@ -25,6 +25,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import tornado.web
+import tornado.websocket
 import zmq
 from meshcat.servers import zmqserver
 
@@ -155,7 +156,40 @@ class _NoFavicon(tornado.web.RequestHandler):
 
 
 class _LoopbackBridge(zmqserver.ZMQWebSocketBridge):
-    """meshcat's ZMQ <-> websocket bridge with both sockets on ``self.host``."""
+    """meshcat's ZMQ <-> websocket bridge with both sockets on ``self.host``.
+
+    A browser tab that closes while the scene is sent is dropped without a word (meshcat's
+    bridge let tornado print a ``WebSocketClosedError`` traceback per message).
+    """
+
+    def _send(self, websocket: Any, data: bytes) -> None:
+        """Send one binary message; a closed websocket leaves the pool quietly."""
+        try:
+            future = websocket.write_message(data, binary=True)
+        except tornado.websocket.WebSocketClosedError:
+            self.websocket_pool.discard(websocket)
+            return
+        if future is not None:
+            future.add_done_callback(lambda f: self._sent(websocket, f))
+
+    def _sent(self, websocket: Any, future: Any) -> None:
+        """Retrieve a send's outcome (an unretrieved failure prints a traceback)."""
+        if not future.cancelled() and future.exception() is not None:
+            self.websocket_pool.discard(websocket)
+
+    def forward_to_websockets(self, frames: list[bytes]) -> None:
+        """Send a command to every connected browser."""
+        _, _, data = frames
+        for websocket in list(self.websocket_pool):
+            self._send(websocket, data)
+
+    def send_scene(self, websocket: Any) -> None:
+        """Send the whole scene to a browser that just connected."""
+        for node in zmqserver.walk(self.tree):
+            messages = [node.object, *node.properties, node.transform, node.animation]
+            for data in messages:
+                if data is not None:
+                    self._send(websocket, data)
 
     def make_app(self) -> _LoopbackApplication:
         return _LoopbackApplication(

@@ -12,7 +12,11 @@ from __future__ import annotations
 import gzip
 import json
 import math
+import os
 import shutil
+import struct
+import subprocess
+import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -527,20 +531,515 @@ def _log_cases() -> list[dict]:
     return runpy.run_path(str(HERE / "logs" / "generate_logs.py"))["cases"]()
 
 
+# ---------------------------------------------------------------------------------------------
+# Hardening, round two (issue 27): meshes that crash native code, operating-system failures
+# (full disk, read-only folder, permission) in every command that writes, and the inputs that
+# gave tracebacks or silent wrong results. Cases may carry:
+#   setup:  {copy: <folder of this corpus>, to: <name in {tmp}>[, run_json: {...}]}  copied
+#           before the command (run_json: the copy's run.json content);
+#   fault:  {errno: ENOSPC, file: <glob of a file name>, step: write|create}  the one write
+#           primitive of ident.fileio fails so (write: the disk fills half way through);
+#   expect: {exit: 0|2, left: none|dirs|keep, state: <run.json status>, warning: true}
+#           (default: exit 2, nothing left); ``state`` also requires the failure in its message.
+
+MESH_URDF = "../base/rp2.urdf"
+
+
+def _stl(vertices: list[tuple[float, float, float]], faces: list[tuple[int, int, int]]) -> bytes:
+    """A binary STL (any float, NaN included, packs as it is)."""
+    out = b"hostile".ljust(80, b" ") + struct.pack("<I", len(faces))
+    for face in faces:
+        out += struct.pack("<3f", 0.0, 0.0, 0.0)
+        for k in face:
+            out += struct.pack("<3f", *vertices[k])
+        out += b"\0\0"
+    return out
+
+
+BOX_V = [(x, y, z) for x in (-0.03, 0.03) for y in (-0.03, 0.03) for z in (0.0, 0.2)]
+BOX_F = [
+    (0, 1, 3),
+    (0, 3, 2),
+    (4, 6, 7),
+    (4, 7, 5),
+    (0, 4, 5),
+    (0, 5, 1),
+    (2, 3, 7),
+    (2, 7, 6),
+    (0, 2, 6),
+    (0, 6, 4),
+    (1, 5, 7),
+    (1, 7, 3),
+]
+MESH_FILES: dict[str, bytes] = {
+    "box.stl": _stl(BOX_V, BOX_F),
+    "flat.stl": _stl([(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0), (0.1, 0.1, 0)], [(0, 1, 2), (1, 3, 2)]),
+    "flat_tilted.stl": _stl(
+        [(0.1 * i, 0.1 * j, 0.05 * i + 0.02 * j) for i in range(4) for j in range(4)],
+        [(4 * i + j, 4 * i + j + 1, 4 * i + j + 4) for i in range(3) for j in range(3)],
+    ),
+    "collinear.stl": _stl([(0.0, 0.0, 0.01 * k) for k in range(6)], [(0, 1, 2), (3, 4, 5)]),
+    "point.stl": _stl([(0.1, 0.1, 0.1)] * 4, [(0, 1, 2), (1, 2, 3)]),
+    "one_triangle.stl": _stl([(0, 0, 0), (0.1, 0, 0), (0, 0.1, 0.1)], [(0, 1, 2)]),
+    "nan_vertex.stl": _stl([(math.nan, 0.0, 0.0), *BOX_V[1:]], BOX_F),
+    "inf_vertex.stl": _stl([*BOX_V[:7], (0.0, math.inf, 0.0)], BOX_F),
+    "millimetres.stl": _stl([tuple(1000.0 * c for c in v) for v in BOX_V], BOX_F),
+    "empty_ascii.stl": b"solid empty\nendsolid empty\n",
+    "zero_bytes.stl": b"",
+    "garbage.stl": bytes((k * 97 + 13) % 256 for k in range(3000)),
+    "flat.obj": b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0.1 0.1 0\nf 1 2 3\nf 2 4 3\n",
+}
+# name: (mesh file, scale attribute or None) for a mesh that must be refused
+BAD_MESHES: dict[str, tuple[str, str | None]] = {
+    "flat": ("flat.stl", None),
+    "flat_tilted": ("flat_tilted.stl", None),
+    "flat_obj": ("flat.obj", None),
+    "collinear": ("collinear.stl", None),
+    "point": ("point.stl", None),
+    "one_triangle": ("one_triangle.stl", None),
+    "nan_vertex": ("nan_vertex.stl", None),
+    "inf_vertex": ("inf_vertex.stl", None),
+    "millimetres_as_metres": ("millimetres.stl", None),
+    "empty_ascii": ("empty_ascii.stl", None),
+    "zero_bytes": ("zero_bytes.stl", None),
+    "garbage": ("garbage.stl", None),
+    "scale_zero": ("box.stl", "0 0 0"),
+    "scale_one_zero": ("box.stl", "1 1 0"),
+    "scale_negative": ("box.stl", "-1 1 1"),
+    "scale_nan": ("box.stl", "nan 1 1"),
+    "scale_inf": ("box.stl", "inf 1 1"),
+    "scale_huge": ("box.stl", "1e300 1e300 1e300"),
+    "scale_two_numbers": ("box.stl", "1 1"),
+    "scale_words": ("box.stl", "big big big"),
+}
+FLAT_ONLY = {"flat", "flat_tilted", "flat_obj", "collinear", "point", "one_triangle"}
+MESH_RUN = """robot: {urdf: URDF, package_dirs: [.]}
+seed: 1
+excitation:
+  family: joint_fourier
+  n_samples: 50
+  options: {n_harmonics: 2, amplitude_bound: 0.3}
+elites: {n_particles: 6, n_elites: 2, maxiter: 4}
+emupso: {n_particles: 6, maxiter: 2, stagnation: 3, n_runs: 1, n_report_elites: 1}
+safety: {floor: {enabled: true, z: 0.0}, self_collision: true}
+measurement: {torque_noise_std: 0.0}
+"""
+
+
+def _mesh_urdf(filename: str, scale: str | None, *, collision: bool, visual: bool) -> str:
+    text = (HERE / "base" / "rp2.urdf").read_text()
+    attr = f' scale="{scale}"' if scale is not None else ""
+    geometry = f'<geometry><mesh filename="{filename}"{attr}/></geometry>'
+    parts = ""
+    if collision:
+        parts += f"\n    <collision>{geometry}</collision>"
+    if visual:
+        parts += f"\n    <visual>{geometry}</visual>"
+    return text.replace('<link name="link2">', '<link name="link2">' + parts)
+
+
+# Operating-system failures: the errno a writer meets, per command.
+OS_ERRNOS = ("ENOSPC", "EDQUOT", "EROFS", "EACCES", "EIO")
+RUN_FOLDER_FILES = ("result.json", "elite_1.csv", "report.md", "report.html", "*.png")
+
+
+def _real_run_folder() -> None:
+    """A real, small ``ident run`` folder (format of this version) for report/replay cases."""
+    out = HERE / "os" / "_runs"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from ident.cli import main; main()",
+            "run",
+            str(HERE / "run" / "base.yaml"),
+            "--out",
+            str(out),
+            "--no-replay",
+        ],
+        env=env,
+        check=False,
+        capture_output=True,
+        cwd=ROOT,
+    )
+    (made,) = out.iterdir()
+    real = HERE / "os" / "real_run"
+    made.rename(real)
+    shutil.rmtree(out)
+    for name in ("report.md", "report.html", "figures"):
+        path = real / name
+        shutil.rmtree(path) if path.is_dir() else path.unlink(missing_ok=True)
+    _write(real / "replay.html", "<!doctype html><title>replay placeholder</title>\n")
+    for name in ("result.json", "config.yaml"):  # no path of this machine in the corpus
+        text = (real / name).read_text().replace(str(ROOT), "<repository>")
+        _write(real / name, text)
+    state = json.loads((real / "run.json").read_text())
+    state = {k: state[k] for k in ("status", "message", "seed", "started_at", "finished_at")}
+    _write(real / "run.json", json.dumps(state, indent=2) + "\n")
+    running_empty = HERE / "os" / "running_empty"
+    _write(running_empty / "run.json", json.dumps({"status": "running"}) + "\n")
+
+
+def _hardening_files() -> None:
+    mesh = HERE / "mesh"
+    for name, data in MESH_FILES.items():
+        _write(mesh / name, data)
+    _write(mesh / "pkg" / "hostile_description" / "meshes" / "flat.stl", MESH_FILES["flat.stl"])
+    for name, (filename, scale) in BAD_MESHES.items():
+        _write(
+            mesh / f"collision_{name}.urdf",
+            _mesh_urdf(filename, scale, collision=True, visual=False),
+        )
+        _write(
+            mesh / f"visual_{name}.urdf", _mesh_urdf(filename, scale, collision=False, visual=True)
+        )
+        _write(mesh / f"run_{name}.yaml", MESH_RUN.replace("URDF", f"collision_{name}.urdf"))
+    _write(
+        mesh / "collision_package_flat.urdf",
+        _mesh_urdf(
+            "package://hostile_description/meshes/flat.stl", None, collision=True, visual=False
+        ),
+    )
+    _write(
+        mesh / "run_package_flat.yaml",
+        MESH_RUN.replace("URDF", "collision_package_flat.urdf").replace("[.]", "[pkg]"),
+    )
+    _write(
+        mesh / "run_package_flat_no_dir.yaml",
+        MESH_RUN.replace("URDF", "collision_package_flat.urdf").replace(
+            "package_dirs: [.]", "package_dirs: [pkg/hostile_description]"
+        ),
+    )
+    _real_run_folder()
+    os_dir = HERE / "os"
+    # identify: a reference table that is not UTF-8, binary, a folder, malformed
+    _write(os_dir / "reference_latin1.csv", "m1 + caf\u00e9,1,2,3,4\n".encode("latin-1"))
+    _write(os_dir / "reference_binary.csv", bytes(range(256)) * 4)
+    _write(os_dir / "reference_fields.csv", "m1,1,2\n")
+    for name, reference in {
+        "reference_latin1": "reference_latin1.csv",
+        "reference_binary": "reference_binary.csv",
+        "reference_is_dir": ".",
+        "reference_fields": "reference_fields.csv",
+    }.items():
+        for key in ("base_parameters", "essential_parameters"):
+            _write(
+                os_dir / f"{name}_{key}.yaml",
+                IDENTIFY_BASE.replace("../base/", "../base/")
+                + f"reference: {{{key}: {reference}}}\n",
+            )
+    for name, thresholds in {
+        "velocity_threshold_negative": "[-0.1, 0.1]",
+        "velocity_threshold_minus_inf": "[-.inf, 0.1]",
+        "velocity_threshold_all_negative": "[-1, -1]",
+        "velocity_threshold_inf": "[.inf, 0.1]",
+    }.items():
+        _write(
+            os_dir / f"{name}.yaml",
+            IDENTIFY_BASE + f"preprocess: {{velocity_threshold: {thresholds}}}\n",
+        )
+    _write(
+        os_dir / "more_in_more.yaml",
+        IDENTIFY_BASE.replace(
+            "  torque: {path: ../base/tau.csv}\n",
+            "  torque: {path: ../base/tau.csv}\n  more:\n"
+            "    - {sampling_rate_hz: 100.0, more: [{sampling_rate_hz: 50.0}]}\n",
+        ),
+    )
+    _write(
+        os_dir / "more_in_more_deep.yaml",
+        IDENTIFY_BASE.replace(
+            "  torque: {path: ../base/tau.csv}\n",
+            "  torque: {path: ../base/tau.csv}\n  more:\n    - {sampling_rate_hz: 100.0}\n"
+            "    - {more: [{more: [{sampling_rate_hz: 50.0}]}]}\n",
+        ),
+    )
+    _write(os_dir / "chunked.yaml", IDENTIFY_BASE + "preprocess: {chunked: always}\n")
+    # replay: a run folder whose result.json is damaged where the replay reads it
+    good = HERE / "runfolder" / "good"
+    elite = (HERE / "base" / "traj.csv").read_text().replace("0.0,", "0.001,", 1)
+    for name, result in {
+        "elites_number": {"elites": 5},
+        "elites_string": {"elites": "abc"},
+        "elites_list_of_numbers": {"elites": [1, 2]},
+        "closest_time_string": {
+            "elites": [
+                {
+                    "rank": 1,
+                    "safety_series": {
+                        "closest_time": "x",
+                        "closest_pair": "link1|floor",
+                        "closest_clearance": 0.1,
+                    },
+                }
+            ]
+        },
+        "closest_clearance_nan": {
+            "elites": [
+                {
+                    "rank": 1,
+                    "safety_series": {
+                        "closest_time": 1.0,
+                        "closest_pair": "link1|floor",
+                        "closest_clearance": "nan",
+                    },
+                }
+            ]
+        },
+        "floor_z_string": {"config": {"safety": {"floor": {"z": "low"}}}},
+        "obstacles_not_list": {"config": {"safety": {"obstacles": 3}}},
+        "obstacle_box_without_size": {"config": {"safety": {"obstacles": [{"box": {}}]}}},
+        "obstacle_sphere_radius_text": {
+            "config": {"safety": {"obstacles": [{"sphere": {"radius": "big"}}]}}
+        },
+        "obstacle_position_nan": {
+            "config": {
+                "safety": {"obstacles": [{"sphere": {"radius": 0.1, "position": ["nan", 0, 0]}}]}
+            }
+        },
+        "no_elites_key": {"name": "x", "chosen_elite": 1},
+    }.items():
+        folder = os_dir / "replay" / name
+        shutil.copytree(good, folder)
+        _write(folder / "elites" / "elite_1.csv", elite)
+        _write(folder / "result.json", json.dumps(result) + "\n")
+
+
+def _hardening_cases(add) -> None:  # noqa: ANN001 - main's add()
+    data_mesh = "{data}/mesh"
+    for name in BAD_MESHES:  # the safety check's collision model: qhull builds hulls
+        add(
+            f"run-mesh-collision-{name}",
+            ["run", f"{data_mesh}/run_{name}.yaml", "--out", "{tmp}/runs"],
+        )
+    for name in ("package_flat", "package_flat_no_dir"):
+        add(
+            f"run-mesh-collision-{name}",
+            ["run", f"{data_mesh}/run_{name}.yaml", "--out", "{tmp}/runs"],
+        )
+    for name in BAD_MESHES:  # the replay's visual model: flat visuals are fine
+        if name in FLAT_ONLY:
+            continue
+        for mode in ("static", "live"):
+            args = [
+                "replay",
+                "--urdf",
+                f"{data_mesh}/visual_{name}.urdf",
+                "--trajectory",
+                "{data}/base/traj.csv",
+                "--package-dir",
+                data_mesh,
+            ]
+            args += ["--html", "{tmp}/r.html"] if mode == "static" else ["--port", "0"]
+            add(f"replay-mesh-visual-{name}-{mode}", args)
+
+    # full disk, quota, read-only, permission, I/O error: at each file a command writes
+    for errno_name in OS_ERRNOS:
+        low = errno_name.lower()
+        for step in ("write", "create"):
+            fault = {"errno": errno_name, "file": "*", "step": step}
+            add(
+                f"urdf-{low}-{step}",
+                ["urdf", "{data}/urdf/base.yaml", "-o", "{tmp}/r.urdf"],
+                fault=fault,
+            )
+            add(
+                f"replay-html-{low}-{step}",
+                ["replay", "{data}/runfolder/good", "--html", "{tmp}/r.html"],
+                fault=fault,
+            )
+        # ident report renders every figure first (seconds): one step per errno, the one
+        # that happens (a read-only folder or no permission: creating; else: writing)
+        step = "create" if errno_name in ("EROFS", "EACCES") else "write"
+        add(
+            f"report-{low}-{step}",
+            ["report", "{tmp}/run"],
+            setup={"copy": "os/real_run", "to": "run"},
+            fault={"errno": errno_name, "file": "*", "step": step},
+            expect={"left": "keep"},
+        )
+    for target in RUN_FOLDER_FILES[2:]:
+        fault = {"errno": "ENOSPC", "file": target, "step": "write"}
+        add(
+            f"report-enospc-at-{target.replace('*', 'figure')}",
+            ["report", "{tmp}/run"],
+            setup={"copy": "os/real_run", "to": "run"},
+            fault=fault,
+            expect={"left": "keep"},
+        )
+    for errno_name in ("ENOSPC", "EROFS", "EACCES"):
+        low = errno_name.lower()
+        # ident run: the run folder keeps what finished and its run.json names the failure
+        # (a whole run each: the full disk only; a folder turns read-only mid-run rarely)
+        for target in ("result.json", "report.html") if errno_name == "ENOSPC" else ():
+            add(
+                f"run-{low}-at-{target}",
+                ["run", "{data}/run/base.yaml", "--out", "{tmp}/runs", "--no-replay"],
+                fault={"errno": errno_name, "file": target, "step": "write"},
+                expect={"left": "keep", "state": "incomplete"},
+            )
+        add(
+            f"run-{low}-at-run.json",
+            ["run", "{data}/run/base.yaml", "--out", "{tmp}/runs"],
+            fault={"errno": errno_name, "file": "run.json", "step": "create"},
+            expect={"left": "dirs"},
+        )
+        for target in ("result.json", "report.md"):
+            add(
+                f"identify-{low}-at-{target}",
+                ["identify", "{data}/identify/base.yaml", "--out", "{tmp}/runs", "--no-replay"],
+                fault={"errno": errno_name, "file": target, "step": "write"},
+                expect={"left": "keep", "state": "incomplete"},
+            )
+        add(
+            f"bench-{low}",
+            ["bench", "{data}/bench/base.yaml", "--out", "{tmp}/c", "--no-progress"],
+            fault={"errno": errno_name, "file": "*", "step": "create"},
+            expect={"left": "dirs"},
+        )
+
+    # ident report on a folder that did not finish: a warning, or one error when nothing
+    # was saved
+    add(
+        "report-running-with-results",
+        ["report", "{tmp}/run"],
+        setup={
+            "copy": "os/real_run",
+            "to": "run",
+            "run_json": {"status": "running", "started_at": "2026-01-01T00:00:00+00:00"},
+        },
+        expect={"exit": 0, "left": "keep", "warning": True},
+    )
+    add(
+        "report-incomplete-with-results",
+        ["report", "{tmp}/run"],
+        setup={
+            "copy": "os/real_run",
+            "to": "run",
+            "run_json": {"status": "incomplete", "message": "interrupted (Ctrl-C)"},
+        },
+        expect={"exit": 0, "left": "keep", "warning": True},
+    )
+    add(
+        "report-running-nothing-saved",
+        ["report", "{data}/os/running_empty"],
+        expect={"warning": True},
+    )
+
+    # --scheduler addresses dask cannot parse, refused before any work
+    for name, address in {
+        "bogus_scheme_blank": "bogus://x y",
+        "bogus_scheme": "bogus://127.0.0.1:8786",
+        "http": "http://127.0.0.1:8786",
+        "blank_in_host": "tcp://127.0.0.1 8786",
+        "only_scheme": "tcp://",
+        "empty": "",
+        "spaces": "   ",
+        "newline": "tcp://a\nb:1",
+    }.items():
+        add(
+            f"identify-scheduler-{name}",
+            ["identify", "{data}/os/chunked.yaml", "--scheduler", address, "--out", "{tmp}/r"],
+        )
+        add(
+            f"bench-scheduler-{name}",
+            [
+                "bench",
+                "{data}/bench/base.yaml",
+                "--scheduler",
+                address,
+                "--out",
+                "{tmp}/c",
+                "--no-progress",
+            ],
+        )
+
+    # identify configs: refused before the identification (no result to lose)
+    for name in ("reference_latin1", "reference_binary", "reference_is_dir", "reference_fields"):
+        for key in ("base_parameters", "essential_parameters"):
+            add(
+                f"identify-{name}-{key}",
+                ["identify", f"{{data}}/os/{name}_{key}.yaml", "--out", "{tmp}/r"],
+            )
+    for name in (
+        "velocity_threshold_negative",
+        "velocity_threshold_minus_inf",
+        "velocity_threshold_all_negative",
+        "velocity_threshold_inf",
+        "more_in_more",
+        "more_in_more_deep",
+    ):
+        add(f"identify-{name}", ["identify", f"{{data}}/os/{name}.yaml", "--out", "{tmp}/r"])
+
+    # replay: --package-dir that is no folder; result.json damaged where the replay reads it
+    for name, folder in {"missing": "{data}/nope", "file": "{data}/base/rp2.urdf"}.items():
+        add(
+            f"replay-package-dir-{name}",
+            ["replay", "{data}/runfolder/good", "--package-dir", folder, "--html", "{tmp}/r.html"],
+        )
+        add(
+            f"replay-package-dir-{name}-urdf",
+            [
+                "replay",
+                "--urdf",
+                "{data}/base/rp2.urdf",
+                "--trajectory",
+                "{data}/base/traj.csv",
+                "--package-dir",
+                folder,
+                "--html",
+                "{tmp}/r.html",
+            ],
+        )
+    for name in (
+        "elites_number",
+        "elites_string",
+        "elites_list_of_numbers",
+        "closest_time_string",
+        "closest_clearance_nan",
+    ):
+        add(
+            f"replay-result-{name}",
+            ["replay", f"{{data}}/os/replay/{name}", "--elites", "--html", "{tmp}/r.html"],
+        )
+    add(
+        "replay-result-no_elites_key",
+        ["replay", "{data}/os/replay/no_elites_key", "--elites", "--html", "{tmp}/r.html"],
+        expect={"exit": 0, "left": "keep"},
+    )
+    for name in (
+        "floor_z_string",
+        "obstacles_not_list",
+        "obstacle_box_without_size",
+        "obstacle_sphere_radius_text",
+        "obstacle_position_nan",
+    ):
+        for extra in ([], ["--elites"]):
+            suffix = "-elites" if extra else ""
+            add(
+                f"replay-result-{name}{suffix}",
+                ["replay", f"{{data}}/os/replay/{name}", *extra, "--html", "{tmp}/r.html"],
+            )
+
+
 def main() -> None:
-    for sub in ("base", "urdf", "runfolder", "yaml", "run", "identify", "bench"):
+    for sub in ("base", "urdf", "runfolder", "yaml", "run", "identify", "bench", "mesh", "os"):
         shutil.rmtree(HERE / sub, ignore_errors=True)
     _base_files()
     _urdf_files()
     _run_folders()
     cases: list[dict] = []
 
-    def add(case_id: str, args: list[str], *, isolate: bool = False, xfail: str = "") -> None:
+    def add(
+        case_id: str, args: list[str], *, isolate: bool = False, xfail: str = "", **extra: dict
+    ) -> None:
         entry: dict = {"id": case_id, "args": args}
         if isolate:
             entry["isolate"] = True
         if xfail:
             entry["xfail"] = xfail
+        entry.update(extra)
         cases.append(entry)
 
     for name, data in GENERIC_YAML.items():
@@ -575,6 +1074,9 @@ def main() -> None:
             add(f"{command}-{name}", [command, *args], xfail=reason)
 
     cases += _log_cases()
+    _hardening_files()
+    _hardening_cases(add)
+
     lines = [
         "# Generated by generate.py: hostile inputs and the command line of each.",
         "# {data} = this folder, {tmp} = an empty working folder that must stay empty.",
@@ -587,6 +1089,9 @@ def main() -> None:
             lines.append("  isolate: true")
         if c.get("xfail"):
             lines.append(f"  xfail: {json.dumps(c['xfail'])}")
+        for key in ("setup", "fault", "expect"):
+            if key in c:
+                lines.append(f"  {key}: {json.dumps(c[key])}")
     _write(HERE / "manifest.yaml", "\n".join(lines) + "\n")
     print(f"{len(cases)} cases")
 

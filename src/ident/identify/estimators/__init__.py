@@ -1,7 +1,8 @@
 """Estimators of the identification model, behind one registry.
 
 Every estimator is a function ``estimate(problem: EstimationProblem) -> Estimate`` registered
-by name (``estimation.method`` in an identify config):
+by name (``estimation.method`` in an identify config) with a :class:`Contract` (consistent,
+needs a prior, supports chunks, is the least-squares estimate itself):
 
 ``ols``, ``wls``
     Unconstrained least squares of the base parameters (:mod:`.least_squares`).
@@ -17,7 +18,6 @@ from ident.identify.estimators import least_squares, lmi, log_cholesky  # noqa: 
 from ident.identify.estimators.identification import (
     ConsistentIdentification,
     bounding_ellipsoids,
-    consistent_identification,
     consistent_identification_reduced,
 )
 from ident.identify.estimators.problem import (
@@ -25,7 +25,14 @@ from ident.identify.estimators.problem import (
     ParameterStructure,
     result_from_theta,
 )
-from ident.identify.estimators.registry import ESTIMATORS, get_estimator, register_estimator
+from ident.identify.estimators.registry import (
+    CONTRACTS,
+    ESTIMATORS,
+    Contract,
+    get_contract,
+    get_estimator,
+    register_estimator,
+)
 from ident.identify.estimators.regularization import (
     DEFAULT_GRID,
     RegularizationChoice,
@@ -33,16 +40,18 @@ from ident.identify.estimators.regularization import (
 )
 
 __all__ = [
+    "CONTRACTS",
     "DEFAULT_GRID",
     "ESTIMATORS",
     "ConsistentIdentification",
+    "Contract",
     "EstimationProblem",
     "ParameterStructure",
     "RegularizationChoice",
     "bounding_ellipsoids",
     "choose_regularization",
-    "consistent_identification",
     "consistent_identification_reduced",
+    "get_contract",
     "get_estimator",
     "register_estimator",
     "result_from_theta",

@@ -1,14 +1,14 @@
-"""Constrained estimation inside ``ident identify``: problem set-up, weight choice, comparison.
+"""The estimators of the identification core: problem set-up, weight choice, comparison.
 
-:func:`consistent_identification` takes the identification rows of the pipeline (base
-columns, kept rows, joint of each row), reduces them once per joint, and returns
+:func:`consistent_identification_reduced` takes the identification rows reduced per joint (in
+two parts, the later one for the choice of a prior weight) and returns
 
-- the OLS and WLS estimates of the same rows with the per-link consistency of the standard
+- the OLS and WLS estimates (once each) with the per-link consistency of the standard
   parameters they stand for (closest to the nominal ones);
-- for a constrained method (``lmi``, ``log_cholesky``): its estimate on all identification
-  rows, with the prior weight either given or chosen on the last ``validation_fraction`` of
-  the identification rows (:func:`~ident.identify.estimators.regularization.choose_regularization`),
-  so the pipeline's own held-out part stays unseen.
+- for any other registered estimator: its estimate on all identification rows, WLS-weighted,
+  with the prior weight (``Contract.needs_prior``) either given or chosen on the later part
+  (:func:`~ident.identify.estimators.regularization.choose_regularization`), so the core's own
+  held-out part stays unseen.
 """
 
 from __future__ import annotations
@@ -28,9 +28,10 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import ConfigError, ModelError
+from ident.identify.estimate import METHODS as LEAST_SQUARES
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
-from ident.identify.estimators.registry import get_estimator
+from ident.identify.estimators.registry import Contract, get_contract, get_estimator
 from ident.identify.estimators.regularization import (
     DEFAULT_GRID,
     RegularizationChoice,
@@ -43,7 +44,6 @@ __all__ = [
     "ConsistentIdentification",
     "body_link_names",
     "bounding_ellipsoids",
-    "consistent_identification",
     "consistent_identification_reduced",
     "problem_from_states",
     "standard_regressor",
@@ -208,11 +208,15 @@ class ConsistentIdentification:
     ----------
     method :
         The configured estimator.
+    contract :
+        Its :class:`~ident.identify.estimators.registry.Contract`.
     estimates :
         ``{"ols": ..., "wls": ..., method: ...}`` on the identification rows, each with
         ``theta`` and per-link ``consistency``.
     constrained :
-        The constrained estimate, or None for ``ols``/``wls``.
+        The configured estimator's estimate when it is not a least-squares one
+        (``contract.least_squares`` false), else None; physically consistent only when
+        ``contract.consistent``.
     regularization :
         The weight choice when ``weight: auto``, else None.
     structure :
@@ -225,71 +229,13 @@ class ConsistentIdentification:
     """
 
     method: str
+    contract: Contract
     estimates: dict[str, Estimate]
     constrained: Estimate | None
     regularization: RegularizationChoice | None
     structure: ParameterStructure
     seconds: float
     problem: EstimationProblem
-
-
-def consistent_identification(
-    model: pin.Model,
-    pm: Any,
-    W_rows: FloatArray,
-    tau_rows: FloatArray,
-    groups: npt.ArrayLike,
-    *,
-    method: str,
-    weight: float | str = "auto",
-    validation_fraction: float = 0.2,
-    grid: tuple[float, ...] = DEFAULT_GRID,
-    ellipsoids: tuple[Any, ...] = (),
-    options: dict[str, Any] | None = None,
-) -> ConsistentIdentification:
-    """Constrained estimate and per-estimator consistency of identification rows.
-
-    Parameters
-    ----------
-    model :
-        The robot (link names).
-    pm :
-        The parameter model (standard names, base map, nominal values).
-    W_rows :
-        Base-column observation rows, sample-major, shape (m, n_base).
-    tau_rows :
-        Measured torques of the rows [N*m], shape (m,).
-    groups :
-        Joint of every row, shape (m,).
-    method :
-        Registered estimator name.
-    weight :
-        Prior weight, or ``"auto"``.
-    validation_fraction :
-        Last fraction of the rows that chooses the weight when ``weight == "auto"``.
-    grid :
-        Weights tried when ``weight == "auto"``.
-    ellipsoids :
-        Optional bounding ellipsoid per body (None entries for none).
-    options :
-        Options of the constrained estimator (e.g. ``friction``).
-    """
-    nv = model.nv
-    groups = np.asarray(groups, dtype=np.int64)
-    split = int(round((1.0 - validation_fraction) * W_rows.shape[0]))
-    first = ReducedObservations.from_rows(W_rows[:split], tau_rows[:split], groups[:split], nv)
-    last = ReducedObservations.from_rows(W_rows[split:], tau_rows[split:], groups[split:], nv)
-    return consistent_identification_reduced(
-        model,
-        pm,
-        first,
-        last,
-        method=method,
-        weight=weight,
-        grid=grid,
-        ellipsoids=ellipsoids,
-        options=options,
-    )
 
 
 def consistent_identification_reduced(
@@ -304,15 +250,27 @@ def consistent_identification_reduced(
     ellipsoids: tuple[Any, ...] = (),
     options: dict[str, Any] | None = None,
 ) -> ConsistentIdentification:
-    """:func:`consistent_identification` on reduced rows (the chunked path of long logs).
+    """OLS, WLS and the configured estimator on reduced identification rows (module docstring).
 
     Parameters
     ----------
+    model :
+        The robot (link names).
+    pm :
+        The parameter model (standard names, base map, nominal values).
     first, last :
         The identification rows reduced in two parts: ``last`` (the later rows) chooses the
         prior weight when ``weight == "auto"``; the estimate uses both (merged).
-    model, pm, method, weight, grid, ellipsoids, options :
-        As in :func:`consistent_identification`.
+    method :
+        Registered estimator name.
+    weight :
+        Prior weight, or ``"auto"`` (estimators whose contract needs a prior).
+    grid :
+        Weights tried when ``weight == "auto"``.
+    ellipsoids :
+        Optional bounding ellipsoid per body (None entries for none).
+    options :
+        Options of the estimator (e.g. ``friction``).
     """
     structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
     obs = first.merge(last)
@@ -322,27 +280,30 @@ def consistent_identification_reduced(
         structure=structure,
         base_map=pm.base.projection,
     )
-    estimates = {name: get_estimator(name)(problem) for name in ("ols", "wls")}
+    # the two least-squares estimates, once each (the report compares every estimator)
+    estimates = {name: get_estimator(name)(problem) for name in LEAST_SQUARES}
+    contract = get_contract(method)
     constrained = None
     choice = None
     seconds = 0.0
-    if method not in estimates:
+    if not contract.least_squares:
         t0 = time.perf_counter()
         weights = 1.0 / np.asarray(estimates["wls"].sigma)
         problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
         if options:
             problem = dataclasses.replace(problem, options=dict(options))
-        if weight == "auto":
+        if contract.needs_prior and weight == "auto":
             first_problem = dataclasses.replace(problem, observations=first)
             choice = choose_regularization(first_problem, last, method=method, grid=grid)
             weight = choice.weight
-        constrained = get_estimator(method)(
-            dataclasses.replace(problem, regularization=float(weight))
-        )
+        if contract.needs_prior:
+            problem = dataclasses.replace(problem, regularization=float(weight))
+        constrained = get_estimator(method)(problem)
         estimates[method] = constrained
         seconds = time.perf_counter() - t0
     return ConsistentIdentification(
         method=method,
+        contract=contract,
         estimates=estimates,
         constrained=constrained,
         regularization=choice,

@@ -15,9 +15,11 @@ import dataclasses
 from ident.identify.consistency import body_consistency
 from ident.identify.estimate import Estimate, least_squares_reduced
 from ident.identify.estimators.problem import EstimationProblem
-from ident.identify.estimators.registry import register_estimator
+from ident.identify.estimators.registry import Contract, register_estimator
 
 __all__ = ["ols", "wls"]
+
+_LEAST_SQUARES = Contract(consistent=False, needs_prior=False, least_squares=True)
 
 
 def _solve(problem: EstimationProblem, method: str) -> Estimate:
@@ -40,13 +42,13 @@ def _solve(problem: EstimationProblem, method: str) -> Estimate:
     )
 
 
-@register_estimator("ols")
+@register_estimator("ols", contract=_LEAST_SQUARES)
 def ols(problem: EstimationProblem) -> Estimate:
     """Ordinary least squares of the base parameters (one pooled noise variance)."""
     return _solve(problem, "ols")
 
 
-@register_estimator("wls")
+@register_estimator("wls", contract=_LEAST_SQUARES)
 def wls(problem: EstimationProblem) -> Estimate:
     """Weighted least squares: one noise variance per group, ``problem.wls_passes`` solves."""
     return _solve(problem, "wls")

@@ -38,14 +38,14 @@ from ident.identify.estimators.constrained import (
     single_threaded_blas,
 )
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
-from ident.identify.estimators.registry import register_estimator
+from ident.identify.estimators.registry import Contract, register_estimator
 
 __all__ = ["DEFAULT_EPSILON", "lmi"]
 
 DEFAULT_EPSILON = 1e-6
 
 
-@register_estimator("lmi")
+@register_estimator("lmi", contract=Contract(consistent=True, needs_prior=True))
 def lmi(problem: EstimationProblem) -> Estimate:
     """Physically consistent WLS estimate by an SDP (see the module docstring)."""
     with single_threaded_blas():

@@ -25,6 +25,9 @@ and Automation Letters 7(2), 2022.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -37,7 +40,7 @@ from ident.identify.estimators.constrained import (
     single_threaded_blas,
 )
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
-from ident.identify.estimators.registry import register_estimator
+from ident.identify.estimators.registry import Contract, register_estimator
 
 __all__ = ["log_cholesky", "log_cholesky_from_parameters", "parameters_from_log_cholesky"]
 
@@ -93,7 +96,7 @@ def _positive_definite(theta_b: FloatArray, scale_b: FloatArray) -> FloatArray:
     return parameters_from_pseudo_inertia(J) * scale_b
 
 
-@register_estimator("log_cholesky")
+@register_estimator("log_cholesky", contract=Contract(consistent=True, needs_prior=True))
 def log_cholesky(problem: EstimationProblem) -> Estimate:
     """Physically consistent WLS estimate by the log-Cholesky parametrization."""
     with single_threaded_blas():
@@ -115,22 +118,7 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     A_theta = sp.A / sp.scale[None, :]
     b_theta = sp.b + A_theta @ structure.nominal
 
-    start = problem.options.get("start")
-    if start is None:
-        ls = least_squares_reduced(
-            problem.observations, problem.names, method="wls", wls_passes=problem.wls_passes
-        )
-        start = problem.standard_completion(ls.x)
-        start[inertial] = structure.nominal[inertial]
-    start = np.asarray(start, dtype=float)
-    v0 = np.empty(n_std)
-    for index in bodies:
-        body = _positive_definite(start[index], sp.scale[index])
-        v0[index] = log_cholesky_from_parameters(body)
-    v0[nonnegative] = np.sqrt(np.maximum(start[nonnegative], 0.0)) + 1e-6
-    v0[free] = start[free]
-    # friction kept at its least-squares value (all in ``nonnegative``: theta = v^2)
-    v0[sp.fixed] = np.sqrt(structure.nominal[sp.fixed] + sp.scale[sp.fixed] * sp.fixed_u)
+    v0 = _start(problem, sp, free)
     active = np.setdiff1d(np.arange(n_std), sp.fixed)
 
     def full(v_active: FloatArray) -> FloatArray:
@@ -186,7 +174,37 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     )
 
 
-def _solve(residual, jacobian, v0: FloatArray, problem: EstimationProblem):
+def _start(problem: EstimationProblem, sp: Any, free: npt.NDArray[np.intp]) -> FloatArray:
+    """The starting point in the log-Cholesky variables: ``options["start"]`` or the WLS
+    completion with nominal inertials, every body made positive definite."""
+    structure = sp.structure
+    inertial = structure.bodies.reshape(-1)
+    nonnegative = structure.nonnegative
+    start = problem.options.get("start")
+    if start is None:
+        ls = least_squares_reduced(
+            problem.observations, problem.names, method="wls", wls_passes=problem.wls_passes
+        )
+        start = problem.standard_completion(ls.x)
+        start[inertial] = structure.nominal[inertial]
+    start = np.asarray(start, dtype=float)
+    v0 = np.empty(structure.n_std)
+    for index in structure.bodies:
+        body = _positive_definite(start[index], sp.scale[index])
+        v0[index] = log_cholesky_from_parameters(body)
+    v0[nonnegative] = np.sqrt(np.maximum(start[nonnegative], 0.0)) + 1e-6
+    v0[free] = start[free]
+    # friction kept at its least-squares value (all in ``nonnegative``: theta = v^2)
+    v0[sp.fixed] = np.sqrt(structure.nominal[sp.fixed] + sp.scale[sp.fixed] * sp.fixed_u)
+    return v0
+
+
+def _solve(
+    residual: Callable[[FloatArray], FloatArray],
+    jacobian: Callable[[FloatArray], FloatArray],
+    v0: FloatArray,
+    problem: EstimationProblem,
+) -> scipy.optimize.OptimizeResult:
     """``scipy.optimize.least_squares`` (trust region, exact Jacobian) from ``v0``."""
     return scipy.optimize.least_squares(
         residual,

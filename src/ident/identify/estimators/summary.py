@@ -1,6 +1,6 @@
 """What the report shows of the constrained estimation: per estimator and link, JSON-ready.
 
-Pure functions of an :class:`~ident.identify.real.IdentifyResult` (nothing is written here):
+Pure functions of an :class:`~ident.identify.core.IdentifyResult` (nothing is written here):
 :func:`consistency_summary` for ``result.json`` and the report table, :func:`identified_model`
 for the whole-model URDF and its sidecar.
 """
@@ -81,15 +81,22 @@ def consistency_summary(result: Any) -> dict | None:
 
 
 def identified_model(result: Any) -> IdentifiedModel | None:
-    """Whole-model URDF and sidecar of the constrained estimate, or None without one.
+    """Whole-model URDF and sidecar of the configured estimate, or None.
+
+    Written only for an estimator whose contract promises consistent standard parameters
+    (:class:`~ident.identify.estimators.registry.Contract`, ``consistent``) and whose estimate
+    succeeded; an unconstrained estimator's parameters are reported, never written as a model.
 
     Raises
     ------
     ModelError
-        If the constrained estimate is inconsistent (it should not be) or the URDF unreadable.
+        If the estimate is inconsistent although promised (a broken estimator) or the URDF
+        unreadable.
     """
     consistent = result.consistent
     if consistent is None or consistent.constrained is None:
+        return None
+    if not consistent.contract.consistent or not consistent.constrained.success:
         return None
     from ident.model.selection import load_robot
 

@@ -1,0 +1,637 @@
+"""The identification core: measurements -> identified base parameters, one code path.
+
+:func:`identify_measurements` is what every command runs on joint-side measurements, whatever
+their source (a log read by :func:`ident.identify.logs.read_log`: a robot's, or the one
+``ident run``'s MuJoCo simulator writes). ``ident run``'s ideal source (the paper's stages, with
+known bodies subtracted and exact states) runs the same estimators of the registry on its
+reduced rows (:mod:`ident.run.elite_identification`).
+
+1. automatic preprocessing settings (:func:`ident.identify.preprocess.resolve_defaults`);
+2. the parameter model (rigid bodies plus friction, offsets, rotor inertias, coupled wrist;
+   structural base parameters, :func:`ident.dynamics.parameter_model.build_parameter_model`);
+3. the accumulation (:mod:`ident.identify.accumulate`): low-pass, differentiate, trim,
+   regressor, decimate, velocity threshold, split in time, rows reduced per joint; a whole
+   segment is one chunk, a long log several (a size, not another implementation);
+4. the estimators of the registry on the reduced rows (:mod:`ident.identify.estimators`:
+   OLS and WLS once each, and the configured one with its
+   :class:`~ident.identify.estimators.registry.Contract`), essential parameters;
+5. validation: held-out prediction of the identified, essential, constrained, reference and
+   URDF-nominal parameters (:mod:`ident.identify.validation`) and the warnings.
+
+Nothing here writes files; :mod:`ident.report.identify_report` does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+from threadpoolctl import threadpool_limits
+
+from ident.dynamics.chain import chain_from_model
+from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
+from ident.errors import ConfigError, DataError, NotIdentifiable
+from ident.identify import accumulate, preprocess, sanity
+from ident.identify.config import FilterConfig, IdentifyConfig, PreprocessConfig
+from ident.identify.essential import EssentialResult
+from ident.identify.estimate import Estimate, rank_report
+from ident.identify.estimators import (
+    ConsistentIdentification,
+    bounding_ellipsoids,
+    consistent_identification_reduced,
+)
+from ident.identify.logs import RobotLog
+from ident.identify.motion import measured_motion
+from ident.identify.observations import ReducedObservations
+from ident.identify.reference import (
+    ReferenceWeights,
+    compare_with_reference,
+    read_reference,
+    reference_weights,
+)
+from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
+from ident.model.selection import load_robot
+from ident.trajectory import JointTrajectory
+
+__all__ = ["IdentifyResult", "identify_measurements", "replay_motion"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Longest stretch of a log shown in the replay [s].
+MOTION_MAX_S = 600.0
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifyResult:
+    """Everything the identify report needs (arrays SI, samples on axis 0).
+
+    Attributes
+    ----------
+    config :
+        The validated config (automatic preprocessing settings resolved).
+    log :
+        The converted log (before processing).
+    records :
+        Every processing step, in order.
+    parameters :
+        Parameter model (names, base parameters).
+    estimate :
+        Least-squares estimate of the base parameters on the identification rows
+        (``estimation.least_squares_method``).
+    essential :
+        Essential-parameter reduction, or None when disabled.
+    t_validate, tau_validate, keep_validate :
+        Held-out time [s], measured torques [N*m] and velocity-threshold mask, shapes
+        (n_val,), (n_val, nv), (n_val, nv).
+    predictions :
+        Held-out predictions by label (identified, essential, the configured estimator,
+        reference, URDF nominal).
+    comparison, reference_note, reference_essential :
+        Rows comparing our values with the reference's, how it maps onto ours.
+    timings :
+        Seconds per stage.
+    motion, motion_note :
+        The measured motion (processed, decimated to <= 50 Hz) for ``trajectory.csv`` and the
+        replay, or None with the reason in ``motion_note``.
+    consistent :
+        Every estimator's estimate and consistency, the configured one's contract
+        (:class:`~ident.identify.estimators.ConsistentIdentification`).
+    warnings :
+        Plain-language problems with the result; empty when none.
+    reduction :
+        The identification rows reduced per joint (what every estimator used).
+    """
+
+    config: IdentifyConfig
+    log: RobotLog
+    records: tuple[dict, ...]
+    parameters: ParameterModel
+    estimate: Estimate
+    essential: EssentialResult | None
+    t_validate: FloatArray
+    tau_validate: FloatArray
+    keep_validate: npt.NDArray[np.bool_]
+    predictions: dict[str, ModelPrediction]
+    comparison: tuple[dict, ...]
+    reference_note: str
+    joint_names: tuple[str, ...]
+    sampling_rate_hz: float
+    n_identify_rows: int
+    timings: dict[str, float] = field(default_factory=dict)
+    reference_essential: tuple[dict, ...] = ()
+    motion: JointTrajectory | None = None
+    motion_note: str = ""
+    warnings: tuple[str, ...] = ()
+    consistent: ConsistentIdentification | None = None
+    reduction: ReducedObservations | None = None
+
+    @property
+    def status(self) -> str:
+        """``"ok"``, or ``"warning"`` when :attr:`warnings` is not empty."""
+        return "warning" if self.warnings else "ok"
+
+
+def identify_measurements(
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    *,
+    model: pin.Model | None = None,
+    rng: int = 0,
+    read_s: float = 0.0,
+    scheduler: str | None = None,
+) -> IdentifyResult:
+    """Identify the base parameters from joint-side measurements (module docstring).
+
+    The one function behind ``ident identify`` (whole log or by chunks) and the
+    identification of ``ident run``. BLAS runs on one thread inside (the least-squares
+    problems are small and many; threads only add synchronisation).
+
+    Parameters
+    ----------
+    cfg :
+        Validated config with absolute paths
+        (:func:`~ident.identify.config.load_identify_config`); its ``log`` section is not read.
+    log :
+        The measurements, joint side, SI, uniform time grid per segment.
+    model :
+        The robot's Pinocchio model (loaded from ``cfg.robot`` when not given).
+    rng :
+        Seed of the random states of the structural base parameters.
+    read_s :
+        Seconds spent reading the log, for the timings.
+    scheduler :
+        A dask.distributed scheduler address for the chunks, or None (this process).
+
+    Raises
+    ------
+    IdentError
+        Subclasses naming the file, field or parameter: bad config, rank deficiency.
+    """
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _identify(cfg, log, model, rng=rng, read_s=read_s, scheduler=scheduler)
+
+
+def _identify(
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    model: pin.Model | None,
+    *,
+    rng: int,
+    read_s: float,
+    scheduler: str | None,
+) -> IdentifyResult:
+    timings: dict[str, float] = {"read": read_s}
+    t0 = time.perf_counter() - read_s
+    source = str(cfg.source or "config")
+    model = model if model is not None else load_robot(cfg.robot, source=source).model
+    joints = _check_joints(log, model, source)
+    ellipsoids = _ellipsoids(cfg, model, source)
+    cfg, log, auto_warnings = _resolve_settings(cfg, log)
+    t1 = time.perf_counter()
+    pm = _parameter_model(cfg, model, source, rng)
+    timings["base_parameters"] = time.perf_counter() - t1
+    t2 = time.perf_counter()
+    reference = _reference(cfg, pm)
+    chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
+    records = [
+        *log.records,
+        *_preprocess_records(cfg.preprocess, log.sampling_rate_hz, model.nv, source),
+        accumulate.chunk_record(chunked, red),
+        *_row_records(cfg, chunked, red),
+    ]
+    timings["accumulate"] = time.perf_counter() - t2
+    t3 = time.perf_counter()
+    cons = _estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
+    est = cons.estimates[cfg.estimation.least_squares_method]
+    timings["estimate"] = time.perf_counter() - t3
+    t4 = time.perf_counter()
+    essential = _essential(cfg, red, pm)
+    timings["essential"] = time.perf_counter() - t4
+    t5 = time.perf_counter()
+    vectors = _vectors(est, essential, cons, pm)
+    tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
+    comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
+    timings["validate"] = time.perf_counter() - t5
+    t6 = time.perf_counter()
+    motion, motion_note = replay_motion(log, cfg.preprocess, tuple(joints))
+    timings["motion"] = time.perf_counter() - t6
+    problems = [
+        *auto_warnings,
+        *_warnings(cfg, model, pm, est, cons, red, chunked, predictions, (tau_val, keep_val)),
+    ]
+    timings["total"] = time.perf_counter() - t0
+    step = preprocess.decimation_step(cfg.preprocess)
+    return IdentifyResult(
+        config=cfg,
+        log=log,
+        records=tuple(records),
+        parameters=pm,
+        estimate=est,
+        essential=essential,
+        t_validate=chunked.t_validate,
+        tau_validate=tau_val,
+        keep_validate=keep_val,
+        predictions=predictions,
+        comparison=tuple(comparison),
+        reference_note=note,
+        joint_names=tuple(joints),
+        sampling_rate_hz=log.sampling_rate_hz / step,
+        n_identify_rows=int(red.n_rows.sum()),
+        timings=timings,
+        reference_essential=tuple(reference_essential),
+        motion=motion,
+        motion_note=motion_note,
+        warnings=tuple(problems),
+        consistent=cons,
+        reduction=red,
+    )
+
+
+def _accumulate(
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    model: pin.Model,
+    pm: ParameterModel,
+    reference: ReferenceWeights | None,
+    scheduler: str | None,
+) -> tuple[
+    accumulate.ChunkedLog,
+    ReducedObservations | None,
+    ReducedObservations | None,
+    ReducedObservations,
+]:
+    """The log cut in chunks and its identification rows reduced: ``(chunked, first, last,
+    merged)`` (:func:`ident.identify.accumulate.reduce_log`)."""
+    columns = accumulate.BaseColumns(chain_from_model(model), pm, reference)
+    chunked = accumulate.plan_log(
+        log,
+        cfg.preprocess,
+        columns,
+        identify_fraction=cfg.validation.identify_fraction,
+        chunk_samples=_chunk_samples(log, cfg.preprocess, len(pm.base_names)),
+    )
+    first, last = accumulate.reduce_log(chunked, scheduler)
+    return chunked, first, last, _merged(first, last)
+
+
+def _predict(
+    chunked: accumulate.ChunkedLog, vectors: dict[str, FloatArray], scheduler: str | None
+) -> tuple[FloatArray, npt.NDArray[np.bool_], dict[str, ModelPrediction]]:
+    """Held-out torques, their mask and every vector's prediction with its metrics."""
+    tau_val, keep_val, tau_pred = accumulate.predict_log(chunked, vectors, scheduler)
+    predictions = {
+        label: ModelPrediction(
+            label,
+            prediction_metrics(tau_val, pred, keep_val),
+            prediction_metrics(tau_val, pred),
+            pred,
+        )
+        for label, pred in tau_pred.items()
+    }
+    return tau_val, keep_val, predictions
+
+
+def _check_joints(log: RobotLog, model: pin.Model, source: str) -> list[str]:
+    joints = [str(model.names[i]) for i in range(1, model.njoints)]
+    if list(log.joint_names) != joints:
+        raise DataError(
+            f"{source}: the log's joints ({', '.join(log.joint_names)}) are not the robot's "
+            f"({', '.join(joints)})."
+        )
+    return joints
+
+
+def _ellipsoids(cfg: IdentifyConfig, model: pin.Model, source: str) -> tuple:
+    """The links' bounding ellipsoids when asked (before any work: a missing geometry is a
+    config error), else ``()``."""
+    if not cfg.estimation.ellipsoids:
+        return ()
+    if cfg.robot.urdf is None:
+        raise ConfigError(
+            f"{source}: estimation.ellipsoids needs a URDF with link geometry "
+            "(robot.urdf); a DH description has none. Set estimation.ellipsoids: false."
+        )
+    return tuple(
+        bounding_ellipsoids(
+            model, cfg.robot.urdf, package_dirs=cfg.robot.package_dirs, source=source
+        )
+    )
+
+
+def _resolve_settings(
+    cfg: IdentifyConfig, log: RobotLog
+) -> tuple[IdentifyConfig, RobotLog, list[str]]:
+    """``auto`` preprocessing settings chosen on the first segment, their records and
+    warnings."""
+    first = slice(*log.segments[0])
+    settings, records, warnings = preprocess.resolve_defaults(
+        cfg.preprocess,
+        log.q[first],
+        log.sampling_rate_hz,
+        None if log.dq is None else log.dq[first],
+    )
+    cfg = cfg.model_copy(update={"preprocess": settings})
+    log = dataclasses.replace(log, records=(*log.records, *records))
+    return cfg, log, [*log.warnings, *warnings]  # what reading the log changed, first
+
+
+def _parameter_model(
+    cfg: IdentifyConfig, model: pin.Model, source: str, rng: int
+) -> ParameterModel:
+    m = cfg.model
+    try:
+        terms = ExtraTerms.from_options(
+            model.nv,
+            rotor_inertia=m.rotor_inertia,
+            viscous=m.viscous,
+            coulomb=m.coulomb,
+            offset=m.offset,
+            coupled_wrist=m.coupled_wrist,
+        )
+    except ConfigError as e:
+        raise ConfigError(f"{source}: {e}") from e
+    return build_parameter_model(model, terms, rng=rng)
+
+
+def _preprocess_records(pp: PreprocessConfig, fs: float, nv: int, source: str) -> list[dict]:
+    """The records of the processing every chunk does (checked before any chunk runs)."""
+    records = []
+    thresholds = pp.velocity_threshold
+    if thresholds is not None and len(thresholds) != nv:
+        raise ConfigError(
+            f"{source}: preprocess.velocity_threshold has {len(thresholds)} values, the robot "
+            f"has {nv} joints; give one per joint [rad/s]."
+        )
+    for key, flt, what in (
+        ("lowpass", preprocess.position_filter(pp), "q"),
+        ("torque_lowpass", pp.torque_lowpass, "tau"),
+    ):
+        if not isinstance(flt, FilterConfig):
+            continue
+        if not 0.0 < flt.cutoff_hz < 0.5 * fs:
+            raise ConfigError(
+                f"{source}: preprocess.{key}.cutoff_hz = {flt.cutoff_hz:g} Hz is not below the "
+                f"Nyquist frequency {0.5 * fs:g} Hz; choose a lower cutoff."
+            )
+        records.append(
+            {
+                "step": f"low-pass {what}",
+                "detail": f"zero-phase Butterworth, order {flt.order}, cutoff "
+                f"{flt.cutoff_hz:g} Hz at {fs:g} Hz",
+            }
+        )
+    records.append({"step": "differentiate", "detail": "central differences (np.gradient)"})
+    records.append(
+        {"step": "trim", "detail": f"dropped {pp.trim_samples} samples at each end of a segment"}
+    )
+    factors = preprocess.decimation_factors(pp)
+    if factors:
+        step = preprocess.decimation_step(pp)
+        records.append(
+            {
+                "step": "decimate",
+                "detail": f"zero-phase decimation by {' x '.join(map(str, factors))} "
+                "(Chebyshev I order 8, forward-backward) of torques and regressor rows alike, "
+                f"{fs:g} -> {fs / step:g} Hz",
+            }
+        )
+    return records
+
+
+def _row_records(
+    cfg: IdentifyConfig, chunked: accumulate.ChunkedLog, red: ReducedObservations
+) -> list[dict]:
+    """Records of the velocity threshold and of the time split."""
+    thresholds = cfg.preprocess.velocity_threshold
+    kept = red.n_rows.tolist()
+    fraction = cfg.validation.identify_fraction
+    return [
+        {
+            "step": "velocity threshold",
+            "detail": "none (all samples kept)"
+            if thresholds is None
+            else "dropped the rows of joint j where abs(dq_j) < threshold_j "
+            f"{[round(float(v), 4) for v in thresholds]} rad/s; identification rows kept per "
+            f"joint {kept}",
+            "kept": kept,
+        },
+        {
+            "step": "time split",
+            "detail": f"identify on the first {100 * fraction:.4g} % of each segment, validate "
+            f"on the {chunked.t_validate.size} later samples"
+            + (" (none: validated in sample)" if chunked.in_sample else "")
+            + " (errors reported on the rows above the velocity threshold, as identified, "
+            "and on all samples)",
+        },
+    ]
+
+
+def _chunk_samples(log: RobotLog, pp: PreprocessConfig, n_base: int) -> int:
+    """Raw samples per chunk: ``preprocess.chunk_samples`` (or an automatic size) when the
+    log is chunked (:func:`~ident.identify.accumulate.use_chunks`), else the longest segment
+    (each segment is one chunk)."""
+    nv = log.q.shape[1]
+    if not accumulate.use_chunks(log, pp, 14 * nv):
+        return max(b - a for a, b in log.segments)
+    margins = accumulate.margin_samples(pp, log.sampling_rate_hz)
+    return pp.chunk_samples or accumulate.default_chunk_samples(margins, nv, n_base)
+
+
+def _reference(cfg: IdentifyConfig, pm: ParameterModel) -> ReferenceWeights | None:
+    """The reference's base parameters as column weights, or None without a reference."""
+    if cfg.reference.base_parameters is None:
+        return None
+    reference = read_reference(cfg.reference.base_parameters)
+    values = np.array([r.value(cfg.reference.column)[0] for r in reference])
+    return reference_weights(pm, reference, values)
+
+
+def _merged(
+    first: ReducedObservations | None, last: ReducedObservations | None
+) -> ReducedObservations:
+    red = last if first is None else first if last is None else first.merge(last)
+    assert red is not None  # plan_log raises without identification rows
+    if red.n_rows.sum() <= red.n_params:
+        raise DataError(
+            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters."
+        )
+    return red
+
+
+def _estimators(
+    cfg: IdentifyConfig,
+    model: pin.Model,
+    pm: ParameterModel,
+    first: ReducedObservations | None,
+    last: ReducedObservations | None,
+    red: ReducedObservations,
+    ellipsoids: tuple,
+    joints: list[str],
+    source: str,
+) -> ConsistentIdentification:
+    """OLS, WLS and the configured estimator on the reduced rows (``first`` and ``last``:
+    the identification rows in two parts, the last one choosing a prior's weight)."""
+    est_cfg = cfg.estimation
+    if first is None or last is None:  # too few samples to split: the weight is chosen on all
+        first = last = red
+    try:
+        return consistent_identification_reduced(
+            model,
+            pm,
+            first,
+            last,
+            method=est_cfg.method,
+            weight=est_cfg.regularization.weight,
+            ellipsoids=ellipsoids,
+            options={"friction": est_cfg.friction},
+        )
+    except NotIdentifiable as e:
+        idle = ", ".join(joints[j] for j in range(red.n_groups) if red.n_rows[j] == 0)
+        if idle:
+            why = rank_report(red.R.reshape(-1, red.n_params), pm.base_names, advice="") or e
+            raise NotIdentifiable(
+                f"{source}: the log does not determine every base parameter. No sample of "
+                f"{idle} reaches its velocity threshold in the identification part (joint not "
+                f"moving?): {why} Record a motion that moves {idle}, or lower its velocity "
+                "threshold."
+            ) from e
+        raise NotIdentifiable(
+            f"{source}: the log does not determine every base parameter: {e}"
+        ) from e
+    except DataError as e:
+        raise DataError(f"{source}: {e}") from e
+
+
+def _essential(
+    cfg: IdentifyConfig, red: ReducedObservations, pm: ParameterModel
+) -> EssentialResult | None:
+    ess = cfg.estimation.essential
+    if not ess.enabled:
+        return None
+    return accumulate.essential_reduced(
+        red,
+        tuple(pm.base_names),
+        method=cfg.estimation.least_squares_method,
+        max_relative_std_pct=ess.max_relative_std_pct,
+        max_residual_increase=ess.max_residual_increase,
+    )
+
+
+def _vectors(
+    est: Estimate,
+    essential: EssentialResult | None,
+    cons: ConsistentIdentification,
+    pm: ParameterModel,
+) -> dict[str, FloatArray]:
+    """The base-parameter vectors predicted on the held-out rows, by label."""
+    vectors = {"identified": est.x}
+    if cons.constrained is not None:
+        vectors[cons.method] = cons.constrained.x
+    if essential is not None:
+        x_ess = np.zeros(len(pm.base_names))
+        x_ess[list(essential.kept)] = essential.estimate.x
+        vectors["essential"] = x_ess
+    vectors["URDF nominal"] = pm.base.project(pm.nominal)
+    return vectors
+
+
+def _comparisons(
+    cfg: IdentifyConfig,
+    pm: ParameterModel,
+    est: Estimate,
+    essential: EssentialResult | None,
+    reference: ReferenceWeights | None,
+) -> tuple[list[dict], str, list[dict]]:
+    """Rows comparing with the reference's base and essential parameters, and the note."""
+    ref_cfg = cfg.reference
+    comparison: list[dict] = []
+    note = ""
+    if ref_cfg.base_parameters is not None:
+        comparison, note = compare_with_reference(
+            pm, est, read_reference(ref_cfg.base_parameters), ref_cfg.column
+        )
+        if reference is not None and reference.missing:
+            note += f" Reference parameters without a column here: {', '.join(reference.missing)}."
+    rows_essential: list[dict] = []
+    if ref_cfg.essential_parameters is not None:
+        rows, _ = compare_with_reference(
+            pm, est, read_reference(ref_cfg.essential_parameters), ref_cfg.column
+        )
+        kept = set(essential.estimate.names) if essential is not None else set()
+        for row in rows:
+            members = row["ours"].split(" + ") if row["ours"] else []
+            row["in_our_essential_set"] = bool(members) and all(m in kept for m in members)
+            rows_essential.append(row)
+    return comparison, note, rows_essential
+
+
+def _warnings(
+    cfg: IdentifyConfig,
+    model: pin.Model,
+    pm: ParameterModel,
+    est: Estimate,
+    cons: ConsistentIdentification,
+    red: ReducedObservations,
+    chunked: accumulate.ChunkedLog,
+    predictions: dict[str, ModelPrediction],
+    held_out: tuple[FloatArray, npt.NDArray[np.bool_]],
+) -> list[str]:
+    """Held-out, sanity and consistency warnings of the result."""
+    identified = predictions["identified"]
+    problems = held_out_warnings(
+        identified.metrics.total_relative_residual,
+        predictions["URDF nominal"].metrics.total_relative_residual,
+        max_relative_residual=cfg.validation.max_relative_residual,
+        in_sample=chunked.in_sample,
+        n_rows=int(red.n_rows.sum()),
+        n_params=len(pm.base_names),
+    )
+    problems += sanity.result_warnings(
+        joint_names=tuple(str(model.names[i]) for i in range(1, model.njoints)),
+        units=sanity.joint_units(model),
+        names=pm.base_names,
+        x=est.x,
+        std=est.std,
+        relative_std=est.relative_std,
+        projection=pm.base.projection,
+        all_names=pm.names,
+        column_norms=np.sqrt(np.einsum("gij,gij->j", red.R, red.R)),
+        tau_norm=float(np.sqrt(red.yty.sum())),
+        tau_validate=held_out[0],
+        tau_pred=identified.tau_pred,
+        keep_validate=held_out[1],
+    )
+    if not cons.contract.consistent:  # the estimator promises no consistency: check it
+        problems += sanity.inconsistency_warnings(cons, cfg.estimation.least_squares_method)
+    return list(problems)
+
+
+def replay_motion(
+    log: RobotLog, pp: PreprocessConfig, joints: tuple[str, ...]
+) -> tuple[JointTrajectory | None, str]:
+    """The measured motion of the replay: the first segment (at most its first
+    :data:`MOTION_MAX_S`), low-passed and differentiated as the identification does; or None
+    and the reason."""
+    fs = log.sampling_rate_hz
+    a, b = log.segments[0]
+    b = min(b, a + int(MOTION_MAX_S * fs))
+    q, tau = log.q[a:b], log.tau[a:b]
+    try:
+        position = preprocess.position_filter(pp)
+        if position is not None:
+            q, _ = preprocess.lowpass(q, fs, position.cutoff_hz, position.order)
+        if pp.torque_lowpass is not None:
+            tau, _ = preprocess.lowpass(
+                tau, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
+            )
+        dq, ddq, _ = preprocess.differentiate(q, fs)
+        (q, dq, ddq, tau, t), _ = preprocess.trim([q, dq, ddq, tau, log.t[a:b]], pp.trim_samples)
+        motion, _ = measured_motion(t, q, dq, ddq, tau, fs, joints)
+    except (DataError, ConfigError) as e:
+        return None, f"measured motion not available: {e}"
+    return motion, ""
