@@ -76,7 +76,8 @@ DEFAULT_VELOCITY = 1.0
 VISCOUS_PER_EFFORT = 0.02  # N*m*s/rad per N*m (UR5: 3 for 150 N*m)
 COULOMB_PER_EFFORT = 0.03  # N*m per N*m
 ARMATURE_PER_EFFORT = 0.003  # kg*m^2 per N*m (UR5: 0.5 for 150 N*m)
-NOISE_PER_EFFORT = 0.003  # N*m per N*m
+NOISE_PER_EFFORT = 0.003  # N*m per N*m, at most ...
+NOISE_PER_TORQUE = 0.01  # ... and 1 % of the torque the excitation needs at the joint
 _GRIPPER = re.compile(r"gripper|finger|hand", re.IGNORECASE)
 _N_POSTURES = 300
 _Q0_HALF_WIDTH = 0.5  # rad: the mean postures' search box around the chosen posture
@@ -206,6 +207,27 @@ def _effort_scale(robot: Robot) -> np.ndarray:
     return np.where(np.isfinite(effort) & (effort > 0), effort, fallback)
 
 
+def _torque_scale(
+    robot: Robot,
+    home: np.ndarray,
+    dq_peak: np.ndarray,
+    ddq_peak: np.ndarray,
+    armature: np.ndarray,
+) -> np.ndarray:
+    """Per joint: the 95th percentile of |tau| over seeded states of the excitation's range
+    (within 0.5 rad of ``home``, speeds and accelerations up to their peaks) [N*m], rigid
+    bodies (Pinocchio's RNEA) plus the rotor inertia."""
+    rng = np.random.default_rng(0)
+    n = 200
+    lower = np.maximum(home - _Q0_HALF_WIDTH, robot.q_lower)
+    upper = np.minimum(home + _Q0_HALF_WIDTH, robot.q_upper)
+    q = rng.uniform(lower, upper, (n, robot.nq))
+    dq = rng.uniform(-1.0, 1.0, (n, robot.nv)) * dq_peak
+    ddq = rng.uniform(-1.0, 1.0, (n, robot.nv)) * ddq_peak
+    tau = robot.rnea(q, dq, ddq) + armature * ddq
+    return np.asarray(np.percentile(np.abs(tau), 95.0, axis=0), dtype=float)
+
+
 def _reach(robot: Robot, q: np.ndarray) -> float:
     """Largest distance of a joint origin from the base at posture ``q`` [m]."""
     data = robot.model.createData()
@@ -308,7 +330,8 @@ def init_config(
     viscous = VISCOUS_PER_EFFORT * effort
     coulomb = COULOMB_PER_EFFORT * effort
     armature = ARMATURE_PER_EFFORT * effort
-    noise = NOISE_PER_EFFORT * effort
+    torque = _torque_scale(robot, home, amplitude * c_v, amplitude * c_a * w, armature)
+    noise = np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque)
     threshold = np.minimum(0.15, 0.1 * amplitude * c_v)  # rad/s, below the design's speeds
 
     rel_urdf = Path(os.path.relpath(urdf.resolve(), folder)).as_posix()
@@ -405,7 +428,10 @@ def init_config(
         f"{ARMATURE_PER_EFFORT:g} x effort"
     )
     add("  encoder_counts_per_rev: 524288   # guess: 19-bit encoders")
-    add(f"  torque_noise_std: {_list(noise)}   # guess: N*m, {NOISE_PER_EFFORT:g} x effort")
+    add(
+        f"  torque_noise_std: {_list(noise)}   # guess: N*m, {NOISE_PER_EFFORT:g} x effort, at "
+        f"most {NOISE_PER_TORQUE:.0%} of the torque the motion needs {_list(torque)}"
+    )
     add("  settle_periods: 1")
     add("  n_periods: 3")
     add("")
