@@ -403,7 +403,7 @@ def init_config(
     add("")
     add("safety:                        # in the optimization and, at 1 kHz, on the trajectory")
     add("  floor: {enabled: true, z: 0.0}   # guess: the robot stands on the floor at its base")
-    add(f"  clearance_m: {clearance:.3g}            # 5 % of the reach {reach:.2f} m (1-3 cm)")
+    add(f"  clearance_m: {clearance:.3g}   # guess: 5 % of the reach {reach:.2f} m (1-3 cm)")
     add("  self_collision: true")
     add("  torque_limits: true")
     add("  check_samples: 50            # samples per period of the optimization's term")
