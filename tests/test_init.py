@@ -83,7 +83,8 @@ def test_init_kinova_keeps_every_design_within_the_velocity_margin(tmp_path):
     config = yaml.safe_load(result.text)
     assert config["measurement"]["source"] == "mujoco"
     text_lines = result.text.splitlines()
-    for key in ("acceleration_limits:", "viscous:", "coulomb:", "armature:", "torque_noise_std:"):
+    guessed = ("acceleration_limits:", "viscous:", "coulomb:", "armature:", "torque_noise_std:")
+    for key in (*guessed, "floor:", "clearance_m:", "encoder_counts_per_rev:"):
         line = next(s for s in text_lines if s.strip().startswith(key))
         assert "guess" in line, line
     # friction scales with the effort limits (40, 80, 40, 20, 20, 20 N*m); the noise is at
