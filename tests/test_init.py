@@ -177,3 +177,39 @@ def test_init_then_run_quick_succeeds_first_time(tmp_path, name, urdf):
     assert (folder / "trajectory.csv").is_file()
     assert "| Verdict |" in (folder / "report.md").read_text()
     print(f"{name}: ident run --quick {seconds:.1f} s")
+
+
+PEDESTAL_URDF = """<?xml version="1.0"?>
+<robot name="pedestal_arm">
+  <link name="base">
+    <inertial><mass value="5"/>
+      <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 -0.2"/><geometry><box size="0.2 0.2 0.4"/></geometry></collision>
+  </link>
+  <link name="link1">
+    <inertial><origin xyz="0 0 0.15"/><mass value="2"/>
+      <inertia ixx="0.02" iyy="0.02" izz="0.005" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0 0 0.15"/><geometry><box size="0.08 0.08 0.2"/></geometry></collision>
+  </link>
+  <link name="link2">
+    <inertial><origin xyz="0.15 0 0"/><mass value="1"/>
+      <inertia ixx="0.002" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0.2 0 0"/><geometry><box size="0.2 0.06 0.06"/></geometry></collision>
+  </link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="link1"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="2" effort="50"/></joint>
+  <joint name="j2" type="revolute"><parent link="link1"/><child link="link2"/>
+    <origin xyz="0 0 0.35"/><axis xyz="0 1 0"/>
+    <limit lower="-1.5" upper="1.5" velocity="2" effort="30"/></joint>
+</robot>
+"""
+
+
+def test_init_floor_lies_under_the_base_geometry(tmp_path):
+    # the base is a 0.4 m pedestal below the root frame: the floor is at its foot, z = -0.4
+    urdf = tmp_path / "pedestal.urdf"
+    urdf.write_text(PEDESTAL_URDF)
+    result = init_config(urdf, tmp_path / "p.yaml")
+    floor = yaml.safe_load(result.text)["safety"]["floor"]
+    assert floor["z"] == pytest.approx(-0.4, abs=1e-3)
+    assert floor["z"] <= -0.4

@@ -14,7 +14,8 @@ From the URDF alone it chooses
   ``VELOCITY_MARGIN`` of each joint's velocity limit and within its acceleration limit
   (:func:`ident.excitation.fourier.fourier_bound_factors`), and mean postures in a box around
   a posture that clears the floor and every link pair the most;
-- **safety**: the floor at the base (``z = 0``) and a clearance of 5 % of the reach
+- **safety**: the floor under the lowest point of the base's collision geometry (``z = 0``
+  for most URDFs) and a clearance of 5 % of the reach
   (between 1 and 3 cm);
 - **the measurement**: MuJoCo with friction, rotor inertia and torque noise scaled to each
   joint's effort limit (or, without one, to the gravity torque of the links it carries), each
@@ -235,12 +236,46 @@ def _reach(robot: Robot, q: np.ndarray) -> float:
     return float(max(np.linalg.norm(data.oMi[k].translation) for k in range(robot.model.njoints)))
 
 
-def _home_posture(robot: Robot, clearance_m: float) -> tuple[np.ndarray, float]:
+def _base_bottom(robot: Robot) -> float:
+    """Lowest point of the collision geometry fixed to the world (the base) [m], in the base
+    frame; 0 without such geometry. Its bounding boxes' corners: exact for boxes, a lower
+    bound for meshes and round shapes."""
+    safety = build_safety_model(
+        robot, {"floor": {"enabled": False}}, package_dirs=robot.package_dirs
+    )
+    model, geometry = safety.model, safety.geometry_model
+    data, gdata = model.createData(), pin.GeometryData(geometry)
+    reference = np.clip(np.zeros(model.nq), model.lowerPositionLimit, model.upperPositionLimit)
+    pin.updateGeometryPlacements(model, data, geometry, gdata, reference)
+    lowest = 0.0
+    for k, obj in enumerate(geometry.geometryObjects):
+        if obj.parentJoint != 0:
+            continue
+        obj.geometry.computeLocalAABB()
+        box = obj.geometry.aabb_local
+        corners = np.array(
+            [
+                [x, y, z]
+                for x in (box.min_[0], box.max_[0])
+                for y in (box.min_[1], box.max_[1])
+                for z in (box.min_[2], box.max_[2])
+            ]
+        )
+        placement = gdata.oMg[k]
+        z = (corners @ placement.rotation.T + placement.translation)[:, 2].min()
+        if np.isfinite(z):
+            lowest = min(lowest, float(z))
+    return lowest
+
+
+def _home_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.ndarray, float]:
     """A posture clear of the floor and of itself: of the reference posture (0 clipped into the
     limits) and seeded random ones, the one whose smallest clearance is largest, preferring
     the reference posture while it keeps three margins. Returns it and its clearance [m]."""
     safety = build_safety_model(
-        robot, {"clearance_m": clearance_m}, package_dirs=robot.package_dirs
+        robot,
+        {"clearance_m": clearance_m, "floor": {"enabled": True, "z": floor_z}},
+        package_dirs=robot.package_dirs,
     )
     lower = np.where(np.isfinite(robot.q_lower), robot.q_lower, -np.pi)
     upper = np.where(np.isfinite(robot.q_upper), robot.q_upper, np.pi)
@@ -323,7 +358,8 @@ def init_config(
     reference = np.clip(np.zeros(robot.nq), robot.q_lower, robot.q_upper)
     reach = _reach(robot, reference)
     clearance = float(np.clip(0.05 * reach, 0.01, 0.03))
-    home, home_clearance = _home_posture(robot, clearance)
+    floor_z = float(np.floor(_base_bottom(robot) * 1e3) / 1e3)  # mm, never above the base
+    home, home_clearance = _home_posture(robot, clearance, floor_z)
 
     effort = _effort_scale(robot)
     effort_known = np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0)
@@ -402,7 +438,10 @@ def init_config(
     add("emupso: {n_particles: 20, maxiter: 150, n_runs: 1, n_report_elites: 3}")
     add("")
     add("safety:                        # in the optimization and, at 1 kHz, on the trajectory")
-    add("  floor: {enabled: true, z: 0.0}   # guess: the robot stands on the floor at its base")
+    add(
+        f"  floor: {{enabled: true, z: {floor_z:.4g}}}   # guess: the robot stands on the floor "
+        "under its base's collision geometry"
+    )
     add(f"  clearance_m: {clearance:.3g}   # guess: 5 % of the reach {reach:.2f} m (1-3 cm)")
     add("  self_collision: true")
     add("  torque_limits: true")
@@ -463,7 +502,8 @@ def init_config(
         + f" {_list(ddq_max)} rad/s^2",
         f"excitation: amplitude_bound {_list(amplitude)} rad/s keeps every design within "
         f"{VELOCITY_MARGIN:.0%} of the velocity limits {_list(dq_max)} rad/s",
-        f"safety: floor at z = 0, clearance {clearance:.3g} m; mean postures around a posture "
+        f"safety: floor at z = {floor_z:.4g} m (under the base), clearance {clearance:.3g} m; "
+        "mean postures around a posture "
         f"{home_clearance * 100:.0f} cm clear",
         f"measurement: friction, rotor inertia and noise are guesses scaled to {effort_note}",
     ]
