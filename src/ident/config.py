@@ -369,7 +369,9 @@ def validate_config(model: type[ModelT], data: Mapping[str, Any], source: str | 
                     "give finite numbers"
                 )
             elif err["type"] == "missing":
-                messages.append(f"missing required key '{where}'; add it")
+                teach = getattr(model, "missing_key_hint", None)  # a working example
+                text = teach(where) if callable(teach) else "add it"
+                messages.append(f"missing required key '{where}'; {text}")
             else:
                 msg = str(err["msg"]).replace("Value error, ", "")
                 if len(msg) > 400:

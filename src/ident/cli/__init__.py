@@ -1,4 +1,4 @@
-"""Command-line interface: ``ident robot | verify | run | report | identify | bench | replay``.
+"""Command-line interface: ``ident init | robot | verify | run | report | identify | ...``.
 
 Each command lives in its own module of this package and adds itself to :data:`app`
 through a ``register(app)`` function; this keeps every command thin and the modules
@@ -71,7 +71,17 @@ def _root(
 
 
 # Order of the commands in `ident --help`.
-_COMMAND_MODULES = ("robot", "verify", "run", "report", "identify", "logs", "bench", "replay")
+_COMMAND_MODULES = (
+    "init",
+    "robot",
+    "verify",
+    "run",
+    "report",
+    "identify",
+    "logs",
+    "bench",
+    "replay",
+)
 
 for _name in _COMMAND_MODULES:
     _module_name = f"{__name__}.{_name}"

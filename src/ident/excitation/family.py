@@ -23,6 +23,7 @@ __all__ = [
     "FloatArray",
     "TrajectoryBatch",
     "check_design",
+    "feasibility_advice",
     "sample_times",
 ]
 
@@ -188,3 +189,35 @@ def check_design(x: npt.ArrayLike, n_vars: int) -> FloatArray:
     if x.ndim != 2 or x.shape[1] != n_vars:
         raise ValueError(f"design x must have shape (n_particles, {n_vars}), got {x.shape}")
     return x
+
+
+#: What to try when no design of the search box meets the constraints, for any family.
+GENERIC_ADVICE = (
+    "narrow excitation.bounds, lower the family's amplitudes in excitation.options, or relax "
+    "the limits of the robot (robot.acceleration_limits) or the safety section"
+)
+
+
+def feasibility_advice(family: object, violated: tuple[str, ...] = ()) -> str:
+    """What to change when no design of ``family``'s search box meets the constraints.
+
+    A family may explain itself with a method ``feasibility_advice(violated) -> str`` that
+    names its own settings and their values (an empty string: nothing of its own to blame);
+    the advice never mentions options of another family.
+
+    Parameters
+    ----------
+    family :
+        The excitation family.
+    violated :
+        Names of the constraints violated most often by designs of the box
+        (``"velocity:<joint>"``, ``"floor"``, ...), most frequent first.
+
+    Returns
+    -------
+    :
+        One sentence (no final period).
+    """
+    own = getattr(family, "feasibility_advice", None)
+    advice = own(tuple(violated)) if callable(own) else ""
+    return advice or GENERIC_ADVICE

@@ -31,7 +31,12 @@ import numpy.typing as npt
 from ident.excitation.constraints import JointLimits, evaluate_constraints
 from ident.excitation.family import FloatArray, TrajectoryBatch, check_design, sample_times
 
-__all__ = ["JointFourierFamily", "fourier_series", "resolve_joints"]
+__all__ = [
+    "JointFourierFamily",
+    "fourier_bound_factors",
+    "fourier_series",
+    "resolve_joints",
+]
 
 
 def resolve_joints(joint_names: Sequence[str], joints: Sequence[int | str]) -> tuple[int, ...]:
@@ -86,6 +91,49 @@ def fourier_series(
     dq = np.einsum("sl,pjl->psj", c, a) + np.einsum("sl,pjl->psj", s, b)
     ddq = np.einsum("sl,pjl->psj", c, b * wl) - np.einsum("sl,pjl->psj", s, a * wl)
     return q, dq, ddq
+
+
+def fourier_bound_factors(n_harmonics: int) -> tuple[float, float, float]:
+    """Worst-case peaks of the series per unit coefficient bound, over the whole search box.
+
+    With every free coefficient ``|a_l|, |b_l| <= A`` (``l = 2..N``) and the first harmonic
+    fixed by the rest conditions, for every design of the box and every time
+
+        |q - q0| <= c_q A / w,   |dq| <= c_v A,   |ddq| <= c_a A w.
+
+    The factors are the maxima over the phase ``theta = w t`` of the sums of the absolute
+    contributions of each free coefficient (sampled on 20001 phases; the sums are smooth
+    in theta, so the sampled maximum is within 1e-6 relative of the true one).
+
+    Parameters
+    ----------
+    n_harmonics :
+        ``N`` >= 2.
+
+    Returns
+    -------
+    :
+        ``(c_q, c_v, c_a)``, dimensionless; for N = 4 about (10.0, 12.4, 17.4).
+    """
+    if n_harmonics < 2:
+        raise ValueError(f"n_harmonics must be >= 2 (rest conditions), got {n_harmonics}")
+    theta = np.linspace(0.0, 2.0 * np.pi, 20001)
+    l = np.arange(2, n_harmonics + 1, dtype=float)[:, None]
+    s1, c1 = np.sin(theta), np.cos(theta)
+    sl, cl = np.sin(l * theta), np.cos(l * theta)
+    # a_l enters with (cos l th - cos th) in dq; b_l with (sin l th - l sin th) (b_1 = -sum l b_l)
+    c_q = (np.abs(sl / l - s1) + np.abs(l * c1 - cl / l)).sum(axis=0).max()
+    c_v = (np.abs(cl - c1) + np.abs(sl - l * s1)).sum(axis=0).max()
+    c_a = (np.abs(l * sl - s1) + l * np.abs(cl - c1)).sum(axis=0).max()
+    return float(c_q), float(c_v), float(c_a)
+
+
+def _round_down(value: float) -> str:
+    """``value`` rounded down to 2 significant digits, as text (a bound that stays safe)."""
+    if not np.isfinite(value) or value <= 0.0:
+        return f"{value:g}"
+    scale = 10.0 ** (np.floor(np.log10(value)) - 1)
+    return f"{np.floor(value / scale) * scale:.2g}"
 
 
 class JointFourierFamily:
@@ -156,6 +204,7 @@ class JointFourierFamily:
         held.setflags(write=False)
         self.held_positions = held
         moving = list(self.moving_joints)
+        self.amplitude_given = amplitude_bound is not None
         if amplitude_bound is None:
             dq_max = self.limits.dq_max[moving]
             amp = np.where(np.isfinite(dq_max), 0.5 * dq_max, 1.0)
@@ -173,6 +222,65 @@ class JointFourierFamily:
                     rows.append((-amp[k], amp[k]))
         self.variable_names = tuple(names)
         self.bounds = np.array(rows, dtype=float)
+
+    def amplitude_limits(self) -> FloatArray:
+        """Largest coefficient bound per moving joint that keeps every design of the box
+        within the joint's velocity and acceleration limits [rad/s], shape (n_moving,).
+
+        From :func:`fourier_bound_factors`: ``min(dq_max / c_v, ddq_max / (w c_a))``
+        (``inf`` for a joint without limits).
+        """
+        _, c_v, c_a = fourier_bound_factors(self.n_harmonics)
+        moving = list(self.moving_joints)
+        by_velocity = self.limits.dq_max[moving] / c_v
+        by_acceleration = self.limits.ddq_max[moving] / (self.base_frequency * c_a)
+        return np.asarray(np.minimum(by_velocity, by_acceleration), dtype=float)
+
+    def feasibility_advice(self, violated: Sequence[str] = ()) -> str:
+        """Name the amplitude setting that makes the box infeasible, with its value and a fix.
+
+        Only when velocity or acceleration constraints are among ``violated`` (or nothing is
+        known about what failed) and some joint's coefficient bound lets a design of the box
+        exceed its limit. Empty otherwise (the fault is elsewhere: positions, floor, ...).
+        """
+        kinds = {name.split(":")[0] for name in violated}
+        if violated and not kinds & {"velocity", "acceleration"}:
+            return ""
+        _, c_v, c_a = fourier_bound_factors(self.n_harmonics)
+        per_joint = self.bounds[:, 1].reshape(len(self.moving_joints), 2 * self.n_harmonics - 1)
+        amp = np.abs(per_joint[:, 1:]).max(axis=1)  # the a, b coefficients of each joint
+        allowed = self.amplitude_limits()
+        ratio = amp / allowed
+        k = int(np.argmax(ratio))
+        if not ratio[k] > 1.0:
+            return ""
+        j = self.moving_joints[k]
+        name = self.joint_names[j]
+        setting = (
+            "excitation.options.amplitude_bound"
+            if self.amplitude_given
+            else "the default amplitude bound (half of each velocity limit)"
+        )
+        dq_max, ddq_max = self.limits.dq_max[j], self.limits.ddq_max[j]
+        w = self.base_frequency
+        if amp[k] * c_v / dq_max >= amp[k] * w * c_a / ddq_max:
+            excess = (
+                f"velocity limit {dq_max:.3g} rad/s (a design of the box reaches "
+                f"{c_v:.3g} x {amp[k]:.3g} = {c_v * amp[k]:.3g} rad/s)"
+            )
+        else:
+            excess = (
+                f"acceleration limit {ddq_max:.3g} rad/s^2 (a design of the box reaches "
+                f"{c_a:.3g} x {amp[k]:.3g} x base_frequency {w:.3g} = "
+                f"{c_a * amp[k] * w:.3g} rad/s^2)"
+            )
+        fix = float(np.min(allowed))
+        return (
+            f"{setting} {amp[k]:.3g} rad/s exceeds joint {j + 1} ({name})'s {excess} at the "
+            f"chosen harmonics (n_harmonics {self.n_harmonics}); set "
+            f"excitation.options.amplitude_bound <= {_round_down(fix)} (every design of the box "
+            "then keeps within every joint's velocity and acceleration limits)"
+        )
 
     def with_samples(self, n_samples: int) -> JointFourierFamily:
         """The same family (bounds, held joints, variables) sampled ``n_samples`` times per period.

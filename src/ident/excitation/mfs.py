@@ -22,6 +22,7 @@ numbers of Tables 2-3 can be entered as printed); they are converted to SI once,
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -181,6 +182,14 @@ class _CartesianFamily:
         held[held_joints] = hold_array
         held.setflags(write=False)
         self.held_positions = held
+
+    def feasibility_advice(self, violated: Sequence[str] = ()) -> str:
+        """What to change in this family's settings when no design meets the constraints."""
+        return (
+            "check that the Cartesian circle is reachable (its centre and radius in "
+            "excitation.bounds), narrow excitation.bounds, or relax the joint limits of the "
+            "robot config"
+        )
 
     def with_samples(self, n_samples: int) -> Any:
         """The same family (bounds, holds, variables) sampled ``n_samples`` times per period.

@@ -181,8 +181,8 @@ def find_feasible_elites(
                 continue
             message = (
                 f"only {len(elites)} of {n_elites} elites after {nit} iterations "
-                f"({attempt + 1} swarms of {maxiter}; least violation {best_f:.3g}); widen the "
-                "bounds or relax the constraints"
+                f"({attempt + 1} swarms of {maxiter}; least violation {best_f:.3g}): the "
+                "search box holds too few designs that meet the constraints"
             )
             break
         nit += 1

@@ -36,6 +36,7 @@ from ident.inputs import read_urdf_text
 from ident.measure.mujoco_config import MujocoMeasurement
 from ident.model.selection import RobotSelection
 from ident.optim import METHODS
+from ident.run.examples import missing_section_hint
 from ident.run.exports.registry import check_export_names
 
 __all__ = [
@@ -335,6 +336,11 @@ class RunConfig(StrictModel):
     estimation: EstimationSection = EstimationSection()
     identification: LogIdentificationSection = LogIdentificationSection()
     quick: QuickSection = QuickSection()
+
+    @staticmethod
+    def missing_key_hint(key: str) -> str:
+        """A working example of a missing section (read by the loader's message)."""
+        return missing_section_hint(key)
 
     @field_validator("optimizer")
     @classmethod

@@ -38,10 +38,12 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import IdentError, TrajectoryError
+from ident.excitation.family import feasibility_advice
 from ident.optim import minimize
 from ident.optim.elites import find_feasible_elites, spawn_from_elites
 from ident.run.config import RunConfig
 from ident.run.elite_identification import identify_elite
+from ident.run.examples import unsafe_run_advice
 from ident.run.log_measurement import identify_elite_log, log_stage_info
 from ident.run.problem import excitation_problem, small_blas
 from ident.run.results import (
@@ -180,7 +182,7 @@ def run_pipeline(
             "per elite); the estimates are missing, not zero."
         )
     if not plan.usable:  # never reported as usable: the robot must not run it
-        warnings.append(plan.message)
+        warnings.append(plan.message + unsafe_run_advice(config.safety is not None))
     return _replace(
         state.partial(base, ""),
         status="complete",
@@ -375,6 +377,7 @@ def _select_elites(
 def _elite_failure(search: Any, family: Any, objective: Any, bounds: FloatArray) -> str:
     """A message naming the constraints that no candidate could meet."""
     worst = ""
+    violated: tuple[str, ...] = ()
     try:
         probe = np.random.default_rng(0).uniform(bounds[:, 0], bounds[:, 1], (50, bounds.shape[0]))
         batch = family.trajectories(probe)
@@ -385,6 +388,7 @@ def _elite_failure(search: Any, family: Any, objective: Any, bounds: FloatArray)
         root = np.array([n.startswith("reachability") for n in names])
         order = np.lexsort((-values.mean(axis=0), -share, ~root))
         top = [j for j in order if share[j] > 0][:5]
+        violated = tuple(names[j] for j in top)
         worst = "; constraints violated most often by random designs: " + ", ".join(
             f"{names[j]} ({100 * share[j]:.0f} %)" for j in top
         )
@@ -392,6 +396,5 @@ def _elite_failure(search: Any, family: Any, objective: Any, bounds: FloatArray)
         pass
     return (
         f"initial elite search: {search.message}{worst}. No trajectory in the excitation "
-        "bounds meets the constraints: check that the Cartesian circle is reachable, "
-        "narrow excitation.bounds, or relax the joint limits of the robot config."
+        f"bounds meets the constraints: {feasibility_advice(family, violated)}."
     )

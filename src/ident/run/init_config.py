@@ -1,0 +1,349 @@
+"""``ident init``: a commented run config for a URDF, derived from the robot itself.
+
+From the URDF alone it chooses
+
+- **the chain**: the robot selection's rules (``robot.tip_link`` / ``robot.base_link``, or
+  :func:`ident.model.suggested_locks` for a branched file), plus a lock for a moving joint
+  named like a gripper (``gripper``, ``finger``, ``hand``) at the tip; every lock is stated
+  with its reason;
+- **limits**: the URDF's velocity limits; acceleration limits from the URDF's
+  ``<limit acceleration=...>`` where present, otherwise the rule of thumb
+  ``ddq_max = ACCELERATION_PER_VELOCITY * dq_max`` (full speed in a third of a second);
+- **the excitation**: the joint-space Fourier series of ``configs/ur5.yaml`` (4 harmonics,
+  10 s period) whose coefficient bound keeps *every* design of the search box within
+  ``VELOCITY_MARGIN`` of each joint's velocity limit and within its acceleration limit
+  (:func:`ident.excitation.fourier.fourier_bound_factors`), and mean postures in a box around
+  a posture that clears the floor and every link pair the most;
+- **safety**: the floor under the lowest point of the base's collision geometry (``z = 0``
+  for most URDFs) and a clearance of 5 % of the reach
+  (between 1 and 3 cm);
+- **the measurement**: MuJoCo with friction, rotor inertia and torque noise scaled to each
+  joint's effort limit (or, without one, to the gravity torque of the links it carries), the
+  noise at most 1 % of the torque the excitation needs at the joint, each marked as a guess
+  to replace with the robot's value;
+- **the budget**: the optimizer settings of ``configs/ur5.yaml`` and a minimal ``quick``
+  section; the run's wall time is estimated by :func:`ident.run.setup.estimate_run`.
+
+The text is validated by the run config loader and :func:`ident.run.setup.prepare_run` before
+it is returned; nothing here writes a file.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ident.config import validate_config
+from ident.errors import ConfigError, IdentError
+from ident.excitation.fourier import fourier_bound_factors
+from ident.inputs import read_urdf_text
+from ident.model.selection import RobotSelection, load_robot
+from ident.run.config import RunConfig
+from ident.run.init_robot import (
+    base_bottom,
+    choose_locks,
+    clear_posture,
+    effort_scale,
+    find_package_dirs,
+    robot_reach,
+    torque_scale,
+    urdf_acceleration_limits,
+)
+from ident.run.setup import estimate_run, prepare_run
+
+__all__ = [
+    "ACCELERATION_PER_VELOCITY",
+    "N_HARMONICS",
+    "PERIOD_S",
+    "VELOCITY_MARGIN",
+    "InitResult",
+    "init_config",
+]
+
+N_HARMONICS = 4
+PERIOD_S = 10.0
+#: Share of each velocity limit the excitation may reach (a margin for tracking errors).
+VELOCITY_MARGIN = 0.8
+#: Rule of thumb for missing acceleration limits: ddq_max = this * dq_max [1/s].
+ACCELERATION_PER_VELOCITY = 3.0
+#: Velocity assumed for a joint whose URDF has no velocity limit [rad/s].
+DEFAULT_VELOCITY = 1.0
+#: Guessed measurement settings per N*m of a joint's effort limit.
+VISCOUS_PER_EFFORT = 0.02  # N*m*s/rad per N*m (UR5: 3 for 150 N*m)
+COULOMB_PER_EFFORT = 0.03  # N*m per N*m
+ARMATURE_PER_EFFORT = 0.003  # kg*m^2 per N*m (UR5: 0.5 for 150 N*m)
+NOISE_PER_EFFORT = 0.003  # N*m per N*m, at most ...
+NOISE_PER_TORQUE = 0.01  # ... and 1 % of the torque the excitation needs at the joint
+_Q0_HALF_WIDTH = 0.5  # rad: the mean postures' search box around the chosen posture
+
+
+@dataclass(frozen=True)
+class InitResult:
+    """A run config written for a robot.
+
+    Attributes
+    ----------
+    text :
+        The commented YAML, validated.
+    notes :
+        What was chosen and why (the chain, each lock, the guesses), one line each.
+    seconds, quick_seconds :
+        Estimated wall time of ``ident run`` and ``ident run --quick`` [s].
+    """
+
+    text: str
+    notes: tuple[str, ...]
+    seconds: float
+    quick_seconds: float
+
+
+def _fmt(value: float) -> str:
+    return f"{float(value):.3g}"
+
+
+def _list(values: np.ndarray) -> str:
+    return "[" + ", ".join(_fmt(v) for v in values) + "]"
+
+
+def init_config(
+    urdf: str | Path,
+    output: str | Path,
+    *,
+    base_link: str | None = None,
+    tip_link: str | None = None,
+    lock: dict[str, float] | None = None,
+    package_dirs: list[Path] | None = None,
+) -> InitResult:
+    """A validated, commented run config for the robot of ``urdf`` (see the module docstring).
+
+    Parameters
+    ----------
+    urdf :
+        The robot's URDF.
+    output :
+        Where the config will be written (its paths are made relative to its folder).
+    base_link, tip_link, lock :
+        The chain, as in the ``robot:`` section; default: the file's serial chain (branches
+        and gripper joints locked).
+    package_dirs :
+        Folders that hold the ``package://`` mesh packages; default: found above the URDF.
+
+    Raises
+    ------
+    IdentError
+        One line naming the problem (file, link, lock, or a config the loader refuses).
+    """
+    urdf = Path(urdf)
+    output = Path(output)
+    if not urdf.is_file():
+        raise ConfigError(f"{urdf}: URDF file not found; check the path.")
+    folder = output.resolve().parent
+    text = read_urdf_text(urdf)
+    locks, lock_notes = choose_locks(urdf, base_link, tip_link, dict(lock or {}))
+    dirs = find_package_dirs(urdf, text, list(package_dirs or []))
+    selection = RobotSelection(
+        urdf=urdf.resolve(),
+        base_link=base_link,
+        tip_link=tip_link,
+        lock=locks,
+        package_dirs=dirs,
+    )
+    robot = load_robot(selection, source=urdf)
+    names = robot.joint_names
+    n = robot.nv
+
+    # limits
+    dq_urdf = np.asarray(robot.dq_max, dtype=float)
+    dq_known = np.isfinite(dq_urdf) & (dq_urdf > 0)
+    dq_max = np.where(dq_known, dq_urdf, DEFAULT_VELOCITY)
+    ddq_urdf = urdf_acceleration_limits(text, names)
+    ddq_known = np.isfinite(ddq_urdf)
+    ddq_max = np.where(ddq_known, ddq_urdf, ACCELERATION_PER_VELOCITY * dq_max)
+
+    # excitation: every design of the box within the margins
+    w = 2.0 * np.pi / PERIOD_S
+    c_q, c_v, c_a = fourier_bound_factors(N_HARMONICS)
+    amplitude = VELOCITY_MARGIN * np.minimum(dq_max / c_v, ddq_max / (w * c_a))
+    amplitude = np.floor(amplitude * 1e4) / 1e4  # written with 4 decimals, never rounded up
+
+    # geometry: floor, margin, a posture clear of both
+    reference = np.clip(np.zeros(robot.nq), robot.q_lower, robot.q_upper)
+    reach = robot_reach(robot, reference)
+    clearance = float(np.clip(0.05 * reach, 0.01, 0.03))
+    floor_z = float(np.floor(base_bottom(robot) * 1e3) / 1e3) + 0.0  # mm, never above; no -0
+    home, home_clearance = clear_posture(robot, clearance, floor_z)
+
+    effort = effort_scale(robot)
+    effort_known = np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0)
+    viscous = VISCOUS_PER_EFFORT * effort
+    coulomb = COULOMB_PER_EFFORT * effort
+    armature = ARMATURE_PER_EFFORT * effort
+    torque = torque_scale(
+        robot, home, amplitude * c_v, amplitude * c_a * w, armature, _Q0_HALF_WIDTH
+    )
+    noise = np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque)
+    threshold = np.minimum(0.15, 0.1 * amplitude * c_v)  # rad/s, below the design's speeds
+
+    rel_urdf = Path(os.path.relpath(urdf.resolve(), folder)).as_posix()
+    rel_dirs = [Path(os.path.relpath(d, folder)).as_posix() for d in dirs]
+    lines: list[str] = []
+    add = lines.append
+    add(f"# ident run {output.name} -- written by 'ident init {urdf.name}' for {robot.name}:")
+    add(f"# the chain {names[0]} .. {names[-1]} ({n} joints), every joint moving in one stage,")
+    add("# a joint-space Fourier excitation designed by the optimizer, measured by a closed-loop")
+    add("# MuJoCo simulation that writes a controller log, identified from that log.")
+    add("# Lines marked 'guess' are rules of thumb: replace them with your robot's values.")
+    add("# Units: SI (m, rad, s, N*m) unless a key says otherwise. Paths relative to this file.")
+    add("robot:")
+    add(f"  urdf: {rel_urdf}")
+    if base_link is not None:
+        add(f"  base_link: {base_link}")
+    if tip_link is not None:
+        add(f"  tip_link: {tip_link}")
+    if locks:
+        add("  lock:                        # joints held fixed [rad or m]")
+        for note, (name, value) in zip(lock_notes, locks.items(), strict=True):
+            add(f"    {name}: {_fmt(value)}   # {note.split(': ', 1)[1]}")
+    if rel_dirs:
+        add(f"  package_dirs: [{', '.join(rel_dirs)}]   # the package:// collision meshes")
+    if ddq_known.all():
+        add(f"  acceleration_limits: {_list(ddq_max)}   # rad/s^2, from the URDF")
+    else:
+        add(
+            f"  acceleration_limits: {_list(ddq_max)}   # rad/s^2; guess: "
+            f"{ACCELERATION_PER_VELOCITY:g} x the velocity limit (full speed in "
+            f"{1 / ACCELERATION_PER_VELOCITY:.2g} s): replace with your robot's value"
+        )
+    add("stage: whole                   # every joint moves, every body is unknown")
+    add("seed: 0")
+    add("")
+    add("excitation:")
+    add("  family: joint_fourier")
+    add("  criterion: paper")
+    add(f"  n_samples: 250               # per {PERIOD_S:g} s period")
+    add("  options:")
+    add(f"    n_harmonics: {N_HARMONICS}")
+    add(f"    base_frequency: {w!r}   # rad/s: period {PERIOD_S:g} s")
+    velocity_note = (
+        "the URDF's velocity limits"
+        if dq_known.all()
+        else f"the URDF's velocity limits ({DEFAULT_VELOCITY:g} rad/s guessed where it has none)"
+    )
+    add(
+        f"    # rad/s, per joint: every design of the search box keeps within "
+        f"{VELOCITY_MARGIN:.0%} of"
+    )
+    add(f"    # {velocity_note} (|dq| <= {c_v:.3g} x bound at {N_HARMONICS} harmonics) and within")
+    add(f"    # the acceleration limits (|ddq| <= {c_a:.3g} x bound x base_frequency)")
+    add(f"    amplitude_bound: {_list(amplitude)}")
+    add(
+        f"  bounds:                      # mean postures within +-{_Q0_HALF_WIDTH:g} rad of a "
+        f"posture {home_clearance * 100:.0f} cm"
+    )
+    add("                               # clear of the floor and of itself [rad]")
+    for j, name in enumerate(names):
+        low = max(home[j] - _Q0_HALF_WIDTH, robot.q_lower[j])
+        high = min(home[j] + _Q0_HALF_WIDTH, robot.q_upper[j])
+        if high > low:
+            add(f"    q0[{name}]: [{low:.4f}, {high:.4f}]")
+    add("")
+    add("elites: {n_particles: 10, n_elites: 5, maxiter: 100}")
+    add("optimizer: pso                 # the best on arms like this one (docs/optimizers.md)")
+    add("emupso: {n_particles: 20, maxiter: 150, n_runs: 1, n_report_elites: 3}")
+    add("")
+    add("safety:                        # in the optimization and, at 1 kHz, on the trajectory")
+    add(
+        f"  floor: {{enabled: true, z: {floor_z:.3f}}}   # guess: the robot stands on the floor "
+        "under its base's collision geometry"
+    )
+    add(f"  clearance_m: {clearance:.3g}   # guess: 5 % of the reach {reach:.2f} m (1-3 cm)")
+    add("  self_collision: true")
+    add("  torque_limits: true")
+    add("  check_samples: 50            # samples per period of the optimization's term")
+    add("controller: {rate_hz: 1000.0, n_periods: 1}   # trajectory.csv: approach, period, return")
+    add("")
+    effort_note = (
+        "the URDF's effort limits"
+        if effort_known.all()
+        else "the effort limits (twice the gravity torque where the URDF has none)"
+    )
+    add("measurement:")
+    add("  source: mujoco")
+    add("  rate_hz: 1000.0")
+    add("  controller: {kind: computed_torque}    # default gains: 100 rad/s, critically damped")
+    add(f"  # guesses scaled to {effort_note} {_list(effort)} N*m:")
+    add("  # replace each with your robot's value")
+    add("  friction:")
+    add(f"    viscous: {_list(viscous)}   # guess: N*m*s/rad, {VISCOUS_PER_EFFORT:g} x effort")
+    add(f"    coulomb: {_list(coulomb)}   # guess: N*m, {COULOMB_PER_EFFORT:g} x effort")
+    add(
+        f"  armature: {_list(armature)}   # guess: kg*m^2, rotor inertia, "
+        f"{ARMATURE_PER_EFFORT:g} x effort"
+    )
+    add("  encoder_counts_per_rev: 524288   # guess: 19-bit encoders")
+    add(
+        f"  torque_noise_std: {_list(noise)}   # guess: N*m, {NOISE_PER_EFFORT:g} x effort, at "
+        f"most {NOISE_PER_TORQUE:.0%} of the torque the motion needs {_list(torque)}"
+    )
+    add("  settle_periods: 1")
+    add("  n_periods: 3")
+    add("")
+    add("identification:                # how the log is identified (an `ident identify` config)")
+    add("  preprocess:")
+    add("    lowpass: {cutoff_hz: 10.0, order: 4}")
+    add("    torque_lowpass: {cutoff_hz: 10.0, order: 4}")
+    add("    trim_samples: 500          # 0.5 s at each end: the zero-phase filters' edges")
+    add("    decimation: [10]           # 1 kHz -> 100 Hz")
+    add("    # rows slower than this are dropped: the filters spread the Coulomb step at a")
+    add("    # velocity reversal (0.15 rad/s, or 10 % of the design's largest speed if lower)")
+    add(f"    velocity_threshold: {_list(threshold)}   # rad/s")
+    add("  model: {viscous: true, coulomb: true, rotor_inertia: true, offset: false}")
+    add("  estimation: {method: wls, essential: {enabled: false}}")
+    add("  validation: {identify_fraction: 0.7}")
+    add("")
+    add("quick:                         # --quick: the smallest budget that designs a trajectory")
+    add("  n_samples: 100")
+    add("  elites: {n_particles: 6, n_elites: 1, maxiter: 40}")
+    add("  emupso: {n_particles: 6, maxiter: 4, stagnation: 2, n_runs: 1, n_report_elites: 1}")
+    config_text = "\n".join(lines) + "\n"
+
+    seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
+    notes = [
+        f"chain: {names[0]} .. {names[-1]} ({n} joints) of {urdf.name}",
+        *[f"lock: {line}" for line in lock_notes],
+        "acceleration limits: "
+        + ("from the URDF" if ddq_known.all() else f"guess {ACCELERATION_PER_VELOCITY:g} x dq_max")
+        + f" {_list(ddq_max)} rad/s^2",
+        f"excitation: amplitude_bound {_list(amplitude)} rad/s keeps every design within "
+        f"{VELOCITY_MARGIN:.0%} of the velocity limits {_list(dq_max)} rad/s",
+        f"safety: floor at z = {floor_z:.3f} m (under the base), clearance {clearance:.3g} m; "
+        "mean postures around a posture "
+        f"{home_clearance * 100:.0f} cm clear",
+        f"measurement: friction, rotor inertia and noise are guesses scaled to {effort_note}",
+    ]
+    return InitResult(config_text, tuple(notes), seconds, quick_seconds)
+
+
+def _validate(text: str, output: Path, urdf: Path, dirs: list[Path]) -> tuple[float, float]:
+    """Load ``text`` as ``ident run`` will and build the run; the estimated wall times [s].
+
+    The relative paths of the text hold once ``output``'s folder exists; the check uses the
+    absolute ones (the folder may not exist yet).
+    """
+    data = yaml.safe_load(text)
+    data["robot"] = {**data["robot"], "urdf": str(urdf), "package_dirs": [str(d) for d in dirs]}
+    config = validate_config(RunConfig, data, output)
+    config = config.model_copy(update={"name": config.name or output.stem})
+    try:
+        setup = prepare_run(config, source=output)
+    except IdentError as e:
+        raise type(e)(f"the written config would not run: {e}") from e
+    quick = config.quick_version()
+    return (
+        float(setup.estimate.seconds),
+        float(estimate_run(quick, setup.robot, setup.family).seconds),
+    )

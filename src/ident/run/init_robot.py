@@ -1,0 +1,225 @@
+"""What ``ident init`` reads from a robot: the chain and its locks, limits, geometry, torques.
+
+Pure functions on a URDF file or an :class:`ident.model.Robot`; :mod:`ident.run.init_config`
+turns their answers into a run config.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ident.errors import ConfigError
+from ident.excitation.safety import build_safety_model
+from ident.inputs import read_urdf_text
+from ident.model.robot import Robot
+from ident.robot.urdf_load import (
+    build_model,
+    chain_locks,
+    continuous_as_revolute,
+    parse_xml,
+    suggested_locks,
+)
+
+__all__ = [
+    "base_bottom",
+    "choose_locks",
+    "clear_posture",
+    "effort_scale",
+    "find_package_dirs",
+    "robot_reach",
+    "torque_scale",
+    "urdf_acceleration_limits",
+]
+
+_GRIPPER = re.compile(r"gripper|finger|hand", re.IGNORECASE)
+_N_POSTURES = 300
+
+
+def _fmt(value: float) -> str:
+    return f"{float(value):.3g}"
+
+
+def choose_locks(
+    urdf: Path, base_link: str | None, tip_link: str | None, lock: dict[str, float]
+) -> tuple[dict[str, float], list[str]]:
+    """Joints to lock (name -> position) and one reason line per lock."""
+    where = str(urdf)
+    text = read_urdf_text(urdf)
+    revolute_text, _ = continuous_as_revolute(parse_xml(text, where), text)
+    model = build_model(revolute_text, where)
+    reasons: dict[str, str] = {name: "given with --lock" for name in lock}
+    if base_link is not None or tip_link is not None:
+        for name in chain_locks(model, base_link, tip_link, where):
+            reasons.setdefault(name, "outside the chain from the base link to the tip link")
+    else:
+        for name in suggested_locks(model):
+            jid = model.getJointId(name)
+            leaf = not any(int(model.parents[k]) == jid for k in range(1, model.njoints))
+            reasons.setdefault(
+                name,
+                "a gripper finger (a single joint at the tip)"
+                if leaf
+                else "a side branch (the chain follows the deepest branch)",
+            )
+        # a moving gripper joint at the end of a serial chain: its fingers ride on the last link
+        kept = [
+            k for k in range(1, model.njoints) if model.names[k] not in reasons and model.nvs[k]
+        ]
+        for k in reversed(kept):
+            name = model.names[k]
+            if not _GRIPPER.search(name):
+                break
+            reasons[name] = "a gripper joint (named so): the fingers ride on the last link"
+    values: dict[str, float] = {}
+    for name in reasons:
+        if name in lock:
+            values[name] = float(lock[name])
+            continue
+        jid = model.getJointId(name)
+        idx = model.joints[jid].idx_q
+        low, high = model.lowerPositionLimit[idx], model.upperPositionLimit[idx]
+        values[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
+    lines = [f"{name} locked at {_fmt(values[name])}: {why}" for name, why in reasons.items()]
+    return values, lines
+
+
+def urdf_acceleration_limits(urdf_text: str, joint_names: tuple[str, ...]) -> np.ndarray:
+    """``<limit acceleration=...>`` per joint (NaN where absent), shape (n_joints,)."""
+    root = ET.fromstring(urdf_text)
+    found: dict[str, float] = {}
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        if limit is not None and limit.get("acceleration") is not None:
+            try:
+                found[joint.get("name", "")] = float(limit.get("acceleration", "nan"))
+            except ValueError:
+                continue
+    out = np.array([found.get(n, np.nan) for n in joint_names])
+    return np.where(np.isfinite(out) & (out > 0), out, np.nan)
+
+
+def find_package_dirs(urdf: Path, text: str, given: list[Path]) -> list[Path]:
+    """``package://NAME/...`` resolved: the given folders, else the nearest ancestor of the
+    URDF's folder that holds a folder ``NAME``."""
+    if given:
+        return [p.resolve() for p in given]
+    names = sorted(set(re.findall(r"package://([^/\"']+)/", text)))
+    found: list[Path] = []
+    for name in names:
+        for parent in urdf.resolve().parents:
+            if (parent / name).is_dir():
+                if parent not in found:
+                    found.append(parent)
+                break
+        else:
+            raise ConfigError(
+                f"{urdf}: the meshes of package://{name}/ are not in any folder above the URDF; "
+                "give the folder that contains it with --package-dir DIR."
+            )
+    return found
+
+
+def effort_scale(robot: Robot) -> np.ndarray:
+    """Per joint: the URDF effort limit, or twice the largest static gravity torque [N*m]."""
+    effort = np.asarray(robot.model.effortLimit, dtype=float)
+    model = robot.model
+    data = model.createData()
+    rng = np.random.default_rng(0)
+    lower = np.where(np.isfinite(robot.q_lower), robot.q_lower, -np.pi)
+    upper = np.where(np.isfinite(robot.q_upper), robot.q_upper, np.pi)
+    gravity = np.zeros(model.nv)
+    for q in rng.uniform(lower, upper, (50, model.nq)):
+        gravity = np.maximum(gravity, np.abs(pin.computeGeneralizedGravity(model, data, q)))
+    fallback = np.maximum(2.0 * gravity, 1.0)
+    return np.where(np.isfinite(effort) & (effort > 0), effort, fallback)
+
+
+def torque_scale(
+    robot: Robot,
+    home: np.ndarray,
+    dq_peak: np.ndarray,
+    ddq_peak: np.ndarray,
+    armature: np.ndarray,
+    half_width: float,
+) -> np.ndarray:
+    """Per joint: the 95th percentile of |tau| over seeded states of the excitation's range
+    (within ``half_width`` [rad] of ``home``, speeds and accelerations up to their peaks)
+    [N*m]: rigid bodies (Pinocchio's RNEA) plus the rotor inertia."""
+    rng = np.random.default_rng(0)
+    n = 200
+    lower = np.maximum(home - half_width, robot.q_lower)
+    upper = np.minimum(home + half_width, robot.q_upper)
+    q = rng.uniform(lower, upper, (n, robot.nq))
+    dq = rng.uniform(-1.0, 1.0, (n, robot.nv)) * dq_peak
+    ddq = rng.uniform(-1.0, 1.0, (n, robot.nv)) * ddq_peak
+    tau = robot.rnea(q, dq, ddq) + armature * ddq
+    return np.asarray(np.percentile(np.abs(tau), 95.0, axis=0), dtype=float)
+
+
+def robot_reach(robot: Robot, q: np.ndarray) -> float:
+    """Largest distance of a joint origin from the base at posture ``q`` [m]."""
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q)
+    return float(max(np.linalg.norm(data.oMi[k].translation) for k in range(robot.model.njoints)))
+
+
+def base_bottom(robot: Robot) -> float:
+    """Lowest point of the collision geometry fixed to the world (the base) [m], in the base
+    frame; 0 without such geometry. Its bounding boxes' corners: exact for boxes, a lower
+    bound for meshes and round shapes."""
+    safety = build_safety_model(
+        robot, {"floor": {"enabled": False}}, package_dirs=robot.package_dirs
+    )
+    model, geometry = safety.model, safety.geometry_model
+    data, gdata = model.createData(), pin.GeometryData(geometry)
+    reference = np.clip(np.zeros(model.nq), model.lowerPositionLimit, model.upperPositionLimit)
+    pin.updateGeometryPlacements(model, data, geometry, gdata, reference)
+    lowest = 0.0
+    for k, obj in enumerate(geometry.geometryObjects):
+        if obj.parentJoint != 0:
+            continue
+        obj.geometry.computeLocalAABB()
+        box = obj.geometry.aabb_local
+        corners = np.array(
+            [
+                [x, y, z]
+                for x in (box.min_[0], box.max_[0])
+                for y in (box.min_[1], box.max_[1])
+                for z in (box.min_[2], box.max_[2])
+            ]
+        )
+        placement = gdata.oMg[k]
+        z = (corners @ placement.rotation.T + placement.translation)[:, 2].min()
+        if np.isfinite(z):
+            lowest = min(lowest, float(z))
+    return lowest
+
+
+def clear_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.ndarray, float]:
+    """A posture clear of the floor and of itself: of the reference posture (0 clipped into the
+    limits) and seeded random ones, the one whose smallest clearance is largest, preferring
+    the reference posture while it keeps three margins. Returns it and its clearance [m]."""
+    safety = build_safety_model(
+        robot,
+        {"clearance_m": clearance_m, "floor": {"enabled": True, "z": floor_z}},
+        package_dirs=robot.package_dirs,
+    )
+    lower = np.where(np.isfinite(robot.q_lower), robot.q_lower, -np.pi)
+    upper = np.where(np.isfinite(robot.q_upper), robot.q_upper, np.pi)
+    reference = np.clip(np.zeros(robot.nq), lower, upper)
+    rng = np.random.default_rng(0)
+    # postures near the reference first: a robot's zero is usually a sensible posture
+    near = np.clip(reference + rng.uniform(-1.0, 1.0, (_N_POSTURES, robot.nq)), lower, upper)
+    postures = np.vstack([reference[None, :], near])
+    if safety.n_pairs == 0:
+        return reference, np.inf
+    worst = safety.clearances(postures).min(axis=1)
+    if worst[0] >= 3.0 * clearance_m:
+        return reference, float(worst[0])
+    best = int(np.argmax(np.minimum(worst, 0.15)))  # beyond 15 cm: the first such posture
+    return postures[best], float(worst[best])
