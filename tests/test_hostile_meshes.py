@@ -120,10 +120,11 @@ def test_without_trimesh_coal_reads_the_same_meshes(name, problem, tmp_path, mon
     )
 
 
-def test_a_half_turn_scale_is_a_rotation_and_a_mirror_is_refused():
-    """ROS URDFs (TIAGo) write ``scale="-1 -1 1"``: two negative factors turn the mesh by half a
-    turn and keep its triangles' orientation; one negative factor mirrors it inside out."""
+def test_negative_scales_mirror_or_turn_the_mesh_and_are_accepted():
+    """Real URDFs scale by negative factors: TIAGo ``"-1 -1 1"`` (a half turn), Centauro's left
+    arm ``"0.001 -0.001 0.001"`` (a mirror of the right arm's meshes); zero stays refused."""
     text = (MESHES / "visual_scale_zero.urdf").read_text()
-    check_urdf_meshes(text.replace('scale="0 0 0"', 'scale="-1 -1 1"'), [MESHES])
-    with pytest.raises(ModelError, match=r'scale="-1 1 1".*odd number'):
-        check_urdf_meshes(text.replace('scale="0 0 0"', 'scale="-1 1 1"'), [MESHES])
+    for scale in ("-1 -1 1", "-1 1 1", "0.001 -0.001 0.001"):
+        check_urdf_meshes(text.replace('scale="0 0 0"', f'scale="{scale}"'), [MESHES])
+    with pytest.raises(ModelError, match=r'scale="1 0 1".*non-zero'):
+        check_urdf_meshes(text.replace('scale="0 0 0"', 'scale="1 0 1"'), [MESHES])

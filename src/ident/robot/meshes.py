@@ -7,9 +7,8 @@ NaN vertices kills the process (SIGSEGV, no message). :func:`check_urdf_meshes` 
 coal's own loader, the one Pinocchio uses, for formats trimesh cannot read such as Collada)
 and refuses, with one line naming the link, the file and the fix:
 
-- a scale that is not three finite, non-zero numbers with an even number of negative ones (a
-  zero factor collapses the mesh, an odd number of negative ones mirrors it inside out; two
-  negative factors are a half turn, which ROS URDFs use);
+- a scale that is not three finite, non-zero numbers (a zero factor collapses the mesh;
+  negative factors, a mirror or a half turn, are fine);
 - a file without vertices, or that the loader cannot read;
 - NaN or infinite vertex coordinates;
 - a mesh more than :data:`MAX_EXTENT_M` across (wrong units);
@@ -151,13 +150,12 @@ def _scale(text: str | None) -> tuple[np.ndarray | None, str]:
         return None, f'scale="{text}" is not three numbers'
     if values.shape != (3,):
         return None, f'scale="{text}" is not three numbers'
-    # Two negative factors are a half turn (ROS URDFs use "-1 -1 1"); an odd number of them
-    # mirrors the mesh inside out.
-    if not np.isfinite(values).all() or (values == 0.0).any() or np.prod(values) < 0.0:
+    # Negative factors are accepted: two are a half turn (TIAGo writes "-1 -1 1"), one mirrors
+    # (Centauro's left arm is its right arm's meshes at "0.001 -0.001 0.001"); distances and
+    # hulls do not depend on the triangles' winding.
+    if not np.isfinite(values).all() or (values == 0.0).any():
         return None, (
-            f'scale="{text}": each factor must be finite and non-zero, with an even number of '
-            "negative ones (zero collapses the mesh, an odd number of negative factors mirrors "
-            "it inside out; mirror the file itself instead)"
+            f'scale="{text}": each factor must be finite and non-zero (zero collapses the mesh)'
         )
     return values, ""
 
