@@ -151,6 +151,31 @@ def test_a_margin_no_posture_keeps_is_refused_naming_the_pair() -> None:
         build_safety_model(robot, {"clearance_m": 0.02}, package_dirs=robot.package_dirs)
 
 
+def test_the_default_margin_is_lowered_to_one_every_pair_keeps_and_says_so() -> None:
+    """A user who gives no margin gets one the robot can keep (the UR5's wrist 1 and wrist 3
+    meshes are at most 14.5 mm apart: 30 -> 15 -> 7.5 mm); a margin the user chose is never
+    changed (the test above)."""
+    from ident.model.selection import load_robot
+    from ident.run.config import load_run_config
+
+    config = load_run_config("configs/ur5.yaml")
+    robot = load_robot(config.robot)
+    safety = build_safety_model(
+        robot, {"floor": {"enabled": False}}, package_dirs=robot.package_dirs
+    )
+    assert safety.clearance_m == pytest.approx(0.0075)
+    assert "from the default 0.03 m to 0.0075 m" in safety.margin_note
+    assert "wrist_1_link-wrist_3_link" in safety.margin_note
+    # the lowered margin is the one every check uses: the optimizer's term and the dense check
+    q = np.zeros((1, robot.nq))
+    assert np.isfinite(safety.clearances(q)).all()
+    kept = build_safety_model(
+        robot, {"clearance_m": 0.0075, "floor": {"enabled": False}}, package_dirs=robot.package_dirs
+    )
+    assert kept.margin_note == ""
+    assert kept.clearance_m == 0.0075
+
+
 def test_srdf_of_a_run_config_is_read_relative_to_the_config(tmp_path) -> None:
     from ident.run.setup import load_run
 

@@ -65,6 +65,8 @@ def run(
         check_run_exports(cfg, setup.robot, config)
         for note in setup.limit_notes:  # export targets' limits the design keeps
             typer.echo(f"limits tightened by {note}", err=True)
+        if setup.safety.margin_note:  # the default margin, lowered to one the links can keep
+            typer.echo(f"note: {setup.safety.margin_note}", err=True)
         if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
             typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
@@ -77,6 +79,7 @@ def run(
                 "quick": quick,
                 "command": " ".join(["ident", *sys.argv[1:]]),
                 "export_limits": list(setup.limit_notes),
+                "safety_margin_note": setup.safety.margin_note,
             },
         )
         typer.echo(f"run folder: {rundir.path}", err=True)

@@ -20,12 +20,11 @@ violation of ``NONFINITE_VIOLATION`` so that penalties stay finite.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from ident.excitation.family import ConstraintViolations, FloatArray
+from ident.robot.limits import JointLimits, tighten_limits
 
 __all__ = [
     "CONTINUITY_TOLERANCE",
@@ -40,124 +39,6 @@ __all__ = [
 
 CONTINUITY_TOLERANCE = 1e-8
 NONFINITE_VIOLATION = 1e3
-
-
-@dataclass(frozen=True, eq=False)
-class JointLimits:
-    """Joint limits used by the trajectory constraints (SI).
-
-    Attributes
-    ----------
-    joint_names :
-        One per joint.
-    q_lower, q_upper :
-        Position limits [rad], shape (nq,); ``-inf``/``inf`` where unknown.
-    dq_max, ddq_max :
-        Velocity [rad/s] and acceleration [rad/s^2] limits, shape (nq,); ``inf`` where unknown.
-    """
-
-    joint_names: tuple[str, ...]
-    q_lower: FloatArray
-    q_upper: FloatArray
-    dq_max: FloatArray
-    ddq_max: FloatArray
-
-    def __post_init__(self) -> None:
-        n = len(self.joint_names)
-        for name in ("q_lower", "q_upper", "dq_max", "ddq_max"):
-            value = np.array(getattr(self, name), dtype=float, copy=True)
-            if value.shape != (n,):
-                raise ValueError(f"JointLimits.{name} must have shape ({n},), got {value.shape}")
-            value.setflags(write=False)
-            object.__setattr__(self, name, value)
-
-    @classmethod
-    def from_robot(cls, robot: Any) -> JointLimits:
-        """Limits of an :class:`ident.Robot` (or any object with the same attributes)."""
-        names = tuple(robot.joint_names)
-        n = len(names)
-        ddq = getattr(robot, "ddq_max", None)
-        return cls(
-            joint_names=names,
-            q_lower=np.asarray(robot.q_lower, dtype=float),
-            q_upper=np.asarray(robot.q_upper, dtype=float),
-            dq_max=np.asarray(robot.dq_max, dtype=float),
-            ddq_max=np.full(n, np.inf) if ddq is None else np.asarray(ddq, dtype=float),
-        )
-
-    @property
-    def nq(self) -> int:
-        """Number of joints."""
-        return len(self.joint_names)
-
-    def finite_position_box(self) -> tuple[FloatArray, FloatArray]:
-        """Position limits with unknown ones replaced by ``[-pi, pi]`` [rad], shapes (nq,)."""
-        lower = np.where(np.isfinite(self.q_lower), self.q_lower, -np.pi)
-        upper = np.where(np.isfinite(self.q_upper), self.q_upper, np.pi)
-        return lower, upper
-
-
-_LIMIT_KINDS = (
-    ("q_lower", "position lower", "rad"),
-    ("q_upper", "position upper", "rad"),
-    ("dq_max", "velocity", "rad/s"),
-    ("ddq_max", "acceleration", "rad/s^2"),
-)
-
-
-def tighten_limits(
-    limits: JointLimits, bound: JointLimits, source: str
-) -> tuple[JointLimits, tuple[str, ...]]:
-    """The element-wise tighter of ``limits`` and ``bound``, and what ``bound`` changed.
-
-    The one place where joint limits of different origins (the URDF, the run config, an export
-    target such as libfranka) are combined: positions ``[max(lower), min(upper)]``, velocities
-    and accelerations ``min``; ``inf`` (``-inf`` for a lower bound) means no limit.
-
-    Parameters
-    ----------
-    limits :
-        The limits so far, shape (nq,) each.
-    bound :
-        Further limits for the same joints (same ``joint_names``).
-    source :
-        Who sets ``bound`` (``"franka"``, ``"robot.velocity_limits"``), for the notes.
-
-    Returns
-    -------
-    :
-        The tightened limits, and one note per kind of limit ``bound`` tightened by more than
-        round-off (1e-9 relative):
-        ``"<source>: velocity limits [rad/s] <joint> 2.175 -> 2.124, <joint> ..."``.
-
-    Raises
-    ------
-    ValueError
-        If the joint names differ.
-    """
-    if tuple(bound.joint_names) != tuple(limits.joint_names):
-        raise ValueError(
-            f"{source}: limits for joints {list(bound.joint_names)}, the robot's are "
-            f"{list(limits.joint_names)}"
-        )
-    values = {
-        "q_lower": np.maximum(limits.q_lower, bound.q_lower),
-        "q_upper": np.minimum(limits.q_upper, bound.q_upper),
-        "dq_max": np.minimum(limits.dq_max, bound.dq_max),
-        "ddq_max": np.minimum(limits.ddq_max, bound.ddq_max),
-    }
-    notes = []
-    for key, quantity, unit in _LIMIT_KINDS:
-        before, after = getattr(limits, key), values[key]
-        changed = [
-            f"{limits.joint_names[j]} {before[j]:.6g} -> {after[j]:.6g}"
-            for j in np.flatnonzero(before != after)
-            # round-off (a URDF's 6.28318530718 for 2 pi) is applied, not reported
-            if not abs(after[j] - before[j]) <= 1e-9 * max(1.0, abs(after[j]))
-        ]
-        if changed:
-            notes.append(f"{source}: {quantity} limits [{unit}] {', '.join(changed)}")
-    return JointLimits(joint_names=tuple(limits.joint_names), **values), tuple(notes)
 
 
 def _excess(value: FloatArray, limit: FloatArray) -> FloatArray:

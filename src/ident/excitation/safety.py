@@ -82,6 +82,8 @@ __all__ = [
 ]
 
 DEFAULT_CLEARANCE_M = 0.03
+# the default margin is halved down to this while a link pair cannot keep it [m]
+MIN_LOWERED_CLEARANCE_M = 0.002
 N_EXCLUSION_POSTURES = 1000  # random postures of the "always in contact" rule (MoveIt: 1000+)
 ALWAYS_IN_CONTACT_FRACTION = 0.95  # MoveIt setup assistant's default
 MAX_SIZE_M = 100.0  # obstacle sizes and positions, floor height [m]
@@ -438,11 +440,18 @@ class SafetyModel:
         reference_q: npt.ArrayLike | None = None,
         home_q: npt.ArrayLike | None = None,
         rng: np.random.Generator | int | None = 0,
+        lower_margin: bool | None = None,
     ) -> None:
         import coal
 
         self.config = config
         self.clearance_m = float(config.clearance_m)
+        # the default margin (no safety.clearance_m given) may be lowered to one the robot's
+        # links can keep (see _self_exclusions); None: lower it only when not given
+        self.lower_margin = (
+            "clearance_m" not in config.model_fields_set if lower_margin is None else lower_margin
+        )
+        self.margin_note = ""
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
         model, geom = _kinematic_model_and_geometry(robot, urdf, package_dirs)
@@ -609,10 +618,29 @@ class SafetyModel:
             owner = np.array(
                 [i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int
             )
-            within = self._collisions(geom, pairs, self.postures, margin=self.clearance_m)
-            by_link = np.zeros((within.shape[0], len(tested)), dtype=bool)
-            np.logical_or.at(by_link.T, owner, within.T)
-            always = np.all(by_link, axis=0)
+            always = self._always_within(geom, pairs, owner, len(tested), self.clearance_m)
+            margin = self.clearance_m
+            # a margin the user did not choose is lowered (halved, down to 2 mm) until every
+            # pair can keep it in some posture; a chosen one is an input error below
+            while self.lower_margin and always.any() and margin / 2.0 >= MIN_LOWERED_CLEARANCE_M:
+                margin /= 2.0
+                always = self._always_within(geom, pairs, owner, len(tested), margin)
+            if margin < self.clearance_m and not always.any():
+                close = ", ".join(
+                    f"{a}-{b}"
+                    for (a, b), hit in zip(
+                        tested,
+                        self._always_within(geom, pairs, owner, len(tested), self.clearance_m),
+                        strict=True,
+                    )
+                    if hit
+                )
+                self.margin_note = (
+                    f"safety margin lowered from the default {self.clearance_m:g} m to "
+                    f"{margin:g} m: the links {close} are closer than the default in every "
+                    "sampled posture (set safety.clearance_m to choose the margin)"
+                )
+                self.clearance_m = margin
             for i, key in enumerate(tested):
                 if always[i]:
                     raise ConfigError(
@@ -623,6 +651,20 @@ class SafetyModel:
                         "pair in a MoveIt SRDF (safety.srdf) if they may touch."
                     )
         return excluded
+
+    def _always_within(
+        self,
+        geom: pin.GeometryModel,
+        pairs: list[tuple[int, int]],
+        owner: npt.NDArray[np.int_],
+        n_links: int,
+        margin: float,
+    ) -> npt.NDArray[np.bool_]:
+        """Per link pair, shape (n_links,): closer than ``margin`` in every sampled posture."""
+        within = self._collisions(geom, pairs, self.postures, margin=margin)
+        by_link = np.zeros((within.shape[0], n_links), dtype=bool)
+        np.logical_or.at(by_link.T, owner, within.T)
+        return np.asarray(np.all(by_link, axis=0))
 
     def _collisions(
         self,
@@ -1034,6 +1076,7 @@ def build_safety_model(
     package_dirs: Sequence[str | Path] = (),
     reference_q: npt.ArrayLike | None = None,
     home_q: npt.ArrayLike | None = None,
+    lower_margin: bool | None = None,
 ) -> SafetyModel:
     """The safety model of a robot (see :class:`SafetyModel` and the module docstring).
 
@@ -1055,6 +1098,10 @@ def build_safety_model(
     home_q :
         The posture the robot starts from (``controller.home``) [rad], shape (nq,): closer
         than the margin to the floor or an obstacle there is an input error.
+    lower_margin :
+        Lower the margin (halving it, not below :data:`MIN_LOWERED_CLEARANCE_M`) while a link
+        pair is closer than it in every sampled posture, and say so in ``margin_note``;
+        default: only when the config does not give ``clearance_m`` (the default margin).
 
     Raises
     ------
@@ -1076,6 +1123,7 @@ def build_safety_model(
         package_dirs=package_dirs,
         reference_q=reference_q,
         home_q=home_q,
+        lower_margin=lower_margin,
     )
 
 

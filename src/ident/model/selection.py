@@ -33,8 +33,8 @@ from pydantic import model_validator
 
 from ident.config import StrictModel
 from ident.errors import ConfigError
-from ident.excitation.constraints import JointLimits, tighten_limits
 from ident.model.robot import Robot
+from ident.robot.limits import JointLimits, tighten_limits
 
 __all__ = [
     "RobotSelection",

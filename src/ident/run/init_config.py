@@ -49,6 +49,7 @@ from ident.run.init_robot import (
     clear_posture,
     effort_scale,
     find_package_dirs,
+    keepable_clearance,
     robot_reach,
     torque_scale,
     urdf_acceleration_limits,
@@ -173,7 +174,9 @@ def init_config(
     # geometry: floor, margin, a posture clear of both
     reference = np.clip(np.zeros(robot.nq), robot.q_lower, robot.q_upper)
     reach = robot_reach(robot, reference)
-    clearance = float(np.clip(0.05 * reach, 0.01, 0.03))
+    guessed_clearance = float(np.clip(0.05 * reach, 0.01, 0.03))
+    # halved while a link pair sits closer than it in every posture (UR base/upper arm)
+    clearance = keepable_clearance(robot, guessed_clearance)
     floor_z = float(np.floor(base_bottom(robot) * 1e3) / 1e3) + 0.0  # mm, never above; no -0
     home, home_clearance = clear_posture(robot, clearance, floor_z)
 
@@ -260,7 +263,15 @@ def init_config(
         f"  floor: {{enabled: true, z: {floor_z:.3f}}}   # guess: the robot stands on the floor "
         "under its base's collision geometry"
     )
-    add(f"  clearance_m: {clearance:.3g}   # guess: 5 % of the reach {reach:.2f} m (1-3 cm)")
+    lowered = (
+        f", lowered from {guessed_clearance:.3g} m: a link pair is closer in every posture"
+        if clearance < guessed_clearance
+        else ""
+    )
+    add(
+        f"  clearance_m: {clearance:.3g}   # guess: 5 % of the reach {reach:.2f} m (1-3 cm)"
+        + lowered
+    )
     add("  self_collision: true")
     add("  torque_limits: true")
     add("  check_samples: 50            # samples per period of the optimization's term")

@@ -31,6 +31,7 @@ __all__ = [
     "clear_posture",
     "effort_scale",
     "find_package_dirs",
+    "keepable_clearance",
     "robot_reach",
     "torque_scale",
     "urdf_acceleration_limits",
@@ -198,6 +199,18 @@ def base_bottom(robot: Robot) -> float:
         if np.isfinite(z):
             lowest = min(lowest, float(z))
     return lowest
+
+
+def keepable_clearance(robot: Robot, clearance_m: float) -> float:
+    """``clearance_m`` [m], halved (not below 2 mm) while a pair of the robot's links is closer
+    than it in every sampled posture: a margin that some trajectory can keep."""
+    safety = build_safety_model(
+        robot,
+        {"clearance_m": clearance_m, "floor": {"enabled": False}},
+        package_dirs=robot.package_dirs,
+        lower_margin=True,
+    )
+    return float(safety.clearance_m)
 
 
 def clear_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.ndarray, float]:
