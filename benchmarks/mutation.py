@@ -12,8 +12,9 @@ killed). Usage::
 
 mutmut 3 copies the tree into ``mutants/`` and imports it from there; each module gets its own
 folder ``mutants/<module>/`` (a few symbolic links to the checkout), so the modules' results
-and mutmut's cache stay apart. A re-run keeps the results of mutants already tested (mutmut's
-rule): ``--retest`` re-runs the ones not killed (after adding tests), ``--fresh`` all. The whole
+the results (``mutants/<module>/results.json``) stay apart. A run tests every mutant;
+``--retest`` re-runs only the ones the last run did not kill (after adding tests) and keeps
+the others' results; ``--fresh`` starts from a clean copy. The whole
 ``src/ident`` package is copied, the files outside the module unmutated: a partial copy would
 make ``mutants/src/ident`` a namespace portion and the tests would import the unmutated
 package. The data the tests read (``also_copy`` of ``[tool.mutmut]``) is copied next to it.
@@ -120,13 +121,20 @@ def worker(spec: dict) -> None:
         paths_to_mutate=[PACKAGE],
         tests_dir=spec["pytest_args"],
     )
+    # mutmut's incremental stats run new tests by node id, without the selection (-m, --deselect)
+    # of tests_dir: collect the map of tests to functions afresh (one run of the focused tests)
+    Path("mutants/mutmut-stats.json").unlink(missing_ok=True)
     mm._run(spec["retest"], spec["max_children"])
 
 
-def statuses(folder: Path, paths: list[str]) -> dict[str, str]:
-    """Mutant name -> status, read from mutmut's result files of the module's sources."""
+def statuses(folder: Path, paths: list[str], *, saved: bool = True) -> dict[str, str]:
+    """Mutant name -> status: this script's ``results.json`` of the module's last run, else
+    mutmut's result files of the module's sources."""
     from mutmut.__main__ import status_by_exit_code
 
+    results = folder / "results.json"
+    if saved and results.exists():
+        return dict(json.loads(results.read_text()))
     out: dict[str, str] = {}
     for path in paths:
         meta = folder / "mutants" / (path + ".meta")
@@ -156,7 +164,9 @@ def run_module(name: str, args: argparse.Namespace) -> dict:
     folder = prepare_folder(name)
     if args.fresh and (folder / "mutants").exists():
         shutil.rmtree(folder / "mutants")
-    retest = sorted(k for k, v in statuses(folder, paths).items() if v != KILLED)
+        (folder / "results.json").unlink(missing_ok=True)
+    before = statuses(folder, paths)
+    retest = sorted(k for k, v in before.items() if v != KILLED)
     spec["retest"] = retest if args.retest else []
     print(f"== {name}: {', '.join(paths)} against {', '.join(tests)}", flush=True)
     if args.retest:
@@ -174,7 +184,10 @@ def run_module(name: str, args: argparse.Namespace) -> dict:
             stderr=subprocess.STDOUT,
         )
     seconds = time.perf_counter() - start
-    status = statuses(folder, paths)
+    status = statuses(folder, paths, saved=False)
+    if args.retest:  # mutmut 3.3.1 rewrites its result files on every run: keep the kills
+        status = {**before, **{k: status.get(k, before[k]) for k in retest}}
+    (folder / "results.json").write_text(json.dumps(status, indent=1, sort_keys=True))
     ok = proc.returncode == 0 and bool(status)
     if not ok:
         print(f"   mutmut failed (exit {proc.returncode}); its output: {log}", flush=True)

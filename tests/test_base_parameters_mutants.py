@@ -8,6 +8,7 @@ Closed-form matrices built from orthonormal columns, so every score is known exa
 from __future__ import annotations
 
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from ident.dynamics.base_parameters import (
     NEAR_DEPENDENCE_FLOOR,
     RANK_RTOL,
     compute_base_parameters,
+    nearly_aligned_axes,
     torque_shares,
 )
 from ident.errors import DataError, IdentWarning
@@ -29,8 +31,9 @@ def _orthonormal(n_rows: int = 30, n_cols: int = 3) -> np.ndarray:
 
 
 def _near(d: float, scale: float = 1.0) -> np.ndarray:
-    """Columns q0, q1 and ``scale (cos d q0 + sin d q2)``: the third scores sin(d)."""
-    q = _orthonormal()
+    """Columns e0, e1 and ``scale (cos d e0 + sin d e2)``: the third scores sin(d) (unit
+    coordinate columns: the first pivot's ``|R_00|`` is exactly 1)."""
+    q = np.eye(30)[:, :3]
     return np.column_stack([q[:, 0], q[:, 1], scale * (np.cos(d) * q[:, 0] + np.sin(d) * q[:, 2])])
 
 
@@ -52,6 +55,8 @@ def test_a_nearly_dependent_column_is_merged_and_named_in_a_warning(method):
     assert base.base_names == ("p0R", "p1")
     assert base.expressions() == ["p0 + 3 p2", "p1"]
     assert base.counts()["n_dependent"] == 1
+    assert base.method == method
+    assert record[0].filename == __file__  # the warning points at the caller's line
 
 
 @pytest.mark.parametrize("method", ["sequential", "qr"])
@@ -136,6 +141,10 @@ def test_wrong_shapes_are_reported():
         base.project(np.ones(4))
     with pytest.raises(DataError, match=r"W must have 3 columns, got shape \(2, 4\)"):
         base.base_columns(np.ones((2, 4)))
+    with pytest.raises(
+        DataError, match=r"^W contains NaN or inf; check the states used to build it$"
+    ):
+        compute_base_parameters(np.array([[1.0, np.inf, 0.0]]), NAMES)
     with pytest.raises(DataError, match=r"W must be 2-D \(n_rows, n_params\)"):
         compute_base_parameters(np.ones(3), NAMES)
     with pytest.raises(ValueError, match="read-only"):
@@ -147,3 +156,53 @@ def test_torque_shares_closed_form():
     shares = torque_shares(W, np.array([1.0, -1.0]))
     np.testing.assert_allclose(shares, [3.0 / 5.0, 4.0 / 5.0])
     np.testing.assert_array_equal(torque_shares(W, np.zeros(2)), [0.0, 0.0])
+
+
+def test_integer_matrices_are_classified_like_float_ones():
+    W = np.array([[1, 0, 2], [0, 3, 0], [1, 0, 2], [0, 1, 0]])  # p2 = 2 p0
+    base = compute_base_parameters(W, NAMES, method="sequential")
+    assert base.dependent.tolist() == [2]
+    np.testing.assert_allclose(base.K, [[2.0], [0.0]], atol=1e-12)
+    shares = torque_shares(W[:, :2], np.array([1, 1]))  # ||W_i|| / ||W beta||, beta = 1
+    np.testing.assert_allclose(shares, [np.sqrt(2 / 12), np.sqrt(10 / 12)])
+
+
+def test_more_parameters_than_rows_leave_the_extra_columns_scored_zero():
+    W = np.random.default_rng(1).normal(size=(2, 3))
+    base = compute_base_parameters(W, NAMES, method="qr")
+    assert base.rank == 2
+    assert base.scores[base.dependent].tolist() == [0.0]
+
+
+def test_small_torques_have_the_same_shares():
+    W = np.column_stack([3.0 * _orthonormal()[:, 0], 4.0 * _orthonormal()[:, 1]])
+    np.testing.assert_allclose(torque_shares(1e-4 * W, np.array([1.0, -1.0])), [0.6, 0.8])
+
+
+def _chain(axes, parents, gravity=(0.0, 0.0, -9.81)):
+    """The fields of a KinematicChain that nearly_aligned_axes reads (identity placements)."""
+    n = len(axes)
+    return SimpleNamespace(
+        joint_names=tuple(f"j{k + 1}" for k in range(n)),
+        parents=np.asarray(parents),
+        placements=np.tile(np.eye(4), (n, 1, 1)),
+        axes=np.asarray(axes, dtype=float),
+        gravity=np.asarray(gravity, dtype=float),
+    )
+
+
+def test_a_first_axis_nearly_along_or_across_gravity_is_named():
+    d = 1e-5
+    along = [np.sin(d), 0.0, np.cos(d)]
+    across = [np.cos(d), 0.0, np.sin(d)]
+    ((name, other, deviation, nominal),) = nearly_aligned_axes(_chain([along], [-1]))
+    assert (name, other, nominal) == ("j1", "gravity", 0.0)
+    assert deviation == pytest.approx(d, rel=1e-6)
+    ((*_, nominal),) = nearly_aligned_axes(_chain([across], [-1], gravity=(0, 0, -0.5)))
+    assert nominal == 90.0
+    # the tolerance is inclusive: a deviation equal to it is reported
+    assert len(nearly_aligned_axes(_chain([along], [-1]), tolerance=deviation)) == 1
+    assert nearly_aligned_axes(_chain([[0.0, 0.0, 1.0]], [-1])) == []  # exact: nothing
+    # without gravity a first joint has nothing to compare with; its children still do
+    pairs = nearly_aligned_axes(_chain([[0, 0, 1.0], along], [-1, 0], gravity=(0, 0, 0)))
+    assert [(a, b) for a, b, _, _ in pairs] == [("j2", "j1")]

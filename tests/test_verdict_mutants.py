@@ -15,6 +15,7 @@ from ident.identify.verdict import (
     MAJOR_SHARE,
     Evidence,
     Truth,
+    covariance_torque_shares,
     decide_verdict,
     identify_verdict,
     judged_method,
@@ -241,3 +242,65 @@ def test_truth_error_is_the_worst_major_parameter():
     # a truth for other parameter names is not used: the log rule
     wrong = Truth(names=("a", "b", "c"), values=truth.values, reference_share=np.ones(3))
     assert log_evidence(result, truth=wrong).worst_error_percent is None
+
+
+# every branch says which rule judged it (result.json's verdict.rule)
+BRANCHES = {
+    "unsafe": dict(safe=False),
+    "no estimate": dict(estimated=False),
+    "good": dict(residual=0.01, worst_std_percent=1.0, nominal_residual=0.5),
+    "usable": dict(residual=0.2, worst_std_percent=1.0, nominal_residual=0.5),
+    "not identified": dict(residual=0.3, worst_std_percent=1.0, nominal_residual=0.5),
+    "worse than nominal": dict(residual=0.3, worst_std_percent=1.0, nominal_residual=0.2),
+}
+
+
+@pytest.mark.parametrize("branch", BRANCHES)
+def test_every_branch_names_its_rule(branch):
+    kw = BRANCHES[branch]
+    log = decide_verdict(Evidence(**kw))
+    assert log.rule == "log"
+    assert log.reason  # never empty: the report prints it after the label
+    truth = decide_verdict(Evidence(**{**kw, "worst_error_percent": 1.0}))
+    assert truth.rule == "truth"
+    assert decide_verdict(Evidence(truth=True, residual=0.01)).rule == "truth"
+
+
+def test_log_reasons_of_usable_and_not_identified():
+    v = decide_verdict(Evidence(residual=0.2, worst_std_percent=7.0, warnings=("w",)))
+    assert (v.label, v.reason) == (
+        "usable",
+        "torque residual 20 % (held-out data), worst σ 7 %; 1 warning(s)",
+    )
+    v = decide_verdict(Evidence(residual=0.3, worst_std_percent=1.0, n_inconsistent=1, n_links=2))
+    assert (v.label, v.reason) == (
+        "not identified",
+        "torque residual 30 % (held-out data), worst σ 1 %; 1 of 2 links physically inconsistent",
+    )
+
+
+def test_torque_shares_do_not_depend_on_the_units_and_zero_says_nothing():
+    x = np.array([99.0, 9.0, 9.0, 6.0, 1.0])  # ||x|| = 100: shares exactly x / 100
+    shares = covariance_torque_shares(x, np.eye(5))
+    np.testing.assert_allclose(shares, x / 100.0, rtol=1e-12)
+    np.testing.assert_allclose(covariance_torque_shares(1e-3 * x, 1e6 * np.eye(5)), shares)
+    zero = covariance_torque_shares(np.zeros(3), np.eye(3))
+    assert zero.shape == (3,)
+    assert np.isnan(zero).all()
+    assert np.isnan(covariance_torque_shares(x, np.full((5, 5), np.nan))).all()
+
+
+def test_a_parameter_at_exactly_the_major_share_is_judged():
+    x = np.array([99.0, 9.0, 9.0, 6.0, 1.0])  # the last carries exactly MAJOR_SHARE
+    assert covariance_torque_shares(x, np.eye(5))[-1] == MAJOR_SHARE
+    est = SimpleNamespace(
+        x=x,
+        relative_std=np.array([1.0, 1.0, 1.0, 1.0, 50.0]),
+        std=np.ones(5),
+        names=("a", "b", "c", "d", "e"),
+        method="wls",
+        covariance=np.eye(5),
+    )
+    result = _result()
+    result.estimate = est
+    assert log_evidence(result).worst_std_name == "e"
