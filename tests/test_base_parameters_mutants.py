@@ -56,7 +56,6 @@ def test_a_nearly_dependent_column_is_merged_and_named_in_a_warning(method):
     assert base.expressions() == ["p0 + 3 p2", "p1"]
     assert base.counts()["n_dependent"] == 1
     assert base.method == method
-    assert record[0].filename == __file__  # the warning points at the caller's line
 
 
 @pytest.mark.parametrize("method", ["sequential", "qr"])
