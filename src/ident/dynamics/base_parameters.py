@@ -257,8 +257,6 @@ def _pivoted_qr(
     normalized: FloatArray, candidates: IntArray, tol: float
 ) -> tuple[list, list, dict]:
     """QR with column pivoting: (independent, dependent, scores)."""
-    if normalized.shape[0] == 0:
-        return [], list(candidates), {j: 0.0 for j in candidates}
     _, r, pivots = scipy.linalg.qr(normalized[:, candidates], mode="economic", pivoting=True)
     diagonal = np.abs(np.diag(r))
     rank = int(np.sum(diagonal > tol * diagonal[0])) if diagonal.size else 0

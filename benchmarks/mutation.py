@@ -1,0 +1,298 @@
+"""Mutation testing of the identification core: the share of mutants its focused tests kill.
+
+For each core module (``--modules``, default all) this runs mutmut (pinned: the ``mutation``
+extra of pyproject.toml) with that module as the only mutated code and its own focused test
+files as the only tests, then prints one table: module, mutants, killed, survived, timeout,
+no tests, killed share, minutes, and the total. The killed share is strict: killed mutants
+over all mutants (a timeout, a mutant no focused test reaches and a survivor all count as not
+killed). Usage::
+
+    python benchmarks/mutation.py [--modules verdict base_parameters] [--max-children 2]
+                                  [--fresh | --retest] [--survivors] [--deselect NODE_ID ...]
+
+mutmut 3 copies the tree into ``mutants/`` and imports it from there; each module gets its own
+folder ``mutants/<module>/`` (a few symbolic links to the checkout), so the modules' results
+the results (``mutants/<module>/results.json``) stay apart. A run tests every mutant;
+``--retest`` re-runs only the ones the last run did not kill (after adding tests) and keeps
+the others' results; ``--fresh`` starts from a clean copy. The whole
+``src/ident`` package is copied, the files outside the module unmutated: a partial copy would
+make ``mutants/src/ident`` a namespace portion and the tests would import the unmutated
+package. The data the tests read (``also_copy`` of ``[tool.mutmut]``) is copied next to it.
+Tests marked ``slow`` are not run (``--with-slow`` runs them); a test that spawns ``ident`` in
+a subprocess imports the checkout, not the mutant, and cannot kill it.
+
+``--survivors`` lists each surviving mutant's diff (``mutmut show``); from a module's folder,
+``mutmut browse`` shows them interactively.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import tomllib  # Python 3.11+, as the venv the mutation extra is installed in
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = Path("src/ident")
+
+# module name -> (mutated source files, focused test files), paths from the repository root
+MODULES: dict[str, tuple[list[str], list[str]]] = {
+    "verdict": (
+        ["src/ident/identify/verdict.py"],
+        ["tests/test_verdict.py", "tests/test_verdict_mutants.py"],
+    ),
+    "base_parameters": (
+        ["src/ident/dynamics/base_parameters.py"],
+        ["tests/test_base_parameters.py", "tests/test_base_parameters_mutants.py"],
+    ),
+    "estimate": (
+        ["src/ident/identify/estimate.py"],
+        ["tests/test_estimate.py", "tests/test_essential.py"],
+    ),
+    "preprocess": (["src/ident/identify/preprocess.py"], ["tests/test_preprocess.py"]),
+    "accumulate": (["src/ident/identify/accumulate.py"], ["tests/test_accumulate.py"]),
+    "estimators": (
+        ["src/ident/identify/estimators/*.py"],
+        ["tests/test_estimators*.py"],
+    ),
+}
+
+# exit code of a mutant's test run -> status (mutmut's own table, mutmut.__main__)
+KILLED, SURVIVED, TIMEOUT, NO_TESTS = "killed", "survived", "timeout", "no tests"
+
+
+def expand(patterns: list[str]) -> list[str]:
+    """The repository paths (sorted, relative to the root) that the glob patterns name."""
+    out: set[str] = set()
+    for pattern in patterns:
+        found = sorted(str(p.relative_to(ROOT)) for p in ROOT.glob(pattern))
+        if not found:
+            raise SystemExit(f"error: {pattern!r} names no file; fix MODULES in {__file__}")
+        out.update(found)
+    return sorted(out)
+
+
+def mutmut_settings() -> dict:
+    """``[tool.mutmut]`` of pyproject.toml (``also_copy`` is what the folders need)."""
+    with open(ROOT / "pyproject.toml", "rb") as f:
+        return tomllib.load(f).get("tool", {}).get("mutmut", {})
+
+
+def prepare_folder(name: str) -> Path:
+    """``mutants/<name>/``: the working folder of one module's mutmut run, holding links to the
+    checkout's pyproject.toml and top-level folders (mutmut copies from there)."""
+    folder = ROOT / "mutants" / name
+    folder.mkdir(parents=True, exist_ok=True)
+    for entry in ["src", "tests", "pyproject.toml", *mutmut_settings().get("also_copy", [])]:
+        entry = entry.rstrip("/")
+        link = folder / entry
+        if not link.is_symlink():
+            link.symlink_to(ROOT / entry)
+    return folder
+
+
+def worker(spec: dict) -> None:
+    """Run mutmut on one module in the current folder (a subprocess of :func:`main`, so that
+    nothing of ``ident`` is imported before mutmut puts ``mutants/src`` first on the path)."""
+    import _pytest.nodes
+    import mutmut
+    import mutmut.__main__ as mm
+
+    # mutmut 3.3.1 maps tests to functions through ``item._nodeid``, which pytest 8.4 dropped
+    if not hasattr(_pytest.nodes.Node, "_nodeid"):
+        _pytest.nodes.Node._nodeid = property(lambda node: node.nodeid)  # type: ignore[attr-defined]
+
+    mutated = set(spec["paths"])
+    others = sorted(
+        str(p)
+        for p in PACKAGE.rglob("*.py")
+        if str(p) not in mutated and "__pycache__" not in str(p)
+    )
+    mutmut.config = mm.Config(
+        also_copy=[Path(p) for p in spec["also_copy"]] + [Path("tests/"), Path("pyproject.toml")],
+        do_not_mutate=others,
+        max_stack_depth=-1,
+        debug=False,
+        paths_to_mutate=[PACKAGE],
+        tests_dir=spec["pytest_args"],
+    )
+    # mutmut's incremental stats run new tests by node id, without the selection (-m, --deselect)
+    # of tests_dir: collect the map of tests to functions afresh (one run of the focused tests)
+    Path("mutants/mutmut-stats.json").unlink(missing_ok=True)
+    mm._run(spec["retest"], spec["max_children"])
+
+
+def statuses(folder: Path, paths: list[str], *, saved: bool = True) -> dict[str, str]:
+    """Mutant name -> status: this script's ``results.json`` of the module's last run, else
+    mutmut's result files of the module's sources."""
+    from mutmut.__main__ import status_by_exit_code
+
+    results = folder / "results.json"
+    if saved and results.exists():
+        return dict(json.loads(results.read_text()))
+    out: dict[str, str] = {}
+    for path in paths:
+        meta = folder / "mutants" / (path + ".meta")
+        if not meta.exists():
+            continue
+        for key, code in json.loads(meta.read_text())["exit_code_by_key"].items():
+            out[key] = status_by_exit_code.get(code, f"exit {code}")
+    return out
+
+
+def run_module(name: str, args: argparse.Namespace) -> dict:
+    """Run mutmut on one module (subprocess in its folder); its counts and wall time [s]."""
+    patterns, test_patterns = MODULES[name]
+    paths = expand(patterns)
+    tests = expand([t for t in test_patterns if any(ROOT.glob(t))])
+    pytest_args = [*tests, "-p", "no:cacheprovider"]
+    if not args.with_slow:
+        pytest_args += ["-m", "not slow"]
+    for node in args.deselect:
+        pytest_args += ["--deselect", node]
+    spec = {
+        "paths": paths,
+        "also_copy": mutmut_settings().get("also_copy", []),
+        "pytest_args": pytest_args,
+        "max_children": args.max_children,
+    }
+    folder = prepare_folder(name)
+    if args.fresh and (folder / "mutants").exists():
+        shutil.rmtree(folder / "mutants")
+        (folder / "results.json").unlink(missing_ok=True)
+    before = statuses(folder, paths)
+    retest = sorted(k for k, v in before.items() if v != KILLED)
+    spec["retest"] = retest if args.retest else []
+    print(f"== {name}: {', '.join(paths)} against {', '.join(tests)}", flush=True)
+    if args.retest:
+        print(f"   retesting the {len(retest)} mutants not killed before", flush=True)
+    start = time.perf_counter()
+    log = folder / "mutmut.log"
+    if args.retest and not retest:
+        log.write_text("nothing to retest\n")
+        return summary(name, statuses(folder, paths), 0.0, ok=True, args=args, folder=folder)
+    with open(log, "w") as out:
+        proc = subprocess.run(
+            [sys.executable, __file__, "--worker", json.dumps(spec)],
+            cwd=folder,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+    seconds = time.perf_counter() - start
+    status = statuses(folder, paths, saved=False)
+    if args.retest:  # mutmut 3.3.1 rewrites its result files on every run: keep the kills
+        status = {**before, **{k: status.get(k, before[k]) for k in retest}}
+    (folder / "results.json").write_text(json.dumps(status, indent=1, sort_keys=True))
+    ok = proc.returncode == 0 and bool(status)
+    if not ok:
+        print(f"   mutmut failed (exit {proc.returncode}); its output: {log}", flush=True)
+    return summary(name, status, seconds, ok=ok, args=args, folder=folder)
+
+
+def summary(
+    name: str,
+    status: dict[str, str],
+    seconds: float,
+    *,
+    ok: bool,
+    args: argparse.Namespace,
+    folder: Path,
+) -> dict:
+    """The table row of one module; with ``--survivors``, print each survivor's diff."""
+    counts = {s: sum(1 for v in status.values() if v == s) for s in set(status.values())}
+    survivors = sorted(k for k, v in status.items() if v != KILLED)
+    if args.survivors:
+        for key in survivors:
+            shown = subprocess.run(
+                [sys.executable, "-m", "mutmut", "show", key],
+                cwd=folder,
+                capture_output=True,
+                text=True,
+            )
+            print(f"-- {status[key]}: {key}\n{shown.stdout.strip()}\n", flush=True)
+    return {
+        "module": name,
+        "mutants": len(status),
+        KILLED: counts.get(KILLED, 0),
+        SURVIVED: counts.get(SURVIVED, 0),
+        TIMEOUT: counts.get(TIMEOUT, 0),
+        NO_TESTS: counts.get(NO_TESTS, 0),
+        "seconds": seconds,
+        "ok": ok,
+    }
+
+
+def share(killed: int, total: int) -> str:
+    return f"{100.0 * killed / total:.1f} %" if total else "-"
+
+
+def print_table(rows: list[dict]) -> None:
+    header = ("module", "mutants", KILLED, SURVIVED, TIMEOUT, NO_TESTS, "killed share", "min")
+    lines = [header]
+    for r in rows:
+        lines.append(
+            (
+                r["module"] + ("" if r["ok"] else " (failed)"),
+                str(r["mutants"]),
+                str(r[KILLED]),
+                str(r[SURVIVED]),
+                str(r[TIMEOUT]),
+                str(r[NO_TESTS]),
+                share(r[KILLED], r["mutants"]),
+                f"{r['seconds'] / 60:.1f}",
+            )
+        )
+    total = {k: sum(r[k] for r in rows) for k in ("mutants", KILLED, SURVIVED, TIMEOUT, NO_TESTS)}
+    lines.append(
+        (
+            "total",
+            str(total["mutants"]),
+            str(total[KILLED]),
+            str(total[SURVIVED]),
+            str(total[TIMEOUT]),
+            str(total[NO_TESTS]),
+            share(total[KILLED], total["mutants"]),
+            f"{sum(r['seconds'] for r in rows) / 60:.1f}",
+        )
+    )
+    widths = [max(len(line[i]) for line in lines) for i in range(len(header))]
+    for k, line in enumerate(lines):
+        cells = [line[0].ljust(widths[0])]
+        cells += [c.rjust(w) for c, w in zip(line[1:], widths[1:], strict=True)]
+        print("  ".join(cells))
+        if k == 0 or k == len(lines) - 2:
+            print("  ".join("-" * w for w in widths))
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--modules", nargs="+", choices=list(MODULES), default=list(MODULES))
+    parser.add_argument("--max-children", type=int, default=2, help="parallel mutant runs")
+    parser.add_argument("--survivors", action="store_true", help="print each survivor's diff")
+    parser.add_argument("--fresh", action="store_true", help="forget the module's last results")
+    parser.add_argument(
+        "--retest", action="store_true", help="re-run only the mutants not killed last time"
+    )
+    parser.add_argument("--with-slow", action="store_true", help="also run tests marked slow")
+    parser.add_argument(
+        "--deselect", action="append", default=[], metavar="NODE_ID", help="a test not to run"
+    )
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        worker(json.loads(args.worker))
+        return
+    if args.max_children < 1:
+        parser.error("--max-children must be at least 1")
+    rows = [run_module(name, args) for name in args.modules]
+    print()
+    print_table(rows)
+
+
+if __name__ == "__main__":
+    main()
