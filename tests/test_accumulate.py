@@ -189,6 +189,7 @@ def test_long_log_benchmark_short_version():
     import sys
 
     args = ["--minutes", "0.5", "--per-sample", "300", "--compare-minutes", "0.3"]
+    args += ["--mcap-minutes", "0.3"]  # the MCAP case too, short
     proc = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "bench_identify_long.py"), *args],
         capture_output=True,
