@@ -282,8 +282,8 @@ def test_whole_model_write_back_refuses_an_inconsistent_estimate():
     ("text", "match"),
     [
         ('<?xml version="1.0"?><!DOCTYPE robot [<!ENTITY m "1.0">]><robot name="r"/>', "DOCTYPE"),
-        ("<robot name='r'><link name='a'></robot>", "not well-formed"),
-        ("<sdf/>", "expected <robot>"),
+        ("<robot name='r'><link name='a'></robot>", "malformed URDF XML"),
+        ("<sdf/>", "not <robot>"),
     ],
 )
 def test_odd_xml_is_refused_with_a_message(text, match):

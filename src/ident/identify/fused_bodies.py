@@ -21,6 +21,7 @@ import numpy.typing as npt
 
 from ident.errors import ModelError
 from ident.inputs import refuse_dtd
+from ident.robot.urdf_load import parse_xml
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -47,13 +48,7 @@ def parse_urdf(urdf_text: str, source: str = "URDF") -> ET.Element:
         ``<robot>``; nothing has been changed then.
     """
     refuse_dtd(urdf_text, source)  # the rule of every URDF reader (ident.inputs)
-    try:
-        root = ET.fromstring(urdf_text)
-    except ET.ParseError as e:
-        raise ModelError(f"{source}: not well-formed XML ({e}).") from e
-    if root.tag != "robot":
-        raise ModelError(f"{source}: the root element is <{root.tag}>, expected <robot>.")
-    return root
+    return parse_xml(urdf_text, source)  # the robot loader's parser and its errors
 
 
 def link_inertial(link: ET.Element) -> FloatArray:
