@@ -2,6 +2,7 @@ import base64
 import re
 
 import numpy as np
+from report_data import minimal_run_data
 
 from ident.report.html import markdown_to_html
 from ident.report.plots import convergence_png, estimate_png, trajectory_png
@@ -112,59 +113,10 @@ def test_error_measures_in_torque_units():
     assert m["rel_error_percent"][1] == pytest.approx(100.0)
 
 
-def _data(estimates, failures):
-    return {
-        "format": "ident-run/1",
-        "status": "complete",
-        "message": "run complete",
-        "name": "t",
-        "seed": 1,
-        "config": {
-            "robot": "r.yaml",
-            "stage": "wrist",
-            "excitation": {"family": "joint_fourier", "criterion": "paper", "n_samples": 10},
-            "elites": {"n_particles": 2, "n_elites": 1},
-            "emupso": {"n_runs": 1, "n_particles": 2, "maxiter": 1, "stagnation": 1},
-            "measurement": {"torque_noise_std": 0.0, "encoder_counts_per_rev": None},
-            "estimation": {"methods": ["ols"]},
-        },
-        "robot": {"name": "r", "joint_names": ["a"], "q_limits": [[-1, 1]], "dq_limits": [1]},
-        "excitation": {"variable_names": ["v"], "moving_joints": [0]},
-        "warnings": [],
-        "stage": {
-            "name": "wrist",
-            "torque_rows": [0],
-            "base_method": "qr",
-            "known_bodies": "all bodies are unknown in this stage",
-            "counts": {"independent": 1, "dependent": 0, "unidentifiable": 0, "n_base": 1},
-            "paper_counts": {"independent": 15, "dependent": 7, "unidentifiable": 8},
-            "independent": ["m1"],
-            "dependent": [],
-            "unidentifiable": [],
-            "base_names": ["m1"],
-            "base_expressions": ["m1"],
-            "true_base": [1.0],
-            "identifiable_alone": [True],
-        },
-        "initial_elites": {"x": [[0.0]], "message": "1 elites found"},
-        "optimization": {"n_runs_finished": 1, "runs": []},
-        "elites": [
-            {
-                "rank": 1,
-                "x": [0.5],
-                "fitness": 3.0,
-                "objective": {"cond": 2.0},
-                "estimates": estimates,
-                "failures": failures,
-                "path_csv": None,
-            }
-        ],
-        "chosen_elite": 1,
-    }
-
-
 def test_markdown_says_plainly_when_nothing_was_identified():
-    md = render_markdown(_data({}, {"ols": "not identifiable on this trajectory: m1 ..."}))
+    md = render_markdown(
+        minimal_run_data({}, {"ols": "not identifiable on this trajectory: m1 ..."})
+    )
     assert "**Elite 1, ols**: not identifiable" in md
     assert "No estimate" in md
     assert "nan" not in md.lower()
@@ -181,7 +133,7 @@ def test_markdown_tables_of_an_estimate():
         "message": "ok",
         **error_measures(np.array([1.1]), np.array([0.1]), np.array([1.0])),
     }
-    md = render_markdown(_data({"ols": est}, {}))
+    md = render_markdown(minimal_run_data({"ols": est}, {}))
     assert "| `m1` (alone) | kg | 1 | 1.1 | 0.1 | 9.09 | 10 | 1 | — |  |" in md
     assert "## Summary" in md.split("## Identified")[0]
     assert "Standard parameters identifiable alone" in md
@@ -271,7 +223,7 @@ def test_relative_measures_in_tables_are_percent():
             np.array([1.1]), np.array([0.1]), np.array([1.0]), reference_share=np.array([1.0])
         ),
     }
-    md = render_markdown(_data({"ols": est}, {}))
+    md = render_markdown(minimal_run_data({"ols": est}, {}))
     assert "| max rel. error, major parameters, ols [%] | 10 |" in md
     assert unitless_labels_without_percent(md) == []
     # the check finds a fraction column
@@ -288,7 +240,7 @@ def test_summary_of_a_paper_config_says_its_box_is_expected_and_names_the_box_co
     """configs/wrist.yaml (the paper's family in its own ±10 box) ends "not identified": the
     summary says it is expected and which config gives a good result; a box of the user's or
     another family gets no such line."""
-    data = _data({}, {})
+    data = minimal_run_data({}, {})
     data["config"]["excitation"].update(family="paper_wrist", bounds=None)
     paper = _summary(render_markdown(data))
     assert "| Paper's box | expected:" in paper
@@ -298,4 +250,4 @@ def test_summary_of_a_paper_config_says_its_box_is_expected_and_names_the_box_co
     assert "`configs/arm-box.yaml`" in _summary(render_markdown(data))
     data["config"]["excitation"]["bounds"] = {"a0(1)": [-40.0, 40.0]}
     assert "Paper's box" not in render_markdown(data)
-    assert "Paper's box" not in render_markdown(_data({}, {}))  # joint_fourier
+    assert "Paper's box" not in render_markdown(minimal_run_data({}, {}))  # joint_fourier

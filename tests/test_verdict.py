@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import yaml
+from report_data import minimal_run_data
 from typer.testing import CliRunner
 
 from ident.cli import app
@@ -324,58 +325,6 @@ def test_real_log_identify_folder_summary_agrees_with_its_sections(tmp_path):
 # ------------------------------------------------------------- the executed elite is judged
 
 
-def _report_data(estimates, failures):
-    """A minimal run result.json (one stage, one base parameter m1, true value 1)."""
-    return {
-        "format": "ident-run/1",
-        "status": "complete",
-        "message": "run complete",
-        "name": "t",
-        "seed": 1,
-        "config": {
-            "robot": "r.yaml",
-            "stage": "wrist",
-            "excitation": {"family": "joint_fourier", "criterion": "paper", "n_samples": 10},
-            "elites": {"n_particles": 2, "n_elites": 1},
-            "emupso": {"n_runs": 1, "n_particles": 2, "maxiter": 1, "stagnation": 1},
-            "measurement": {"torque_noise_std": 0.0, "encoder_counts_per_rev": None},
-            "estimation": {"methods": ["ols"]},
-        },
-        "robot": {"name": "r", "joint_names": ["a"], "q_limits": [[-1, 1]], "dq_limits": [1]},
-        "excitation": {"variable_names": ["v"], "moving_joints": [0]},
-        "warnings": [],
-        "stage": {
-            "name": "wrist",
-            "torque_rows": [0],
-            "base_method": "qr",
-            "known_bodies": "all bodies are unknown in this stage",
-            "counts": {"independent": 1, "dependent": 0, "unidentifiable": 0, "n_base": 1},
-            "paper_counts": {"independent": 15, "dependent": 7, "unidentifiable": 8},
-            "independent": ["m1"],
-            "dependent": [],
-            "unidentifiable": [],
-            "base_names": ["m1"],
-            "base_expressions": ["m1"],
-            "true_base": [1.0],
-            "identifiable_alone": [True],
-        },
-        "initial_elites": {"x": [[0.0]], "message": "1 elites found"},
-        "optimization": {"n_runs_finished": 1, "runs": []},
-        "elites": [
-            {
-                "rank": 1,
-                "x": [0.5],
-                "fitness": 3.0,
-                "objective": {"cond": 2.0},
-                "estimates": estimates,
-                "failures": failures,
-                "path_csv": None,
-            }
-        ],
-        "chosen_elite": 1,
-    }
-
-
 def _elite(rank, x, fitness):
     est = {
         "x": [x],
@@ -398,7 +347,7 @@ def _elite(rank, x, fitness):
 
 
 def _run_data(executed, safe=True):
-    data = _report_data({}, {})
+    data = minimal_run_data({}, {})
     # elite 1 (best fitness) is 40 % off, elite 2 (the one trajectory.csv runs) 3 % off
     data["elites"] = [_elite(1, 1.4, 3.0), _elite(2, 1.03, 4.0)]
     data["config"]["estimation"] = {"methods": ["wls"]}
