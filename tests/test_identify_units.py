@@ -10,56 +10,21 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-import yaml
+from robots import rp2_identify_config
 from typer.testing import CliRunner
 
 from ident.cli import app
-from ident.measure.ideal import NoiseModel, simulate_measurements
 
 ROOT = Path(__file__).resolve().parents[1]
 URDF = ROOT / "tests" / "data" / "urdf" / "rp2.urdf"
 RATE_HZ = 100.0
 
 
-def _rp2_log(tmp_path: Path) -> Path:
-    """A 12 s log of the revolute-prismatic rp2 arm (wide CSV) and its identify config."""
-    model = pin.buildModelFromUrdf(str(URDF))
-    t = np.arange(int(12 * RATE_HZ)) / RATE_HZ
-    w = 2.0 * np.pi * 0.25 * np.array([1.0, 2.0, 3.0])
-    # shoulder: +-1 rad; slider: +-0.15 m, inside its limits
-    amp = np.array([[0.6, 0.08], [0.3, 0.05], [0.15, 0.02]])
-    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-    q, dq, ddq = s @ amp, (c * w) @ amp, -(s * w**2) @ amp
-    m = simulate_measurements(model, t, q, dq, ddq, NoiseModel(torque_std=(0.02, 0.05)), rng=3)
-    tau = m.tau + np.array([0.4, 2.0]) * dq + np.array([0.3, 1.5]) * np.sign(dq)
-    header = "t,q_shoulder,q_slider,tau_shoulder,tau_slider"
-    rows = np.column_stack([t, m.q, tau])
-    log = tmp_path / "rp2.csv"
-    log.write_text(header + "\n" + "\n".join(",".join(f"{v:.9g}" for v in r) for r in rows))
-    cfg = {
-        "name": "rp2",
-        "robot": {"urdf": str(URDF)},
-        "log": {
-            "time": {"path": str(log), "column": "t"},
-            "position": {"path": str(log), "columns": ["q_shoulder", "q_slider"]},
-            "torque": {"path": str(log), "columns": ["tau_shoulder", "tau_slider"]},
-        },
-        "transmission": {},
-        "preprocess": {"lowpass": {"cutoff_hz": 10.0, "order": 4}, "trim_samples": 10},
-        "model": {"viscous": True, "coulomb": True, "offset": False, "rotor_inertia": False},
-        "estimation": {"method": "wls", "essential": {"enabled": False}},
-        "validation": {"identify_fraction": 0.7},
-    }
-    path = tmp_path / "rp2.yaml"
-    path.write_text(yaml.safe_dump(cfg))
-    return path
-
-
 @pytest.fixture(scope="module")
 def rp2_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("rp2")
     res = CliRunner().invoke(
-        app, ["identify", str(_rp2_log(tmp)), "--out", str(tmp / "runs"), "--no-replay"]
+        app, ["identify", str(rp2_identify_config(tmp)), "--out", str(tmp / "runs"), "--no-replay"]
     )
     assert res.exit_code == 0, res.output
     (run_dir,) = (tmp / "runs").iterdir()

@@ -16,7 +16,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import umsgpack
-from robots import ERD_SHARE, UR5_URDF
+from robots import ERD_SHARE, UR5_URDF, rp2_identify_config
 from test_replay import animation_of, html_commands, track
 
 from ident.errors import IdentWarning
@@ -256,43 +256,12 @@ def test_identify_motion_of_a_two_segment_log_replays_both_segments():
 
 def test_identify_says_when_its_replay_fails(tmp_path, monkeypatch):
     """A replay that fails never passes silently: a 'warning:' line, run.json says what."""
-    import yaml
     from typer.testing import CliRunner
 
     import ident.viz.replay
     from ident.cli import app
-    from ident.measure.ideal import NoiseModel, simulate_measurements
 
-    urdf = ROOT / "tests" / "data" / "urdf" / "rp2.urdf"
-    model = pin.buildModelFromUrdf(str(urdf))
-    t = np.arange(800) / 100.0
-    w = 2.0 * np.pi * 0.25 * np.array([1.0, 2.0, 3.0])
-    amp = np.array([[0.6, 0.08], [0.3, 0.05], [0.15, 0.02]])
-    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
-    q, dq, ddq = s @ amp, (c * w) @ amp, -(s * w**2) @ amp
-    m = simulate_measurements(model, t, q, dq, ddq, NoiseModel(torque_std=(0.02, 0.05)), rng=3)
-    log = tmp_path / "rp2.csv"
-    rows = np.column_stack([t, m.q, m.tau])
-    log.write_text(
-        "t,q_shoulder,q_slider,tau_shoulder,tau_slider\n"
-        + "\n".join(",".join(f"{v:.9g}" for v in r) for r in rows)
-    )
-    cfg = {
-        "name": "rp2",
-        "robot": {"urdf": str(urdf)},
-        "log": {
-            "time": {"path": str(log), "column": "t"},
-            "position": {"path": str(log), "columns": ["q_shoulder", "q_slider"]},
-            "torque": {"path": str(log), "columns": ["tau_shoulder", "tau_slider"]},
-        },
-        "transmission": {},
-        "preprocess": {"lowpass": {"cutoff_hz": 10.0, "order": 4}, "trim_samples": 10},
-        "model": {"viscous": False, "coulomb": False, "offset": False, "rotor_inertia": False},
-        "estimation": {"method": "wls", "essential": {"enabled": False}},
-        "validation": {"identify_fraction": 0.7},
-    }
-    config = tmp_path / "rp2.yaml"
-    config.write_text(yaml.safe_dump(cfg))
+    config = rp2_identify_config(tmp_path)  # a 12 s log of the rp2 arm, identified by WLS
 
     def broken(*args, **kwargs):
         raise RuntimeError("the replay broke")
