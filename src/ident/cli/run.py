@@ -45,6 +45,7 @@ def run(
     """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
     from ident.errors import IdentError
     from ident.inputs import check_output_dir
+    from ident.report.run_data import save_run_model
     from ident.report.run_report import save_run, write_replay, write_report
     from ident.run.config import load_run_config
     from ident.run.exports.run_exports import check_run_exports, export_run
@@ -101,6 +102,7 @@ def run(
         try:
             save_run(result, rundir.path)
             save_logs(result, rundir.path)
+            save_run_model(result, rundir.path)  # the identified model: URDF, MJCF, extras
             # controller files of the certified trajectory, checked, written, re-read
             exports = export_run(result, rundir.path)
             if exports is not None:
@@ -281,6 +283,15 @@ def _summary(
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")
     table.add_row("replay", replay_note)
+    model = data.get("model")
+    if model is not None:  # a simulated log's identification: the identified model's files
+        table.add_row(
+            "identified model",
+            f"{model['files']['urdf']}, {model['files']['mjcf']} ({model['method']}, "
+            f"reload parity {max(model['reload_parity'][k] for k in ('urdf', 'mjcf')):.1e})"
+            if model["written"] and model["reload_parity"]
+            else str(model["note"]),
+        )
     v = stored_verdict(data)
     table.add_row("verdict", f"{v['label']} ({v['reason']})")
     for warning in v.get("warnings") or []:
