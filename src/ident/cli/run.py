@@ -283,15 +283,8 @@ def _summary(
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")
     table.add_row("replay", replay_note)
-    model = data.get("model")
-    if model is not None:  # a simulated log's identification: the identified model's files
-        table.add_row(
-            "identified model",
-            f"{model['files']['urdf']}, {model['files']['mjcf']} ({model['method']}, "
-            f"reload parity {max(model['reload_parity'][k] for k in ('urdf', 'mjcf')):.1e})"
-            if model["written"] and model["reload_parity"]
-            else str(model["note"]),
-        )
+    if data.get("model") is not None:  # a simulated log's identification: the model's files
+        table.add_row("identified model", _model_text(data["model"]))
     v = stored_verdict(data)
     table.add_row("verdict", f"{v['label']} ({v['reason']})")
     for warning in v.get("warnings") or []:
@@ -303,3 +296,14 @@ def _summary(
     # plain lines, never truncated by the table layout
     typer.echo(f"Report: {report_path}")
     typer.echo(f"Run folder: {run_dir}")
+
+
+def _model_text(model: dict[str, Any]) -> str:
+    """The identified model's files and reload parity (``model`` of ``result.json``)."""
+    if not (model["written"] and model["reload_parity"]):
+        return str(model["note"])
+    parity = max(model["reload_parity"][k] for k in ("urdf", "mjcf"))
+    return (
+        f"{model['files']['urdf']}, {model['files']['mjcf']} ({model['method']}, reload "
+        f"parity {parity:.1e})"
+    )

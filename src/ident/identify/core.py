@@ -225,13 +225,7 @@ def _identify(
     t3 = time.perf_counter()
     cons = _estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
     est = cons.estimates[cfg.estimation.least_squares_method]
-    identified_model: ConsistentIdentification | None = cons
-    if cfg.urdf_update.model == "none":
-        identified_model = None
-    elif not cons.contract.consistent:  # the model is consistent whatever the configured fit
-        identified_model = _estimators(
-            cfg, model, pm, first, last, red, (), joints, source, method=MODEL_METHOD
-        )
+    identified_model = _model_identification(cfg, cons, model, pm, first, last, red, joints)
     timings["estimate"] = time.perf_counter() - t3
     t4 = time.perf_counter()
     essential = _essential(cfg, red, pm)
@@ -533,6 +527,27 @@ def _estimators(
         ) from e
     except DataError as e:
         raise DataError(f"{source}: {e}") from e
+
+
+def _model_identification(
+    cfg: IdentifyConfig,
+    cons: ConsistentIdentification,
+    model: pin.Model,
+    pm: ParameterModel,
+    first: ReducedObservations | None,
+    last: ReducedObservations | None,
+    red: ReducedObservations,
+    joints: list[str],
+) -> ConsistentIdentification | None:
+    """The identification of the identified model (:attr:`IdentifyResult.model`): ``cons``
+    when its estimator promises consistency, else :data:`MODEL_METHOD` on the same rows; None
+    with ``urdf_update.model: none``."""
+    if cfg.urdf_update.model == "none":
+        return None
+    if cons.contract.consistent:
+        return cons
+    source = str(cfg.source or "config")
+    return _estimators(cfg, model, pm, first, last, red, (), joints, source, method=MODEL_METHOD)
 
 
 def _essential(

@@ -252,32 +252,37 @@ def result_dict(
     if model is not None:
         out["model"] = model
     if urdf is not None:
-        out["urdf"] = {
-            "file": f"{_robot_file(result).stem}_cautious.urdf"
-            if result.config.urdf_update.cautious
-            else None,
-            "max_relative_std_pct": urdf.max_relative_std_pct,
-            "written": {k: list(v) for k, v in urdf.written.items()},
-            "uncertain": {k: _finite(v) for k, v in urdf.uncertain.items()},
-            "not_determined": list(urdf.not_determined),
-            "inconsistent_links": urdf.inconsistent_links,
-            "links": [
-                {
-                    "link": link.link,
-                    "joint": link.joint,
-                    "status": link.status,
-                    "written": {k: list(v) for k, v in link.written.items()},
-                    "uncertain": {k: _finite(v) for k, v in link.uncertain.items()},
-                    "rejected": {k: list(v) for k, v in link.rejected.items()},
-                    "not_determined": list(link.not_determined),
-                    "problem": link.problem,
-                }
-                for link in urdf.links
-            ],
-        }
+        out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)
     out["verdict"] = verdict_entry(result)
     return out
+
+
+def _cautious_entry(result: IdentifyResult, urdf: UrdfUpdate) -> dict:
+    """The ``urdf`` entry of ``result.json``: the cautious copy, link by link."""
+    return {
+        "file": f"{_robot_file(result).stem}_cautious.urdf"
+        if result.config.urdf_update.cautious
+        else None,
+        "max_relative_std_pct": urdf.max_relative_std_pct,
+        "written": {k: list(v) for k, v in urdf.written.items()},
+        "uncertain": {k: _finite(v) for k, v in urdf.uncertain.items()},
+        "not_determined": list(urdf.not_determined),
+        "inconsistent_links": urdf.inconsistent_links,
+        "links": [
+            {
+                "link": link.link,
+                "joint": link.joint,
+                "status": link.status,
+                "written": {k: list(v) for k, v in link.written.items()},
+                "uncertain": {k: _finite(v) for k, v in link.uncertain.items()},
+                "rejected": {k: list(v) for k, v in link.rejected.items()},
+                "not_determined": list(link.not_determined),
+                "problem": link.problem,
+            }
+            for link in urdf.links
+        ],
+    }
 
 
 def verdict_entry(result: IdentifyResult) -> dict:
