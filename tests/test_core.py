@@ -144,13 +144,16 @@ def test_run_then_identify_its_log_same_estimate_with_an_unconstrained_toy(ridge
     cons = result["consistency"]
     assert cons["method"] == "ridge"
     assert "ridge" in cons["estimators"]
-    assert not list(id_dir.glob("*_consistent.urdf"))  # no promise of consistency: no model
+    # no promise of consistency: the model is the default consistent estimator's, not ridge's
+    assert result["model"]["method"] == "lmi"
+    assert result["model"]["written"]
 
 
 def test_contract_decides_what_is_reported_not_the_name(ridge):
     # the toy promises no consistency: its estimate is reported beside WLS, checked for
     # consistency, and no model file is built from it (the contract is read, not the name)
-    from ident.identify.estimators.summary import identified_model
+    from ident.identify.core import MODEL_METHOD
+    from ident.identify.estimators.summary import model_identification
 
     cfg, log = _wide_log()
     cfg = cfg.model_copy(
@@ -163,7 +166,12 @@ def test_contract_decides_what_is_reported_not_the_name(ridge):
     assert "ridge" in result.predictions
     # ridge with a 1e-9 shrink is WLS-weighted least squares: same fit to 1e-6
     np.testing.assert_allclose(cons.constrained.x, result.estimate.x, rtol=0, atol=1e-6)
-    assert identified_model(result) is None
+    # no model file is built from it: the model is the consistent estimator's, beside
+    model = model_identification(result)
+    assert model is not cons
+    assert model.method == MODEL_METHOD == "lmi"
+    assert model.constrained.consistent
+    assert "lmi" in result.predictions
     registry.register_estimator(
         "rows_only",
         registry.get_estimator("ridge"),

@@ -94,9 +94,20 @@ def test_cli_writes_the_consistent_model(tmp_path, result):
     assert "| Physical consistency | lmi: 6 of 6 links physically consistent" in report
     extras = json.loads((folder / "tx40_mdh_modified_joint_extras.json").read_text())
     assert set(extras["joints"]) == {f"joint_{j}" for j in range(1, 7)}
+    import mujoco
     import pinocchio as pin
 
-    model = pin.buildModelFromUrdf(str(folder / "tx40_mdh_modified_consistent.urdf"))
+    # the identified model: URDF + MJCF (no meshes shipped: MuJoCo loads it all the same),
+    # reloaded with the estimate's torques
+    assert data["model"]["files"] == {
+        "urdf": "tx40_mdh_modified_identified.urdf",
+        "mjcf": "tx40_mdh_modified_identified.xml",
+        "joint_extras": "tx40_mdh_modified_joint_extras.json",
+    }
+    assert max(data["model"]["reload_parity"][k] for k in ("urdf", "mjcf")) < 1e-9
+    assert mujoco.MjModel.from_xml_path(str(folder / "tx40_mdh_modified_identified.xml")).nv == 6
+    assert "`tx40_mdh_modified_identified.xml`" in report
+    model = pin.buildModelFromUrdf(str(folder / "tx40_mdh_modified_identified.urdf"))
     # every link carries the constrained estimate's body (link 1: only Izz1 + Ia1 is seen;
     # the prior keeps the URDF's link and the rotor inertia takes the rest)
     est = result.consistent.constrained

@@ -61,7 +61,9 @@ def test_identify_slice_agrees_with_reference(tmp_path):
         "report.html",
         "result.json",
         "parameters.csv",
-        "tx40_mdh_modified_identified.urdf",
+        "tx40_mdh_modified_identified.urdf",  # the identified model (LMI beside WLS)
+        "tx40_mdh_modified_identified.xml",
+        "tx40_mdh_modified_cautious.urdf",  # urdf_update.cautious: true in configs/tx40.yaml
         "figures/torque_validation.png",
     ):
         assert (run / name).is_file(), name
@@ -88,13 +90,13 @@ def test_identify_slice_agrees_with_reference(tmp_path):
     assert compared >= 12
     names = {p["name"] for p in data["base_parameters"]}
     assert {"fv1", "fs1", "Ia3", "Iam6", "fvm6", "fsm6", "Izz1R"} <= names
-    # URDF copy: the written standard parameters are the identified ones, the rest nominal
+    # cautious copy: the written standard parameters are the identified ones, the rest nominal
     from ident.dynamics.parameters import parameter_names, parameters_from_model
     from ident.identify.real import load_robot_model
 
     names = parameter_names(6)
     nominal = parameters_from_model(load_robot_model(DATA / "urdf" / "tx40_mdh_modified.urdf"))
-    updated = parameters_from_model(load_robot_model(run / "tx40_mdh_modified_identified.urdf"))
+    updated = parameters_from_model(load_robot_model(run / "tx40_mdh_modified_cautious.urdf"))
     written = data["urdf"]["written"]
     # the 21 standard parameters that base parameters determine alone all have a relative std
     # above the default 10 % on this slice (19 % at best; tests/test_urdf_update.py writes some)

@@ -66,6 +66,18 @@ def test_identify_on_the_run_folder_log_gives_the_runs_estimate(quick_run, tmp_p
     x_identify = np.array([p["value"] for p in again["base_parameters"]])
     assert [p["name"] for p in again["base_parameters"]] == run["stage"]["base_names"]
     np.testing.assert_allclose(x_identify, x_run, rtol=1e-12, atol=0.0)
+    # both write the identified model of this log (the run: of the executed elite, here 1),
+    # the same consistent LMI estimate: the same URDF and MJCF (the run names the files
+    # after the config's URDF, identify after the run folder's copy, robot.urdf)
+    model, model_again = run["model"], again["model"]
+    assert model["elite"] == run["executed_elite"] == 1
+    assert model["method"] == model_again["method"] == "lmi"
+    assert max(model["reload_parity"][k] for k in ("urdf", "mjcf")) <= 1e-9
+    assert model["files"]["urdf"] == "ur5_identified.urdf"
+    for key in ("urdf", "mjcf"):
+        ours = (quick_run / model["files"][key]).read_text()
+        theirs = (_only(tmp_path) / model_again["files"][key]).read_text()
+        assert ours == theirs, key
 
 
 def test_friction_and_rotor_inertia_are_recovered_from_the_simulated_log(quick_run) -> None:

@@ -72,8 +72,17 @@ def test_tiago_consistent_model_is_written_and_reloads(run, tmp_path):
     files = write_model_files(
         robot, theta, names, tmp_path, "tiago", nominal=consistent.structure.nominal
     )
-    # the CLI's consistent URDF is this file (the rest of the user's file unchanged)
-    assert (folder / "tiago_48_schunk_consistent.urdf").read_text() == files.urdf.text
+    # the CLI's identified model is these files (the rest of the user's file unchanged)
+    assert (folder / "tiago_48_schunk_identified.urdf").read_text() == files.urdf.text
+    assert (folder / "tiago_48_schunk_identified.xml").read_text() == files.mjcf
+    assert (folder / "tiago_48_schunk_joint_extras.json").read_text() == files.extras_json
+    assert not list(folder.glob("*_cautious.urdf"))  # the cautious copy only when asked
+    recorded = json.loads((folder / "result.json").read_text())["model"]
+    assert recorded["written"]
+    assert recorded["method"] == "lmi"
+    assert max(recorded["reload_parity"]["urdf"], recorded["reload_parity"]["mjcf"]) < 1e-9
+    held = recorded["held_out_relative_residual"]  # the consistent model vs WLS, held out
+    assert held["lmi"] <= 1.02 * held["wls"]
     # reloaded: Pinocchio RNEA of the URDF, MuJoCo inverse dynamics of the MJCF (no meshes)
     parity = reload_parity(robot, files, theta, names)
     assert parity.urdf_relative_error < 1e-9

@@ -144,6 +144,7 @@ def identify(
                 f"RMSE per joint {rmse}"
             )
         typer.echo(replay_note)
+        _echo_model(rundir.path / "result.json")
         verdict = identify_verdict(result)  # the one the report and result.json show
         typer.echo(f"verdict: {verdict.label} ({verdict.reason})")
         typer.echo(f"report: {rundir.path / 'report.html'}")
@@ -154,3 +155,23 @@ def identify(
             "error: validation.fail_on_warning is set and the result has warnings.", err=True
         )
         raise typer.Exit(code=1)
+
+
+def _echo_model(result_json: Path) -> None:
+    """One line on the identified model (its files and reload parity) from ``result.json``."""
+    import json
+
+    model = json.loads(result_json.read_text(encoding="utf-8")).get("model") or {}
+    if not model.get("written"):
+        typer.echo(f"model: {model.get('note') or 'not written'}")
+        return
+    files, parity = model["files"], model["reload_parity"]
+    typer.echo(
+        f"model ({model['method']}, every link consistent): {files['urdf']}, {files['mjcf']}, "
+        f"{files['joint_extras']}"
+        + (
+            f"; reloaded: URDF {parity['urdf']:.1e}, MJCF {parity['mjcf']:.1e} relative"
+            if parity
+            else f"; {model['note']}"
+        )
+    )

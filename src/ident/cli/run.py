@@ -45,6 +45,7 @@ def run(
     """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
     from ident.errors import IdentError
     from ident.inputs import check_output_dir
+    from ident.report.run_data import save_run_model
     from ident.report.run_report import save_run, write_replay, write_report
     from ident.run.config import load_run_config
     from ident.run.exports.run_exports import check_run_exports, export_run
@@ -101,6 +102,7 @@ def run(
         try:
             save_run(result, rundir.path)
             save_logs(result, rundir.path)
+            save_run_model(result, rundir.path)  # the identified model: URDF, MJCF, extras
             # controller files of the certified trajectory, checked, written, re-read
             exports = export_run(result, rundir.path)
             if exports is not None:
@@ -281,6 +283,8 @@ def _summary(
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")
     table.add_row("replay", replay_note)
+    if data.get("model") is not None:  # a simulated log's identification: the model's files
+        table.add_row("identified model", _model_text(data["model"]))
     v = stored_verdict(data)
     table.add_row("verdict", f"{v['label']} ({v['reason']})")
     for warning in v.get("warnings") or []:
@@ -292,3 +296,14 @@ def _summary(
     # plain lines, never truncated by the table layout
     typer.echo(f"Report: {report_path}")
     typer.echo(f"Run folder: {run_dir}")
+
+
+def _model_text(model: dict[str, Any]) -> str:
+    """The identified model's files and reload parity (``model`` of ``result.json``)."""
+    if not (model["written"] and model["reload_parity"]):
+        return str(model["note"])
+    parity = max(model["reload_parity"][k] for k in ("urdf", "mjcf"))
+    return (
+        f"{model['files']['urdf']}, {model['files']['mjcf']} ({model['method']}, reload "
+        f"parity {parity:.1e})"
+    )

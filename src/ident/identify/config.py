@@ -422,14 +422,23 @@ class ReferenceConfig(StrictModel):
 
 
 class UrdfUpdateConfig(StrictModel):
-    """Writing identified inertial parameters into a copy of the URDF
-    (see :mod:`ident.identify.urdf_update`).
+    """The identified model's files (see :mod:`ident.identify.model_files`).
 
-    Only standard parameters that a base parameter determines alone and whose relative standard
-    deviation is below ``max_relative_std_pct`` are written; a link that would become physically
-    inconsistent keeps its nominal inertial.
+    ``model: consistent`` (default): the physically consistent estimate of every link (the
+    configured estimator when its contract promises consistency, else
+    :data:`~ident.identify.core.MODEL_METHOD` computed beside the least-squares fit, with the
+    prior along the directions the log does not see) is written as
+    ``<urdf>_identified.urdf``, ``<urdf>_identified.xml`` (MJCF) and
+    ``<urdf>_joint_extras.json``; ``none``: no model file.
+
+    ``cautious: true`` also writes ``<urdf>_cautious.urdf``: only the standard parameters that
+    a base parameter determines alone and whose relative standard deviation is below
+    ``max_relative_std_pct`` changed; a link that would become physically inconsistent keeps
+    its nominal inertial.
     """
 
+    model: Literal["consistent", "none"] = "consistent"
+    cautious: bool = False
     max_relative_std_pct: float = Field(default=10.0, gt=0.0)
 
 

@@ -18,6 +18,10 @@ reduced rows (:mod:`ident.run.elite_identification`).
 5. validation: held-out prediction of the identified, essential, constrained, reference and
    URDF-nominal parameters (:mod:`ident.identify.validation`) and the warnings.
 
+The identified model (``urdf_update.model: consistent``, the default) is a physically
+consistent estimate of every link: the configured estimator's when its contract promises
+consistency, else :data:`MODEL_METHOD`'s, computed beside on the same rows (``model``).
+
 Nothing here writes files; :mod:`ident.report.identify_report` does.
 """
 
@@ -58,9 +62,13 @@ from ident.identify.validation import ModelPrediction, held_out_warnings, predic
 from ident.model.selection import load_robot
 from ident.trajectory import JointTrajectory
 
-__all__ = ["IdentifyResult", "identify_measurements", "replay_motion"]
+__all__ = ["MODEL_METHOD", "IdentifyResult", "identify_measurements", "replay_motion"]
 
 FloatArray = npt.NDArray[np.float64]
+
+#: The estimator of the identified model when the configured one promises no consistency
+#: (LMI, WLS-weighted, prior toward the URDF along the directions the log does not see).
+MODEL_METHOD = "lmi"
 
 #: Longest stretch of a log shown in the replay [s].
 MOTION_MAX_S = 600.0
@@ -105,6 +113,12 @@ class IdentifyResult:
         Plain-language problems with the result; empty when none.
     reduction :
         The identification rows reduced per joint (what every estimator used).
+    model :
+        The identification whose ``constrained`` estimate is the identified model (consistent
+        standard parameters of every link): :attr:`consistent` itself when the configured
+        estimator promises consistency, else :data:`MODEL_METHOD`'s; None with
+        ``urdf_update.model: none``. Its held-out prediction is
+        ``predictions[model.method]``.
     """
 
     config: IdentifyConfig
@@ -129,6 +143,7 @@ class IdentifyResult:
     warnings: tuple[str, ...] = ()
     consistent: ConsistentIdentification | None = None
     reduction: ReducedObservations | None = None
+    model: ConsistentIdentification | None = None
 
     @property
     def status(self) -> str:
@@ -210,12 +225,13 @@ def _identify(
     t3 = time.perf_counter()
     cons = _estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
     est = cons.estimates[cfg.estimation.least_squares_method]
+    identified_model = _model_identification(cfg, cons, model, pm, first, last, red, joints)
     timings["estimate"] = time.perf_counter() - t3
     t4 = time.perf_counter()
     essential = _essential(cfg, red, pm)
     timings["essential"] = time.perf_counter() - t4
     t5 = time.perf_counter()
-    vectors = _vectors(est, essential, cons, pm)
+    vectors = _vectors(est, essential, cons, pm, identified_model)
     tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
     comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
     timings["validate"] = time.perf_counter() - t5
@@ -251,6 +267,7 @@ def _identify(
         warnings=tuple(problems),
         consistent=cons,
         reduction=red,
+        model=identified_model,
     )
 
 
@@ -475,9 +492,12 @@ def _estimators(
     ellipsoids: tuple,
     joints: list[str],
     source: str,
+    *,
+    method: str | None = None,
 ) -> ConsistentIdentification:
-    """OLS, WLS and the configured estimator on the reduced rows (``first`` and ``last``:
-    the identification rows in two parts, the last one choosing a prior's weight)."""
+    """OLS, WLS and the configured estimator (or ``method``) on the reduced rows (``first``
+    and ``last``: the identification rows in two parts, the last one choosing a prior's
+    weight)."""
     est_cfg = cfg.estimation
     if first is None or last is None:  # too few samples to split: the weight is chosen on all
         first = last = red
@@ -487,7 +507,7 @@ def _estimators(
             pm,
             first,
             last,
-            method=est_cfg.method,
+            method=method or est_cfg.method,
             weight=est_cfg.regularization.weight,
             ellipsoids=ellipsoids,
             options={"friction": est_cfg.friction},
@@ -507,6 +527,27 @@ def _estimators(
         ) from e
     except DataError as e:
         raise DataError(f"{source}: {e}") from e
+
+
+def _model_identification(
+    cfg: IdentifyConfig,
+    cons: ConsistentIdentification,
+    model: pin.Model,
+    pm: ParameterModel,
+    first: ReducedObservations | None,
+    last: ReducedObservations | None,
+    red: ReducedObservations,
+    joints: list[str],
+) -> ConsistentIdentification | None:
+    """The identification of the identified model (:attr:`IdentifyResult.model`): ``cons``
+    when its estimator promises consistency, else :data:`MODEL_METHOD` on the same rows; None
+    with ``urdf_update.model: none``."""
+    if cfg.urdf_update.model == "none":
+        return None
+    if cons.contract.consistent:
+        return cons
+    source = str(cfg.source or "config")
+    return _estimators(cfg, model, pm, first, last, red, (), joints, source, method=MODEL_METHOD)
 
 
 def _essential(
@@ -529,11 +570,13 @@ def _vectors(
     essential: EssentialResult | None,
     cons: ConsistentIdentification,
     pm: ParameterModel,
+    model: ConsistentIdentification | None = None,
 ) -> dict[str, FloatArray]:
     """The base-parameter vectors predicted on the held-out rows, by label."""
     vectors = {"identified": est.x}
-    if cons.constrained is not None:
-        vectors[cons.method] = cons.constrained.x
+    for identification in (cons, model):
+        if identification is not None and identification.constrained is not None:
+            vectors[identification.method] = identification.constrained.x
     if essential is not None:
         x_ess = np.zeros(len(pm.base_names))
         x_ess[list(essential.kept)] = essential.estimate.x

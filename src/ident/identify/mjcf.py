@@ -138,6 +138,26 @@ def identified_mjcf(
         If MuJoCo cannot compile the URDF, or its moving joints differ from ``joint_names``.
     """
     text = mujoco_urdf(_with_bodies(urdf_text, bodies, source), dict(locked_joints or {}), source)
+    spec = _spec(text, joint_names, source)
+    for name in joint_names:
+        joint = spec.joint(name)
+        values = extras.get(name, {})
+        joint.armature = float(values.get("rotor_inertia", 0.0))
+        joint.damping = _vector_or_scalar(joint.damping, float(values.get("viscous", 0.0)))
+        joint.frictionloss = float(values.get("coulomb", 0.0))
+    _add_coupled_motors(spec, coupled_motors, joint_names, source)
+    spec.option.gravity = np.asarray(gravity, dtype=float)
+    model = _compile(spec, source)
+    root = ET.fromstring(spec.to_xml())
+    _full_precision(root, model)
+    ET.indent(root, space="  ")
+    body = ET.tostring(root, encoding="unicode")
+    return f"<!--{MJCF_NOTE}-->\n{body}\n"
+
+
+def _spec(text: str, joint_names: tuple[str, ...], source: str) -> mujoco.MjSpec:
+    """MuJoCo's spec of the converted URDF ``text``, one body per link, its moving joints
+    checked against ``joint_names`` (:func:`identified_mjcf`)."""
     try:
         spec = mujoco.MjSpec.from_string(text)
     except ValueError as e:
@@ -150,12 +170,17 @@ def identified_mjcf(
             f"{source}: MuJoCo's moving joints ({', '.join(names)}) are not the identified "
             f"robot's ({', '.join(joint_names)}); lock the same joints."
         )
-    for name in joint_names:
-        joint = spec.joint(name)
-        values = extras.get(name, {})
-        joint.armature = float(values.get("rotor_inertia", 0.0))
-        joint.damping = _vector_or_scalar(joint.damping, float(values.get("viscous", 0.0)))
-        joint.frictionloss = float(values.get("coulomb", 0.0))
+    return spec
+
+
+def _add_coupled_motors(
+    spec: mujoco.MjSpec,
+    coupled_motors: Sequence[Mapping[str, Any]],
+    joint_names: tuple[str, ...],
+    source: str,
+) -> None:
+    """One fixed tendon ``q_a + q_b`` per coupled motor, with its armature, damping and
+    friction loss (:func:`identified_mjcf`)."""
     for k, motor in enumerate(coupled_motors):
         pair = motor.get("joints")
         if not pair or any(name not in joint_names for name in pair):
@@ -170,13 +195,6 @@ def identified_mjcf(
         tendon.armature = float(motor.get("rotor_inertia", 0.0))
         tendon.damping = _vector_or_scalar(tendon.damping, float(motor.get("viscous", 0.0)))
         tendon.frictionloss = float(motor.get("coulomb", 0.0))
-    spec.option.gravity = np.asarray(gravity, dtype=float)
-    model = _compile(spec, source)
-    root = ET.fromstring(spec.to_xml())
-    _full_precision(root, model)
-    ET.indent(root, space="  ")
-    body = ET.tostring(root, encoding="unicode")
-    return f"<!--{MJCF_NOTE}-->\n{body}\n"
 
 
 def _with_bodies(urdf_text: str, bodies: Mapping[str, npt.ArrayLike], source: str) -> str:

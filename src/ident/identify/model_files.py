@@ -12,17 +12,26 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from ident.errors import IdentError
 from ident.fileio import atomic_write_text
 from ident.identify.mjcf import identified_mjcf
 from ident.identify.urdf_update import IdentifiedModel, identified_urdf
 from ident.model import Robot
 from ident.robot.inertia import PINOCCHIO_ORDER
 
-__all__ = ["ModelFiles", "ReloadParity", "model_files", "reload_parity", "write_model_files"]
+__all__ = [
+    "ModelFiles",
+    "ReloadParity",
+    "model_files",
+    "reload_parity",
+    "save_identified_model",
+    "write_model_files",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -242,3 +251,88 @@ def reload_parity(
         got[k] = mj_data.qfrc_inverse[dof]
     mjcf_error = float(np.abs(got - expected).max()) / max(float(np.abs(expected).max()), scale)
     return ReloadParity(urdf_error, mjcf_error, n_states)
+
+
+def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
+    """Write the identified model of an identification and return its ``result.json`` entry.
+
+    The model is ``result.model`` (:class:`~ident.identify.core.IdentifyResult`): the
+    physically consistent estimate of every link. Its files are
+    ``<stem>_identified.urdf``, ``<stem>_identified.xml`` and ``<stem>_joint_extras.json``
+    (``<stem>``: the robot file's name, :func:`write_model_files`); once written, both model
+    files are reloaded and compared with the estimate (:func:`reload_parity`).
+
+    Returns
+    -------
+    :
+        JSON-ready: ``written`` (bool), ``method``, ``files`` (``urdf``, ``mjcf``,
+        ``joint_extras``: names in ``out_dir``), ``reload_parity`` (``urdf``, ``mjcf``: the
+        largest relative torque difference; ``n_states``), ``held_out_relative_residual``
+        (the model's and the least-squares fit's, rows above the velocity threshold) and
+        ``note`` (why nothing was written, or None). A model the files cannot represent (a
+        :class:`~ident.errors.IdentError` from the write-back or MuJoCo) is a ``note``, not
+        an exception: the estimate is saved before, the report says what happened.
+    """
+    from ident.identify.estimators.summary import model_identification
+    from ident.model.selection import load_robot
+
+    model = model_identification(result)
+    ls_method = result.config.estimation.least_squares_method
+    entry: dict[str, Any] = {
+        "written": False,
+        "method": None if result.model is None else result.model.method,
+        "files": None,
+        "reload_parity": None,
+        "held_out_relative_residual": None,
+        "note": None,
+    }
+    if model is None:
+        entry["note"] = (
+            "no model written: urdf_update.model is none"
+            if result.model is None
+            else f"no model written: {result.model.method} did not give a consistent estimate"
+            + (
+                f" ({result.model.constrained.message})"
+                if result.model.constrained is not None
+                else ""
+            )
+        )
+        return entry
+    held_out = {
+        label: _finite(result.predictions[key].metrics.total_relative_residual)
+        for label, key in ((model.method, model.method), (ls_method, "identified"))
+        if key in result.predictions
+    }
+    entry["held_out_relative_residual"] = held_out
+    est = model.constrained
+    names = model.structure.names
+    try:
+        robot = load_robot(result.config.robot)  # the identified chain, its locked joints
+        files = write_model_files(
+            robot,
+            est.theta,
+            names,
+            out_dir,
+            Path(result.config.robot.path).stem,
+            nominal=model.structure.nominal,
+            coupled_pair=result.parameters.terms.coupled_wrist,
+        )
+    except IdentError as e:
+        entry["note"] = f"no model written: {e}"
+        return entry
+    entry.update(written=True, files={key: path.name for key, path in files.paths.items()})
+    try:  # the files are written: a reload that fails is reported, never loses them
+        parity = reload_parity(robot, files, est.theta, names)
+    except IdentError as e:
+        entry["note"] = f"written, but not reloaded: {e}"
+        return entry
+    entry["reload_parity"] = {
+        "urdf": parity.urdf_relative_error,
+        "mjcf": parity.mjcf_relative_error,
+        "n_states": parity.n_states,
+    }
+    return entry
+
+
+def _finite(value: float) -> float | None:
+    return float(value) if np.isfinite(value) else None

@@ -43,7 +43,7 @@ import math
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -84,6 +84,8 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+#: A text edit of the URDF: (start, end, replacement bytes) (:func:`apply_edits`).
+Edit = tuple[int, int, bytes]
 
 DEFAULT_MAX_RELATIVE_STD_PCT = 10.0
 _LABELS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
@@ -253,66 +255,92 @@ def update_urdf_inertials(
         If a joint or its child link is not in the URDF, or the model's joints differ from
         ``joint_names``.
     """
-    from ident.robot.inertia import consistency_problems
-
     if not max_relative_std_pct > 0:
         raise ValueError(f"max_relative_std_pct = {max_relative_std_pct} must be > 0")
     root, bodies = _model_and_bodies(urdf_text, joint_names, model, locked, "URDF")
     urdf = spans(urdf_text)
-    edits = []
+    edits: list[Edit] = []
     updates: list[LinkUpdate] = []
     for i, fused in enumerate(bodies):
-        phi = np.array(nominal[10 * i : 10 * i + 10], dtype=float)
-        candidates: dict[str, tuple[float, float]] = {}
-        uncertain: dict[str, float] = {}
-        not_determined: list[str] = []
-        relative_std: dict[str, float] = {}
-        for k, label in enumerate(_LABELS):
-            name = f"{label}{i + 1}"
-            if name not in identified:
-                not_determined.append(name)
-                continue
-            value, rel_std = identified[name]
-            relative_std[name] = float(rel_std)
-            if math.isfinite(rel_std) and rel_std < max_relative_std_pct:
-                candidates[name] = (float(phi[k]), float(value))
-                phi[k] = value
-            else:
-                uncertain[name] = float(rel_std)
-        problem = ""
-        written: dict[str, tuple[float, float]] = {}
-        rejected: dict[str, tuple[float, float]] = {}
-        scale = 1.0
-        if candidates:
-            problems = consistency_problems(phi)
-            if problems:
-                problem = "; ".join(problems)
-                rejected = candidates
-            else:
-                written = candidates
-                own, scale = compose_body(phi, fused.welded_sum)
-                edits.append(_own_edits(urdf, fused.carrier, own))
-                if scale != 1.0:
-                    edits.extend(_scaled_edit(urdf, root, n, scale) for n, _ in fused.welded)
-        updates.append(
-            LinkUpdate(
-                link=fused.carrier,
-                joint=fused.joint,
-                written=written,
-                uncertain=uncertain,
-                rejected=rejected,
-                not_determined=tuple(not_determined),
-                problem=problem,
-                relative_std_pct=relative_std,
-                welded=tuple(n for n, _ in fused.welded),
-                welded_scale=scale,
-            )
+        update, link_edits = _cautious_link(
+            i,
+            fused,
+            np.array(nominal[10 * i : 10 * i + 10], dtype=float),
+            identified,
+            max_relative_std_pct,
+            urdf,
+            root,
         )
+        updates.append(update)
+        edits.extend(link_edits)
     return UrdfUpdate(
         text=apply_edits(urdf.data, edits),
         links=tuple(updates),
         max_relative_std_pct=float(max_relative_std_pct),
     )
+
+
+def _cautious_link(
+    i: int,
+    fused: FusedBody,
+    phi: FloatArray,
+    identified: dict[str, tuple[float, float]],
+    max_relative_std_pct: float,
+    urdf: UrdfSpans,
+    root: ET.Element,
+) -> tuple[LinkUpdate, list[Edit]]:
+    """Body ``i`` of :func:`update_urdf_inertials`: its :class:`LinkUpdate` and text edits.
+
+    ``phi`` is the body's nominal parameters, shape (10,), replaced in place by the
+    well-identified values.
+    """
+    from ident.robot.inertia import consistency_problems
+
+    candidates: dict[str, tuple[float, float]] = {}
+    uncertain: dict[str, float] = {}
+    not_determined: list[str] = []
+    relative_std: dict[str, float] = {}
+    for k, label in enumerate(_LABELS):
+        name = f"{label}{i + 1}"
+        if name not in identified:
+            not_determined.append(name)
+            continue
+        value, rel_std = identified[name]
+        relative_std[name] = float(rel_std)
+        if math.isfinite(rel_std) and rel_std < max_relative_std_pct:
+            candidates[name] = (float(phi[k]), float(value))
+            phi[k] = value
+        else:
+            uncertain[name] = float(rel_std)
+    problem = ""
+    written: dict[str, tuple[float, float]] = {}
+    rejected: dict[str, tuple[float, float]] = {}
+    scale = 1.0
+    edits: list[Edit] = []
+    if candidates:
+        problems = consistency_problems(phi)
+        if problems:
+            problem = "; ".join(problems)
+            rejected = candidates
+        else:
+            written = candidates
+            own, scale = compose_body(phi, fused.welded_sum)
+            edits.append(_own_edits(urdf, fused.carrier, own))
+            if scale != 1.0:
+                edits.extend(_scaled_edit(urdf, root, n, scale) for n, _ in fused.welded)
+    update = LinkUpdate(
+        link=fused.carrier,
+        joint=fused.joint,
+        written=written,
+        uncertain=uncertain,
+        rejected=rejected,
+        not_determined=tuple(not_determined),
+        problem=problem,
+        relative_std_pct=relative_std,
+        welded=tuple(n for n, _ in fused.welded),
+        welded_scale=scale,
+    )
+    return update, edits
 
 
 @dataclass(frozen=True)
@@ -386,12 +414,9 @@ def identified_urdf(
 
     Notes
     -----
-    Pinocchio fuses the links behind fixed and locked joints into the body of the moving
-    joint above them. Each body is split back by :func:`compose_body`: the welded links keep
-    their nominal inertials when the carrying link is then consistent, else they are scaled
-    down (``IdentifiedModel.welded_scale``); either way the sum is the identified body, so the
-    reloaded model (with the same locks) has the estimate's rigid-body torques, and no link has
-    a negative mass.
+    Each body (links fused through fixed and locked joints) is split back by
+    :func:`compose_body`, so the reloaded model (same locks) has the estimate's torques and no
+    link has a negative mass (module docstring).
 
     Raises
     ------
@@ -401,13 +426,53 @@ def identified_urdf(
         a joint or its child link is missing, or if ``nominal`` does not match the file.
         Nothing is written then.
     """
-    from ident.robot.inertia import consistency_problems
-
     joint_names = tuple(model.names[1:])
     root, bodies = _model_and_bodies(urdf_text, joint_names, model, None, source)
     urdf = spans(urdf_text, source)
     theta = np.asarray(theta, dtype=float)
     index = {name: i for i, name in enumerate(names)}
+    plan = _checked_bodies(root, bodies, theta, index, nominal, source)
+    edits, scales, joints = _body_edits(urdf, root, plan, theta, index)
+    sidecar = {
+        "units": "SI (kg*m^2, N*m*s/rad, N*m), joint side",
+        "torque_model": TORQUE_MODEL,
+        "joints": joints,
+        "coupled_motors": _coupled_motors(theta, index, joint_names, coupled_pair, source),
+    }
+    return IdentifiedModel(
+        text=apply_edits(urdf.data, edits),
+        sidecar=sidecar,
+        links=tuple(fused.carrier for fused, _ in plan),
+        welded_scale=scales,
+    )
+
+
+#: The torque model of the joint-extras file (``IdentifiedModel.sidecar["torque_model"]``).
+TORQUE_MODEL = (
+    "tau_j = rnea_j(q, dq, ddq) + rotor_inertia_j ddq_j + viscous_j dq_j + "
+    "coulomb_j sign(dq_j) + offset_j; a coupled motor b shared by joints a, b adds "
+    "rotor_inertia (ddq_a + ddq_b) + viscous (dq_a + dq_b) + coulomb sign(dq_a + dq_b) "
+    "to rows a and b"
+)
+
+
+def _extra(theta: FloatArray, index: dict[str, int], name: str) -> float | None:
+    """The extra parameter ``name`` of ``theta``, or None when the model has none."""
+    return float(theta[index[name]]) if name in index else None
+
+
+def _checked_bodies(
+    root: ET.Element,
+    bodies: list[FusedBody],
+    theta: FloatArray,
+    index: dict[str, int],
+    nominal: FloatArray | None,
+    source: str,
+) -> list[tuple[FusedBody, FloatArray]]:
+    """Each fused body with its estimated parameters (shape (10,)), all checked: present,
+    consistent, and (``nominal`` given) the file's nominal body (:func:`identified_urdf`)."""
+    from ident.robot.inertia import consistency_problems
+
     problems = []
     plan = []
     for j, fused in enumerate(bodies, start=1):
@@ -435,30 +500,49 @@ def identified_urdf(
             "the whole-model write-back takes a consistent estimate (estimation.method: lmi "
             "or log_cholesky). The cautious write-back keeps nominal values instead."
         )
+    return plan
 
-    def extra(name: str) -> float | None:
-        return float(theta[index[name]]) if name in index else None
 
-    edits = []
+def _body_edits(
+    urdf: UrdfSpans,
+    root: ET.Element,
+    plan: list[tuple[FusedBody, FloatArray]],
+    theta: FloatArray,
+    index: dict[str, int],
+) -> tuple[list[Edit], dict[str, float], dict[str, dict[str, float]]]:
+    """The text edits of every body and joint, the welded links' scales by carrying link, and
+    the sidecar's per-joint extras (:func:`identified_urdf`)."""
+    edits: list[Edit] = []
     scales = {}
-    sidecar_joints = {}
+    joints = {}
     for j, (fused, body) in enumerate(plan, start=1):
         own, scale = compose_body(body, fused.welded_sum)
         edits.append(_own_edits(urdf, fused.carrier, own))
         if scale != 1.0:
             scales[fused.carrier] = scale
             edits.extend(_scaled_edit(urdf, root, n, scale) for n, _ in fused.welded)
-        fv, fs = extra(f"fv{j}"), extra(f"fs{j}")
+        fv, fs = _extra(theta, index, f"fv{j}"), _extra(theta, index, f"fs{j}")
         if fv is not None or fs is not None:
             edits.append(dynamics_edit(urdf, fused.joint, fv or 0.0, fs or 0.0))
-        sidecar_joints[fused.joint] = {
-            "rotor_inertia": extra(f"Ia{j}") or 0.0,
+        joints[fused.joint] = {
+            "rotor_inertia": _extra(theta, index, f"Ia{j}") or 0.0,
             "viscous": fv or 0.0,
             "coulomb": fs or 0.0,
-            "offset": extra(f"off{j}") or 0.0,
+            "offset": _extra(theta, index, f"off{j}") or 0.0,
         }
+    return edits, scales, joints
+
+
+def _coupled_motors(
+    theta: FloatArray,
+    index: dict[str, int],
+    joint_names: tuple[str, ...],
+    coupled_pair: tuple[int, int] | None,
+    source: str,
+) -> list[dict[str, Any]]:
+    """The sidecar's coupled motors (``Iam{b}``, ``fvm{b}``, ``fsm{b}`` of ``theta``)."""
     coupled = []
-    for name in names:
+    for name in index:
         if name.startswith("Iam"):
             b = int(name[3:])
             pair = None
@@ -473,28 +557,12 @@ def identified_urdf(
                 {
                     "motor_joint": joint_names[b - 1],
                     "joints": pair,
-                    "rotor_inertia": extra(f"Iam{b}") or 0.0,
-                    "viscous": extra(f"fvm{b}") or 0.0,
-                    "coulomb": extra(f"fsm{b}") or 0.0,
+                    "rotor_inertia": _extra(theta, index, f"Iam{b}") or 0.0,
+                    "viscous": _extra(theta, index, f"fvm{b}") or 0.0,
+                    "coulomb": _extra(theta, index, f"fsm{b}") or 0.0,
                 }
             )
-    sidecar = {
-        "units": "SI (kg*m^2, N*m*s/rad, N*m), joint side",
-        "torque_model": (
-            "tau_j = rnea_j(q, dq, ddq) + rotor_inertia_j ddq_j + viscous_j dq_j + "
-            "coulomb_j sign(dq_j) + offset_j; a coupled motor b shared by joints a, b adds "
-            "rotor_inertia (ddq_a + ddq_b) + viscous (dq_a + dq_b) + coulomb sign(dq_a + dq_b) "
-            "to rows a and b"
-        ),
-        "joints": sidecar_joints,
-        "coupled_motors": coupled,
-    }
-    return IdentifiedModel(
-        text=apply_edits(urdf.data, edits),
-        sidecar=sidecar,
-        links=tuple(fused.carrier for fused, _ in plan),
-        welded_scale=scales,
-    )
+    return coupled
 
 
 def write_identified_model(

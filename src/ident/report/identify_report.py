@@ -1,4 +1,5 @@
-"""Report of ``ident identify``: report.md, report.html, result.json, parameters.csv, plots, URDF.
+"""Report of ``ident identify``: report.md, report.html, result.json, parameters.csv, plots,
+the identified model (URDF, MJCF, joint extras; :mod:`ident.identify.model_files`).
 
 Everything is written into an existing run folder through atomic writes; the HTML page embeds
 its figures (base64 PNG, readable offline). ``result.json`` holds no times, so the same config
@@ -17,8 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
-from ident.identify.estimators.summary import consistency_summary, identified_model
+from ident.identify.estimators.summary import consistency_summary
 from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
+from ident.identify.model_files import save_identified_model
 from ident.identify.real import IdentifyResult
 from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
 from ident.identify.verdict import (
@@ -31,6 +33,7 @@ from ident.identify.verdict import (
 )
 from ident.report.format import pct, percent
 from ident.report.headline import Headline, headline_markdown
+from ident.report.model_section import model_section
 
 __all__ = [
     "identified_urdf",
@@ -98,8 +101,9 @@ def torque_png(result: IdentifyResult) -> bytes:
 
 
 def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
-    """URDF copy with the standard parameters that base parameters determine alone, where their
-    relative std is below ``urdf_update.max_relative_std_pct`` and the link stays consistent."""
+    """The cautious URDF copy (``urdf_update.cautious``, ``<urdf>_cautious.urdf``): the standard
+    parameters that base parameters determine alone, where their relative std is below
+    ``urdf_update.max_relative_std_pct`` and the link stays consistent."""
     pm = result.parameters
     est = result.estimate
     identified = {}
@@ -177,9 +181,13 @@ def write_measured_replay(
 
 
 def result_dict(
-    result: IdentifyResult, urdf: UrdfUpdate | None = None, replay_note: str | None = None
+    result: IdentifyResult,
+    urdf: UrdfUpdate | None = None,
+    replay_note: str | None = None,
+    model: dict | None = None,
 ) -> dict:
-    """JSON-ready summary of the identification (no times)."""
+    """JSON-ready summary of the identification (no times); ``model``: the identified model's
+    entry (:func:`~ident.identify.model_files.save_identified_model`)."""
     pm = result.parameters
     est = result.estimate
     expressions = pm.base.expressions()
@@ -241,30 +249,40 @@ def result_dict(
     }
     if replay_note is not None:
         out["replay"] = replay_note
+    if model is not None:
+        out["model"] = model
     if urdf is not None:
-        out["urdf"] = {
-            "max_relative_std_pct": urdf.max_relative_std_pct,
-            "written": {k: list(v) for k, v in urdf.written.items()},
-            "uncertain": {k: _finite(v) for k, v in urdf.uncertain.items()},
-            "not_determined": list(urdf.not_determined),
-            "inconsistent_links": urdf.inconsistent_links,
-            "links": [
-                {
-                    "link": link.link,
-                    "joint": link.joint,
-                    "status": link.status,
-                    "written": {k: list(v) for k, v in link.written.items()},
-                    "uncertain": {k: _finite(v) for k, v in link.uncertain.items()},
-                    "rejected": {k: list(v) for k, v in link.rejected.items()},
-                    "not_determined": list(link.not_determined),
-                    "problem": link.problem,
-                }
-                for link in urdf.links
-            ],
-        }
+        out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)
     out["verdict"] = verdict_entry(result)
     return out
+
+
+def _cautious_entry(result: IdentifyResult, urdf: UrdfUpdate) -> dict:
+    """The ``urdf`` entry of ``result.json``: the cautious copy, link by link."""
+    return {
+        "file": f"{_robot_file(result).stem}_cautious.urdf"
+        if result.config.urdf_update.cautious
+        else None,
+        "max_relative_std_pct": urdf.max_relative_std_pct,
+        "written": {k: list(v) for k, v in urdf.written.items()},
+        "uncertain": {k: _finite(v) for k, v in urdf.uncertain.items()},
+        "not_determined": list(urdf.not_determined),
+        "inconsistent_links": urdf.inconsistent_links,
+        "links": [
+            {
+                "link": link.link,
+                "joint": link.joint,
+                "status": link.status,
+                "written": {k: list(v) for k, v in link.written.items()},
+                "uncertain": {k: _finite(v) for k, v in link.uncertain.items()},
+                "rejected": {k: list(v) for k, v in link.rejected.items()},
+                "not_determined": list(link.not_determined),
+                "problem": link.problem,
+            }
+            for link in urdf.links
+        ],
+    }
 
 
 def verdict_entry(result: IdentifyResult) -> dict:
@@ -293,7 +311,11 @@ def _finite_or_none(value: float | None) -> float | None:
 
 
 def _markdown(
-    result: IdentifyResult, urdf: UrdfUpdate, urdf_name: str, replay_note: str = ""
+    result: IdentifyResult,
+    urdf: UrdfUpdate,
+    urdf_name: str | None,
+    replay_note: str = "",
+    model: dict | None = None,
 ) -> str:
     pm = result.parameters
     est = result.estimate
@@ -312,7 +334,8 @@ def _markdown(
             else f"Motion replay: not available. {replay_note}"
         ),
         "",
-        *headline_markdown(_headline(result, urdf)),
+        *headline_markdown(_headline(result, urdf, model)),
+        *model_section(model, urdf_name),
         "## Identified vs reference parameters",
         "",
         "![Identified base parameters: relative deviation from the reference (or the URDF's "
@@ -501,14 +524,20 @@ def _truth_section(result: IdentifyResult) -> list[str]:
     return lines
 
 
-def _urdf_section(urdf: UrdfUpdate, urdf_name: str) -> list[str]:
+def _urdf_section(urdf: UrdfUpdate, urdf_name: str | None) -> list[str]:
     """Per link: the parameters written, kept nominal (and why), and the consistency check."""
     threshold = f"{urdf.max_relative_std_pct:g} %"
+    copy = (
+        f"`{urdf_name}` is a copy of the URDF"
+        if urdf_name is not None
+        else "The cautious copy (`urdf_update.cautious: true` writes it as `<urdf>_cautious.urdf`; "
+        "not written here) is the URDF"
+    )
     lines = [
         "",
-        "## URDF with identified parameters",
+        "## Cautious URDF copy",
         "",
-        f"`{urdf_name}` is a copy of the URDF in which a standard inertial parameter is replaced "
+        f"{copy} in which a standard inertial parameter is replaced "
         f"only if a base parameter determines it alone, its relative std is below {threshold} "
         "(config `urdf_update.max_relative_std_pct`), and its link stays physically consistent "
         "(mass > 0, inertia about the centre of mass positive semi-definite, triangle "
@@ -561,7 +590,6 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
     summary = consistency_summary(result)
     if summary is None:
         return []
-    stem = _robot_file(result).stem
     estimators = summary["estimators"]
     links = [c["link"] for c in next(iter(estimators.values()))["links"]]
     lines = [
@@ -589,12 +617,19 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
             f"{_num(percent(e['held_out_relative_residual']), 3)} "
             f"| {_num(e['distance_to_nominal'], 3)} | " + " | ".join(cells) + " |"
         )
-    reg = summary["regularization"]
-    if reg is not None:
+    model = summary["model"]
+    priors = [(summary["method"], summary["regularization"], summary["seconds"], "")]
+    if model is not None:
+        priors.append(
+            (model["method"], model["regularization"], model["seconds"], " (the identified model)")
+        )
+    for method, reg, seconds, role in priors:
+        if reg is None:
+            continue
         how = f"chosen on the {reg['chosen_on']}" if reg["chosen_on"] else "from the config"
         lines += [
             "",
-            f"{summary['method']}: prior weight {reg['weight']:g} toward the URDF ({how}) on "
+            f"{method}{role}: prior weight {reg['weight']:g} toward the URDF ({how}) on "
             + (
                 "the directions the data do not see"
                 if reg["directions"] == "unseen"
@@ -606,9 +641,7 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
                 if reg["friction"] == "least_squares"
                 else "estimated with the constraints"
             )
-            + f"; {summary['seconds']:.2f} s. Whole model: `{stem}_consistent.urdf` (every link's "
-            f"inertial, joint damping/friction) and `{stem}_joint_extras.json` (all per-joint "
-            "extras).",
+            + f"; {seconds:.2f} s.",
         ]
     return lines
 
@@ -682,19 +715,27 @@ def write_identify_report(
     folder = Path(folder)
     if replay_note is None:
         replay_note = write_measured_replay(result, folder, replay=replay)
-    urdf = identified_urdf(result)
-    urdf_name = _robot_file(result).stem + "_identified.urdf"
+    # the identified model first (saved before the report, which can fail afterwards)
+    model = save_identified_model(result, folder)
+    urdf = identified_urdf(result)  # the cautious copy: its table is in the report either way
+    urdf_name = (
+        _robot_file(result).stem + "_cautious.urdf" if result.config.urdf_update.cautious else None
+    )
     png = torque_png(result)
     params_png = parameters_figure(result)
-    markdown = _markdown(result, urdf, urdf_name, replay_note)
+    markdown = _markdown(result, urdf, urdf_name, replay_note, model)
     written = [
         atomic_write_bytes(folder / "figures" / "torque_validation.png", png),
         atomic_write_bytes(folder / "figures" / "parameters.png", params_png),
-        atomic_write_text(folder / urdf_name, urdf.text),
+    ]
+    if urdf_name is not None:
+        written.append(atomic_write_text(folder / urdf_name, urdf.text))
+    written += [
         atomic_write_text(folder / "parameters.csv", _parameters_csv(result)),
         atomic_write_text(
             folder / "result.json",
-            json.dumps(result_dict(result, urdf, replay_note), indent=2, allow_nan=False) + "\n",
+            json.dumps(result_dict(result, urdf, replay_note, model), indent=2, allow_nan=False)
+            + "\n",
         ),
         atomic_write_text(folder / "report.md", markdown),
         atomic_write_text(
@@ -709,19 +750,12 @@ def write_identify_report(
             ),
         ),
     ]
-    model = identified_model(result)
-    if model is not None:
-        stem = _robot_file(result).stem
-        written += [
-            atomic_write_text(folder / f"{stem}_consistent.urdf", model.text),
-            atomic_write_text(
-                folder / f"{stem}_joint_extras.json", json.dumps(model.sidecar, indent=2) + "\n"
-            ),
-        ]
+    if model["written"]:
+        written[:0] = [folder / name for name in model["files"].values()]
     return written
 
 
-def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
+def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = None) -> Headline:
     """The headline facts of an identification from a log, from its verdict entry (the one
     :func:`result_dict` writes; :mod:`ident.identify.verdict`)."""
     est = result.estimate
@@ -750,17 +784,16 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate) -> Headline:
             consistency = "**violated**, " + consistency
     else:
         consistency = "not checked"
-    cons = result.consistent
-    constrained = None if cons is None else cons.constrained
-    if cons is not None and constrained is not None:
-        consistency += (  # the estimator's contract, never its name, says what was written
-            "; every link's identified inertial in `*_consistent.urdf`"
-            if cons.contract.consistent and constrained.success
-            else "; not written to a URDF (the estimator does not promise consistency)"
-        )
-    if written or rejected:
+    if model is not None:  # the model estimator's contract, never its name, says it
         consistency += (
-            f"; URDF write-back: {len(written)} links updated and consistent, {len(rejected)} "
+            f"; identified model ({model['method']}, every link consistent): "
+            f"`{model['files']['urdf']}`, `{model['files']['mjcf']}`"
+            if model["written"]
+            else f"; {model['note']}"
+        )
+    if result.config.urdf_update.cautious and (written or rejected):
+        consistency += (
+            f"; cautious copy: {len(written)} links updated and consistent, {len(rejected)} "
             "kept nominal because the identified values are inconsistent"
         )
     extra: list[tuple[str, str]] = [

@@ -14,6 +14,10 @@
 - ``validation.csv`` when the result has a validation trajectory (t, measured torques,
   predicted torques per estimator).
 
+:func:`save_run_model` then writes the identified model of a simulated log's identification
+(``<urdf>_identified.urdf``, ``.xml``, ``_joint_extras.json``) and adds its ``model`` entry
+to ``result.json``.
+
 :func:`write_replay` writes ``replay.html`` (``ident.viz.replay``); :func:`load_run` reads
 ``result.json`` back for the report.
 """
@@ -36,7 +40,7 @@ from ident.report.paper import _paper_comparison, _paper_counts
 from ident.report.run_verdict import verdict_entry
 from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
 
-__all__ = ["FORMAT", "load_run", "result_to_dict", "save_run", "write_replay"]
+__all__ = ["FORMAT", "load_run", "result_to_dict", "save_run", "save_run_model", "write_replay"]
 
 FORMAT = "ident-run/1"
 
@@ -270,6 +274,30 @@ def save_run(result: Any, run_dir: str | Path) -> None:
     # result.json last: its presence means the data files above are complete
     text = json.dumps(data, indent=1, allow_nan=False) + "\n"
     atomic_write_text(run_dir / "result.json", text)
+
+
+def save_run_model(result: Any, run_dir: str | Path) -> dict[str, Any] | None:
+    """Write the identified model of the executed elite's log and record it in ``result.json``.
+
+    After :func:`save_run` (the data are saved first). The model is the physically consistent
+    estimate of the log the simulator wrote for the elite ``trajectory.csv`` executes
+    (:func:`ident.identify.model_files.save_identified_model`); its entry, with ``elite``, is
+    added to ``result.json`` as ``model``. None (nothing written) for a run without a
+    simulated log (``measurement.source: ideal``) or without elites.
+    """
+    from ident.identify.model_files import save_identified_model
+
+    run_dir = Path(run_dir)
+    rank = result.executed_rank
+    elite = next((e for e in result.elites if e.rank == rank), None)
+    outcome = getattr(elite, "log", None)
+    if outcome is None:
+        return None
+    entry = {"elite": rank, **save_identified_model(outcome.result, run_dir)}
+    data = load_run(run_dir)
+    data["model"] = entry
+    atomic_write_text(run_dir / "result.json", json.dumps(data, indent=1, allow_nan=False) + "\n")
+    return entry
 
 
 def write_replay(run_dir: str | Path) -> str:

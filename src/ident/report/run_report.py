@@ -30,6 +30,7 @@ from ident.report.format import fmt as _fmt
 from ident.report.format import pct, percent
 from ident.report.format import table as _table
 from ident.report.headline import NOT_CHECKED, Headline, headline_markdown
+from ident.report.model_section import model_section
 from ident.report.paper import _base_section, _dh_section, paper_box_note, paper_tables_section
 from ident.report.run_data import FORMAT, load_run, result_to_dict, save_run, write_replay
 from ident.report.run_verdict import executed_elite, headline_method, stored_verdict
@@ -409,6 +410,10 @@ def render_markdown(
             "",
         ]
     md += _base_section(stage) if stage else []
+    if data.get("model") is not None:  # a simulated log's identification: the model files
+        md += model_section(
+            data["model"], where=f" of elite {data['model']['elite']}'s simulated log"
+        )
     md += ["## Details", ""]
     md += _run_facts(data, run_state or {})
     if "figures/trajectory.png" in figures:
