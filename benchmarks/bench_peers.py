@@ -254,10 +254,25 @@ def _start_spec(spec: mujoco.MjSpec, bodies: list[str], start: str) -> mujoco.Mj
     return bad
 
 
-def run_sysid(
-    case: Case, pm: ParameterModel, *, start: str, window_s: float, max_iters: int
-) -> ToolRun:
-    """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names."""
+@dataclass
+class SysidProblem:
+    """mujoco.sysid's problem on a case: its spec, start and true parameters, residual."""
+
+    spec: mujoco.MjSpec
+    joints: list[str]
+    params: Any  # sysid.ParameterDict at the start
+    truth: Any  # sysid.ParameterDict at the simulator's truth
+    residual_fn: Any
+    n_windows: int
+
+    def objective(self, params: Any) -> float:
+        """sysid's objective ``0.5 ||r||^2`` at ``params``."""
+        r = self.residual_fn(params.as_vector(), params.copy())[0]
+        return 0.5 * float(np.sum(np.concatenate(r) ** 2))
+
+
+def sysid_problem(case: Case, *, start: str, window_s: float) -> SysidProblem:
+    """mujoco.sysid's parameters, windows and residual on the identification samples."""
     from mujoco import sysid  # optional: the `peers` extra (absl-py, colorama, tabulate)
 
     spec, bodies, joints = sysid_spec(case)
@@ -319,11 +334,21 @@ def run_sysid(
         del data
     seqs = sysid.ModelSequences(case.name, spec, names, states, controls, sensors)
     residual_fn = sysid.build_residual_fn(models_sequences=[seqs])
+    return SysidProblem(spec, joints, params, truth_params, residual_fn, len(names))
+
+
+def run_sysid(
+    case: Case, pm: ParameterModel, *, start: str, window_s: float, max_iters: int
+) -> ToolRun:
+    """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names."""
+    from mujoco import sysid
+
+    problem = sysid_problem(case, start=start, window_s=window_s)
     rss0 = _peak_rss_mb()
     t0 = time.perf_counter()
     opt, _ = sysid.optimize(
-        initial_params=params,
-        residual_fn=residual_fn,
+        initial_params=problem.params,
+        residual_fn=problem.residual_fn,
         optimizer="mujoco",
         verbose=False,
         max_iters=max_iters,
@@ -332,13 +357,13 @@ def run_sysid(
     peak = _peak_rss_mb() - rss0
     # sysid's objective 0.5 ||r||^2 at its start, its stop and the truth: how far it has to go
     y = {
-        label: 0.5 * float(np.sum(np.concatenate(residual_fn(p.as_vector(), p.copy())[0]) ** 2))
-        for label, p in (("start", params), ("stop", opt), ("truth", truth_params))
+        label: problem.objective(p)
+        for label, p in (("start", problem.params), ("stop", opt), ("truth", problem.truth))
     }
-    identified = sysid.apply_param_modifiers(opt, spec)
-    x = standard_from_mujoco(identified, pm, case.setup.robot.model, joints)
+    identified = sysid.apply_param_modifiers(opt, problem.spec)
+    x = standard_from_mujoco(identified, pm, problem.joints)
     note = (
-        f"{len(names)} windows of {window_s:g} s, {max_iters} iterations max; objective "
+        f"{problem.n_windows} windows of {window_s:g} s, {max_iters} iterations max; objective "
         f"0.5||r||^2 at start {y['start']:.4g}, at stop {y['stop']:.4g}, "
         f"at the truth {y['truth']:.4g}"
     )
@@ -346,7 +371,7 @@ def run_sysid(
 
 
 def standard_from_mujoco(
-    model: mujoco.MjModel, pm: ParameterModel, pmodel: pin.Model, joints: list[str]
+    model: mujoco.MjModel, pm: ParameterModel, joints: list[str]
 ) -> FloatArray:
     """A compiled MuJoCo model's parameters over ``pm.names`` (inertia about the body origin,
     Pinocchio's order; ``fv`` = damping, ``fs`` = frictionloss, ``Ia`` = armature)."""
@@ -421,7 +446,7 @@ def check_mapping(case: Case, pm: ParameterModel) -> float:
         set_joint(sj, "armature", float(truth["armature"][k]))
         set_joint(sj, "damping", float(truth["viscous"][k]))
         set_joint(sj, "frictionloss", float(truth["coulomb"][k]))
-    x = standard_from_mujoco(spec.compile(), pm, case.setup.robot.model, joints)
+    x = standard_from_mujoco(spec.compile(), pm, joints)
     return float(np.max(np.abs(x - true_parameters(pm, case.setup.config))))
 
 
