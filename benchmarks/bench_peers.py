@@ -20,7 +20,7 @@
    the logged positions. It starts from a CAD model off the truth (masses x0.8, centres of mass
    2 cm off, joint terms at mid-range: ``--start cad``) and, for the case MuJoCo's maintainers
    call unidentifiable from joint data, from a CAD model with every mass 4x and every centre
-   of mass 8 cm off, outside its +-5 cm box (``--start bad-cad``).
+   of mass 8 cm off, outside its +-5 cm box (``--starts bad-cad``).
 4. **The same yardsticks for both**, computed here once: each estimate is mapped to ``ident``'s
    standard parameters (Pinocchio's order per body, friction and armature per joint) and
    projected on the base parameters; held-out torque error = RMS(prediction - measured torque)
@@ -485,8 +485,14 @@ def pinocchio_part(n: int = 2000, repeat: int = 3) -> str:
     ``pin.computeJointTorqueRegressor`` + ``Y^T Y``, and a Python loop over ``pin.rnea``."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_identify_long import panda7, per_sample
+    from threadpoolctl import threadpool_limits
 
-    with tempfile.TemporaryDirectory(prefix="bench-peers-") as tmp:
+    # BLAS on one thread, as ident.identify_measurements runs it: on a loaded 2-core machine a
+    # second OpenBLAS thread made the reduction 25x slower (900 us per sample instead of 37)
+    with (
+        threadpool_limits(limits=1, user_api="blas"),
+        tempfile.TemporaryDirectory(prefix="bench-peers-") as tmp,
+    ):
         urdf = panda7(Path(tmp))
         model = pin.buildModelFromUrdf(str(urdf))
         data = model.createData()
