@@ -657,6 +657,12 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="FIGAROH's examples, from benchmarks/fetch_figaroh_examples.sh",
     )
+    ap.add_argument(
+        "--write-docs",
+        type=Path,
+        default=None,
+        help="replace the tables this run printed in this markdown file (docs/benchmarks.md)",
+    )
     args = ap.parse_args(argv)
     robots = args.robots or (["ur5"] if args.quick else ["ur5", "panda"])
     max_iters = args.max_iters or 3
@@ -666,20 +672,26 @@ def main(argv: list[str] | None = None) -> int:
         have_sysid = hasattr(mujoco.sysid, "optimize")
     except ImportError:
         have_sysid = False
-    print(f"machine: {machine()}")
-    cmd = "PYTHONPATH=src python benchmarks/bench_peers.py " + " ".join(argv or sys.argv[1:])
+    where = machine()
+    print(f"machine: {where}")
+    words = [w for w in (argv if argv is not None else sys.argv[1:])]
+    if "--write-docs" in words:  # the command as a reader would run it
+        k = words.index("--write-docs")
+        words = words[:k] + words[k + 2 :]
+    cmd = "PYTHONPATH=src python benchmarks/bench_peers.py " + " ".join(words)
     print(f"command: {cmd}")
+    sections: dict[str, str] = {}
     parts = args.parts or (
         ["sysid", "pinocchio"] if args.quick else ["sysid", "pinocchio", "figaroh"]
     )
     if "pinocchio" in parts:
-        print()
-        print(pinocchio_part(n=300 if args.quick else 2000, repeat=1 if args.quick else 3))
-        print(flush=True)
+        sections["pinocchio"] = pinocchio_part(
+            n=300 if args.quick else 2000, repeat=1 if args.quick else 3
+        )
+        print("\n" + sections["pinocchio"] + "\n", flush=True)
     if "figaroh" in parts:
-        print()
-        print(figaroh_part(args.figaroh_examples))
-        print(flush=True)
+        sections["figaroh"] = figaroh_part(args.figaroh_examples)
+        print("\n" + sections["figaroh"] + "\n", flush=True)
     for name in robots if "sysid" in parts else []:
         case = make_case(name, periods=args.periods)
         run, result = run_ident(case)
@@ -694,10 +706,28 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(evaluate(case, pm, srun))
         else:
             print("mujoco.sysid not importable (pip install -e '.[peers]'): skipped")
-        print()
-        print(table(case, rows, case.log.n_samples))
-        print(flush=True)
+        sections[f"sysid-{name}"] = table(case, rows, case.log.n_samples)
+        print("\n" + sections[f"sysid-{name}"] + "\n", flush=True)
+    if args.write_docs is not None:
+        write_docs(args.write_docs, sections, cmd, where)
     return 0
+
+
+def write_docs(path: Path, sections: dict[str, str], cmd: str, where: str) -> None:
+    """Replace each section's block ``<!-- bench_peers:NAME -->`` ... ``<!-- /bench_peers:NAME
+    -->`` of ``path`` with this run's command, machine and table; other blocks are kept."""
+    text = path.read_text(encoding="utf-8")
+    for name, body in sections.items():
+        begin, end = f"<!-- bench_peers:{name} -->", f"<!-- /bench_peers:{name} -->"
+        if begin not in text or end not in text:
+            print(f"{path}: no block {begin}: not written")
+            continue
+        head, rest = text.split(begin, 1)
+        _, tail = rest.split(end, 1)
+        block = f"`{cmd}`\n\nmachine: {where}\n\n{body}\n"
+        text = f"{head}{begin}\n{block}{end}{tail}"
+    path.write_text(text, encoding="utf-8")
+    print(f"{path}: {', '.join(sections)} updated")
 
 
 if __name__ == "__main__":

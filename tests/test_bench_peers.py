@@ -87,3 +87,21 @@ def test_pinocchio_part_prints_its_table():
     text = bench_peers.pinocchio_part(n=50, repeat=1)
     assert text.count("\n| ") == 4  # header + 3 rows
     assert "| 1.0x |" in text
+
+
+def test_write_docs_replaces_only_its_blocks(tmp_path):
+    """A run rewrites the blocks of the tables it printed and keeps every other line."""
+    doc = tmp_path / "benchmarks.md"
+    doc.write_text(
+        "intro\n<!-- bench_peers:pinocchio -->\nold table\n<!-- /bench_peers:pinocchio -->\n"
+        "middle\n<!-- bench_peers:figaroh -->\nkept\n<!-- /bench_peers:figaroh -->\nend\n",
+        encoding="utf-8",
+    )
+    bench_peers.write_docs(doc, {"pinocchio": "| new |"}, "cmd --x", "the box")
+    text = doc.read_text(encoding="utf-8")
+    assert "old table" not in text
+    assert "`cmd --x`\n\nmachine: the box\n\n| new |\n<!-- /bench_peers:pinocchio -->" in text
+    assert text.startswith("intro\n")
+    assert "middle\n" in text
+    assert "\nkept\n" in text
+    assert text.endswith("end\n")
