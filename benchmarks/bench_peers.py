@@ -674,7 +674,7 @@ def main(argv: list[str] | None = None) -> int:
         have_sysid = False
     where = machine()
     print(f"machine: {where}")
-    words = [w for w in (argv if argv is not None else sys.argv[1:])]
+    words = list(argv if argv is not None else sys.argv[1:])
     if "--write-docs" in words:  # the command as a reader would run it
         k = words.index("--write-docs")
         words = words[:k] + words[k + 2 :]
@@ -708,8 +708,11 @@ def main(argv: list[str] | None = None) -> int:
             print("mujoco.sysid not importable (pip install -e '.[peers]'): skipped")
         sections[f"sysid-{name}"] = table(case, rows, case.log.n_samples)
         print("\n" + sections[f"sysid-{name}"] + "\n", flush=True)
-    if args.write_docs is not None:
-        write_docs(args.write_docs, sections, cmd, where)
+    if args.write_docs is not None:  # a skipped peer keeps the figures the page has
+        measured = {k: v for k, v in sections.items() if not v.endswith("skipped")}
+        if not have_sysid:
+            measured = {k: v for k, v in measured.items() if not k.startswith("sysid-")}
+        write_docs(args.write_docs, measured, cmd, where)
     return 0
 
 
