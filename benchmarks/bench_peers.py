@@ -1,0 +1,737 @@
+"""Side by side with the peers: ``ident`` against ``mujoco.sysid`` on the same simulated logs.
+
+    PYTHONPATH=src python benchmarks/bench_peers.py [--quick] [--robots ur5 panda]
+        [--max-iters 30] [--markdown docs/benchmarks.md]
+
+1. **Data.** The MuJoCo-simulated controller log of ``configs/<robot>.yaml`` (1 kHz computed-torque
+   loop, viscous + Coulomb friction, armature, 2^19-count encoders, torque noise: the run's own
+   ``measurement`` section, :func:`ident.measure.mujoco_sim.simulate`) on a fixed joint-space
+   Fourier excitation of the config's family (the middle of its design box plus a seeded random
+   offset; no optimizer, so the benchmark takes seconds to set up). The first 70 % of the samples
+   identify (``validation.identify_fraction``), the last 30 % are held out.
+2. **ident**: ``read_log`` + :func:`ident.identify_measurements` with the config's
+   ``identification`` sections (WLS on base parameters; link inertias, armature, viscous and
+   Coulomb friction).
+3. **mujoco.sysid** (MuJoCo 4.0's rollout-based Gauss-Newton): the same model built as an
+   ``MjSpec`` from the same URDF, one ``InertiaType.Pseudo`` (log-Cholesky) parameter per moving
+   body, ``armature``, ``damping`` and ``frictionloss`` per joint; the identification samples
+   cut into windows of ``--window`` seconds, each rolled out open loop from the logged state
+   (encoder position, central-difference velocity) under the logged torque and compared with
+   the logged positions. It starts from a CAD model off the truth (masses x0.8, centres of mass
+   2 cm off, joint terms at mid-range: ``--start cad``) and, for the case MuJoCo's maintainers
+   call unidentifiable from joint data, from a CAD model with every mass 4x and every centre
+   of mass 8 cm off, outside its +-5 cm box (``--starts bad-cad``).
+4. **The same yardsticks for both**, computed here once: each estimate is mapped to ``ident``'s
+   standard parameters (Pinocchio's order per body, friction and armature per joint) and
+   projected on the base parameters; held-out torque error = RMS(prediction - measured torque)
+   / RMS(measured torque) per joint and over all joints, the prediction being the identified
+   model's inverse dynamics (rigid body + armature + viscous + Coulomb) on the simulator's
+   held-out states; parameter error = ||beta - beta_true|| / ||beta_true|| on the base
+   parameters and the noise-free torque error ||W_b (beta - beta_true)|| / ||W_b beta_true||.
+   Wall time of the identification call alone; peak memory as the growth of the process's peak
+   resident set during that call (``resource.getrusage``).
+
+``--quick``: the UR5 only, mujoco.sysid from the near CAD only, 3 optimizer iterations.
+Default: one 10 s period (``--periods``; the configs log 3), 3 iterations (``--max-iters``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import platform
+import resource
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import yaml
+
+from ident.dynamics.friction import extra_columns
+from ident.dynamics.parameter_model import ParameterModel
+from ident.dynamics.regressor import joint_torque_regressor
+from ident.identify.core import identify_measurements
+from ident.identify.logs import read_log
+from ident.measure.mujoco_model import dynamics_only_urdf
+from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
+from ident.run.elite_identification import elite_trajectory
+from ident.run.log_measurement import identify_config, true_parameters
+from ident.run.setup import load_run
+
+ROOT = Path(__file__).resolve().parents[1]
+FloatArray = np.ndarray
+
+
+@dataclass
+class Case:
+    """One robot's simulated log and everything both tools need."""
+
+    name: str
+    setup: Any
+    log: SimulatedLog
+    n_identify: int  # samples of the identification part (the first ones)
+
+
+@dataclass
+class ToolRun:
+    """One tool's estimate over ``pm.names`` with its cost."""
+
+    tool: str
+    x: FloatArray  # (n_all,) standard parameters + friction/armature, ident's names
+    wall_s: float
+    peak_mb: float
+    note: str = ""
+
+
+def _peak_rss_mb() -> float:
+    """Peak resident set of this process [MB] (Linux reports kB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def make_case(name: str, *, periods: int = 1, seed: int = 0) -> Case:
+    """Simulate ``periods`` 10 s periods of ``configs/<name>.yaml``'s log on a fixed excitation
+    (module docstring)."""
+    setup = load_run(ROOT / "configs" / f"{name}.yaml")
+    config = setup.config
+    if periods != config.measurement.n_periods:
+        m = config.measurement.model_copy(update={"n_periods": periods})
+        config = config.model_copy(update={"measurement": m})
+        setup = dataclasses.replace(setup, config=config)
+    bounds = setup.bounds
+    rng = np.random.default_rng(seed)
+    x = bounds.mean(axis=1) + 0.25 * (bounds[:, 1] - bounds[:, 0]) * rng.uniform(
+        -1, 1, bounds.shape[0]
+    )
+    t, q, dq, ddq, _ = elite_trajectory(setup.family, x)
+    log = simulate(setup.robot, t, q, dq, ddq, config.measurement, rng=seed)
+    frac = config.identification.validation.identify_fraction
+    return Case(name=name, setup=setup, log=log, n_identify=int(frac * log.n_samples))
+
+
+# ---------------------------------------------------------------------------------------------
+# ident
+
+
+def run_ident(case: Case) -> tuple[ToolRun, Any]:
+    """Read the log as ``ident identify`` does and identify it; the estimate over pm.names."""
+    robot = case.setup.robot
+    with tempfile.TemporaryDirectory(prefix="bench-peers-") as tmp:
+        files = write_log(tmp, case.log)
+        section = yaml.safe_load(files.yaml.read_text(encoding="utf-8"))
+        log_section = dict(section["log"])
+        for key in ("time", "position", "torque"):
+            if isinstance(log_section.get(key), dict):
+                log_section[key] = {
+                    **log_section[key],
+                    "path": str(Path(tmp) / log_section[key]["path"]),
+                }
+        section = {**section, "log": log_section}
+        cfg = identify_config(case.setup.config, section)
+        rss0 = _peak_rss_mb()
+        t0 = time.perf_counter()
+        read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
+        result = identify_measurements(cfg, read, model=robot.model)
+        wall = time.perf_counter() - t0
+        peak = _peak_rss_mb() - rss0
+    pm = result.parameters
+    # the base estimate, expressed back on pm.names through the base map's independent columns
+    x = np.zeros(len(pm.names))
+    x[np.asarray(pm.base.independent)] = result.estimate.x
+    held = result.predictions.get("identified")
+    note = (
+        ""
+        if held is None
+        else "ident's own held-out figure (its filtered states, rows above the velocity "
+        f"threshold): {held.metrics.total_relative_residual:.4f}"
+    )
+    return ToolRun("ident", x, wall, peak, note), result
+
+
+# ---------------------------------------------------------------------------------------------
+# mujoco.sysid
+
+
+def sysid_spec(case: Case) -> tuple[mujoco.MjSpec, list[str], list[str]]:
+    """The robot as an MjSpec for mujoco.sysid: motors, joint-position sensors, fused bodies.
+
+    Same URDF text as ident's simulator (:func:`dynamics_only_urdf`), same timestep, integrator
+    and gravity; contacts and joint limits off; constraints on (``frictionloss`` is one). Bodies
+    rigidly fixed to a moving body are fused into it here (their inertia written on the moving
+    body, the body deleted) so that a parameter of the moving body is its whole inertia.
+    Returns the spec, the moving bodies (one per joint) and the joint names.
+    """
+    robot = case.setup.robot
+    spec = mujoco.MjSpec.from_string(dynamics_only_urdf(robot))
+    model = spec.compile()
+    joints = list(robot.joint_names)
+    bodies = [model.body(int(model.joint(j).bodyid[0])).name for j in joints]
+    for b in bodies:  # the compiled (fused) inertia, written explicitly on the spec's body
+        mb, sb = model.body(b), spec.body(b)
+        sb.mass = float(mb.mass[0])
+        sb.ipos = np.array(mb.ipos)
+        sb.iquat = np.array(mb.iquat)
+        sb.inertia = np.array(mb.inertia)
+        sb.fullinertia = np.full(6, np.nan)  # the URDF's full tensor would override
+        sb.explicitinertial = True
+    for b in bodies:
+        for child in list(spec.body(b).bodies):
+            if not child.joints:
+                spec.delete(child)
+    spec.option.timestep = 1.0 / case.log.rate_hz
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    spec.option.gravity = np.asarray(robot.model.gravity.linear, dtype=float)
+    spec.option.disableflags |= (
+        mujoco.mjtDisableBit.mjDSBL_CONTACT
+        | mujoco.mjtDisableBit.mjDSBL_SPRING
+        | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    )
+    for j in joints:
+        sj = spec.joint(j)
+        sj.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+        for attr in ("armature", "damping", "frictionloss"):
+            set_joint(sj, attr, 0.0)
+        spec.add_actuator(name=f"{j}_motor", target=j, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        spec.add_sensor(
+            name=f"{j}_pos",
+            type=mujoco.mjtSensor.mjSENS_JOINTPOS,
+            objname=j,
+            objtype=mujoco.mjtObj.mjOBJ_JOINT,
+        )
+    return spec, bodies, joints
+
+
+def set_joint(joint: Any, attr: str, value: float) -> None:
+    """Set a joint's armature, frictionloss or (linear) damping on an MjSpec joint."""
+    if attr == "damping":  # MuJoCo 4: [linear, ...] coefficients; the first is viscous damping
+        d = np.zeros(3)
+        d[0] = value
+        joint.damping = d
+    else:
+        setattr(joint, attr, value)
+
+
+def _theta_modifier(body_name: str) -> Any:
+    """sysid's log-Cholesky write (``apply_body_theta_inertia``) without its first step.
+
+    ``mujoco.sysid`` recompiles the spec with ``inertiafromgeom="true"`` before writing theta
+    (``_infer_inertial``): on a geometry-free dynamics model every body then weighs zero and the
+    compiler refuses it. This writes the same theta -> (mass, CoM, inertia) map directly.
+    """
+    from mujoco.sysid._src.model_modifier import pi_from_theta, skew
+
+    def modify(spec: mujoco.MjSpec, param: Any) -> None:
+        pi = pi_from_theta(np.asarray(param.value, dtype=float))
+        body = spec.body(body_name)
+        body.explicitinertial = True
+        body.mass = pi[0]
+        body.ipos = pi[1:4] / pi[0]
+        body.inertia = np.zeros(3)
+        body.iquat = np.array([1.0, 0.0, 0.0, 0.0])  # (NaN, as sysid writes, fails to compile)
+        S = skew(np.asarray(body.ipos))
+        full = pi[4:].reshape(3, 3) + pi[0] * S @ S
+        body.fullinertia = np.array(
+            [full[0, 0], full[1, 1], full[2, 2], full[0, 1], full[0, 2], full[1, 2]]
+        )
+
+    return modify
+
+
+def _start_spec(spec: mujoco.MjSpec, bodies: list[str], start: str) -> mujoco.MjSpec:
+    """A copy of ``spec`` with the CAD error of ``start`` on every moving body."""
+    bad = spec.copy()
+    mass, shift = {"cad": (0.8, 0.02), "bad-cad": (4.0, 0.08)}[start]
+    for b in bodies:
+        sb = bad.body(b)
+        sb.mass = sb.mass * mass
+        sb.inertia = np.array(sb.inertia) * mass
+        sb.ipos = np.array(sb.ipos) + shift
+    return bad
+
+
+@dataclass
+class SysidProblem:
+    """mujoco.sysid's problem on a case: its spec, start and true parameters, residual."""
+
+    spec: mujoco.MjSpec
+    joints: list[str]
+    params: Any  # sysid.ParameterDict at the start
+    truth: Any  # sysid.ParameterDict at the simulator's truth
+    residual_fn: Any
+    n_windows: int
+
+    def objective(self, params: Any) -> float:
+        """sysid's objective ``0.5 ||r||^2`` at ``params``."""
+        r = self.residual_fn(params.as_vector(), params.copy())[0]
+        return 0.5 * float(np.sum(np.concatenate(r) ** 2))
+
+
+def sysid_problem(case: Case, *, start: str, window_s: float) -> SysidProblem:
+    """mujoco.sysid's parameters, windows and residual on the identification samples."""
+    from mujoco import sysid  # optional: the `peers` extra (absl-py, colorama, tabulate)
+
+    spec, bodies, joints = sysid_spec(case)
+    start_spec = _start_spec(spec, bodies, start)
+    start_model = start_spec.compile()
+    truth = case.log.truth
+    params = sysid.ParameterDict()
+    ipos_box = 0.05 if start == "bad-cad" else 0.5
+    for b in bodies:
+        p = sysid.body_inertia_param(
+            start_spec,
+            start_model,
+            b,
+            sysid.InertiaType.Pseudo,
+            ipos_bound_off=np.array([-ipos_box, ipos_box]),
+            modifier=_theta_modifier(b),
+        )
+        params.add(p)
+    limits = {
+        "armature": (1e-4, 2.0 * float(np.max(truth["armature"])) + 0.1),
+        "damping": (0.0, 2.0 * float(np.max(truth["viscous"])) + 1.0),
+        "frictionloss": (0.0, 2.0 * float(np.max(truth["coulomb"])) + 1.0),
+    }
+    for j in joints:
+        for attr, (lo, hi) in limits.items():
+
+            def modify(s: mujoco.MjSpec, p: Any, j: str = j, attr: str = attr) -> None:
+                set_joint(s.joint(j), attr, float(p.value[0]))
+
+            params.add(sysid.Parameter(f"{j}_{attr}", 0.5 * (lo + hi), lo, hi, modifier=modify))
+
+    model = spec.compile()
+    # the truth in sysid's parameters, read before the optimizer rewrites the spec's inertials
+    truth_params = params.copy()
+    for b in bodies:
+        truth_params[f"{b}_inertia"].value = sysid.body_inertia_param(
+            spec.copy(), model, b, sysid.InertiaType.Pseudo
+        ).value
+    for k, j in enumerate(joints):
+        for attr, key in (
+            ("armature", "armature"),
+            ("damping", "viscous"),
+            ("frictionloss", "coulomb"),
+        ):
+            truth_params[f"{j}_{attr}"].value = np.array([float(truth[key][k])])
+    n_win = max(2, int(round(window_s * case.log.rate_hz)))
+    q = np.asarray(case.log.q)
+    dq = np.gradient(q, 1.0 / case.log.rate_hz, axis=0)  # central differences of the encoder
+    tau = np.asarray(case.log.tau_measured)
+    dt = 1.0 / case.log.rate_hz
+    states, controls, sensors, names = [], [], [], []
+    for k, i0 in enumerate(range(0, case.n_identify - n_win - 1, n_win)):
+        data = mujoco.MjData(model)
+        states.append(sysid.create_initial_state(model, q[i0], dq[i0]))
+        tc = np.arange(n_win) * dt
+        controls.append(sysid.TimeSeries(tc, tau[i0 : i0 + n_win]))
+        sensors.append(sysid.TimeSeries.from_names(tc + dt, q[i0 + 1 : i0 + n_win + 1], model))
+        names.append(f"w{k}")
+        del data
+    seqs = sysid.ModelSequences(case.name, spec, names, states, controls, sensors)
+    residual_fn = sysid.build_residual_fn(models_sequences=[seqs])
+    return SysidProblem(spec, joints, params, truth_params, residual_fn, len(names))
+
+
+def run_sysid(
+    case: Case, pm: ParameterModel, *, start: str, window_s: float, max_iters: int
+) -> ToolRun:
+    """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names."""
+    from mujoco import sysid
+
+    problem = sysid_problem(case, start=start, window_s=window_s)
+    rss0 = _peak_rss_mb()
+    t0 = time.perf_counter()
+    opt, _ = sysid.optimize(
+        initial_params=problem.params,
+        residual_fn=problem.residual_fn,
+        optimizer="mujoco",
+        verbose=False,
+        max_iters=max_iters,
+    )
+    wall = time.perf_counter() - t0
+    peak = _peak_rss_mb() - rss0
+    # sysid's objective 0.5 ||r||^2 at its start, its stop and the truth: how far it has to go
+    y = {
+        label: problem.objective(p)
+        for label, p in (("start", problem.params), ("stop", opt), ("truth", problem.truth))
+    }
+    identified = sysid.apply_param_modifiers(opt, problem.spec)
+    x = standard_from_mujoco(identified, pm, problem.joints)
+    note = (
+        f"{problem.n_windows} windows of {window_s:g} s, {max_iters} iterations max; objective "
+        f"0.5||r||^2 at start {y['start']:.4g}, at stop {y['stop']:.4g}, "
+        f"at the truth {y['truth']:.4g}"
+    )
+    return ToolRun(f"mujoco.sysid ({start})", x, wall, peak, note)
+
+
+def standard_from_mujoco(
+    model: mujoco.MjModel, pm: ParameterModel, joints: list[str]
+) -> FloatArray:
+    """A compiled MuJoCo model's parameters over ``pm.names`` (inertia about the body origin,
+    Pinocchio's order; ``fv`` = damping, ``fs`` = frictionloss, ``Ia`` = armature)."""
+    std = np.zeros(10 * len(joints))
+    for k, j in enumerate(joints):
+        b = model.body(int(model.joint(j).bodyid[0]))
+        R = np.zeros(9)
+        mujoco.mju_quat2Mat(R, b.iquat)
+        R = R.reshape(3, 3)
+        I_com = R @ np.diag(b.inertia) @ R.T
+        inertia = pin.Inertia(float(b.mass[0]), np.array(b.ipos), I_com)
+        std[10 * k : 10 * k + 10] = inertia.toDynamicParameters()
+    extras = {}
+    for k, j in enumerate(joints):
+        mj = model.joint(j)
+        d = int(mj.dofadr[0])
+        extras[f"fv{k + 1}"] = float(model.dof_damping[d])
+        extras[f"fs{k + 1}"] = float(model.dof_frictionloss[d])
+        extras[f"Ia{k + 1}"] = float(model.dof_armature[d])
+    x = np.zeros(len(pm.names))
+    for i, name in enumerate(pm.names):
+        if pm.inertial_index[i] >= 0:
+            x[i] = std[pm.inertial_index[i]]
+        else:
+            x[i] = extras.get(name, 0.0)
+    return x
+
+
+# ---------------------------------------------------------------------------------------------
+# the yardsticks
+
+
+def evaluate(case: Case, pm: ParameterModel, run: ToolRun) -> dict[str, Any]:
+    """Held-out torque error and parameter error of one estimate (module docstring, 4)."""
+    robot = case.setup.robot
+    sl = slice(case.n_identify, None)
+    q, dq, ddq = (np.asarray(a)[sl] for a in (case.log.q_true, case.log.dq_true, case.log.ddq_true))
+    tau = np.asarray(case.log.tau_measured)[sl]
+    tau_free = np.asarray(case.log.tau_cmd)[sl]
+    idx = np.asarray(pm.base.independent)
+    Wb = pm.columns(
+        joint_torque_regressor(robot.chain, q, dq, ddq), extra_columns(pm.terms, dq, ddq), idx
+    )
+    beta = pm.base.project(run.x)
+    beta_true = pm.base.project(true_parameters(pm, case.setup.config))
+    pred = np.einsum("njp,p->nj", Wb, beta)
+    rel_joint = np.sqrt(np.mean((pred - tau) ** 2, axis=0)) / np.sqrt(np.mean(tau**2, axis=0))
+    rel_all = float(np.linalg.norm(pred - tau) / np.linalg.norm(tau))
+    free = float(np.linalg.norm(pred - tau_free) / np.linalg.norm(tau_free))
+    Wf = Wb.reshape(-1, len(idx))
+    return {
+        "tool": run.tool,
+        "held_out": rel_all,
+        "held_out_joint": rel_joint,
+        "noise_free": free,
+        "param": float(np.linalg.norm(beta - beta_true) / np.linalg.norm(beta_true)),
+        "param_torque": float(
+            np.linalg.norm(Wf @ (beta - beta_true)) / np.linalg.norm(Wf @ beta_true)
+        ),
+        "wall_s": run.wall_s,
+        "peak_mb": run.peak_mb,
+        "note": run.note,
+    }
+
+
+def check_mapping(case: Case, pm: ParameterModel) -> float:
+    """The sysid spec at the truth, mapped to pm.names, against ident's truth (max abs diff)."""
+    spec, _, joints = sysid_spec(case)
+    truth = case.log.truth
+    for k, j in enumerate(joints):
+        sj = spec.joint(j)
+        set_joint(sj, "armature", float(truth["armature"][k]))
+        set_joint(sj, "damping", float(truth["viscous"][k]))
+        set_joint(sj, "frictionloss", float(truth["coulomb"][k]))
+    x = standard_from_mujoco(spec.compile(), pm, joints)
+    return float(np.max(np.abs(x - true_parameters(pm, case.setup.config))))
+
+
+def table(case: Case, rows: list[dict[str, Any]], n_samples: int) -> str:
+    """The markdown table of one robot."""
+    ref = next(r for r in rows if r["tool"] == "ident")
+    names = list(case.setup.robot.joint_names)
+    out = [
+        f"**{case.name}** ({len(names)} joints, {n_samples} samples at {case.log.rate_hz:g} Hz, "
+        f"identification {case.n_identify}, held out {n_samples - case.n_identify})",
+        "",
+        "| tool | held-out rel. RMS (all) | per joint | noise-free torque err. | base-param err. "
+        "| param torque err. | wall [s] | peak RSS growth [MB] | time / ident |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        pj = " ".join(f"{v:.3f}" for v in r["held_out_joint"])
+        out.append(
+            f"| {r['tool']} | {r['held_out']:.4f} | {pj} | {r['noise_free']:.4f} "
+            f"| {r['param']:.3g} | {r['param_torque']:.3g} | {r['wall_s']:.2f} "
+            f"| {r['peak_mb']:.0f} "
+            f"| {r['wall_s'] / ref['wall_s']:.1f}x |"
+        )
+    notes = [f"- {r['tool']}: {r['note']}" for r in rows if r["note"]]
+    return "\n".join(out + [""] + notes)
+
+
+# ---------------------------------------------------------------------------------------------
+# Pinocchio: regressor + normal equations per sample against pin.rnea per sample
+
+
+def pinocchio_part(n: int = 2000, repeat: int = 3) -> str:
+    """Seconds per sample on a 7-joint arm (the Panda without fingers), best of ``repeat``:
+    ident's chunked path (regressor kernel + friction columns + base columns + per-joint
+    reduction, :func:`bench_identify_long.per_sample`), a Python loop over
+    ``pin.computeJointTorqueRegressor`` + ``Y^T Y``, and a Python loop over ``pin.rnea``."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_identify_long import panda7, per_sample
+    from threadpoolctl import threadpool_limits
+
+    # BLAS on one thread, as ident.identify_measurements runs it: on a loaded 2-core machine a
+    # second OpenBLAS thread made the reduction 25x slower (900 us per sample instead of 37)
+    with (
+        threadpool_limits(limits=1, user_api="blas"),
+        tempfile.TemporaryDirectory(prefix="bench-peers-") as tmp,
+    ):
+        urdf = panda7(Path(tmp))
+        model = pin.buildModelFromUrdf(str(urdf))
+        data = model.createData()
+        rng = np.random.default_rng(1)
+        q, dq, ddq = rng.normal(size=(3, n, model.nv))
+        ours, loop, rnea = [], [], []
+        for _ in range(repeat):
+            a, b = per_sample(urdf, n)
+            ours.append(a)
+            loop.append(b)
+            t0 = time.perf_counter()
+            for k in range(n):
+                pin.rnea(model, data, q[k], dq[k], ddq[k])
+            rnea.append((time.perf_counter() - t0) / n)
+    o, lp, r = min(ours), min(loop), min(rnea)
+    return "\n".join(
+        [
+            f"**Pinocchio** (7-joint Panda, {n} random states, best of {repeat})",
+            "",
+            "| per sample | us | / pin.rnea |",
+            "|---|---|---|",
+            f"| pin.rnea (Python loop over the C++ call) | {r * 1e6:.2f} | 1.0x |",
+            f"| ident: regressor + friction + base columns + normal equations | {o * 1e6:.2f} "
+            f"| {o / r:.1f}x |",
+            f"| Python loop: pin.computeJointTorqueRegressor + Y^T Y | {lp * 1e6:.2f} "
+            f"| {lp / r:.1f}x |",
+        ]
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# FIGAROH on the TX40 log, its own example (fetched by benchmarks/fetch_figaroh_examples.sh)
+
+_FIGAROH_CHILD = """
+import json, os, resource, sys, time
+root = sys.argv[1]
+os.chdir(os.path.join(root, "examples", "staubli_TX40"))
+sys.path.insert(0, root)
+import numpy as np
+from examples.staubli_tx40.utils.staubli_tx40_tools import TX40Identification
+from figaroh.tools.robot import load_robot
+t0 = time.perf_counter()
+robot = load_robot("urdf/tx40_mdh_modified.urdf", package_dirs="models")
+iden = TX40Identification(robot, "config/staubli_tx40_unified_config.yaml")
+iden.initialize()
+iden.solve(decimate=True, plotting=False, save_results=False, wls=False)
+wall = time.perf_counter() - t0
+res = np.asarray(iden.tau_noised) - np.asarray(iden.tau_identif)
+print("RESULT " + json.dumps({
+    "n_base": len(iden.params_base), "cond": float(iden.result["condition number"]),
+    "rmse": float(iden.rms_error),
+    "relative": float(np.linalg.norm(res) / np.linalg.norm(iden.tau_noised)),
+    "rows": int(np.asarray(iden.tau_noised).size), "wall": wall,
+    "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}))
+"""
+
+_IDENT_CHILD = """
+import json, resource, sys, time
+import numpy as np
+from ident.identify.config import load_identify_config
+from ident.identify.real import identify
+t0 = time.perf_counter()
+r = identify(load_identify_config(sys.argv[1]))
+wall = time.perf_counter() - t0
+e = r.estimate
+held = r.predictions["identified"].metrics.total_relative_residual
+print("RESULT " + json.dumps({
+    "n_base": int(len(e.x)), "cond": float(e.condition_number),
+    "rmse": float(np.sqrt(np.mean(np.asarray(e.residual_rms) ** 2))),
+    "relative": float(e.relative_residual), "held_out": float(held),
+    "rows": int(r.n_identify_rows), "wall": wall,
+    "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}))
+"""
+
+
+def _child(code: str, *args: str) -> dict[str, Any]:
+    """Run ``code`` in a fresh interpreter; its ``RESULT {json}`` line (peak RSS of its own)."""
+    import json
+    import os
+    import subprocess
+
+    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": str(ROOT / "src")}
+    out = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, env=env, check=False
+    )
+    for line in out.stdout.splitlines():
+        if line.startswith("RESULT "):
+            return json.loads(line[len("RESULT ") :])
+    tail = (out.stderr.strip().splitlines() or ["no output"])[-1]
+    raise RuntimeError(f"child failed: {tail}")
+
+
+def figaroh_part(examples: Path | None) -> str:
+    """FIGAROH's TX40 example against ``ident identify configs/tx40.yaml``, each in a child."""
+    head = "**FIGAROH** (Staubli TX40 log, 45,000 samples at 5 kHz)"
+    try:
+        import figaroh  # noqa: F401
+    except ImportError:
+        return f"{head}: figaroh not installed (pip install -e '.[peers]'): skipped"
+    if examples is None or not (examples / "examples" / "staubli_tx40").exists():
+        return (
+            f"{head}: FIGAROH's examples not found; run "
+            "benchmarks/fetch_figaroh_examples.sh DIR and pass --figaroh-examples DIR: skipped"
+        )
+    fig = _child(_FIGAROH_CHILD, str(examples))
+    ours = _child(_IDENT_CHILD, str(ROOT / "configs" / "tx40.yaml"))
+    rows = [
+        f"{head}",
+        "",
+        "| tool | base params | cond. | in-sample torque RMSE [N m] | in-sample rel. residual "
+        "| held-out rel. residual | rows | wall [s] | peak RSS [MB] |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, r in (
+        ("ident (configs/tx40.yaml, WLS)", ours),
+        ("FIGAROH 1.0.2 (its example, OLS)", fig),
+    ):
+        held = f"{r['held_out']:.4f}" if "held_out" in r else "none (fits the whole log)"
+        rows.append(
+            f"| {name} | {r['n_base']} | {r['cond']:.4g} | {r['rmse']:.3f} | {r['relative']:.4f} "
+            f"| {held} | {r['rows']} | {r['wall']:.1f} | {r['rss_mb']:.0f} |"
+        )
+    return "\n".join(rows)
+
+
+def machine() -> str:
+    import os
+
+    load = os.getloadavg()
+    return (
+        f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_implementation()} "
+        f"{platform.python_version()}, mujoco {mujoco.__version__}, pinocchio {pin.__version__}; "
+        f"load average {load[0]:.1f} at start (a shared box: figures are slower than on an idle "
+        "machine)"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--robots", nargs="+", default=None)
+    ap.add_argument("--max-iters", type=int, default=None)
+    ap.add_argument("--window", type=float, default=0.2, help="rollout window [s]")
+    ap.add_argument(
+        "--starts",
+        nargs="+",
+        default=None,
+        choices=["cad", "bad-cad"],
+        help="mujoco.sysid's starting CAD models (default: both; --quick: cad)",
+    )
+    ap.add_argument("--periods", type=int, default=1, help="logged 10 s periods (config: 3)")
+    ap.add_argument(
+        "--parts",
+        nargs="+",
+        default=None,
+        choices=["sysid", "pinocchio", "figaroh"],
+        help="comparisons to run (default: all; --quick: sysid and pinocchio)",
+    )
+    ap.add_argument(
+        "--figaroh-examples",
+        type=Path,
+        default=None,
+        help="FIGAROH's examples, from benchmarks/fetch_figaroh_examples.sh",
+    )
+    ap.add_argument(
+        "--write-docs",
+        type=Path,
+        default=None,
+        help="replace the tables this run printed in this markdown file (docs/benchmarks.md)",
+    )
+    args = ap.parse_args(argv)
+    robots = args.robots or (["ur5"] if args.quick else ["ur5", "panda"])
+    max_iters = args.max_iters or 3
+    try:
+        import mujoco.sysid  # noqa: F401
+
+        have_sysid = hasattr(mujoco.sysid, "optimize")
+    except ImportError:
+        have_sysid = False
+    where = machine()
+    print(f"machine: {where}")
+    words = list(argv if argv is not None else sys.argv[1:])
+    if "--write-docs" in words:  # the command as a reader would run it
+        k = words.index("--write-docs")
+        words = words[:k] + words[k + 2 :]
+    cmd = "PYTHONPATH=src python benchmarks/bench_peers.py " + " ".join(words)
+    print(f"command: {cmd}")
+    sections: dict[str, str] = {}
+    parts = args.parts or (
+        ["sysid", "pinocchio"] if args.quick else ["sysid", "pinocchio", "figaroh"]
+    )
+    if "pinocchio" in parts:
+        sections["pinocchio"] = pinocchio_part(
+            n=300 if args.quick else 2000, repeat=1 if args.quick else 3
+        )
+        print("\n" + sections["pinocchio"] + "\n", flush=True)
+    if "figaroh" in parts:
+        sections["figaroh"] = figaroh_part(args.figaroh_examples)
+        print("\n" + sections["figaroh"] + "\n", flush=True)
+    for name in robots if "sysid" in parts else []:
+        case = make_case(name, periods=args.periods)
+        run, result = run_ident(case)
+        pm = result.parameters
+        gap = check_mapping(case, pm)
+        print(f"{name}: MuJoCo -> ident parameter map at the truth, max |diff| = {gap:.2e}")
+        rows = [evaluate(case, pm, run)]
+        if have_sysid:
+            starts = args.starts or (["cad"] if args.quick else ["cad", "bad-cad"])
+            for start in starts:
+                srun = run_sysid(case, pm, start=start, window_s=args.window, max_iters=max_iters)
+                rows.append(evaluate(case, pm, srun))
+        else:
+            print("mujoco.sysid not importable (pip install -e '.[peers]'): skipped")
+        sections[f"sysid-{name}"] = table(case, rows, case.log.n_samples)
+        print("\n" + sections[f"sysid-{name}"] + "\n", flush=True)
+    if args.write_docs is not None:  # a skipped peer keeps the figures the page has
+        measured = {k: v for k, v in sections.items() if not v.endswith("skipped")}
+        if not have_sysid:
+            measured = {k: v for k, v in measured.items() if not k.startswith("sysid-")}
+        write_docs(args.write_docs, measured, cmd, where)
+    return 0
+
+
+def write_docs(path: Path, sections: dict[str, str], cmd: str, where: str) -> None:
+    """Replace each section's block ``<!-- bench_peers:NAME -->`` ... ``<!-- /bench_peers:NAME
+    -->`` of ``path`` with this run's command, machine and table; other blocks are kept."""
+    text = path.read_text(encoding="utf-8")
+    for name, body in sections.items():
+        begin, end = f"<!-- bench_peers:{name} -->", f"<!-- /bench_peers:{name} -->"
+        if begin not in text or end not in text:
+            print(f"{path}: no block {begin}: not written")
+            continue
+        head, rest = text.split(begin, 1)
+        _, tail = rest.split(end, 1)
+        block = f"`{cmd}`\n\nmachine: {where}\n\n{body}\n"
+        text = f"{head}{begin}\n{block}{end}{tail}"
+    path.write_text(text, encoding="utf-8")
+    print(f"{path}: {', '.join(sections)} updated")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
