@@ -54,6 +54,7 @@ from ident.identify.reference import (
     read_reference,
     reference_weights,
 )
+from ident.identify.uncertainty import Uncertainty, parameter_uncertainty
 from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
 from ident.model.selection import load_robot
 from ident.trajectory import JointTrajectory
@@ -105,6 +106,14 @@ class IdentifyResult:
         Plain-language problems with the result; empty when none.
     reduction :
         The identification rows reduced per joint (what every estimator used).
+    uncertainty :
+        Covariances of the least-squares estimate robust to correlated residuals (HAC and
+        block bootstrap, :mod:`ident.identify.uncertainty`), or None when the log has too
+        few blocks for them.
+    prediction_std :
+        Per interval method (``"ordinary"``, ``"hac"``, ``"bootstrap"``), the standard
+        deviation of every held-out torque about the identified prediction [N*m], shape
+        (n_val, nv); empty without :attr:`uncertainty`.
     """
 
     config: IdentifyConfig
@@ -129,6 +138,8 @@ class IdentifyResult:
     warnings: tuple[str, ...] = ()
     consistent: ConsistentIdentification | None = None
     reduction: ReducedObservations | None = None
+    uncertainty: Uncertainty | None = None
+    prediction_std: dict[str, FloatArray] = field(default_factory=dict)
 
     @property
     def status(self) -> str:
@@ -217,6 +228,7 @@ def _identify(
     t5 = time.perf_counter()
     vectors = _vectors(est, essential, cons, pm)
     tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
+    unc, pred_std = _uncertainty(chunked, est, scheduler)
     comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
     timings["validate"] = time.perf_counter() - t5
     t6 = time.perf_counter()
@@ -251,6 +263,8 @@ def _identify(
         warnings=tuple(problems),
         consistent=cons,
         reduction=red,
+        uncertainty=unc,
+        prediction_std=pred_std,
     )
 
 
@@ -296,6 +310,24 @@ def _predict(
         for label, pred in tau_pred.items()
     }
     return tau_val, keep_val, predictions
+
+
+def _uncertainty(
+    chunked: accumulate.ChunkedLog, est: Estimate, scheduler: str | None
+) -> tuple[Uncertainty | None, dict[str, FloatArray]]:
+    """HAC and block-bootstrap covariances of ``est`` and the held-out prediction standard
+    deviations of every interval method (none when the log has too few blocks)."""
+    sigma = np.asarray(est.sigma, dtype=float)
+    weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
+    try:
+        blocks = accumulate.block_equations(chunked, weights, scheduler)
+        unc = parameter_uncertainty(blocks, est.names, est.x, est.covariance, rng=0)
+    except (DataError, np.linalg.LinAlgError):
+        return None, {}
+    stds = accumulate.prediction_std_log(
+        chunked, unc.covariance, np.nan_to_num(est.residual_rms), scheduler
+    )
+    return unc, stds
 
 
 def _check_joints(log: RobotLog, model: pin.Model, source: str) -> list[str]:
