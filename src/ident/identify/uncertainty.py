@@ -276,6 +276,9 @@ class Uncertainty:
         Blocks with rows.
     n_boot :
         Bootstrap resamples.
+    x_blocks :
+        The weighted least-squares solution of the blocks, shape (n,): equal to ``x`` for
+        a least-squares estimate up to the final WLS re-weighting (a check of the blocks).
     method :
         The default method (:data:`DEFAULT_METHOD`).
     """
@@ -287,6 +290,7 @@ class Uncertainty:
     block_samples: int
     n_blocks: int
     n_boot: int
+    x_blocks: FloatArray
     method: str = DEFAULT_METHOD
 
     def std(self, method: str | None = None) -> FloatArray:
@@ -321,7 +325,7 @@ def parameter_uncertainty(
 
     ``ordinary`` (n, n) is the estimate's ordinary covariance, kept for comparison.
     """
-    _, C_hac, S = hac_covariance(blocks)
+    x_blocks, C_hac, S = hac_covariance(blocks)
     boot = block_bootstrap(blocks, int(np.ceil(S)), n_boot=n_boot, rng=rng)
     C_boot = np.cov(boot, rowvar=False)
     return Uncertainty(
@@ -332,6 +336,7 @@ def parameter_uncertainty(
         block_samples=blocks.block_samples,
         n_blocks=blocks.nonempty().n_blocks,
         n_boot=n_boot,
+        x_blocks=x_blocks,
     )
 
 

@@ -1,0 +1,172 @@
+"""HAC and block-bootstrap covariances against closed forms and Monte-Carlo coverage."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ident.identify.uncertainty import (
+    BlockEquations,
+    andrews_bandwidth,
+    block_bootstrap,
+    hac_covariance,
+    parameter_uncertainty,
+    prediction_std,
+    z_value,
+)
+
+
+def _ar1(rng: np.random.Generator, n: int, rho: float, shape: tuple = ()) -> np.ndarray:
+    e = rng.standard_normal((n, *shape))
+    out = np.empty_like(e)
+    out[0] = e[0] / np.sqrt(1 - rho**2)
+    for k in range(1, n):
+        out[k] = rho * out[k - 1] + e[k]
+    return out
+
+
+def _blocks(X: np.ndarray, y: np.ndarray, block: int, w: float = 1.0) -> BlockEquations:
+    """One joint: rows X (n, p), torques y (n,)."""
+    keep = np.ones((X.shape[0], 1), dtype=bool)
+    return BlockEquations.from_samples(X[:, None, :], y[:, None], keep, np.array([w]), block)
+
+
+def test_blocks_solve_weighted_least_squares_and_drop_masked_rows():
+    rng = np.random.default_rng(0)
+    n, p = 200, 3
+    Yb = rng.standard_normal((n, 2, p))
+    tau = rng.standard_normal((n, 2))
+    keep = rng.random((n, 2)) > 0.3
+    w = np.array([2.0, 0.5])
+    blocks = BlockEquations.from_samples(Yb, tau, keep, w, 7)
+    # independent reference: lstsq of the kept rows scaled by w_j
+    rows = np.concatenate([Yb[keep[:, j], j] * w[j] for j in range(2)])
+    rhs = np.concatenate([tau[keep[:, j], j] * w[j] for j in range(2)])
+    ref = np.linalg.lstsq(rows, rhs, rcond=None)[0]
+    np.testing.assert_allclose(blocks.solve(), ref, rtol=1e-10)
+    assert blocks.n_blocks == int(np.ceil(n / 7))
+    assert blocks.n_rows.sum() == keep.sum()
+
+
+def test_hac_equals_the_newey_west_double_sum_on_sample_scores():
+    rng = np.random.default_rng(1)
+    n, p = 300, 2
+    X = np.column_stack([np.ones(n), np.sin(np.arange(n) / 7.0)])
+    y = X @ np.array([1.0, -2.0]) + _ar1(rng, n, 0.6)
+    x, C, S = hac_covariance(_blocks(X, y, 1), bandwidth=4.5)
+    # reference: the textbook formula written out, one sample per score
+    beta = np.linalg.lstsq(X, y, rcond=None)[0]
+    g = X * (y - X @ beta)[:, None]
+    B = sum(g[k][:, None] * g[k][None, :] for k in range(n))
+    for lag in range(1, 5):
+        G = sum(g[k][:, None] * g[k - lag][None, :] for k in range(lag, n))
+        B = B + (1 - lag / 4.5) * (G + G.T)
+    Ainv = np.linalg.inv(X.T @ X)
+    np.testing.assert_allclose(x, beta, rtol=1e-10)
+    np.testing.assert_allclose(C, Ainv @ B @ Ainv * n / (n - p), rtol=1e-9)
+    assert S == 4.5
+
+
+def test_andrews_bandwidth_closed_form_for_one_ar1_component():
+    rng = np.random.default_rng(2)
+    n, rho = 4000, 0.7
+    s = _ar1(rng, n, rho, (1,))
+    rho_hat = float(np.sum(s[1:] * s[:-1]) / np.sum(s[:-1] ** 2))
+    alpha = 4 * rho_hat**2 / ((1 - rho_hat) ** 2 * (1 + rho_hat) ** 2)
+    assert andrews_bandwidth(s) == pytest.approx(1.1447 * (alpha * n) ** (1 / 3), rel=1e-9)
+    # white scores: the bandwidth falls to its floor of one block (no lags)
+    assert andrews_bandwidth(rng.standard_normal((n, 3))) < 2.0
+
+
+@pytest.fixture(scope="module")
+def monte_carlo():
+    """200 fits of a line with smooth regressors and AR(1) noise (rho = 0.8)."""
+    rng = np.random.default_rng(3)
+    n, reps = 1000, 200
+    t = np.arange(n) / n
+    X = np.column_stack([np.ones(n), np.sin(2 * np.pi * 3 * t), np.cos(2 * np.pi * 5 * t)])
+    beta = np.array([1.0, 0.5, -0.3])
+    z = z_value(0.95)
+    inside = {"ordinary": [], "hac": [], "bootstrap": []}
+    ratio = []
+    for r in range(reps):
+        y = X @ beta + _ar1(rng, n, 0.8)
+        blocks = _blocks(X, y, 5)
+        x = blocks.solve()
+        resid = y - X @ x
+        ordinary = resid @ resid / (n - 3) * np.linalg.inv(X.T @ X)
+        unc = parameter_uncertainty(blocks, ("a", "b", "c"), x, ordinary, n_boot=200, rng=r)
+        for m in inside:
+            inside[m].append(np.abs(x - beta) <= z * unc.std(m))
+        ratio.append(unc.std("bootstrap") / unc.std("hac"))
+    return {m: float(np.mean(v)) for m, v in inside.items()}, np.array(ratio)
+
+
+def test_hac_covers_at_the_nominal_rate_where_the_ordinary_covariance_does_not(monte_carlo):
+    coverage, _ = monte_carlo
+    assert 0.88 <= coverage["hac"] <= 0.99, coverage
+    assert coverage["ordinary"] < 0.75, coverage  # AR(1) 0.8: std ~3x too small
+
+
+def test_block_bootstrap_covers_and_agrees_with_hac(monte_carlo):
+    coverage, ratio = monte_carlo
+    assert 0.85 <= coverage["bootstrap"] <= 0.99, coverage
+    assert 0.7 < np.median(ratio) < 1.3
+
+
+def test_bootstrap_of_independent_blocks_matches_the_sandwich():
+    rng = np.random.default_rng(4)
+    n = 2000
+    X = np.column_stack([np.ones(n), rng.standard_normal(n)])
+    y = X @ np.array([0.3, 2.0]) + rng.standard_normal(n) * (1 + np.abs(X[:, 1]))
+    blocks = _blocks(X, y, 1)
+    _, C, _ = hac_covariance(blocks, bandwidth=1.0)  # HC1 (heteroscedastic, no lags)
+    boot = block_bootstrap(blocks, 1, n_boot=2000, rng=5)
+    np.testing.assert_allclose(
+        np.sqrt(np.diag(np.cov(boot, rowvar=False))), np.sqrt(np.diag(C)), rtol=0.1
+    )
+
+
+def test_prediction_std_closed_form():
+    rng = np.random.default_rng(6)
+    Yb = rng.standard_normal((4, 2, 3))
+    L = rng.standard_normal((3, 3))
+    C = L @ L.T
+    sigma = np.array([0.5, 2.0])
+    out = prediction_std(Yb, C, sigma)
+    k, j = 2, 1
+    assert out[k, j] == pytest.approx(np.sqrt(Yb[k, j] @ C @ Yb[k, j] + sigma[j] ** 2))
+    assert z_value(0.95) == pytest.approx(1.959964, rel=1e-6)
+
+
+def test_identify_blocks_reproduce_its_estimate_in_base_order(tmp_path):
+    """The second pass's blocks (kernel -> base column order, WLS weights) solve to the
+    identified WLS estimate, whole log or in chunks, and every held-out std is finite."""
+    from robots import rp2_identify_config
+
+    from ident.identify.config import load_identify_config
+    from ident.identify.real import identify
+
+    cfg = load_identify_config(rp2_identify_config(tmp_path))
+    result = identify(cfg)
+    est, unc = result.estimate, result.uncertainty
+    assert unc is not None
+    np.testing.assert_allclose(unc.x, est.x)
+    chunked = cfg.model_copy(
+        update={
+            "preprocess": cfg.preprocess.model_copy(
+                update={"chunked": "always", "chunk_samples": 1500}
+            )
+        }
+    )
+    for res in (result, identify(chunked)):
+        u = res.uncertainty
+        np.testing.assert_allclose(res.estimate.x, est.x, rtol=1e-8, atol=1e-10)
+        # a wrong column order or weighting gives another solution entirely
+        assert np.all(np.abs(u.x_blocks - est.x) < 0.05 * u.std("hac"))
+        assert np.all(u.std("hac") > 0)
+    # bootstrap and HAC are both computed; the held-out stds exceed the residual RMS
+    for method in ("ordinary", "hac", "bootstrap"):
+        std = result.prediction_std[method]
+        assert std.shape == result.tau_validate.shape
+        assert np.all(std >= est.residual_rms[None, :] * (1 - 1e-12))
