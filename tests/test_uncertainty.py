@@ -170,3 +170,25 @@ def test_identify_blocks_reproduce_its_estimate_in_base_order(tmp_path):
         std = result.prediction_std[method]
         assert std.shape == result.tau_validate.shape
         assert np.all(std >= est.residual_rms[None, :] * (1 - 1e-12))
+
+
+def test_report_intervals_are_the_default_methods(tmp_path):
+    """result.json's intervals: x +- 1.96 std of the default method; unseen parameters named."""
+    from robots import rp2_identify_config
+
+    from ident.identify.config import load_identify_config
+    from ident.identify.real import identify
+    from ident.identify.uncertainty import DEFAULT_METHOD
+    from ident.report.identify_report import result_dict
+
+    result = identify(load_identify_config(rp2_identify_config(tmp_path)))
+    entry = result_dict(result)["uncertainty"]
+    unc = result.uncertainty
+    assert entry["method"] == DEFAULT_METHOD == "bootstrap"
+    lo_hi = np.array([p["interval_95"] for p in entry["parameters"]])
+    half = 1.959964 * np.sqrt(np.diag(unc.covariance["bootstrap"]))
+    np.testing.assert_allclose(lo_hi, np.column_stack([unc.x - half, unc.x + half]), rtol=1e-6)
+    np.testing.assert_allclose(unc.x, result.estimate.x)
+    # rp2: the first joint turns about the vertical: the mass of link 1 never reaches a torque
+    assert "m1" in entry["identifiability"]["not_seen"]
+    assert 0.8 < entry["held_out_inside"]["bootstrap"] <= 1.0

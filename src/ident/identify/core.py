@@ -45,6 +45,7 @@ from ident.identify.estimators import (
     bounding_ellipsoids,
     consistent_identification_reduced,
 )
+from ident.identify.identifiability import Identifiability, standard_identifiability
 from ident.identify.logs import RobotLog
 from ident.identify.motion import measured_motion
 from ident.identify.observations import ReducedObservations
@@ -54,8 +55,9 @@ from ident.identify.reference import (
     read_reference,
     reference_weights,
 )
-from ident.identify.uncertainty import Uncertainty, parameter_uncertainty
+from ident.identify.uncertainty import Uncertainty, coverage_summary, parameter_uncertainty
 from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
+from ident.identify.verdict import truth_from_config
 from ident.model.selection import load_robot
 from ident.trajectory import JointTrajectory
 
@@ -114,6 +116,13 @@ class IdentifyResult:
         Per interval method (``"ordinary"``, ``"hac"``, ``"bootstrap"``), the standard
         deviation of every held-out torque about the identified prediction [N*m], shape
         (n_val, nv); empty without :attr:`uncertainty`.
+    uncertainty_summary :
+        :func:`~ident.identify.uncertainty.coverage_summary` of :attr:`uncertainty` (held-out
+        coverage of the prediction intervals; coverage of ``validation.truth`` when set), or
+        None.
+    identifiability :
+        Per standard parameter: alone, only in combination, or not seen
+        (:mod:`ident.identify.identifiability`).
     """
 
     config: IdentifyConfig
@@ -140,6 +149,8 @@ class IdentifyResult:
     reduction: ReducedObservations | None = None
     uncertainty: Uncertainty | None = None
     prediction_std: dict[str, FloatArray] = field(default_factory=dict)
+    uncertainty_summary: dict | None = None
+    identifiability: Identifiability | None = None
 
     @property
     def status(self) -> str:
@@ -265,6 +276,12 @@ def _identify(
         reduction=red,
         uncertainty=unc,
         prediction_std=pred_std,
+        uncertainty_summary=_uncertainty_summary(
+            cfg, unc, pred_std, tau_val - predictions["identified"].tau_pred, keep_val
+        ),
+        identifiability=standard_identifiability(
+            pm.base.projection, pm.names, pm.base_names, pm.base.expressions()
+        ),
     )
 
 
@@ -328,6 +345,22 @@ def _uncertainty(
         chunked, unc.covariance, np.nan_to_num(est.residual_rms), scheduler
     )
     return unc, stds
+
+
+def _uncertainty_summary(
+    cfg: IdentifyConfig,
+    unc: Uncertainty | None,
+    pred_std: dict[str, FloatArray],
+    residual: FloatArray,
+    keep: npt.NDArray[np.bool_],
+) -> dict | None:
+    """Coverage of the prediction intervals on the held-out rows, and of the true base
+    parameters when ``validation.truth`` gives them in the estimate's order."""
+    if unc is None:
+        return None
+    truth = truth_from_config(cfg.validation.truth)
+    values = truth.values if truth is not None and truth.names == unc.names else None
+    return coverage_summary(unc, truth=values, held_out=(residual, pred_std, keep))
 
 
 def _check_joints(log: RobotLog, model: pin.Model, source: str) -> list[str]:
