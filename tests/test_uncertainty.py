@@ -192,3 +192,66 @@ def test_report_intervals_are_the_default_methods(tmp_path):
     # rp2: the first joint turns about the vertical: the mass of link 1 never reaches a torque
     assert "m1" in entry["identifiability"]["not_seen"]
     assert 0.8 < entry["held_out_inside"]["bootstrap"] <= 1.0
+
+
+def test_repeatability_flags_a_drifting_log_only():
+    from ident.identify.uncertainty import repeatability
+
+    rng = np.random.default_rng(7)
+    std = np.array([[0.1, 1.0, 0.01]] * 6) * rng.uniform(0.8, 1.2, (6, 3))
+    x = np.array([2.0, -5.0, 0.3]) + std * rng.standard_normal((6, 3))
+    ok = repeatability(x, std, ("a", "b", "c"))
+    assert ok.disagree == ()
+    # closed form: equal std -> the statistic is (n - 1) s^2 / sigma^2
+    same = repeatability(x[:, :1], np.full((6, 1), 0.1), ("a",))
+    s2 = np.var(x[:, 0], ddof=1)
+    from scipy.stats import chi2
+
+    assert same.p_value[0] == pytest.approx(chi2.sf(5 * s2 / 0.01, 5))
+    drift = x.copy()
+    drift[4, 1] += 8 * std[4, 1]  # log 5: parameter b drifted by 8 sigma
+    bad = repeatability(drift, std, ("a", "b", "c"))
+    assert bad.disagree == (("b", 4),)
+    assert "log 5 lies farthest" in bad.lines()[0]
+
+
+def test_cli_repeatability_names_the_drifted_parameter(tmp_path):
+    """Two logs of the rp2 arm, the second with the slider's viscous friction 2.0 -> 2.6:
+    ``ident repeatability`` exits 1 and names fv2; the same log twice agrees (exit 0)."""
+    import yaml
+    from robots import rp2_identify_config
+    from typer.testing import CliRunner
+
+    from ident.cli import app
+
+    first = rp2_identify_config(tmp_path)
+    cfg = yaml.safe_load(first.read_text())
+    log = np.genfromtxt(tmp_path / "rp2.csv", delimiter=",", names=True)
+    dq = np.gradient(log["q_slider"], log["t"])
+    rows = np.column_stack(
+        [
+            log["t"],
+            log["q_shoulder"],
+            log["q_slider"],
+            log["tau_shoulder"],
+            log["tau_slider"] + 0.6 * dq,
+        ]
+    )
+    drifted = tmp_path / "drifted.csv"
+    header = "t,q_shoulder,q_slider,tau_shoulder,tau_slider"
+    drifted.write_text(header + "\n" + "\n".join(",".join(f"{v:.9g}" for v in r) for r in rows))
+    for key in ("time", "position", "torque"):
+        cfg["log"][key]["path"] = str(drifted)
+    second = tmp_path / "drifted.yaml"
+    second.write_text(yaml.safe_dump(cfg))
+    runner = CliRunner()
+    same = runner.invoke(app, ["repeatability", str(first), str(first)])
+    assert same.exit_code == 0, same.output
+    assert "agree within their predicted std" in same.output
+    out = runner.invoke(app, ["repeatability", str(first), str(second)])
+    assert out.exit_code == 1, out.output
+    flagged = [line for line in out.output.splitlines() if line.startswith("disagree:")]
+    assert any(line.startswith("disagree: fv2:") for line in flagged), out.output
+    bad = runner.invoke(app, ["repeatability", str(first)])
+    assert bad.exit_code == 2
+    assert bad.output.startswith("error: repeatability needs at least two")
