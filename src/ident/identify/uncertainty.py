@@ -146,15 +146,17 @@ class BlockEquations:
         step = max(1, int(block_samples))
         w2 = np.where(keep, np.asarray(weights, dtype=float)[None, :] ** 2, 0.0)
         Yw = Yb * w2[:, :, None]  # weighted rows; dropped rows weigh 0
-        edges = np.arange(0, n_samples, step)
-        A = np.zeros((edges.size, n, n))
-        for i, a in enumerate(edges):
-            A[i] = np.einsum("kjp,kjq->pq", Yw[a : a + step], Yb[a : a + step])
-        c = np.zeros((edges.size, n))
-        n_rows = np.zeros(edges.size, dtype=np.int64)
-        if edges.size:
-            c = np.add.reduceat(np.einsum("kjp,kj->kp", Yw, tau), edges, axis=0)
-            n_rows = np.add.reduceat(keep.sum(axis=1), edges).astype(np.int64)
+        n_blocks = -(-n_samples // step)
+        pad = n_blocks * step - n_samples  # zero rows complete the last block
+
+        def blocked(a: npt.NDArray) -> npt.NDArray:
+            a = np.concatenate([a, np.zeros((pad, *a.shape[1:]), dtype=a.dtype)])
+            return a.reshape(n_blocks, step, *a.shape[1:])
+
+        Yb_b, Yw_b = blocked(Yb), blocked(Yw)
+        A = np.einsum("bkjp,bkjq->bpq", Yw_b, Yb_b, optimize=True)
+        c = np.einsum("bkjp,bkj->bp", Yw_b, blocked(tau), optimize=True)
+        n_rows = blocked(keep).sum(axis=(1, 2)).astype(np.int64)
         return cls(A=A, c=c, n_rows=n_rows, block_samples=step)
 
     @classmethod
@@ -172,6 +174,8 @@ class BlockEquations:
     def nonempty(self) -> BlockEquations:
         """The blocks with at least one row."""
         keep = self.n_rows > 0
+        if keep.all():
+            return self
         return BlockEquations(
             A=self.A[keep],
             c=self.c[keep],
@@ -181,9 +185,11 @@ class BlockEquations:
 
     def solve(self, multiplicity: FloatArray | None = None) -> FloatArray:
         """``x`` of ``(sum_b m_b A_b) x = sum_b m_b c_b`` (``m_b = 1`` by default), (n,)."""
-        m = np.ones(self.n_blocks) if multiplicity is None else multiplicity
-        A = np.tensordot(m, self.A, axes=1)
-        return scipy.linalg.solve(A, m @ self.c, assume_a="pos", check_finite=False)
+        if multiplicity is None:
+            A, c = self.A.sum(axis=0), self.c.sum(axis=0)
+        else:
+            A, c = np.tensordot(multiplicity, self.A, axes=1), multiplicity @ self.c
+        return np.asarray(scipy.linalg.solve(A, c, assume_a="pos", check_finite=False))
 
 
 def andrews_bandwidth(scores: FloatArray) -> float:
@@ -352,7 +358,10 @@ def prediction_std(Yb: FloatArray, covariance: FloatArray, sigma: FloatArray) ->
     ``sqrt(r^T C r + sigma_j^2)`` for the base rows ``Yb`` (n_samples, nv, n), the parameter
     covariance ``C`` (n, n) and the per-joint residual RMS ``sigma`` (nv,) [N*m].
     """
-    var = np.einsum("kjp,pq,kjq->kj", Yb, covariance, Yb)
+    # C = V diag(e) V^T (symmetric, PSD up to round-off): r^T C r = ||diag(sqrt(e)) V^T r||^2
+    e, V = np.linalg.eigh(0.5 * (covariance + covariance.T))
+    F = V * np.sqrt(np.clip(e, 0.0, None))[None, :]
+    var = np.sum((Yb @ F) ** 2, axis=-1)
     return np.sqrt(np.clip(var, 0.0, None) + np.asarray(sigma, dtype=float)[None, :] ** 2)
 
 
