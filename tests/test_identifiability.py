@@ -86,3 +86,20 @@ def test_unseparable_parameters_named_and_alone_ones_trustworthy(trap):
     wrong = {pm.names[i] for i in np.flatnonzero(error > 0.2)}
     assert {"m2", "m3"} <= wrong  # the CAD's masses, 4x off: not the data's
     assert wrong <= set(ident.of_kind("combination")) | set(ident.of_kind("none"))
+
+
+def test_standard_values_of_alone_parameters_and_their_std(trap):
+    pm, truth, _, problem = trap
+    ident = standard_identifiability(pm.base.projection, pm.names, pm.base_names)
+    est = get_estimator("ols")(problem)
+    value, std = ident.standard_values(est.x, est.covariance)
+    alone = np.array([k == "alone" for k in ident.kind])
+    assert np.isnan(value[~alone]).all()
+    # fv3 is a base parameter by itself: its value and std are the base estimate's
+    k = pm.base_names.index("fv3")
+    i = pm.names.index("fv3")
+    assert value[i] == pytest.approx(est.x[k], rel=1e-9)
+    assert std[i] == pytest.approx(est.std[k], rel=1e-6)
+    # every alone value equals the standard completion (the data's value), whatever the CAD
+    theta = problem.standard_completion(est.x)
+    np.testing.assert_allclose(value[alone], theta[alone], rtol=1e-6, atol=1e-9)

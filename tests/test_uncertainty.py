@@ -192,6 +192,10 @@ def test_report_intervals_are_the_default_methods(tmp_path):
     # rp2: the first joint turns about the vertical: the mass of link 1 never reaches a torque
     assert "m1" in entry["identifiability"]["not_seen"]
     assert 0.8 < entry["held_out_inside"]["bootstrap"] <= 1.0
+    # fv1 is a base parameter alone: its standard-parameter interval is the base one
+    (fv1,) = [p for p in entry["identifiability"]["alone"] if p["name"] == "fv1"]
+    k = list(unc.names).index("fv1")
+    np.testing.assert_allclose(fv1["interval_95"], lo_hi[k], rtol=1e-6)
 
 
 def test_repeatability_flags_a_drifting_log_only():

@@ -37,7 +37,7 @@ KINDS = ("alone", "combination", "none")
 _RTOL = 1e-9
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Identifiability:
     """Per standard parameter: ``kind`` (one of :data:`KINDS`) and the base parameters it
     enters (their names and expressions; empty for ``none``).
@@ -51,11 +51,27 @@ class Identifiability:
     enters :
         Per parameter, the expressions (``"name = expression"``) of the base parameters it
         enters.
+    weights :
+        ``theta_i = weights[i] @ beta`` for every parameter determined ``alone`` (a row of
+        the pseudo-inverse of ``T``); NaN rows for the others, shape (n_std, n_base).
     """
 
     names: tuple[str, ...]
     kind: tuple[str, ...]
     enters: tuple[tuple[str, ...], ...]
+    weights: FloatArray
+
+    def standard_values(
+        self, beta: npt.ArrayLike, covariance: npt.ArrayLike
+    ) -> tuple[FloatArray, FloatArray]:
+        """Values and standard deviations of the standard parameters determined alone, from
+        base parameters ``beta`` (n_base,) and their covariance (n_base, n_base); NaN for the
+        others (their values come from the prior), shapes (n_std,)."""
+        W = self.weights
+        C = np.asarray(covariance, dtype=float)
+        value = W @ np.asarray(beta, dtype=float)
+        std = np.sqrt(np.clip(np.einsum("ip,pq,iq->i", W, C, W), 0.0, None))
+        return value, std
 
     def of_kind(self, kind: str) -> tuple[str, ...]:
         """Names of the parameters of ``kind``."""
@@ -115,4 +131,8 @@ def standard_identifiability(
                 for k in rows
             )
         )
-    return Identifiability(names=tuple(names), kind=tuple(kinds), enters=tuple(enters))
+    weights = np.linalg.pinv(T).copy()  # (n_std, n_base): T^+ T projects on the row space
+    weights[[k != "alone" for k in kinds]] = np.nan
+    return Identifiability(
+        names=tuple(names), kind=tuple(kinds), enters=tuple(enters), weights=weights
+    )

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ident.identify.uncertainty import z_value
+
 __all__ = ["interval_cell", "uncertainty_json", "uncertainty_markdown"]
 
 _LABELS = {
@@ -52,6 +54,18 @@ def uncertainty_json(result: Any) -> dict | None:
             },
             "not_seen": list(ident.of_kind("none")),
         }
+        if unc is not None:  # the standard parameters the data determine alone
+            value, std = ident.standard_values(unc.x, unc.covariance[unc.method])
+            half = z_value(0.95) * std
+            out["identifiability"]["alone"] = [
+                {
+                    "name": n,
+                    "value": float(value[i]),
+                    "interval_95": [float(value[i] - half[i]), float(value[i] + half[i])],
+                }
+                for i, n in enumerate(ident.names)
+                if ident.kind[i] == "alone"
+            ]
     return out or None
 
 
