@@ -106,7 +106,12 @@ def uncertainty_markdown(result: Any) -> list[str]:
             ]
     ident = result.identifiability
     if ident is not None:
-        combined = [line for line in ident.lines() if "only in combination" in line]
+        groups: dict[str, list[str]] = {}  # base parameters entered -> standard parameters
+        for name, kind, enters in zip(ident.names, ident.kind, ident.enters, strict=True):
+            if kind == "combination":
+                key = ", ".join(e.split(" = ")[0] for e in enters)
+                groups.setdefault(key, []).append(name)
+        combined = [f"{', '.join(v)}: only in combination, in {k}" for k, v in groups.items()]
         unseen = ident.of_kind("none")
         lines += [
             "",
@@ -114,7 +119,7 @@ def uncertainty_markdown(result: Any) -> list[str]:
             f"{len(ident.of_kind('combination'))} only in combination, "
             f"{len(ident.of_kind('none'))} not seen. A written model's values of the last two "
             "kinds come from the prior (the URDF's nominal values) along what the data do not "
-            "see, not from the data:",
+            "see, not from the data (the base parameters' expressions are in the table above):",
             "",
             *[f"- {line}" for line in combined],
             *([f"- not seen at all: {', '.join(unseen)}"] if unseen else []),
