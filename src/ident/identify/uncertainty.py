@@ -77,6 +77,7 @@ __all__ = [
     "andrews_bandwidth",
     "block_bootstrap",
     "coverage_summary",
+    "interval_coverage",
     "hac_covariance",
     "parameter_uncertainty",
     "prediction_std",
@@ -482,3 +483,10 @@ def repeatability(
         p_value=p,
         disagree=tuple((names[k], int(np.argmax(np.abs(z[:, k])))) for k in bad),
     )
+
+
+def interval_coverage(unc: Uncertainty, truth: npt.ArrayLike, level: float = 0.95) -> float:
+    """Fraction of the true values ``truth`` (n,) inside the default method's intervals."""
+    lo_hi = unc.interval(level)
+    t = np.asarray(truth, dtype=float)
+    return float(np.mean((lo_hi[:, 0] <= t) & (t <= lo_hi[:, 1])))
