@@ -139,16 +139,24 @@ def test_prediction_std_closed_form():
     assert z_value(0.95) == pytest.approx(1.959964, rel=1e-6)
 
 
-def test_identify_blocks_reproduce_its_estimate_in_base_order(tmp_path):
-    """The second pass's blocks (kernel -> base column order, WLS weights) solve to the
-    identified WLS estimate, whole log or in chunks, and every held-out std is finite."""
+@pytest.fixture(scope="module")
+def rp2(tmp_path_factory):
+    """The rp2 arm's 12 s log identified once (WLS): config and result."""
     from robots import rp2_identify_config
 
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify
 
-    cfg = load_identify_config(rp2_identify_config(tmp_path))
-    result = identify(cfg)
+    cfg = load_identify_config(rp2_identify_config(tmp_path_factory.mktemp("rp2")))
+    return cfg, identify(cfg)
+
+
+def test_identify_blocks_reproduce_its_estimate_in_base_order(rp2):
+    """The second pass's blocks (kernel -> base column order, WLS weights) solve to the
+    identified WLS estimate, whole log or in chunks, and every held-out std is finite."""
+    from ident.identify.real import identify
+
+    cfg, result = rp2
     est, unc = result.estimate, result.uncertainty
     assert unc is not None
     np.testing.assert_allclose(unc.x, est.x)
@@ -172,16 +180,12 @@ def test_identify_blocks_reproduce_its_estimate_in_base_order(tmp_path):
         assert np.all(std >= est.residual_rms[None, :] * (1 - 1e-12))
 
 
-def test_report_intervals_are_the_default_methods(tmp_path):
+def test_report_intervals_are_the_default_methods(rp2):
     """result.json's intervals: x +- 1.96 std of the default method; unseen parameters named."""
-    from robots import rp2_identify_config
-
-    from ident.identify.config import load_identify_config
-    from ident.identify.real import identify
     from ident.identify.uncertainty import DEFAULT_METHOD
     from ident.report.identify_report import result_dict
 
-    result = identify(load_identify_config(rp2_identify_config(tmp_path)))
+    _, result = rp2
     entry = result_dict(result)["uncertainty"]
     unc = result.uncertainty
     assert entry["method"] == DEFAULT_METHOD == "bootstrap"
