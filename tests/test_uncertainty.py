@@ -203,7 +203,7 @@ def test_report_intervals_are_the_default_methods(rp2):
 
 
 def test_repeatability_flags_a_drifting_log_only():
-    from ident.identify.uncertainty import repeatability
+    from ident.identify.repeatability import repeatability
 
     rng = np.random.default_rng(7)
     std = np.array([[0.1, 1.0, 0.01]] * 6) * rng.uniform(0.8, 1.2, (6, 3))
