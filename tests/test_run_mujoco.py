@@ -78,6 +78,18 @@ def test_identify_on_the_run_folder_log_gives_the_runs_estimate(quick_run, tmp_p
         ours = (quick_run / model["files"][key]).read_text()
         theirs = (_only(tmp_path) / model_again["files"][key]).read_text()
         assert ours == theirs, key
+    # the run's coverage of the truth by the 95 % intervals = the re-identification's, whose
+    # intervals and truth (validation.truth) are both in its result.json
+    unc = again["uncertainty"]
+    lo_hi = np.array([p["interval_95"] for p in unc["parameters"]])
+    true = np.array(run["stage"]["true_base"])
+    inside = np.mean((lo_hi[:, 0] <= true) & (true <= lo_hi[:, 1]))
+    est = run["elites"][0]["estimates"]["wls"]
+    assert est["within_95_interval"] == pytest.approx(inside)
+    assert unc["truth_inside"][unc["method"]] == pytest.approx(inside)
+    assert (
+        f"{100 * inside:.0f} % inside their 95 % interval" in (quick_run / "report.md").read_text()
+    )
 
 
 def test_friction_and_rotor_inertia_are_recovered_from_the_simulated_log(quick_run) -> None:

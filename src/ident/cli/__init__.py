@@ -78,6 +78,7 @@ _COMMAND_MODULES = (
     "run",
     "report",
     "identify",
+    "repeatability",
     "logs",
     "bench",
     "replay",

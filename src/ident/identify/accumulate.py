@@ -54,13 +54,16 @@ from ident.identify.estimate import Estimate, least_squares_reduced
 from ident.identify.logs import RobotLog
 from ident.identify.observations import ReducedObservations, reduce_rows
 from ident.identify.reference import ReferenceWeights
+from ident.identify.uncertainty import BlockEquations, prediction_std
 from ident.identify.validation import time_split
 
 __all__ = [
+    "MAX_BLOCKS",
     "BaseColumns",
     "Chunk",
     "ChunkPlan",
     "ChunkedLog",
+    "block_equations",
     "chunk_record",
     "default_chunk_samples",
     "essential_reduced",
@@ -70,6 +73,7 @@ __all__ = [
     "margin_samples",
     "plan_log",
     "predict_log",
+    "prediction_std_log",
     "reduce_chunk",
     "reduce_log",
     "regressor_bytes",
@@ -635,3 +639,59 @@ def chunk_record(chunked: ChunkedLog, red: ReducedObservations) -> dict:
         f"{int(red.n_rows.sum())} rows, no per-sample regressor kept"
         + (f"; skipped too-short segment(s): {'; '.join(skipped)}" if skipped else ""),
     }
+
+
+#: Most blocks :func:`block_equations` keeps (memory: ``n_blocks * n_base^2`` floats).
+MAX_BLOCKS = 2048
+
+
+def _block_task(task: _Task, weights: FloatArray, block_samples: int) -> BlockEquations:
+    c, keep = task.chunk()
+    order = task.columns.order
+    p = order.size
+    Yb = np.empty_like(c.Yb[:, :, :p])
+    Yb[:, :, order] = c.Yb[:, :, :p]  # kernel order -> base order
+    return BlockEquations.from_samples(Yb, c.tau, keep, weights, block_samples)
+
+
+def block_equations(
+    chunked: ChunkedLog,
+    weights: FloatArray,
+    scheduler: str | None = None,
+    max_blocks: int = MAX_BLOCKS,
+) -> BlockEquations:
+    """The identification rows' weighted normal equations by consecutive blocks, in time
+    order (a second pass over the chunks; :mod:`ident.identify.uncertainty`).
+
+    ``weights`` (nv,): per-joint row weights ``1 / sigma_j``. Blocks hold
+    ``ceil(n_identification_samples / max_blocks)`` decimated samples (1 on short logs) and
+    never cross a chunk boundary, so at most ``max_blocks + n_chunks`` blocks are kept.
+    """
+    n_total = sum(t.d1 - t.d0 for t in chunked.fit_tasks)
+    block_samples = max(1, -(-n_total // max_blocks))
+    parts = _run(_block_task, list(chunked.fit_tasks), scheduler, weights, block_samples)
+    return BlockEquations.concatenate(parts)
+
+
+def _prediction_std_task(
+    task: _Task, covariances: dict[str, FloatArray], sigma: FloatArray
+) -> dict[str, FloatArray]:
+    c, _ = task.chunk()
+    order = task.columns.order
+    p = order.size
+    Yb = np.empty_like(c.Yb[:, :, :p])
+    Yb[:, :, order] = c.Yb[:, :, :p]
+    return {k: prediction_std(Yb, C, sigma) for k, C in covariances.items()}
+
+
+def prediction_std_log(
+    chunked: ChunkedLog,
+    covariances: dict[str, FloatArray],
+    sigma: FloatArray,
+    scheduler: str | None = None,
+) -> dict[str, FloatArray]:
+    """Standard deviation of every held-out torque about its prediction, per covariance
+    label, shape (n_validate, nv) [N*m] (:func:`ident.identify.uncertainty.prediction_std`;
+    same samples as :func:`predict_log`)."""
+    parts = _run(_prediction_std_task, list(chunked.val_tasks), scheduler, covariances, sigma)
+    return {k: np.concatenate([p[k] for p in parts]) for k in covariances}

@@ -49,6 +49,7 @@ from ident.identify.estimators import (
     bounding_ellipsoids,
     consistent_identification_reduced,
 )
+from ident.identify.identifiability import Identifiability, standard_identifiability
 from ident.identify.logs import RobotLog
 from ident.identify.motion import measured_motion
 from ident.identify.observations import ReducedObservations
@@ -58,7 +59,9 @@ from ident.identify.reference import (
     read_reference,
     reference_weights,
 )
+from ident.identify.uncertainty import Uncertainty, coverage_summary, parameter_uncertainty
 from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
+from ident.identify.verdict import truth_from_config
 from ident.model.selection import load_robot
 from ident.trajectory import JointTrajectory
 
@@ -119,6 +122,21 @@ class IdentifyResult:
         estimator promises consistency, else :data:`MODEL_METHOD`'s; None with
         ``urdf_update.model: none``. Its held-out prediction is
         ``predictions[model.method]``.
+    uncertainty :
+        Covariances of the least-squares estimate robust to correlated residuals (HAC and
+        block bootstrap, :mod:`ident.identify.uncertainty`), or None when the log has too
+        few blocks for them.
+    prediction_std :
+        Per interval method (``"ordinary"``, ``"hac"``, ``"bootstrap"``), the standard
+        deviation of every held-out torque about the identified prediction [N*m], shape
+        (n_val, nv); empty without :attr:`uncertainty`.
+    uncertainty_summary :
+        :func:`~ident.identify.uncertainty.coverage_summary` of :attr:`uncertainty` (held-out
+        coverage of the prediction intervals; coverage of ``validation.truth`` when set), or
+        None.
+    identifiability :
+        Per standard parameter: alone, only in combination, or not seen
+        (:mod:`ident.identify.identifiability`).
     """
 
     config: IdentifyConfig
@@ -144,6 +162,10 @@ class IdentifyResult:
     consistent: ConsistentIdentification | None = None
     reduction: ReducedObservations | None = None
     model: ConsistentIdentification | None = None
+    uncertainty: Uncertainty | None = None
+    prediction_std: dict[str, FloatArray] = field(default_factory=dict)
+    uncertainty_summary: dict | None = None
+    identifiability: Identifiability | None = None
 
     @property
     def status(self) -> str:
@@ -233,8 +255,13 @@ def _identify(
     t5 = time.perf_counter()
     vectors = _vectors(est, essential, cons, pm, identified_model)
     tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
-    comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
     timings["validate"] = time.perf_counter() - t5
+    t_unc = time.perf_counter()
+    unc, pred_std = _uncertainty(chunked, est, scheduler)
+    timings["uncertainty"] = time.perf_counter() - t_unc
+    t5 = time.perf_counter()
+    comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
+    timings["validate"] += time.perf_counter() - t5
     t6 = time.perf_counter()
     motion, motion_note = replay_motion(log, cfg.preprocess, tuple(joints))
     timings["motion"] = time.perf_counter() - t6
@@ -268,6 +295,14 @@ def _identify(
         consistent=cons,
         reduction=red,
         model=identified_model,
+        uncertainty=unc,
+        prediction_std=pred_std,
+        uncertainty_summary=_uncertainty_summary(
+            cfg, unc, pred_std, tau_val - predictions["identified"].tau_pred, keep_val
+        ),
+        identifiability=standard_identifiability(
+            pm.base.projection, pm.names, pm.base_names, pm.base.expressions()
+        ),
     )
 
 
@@ -313,6 +348,40 @@ def _predict(
         for label, pred in tau_pred.items()
     }
     return tau_val, keep_val, predictions
+
+
+def _uncertainty(
+    chunked: accumulate.ChunkedLog, est: Estimate, scheduler: str | None
+) -> tuple[Uncertainty | None, dict[str, FloatArray]]:
+    """HAC and block-bootstrap covariances of ``est`` and the held-out prediction standard
+    deviations of every interval method (none when the log has too few blocks)."""
+    sigma = np.asarray(est.sigma, dtype=float)
+    weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
+    try:
+        blocks = accumulate.block_equations(chunked, weights, scheduler)
+        unc = parameter_uncertainty(blocks, est.names, est.x, est.covariance, rng=0)
+    except (DataError, np.linalg.LinAlgError):
+        return None, {}
+    stds = accumulate.prediction_std_log(
+        chunked, unc.covariance, np.nan_to_num(est.residual_rms), scheduler
+    )
+    return unc, stds
+
+
+def _uncertainty_summary(
+    cfg: IdentifyConfig,
+    unc: Uncertainty | None,
+    pred_std: dict[str, FloatArray],
+    residual: FloatArray,
+    keep: npt.NDArray[np.bool_],
+) -> dict | None:
+    """Coverage of the prediction intervals on the held-out rows, and of the true base
+    parameters when ``validation.truth`` gives them in the estimate's order."""
+    if unc is None:
+        return None
+    truth = truth_from_config(cfg.validation.truth)
+    values = truth.values if truth is not None and truth.names == unc.names else None
+    return coverage_summary(unc, truth=values, held_out=(residual, pred_std, keep))
 
 
 def _check_joints(log: RobotLog, model: pin.Model, source: str) -> list[str]:

@@ -34,6 +34,11 @@ from ident.identify.verdict import (
 from ident.report.format import pct, percent
 from ident.report.headline import Headline, headline_markdown
 from ident.report.model_section import model_section
+from ident.report.uncertainty_section import (
+    interval_cell,
+    uncertainty_json,
+    uncertainty_markdown,
+)
 
 __all__ = [
     "identified_urdf",
@@ -254,6 +259,7 @@ def result_dict(
     if urdf is not None:
         out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)
+    out["uncertainty"] = uncertainty_json(result)
     out["verdict"] = verdict_entry(result)
     return out
 
@@ -398,9 +404,9 @@ def _markdown(
         "",
         result.reference_note,
         "",
-        "| # | base parameter | unit | value | σ [%] | reference | ref. σ [%] | "
+        "| # | base parameter | unit | value | σ [%] | 95 % interval | reference | ref. σ [%] | "
         "URDF nominal | expression |",
-        "| ---: | :--- | :--- | ---: | ---: | ---: | ---: | ---: | :--- |",
+        "| ---: | :--- | :--- | ---: | ---: | ---: | ---: | ---: | ---: | :--- |",
     ]
     by_ours = {row["ours"]: row for row in result.comparison if row["ours"]}
     expressions = pm.base.expressions()
@@ -413,7 +419,7 @@ def _markdown(
         nominal = 0.0 if abs(nominal) < 1e-12 else nominal
         lines.append(
             f"| {k + 1} | {name} | {parameter_unit(name, units) or '-'} | {_num(est.x[k])} | "
-            f"{_num(est.relative_std[k], 3)} | {ref} | "
+            f"{_num(est.relative_std[k], 3)} | {interval_cell(result, k)} | {ref} | "
             f"{ref_std} | {_num(nominal)} | `{expressions[k]}` |"
         )
     sums = [row for row in result.comparison if row["match"] == "coupling basis"]
@@ -483,6 +489,7 @@ def _markdown(
                 + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
             ]
     lines += _truth_section(result)
+    lines += uncertainty_markdown(result)
     lines += _urdf_section(urdf, urdf_name)
     lines += _consistency_section(result)
     lines += [

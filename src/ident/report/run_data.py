@@ -36,6 +36,7 @@ import yaml
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
 from ident.identify.metrics import MAJOR_SHARE, _arr, _num, error_measures
+from ident.identify.uncertainty import interval_coverage
 from ident.report.paper import _paper_comparison, _paper_counts
 from ident.report.run_verdict import verdict_entry
 from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
@@ -163,6 +164,10 @@ def result_to_dict(result: Any) -> dict[str, Any]:
                         stage.reference_share,
                     )
                 )
+                unc = getattr(getattr(e.log, "result", None), "uncertainty", None)
+                if unc is not None and np.array_equal(unc.x, est.x):  # a simulated log's
+                    entry["within_95_interval"] = interval_coverage(unc, stage.true_base)
+                    entry["interval_method"] = unc.method
             estimates[method] = entry
         elites.append(
             {

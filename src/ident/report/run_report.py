@@ -342,7 +342,13 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
                 "Estimate",
                 f"{method.upper()} on elite {elite['rank']} (fitness {_fmt(elite['fitness'])}), "
                 f"{len(names)} base parameters, "
-                f"{100 * (est.get('within_3std') or 0):.0f} % within 3σ of the true value",
+                f"{100 * (est.get('within_3std') or 0):.0f} % within 3σ of the true value"
+                + (
+                    f", {100 * est['within_95_interval']:.0f} % inside their 95 % interval "
+                    f"({est['interval_method']}, docs/uncertainty.md)"
+                    if est.get("within_95_interval") is not None
+                    else ""
+                ),
             ]
         )
     if v.get("worst_std_percent") is not None:
