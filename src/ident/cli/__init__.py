@@ -78,6 +78,7 @@ _COMMAND_MODULES = (
     "run",
     "report",
     "identify",
+    "payload",
     "logs",
     "bench",
     "replay",
