@@ -156,3 +156,26 @@ def test_bad_payload_section_is_one_error_line_and_nothing_written(payload_confi
     for part in (str(path), "payload.method", "lmi"):  # the file, the field, the fix
         assert part in lines[0]
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_centre_of_mass_reported_in_another_frame_of_the_last_link(ur5):
+    """Noise-free rows of a known payload: the estimate is exact, and the centre of mass in a
+    frame at pose (R, p) in the last joint's frame is R^T (c - p) (a wrong-way transform, or
+    the first moments used as a position, fails)."""
+    from ident.identify.observations import ReducedObservations
+    from ident.identify.payload import estimate_payload
+
+    truth = load_mujoco_measurement({"payload": PAYLOAD}).payload
+    phi = truth.parameters()
+    q, dq, ddq = ur5.random_configurations(40, rng=1)
+    Y = ur5.regressor(q, dq, ddq)[:, :, -10:]
+    rng = np.random.default_rng(0)
+    red = ReducedObservations.from_samples(Y, Y @ phi + 1e-9 * rng.normal(size=(40, 6)))
+    placement = pin.SE3(pin.rpy.rpyToMatrix(0.3, -0.2, 1.0), np.array([0.01, 0.02, 0.1]))
+    result = estimate_payload(red, (), method="lmi", placement=placement, link="tool")
+    np.testing.assert_allclose(result.phi, phi, rtol=1e-6, atol=1e-8)
+    R, p = placement.rotation, placement.translation
+    np.testing.assert_allclose(result.com, R.T @ (np.asarray(truth.com) - p), atol=1e-8)
+    np.testing.assert_allclose(result.mass, truth.mass, rtol=1e-8)
+    inertia = np.array(PAYLOAD["inertia"])[[0, 1, 3, 1, 2, 4, 3, 4, 5]].reshape(3, 3)
+    np.testing.assert_allclose(result.inertia_com, R.T @ inertia @ R, atol=1e-7)
