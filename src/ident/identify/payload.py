@@ -268,61 +268,101 @@ def estimate_payload(
     consistent = None
     if method == "lmi":
         t1 = time.perf_counter()
-        mass = max(abs(float(x[0])), _MIN_NOMINAL_MASS)
-        com = x[1:4] / mass
-        com = com / max(1.0, float(np.linalg.norm(com)))  # a scale, not a prior: keep it sane
-        nominal = np.zeros(len(names))
-        nominal[:10] = parameters_from_com(np.asarray(mass), com, np.zeros((3, 3)))
-        kinds = [n.rstrip("0123456789") for n in extra]
-        nonnegative = [10 + i for i, k in enumerate(kinds) if k in ("Ia", "fv", "fs", "Iam")]
-        structure = ParameterStructure(
-            names=names,
-            bodies=np.arange(10)[None, :],
-            body_names=("payload",),
-            nonnegative=np.asarray(nonnegative, dtype=np.intp),
-            nominal=nominal,
-        )
-        problem = EstimationProblem(
-            observations=red,
-            names=names,
-            structure=structure,
-            weights=np.where(red.n_rows > 0, 1.0 / wls.sigma, 0.0),
-            options={"prior_floor": 0.0, "friction": "free"},
-        )
-        consistent = get_estimator("lmi")(problem)
+        consistent = _consistent_estimate(red, wls, extra)
         x = consistent.x
         timings["lmi"] = time.perf_counter() - t1
     phi = np.asarray(x[:10], dtype=float)
     cov = wls.covariance[:10, :10]
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    if placement is not None:
-        # parameters in the reporting frame: the inverse placement acts on them
-        rotation, translation = placement.rotation, placement.translation
-        phi_link = transform_parameters(phi, rotation.T, -rotation.T @ translation)
-    else:
-        phi_link, rotation, translation = phi, np.eye(3), np.zeros(3)
-    mass_link, com, inertia_com = com_and_inertia(phi_link)
-    # delta method: c = R^T (h / m - p); dc/dm = -R^T h / m^2, dc/dh = R^T / m
-    m, h = float(phi[0]), phi[1:4]
-    J = np.zeros((3, 4))
-    J[:, 0] = -rotation.T @ h / m**2
-    J[:, 1:] = rotation.T / m
-    com_cov = J @ cov[:4, :4] @ J.T
+    mass, com, com_std, inertia_com = _in_reporting_frame(phi, cov, placement)
     return PayloadResult(
         phi=phi,
         std=std,
         link=link,
-        mass=float(mass_link),
+        mass=mass,
         mass_std=float(std[0]),
-        com=np.asarray(com, dtype=float),
-        com_std=np.sqrt(np.clip(np.diag(com_cov), 0.0, None)),
-        inertia_com=np.asarray(inertia_com, dtype=float),
+        com=com,
+        com_std=com_std,
+        inertia_com=inertia_com,
         min_eigenvalue=float(pseudo_inertia_min_eigenvalue(phi)),
         wls=wls,
         consistent=consistent,
         method=method,
         extras=dict(zip(extra, (float(v) for v in x[10:]), strict=True)),
         timings=timings,
+    )
+
+
+def _lmi_structure(
+    names: tuple[str, ...], extra: tuple[str, ...], x: FloatArray
+) -> ParameterStructure:
+    """The payload as the LMI's one body; friction and rotor inertia >= 0.
+
+    The nominal (the LMI's scale of the unknowns, not a prior) is a point mass at the WLS
+    centre of mass, its mass at least ``_MIN_NOMINAL_MASS`` [kg] and the centre of mass
+    within 1 m of the last joint's frame.
+    """
+    mass = max(abs(float(x[0])), _MIN_NOMINAL_MASS)
+    com = x[1:4] / mass
+    com = com / max(1.0, float(np.linalg.norm(com)))  # a scale, not a prior: keep it sane
+    nominal = np.zeros(len(names))
+    nominal[:10] = parameters_from_com(np.asarray(mass), com, np.zeros((3, 3)))
+    kinds = [n.rstrip("0123456789") for n in extra]
+    nonnegative = [10 + i for i, k in enumerate(kinds) if k in ("Ia", "fv", "fs", "Iam")]
+    return ParameterStructure(
+        names=names,
+        bodies=np.arange(10)[None, :],
+        body_names=("payload",),
+        nonnegative=np.asarray(nonnegative, dtype=np.intp),
+        nominal=nominal,
+    )
+
+
+def _consistent_estimate(
+    red: ReducedObservations, wls: Estimate, extra: tuple[str, ...]
+) -> Estimate:
+    """The registry's ``lmi`` estimate on the WLS rows: realizable payload, no prior.
+
+    Rows are weighted by WLS's per-joint ``1 / sigma`` (joints without rows get 0).
+    """
+    names = PAYLOAD_NAMES + tuple(extra)
+    problem = EstimationProblem(
+        observations=red,
+        names=names,
+        structure=_lmi_structure(names, tuple(extra), wls.x),
+        weights=np.where(red.n_rows > 0, 1.0 / wls.sigma, 0.0),
+        options={"prior_floor": 0.0, "friction": "free"},
+    )
+    return get_estimator("lmi")(problem)
+
+
+def _in_reporting_frame(
+    phi: FloatArray, cov: FloatArray, placement: pin.SE3 | None
+) -> tuple[float, FloatArray, FloatArray, FloatArray]:
+    """Mass [kg], centre of mass [m] (3,), its std [m] (3,), inertia about it [kg*m^2] (3, 3).
+
+    ``phi`` (10,) and its covariance ``cov`` (10, 10) are about the last joint's frame; the
+    results are in the frame at ``placement`` in it (identity when None). The centre of mass's
+    std is by the delta method: ``c = R^T (h / m - p)``, ``dc/dm = -R^T h / m^2``,
+    ``dc/dh = R^T / m``.
+    """
+    if placement is not None:
+        # parameters in the reporting frame: the inverse placement acts on them
+        rotation, translation = placement.rotation, placement.translation
+        phi_link = transform_parameters(phi, rotation.T, -rotation.T @ translation)
+    else:
+        phi_link, rotation = phi, np.eye(3)
+    mass, com, inertia_com = com_and_inertia(phi_link)
+    m, h = float(phi[0]), phi[1:4]
+    J = np.zeros((3, 4))
+    J[:, 0] = -rotation.T @ h / m**2
+    J[:, 1:] = rotation.T / m
+    com_cov = J @ cov[:4, :4] @ J.T
+    return (
+        float(mass),
+        np.asarray(com, dtype=float),
+        np.sqrt(np.clip(np.diag(com_cov), 0.0, None)),
+        np.asarray(inertia_com, dtype=float),
     )
 
 
