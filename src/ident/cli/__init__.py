@@ -79,6 +79,7 @@ _COMMAND_MODULES = (
     "report",
     "identify",
     "repeatability",
+    "payload",
     "logs",
     "bench",
     "replay",

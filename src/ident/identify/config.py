@@ -50,6 +50,7 @@ __all__ = [
     "UrdfUpdateConfig",
     "ValidationConfig",
     "load_identify_config",
+    "resolve_log",
 ]
 
 
@@ -465,7 +466,7 @@ def _resolve(path: Path | None, base: Path) -> Path | None:
     return path if path.is_absolute() else (base / path)
 
 
-def _resolve_log(log: LogConfig, base: Path) -> LogConfig:
+def resolve_log(log: LogConfig, base: Path) -> LogConfig:
     """The log section with every path made absolute (relative to the config's folder)."""
 
     def signal(s: SignalFile | None) -> SignalFile | None:
@@ -485,8 +486,12 @@ def _resolve_log(log: LogConfig, base: Path) -> LogConfig:
     )
 
 
-def load_identify_config(path: str | Path) -> IdentifyConfig:
+def load_identify_config(
+    path: str | Path, schema: type[IdentifyConfig] = IdentifyConfig
+) -> IdentifyConfig:
     """Load an identify config; make its paths absolute (relative to the config file).
+
+    ``schema``: the config class (a subclass adds sections, e.g. ``ident payload``'s).
 
     Raises
     ------
@@ -494,10 +499,10 @@ def load_identify_config(path: str | Path) -> IdentifyConfig:
         Naming the file and key, for malformed or missing entries and missing files.
     """
     path = Path(path)
-    cfg = load_config_file(IdentifyConfig, path)
+    cfg = load_config_file(schema, path)
     base = path.resolve().parent
     try:
-        logs = [_resolve_log(entry, base) for entry in cfg.log.all_logs()]
+        logs = [resolve_log(entry, base) for entry in cfg.log.all_logs()]
     except ValueError as e:
         raise ConfigError(f"{path}: log.more: {e}") from e
     log = logs[0].model_copy(update={"more": [x.model_dump(exclude={"more"}) for x in logs[1:]]})

@@ -14,6 +14,7 @@ Example (every key optional except ``source``; SI units unless a key says otherw
       current: null              # or {torque_constants: [...]}: log currents instead of torques
       settle_periods: 1
       n_periods: 2
+      payload: null              # or {mass: 2.0, com: [0, 0, 0.05], inertia: [...], link: null}
 
 A scalar where a list is allowed applies to every joint. The schema checks what it can alone
 (finite values, signs, ranges); :func:`check_joint_counts` checks the list lengths against the
@@ -30,10 +31,11 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
-from pydantic import AfterValidator, Field
+from pydantic import AfterValidator, Field, model_validator
 
 from ident.config import StrictModel, validate_config
 from ident.errors import ConfigError
+from ident.robot.inertia import consistency_problems, parameters_from_com
 
 __all__ = [
     "DEFAULT_DAMPING_RATIO",
@@ -42,6 +44,7 @@ __all__ = [
     "CurrentConfig",
     "FrictionConfig",
     "MujocoMeasurement",
+    "PayloadConfig",
     "check_joint_counts",
     "load_mujoco_measurement",
     "per_joint",
@@ -146,6 +149,45 @@ class CurrentConfig(StrictModel):
     torque_constants: PositiveTorqueConstant
 
 
+class PayloadConfig(StrictModel):
+    """A rigid payload welded to a link of the simulated robot (the controller ignores it).
+
+    Attributes
+    ----------
+    mass :
+        Mass [kg], > 0.
+    com :
+        Centre of mass in the frame of ``link`` [m], 3 values.
+    inertia :
+        Inertia about the centre of mass, axes of ``link``'s frame [kg*m^2], Pinocchio order
+        ``[Ixx, Ixy, Iyy, Ixz, Iyz, Izz]``; positive semi-definite. Default: a point mass.
+    link :
+        URDF link the payload is welded to; ``null``: the child link of the last moving joint.
+    """
+
+    mass: float = Field(gt=0.0)
+    com: list[float] = Field(min_length=3, max_length=3)
+    inertia: list[float] = Field(default=[0.0] * 6, min_length=6, max_length=6)
+    link: str | None = None
+
+    @model_validator(mode="after")
+    def _physical(self) -> PayloadConfig:
+        problems = consistency_problems(self.parameters())
+        if problems:
+            raise ValueError(
+                f"payload: not a rigid body ({'; '.join(problems)}); give a positive "
+                "semi-definite inertia about the centre of mass that meets the triangle "
+                "inequality"
+            )
+        return self
+
+    def parameters(self) -> FloatArray:
+        """Standard parameters about ``link``'s origin, shape (10,), Pinocchio order."""
+        xx, xy, yy, xz, yz, zz = self.inertia
+        inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        return parameters_from_com(np.asarray(self.mass), np.asarray(self.com), inertia)
+
+
 class MujocoMeasurement(StrictModel):
     """``measurement: {source: mujoco, ...}``: closed-loop MuJoCo simulation writing a log.
 
@@ -177,6 +219,8 @@ class MujocoMeasurement(StrictModel):
         initial state), >= 0.
     n_periods :
         Periods logged, >= 1.
+    payload :
+        A rigid payload welded to a link (:class:`PayloadConfig`), or ``null``.
     """
 
     source: Literal["mujoco"] = "mujoco"
@@ -190,6 +234,7 @@ class MujocoMeasurement(StrictModel):
     current: CurrentConfig | None = None
     settle_periods: int = Field(default=1, ge=0)
     n_periods: int = Field(default=2, ge=1)
+    payload: PayloadConfig | None = None
 
 
 def load_mujoco_measurement(

@@ -10,7 +10,9 @@ about 1e-15 relative):
   (rotation ``q`` about the axis for a revolute joint, translation ``q`` along it for a prismatic
   one), as Pinocchio's reduced model does;
 - ``<dynamics>`` and ``<mimic>`` are dropped; damping, armature and friction are set from the
-  measurement config, never from the file.
+  measurement config, never from the file;
+- a payload of the measurement config (``measurement.payload``) is a link ``ident_payload``
+  welded (fixed joint) to its link, with the payload's mass, centre of mass and inertia.
 
 Compiled model settings: gravity from the Pinocchio model (``model.gravity``), contacts, joint
 limits, equality constraints and MuJoCo's friction loss off (``mjDSBL_CONSTRAINT``), springs off
@@ -31,9 +33,14 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ident.errors import ModelError
+from ident.measure.mujoco_config import PayloadConfig
 from ident.model import Robot
+from ident.robot.inertia import com_and_inertia
 
-__all__ = ["MujocoRobot", "dynamics_only_urdf", "load_mujoco", "mujoco_urdf"]
+__all__ = ["PAYLOAD_LINK", "MujocoRobot", "dynamics_only_urdf", "load_mujoco", "mujoco_urdf"]
+
+#: Name of the link that carries a simulated payload.
+PAYLOAD_LINK = "ident_payload"
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -98,15 +105,64 @@ def _lock(joint: ET.Element, value: float) -> None:
             joint.remove(element)
 
 
-def dynamics_only_urdf(robot: Robot) -> str:
+def dynamics_only_urdf(robot: Robot, payload: PayloadConfig | None = None) -> str:
     """The robot's URDF text prepared for MuJoCo (see the module docstring).
 
     Raises
     ------
     ModelError
-        If a locked joint is not in the URDF.
+        If a locked joint, or the payload's link, is not in the URDF.
     """
-    return mujoco_urdf(robot.urdf_text, robot.locked_joints, str(robot.urdf_path or robot.name))
+    where = str(robot.urdf_path or robot.name)
+    text = mujoco_urdf(robot.urdf_text, robot.locked_joints, where)
+    if payload is None:
+        return text
+    return _with_payload(text, payload, robot.joint_names[-1], where)
+
+
+def _with_payload(urdf_text: str, payload: PayloadConfig, last_joint: str, where: str) -> str:
+    """``urdf_text`` with the payload as a link welded to its link (default: the child of
+    ``last_joint``)."""
+    root = ET.fromstring(urdf_text)
+    links = {link.get("name") for link in root.findall("link")}
+    parent = payload.link
+    if parent is None:
+        for joint in root.findall("joint"):
+            child = joint.find("child")
+            if joint.get("name") == last_joint and child is not None:
+                parent = child.get("link")
+    if parent not in links:
+        raise ModelError(
+            f"{where}: measurement.payload.link = {parent!r} is not a link of the URDF; "
+            "name one of its links, or null for the last moving link."
+        )
+    mass, com, inertia = com_and_inertia(payload.parameters())
+    link = ET.Element("link", name=PAYLOAD_LINK)
+    inertial = ET.SubElement(link, "inertial")
+    ET.SubElement(inertial, "origin", xyz=" ".join(repr(float(c)) for c in com), rpy="0 0 0")
+    ET.SubElement(inertial, "mass", value=repr(float(mass)))
+    ET.SubElement(
+        inertial,
+        "inertia",
+        {
+            key: repr(float(inertia[i, j]))
+            for key, (i, j) in {
+                "ixx": (0, 0),
+                "ixy": (0, 1),
+                "ixz": (0, 2),
+                "iyy": (1, 1),
+                "iyz": (1, 2),
+                "izz": (2, 2),
+            }.items()
+        },
+    )
+    joint = ET.fromstring(
+        f'<joint name="{PAYLOAD_LINK}_weld" type="fixed"><parent link="{parent}"/>'
+        f'<child link="{PAYLOAD_LINK}"/><origin xyz="0 0 0" rpy="0 0 0"/></joint>'
+    )
+    root.insert(0, link)
+    root.append(joint)
+    return ET.tostring(root, encoding="unicode")
 
 
 def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) -> str:
@@ -143,7 +199,9 @@ def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) 
     return ET.tostring(root, encoding="unicode")
 
 
-def load_mujoco(robot: Robot, *, timestep_s: float = 0.001) -> MujocoRobot:
+def load_mujoco(
+    robot: Robot, *, timestep_s: float = 0.001, payload: PayloadConfig | None = None
+) -> MujocoRobot:
     """Compile the robot's dynamics-only MuJoCo model.
 
     Damping, armature and friction loss are zero; set ``dof_damping`` and ``dof_armature`` at
@@ -155,6 +213,8 @@ def load_mujoco(robot: Robot, *, timestep_s: float = 0.001) -> MujocoRobot:
         The robot (its URDF text, locked joints and gravity are used).
     timestep_s :
         MuJoCo timestep [s].
+    payload :
+        A payload welded to a link (see the module docstring), or None.
 
     Returns
     -------
@@ -168,7 +228,7 @@ def load_mujoco(robot: Robot, *, timestep_s: float = 0.001) -> MujocoRobot:
     """
     where = str(robot.urdf_path or robot.name)
     try:
-        model = mujoco.MjModel.from_xml_string(dynamics_only_urdf(robot))
+        model = mujoco.MjModel.from_xml_string(dynamics_only_urdf(robot, payload))
     except ValueError as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ModelError(f"{where}: MuJoCo cannot compile the URDF ({first}).") from e

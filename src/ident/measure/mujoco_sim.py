@@ -321,7 +321,7 @@ def simulate(
     computed_torque = config.controller.kind == "computed_torque"
     counts = config.encoder_counts_per_rev
 
-    mj = load_mujoco(robot, timestep_s=1.0 / (rate * config.substeps))
+    mj = load_mujoco(robot, timestep_s=1.0 / (rate * config.substeps), payload=config.payload)
     model, qi, di = mj.model, mj.qpos_index, mj.dof_index
     model.dof_damping[di] = viscous
     model.dof_armature[di] = armature

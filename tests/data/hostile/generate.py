@@ -76,6 +76,7 @@ YAML_COMMANDS = {
     "identify": ["identify", "{case}", "--out", "{tmp}/runs"],
     "urdf": ["urdf", "{case}", "-o", "{tmp}/robot.urdf"],
     "bench": ["bench", "{case}", "--out", "{tmp}/campaign", "--no-progress"],
+    "payload": ["payload", "{case}", "--out", "{tmp}/runs"],
 }
 RESOURCE_CASES = {"bomb", "bomb_merge", "deep_flow", "deep_mapping_flow", "int_5000_digits"}
 
@@ -210,6 +211,53 @@ IDENTIFY_FLAG_CASES = {
         "--out",
         "{tmp}/r",
     ],
+}
+
+# payload: the identify base plus a payload section (the planar rp2 arm's log does not
+# determine a payload: the base itself is the not-identifiable case)
+PAYLOAD_BASE = """name: hostile
+robot: {urdf: ../base/rp2.urdf}
+log:
+  sampling_rate_hz: 100.0
+  position: {path: ../base/q.csv}
+  torque: {path: ../base/tau.csv}
+payload: {link: tool, method: wls}
+"""
+PAYLOAD_WITHOUT = (
+    "payload:\n  link: tool\n  without:\n    sampling_rate_hz: 100.0\n"
+    "    position: {path: ../base/q.csv}\n    torque: {path: ../base/tau.csv}\n"
+)
+PAYLOAD_WITH_WITHOUT = PAYLOAD_BASE.replace("payload: {link: tool, method: wls}\n", PAYLOAD_WITHOUT)
+PAYLOAD_CASES: dict[str, tuple[str, str] | str] = {
+    "not_identifiable": PAYLOAD_BASE,
+    "link_unknown": PAYLOAD_BASE.replace("link: tool", "link: nowhere"),
+    "link_not_on_last_joint": PAYLOAD_BASE.replace("link: tool", "link: link1"),
+    "link_empty": PAYLOAD_BASE.replace("link: tool", "link: ''"),
+    "link_list": PAYLOAD_BASE.replace("link: tool", "link: [tool]"),
+    "method_unknown": PAYLOAD_BASE.replace("method: wls", "method: ols"),
+    "unknown_key": PAYLOAD_BASE.replace("method: wls", "method: wls, mass: 1.0"),
+    "section_list": PAYLOAD_BASE.replace("{link: tool, method: wls}", "[tool, wls]"),
+    "without_missing": PAYLOAD_WITH_WITHOUT.replace(
+        "    position: {path: ../base/q.csv}", "    position: {path: ../base/nope.csv}"
+    ),
+    "without_binary": PAYLOAD_WITH_WITHOUT.replace(
+        "    position: {path: ../base/q.csv}", "    position: {path: ../base/binary.csv}"
+    ),
+    "without_nan": PAYLOAD_WITH_WITHOUT.replace(
+        "    position: {path: ../base/q.csv}", "    position: {path: ../base/nan.csv}"
+    ),
+    "without_more": PAYLOAD_WITH_WITHOUT + "    more:\n      - {sampling_rate_hz: 100.0}\n",
+    "without_rate_zero": PAYLOAD_WITH_WITHOUT.replace(
+        "    sampling_rate_hz: 100.0", "    sampling_rate_hz: 0"
+    ),
+    "velocity_threshold_wrong_length": PAYLOAD_BASE
+    + "preprocess: {velocity_threshold: [0.1, 0.1, 0.1]}\n",
+    "log_missing": PAYLOAD_BASE.replace("../base/tau.csv", "../base/nope.csv"),
+    "robot_missing": PAYLOAD_BASE.replace("../base/rp2.urdf", "../base/nope.urdf"),
+}
+PAYLOAD_FLAG_CASES = {
+    "out_under_proc": ["payload", "{data}/payload/base.yaml", "--out", "/proc/ident"],
+    "out_is_file": ["payload", "{data}/payload/base.yaml", "--out", "{data}/base/rp2.urdf"],
 }
 
 URDF_BASE = (ROOT / "tests/data/robots/planar2r.yaml").read_text()
@@ -1023,7 +1071,8 @@ def _hardening_cases(add) -> None:  # noqa: ANN001 - main's add()
 
 
 def main() -> None:
-    for sub in ("base", "urdf", "runfolder", "yaml", "run", "identify", "bench", "mesh", "os"):
+    subs = ("base", "urdf", "runfolder", "yaml", "run", "identify", "bench", "payload", "mesh")
+    for sub in (*subs, "os"):
         shutil.rmtree(HERE / sub, ignore_errors=True)
     _base_files()
     _urdf_files()
@@ -1053,6 +1102,7 @@ def main() -> None:
         ("identify", IDENTIFY_BASE, IDENTIFY_CASES, YAML_COMMANDS["identify"]),
         ("urdf", URDF_BASE, URDF_CASES, YAML_COMMANDS["urdf"]),
         ("bench", BENCH_BASE, BENCH_CASES, YAML_COMMANDS["bench"]),
+        ("payload", PAYLOAD_BASE, PAYLOAD_CASES, YAML_COMMANDS["payload"]),
     ):
         _write(HERE / command / "base.yaml", base)
         for name, spec in table.items():
@@ -1060,7 +1110,8 @@ def main() -> None:
             _write(HERE / command / f"{name}.yaml", text)
             args = [a.replace("{case}", f"{{data}}/{command}/{name}.yaml") for a in template]
             add(f"{command}-{name}", args, isolate=True, xfail=reason)
-    for table in (RUN_FLAG_CASES, IDENTIFY_FLAG_CASES, URDF_FLAG_CASES, BENCH_FLAG_CASES):
+    flag_tables = (RUN_FLAG_CASES, IDENTIFY_FLAG_CASES, URDF_FLAG_CASES, BENCH_FLAG_CASES)
+    for table in (*flag_tables, PAYLOAD_FLAG_CASES):
         for name, spec in table.items():
             args, reason = (spec, "") if isinstance(spec, list) else spec
             add(f"{args[0]}-{name}", args, xfail=reason)

@@ -1,0 +1,467 @@
+"""Payload identification: the 10 inertial parameters a payload adds to the last link.
+
+A payload rigidly attached to the last moving link adds its standard parameters
+``phi = [m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz]`` (about the last joint's frame,
+Pinocchio order) to that body's. The joint torques are linear in them:
+
+``tau - Y(q, dq, ddq) theta_arm = Y_n(q, dq, ddq) phi + E(dq, ddq) e``
+
+with ``Y`` the rigid-body regressor (:mod:`ident.dynamics.regressor`), ``theta_arm`` the arm's
+known parameters (its URDF's inertials, e.g. the URDF ``ident identify`` wrote) moved to the
+right-hand side, ``Y_n`` the 10 columns of the last body and ``E`` the configured extra columns
+(friction, rotor inertia, offsets; :mod:`ident.dynamics.friction`), estimated with ``phi``
+because a URDF carries none of them reliably. A second log without the payload adds rows with
+the same ``E`` columns and no ``Y_n`` columns, which pins the extras down.
+
+The logs go through the one preprocessing of every identification (low-pass, differentiate,
+trim, decimate, velocity threshold: :func:`ident.identify.accumulate.iter_chunks`, in chunks
+of bounded size) and are reduced per joint (:func:`ident.identify.accumulate.reduce_chunk`).
+The estimate is WLS (:func:`ident.identify.estimate.least_squares_reduced`: standard
+deviations from the residual), then, with ``method: lmi``, the registry's ``lmi`` estimator
+on the same rows with the payload as its one body: pseudo-inertia positive definite, extras
+>= 0 (:mod:`ident.identify.estimators.lmi`), no prior (the prior floor is 0). The intervals
+are WLS's; the centre of mass's by the delta method.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ident.dynamics.chain import KinematicChain, chain_from_model
+from ident.dynamics.friction import ExtraTerms, extra_columns, extra_names
+from ident.dynamics.gram import selected_rows
+from ident.dynamics.parameters import parameter_names, parameters_from_model
+from ident.errors import ConfigError, DataError, NotIdentifiable
+from ident.identify import accumulate, preprocess
+from ident.identify.config import PreprocessConfig
+from ident.identify.consistency import pseudo_inertia_min_eigenvalue
+from ident.identify.estimate import Estimate, least_squares_reduced
+from ident.identify.estimators import get_estimator
+from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
+from ident.identify.logs import RobotLog, read_log
+from ident.identify.observations import ReducedObservations
+from ident.identify.payload_config import PayloadConfig
+from ident.model import Robot
+from ident.model.selection import load_robot
+from ident.robot.inertia import (
+    PINOCCHIO_ORDER,
+    com_and_inertia,
+    parameters_from_com,
+    transform_parameters,
+)
+
+__all__ = [
+    "PAYLOAD_NAMES",
+    "PayloadColumns",
+    "PayloadResult",
+    "arm_with_payload",
+    "estimate_payload",
+    "identify_payload",
+    "payload_observations",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Names of the payload's parameters (Pinocchio order, about the last joint's frame).
+PAYLOAD_NAMES = tuple(f"{label}_payload" for label in PINOCCHIO_ORDER)
+
+#: Raw samples per chunk of a log (bounded memory: the columns of one chunk are computed at the
+#: log's rate, about 8 * nv * (10 + n_extra + 1) bytes a sample).
+CHUNK_SAMPLES = 50_000
+
+_MIN_NOMINAL_MASS = 0.05  # [kg] scale of the LMI's unknowns when WLS finds a tiny mass
+
+
+class PayloadColumns:
+    """Regressor columns of a payload problem: ``[Y_n | E | Y theta_arm]``, shape (n, nv, p+1).
+
+    ``Y_n`` are the last body's 10 columns (zero when ``with_payload`` is False), ``E`` the
+    extra columns of ``terms``, and the last column the torque the arm's known parameters
+    predict [N*m] (subtracted from the measured torque after decimation).
+    """
+
+    def __init__(
+        self,
+        chain: KinematicChain,
+        terms: ExtraTerms,
+        theta_arm: FloatArray,
+        *,
+        with_payload: bool = True,
+    ) -> None:
+        self.chain = chain
+        self.terms = terms
+        self.theta_arm = np.asarray(theta_arm, dtype=float)
+        self.with_payload = with_payload
+        n_bodies = self.theta_arm.size // 10
+        self.last = np.arange(10 * (n_bodies - 1), 10 * n_bodies)
+
+    def __call__(self, q: FloatArray, dq: FloatArray, ddq: FloatArray) -> FloatArray:
+        n, nv = dq.shape
+        Y = selected_rows(self.chain, q, dq, ddq).reshape(n, nv, -1)
+        payload = Y[:, :, self.last] if self.with_payload else np.zeros((n, nv, 10))
+        known = Y @ self.theta_arm
+        return np.concatenate(
+            [payload, extra_columns(self.terms, dq, ddq), known[:, :, None]], axis=2
+        )
+
+
+def payload_observations(
+    log: RobotLog, pp: PreprocessConfig, columns: PayloadColumns
+) -> ReducedObservations:
+    """The log's rows ``tau - Y theta_arm = [Y_n | E] x``, processed and reduced per joint.
+
+    Every segment goes through :func:`ident.identify.accumulate.iter_chunks` in chunks of at
+    most :data:`CHUNK_SAMPLES` raw samples; rows below ``pp.velocity_threshold`` are dropped.
+
+    Raises
+    ------
+    DataError
+        A segment shorter than the trimming.
+    """
+    fs = log.sampling_rate_hz
+    total: ReducedObservations | None = None
+    for a, b in log.segments:
+        chunk = min(pp.chunk_samples or CHUNK_SAMPLES, b - a)
+        plan = accumulate.make_plan(b - a, pp, fs, chunk)
+        for c in accumulate.iter_chunks(
+            plan, log.q[a:b], log.tau[a:b], fs, pp, columns, plan.ranges()
+        ):
+            keep, _ = preprocess.velocity_mask(c.dq, pp.velocity_threshold)
+            rhs = c.tau - c.Yb[:, :, -1]
+            red = accumulate.reduce_chunk(c.Yb[:, :, :-1], rhs, keep)
+            total = red if total is None else total.merge(red)
+    if total is None:
+        raise DataError("the log has no samples.")
+    return total
+
+
+@dataclass(frozen=True, eq=False)
+class PayloadResult:
+    """The estimated payload and how well it is determined (SI).
+
+    Attributes
+    ----------
+    phi :
+        Payload parameters about the last joint's frame, Pinocchio order, shape (10,)
+        (the consistent estimate with ``method: lmi``, else WLS).
+    std :
+        Standard deviations of ``phi`` (WLS's, from the residual), shape (10,).
+    link :
+        Frame of ``com`` and ``inertia_com``.
+    mass, mass_std :
+        Mass and its standard deviation [kg].
+    com, com_std :
+        Centre of mass in ``link``'s frame and its standard deviations [m], shape (3,).
+    inertia_com :
+        Inertia about the centre of mass, ``link``'s axes [kg*m^2], shape (3, 3).
+    min_eigenvalue :
+        Smallest eigenvalue of the pseudo-inertia of ``phi`` (>= 0: realizable).
+    wls :
+        The WLS estimate of every column (payload then extras).
+    consistent :
+        The LMI estimate, or None with ``method: wls``.
+    method :
+        ``lmi`` or ``wls``.
+    extras :
+        Estimated extra parameters by name (friction, rotor inertia, offsets).
+    timings :
+        Seconds per stage.
+    """
+
+    phi: FloatArray
+    std: FloatArray
+    link: str
+    mass: float
+    mass_std: float
+    com: FloatArray
+    com_std: FloatArray
+    inertia_com: FloatArray
+    min_eigenvalue: float
+    wls: Estimate
+    consistent: Estimate | None
+    method: str
+    extras: dict[str, float]
+    timings: dict[str, float]
+
+    def summary(self) -> dict:
+        """JSON-ready values (SI) for ``payload.json``."""
+        return {
+            "method": self.method,
+            "link": self.link,
+            "mass_kg": self.mass,
+            "mass_std_kg": self.mass_std,
+            "com_m": self.com.tolist(),
+            "com_std_m": self.com_std.tolist(),
+            "inertia_com_kgm2": self.inertia_com.tolist(),
+            "parameters_last_joint_frame": dict(zip(PAYLOAD_NAMES, self.phi.tolist(), strict=True)),
+            "parameters_std": dict(zip(PAYLOAD_NAMES, self.std.tolist(), strict=True)),
+            "pseudo_inertia_min_eigenvalue": self.min_eigenvalue,
+            "relative_residual": self.wls.relative_residual,
+            "residual_rms_per_joint": self.wls.residual_rms.tolist(),
+            "condition_number": self.wls.condition_number,
+            "extras": self.extras,
+            "message": (self.consistent or self.wls).message,
+            "timings_s": self.timings,
+        }
+
+
+def _link_placement(model: pin.Model, link: str | None, source: str) -> tuple[str, pin.SE3]:
+    """The frame reported (name, placement in the last joint's frame)."""
+    last = model.njoints - 1
+    if link is None:
+        for frame in model.frames:
+            if frame.parentJoint == last and frame.type == pin.FrameType.BODY:
+                return str(frame.name), frame.placement
+        return str(model.names[last]), pin.SE3.Identity()
+    if not model.existFrame(link):
+        raise ConfigError(
+            f"{source}: payload.link = {link!r} is not a link of the robot; name a link that "
+            "rides on the last moving joint, or null."
+        )
+    frame = model.frames[model.getFrameId(link)]
+    if frame.parentJoint != last:
+        raise ConfigError(
+            f"{source}: payload.link = {link!r} does not ride on the last moving joint "
+            f"{model.names[last]!r}; name a link fixed to it, or null."
+        )
+    return link, frame.placement
+
+
+def estimate_payload(
+    red: ReducedObservations,
+    extra: tuple[str, ...],
+    *,
+    method: str = "lmi",
+    placement: pin.SE3 | None = None,
+    link: str = "last link",
+) -> PayloadResult:
+    """WLS (and LMI) estimate of the payload from reduced rows ``[Y_n | E]`` (module docstring).
+
+    Parameters
+    ----------
+    red :
+        Reduced rows, columns ``PAYLOAD_NAMES + extra``.
+    extra :
+        Names of the extra columns (:func:`ident.dynamics.friction.extra_names`).
+    method :
+        ``lmi`` or ``wls``.
+    placement :
+        Pose of the reporting frame in the last joint's frame (default: identity).
+    link :
+        Name of the reporting frame.
+
+    Raises
+    ------
+    NotIdentifiable
+        If the logs do not determine every payload and extra parameter (names them).
+    """
+    names = PAYLOAD_NAMES + tuple(extra)
+    t0 = time.perf_counter()
+    wls = least_squares_reduced(red, names, method="wls")
+    timings = {"wls": time.perf_counter() - t0}
+    x = wls.x
+    consistent = None
+    if method == "lmi":
+        t1 = time.perf_counter()
+        consistent = _consistent_estimate(red, wls, extra)
+        x = consistent.x
+        timings["lmi"] = time.perf_counter() - t1
+    phi = np.asarray(x[:10], dtype=float)
+    cov = wls.covariance[:10, :10]
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    mass, com, com_std, inertia_com = _in_reporting_frame(phi, cov, placement)
+    return PayloadResult(
+        phi=phi,
+        std=std,
+        link=link,
+        mass=mass,
+        mass_std=float(std[0]),
+        com=com,
+        com_std=com_std,
+        inertia_com=inertia_com,
+        min_eigenvalue=float(pseudo_inertia_min_eigenvalue(phi)),
+        wls=wls,
+        consistent=consistent,
+        method=method,
+        extras=dict(zip(extra, (float(v) for v in x[10:]), strict=True)),
+        timings=timings,
+    )
+
+
+def _lmi_structure(
+    names: tuple[str, ...], extra: tuple[str, ...], x: FloatArray
+) -> ParameterStructure:
+    """The payload as the LMI's one body; friction and rotor inertia >= 0.
+
+    The nominal (the LMI's scale of the unknowns, not a prior) is a point mass at the WLS
+    centre of mass, its mass at least ``_MIN_NOMINAL_MASS`` [kg] and the centre of mass
+    within 1 m of the last joint's frame.
+    """
+    mass = max(abs(float(x[0])), _MIN_NOMINAL_MASS)
+    com = x[1:4] / mass
+    com = com / max(1.0, float(np.linalg.norm(com)))  # a scale, not a prior: keep it sane
+    nominal = np.zeros(len(names))
+    nominal[:10] = parameters_from_com(np.asarray(mass), com, np.zeros((3, 3)))
+    kinds = [n.rstrip("0123456789") for n in extra]
+    nonnegative = [10 + i for i, k in enumerate(kinds) if k in ("Ia", "fv", "fs", "Iam")]
+    return ParameterStructure(
+        names=names,
+        bodies=np.arange(10)[None, :],
+        body_names=("payload",),
+        nonnegative=np.asarray(nonnegative, dtype=np.intp),
+        nominal=nominal,
+    )
+
+
+def _consistent_estimate(
+    red: ReducedObservations, wls: Estimate, extra: tuple[str, ...]
+) -> Estimate:
+    """The registry's ``lmi`` estimate on the WLS rows: realizable payload, no prior.
+
+    Rows are weighted by WLS's per-joint ``1 / sigma`` (joints without rows get 0).
+    """
+    names = PAYLOAD_NAMES + tuple(extra)
+    problem = EstimationProblem(
+        observations=red,
+        names=names,
+        structure=_lmi_structure(names, tuple(extra), wls.x),
+        weights=np.where(red.n_rows > 0, 1.0 / wls.sigma, 0.0),
+        options={"prior_floor": 0.0, "friction": "free"},
+    )
+    return get_estimator("lmi")(problem)
+
+
+def _in_reporting_frame(
+    phi: FloatArray, cov: FloatArray, placement: pin.SE3 | None
+) -> tuple[float, FloatArray, FloatArray, FloatArray]:
+    """Mass [kg], centre of mass [m] (3,), its std [m] (3,), inertia about it [kg*m^2] (3, 3).
+
+    ``phi`` (10,) and its covariance ``cov`` (10, 10) are about the last joint's frame; the
+    results are in the frame at ``placement`` in it (identity when None). The centre of mass's
+    std is by the delta method: ``c = R^T (h / m - p)``, ``dc/dm = -R^T h / m^2``,
+    ``dc/dh = R^T / m``.
+    """
+    if placement is not None:
+        # parameters in the reporting frame: the inverse placement acts on them
+        rotation, translation = placement.rotation, placement.translation
+        phi_link = transform_parameters(phi, rotation.T, -rotation.T @ translation)
+    else:
+        phi_link, rotation = phi, np.eye(3)
+    mass, com, inertia_com = com_and_inertia(phi_link)
+    m, h = float(phi[0]), phi[1:4]
+    J = np.zeros((3, 4))
+    J[:, 0] = -rotation.T @ h / m**2
+    J[:, 1:] = rotation.T / m
+    com_cov = J @ cov[:4, :4] @ J.T
+    return (
+        float(mass),
+        np.asarray(com, dtype=float),
+        np.sqrt(np.clip(np.diag(com_cov), 0.0, None)),
+        np.asarray(inertia_com, dtype=float),
+    )
+
+
+def _settings(cfg: PayloadConfig, log: RobotLog) -> PreprocessConfig:
+    """The preprocessing with ``auto`` resolved on the payload log's first segment."""
+    first = slice(*log.segments[0])
+    pp, _, _ = preprocess.resolve_defaults(
+        cfg.preprocess,
+        log.q[first],
+        log.sampling_rate_hz,
+        None if log.dq is None else log.dq[first],
+    )
+    return pp
+
+
+def identify_payload(
+    cfg: PayloadConfig,
+    *,
+    robot: Robot | None = None,
+    logs: tuple[RobotLog, RobotLog | None] | None = None,
+) -> PayloadResult:
+    """Read the config's logs and estimate the payload (module docstring).
+
+    Parameters
+    ----------
+    cfg :
+        Validated config (:func:`~ident.identify.payload_config.load_payload_config`).
+    robot :
+        The arm without the payload (loaded from ``cfg.robot`` when not given).
+    logs :
+        ``(with_payload, without_payload or None)`` already read (else read from ``cfg``).
+
+    Raises
+    ------
+    IdentError
+        Subclasses naming the file, field or parameter.
+    """
+    source = str(cfg.source or "config")
+    t0 = time.perf_counter()
+    robot = robot if robot is not None else load_robot(cfg.robot, source=source)
+    model = robot.model
+    link, placement = _link_placement(model, cfg.payload.link, source)
+    joints = [str(model.names[i]) for i in range(1, model.njoints)]
+    if logs is None:
+        with_log = read_log(cfg.log, cfg.transmission, joints, source=source)
+        without = cfg.payload.without
+        without_log = (
+            None
+            if without is None
+            else read_log(without, cfg.transmission, joints, source=f"{source}: payload.without")
+        )
+    else:
+        with_log, without_log = logs
+    pp = _settings(cfg, with_log)
+    if pp.velocity_threshold is not None and len(pp.velocity_threshold) != model.nv:
+        raise ConfigError(
+            f"{source}: preprocess.velocity_threshold has {len(pp.velocity_threshold)} values, "
+            f"the robot has {model.nv} joints; give one per joint [rad/s]."
+        )
+    m = cfg.model
+    try:
+        terms = ExtraTerms.from_options(
+            model.nv,
+            rotor_inertia=m.rotor_inertia,
+            viscous=m.viscous,
+            coulomb=m.coulomb,
+            offset=m.offset,
+            coupled_wrist=m.coupled_wrist,
+        )
+    except ConfigError as e:
+        raise ConfigError(f"{source}: {e}") from e
+    chain = chain_from_model(model)
+    theta_arm = parameters_from_model(model)
+    t1 = time.perf_counter()
+    red = payload_observations(with_log, pp, PayloadColumns(chain, terms, theta_arm))
+    if without_log is not None:
+        columns = PayloadColumns(chain, terms, theta_arm, with_payload=False)
+        red = red.merge(payload_observations(without_log, pp, columns))
+    t2 = time.perf_counter()
+    try:
+        result = estimate_payload(
+            red, extra_names(terms), method=cfg.payload.method, placement=placement, link=link
+        )
+    except NotIdentifiable as e:
+        raise NotIdentifiable(
+            f"{source}: the logs do not determine the payload: {e} Move the last joints more "
+            "(several orientations of the last link against gravity, accelerations), add a log "
+            "without the payload (payload.without), or leave out friction terms (model)."
+        ) from e
+    timings = {"read": t1 - t0, "accumulate": t2 - t1, **result.timings}
+    return PayloadResult(**{**result.__dict__, "timings": timings})
+
+
+def arm_with_payload(robot: Robot, phi: npt.ArrayLike) -> tuple[FloatArray, tuple[str, ...]]:
+    """Standard parameters of the arm with the payload added to its last body, and names.
+
+    ``theta = theta_URDF`` with ``phi`` (about the last joint's frame) added to the last
+    body's 10 parameters; for :func:`ident.identify.model_files.write_model_files`.
+    """
+    theta = parameters_from_model(robot.model).copy()
+    theta[-10:] += np.asarray(phi, dtype=float)
+    return theta, parameter_names(robot.n_bodies)
