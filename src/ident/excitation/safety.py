@@ -1049,6 +1049,23 @@ class SafetyModel:
             d = pin.computeDistance(geom, gdata, int(p)).min_distance
             row[p] = d if d > 0.0 else min(d, row[p])
 
+    def with_optimizer_margin(self, clearance_m: float) -> SafetyModel:
+        """The same model whose cheap term (:func:`collision_violations`) asks for
+        ``clearance_m`` [m] instead: the optimizer's penalty margin, set above the
+        certificate's when trajectories kept the margin at the checked samples but not
+        between them. Geometry, pairs and limits are shared; the dense check of a trajectory
+        uses the model it is given (keep the original for the certificate)."""
+        import copy
+
+        if not clearance_m >= self.clearance_m:
+            raise ValueError(
+                f"the optimizer's margin {clearance_m} m is below the certificate's "
+                f"{self.clearance_m} m"
+            )
+        tighter = copy.copy(self)
+        tighter.clearance_m = float(clearance_m)
+        return tighter
+
     @property
     def n_pairs(self) -> int:
         """Number of checked link pairs."""
