@@ -29,8 +29,14 @@ signed-rank test (two-sided) of every method against ``emupso`` (one long run), 
 fitness and for the error; ``<`` / ``>``: the method's median is lower / higher. Lower is
 better for both. Also how many seeds' elite search found every elite.
 
+``--split config`` runs every method at each config's own split of the budget instead:
+``emupso.n_runs`` runs of ``n_particles x (maxiter + 1)`` evaluations, each from its own spawn
+of the elites, best of the runs (as ``ident run`` spends it), labelled ``method:RUNSxEVALS``;
+``--split both`` adds one run of the same total per method (``docs/optimizers.md``).
+
 Run: ``python benchmarks/bench_excitation.py [--seeds 10] [--budget-factor 1]
-[--problems wrist arm ...] [--methods emupso cma ...] [--save FILE.json] [--quick]``.
+[--problems wrist arm ...] [--methods emupso cma ...] [--split one|config|both]
+[--save FILE.json] [--quick]``.
 ``--quick``: 2 seeds, budget 620, problems wrist and wrist-fourier (a smoke run of a minute).
 The full run (10 seeds, 7 problems, 8 methods) takes about 40 minutes on one core; the 10x
 budget ten times that, so run it on a subset (``--methods emupso emupso-5x pso cma``).

@@ -871,10 +871,18 @@ class SafetyModel:
         q, distances, need, finite = self._fast_bounds(np.atleast_2d(np.asarray(q, dtype=float)))
         rows, pairs = np.nonzero(need)
         self._refine(q, rows, pairs, distances)
-        out = np.full((q.shape[0], self.n_pairs), np.inf)
-        np.minimum.at(out.T, self._group, distances.T)
+        out = self._pair_minimum(distances)
         out[~finite] = -np.inf
         return out
+
+    def _pair_minimum(self, distances: FloatArray) -> FloatArray:
+        """Per link pair, the smallest of its geometry pairs' columns: (n, n_geometry_pairs)
+        -> (n, n_pairs) (``np.minimum.reduceat`` over the columns sorted by link pair)."""
+        if self.n_pairs == 0:
+            return np.full((distances.shape[0], 0), np.inf)
+        order = np.argsort(self._group, kind="stable")
+        starts = np.searchsorted(self._group[order], np.arange(self.n_pairs))
+        return np.asarray(np.minimum.reduceat(distances[:, order], starts, axis=1))
 
     def fast_min_clearances(self, q: npt.ArrayLike) -> FloatArray:
         """The smallest :meth:`fast_clearances` of each trajectory, pair by pair [m].
@@ -899,14 +907,14 @@ class SafetyModel:
         n_traj, n_samples = q.shape[0], q.shape[1]
         flat, distances, need, finite = self._fast_bounds(q.reshape(n_traj * n_samples, -1))
         # the per-trajectory, per-link-pair minimum of what needs no refinement
-        known = np.where(need, np.inf, distances)
-        best = np.full((n_traj * n_samples, self.n_pairs), np.inf)
-        np.minimum.at(best.T, self._group, known.T)
-        best = best.reshape(n_traj, n_samples, self.n_pairs).min(axis=1)
+        known = self._pair_minimum(np.where(need, np.inf, distances))
+        best = known.reshape(n_traj, n_samples, self.n_pairs).min(axis=1)
         rows, pairs = np.nonzero(need)
+        traj, link = rows // n_samples, self._group[pairs]
+        bound = distances[rows, pairs]
+        useful = bound < best[traj, link]  # only what can lower the minimum
+        rows, pairs, traj, link, bound = (a[useful] for a in (rows, pairs, traj, link, bound))
         if rows.size:
-            traj, link = rows // n_samples, self._group[pairs]
-            bound = distances[rows, pairs]
             model, geom = self.model, self.exact_geometry_model
             data, gdata, last = model.createData(), _geometry_data(geom, signed=False), -1
             compute, place = pin.computeDistance, pin.updateGeometryPlacements
@@ -987,8 +995,8 @@ class SafetyModel:
             data, gdata = self.model.createData(), _geometry_data(geom)
             for s in range(n):  # coal: one posture at a time
                 pin.updateGeometryPlacements(self.model, data, geom, gdata, q[s])
-                for p in slow:
-                    distances[s, p] = pin.computeDistance(geom, gdata, p).min_distance
+                for pair in slow:
+                    distances[s, pair] = pin.computeDistance(geom, gdata, pair).min_distance
             poor = np.flatnonzero(self._hull_proxy_poor)
             need[:, poor] = distances[:, poor] < self.clearance_m
         return q, distances, need, finite
@@ -1146,7 +1154,7 @@ class SafetyModel:
                             break
                         self._exact_into(q[s], [int(p)], gdata, distances[s])
                         best = min(best, distances[s, p])
-        np.minimum.at(out.T, self._group, distances.T)
+        out = self._pair_minimum(distances)
         out[~finite] = -np.inf
         return out
 
