@@ -29,8 +29,14 @@ signed-rank test (two-sided) of every method against ``emupso`` (one long run), 
 fitness and for the error; ``<`` / ``>``: the method's median is lower / higher. Lower is
 better for both. Also how many seeds' elite search found every elite.
 
+``--split config`` runs every method at each config's own split of the budget instead:
+``emupso.n_runs`` runs of ``n_particles x (maxiter + 1)`` evaluations, each from its own spawn
+of the elites, best of the runs (as ``ident run`` spends it), labelled ``method:RUNSxEVALS``;
+``--split both`` adds one run of the same total per method (``docs/optimizers.md``).
+
 Run: ``python benchmarks/bench_excitation.py [--seeds 10] [--budget-factor 1]
-[--problems wrist arm ...] [--methods emupso cma ...] [--save FILE.json] [--quick]``.
+[--problems wrist arm ...] [--methods emupso cma ...] [--split one|config|both]
+[--save FILE.json] [--quick]``.
 ``--quick``: 2 seeds, budget 620, problems wrist and wrist-fourier (a smoke run of a minute).
 The full run (10 seeds, 7 problems, 8 methods) takes about 40 minutes on one core; the 10x
 budget ten times that, so run it on a subset (``--methods emupso emupso-5x pso cma``).
@@ -49,7 +55,7 @@ from scipy import stats
 
 from ident.optim import minimize
 from ident.optim.elites import find_feasible_elites, spawn_from_elites
-from ident.run.config import MeasurementSection, load_run_config
+from ident.run.config import MeasurementSection, RunConfig, load_run_config
 from ident.run.elite_identification import identify_elite
 from ident.run.problem import ExcitationProblem, excitation_problem, small_blas
 from ident.run.setup import RunSetup, prepare_run
@@ -118,16 +124,46 @@ def _run_method(
     )  # fmt: skip
 
 
+def config_split(cfg: RunConfig) -> tuple[int, int]:
+    """The config's split of its budget: (runs, evaluations per run = particles x (iter + 1))."""
+    o = cfg.emupso
+    return o.n_runs, o.n_particles * (o.maxiter + 1)
+
+
+def entries(
+    methods: tuple[str, ...], split: str, budget: int, cfg: RunConfig
+) -> list[tuple[str, str, int, int]]:
+    """What runs per seed: ``(label, method, runs, evaluations per run)``.
+
+    ``split="one"``: every method in one run of ``budget`` (``emupso-5x``: 5 runs of a fifth);
+    ``"config"``: every method at the config's own split (``emupso.n_runs`` runs of
+    ``n_particles x (maxiter + 1)``, best of the runs), labelled ``method:RxE``; ``"both"``:
+    each method at the config's split and in one run of the config's whole budget.
+    """
+    n_runs, per_run = config_split(cfg)
+    out = []
+    for m in methods:
+        if split == "one":
+            out.append((m, "emupso", 5, budget // 5) if m == "emupso-5x" else (m, m, 1, budget))
+            continue
+        base = "emupso" if m == "emupso-5x" else m
+        out.append((f"{base}:{n_runs}x{per_run}", base, n_runs, per_run))
+        if split == "both" and n_runs > 1:
+            out.append((f"{base}:1x{n_runs * per_run}", base, 1, n_runs * per_run))
+    return list(dict.fromkeys(out))
+
+
 def run_problem(
-    name: str, seeds: list[int], budget: int, methods: tuple[str, ...]
+    name: str, seeds: list[int], budget: int, methods: tuple[str, ...], split: str = "one"
 ) -> ProblemResult:
     """Every method on every seed of one problem (module docstring)."""
     start = time.perf_counter()
     setup, problem = load_problem(name)
     cfg = setup.config
     out = ProblemResult()
-    for m in methods:
-        out.fitness[m], out.error[m], out.feasible[m] = [], [], []
+    plan = entries(methods, split, budget, cfg)
+    for label, *_ in plan:
+        out.fitness[label], out.error[label], out.feasible[label] = [], [], []
     for seed in seeds:
         streams = np.random.SeedSequence(seed).spawn(4)
         search = find_feasible_elites(
@@ -140,10 +176,13 @@ def run_problem(
         sigma = cfg.emupso.sigma_fraction
         x0 = spawn_from_elites(elites, POPSIZE, problem.bounds, sigma, streams[1])
         noise_seed = int(streams[3].generate_state(1)[0])
-        for method in methods:
-            if method == "emupso-5x":  # the paper's pipeline: 5 short runs, best of five
+        for label, method, n_runs, per_run in plan:
+            if n_runs == 1:
+                gen = np.random.default_rng(streams[2])
+                res = _run_method(problem, method, x0, per_run, gen, cfg.emupso.stagnation)
+            else:  # the pipeline's way: independent runs, each from its own spawn, best one
                 runs = []
-                for k, child in enumerate(streams[2].spawn(5)):
+                for k, child in enumerate(streams[2].spawn(n_runs)):
                     gen = np.random.default_rng(child)
                     start_x = (
                         x0
@@ -151,17 +190,12 @@ def run_problem(
                         else spawn_from_elites(elites, POPSIZE, problem.bounds, sigma, gen)
                     )
                     runs.append(
-                        _run_method(
-                            problem, "emupso", start_x, budget // 5, gen, cfg.emupso.stagnation
-                        )
+                        _run_method(problem, method, start_x, per_run, gen, cfg.emupso.stagnation)
                     )
                 res = min(runs, key=lambda r: r.fun)
-            else:
-                gen = np.random.default_rng(streams[2])
-                res = _run_method(problem, method, x0, budget, gen, cfg.emupso.stagnation)
-            out.fitness[method].append(float(res.fun))
-            out.feasible[method].append(bool(problem.objective.violation(res.x[None])[0] <= 0.0))
-            out.error[method].append(major_error(setup, problem, res.x, noise_seed))
+            out.fitness[label].append(float(res.fun))
+            out.feasible[label].append(bool(problem.objective.violation(res.x[None])[0] <= 0.0))
+            out.error[label].append(major_error(setup, problem, res.x, noise_seed))
     out.seconds = time.perf_counter() - start
     return out
 
@@ -194,14 +228,14 @@ def report(name: str, result: ProblemResult) -> list[str]:
     lines = [
         f"\n== {name}  ({n} seeds, {result.seconds:.0f} s; elite search found every elite on "
         f"{sum(result.elites_found)} of {n} seeds)",
-        f"{'method':10s} {'fitness':>10s} {'IQR':>21s} {'rank':>5s} {'feas.':>5s} "
+        f"{'method':14s} {'fitness':>10s} {'IQR':>21s} {'rank':>5s} {'feas.':>5s} "
         f"{'vs ' + ref + ' (p)':>16s}  {'major err':>9s} {'IQR':>17s} {'vs ' + ref + ' (p)':>16s}",
     ]
     for m in result.fitness:
         f = np.percentile(result.fitness[m], [25, 50, 75])
         e = np.percentile(result.error[m], [25, 50, 75])
         lines.append(
-            f"{m:10s} {f[1]:10.5g} [{f[0]:9.4g}, {f[2]:9.4g}] {ranks[m]:5.2f} "
+            f"{m:14s} {f[1]:10.5g} [{f[0]:9.4g}, {f[2]:9.4g}] {ranks[m]:5.2f} "
             f"{sum(result.feasible[m]):5d} {wilcoxon_vs(result.fitness, m, ref):>16s}  "
             f"{e[1]:9.3g} [{e[0]:7.3g}, {e[2]:7.3g}] {wilcoxon_vs(result.error, m, ref):>16s}"
         )
@@ -224,6 +258,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--methods", nargs="*", default=list(ALL_METHODS))
     parser.add_argument("--save", type=Path, default=None, help="write the raw values (JSON)")
     parser.add_argument("--quick", action="store_true", help="2 seeds, 620 evaluations")
+    parser.add_argument(
+        "--split",
+        choices=("one", "config", "both"),
+        default="one",
+        help="one run of the budget (default), the config's runs x iterations, or both",
+    )
     args = parser.parse_args(argv)
     unknown = sorted(set(args.methods) - set(ALL_METHODS))
     if unknown:
@@ -231,13 +271,18 @@ def main(argv: list[str] | None = None) -> None:
     seeds = list(range(2 if args.quick else args.seeds))
     problems = ["wrist", "wrist-fourier"] if args.quick else args.problems
     budget = int(PIPELINE_BUDGET * (0.2 if args.quick else args.budget_factor))
-    print(f"budget {budget} evaluations per method and seed, population {POPSIZE}", flush=True)
+    print(
+        f"budget {budget} evaluations per method and seed, population {POPSIZE}, split "
+        f"{args.split} (config: each config's emupso.n_runs x n_particles x (maxiter + 1))",
+        flush=True,
+    )
     saved = {}
     for name in problems:
-        result = run_problem(name, seeds, budget, tuple(args.methods))
+        result = run_problem(name, seeds, budget, tuple(args.methods), args.split)
         print("\n".join(report(name, result)), flush=True)
         saved[name] = {
             "budget": budget,
+            "split": args.split,
             "seeds": seeds,
             "seconds": result.seconds,
             "elites_found": result.elites_found,

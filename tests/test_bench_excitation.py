@@ -68,3 +68,23 @@ def test_every_method_within_the_budget_and_identified(bench, monkeypatch, capsy
             line.split()[0] in ("emupso", "cma", "emupso-5x")]  # fmt: skip
     assert rows == ["emupso", "cma", "emupso-5x"]
     assert "elite search found every elite on 1 of 1 seeds" in out
+
+
+def test_the_config_split_is_the_pipelines_budget(bench):
+    """--split config/both: each config's runs x (maxiter + 1) x particles, as `ident run`
+    spends it (its setup's estimate counts the same evaluations)."""
+    from ident.run.config import load_run_config
+
+    wrist = load_run_config(ROOT / "configs" / "wrist-fourier.yaml")
+    ur5 = load_run_config(ROOT / "configs" / "ur5.yaml")
+    assert bench.entries(("pso", "cma"), "both", 3100, wrist) == [
+        ("pso:5x620", "pso", 5, 620),
+        ("pso:1x3100", "pso", 1, 3100),
+        ("cma:5x620", "cma", 5, 620),
+        ("cma:1x3100", "cma", 1, 3100),
+    ]
+    assert bench.entries(("pso",), "both", 3100, ur5) == [("pso:1x3020", "pso", 1, 3020)]
+    assert bench.entries(("emupso-5x", "pso"), "one", 3100, wrist) == [
+        ("emupso-5x", "emupso", 5, 620),
+        ("pso", "pso", 1, 3100),
+    ]

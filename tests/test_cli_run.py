@@ -77,6 +77,20 @@ def test_result_json_is_complete_and_exact(quick_run):
     assert len(data["optimization"]["runs"]) == 2
 
 
+def test_the_evaluation_budget_printed_is_what_the_optimizer_counted(quick_run):
+    """The terminal and report.md state runs x populations x particles = evaluations; the
+    total is the optimizer's own count (nfev) of every run (2 x 7 x 8 = 112: a budget
+    without the initial population, 2 x 6 x 8 = 96, would differ)."""
+    _, run_dir, output = quick_run
+    data = json.loads((run_dir / "result.json").read_text())
+    counted = sum(r["nfev"] for r in data["optimization"]["runs"])
+    text = (
+        f"2 run(s) x 7 populations (initial + 6 iterations) x 8 particles = {counted} evaluations"
+    )
+    assert text in (run_dir / "report.md").read_text()
+    assert text in " ".join(output.replace("│", " ").split())  # the table wraps the cell
+
+
 def test_report_is_self_contained_and_mentions_the_paper(quick_run):
     _, run_dir, _ = quick_run
     page = (run_dir / "report.html").read_text()

@@ -75,3 +75,48 @@ def test_the_papers_arm_stage_is_reported_unsafe_with_pair_and_time(tmp_path) ->
     run = _only(tmp_path)
     assert not (run / "trajectory.csv").exists()  # nothing a robot could be given
     assert (run / "result.json").is_file()  # the design data are kept for inspection
+
+
+@pytest.mark.slow
+def test_elites_a_little_inside_the_margin_are_optimized_again_with_a_wider_one(tmp_path):
+    """The optimizer's clearance term sees 6 samples per period; a ball above the wrist puts
+    both elites of the first optimization 1.5-2.7 mm inside the 30 mm margin between those
+    samples (seed 3). Instead of no trajectory, the run optimizes again with the optimizer's
+    margin at 30 + 2 x 2.7 -> 37.5 mm, the certificate's staying 30 mm, and writes a
+    trajectory that plain Pinocchio + coal find >= 30 mm from the ball at every 1 kHz sample
+    (a run without the retry has no executable trajectory; one that loosened the certificate's
+    margin instead would fail this check)."""
+    import yaml
+
+    source = REPO / "tests" / "data" / "run" / "quick-wrist.yaml"
+    cfg = yaml.safe_load(source.read_text())
+    cfg["robot"] = str(REPO / "configs" / "paper6r.yaml")
+    ball = np.array([1.583, 0.0, 0.75])
+    cfg["safety"] = {
+        "clearance_m": 0.03,
+        "check_samples": 6,
+        "obstacles": [{"name": "ball", "sphere": {"radius": 0.05, "position": ball.tolist()}}],
+    }
+    config = tmp_path / "ball.yaml"
+    config.write_text(yaml.safe_dump(cfg))
+    from ident.run.config import load_run_config
+    from ident.run.pipeline import run_pipeline
+
+    plan = run_pipeline(load_run_config(config)).executable
+    assert plan.usable, plan.message
+    assert "optimized again with the optimizer's margin at 37.5 mm" in plan.message
+    traj = plan.trajectory
+    robot = Robot.from_config("configs/paper6r.yaml")
+    model = pin.buildModelFromXML(robot.urdf_text)
+    geom = pin.buildGeomFromUrdfString(model, robot.urdf_text, pin.GeometryType.COLLISION)
+    n_links = len(geom.geometryObjects)
+    sphere = pin.GeometryObject("ball", 0, 0, pin.SE3(np.eye(3), ball), coal.Sphere(0.05))
+    geom.addGeometryObject(sphere)
+    for a in range(n_links):
+        geom.addCollisionPair(pin.CollisionPair(a, n_links))
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    smallest = np.inf
+    for q in traj.q:
+        pin.computeDistances(model, data, geom, gdata, q)
+        smallest = min(smallest, min(r.min_distance for r in gdata.distanceResults))
+    assert 0.03 <= smallest < 0.045  # kept, and the ball was what limited the motion

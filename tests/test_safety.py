@@ -309,7 +309,9 @@ def test_cheap_term_is_the_margin_excess_at_evenly_spread_samples(paper, safety)
 
 def test_fast_clearances_are_exact_within_the_margin(paper):
     """The vectorized term: exact for the floor (cylinder's lowest point), for pairs coal
-    handles (the box) and wherever a pair is within the margin; a lower bound elsewhere."""
+    handles (the box) and wherever a pair is within the margin without touching; a lower
+    bound elsewhere (in contact: the depth of the capsule around a cylinder, never less deep
+    than the cylinder's)."""
     s = build_safety_model(
         paper,
         {
@@ -323,12 +325,41 @@ def test_fast_clearances_are_exact_within_the_margin(paper):
     exact, fast = s.clearances(q), s.fast_clearances(q)
     gjk = 1e-6  # coal's GJK/EPA tolerance: computeDistance and computeDistances differ by it
     assert np.all(fast <= exact + gjk)
-    near = (exact < s.clearance_m) | (fast < s.clearance_m)
-    assert near.sum() > 100
+    near = ((exact < s.clearance_m) | (fast < s.clearance_m)) & (exact > gjk)
+    assert near.sum() > 50
     np.testing.assert_allclose(fast[near], exact[near], atol=gjk)
+    contact = exact <= gjk
+    assert contact.sum() > 100
+    assert np.all(fast[contact] <= 0.0)
     for k, name in enumerate(s.pair_names):
         if name.endswith(("|floor", "|crate")):
             np.testing.assert_allclose(fast[:, k], exact[:, k], atol=1e-9, err_msg=name)
+
+
+def test_cheap_term_of_a_swarm_is_the_smallest_fast_clearance_and_never_misses_contact(
+    paper, safety
+):
+    """The swarm's cheap term measures only the postures that can lower a trajectory's
+    smallest clearance (closest bound first): the minimum is that of every posture measured,
+    bit for bit, on whole-arm motions of which many touch (a pruning that skipped a closer
+    posture, or stopped at the first exact distance, differs); and a trajectory the exact
+    distances put within the margin is never given zero violation (a contact taken for a
+    clearance would)."""
+    family = JointFourierFamily(
+        paper, [0, 1, 2, 3, 4, 5], n_harmonics=2, base_frequency=2 * np.pi / 4, n_samples=64
+    )
+    low, high = family.bounds.T
+    x = np.random.default_rng(5).uniform(low, high, (24, low.size))
+    q = family.trajectories(x).q[:, ::4]  # (24, 16, 6)
+    every = safety.fast_clearances(q.reshape(-1, 6)).reshape(24, 16, -1).min(axis=1)
+    np.testing.assert_array_equal(safety.fast_min_clearances(q), every)
+    exact = safety.clearances(q.reshape(-1, 6)).reshape(24, 16, -1).min(axis=1)
+    assert np.sum(exact <= 0.0) >= 5
+    assert np.sum((exact > 0) & (exact < safety.clearance_m)) >= 1
+    assert np.all(every <= exact + 1e-6)
+    v = collision_violations(safety, family.trajectories(x).q, n_check=16).values
+    within = exact < safety.clearance_m - 1e-6
+    assert np.all(v[within] > 0.0)
 
 
 def test_fast_clearances_of_a_posture_do_not_depend_on_the_others(paper):

@@ -248,10 +248,11 @@ def _summary(
             f"{i}/{d}/{u}" + (f" (paper: {paper})" if paper else ""),
         )
     from ident.report.run_data import load_run
-    from ident.report.run_report import optimizer_name
+    from ident.report.run_report import evaluation_budget, optimizer_name
     from ident.report.run_verdict import stored_verdict
 
     data = load_run(run_dir)  # the saved result: the verdict the reports show
+    table.add_row("evaluation budget", evaluation_budget(data))
     table.add_row(f"{optimizer_name(data)} runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
     if result.elites:
         plan = result.executable

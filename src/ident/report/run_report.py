@@ -251,6 +251,18 @@ def optimizer_name(data: dict[str, Any]) -> str:
     return "eMuPSO" if name == "emupso" else name.upper() if len(name) <= 4 else name
 
 
+def evaluation_budget(data: dict[str, Any]) -> str:
+    """The optimizer's evaluation budget of the run's config, as the reports and the terminal
+    print it: ``runs x populations x particles = evaluations`` (a run evaluates its initial
+    population, then one per iteration)."""
+    o = data.get("config", {}).get("emupso", {})
+    runs, iterations, particles = int(o["n_runs"]), int(o["maxiter"]), int(o["n_particles"])
+    return (
+        f"{runs} run(s) x {iterations + 1} populations (initial + {iterations} iterations) x "
+        f"{particles} particles = {runs * (iterations + 1) * particles} evaluations"
+    )
+
+
 def _check_text(entry: Any) -> str:
     """A consistency / safety entry of result.json as text (``not checked`` when absent)."""
     if entry is None:
@@ -459,7 +471,7 @@ def _run_facts(data: dict[str, Any], state: dict[str, Any]) -> list[str]:
         f"{config['elites']['n_elites']} elites), then {config['emupso']['n_runs']} "
         f"{optimizer_name(data)} runs "
         f"of {config['emupso']['n_particles']} particles x {config['emupso']['maxiter']} "
-        f"iterations, G = {config['emupso']['stagnation']}",
+        f"iterations, G = {config['emupso']['stagnation']}; budget {evaluation_budget(data)}",
         f"- Measurement noise: torque std {config['measurement']['torque_noise_std']} N*m, "
         f"encoder {config['measurement']['encoder_counts_per_rev'] or 'exact'}",
     ]

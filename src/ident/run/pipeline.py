@@ -56,7 +56,7 @@ from ident.run.results import (
     RunResult,
     StageInfo,
 )
-from ident.run.safety_check import check_elites, plan_executable
+from ident.run.safety_check import check_elites, plan_executable, retry_margin
 from ident.run.setup import RunSetup, prepare_run
 from ident.run.stage_info import build_stage_info
 
@@ -159,11 +159,32 @@ def run_pipeline(
         _search_elites(setup, problem, streams[0], state, notify)
         _optimize(setup, problem, streams[1], state, notify)
         chosen_x, chosen_f = _choose(setup, problem, state)
+        margin = (
+            None if setup.safety is None else retry_margin(state.safety, setup.safety.clearance_m)
+        )
+        if margin is not None:  # every elite a little inside the margin between samples
+            retry_note = (
+                f"no elite kept the {1e3 * setup.safety.clearance_m:g} mm margin between the "
+                f"checked samples; optimized again with the optimizer's margin at "
+                f"{1e3 * margin:.3g} mm (the certificate's stays {1e3 * setup.safety.clearance_m:g}"
+                " mm). "
+            )
+            first = (chosen_x, chosen_f, state.safety)
+            tighter = _tighter_problem(problem, setup.safety.with_optimizer_margin(margin))
+            _optimize(setup, tighter, streams[1], state, notify)  # new child streams
+            try:
+                chosen_x, chosen_f = _choose(setup, tighter, state)
+                problem = tighter
+            except TrajectoryError:  # nothing feasible at the wider margin: the first result
+                chosen_x, chosen_f, state.safety = first
+                retry_note += "No optimized trajectory kept it. "
         _measure(setup, problem, stage_info, measure, chosen_x, chosen_f, streams[2], state, notify)
         state.phase = "executable trajectory"
         plan = plan_executable(
             config, setup.robot, setup.family, setup.safety, chosen_x, state.safety
         )
+        if margin is not None:
+            plan = dataclasses.replace(plan, message=retry_note + plan.message)
     except KeyboardInterrupt as e:
         raise RunInterrupted(
             state.partial(base, f"interrupted (Ctrl-C) during the {state.phase}"), e
@@ -191,6 +212,15 @@ def run_pipeline(
         executable=plan,
         safety={"ok": plan.usable, "message": plan.message},
     )
+
+
+def _tighter_problem(problem: Any, safety: Any) -> Any:
+    """The same problem whose objective's safety terms use ``safety`` (a wider margin)."""
+    import copy
+
+    objective = copy.copy(problem.objective)
+    objective.safety = safety
+    return dataclasses.replace(problem, objective=objective)
 
 
 def _base_result(setup: RunSetup, bounds: FloatArray, stage_info: StageInfo) -> RunResult:

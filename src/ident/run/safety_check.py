@@ -27,7 +27,7 @@ from ident.run.config import RunConfig
 from ident.run.exports.run_exports import check_export_targets
 from ident.trajectory import JointTrajectory
 
-__all__ = ["ExecutablePlan", "check_elites", "plan_executable"]
+__all__ = ["ExecutablePlan", "check_elites", "plan_executable", "retry_margin"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -128,3 +128,25 @@ def plan_executable(
         worst = reports[0].summary() if reports else "no elite"
         return ExecutablePlan(None, None, None, f"no elite trajectory is safe; elite 1 is {worst}")
     return ExecutablePlan(None, None, None, "no safe executable trajectory: " + "; ".join(tried))
+
+
+def retry_margin(reports: list[SafetyReport], clearance_m: float) -> float | None:
+    """The optimizer's margin for a second optimization when no elite passed the check.
+
+    Only when every elite failed on clearances alone and by at most half the margin (1 mm
+    when the margin is 0): the cheap term kept the margin at its samples, the certificate,
+    between them too, found the elites a little inside. Then the
+    certificate's margin plus twice the worst shortfall, and at least a quarter of the margin
+    (1 mm when the margin is 0) more [m]. ``None`` when an elite passed, there are no
+    reports, a limit other than a clearance failed or an elite is deeper inside (a wider
+    margin would not help).
+    """
+    if not reports or any(r.usable for r in reports):
+        return None
+    failures = [c for r in reports for c in r.failures()]
+    if not failures or any(c.kind != "clearance" for c in failures):
+        return None
+    shortfall = max(float(c.excess) for c in failures)
+    if not shortfall <= max(0.5 * clearance_m, 1e-3):  # deeper: the motion itself is wrong
+        return None
+    return clearance_m + max(2.0 * shortfall, 0.25 * clearance_m, 1e-3 if clearance_m == 0 else 0)
