@@ -9,6 +9,10 @@ README.md and printed with the ratio measured / stated, so a stale documented ti
 
     python benchmarks/bench_quickstart.py                     # wrist.yaml, wrist.yaml --quick
     python benchmarks/bench_quickstart.py wrist-fourier.yaml arm.yaml
+    python benchmarks/bench_quickstart.py --newcomer URDF [--package-dir DIR]  # init + full run
+
+``--newcomer`` times the first hour of a robot the configs do not ship: ``ident init URDF``
+then the full ``ident run CONFIG`` it wrote, as ``docs/your-robot.md`` tells a newcomer to.
 
 Budget: about 1.5 min for the default pair on a loaded 2-core machine.
 """
@@ -59,7 +63,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("configs", nargs="*", default=["wrist.yaml"])
     parser.add_argument("--no-quick", action="store_true", help="skip the --quick run")
+    parser.add_argument("--newcomer", type=Path, help="URDF: time ident init + the full run")
+    parser.add_argument("--package-dir", type=Path, help="package:// folder of its meshes")
     args = parser.parse_args()
+    if args.newcomer is not None:
+        newcomer(args.newcomer, args.package_dir)
+        return
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     load = os.getloadavg()[0]
     print(f"{os.cpu_count()} cores, load average {load:.1f} at start")
@@ -82,6 +91,25 @@ def main() -> None:
             print(
                 f"{name:32s} {wall:9.1f} {cpu:8.1f} {shown:>10s} {ratio:>11s}  {code:4d}  {verdict}"
             )
+
+
+def newcomer(urdf: Path, package_dir: Path | None) -> None:
+    """``ident init URDF`` then ``ident run CONFIG --no-replay``: times and the verdict."""
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
+    with tempfile.TemporaryDirectory(prefix="ident-newcomer-") as out:
+        config = Path(out) / f"{urdf.stem}.yaml"
+        init = ["init", str(urdf), "-o", str(config)]
+        if package_dir is not None:
+            init += ["--package-dir", str(package_dir)]
+        total_wall = total_cpu = 0.0
+        for name, args in (
+            ("ident init", init),
+            ("ident run (full)", ["run", str(config), "--no-replay", "--out", out]),
+        ):
+            wall, cpu, code, verdict = run_job(args)
+            total_wall, total_cpu = total_wall + wall, total_cpu + cpu
+            print(f"{name:18s} wall {wall:7.1f} s  CPU {cpu:7.1f} s  exit {code}  {verdict}")
+        print(f"{'first hour':18s} wall {total_wall:7.1f} s  CPU {total_cpu:7.1f} s")
 
 
 if __name__ == "__main__":

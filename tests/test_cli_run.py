@@ -277,7 +277,7 @@ def test_bad_excitation_bounds_stop_before_the_run_folder(tmp_path, bounds, expe
     assert not (tmp_path / "runs").exists()  # no run folder, not even an empty one
 
 
-def test_unmeetable_limits_exit_2_and_mark_the_folder(tmp_path):
+def test_unmeetable_limits_exit_2_before_any_folder(tmp_path):
     bad = tmp_path / "infeasible.yaml"
     text = QUICK.read_text().replace(
         "robot: ../../../configs/paper6r.yaml",
@@ -289,9 +289,12 @@ def test_unmeetable_limits_exit_2_and_mark_the_folder(tmp_path):
     bad.write_text(text)
     result = _run(bad, "--out", tmp_path / "runs")
     assert result.exit_code == 2
-    assert "initial elite search" in result.output
-    run_dir = _only_run_dir(tmp_path / "runs")
-    assert json.loads((run_dir / "run.json").read_text())["status"] == "incomplete"
+    (line,) = [x for x in result.output.splitlines() if x.startswith("error:")]
+    assert "initial elite search" in line
+    assert "position" in line  # names the limit that no design of the box meets
+    assert "Traceback" not in result.output
+    # found before the run folder exists: nothing to clean up, nothing half written
+    assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").iterdir())
 
 
 def test_a_crash_keeps_the_folder_consistent_and_surfaces(tmp_path, monkeypatch):

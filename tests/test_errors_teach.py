@@ -148,6 +148,8 @@ def test_infeasible_fourier_run_names_amplitude_bound_not_a_circle(tmp_path):
     assert "amplitude_bound <= 0.05" in error
     assert "circle" not in error
     assert "widen" not in error
+    # an infeasible excitation is an input error: found before the run folder exists
+    assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").iterdir())
 
 
 def test_unsafe_advice_suggests_the_safety_section_only_when_absent():

@@ -50,7 +50,7 @@ def run(
     from ident.run.config import load_run_config
     from ident.run.exports.run_exports import check_run_exports, export_run
     from ident.run.log_measurement import save_logs
-    from ident.run.pipeline import RunInterrupted, run_pipeline
+    from ident.run.pipeline import RunInterrupted, feasible_start, run_pipeline
     from ident.run.rundir import create_run_dir
     from ident.run.setup import prepare_run
 
@@ -71,34 +71,37 @@ def run(
         if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
             typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
-        rundir = create_run_dir(
-            out,
-            name,
-            info={
-                "config": str(config),
-                "seed": cfg.seed,
-                "quick": quick,
-                "command": " ".join(["ident", *sys.argv[1:]]),
-                "export_limits": list(setup.limit_notes),
-                "safety_margin_note": setup.safety.margin_note,
-            },
-        )
-        typer.echo(f"run folder: {rundir.path}", err=True)
-        try:
-            with _ProgressDisplay(cfg) as display:
-                result = run_pipeline(setup, progress=display.update)
-        except RunInterrupted as e:
-            _save_partial(e.partial, rundir)
-            if isinstance(e.cause, KeyboardInterrupt):
-                typer.echo(f"interrupted: partial results in {rundir.path}", err=True)
-                raise typer.Exit(code=EXIT_INTERRUPTED) from None
-            if isinstance(e.cause, IdentError):
-                typer.echo(f"error: {e.cause} (run folder: {rundir.path})", err=True)
-                raise typer.Exit(code=EXIT_USER_ERROR) from None
-            raise e.cause from None
-        except KeyboardInterrupt:
-            rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
-            raise
+        with _ProgressDisplay(cfg) as display:
+            # stage 1, the feasible elites, also before the folder exists: an excitation box
+            # that holds no design meeting the constraints is an input error
+            start = feasible_start(setup, progress=display.update)
+            rundir = create_run_dir(
+                out,
+                name,
+                info={
+                    "config": str(config),
+                    "seed": cfg.seed,
+                    "quick": quick,
+                    "command": " ".join(["ident", *sys.argv[1:]]),
+                    "export_limits": list(setup.limit_notes),
+                    "safety_margin_note": setup.safety.margin_note,
+                },
+            )
+            typer.echo(f"run folder: {rundir.path}", err=True)
+            try:
+                result = run_pipeline(start, progress=display.update)
+            except RunInterrupted as e:
+                _save_partial(e.partial, rundir)
+                if isinstance(e.cause, KeyboardInterrupt):
+                    typer.echo(f"interrupted: partial results in {rundir.path}", err=True)
+                    raise typer.Exit(code=EXIT_INTERRUPTED) from None
+                if isinstance(e.cause, IdentError):
+                    typer.echo(f"error: {e.cause} (run folder: {rundir.path})", err=True)
+                    raise typer.Exit(code=EXIT_USER_ERROR) from None
+                raise e.cause from None
+            except KeyboardInterrupt:
+                rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
+                raise
         try:
             save_run(result, rundir.path)
             save_logs(result, rundir.path)

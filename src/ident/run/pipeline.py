@@ -62,6 +62,7 @@ from ident.run.stage_info import build_stage_info
 
 __all__ = [  # the run's result types are re-exported: they are what run_pipeline returns
     "EliteOutcome",
+    "FeasibleStart",
     "FrameBaseInfo",
     "OptimizerRun",
     "Progress",
@@ -69,6 +70,7 @@ __all__ = [  # the run's result types are re-exported: they are what run_pipelin
     "RunResult",
     "StageInfo",
     "build_stage_info",
+    "feasible_start",
     "identify_elite",
     "run_pipeline",
 ]
@@ -116,7 +118,7 @@ class _State:
 
 
 def run_pipeline(
-    config: RunConfig | RunSetup, *, progress: ProgressCallback | None = None
+    config: RunConfig | RunSetup | FeasibleStart, *, progress: ProgressCallback | None = None
 ) -> RunResult:
     """Run the whole procedure of the config (see the module docstring).
 
@@ -124,7 +126,8 @@ def run_pipeline(
     ----------
     config :
         A checked :class:`~ident.run.setup.RunSetup`, or a run config (its paths resolved, see
-        :func:`ident.run.config.load_run_config`), which is then prepared here.
+        :func:`ident.run.config.load_run_config`), which is then prepared here, or a
+        :class:`FeasibleStart` (stage 1 done, see :func:`feasible_start`).
     progress :
         Called with a :class:`Progress` after every elite-search iteration, every eMuPSO
         iteration, every finished run and every identified elite. An exception raised in it
@@ -144,10 +147,18 @@ def run_pipeline(
         For invalid input found before anything ran (robot, stage, family options).
     """
     notify = progress or (lambda _p: None)
-    setup = config if isinstance(config, RunSetup) else prepare_run(config)
+    start = config if isinstance(config, FeasibleStart) else None
+    if start is not None:
+        setup = start.setup
+    else:
+        setup = config if isinstance(config, RunSetup) else prepare_run(config)
     config = setup.config
     streams = np.random.SeedSequence(config.seed).spawn(4)
-    problem = excitation_problem(setup, np.random.default_rng(streams[3]))
+    problem = (
+        start.problem
+        if start is not None
+        else excitation_problem(setup, np.random.default_rng(streams[3]))
+    )
     stage_info, measure = problem.stage_info, identify_elite
     if config.measurement.source == "mujoco":  # a simulated log, identified as a measured one
         with small_blas():
@@ -156,7 +167,10 @@ def run_pipeline(
     base = _base_result(setup, problem.bounds, stage_info)
     state = _State()
     try:
-        _search_elites(setup, problem, streams[0], state, notify)
+        if start is None:
+            _search_elites(setup, problem, streams[0], state, notify)
+        else:
+            state.elites, state.elite_message = start.elites, start.elite_message
         _optimize(setup, problem, streams[1], state, notify)
         chosen_x, chosen_f = _choose(setup, problem, state)
         margin = (
@@ -221,6 +235,40 @@ def _tighter_problem(problem: Any, safety: Any) -> Any:
     objective = copy.copy(problem.objective)
     objective.safety = safety
     return dataclasses.replace(problem, objective=objective)
+
+
+@dataclasses.dataclass(frozen=True)
+class FeasibleStart:
+    """A run's first stage, done: its excitation problem and the initial feasible elites.
+
+    ``ident run`` computes it before it creates the run folder, so that an excitation box
+    holding no design that meets the constraints is an input error (one ``error:`` line naming
+    the setting), not a run folder that stops. :func:`run_pipeline` continues from it with the
+    same random streams, so the result equals that of ``run_pipeline(setup)``.
+    """
+
+    setup: RunSetup
+    problem: Any
+    elites: FloatArray  # (n_elites, n_variables) feasible designs
+    elite_message: str
+
+
+def feasible_start(setup: RunSetup, *, progress: ProgressCallback | None = None) -> FeasibleStart:
+    """Stage 1 of :func:`run_pipeline`: the excitation problem and the initial feasible elites.
+
+    Raises
+    ------
+    TrajectoryError
+        When the elite search finds no design of the excitation bounds that meets every
+        constraint; the message names the constraints violated most often and, where the
+        family knows it, the setting and value that make the box infeasible.
+    """
+    streams = np.random.SeedSequence(setup.config.seed).spawn(4)
+    problem = excitation_problem(setup, np.random.default_rng(streams[3]))
+    state = _State()
+    _search_elites(setup, problem, streams[0], state, progress or (lambda _p: None))
+    assert state.elites is not None
+    return FeasibleStart(setup, problem, state.elites, state.elite_message)
 
 
 def _base_result(setup: RunSetup, bounds: FloatArray, stage_info: StageInfo) -> RunResult:
