@@ -6,8 +6,9 @@ as *linear* parameters times columns that may depend on a few *nonlinear* parame
     tau_f[k, j] = sum_i columns(dq, load, p)[k, j, i] * linear[j, i]
 
 with ``dq`` the joint velocity [rad/s], ``load`` the joint's load torque [N*m] (the torque the
-motor passes through the gear: the measured torque in an identification, the commanded one in
-the simulator) and ``p`` the nonlinear parameters of each joint, shape (nv, n_nonlinear).
+gear passes to the link: the rigid-body and rotor-inertia torque, i.e. the motor torque minus
+the friction; the rest of the model's prediction in an identification) and ``p`` the
+nonlinear parameters of each joint, shape (nv, n_nonlinear).
 A model without nonlinear parameters is *linear*: its columns enter the regressor. The others
 are fitted around the linear estimate by separable least squares
 (:mod:`ident.identify.friction_fit`). Registered models (``sign(0) = 0``):
@@ -78,6 +79,8 @@ class FrictionModel:
         velocities' scale; None for a linear model.
     formula :
         The torque as text, for reports.
+    uses_load :
+        Whether the columns depend on ``load`` (fitted by a fixed point on the load).
     """
 
     name: str
@@ -87,6 +90,7 @@ class FrictionModel:
     positive: tuple[bool, ...] = ()
     initial: Callable[[FloatArray], FloatArray] | None = None
     formula: str = ""
+    uses_load: bool = False
 
     @property
     def is_linear(self) -> bool:
@@ -213,5 +217,6 @@ register_friction_model(
         ("fv", "fc", "fl"),
         _load_dependent,
         formula="fv dq + (fc + fl |load|) sign(dq)",
+        uses_load=True,
     )
 )

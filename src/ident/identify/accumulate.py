@@ -60,6 +60,7 @@ __all__ = [
     "BaseColumns",
     "Chunk",
     "ChunkPlan",
+    "ChunkTask",
     "ChunkedLog",
     "chunk_record",
     "default_chunk_samples",
@@ -418,6 +419,10 @@ class _Task:
         (out,) = iter_chunks(self.plan, self.q, self.tau, self.fs, self.pp, self.columns, ranges)
         keep, _ = preprocess.velocity_mask(out.dq, self.pp.velocity_threshold)
         return out, keep
+
+
+#: A chunk task (public name, for code that processes a planned log's chunks itself).
+ChunkTask = _Task
 
 
 def _reduce_task(task: _Task) -> ReducedObservations:

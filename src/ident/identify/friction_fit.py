@@ -22,19 +22,29 @@ weighted per joint by ``1 / sigma_j``, the residual standard deviation of the
 :func:`compare_friction_models` fits every model and ranks them by the held-out total relative
 residual ``||tau - tau_pred|| / ||tau||`` (the figure the identify report gives for the
 identified parameters), on the held-out rows, or on the identification rows when there are none.
+
+**Load.** The load of a load-dependent model is the torque of the rest of the model,
+``W_rest theta_rest`` (rigid bodies, rotor inertias, offsets): never the measured torque, which
+would put the measurement (and its noise) into the regressor and let the load term copy it
+(on the TX40 log it did: ``fl`` near 1 on the wrist). Since the rest depends on the fit, the
+fit is repeated with the last fit's load until it settles.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from ident.dynamics.friction_models import FRICTION_MODELS, FrictionModel, get_friction_model
+from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
+from ident.identify import accumulate
 from ident.identify.validation import prediction_metrics
 
 __all__ = [
@@ -43,6 +53,7 @@ __all__ = [
     "FrictionRows",
     "compare_friction_models",
     "fit_friction_model",
+    "friction_rows",
     "predict_friction_rows",
 ]
 
@@ -51,6 +62,8 @@ BoolArray = npt.NDArray[np.bool_]
 
 #: Common scale factors of the nonlinear parameters tried before the local fit.
 _SCAN = np.geomspace(0.05, 20.0, 9)
+#: Fixed-point iterations of a load-dependent model (error shrinks like ``fl^k``).
+_LOAD_ITERATIONS = 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,7 +77,7 @@ class FrictionRows:
     dq :
         Joint velocities [rad/s], shape (n, nv).
     tau :
-        Measured joint torques [N*m], shape (n, nv) (also the load of ``load_dependent``).
+        Measured joint torques [N*m], shape (n, nv).
     keep :
         Entries used (velocity threshold), shape (n, nv).
     joints :
@@ -129,9 +142,11 @@ class FrictionFit:
     held_out_rmse: FloatArray | None = None
 
 
-def _friction_block(model: FrictionModel, rows: FrictionRows, p: FloatArray) -> FloatArray:
+def _friction_block(
+    model: FrictionModel, rows: FrictionRows, load: FloatArray, p: FloatArray
+) -> FloatArray:
     """Friction columns as full rows (n * nv, len(joints) * n_linear), sample-major."""
-    F = model.columns(rows.dq, rows.tau, p)
+    F = model.columns(rows.dq, load, p)
     n, nv, n_lin = F.shape
     joints = np.asarray(rows.joints, dtype=np.intp)
     block = np.zeros((n, nv, joints.size, n_lin))
@@ -166,6 +181,20 @@ def fit_friction_model(
         If the rest of the columns are rank deficient on the kept rows.
     """
     model = get_friction_model(model) if isinstance(model, str) else model
+    with threadpool_limits(limits=1, user_api="blas"):  # small problems: threads only wait
+        if not model.uses_load:
+            return _fit(model, rows, weights, np.zeros_like(rows.tau))
+        # the load is the torque of the rest of the model: a fixed point, started from the
+        # viscous + Coulomb fit's (contracts by the load coefficients, well below 1)
+        fit = _fit(get_friction_model("viscous_coulomb"), rows, weights, rows.tau)
+        for _ in range(_LOAD_ITERATIONS):
+            fit = _fit(model, rows, weights, rows.W_rest @ fit.rest)
+        return fit
+
+
+def _fit(
+    model: FrictionModel, rows: FrictionRows, weights: FloatArray | None, load: FloatArray
+) -> FrictionFit:
     nv = rows.tau.shape[1]
     weights = np.ones(nv) if weights is None else np.asarray(weights, dtype=float)
     keep, w, y = _weighted(rows, weights)
@@ -183,7 +212,7 @@ def fit_friction_model(
         return p
 
     def solve(p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        Fw = _friction_block(model, rows, p)[keep] * w[:, None]
+        Fw = _friction_block(model, rows, load, p)[keep] * w[:, None]
         F_perp = Fw - Q @ (Q.T @ Fw)
         c = np.linalg.lstsq(F_perp, y_perp, rcond=None)[0]
         return y_perp - F_perp @ c, c, Fw
@@ -228,7 +257,7 @@ def fit_friction_model(
 def predict_friction_rows(fit: FrictionFit, rows: FrictionRows) -> FloatArray:
     """Torques [N*m] the fitted model predicts on ``rows``, shape (n, nv)."""
     model = get_friction_model(fit.model)
-    friction = model.torque(rows.dq, rows.tau, fit.linear, fit.nonlinear)
+    friction = model.torque(rows.dq, rows.W_rest @ fit.rest, fit.linear, fit.nonlinear)
     mask = np.zeros(rows.tau.shape[1], dtype=bool)
     mask[list(rows.joints)] = True
     return rows.W_rest @ fit.rest + np.where(mask, friction, 0.0)
@@ -300,3 +329,48 @@ def compare_friction_models(
     return FrictionComparison(
         fits=tuple(fits), winner=fits[0].model, baseline=baseline, on_held_out=held_out is not None
     )
+
+
+#: Most decimated samples of each part (identification, held out) a comparison uses: the rows
+#: are kept whole in memory (``n * nv * p`` floats), so a long log is thinned evenly.
+MAX_SAMPLES = 20_000
+
+_FRICTION_BASE = re.compile(r"(fv|fs)\d+R?")
+
+
+def _rows_of(
+    tasks: Sequence[accumulate.ChunkTask], drop: BoolArray, joints: tuple[int, ...], stride: int
+) -> FrictionRows:
+    parts = []
+    for task in tasks:
+        chunk, keep = task.chunk()
+        p = task.columns.order.size
+        Yb = chunk.Yb[::stride, :, :p][:, :, ~drop]
+        parts.append((Yb, chunk.dq[::stride], chunk.tau[::stride], keep[::stride]))
+    W, dq, tau, keep = (np.concatenate([part[i] for part in parts]) for i in range(4))
+    return FrictionRows(W_rest=W, dq=dq, tau=tau, keep=keep, joints=joints)
+
+
+def friction_rows(
+    chunked: accumulate.ChunkedLog, pm: ParameterModel, *, max_samples: int = MAX_SAMPLES
+) -> tuple[FrictionRows, FrictionRows | None]:
+    """The identification and held-out rows of a planned log, without the joints' ``fv``/``fs``
+    base columns (None for the held-out rows when the log has no held-out part).
+
+    Every part is thinned evenly to at most ``max_samples`` decimated samples.
+    """
+    columns = chunked.fit_tasks[0].columns
+    names = [pm.base_names[i] for i in columns.order]
+    drop = np.array([_FRICTION_BASE.fullmatch(n) is not None for n in names], dtype=bool)
+    joints = tuple(sorted({*pm.terms.per_joint["fv"], *pm.terms.per_joint["fs"]}))
+    if not joints:
+        raise DataError("model.friction: no joint has viscous or Coulomb friction terms.")
+
+    def stride(tasks: Sequence[accumulate.ChunkTask]) -> int:
+        n = sum(t.d1 - t.d0 for t in tasks)
+        return max(1, -(-n // max_samples))
+
+    fit = _rows_of(chunked.fit_tasks, drop, joints, stride(chunked.fit_tasks))
+    if chunked.in_sample or not chunked.val_tasks:
+        return fit, None
+    return fit, _rows_of(chunked.val_tasks, drop, joints, stride(chunked.val_tasks))

@@ -166,8 +166,8 @@ class FrictionConfig(StrictModel):
     """Joint friction of the simulated robot (the controller does not know it).
 
     ``tau_friction = viscous * dq + coulomb * sign(dq)`` per joint, ``sign(0) = 0``, plus the
-    torque of ``law`` when given (applied like the Coulomb term, with the commanded torque as
-    the load of ``load_dependent``).
+    torque of ``law`` when given (applied like the Coulomb term; the load of ``load_dependent`` is
+    the commanded torque minus the friction).
 
     Attributes
     ----------

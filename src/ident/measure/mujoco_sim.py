@@ -8,7 +8,8 @@ joint ``j``, what the ``measurement:`` config adds (:mod:`ident.measure.mujoco_c
 - Coulomb friction ``fs_j sign(dq_j)`` (``sign(0) = 0``), the velocity taken at the start of
   every MuJoCo step, applied through ``qfrc_applied``;
 - optionally a friction law of the registry (:mod:`ident.dynamics.friction_models`, e.g.
-  Stribeck), applied like the Coulomb term, with the commanded torque as its load;
+  Stribeck), applied like the Coulomb term; a load-dependent law's load is the torque through
+  the gear, the command minus the friction;
 - and on the measured torque a delay, a gain and an offset (``measurement.signals``).
 
 So at every MuJoCo step, with ``dq`` the velocity before the step and ``ddq`` the acceleration
@@ -81,6 +82,8 @@ _RATE_RTOL = 1e-9
 # Tracking error [rad or m] past which the simulation stops: a diverging loop reaches it long
 # before MuJoCo's own instability warning (which also writes MUJOCO_LOG.TXT into the folder).
 _MAX_TRACKING_ERROR = 1.0
+# Fixed-point rounds of a load-dependent friction law (error ~ fl^rounds).
+_LOAD_ROUNDS = 40
 
 
 def coulomb_law(dq: FloatArray) -> FloatArray:
@@ -379,20 +382,30 @@ def _truth(config: MujocoMeasurement, nv: int) -> dict[str, FloatArray]:
 def _friction_law_torque(
     config: MujocoMeasurement, truth: dict[str, FloatArray]
 ) -> Callable[[FloatArray, FloatArray], FloatArray]:
-    """``torque(dq, load)`` [N*m], shapes (nv,), of the Coulomb term and the friction law."""
+    """``torque(dq, tau)`` [N*m], shapes (nv,): the Coulomb term and the friction law, for the
+    motor torque ``tau`` (the law's load: ``tau`` minus the friction)."""
     coulomb = truth["coulomb"]
     law = config.friction.law
     if law is None:
         return lambda dq, load: coulomb * coulomb_law(dq)
     model = get_friction_model(law.model)
-    linear = np.stack([truth[f"law.{k}"] for k in model.linear], axis=1)
-    nonlinear = np.stack([truth[f"law.{k}"] for k in model.nonlinear], axis=1).reshape(
-        len(coulomb), len(model.nonlinear)
-    )
+    nv = len(coulomb)
+    linear = np.column_stack([truth[f"law.{k}"] for k in model.linear])
+    nonlinear = np.zeros((nv, len(model.nonlinear)))
+    for i, k in enumerate(model.nonlinear):
+        nonlinear[:, i] = truth[f"law.{k}"]
 
-    def torque(dq: FloatArray, load: FloatArray) -> FloatArray:
-        extra = model.torque(dq[None, :], load[None, :], linear, nonlinear)[0]
-        return coulomb * coulomb_law(dq) + extra
+    def torque(dq: FloatArray, tau: FloatArray) -> FloatArray:
+        # the load is what passes the gear, tau - friction: a fixed point (contracts by the
+        # load coefficients), exact to round-off after a few rounds for |fl| < 0.5
+        base = coulomb * coulomb_law(dq)
+        friction = base
+        for _ in range(_LOAD_ROUNDS if model.uses_load else 1):
+            law = model.torque(dq[None, :], (tau - friction)[None, :], linear, nonlinear)[0]
+            friction, previous = base + law, friction
+            if np.max(np.abs(friction - previous)) <= 1e-14 * (1.0 + np.max(np.abs(tau))):
+                break
+        return friction
 
     return torque
 
