@@ -13,8 +13,8 @@ parameters ``p`` and ``y`` the weighted torques, the linear parameters are elimi
     r(p) = (I - Q Q^T) (y - F(p) c(p)),   c(p) = argmin_c ||(I - Q Q^T)(y - F(p) c)||
 
 and ``scipy.optimize.least_squares`` minimises ``||r(p)||`` over the few nonlinear parameters
-(positive ones on a log scale), started from the best of a short common scan of their scale
-around :attr:`FrictionModel.initial <ident.dynamics.friction_models.FrictionModel.initial>`.
+(positive ones on a log scale, within a factor 30 of their start), started from the best of a
+short common scan of their scale around ``FrictionModel.initial``.
 The rest follows from ``R theta_rest = Q^T (y - F c)``. A linear model is one solve. Rows are
 weighted per joint by ``1 / sigma_j``, the residual standard deviation of the
 ``viscous_coulomb`` fit (as WLS does), the same weights for every model so that fits compare.
@@ -62,6 +62,8 @@ BoolArray = npt.NDArray[np.bool_]
 
 #: Common scale factors of the nonlinear parameters tried before the local fit.
 _SCAN = np.geomspace(0.05, 20.0, 9)
+#: Positive nonlinear parameters stay within this factor of their start.
+_RANGE = 30.0
 #: Fixed-point iterations of a load-dependent model (error shrinks like ``fl^k``).
 _LOAD_ITERATIONS = 12
 
@@ -214,7 +216,7 @@ def _fit(
     def solve(p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         Fw = _friction_block(model, rows, load, p)[keep] * w[:, None]
         F_perp = Fw - Q @ (Q.T @ Fw)
-        c = np.linalg.lstsq(F_perp, y_perp, rcond=None)[0]
+        c = np.asarray(np.linalg.lstsq(F_perp, y_perp, rcond=None)[0], dtype=float)
         return y_perp - F_perp @ c, c, Fw
 
     p0 = np.zeros((nv, 0))
@@ -230,7 +232,15 @@ def _fit(
             if cost < cost_best:
                 x_best, cost_best = x.reshape(-1), cost
         assert x_best is not None
-        result = least_squares(lambda x: solve(decode(x))[0], x_best, method="trf", max_nfev=400)
+        # positive parameters within a factor _RANGE of their start: past the velocities seen,
+        # a Stribeck velocity makes its column a copy of the Coulomb one (a flat direction)
+        span = np.where(np.tile(positive, nv), np.log(_RANGE), np.inf)
+        x_start = start.copy()
+        x_start[:, positive] = np.log(start[:, positive])
+        bounds = (x_start.reshape(-1) - span, x_start.reshape(-1) + span)
+        result = least_squares(
+            lambda x: solve(decode(x))[0], x_best, bounds=bounds, method="trf", max_nfev=400
+        )
         p0 = decode(result.x)
         success, message, nfev = bool(result.success), str(result.message), int(result.nfev)
         nfev += _SCAN.size
