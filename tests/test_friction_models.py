@@ -22,10 +22,13 @@ from ident.dynamics.friction_models import (
 )
 from ident.dynamics.parameter_model import build_parameter_model, model_regressors
 from ident.errors import ConfigError
+from ident.identify.config import load_identify_config
 from ident.identify.friction_fit import FrictionRows, compare_friction_models, fit_friction_model
+from ident.identify.real import identify
 from ident.measure.mujoco_config import load_mujoco_measurement
-from ident.measure.mujoco_sim import simulate
+from ident.measure.mujoco_sim import simulate, write_log
 from ident.model import Robot
+from ident.report.identify_report import friction_models_entry, friction_models_lines
 
 LAWS = {
     "viscous_coulomb": {
@@ -204,3 +207,44 @@ def test_config_names_a_bad_friction_model_in_one_error_line(tmp_path):
     for part in ("error: ", "bad.yaml", "model.friction", "did you mean 'stribeck'"):
         assert part in lines[0]
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_identify_with_friction_auto_picks_the_simulated_law(tmp_path, ur5):
+    """End to end: a Stribeck UR5 log written by the MuJoCo source, ``ident identify`` with
+    ``model.friction: auto``: Stribeck first on the held-out rows, in the report and result.json;
+    the identification itself unchanged (same base parameters as without ``friction``)."""
+    robot = ur5[0]
+    t, q, dq, ddq = fourier_reference(robot, period=3.0, seed=2)
+    law = {"model": "stribeck", "values": {"fv": 0.5, "fc": 1.0, "fst": 1.5, "vs": 0.3}}
+    config = {"friction": {"law": law}, "n_periods": 1, "torque_noise_std": 0.05}
+    log = simulate(robot, t, q, dq, ddq, load_mujoco_measurement(config), rng=0)
+    write_log(tmp_path, log)
+    sections = yaml.safe_load((tmp_path / "log.yaml").read_text())
+    sections |= {
+        "robot": {"urdf": str(UR5_URDF)},
+        "preprocess": {
+            "lowpass": {"cutoff_hz": 30.0},
+            "decimation": [5],
+            "velocity_threshold": [0.03] * 6,
+            "trim_samples": 300,
+        },
+        "model": {"offset": False, "rotor_inertia": False, "friction": "auto"},
+        "estimation": {"method": "wls", "essential": {"enabled": False}},
+        "validation": {"identify_fraction": 0.7},
+    }
+    (tmp_path / "identify.yaml").write_text(yaml.safe_dump(sections))
+    result = identify(load_identify_config(tmp_path / "identify.yaml"))
+    assert result.friction is not None
+    assert result.friction.on_held_out
+    assert result.friction.winner == "stribeck"
+    assert result.friction.improvement() > 0.1
+    assert len(result.friction.fits) == len(FRICTION_MODELS)
+    entry = friction_models_entry(result)
+    assert entry["winner"] == "stribeck"
+    assert "## Friction models" in "\n".join(friction_models_lines(result))
+    sections["model"]["friction"] = "viscous_coulomb"
+    (tmp_path / "plain.yaml").write_text(yaml.safe_dump(sections))
+    plain = identify(load_identify_config(tmp_path / "plain.yaml"))
+    assert plain.friction is None
+    np.testing.assert_array_equal(plain.estimate.x, result.estimate.x)
