@@ -25,7 +25,7 @@ from ident.errors import ConfigError
 from ident.identify.config import load_identify_config
 from ident.identify.friction_fit import FrictionRows, compare_friction_models, fit_friction_model
 from ident.identify.real import identify
-from ident.measure.mujoco_config import load_mujoco_measurement
+from ident.measure.mujoco_config import check_joint_counts, load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate, write_log
 from ident.model import Robot
 from ident.report.identify_report import friction_models_entry, friction_models_lines
@@ -248,3 +248,16 @@ def test_identify_with_friction_auto_picks_the_simulated_law(tmp_path, ur5):
     plain = identify(load_identify_config(tmp_path / "plain.yaml"))
     assert plain.friction is None
     np.testing.assert_array_equal(plain.estimate.x, result.estimate.x)
+
+
+def test_measurement_friction_law_is_validated():
+    """Unknown model, missing or extra values, wrong list lengths: ConfigError naming the key."""
+    with pytest.raises(ConfigError, match="did you mean 'sigmoid'"):
+        load_mujoco_measurement({"friction": {"law": {"model": "sigmoyd", "values": {}}}})
+    law = {"model": "stribeck", "values": {"fv": 0.5, "fc": 1.0}}
+    with pytest.raises(ConfigError, match="takes exactly fc, fst, fv, vs; got fc, fv"):
+        load_mujoco_measurement({"friction": {"law": law}})
+    law = {"model": "stribeck", "values": {"fv": 0.5, "fc": 1.0, "fst": 0.5, "vs": [0.1, 0.2]}}
+    config = load_mujoco_measurement({"friction": {"law": law}})
+    with pytest.raises(ConfigError, match=r"measurement.friction.law.values.vs has 2 entries"):
+        check_joint_counts(config, 6)
