@@ -9,9 +9,11 @@ with ``dq`` the joint velocity [rad/s], ``load`` the joint's load torque [N*m] (
 gear passes to the link: the rigid-body and rotor-inertia torque, i.e. the motor torque minus
 the friction; the rest of the model's prediction in an identification) and ``p`` the
 nonlinear parameters of each joint, shape (nv, n_nonlinear).
-A model without nonlinear parameters is *linear*: its columns enter the regressor. The others
-are fitted around the linear estimate by separable least squares
-(:mod:`ident.identify.friction_fit`). Registered models (``sign(0) = 0``):
+A model without nonlinear parameters is *linear*: its columns enter the friction fit's
+regressor beside the rest of the model (one solve; ``viscous_coulomb`` is also the
+identification's own model, :mod:`ident.dynamics.friction`). The others are fitted around the
+linear estimate by separable least squares (:mod:`ident.identify.friction_fit`). Registered
+models (``sign(0) = 0``):
 
 =========================  ==================================================  ==============
 name                       torque                                              nonlinear
