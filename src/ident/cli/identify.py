@@ -143,6 +143,13 @@ def identify(
                 f"held-out {label}: relative residual {p.metrics.total_relative_residual:.4f}; "
                 f"RMSE per joint {rmse}"
             )
+        if result.friction is not None:
+            f = result.friction
+            ranked = ", ".join(f"{x.model} {x.held_out_residual:.4f}" for x in f.fits)
+            typer.echo(
+                f"friction models (held-out relative residual): {ranked}; winner {f.winner}, "
+                f"{100 * f.improvement():.2f} % below {f.baseline}"
+            )
         typer.echo(replay_note)
         _echo_model(rundir.path / "result.json")
         verdict = identify_verdict(result)  # the one the report and result.json show

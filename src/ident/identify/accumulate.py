@@ -62,6 +62,7 @@ __all__ = [
     "BaseColumns",
     "Chunk",
     "ChunkPlan",
+    "ChunkTask",
     "ChunkedLog",
     "block_equations",
     "chunk_record",
@@ -422,6 +423,10 @@ class _Task:
         (out,) = iter_chunks(self.plan, self.q, self.tau, self.fs, self.pp, self.columns, ranges)
         keep, _ = preprocess.velocity_mask(out.dq, self.pp.velocity_threshold)
         return out, keep
+
+
+#: A chunk task (public name, for code that processes a planned log's chunks itself).
+ChunkTask = _Task
 
 
 def _reduce_task(task: _Task) -> ReducedObservations:

@@ -25,6 +25,7 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
+from ident.dynamics.friction_models import AUTO, get_friction_model
 from ident.errors import ConfigError, DataError
 from ident.identify.estimators import get_contract, get_estimator
 from ident.identify.reference import read_reference
@@ -293,6 +294,10 @@ class ModelConfig(StrictModel):
 
     Per-joint options take ``true`` (all joints), ``false`` or a list of 1-based joints.
     ``coupled_wrist`` names the two joints whose motor is shared (TX40: ``[5, 6]``).
+    ``friction``: a model of the friction registry (:mod:`ident.dynamics.friction_models`)
+    fitted beside the identification on the joints with ``viscous`` or ``coulomb`` terms, or
+    ``auto`` (every model, ranked by held-out fit; :mod:`ident.identify.friction_fit`).
+    ``viscous_coulomb`` (default) is the identification's own model: nothing more is fitted.
     """
 
     viscous: bool | list[int] = True
@@ -300,6 +305,17 @@ class ModelConfig(StrictModel):
     offset: bool | list[int] = True
     rotor_inertia: bool | list[int] = True
     coupled_wrist: list[int] | None = None
+    friction: str = "viscous_coulomb"
+
+    @field_validator("friction")
+    @classmethod
+    def _friction_model(cls, value: str) -> str:
+        if value != AUTO:
+            try:
+                get_friction_model(value)
+            except ConfigError as e:
+                raise ValueError(str(e)) from e
+        return value
 
     @field_validator("coupled_wrist")
     @classmethod

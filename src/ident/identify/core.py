@@ -49,6 +49,7 @@ from ident.identify.estimators import (
     bounding_ellipsoids,
     consistent_identification_reduced,
 )
+from ident.identify.friction_fit import FrictionComparison, compare_friction_models, friction_rows
 from ident.identify.identifiability import Identifiability, standard_identifiability
 from ident.identify.logs import RobotLog
 from ident.identify.motion import measured_motion
@@ -137,6 +138,9 @@ class IdentifyResult:
     identifiability :
         Per standard parameter: alone, only in combination, or not seen
         (:mod:`ident.identify.identifiability`).
+    friction :
+        With ``model.friction`` other than ``viscous_coulomb``: the friction models fitted
+        (that one, or every one for ``auto``) and ranked by held-out fit; else None.
     """
 
     config: IdentifyConfig
@@ -166,6 +170,7 @@ class IdentifyResult:
     prediction_std: dict[str, FloatArray] = field(default_factory=dict)
     uncertainty_summary: dict | None = None
     identifiability: Identifiability | None = None
+    friction: FrictionComparison | None = None
 
     @property
     def status(self) -> str:
@@ -262,12 +267,17 @@ def _identify(
     t5 = time.perf_counter()
     comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
     timings["validate"] += time.perf_counter() - t5
+    t7 = time.perf_counter()
+    friction, friction_problem = _friction_models(cfg, chunked, pm)
+    if cfg.model.friction != "viscous_coulomb":
+        timings["friction_models"] = time.perf_counter() - t7
     t6 = time.perf_counter()
     motion, motion_note = replay_motion(log, cfg.preprocess, tuple(joints))
     timings["motion"] = time.perf_counter() - t6
     problems = [
         *auto_warnings,
         *_warnings(cfg, model, pm, est, cons, red, chunked, predictions, (tau_val, keep_val)),
+        *friction_problem,
     ]
     timings["total"] = time.perf_counter() - t0
     step = preprocess.decimation_step(cfg.preprocess)
@@ -303,7 +313,24 @@ def _identify(
         identifiability=standard_identifiability(
             pm.base.projection, pm.names, pm.base_names, pm.base.expressions()
         ),
+        friction=friction,
     )
+
+
+def _friction_models(
+    cfg: IdentifyConfig, chunked: accumulate.ChunkedLog, pm: ParameterModel
+) -> tuple[FrictionComparison | None, list[str]]:
+    """The friction models of ``model.friction`` fitted and ranked (None for the default), or
+    None and the reason as a warning: the identification is kept whatever happens here."""
+    name = cfg.model.friction
+    if name == "viscous_coulomb":
+        return None, []
+    try:
+        fit_rows, held_out = friction_rows(chunked, pm)
+        names = None if name == "auto" else [name]
+        return compare_friction_models(fit_rows, held_out, names), []
+    except DataError as e:
+        return None, [f"model.friction = {name}: the friction models were not fitted ({e})"]
 
 
 def _accumulate(

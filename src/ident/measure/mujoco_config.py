@@ -8,6 +8,9 @@ Example (every key optional except ``source``; SI units unless a key says otherw
       substeps: 1                # MuJoCo steps per controller period
       controller: {kind: computed_torque, kp: 10000.0, kd: 200.0}
       friction: {viscous: [0.5, 0.5, 0.4, 0.1, 0.1, 0.1], coulomb: 1.0}
+      # or another law of the friction-model registry, applied on top:
+      # friction: {law: {model: stribeck, values: {fv: 0.5, fc: 1.0, fst: 0.5, vs: 0.05}}}
+      signals: {delay_s: 0.0, torque_gain: 1.0, torque_offset: 0.0}
       armature: [0.3, 0.3, 0.2, 0.05, 0.05, 0.05]
       encoder_counts_per_rev: 524288
       torque_noise_std: 0.2
@@ -31,9 +34,10 @@ from typing import Annotated, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
-from pydantic import AfterValidator, Field, model_validator
+from pydantic import AfterValidator, Field, field_validator, model_validator
 
 from ident.config import StrictModel, validate_config
+from ident.dynamics.friction_models import get_friction_model
 from ident.errors import ConfigError
 from ident.robot.inertia import consistency_problems, parameters_from_com
 
@@ -43,8 +47,10 @@ __all__ = [
     "ControllerConfig",
     "CurrentConfig",
     "FrictionConfig",
+    "FrictionLawConfig",
     "MujocoMeasurement",
     "PayloadConfig",
+    "SignalConfig",
     "check_joint_counts",
     "load_mujoco_measurement",
     "per_joint",
@@ -119,10 +125,52 @@ class ControllerConfig(StrictModel):
     kd: PositiveGain | None = None
 
 
+class FrictionLawConfig(StrictModel):
+    """A friction law of the registry (:mod:`ident.dynamics.friction_models`) with its values.
+
+    Attributes
+    ----------
+    model :
+        A registered model name, e.g. ``stribeck``.
+    values :
+        Every linear and nonlinear parameter of the model by its label (one value for all
+        joints or one per joint), e.g. ``{fv: 0.5, fc: 1.0, fst: 0.5, vs: 0.05}``.
+    """
+
+    model: str
+    values: dict[str, float | list[float]]
+
+    @field_validator("model")
+    @classmethod
+    def _registered(cls, value: str) -> str:
+        try:
+            get_friction_model(value)
+        except ConfigError as e:
+            raise ValueError(str(e)) from e
+        return value
+
+    @model_validator(mode="after")
+    def _labels(self) -> FrictionLawConfig:
+        model = get_friction_model(self.model)
+        wanted = {*model.linear, *model.nonlinear}
+        if set(self.values) != wanted:
+            raise ValueError(
+                f"friction.law.values of {self.model!r} takes exactly "
+                f"{', '.join(sorted(wanted))}; got {', '.join(sorted(self.values)) or 'none'}"
+            )
+        for label, value in self.values.items():
+            values = value if isinstance(value, list) else [value]
+            if not values or not all(math.isfinite(v) for v in values):
+                raise ValueError(f"friction.law.values.{label}: finite numbers, got {value}")
+        return self
+
+
 class FrictionConfig(StrictModel):
     """Joint friction of the simulated robot (the controller does not know it).
 
-    ``tau_friction = viscous * dq + coulomb * sign(dq)`` per joint, ``sign(0) = 0``.
+    ``tau_friction = viscous * dq + coulomb * sign(dq)`` per joint, ``sign(0) = 0``, plus the
+    torque of ``law`` when given (applied like the Coulomb term; the load of ``load_dependent`` is
+    the commanded torque minus the friction).
 
     Attributes
     ----------
@@ -135,6 +183,26 @@ class FrictionConfig(StrictModel):
 
     viscous: NonNegativeViscous = 0.0
     coulomb: NonNegativeNm = 0.0
+    law: FrictionLawConfig | None = None
+
+
+class SignalConfig(StrictModel):
+    """Errors of the measured torque signal: ``tau_measured(t) = gain * tau(t - delay_s) + offset``
+    (plus noise), ``tau`` the commanded torque, linearly interpolated (held at the ends).
+
+    Attributes
+    ----------
+    delay_s :
+        Delay [s] of the torque behind the positions, >= 0.
+    torque_gain :
+        Gain per joint (1: exact), > 0.
+    torque_offset :
+        Offset per joint [N*m].
+    """
+
+    delay_s: float = Field(default=0.0, ge=0.0, allow_inf_nan=False)
+    torque_gain: PositiveGain = 1.0
+    torque_offset: float | list[float] = 0.0
 
 
 class CurrentConfig(StrictModel):
@@ -203,7 +271,7 @@ class MujocoMeasurement(StrictModel):
     controller :
         The tracking controller (:class:`ControllerConfig`).
     friction :
-        Viscous and Coulomb friction (:class:`FrictionConfig`).
+        Viscous and Coulomb friction and another law (:class:`FrictionConfig`).
     armature :
         Rotor inertia reflected to the joint [kg*m^2] (MuJoCo's ``dof_armature``), >= 0.
     encoder_counts_per_rev :
@@ -214,6 +282,8 @@ class MujocoMeasurement(StrictModel):
         make the measured torque, >= 0.
     current :
         ``null`` logs torques [N*m]; a :class:`CurrentConfig` logs currents [A].
+    signals :
+        Delay, gain and offset of the measured torque (:class:`SignalConfig`).
     settle_periods :
         Periods simulated before logging starts (transients of the start from the reference's
         initial state), >= 0.
@@ -232,6 +302,7 @@ class MujocoMeasurement(StrictModel):
     encoder_counts_per_rev: int | None = Field(default=None, ge=2)
     torque_noise_std: NonNegativeNm = 0.0
     current: CurrentConfig | None = None
+    signals: SignalConfig = SignalConfig()
     settle_periods: int = Field(default=1, ge=0)
     n_periods: int = Field(default=2, ge=1)
     payload: PayloadConfig | None = None
@@ -300,7 +371,11 @@ def check_joint_counts(
         "armature": cfg.armature,
         "torque_noise_std": cfg.torque_noise_std,
         "current.torque_constants": None if cfg.current is None else cfg.current.torque_constants,
+        "signals.torque_gain": cfg.signals.torque_gain,
+        "signals.torque_offset": cfg.signals.torque_offset,
     }
+    if cfg.friction.law is not None:
+        entries.update({f"friction.law.values.{k}": v for k, v in cfg.friction.law.values.items()})
     names = f" ({', '.join(joint_names)})" if joint_names else ""
     for key, value in entries.items():
         if isinstance(value, list) and len(value) != n_joints:

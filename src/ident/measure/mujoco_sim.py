@@ -6,7 +6,11 @@ joint ``j``, what the ``measurement:`` config adds (:mod:`ident.measure.mujoco_c
 - rotor inertia ``Ia_j`` reflected to the joint (MuJoCo's ``dof_armature``);
 - viscous friction ``fv_j dq_j`` (``dof_damping``, integrated explicitly);
 - Coulomb friction ``fs_j sign(dq_j)`` (``sign(0) = 0``), the velocity taken at the start of
-  every MuJoCo step, applied through ``qfrc_applied``.
+  every MuJoCo step, applied through ``qfrc_applied``;
+- optionally a friction law of the registry (:mod:`ident.dynamics.friction_models`, e.g.
+  Stribeck), applied like the Coulomb term; a load-dependent law's load is the torque through
+  the gear, the command minus the friction;
+- and on the measured torque a delay, a gain and an offset (``measurement.signals``).
 
 So at every MuJoCo step, with ``dq`` the velocity before the step and ``ddq`` the acceleration
 MuJoCo integrates (``qacc``)::
@@ -29,6 +33,7 @@ the torque constant). :func:`write_log` writes it as a CSV file with the ``log:`
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,6 +44,7 @@ import pinocchio as pin
 import yaml
 from scipy.interpolate import BPoly
 
+from ident.dynamics.friction_models import get_friction_model
 from ident.errors import DataError
 from ident.measure.ideal import quantize
 from ident.measure.mujoco_config import (
@@ -76,6 +82,8 @@ _RATE_RTOL = 1e-9
 # Tracking error [rad or m] past which the simulation stops: a diverging loop reaches it long
 # before MuJoCo's own instability warning (which also writes MUJOCO_LOG.TXT into the folder).
 _MAX_TRACKING_ERROR = 1.0
+# Fixed-point rounds of a load-dependent friction law (error ~ fl^rounds).
+_LOAD_ROUNDS = 40
 
 
 def coulomb_law(dq: FloatArray) -> FloatArray:
@@ -108,8 +116,9 @@ class SimulatedLog:
     rate_hz :
         Controller and log rate [Hz].
     truth :
-        ``viscous`` [N*m*s/rad], ``coulomb`` [N*m], ``armature`` [kg*m^2] and
-        ``torque_noise_std`` [N*m] per joint, each shape (nv,).
+        ``viscous`` [N*m*s/rad], ``coulomb`` [N*m], ``armature`` [kg*m^2],
+        ``torque_noise_std`` [N*m], ``delay_s`` [s], ``torque_gain``, ``torque_offset`` [N*m]
+        and ``law.<label>`` (the friction law's parameters) per joint, each shape (nv,).
     q_true, dq_true, ddq_true :
         Simulated state at each time stamp before the step, and MuJoCo's acceleration of that
         step [rad, rad/s, rad/s^2], shapes (n_samples, nq), (n_samples, nv), (n_samples, nv).
@@ -305,105 +314,213 @@ def simulate(
     """
     nv = robot.nv
     check_joint_counts(config, nv, joint_names=robot.joint_names)
-    q = np.asarray(q, dtype=float)
-    if q.ndim != 2 or q.shape[1] != robot.nq:
-        raise DataError(
-            f"reference: q has shape {q.shape}, the robot {robot.name!r} has nq = {robot.nq}."
-        )
     rate = float(config.rate_hz)
-    q_ref, dq_ref, ddq_ref = reference_at_rate(t, q, dq, ddq, rate)
-    n_ctrl = q_ref.shape[0]
-    viscous = per_joint(config.friction.viscous, nv)
-    coulomb = per_joint(config.friction.coulomb, nv)
-    armature = per_joint(config.armature, nv)
-    noise_std = per_joint(config.torque_noise_std, nv)
-    kp, kd = controller_gains(robot, config, q_ref)
-    computed_torque = config.controller.kind == "computed_torque"
-    counts = config.encoder_counts_per_rev
-
-    mj = load_mujoco(robot, timestep_s=1.0 / (rate * config.substeps), payload=config.payload)
-    model, qi, di = mj.model, mj.qpos_index, mj.dof_index
-    model.dof_damping[di] = viscous
-    model.dof_armature[di] = armature
-    # A diverging simulation must fail loudly, not restart from qpos0.
-    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-    data = mujoco.MjData(model)
-    data.qpos[qi] = q_ref[0]
-    data.qvel[di] = dq_ref[0]
-
-    nominal = robot.model.copy()  # the controller's model: URDF inertials only
-    nominal.armature[:] = 0.0
-    nominal_data = nominal.createData()
-
+    reference = reference_at_rate(t, _checked_positions(robot, q), dq, ddq, rate)
+    n_ctrl = reference[0].shape[0]
+    truth = _truth(config, nv)
     k0 = config.settle_periods * n_ctrl
     n_total = k0 + config.n_periods * n_ctrl
-    n_log = n_total - k0
-    q_true = np.empty((n_log, robot.nq))
-    dq_true = np.empty((n_log, nv))
-    ddq_true = np.empty((n_log, nv))
-    q_meas = np.empty((n_log, robot.nq))
-    tau_cmd = np.empty((n_log, nv))
-    q_prev = None
-    for k in range(n_total):
-        j = k % n_ctrl
-        q_now = data.qpos[qi]
-        q_m = quantize(q_now, counts) if counts is not None else q_now.copy()
-        dq_m = dq_ref[0] if q_prev is None else (q_m - q_prev) * rate
-        error, derror = q_ref[j] - q_m, dq_ref[j] - dq_m
-        if not np.max(np.abs(error)) < _MAX_TRACKING_ERROR:  # also catches NaN
-            joint = robot.joint_names[int(np.argmax(~(np.abs(error) < _MAX_TRACKING_ERROR)))]
-            raise DataError(
-                f"MuJoCo simulation of {robot.name!r}: the tracking error of joint {joint!r} "
-                f"reached {_MAX_TRACKING_ERROR:g} rad at t = {k / rate:g} s (unstable or too weak "
-                "control); change measurement.controller.kp/kd, raise measurement.substeps or "
-                "slow the excitation down."
-            )
-        if computed_torque:
-            tau = pin.rnea(nominal, nominal_data, q_m, dq_m, ddq_ref[j] + kp * error + kd * derror)
-        else:
-            tau = pin.computeGeneralizedGravity(nominal, nominal_data, q_m) + kp * error
-            tau += kd * derror
-        tau = np.array(tau)  # Pinocchio returns a view of its data
-        if k >= k0:
-            i = k - k0
-            q_true[i], dq_true[i], q_meas[i], tau_cmd[i] = q_now, data.qvel[di], q_m, tau
-        for s in range(config.substeps):
-            data.qfrc_applied[di] = tau - coulomb * coulomb_law(data.qvel[di])
-            mujoco.mj_step(model, data)
-            if s == 0 and k >= k0:
-                ddq_true[k - k0] = data.qacc[di]  # the acceleration of the state before the step
-        q_prev = q_m
-
-    rng = np.random.default_rng(rng)
-    # Draw even for zero std so that the random stream does not depend on the noise level.
-    tau_measured = tau_cmd + rng.standard_normal(tau_cmd.shape) * noise_std
+    run = _run_closed_loop(robot, config, reference, truth, k0, n_total)
+    t_log = np.arange(k0, n_total) / rate
+    tau_measured = _measured_torque(t_log, run.tau_cmd, config, nv, rng)
     current = torque_constants = None
     if config.current is not None:
         torque_constants = per_joint(config.current.torque_constants, nv)
         current = tau_measured / torque_constants
     index = np.arange(k0, n_total) % n_ctrl
     return SimulatedLog(
-        t=np.arange(k0, n_total) / rate,
-        q=q_meas,
-        tau_cmd=tau_cmd,
+        t=t_log,
+        q=run.q_measured,
+        tau_cmd=run.tau_cmd,
         tau_measured=tau_measured,
         current=current,
         torque_constants=torque_constants,
         joint_names=tuple(robot.joint_names),
         rate_hz=rate,
-        truth={
-            "viscous": viscous,
-            "coulomb": coulomb,
-            "armature": armature,
-            "torque_noise_std": noise_std,
-        },
-        q_true=q_true,
-        dq_true=dq_true,
-        ddq_true=ddq_true,
-        q_reference=q_ref[index],
-        dq_reference=dq_ref[index],
-        ddq_reference=ddq_ref[index],
+        truth=truth,
+        q_true=run.q_true,
+        dq_true=run.dq_true,
+        ddq_true=run.ddq_true,
+        q_reference=reference[0][index],
+        dq_reference=reference[1][index],
+        ddq_reference=reference[2][index],
     )
+
+
+def _checked_positions(robot: Robot, q: FloatArray) -> FloatArray:
+    """``q`` as floats, shape (n_samples, nq) checked against the robot (DataError)."""
+    q = np.asarray(q, dtype=float)
+    if q.ndim != 2 or q.shape[1] != robot.nq:
+        raise DataError(
+            f"reference: q has shape {q.shape}, the robot {robot.name!r} has nq = {robot.nq}."
+        )
+    return q
+
+
+def _truth(config: MujocoMeasurement, nv: int) -> dict[str, FloatArray]:
+    """Per-joint truth of the simulated robot and signals, each shape (nv,).
+
+    ``viscous``, ``coulomb``, ``armature``, ``torque_noise_std``, ``delay_s`` (repeated),
+    ``torque_gain``, ``torque_offset``, and ``law.<label>`` for every parameter of the
+    friction law when one is configured.
+    """
+    truth = {
+        "viscous": per_joint(config.friction.viscous, nv),
+        "coulomb": per_joint(config.friction.coulomb, nv),
+        "armature": per_joint(config.armature, nv),
+        "torque_noise_std": per_joint(config.torque_noise_std, nv),
+        "delay_s": np.full(nv, float(config.signals.delay_s)),
+        "torque_gain": per_joint(config.signals.torque_gain, nv),
+        "torque_offset": per_joint(config.signals.torque_offset, nv),
+    }
+    law = config.friction.law
+    if law is not None:
+        truth.update({f"law.{k}": per_joint(v, nv) for k, v in law.values.items()})
+    return truth
+
+
+def _friction_law_torque(
+    config: MujocoMeasurement, truth: dict[str, FloatArray]
+) -> Callable[[FloatArray, FloatArray], FloatArray]:
+    """``torque(dq, tau)`` [N*m], shapes (nv,): the Coulomb term and the friction law, for the
+    motor torque ``tau`` (the law's load: ``tau`` minus the friction)."""
+    coulomb = truth["coulomb"]
+    law = config.friction.law
+    if law is None:
+        return lambda dq, load: coulomb * coulomb_law(dq)
+    model = get_friction_model(law.model)
+    nv = len(coulomb)
+    linear = np.column_stack([truth[f"law.{k}"] for k in model.linear])
+    nonlinear = np.zeros((nv, len(model.nonlinear)))
+    for i, k in enumerate(model.nonlinear):
+        nonlinear[:, i] = truth[f"law.{k}"]
+
+    def torque(dq: FloatArray, tau: FloatArray) -> FloatArray:
+        # the load is what passes the gear, tau - friction: a fixed point (contracts by the
+        # load coefficients), exact to round-off after a few rounds for |fl| < 0.5
+        base = coulomb * coulomb_law(dq)
+        friction = base
+        for _ in range(_LOAD_ROUNDS if model.uses_load else 1):
+            law = model.torque(dq[None, :], (tau - friction)[None, :], linear, nonlinear)[0]
+            friction, previous = base + law, friction
+            if np.max(np.abs(friction - previous)) <= 1e-14 * (1.0 + np.max(np.abs(tau))):
+                break
+        return friction
+
+    return torque
+
+
+@dataclass(frozen=True, eq=False)
+class _LoopRun:
+    """Logged samples of the closed loop (see :class:`SimulatedLog`)."""
+
+    q_true: FloatArray
+    dq_true: FloatArray
+    ddq_true: FloatArray
+    q_measured: FloatArray
+    tau_cmd: FloatArray
+
+
+def _run_closed_loop(
+    robot: Robot,
+    config: MujocoMeasurement,
+    reference: tuple[FloatArray, FloatArray, FloatArray],
+    truth: dict[str, FloatArray],
+    k0: int,
+    n_total: int,
+) -> _LoopRun:
+    """Step the controller and MuJoCo for ``n_total`` periods, logging from period ``k0`` on."""
+    q_ref, dq_ref, ddq_ref = reference
+    nv, rate, n_ctrl = robot.nv, float(config.rate_hz), q_ref.shape[0]
+    controller = _controller(robot, config, q_ref)
+    friction = _friction_law_torque(config, truth)
+    mj = load_mujoco(robot, timestep_s=1.0 / (rate * config.substeps), payload=config.payload)
+    model, qi, di = mj.model, mj.qpos_index, mj.dof_index
+    model.dof_damping[di] = truth["viscous"]
+    model.dof_armature[di] = truth["armature"]
+    # A diverging simulation must fail loudly, not restart from qpos0.
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    data = mujoco.MjData(model)
+    data.qpos[qi] = q_ref[0]
+    data.qvel[di] = dq_ref[0]
+    n_log = n_total - k0
+    out = _LoopRun(*(np.empty((n_log, n)) for n in (robot.nq, nv, nv, robot.nq, nv)))
+    q_prev = None
+    for k in range(n_total):
+        j = k % n_ctrl
+        q_now = data.qpos[qi]
+        counts = config.encoder_counts_per_rev
+        q_m = quantize(q_now, counts) if counts is not None else q_now.copy()
+        dq_m = dq_ref[0] if q_prev is None else (q_m - q_prev) * rate
+        _check_tracking(robot, q_ref[j] - q_m, k / rate)
+        tau = controller(q_m, dq_m, q_ref[j] - q_m, dq_ref[j] - dq_m, ddq_ref[j])
+        if k >= k0:
+            i = k - k0
+            out.q_true[i], out.dq_true[i], out.q_measured[i] = q_now, data.qvel[di], q_m
+            out.tau_cmd[i] = tau
+        for s in range(config.substeps):
+            data.qfrc_applied[di] = tau - friction(data.qvel[di], tau)
+            mujoco.mj_step(model, data)
+            if s == 0 and k >= k0:
+                out.ddq_true[k - k0] = data.qacc[di]  # the acceleration of the state before it
+        q_prev = q_m
+    return out
+
+
+def _controller(
+    robot: Robot, config: MujocoMeasurement, q_ref: FloatArray
+) -> Callable[[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray], FloatArray]:
+    """``tau(q_m, dq_m, error, derror, ddq_ref)`` [N*m], (nv,), of the configured controller."""
+    kp, kd = controller_gains(robot, config, q_ref)
+    nominal = robot.model.copy()  # the controller's model: URDF inertials only
+    nominal.armature[:] = 0.0
+    nominal_data = nominal.createData()
+    computed_torque = config.controller.kind == "computed_torque"
+
+    def torque(
+        q_m: FloatArray, dq_m: FloatArray, error: FloatArray, derror: FloatArray, ddq: FloatArray
+    ) -> FloatArray:
+        if computed_torque:
+            tau = pin.rnea(nominal, nominal_data, q_m, dq_m, ddq + kp * error + kd * derror)
+        else:
+            tau = pin.computeGeneralizedGravity(nominal, nominal_data, q_m) + kp * error
+            tau += kd * derror
+        return np.array(tau)  # Pinocchio returns a view of its data
+
+    return torque
+
+
+def _check_tracking(robot: Robot, error: FloatArray, t: float) -> None:
+    """Raise DataError when a tracking error [rad] reaches :data:`_MAX_TRACKING_ERROR`."""
+    if not np.max(np.abs(error)) < _MAX_TRACKING_ERROR:  # also catches NaN
+        joint = robot.joint_names[int(np.argmax(~(np.abs(error) < _MAX_TRACKING_ERROR)))]
+        raise DataError(
+            f"MuJoCo simulation of {robot.name!r}: the tracking error of joint {joint!r} "
+            f"reached {_MAX_TRACKING_ERROR:g} rad at t = {t:g} s (unstable or too weak "
+            "control); change measurement.controller.kp/kd, raise measurement.substeps or "
+            "slow the excitation down."
+        )
+
+
+def _measured_torque(
+    t: FloatArray, tau_cmd: FloatArray, config: MujocoMeasurement, nv: int, rng: RngLike
+) -> FloatArray:
+    """``gain * tau_cmd(t - delay) + offset + noise`` [N*m], shape (n_samples, nv).
+
+    The delayed torque is linearly interpolated between samples, held at the first one.
+    """
+    signals = config.signals
+    delayed = tau_cmd
+    if signals.delay_s > 0.0:
+        delayed = np.column_stack(
+            [np.interp(t - signals.delay_s, t, tau_cmd[:, j]) for j in range(nv)]
+        )
+    gain = per_joint(signals.torque_gain, nv)
+    offset = per_joint(signals.torque_offset, nv)
+    noise_std = per_joint(config.torque_noise_std, nv)
+    rng = np.random.default_rng(rng)
+    # Draw even for zero std so that the random stream does not depend on the noise level.
+    return gain * delayed + offset + rng.standard_normal(tau_cmd.shape) * noise_std
 
 
 @dataclass(frozen=True)

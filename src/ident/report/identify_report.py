@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ident.dynamics.friction_models import get_friction_model
 from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.estimators.summary import consistency_summary
 from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
@@ -261,6 +262,8 @@ def result_dict(
     out["consistency"] = consistency_summary(result)
     out["uncertainty"] = uncertainty_json(result)
     out["verdict"] = verdict_entry(result)
+    if result.friction is not None:
+        out["friction_models"] = friction_models_entry(result)
     return out
 
 
@@ -289,6 +292,61 @@ def _cautious_entry(result: IdentifyResult, urdf: UrdfUpdate) -> dict:
             for link in urdf.links
         ],
     }
+
+
+def friction_models_entry(result: IdentifyResult) -> dict:
+    """``model.friction``'s comparison: models by held-out residual, the winner, its gain."""
+    comparison = result.friction
+    assert comparison is not None
+    return {
+        "ranked_on": "held-out rows" if comparison.on_held_out else "identification rows",
+        "winner": comparison.winner,
+        "baseline": comparison.baseline,
+        "improvement_over_baseline": comparison.improvement(),
+        "models": [
+            {
+                "model": f.model,
+                "held_out_relative_residual": f.held_out_residual,
+                "fit_relative_residual": f.fit_residual,
+                "success": f.success,
+                "parameters": {
+                    label: values.tolist()
+                    for label, values in zip(
+                        (
+                            *get_friction_model(f.model).linear,
+                            *get_friction_model(f.model).nonlinear,
+                        ),
+                        np.concatenate([f.linear, f.nonlinear], axis=1).T,
+                        strict=True,
+                    )
+                },
+            }
+            for f in comparison.fits
+        ],
+    }
+
+
+def friction_models_lines(result: IdentifyResult) -> list[str]:
+    """Markdown of the friction-model comparison (empty without one)."""
+    comparison = result.friction
+    if comparison is None:
+        return []
+    where = "held-out" if comparison.on_held_out else "identification (no held-out part)"
+    lines = [
+        "## Friction models",
+        "",
+        f"Each model fitted with the rest of the parameters (`docs/friction.md`), ranked by the "
+        f"{where} relative residual. Winner: **{comparison.winner}**, "
+        f"{100 * comparison.improvement():.2f} % below `{comparison.baseline}`.",
+        "",
+        "| model | held-out relative residual [%] | fit relative residual [%] |",
+        "| --- | --- | --- |",
+    ]
+    lines += [
+        f"| {f.model} | {_num(100 * f.held_out_residual, 4)} | {_num(100 * f.fit_residual, 4)} |"
+        for f in comparison.fits
+    ]
+    return [*lines, ""]
 
 
 def verdict_entry(result: IdentifyResult) -> dict:
@@ -398,7 +456,7 @@ def _markdown(
             + " | ".join(_num(100 * v, 3) for v in p.metrics.relative_residual)
             + " |"
         )
-    lines += [""]
+    lines += ["", *friction_models_lines(result)]
     lines += [
         "## Base parameters",
         "",

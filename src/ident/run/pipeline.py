@@ -148,10 +148,12 @@ def run_pipeline(
     """
     notify = progress or (lambda _p: None)
     start = config if isinstance(config, FeasibleStart) else None
-    if start is not None:
-        setup = start.setup
+    if isinstance(config, FeasibleStart):
+        setup = config.setup
+    elif isinstance(config, RunSetup):
+        setup = config
     else:
-        setup = config if isinstance(config, RunSetup) else prepare_run(config)
+        setup = prepare_run(config)
     config = setup.config
     streams = np.random.SeedSequence(config.seed).spawn(4)
     problem = (

@@ -1,0 +1,386 @@
+"""Friction models fitted with the rigid-body model, and compared on held-out data.
+
+The rows are those of the identification (:mod:`ident.identify.accumulate`): the base columns
+of everything but the joints' viscous and Coulomb friction (rigid bodies, rotor inertias,
+offsets, coupled-motor terms: ``W_rest``), the joint velocities, the measured torques and the
+velocity-threshold mask. A friction model of the registry (:mod:`ident.dynamics.friction_models`)
+adds its columns for each joint that has friction.
+
+**Separable least squares** (variable projection, Golub and Pereyra 1973). With ``W`` the
+weighted rows of ``W_rest`` (QR ``W = Q R``), ``F(p)`` the friction columns for the nonlinear
+parameters ``p`` and ``y`` the weighted torques, the linear parameters are eliminated::
+
+    r(p) = (I - Q Q^T) (y - F(p) c(p)),   c(p) = argmin_c ||(I - Q Q^T)(y - F(p) c)||
+
+and ``scipy.optimize.least_squares`` minimises ``||r(p)||`` over the few nonlinear parameters
+(positive ones on a log scale, within a factor 30 of their start), started from the best of a
+short common scan of their scale around ``FrictionModel.initial``.
+The rest follows from ``R theta_rest = Q^T (y - F c)``. A linear model is one solve. Rows are
+weighted per joint by ``1 / sigma_j``, the residual standard deviation of the
+``viscous_coulomb`` fit (as WLS does), the same weights for every model so that fits compare.
+
+:func:`compare_friction_models` fits every model and ranks them by the held-out total relative
+residual ``||tau - tau_pred|| / ||tau||`` (the figure the identify report gives for the
+identified parameters), on the held-out rows, or on the identification rows when there are none.
+
+**Load.** The load of a load-dependent model is the torque of the rest of the model,
+``W_rest theta_rest`` (rigid bodies, rotor inertias, offsets): never the measured torque, which
+would put the measurement (and its noise) into the regressor and let the load term copy it
+(on the TX40 log it did: ``fl`` near 1 on the wrist). Since the rest depends on the fit, the
+fit is repeated with the last fit's load until it settles.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
+
+from ident.dynamics.friction_models import FRICTION_MODELS, FrictionModel, get_friction_model
+from ident.dynamics.parameter_model import ParameterModel
+from ident.errors import DataError
+from ident.identify import accumulate
+from ident.identify.validation import prediction_metrics
+
+__all__ = [
+    "FrictionComparison",
+    "FrictionFit",
+    "FrictionRows",
+    "compare_friction_models",
+    "fit_friction_model",
+    "friction_rows",
+    "predict_friction_rows",
+]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+#: Common scale factors of the nonlinear parameters tried before the local fit.
+_SCAN = np.geomspace(0.05, 20.0, 9)
+#: Positive nonlinear parameters stay within this factor of their start.
+_RANGE = 30.0
+#: Fixed-point iterations of a load-dependent model (error shrinks like ``fl^k``).
+_LOAD_ITERATIONS = 12
+
+
+@dataclass(frozen=True, eq=False)
+class FrictionRows:
+    """Samples for a friction fit.
+
+    Attributes
+    ----------
+    W_rest :
+        Regressor columns of every parameter but the joints' friction, shape (n, nv, p).
+    dq :
+        Joint velocities [rad/s], shape (n, nv).
+    tau :
+        Measured joint torques [N*m], shape (n, nv).
+    keep :
+        Entries used (velocity threshold), shape (n, nv).
+    joints :
+        0-based joints with friction.
+    """
+
+    W_rest: FloatArray
+    dq: FloatArray
+    tau: FloatArray
+    keep: BoolArray
+    joints: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        n, nv = self.tau.shape
+        if (
+            self.W_rest.shape[:2] != (n, nv)
+            or self.dq.shape != (n, nv)
+            or self.keep.shape
+            != (
+                n,
+                nv,
+            )
+        ):
+            raise DataError(
+                f"friction rows: W_rest {self.W_rest.shape}, dq {self.dq.shape}, keep "
+                f"{self.keep.shape} do not match tau {self.tau.shape}."
+            )
+
+
+@dataclass(frozen=True, eq=False)
+class FrictionFit:
+    """One friction model fitted with the rest of the model.
+
+    Attributes
+    ----------
+    model :
+        The model's name.
+    linear, nonlinear :
+        Per-joint parameters, shapes (nv, n_linear), (nv, n_nonlinear) (zero for joints
+        without friction), in the units of the model's formula.
+    rest :
+        The other parameters (the columns of ``W_rest``), shape (p,).
+    fit_residual :
+        Total relative residual on the fit rows.
+    held_out_residual :
+        Total relative residual on the held-out rows (NaN before :func:`compare_friction_models`).
+    held_out_rmse :
+        Held-out RMSE per joint [N*m], shape (nv,).
+    success, message, nfev :
+        Outcome of the nonlinear fit (a linear model: one solve, ``nfev = 1``).
+    """
+
+    model: str
+    linear: FloatArray
+    nonlinear: FloatArray
+    rest: FloatArray
+    fit_residual: float
+    success: bool
+    message: str
+    nfev: int
+    held_out_residual: float = float("nan")
+    held_out_rmse: FloatArray | None = None
+
+
+def _friction_block(
+    model: FrictionModel, rows: FrictionRows, load: FloatArray, p: FloatArray
+) -> FloatArray:
+    """Friction columns as full rows (n * nv, len(joints) * n_linear), sample-major."""
+    F = model.columns(rows.dq, load, p)
+    n, nv, n_lin = F.shape
+    joints = np.asarray(rows.joints, dtype=np.intp)
+    block = np.zeros((n, nv, joints.size, n_lin))
+    block[:, joints, np.arange(joints.size), :] = F[:, joints, :]
+    return block.reshape(n * nv, joints.size * n_lin)
+
+
+def _weighted(rows: FrictionRows, weights: FloatArray) -> tuple[BoolArray, FloatArray, FloatArray]:
+    """Kept-row mask (n * nv,), their weights and the weighted torques."""
+    keep = rows.keep.reshape(-1)
+    w = np.broadcast_to(weights, rows.tau.shape).reshape(-1)[keep]
+    return keep, w, rows.tau.reshape(-1)[keep] * w
+
+
+def fit_friction_model(
+    model: FrictionModel | str, rows: FrictionRows, *, weights: FloatArray | None = None
+) -> FrictionFit:
+    """Fit ``model`` and the rest of the parameters by separable least squares (module doc).
+
+    Parameters
+    ----------
+    model :
+        A registered model or its name.
+    rows :
+        The identification rows.
+    weights :
+        Per-joint row weights [1/(N*m)], shape (nv,); None: all 1.
+
+    Raises
+    ------
+    DataError
+        If the rest of the columns are rank deficient on the kept rows.
+    """
+    model = get_friction_model(model) if isinstance(model, str) else model
+    with threadpool_limits(limits=1, user_api="blas"):  # small problems: threads only wait
+        if not model.uses_load:
+            return _fit(model, rows, weights, np.zeros_like(rows.tau))
+        # the load is the torque of the rest of the model: a fixed point, started from the
+        # viscous + Coulomb fit's (contracts by the load coefficients, well below 1)
+        fit = _fit(get_friction_model("viscous_coulomb"), rows, weights, rows.tau)
+        for _ in range(_LOAD_ITERATIONS):
+            fit = _fit(model, rows, weights, rows.W_rest @ fit.rest)
+        return fit
+
+
+def _fit(
+    model: FrictionModel, rows: FrictionRows, weights: FloatArray | None, load: FloatArray
+) -> FrictionFit:
+    nv = rows.tau.shape[1]
+    weights = np.ones(nv) if weights is None else np.asarray(weights, dtype=float)
+    keep, w, y = _weighted(rows, weights)
+    W = rows.W_rest.reshape(-1, rows.W_rest.shape[2])[keep] * w[:, None]
+    Q, R = np.linalg.qr(W)
+    d = np.abs(np.diag(R))
+    if W.shape[1] and d.min() <= max(W.shape) * np.finfo(float).eps * d.max():
+        raise DataError("friction fit: the rigid-body and other columns are rank deficient.")
+    y_perp = y - Q @ (Q.T @ y)
+    positive = np.asarray(model.positive, dtype=bool)
+
+    def decode(x: FloatArray) -> FloatArray:
+        p = x.reshape(nv, -1).copy()
+        p[:, positive] = np.exp(p[:, positive])
+        return p
+
+    def solve(p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        Fw = _friction_block(model, rows, load, p)[keep] * w[:, None]
+        F_perp = Fw - Q @ (Q.T @ Fw)
+        c = np.asarray(np.linalg.lstsq(F_perp, y_perp, rcond=None)[0], dtype=float)
+        return y_perp - F_perp @ c, c, Fw
+
+    p0 = np.zeros((nv, 0))
+    success, message, nfev = True, "linear model: one least-squares solve", 1
+    if not model.is_linear:
+        assert model.initial is not None  # checked by register_friction_model
+        start = np.asarray(model.initial(rows.dq), dtype=float)
+        x_best, cost_best = None, np.inf
+        for factor in _SCAN:  # a common scale of the positive parameters, all joints at once
+            x = start.copy()
+            x[:, positive] = np.log(start[:, positive] * factor)
+            cost = float(np.sum(solve(decode(x.reshape(-1)))[0] ** 2))
+            if cost < cost_best:
+                x_best, cost_best = x.reshape(-1), cost
+        assert x_best is not None
+        # positive parameters within a factor _RANGE of their start: past the velocities seen,
+        # a Stribeck velocity makes its column a copy of the Coulomb one (a flat direction)
+        span = np.where(np.tile(positive, nv), np.log(_RANGE), np.inf)
+        x_start = start.copy()
+        x_start[:, positive] = np.log(start[:, positive])
+        bounds = (x_start.reshape(-1) - span, x_start.reshape(-1) + span)
+        result = least_squares(
+            lambda x: solve(decode(x))[0], x_best, bounds=bounds, method="trf", max_nfev=400
+        )
+        p0 = decode(result.x)
+        success, message, nfev = bool(result.success), str(result.message), int(result.nfev)
+        nfev += _SCAN.size
+    r, c, Fw = solve(p0 if p0.size else np.zeros((nv, 0)))
+    rest = np.linalg.solve(R, Q.T @ (y - Fw @ c)) if W.shape[1] else np.zeros(0)
+    linear = np.zeros((nv, len(model.linear)))
+    linear[list(rows.joints)] = c.reshape(len(rows.joints), len(model.linear))
+    nonlinear = p0 if p0.size else np.zeros((nv, 0))
+    fit = FrictionFit(
+        model=model.name,
+        linear=linear,
+        nonlinear=nonlinear,
+        rest=rest,
+        fit_residual=0.0,
+        success=success,
+        message=message,
+        nfev=nfev,
+    )
+    pred = predict_friction_rows(fit, rows)
+    total = prediction_metrics(rows.tau, pred, rows.keep).total_relative_residual
+    return FrictionFit(**{**fit.__dict__, "fit_residual": float(total)})
+
+
+def predict_friction_rows(fit: FrictionFit, rows: FrictionRows) -> FloatArray:
+    """Torques [N*m] the fitted model predicts on ``rows``, shape (n, nv)."""
+    model = get_friction_model(fit.model)
+    friction = model.torque(rows.dq, rows.W_rest @ fit.rest, fit.linear, fit.nonlinear)
+    mask = np.zeros(rows.tau.shape[1], dtype=bool)
+    mask[list(rows.joints)] = True
+    return rows.W_rest @ fit.rest + np.where(mask, friction, 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class FrictionComparison:
+    """Every model fitted and ranked by held-out fit.
+
+    Attributes
+    ----------
+    fits :
+        The fits, best (lowest held-out residual) first.
+    winner :
+        Name of the best model.
+    baseline :
+        Name of the reference model (``viscous_coulomb``), for "better by".
+    on_held_out :
+        False when there were no held-out rows (ranked on the identification rows).
+    """
+
+    fits: tuple[FrictionFit, ...]
+    winner: str
+    baseline: str
+    on_held_out: bool
+
+    def fit(self, name: str) -> FrictionFit:
+        """The fit of model ``name``."""
+        return next(f for f in self.fits if f.model == name)
+
+    def improvement(self) -> float:
+        """Relative reduction of the held-out residual of the winner over the baseline."""
+        base = self.fit(self.baseline).held_out_residual
+        return float(1.0 - self.fit(self.winner).held_out_residual / base)
+
+
+def compare_friction_models(
+    fit_rows: FrictionRows,
+    held_out: FrictionRows | None,
+    names: Sequence[str] | None = None,
+    *,
+    baseline: str = "viscous_coulomb",
+) -> FrictionComparison:
+    """Fit each model of ``names`` (default: every registered one) and rank them.
+
+    The row weights are ``1 / sigma_j`` of the unweighted ``baseline`` fit (same for all).
+    """
+    names = list(FRICTION_MODELS) if names is None else list(dict.fromkeys([baseline, *names]))
+    first = fit_friction_model(baseline, fit_rows)
+    r = fit_rows.tau - predict_friction_rows(first, fit_rows)
+    count = np.maximum(fit_rows.keep.sum(axis=0), 1)
+    sigma = np.sqrt(np.sum(np.where(fit_rows.keep, r, 0.0) ** 2, axis=0) / count)
+    weights = 1.0 / np.maximum(sigma, 1e-12 * max(float(sigma.max()), 1e-300))
+    val = held_out if held_out is not None else fit_rows
+    fits = []
+    for name in names:
+        fit = fit_friction_model(name, fit_rows, weights=weights)
+        metrics = prediction_metrics(val.tau, predict_friction_rows(fit, val), val.keep)
+        fits.append(
+            FrictionFit(
+                **{
+                    **fit.__dict__,
+                    "held_out_residual": float(metrics.total_relative_residual),
+                    "held_out_rmse": metrics.rmse,
+                }
+            )
+        )
+    fits.sort(key=lambda f: f.held_out_residual)
+    return FrictionComparison(
+        fits=tuple(fits), winner=fits[0].model, baseline=baseline, on_held_out=held_out is not None
+    )
+
+
+#: Most decimated samples of each part (identification, held out) a comparison uses: the rows
+#: are kept whole in memory (``n * nv * p`` floats), so a long log is thinned evenly.
+MAX_SAMPLES = 20_000
+
+_FRICTION_BASE = re.compile(r"(fv|fs)\d+R?")
+
+
+def _rows_of(
+    tasks: Sequence[accumulate.ChunkTask], drop: BoolArray, joints: tuple[int, ...], stride: int
+) -> FrictionRows:
+    parts = []
+    for task in tasks:
+        chunk, keep = task.chunk()
+        p = task.columns.order.size
+        Yb = chunk.Yb[::stride, :, :p][:, :, ~drop]
+        parts.append((Yb, chunk.dq[::stride], chunk.tau[::stride], keep[::stride]))
+    W, dq, tau, keep = (np.concatenate([part[i] for part in parts]) for i in range(4))
+    return FrictionRows(W_rest=W, dq=dq, tau=tau, keep=keep, joints=joints)
+
+
+def friction_rows(
+    chunked: accumulate.ChunkedLog, pm: ParameterModel, *, max_samples: int = MAX_SAMPLES
+) -> tuple[FrictionRows, FrictionRows | None]:
+    """The identification and held-out rows of a planned log, without the joints' ``fv``/``fs``
+    base columns (None for the held-out rows when the log has no held-out part).
+
+    Every part is thinned evenly to at most ``max_samples`` decimated samples.
+    """
+    columns = chunked.fit_tasks[0].columns
+    names = [pm.base_names[i] for i in columns.order]
+    drop = np.array([_FRICTION_BASE.fullmatch(n) is not None for n in names], dtype=bool)
+    joints = tuple(sorted({*pm.terms.per_joint["fv"], *pm.terms.per_joint["fs"]}))
+    if not joints:
+        raise DataError("model.friction: no joint has viscous or Coulomb friction terms.")
+
+    def stride(tasks: Sequence[accumulate.ChunkTask]) -> int:
+        n = sum(t.d1 - t.d0 for t in tasks)
+        return max(1, -(-n // max_samples))
+
+    fit = _rows_of(chunked.fit_tasks, drop, joints, stride(chunked.fit_tasks))
+    if chunked.in_sample or not chunked.val_tasks:
+        return fit, None
+    return fit, _rows_of(chunked.val_tasks, drop, joints, stride(chunked.val_tasks))
