@@ -197,10 +197,13 @@ def iter_chunks(
     pp: PreprocessConfig,
     columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
     ranges: list[tuple[int, int]],
+    states: tuple[FloatArray, FloatArray] | None = None,
 ) -> Iterator[Chunk]:
     """Process the decimated ranges of one segment (raw ``q``, ``tau``: (n_samples, nv)).
 
     ``columns(q, dq, ddq)`` gives the regressor columns to keep, shape (n, nv, p).
+    ``states``: the segment's measured ``(dq, ddq)`` (n_samples, nv) [rad/s, rad/s^2] (a
+    simulator's states), used as they are: ``q`` is then neither low-passed nor differentiated.
     """
     fs = sampling_rate_hz
     n, n_edge, step = plan.n_samples, plan.n_edge, plan.step
@@ -212,13 +215,16 @@ def iter_chunks(
         r0 = max(0, s + n_edge - plan.signal_margin)  # raw indices
         r1 = min(n, e + n_edge + plan.signal_margin)
         q_c, tau_c = q[r0:r1], tau[r0:r1]
-        if position is not None:
+        if position is not None and states is None:
             q_c, _ = preprocess.lowpass(q_c, fs, position.cutoff_hz, position.order)
         if pp.torque_lowpass is not None:
             tau_c, _ = preprocess.lowpass(
                 tau_c, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
             )
-        dq_c, ddq_c, _ = preprocess.differentiate(q_c, fs)
+        if states is None:
+            dq_c, ddq_c, _ = preprocess.differentiate(q_c, fs)
+        else:
+            dq_c, ddq_c = states[0][r0:r1], states[1][r0:r1]
         a, b = s + n_edge - r0, e + n_edge - r0
         q_c, dq_c, ddq_c, tau_c = q_c[a:b], dq_c[a:b], ddq_c[a:b], tau_c[a:b]
         Yb = columns(q_c, dq_c, ddq_c)
@@ -360,6 +366,7 @@ class BaseColumns:
 
     With ``reference`` (:class:`~ident.identify.reference.ReferenceWeights`), one more column
     follows: the torques the reference's parameters predict, decimated like the rest.
+    ``rows`` (nv,) marks the joints whose torque rows the model explains (``pm.rows``).
     """
 
     def __init__(
@@ -373,6 +380,10 @@ class BaseColumns:
         self.extra_columns = pm.extra_index[independent[~rigid]]
         self.order = np.concatenate([np.flatnonzero(rigid), np.flatnonzero(~rigid)])
         self.reference = reference
+        self.rows = np.ones(chain.n_joints, dtype=bool)
+        if pm.rows is not None:
+            self.rows[:] = False
+            self.rows[list(pm.rows)] = True
 
     def __call__(self, q: FloatArray, dq: FloatArray, ddq: FloatArray) -> FloatArray:
         n, nv = dq.shape
@@ -412,19 +423,25 @@ class _Task:
     columns: BaseColumns
     d0: int
     d1: int
+    states: tuple[FloatArray, FloatArray] | None = None  # measured (dq, ddq) of the segment
 
     def chunk(self) -> tuple[Chunk, BoolArray]:
-        """The chunk and its velocity-threshold mask (n, nv)."""
+        """The chunk and its row mask (n, nv): above the velocity threshold, on the rows the
+        model explains."""
         ranges = [(self.d0, self.d1)]
-        (out,) = iter_chunks(self.plan, self.q, self.tau, self.fs, self.pp, self.columns, ranges)
+        (out,) = iter_chunks(
+            self.plan, self.q, self.tau, self.fs, self.pp, self.columns, ranges, self.states
+        )
         keep, _ = preprocess.velocity_mask(out.dq, self.pp.velocity_threshold)
-        return out, keep
+        return out, keep & self.columns.rows[None, :]
 
 
 def _reduce_task(task: _Task) -> ReducedObservations:
+    """The chunk's identification rows reduced, one group per joint the model explains."""
     c, keep = task.chunk()
     p = task.columns.order.size
-    return task.columns.to_base(reduce_chunk(c.Yb[:, :, :p], c.tau, keep))
+    rows = task.columns.rows
+    return task.columns.to_base(reduce_chunk(c.Yb[:, rows, :p], c.tau[:, rows], keep[:, rows]))
 
 
 def _predict_task(
@@ -565,13 +582,16 @@ def plan_log(
             continue
         ident_part, val_part = time_split(plan.n_decimated, identify_fraction)
         args = (plan, log.q[a:b], log.tau[a:b], fs, pp, columns)
+        states = None
+        if log.dq is not None and log.ddq is not None:  # measured states: used as they are
+            states = (log.dq[a:b], log.ddq[a:b])
         split = int(round((1.0 - validation_fraction) * ident_part.stop))
         for lo, hi in ((0, split), (split, ident_part.stop)):
             ranges = list(plan.ranges(lo, hi)) if hi > lo else []
-            fit += [_Task(*args, d0, d1) for d0, d1 in ranges]
+            fit += [_Task(*args, d0, d1, states) for d0, d1 in ranges]
             first += [lo == 0] * len(ranges)
         part = val_part if val_part.stop > val_part.start else ident_part
-        val += [_Task(*args, d0, d1) for d0, d1 in plan.ranges(part.start, part.stop)]
+        val += [_Task(*args, d0, d1, states) for d0, d1 in plan.ranges(part.start, part.stop)]
         val_time.append(log.t[a + plan.n_edge + plan.step * np.arange(part.start, part.stop)])
     if not fit:
         raise DataError("no log segment is long enough to identify from: " + "; ".join(skipped))

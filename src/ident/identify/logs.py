@@ -172,6 +172,11 @@ class RobotLog:
         arrays are their concatenation. One segment ``(0, n_samples)`` for a plain log.
     dq :
         Logged joint velocities [rad/s or m/s], shape (n_samples, n_joints), or None.
+    ddq :
+        Measured joint accelerations [rad/s^2 or m/s^2], shape (n_samples, n_joints), or None
+        (every log read from a file). A source that knows the states (``ident run``'s ideal
+        source) gives ``dq`` and ``ddq``; the identification then uses ``q, dq, ddq`` as they
+        are, without low-passing or differentiating ``q``.
     warnings :
         What reading changed in the data a user must know (duplicated stamps dropped, a
         backwards jump split, receive times used for missing stamps): count and first place.
@@ -186,10 +191,13 @@ class RobotLog:
     segments: tuple[tuple[int, int], ...] = ()
     dq: FloatArray | None = None
     warnings: tuple[str, ...] = ()
+    ddq: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if not self.segments:
             object.__setattr__(self, "segments", ((0, int(self.t.shape[0])),))
+        if self.ddq is not None and self.dq is None:
+            raise ValueError("RobotLog: measured accelerations (ddq) need the velocities (dq)")
 
     @property
     def n_samples(self) -> int:
