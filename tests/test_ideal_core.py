@@ -143,6 +143,7 @@ def ridge(monkeypatch):
     assert not registry.get_contract("ridge").consistent
 
 
+@pytest.mark.slow
 def test_ident_run_ideal_source_runs_the_documented_toy_estimator(ridge, tmp_path):
     data = {
         "robot": str(REPO_ROOT / "configs" / "paper6r.yaml"),
