@@ -23,7 +23,13 @@ from ident.dynamics.friction import KINDS, ExtraTerms, extra_columns, extra_name
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.regressor import joint_torque_regressor
 
-__all__ = ["PRIORITY_LABELS", "ParameterModel", "build_parameter_model", "model_regressors"]
+__all__ = [
+    "PRIORITY_LABELS",
+    "ParameterModel",
+    "build_parameter_model",
+    "model_regressors",
+    "stage_parameter_model",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -50,6 +56,10 @@ class ParameterModel:
         :class:`~ident.dynamics.base_parameters.BaseParameters` over ``names``.
     nominal :
         Nominal values of ``names`` (URDF inertias, zero friction), shape (n_all,).
+    rows :
+        The joints (0-based) whose torques the model explains, or None for every joint; a
+        stage of ``ident run`` explains the torques of its moving joints only
+        (:func:`stage_parameter_model`).
     """
 
     names: tuple[str, ...]
@@ -58,6 +68,7 @@ class ParameterModel:
     terms: ExtraTerms
     base: BaseParameters
     nominal: FloatArray
+    rows: tuple[int, ...] | None = None
 
     @property
     def base_names(self) -> tuple[str, ...]:
@@ -136,4 +147,43 @@ def build_parameter_model(model: pin.Model, terms: ExtraTerms, *, rng: int = 0) 
         terms=terms,
         base=base,
         nominal=nominal,
+    )
+
+
+def stage_parameter_model(
+    model: pin.Model,
+    columns: tuple[int, ...],
+    base: BaseParameters,
+    rows: tuple[int, ...],
+) -> ParameterModel:
+    """The parameter model of a stage: some bodies' inertial parameters, some joints' torques.
+
+    Parameters
+    ----------
+    model :
+        Pinocchio model (its inertials are the nominal values).
+    columns :
+        The stage's unknown parameters: columns of the rigid-body regressor (Pinocchio order).
+    base :
+        Their base parameters (:class:`~ident.dynamics.base_parameters.BaseParameters` over
+        the names of ``columns``, found on the stage's motion).
+    rows :
+        The joints (0-based) whose torques identify the stage.
+    """
+    n = model.nv
+    rigid_names = parameter_names(n)
+    names = tuple(rigid_names[c] for c in columns)
+    if tuple(base.names) != names:
+        raise ValueError("stage_parameter_model: the base parameters are not over the columns")
+    no_terms = ExtraTerms.from_options(
+        n, rotor_inertia=False, viscous=False, coulomb=False, offset=False
+    )
+    return ParameterModel(
+        names=names,
+        inertial_index=np.asarray(columns, dtype=np.intp),
+        extra_index=np.full(len(columns), -1, dtype=np.intp),
+        terms=no_terms,
+        base=base,
+        nominal=parameters_from_model(model)[list(columns)],
+        rows=tuple(int(r) for r in rows),
     )

@@ -202,10 +202,13 @@ def iter_chunks(
     pp: PreprocessConfig,
     columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
     ranges: list[tuple[int, int]],
+    states: tuple[FloatArray, FloatArray] | None = None,
 ) -> Iterator[Chunk]:
     """Process the decimated ranges of one segment (raw ``q``, ``tau``: (n_samples, nv)).
 
     ``columns(q, dq, ddq)`` gives the regressor columns to keep, shape (n, nv, p).
+    ``states``: the segment's measured ``(dq, ddq)`` (n_samples, nv) [rad/s, rad/s^2] (a
+    simulator's states), used as they are: ``q`` is then neither low-passed nor differentiated.
     """
     fs = sampling_rate_hz
     n, n_edge, step = plan.n_samples, plan.n_edge, plan.step
@@ -217,13 +220,16 @@ def iter_chunks(
         r0 = max(0, s + n_edge - plan.signal_margin)  # raw indices
         r1 = min(n, e + n_edge + plan.signal_margin)
         q_c, tau_c = q[r0:r1], tau[r0:r1]
-        if position is not None:
+        if position is not None and states is None:
             q_c, _ = preprocess.lowpass(q_c, fs, position.cutoff_hz, position.order)
         if pp.torque_lowpass is not None:
             tau_c, _ = preprocess.lowpass(
                 tau_c, fs, pp.torque_lowpass.cutoff_hz, pp.torque_lowpass.order, what="tau"
             )
-        dq_c, ddq_c, _ = preprocess.differentiate(q_c, fs)
+        if states is None:
+            dq_c, ddq_c, _ = preprocess.differentiate(q_c, fs)
+        else:
+            dq_c, ddq_c = states[0][r0:r1], states[1][r0:r1]
         a, b = s + n_edge - r0, e + n_edge - r0
         q_c, dq_c, ddq_c, tau_c = q_c[a:b], dq_c[a:b], ddq_c[a:b], tau_c[a:b]
         Yb = columns(q_c, dq_c, ddq_c)
@@ -262,10 +268,11 @@ def _cholesky_qr2(A: FloatArray, n: int) -> tuple[FloatArray, FloatArray, float]
     As = A / scale
     try:
         R1 = scipy.linalg.cholesky(As.T @ As, lower=False, check_finite=False)
-        # Q1 = As R1^-1 through the small inverse: one GEMM (a triangular solve with this many
-        # right-hand sides is 10x slower); the second pass restores orthogonality
-        R1_inv = scipy.linalg.solve_triangular(R1, np.eye(R1.shape[0]), check_finite=False)
-        Q1 = As @ R1_inv
+        # Q1 = As R1^-1 by a triangular solve (backward stable; the second pass restores
+        # orthogonality). Not through the explicit inverse: ``As @ inv(R1)`` adds a backward
+        # error of eps * cond(R1), which on an ill-conditioned chunk (cond 5e10 in the last
+        # fifth of a wrist period) moved the estimate by 1e-10 relative instead of 1e-14.
+        Q1 = scipy.linalg.solve_triangular(R1, As.T, trans="T", check_finite=False).T
         R2 = scipy.linalg.cholesky(Q1.T @ Q1, lower=False, check_finite=False)
     except np.linalg.LinAlgError:
         return _householder(A, n)
@@ -364,6 +371,7 @@ class BaseColumns:
 
     With ``reference`` (:class:`~ident.identify.reference.ReferenceWeights`), one more column
     follows: the torques the reference's parameters predict, decimated like the rest.
+    ``rows`` (nv,) marks the joints whose torque rows the model explains (``pm.rows``).
     """
 
     def __init__(
@@ -377,6 +385,10 @@ class BaseColumns:
         self.extra_columns = pm.extra_index[independent[~rigid]]
         self.order = np.concatenate([np.flatnonzero(rigid), np.flatnonzero(~rigid)])
         self.reference = reference
+        self.rows = np.ones(chain.n_joints, dtype=bool)
+        if pm.rows is not None:
+            self.rows[:] = False
+            self.rows[list(pm.rows)] = True
 
     def __call__(self, q: FloatArray, dq: FloatArray, ddq: FloatArray) -> FloatArray:
         n, nv = dq.shape
@@ -416,13 +428,17 @@ class _Task:
     columns: BaseColumns
     d0: int
     d1: int
+    states: tuple[FloatArray, FloatArray] | None = None  # measured (dq, ddq) of the segment
 
     def chunk(self) -> tuple[Chunk, BoolArray]:
-        """The chunk and its velocity-threshold mask (n, nv)."""
+        """The chunk and its row mask (n, nv): above the velocity threshold, on the rows the
+        model explains."""
         ranges = [(self.d0, self.d1)]
-        (out,) = iter_chunks(self.plan, self.q, self.tau, self.fs, self.pp, self.columns, ranges)
+        (out,) = iter_chunks(
+            self.plan, self.q, self.tau, self.fs, self.pp, self.columns, ranges, self.states
+        )
         keep, _ = preprocess.velocity_mask(out.dq, self.pp.velocity_threshold)
-        return out, keep
+        return out, keep & self.columns.rows[None, :]
 
 
 #: A chunk task (public name, for code that processes a planned log's chunks itself).
@@ -430,9 +446,11 @@ ChunkTask = _Task
 
 
 def _reduce_task(task: _Task) -> ReducedObservations:
+    """The chunk's identification rows reduced, one group per joint the model explains."""
     c, keep = task.chunk()
     p = task.columns.order.size
-    return task.columns.to_base(reduce_chunk(c.Yb[:, :, :p], c.tau, keep))
+    rows = task.columns.rows
+    return task.columns.to_base(reduce_chunk(c.Yb[:, rows, :p], c.tau[:, rows], keep[:, rows]))
 
 
 def _predict_task(
@@ -573,13 +591,16 @@ def plan_log(
             continue
         ident_part, val_part = time_split(plan.n_decimated, identify_fraction)
         args = (plan, log.q[a:b], log.tau[a:b], fs, pp, columns)
+        states = None
+        if log.dq is not None and log.ddq is not None:  # measured states: used as they are
+            states = (log.dq[a:b], log.ddq[a:b])
         split = int(round((1.0 - validation_fraction) * ident_part.stop))
         for lo, hi in ((0, split), (split, ident_part.stop)):
             ranges = list(plan.ranges(lo, hi)) if hi > lo else []
-            fit += [_Task(*args, d0, d1) for d0, d1 in ranges]
+            fit += [_Task(*args, d0, d1, states) for d0, d1 in ranges]
             first += [lo == 0] * len(ranges)
         part = val_part if val_part.stop > val_part.start else ident_part
-        val += [_Task(*args, d0, d1) for d0, d1 in plan.ranges(part.start, part.stop)]
+        val += [_Task(*args, d0, d1, states) for d0, d1 in plan.ranges(part.start, part.stop)]
         val_time.append(log.t[a + plan.n_edge + plan.step * np.arange(part.start, part.stop)])
     if not fit:
         raise DataError("no log segment is long enough to identify from: " + "; ".join(skipped))

@@ -1,10 +1,10 @@
 """The identification core: measurements -> identified base parameters, one code path.
 
 :func:`identify_measurements` is what every command runs on joint-side measurements, whatever
-their source (a log read by :func:`ident.identify.logs.read_log`: a robot's, or the one
-``ident run``'s MuJoCo simulator writes). ``ident run``'s ideal source (the paper's stages, with
-known bodies subtracted and exact states) runs the same estimators of the registry on its
-reduced rows (:mod:`ident.run.elite_identification`).
+their source: a log read by :func:`ident.identify.logs.read_log` (a robot's, or the one
+``ident run``'s MuJoCo simulator writes), or the measurements of ``ident run``'s ideal source
+(:mod:`ident.run.elite_identification`: the stage's torques with the known bodies' subtracted,
+the measured states used as they are, the stage's parameter model).
 
 1. automatic preprocessing settings (:func:`ident.identify.preprocess.resolve_defaults`);
 2. the parameter model (rigid bodies plus friction, offsets, rotor inertias, coupled wrist;
@@ -183,6 +183,7 @@ def identify_measurements(
     log: RobotLog,
     *,
     model: pin.Model | None = None,
+    parameters: ParameterModel | None = None,
     rng: int = 0,
     read_s: float = 0.0,
     scheduler: str | None = None,
@@ -202,6 +203,11 @@ def identify_measurements(
         The measurements, joint side, SI, uniform time grid per segment.
     model :
         The robot's Pinocchio model (loaded from ``cfg.robot`` when not given).
+    parameters :
+        The parameter model, or None to build it from ``cfg.model``
+        (:func:`~ident.dynamics.parameter_model.build_parameter_model`); ``ident run``'s
+        ideal source gives its stage's
+        (:func:`~ident.dynamics.parameter_model.stage_parameter_model`).
     rng :
         Seed of the random states of the structural base parameters.
     read_s :
@@ -215,13 +221,14 @@ def identify_measurements(
         Subclasses naming the file, field or parameter: bad config, rank deficiency.
     """
     with threadpool_limits(limits=1, user_api="blas"):
-        return _identify(cfg, log, model, rng=rng, read_s=read_s, scheduler=scheduler)
+        return _identify(cfg, log, model, parameters, rng=rng, read_s=read_s, scheduler=scheduler)
 
 
 def _identify(
     cfg: IdentifyConfig,
     log: RobotLog,
     model: pin.Model | None,
+    parameters: ParameterModel | None,
     *,
     rng: int,
     read_s: float,
@@ -235,12 +242,14 @@ def _identify(
     ellipsoids = _ellipsoids(cfg, model, source)
     cfg, log, auto_warnings = _resolve_settings(cfg, log)
     t1 = time.perf_counter()
-    pm = _parameter_model(cfg, model, source, rng)
+    pm = parameters if parameters is not None else _parameter_model(cfg, model, source, rng)
     timings["base_parameters"] = time.perf_counter() - t1
     t2 = time.perf_counter()
     reference = _reference(cfg, pm)
     # the processing's records check its settings (cutoff below Nyquist...) before any chunk
-    processing = _preprocess_records(cfg.preprocess, log.sampling_rate_hz, model.nv, source)
+    processing = _preprocess_records(
+        cfg.preprocess, log.sampling_rate_hz, model.nv, source, states=log.ddq is not None
+    )
     chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
     records = [
         *log.records,
@@ -473,8 +482,11 @@ def _parameter_model(
     return build_parameter_model(model, terms, rng=rng)
 
 
-def _preprocess_records(pp: PreprocessConfig, fs: float, nv: int, source: str) -> list[dict]:
-    """The records of the processing every chunk does (checked before any chunk runs)."""
+def _preprocess_records(
+    pp: PreprocessConfig, fs: float, nv: int, source: str, *, states: bool
+) -> list[dict]:
+    """The records of the processing every chunk does (checked before any chunk runs);
+    ``states``: the log carries measured velocities and accelerations, used as they are."""
     records = []
     thresholds = pp.velocity_threshold
     if thresholds is not None and len(thresholds) != nv:
@@ -483,7 +495,7 @@ def _preprocess_records(pp: PreprocessConfig, fs: float, nv: int, source: str) -
             f"has {nv} joints; give one per joint [rad/s]."
         )
     for key, flt, what in (
-        ("lowpass", preprocess.position_filter(pp), "q"),
+        ("lowpass", None if states else preprocess.position_filter(pp), "q"),
         ("torque_lowpass", pp.torque_lowpass, "tau"),
     ):
         if not isinstance(flt, FilterConfig):
@@ -500,7 +512,11 @@ def _preprocess_records(pp: PreprocessConfig, fs: float, nv: int, source: str) -
                 f"{flt.cutoff_hz:g} Hz at {fs:g} Hz",
             }
         )
-    records.append({"step": "differentiate", "detail": "central differences (np.gradient)"})
+    records.append(
+        {"step": "states", "detail": "measured q, dq, ddq used as they are"}
+        if states
+        else {"step": "differentiate", "detail": "central differences (np.gradient)"}
+    )
     records.append(
         {"step": "trim", "detail": f"dropped {pp.trim_samples} samples at each end of a segment"}
     )
@@ -609,7 +625,8 @@ def _estimators(
             options={"friction": est_cfg.friction},
         )
     except NotIdentifiable as e:
-        idle = ", ".join(joints[j] for j in range(red.n_groups) if red.n_rows[j] == 0)
+        explained = range(len(joints)) if pm.rows is None else pm.rows  # one group each
+        idle = ", ".join(joints[r] for r, n in zip(explained, red.n_rows, strict=True) if n == 0)
         if idle:
             why = rank_report(red.R.reshape(-1, red.n_params), pm.base_names, advice="") or e
             raise NotIdentifiable(

@@ -172,6 +172,11 @@ class RobotLog:
         arrays are their concatenation. One segment ``(0, n_samples)`` for a plain log.
     dq :
         Logged joint velocities [rad/s or m/s], shape (n_samples, n_joints), or None.
+    ddq :
+        Measured joint accelerations [rad/s^2 or m/s^2], shape (n_samples, n_joints), or None
+        (every log read from a file). A source that knows the states (``ident run``'s ideal
+        source) gives ``dq`` and ``ddq``; the identification then uses ``q, dq, ddq`` as they
+        are, without low-passing or differentiating ``q``.
     warnings :
         What reading changed in the data a user must know (duplicated stamps dropped, a
         backwards jump split, receive times used for missing stamps): count and first place.
@@ -186,10 +191,13 @@ class RobotLog:
     segments: tuple[tuple[int, int], ...] = ()
     dq: FloatArray | None = None
     warnings: tuple[str, ...] = ()
+    ddq: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if not self.segments:
             object.__setattr__(self, "segments", ((0, int(self.t.shape[0])),))
+        if self.ddq is not None and self.dq is None:
+            raise ValueError("RobotLog: measured accelerations (ddq) need the velocities (dq)")
 
     @property
     def n_samples(self) -> int:
@@ -608,6 +616,55 @@ def _read_one(
     """
     joint_names = tuple(joint_names)
     n_joints = len(joint_names)
+    parts = _signal_tables(cfg, joint_names)
+    files = ", ".join(Path(f.path).name for f in cfg.sources())
+    warnings = list(dict.fromkeys(w for _, table in parts for w in table.warnings))
+    stamps = _Stamps.of(cfg, parts[0][1], files)
+    warnings += stamps.warnings
+    arrays, keep, join_note, join_warnings = _join(parts, cfg, stamps.t_join, stamps.rows)
+    warnings += join_warnings
+    t = stamps.t if keep is None or stamps.t is None else stamps.t[keep]
+    q_raw, tau_raw = arrays[0], arrays[1]
+    dq_raw = arrays[2] if cfg.velocity is not None else None
+    if cfg.max_samples is not None and t is None:
+        q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
+        dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
+    signals, records = _joint_side(cfg, transmission, q_raw, tau_raw, dq_raw, source)
+    n = signals[0].shape[0]
+    t, signals, segments, fs, time_note = _uniform_grid(
+        cfg, t, signals, stamps, files, source, records
+    )
+    t, signals, segments = _join_segments(t, signals, segments, n, fs, cfg, records)
+    # float64 already (no copy): asarray only tells the type checker
+    q, tau = (np.asarray(x, dtype=np.float64) for x in signals[:2])
+    dq_out = np.asarray(signals[2], dtype=np.float64) if len(signals) > 2 else None
+    records.insert(
+        0,
+        {
+            "step": "read",
+            "detail": f"{q.shape[0]} samples x {n_joints} joints from {files}; {time_note}"
+            + (f"; {join_note}" if join_note else ""),
+        },
+    )
+    return RobotLog(
+        t=t,
+        q=q,
+        tau=tau,
+        sampling_rate_hz=fs,
+        joint_names=joint_names,
+        records=tuple(records),
+        segments=tuple(segments),
+        dq=dq_out,
+        warnings=tuple(warnings),
+    )
+
+
+def _signal_tables(
+    cfg: LogConfig, joint_names: tuple[str, ...]
+) -> list[tuple[FloatArray, LogTable]]:
+    """Position, torque (and velocity) columns with their tables; the first part carries the
+    table of the time column (``log.time.path``) when the time is in a file of its own."""
+    n_joints = len(joint_names)
     sources = _Sources(cfg)
     parts = [
         sources.signal(cfg.position, n_joints, "position", joint_names),
@@ -624,15 +681,29 @@ def _read_one(
                 f"samples, the signals have {parts[0][0].shape[0]}."
             )
         parts[0] = (parts[0][0], t_table if t_table is parts[0][1] else _with_time(parts, t_table))
-    files = ", ".join(Path(f.path).name for f in cfg.sources())
-    ref_table = parts[0][1]
-    warnings = list(dict.fromkeys(w for _, table in parts for w in table.warnings))
-    # time: the one rule for stamps (NaN refused, duplicates dropped, backwards jumps split)
-    t_raw = _time_of(ref_table, cfg)
-    t_file = cfg.time.path if cfg.time is not None and cfg.time.path is not None else files
-    what = f"time column '{cfg.time.column}'" if cfg.time is not None else "time column"
-    t, rows, t_join = None, None, None
-    if t_raw is not None:
+    return parts
+
+
+@dataclass(frozen=True, eq=False)
+class _Stamps:
+    """A log's time stamps after the one rule for stamps (NaN refused, duplicates dropped,
+    backwards jumps split): ``t`` (None without a time column), the rows kept (None: all),
+    the stamps the signals are joined on, the warnings, and the names for messages."""
+
+    t: FloatArray | None
+    rows: npt.NDArray[np.intp] | None
+    t_join: FloatArray | None
+    warnings: list[str]
+    file: str
+    what: str
+
+    @classmethod
+    def of(cls, cfg: LogConfig, ref_table: LogTable, files: str) -> _Stamps:
+        t_raw = _time_of(ref_table, cfg)
+        t_file = cfg.time.path if cfg.time is not None and cfg.time.path is not None else files
+        what = f"time column '{cfg.time.column}'" if cfg.time is not None else "time column"
+        if t_raw is None:
+            return cls(None, None, None, [], str(t_file), what)
         limit = cfg.max_samples or t_raw.size
         cleaned = timebase.clean_time(
             t_raw[:limit],
@@ -641,23 +712,24 @@ def _read_one(
             gap_factor=cfg.gap_factor,
             max_gap_s=cfg.max_gap_s,
         )
-        t, warnings = cleaned.t, warnings + list(cleaned.warnings)
         if cleaned.index.size == t_raw.size:  # every row kept: no copy of the signals
             rows, t_join = None, t_raw
         else:
             rows, t_join = cleaned.index, t_raw[cleaned.index]
-    arrays, keep, join_note, join_warnings = _join(parts, cfg, t_join, rows)
-    warnings += join_warnings
-    if keep is not None and t is not None:
-        t = t[keep]
-    q_raw, tau_raw = arrays[0], arrays[1]
-    dq_raw = arrays[2] if cfg.velocity is not None else None
-    if cfg.max_samples is not None and t is None:
-        q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
-        dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
-    records: list[dict] = []
+        return cls(cleaned.t, rows, t_join, list(cleaned.warnings), str(t_file), what)
 
-    # units, scale, sign: once, per signal
+
+def _joint_side(
+    cfg: LogConfig,
+    transmission: TransmissionConfig,
+    q_raw: FloatArray,
+    tau_raw: FloatArray,
+    dq_raw: FloatArray | None,
+    source: str,
+) -> tuple[list[FloatArray], list[dict]]:
+    """The signals in SI units on the joint side (units, scale, sign once per signal, then
+    the transmission): ``[q, tau]`` (and ``dq``), and the records of both steps."""
+    n_joints = q_raw.shape[1]
     notes = []
     pos_unit = cfg.position.unit or cfg.position_unit
     trq_unit = cfg.torque.unit or cfg.torque_unit
@@ -689,12 +761,14 @@ def _read_one(
         torque_constants=trans.torque_constants,
         zero_offsets=trans.zero_offsets,
     )
-    q = (trans if pos_side == "motor" else identity).joint_positions(q_raw)
-    tau = (trans if trq_side == "motor" else identity).joint_torques(tau_raw)
-    dq = None
+    signals = [
+        (trans if pos_side == "motor" else identity).joint_positions(q_raw),
+        (trans if trq_side == "motor" else identity).joint_torques(tau_raw),
+    ]
     if dq_raw is not None:
         Rq = trans.position_matrix if vel_side == "motor" else np.eye(n_joints)
-        dq = np.linalg.solve(Rq, dq_raw.T).T
+        signals.append(np.asarray(np.linalg.solve(Rq, dq_raw.T).T, dtype=np.float64))
+    records: list[dict] = []
     unit_note = "; ".join(n for n in notes if n)
     if unit_note:
         records.append({"step": "units", "detail": unit_note})
@@ -702,7 +776,7 @@ def _read_one(
         {
             "step": "transmission",
             "detail": f"positions {pos_side} side, torques {trq_side} side"
-            + (f", velocities {vel_side} side" if dq is not None else "")
+            + (f", velocities {vel_side} side" if dq_raw is not None else "")
             + "; q = Rq^-1 q_motor + offsets, tau = Rt (k y); "
             f"Rq = {_matrix(trans.position_matrix)}; "
             f"Rt = {_matrix(trans.torque_matrix)}; "
@@ -710,10 +784,23 @@ def _read_one(
             f"zero offsets [rad] = {trans.zero_offsets.tolist()}",
         }
     )
+    return signals, records
 
-    # time: given rate, or time stamps -> segments, windows, uniform grid
+
+def _uniform_grid(
+    cfg: LogConfig,
+    t: FloatArray | None,
+    signals: list[FloatArray],
+    stamps: _Stamps,
+    files: str,
+    source: str,
+    records: list[dict],
+) -> tuple[FloatArray, list[FloatArray], list[tuple[int, int]], float, str]:
+    """The time of the signals: the given rate, or the stamps cut in segments (gaps,
+    windows) and, when not uniform or ``log.resample_hz`` is set, resampled per segment
+    (a record appended). Returns ``(t, signals, segments, rate [Hz], note)``."""
     windows = [(w.start_s, w.end_s) for w in cfg.windows]
-    n = q.shape[0]
+    n = signals[0].shape[0]
     if t is None:
         if cfg.sampling_rate_hz is None:
             raise DataError(
@@ -721,88 +808,88 @@ def _read_one(
             )
         fs = float(cfg.sampling_rate_hz)
         t = np.arange(n) / fs
-        time_note = f"sampling rate {fs:g} Hz (no time column)"
         segments = _windowed(t, [(0, n)], windows, files, source)
-        signals = [q, tau] + ([dq] if dq is not None else [])
-    else:
-        unit = cfg.time.unit if cfg.time is not None else "s"
-        timebase.check_rate(t, f"{t_file}: {what}", unit)
-        t = t - t[0]
-        summary = timebase.summarize_time(t, gap_factor=cfg.gap_factor)
-        raw_segments = timebase.find_segments(t, gap_factor=cfg.gap_factor, max_gap_s=cfg.max_gap_s)
-        segments = _windowed(t, raw_segments, windows, files, source)
-        fs = cfg.resample_hz or summary.rate_hz
-        time_note = f"{what}: {summary.text()}"
-        signals = [q, tau] + ([dq] if dq is not None else [])
-        uniform = all(timebase.is_uniform(t[a:b]) for a, b in segments)
-        if cfg.resample_hz is None and uniform:
-            fs = 1.0 / float(np.median(np.diff(t)))
-        else:
-            out_t: list[FloatArray] = []
-            out_x: list[list[FloatArray]] = [[] for _ in signals]
-            new_segments: list[tuple[int, int]] = []
-            for a, b in segments:
-                if b - a < 4:
-                    continue
-                stacked = np.concatenate([x[a:b] for x in signals], axis=1)
-                tg, xg = timebase.resample(t[a:b], stacked, fs)
-                start = sum(x.size for x in out_t)
-                out_t.append(tg)
-                new_segments.append((start, start + tg.size))
-                for k, x in enumerate(np.split(xg, len(signals), axis=1)):
-                    out_x[k].append(x)
-            if not new_segments:
-                raise DataError(f"{files}: no segment has enough samples to resample.")
-            t = np.concatenate(out_t)
-            signals = [np.concatenate(x).astype(np.float64, copy=False) for x in out_x]
-            segments = new_segments
-            records.append(
-                {
-                    "step": "resample",
-                    "detail": f"non-uniform time stamps resampled onto a uniform {fs:g} Hz grid "
-                    "(not-a-knot cubic spline per segment; error <= 5/384 (2 pi f h_max)^4 "
-                    "of the amplitude at frequency f)",
-                }
-            )
-    if len(segments) != 1 or segments[0] != (0, n):
-        kept = [(a, b) for a, b in segments if b > a]
-        index = np.concatenate([np.arange(a, b) for a, b in kept])
-        lengths = [b - a for a, b in kept]
-        starts = np.concatenate([[0], np.cumsum(lengths)])
-        segments = [(int(s), int(s + m)) for s, m in zip(starts[:-1], lengths, strict=True)]
-        t = t[index]
-        signals = [x[index] for x in signals]
-        records.append(
-            {
-                "step": "segments",
-                "detail": f"{len(segments)} segment(s) of "
-                f"{', '.join(f'{m / fs:.3g} s' for m in lengths)} (gaps split the log"
-                + (f"; windows {windows}" if windows else "")
-                + ")",
-            }
-        )
-    # float64 already (no copy): asarray only tells the type checker
-    q, tau = (np.asarray(x, dtype=np.float64) for x in signals[:2])
-    dq_out = np.asarray(signals[2], dtype=np.float64) if dq is not None else None
-    records.insert(
-        0,
+        return t, signals, segments, fs, f"sampling rate {fs:g} Hz (no time column)"
+    unit = cfg.time.unit if cfg.time is not None else "s"
+    timebase.check_rate(t, f"{stamps.file}: {stamps.what}", unit)
+    t = t - t[0]
+    summary = timebase.summarize_time(t, gap_factor=cfg.gap_factor)
+    raw_segments = timebase.find_segments(t, gap_factor=cfg.gap_factor, max_gap_s=cfg.max_gap_s)
+    segments = _windowed(t, raw_segments, windows, files, source)
+    fs = cfg.resample_hz or summary.rate_hz
+    time_note = f"{stamps.what}: {summary.text()}"
+    uniform = all(timebase.is_uniform(t[a:b]) for a, b in segments)
+    if cfg.resample_hz is None and uniform:
+        return t, signals, segments, 1.0 / float(np.median(np.diff(t))), time_note
+    t, signals, segments = _resampled(t, signals, segments, fs, files)
+    records.append(
         {
-            "step": "read",
-            "detail": f"{q.shape[0]} samples x {n_joints} joints from {files}; {time_note}"
-            + (f"; {join_note}" if join_note else ""),
-        },
+            "step": "resample",
+            "detail": f"non-uniform time stamps resampled onto a uniform {fs:g} Hz grid "
+            "(not-a-knot cubic spline per segment; error <= 5/384 (2 pi f h_max)^4 "
+            "of the amplitude at frequency f)",
+        }
     )
-    return RobotLog(
-        t=t,
-        q=q,
-        tau=tau,
-        sampling_rate_hz=fs,
-        joint_names=joint_names,
-        records=tuple(records),
-        segments=tuple(segments),
-        dq=dq_out,
-        warnings=tuple(warnings),
+    return t, signals, segments, fs, time_note
+
+
+def _resampled(
+    t: FloatArray,
+    signals: list[FloatArray],
+    segments: list[tuple[int, int]],
+    fs: float,
+    files: str,
+) -> tuple[FloatArray, list[FloatArray], list[tuple[int, int]]]:
+    """Every segment of at least 4 samples resampled onto a uniform ``fs`` [Hz] grid."""
+    out_t: list[FloatArray] = []
+    out_x: list[list[FloatArray]] = [[] for _ in signals]
+    new_segments: list[tuple[int, int]] = []
+    for a, b in segments:
+        if b - a < 4:
+            continue
+        stacked = np.concatenate([x[a:b] for x in signals], axis=1)
+        tg, xg = timebase.resample(t[a:b], stacked, fs)
+        start = sum(x.size for x in out_t)
+        out_t.append(tg)
+        new_segments.append((start, start + tg.size))
+        for k, x in enumerate(np.split(xg, len(signals), axis=1)):
+            out_x[k].append(x)
+    if not new_segments:
+        raise DataError(f"{files}: no segment has enough samples to resample.")
+    signals = [np.concatenate(x).astype(np.float64, copy=False) for x in out_x]
+    return np.concatenate(out_t), signals, new_segments
+
+
+def _join_segments(
+    t: FloatArray,
+    signals: list[FloatArray],
+    segments: list[tuple[int, int]],
+    n: int,
+    fs: float,
+    cfg: LogConfig,
+    records: list[dict],
+) -> tuple[FloatArray, list[FloatArray], list[tuple[int, int]]]:
+    """The segments' samples one after another (gaps and samples outside the windows
+    dropped, a record appended), or the log as it is when it is one segment of its ``n``
+    samples."""
+    if len(segments) == 1 and segments[0] == (0, n):
+        return t, signals, segments
+    windows = [(w.start_s, w.end_s) for w in cfg.windows]
+    kept = [(a, b) for a, b in segments if b > a]
+    index = np.concatenate([np.arange(a, b) for a, b in kept])
+    lengths = [b - a for a, b in kept]
+    starts = np.concatenate([[0], np.cumsum(lengths)])
+    records.append(
+        {
+            "step": "segments",
+            "detail": f"{len(lengths)} segment(s) of "
+            f"{', '.join(f'{m / fs:.3g} s' for m in lengths)} (gaps split the log"
+            + (f"; windows {windows}" if windows else "")
+            + ")",
+        }
     )
+    segments = [(int(s), int(s + m)) for s, m in zip(starts[:-1], lengths, strict=True)]
+    return t[index], [x[index] for x in signals], segments
 
 
 def _windowed(

@@ -109,48 +109,81 @@ def error_measures(
     nonzero = np.abs(true) > ZERO_RTOL * scale
     rel = np.full(true.shape, np.nan)
     rel[nonzero] = np.abs(err[nonzero]) / np.abs(true[nonzero])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        normalized = np.where(std > 0, err / std, np.nan)
-    within = np.abs(err) <= 3.0 * std
-    rel_sorted = np.sort(100.0 * rel[nonzero])
-    out: dict[str, Any] = {
-        "abs_error": _arr(err),
-        "rel_error_percent": _arr(100.0 * rel),
-        "normalized_error": _arr(normalized),
-        "error_sum_percent": _num(rel_sorted.sum()),
-        "error_sum_best_percent": _num(rel_sorted[: max(0, rel_sorted.size - 2)].sum()),
-        "within_3std": _num(float(np.mean(within)) if within.size else 0.0),
-    }
+    out = _parameter_errors(err, std, rel, nonzero)
     if column_norms is not None and true_torque_norm is not None and true_torque_norm > 0:
-        norms = np.asarray(column_norms, dtype=float)
-        share = np.abs(true) * norms / true_torque_norm
-        torque_error = np.abs(err) * norms / true_torque_norm
+        share = np.abs(true) * np.asarray(column_norms, dtype=float) / true_torque_norm
+        out.update(_torque_errors(err, share, true_torque_norm, column_norms))
         significant = (share >= SIGNIFICANT_SHARE) & nonzero
-        out["torque_share"] = _arr(share)
-        out["torque_error"] = _arr(torque_error)
-        out["max_torque_error"] = _num(float(torque_error.max(initial=0.0)))
     elif reference_share is not None:
         significant = (np.asarray(reference_share, dtype=float) >= SIGNIFICANT_SHARE) & nonzero
     else:
         significant = (np.abs(true) >= SIGNIFICANT_SHARE * scale) & nonzero
-    sig_sorted = np.sort(100.0 * rel[significant])
-    out["significant"] = [bool(s) for s in significant]
-    out["n_significant"] = int(significant.sum())
-    out["paper_error_sum_percent"] = _num(sig_sorted.sum())
-    out["paper_error_sum_best_percent"] = _num(sig_sorted[: max(0, sig_sorted.size - 2)].sum())
-    # kept for result.json readers: the sum over the significant parameters
-    out["error_sum_significant_percent"] = out["paper_error_sum_percent"]
-    out["max_rel_error"] = _num(float(np.max(rel[significant], initial=0.0)))
+    out.update(_paper_error_sums(rel, significant))
     if reference_share is not None:
         major = (np.asarray(reference_share, dtype=float) >= MAJOR_SHARE) & nonzero
-        out["major"] = [bool(m) for m in major]
-        worst = float(np.max(rel[major], initial=0.0))
-        out["max_rel_error_major"] = _num(worst)
-        out["max_rel_error_major_percent"] = _num(100.0 * worst)
-        out["worst_major"] = (
-            int(np.flatnonzero(major)[np.argmax(rel[major])]) if major.any() else None
-        )
+        out.update(_major_errors(rel, major))
     return out
+
+
+def _largest_dropped_sum(values: FloatArray) -> tuple[Any, Any]:
+    """The sum of ``values`` and the sum without its two largest entries (JSON-safe)."""
+    ordered = np.sort(values)
+    return _num(ordered.sum()), _num(ordered[: max(0, ordered.size - 2)].sum())
+
+
+def _parameter_errors(
+    err: FloatArray, std: FloatArray, rel: FloatArray, nonzero: npt.NDArray[np.bool_]
+) -> dict[str, Any]:
+    """Absolute, relative [%] and normalized errors of every parameter and their sums."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        normalized = np.where(std > 0, err / std, np.nan)
+    within = np.abs(err) <= 3.0 * std
+    total, best = _largest_dropped_sum(100.0 * rel[nonzero])
+    return {
+        "abs_error": _arr(err),
+        "rel_error_percent": _arr(100.0 * rel),
+        "normalized_error": _arr(normalized),
+        "error_sum_percent": total,
+        "error_sum_best_percent": best,
+        "within_3std": _num(float(np.mean(within)) if within.size else 0.0),
+    }
+
+
+def _torque_errors(
+    err: FloatArray, share: FloatArray, true_torque_norm: float, column_norms: Any
+) -> dict[str, Any]:
+    """Each parameter's share of the true torques and its error's, on the trajectory."""
+    torque_error = np.abs(err) * np.asarray(column_norms, dtype=float) / true_torque_norm
+    return {
+        "torque_share": _arr(share),
+        "torque_error": _arr(torque_error),
+        "max_torque_error": _num(float(torque_error.max(initial=0.0))),
+    }
+
+
+def _paper_error_sums(rel: FloatArray, significant: npt.NDArray[np.bool_]) -> dict[str, Any]:
+    """The paper-style sums of relative errors [%] over the significant parameters."""
+    total, best = _largest_dropped_sum(100.0 * rel[significant])
+    return {
+        "significant": [bool(s) for s in significant],
+        "n_significant": int(significant.sum()),
+        "paper_error_sum_percent": total,
+        "paper_error_sum_best_percent": best,
+        # kept for result.json readers: the sum over the significant parameters
+        "error_sum_significant_percent": total,
+        "max_rel_error": _num(float(np.max(rel[significant], initial=0.0))),
+    }
+
+
+def _major_errors(rel: FloatArray, major: npt.NDArray[np.bool_]) -> dict[str, Any]:
+    """The worst relative error among the major parameters (what the verdict judges)."""
+    worst = float(np.max(rel[major], initial=0.0))
+    return {
+        "major": [bool(m) for m in major],
+        "max_rel_error_major": _num(worst),
+        "max_rel_error_major_percent": _num(100.0 * worst),
+        "worst_major": int(np.flatnonzero(major)[np.argmax(rel[major])]) if major.any() else None,
+    }
 
 
 # joint-space parameters of joint k (1-based): fv3, fs3, fc3, off3, Ia3 (and base names fv3R)

@@ -95,6 +95,29 @@ def result_warnings(
     keep_validate :
         Held-out rows above the velocity threshold, shape (n, nv).
     """
+    return [
+        *_joint_warnings(joint_names, units, tau_validate, tau_pred, keep_validate),
+        *_negative_parameter_warnings(x, std, projection, all_names),
+        *_uncertain_parameter_warnings(
+            names,
+            x,
+            relative_std,
+            column_norms,
+            tau_norm,
+            max_relative_std_pct=max_relative_std_pct,
+            min_contribution=min_contribution,
+        ),
+    ]
+
+
+def _joint_warnings(
+    joint_names: tuple[str, ...],
+    units: tuple[str, ...],
+    tau_validate: FloatArray,
+    tau_pred: FloatArray,
+    keep_validate: npt.NDArray[np.bool_],
+) -> list[str]:
+    """Joints whose held-out prediction is worse than zero torque, or at the noise level."""
     out: list[str] = []
     for j, (joint, unit) in enumerate(zip(joint_names, units, strict=True)):
         rows = keep_validate[:, j]
@@ -114,7 +137,16 @@ def result_warnings(
                 f"residual RMS {rmse:.3g} {unit}); its parameters rest on noise: move the "
                 "joint more, or remove its friction/offset terms."
             )
-    for k in range(len(names)):
+    return out
+
+
+def _negative_parameter_warnings(
+    x: FloatArray, std: FloatArray, projection: FloatArray, all_names: tuple[str, ...]
+) -> list[str]:
+    """Base parameters that are one non-negative standard parameter alone, estimated below
+    zero by more than two standard deviations."""
+    out: list[str] = []
+    for k in range(len(x)):
         row = projection[k]
         members = np.flatnonzero(np.abs(row) > 1e-9 * np.abs(row).max())
         if members.size == 1 and _stem(all_names[members[0]]) in NON_NEGATIVE:
@@ -125,23 +157,38 @@ def result_warnings(
                     f"{std[k]:.3g}): physically impossible; the log or the model is wrong "
                     "(joint not moving, wrong sign or unit of a signal, missing friction term)."
                 )
+    return out
+
+
+def _uncertain_parameter_warnings(
+    names: tuple[str, ...],
+    x: FloatArray,
+    relative_std: FloatArray,
+    column_norms: FloatArray,
+    tau_norm: float,
+    *,
+    max_relative_std_pct: float,
+    min_contribution: float,
+) -> list[str]:
+    """One warning listing the base parameters that carry a significant part of the torques
+    with a relative standard deviation above ``max_relative_std_pct``."""
     contribution = np.abs(x) * column_norms / tau_norm if tau_norm > 0 else np.zeros_like(x)
     bad = [
         k
         for k in range(len(names))
         if contribution[k] >= min_contribution and relative_std[k] > max_relative_std_pct
     ]
-    if bad:
-        listed = ", ".join(
-            f"{names[k]} ({relative_std[k]:.0f} %, {100 * contribution[k]:.1f} % of the torques)"
-            for k in bad[:6]
-        ) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
-        out.append(
-            f"base parameter(s) {listed} carry a significant part of the torques but have a "
-            f"relative standard deviation above {max_relative_std_pct:g} %: the log does not "
-            "separate them; use a richer excitation before trusting them."
-        )
-    return out
+    if not bad:
+        return []
+    listed = ", ".join(
+        f"{names[k]} ({relative_std[k]:.0f} %, {100 * contribution[k]:.1f} % of the torques)"
+        for k in bad[:6]
+    ) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
+    return [
+        f"base parameter(s) {listed} carry a significant part of the torques but have a "
+        f"relative standard deviation above {max_relative_std_pct:g} %: the log does not "
+        "separate them; use a richer excitation before trusting them."
+    ]
 
 
 def inconsistency_warnings(

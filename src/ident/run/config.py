@@ -32,6 +32,7 @@ from ident.identify.config import (
     PreprocessConfig,
     ValidationConfig,
 )
+from ident.identify.estimators.registry import get_contract, get_estimator
 from ident.inputs import read_urdf_text
 from ident.measure.mujoco_config import MujocoMeasurement
 from ident.model.selection import RobotSelection
@@ -192,27 +193,44 @@ class MeasurementSection(StrictModel):
         return value
 
 
+def _registered_estimator(name: str) -> str:
+    """``name`` if the estimator registry knows it (a ValueError naming the known ones)."""
+    try:
+        get_estimator(name)
+    except ConfigError as e:
+        raise ValueError(str(e)) from e
+    return name
+
+
 class EstimationSection(StrictModel):
     """Least-squares estimation of the stage's base parameters.
 
     Attributes
     ----------
     methods :
-        Estimators to run, among ``ols`` and ``wls``.
+        Estimators to report, names of the estimator registry
+        (:mod:`ident.identify.estimators`: ``ols``, ``wls``, ``lmi``, ``log_cholesky`` or a
+        registered one); OLS and WLS are always computed, at most one other estimator is run.
     base_method :
         Base-parameter reduction: ``qr`` (QR with column pivoting) or ``sequential``
         (the paper's column-by-column rank test).
     """
 
-    methods: list[Literal["ols", "wls"]] = ["ols", "wls"]  # pydantic copies mutable defaults
+    methods: list[Annotated[str, AfterValidator(_registered_estimator)]] = ["ols", "wls"]
     base_method: Literal["qr", "sequential"] = "qr"
 
     @field_validator("methods")
     @classmethod
-    def _not_empty(cls, value: list[Literal["ols", "wls"]]) -> list[Literal["ols", "wls"]]:
+    def _at_most_one_other(cls, value: list[str]) -> list[str]:
         if not value:
             raise ValueError("give at least one estimator (ols, wls)")
-        return list(dict.fromkeys(value))
+        value = list(dict.fromkeys(value))
+        others = [m for m in value if not get_contract(m).least_squares]
+        if len(others) > 1:
+            raise ValueError(
+                f"at most one estimator besides ols and wls, got {', '.join(others)}; keep one"
+            )
+        return value
 
 
 #: ``measurement.source``: ``ideal`` (RNEA + noise, the default) or ``mujoco`` (closed-loop

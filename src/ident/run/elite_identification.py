@@ -1,11 +1,14 @@
-"""The ideal measurement of an elite trajectory and its least-squares estimate.
+"""The ideal measurement of an elite trajectory, identified by the identification core.
 
 ``measurement.source: ideal``: joint torques from Pinocchio's RNEA on the true parameters plus
-the configured noise (:mod:`ident.measure.ideal`), then OLS/WLS on the stage's base
-parameters: the estimators of the registry (:mod:`ident.identify.estimators`) on the rows
-reduced per joint, as :func:`ident.identify.core.identify_measurements` runs them. Bodies
-outside the stage are known: their torque contribution is computed from their true parameters
-and subtracted.
+the configured noise (:mod:`ident.measure.ideal`). The measurements become a
+:class:`~ident.identify.logs.RobotLog` (:func:`ideal_log`: the measured states kept, the torques
+of the known bodies outside the stage subtracted from the measured ones) and go through
+:func:`ident.identify.core.identify_measurements`, as a log does, with the stage's parameter
+model (its unknown bodies, its base parameters, its torque rows) and settings that keep every
+sample (:func:`ideal_identify_config`: no filter, trim, decimation or velocity threshold;
+identified and validated on the whole period). Every estimator of ``estimation.methods`` is
+the registry's (:mod:`ident.identify.estimators`).
 """
 
 from __future__ import annotations
@@ -15,17 +18,41 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ident.dynamics.parameter_model import ParameterModel, stage_parameter_model
 from ident.errors import IdentError, NotIdentifiable
-from ident.identify.estimators import EstimationProblem, get_estimator
+from ident.identify.config import (
+    EssentialConfig,
+    EstimationConfig,
+    IdentifyConfig,
+    ModelConfig,
+    PreprocessConfig,
+    ReferenceConfig,
+    ValidationConfig,
+)
+from ident.identify.core import identify_measurements
+from ident.identify.estimators import get_contract
+from ident.identify.logs import RobotLog
 from ident.identify.observations import ReducedObservations
-from ident.measure.ideal import NoiseModel, simulate_measurements
+from ident.measure.ideal import Measurements, NoiseModel, simulate_measurements
 from ident.run.config import MeasurementSection, RunConfig
 from ident.run.results import EliteOutcome, StageInfo
 from ident.run.stage_info import stage_matrix
 
-__all__ = ["elite_trajectory", "identify_elite"]
+__all__ = [
+    "elite_trajectory",
+    "ideal_identify_config",
+    "ideal_log",
+    "identify_elite",
+    "noise_model",
+    "stage_parameters",
+]
 
 FloatArray = npt.NDArray[np.float64]
+
+#: Every sample of the period identifies (and validates: in sample) as it was measured.
+_KEEP_EVERY_SAMPLE = PreprocessConfig(
+    lowpass=None, trim_samples=0, decimation=[], velocity_threshold=None, chunked="never"
+)
 
 
 def elite_trajectory(
@@ -38,6 +65,75 @@ def elite_trajectory(
     q, dq, ddq = (np.asarray(a[0], dtype=float) for a in (batch.q, batch.dq, batch.ddq))
     traced = None if batch.traced_points is None else np.asarray(batch.traced_points[0])
     return t, q, dq, ddq, traced
+
+
+def noise_model(config: RunConfig) -> NoiseModel:
+    """The noise of the ideal measurement (``measurement`` section)."""
+    m = config.measurement
+    if not isinstance(m, MeasurementSection):
+        raise IdentError("the ideal measurement needs measurement.source: ideal")
+    std = m.torque_noise_std
+    return NoiseModel(
+        torque_std=tuple(std) if isinstance(std, list) else float(std),
+        encoder_counts_per_rev=m.encoder_counts_per_rev,
+        filter_cutoff_hz=m.filter_cutoff_hz,
+    )
+
+
+def core_method(methods: list[str]) -> str:
+    """The estimator the core runs besides OLS and WLS: the one of ``methods`` that is not a
+    least-squares estimate (the config allows at most one), else ``wls`` (or ``ols``)."""
+    others = [m for m in methods if not get_contract(m).least_squares]
+    if others:
+        return others[0]
+    return "wls" if "wls" in methods else methods[0]
+
+
+def ideal_identify_config(config: RunConfig) -> IdentifyConfig:
+    """The core's settings for an ideal measurement: every sample kept and used as measured
+    (no low-pass, trim, decimation, velocity threshold), identified and validated on the
+    whole period, no essential parameters; the estimator of ``estimation.methods``.
+
+    The measurements come from memory, not a file: the config has no ``log`` section (the
+    core does not read it).
+    """
+    estimation = EstimationConfig(
+        method=core_method(config.estimation.methods),
+        essential=EssentialConfig(enabled=False),
+    )
+    return IdentifyConfig.model_construct(
+        name=f"{config.name}-ideal",
+        robot=config.robot,
+        preprocess=_KEEP_EVERY_SAMPLE,
+        model=ModelConfig(),  # not read: the stage's parameter model is given
+        estimation=estimation,
+        validation=ValidationConfig(identify_fraction=1.0),
+        reference=ReferenceConfig(),
+        source=None,
+    )
+
+
+def stage_parameters(robot: Any, stage: StageInfo) -> ParameterModel:
+    """The stage's parameter model: its unknown bodies, base parameters and torque rows."""
+    return stage_parameter_model(robot.model, stage.columns, stage.base, stage.rows)
+
+
+def ideal_log(robot: Any, stage: StageInfo, meas: Measurements) -> RobotLog:
+    """The ideal measurements as a log: measured states, and the measured torques minus those
+    of the known bodies (outside the stage: their true parameters), every joint [N*m]."""
+    all_rows = tuple(range(robot.nv))
+    _, known = stage_matrix(robot, all_rows, stage.columns, meas.q, meas.dq, meas.ddq)
+    t = np.asarray(meas.t, dtype=float)
+    return RobotLog(
+        t=t - t[0],
+        q=np.asarray(meas.q, dtype=float),
+        tau=np.asarray(meas.tau, dtype=float) - known,
+        sampling_rate_hz=float((t.shape[0] - 1) / (t[-1] - t[0])),
+        joint_names=tuple(robot.joint_names),
+        records=({"step": "ideal measurement", "detail": "RNEA on the true parameters"},),
+        dq=np.asarray(meas.dq, dtype=float),
+        ddq=np.asarray(meas.ddq, dtype=float),
+    )
 
 
 def identify_elite(
@@ -57,42 +153,35 @@ def identify_elite(
     ``failures`` with their message; they do not raise.
     """
     t, q, dq, ddq, traced = elite_trajectory(family, x)
-    m = config.measurement
-    if not isinstance(m, MeasurementSection):
-        raise IdentError("the ideal measurement needs measurement.source: ideal")
-    std = m.torque_noise_std
-    noise = NoiseModel(
-        torque_std=tuple(std) if isinstance(std, list) else float(std),
-        encoder_counts_per_rev=m.encoder_counts_per_rev,
-        filter_cutoff_hz=m.filter_cutoff_hz,
+    meas = simulate_measurements(
+        robot.model, t, q, dq, ddq, noise_model(config), rng=np.random.default_rng(seed)
     )
-    meas = simulate_measurements(robot.model, t, q, dq, ddq, noise, rng=np.random.default_rng(seed))
-    W, known = stage_matrix(robot, stage.rows, stage.columns, meas.q, meas.dq, meas.ddq)
-    y = (meas.tau[:, list(stage.rows)] - known).reshape(-1)
     estimates: dict[str, Any] = {}
     failures: dict[str, str] = {}
-    Wb = np.asarray(stage.base.base_columns(W), dtype=float)
-    n_rows = len(stage.rows)
-    problem = EstimationProblem(
-        observations=ReducedObservations.from_samples(
-            Wb.reshape(-1, n_rows, Wb.shape[1]), y.reshape(-1, n_rows)
-        ),
-        names=tuple(stage.base_names),
-        n_samples=t.shape[0],
-    )
-    for method in config.estimation.methods:
-        try:
-            est = get_estimator(method)(problem)
-        except NotIdentifiable as e:
-            failures[method] = f"not identifiable on this trajectory: {e}"
-            continue
-        except IdentError as e:
-            failures[method] = str(e)
-            continue
-        if not est.success:
-            failures[method] = est.message
-            continue
-        estimates[method] = est
+    norms: FloatArray | None = None
+    true_norm: float | None = None
+    methods = config.estimation.methods
+    try:
+        result = identify_measurements(
+            ideal_identify_config(config),
+            ideal_log(robot, stage, meas),
+            model=robot.model,
+            parameters=stage_parameters(robot, stage),
+        )
+    except NotIdentifiable as e:
+        failures = {m: f"not identifiable on this trajectory: {e}" for m in methods}
+    except IdentError as e:
+        failures = {m: str(e) for m in methods}
+    else:
+        assert result.consistent is not None  # the core always sets both
+        assert result.reduction is not None
+        for method in methods:
+            est = result.consistent.estimates[method]
+            if est.success:
+                estimates[method] = est
+            else:
+                failures[method] = est.message
+        norms, true_norm = _column_norms(result.reduction, stage.true_base)
     return EliteOutcome(
         rank=index + 1,
         x=x,
@@ -106,6 +195,13 @@ def identify_elite(
         tau=np.asarray(meas.tau),
         estimates=estimates,
         failures=failures,
-        base_column_norms=np.linalg.norm(Wb, axis=0),
-        true_torque_norm=float(np.linalg.norm(Wb @ stage.true_base)),
+        base_column_norms=norms,
+        true_torque_norm=true_norm,
     )
+
+
+def _column_norms(red: ReducedObservations, true_base: FloatArray) -> tuple[FloatArray, float]:
+    """Norms of the base columns ``||W_i||`` and of the true torques ``||W_b beta||`` over the
+    identification rows, from their reduction (``W_j = Q_j R_j`` per joint)."""
+    norms = np.sqrt(np.einsum("gij,gij->j", red.R, red.R))
+    return norms, float(np.linalg.norm(red.R @ true_base))

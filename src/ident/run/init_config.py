@@ -33,6 +33,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -142,7 +143,6 @@ def init_config(
     output = Path(output)
     if not urdf.is_file():
         raise ConfigError(f"{urdf}: URDF file not found; check the path.")
-    folder = output.resolve().parent
     text = read_urdf_text(urdf)
     locks, lock_notes = choose_locks(urdf, base_link, tip_link, dict(lock or {}))
     dirs = find_package_dirs(urdf, text, list(package_dirs or []))
@@ -154,23 +154,83 @@ def init_config(
         package_dirs=dirs,
     )
     robot = load_robot(selection, source=urdf)
-    names = robot.joint_names
-    n = robot.nv
+    c = _choose(robot, text)
+    lines = [
+        *_robot_lines(c, selection, output, urdf, lock_notes),
+        *_excitation_lines(c, robot),
+        *_safety_lines(c),
+        *_measurement_lines(c),
+        *_identification_lines(c),
+    ]
+    config_text = "\n".join(lines) + "\n"
+    seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
+    notes = _notes(c, urdf, lock_notes)
+    return InitResult(config_text, tuple(notes), seconds, quick_seconds)
 
+
+@dataclass(frozen=True, eq=False)
+class _Choices:
+    """What ``ident init`` derives from the robot (module docstring), per joint where an
+    array: limits [rad/s, rad/s^2], the Fourier bound [rad/s] and its factors, the floor and
+    clearance [m], a clear posture [rad], the guessed measurement settings [SI]."""
+
+    robot_name: str
+    names: tuple[str, ...]
+    dq_max: np.ndarray
+    dq_known: np.ndarray
+    ddq_max: np.ndarray
+    ddq_known: np.ndarray
+    w: float
+    c_v: float
+    c_a: float
+    amplitude: np.ndarray
+    reach: float
+    guessed_clearance: float
+    clearance: float
+    floor_z: float
+    home: np.ndarray
+    home_clearance: float
+    effort: np.ndarray
+    effort_known: np.ndarray
+    viscous: np.ndarray
+    coulomb: np.ndarray
+    armature: np.ndarray
+    torque: np.ndarray
+    noise: np.ndarray
+    threshold: np.ndarray
+
+    @property
+    def velocity_note(self) -> str:
+        return (
+            "the URDF's velocity limits"
+            if self.dq_known.all()
+            else f"the URDF's velocity limits ({DEFAULT_VELOCITY:g} rad/s guessed where it has "
+            "none)"
+        )
+
+    @property
+    def effort_note(self) -> str:
+        return (
+            "the URDF's effort limits"
+            if self.effort_known.all()
+            else "the effort limits (twice the gravity torque where the URDF has none)"
+        )
+
+
+def _choose(robot: Any, text: str) -> _Choices:
+    """The limits, the excitation's bound, the geometry and the measurement guesses."""
     # limits
     dq_urdf = np.asarray(robot.dq_max, dtype=float)
     dq_known = np.isfinite(dq_urdf) & (dq_urdf > 0)
     dq_max = np.where(dq_known, dq_urdf, DEFAULT_VELOCITY)
-    ddq_urdf = urdf_acceleration_limits(text, names)
+    ddq_urdf = urdf_acceleration_limits(text, robot.joint_names)
     ddq_known = np.isfinite(ddq_urdf)
     ddq_max = np.where(ddq_known, ddq_urdf, ACCELERATION_PER_VELOCITY * dq_max)
-
     # excitation: every design of the box within the margins
     w = 2.0 * np.pi / PERIOD_S
-    c_q, c_v, c_a = fourier_bound_factors(N_HARMONICS)
+    _, c_v, c_a = fourier_bound_factors(N_HARMONICS)
     amplitude = VELOCITY_MARGIN * np.minimum(dq_max / c_v, ddq_max / (w * c_a))
     amplitude = np.floor(amplitude * 1e4) / 1e4  # written with 4 decimals, never rounded up
-
     # geometry: floor, margin, a posture clear of both
     reference = np.clip(np.zeros(robot.nq), robot.q_lower, robot.q_upper)
     reach = robot_reach(robot, reference)
@@ -179,23 +239,51 @@ def init_config(
     clearance = keepable_clearance(robot, guessed_clearance)
     floor_z = float(np.floor(base_bottom(robot) * 1e3) / 1e3) + 0.0  # mm, never above; no -0
     home, home_clearance = clear_posture(robot, clearance, floor_z)
-
+    # measurement guesses
     effort = effort_scale(robot)
-    effort_known = np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0)
-    viscous = VISCOUS_PER_EFFORT * effort
-    coulomb = COULOMB_PER_EFFORT * effort
     armature = ARMATURE_PER_EFFORT * effort
     torque = torque_scale(
         robot, home, amplitude * c_v, amplitude * c_a * w, armature, _Q0_HALF_WIDTH
     )
-    noise = np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque)
-    threshold = np.minimum(0.15, 0.1 * amplitude * c_v)  # rad/s, below the design's speeds
+    return _Choices(
+        robot_name=str(robot.name),
+        names=tuple(robot.joint_names),
+        dq_max=dq_max,
+        dq_known=dq_known,
+        ddq_max=ddq_max,
+        ddq_known=ddq_known,
+        w=w,
+        c_v=c_v,
+        c_a=c_a,
+        amplitude=amplitude,
+        reach=reach,
+        guessed_clearance=guessed_clearance,
+        clearance=clearance,
+        floor_z=floor_z,
+        home=home,
+        home_clearance=home_clearance,
+        effort=effort,
+        effort_known=np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0),
+        viscous=VISCOUS_PER_EFFORT * effort,
+        coulomb=COULOMB_PER_EFFORT * effort,
+        armature=armature,
+        torque=torque,
+        noise=np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque),
+        threshold=np.minimum(0.15, 0.1 * amplitude * c_v),  # rad/s, below the design's speeds
+    )
 
+
+def _robot_lines(
+    c: _Choices, selection: RobotSelection, output: Path, urdf: Path, lock_notes: list[str]
+) -> list[str]:
+    """The header and the ``robot:`` section (paths relative to the output's folder)."""
+    folder = output.resolve().parent
+    names, n = c.names, len(c.names)
     rel_urdf = Path(os.path.relpath(urdf.resolve(), folder)).as_posix()
-    rel_dirs = [Path(os.path.relpath(d, folder)).as_posix() for d in dirs]
+    rel_dirs = [Path(os.path.relpath(d, folder)).as_posix() for d in selection.package_dirs]
     lines: list[str] = []
     add = lines.append
-    add(f"# ident run {output.name} -- written by 'ident init {urdf.name}' for {robot.name}:")
+    add(f"# ident run {output.name} -- written by 'ident init {urdf.name}' for {c.robot_name}:")
     add(f"# the chain {names[0]} .. {names[-1]} ({n} joints), every joint moving in one stage,")
     add("# a joint-space Fourier excitation designed by the optimizer, measured by a closed-loop")
     add("# MuJoCo simulation that writes a controller log, identified from that log.")
@@ -203,54 +291,60 @@ def init_config(
     add("# Units: SI (m, rad, s, N*m) unless a key says otherwise. Paths relative to this file.")
     add("robot:")
     add(f"  urdf: {rel_urdf}")
-    if base_link is not None:
-        add(f"  base_link: {base_link}")
-    if tip_link is not None:
-        add(f"  tip_link: {tip_link}")
-    if locks:
+    if selection.base_link is not None:
+        add(f"  base_link: {selection.base_link}")
+    if selection.tip_link is not None:
+        add(f"  tip_link: {selection.tip_link}")
+    if selection.lock:
         add("  lock:                        # joints held fixed [rad or m]")
-        for note, (name, value) in zip(lock_notes, locks.items(), strict=True):
+        for note, (name, value) in zip(lock_notes, selection.lock.items(), strict=True):
             add(f"    {name}: {_fmt(value)}   # {note.split(': ', 1)[1]}")
     if rel_dirs:
         add(f"  package_dirs: [{', '.join(rel_dirs)}]   # the package:// collision meshes")
-    if ddq_known.all():
-        add(f"  acceleration_limits: {_list(ddq_max)}   # rad/s^2, from the URDF")
+    if c.ddq_known.all():
+        add(f"  acceleration_limits: {_list(c.ddq_max)}   # rad/s^2, from the URDF")
     else:
         add(
-            f"  acceleration_limits: {_list(ddq_max)}   # rad/s^2; guess: "
+            f"  acceleration_limits: {_list(c.ddq_max)}   # rad/s^2; guess: "
             f"{ACCELERATION_PER_VELOCITY:g} x the velocity limit (full speed in "
             f"{1 / ACCELERATION_PER_VELOCITY:.2g} s): replace with your robot's value"
         )
     add("stage: whole                   # every joint moves, every body is unknown")
     add("seed: 0")
     add("")
+    return lines
+
+
+def _excitation_lines(c: _Choices, robot: Any) -> list[str]:
+    """The ``excitation:`` section (the Fourier bound, the mean postures' box) and the
+    optimizer's budget."""
+    lines: list[str] = []
+    add = lines.append
     add("excitation:")
     add("  family: joint_fourier")
     add("  criterion: paper")
     add(f"  n_samples: 250               # per {PERIOD_S:g} s period")
     add("  options:")
     add(f"    n_harmonics: {N_HARMONICS}")
-    add(f"    base_frequency: {w!r}   # rad/s: period {PERIOD_S:g} s")
-    velocity_note = (
-        "the URDF's velocity limits"
-        if dq_known.all()
-        else f"the URDF's velocity limits ({DEFAULT_VELOCITY:g} rad/s guessed where it has none)"
-    )
+    add(f"    base_frequency: {c.w!r}   # rad/s: period {PERIOD_S:g} s")
     add(
         f"    # rad/s, per joint: every design of the search box keeps within "
         f"{VELOCITY_MARGIN:.0%} of"
     )
-    add(f"    # {velocity_note} (|dq| <= {c_v:.3g} x bound at {N_HARMONICS} harmonics) and within")
-    add(f"    # the acceleration limits (|ddq| <= {c_a:.3g} x bound x base_frequency)")
-    add(f"    amplitude_bound: {_list(amplitude)}")
+    add(
+        f"    # {c.velocity_note} (|dq| <= {c.c_v:.3g} x bound at {N_HARMONICS} harmonics) "
+        "and within"
+    )
+    add(f"    # the acceleration limits (|ddq| <= {c.c_a:.3g} x bound x base_frequency)")
+    add(f"    amplitude_bound: {_list(c.amplitude)}")
     add(
         f"  bounds:                      # mean postures within +-{_Q0_HALF_WIDTH:g} rad of a "
-        f"posture {home_clearance * 100:.0f} cm"
+        f"posture {c.home_clearance * 100:.0f} cm"
     )
     add("                               # clear of the floor and of itself [rad]")
-    for j, name in enumerate(names):
-        low = max(home[j] - _Q0_HALF_WIDTH, robot.q_lower[j])
-        high = min(home[j] + _Q0_HALF_WIDTH, robot.q_upper[j])
+    for j, name in enumerate(c.names):
+        low = max(c.home[j] - _Q0_HALF_WIDTH, robot.q_lower[j])
+        high = min(c.home[j] + _Q0_HALF_WIDTH, robot.q_upper[j])
         if high > low:
             add(f"    q0[{name}]: [{low:.4f}, {high:.4f}]")
     add("")
@@ -258,85 +352,96 @@ def init_config(
     add("optimizer: pso                 # the best on arms like this one (docs/optimizers.md)")
     add("emupso: {n_particles: 20, maxiter: 150, n_runs: 1, n_report_elites: 3}")
     add("")
-    add("safety:                        # in the optimization and, at 1 kHz, on the trajectory")
-    add(
-        f"  floor: {{enabled: true, z: {floor_z:.3f}}}   # guess: the robot stands on the floor "
-        "under its base's collision geometry"
-    )
+    return lines
+
+
+def _safety_lines(c: _Choices) -> list[str]:
+    """The ``safety:`` (floor, clearance) and ``controller:`` sections."""
     lowered = (
-        f", lowered from {guessed_clearance:.3g} m: a link pair is closer in every posture"
-        if clearance < guessed_clearance
+        f", lowered from {c.guessed_clearance:.3g} m: a link pair is closer in every posture"
+        if c.clearance < c.guessed_clearance
         else ""
     )
-    add(
-        f"  clearance_m: {clearance:.3g}   # guess: 5 % of the reach {reach:.2f} m (1-3 cm)"
-        + lowered
-    )
-    add("  self_collision: true")
-    add("  torque_limits: true")
-    add("  check_samples: 50            # samples per period of the optimization's term")
-    add("controller: {rate_hz: 1000.0, n_periods: 1}   # trajectory.csv: approach, period, return")
-    add("")
-    effort_note = (
-        "the URDF's effort limits"
-        if effort_known.all()
-        else "the effort limits (twice the gravity torque where the URDF has none)"
-    )
-    add("measurement:")
-    add("  source: mujoco")
-    add("  rate_hz: 1000.0")
-    add("  controller: {kind: computed_torque}    # default gains: 100 rad/s, critically damped")
-    add(f"  # guesses scaled to {effort_note} {_list(effort)} N*m:")
-    add("  # replace each with your robot's value")
-    add("  friction:")
-    add(f"    viscous: {_list(viscous)}   # guess: N*m*s/rad, {VISCOUS_PER_EFFORT:g} x effort")
-    add(f"    coulomb: {_list(coulomb)}   # guess: N*m, {COULOMB_PER_EFFORT:g} x effort")
-    add(
-        f"  armature: {_list(armature)}   # guess: kg*m^2, rotor inertia, "
-        f"{ARMATURE_PER_EFFORT:g} x effort"
-    )
-    add("  encoder_counts_per_rev: 524288   # guess: 19-bit encoders")
-    add(
-        f"  torque_noise_std: {_list(noise)}   # guess: N*m, {NOISE_PER_EFFORT:g} x effort, at "
-        f"most {NOISE_PER_TORQUE:.0%} of the torque the motion needs {_list(torque)}"
-    )
-    add("  settle_periods: 1")
-    add("  n_periods: 3")
-    add("")
-    add("identification:                # how the log is identified (an `ident identify` config)")
-    add("  preprocess:")
-    add("    lowpass: {cutoff_hz: 10.0, order: 4}")
-    add("    torque_lowpass: {cutoff_hz: 10.0, order: 4}")
-    add("    trim_samples: 500          # 0.5 s at each end: the zero-phase filters' edges")
-    add("    decimation: [10]           # 1 kHz -> 100 Hz")
-    add("    # rows slower than this are dropped: the filters spread the Coulomb step at a")
-    add("    # velocity reversal (0.15 rad/s, or 10 % of the design's largest speed if lower)")
-    add(f"    velocity_threshold: {_list(threshold)}   # rad/s")
-    add("  model: {viscous: true, coulomb: true, rotor_inertia: true, offset: false}")
-    add("  estimation: {method: wls, essential: {enabled: false}}")
-    add("  validation: {identify_fraction: 0.7}")
-    add("")
-    add("quick:                         # --quick: the smallest budget that designs a trajectory")
-    add("  n_samples: 100")
-    add("  elites: {n_particles: 6, n_elites: 1, maxiter: 40}")
-    add("  emupso: {n_particles: 6, maxiter: 4, stagnation: 2, n_runs: 1, n_report_elites: 1}")
-    config_text = "\n".join(lines) + "\n"
+    return [
+        "safety:                        # in the optimization and, at 1 kHz, on the trajectory",
+        f"  floor: {{enabled: true, z: {c.floor_z:.3f}}}   # guess: the robot stands on the "
+        "floor under its base's collision geometry",
+        f"  clearance_m: {c.clearance:.3g}   # guess: 5 % of the reach {c.reach:.2f} m (1-3 cm)"
+        + lowered,
+        "  self_collision: true",
+        "  torque_limits: true",
+        "  check_samples: 50            # samples per period of the optimization's term",
+        "controller: {rate_hz: 1000.0, n_periods: 1}   # trajectory.csv: approach, period, return",
+        "",
+    ]
 
-    seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
-    notes = [
-        f"chain: {names[0]} .. {names[-1]} ({n} joints) of {urdf.name}",
+
+def _measurement_lines(c: _Choices) -> list[str]:
+    """The ``measurement:`` section: MuJoCo with the guessed friction, armature and noise."""
+    return [
+        "measurement:",
+        "  source: mujoco",
+        "  rate_hz: 1000.0",
+        "  controller: {kind: computed_torque}    # default gains: 100 rad/s, critically damped",
+        f"  # guesses scaled to {c.effort_note} {_list(c.effort)} N*m:",
+        "  # replace each with your robot's value",
+        "  friction:",
+        f"    viscous: {_list(c.viscous)}   # guess: N*m*s/rad, {VISCOUS_PER_EFFORT:g} x effort",
+        f"    coulomb: {_list(c.coulomb)}   # guess: N*m, {COULOMB_PER_EFFORT:g} x effort",
+        f"  armature: {_list(c.armature)}   # guess: kg*m^2, rotor inertia, "
+        f"{ARMATURE_PER_EFFORT:g} x effort",
+        "  encoder_counts_per_rev: 524288   # guess: 19-bit encoders",
+        f"  torque_noise_std: {_list(c.noise)}   # guess: N*m, {NOISE_PER_EFFORT:g} x effort, "
+        f"at most {NOISE_PER_TORQUE:.0%} of the torque the motion needs {_list(c.torque)}",
+        "  settle_periods: 1",
+        "  n_periods: 3",
+        "",
+    ]
+
+
+def _identification_lines(c: _Choices) -> list[str]:
+    """The ``identification:`` section (how the simulated log is identified) and ``quick:``."""
+    return [
+        "identification:                # how the log is identified (an `ident identify` config)",
+        "  preprocess:",
+        "    lowpass: {cutoff_hz: 10.0, order: 4}",
+        "    torque_lowpass: {cutoff_hz: 10.0, order: 4}",
+        "    trim_samples: 500          # 0.5 s at each end: the zero-phase filters' edges",
+        "    decimation: [10]           # 1 kHz -> 100 Hz",
+        "    # rows slower than this are dropped: the filters spread the Coulomb step at a",
+        "    # velocity reversal (0.15 rad/s, or 10 % of the design's largest speed if lower)",
+        f"    velocity_threshold: {_list(c.threshold)}   # rad/s",
+        "  model: {viscous: true, coulomb: true, rotor_inertia: true, offset: false}",
+        "  estimation: {method: wls, essential: {enabled: false}}",
+        "  validation: {identify_fraction: 0.7}",
+        "",
+        "quick:                         # --quick: the smallest budget that designs a trajectory",
+        "  n_samples: 100",
+        "  elites: {n_particles: 6, n_elites: 1, maxiter: 40}",
+        "  emupso: {n_particles: 6, maxiter: 4, stagnation: 2, n_runs: 1, n_report_elites: 1}",
+    ]
+
+
+def _notes(c: _Choices, urdf: Path, lock_notes: list[str]) -> list[str]:
+    """What was chosen and why, one line each (printed by ``ident init``)."""
+    names = c.names
+    return [
+        f"chain: {names[0]} .. {names[-1]} ({len(names)} joints) of {urdf.name}",
         *[f"lock: {line}" for line in lock_notes],
         "acceleration limits: "
-        + ("from the URDF" if ddq_known.all() else f"guess {ACCELERATION_PER_VELOCITY:g} x dq_max")
-        + f" {_list(ddq_max)} rad/s^2",
-        f"excitation: amplitude_bound {_list(amplitude)} rad/s keeps every design within "
-        f"{VELOCITY_MARGIN:.0%} of the velocity limits {_list(dq_max)} rad/s",
-        f"safety: floor at z = {floor_z:.3f} m (under the base), clearance {clearance:.3g} m; "
-        "mean postures around a posture "
-        f"{home_clearance * 100:.0f} cm clear",
-        f"measurement: friction, rotor inertia and noise are guesses scaled to {effort_note}",
+        + (
+            "from the URDF"
+            if c.ddq_known.all()
+            else f"guess {ACCELERATION_PER_VELOCITY:g} x dq_max"
+        )
+        + f" {_list(c.ddq_max)} rad/s^2",
+        f"excitation: amplitude_bound {_list(c.amplitude)} rad/s keeps every design within "
+        f"{VELOCITY_MARGIN:.0%} of the velocity limits {_list(c.dq_max)} rad/s",
+        f"safety: floor at z = {c.floor_z:.3f} m (under the base), clearance "
+        f"{c.clearance:.3g} m; mean postures around a posture "
+        f"{c.home_clearance * 100:.0f} cm clear",
+        f"measurement: friction, rotor inertia and noise are guesses scaled to {c.effort_note}",
     ]
-    return InitResult(config_text, tuple(notes), seconds, quick_seconds)
 
 
 def _validate(text: str, output: Path, urdf: Path, dirs: list[Path]) -> tuple[float, float]:

@@ -127,12 +127,14 @@ def structure_from_parameter_model(
         Link of each joint, in joint order.
     ellipsoids :
         Optional bounding ellipsoid per body.
+
+    The bodies are those whose parameters ``pm`` holds (every one, or a stage's).
     """
     index = {name: i for i, name in enumerate(pm.names)}
+    present = [b for b in range(len(body_names)) if f"m{b + 1}" in index]
     bodies = np.array(
-        [[index[f"{label}{b + 1}"] for label in _LABELS] for b in range(len(body_names))],
-        dtype=np.intp,
-    )
+        [[index[f"{label}{b + 1}"] for label in _LABELS] for b in present], dtype=np.intp
+    ).reshape(len(present), len(_LABELS))
 
     def extras(prefixes: tuple[str, ...]) -> npt.NDArray[np.intp]:
         return np.array(
@@ -147,10 +149,10 @@ def structure_from_parameter_model(
     return ParameterStructure(
         names=tuple(pm.names),
         bodies=bodies,
-        body_names=tuple(body_names),
+        body_names=tuple(body_names[b] for b in present),
         nonnegative=extras(NONNEGATIVE_PREFIXES),
         nominal=np.asarray(pm.nominal, dtype=float),
-        ellipsoids=tuple(ellipsoids),
+        ellipsoids=tuple(ellipsoids[b] for b in present) if ellipsoids else (),
         friction=extras(FRICTION_PREFIXES),
     )
 

@@ -28,7 +28,6 @@ def _solve(problem: EstimationProblem, method: str) -> Estimate:
         problem.names,
         method=method,
         wls_passes=problem.wls_passes,
-        n_samples=problem.n_samples,
     )
     structure = problem.structure
     if structure is None:

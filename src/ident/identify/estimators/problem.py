@@ -155,8 +155,6 @@ class EstimationProblem:
         :mod:`ident.identify.estimators.constrained`).
     wls_passes :
         Weighted solves of WLS (see :func:`~ident.identify.estimate.least_squares`).
-    n_samples :
-        Samples behind the rows, for the result (default: the number of rows).
     options :
         Estimator-specific options (see each estimator).
     """
@@ -168,7 +166,6 @@ class EstimationProblem:
     weights: FloatArray | None = None
     regularization: float = 0.0
     wls_passes: int = 2
-    n_samples: int | None = None
     options: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
 
     def __post_init__(self) -> None:
@@ -255,7 +252,7 @@ def result_from_theta(
         relative_residual=float(np.sqrt(ss.sum()) / tau_norm) if tau_norm > 0 else float("inf"),
         sigma=np.asarray(sigma, dtype=float),
         condition_number=float(s[0] / s[-1]) if s[-1] > 0 else float("inf"),
-        n_samples=problem.n_samples if problem.n_samples is not None else problem.n_rows,
+        n_samples=problem.n_rows,
         success=success,
         message=message,
         n_observations=problem.n_rows,
