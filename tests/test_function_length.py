@@ -6,20 +6,11 @@ line, docstring and comments included; nested functions count in their parent to
 
 import ast
 
-import pytest
 from conftest import REPO_ROOT
 
 MAX_LINES = 80
 PACKAGES = ("identify", "run", "measure")
 
-#: Functions over the limit that are being split on other branches. This list must shrink to
-#: empty: never add to it; remove an entry when its function is split.
-ALLOWED = {
-    ("identify/urdf_update.py", "identified_urdf"),
-    ("identify/urdf_update.py", "update_urdf_inertials"),
-    ("identify/mjcf.py", "identified_mjcf"),
-    ("measure/mujoco_sim.py", "simulate"),
-}
 
 
 def _long_functions() -> dict[tuple[str, str], int]:
@@ -38,11 +29,5 @@ def _long_functions() -> dict[tuple[str, str], int]:
 
 def test_no_function_over_80_lines_in_the_core_packages():
     found = _long_functions()
-    new = {key: n for key, n in found.items() if key not in ALLOWED}
-    assert not new, f"functions over {MAX_LINES} lines (split them): {new}"
+    assert not found, f"functions over {MAX_LINES} lines (split them): {found}"
 
-
-@pytest.mark.parametrize("entry", sorted(ALLOWED))
-def test_the_allow_list_holds_only_functions_still_too_long(entry):
-    # an entry whose function was split (or renamed) must leave the list
-    assert entry in _long_functions(), f"{entry} is no longer over {MAX_LINES} lines: remove it"

@@ -29,7 +29,10 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -241,52 +244,41 @@ def _identify(
     joints = _check_joints(log, model, source)
     ellipsoids = _ellipsoids(cfg, model, source)
     cfg, log, auto_warnings = _resolve_settings(cfg, log)
-    t1 = time.perf_counter()
-    pm = parameters if parameters is not None else _parameter_model(cfg, model, source, rng)
-    timings["base_parameters"] = time.perf_counter() - t1
-    t2 = time.perf_counter()
-    reference = _reference(cfg, pm)
     # the processing's records check its settings (cutoff below Nyquist...) before any chunk
-    processing = _preprocess_records(
-        cfg.preprocess, log.sampling_rate_hz, model.nv, source, states=log.ddq is not None
-    )
-    chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
-    records = [
+    processing = [
         *log.records,
-        *processing,
-        accumulate.chunk_record(chunked, red),
-        *_row_records(cfg, chunked, red),
+        *_preprocess_records(
+            cfg.preprocess, log.sampling_rate_hz, model.nv, source, states=log.ddq is not None
+        ),
     ]
-    timings["accumulate"] = time.perf_counter() - t2
-    t3 = time.perf_counter()
-    cons = _estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
-    est = cons.estimates[cfg.estimation.least_squares_method]
-    identified_model = _model_identification(cfg, cons, model, pm, first, last, red, joints)
-    timings["estimate"] = time.perf_counter() - t3
-    t4 = time.perf_counter()
-    essential = _essential(cfg, red, pm)
-    timings["essential"] = time.perf_counter() - t4
-    t5 = time.perf_counter()
-    vectors = _vectors(est, essential, cons, pm, identified_model)
-    tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
-    timings["validate"] = time.perf_counter() - t5
-    t_unc = time.perf_counter()
-    unc, pred_std = _uncertainty(chunked, est, scheduler)
-    timings["uncertainty"] = time.perf_counter() - t_unc
-    t5 = time.perf_counter()
-    comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
-    timings["validate"] += time.perf_counter() - t5
-    t7 = time.perf_counter()
-    friction, friction_problem = _friction_models(cfg, chunked, pm)
-    if cfg.model.friction != "viscous_coulomb":
-        timings["friction_models"] = time.perf_counter() - t7
-    t6 = time.perf_counter()
-    motion, motion_note = replay_motion(log, cfg.preprocess, tuple(joints))
-    timings["motion"] = time.perf_counter() - t6
+    with _timed(timings, "base_parameters"):
+        pm = parameters if parameters is not None else _parameter_model(cfg, model, source, rng)
+    with _timed(timings, "accumulate"):
+        reference = _reference(cfg, pm)
+        chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
+    records = [*processing, accumulate.chunk_record(chunked, red), *_row_records(cfg, chunked, red)]
+    with _timed(timings, "estimate"):
+        cons = _estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
+        est = cons.estimates[cfg.estimation.least_squares_method]
+        identified_model = _model_identification(cfg, cons, model, pm, first, last, red, joints)
+    with _timed(timings, "essential"):
+        essential = _essential(cfg, red, pm)
+    with _timed(timings, "validate"):
+        vectors = _vectors(est, essential, cons, pm, identified_model)
+        tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
+        comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
+    extras = _timed_extras(timings, cfg, log, chunked, pm, est, joints, scheduler)
+    extras["uncertainty_summary"] = _uncertainty_summary(
+        cfg,
+        extras["uncertainty"],
+        extras["prediction_std"],
+        tau_val - predictions["identified"].tau_pred,
+        keep_val,
+    )
     problems = [
         *auto_warnings,
         *_warnings(cfg, model, pm, est, cons, red, chunked, predictions, (tau_val, keep_val)),
-        *friction_problem,
+        *extras.pop("friction_problem"),
     ]
     timings["total"] = time.perf_counter() - t0
     step = preprocess.decimation_step(cfg.preprocess)
@@ -308,22 +300,54 @@ def _identify(
         n_identify_rows=int(red.n_rows.sum()),
         timings=timings,
         reference_essential=tuple(reference_essential),
-        motion=motion,
-        motion_note=motion_note,
         warnings=tuple(problems),
         consistent=cons,
         reduction=red,
         model=identified_model,
-        uncertainty=unc,
-        prediction_std=pred_std,
-        uncertainty_summary=_uncertainty_summary(
-            cfg, unc, pred_std, tau_val - predictions["identified"].tau_pred, keep_val
-        ),
-        identifiability=standard_identifiability(
-            pm.base.projection, pm.names, pm.base_names, pm.base.expressions()
-        ),
-        friction=friction,
+        identifiability=_identifiability(pm),
+        **extras,
     )
+
+
+def _timed_extras(
+    timings: dict[str, float],
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    chunked: accumulate.ChunkedLog,
+    pm: ParameterModel,
+    est: Estimate,
+    joints: list[str],
+    scheduler: str | None,
+) -> dict[str, Any]:
+    """The robust intervals, the friction-model comparison and the replay motion, timed:
+    :class:`IdentifyResult` fields, plus ``friction_problem`` (warnings)."""
+    out: dict[str, Any] = {}
+    with _timed(timings, "uncertainty"):
+        out["uncertainty"], out["prediction_std"] = _uncertainty(chunked, est, scheduler)
+    with _timed(timings, "friction_models"):
+        out["friction"], out["friction_problem"] = _friction_models(cfg, chunked, pm)
+    if cfg.model.friction == "viscous_coulomb":
+        del timings["friction_models"]
+    with _timed(timings, "motion"):
+        out["motion"], out["motion_note"] = replay_motion(log, cfg.preprocess, tuple(joints))
+    return out
+
+
+def _identifiability(pm: ParameterModel) -> Identifiability:
+    """Which standard parameters the base parameters see alone, in combination, or not."""
+    return standard_identifiability(
+        pm.base.projection, pm.names, pm.base_names, pm.base.expressions()
+    )
+
+
+@contextmanager
+def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
+    """Add the seconds the block takes to ``timings[key]``."""
+    start = time.perf_counter()
+    try:
+        yield
+    finally:
+        timings[key] = timings.get(key, 0.0) + time.perf_counter() - start
 
 
 def _friction_models(

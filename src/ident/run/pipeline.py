@@ -152,12 +152,7 @@ def run_pipeline(
     """
     notify = progress or (lambda _p: None)
     start = config if isinstance(config, FeasibleStart) else None
-    if isinstance(config, FeasibleStart):
-        setup = config.setup
-    elif isinstance(config, RunSetup):
-        setup = config
-    else:
-        setup = prepare_run(config)
+    setup = _setup_of(config)
     config = setup.config
     streams = np.random.SeedSequence(config.seed).spawn(4)
     problem = (
@@ -165,11 +160,7 @@ def run_pipeline(
         if start is not None
         else excitation_problem(setup, np.random.default_rng(streams[3]))
     )
-    stage_info, measure = problem.stage_info, identify_elite
-    if config.measurement.source == "mujoco":  # a simulated log, identified as a measured one
-        with small_blas():
-            stage_info, _ = log_stage_info(config, setup.robot)
-        measure = identify_elite_log
+    stage_info, measure = _measurement_of(setup, problem)
     base = _base_result(setup, problem.bounds, stage_info)
     state = _State()
     try:
@@ -179,31 +170,15 @@ def run_pipeline(
             state.elites, state.elite_message = start.elites, start.elite_message
         _optimize(setup, problem, streams[1], state, notify)
         chosen_x, chosen_f = _choose(setup, problem, state)
-        margin = (
-            None if setup.safety is None else retry_margin(state.safety, setup.safety.clearance_m)
+        problem, chosen_x, chosen_f, retry_note = _retry_at_wider_margin(
+            setup, problem, streams[1], state, notify, chosen_x, chosen_f
         )
-        if margin is not None:  # every elite a little inside the margin between samples
-            retry_note = (
-                f"no elite kept the {1e3 * setup.safety.clearance_m:g} mm margin between the "
-                f"checked samples; optimized again with the optimizer's margin at "
-                f"{1e3 * margin:.3g} mm (the certificate's stays {1e3 * setup.safety.clearance_m:g}"
-                " mm). "
-            )
-            first = (chosen_x, chosen_f, state.safety)
-            tighter = _tighter_problem(problem, setup.safety.with_optimizer_margin(margin))
-            _optimize(setup, tighter, streams[1], state, notify)  # new child streams
-            try:
-                chosen_x, chosen_f = _choose(setup, tighter, state)
-                problem = tighter
-            except TrajectoryError:  # nothing feasible at the wider margin: the first result
-                chosen_x, chosen_f, state.safety = first
-                retry_note += "No optimized trajectory kept it. "
         _measure(setup, problem, stage_info, measure, chosen_x, chosen_f, streams[2], state, notify)
         state.phase = "executable trajectory"
         plan = plan_executable(
             config, setup.robot, setup.family, setup.safety, chosen_x, state.safety
         )
-        if margin is not None:
+        if retry_note:
             plan = dataclasses.replace(plan, message=retry_note + plan.message)
     except KeyboardInterrupt as e:
         raise RunInterrupted(
@@ -216,6 +191,72 @@ def run_pipeline(
     except Exception as e:  # a crash: keep what finished, then let it surface
         message = f"crashed during the {state.phase}: {type(e).__name__}: {e}"
         raise RunInterrupted(state.partial(base, message), e) from e
+    return _replace(
+        state.partial(base, ""),
+        status="complete",
+        message="run complete",
+        warnings=_run_warnings(config, state, plan),
+        executable=plan,
+        safety={"ok": plan.usable, "message": plan.message},
+    )
+
+
+def _measurement_of(setup: RunSetup, problem: Any) -> tuple[StageInfo, Any]:
+    """The stage's facts and the function that measures and identifies an elite: simulated
+    states (ideal source) or a simulated log identified as a measured one (MuJoCo)."""
+    if setup.config.measurement.source == "mujoco":
+        with small_blas():
+            stage_info, _ = log_stage_info(setup.config, setup.robot)
+        return stage_info, identify_elite_log
+    return problem.stage_info, identify_elite
+
+
+def _setup_of(config: RunConfig | RunSetup | FeasibleStart) -> RunSetup:
+    """The checked setup of what :func:`run_pipeline` was given."""
+    if isinstance(config, FeasibleStart):
+        return config.setup
+    if isinstance(config, RunSetup):
+        return config
+    return prepare_run(config)
+
+
+def _retry_at_wider_margin(
+    setup: RunSetup,
+    problem: Any,
+    stream: Any,
+    state: _State,
+    notify: ProgressCallback,
+    chosen_x: FloatArray,
+    chosen_f: FloatArray,
+) -> tuple[Any, FloatArray, FloatArray, str]:
+    """When every elite is a little inside the safety margin between the checked samples,
+    optimize again with a wider margin in the optimizer (the certificate's stays).
+
+    Returns the problem, the chosen designs and fitnesses, and a note for the safety message
+    (empty when no retry ran). When nothing is feasible at the wider margin, the first result.
+    """
+    margin = None if setup.safety is None else retry_margin(state.safety, setup.safety.clearance_m)
+    if margin is None or setup.safety is None:
+        return problem, chosen_x, chosen_f, ""
+    kept = 1e3 * setup.safety.clearance_m
+    note = (
+        f"no elite kept the {kept:g} mm margin between the checked samples; optimized again "
+        f"with the optimizer's margin at {1e3 * margin:.3g} mm (the certificate's stays "
+        f"{kept:g} mm). "
+    )
+    first = (chosen_x, chosen_f, state.safety)
+    tighter = _tighter_problem(problem, setup.safety.with_optimizer_margin(margin))
+    _optimize(setup, tighter, stream, state, notify)  # new child streams
+    try:
+        chosen_x, chosen_f = _choose(setup, tighter, state)
+    except TrajectoryError:  # nothing feasible at the wider margin: the first result
+        chosen_x, chosen_f, state.safety = first
+        return problem, chosen_x, chosen_f, note + "No optimized trajectory kept it. "
+    return tighter, chosen_x, chosen_f, note
+
+
+def _run_warnings(config: RunConfig, state: _State, plan: Any) -> tuple[str, ...]:
+    """The run's own warnings: no elite identified, or no trajectory safe to execute."""
     warnings = []
     if all(not o.estimates for o in state.outcomes):
         warnings.append(
@@ -224,14 +265,7 @@ def run_pipeline(
         )
     if not plan.usable:  # never reported as usable: the robot must not run it
         warnings.append(plan.message + unsafe_run_advice(config.safety is not None))
-    return _replace(
-        state.partial(base, ""),
-        status="complete",
-        message="run complete",
-        warnings=tuple(warnings),
-        executable=plan,
-        safety={"ok": plan.usable, "message": plan.message},
-    )
+    return tuple(warnings)
 
 
 def _tighter_problem(problem: Any, safety: Any) -> Any:
