@@ -5,6 +5,7 @@ Tests name project files by their repository paths (``configs/paper6r.yaml``,
 same result whatever folder it is started from.
 """
 
+import fcntl
 import os
 from pathlib import Path
 
@@ -24,20 +25,33 @@ def _run_from_repository_root(monkeypatch: pytest.MonkeyPatch) -> None:
 @pytest.fixture(scope="session")
 def shipped_run(tmp_path_factory: pytest.TempPathFactory):
     """``shipped_run(name)``: the folder of ``ident run configs/<name>.yaml --no-replay`` (exit
-    0 asserted), run once per session and shared by the tests that inspect it."""
+    0 asserted), run once per test session and shared by the tests that inspect it.
+
+    Under pytest-xdist the workers share it too: the first worker that needs a config runs it
+    in the session's common temporary folder under a file lock, the others wait and reuse it
+    (the pattern of pytest-xdist's documentation; a full run takes minutes).
+    """
     from typer.testing import CliRunner
 
     from ident.cli import app
 
-    folders: dict[str, Path] = {}
+    base = tmp_path_factory.getbasetemp()
+    # a worker's folder is <session>/popen-gwN: the session's is shared by the workers
+    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
 
     def run(name: str) -> Path:
-        if name not in folders:
-            out = tmp_path_factory.mktemp(f"shipped-{name}")
-            config = REPO_ROOT / "configs" / f"{name}.yaml"
-            result = CliRunner().invoke(app, ["run", str(config), "--out", str(out), "--no-replay"])
-            assert result.exit_code == 0, result.output
-            (folders[name],) = [p for p in out.iterdir() if p.is_dir()]
-        return folders[name]
+        out = shared / f"shipped-{name}"
+        with open(shared / f"shipped-{name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+            if not (out / "done").exists():
+                out.mkdir(exist_ok=True)
+                config = REPO_ROOT / "configs" / f"{name}.yaml"
+                result = CliRunner().invoke(
+                    app, ["run", str(config), "--out", str(out), "--no-replay"]
+                )
+                assert result.exit_code == 0, result.output
+                (out / "done").write_text("")
+        (folder,) = [p for p in out.iterdir() if p.is_dir()]
+        return folder
 
     return run
