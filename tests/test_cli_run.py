@@ -326,7 +326,7 @@ def test_no_identifiable_elite_exits_1_with_a_plain_report(tmp_path, monkeypatch
     def rank_deficient(*args, **kwargs):
         raise NotIdentifiable("parameters Izz6, Ixx6 enter the torques only in a combination")
 
-    monkeypatch.setattr(estimate, "get_estimator", lambda name: rank_deficient)
+    monkeypatch.setattr(estimate, "identify_measurements", rank_deficient)
     result = _run(QUICK, "--out", tmp_path, "--no-replay")
     assert result.exit_code == 1
     assert "no elite trajectory identifies" in result.output

@@ -677,7 +677,10 @@ def _block_task(task: _Task, weights: FloatArray, block_samples: int) -> BlockEq
     p = order.size
     Yb = np.empty_like(c.Yb[:, :, :p])
     Yb[:, :, order] = c.Yb[:, :, :p]  # kernel order -> base order
-    return BlockEquations.from_samples(Yb, c.tau, keep, weights, block_samples)
+    rows = task.columns.rows  # the joints whose torque rows the model explains
+    return BlockEquations.from_samples(
+        Yb[:, rows], c.tau[:, rows], keep[:, rows], weights, block_samples
+    )
 
 
 def block_equations(
@@ -707,7 +710,10 @@ def _prediction_std_task(
     p = order.size
     Yb = np.empty_like(c.Yb[:, :, :p])
     Yb[:, :, order] = c.Yb[:, :, :p]
-    return {k: prediction_std(Yb, C, sigma) for k, C in covariances.items()}
+    rows = task.columns.rows  # sigma (n_rows,) of the explained joints; the others are masked
+    sigma_all = np.zeros(rows.size)
+    sigma_all[rows] = sigma
+    return {k: prediction_std(Yb, C, sigma_all) for k, C in covariances.items()}
 
 
 def prediction_std_log(

@@ -33,21 +33,20 @@ def model_section(
         return lines + [f"No model file: {note}.", ""]
     files, parity = model["files"], model["reload_parity"]
     held = model["held_out_relative_residual"] or {}
+    # a list, not a table: a file name in a narrow table column would break mid-word
     lines += [
-        "| file | what |",
-        "| --- | --- |",
-        f"| `{files['urdf']}` | **the identified model**: your URDF with every moving link's "
+        f"- `{files['urdf']}`: **the identified model**: your URDF with every moving link's "
         f"inertial from the physically consistent {model['method']} estimate{where} (prior "
         "toward the URDF on the directions the log does not see) and the joints' "
-        "damping/friction |",
-        f"| `{files['mjcf']}` | the same model as MJCF, joint extras as `armature`, `damping`, "
-        "`frictionloss` (no geometry: loads without meshes) |",
-        f"| `{files['joint_extras']}` | every per-joint extra: rotor inertia, friction, offsets |",
+        "damping/friction.",
+        f"- `{files['mjcf']}`: the same model as MJCF, joint extras as `armature`, `damping`, "
+        "`frictionloss` (no geometry: loads without meshes).",
+        f"- `{files['joint_extras']}`: every per-joint extra: rotor inertia, friction, offsets.",
     ]
     if cautious is not None:
         lines.append(
-            f"| `{cautious}` | the cautious copy: only the well-identified standard parameters "
-            "changed, nominal values elsewhere (section below) |"
+            f"- `{cautious}`: the cautious copy: only the well-identified standard parameters "
+            "changed, nominal values elsewhere (section below)."
         )
     reload = (
         f"{parity['urdf']:.2g} (URDF), {parity['mjcf']:.2g} (MJCF), "
