@@ -9,6 +9,12 @@ killed). Usage::
 
     python benchmarks/mutation.py [--modules verdict base_parameters] [--max-children 2]
                                   [--fresh | --retest] [--survivors] [--deselect NODE_ID ...]
+                                  [--functions NAME ...] [--table]
+
+``--functions`` limits a run (and the module's counts) to the mutants of the named functions
+or methods (``lowpass``, ``ranges``): on a loaded machine a whole module can take too long,
+and the table then says ``(functions)`` after the module's name. ``--table`` prints the table
+of the modules' last saved results without running anything.
 
 mutmut 3 copies the tree into ``mutants/`` and imports it from there; each module gets its own
 folder ``mutants/<module>/`` (a few symbolic links to the checkout), so the modules' results
@@ -28,6 +34,7 @@ a subprocess imports the checkout, not the mutant, and cannot kill it.
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import json
 import shutil
 import subprocess
@@ -52,9 +59,12 @@ MODULES: dict[str, tuple[list[str], list[str]]] = {
     ),
     "estimate": (
         ["src/ident/identify/estimate.py"],
-        ["tests/test_estimate.py", "tests/test_essential.py"],
+        ["tests/test_estimate.py", "tests/test_essential.py", "tests/test_estimate_mutants.py"],
     ),
-    "preprocess": (["src/ident/identify/preprocess.py"], ["tests/test_preprocess.py"]),
+    "preprocess": (
+        ["src/ident/identify/preprocess.py"],
+        ["tests/test_preprocess.py", "tests/test_preprocess_mutants.py"],
+    ),
     "accumulate": (["src/ident/identify/accumulate.py"], ["tests/test_accumulate.py"]),
     "estimators": (
         ["src/ident/identify/estimators/*.py"],
@@ -145,6 +155,21 @@ def statuses(folder: Path, paths: list[str], *, saved: bool = True) -> dict[str,
     return out
 
 
+def function_patterns(functions: list[str]) -> list[str]:
+    """mutmut's name patterns (``fnmatch``) of the mutants of the named functions or methods:
+    ``<module>.x_<name>__mutmut_<k>`` for a function, ``<module>.xǁ<Class>ǁ<name>__mutmut_<k>``
+    for a method."""
+    return [p for f in functions for p in (f"*.x_{f}__mutmut_*", f"*ǁ{f}__mutmut_*")]
+
+
+def only_functions(status: dict[str, str], functions: list[str]) -> dict[str, str]:
+    """The entries of ``status`` that are mutants of ``functions`` (all when it is empty)."""
+    if not functions:
+        return status
+    patterns = function_patterns(functions)
+    return {k: v for k, v in status.items() if any(fnmatch.fnmatch(k, p) for p in patterns)}
+
+
 def run_module(name: str, args: argparse.Namespace) -> dict:
     """Run mutmut on one module (subprocess in its folder); its counts and wall time [s]."""
     patterns, test_patterns = MODULES[name]
@@ -166,16 +191,23 @@ def run_module(name: str, args: argparse.Namespace) -> dict:
         shutil.rmtree(folder / "mutants")
         (folder / "results.json").unlink(missing_ok=True)
     before = statuses(folder, paths)
-    retest = sorted(k for k, v in before.items() if v != KILLED)
-    spec["retest"] = retest if args.retest else []
+    # the mutants to run: all ([]), those of --functions, or (--retest) those not killed before
+    chosen = only_functions(before, args.functions)
+    if args.retest:
+        to_run = sorted(k for k, v in chosen.items() if v != KILLED)
+    elif args.functions:  # by name when known, else by pattern (mutmut names them on a run)
+        to_run = sorted(chosen) if before else function_patterns(args.functions)
+    else:
+        to_run = []
+    spec["retest"] = to_run
     print(f"== {name}: {', '.join(paths)} against {', '.join(tests)}", flush=True)
     if args.retest:
-        print(f"   retesting the {len(retest)} mutants not killed before", flush=True)
+        print(f"   retesting the {len(to_run)} mutants not killed before", flush=True)
     start = time.perf_counter()
     log = folder / "mutmut.log"
-    if args.retest and not retest:
-        log.write_text("nothing to retest\n")
-        return summary(name, statuses(folder, paths), 0.0, ok=True, args=args, folder=folder)
+    if (args.retest or args.functions) and before and not to_run:
+        log.write_text("nothing to run\n")
+        return summary(name, before, 0.0, ok=True, args=args, folder=folder)
     with open(log, "w") as out:
         proc = subprocess.run(
             [sys.executable, __file__, "--worker", json.dumps(spec)],
@@ -185,8 +217,8 @@ def run_module(name: str, args: argparse.Namespace) -> dict:
         )
     seconds = time.perf_counter() - start
     status = statuses(folder, paths, saved=False)
-    if args.retest:  # mutmut 3.3.1 rewrites its result files on every run: keep the kills
-        status = {**before, **{k: status.get(k, before[k]) for k in retest}}
+    if before and to_run:  # mutmut 3.3.1 rewrites its result files: keep the others' results
+        status = {**before, **{k: status.get(k, before[k]) for k in to_run}}
     (folder / "results.json").write_text(json.dumps(status, indent=1, sort_keys=True))
     ok = proc.returncode == 0 and bool(status)
     if not ok:
@@ -204,6 +236,7 @@ def summary(
     folder: Path,
 ) -> dict:
     """The table row of one module; with ``--survivors``, print each survivor's diff."""
+    status = only_functions(status, args.functions)
     counts = {s: sum(1 for v in status.values() if v == s) for s in set(status.values())}
     survivors = sorted(k for k, v in status.items() if v != KILLED)
     if args.survivors:
@@ -216,7 +249,7 @@ def summary(
             )
             print(f"-- {status[key]}: {key}\n{shown.stdout.strip()}\n", flush=True)
     return {
-        "module": name,
+        "module": name + (" (functions)" if args.functions else ""),
         "mutants": len(status),
         KILLED: counts.get(KILLED, 0),
         SURVIVED: counts.get(SURVIVED, 0),
@@ -232,12 +265,23 @@ def share(killed: int, total: int) -> str:
 
 
 def print_table(rows: list[dict]) -> None:
-    header = ("module", "mutants", KILLED, SURVIVED, TIMEOUT, NO_TESTS, "killed share", "min")
+    header = (
+        "module",
+        "killed/total",
+        "mutants",
+        KILLED,
+        SURVIVED,
+        TIMEOUT,
+        NO_TESTS,
+        "killed share",
+        "min",
+    )
     lines = [header]
     for r in rows:
         lines.append(
             (
                 r["module"] + ("" if r["ok"] else " (failed)"),
+                f"{r[KILLED]}/{r['mutants']}",
                 str(r["mutants"]),
                 str(r[KILLED]),
                 str(r[SURVIVED]),
@@ -251,6 +295,7 @@ def print_table(rows: list[dict]) -> None:
     lines.append(
         (
             "total",
+            f"{total[KILLED]}/{total['mutants']}",
             str(total["mutants"]),
             str(total[KILLED]),
             str(total[SURVIVED]),
@@ -282,6 +327,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--deselect", action="append", default=[], metavar="NODE_ID", help="a test not to run"
     )
+    parser.add_argument(
+        "--functions", nargs="+", default=[], metavar="NAME", help="only these functions' mutants"
+    )
+    parser.add_argument(
+        "--table", action="store_true", help="print the last saved results, run nothing"
+    )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
@@ -289,6 +340,15 @@ def main(argv: list[str] | None = None) -> None:
         return
     if args.max_children < 1:
         parser.error("--max-children must be at least 1")
+    if args.table:
+        rows = []
+        for name in args.modules:
+            folder = ROOT / "mutants" / name
+            if (folder / "results.json").exists():
+                status = statuses(folder, expand(MODULES[name][0]))
+                rows.append(summary(name, status, 0.0, ok=True, args=args, folder=folder))
+        print_table(rows)
+        return
     rows = [run_module(name, args) for name in args.modules]
     print()
     print_table(rows)
