@@ -65,7 +65,10 @@ MODULES: dict[str, tuple[list[str], list[str]]] = {
         ["src/ident/identify/preprocess.py"],
         ["tests/test_preprocess.py", "tests/test_preprocess_mutants.py"],
     ),
-    "accumulate": (["src/ident/identify/accumulate.py"], ["tests/test_accumulate.py"]),
+    "accumulate": (
+        ["src/ident/identify/accumulate.py"],
+        ["tests/test_accumulate.py", "tests/test_accumulate_mutants.py"],
+    ),
     "estimators": (
         ["src/ident/identify/estimators/*.py"],
         ["tests/test_estimators*.py"],
