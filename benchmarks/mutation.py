@@ -12,8 +12,9 @@ killed). Usage::
                                   [--functions NAME ...] [--table]
 
 ``--functions`` limits a run (and the module's counts) to the mutants of the named functions
-or methods (``lowpass``, ``ranges``): on a loaded machine a whole module can take too long,
-and the table then says ``(functions)`` after the module's name. ``--table`` prints the table
+or methods (``lowpass``, ``ranges``; ``least_squares._solve``: that module's only): on a
+loaded machine a whole module can take too long, and the table then says ``(functions)``
+after the module's name. ``--table`` prints the table
 of the modules' last saved results without running anything.
 
 mutmut 3 copies the tree into ``mutants/`` and imports it from there; each module gets its own
@@ -161,8 +162,13 @@ def statuses(folder: Path, paths: list[str], *, saved: bool = True) -> dict[str,
 def function_patterns(functions: list[str]) -> list[str]:
     """mutmut's name patterns (``fnmatch``) of the mutants of the named functions or methods:
     ``<module>.x_<name>__mutmut_<k>`` for a function, ``<module>.xǁ<Class>ǁ<name>__mutmut_<k>``
-    for a method."""
-    return [p for f in functions for p in (f"*.x_{f}__mutmut_*", f"*ǁ{f}__mutmut_*")]
+    for a method. ``least_squares._solve`` names the one of that module only."""
+    out = []
+    for f in functions:
+        module, _, name = f.rpartition(".")
+        prefix = f"*{module}." if module else "*."
+        out += [f"{prefix}x_{name}__mutmut_*", f"{prefix}xǁ*ǁ{name}__mutmut_*"]
+    return out
 
 
 def only_functions(status: dict[str, str], functions: list[str]) -> dict[str, str]:
