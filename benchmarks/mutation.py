@@ -37,6 +37,7 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -218,8 +219,13 @@ def run_module(name: str, args: argparse.Namespace) -> dict:
         log.write_text("nothing to run\n")
         return summary(name, before, 0.0, ok=True, args=args, folder=folder)
     with open(log, "w") as out:
+        # one BLAS thread per mutant: mutmut limits each mutant's CPU time (RLIMIT_CPU, all
+        # threads counted), and BLAS threads spinning on a loaded machine ran it out (numpy
+        # code then read "timeout"); also no BLAS thread pool inherited across mutmut's fork
+        threads = {k: "1" for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
         proc = subprocess.run(
             [sys.executable, __file__, "--worker", json.dumps(spec)],
+            env={**os.environ, **threads},
             cwd=folder,
             stdout=out,
             stderr=subprocess.STDOUT,
