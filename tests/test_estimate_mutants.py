@@ -87,7 +87,7 @@ def test_wls_is_idim_wls_written_out(passes):
     np.testing.assert_allclose(est.sigma, sigma_ref, rtol=1e-8)
     r = (y - W @ x_ref).reshape(-1, 2)
     np.testing.assert_allclose(est.residual_rms, np.sqrt((r**2).mean(axis=0)), rtol=1e-8)
-    assert est.method == "wls"
+    assert (est.method, est.message) == ("wls", "ok")
 
 
 def test_wls_sigmas_are_the_noise_levels_and_beat_ols():
@@ -127,6 +127,62 @@ def test_wls_noise_free_data_keeps_the_pooled_weight_and_says_so():
         "weight there."
     )
     assert est.success
+
+
+def test_wls_tiny_real_noise_is_weighted_and_noise_below_1e_10_is_not():
+    # the noise-free test is relative to each joint's torque RMS (1e-10): 1e-9 N*m of noise
+    # on torques of about 3 N*m is noise; 1e-8 N*m on torques of about 3000 N*m is not
+    W, _, x = _data(n_samples=500)
+    rng = np.random.default_rng(9)
+    tau = (W @ x).reshape(500, 2) + 1e-9 * rng.normal(size=(500, 2))
+    assert least_squares(W, tau, NAMES, method="wls").message == "ok"
+    big = 1000.0 * W
+    tau = (big @ x).reshape(500, 2) + 1e-8 * rng.normal(size=(500, 2))
+    assert (
+        "zero residual variance on group(s) 0, 1"
+        in least_squares(big, tau, NAMES, method="wls").message
+    )
+
+
+def test_wls_with_an_empty_group_and_a_one_row_group():
+    # a joint whose rows were all removed (velocity threshold) weighs nothing and has no
+    # sigma; a joint with a single row still counts
+    W, tau, _ = _data(n_samples=80)
+    y = tau.reshape(-1)
+    group = np.tile([0, 2], 80)
+    group[5] = 3  # one row of its own
+    x_ref, _, _ = _wls_reference(W, y, np.searchsorted([0, 2, 3], group), 2)
+    est = least_squares(W, y, NAMES, method="wls", groups=group)
+    assert est.message == "ok"
+    assert est.sigma.shape == (4,)
+    assert np.isnan(est.sigma[1])
+    assert np.all(np.isfinite(est.sigma[[0, 2, 3]]))
+    np.testing.assert_allclose(est.x, x_ref, rtol=1e-9)
+    assert np.all(np.isfinite(est.std))
+
+
+def test_reduced_least_squares_checks_its_input():
+    from ident.identify.estimate import least_squares_reduced
+    from ident.identify.observations import ReducedObservations
+
+    W, tau, _ = _data(n_samples=10)
+    red = ReducedObservations.from_rows(W, tau.reshape(-1), np.tile([0, 1], 10), 2)
+    with pytest.raises(DataError) as err:
+        least_squares_reduced(red, NAMES, method="gls")
+    assert str(err.value) == "method='gls' is not one of ols, wls."
+    with pytest.raises(DataError) as err:
+        least_squares_reduced(red, NAMES[:2])
+    assert str(err.value) == "2 names for 3 columns of W."
+    for field in ("R", "z"):
+        bad = red.R.copy() if field == "R" else red.z.copy()
+        bad.flat[0] = np.nan
+        broken = ReducedObservations(
+            **{"R": red.R, "z": red.z, "rho": red.rho, "yty": red.yty, "n_rows": red.n_rows}
+            | {field: bad}
+        )
+        with pytest.raises(DataError) as err:
+            least_squares_reduced(broken, NAMES)
+        assert str(err.value) == "reduced observations contain NaN/inf; clean or trim the log."
 
 
 def test_zero_parameter_has_infinite_relative_std():
