@@ -308,3 +308,26 @@ def test_rank_deficient_least_squares_raises_the_report():
     with pytest.raises(NotIdentifiable) as err:
         least_squares(W, tau, NAMES)
     assert str(err.value).startswith("parameters a, b, c enter the torques only")
+
+
+def test_reduced_least_squares_defaults_and_small_or_zero_torques():
+    from ident.identify.estimate import least_squares_reduced
+    from ident.identify.observations import ReducedObservations
+
+    W, tau, _ = _data(n_samples=40)
+    y = 1e-3 * tau.reshape(-1)  # torques of a small joint: ||tau|| below 1 N*m
+    red = ReducedObservations.from_rows(W, y, np.tile([0, 1], 40), 2)
+    ols = least_squares_reduced(red, NAMES)  # default: OLS
+    assert ols.method == "ols"
+    x, r = _ols(W, y)
+    assert ols.relative_residual == pytest.approx(np.linalg.norm(r) / np.linalg.norm(y))
+    assert ols.n_samples == 80  # default: the rows
+    # the default WLS is the two-pass one of least_squares
+    wls = least_squares_reduced(red, NAMES, method="wls")
+    ref = least_squares(W, y, NAMES, method="wls", groups=np.tile([0, 1], 40))
+    np.testing.assert_allclose(wls.x, ref.x, rtol=1e-10)
+    three = least_squares(W, y, NAMES, method="wls", groups=np.tile([0, 1], 40), wls_passes=3)
+    assert not np.allclose(wls.x, three.x, rtol=1e-12, atol=0)
+    # no torque at all: the relative residual is undefined, reported as inf
+    zero = ReducedObservations.from_rows(W, 0 * y, np.tile([0, 1], 40), 2)
+    assert least_squares_reduced(zero, NAMES).relative_residual == np.inf
