@@ -10,6 +10,7 @@ package; see benchmarks/mutation.py.)
 """
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -70,6 +71,8 @@ def test_registration_as_call_and_decorator_with_and_without_contract():
         assert register_estimator("toy_call", toy) is toy
         assert get_estimator("toy_call") is toy
         assert get_contract("toy_call") is UNCONSTRAINED  # promises nothing by default
+        ESTIMATORS["toy_raw"] = toy  # put in the table directly: promises nothing either
+        assert get_contract("toy_raw") is UNCONSTRAINED
         decorated = register_estimator("toy_deco", contract=promise)(toy)
         assert decorated is toy
         assert get_contract("toy_deco") is promise
@@ -77,7 +80,7 @@ def test_registration_as_call_and_decorator_with_and_without_contract():
             register_estimator("toy_deco", toy)
         assert get_contract("toy_deco") is promise  # the first registration stands
     finally:
-        for name in ("toy_call", "toy_deco"):
+        for name in ("toy_call", "toy_deco", "toy_raw"):
             ESTIMATORS.pop(name, None)
             CONTRACTS.pop(name, None)
 
@@ -124,6 +127,10 @@ def test_relative_residual_of_reduced_rows():
     x = np.array([0.5, 2.0, 3.5])
     r = tau - W @ x
     assert relative_residual(red, x) == pytest.approx(np.linalg.norm(r) / np.linalg.norm(tau))
+    small = ReducedObservations.from_rows(
+        1e-2 * W.reshape(-1, 3), 1e-2 * tau.reshape(-1), np.tile([0, 1], 120), 2
+    )  # ||tau||^2 below 1
+    assert relative_residual(small, x) == pytest.approx(np.linalg.norm(r) / np.linalg.norm(tau))
     empty = ReducedObservations.from_rows(np.zeros((4, 3)), np.zeros(4), np.zeros(4, int), 1)
     assert relative_residual(empty, x) == np.inf
 
@@ -137,7 +144,9 @@ def _shrinking(seen):
 
     def estimate(problem):
         seen.append((problem.regularization, problem.weights))
-        est = least_squares_reduced(problem.observations, problem.names, method="wls")
+        est = least_squares_reduced(
+            problem.observations, problem.names, method="wls", wls_passes=problem.wls_passes
+        )
         return dataclasses.replace(est, x=est.x / (1.0 + problem.regularization))
 
     return estimate
@@ -149,7 +158,7 @@ def test_prior_weight_is_the_smallest_within_tolerance_of_the_best():
     seen = []
     register_estimator("shrink", _shrinking(seen))
     try:
-        problem = EstimationProblem(red, ("a", "b", "c"))
+        problem = EstimationProblem(red, ("a", "b", "c"), wls_passes=3)
         grid = [1.0, 0.0, 1e-3, 0.02]  # unsorted on purpose
         choice = choose_regularization(problem, val, method="shrink", grid=grid, tolerance=0.0)
         np.testing.assert_array_equal(choice.grid, [0.0, 1e-3, 0.02, 1.0])
@@ -157,11 +166,14 @@ def test_prior_weight_is_the_smallest_within_tolerance_of_the_best():
         # weight, so the best is 0 and nothing else is within a zero tolerance
         assert np.all(np.diff(choice.validation_residual) > 0)
         assert choice.weight == 0.0
-        wls = least_squares_reduced(red, ("a", "b", "c"), method="wls")
+        wls = least_squares_reduced(red, ("a", "b", "c"), method="wls", wls_passes=3)
         for k, w in enumerate(choice.grid):
             x = wls.x / (1.0 + w)
             assert choice.validation_residual[k] == pytest.approx(relative_residual(val, x))
         np.testing.assert_allclose(choice.estimate.x, wls.x)
+        # what every estimate reported on the identification rows, kept with the choice
+        np.testing.assert_allclose(choice.identification_residual, [wls.relative_residual] * 4)
+        np.testing.assert_array_equal(choice.consistent, [False] * 4)
         # a looser tolerance admits more weights; the smallest admitted (0) is still chosen
         loose = choose_regularization(problem, val, method="shrink", grid=grid, tolerance=0.5)
         assert loose.weight == 0.0
@@ -186,7 +198,10 @@ def test_prior_weight_prefers_the_weakest_prior_that_predicts_as_well():
     def toward_truth(problem):
         est = least_squares_reduced(problem.observations, problem.names, method="wls")
         x = wls.x + offsets[problem.regularization]
-        return dataclasses.replace(est, x=x, success=problem.regularization != 10.0)
+        flag = (SimpleNamespace(consistent=problem.regularization >= 1.0),)
+        return dataclasses.replace(
+            est, x=x, success=problem.regularization != 10.0, consistency=flag
+        )
 
     register_estimator("toward", toward_truth)
     try:
@@ -198,6 +213,9 @@ def test_prior_weight_prefers_the_weakest_prior_that_predicts_as_well():
         best = choice.validation_residual[:3].min()
         assert choice.validation_residual[1] <= best * 1.01
         assert choice.weight == 0.1
+        np.testing.assert_array_equal(choice.consistent, [False, False, True, True])
+        # the default tolerance (0.5 %) chooses the same
+        assert choose_regularization(problem, val, method="toward", grid=grid).weight == 0.1
         strict = choose_regularization(problem, val, method="toward", grid=grid, tolerance=0.0)
         assert strict.weight == float(grid[int(np.argmin(strict.validation_residual))])
         with pytest.raises(ValueError, match=r"^grid must hold weights >= 0, got \[\]$"):
