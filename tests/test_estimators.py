@@ -188,6 +188,9 @@ def test_ols_reports_consistency_of_its_completion():
     est = get_estimator("ols")(problem)
     assert len(est.consistency) == 6
     np.testing.assert_allclose(problem.K @ est.theta, est.x, rtol=1e-8, atol=1e-10)
+    # each link named as the structure names it; the distance of that completion to the URDF
+    assert [c.body for c in est.consistency] == list(problem.structure.body_names)
+    assert est.distance_to_nominal == problem.structure.distance_to_nominal(est.theta)
 
 
 def test_regularization_choice_on_held_out_rows():

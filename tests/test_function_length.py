@@ -12,7 +12,6 @@ MAX_LINES = 80
 PACKAGES = ("identify", "run", "measure")
 
 
-
 def _long_functions() -> dict[tuple[str, str], int]:
     """``{(path relative to src/ident, name): lines}`` of every function over the limit."""
     root = REPO_ROOT / "src" / "ident"
@@ -30,4 +29,3 @@ def _long_functions() -> dict[tuple[str, str], int]:
 def test_no_function_over_80_lines_in_the_core_packages():
     found = _long_functions()
     assert not found, f"functions over {MAX_LINES} lines (split them): {found}"
-

@@ -5,6 +5,7 @@ References: the written ``trajectory.csv`` re-checked independently with plain P
 limits; and the paper's arm stage, whose trajectories go through the floor and the pedestal.
 """
 
+import json
 from pathlib import Path
 
 import coal
@@ -75,6 +76,9 @@ def test_the_papers_arm_stage_is_reported_unsafe_with_pair_and_time(tmp_path) ->
     run = _only(tmp_path)
     assert not (run / "trajectory.csv").exists()  # nothing a robot could be given
     assert (run / "result.json").is_file()  # the design data are kept for inspection
+    # configs/arm.yaml's verdict: refused (exit 1), "unsafe" however well it would identify
+    verdict = json.loads((run / "result.json").read_text(encoding="utf-8"))["verdict"]
+    assert verdict["label"] == "unsafe", verdict
 
 
 @pytest.mark.slow

@@ -64,6 +64,17 @@ def test_tiago_held_out_residual_beats_the_urdf_nominal(run):
     assert "held-out lmi: relative residual 0.111" in output
 
 
+def test_tiago_verdict_reads_as_its_numbers_say(run):
+    # usable: held-out residual 11 % (URDF nominal 925 %) predicts torques it was not fitted
+    # to; not good: the log's warnings (unexcited torso and wrist parameters) rule it out
+    output, _, summary, _ = run
+    v = summary["verdict"]
+    assert (v["label"], v["rule"]) == ("usable", "log"), v
+    assert 0.10 <= v["residual"] < 0.25, v
+    assert v["warnings"], v
+    assert f"verdict: {v['label']} ({v['reason']})" in output
+
+
 def test_tiago_consistent_model_is_written_and_reloads(run, tmp_path):
     _, folder, _, result = run
     consistent = result.consistent
