@@ -677,7 +677,10 @@ def _block_task(task: _Task, weights: FloatArray, block_samples: int) -> BlockEq
     p = order.size
     Yb = np.empty_like(c.Yb[:, :, :p])
     Yb[:, :, order] = c.Yb[:, :, :p]  # kernel order -> base order
-    return BlockEquations.from_samples(Yb, c.tau, keep, weights, block_samples)
+    rows = task.columns.rows  # the joints the model explains (``weights`` has one each)
+    return BlockEquations.from_samples(
+        Yb[:, rows], c.tau[:, rows], keep[:, rows], weights, block_samples
+    )
 
 
 def block_equations(
@@ -689,7 +692,8 @@ def block_equations(
     """The identification rows' weighted normal equations by consecutive blocks, in time
     order (a second pass over the chunks; :mod:`ident.identify.uncertainty`).
 
-    ``weights`` (nv,): per-joint row weights ``1 / sigma_j``. Blocks hold
+    ``weights``: per-joint row weights ``1 / sigma_j``, one per joint the model explains
+    (``pm.rows``, all nv by default). Blocks hold
     ``ceil(n_identification_samples / max_blocks)`` decimated samples (1 on short logs) and
     never cross a chunk boundary, so at most ``max_blocks + n_chunks`` blocks are kept.
     """
@@ -707,7 +711,10 @@ def _prediction_std_task(
     p = order.size
     Yb = np.empty_like(c.Yb[:, :, :p])
     Yb[:, :, order] = c.Yb[:, :, :p]
-    return {k: prediction_std(Yb, C, sigma) for k, C in covariances.items()}
+    rows = task.columns.rows  # ``sigma``: one per joint the model explains
+    full = np.zeros(rows.size)
+    full[rows] = sigma
+    return {k: prediction_std(Yb, C, full) for k, C in covariances.items()}
 
 
 def prediction_std_log(

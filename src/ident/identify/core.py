@@ -63,7 +63,13 @@ from ident.identify.reference import (
     read_reference,
     reference_weights,
 )
-from ident.identify.uncertainty import Uncertainty, coverage_summary, parameter_uncertainty
+from ident.identify.uncertainty import (
+    ParameterStd,
+    Uncertainty,
+    coverage_summary,
+    parameter_std,
+    parameter_uncertainty,
+)
 from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
 from ident.identify.verdict import truth_from_config
 from ident.model.selection import load_robot
@@ -180,6 +186,13 @@ class IdentifyResult:
         """``"ok"``, or ``"warning"`` when :attr:`warnings` is not empty."""
         return "warning" if self.warnings else "ok"
 
+    @property
+    def parameter_std(self) -> ParameterStd:
+        """The standard deviation of :attr:`estimate` every consumer reads: the default
+        interval method's, or the ordinary one when the log has too few blocks for it
+        (:func:`ident.identify.uncertainty.parameter_std`)."""
+        return parameter_std(self.estimate, self.uncertainty)
+
 
 def identify_measurements(
     cfg: IdentifyConfig,
@@ -277,7 +290,17 @@ def _identify(
     )
     problems = [
         *auto_warnings,
-        *_warnings(cfg, model, pm, est, cons, red, chunked, predictions, (tau_val, keep_val)),
+        *_warnings(
+            cfg,
+            model,
+            pm,
+            (est, extras["uncertainty"]),
+            cons,
+            red,
+            chunked,
+            predictions,
+            (tau_val, keep_val),
+        ),
         *extras.pop("friction_problem"),
     ]
     timings["total"] = time.perf_counter() - t0
@@ -756,14 +779,18 @@ def _warnings(
     cfg: IdentifyConfig,
     model: pin.Model,
     pm: ParameterModel,
-    est: Estimate,
+    estimated: tuple[Estimate, Uncertainty | None],
     cons: ConsistentIdentification,
     red: ReducedObservations,
     chunked: accumulate.ChunkedLog,
     predictions: dict[str, ModelPrediction],
     held_out: tuple[FloatArray, npt.NDArray[np.bool_]],
 ) -> list[str]:
-    """Held-out, sanity and consistency warnings of the result."""
+    """Held-out, sanity and consistency warnings of the result; ``estimated``: the
+    least-squares estimate and its robust covariances (the warnings read
+    :func:`~ident.identify.uncertainty.parameter_std`)."""
+    est, unc = estimated
+    sd = parameter_std(est, unc)
     identified = predictions["identified"]
     problems = held_out_warnings(
         identified.metrics.total_relative_residual,
@@ -778,8 +805,9 @@ def _warnings(
         units=sanity.joint_units(model),
         names=pm.base_names,
         x=est.x,
-        std=est.std,
-        relative_std=est.relative_std,
+        std=sd.std,
+        relative_std=sd.relative_std,
+        std_method=sd.method,
         projection=pm.base.projection,
         all_names=pm.names,
         column_norms=np.sqrt(np.einsum("gij,gij->j", red.R, red.R)),
