@@ -281,26 +281,14 @@ def _identify(
         tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
         comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
     extras = _timed_extras(timings, cfg, log, chunked, pm, est, joints, scheduler)
+    residual = tau_val - predictions["identified"].tau_pred
     extras["uncertainty_summary"] = _uncertainty_summary(
-        cfg,
-        extras["uncertainty"],
-        extras["prediction_std"],
-        tau_val - predictions["identified"].tau_pred,
-        keep_val,
+        cfg, extras["uncertainty"], extras["prediction_std"], residual, keep_val
     )
+    fit = (est, extras["uncertainty"])  # the warnings read its one σ
     problems = [
         *auto_warnings,
-        *_warnings(
-            cfg,
-            model,
-            pm,
-            (est, extras["uncertainty"]),
-            cons,
-            red,
-            chunked,
-            predictions,
-            (tau_val, keep_val),
-        ),
+        *_warnings(cfg, model, pm, fit, cons, red, chunked, predictions, (tau_val, keep_val)),
         *extras.pop("friction_problem"),
     ]
     timings["total"] = time.perf_counter() - t0
