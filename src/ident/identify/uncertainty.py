@@ -85,6 +85,7 @@ __all__ = [
     "Uncertainty",
     "andrews_bandwidth",
     "block_bootstrap",
+    "bootstrap_counts",
     "coverage_summary",
     "interval_coverage",
     "hac_covariance",
@@ -254,6 +255,24 @@ def hac_covariance(
     return x, 0.5 * (C + C.T), S
 
 
+def bootstrap_counts(
+    n_blocks: int, block_length: int, n_boot: int, rng: np.random.Generator | int | None
+) -> FloatArray:
+    """Multiplicity of every block in each moving-block resample, shape (n_boot, n_blocks).
+
+    Each resample draws ``ceil(n_blocks / L)`` runs of ``L = block_length`` (clipped to
+    ``[1, n_blocks]``) consecutive blocks, circularly, with uniform starts.
+    """
+    length = int(np.clip(block_length, 1, n_blocks))
+    n_runs = int(np.ceil(n_blocks / length))
+    gen = np.random.default_rng(rng)
+    starts = gen.integers(0, n_blocks, size=(n_boot, n_runs))
+    index = (starts[:, :, None] + np.arange(length)[None, None, :]) % n_blocks
+    counts = np.zeros((n_boot, n_blocks))
+    np.add.at(counts, (np.arange(n_boot)[:, None], index.reshape(n_boot, -1)), 1.0)
+    return counts
+
+
 def block_bootstrap(
     blocks: BlockEquations,
     block_length: int,
@@ -267,13 +286,7 @@ def block_bootstrap(
     """
     b = blocks.nonempty()
     n_b = b.n_blocks
-    length = int(np.clip(block_length, 1, n_b))
-    n_runs = int(np.ceil(n_b / length))
-    gen = np.random.default_rng(rng)
-    starts = gen.integers(0, n_b, size=(n_boot, n_runs))
-    index = (starts[:, :, None] + np.arange(length)[None, None, :]) % n_b
-    counts = np.zeros((n_boot, n_b))
-    np.add.at(counts, (np.arange(n_boot)[:, None], index.reshape(n_boot, -1)), 1.0)
+    counts = bootstrap_counts(n_b, block_length, n_boot, rng)
     n = b.A.shape[1]
     A = (counts @ b.A.reshape(n_b, -1)).reshape(n_boot, n, n)
     c = counts @ b.c

@@ -37,6 +37,8 @@ from ident.report.headline import Headline, headline_markdown
 from ident.report.model_section import model_section
 from ident.report.uncertainty_section import (
     interval_cell,
+    model_intervals_json,
+    model_intervals_markdown,
     uncertainty_json,
     uncertainty_markdown,
 )
@@ -268,6 +270,7 @@ def result_dict(
         out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)
     out["uncertainty"] = uncertainty_json(result)
+    out["model_intervals"] = model_intervals_json(result)
     out["verdict"] = verdict_entry(result)
     if result.friction is not None:
         out["friction_models"] = friction_models_entry(result)
@@ -408,6 +411,7 @@ def _markdown(
         "",
         *headline_markdown(_headline(result, urdf, model)),
         *model_section(model, urdf_name),
+        *model_intervals_markdown(result),
         "## Identified vs reference parameters",
         "",
         "![Identified base parameters: relative deviation from the reference (or the URDF's "
