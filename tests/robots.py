@@ -62,8 +62,10 @@ RP2_URDF = Path(__file__).resolve().parent / "data" / "urdf" / "rp2.urdf"
 RP2_RATE_HZ = 100.0
 
 
-def rp2_identify_config(tmp_path: Path) -> Path:
-    """A 12 s log of the revolute-prismatic rp2 arm (wide CSV) and its identify config."""
+def rp2_identify_config(tmp_path: Path, seed: int = 3) -> Path:
+    """A 12 s log of the revolute-prismatic rp2 arm (wide CSV) and its identify config;
+    ``seed``: of the measurement noise. The truth: the URDF's inertials, viscous friction
+    (0.4, 2.0) and Coulomb friction (0.3, 1.5)."""
     model = pin.buildModelFromUrdf(str(RP2_URDF))
     t = np.arange(int(12 * RP2_RATE_HZ)) / RP2_RATE_HZ
     w = 2.0 * np.pi * 0.25 * np.array([1.0, 2.0, 3.0])
@@ -71,7 +73,7 @@ def rp2_identify_config(tmp_path: Path) -> Path:
     amp = np.array([[0.6, 0.08], [0.3, 0.05], [0.15, 0.02]])
     s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
     q, dq, ddq = s @ amp, (c * w) @ amp, -(s * w**2) @ amp
-    m = simulate_measurements(model, t, q, dq, ddq, NoiseModel(torque_std=(0.02, 0.05)), rng=3)
+    m = simulate_measurements(model, t, q, dq, ddq, NoiseModel(torque_std=(0.02, 0.05)), rng=seed)
     tau = m.tau + np.array([0.4, 2.0]) * dq + np.array([0.3, 1.5]) * np.sign(dq)
     header = "t,q_shoulder,q_slider,tau_shoulder,tau_slider"
     rows = np.column_stack([t, m.q, tau])

@@ -71,9 +71,14 @@ def test_identify_slice_agrees_with_reference(tmp_path):
     data = json.loads((run / "result.json").read_text())
     # bound: the full log gives 0.052 (upstream's reference parameters: 0.052 too)
     assert data["relative_residual"] < 0.08
-    assert data["status"] == "ok"  # predicts the held-out part better than the URDF
-    assert data["warnings"] == []
-    assert "warning" not in result.output
+    # predicts the held-out part better than the URDF; on this 4 s slice (160 samples for 60
+    # parameters) the bootstrap σ of a few torque-carrying parameters exceeds 50 % (off2 74 %,
+    # 5.3 % of the torques; the full log's off2: 162 %), and the one warning says so (the
+    # ordinary σ, 2-8x too small, said nothing)
+    (warning,) = data["warnings"]
+    assert data["status"] == "warning"
+    assert "relative standard deviation (bootstrap) above 50 %" in warning
+    assert "off2 (" in warning
     assert data["n_base_parameters"] == 60  # as the reference
     assert (
         data["validation"]["identified"]["above_velocity_threshold"]["total_relative_residual"]

@@ -231,7 +231,8 @@ def _check_run_folder(run_dir):
     if v["worst_std_percent"] is not None:  # a simulated log: the section states the same σ
         std = _percent(rows["Worst relative std, torque-carrying parameters"])
         line = next(ln for ln in md.splitlines() if ln.startswith("Torque residual, held-out"))
-        assert f"of the torques: {std:g} % ({v['worst_std_name']})" in line
+        named = f"({v['worst_std_name']}; {v['std_method']} σ)"
+        assert f"of the torques: {std:g} % {named}" in line
         assert std == pytest.approx(v["worst_std_percent"], rel=1e-2)
     assert _warning_count(md, rows) == len(v["warnings"])
     # the optimizer the config names, in the summary and the details

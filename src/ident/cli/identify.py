@@ -74,6 +74,7 @@ def identify(
     t_start = time.monotonic()
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
+    from ident.identify.model_intervals import estimated_seconds
     from ident.identify.real import identify as run_identify
     from ident.identify.verdict import identify_verdict
     from ident.report.identify_report import (
@@ -143,6 +144,17 @@ def identify(
                 f"held-out {label}: relative residual {p.metrics.total_relative_residual:.4f}; "
                 f"RMSE per joint {rmse}"
             )
+        mi = result.model_intervals
+        if mi is not None:
+            nv = len(result.joint_names)
+            typer.echo(
+                f"intervals of the written model: {mi.n_boot} re-solves of the "
+                f"{mi.method.upper()} fit, {mi.seconds:.1f} s (estimated "
+                f"{estimated_seconds(mi.n_boot, nv):.1f} s; urdf_update.model_bootstrap: 0 "
+                "switches them off)"
+            )
+        elif result.model_intervals_note:
+            typer.echo(f"note: {result.model_intervals_note}", err=True)
         if result.friction is not None:
             f = result.friction
             ranked = ", ".join(f"{x.model} {x.held_out_residual:.4f}" for x in f.fits)

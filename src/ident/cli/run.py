@@ -232,6 +232,7 @@ def _summary(
     from rich.console import Console
     from rich.table import Table
 
+    from ident.identify.uncertainty import parameter_std
     from ident.report.run_report import error_measures
 
     console = Console()
@@ -268,10 +269,12 @@ def _summary(
         )
         if plan is not None:
             table.add_row("safety", plan.message)
+        unc = getattr(getattr(best.log, "result", None), "uncertainty", None)
         for method, est in best.estimates.items():
+            sd = parameter_std(est, unc)  # the one σ the report shows
             m = error_measures(
                 est.x,
-                est.std,
+                sd.std,
                 stage.true_base,
                 best.base_column_norms,
                 best.true_torque_norm,
@@ -282,7 +285,8 @@ def _summary(
                 method.upper(),
                 ("" if major is None else f"worst error {100 * major:.3g} % (major parameters), ")
                 + f"{100 * m['max_rel_error']:.3g} % (torque share >= 1e-4), "
-                + f"{100 * m['within_3std']:.0f} % within 3 std, cond {est.condition_number:.4g}",
+                + f"{100 * m['within_3std']:.0f} % within 3 std ({sd.method}), "
+                + f"cond {est.condition_number:.4g}",
             )
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")

@@ -692,7 +692,8 @@ def block_equations(
     """The identification rows' weighted normal equations by consecutive blocks, in time
     order (a second pass over the chunks; :mod:`ident.identify.uncertainty`).
 
-    ``weights`` (nv,): per-joint row weights ``1 / sigma_j``. Blocks hold
+    ``weights``: per-joint row weights ``1 / sigma_j``, one per joint the model explains
+    (``pm.rows``, all nv by default). Blocks hold
     ``ceil(n_identification_samples / max_blocks)`` decimated samples (1 on short logs) and
     never cross a chunk boundary, so at most ``max_blocks + n_chunks`` blocks are kept.
     """

@@ -452,11 +452,19 @@ class UrdfUpdateConfig(StrictModel):
     a base parameter determines alone and whose relative standard deviation is below
     ``max_relative_std_pct`` changed; a link that would become physically inconsistent keeps
     its nominal inertial.
+
+    ``model_bootstrap`` (default 30, 0 switches it off, at most 1000): resamples of the
+    moving-block bootstrap on which the written model's constrained fit is re-solved, for a
+    95 % interval on every written standard parameter (each about as long as the model's own
+    solve; the time is in ``run.json``'s timings).
     """
 
     model: Literal["consistent", "none"] = "consistent"
     cautious: bool = False
     max_relative_std_pct: float = Field(default=10.0, gt=0.0)
+    #: Re-solves of the written model's constrained fit for its intervals (0: none);
+    #: :mod:`ident.identify.model_intervals`.
+    model_bootstrap: int = Field(default=30, ge=0, le=1000)
 
 
 class IdentifyConfig(StrictModel):

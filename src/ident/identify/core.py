@@ -55,6 +55,7 @@ from ident.identify.estimators import (
 from ident.identify.friction_fit import FrictionComparison, compare_friction_models, friction_rows
 from ident.identify.identifiability import Identifiability, standard_identifiability
 from ident.identify.logs import RobotLog
+from ident.identify.model_intervals import ModelIntervals, model_intervals
 from ident.identify.motion import measured_motion
 from ident.identify.observations import ReducedObservations
 from ident.identify.reference import (
@@ -63,7 +64,14 @@ from ident.identify.reference import (
     read_reference,
     reference_weights,
 )
-from ident.identify.uncertainty import Uncertainty, coverage_summary, parameter_uncertainty
+from ident.identify.uncertainty import (
+    BlockEquations,
+    ParameterStd,
+    Uncertainty,
+    coverage_summary,
+    parameter_std,
+    parameter_uncertainty,
+)
 from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
 from ident.identify.verdict import truth_from_config
 from ident.model.selection import load_robot
@@ -144,6 +152,11 @@ class IdentifyResult:
     friction :
         With ``model.friction`` other than ``viscous_coulomb``: the friction models fitted
         (that one, or every one for ``auto``) and ranked by held-out fit; else None.
+    model_intervals :
+        Bootstrap intervals of the written model's standard parameters
+        (:mod:`ident.identify.model_intervals`, ``urdf_update.model_bootstrap`` re-solves), or
+        None (switched off, no model, too few blocks; ``model_intervals_note`` says why when
+        it failed).
     """
 
     config: IdentifyConfig
@@ -174,11 +187,20 @@ class IdentifyResult:
     uncertainty_summary: dict | None = None
     identifiability: Identifiability | None = None
     friction: FrictionComparison | None = None
+    model_intervals: ModelIntervals | None = None
+    model_intervals_note: str = ""
 
     @property
     def status(self) -> str:
         """``"ok"``, or ``"warning"`` when :attr:`warnings` is not empty."""
         return "warning" if self.warnings else "ok"
+
+    @property
+    def parameter_std(self) -> ParameterStd:
+        """The standard deviation of :attr:`estimate` every consumer reads: the default
+        interval method's, or the ordinary one when the log has too few blocks for it
+        (:func:`ident.identify.uncertainty.parameter_std`)."""
+        return parameter_std(self.estimate, self.uncertainty)
 
 
 def identify_measurements(
@@ -267,21 +289,20 @@ def _identify(
         vectors = _vectors(est, essential, cons, pm, identified_model)
         tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
         comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
-    extras = _timed_extras(timings, cfg, log, chunked, pm, est, joints, scheduler)
-    extras["uncertainty_summary"] = _uncertainty_summary(
-        cfg,
-        extras["uncertainty"],
-        extras["prediction_std"],
-        tau_val - predictions["identified"].tau_pred,
-        keep_val,
+    extras = _timed_extras(
+        timings, cfg, log, chunked, pm, (est, identified_model), joints, scheduler
     )
+    residual = tau_val - predictions["identified"].tau_pred
+    extras["uncertainty_summary"] = _uncertainty_summary(
+        cfg, extras["uncertainty"], extras["prediction_std"], residual, keep_val
+    )
+    fit = (est, extras["uncertainty"])  # the warnings read its one σ
     problems = [
         *auto_warnings,
-        *_warnings(cfg, model, pm, est, cons, red, chunked, predictions, (tau_val, keep_val)),
+        *_warnings(cfg, model, pm, fit, cons, red, chunked, predictions, (tau_val, keep_val)),
         *extras.pop("friction_problem"),
     ]
     timings["total"] = time.perf_counter() - t0
-    step = preprocess.decimation_step(cfg.preprocess)
     return IdentifyResult(
         config=cfg,
         log=log,
@@ -296,7 +317,7 @@ def _identify(
         comparison=tuple(comparison),
         reference_note=note,
         joint_names=tuple(joints),
-        sampling_rate_hz=log.sampling_rate_hz / step,
+        sampling_rate_hz=log.sampling_rate_hz / preprocess.decimation_step(cfg.preprocess),
         n_identify_rows=int(red.n_rows.sum()),
         timings=timings,
         reference_essential=tuple(reference_essential),
@@ -304,7 +325,6 @@ def _identify(
         consistent=cons,
         reduction=red,
         model=identified_model,
-        identifiability=_identifiability(pm),
         **extras,
     )
 
@@ -315,15 +335,23 @@ def _timed_extras(
     log: RobotLog,
     chunked: accumulate.ChunkedLog,
     pm: ParameterModel,
-    est: Estimate,
+    fits: tuple[Estimate, ConsistentIdentification | None],
     joints: list[str],
     scheduler: str | None,
 ) -> dict[str, Any]:
-    """The robust intervals, the friction-model comparison and the replay motion, timed:
+    """The robust intervals (of the least-squares estimate and of the written model ``fits``),
+    the friction-model comparison, the replay motion and what the data cannot see, timed:
     :class:`IdentifyResult` fields, plus ``friction_problem`` (warnings)."""
-    out: dict[str, Any] = {}
+    est, identified_model = fits
+    out: dict[str, Any] = {"identifiability": _identifiability(pm)}
     with _timed(timings, "uncertainty"):
-        out["uncertainty"], out["prediction_std"] = _uncertainty(chunked, est, scheduler)
+        out["uncertainty"], out["prediction_std"], blocks = _uncertainty(chunked, est, scheduler)
+    n_boot = cfg.urdf_update.model_bootstrap
+    if identified_model is not None and out["uncertainty"] is not None and n_boot > 0:
+        with _timed(timings, "model_intervals"):
+            out["model_intervals"], out["model_intervals_note"] = _model_intervals(
+                chunked, (est, identified_model), out["uncertainty"], blocks, n_boot, scheduler
+            )
     with _timed(timings, "friction_models"):
         out["friction"], out["friction_problem"] = _friction_models(cfg, chunked, pm)
     if cfg.model.friction == "viscous_coulomb":
@@ -412,20 +440,47 @@ def _predict(
 
 def _uncertainty(
     chunked: accumulate.ChunkedLog, est: Estimate, scheduler: str | None
-) -> tuple[Uncertainty | None, dict[str, FloatArray]]:
-    """HAC and block-bootstrap covariances of ``est`` and the held-out prediction standard
-    deviations of every interval method (none when the log has too few blocks)."""
+) -> tuple[Uncertainty | None, dict[str, FloatArray], BlockEquations | None]:
+    """HAC and block-bootstrap covariances of ``est``, the held-out prediction standard
+    deviations of every interval method and the block equations (none when the log has too
+    few blocks)."""
     sigma = np.asarray(est.sigma, dtype=float)
     weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
     try:
         blocks = accumulate.block_equations(chunked, weights, scheduler)
         unc = parameter_uncertainty(blocks, est.names, est.x, est.covariance, rng=0)
     except (DataError, np.linalg.LinAlgError):
-        return None, {}
+        return None, {}, None
     stds = accumulate.prediction_std_log(
         chunked, unc.covariance, np.nan_to_num(est.residual_rms), scheduler
     )
-    return unc, stds
+    return unc, stds, blocks
+
+
+def _model_intervals(
+    chunked: accumulate.ChunkedLog,
+    fits: tuple[Estimate, ConsistentIdentification],
+    unc: Uncertainty,
+    blocks: BlockEquations | None,
+    n_boot: int,
+    scheduler: str | None,
+) -> tuple[ModelIntervals | None, str]:
+    """The bootstrap of the written model's constrained fit
+    (:mod:`ident.identify.model_intervals`) with the base parameters' bootstrap run length;
+    the blocks are rebuilt when the model's row weights are not those of the least-squares
+    estimate (the first of ``fits``). None and the reason when it fails: the identification
+    is kept."""
+    est, identified = fits
+    weights = np.asarray(identified.problem.weights, dtype=float)
+    sigma = np.asarray(est.sigma, dtype=float)
+    ls_weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
+    try:
+        if blocks is None or not np.allclose(weights, ls_weights, rtol=1e-12, atol=0.0):
+            blocks = accumulate.block_equations(chunked, weights, scheduler)
+        length = int(np.ceil(unc.bandwidth))
+        return model_intervals(identified, blocks, length, n_boot=n_boot, rng=1), ""
+    except (DataError, np.linalg.LinAlgError, ValueError) as e:
+        return None, f"no intervals on the written model: {e}"
 
 
 def _uncertainty_summary(
@@ -756,14 +811,18 @@ def _warnings(
     cfg: IdentifyConfig,
     model: pin.Model,
     pm: ParameterModel,
-    est: Estimate,
+    estimated: tuple[Estimate, Uncertainty | None],
     cons: ConsistentIdentification,
     red: ReducedObservations,
     chunked: accumulate.ChunkedLog,
     predictions: dict[str, ModelPrediction],
     held_out: tuple[FloatArray, npt.NDArray[np.bool_]],
 ) -> list[str]:
-    """Held-out, sanity and consistency warnings of the result."""
+    """Held-out, sanity and consistency warnings of the result; ``estimated``: the
+    least-squares estimate and its robust covariances (the warnings read
+    :func:`~ident.identify.uncertainty.parameter_std`)."""
+    est, unc = estimated
+    sd = parameter_std(est, unc)
     identified = predictions["identified"]
     problems = held_out_warnings(
         identified.metrics.total_relative_residual,
@@ -778,8 +837,9 @@ def _warnings(
         units=sanity.joint_units(model),
         names=pm.base_names,
         x=est.x,
-        std=est.std,
-        relative_std=est.relative_std,
+        std=sd.std,
+        relative_std=sd.relative_std,
+        std_method=sd.method,
         projection=pm.base.projection,
         all_names=pm.names,
         column_norms=np.sqrt(np.einsum("gij,gij->j", red.R, red.R)),

@@ -20,6 +20,7 @@ from ident.identify import accumulate
 from ident.identify.config import IdentifyConfig
 from ident.identify.core import IdentifyResult, identify_measurements
 from ident.identify.logs import RobotLog, estimate_log, read_log
+from ident.identify.model_intervals import estimated_seconds
 from ident.inputs import JobEstimate, check_job
 from ident.model import Robot
 from ident.model.selection import load_robot
@@ -85,6 +86,20 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
     )
 
 
+def estimate_model_intervals(cfg: IdentifyConfig, nv: int) -> JobEstimate | None:
+    """The written model's bootstrap re-solves (``urdf_update.model_bootstrap``), or None when
+    there are none (:func:`ident.identify.model_intervals.estimated_seconds`)."""
+    n_boot = cfg.urdf_update.model_bootstrap if cfg.urdf_update.model != "none" else 0
+    if not n_boot:
+        return None
+    return JobEstimate(
+        f"intervals of the written model: {n_boot} re-solves of its fit "
+        "(urdf_update.model_bootstrap; 0 switches them off)",
+        0.0,
+        estimated_seconds(n_boot, nv),
+    )
+
+
 def identify(
     cfg: IdentifyConfig,
     *,
@@ -98,8 +113,10 @@ def identify(
     ``scheduler``: a dask.distributed scheduler address for the chunks of a long log.
     ``on_estimate``: called with the estimate of reading the log (from the files' sizes,
     :func:`ident.identify.logs.estimate_log`) before reading it, then with the memory and time
-    estimate (:func:`estimate_identify`) once the log is read, before the identification
-    (``ident identify`` prints them); each is checked against the ceilings first.
+    estimate (:func:`estimate_identify`) once the log is read, before the identification, and
+    with that of the written model's bootstrap (:func:`estimate_model_intervals`) when there is
+    one (``ident identify`` prints those above a minute); each is checked against the
+    ceilings first.
 
     Raises
     ------
@@ -117,8 +134,13 @@ def identify(
         on_estimate(reading)
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
     estimate = check_job(estimate_identify(cfg, log))
+    extra = estimate_model_intervals(cfg, log.q.shape[1])
+    if extra is not None:
+        check_job(extra)
     if on_estimate is not None:
         on_estimate(estimate)
+        if extra is not None:
+            on_estimate(extra)  # printed when above a minute
     return identify_measurements(
         cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
     )

@@ -20,6 +20,9 @@ written to the report and ``result.json``). Residuals are quoted in each joint's
   about the centre of mass not positive semi-definite or violating the triangle inequality)
   when no physically consistent parameters fit the torques as well
   (:func:`inconsistency_warnings`).
+
+The standard deviations are the result's one standard deviation (the default interval
+method's, :func:`ident.identify.uncertainty.parameter_std`), named in the sentences.
 """
 
 from __future__ import annotations
@@ -73,6 +76,7 @@ def result_warnings(
     keep_validate: npt.NDArray[np.bool_],
     max_relative_std_pct: float = MAX_RELATIVE_STD_PCT,
     min_contribution: float = MIN_CONTRIBUTION,
+    std_method: str = "ordinary",
 ) -> list[str]:
     """The warnings of the module docstring.
 
@@ -81,7 +85,9 @@ def result_warnings(
     joint_names, units :
         Per joint: name and torque unit (:func:`joint_units`).
     names, x, std, relative_std :
-        Base parameters: names, estimates (SI), standard deviations, relative std [%].
+        Base parameters: names, estimates (SI), standard deviations, relative std [%]: the
+        result's one standard deviation
+        (:func:`ident.identify.uncertainty.parameter_std`).
     projection :
         Base parameters as combinations of the standard ones, shape (n_base, n_all).
     all_names :
@@ -94,10 +100,12 @@ def result_warnings(
         Held-out measured and predicted torques, shape (n, nv).
     keep_validate :
         Held-out rows above the velocity threshold, shape (n, nv).
+    std_method :
+        The interval method of ``std`` (named in the warnings).
     """
     return [
         *_joint_warnings(joint_names, units, tau_validate, tau_pred, keep_validate),
-        *_negative_parameter_warnings(x, std, projection, all_names),
+        *_negative_parameter_warnings(x, std, projection, all_names, std_method),
         *_uncertain_parameter_warnings(
             names,
             x,
@@ -106,6 +114,7 @@ def result_warnings(
             tau_norm,
             max_relative_std_pct=max_relative_std_pct,
             min_contribution=min_contribution,
+            std_method=std_method,
         ),
     ]
 
@@ -141,7 +150,11 @@ def _joint_warnings(
 
 
 def _negative_parameter_warnings(
-    x: FloatArray, std: FloatArray, projection: FloatArray, all_names: tuple[str, ...]
+    x: FloatArray,
+    std: FloatArray,
+    projection: FloatArray,
+    all_names: tuple[str, ...],
+    std_method: str,
 ) -> list[str]:
     """Base parameters that are one non-negative standard parameter alone, estimated below
     zero by more than two standard deviations."""
@@ -154,8 +167,9 @@ def _negative_parameter_warnings(
             if value + 2.0 * std[k] * abs(row[members[0]]) < 0.0:
                 out.append(
                     f"{all_names[members[0]]} = {value:.4g} is negative (standard deviation "
-                    f"{std[k]:.3g}): physically impossible; the log or the model is wrong "
-                    "(joint not moving, wrong sign or unit of a signal, missing friction term)."
+                    f"{std[k]:.3g}, {std_method}): physically impossible; the log or the model "
+                    "is wrong (joint not moving, wrong sign or unit of a signal, missing "
+                    "friction term)."
                 )
     return out
 
@@ -169,6 +183,7 @@ def _uncertain_parameter_warnings(
     *,
     max_relative_std_pct: float,
     min_contribution: float,
+    std_method: str,
 ) -> list[str]:
     """One warning listing the base parameters that carry a significant part of the torques
     with a relative standard deviation above ``max_relative_std_pct``."""
@@ -186,7 +201,8 @@ def _uncertain_parameter_warnings(
     ) + (f" and {len(bad) - 6} more" if len(bad) > 6 else "")
     return [
         f"base parameter(s) {listed} carry a significant part of the torques but have a "
-        f"relative standard deviation above {max_relative_std_pct:g} %: the log does not "
+        f"relative standard deviation ({std_method}) above {max_relative_std_pct:g} %: the "
+        "log does not "
         "separate them; use a richer excitation before trusting them."
     ]
 

@@ -42,6 +42,13 @@ freedom for ~50 parameters: its long-run variance comes out low) and the ordinar
 Both are reported; where their standard deviations differ by more than
 :data:`DISAGREE_RATIO` the parameter is flagged.
 
+**One standard deviation everywhere.** Every consumer of a base parameter's standard
+deviation (the verdict's worst relative σ, the high-σ and negative-parameter warnings, the
+cautious URDF copy's ``urdf_update.max_relative_std_pct``, the reports' σ columns and
+``result.json``, the run report's "within 3σ") reads :func:`parameter_std`: the default
+method's standard deviation, or the ordinary one, with a note saying so, when the log has too
+few blocks for the bootstrap (:class:`ParameterStd`).
+
 Prediction intervals on held-out torques: ``tau_hat_kj +- z sqrt(r_kj^T C r_kj +
 sigma_j^2)`` with ``r_kj`` the base regressor row of sample k, joint j, and ``sigma_j`` the
 RMS of the identification residual of joint j (:func:`prediction_std`).
@@ -59,6 +66,7 @@ Annals of Statistics 1989.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -71,13 +79,17 @@ __all__ = [
     "DEFAULT_METHOD",
     "DISAGREE_RATIO",
     "METHODS",
+    "ORDINARY_NOTE",
     "BlockEquations",
+    "ParameterStd",
     "Uncertainty",
     "andrews_bandwidth",
     "block_bootstrap",
+    "bootstrap_counts",
     "coverage_summary",
     "interval_coverage",
     "hac_covariance",
+    "parameter_std",
     "parameter_uncertainty",
     "prediction_std",
     "z_value",
@@ -243,6 +255,24 @@ def hac_covariance(
     return x, 0.5 * (C + C.T), S
 
 
+def bootstrap_counts(
+    n_blocks: int, block_length: int, n_boot: int, rng: np.random.Generator | int | None
+) -> FloatArray:
+    """Multiplicity of every block in each moving-block resample, shape (n_boot, n_blocks).
+
+    Each resample draws ``ceil(n_blocks / L)`` runs of ``L = block_length`` (clipped to
+    ``[1, n_blocks]``) consecutive blocks, circularly, with uniform starts.
+    """
+    length = int(np.clip(block_length, 1, n_blocks))
+    n_runs = int(np.ceil(n_blocks / length))
+    gen = np.random.default_rng(rng)
+    starts = gen.integers(0, n_blocks, size=(n_boot, n_runs))
+    index = (starts[:, :, None] + np.arange(length)[None, None, :]) % n_blocks
+    counts = np.zeros((n_boot, n_blocks))
+    np.add.at(counts, (np.arange(n_boot)[:, None], index.reshape(n_boot, -1)), 1.0)
+    return counts
+
+
 def block_bootstrap(
     blocks: BlockEquations,
     block_length: int,
@@ -256,13 +286,7 @@ def block_bootstrap(
     """
     b = blocks.nonempty()
     n_b = b.n_blocks
-    length = int(np.clip(block_length, 1, n_b))
-    n_runs = int(np.ceil(n_b / length))
-    gen = np.random.default_rng(rng)
-    starts = gen.integers(0, n_b, size=(n_boot, n_runs))
-    index = (starts[:, :, None] + np.arange(length)[None, None, :]) % n_b
-    counts = np.zeros((n_boot, n_b))
-    np.add.at(counts, (np.arange(n_boot)[:, None], index.reshape(n_boot, -1)), 1.0)
+    counts = bootstrap_counts(n_b, block_length, n_boot, rng)
     n = b.A.shape[1]
     A = (counts @ b.A.reshape(n_b, -1)).reshape(n_boot, n, n)
     c = counts @ b.c
@@ -323,6 +347,67 @@ class Uncertainty:
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.maximum(a / b, b / a)
         return tuple(n for n, r in zip(self.names, ratio, strict=True) if r > DISAGREE_RATIO)
+
+
+#: What :attr:`ParameterStd.note` says when the ordinary standard deviation is used.
+ORDINARY_NOTE = (
+    "ordinary standard deviations (independent residuals; 2-8x too small on correlated "
+    "residuals, docs/uncertainty.md): {why}"
+)
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterStd:
+    """The standard deviation of the base parameters every consumer reads.
+
+    Attributes
+    ----------
+    std :
+        Standard deviations (SI, the parameters' units), shape (n,).
+    relative_std :
+        ``100 std / |x|`` [%], ``inf`` where ``x = 0``, shape (n,).
+    method :
+        ``"bootstrap"`` (:data:`DEFAULT_METHOD`), ``"hac"`` or ``"ordinary"``.
+    note :
+        Empty for a calibrated method; else why the ordinary standard deviation is used.
+    """
+
+    std: FloatArray
+    relative_std: FloatArray
+    method: str
+    note: str = ""
+
+    @property
+    def calibrated(self) -> bool:
+        """Whether the standard deviations account for correlated residuals."""
+        return self.method != "ordinary"
+
+
+def parameter_std(estimate: Any, unc: Uncertainty | None) -> ParameterStd:
+    """The one standard deviation of an ``estimate`` (module docstring).
+
+    ``estimate``: an :class:`~ident.identify.estimate.Estimate` (``x``, ``std``,
+    ``relative_std``, shape (n,)). ``unc``'s default method when ``unc`` was computed for this
+    very estimate (``unc.x`` equal to ``estimate.x``); else the estimate's ordinary standard
+    deviations with the reason in the note (``unc`` None: no bootstrap, too few blocks).
+    """
+    x = np.asarray(estimate.x, dtype=float)
+    if unc is not None and unc.x.shape == x.shape and np.array_equal(unc.x, x):
+        std = unc.std()
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rel = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
+        return ParameterStd(std=std, relative_std=rel, method=unc.method)
+    why = (
+        "no block-bootstrap covariance (too few blocks of identification rows for it)"
+        if unc is None
+        else "no calibrated interval for this estimate"
+    )
+    return ParameterStd(
+        std=np.asarray(estimate.std, dtype=float),
+        relative_std=np.asarray(estimate.relative_std, dtype=float),
+        method="ordinary",
+        note=ORDINARY_NOTE.format(why=why),
+    )
 
 
 def parameter_uncertainty(

@@ -16,7 +16,9 @@ Two kinds of evidence:
 - **no truth** (every real log): the held-out torque residual against the URDF nominal
   parameters' residual on the same rows, the worst relative standard deviation of the
   parameters that carry the torques (torque share >= ``MAJOR_SHARE`` on the identification
-  rows, computed from the estimate's covariance: :func:`covariance_torque_shares`), the
+  rows, computed from the estimate's covariance: :func:`covariance_torque_shares`; the σ is
+  the result's one standard deviation, the default interval method's:
+  :func:`ident.identify.uncertainty.parameter_std`), the
   physical consistency of the reported estimate, and the warnings.
 
 In both, an unsafe trajectory gives ``unsafe`` (never ``usable``) and a missing estimate gives
@@ -35,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.identify.metrics import MAJOR_SHARE, error_measures
+from ident.identify.uncertainty import parameter_std
 
 __all__ = [
     "GOOD_ERROR_PERCENT",
@@ -153,6 +156,9 @@ class Evidence:
         Truth known: worst relative error [%] of the major parameters and its name.
     worst_std_percent, worst_std_name :
         No truth: worst relative std [%] of the torque-carrying parameters and its name.
+    std_method :
+        The interval method of that std (``"bootstrap"``, or ``"ordinary"`` when the log has
+        too few blocks for it: :func:`ident.identify.uncertainty.parameter_std`).
     n_inconsistent, n_links :
         Links the reported estimate makes physically inconsistent, of ``n_links`` (None:
         not checked).
@@ -175,6 +181,7 @@ class Evidence:
     worst_error_name: str | None = None
     worst_std_percent: float | None = None
     worst_std_name: str | None = None
+    std_method: str | None = None
     n_inconsistent: int | None = None
     n_links: int | None = None
     warnings: tuple[str, ...] = field(default_factory=tuple)
@@ -238,8 +245,9 @@ def decide_verdict(e: Evidence) -> Verdict:
         return Verdict("not identified", "no torque prediction to judge", rule)
     std = math.inf if e.worst_std_percent is None else e.worst_std_percent
     std_text = f"worst σ {_pct(e.worst_std_percent)}"
-    if e.worst_std_name:
-        std_text += f" ({e.worst_std_name})"
+    named = [n for n in (e.worst_std_name, e.std_method) if n]
+    if named:
+        std_text += f" ({', '.join(named)})"
     nominal = e.nominal_residual
     nominal_text = "" if nominal is None else f", URDF nominal {_pct(100 * nominal)}"
     reason = "; ".join([f"{res_text}{nominal_text}, {std_text}", *notes])
@@ -329,7 +337,9 @@ def log_evidence(
     """
     est = result.estimate
     x = np.asarray(est.x, dtype=float)
-    rel = np.asarray(est.relative_std, dtype=float)
+    sd = parameter_std(est, getattr(result, "uncertainty", None))
+    rel = sd.relative_std
+    # the ordinary covariance's inverse is the Gram matrix of the rows: shares, not a σ
     shares = covariance_torque_shares(x, np.asarray(getattr(est, "covariance", ()), dtype=float))
     carrying = shares >= MAJOR_SHARE if np.all(np.isfinite(shares)) else np.ones(x.size, bool)
     worst_std, worst_std_name = None, None
@@ -352,6 +362,7 @@ def log_evidence(
         else float(nominal.metrics.total_relative_residual),
         worst_std_percent=worst_std,
         worst_std_name=worst_std_name,
+        std_method=sd.method,
         n_inconsistent=n_bad,
         n_links=n_links,
         warnings=(*extra_warnings, *result.warnings),
@@ -359,7 +370,7 @@ def log_evidence(
         method=method,
     )
     if truth is not None:
-        err = truth_error(x, np.asarray(est.std, dtype=float), est.names, truth)
+        err = truth_error(x, sd.std, est.names, truth)
         if err is not None:
             evidence = dataclasses.replace(
                 evidence, worst_error_percent=err[0], worst_error_name=err[1]

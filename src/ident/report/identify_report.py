@@ -37,6 +37,8 @@ from ident.report.headline import Headline, headline_markdown
 from ident.report.model_section import model_section
 from ident.report.uncertainty_section import (
     interval_cell,
+    model_intervals_json,
+    model_intervals_markdown,
     uncertainty_json,
     uncertainty_markdown,
 )
@@ -109,14 +111,16 @@ def torque_png(result: IdentifyResult) -> bytes:
 def identified_urdf(result: IdentifyResult) -> UrdfUpdate:
     """The cautious URDF copy (``urdf_update.cautious``, ``<urdf>_cautious.urdf``): the standard
     parameters that base parameters determine alone, where their relative std is below
-    ``urdf_update.max_relative_std_pct`` and the link stays consistent."""
+    ``urdf_update.max_relative_std_pct`` and the link stays consistent. The relative std is
+    the result's one standard deviation (:attr:`IdentifyResult.parameter_std`)."""
     pm = result.parameters
     est = result.estimate
+    rel = result.parameter_std.relative_std  # the one σ (default interval method)
     identified = {}
     for k, i in enumerate(pm.base.independent):
         alone = not pm.base_names[k].endswith("R") and pm.inertial_index[i] >= 0
         if alone:
-            identified[pm.names[i]] = (float(est.x[k]), float(est.relative_std[k]))
+            identified[pm.names[i]] = (float(est.x[k]), float(rel[k]))
     from ident.dynamics.parameters import parameters_from_model
     from ident.model.selection import load_robot
 
@@ -196,6 +200,7 @@ def result_dict(
     entry (:func:`~ident.identify.model_files.save_identified_model`)."""
     pm = result.parameters
     est = result.estimate
+    sd = result.parameter_std
     expressions = pm.base.expressions()
     essential = result.essential
     out = {
@@ -213,13 +218,17 @@ def result_dict(
         "message": est.message,
         "status": result.status,
         "warnings": list(result.warnings),
+        # std / relative_std_pct: the one σ every part of the result uses (std_method)
+        "std_method": sd.method,
+        "std_note": sd.note,
         "base_parameters": [
             {
                 "name": name,
                 "expression": expr,
                 "value": float(est.x[k]),
-                "std": float(est.std[k]),
-                "relative_std_pct": _finite(est.relative_std[k]),
+                "std": float(sd.std[k]),
+                "relative_std_pct": _finite(sd.relative_std[k]),
+                "ordinary_std": float(est.std[k]),
                 "nominal": float(pm.base.projection[k] @ pm.nominal),
             }
             for k, (name, expr) in enumerate(zip(pm.base_names, expressions, strict=True))
@@ -261,6 +270,7 @@ def result_dict(
         out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)
     out["uncertainty"] = uncertainty_json(result)
+    out["model_intervals"] = model_intervals_json(result)
     out["verdict"] = verdict_entry(result)
     if result.friction is not None:
         out["friction_models"] = friction_models_entry(result)
@@ -364,6 +374,7 @@ def verdict_entry(result: IdentifyResult) -> dict:
         "worst_error_name": e.worst_error_name,
         "worst_std_percent": _finite_or_none(e.worst_std_percent),
         "worst_std_name": e.worst_std_name,
+        "std_method": e.std_method,
         "n_inconsistent": e.n_inconsistent,
         "n_links": e.n_links,
         "warnings": list(e.warnings),
@@ -400,6 +411,7 @@ def _markdown(
         "",
         *headline_markdown(_headline(result, urdf, model)),
         *model_section(model, urdf_name),
+        *model_intervals_markdown(result),
         "## Identified vs reference parameters",
         "",
         "![Identified base parameters: relative deviation from the reference (or the URDF's "
@@ -457,10 +469,14 @@ def _markdown(
             + " |"
         )
     lines += ["", *friction_models_lines(result)]
+    sd = result.parameter_std
     lines += [
         "## Base parameters",
         "",
         result.reference_note,
+        "",
+        f"σ: the {sd.method} standard deviation, the one the verdict, the warnings and the "
+        "cautious URDF copy use (docs/uncertainty.md)" + (f"; {sd.note}." if sd.note else "."),
         "",
         "| # | base parameter | unit | value | σ [%] | 95 % interval | reference | ref. σ [%] | "
         "URDF nominal | expression |",
@@ -477,7 +493,7 @@ def _markdown(
         nominal = 0.0 if abs(nominal) < 1e-12 else nominal
         lines.append(
             f"| {k + 1} | {name} | {parameter_unit(name, units) or '-'} | {_num(est.x[k])} | "
-            f"{_num(est.relative_std[k], 3)} | {interval_cell(result, k)} | {ref} | "
+            f"{_num(sd.relative_std[k], 3)} | {interval_cell(result, k)} | {ref} | "
             f"{ref_std} | {_num(nominal)} | `{expressions[k]}` |"
         )
     sums = [row for row in result.comparison if row["match"] == "coupling basis"]
@@ -567,7 +583,8 @@ def _truth_section(result: IdentifyResult) -> list[str]:
     est = result.estimate
     if truth is None or tuple(est.names) != truth.names:
         return []
-    m = error_measures(est.x, est.std, truth.values, reference_share=truth.reference_share)
+    sd = result.parameter_std
+    m = error_measures(est.x, sd.std, truth.values, reference_share=truth.reference_share)
     lines = [
         "",
         "## Major parameters against the simulator's truth",
@@ -583,7 +600,7 @@ def _truth_section(result: IdentifyResult) -> list[str]:
         if major:
             lines.append(
                 f"| {est.names[k]} | {_num(float(truth.values[k]))} | {_num(float(est.x[k]))} | "
-                f"{_num(float(est.relative_std[k]), 3)} | "
+                f"{_num(float(sd.relative_std[k]), 3)} | "
                 f"{_num(m['rel_error_percent'][k], 3)} |"
             )
     return lines
@@ -714,6 +731,7 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
 def _parameters_csv(result: IdentifyResult) -> str:
     pm = result.parameters
     est = result.estimate
+    sd = result.parameter_std
     units = joint_torque_units(result)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -724,8 +742,8 @@ def _parameters_csv(result: IdentifyResult) -> str:
                 pm.base_names[k],
                 repr(float(est.x[k])),
                 parameter_unit(pm.base_names[k], units),
-                repr(float(est.std[k])),
-                repr(float(est.relative_std[k])),
+                repr(float(sd.std[k])),
+                repr(float(sd.relative_std[k])),
                 expr,
             ]
         )
@@ -873,7 +891,8 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
             f"Worst relative std, parameters carrying >= {100 * MAJOR_SHARE:g} % of the torques",
             "—"
             if v["worst_std_percent"] is None
-            else f"σ {pct(v['worst_std_percent'])} ({v['worst_std_name']})",
+            else f"σ {pct(v['worst_std_percent'])} ({v['worst_std_name']}; "
+            f"{v.get('std_method') or 'ordinary'} σ)",
         ),
     ]
     truth = v["rule"] == "truth"
@@ -926,7 +945,7 @@ def parameters_figure(result: IdentifyResult) -> bytes:
     return parameters_png(
         list(pm.base_names),
         est.x,
-        est.std,
+        result.parameter_std.std,
         np.where(ok, ref, 0.0),
         include=ok,
         reference_label=label,

@@ -36,7 +36,7 @@ import yaml
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
 from ident.identify.metrics import MAJOR_SHARE, _arr, _num, error_measures
-from ident.identify.uncertainty import interval_coverage
+from ident.identify.uncertainty import interval_coverage, parameter_std
 from ident.report.paper import _paper_comparison, _paper_counts
 from ident.report.run_verdict import verdict_entry
 from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
@@ -141,11 +141,14 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     elites = []
     for e in result.elites:
         estimates = {}
+        unc = getattr(getattr(e.log, "result", None), "uncertainty", None)
         for method, est in e.estimates.items():
+            sd = parameter_std(est, unc)  # the one σ (a simulated log's bootstrap)
             entry = {
                 "x": _arr(est.x),
-                "std": _arr(est.std),
-                "relative_std_percent": _arr(est.relative_std),
+                "std": _arr(sd.std),
+                "relative_std_percent": _arr(sd.relative_std),
+                "std_method": sd.method,
                 "condition_number": _num(est.condition_number),
                 "residual_rms": _arr(est.residual_rms),
                 "relative_residual": _num(est.relative_residual),
@@ -157,15 +160,14 @@ def result_to_dict(result: Any) -> dict[str, Any]:
                 entry.update(
                     error_measures(
                         est.x,
-                        est.std,
+                        sd.std,
                         stage.true_base,
                         e.base_column_norms,
                         e.true_torque_norm,
                         stage.reference_share,
                     )
                 )
-                unc = getattr(getattr(e.log, "result", None), "uncertainty", None)
-                if unc is not None and np.array_equal(unc.x, est.x):  # a simulated log's
+                if sd.calibrated and unc is not None:  # a simulated log's
                     entry["within_95_interval"] = interval_coverage(unc, stage.true_base)
                     entry["interval_method"] = unc.method
             estimates[method] = entry

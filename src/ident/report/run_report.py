@@ -354,7 +354,8 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
                 "Estimate",
                 f"{method.upper()} on elite {elite['rank']} (fitness {_fmt(elite['fitness'])}), "
                 f"{len(names)} base parameters, "
-                f"{100 * (est.get('within_3std') or 0):.0f} % within 3σ of the true value"
+                f"{100 * (est.get('within_3std') or 0):.0f} % within 3σ of the true value "
+                f"({est.get('std_method') or 'ordinary'} σ)"
                 + (
                     f", {100 * est['within_95_interval']:.0f} % inside their 95 % interval "
                     f"({est['interval_method']}, docs/uncertainty.md)"
@@ -367,7 +368,8 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
         extra.append(
             [
                 "Worst relative std, torque-carrying parameters",
-                f"σ {pct(v['worst_std_percent'])} ({v.get('worst_std_name')})",
+                f"σ {pct(v['worst_std_percent'])} ({v.get('worst_std_name')}; "
+                f"{v.get('std_method') or 'ordinary'} σ)",
             ]
         )
     if est and est.get("message") not in (None, "ok"):
@@ -501,7 +503,8 @@ def _parameter_section(
         md += [
             f"{label}: {text}. Physical consistency: {_consistency_text(data, v)}. Worst "
             f"relative std of the parameters carrying >= {100 * MAJOR_SHARE:g} % of the "
-            f"torques: {pct(v.get('worst_std_percent'))} ({v.get('worst_std_name')}).",
+            f"torques: {pct(v.get('worst_std_percent'))} ({v.get('worst_std_name')}; "
+            f"{v.get('std_method') or 'ordinary'} σ).",
             "",
         ]
     if "figures/parameters.png" in figures:
@@ -554,7 +557,8 @@ def _parameter_section(
             f"Relative residual {pct(100 * (est['relative_residual'] or 0))}, RMS per joint "
             f"{', '.join(f'{_fmt(v)} {u}' for v, u in rms)}; condition number "
             f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
-            f"errors within 3σ. {'' if est['message'] == 'ok' else est['message']}",
+            f"errors within 3σ ({est.get('std_method') or 'ordinary'} σ). "
+            f"{'' if est['message'] == 'ok' else est['message']}",
             "",
         ]
         md += _table(
@@ -575,7 +579,9 @@ def _parameter_section(
         )
     md += [
         "Units SI; a base parameter has the unit of the parameter it is named after. "
-        "σ: standard deviation of the estimate; σ [%] = σ / |identified|. Error [%] = "
+        "σ: standard deviation of the estimate (the moving-block bootstrap's on a simulated "
+        "log, the ordinary one otherwise: the method is named above, docs/uncertainty.md); "
+        "σ [%] = σ / |identified|. Error [%] = "
         "|identified - true| / |true|, shown as — where the true value is zero up to "
         f"round-off. Major: torque share >= {100 * MAJOR_SHARE:g} % on the stage's reference "
         "motion (the same set for every trajectory); torque share: the part of the stage's "

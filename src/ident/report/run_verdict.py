@@ -154,6 +154,7 @@ def _entry(
         "worst_error_name": e.worst_error_name,
         "worst_std_percent": _finite(e.worst_std_percent),
         "worst_std_name": e.worst_std_name,
+        "std_method": e.std_method,
         "n_inconsistent": e.n_inconsistent,
         "n_links": e.n_links,
         "warnings": list(e.warnings),

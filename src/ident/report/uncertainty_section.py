@@ -11,7 +11,13 @@ from typing import Any
 
 from ident.identify.uncertainty import z_value
 
-__all__ = ["interval_cell", "uncertainty_json", "uncertainty_markdown"]
+__all__ = [
+    "interval_cell",
+    "model_intervals_json",
+    "model_intervals_markdown",
+    "uncertainty_json",
+    "uncertainty_markdown",
+]
 
 _LABELS = {
     "ordinary": "ordinary (independent residuals)",
@@ -125,3 +131,68 @@ def uncertainty_markdown(result: Any) -> list[str]:
             *([f"- not seen at all: {', '.join(unseen)}"] if unseen else []),
         ]
     return lines
+
+
+def _seen(result: Any, name: str) -> str | None:
+    """What the data see of standard parameter ``name``: alone, combination, none (None if
+    unknown)."""
+    ident = result.identifiability
+    if ident is None or name not in ident.names:
+        return None
+    return str(ident.kind[list(ident.names).index(name)])
+
+
+def model_intervals_json(result: Any) -> dict | None:
+    """``result.json``'s ``model_intervals``: the bootstrap of the written model's constrained
+    fit (:mod:`ident.identify.model_intervals`), every written standard parameter's value, σ
+    and 95 % interval, and what the data see of it (no times: those are in ``run.json``)."""
+    mi = result.model_intervals
+    if mi is None:
+        note = getattr(result, "model_intervals_note", "")
+        return {"note": note} if note else None
+    lo_hi = mi.interval(0.95)
+    return {
+        "method": mi.method,
+        "n_boot": mi.n_boot,
+        "n_failed": mi.n_failed,
+        "block_length_blocks": mi.block_length,
+        "level": 0.95,
+        "parameters": [
+            {
+                "name": name,
+                "value": float(mi.theta[i]),
+                "std": float(mi.std[i]),
+                "interval_95": [float(lo_hi[i, 0]), float(lo_hi[i, 1])],
+                "seen": _seen(result, name),
+            }
+            for i, name in enumerate(mi.names)
+        ],
+    }
+
+
+def model_intervals_markdown(result: Any) -> list[str]:
+    """The model section's table of the written standard parameters with their intervals."""
+    mi = result.model_intervals
+    if mi is None:
+        note = getattr(result, "model_intervals_note", "")
+        return [f"Intervals of the written model: {note}.", ""] if note else []
+    lo_hi = mi.interval(0.95)
+    lines = [
+        f"95 % intervals of the written standard parameters: {mi.n_boot} moving-block "
+        f"bootstrap resamples (runs of {mi.block_length} blocks, as the base parameters'), "
+        f"the {mi.method.upper()} fit re-solved on each"
+        + (f" ({mi.n_failed} failed, left out)" if mi.n_failed else "")
+        + "; value ± 1.96 σ of the re-estimates (docs/uncertainty.md). *Seen*: alone, the "
+        "interval is on the parameter; in combination or not seen, the prior (the URDF) "
+        "decides the value along what the data do not see, and the interval is the written "
+        "value's spread, not an interval on the true one.",
+        "",
+        "| parameter | value | σ | 95 % interval | seen by the data |",
+        "| :--- | ---: | ---: | ---: | :--- |",
+    ]
+    lines += [
+        f"| {n} | {mi.theta[i]:.4g} | {mi.std[i]:.2g} | [{lo_hi[i, 0]:.4g}, {lo_hi[i, 1]:.4g}] "
+        f"| {_seen(result, n) or '-'} |"
+        for i, n in enumerate(mi.names)
+    ]
+    return [*lines, ""]

@@ -27,6 +27,7 @@ from ident.identify.config import (
     ModelConfig,
     PreprocessConfig,
     ReferenceConfig,
+    UrdfUpdateConfig,
     ValidationConfig,
 )
 from ident.identify.core import identify_measurements
@@ -109,6 +110,7 @@ def ideal_identify_config(config: RunConfig) -> IdentifyConfig:
         estimation=estimation,
         validation=ValidationConfig(identify_fraction=1.0),
         reference=ReferenceConfig(),
+        urdf_update=UrdfUpdateConfig(model_bootstrap=0),  # a run shows no model intervals
         source=None,
     )
 

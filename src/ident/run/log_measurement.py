@@ -28,7 +28,13 @@ from ident.dynamics.friction import ExtraTerms, extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
-from ident.identify.config import IdentifyConfig, LogConfig, TransmissionConfig, TruthConfig
+from ident.identify.config import (
+    IdentifyConfig,
+    LogConfig,
+    TransmissionConfig,
+    TruthConfig,
+    UrdfUpdateConfig,
+)
 from ident.identify.core import IdentifyResult, identify_measurements
 from ident.identify.logs import read_log
 from ident.measure.mujoco_config import MujocoMeasurement, per_joint
@@ -242,7 +248,10 @@ def measure_and_identify(
         section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))
         cfg = identify_config(config, section)
         read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
-    result = identify_measurements(cfg, read, model=robot.model)
+    # the written model's bootstrap is `ident identify`'s (on elites/elite_<k>/identify.yaml):
+    # a run does not show it, and would pay its re-solves for every elite
+    quick = cfg.model_copy(update={"urdf_update": UrdfUpdateConfig(model_bootstrap=0)})
+    result = identify_measurements(quick, read, model=robot.model)
     return LogOutcome(log=log, result=result, config=cfg)
 
 
