@@ -91,8 +91,8 @@ def test_identify_writes_the_consistent_model_by_default_and_the_cautious_copy_o
         bodies = np.array([reloaded.inertias[j].toDynamicParameters() for j in (1, 2, 3)])
         assert np.allclose(bodies, theta[index], rtol=1e-9, atol=1e-12) is same
     report = (tmp_path / "report.md").read_text()
-    assert "| `arm3_identified.urdf` | **the identified model**" in report
-    assert "| `arm3_cautious.urdf` | the cautious copy" in report
+    assert "- `arm3_identified.urdf`: **the identified model**" in report
+    assert "- `arm3_cautious.urdf`: the cautious copy" in report
 
 
 def test_model_none_writes_no_model_and_says_so(wide, tmp_path):

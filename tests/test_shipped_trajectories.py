@@ -49,8 +49,8 @@ VERDICTS = {
     "wrist": ("not identified", "major parameters off by several times their value"),
     # Fourier wrist: worst major error 11 %, residual 22.7 % (the torque noise)
     "wrist-fourier": ("usable", "major parameters within 20 %, residual below 25 %"),
-    # Fourier arm: worst major error 8.1 % (Ixz2R), residual 0.9 %
-    "arm-fourier": ("usable", "major parameters within 20 % but not 5 %"),
+    # Fourier arm: worst major error 2.33 % (mcy2), residual 0.86 %
+    "arm-fourier": ("good", "major parameters within 5 %, residual below 10 %"),
     # box-limited wrist: worst major error 98 % (Izz6), residual 21.6 %
     "wrist-box": ("not identified", "a major parameter off by almost its value"),
     # box-limited arm, executed elite 4: worst major error 19.3 %, residual 1.8 %
