@@ -25,6 +25,7 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
+from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.friction_models import AUTO, get_friction_model
 from ident.errors import ConfigError, DataError
 from ident.identify.estimators import get_contract, get_estimator
@@ -323,6 +324,21 @@ class ModelConfig(StrictModel):
         if value is not None and len(value) != 2:
             raise ValueError("coupled_wrist takes two 1-based joints, e.g. [5, 6]")
         return value
+
+    def extra_terms(self, nv: int, source: str) -> ExtraTerms:
+        """The regressor's columns beyond the rigid bodies that this section asks for, for a
+        robot of ``nv`` joints (:class:`ConfigError` naming ``source`` when they do not fit)."""
+        try:
+            return ExtraTerms.from_options(
+                nv,
+                rotor_inertia=self.rotor_inertia,
+                viscous=self.viscous,
+                coulomb=self.coulomb,
+                offset=self.offset,
+                coupled_wrist=self.coupled_wrist,
+            )
+        except ConfigError as e:
+            raise ConfigError(f"{source}: {e}") from e
 
 
 class EssentialConfig(StrictModel):

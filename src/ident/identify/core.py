@@ -40,7 +40,6 @@ import pinocchio as pin
 from threadpoolctl import threadpool_limits
 
 from ident.dynamics.chain import chain_from_model
-from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.errors import ConfigError, DataError, NotIdentifiable
 from ident.identify import accumulate, preprocess, sanity
@@ -546,18 +545,7 @@ def _resolve_settings(
 def _parameter_model(
     cfg: IdentifyConfig, model: pin.Model, source: str, rng: int
 ) -> ParameterModel:
-    m = cfg.model
-    try:
-        terms = ExtraTerms.from_options(
-            model.nv,
-            rotor_inertia=m.rotor_inertia,
-            viscous=m.viscous,
-            coulomb=m.coulomb,
-            offset=m.offset,
-            coupled_wrist=m.coupled_wrist,
-        )
-    except ConfigError as e:
-        raise ConfigError(f"{source}: {e}") from e
+    terms = cfg.model.extra_terms(model.nv, source)
     return build_parameter_model(model, terms, rng=rng)
 
 

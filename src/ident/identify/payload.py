@@ -422,18 +422,7 @@ def identify_payload(
             f"{source}: preprocess.velocity_threshold has {len(pp.velocity_threshold)} values, "
             f"the robot has {model.nv} joints; give one per joint [rad/s]."
         )
-    m = cfg.model
-    try:
-        terms = ExtraTerms.from_options(
-            model.nv,
-            rotor_inertia=m.rotor_inertia,
-            viscous=m.viscous,
-            coulomb=m.coulomb,
-            offset=m.offset,
-            coupled_wrist=m.coupled_wrist,
-        )
-    except ConfigError as e:
-        raise ConfigError(f"{source}: {e}") from e
+    terms = cfg.model.extra_terms(model.nv, source)
     chain = chain_from_model(model)
     theta_arm = parameters_from_model(model)
     t1 = time.perf_counter()

@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ModelError
+from ident.robot.inertia import URDF_INERTIA_ENTRIES
 
 __all__ = [
     "ElementSpan",
@@ -190,15 +191,7 @@ def inertial_text(mass: float, com: FloatArray, inertia: FloatArray, indent: str
     inner = indent + step
     xyz = " ".join(_fmt(c) for c in com)
     moments = " ".join(
-        f'{key}="{_fmt(inertia[i, j])}"'
-        for key, (i, j) in {
-            "ixx": (0, 0),
-            "ixy": (0, 1),
-            "ixz": (0, 2),
-            "iyy": (1, 1),
-            "iyz": (1, 2),
-            "izz": (2, 2),
-        }.items()
+        f'{key}="{_fmt(inertia[i, j])}"' for key, (i, j) in URDF_INERTIA_ENTRIES.items()
     )
     return (
         "<inertial>\n"

@@ -35,7 +35,7 @@ import pinocchio as pin
 from ident.errors import ModelError
 from ident.measure.mujoco_config import PayloadConfig
 from ident.model import Robot
-from ident.robot.inertia import com_and_inertia
+from ident.robot.inertia import URDF_INERTIA_ENTRIES, com_and_inertia
 
 __all__ = ["PAYLOAD_LINK", "MujocoRobot", "dynamics_only_urdf", "load_mujoco", "mujoco_urdf"]
 
@@ -144,17 +144,7 @@ def _with_payload(urdf_text: str, payload: PayloadConfig, last_joint: str, where
     ET.SubElement(
         inertial,
         "inertia",
-        {
-            key: repr(float(inertia[i, j]))
-            for key, (i, j) in {
-                "ixx": (0, 0),
-                "ixy": (0, 1),
-                "ixz": (0, 2),
-                "iyy": (1, 1),
-                "iyz": (1, 2),
-                "izz": (2, 2),
-            }.items()
-        },
+        {key: repr(float(inertia[i, j])) for key, (i, j) in URDF_INERTIA_ENTRIES.items()},
     )
     joint = ET.fromstring(
         f'<joint name="{PAYLOAD_LINK}_weld" type="fixed"><parent link="{parent}"/>'

@@ -23,6 +23,7 @@ __all__ = [
     "PAPER_ORDER",
     "PAPER_TO_PINOCCHIO",
     "PINOCCHIO_ORDER",
+    "URDF_INERTIA_ENTRIES",
     "com_and_inertia",
     "consistency_problems",
     "inertia_about_origin",
@@ -54,6 +55,16 @@ PAPER_TO_PINOCCHIO: FloatArray = np.array(
     [[1.0 if p == q else 0.0 for q in PAPER_ORDER] for p in PINOCCHIO_ORDER]
 )
 PAPER_TO_PINOCCHIO.setflags(write=False)
+
+#: URDF ``<inertia>`` attribute -> (row, column) of the 3x3 inertia tensor.
+URDF_INERTIA_ENTRIES: dict[str, tuple[int, int]] = {
+    "ixx": (0, 0),
+    "ixy": (0, 1),
+    "ixz": (0, 2),
+    "iyy": (1, 1),
+    "iyz": (1, 2),
+    "izz": (2, 2),
+}
 
 # Indices of the tensor entries in a Pinocchio-ordered vector.
 _TENSOR_INDEX = np.array([[4, 5, 7], [5, 6, 8], [7, 8, 9]])
