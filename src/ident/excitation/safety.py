@@ -979,14 +979,20 @@ class SafetyModel:
                     # the capsules inside the cylinders (radius min(r, h), segment shortened
                     # by it): in contact, the cylinders are too, and the outer capsules' depth
                     # is what _refine would give, without coal
+                    # (only at the postures and pairs that need it: each entry is computed
+                    # on its own, the others stay inf and are not read)
                     inner = np.full(distances.shape, np.inf)
                     r_in = np.where(cylinder, np.minimum(radius, half), radius)
                     h_in = np.where(cylinder, half - r_in, half)
                     none = np.zeros((0, 2), dtype=int)
+                    post = np.flatnonzero(need.any(axis=1))
+                    seg_pairs = np.ascontiguousarray(self._seg_pairs[need[:, p].any(axis=0)])
+                    inner_post = np.full((post.size, distances.shape[1]), np.inf)
                     primitive_distances(
-                        frames, joint, centre, axis, h_in, r_in, cylinder, self._seg_pairs,
-                        none, np.zeros((0, 3)), np.zeros(0), inner,
+                        np.ascontiguousarray(frames[post]), joint, centre, axis, h_in, r_in,
+                        cylinder, seg_pairs, none, np.zeros((0, 3)), np.zeros(0), inner_post,
                     )  # fmt: skip
+                    inner[post] = inner_post
                     sure = need & (inner < 0.0)
                     distances[sure] = np.minimum(distances[sure], 0.0)
                     need &= ~sure
