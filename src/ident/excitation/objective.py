@@ -130,7 +130,7 @@ def singular_values_from_gram(gram: FloatArray) -> FloatArray:
             pass
         else:
             upper = np.swapaxes(lower, -1, -2) / inv[:, None, :]
-            return np.linalg.svd(upper, compute_uv=False)
+            return np.asarray(np.linalg.svd(upper, compute_uv=False), dtype=np.float64)
     for b in np.flatnonzero(positive):
         try:
             lower = np.linalg.cholesky(equilibrated[b])
