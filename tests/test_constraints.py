@@ -89,3 +89,30 @@ def test_evaluate_and_penalty(limits):
     np.testing.assert_allclose(p, [0.0, 100.0 * 1.8])
     with pytest.raises(ValueError, match="both"):
         evaluate_constraints(q, dq, ddq, limits, start=(q[:, 0], dq[:, 0], ddq[:, 0]))
+
+
+def test_limit_violations_equal_the_sample_wise_formula(limits):
+    """The one-pass extremes give what the formula over every sample gives, NaN and inf too
+    (a kernel that skipped NaN, or took max |q| for the position, would differ)."""
+    rng = np.random.default_rng(3)
+    q, dq, ddq = (rng.normal(scale=s, size=(6, 50, 2)) for s in (1.0, 2.5, 5.0))
+    q[1, 7, 0], dq[2, 3, 0], ddq[3, 9, 0], q[4, 0, 1], dq[5, 49, 0] = (
+        np.nan, np.nan, np.inf, -np.inf, -np.inf,
+    )  # fmt: skip
+    span = limits.q_upper - limits.q_lower
+    with np.errstate(invalid="ignore"):
+        above = np.max(q - limits.q_upper, axis=1)
+        below = np.max(limits.q_lower - q, axis=1)
+        position = np.maximum(np.maximum(above, below), 0.0) / span
+        velocity = np.maximum(np.max(np.abs(dq), axis=1) - limits.dq_max, 0.0) / limits.dq_max
+        acceleration = np.maximum(np.max(np.abs(ddq), axis=1) - limits.ddq_max, 0.0)
+    position = np.where(np.isfinite(span), position, 0.0)
+    position = np.where(np.all(np.isfinite(q), axis=1), position, NONFINITE_VIOLATION)
+    velocity = np.where(np.isfinite(limits.dq_max), velocity, 0.0)
+    acceleration = np.where(np.isfinite(limits.ddq_max), acceleration / limits.ddq_max, 0.0)
+    expected = np.concatenate([position, velocity, acceleration], axis=1)
+    expected = np.where(np.isfinite(expected), expected, NONFINITE_VIOLATION)
+    got = limit_violations(q, dq, ddq, limits).values
+    np.testing.assert_array_equal(got, expected)
+    assert got[1, 0] == NONFINITE_VIOLATION
+    assert got[2, 2] == NONFINITE_VIOLATION

@@ -90,3 +90,16 @@ def test_non_paper_robots_rejected():
     d[1] = 0.1
     with pytest.raises(ModelError, match="d2"):
         ArmGeometry.from_dh(dataclasses.replace(ROBOT.dh, d=d))
+
+
+def test_unwrap_samples_is_numpy_unwrap_bit_for_bit():
+    """Jumps of any size (several turns between samples, exactly pi, NaN) as np.unwrap."""
+    from ident.excitation.ik import unwrap_samples
+
+    rng = np.random.default_rng(0)
+    for scale in (0.1, 1.0, 3.0, 10.0):
+        steps = rng.normal(scale=scale, size=(5, 200, 3))
+        angles = np.angle(np.exp(1j * np.cumsum(steps, axis=1)))
+        angles[0, 5, 1] = np.nan
+        angles[1, :, 0] = np.pi * (np.arange(200) % 3)  # steps of exactly +-pi, 2 pi
+        np.testing.assert_array_equal(unwrap_samples(angles), np.unwrap(angles, axis=1))

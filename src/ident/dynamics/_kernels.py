@@ -30,9 +30,18 @@ def chain_arrays(chain: KinematicChain) -> tuple[FloatArray, FloatArray, np.ndar
 
 
 @njit(cache=True, fastmath=True, inline="always")
-def _scratch(n: int) -> tuple[Arr, Arr, Arr, Arr]:
-    """Per-call buffers of :func:`_forward`: rotations, positions, velocities, accelerations."""
-    return np.empty((n, 3, 3)), np.empty((n, 3)), np.empty((n, 6)), np.empty((n, 6))
+def _scratch(n: int) -> tuple[Arr, Arr, Arr, Arr, Arr, Arr]:
+    """Per-call buffers of :func:`_forward`: rotations, positions, velocities, accelerations,
+    and the joint position each rotation and position was last computed for (valid where the
+    flag is set)."""
+    return (
+        np.empty((n, 3, 3)),
+        np.empty((n, 3)),
+        np.empty((n, 6)),
+        np.empty((n, 6)),
+        np.empty(n),
+        np.zeros(n, dtype=np.bool_),
+    )
 
 
 @njit(cache=True, fastmath=True, inline="always")  # inlined: about 15% faster
@@ -48,16 +57,23 @@ def _forward(
     pos: Arr,
     vel: Arr,
     acc: Arr,
+    last_q: Arr,
+    known: Arr,
 ) -> None:
     """Kinematics of one sample: parent_R_i, parent_p_i, and per joint frame
-    vel[i] = (v, w), acc[i] = (classical linear acceleration a + w x v, alpha)."""
+    vel[i] = (v, w), acc[i] = (classical linear acceleration a + w x v, alpha).
+
+    rot[i] and pos[i] depend on q[i] alone: they are kept from the previous sample where q[i]
+    is the same (a held joint: no sin, cos, product of rotations)."""
     n = q.shape[0]
     vx = vy = vz = wx = wy = wz = 0.0
     ax, ay, az = -gravity[0], -gravity[1], -gravity[2]  # gravity as base acceleration
     bx = by = bz = 0.0  # angular acceleration
     for i in range(n):
         kx, ky, kz = axes[i, 0], axes[i, 1], axes[i, 2]
-        if prismatic[i]:
+        if known[i] and q[i] == last_q[i]:
+            pass  # rot[i], pos[i] as computed for this q[i]
+        elif prismatic[i]:
             for r in range(3):
                 for c in range(3):
                     rot[i, r, c] = placements[i, r, c]
@@ -84,6 +100,8 @@ def _forward(
                 rot[i, r, 1] = p0 * j01 + p1 * j11 + p2 * j21
                 rot[i, r, 2] = p0 * j02 + p1 * j12 + p2 * j22
                 pos[i, r] = placements[i, r, 3]
+        last_q[i] = q[i]
+        known[i] = True
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         # move the parent's motion to the new origin (in the parent frame)
         ux = vx + wy * pz - wz * py
@@ -150,6 +168,8 @@ def _sample(
     pos: Arr,
     vel: Arr,
     acc: Arr,
+    last_q: Arr,
+    known: Arr,
     y: Arr,
 ) -> None:
     """Regressor of one sample into y (n, 10 n): entries (j, block i) for i >= j, row_used[j]
@@ -159,7 +179,7 @@ def _sample(
     the chain as a motion vector (u, r) and dotted with the wrench regressor of body i,
     written out with its sparsity (mass: force only; inertia: moment only)."""
     n = q.shape[0]
-    _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, acc)
+    _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, acc, last_q, known)
     for j in range(n):
         if not row_used[j]:
             continue
@@ -218,7 +238,7 @@ def regressor_into(
 ) -> None:
     """Full regressor of every sample into out (n_samples, n, 10 n)."""
     n = q.shape[1]
-    rot, pos, vel, acc = _scratch(n)
+    rot, pos, vel, acc, last_q, known = _scratch(n)
     used = np.ones(n, dtype=np.bool_)
     for k in range(q.shape[0]):
         y = out[k]
@@ -239,6 +259,8 @@ def regressor_into(
             pos,
             vel,
             acc,
+            last_q,
+            known,
             y,
         )
 
@@ -262,7 +284,7 @@ def selected_rows_into(
     """Weighted rows/columns of samples start..stop-1, sample-major, into
     out[(k - start) * len(rows) + r, c] = weights[r] * Y_k[rows[r], columns[c]]."""
     n = q.shape[1]
-    rot, pos, vel, acc = _scratch(n)
+    rot, pos, vel, acc, last_q, known = _scratch(n)
     y = np.zeros((n, 10 * n))  # entries not computed stay zero (bodies before the joint)
     row_used = np.zeros(n, dtype=np.bool_)
     body_used = np.zeros(n, dtype=np.bool_)
@@ -286,6 +308,8 @@ def selected_rows_into(
             pos,
             vel,
             acc,
+            last_q,
+            known,
             y,
         )
         base = (k - start) * n_rows

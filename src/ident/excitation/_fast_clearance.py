@@ -59,23 +59,63 @@ def joint_frames(
     :
         Shape (n_postures, n_joints, 4, 4) [m].
     """
-    n_post, n_joints = q.shape
-    out = np.empty((n_post, n_joints, 4, 4))
-    current = np.broadcast_to(np.eye(4), (n_post, 4, 4))
-    for j in range(n_joints):  # down the chain; every posture at once
-        motion = np.broadcast_to(np.eye(4), (n_post, 4, 4)).copy()
-        k = axes[j]
-        if prismatic[j]:
-            motion[:, :3, 3] = q[:, j, None] * k
-        else:
-            skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-            s, c = np.sin(q[:, j]), np.cos(q[:, j])
-            motion[:, :3, :3] = (
-                np.eye(3) + s[:, None, None] * skew + (1.0 - c)[:, None, None] * (skew @ skew)
-            )
-        current = current @ placements[j] @ motion
-        out[:, j] = current
+    q = np.ascontiguousarray(q, dtype=np.float64)
+    out = np.empty((q.shape[0], q.shape[1], 4, 4))
+    _joint_frames_into(
+        np.ascontiguousarray(placements, dtype=np.float64),
+        np.ascontiguousarray(axes, dtype=np.float64),
+        np.ascontiguousarray(prismatic, dtype=np.bool_),
+        q,
+        out,
+    )
     return out
+
+
+@njit(cache=True, nogil=True)
+def _joint_frames_into(
+    placements: FloatArray, axes: FloatArray, prismatic: npt.NDArray[np.bool_], q: FloatArray,
+    out: FloatArray,
+) -> None:  # fmt: skip
+    """Kernel of :func:`joint_frames`: ``T_j = T_{j-1} P_j M_j(q_j)`` per posture, with the
+    Rodrigues rotation ``M = I + s [k]x + (1 - c) [k]x^2`` (or a translation along k)."""
+    n_joints = q.shape[1]
+    current = np.empty((4, 4))
+    step = np.empty((4, 4))
+    motion = np.empty((4, 4))
+    for n in range(q.shape[0]):
+        current[:] = 0.0
+        for i in range(4):
+            current[i, i] = 1.0
+        for j in range(n_joints):
+            kx, ky, kz = axes[j, 0], axes[j, 1], axes[j, 2]
+            motion[:] = 0.0
+            for i in range(4):
+                motion[i, i] = 1.0
+            if prismatic[j]:
+                motion[0, 3], motion[1, 3], motion[2, 3] = q[n, j] * kx, q[n, j] * ky, q[n, j] * kz
+            else:
+                s, t = math.sin(q[n, j]), 1.0 - math.cos(q[n, j])
+                # [k]x^2 = k k^T - |k|^2 I
+                kk = kx * kx + ky * ky + kz * kz
+                k = (kx, ky, kz)
+                skew = ((0.0, -kz, ky), (kz, 0.0, -kx), (-ky, kx, 0.0))
+                for r in range(3):
+                    for c in range(3):
+                        sq = k[r] * k[c] - (kk if r == c else 0.0)
+                        motion[r, c] += s * skew[r][c] + t * sq
+            for r in range(4):  # step = current @ placements[j]
+                for c in range(4):
+                    acc = 0.0
+                    for m in range(4):
+                        acc += current[r, m] * placements[j, m, c]
+                    step[r, c] = acc
+            for r in range(4):  # current = step @ motion
+                for c in range(4):
+                    acc = 0.0
+                    for m in range(4):
+                        acc += step[r, m] * motion[m, c]
+                    current[r, c] = acc
+                    out[n, j, r, c] = acc
 
 
 @njit(cache=True)

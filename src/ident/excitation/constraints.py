@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 from ident.excitation.family import ConstraintViolations, FloatArray
 from ident.robot.limits import JointLimits, tighten_limits
@@ -52,6 +53,38 @@ def _sanitize(values: FloatArray) -> FloatArray:
     return np.where(np.isfinite(values), values, NONFINITE_VIOLATION)
 
 
+@njit(cache=True, nogil=True)
+def _sample_extremes(
+    q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray]:
+    """One pass over the samples (axis 1) of (n_particles, n_samples, nq) states: ``max q``,
+    ``min q``, ``max |dq|``, ``max |ddq|`` (NaN when any sample is NaN, as ``np.max``) and
+    whether every ``q`` is finite, each of shape (n_particles, nq)."""
+    n_p, n_s, nq = q.shape
+    q_max = np.full((n_p, nq), -np.inf)
+    q_min = np.full((n_p, nq), np.inf)
+    dq_max = np.full((n_p, nq), -np.inf)
+    ddq_max = np.full((n_p, nq), -np.inf)
+    finite = np.ones((n_p, nq), dtype=np.bool_)
+    for p in range(n_p):
+        for k in range(n_s):
+            for j in range(nq):
+                v = q[p, k, j]
+                if not np.isfinite(v):
+                    finite[p, j] = False
+                if v > q_max[p, j] or np.isnan(v):
+                    q_max[p, j] = v
+                if v < q_min[p, j] or np.isnan(v):
+                    q_min[p, j] = v
+                a = abs(dq[p, k, j])
+                if a > dq_max[p, j] or np.isnan(a):
+                    dq_max[p, j] = a
+                a = abs(ddq[p, k, j])
+                if a > ddq_max[p, j] or np.isnan(a):
+                    ddq_max[p, j] = a
+    return q_max, q_min, dq_max, ddq_max, finite
+
+
 def limit_violations(
     q: FloatArray, dq: FloatArray, ddq: FloatArray, limits: JointLimits
 ) -> ConstraintViolations:
@@ -71,14 +104,19 @@ def limit_violations(
         ``acceleration:<joint>``.
     """
     span = limits.q_upper - limits.q_lower
+    states = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (q, dq, ddq)))
+    q_max, q_min, dq_max, ddq_max, q_finite = _sample_extremes(
+        *(np.ascontiguousarray(x) for x in states)
+    )
     with np.errstate(invalid="ignore"):
-        above = np.max(q - limits.q_upper, axis=1)
-        below = np.max(limits.q_lower - q, axis=1)
+        # max_t (q - upper) == max_t q - upper exactly (rounding is monotonic), same for min
+        above = q_max - limits.q_upper
+        below = limits.q_lower - q_min
         position = np.maximum(np.maximum(above, below), 0.0) / span
     position = np.where(np.isfinite(span), position, 0.0)
-    position = np.where(np.all(np.isfinite(q), axis=1), position, NONFINITE_VIOLATION)
-    velocity = _excess(np.max(np.abs(dq), axis=1), limits.dq_max)
-    acceleration = _excess(np.max(np.abs(ddq), axis=1), limits.ddq_max)
+    position = np.where(q_finite, position, NONFINITE_VIOLATION)
+    velocity = _excess(dq_max, limits.dq_max)
+    acceleration = _excess(ddq_max, limits.ddq_max)
     names = tuple(
         f"{kind}:{joint}"
         for kind in ("position", "velocity", "acceleration")

@@ -38,6 +38,7 @@ __all__ = [
     "arm_inverse_kinematics",
     "atan2_derivatives",
     "hypot_derivatives",
+    "unwrap_samples",
 ]
 
 _PAPER_ALPHA = np.array([-np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0])
@@ -59,6 +60,26 @@ def atan2_derivatives(
     dtheta = cross / r2
     ddtheta = (x * ddy - y * ddx) / r2 - 2.0 * cross * (x * dx + y * dy) / (r2 * r2)
     return theta, dtheta, ddtheta
+
+
+def unwrap_samples(p: FloatArray) -> FloatArray:
+    """``np.unwrap(p, axis=1)``, bit for bit, for angles of shape (n_particles, n_samples, ...).
+
+    The same formula, with the wrapping correction (``np.mod``, the slow part) computed only
+    at the jumps of at least ``pi`` (elsewhere it is 0): a smooth sampled angle has few.
+    """
+    p = np.asarray(p, dtype=float)
+    dd = np.diff(p, axis=1)
+    correction = np.zeros_like(dd)
+    jump = ~(np.abs(dd) < np.pi)  # np.unwrap keeps the NaN of a NaN step
+    if jump.any():
+        d = dd[jump]
+        ddmod = np.mod(d + np.pi, 2.0 * np.pi) - np.pi
+        ddmod = np.where((ddmod == -np.pi) & (d > 0), np.pi, ddmod)
+        correction[jump] = ddmod - d
+    out = p.copy()
+    out[:, 1:] = p[:, 1:] + np.cumsum(correction, axis=1)
+    return out
 
 
 def hypot_derivatives(

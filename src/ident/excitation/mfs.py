@@ -30,7 +30,7 @@ import numpy.typing as npt
 
 from ident.excitation.constraints import JointLimits, evaluate_constraints
 from ident.excitation.family import FloatArray, TrajectoryBatch, check_design, sample_times
-from ident.excitation.ik import ArmGeometry, arm_inverse_kinematics
+from ident.excitation.ik import ArmGeometry, arm_inverse_kinematics, unwrap_samples
 
 __all__ = [
     "PAPER_N_HARMONICS",
@@ -91,17 +91,21 @@ def mfs_path(
     phase = np.outer(t, wj)  # (n_samples, N)
     s, co = np.sin(phase), np.cos(phase)
     cj = np.broadcast_to(np.asarray(c)[:, None], b.shape)
-    f = s @ (b / wj).T - co @ (cj / wj).T  # (n_samples, n_particles)
-    df = co @ b.T + s @ cj.T
-    ddf = co @ (cj * wj).T - s @ (b * wj).T
-    radius = a.sum(axis=1)  # (n_particles,)
+    # (n_particles, n_samples), C-contiguous: the assembly below runs on contiguous rows
+    f = (b / wj) @ s.T - (cj / wj) @ co.T
+    df = b @ co.T + cj @ s.T
+    ddf = (cj * wj) @ co.T - (b * wj) @ s.T
+    radius = a.sum(axis=1)[:, None]  # (n_particles, 1)
     cp, sp = np.cos(omega * t), np.sin(omega * t)
-    circle = np.stack([cp, sp, np.zeros_like(t)], axis=-1)  # (n_samples, 3)
-    dcircle = omega * np.stack([-sp, cp, np.zeros_like(t)], axis=-1)
-    fourier_axes = np.array([1.0, 1.0, 1.0 if fourier_z else 0.0])
-    q = centre[:, None, :] + radius[:, None, None] * circle + f.T[:, :, None] * fourier_axes
-    dq = radius[:, None, None] * dcircle + df.T[:, :, None] * fourier_axes
-    ddq = -(omega**2) * radius[:, None, None] * circle + ddf.T[:, :, None] * fourier_axes
+    circle = (cp, sp, np.zeros_like(t))  # (n_samples,) each
+    dcircle = (omega * -sp, omega * cp, omega * np.zeros_like(t))
+    fourier_axes = (1.0, 1.0, 1.0 if fourier_z else 0.0)
+    shape = (b.shape[0], t.shape[0], 3)
+    q, dq, ddq = np.empty(shape), np.empty(shape), np.empty(shape)
+    for i in range(3):  # coordinate by coordinate: no (n_particles, n_samples, 3) temporaries
+        q[..., i] = centre[:, i, None] + radius * circle[i] + f * fourier_axes[i]
+        dq[..., i] = radius * dcircle[i] + df * fourier_axes[i]
+        ddq[..., i] = -(omega**2) * radius * circle[i] + ddf * fourier_axes[i]
     return q, dq, ddq
 
 
@@ -336,6 +340,6 @@ class PaperArmFamily(_CartesianFamily):
         """Trajectories of a swarm; ``x`` of shape (n_particles, n_vars) in ``length_unit``."""
         p, dp, ddp = self.path(x)
         sol = arm_inverse_kinematics(self.geometry, p, dp, ddp, elbow=self.elbow)
-        q_ext = np.unwrap(sol.q, axis=1)
+        q_ext = unwrap_samples(sol.q)
         reach = sol.excess.max(axis=1)
         return self._assemble(q_ext, sol.dq, sol.ddq, q_ext[:, -1], p, reach)

@@ -121,6 +121,16 @@ def singular_values_from_gram(gram: FloatArray) -> FloatArray:
     equilibrated = gram * inv[:, :, None] * inv[:, None, :]
     out = np.empty(diag.shape)
     done = np.zeros(gram.shape[0], dtype=bool)
+    if np.all(positive):
+        # the whole batch at once (the same LAPACK calls per matrix); one failing Cholesky
+        # factorization fails the batch: then the per-matrix loop below sorts them out
+        try:
+            lower = np.linalg.cholesky(equilibrated)
+        except np.linalg.LinAlgError:
+            pass
+        else:
+            upper = np.swapaxes(lower, -1, -2) / inv[:, None, :]
+            return np.asarray(np.linalg.svd(upper, compute_uv=False), dtype=np.float64)
     for b in np.flatnonzero(positive):
         try:
             lower = np.linalg.cholesky(equilibrated[b])

@@ -51,7 +51,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.excitation.family import FloatArray, TrajectoryBatch
-from ident.excitation.ik import atan2_derivatives, hypot_derivatives
+from ident.excitation.ik import atan2_derivatives, hypot_derivatives, unwrap_samples
 from ident.excitation.mfs import _PAPER_BOX, PAPER_N_HARMONICS, PAPER_PERIOD, _CartesianFamily
 
 __all__ = [
@@ -155,7 +155,7 @@ def theta6_eq23(
     dt = period / n
     delta = vec - np.roll(vec, 1, axis=1)  # sample 0 uses the last sample (initial = last)
     angle = np.arctan2(delta[..., 2], delta[..., 1])
-    closed = np.unwrap(np.concatenate([angle, angle[:, :1]], axis=1), axis=1)
+    closed = unwrap_samples(np.concatenate([angle, angle[:, :1]], axis=1))
     winding = closed[:, -1] - closed[:, 0]
     q6 = closed[:, :-1]
     trend = winding[:, None] * (np.arange(n) / n)
@@ -293,9 +293,9 @@ class PaperWristFamily(_CartesianFamily):
         rel, drel, ddrel, excess = self.path(x)
         d6 = self.geometry.d6
         rot = self.rotation_0_3
-        w, dw, ddw = (np.einsum("ji,psj->psi", rot, v) / d6 for v in (rel, drel, ddrel))
+        w, dw, ddw = (v @ rot / d6 for v in (rel, drel, ddrel))  # R^T v per sample
         q45, dq45, ddq45 = wrist_angles(w, dw, ddw, self.wrist_branch)
-        q45 = np.unwrap(q45 - np.asarray(self.geometry.offsets[3:5]), axis=1)
+        q45 = unwrap_samples(q45 - np.asarray(self.geometry.offsets[3:5]))
         n = self.n_samples
         q6, dq6, ddq6, winding = theta6_eq23(-rel[:, :n], self.period)
         if self.theta6 == "eq23_smooth":
