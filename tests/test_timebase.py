@@ -67,6 +67,20 @@ def test_velocity_mismatch_flags_wrong_unit():
     assert mismatch[1] > 10
 
 
+def test_velocity_mismatch_of_a_still_joint_is_not_a_unit_error():
+    t = np.arange(1000) / FS
+    moving = np.sin(2 * np.pi * t)
+    q = np.column_stack([moving, np.full_like(t, 0.3), np.full_like(t, -1.0)])
+    dq = np.gradient(q, 1 / FS, axis=0)
+    logged = dq.copy()
+    logged[:, 1] += 1e-5 * np.cos(50 * t)  # velocity noise on a joint that does not move
+    logged[:, 2] = 2 * np.pi * np.cos(2 * np.pi * t)  # joint 1's velocity in joint 3's column
+    mismatch = timebase.velocity_mismatch(logged, dq)
+    assert mismatch[0] < 1e-3
+    assert np.isnan(mismatch[1])  # still: nothing to compare, no "check the unit" warning
+    assert mismatch[2] == np.inf  # a velocity where the positions do not move: flagged
+
+
 # ---------------------------------------------------------------------------------------------
 # the time rule: NaN refused, duplicates dropped, backwards jumps split (one place, every reader
 

@@ -434,10 +434,11 @@ def _velocity_check(
         dqf, _ = lowpass(dq_logged, fs, cutoff_hz, 4, what="dq")
     dq, _, _ = differentiate(qf, fs)
     mismatch = velocity_mismatch(dqf, dq)
+    shown = ", ".join("still" if np.isnan(m) else str(round(float(m), 4)) for m in mismatch)
     record = {
         "step": "velocity check",
         "detail": "logged velocities vs differentiated positions, relative difference "
-        f"per joint {[round(float(m), 4) for m in mismatch]}",
+        f"per joint [{shown}]",
     }
     bad = np.flatnonzero(mismatch > VELOCITY_MISMATCH)
     if not bad.size:

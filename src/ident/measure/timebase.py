@@ -430,13 +430,23 @@ def summarize_time(t: FloatArray, *, gap_factor: float = GAP_FACTOR) -> TimingSu
     )
 
 
+#: RMS of a joint's velocity [rad/s] below which it is taken as still (0.06 deg/s).
+STILL_RMS = 1e-3
+
+
 def velocity_mismatch(dq_logged: FloatArray, dq_derived: FloatArray) -> FloatArray:
     """Per joint ``||dq_logged - dq_derived|| / ||dq_derived||``, shape (n_joints,).
 
     Both [rad/s], shape (n_samples, n_joints); a logged velocity on another side, unit or sign
-    than the positions shows up as a mismatch near or above 1.
+    than the positions shows up as a mismatch near or above 1. A still joint (both RMS below
+    :data:`STILL_RMS`) has no motion to compare: NaN. A logged velocity on a joint whose
+    positions do not move is ``inf`` (a column of another joint, or a wrong unit).
     """
+    n = max(dq_derived.shape[0], 1)
     num = np.linalg.norm(dq_logged - dq_derived, axis=0)
     den = np.linalg.norm(dq_derived, axis=0)
+    still = den / np.sqrt(n) < STILL_RMS
+    logged_still = np.linalg.norm(dq_logged, axis=0) / np.sqrt(n) < STILL_RMS
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > 0, num / den, np.inf)
+        ratio = np.where(den > 0, num / den, np.inf)
+    return np.where(still, np.where(logged_still, np.nan, np.inf), ratio)
