@@ -530,13 +530,7 @@ def _resolve_settings(
 ) -> tuple[IdentifyConfig, RobotLog, list[str]]:
     """``auto`` preprocessing settings chosen on the first segment, their records and
     warnings."""
-    first = slice(*log.segments[0])
-    settings, records, warnings = preprocess.resolve_defaults(
-        cfg.preprocess,
-        log.q[first],
-        log.sampling_rate_hz,
-        None if log.dq is None else log.dq[first],
-    )
+    settings, records, warnings = preprocess.resolve_for_log(cfg.preprocess, log)
     cfg = cfg.model_copy(update={"preprocess": settings})
     log = dataclasses.replace(log, records=(*log.records, *records))
     return cfg, log, [*log.warnings, *warnings]  # what reading the log changed, first

@@ -368,13 +368,7 @@ def _in_reporting_frame(
 
 def _settings(cfg: PayloadConfig, log: RobotLog) -> PreprocessConfig:
     """The preprocessing with ``auto`` resolved on the payload log's first segment."""
-    first = slice(*log.segments[0])
-    pp, _, _ = preprocess.resolve_defaults(
-        cfg.preprocess,
-        log.q[first],
-        log.sampling_rate_hz,
-        None if log.dq is None else log.dq[first],
-    )
+    pp, _, _ = preprocess.resolve_for_log(cfg.preprocess, log)
     return pp
 
 

@@ -21,6 +21,8 @@ name and what it did, in words and numbers) for the report:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import numpy.typing as npt
 from scipy import signal
@@ -28,6 +30,9 @@ from scipy import signal
 from ident.errors import ConfigError, DataError
 from ident.identify.config import FilterConfig, PreprocessConfig
 from ident.signals import central_differences, sosfiltfilt, zero_phase_lowpass
+
+if TYPE_CHECKING:
+    from ident.identify.logs import RobotLog
 
 __all__ = [
     "antialias_sos",
@@ -321,6 +326,17 @@ def decimation_factors(pp: PreprocessConfig) -> list[int]:
 def decimation_step(pp: PreprocessConfig) -> int:
     """Raw samples per decimated sample of resolved settings (product of the factors)."""
     return int(np.prod(decimation_factors(pp))) if decimation_factors(pp) else 1
+
+
+def resolve_for_log(
+    pp: PreprocessConfig, log: RobotLog
+) -> tuple[PreprocessConfig, list[dict], list[str]]:
+    """:func:`resolve_defaults` on the first segment of ``log``: the settings every segment
+    of the log is then processed with, their records and warnings."""
+    first = slice(*log.segments[0])
+    return resolve_defaults(
+        pp, log.q[first], log.sampling_rate_hz, None if log.dq is None else log.dq[first]
+    )
 
 
 def resolve_defaults(

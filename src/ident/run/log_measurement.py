@@ -24,7 +24,7 @@ import yaml
 
 from ident.dynamics.base_parameters import torque_shares
 from ident.dynamics.chain import random_states
-from ident.dynamics.friction import ExtraTerms, extra_columns
+from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
@@ -49,7 +49,6 @@ __all__ = [
     "identify_elite_log",
     "log_stage_info",
     "save_logs",
-    "extra_terms",
     "trajectory_column_norms",
     "identify_config",
     "measure_and_identify",
@@ -86,19 +85,6 @@ class LogOutcome:
     config: IdentifyConfig
 
 
-def extra_terms(config: RunConfig, n_joints: int) -> ExtraTerms:
-    """The friction / rotor / offset terms of the identification model of a run config."""
-    model = config.identification.model
-    return ExtraTerms.from_options(
-        n_joints,
-        rotor_inertia=model.rotor_inertia,
-        viscous=model.viscous,
-        coulomb=model.coulomb,
-        offset=model.offset,
-        coupled_wrist=model.coupled_wrist,
-    )
-
-
 def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
     """The simulator's truth over the model's parameters ``pm.names``, shape (n_all,).
 
@@ -126,7 +112,8 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
     The parameter model is the one :func:`identify_measurements` builds for the log (same
     terms, same random states), so names and base parameters match the estimates.
     """
-    pm = build_parameter_model(robot.model, extra_terms(config, robot.nv))
+    terms = config.identification.model.extra_terms(robot.nv, "identification.model")
+    pm = build_parameter_model(robot.model, terms)
     truth = true_parameters(pm, config)
     rows = tuple(range(robot.nv))
     names = pm.names
