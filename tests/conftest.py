@@ -7,6 +7,7 @@ same result whatever folder it is started from.
 
 import fcntl
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -55,3 +56,19 @@ def shipped_run(tmp_path_factory: pytest.TempPathFactory):
         return folder
 
     return run
+
+
+@pytest.fixture
+def ridge(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The toy estimator of docs/consistent-identification.md ("Extending"), registered by
+    running the page's code (unconstrained: not consistent), for this test only."""
+    from ident.identify.estimators import registry
+
+    monkeypatch.setattr(registry, "ESTIMATORS", dict(registry.ESTIMATORS))
+    monkeypatch.setattr(registry, "CONTRACTS", dict(registry.CONTRACTS))
+    text = (REPO_ROOT / "docs" / "consistent-identification.md").read_text()
+    section = text[text.index("## Extending") :]
+    code = re.search(r"```python\n(.*?)```", section, re.S)
+    assert code is not None, "the Extending section lost its code block"
+    exec(code.group(1), {})
+    assert not registry.get_contract("ridge").consistent

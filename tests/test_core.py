@@ -89,20 +89,7 @@ def test_estimate_is_the_registry_least_squares_once():
 
 
 # ---- the documented toy estimator, unconstrained, end to end ---------------------------------
-def _extending_code() -> str:
-    text = (REPO_ROOT / "docs" / "consistent-identification.md").read_text()
-    section = text[text.index("## Extending") :]
-    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
-
-
-@pytest.fixture
-def ridge(monkeypatch):
-    monkeypatch.setattr(registry, "ESTIMATORS", dict(registry.ESTIMATORS))
-    monkeypatch.setattr(registry, "CONTRACTS", dict(registry.CONTRACTS))
-    exec(_extending_code(), {})
-    assert not registry.get_contract("ridge").consistent
-
-
+# (the `ridge` fixture: tests/conftest.py)
 @pytest.mark.slow
 def test_run_then_identify_its_log_same_estimate_with_an_unconstrained_toy(ridge, tmp_path):
     # ident run (ur5, quick, the documented toy estimator) then ident identify on the log the

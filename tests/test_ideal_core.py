@@ -7,7 +7,6 @@ reference), and every registered estimator, the documented toy one included, run
 """
 
 import json
-import re
 
 import numpy as np
 import pinocchio as pin
@@ -18,7 +17,6 @@ from typer.testing import CliRunner
 
 from ident.cli import app
 from ident.identify.core import identify_measurements
-from ident.identify.estimators import registry
 from ident.measure.ideal import simulate_measurements
 from ident.run.config import RunConfig
 from ident.run.elite_identification import (
@@ -129,20 +127,7 @@ def test_two_estimators_besides_least_squares_are_refused():
 
 
 # ---- the documented toy estimator (unconstrained) from ident run with the ideal source ------
-def _extending_code() -> str:
-    text = (REPO_ROOT / "docs" / "consistent-identification.md").read_text()
-    section = text[text.index("## Extending") :]
-    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
-
-
-@pytest.fixture
-def ridge(monkeypatch):
-    monkeypatch.setattr(registry, "ESTIMATORS", dict(registry.ESTIMATORS))
-    monkeypatch.setattr(registry, "CONTRACTS", dict(registry.CONTRACTS))
-    exec(_extending_code(), {})
-    assert not registry.get_contract("ridge").consistent
-
-
+# (the `ridge` fixture: tests/conftest.py)
 @pytest.mark.slow
 def test_ident_run_ideal_source_runs_the_documented_toy_estimator(ridge, tmp_path):
     data = {
