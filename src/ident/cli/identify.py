@@ -22,13 +22,14 @@ from __future__ import annotations
 import time
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from ident.cli._common import check_scheduler_address, user_errors
 
 if TYPE_CHECKING:
+    from ident.identify.core import IdentifyResult
     from ident.inputs import JobEstimate
 
 __all__ = ["identify", "register"]
@@ -74,15 +75,7 @@ def identify(
     t_start = time.monotonic()
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
-    from ident.identify.model_intervals import estimated_seconds
     from ident.identify.real import identify as run_identify
-    from ident.identify.verdict import identify_verdict
-    from ident.report.identify_report import (
-        joint_torque_units,
-        save_identify_data,
-        write_identify_report,
-        write_measured_replay,
-    )
     from ident.run.rundir import create_run_dir
 
     package_dirs = list(package_dir or ())
@@ -103,24 +96,7 @@ def identify(
         if package_dirs:
             info["package_dirs"] = [str(d) for d in package_dirs]
         rundir = create_run_dir(out, f"{cfg.name}", info={**info, "started_at": started_at})
-        try:
-            save_identify_data(result, rundir.path)  # the estimate is safe before the rest
-            t0 = time.perf_counter()
-            replay_note = write_measured_replay(
-                result, rundir.path, replay=replay, package_dirs=package_dirs
-            )
-            rundir.update(replay=replay_note)
-            if replay and not replay_note.startswith("replay.html written"):
-                typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
-            t1 = time.perf_counter()
-            write_identify_report(result, rundir.path, replay_note=replay_note)
-            timings = {**result.timings, "replay": t1 - t0, "report": time.perf_counter() - t1}
-        except (IdentError, OSError) as e:
-            rundir.finish("incomplete", f"writing the report failed: {e}")
-            raise IdentError(f"{rundir.path}: writing the report failed ({e}).") from e
-        except BaseException:
-            rundir.finish("incomplete", "interrupted while writing the report")
-            raise
+        replay_note, timings = _save_and_report(result, rundir, replay, package_dirs)
         est = result.estimate
         rundir.update(
             timings_s={k: round(v, 3) for k, v in timings.items()},
@@ -131,49 +107,95 @@ def identify(
         # complete with its last write
         rundir.update(wall_time_s=round(time.monotonic() - t_start, 3))
         rundir.finish("complete", message, stamp_wall_time=False)
-        typer.echo(f"run folder: {rundir.path}")
-        typer.echo(
-            f"{est.method.upper()}: {len(est.names)} base parameters, relative residual "
-            f"{est.relative_residual:.4f}, condition number {est.condition_number:.4g}, "
-            f"{result.timings['total']:.1f} s"
-        )
-        units = joint_torque_units(result)  # N*m per revolute joint, N per prismatic
-        for label, p in result.predictions.items():
-            rmse = ", ".join(f"{v:.3g} {u}" for v, u in zip(p.metrics.rmse, units, strict=True))
-            typer.echo(
-                f"held-out {label}: relative residual {p.metrics.total_relative_residual:.4f}; "
-                f"RMSE per joint {rmse}"
-            )
-        mi = result.model_intervals
-        if mi is not None:
-            nv = len(result.joint_names)
-            typer.echo(
-                f"intervals of the written model: {mi.n_boot} re-solves of the "
-                f"{mi.method.upper()} fit, {mi.seconds:.1f} s (estimated "
-                f"{estimated_seconds(mi.n_boot, nv):.1f} s; urdf_update.model_bootstrap: 0 "
-                "switches them off)"
-            )
-        elif result.model_intervals_note:
-            typer.echo(f"note: {result.model_intervals_note}", err=True)
-        if result.friction is not None:
-            f = result.friction
-            ranked = ", ".join(f"{x.model} {x.held_out_residual:.4f}" for x in f.fits)
-            typer.echo(
-                f"friction models (held-out relative residual): {ranked}; winner {f.winner}, "
-                f"{100 * f.improvement():.2f} % below {f.baseline}"
-            )
-        typer.echo(replay_note)
-        _echo_model(rundir.path / "result.json")
-        verdict = identify_verdict(result)  # the one the report and result.json show
-        typer.echo(f"verdict: {verdict.label} ({verdict.reason})")
-        typer.echo(f"report: {rundir.path / 'report.html'}")
-        for w in result.warnings:
-            typer.echo(f"warning: {w}", err=True)
+        _print_summary(result, rundir.path, replay_note)
     if result.warnings and cfg.validation.fail_on_warning:
         typer.echo(
             "error: validation.fail_on_warning is set and the result has warnings.", err=True
         )
         raise typer.Exit(code=1)
+
+
+def _save_and_report(
+    result: IdentifyResult, rundir: Any, replay: bool, package_dirs: list[Path]
+) -> tuple[str, dict[str, float]]:
+    """The estimate first, then the replay and the report; the folder is marked incomplete
+    when one fails. Returns the replay note and the timings with the replay's and report's."""
+    from ident.errors import IdentError
+    from ident.report.identify_report import (
+        save_identify_data,
+        write_identify_report,
+        write_measured_replay,
+    )
+
+    try:
+        save_identify_data(result, rundir.path)  # the estimate is safe before the rest
+        t0 = time.perf_counter()
+        replay_note = write_measured_replay(
+            result, rundir.path, replay=replay, package_dirs=package_dirs
+        )
+        rundir.update(replay=replay_note)
+        if replay and not replay_note.startswith("replay.html written"):
+            typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
+        t1 = time.perf_counter()
+        write_identify_report(result, rundir.path, replay_note=replay_note)
+    except (IdentError, OSError) as e:
+        rundir.finish("incomplete", f"writing the report failed: {e}")
+        raise IdentError(f"{rundir.path}: writing the report failed ({e}).") from e
+    except BaseException:
+        rundir.finish("incomplete", "interrupted while writing the report")
+        raise
+    return replay_note, {
+        **result.timings,
+        "replay": t1 - t0,
+        "report": time.perf_counter() - t1,
+    }
+
+
+def _print_summary(result: IdentifyResult, folder: Path, replay_note: str) -> None:
+    """The terminal's summary of a finished identification (the report says it at length)."""
+    from ident.identify.model_intervals import estimated_seconds
+    from ident.identify.verdict import identify_verdict
+    from ident.report.identify_report import joint_torque_units
+
+    est = result.estimate
+    typer.echo(f"run folder: {folder}")
+    typer.echo(
+        f"{est.method.upper()}: {len(est.names)} base parameters, relative residual "
+        f"{est.relative_residual:.4f}, condition number {est.condition_number:.4g}, "
+        f"{result.timings['total']:.1f} s"
+    )
+    units = joint_torque_units(result)  # N*m per revolute joint, N per prismatic
+    for label, p in result.predictions.items():
+        rmse = ", ".join(f"{v:.3g} {u}" for v, u in zip(p.metrics.rmse, units, strict=True))
+        typer.echo(
+            f"held-out {label}: relative residual {p.metrics.total_relative_residual:.4f}; "
+            f"RMSE per joint {rmse}"
+        )
+    mi = result.model_intervals
+    if mi is not None:
+        nv = len(result.joint_names)
+        typer.echo(
+            f"intervals of the written model: {mi.n_boot} re-solves of the "
+            f"{mi.method.upper()} fit, {mi.seconds:.1f} s (estimated "
+            f"{estimated_seconds(mi.n_boot, nv):.1f} s; urdf_update.model_bootstrap: 0 "
+            "switches them off)"
+        )
+    elif result.model_intervals_note:
+        typer.echo(f"note: {result.model_intervals_note}", err=True)
+    if result.friction is not None:
+        f = result.friction
+        ranked = ", ".join(f"{x.model} {x.held_out_residual:.4f}" for x in f.fits)
+        typer.echo(
+            f"friction models (held-out relative residual): {ranked}; winner {f.winner}, "
+            f"{100 * f.improvement():.2f} % below {f.baseline}"
+        )
+    typer.echo(replay_note)
+    _echo_model(folder / "result.json")
+    verdict = identify_verdict(result)  # the one the report and result.json show
+    typer.echo(f"verdict: {verdict.label} ({verdict.reason})")
+    typer.echo(f"report: {folder / 'report.html'}")
+    for w in result.warnings:
+        typer.echo(f"warning: {w}", err=True)
 
 
 def _echo_model(result_json: Path) -> None:

@@ -45,11 +45,8 @@ def run(
     """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
     from ident.errors import IdentError
     from ident.inputs import check_output_dir
-    from ident.report.run_data import save_run_model
-    from ident.report.run_report import save_run, write_replay, write_report
     from ident.run.config import load_run_config
-    from ident.run.exports.run_exports import check_run_exports, export_run
-    from ident.run.log_measurement import save_logs
+    from ident.run.exports.run_exports import check_run_exports
     from ident.run.pipeline import RunInterrupted, feasible_start, run_pipeline
     from ident.run.rundir import create_run_dir
     from ident.run.setup import prepare_run
@@ -64,12 +61,7 @@ def run(
         # everything that can be wrong with the config is found before the folder exists
         setup = prepare_run(cfg, source=config)
         check_run_exports(cfg, setup.robot, config)
-        for note in setup.limit_notes:  # export targets' limits the design keeps
-            typer.echo(f"limits tightened by {note}", err=True)
-        if setup.safety.margin_note:  # the default margin, lowered to one the links can keep
-            typer.echo(f"note: {setup.safety.margin_note}", err=True)
-        if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
-            typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
+        _setup_notes(setup)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
         with _ProgressDisplay(cfg) as display:
             # stage 1, the feasible elites, also before the folder exists: an excitation box
@@ -102,36 +94,8 @@ def run(
             except KeyboardInterrupt:
                 rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
                 raise
-        try:
-            save_run(result, rundir.path)
-            save_logs(result, rundir.path)
-            save_run_model(result, rundir.path)  # the identified model: URDF, MJCF, extras
-            # controller files of the certified trajectory, checked, written, re-read
-            exports = export_run(result, rundir.path)
-            if exports is not None:
-                rundir.update(exports=exports.lines(rundir.path))
-            replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
-            rundir.update(replay=replay_note)
-            if replay and not replay_note.startswith("replay.html written"):
-                typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
-        except BaseException as e:
-            rundir.finish("incomplete", f"stopped while saving the results: {failure_note(e)}")
-            raise
-        # the data are saved: if the report fails, 'ident report RUN_DIR' writes it again;
-        # the run is complete only once its last file (the report) is written
-        rundir.stamp_wall_time()
-        try:
-            report_path = write_report(rundir.path)
-        except BaseException as e:
-            rundir.finish(
-                "incomplete",
-                f"stopped while writing the report ({failure_note(e)}); the data are saved",
-            )
-            typer.echo(
-                f"the data are saved; write the report with: ident report {rundir.path}",
-                err=True,
-            )
-            raise
+        exports, replay_note = _save_results(result, rundir, replay)
+        report_path = _write_report(rundir)
         rundir.finish("complete", result.message, stamp_wall_time=False)
         _summary(result, rundir.path, report_path, replay_note, exports)
         for refusal in exports.refused.values() if exports is not None else ():
@@ -142,6 +106,62 @@ def run(
             raise typer.Exit(code=EXIT_NOT_IDENTIFIED)
         if exports is not None and exports.refused:
             raise typer.Exit(code=EXIT_USER_ERROR)
+
+
+def _setup_notes(setup: Any) -> None:
+    """What the checked setup changed or expects, on stderr before anything runs."""
+    for note in setup.limit_notes:  # export targets' limits the design keeps
+        typer.echo(f"limits tightened by {note}", err=True)
+    if setup.safety.margin_note:  # the default margin, lowered to one the links can keep
+        typer.echo(f"note: {setup.safety.margin_note}", err=True)
+    if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
+        typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
+
+
+def _save_results(result: Any, rundir: Any, replay: bool) -> tuple[Any, str]:
+    """Save everything the run computed, then its controller exports and replay; the folder
+    is marked incomplete if any of it fails. Returns the exports and the replay note."""
+    from ident.report.run_data import save_run_model
+    from ident.report.run_report import save_run, write_replay
+    from ident.run.exports.run_exports import export_run
+    from ident.run.log_measurement import save_logs
+
+    try:
+        save_run(result, rundir.path)
+        save_logs(result, rundir.path)
+        save_run_model(result, rundir.path)  # the identified model: URDF, MJCF, extras
+        # controller files of the certified trajectory, checked, written, re-read
+        exports = export_run(result, rundir.path)
+        if exports is not None:
+            rundir.update(exports=exports.lines(rundir.path))
+        replay_note = write_replay(rundir.path) if replay else "replay skipped (--no-replay)."
+        rundir.update(replay=replay_note)
+        if replay and not replay_note.startswith("replay.html written"):
+            typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
+    except BaseException as e:
+        rundir.finish("incomplete", f"stopped while saving the results: {failure_note(e)}")
+        raise
+    return exports, replay_note
+
+
+def _write_report(rundir: Any) -> Path:
+    """The report, last: the data are saved, so if it fails 'ident report RUN_DIR' writes it
+    again; the run is complete only once it is written (the caller marks it)."""
+    from ident.report.run_report import write_report
+
+    rundir.stamp_wall_time()
+    try:
+        return write_report(rundir.path)
+    except BaseException as e:
+        rundir.finish(
+            "incomplete",
+            f"stopped while writing the report ({failure_note(e)}); the data are saved",
+        )
+        typer.echo(
+            f"the data are saved; write the report with: ident report {rundir.path}",
+            err=True,
+        )
+        raise
 
 
 def _save_partial(partial: Any, rundir: Any) -> None:
