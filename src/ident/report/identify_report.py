@@ -436,41 +436,30 @@ def _markdown(
         f"| {n} | {_num(est.residual_rms[j])} {units[j]} | {_num(est.sigma[j])} {units[j]} |"
         for j, n in enumerate(names)
     ]
-    lines += [
-        "",
-        "## Held-out validation",
-        "",
-        "Torque prediction on the last part of the log, never used to identify. Errors on the "
-        "rows above the velocity threshold (the rows the model was identified on; at standstill "
-        "the Coulomb term `sign(dq)` follows noise). The dataset's reference values were "
-        "identified on the whole log, held-out part included.",
-        "",
-        "| parameters | "
-        + " | ".join(f"RMSE {n} [{u}]" for n, u in zip(names, units, strict=True))
-        + " | relative residual [%] | all samples: relative residual [%] |",
-        "| --- |" + " --- |" * (len(names) + 2),
-    ]
-    for label, p in result.predictions.items():
-        lines.append(
-            f"| {label} | "
-            + " | ".join(_num(v) for v in p.metrics.rmse)
-            + f" | {_num(100 * p.metrics.total_relative_residual, 3)} | "
-            f"{_num(100 * p.metrics_all.total_relative_residual, 3)} |"
-        )
-    lines += [
-        "",
-        "| parameters | " + " | ".join(f"rel. residual {n} [%]" for n in names) + " |",
-        "| --- |" + " --- |" * len(names),
-    ]
-    for label, p in result.predictions.items():
-        lines.append(
-            f"| {label} | "
-            + " | ".join(_num(100 * v, 3) for v in p.metrics.relative_residual)
-            + " |"
-        )
+    lines += _held_out_section(result, names, units)
     lines += ["", *friction_models_lines(result)]
-    sd = result.parameter_std
+    lines += _base_parameter_section(result, units)
+    lines += _essential_section(result)
+    lines += _truth_section(result)
+    lines += uncertainty_markdown(result)
+    lines += _urdf_section(urdf, urdf_name)
+    lines += _consistency_section(result)
     lines += [
+        "",
+        "## Timings",
+        "",
+        "| stage | seconds |",
+        "| --- | --- |",
+    ]
+    lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _base_parameter_section(result: IdentifyResult, units: Sequence[str]) -> list[str]:
+    """Markdown of the base parameters: value, σ, interval, reference and URDF nominal."""
+    sd = result.parameter_std
+    pm, est = result.parameters, result.estimate
+    lines = [
         "## Base parameters",
         "",
         result.reference_note,
@@ -518,63 +507,96 @@ def _markdown(
             "Reference parameters without a counterpart here: "
             + ", ".join(f"`{u}`" for u in unmatched),
         ]
-    ess = result.essential
-    if ess is not None:
-        lines += [
-            "",
-            "## Essential parameters",
-            "",
-            f"{len(ess.kept)} of {len(pm.base_names)} kept; relative residual "
-            f"{ess.estimate.relative_residual:.4f}; stopped because {ess.stop_reason}.",
-            "",
-            "| parameter | value | rel. std [%] |",
-            "| --- | --- | --- |",
-        ]
-        lines += [
-            f"| {n} | {_num(v)} | {_num(s, 3)} |"
-            for n, v, s in zip(
-                ess.estimate.names, ess.estimate.x, ess.estimate.relative_std, strict=True
-            )
-        ]
-        if result.reference_essential:
-            ref_rows = result.reference_essential
-            in_both = [r for r in ref_rows if r["in_our_essential_set"]]
-            ours_only = set(ess.estimate.names) - {
-                m for r in ref_rows if r["ours"] for m in r["ours"].split(" + ")
-            }
-            lines += [
-                "",
-                f"Reference essential set: {len(ref_rows)} parameters, {len(in_both)} of them "
-                "also essential here; not essential here: "
-                + (
-                    ", ".join(
-                        f"`{r['reference']}`" for r in ref_rows if not r["in_our_essential_set"]
-                    )
-                    or "none"
-                )
-                + "; essential here only: "
-                + (", ".join(sorted(ours_only)) or "none")
-                + ".",
-            ]
-        if ess.dropped:
-            lines += [
-                "",
-                "Dropped, in order: "
-                + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
-            ]
-    lines += _truth_section(result)
-    lines += uncertainty_markdown(result)
-    lines += _urdf_section(urdf, urdf_name)
-    lines += _consistency_section(result)
+    return lines
+
+
+def _held_out_section(
+    result: IdentifyResult, names: Sequence[str], units: Sequence[str]
+) -> list[str]:
+    """Markdown of the held-out validation: RMSE and relative residual per joint and model."""
+    lines = [
+        "",
+        "## Held-out validation",
+        "",
+        "Torque prediction on the last part of the log, never used to identify. Errors on the "
+        "rows above the velocity threshold (the rows the model was identified on; at standstill "
+        "the Coulomb term `sign(dq)` follows noise). The dataset's reference values were "
+        "identified on the whole log, held-out part included.",
+        "",
+        "| parameters | "
+        + " | ".join(f"RMSE {n} [{u}]" for n, u in zip(names, units, strict=True))
+        + " | relative residual [%] | all samples: relative residual [%] |",
+        "| --- |" + " --- |" * (len(names) + 2),
+    ]
+    for label, p in result.predictions.items():
+        lines.append(
+            f"| {label} | "
+            + " | ".join(_num(v) for v in p.metrics.rmse)
+            + f" | {_num(100 * p.metrics.total_relative_residual, 3)} | "
+            f"{_num(100 * p.metrics_all.total_relative_residual, 3)} |"
+        )
     lines += [
         "",
-        "## Timings",
-        "",
-        "| stage | seconds |",
-        "| --- | --- |",
+        "| parameters | " + " | ".join(f"rel. residual {n} [%]" for n in names) + " |",
+        "| --- |" + " --- |" * len(names),
     ]
-    lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
-    return "\n".join(lines) + "\n"
+    for label, p in result.predictions.items():
+        lines.append(
+            f"| {label} | "
+            + " | ".join(_num(100 * v, 3) for v in p.metrics.relative_residual)
+            + " |"
+        )
+    return lines
+
+
+def _essential_section(result: IdentifyResult) -> list[str]:
+    """Markdown of the essential-parameter reduction (empty without one)."""
+    ess = result.essential
+    if ess is None:
+        return []
+    pm = result.parameters
+    lines: list[str] = []
+    lines += [
+        "",
+        "## Essential parameters",
+        "",
+        f"{len(ess.kept)} of {len(pm.base_names)} kept; relative residual "
+        f"{ess.estimate.relative_residual:.4f}; stopped because {ess.stop_reason}.",
+        "",
+        "| parameter | value | rel. std [%] |",
+        "| --- | --- | --- |",
+    ]
+    lines += [
+        f"| {n} | {_num(v)} | {_num(s, 3)} |"
+        for n, v, s in zip(
+            ess.estimate.names, ess.estimate.x, ess.estimate.relative_std, strict=True
+        )
+    ]
+    if result.reference_essential:
+        ref_rows = result.reference_essential
+        in_both = [r for r in ref_rows if r["in_our_essential_set"]]
+        ours_only = set(ess.estimate.names) - {
+            m for r in ref_rows if r["ours"] for m in r["ours"].split(" + ")
+        }
+        lines += [
+            "",
+            f"Reference essential set: {len(ref_rows)} parameters, {len(in_both)} of them "
+            "also essential here; not essential here: "
+            + (
+                ", ".join(f"`{r['reference']}`" for r in ref_rows if not r["in_our_essential_set"])
+                or "none"
+            )
+            + "; essential here only: "
+            + (", ".join(sorted(ours_only)) or "none")
+            + ".",
+        ]
+    if ess.dropped:
+        lines += [
+            "",
+            "Dropped, in order: "
+            + ", ".join(f"{d['name']} ({d['relative_std_pct']:.3g} %)" for d in ess.dropped),
+        ]
+    return lines
 
 
 def _truth_section(result: IdentifyResult) -> list[str]:
