@@ -84,12 +84,25 @@ def test_identify_slice_agrees_with_reference(tmp_path):
         data["validation"]["identified"]["above_velocity_threshold"]["total_relative_residual"]
         < 0.35
     )
+    # one σ: a compared row's σ is the base-parameter table's (bootstrap), not the ordinary σ
+    by_name = {p["name"]: p for p in data["base_parameters"]}
+    same = [r for r in data["reference_comparison"] if r["match"] == "same expression"]
+    assert same
+    assert all(r["std_method"] == "bootstrap" for r in same)
+    for row in same:
+        assert row["relative_std_pct"] == pytest.approx(
+            by_name[row["ours"]]["relative_std_pct"], rel=1e-12
+        )
+        assert row["relative_std_pct"] != pytest.approx(
+            100 * by_name[row["ours"]]["ordinary_std"] / abs(row["value"]), rel=1e-3
+        )
     compared = 0
     for row in data["reference_comparison"]:
         if row["value"] is None:
             continue
-        if row["relative_std_pct"] < 5.0 and row["reference_relative_std_pct"] < 5.0:
-            # well excited on both sides: within 12 % (this 4 s slice; the full log: 1.2 %)
+        if row["relative_std_pct"] < 10.0 and row["reference_relative_std_pct"] < 5.0:
+            # well excited on both sides (ours: bootstrap σ, 2-8x the reference's ordinary σ):
+            # within 12 % (this 4 s slice; the full log: 1.2 %)
             assert row["value"] == pytest.approx(row["reference_value"], rel=0.12), row
             compared += 1
     assert compared >= 12
@@ -445,7 +458,8 @@ def test_unknown_config_key(tmp_path):
 @pytest.mark.slow
 def test_full_log_agrees_with_reference_within_two_percent(tmp_path):
     # The whole log identifies, as upstream: WLS relative residual 0.052 (reference 0.052);
-    # well-excited parameters (both relative std < 5 %) within 1.2 % measured, 2 % asserted.
+    # well-excited parameters (bootstrap σ < 10 %, reference's ordinary σ < 5 %: 18 of them)
+    # within 1.2 % measured, 2 % asserted.
     from ident.identify.config import load_identify_config
     from ident.identify.real import identify
 
@@ -458,7 +472,7 @@ def test_full_log_agrees_with_reference_within_two_percent(tmp_path):
     for row in result.comparison:
         if row["value"] is None:
             continue
-        if row["relative_std_pct"] < 5.0 and row["reference_relative_std_pct"] < 5.0:
+        if row["relative_std_pct"] < 10.0 and row["reference_relative_std_pct"] < 5.0:
             assert row["value"] == pytest.approx(row["reference_value"], rel=0.02), row
             compared += 1
     assert compared >= 18

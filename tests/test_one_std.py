@@ -109,7 +109,9 @@ def test_without_the_bootstrap_the_ordinary_std_is_used_and_said(correlated):
     np.testing.assert_array_equal(sd.std, est.std)
     assert "too few blocks" in sd.note
     # an uncertainty of another estimate (e.g. OLS beside WLS) is not borrowed
-    other = SimpleNamespace(x=est.x + 1e-3, std=est.std, relative_std=est.relative_std)
+    other = SimpleNamespace(
+        x=est.x + 1e-3, std=est.std, relative_std=est.relative_std, covariance=est.covariance
+    )
     assert parameter_std(other, unc).method == "ordinary"
 
 

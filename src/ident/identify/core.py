@@ -287,9 +287,11 @@ def _identify(
     with _timed(timings, "validate"):
         vectors = _vectors(est, essential, cons, pm, identified_model)
         tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
-        comparison, note, reference_essential = _comparisons(cfg, pm, est, essential, reference)
     extras = _timed_extras(
         timings, cfg, log, chunked, pm, (est, identified_model), joints, scheduler
+    )
+    comparison, note, reference_essential = _comparisons(
+        cfg, pm, (est, parameter_std(est, extras["uncertainty"])), essential, reference
     )
     residual = tau_val - predictions["identified"].tau_pred
     extras["uncertainty_summary"] = _uncertainty_summary(
@@ -762,24 +764,26 @@ def _vectors(
 def _comparisons(
     cfg: IdentifyConfig,
     pm: ParameterModel,
-    est: Estimate,
+    fit: tuple[Estimate, ParameterStd],
     essential: EssentialResult | None,
     reference: ReferenceWeights | None,
 ) -> tuple[list[dict], str, list[dict]]:
-    """Rows comparing with the reference's base and essential parameters, and the note."""
+    """Rows comparing with the reference's base and essential parameters, and the note;
+    ``fit``: the estimate and its one standard deviation."""
+    est, sd = fit
     ref_cfg = cfg.reference
     comparison: list[dict] = []
     note = ""
     if ref_cfg.base_parameters is not None:
         comparison, note = compare_with_reference(
-            pm, est, read_reference(ref_cfg.base_parameters), ref_cfg.column
+            pm, est, sd, read_reference(ref_cfg.base_parameters), ref_cfg.column
         )
         if reference is not None and reference.missing:
             note += f" Reference parameters without a column here: {', '.join(reference.missing)}."
     rows_essential: list[dict] = []
     if ref_cfg.essential_parameters is not None:
         rows, _ = compare_with_reference(
-            pm, est, read_reference(ref_cfg.essential_parameters), ref_cfg.column
+            pm, est, sd, read_reference(ref_cfg.essential_parameters), ref_cfg.column
         )
         kept = set(essential.estimate.names) if essential is not None else set()
         for row in rows:

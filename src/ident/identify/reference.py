@@ -26,6 +26,7 @@ from ident.dynamics.gram import selected_rows
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
 from ident.identify.estimate import Estimate
+from ident.identify.uncertainty import ParameterStd
 
 __all__ = [
     "ReferenceParameter",
@@ -191,9 +192,19 @@ def coupling_convention_map(pm: ParameterModel) -> dict[str, list[str]]:
 
 
 def compare_with_reference(
-    pm: ParameterModel, est: Estimate, reference: list[ReferenceParameter], column: str
+    pm: ParameterModel,
+    est: Estimate,
+    sd: ParameterStd,
+    reference: list[ReferenceParameter],
+    column: str,
 ) -> tuple[list[dict], str]:
-    """Match reference base parameters to ours: same expression, or a documented sum."""
+    """Match reference base parameters to ours: same expression, or a documented sum.
+
+    ``sd``: the estimate's one standard deviation
+    (:func:`ident.identify.uncertainty.parameter_std`); the ``relative_std_pct`` of every row,
+    a sum's included (``sqrt(w @ C @ w)``), comes from it and ``std_method`` names it. The
+    reference's own column is whatever the reference printed (an ordinary σ for a published
+    OLS/WLS table)."""
     base = pm.base
     projection = base.projection
     base_names = pm.base_names
@@ -209,6 +220,7 @@ def compare_with_reference(
             "ours": None,
             "value": None,
             "relative_std_pct": None,
+            "std_method": sd.method,
             "match": "none",
             "nominal": None,
         }
@@ -218,7 +230,7 @@ def compare_with_reference(
                 weights = np.zeros(len(base_names))
                 weights[members] = 1.0
                 value = float(weights @ est.x)
-                std = float(np.sqrt(weights @ est.covariance @ weights))
+                std = float(np.sqrt(weights @ sd.covariance @ weights))
                 row.update(
                     ours=" + ".join(coupled[ref.lead]),
                     value=value,
@@ -232,7 +244,7 @@ def compare_with_reference(
                     row.update(
                         ours=base_names[k],
                         value=float(est.x[k]),
-                        relative_std_pct=float(est.relative_std[k]),
+                        relative_std_pct=float(sd.relative_std[k]),
                         match="same expression",
                         nominal=float(projection[k] @ pm.nominal),
                     )

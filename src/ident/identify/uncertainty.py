@@ -368,6 +368,9 @@ class ParameterStd:
         ``100 std / |x|`` [%], ``inf`` where ``x = 0``, shape (n,).
     method :
         ``"bootstrap"`` (:data:`DEFAULT_METHOD`), ``"hac"`` or ``"ordinary"``.
+    covariance :
+        The covariance the standard deviations come from, shape (n, n): the one to use for
+        the standard deviation of a combination ``w @ x`` (``sqrt(w @ C @ w)``).
     note :
         Empty for a calibrated method; else why the ordinary standard deviation is used.
     """
@@ -375,6 +378,7 @@ class ParameterStd:
     std: FloatArray
     relative_std: FloatArray
     method: str
+    covariance: FloatArray
     note: str = ""
 
     @property
@@ -396,7 +400,9 @@ def parameter_std(estimate: Any, unc: Uncertainty | None) -> ParameterStd:
         std = unc.std()
         with np.errstate(divide="ignore", invalid="ignore"):
             rel = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
-        return ParameterStd(std=std, relative_std=rel, method=unc.method)
+        return ParameterStd(
+            std=std, relative_std=rel, method=unc.method, covariance=unc.covariance[unc.method]
+        )
     why = (
         "no block-bootstrap covariance (too few blocks of identification rows for it)"
         if unc is None
@@ -406,6 +412,7 @@ def parameter_std(estimate: Any, unc: Uncertainty | None) -> ParameterStd:
         std=np.asarray(estimate.std, dtype=float),
         relative_std=np.asarray(estimate.relative_std, dtype=float),
         method="ordinary",
+        covariance=np.asarray(estimate.covariance, dtype=float),
         note=ORDINARY_NOTE.format(why=why),
     )
 

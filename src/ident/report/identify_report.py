@@ -491,7 +491,8 @@ def _base_parameter_section(result: IdentifyResult, units: Sequence[str]) -> lis
             "",
             "Coupled wrist, reference basis (sums of our parameters):",
             "",
-            "| reference | value | ref. rel. std [%] | ours | value | rel. std [%] |",
+            f"| reference | value | ref. rel. std [%] | ours | value | rel. std [%] "
+            f"({sums[0].get('std_method', 'ordinary')} σ) |",
             "| --- | --- | --- | --- | --- | --- |",
         ]
         lines += [
@@ -563,7 +564,12 @@ def _essential_section(result: IdentifyResult) -> list[str]:
         f"{len(ess.kept)} of {len(pm.base_names)} kept; relative residual "
         f"{ess.estimate.relative_residual:.4f}; stopped because {ess.stop_reason}.",
         "",
-        "| parameter | value | rel. std [%] |",
+        "The relative std of this section is the ordinary one of each reduced least-squares "
+        "solve: the backward-elimination rule re-solves the reduced problem at every step "
+        "and ranks by that σ, as the published rule does. The base-parameter table's σ is "
+        "the calibrated one.",
+        "",
+        "| parameter | value | rel. std [%] (ordinary σ) |",
         "| --- | --- | --- |",
     ]
     lines += [
