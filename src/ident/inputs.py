@@ -308,16 +308,26 @@ class JobEstimate:
         Peak memory [bytes].
     seconds :
         Wall time [s] (an order of magnitude: the estimate uses a fixed cost per unit).
+    worst_seconds :
+        Wall time [s] when a conditional step runs too (``worst_case`` says which); 0: none.
+    worst_case :
+        The conditional step (``"if the design is retried at a wider margin"``).
     """
 
     what: str
     memory_bytes: float
     seconds: float
+    worst_seconds: float = 0.0
+    worst_case: str = ""
 
     def describe(self) -> str:
-        """One line: ``what: about 1.2 GB of memory and 3.4 min``."""
+        """One line: ``what: about 1.2 GB of memory and 3.4 min`` (``, up to 6.8 min if
+        ...`` when a conditional step can add time)."""
         memory, time = _bytes(self.memory_bytes), _duration(self.seconds)
-        return f"{self.what}: about {memory} of memory and {time}"
+        line = f"{self.what}: about {memory} of memory and {time}"
+        if self.worst_seconds > self.seconds:
+            line += f", up to {_duration(self.worst_seconds)} {self.worst_case}"
+        return line
 
 
 def _bytes(n: float) -> str:

@@ -114,7 +114,9 @@ def _setup_notes(setup: Any) -> None:
         typer.echo(f"limits tightened by {note}", err=True)
     if setup.safety.margin_note:  # the default margin, lowered to one the links can keep
         typer.echo(f"note: {setup.safety.margin_note}", err=True)
-    if setup.estimate.seconds > 60.0 or setup.estimate.memory_bytes > 2e9:
+    if max(setup.estimate.seconds, setup.estimate.worst_seconds) > 60.0 or (
+        setup.estimate.memory_bytes > 2e9
+    ):
         typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
 
 

@@ -133,21 +133,28 @@ def estimate_run(
     Time: objective evaluations (initial elites, then every run of the optimizer) times the
     samples per period times ``nv^2`` (the regressor's rows and columns), plus the measurement
     and identification of each reported elite. Memory: the swarm's trajectories and the
-    regressor of the longest identification.
+    regressor of the longest identification. With a safety model, the worst case adds a
+    second optimization (not the elite search) and certificate: the retry at a wider margin
+    of :mod:`ident.run.pipeline` when every elite is a little inside the clearance.
     """
     nv = robot.nv
     n = config.excitation.n_samples
     e, o = config.elites, config.emupso
-    evaluations = e.n_particles * (e.maxiter + 1) + o.n_runs * o.n_particles * (o.maxiter + 1)
-    seconds = evaluations * n * nv**2 * _SECONDS_PER_SAMPLE_JOINT2
+    optimizer = o.n_runs * o.n_particles * (o.maxiter + 1)
+    evaluations = e.n_particles * (e.maxiter + 1) + optimizer
+    per_evaluation = n * nv**2 * _SECONDS_PER_SAMPLE_JOINT2
     if config.safety is not None:  # the clearance and torque terms of the objective
-        seconds *= 3.0
+        per_evaluation *= 3.0
+    certificate = 0.0
     if safety is not None:  # coal: about 10 us per geometry pair and posture (2 cores)
         pairs = len(safety.geometry_model.collisionPairs)
-        checked = float(evaluations * min(safety.config.check_samples, n))
+        per_evaluation += min(safety.config.check_samples, n) * pairs * _SECONDS_PER_PAIR_POSTURE
         period = float(getattr(family, "period", 10.0) or 10.0)
-        checked += (o.n_report_elites + 1) * period * safety.config.check_rate_hz
-        seconds += checked * pairs * _SECONDS_PER_PAIR_POSTURE
+        certificate = (o.n_report_elites + 1) * period * safety.config.check_rate_hz
+        certificate *= pairs * _SECONDS_PER_PAIR_POSTURE
+    seconds = evaluations * per_evaluation + certificate
+    # the retry runs the optimizer (not the elite search) and the certificate once more
+    retry = optimizer * per_evaluation + certificate if safety is not None else 0.0
     swarm_bytes = 8.0 * max(e.n_particles, o.n_particles) * n * nv * 6
     log_samples = n
     m = config.measurement
@@ -167,6 +174,8 @@ def estimate_run(
         f"{o.n_report_elites} measured trajectories",
         _BYTES_BASE + swarm_bytes + regressor_bytes,
         seconds,
+        worst_seconds=seconds + retry,
+        worst_case="if the design is retried at a wider safety margin",
     )
 
 

@@ -1,0 +1,38 @@
+"""The run's printed time estimate counts the retry at a wider safety margin."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from ident.run.setup import estimate_run, load_run
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+
+def test_a_safe_design_can_cost_a_second_optimization_and_the_estimate_says_so():
+    """The retry at a wider margin (run.pipeline) runs the optimizer and the certificate once
+    more, not the elite search: the worst case adds the optimizer's share, and the printed
+    line says when. Catches an estimate that ignores the retry (the run then takes up to twice
+    as long as announced) or that counts the elite search twice."""
+    setup = load_run(CONFIGS / "wrist-fourier.yaml")
+    job = setup.estimate
+    assert 1.3 * job.seconds < job.worst_seconds < 2.0 * job.seconds
+    assert "up to" in job.describe()
+    assert "retried at a wider safety margin" in job.describe()
+    # a longer elite search costs once: the nominal time grows, the retry's share does not
+    e = setup.config.elites
+    longer = setup.config.model_copy(
+        update={"elites": e.model_copy(update={"maxiter": 4 * e.maxiter + 3})}
+    )
+    job2 = estimate_run(longer, setup.robot, setup.family, setup.safety)
+    assert job2.seconds > job.seconds
+    assert job2.worst_seconds - job2.seconds == pytest.approx(job.worst_seconds - job.seconds)
+
+
+def test_without_a_safety_model_there_is_no_retry_in_the_estimate():
+    setup = load_run(CONFIGS / "wrist.yaml")
+    job = estimate_run(setup.config, setup.robot, setup.family, None)
+    assert job.worst_seconds == job.seconds
+    assert "up to" not in job.describe()
