@@ -165,6 +165,8 @@ def test_payload_family_refuses_a_stage_that_is_not_the_payloads(setup):
         build_family("payload", setup.robot, whole_chain_stage(setup.robot.chain), {})
     with pytest.raises(ConfigError, match=r"n_moving"):
         build_family("payload", setup.robot, setup.stage, {"n_moving": 9})
+    with pytest.raises(ConfigError, match=r"'wrist_1_joint' moves"):
+        build_family("payload", setup.robot, setup.stage, {"held": {"wrist_1_joint": 0.0}})
 
 
 #: the simulated payload: 2.5 kg, its centre of mass 6 cm out of the flange and off its axis
@@ -244,3 +246,21 @@ def test_designed_payload_excitation_recovers_a_simulated_payload(setup, tmp_pat
     summary = json.loads(summary_path.read_text())
     assert abs(summary["mass_kg"] - m) < 0.02 * m
     assert np.linalg.norm(np.asarray(summary["com_m"]) - PAYLOAD_COM_IN_TOOL0) < 0.005
+
+
+def test_payload_box_in_millimetres_is_one_error_line_and_nothing_written(tmp_path):
+    raw = yaml.safe_load(CONFIG.read_text())
+    raw["robot"]["urdf"] = str((REPO / "robot/urdf/ur5.urdf").resolve())
+    raw["robot"]["package_dirs"] = [str((REPO / "robot/meshes").resolve())]
+    raw["safety"]["payload_box"]["size"] = [100.0, 80.0, 120.0]  # mm typed as m
+    config = tmp_path / "design.yaml"
+    config.write_text(yaml.safe_dump(raw, sort_keys=False))
+    out = tmp_path / "runs"
+    result = CliRunner().invoke(app, ["run", str(config), "--out", str(out), "--no-replay"])
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: ")
+    assert "safety.payload_box.size" in lines[0]
+    assert "millimetres" in lines[0]
+    assert not out.exists()

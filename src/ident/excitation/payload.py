@@ -88,7 +88,9 @@ def build_payload_family(robot: Any, stage: Stage, options: dict[str, Any]) -> J
         raise ValueError(f"options.n_moving = {n_moving}: give 1 to {n} (the last joints)")
     positions = np.asarray(stage.held_positions, dtype=float).copy()
     moving = tuple(range(n - n_moving, n))
-    held: Mapping[str, float] = options.pop("held", None) or {}
+    held = options.pop("held", None) or {}
+    if not isinstance(held, Mapping):
+        raise ValueError(f"options.held must map joint names to positions [rad], got {held!r}")
     for joint, value in held.items():
         if joint not in names:
             raise ValueError(f"options.held: {joint!r} is not a joint; joints: {', '.join(names)}")
