@@ -27,6 +27,7 @@ __all__ = [
     "custom_stage",
     "default_held_positions",
     "paper_stages",
+    "payload_stage",
     "random_stage_states",
     "select_stage",
     "spherical_wrist_gap",
@@ -132,6 +133,16 @@ def whole_chain_stage(chain: KinematicChain) -> Stage:
     return Stage("whole", every, every, every, held)
 
 
+def payload_stage(chain: KinematicChain, n_moving: int = 3) -> Stage:
+    """The payload's stage: the last ``n_moving`` joints move (fewer on a shorter chain), every
+    joint's torque is used (a held joint feels the payload too), only the last body is unknown
+    (a payload adds its 10 parameters to it; the other bodies are known)."""
+    n = chain.n_joints
+    moving = tuple(range(max(0, n - n_moving), n))
+    held = tuple(float(x) for x in default_held_positions(chain))
+    return Stage("payload", moving, tuple(range(n)), (n - 1,), held)
+
+
 def custom_stage(
     chain: KinematicChain,
     moving: Sequence[str],
@@ -224,13 +235,15 @@ def spherical_wrist_gap(model: object, rng: int = 0) -> float:
 
 
 #: Stage names a config may use; ``wrist`` and ``arm`` are the paper's two stages.
-STAGE_PRESETS = ("whole", "wrist", "arm")
+STAGE_PRESETS = ("whole", "payload", "wrist", "arm")
 
 
 def select_stage(robot: object, spec: str | dict) -> Stage:
     """The stage a config asks for: a preset name or ``{moving, held, bodies}``.
 
     ``whole`` (the default of the configs) identifies every body with every joint moving.
+    ``payload`` identifies the last body from every joint's torque, the last three joints
+    moving (:func:`payload_stage`; the ``payload`` excitation family designs for it).
     ``wrist`` and ``arm`` are the paper's two stages; they need a 6R arm whose last three
     axes intersect (a spherical wrist), where the wrist's torques do not depend on the arm's
     bodies.
@@ -245,6 +258,8 @@ def select_stage(robot: object, spec: str | dict) -> Stage:
         return custom_stage(chain, **spec)
     if spec == "whole":
         return whole_chain_stage(chain)
+    if spec == "payload":
+        return payload_stage(chain)
     if spec not in STAGE_PRESETS:
         raise ModelError(
             f"stage {spec!r} is unknown; presets: {', '.join(STAGE_PRESETS)}, or give "

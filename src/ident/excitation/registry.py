@@ -35,6 +35,7 @@ from ident.dynamics.stage import Stage
 from ident.errors import ConfigError
 from ident.excitation.fourier import JointFourierFamily
 from ident.excitation.mfs import PaperArmFamily
+from ident.excitation.payload import build_payload_family
 from ident.excitation.wrist import PaperWristFamily
 
 __all__ = ["FAMILIES", "FamilyBuilder", "build_family", "family_names", "register_family"]
@@ -120,5 +121,6 @@ def _paper_stage_family(stage_name: str, cls: type) -> FamilyBuilder:
 
 
 register_family("joint_fourier", _joint_fourier)
+register_family("payload", build_payload_family)
 register_family("paper_wrist", _paper_stage_family("wrist", PaperWristFamily))
 register_family("paper_arm", _paper_stage_family("arm", PaperArmFamily))

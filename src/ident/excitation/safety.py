@@ -70,6 +70,8 @@ __all__ = [
     "BoxObstacle",
     "FloorConfig",
     "ObstacleConfig",
+    "PAYLOAD",
+    "PayloadBox",
     "PlaneObstacle",
     "SafetyConfig",
     "SafetyModel",
@@ -89,9 +91,11 @@ ALWAYS_IN_CONTACT_FRACTION = 0.95  # MoveIt setup assistant's default
 MAX_SIZE_M = 100.0  # obstacle sizes and positions, floor height [m]
 MAX_CLEARANCE_M = 10.0  # the margin [m]; also below the robot's reach
 MAX_OBSTACLES = 256
+MAX_PAYLOAD_SIZE_M = 5.0  # payload box edges and offset from its link [m]
 MOUNT_TOLERANCE_M = 0.01  # a base (or a link turning in place) may sink this deep [m] ...
 # ... or, for a larger geometry, up to its bounding radius: deeper, it is inside the obstacle
 FLOOR = "floor"
+PAYLOAD = "payload"  # the link name of the payload's box in pair names ("payload|floor")
 
 Vector3 = tuple[float, float, float]
 
@@ -192,6 +196,42 @@ class ObstacleConfig(StrictModel):
         return next(k for k in ("box", "sphere", "plane") if getattr(self, k) is not None)
 
 
+class PayloadBox(StrictModel):
+    """The bounding box of a payload (a tool, a grasped object) rigidly attached to a link.
+
+    ``size``: edge lengths [m]; ``position``: the box centre and ``rpy``: its orientation [rad],
+    both in the frame of ``link`` (a URDF link or frame name; ``null``: the last moving joint's
+    frame, the frame of the last link). The box joins the robot's collision geometry as a link
+    named ``payload``: it is checked against the floor, the obstacles and every robot link
+    except those rigidly attached to it (the same joint); a link adjacent to it is checked too.
+    """
+
+    size: Vector3
+    position: Vector3 = (0.0, 0.0, 0.0)
+    rpy: Vector3 = (0.0, 0.0, 0.0)
+    link: str | None = None
+
+    @field_validator("size")
+    @classmethod
+    def _positive(cls, value: Vector3) -> Vector3:
+        if min(value) <= 0.0 or max(value) > MAX_PAYLOAD_SIZE_M:
+            raise ValueError(
+                f"every payload box edge must be in (0, {MAX_PAYLOAD_SIZE_M:g}] m, got "
+                f"{list(value)} (millimetres typed as metres?)"
+            )
+        return value
+
+    @field_validator("position")
+    @classmethod
+    def _near(cls, value: Vector3) -> Vector3:
+        if max(abs(v) for v in value) > MAX_PAYLOAD_SIZE_M:
+            raise ValueError(
+                f"payload box centre {list(value)} is more than {MAX_PAYLOAD_SIZE_M:g} m from "
+                "its link (millimetres typed as metres?)"
+            )
+        return value
+
+
 class SafetyConfig(StrictModel):
     """The ``safety`` section of a run config.
 
@@ -207,6 +247,7 @@ class SafetyConfig(StrictModel):
       torque_limits: true
       check_rate_hz: 1000
       check_samples: 16
+      payload_box: {size: [0.1, 0.1, 0.2], position: [0.0, 0.0, 0.1], link: tool0}
     ```
 
     ``check_samples`` is the number of samples per period at which the optimization's cheap
@@ -226,6 +267,7 @@ class SafetyConfig(StrictModel):
     torque_limits: bool = True
     check_rate_hz: float = Field(default=1000.0, ge=1000.0)
     check_samples: int = Field(default=16, ge=1)
+    payload_box: PayloadBox | None = None
 
 
 # ---------------------------------------------------------------------- the model
@@ -258,6 +300,47 @@ def _obstacle_geometry(obstacle: ObstacleConfig) -> tuple[Any, pin.SE3]:
     normal = np.asarray(plane.normal, dtype=float)
     norm = float(np.linalg.norm(normal))
     return coal.Halfspace(normal / norm, float(plane.offset) / norm), pin.SE3.Identity()
+
+
+def _attach_payload_box(model: pin.Model, geom: pin.GeometryModel, box: PayloadBox) -> None:
+    """Add the payload's box to ``geom`` on a new frame :data:`PAYLOAD` of ``model``.
+
+    The frame sits at the box centre, on ``box.link``'s joint (``null``: the last joint), so
+    the box moves rigidly with that link and its pairs are named ``payload|...``.
+
+    Raises
+    ------
+    ConfigError
+        If ``box.link`` is not a frame of the model (the message lists the frames of the
+        last joint), or the model already has a frame named :data:`PAYLOAD`.
+    """
+    import coal
+
+    if model.existFrame(PAYLOAD):
+        raise ConfigError(
+            f"safety.payload_box: the robot already has a link or frame named {PAYLOAD!r}; "
+            "rename it in the URDF or leave payload_box out."
+        )
+    if box.link is None:
+        joint = model.njoints - 1
+        parent = model.getFrameId(model.names[joint], pin.FrameType.JOINT)
+        link_in_joint = pin.SE3.Identity()
+    else:
+        if not model.existFrame(box.link):
+            last = model.njoints - 1
+            frames = [f.name for f in model.frames if f.parentJoint == last]
+            raise ConfigError(
+                f"safety.payload_box.link: {box.link!r} is not a link or frame of the robot; "
+                f"frames of the last link: {', '.join(frames)} (null: the last joint's frame)."
+            )
+        parent = model.getFrameId(box.link)
+        frame = model.frames[parent]
+        joint, link_in_joint = int(frame.parentJoint), frame.placement
+    box_in_link = pin.SE3(_rpy_matrix(box.rpy), np.asarray(box.position, dtype=float))
+    placement = link_in_joint * box_in_link  # box centre in the parent joint's frame
+    frame_id = model.addFrame(pin.Frame(PAYLOAD, joint, parent, placement, pin.FrameType.OP_FRAME))
+    shape = coal.Box(*[float(s) for s in box.size])
+    geom.addGeometryObject(pin.GeometryObject(PAYLOAD, joint, frame_id, placement, shape))
 
 
 def _revolute_text(text: str) -> str:
@@ -455,6 +538,8 @@ class SafetyModel:
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
         model, geom = _kinematic_model_and_geometry(robot, urdf, package_dirs)
+        if config.payload_box is not None:  # part of the robot: before anything counts links
+            _attach_payload_box(model, geom, config.payload_box)
         self.model = model
         n_robot = len(geom.geometryObjects)
         objects = geom.geometryObjects
@@ -586,7 +671,12 @@ class SafetyModel:
                     continue
                 key = _pair_key(link_of[a], link_of[b])
                 ja, jb = joint_of[a], joint_of[b]
-                if ja == jb or parents[ja] == jb or parents[jb] == ja:
+                # a payload's box is checked against the links next to it: only the links
+                # it is fixed to (the same joint) are excluded
+                next_to = PAYLOAD not in key and (parents[ja] == jb or parents[jb] == ja)
+                if ja == jb and PAYLOAD in key:
+                    excluded.setdefault(key, "payload attached (fixed to this link)")
+                elif ja == jb or next_to:
                     excluded.setdefault(key, "adjacent")
                 geometry_pairs.setdefault(key, []).append((a, b))
         if self.config.srdf is not None:
@@ -606,7 +696,9 @@ class SafetyModel:
         n_random = self.postures.shape[0] - 1
         for i, key in enumerate(tested):
             fraction = float(np.mean(by_link[1:, i]))
-            if by_link[0, i]:
+            # a payload touching a link in the reference posture (an arm folded onto its
+            # tool) is no reason to trust the pair elsewhere: only the 95 % rule applies to it
+            if by_link[0, i] and PAYLOAD not in key:
                 excluded[key] = "reference contact (in contact in the reference posture)"
             elif fraction >= ALWAYS_IN_CONTACT_FRACTION:
                 excluded[key] = (

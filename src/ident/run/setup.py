@@ -278,7 +278,9 @@ def _check_measurement(config: RunConfig, robot: Robot, stage: Stage) -> None:
             raise ConfigError(
                 f"measurement.source: mujoco identifies every body of the chain from its log, "
                 f"so every joint must move; stage '{stage.name}' holds some. Use stage: whole, "
-                "or select a shorter chain (robot.base_link / robot.tip_link)."
+                "or select a shorter chain (robot.base_link / robot.tip_link); for stage: "
+                "payload, leave measurement out and log trajectory.csv with the payload "
+                "(docs/payload.md)."
             )
         return
     std = config.measurement.torque_noise_std
