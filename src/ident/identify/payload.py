@@ -26,6 +26,7 @@ are WLS's; the centre of mass's by the delta method.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -111,7 +112,9 @@ class PayloadColumns:
 
 
 def payload_observations(
-    log: RobotLog, pp: PreprocessConfig, columns: PayloadColumns
+    log: RobotLog,
+    pp: PreprocessConfig,
+    columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
 ) -> ReducedObservations:
     """The log's rows ``tau - Y theta_arm = [Y_n | E] x``, processed and reduced per joint.
 
