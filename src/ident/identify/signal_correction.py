@@ -35,6 +35,8 @@ from ident.identify.accumulate import BaseColumns
 from ident.errors import DataError
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
 from ident.identify.logs import RobotLog
+from ident.identify.payload import PayloadResult, identify_payload, read_payload_logs
+from ident.identify.payload_config import PayloadConfig
 from ident.identify.payload_gain import (
     PayloadGains,
     estimate_payload_gains,
@@ -49,6 +51,7 @@ __all__ = [
     "correct_log",
     "correct_payload_logs",
     "estimate_log_delay",
+    "identify_corrected_payload",
     "shift_torque",
 ]
 
@@ -66,8 +69,12 @@ DELAY_POSITION_CUTOFF_HZ = 30.0
 DELAY_FIT_CUTOFF_HZ = 5.0
 
 
-def shift_torque(log: RobotLog, delay_s: float) -> RobotLog:
-    """``log`` with the torque advanced by ``delay_s`` [s] in each segment: ``tau(t + d)``."""
+def shift_torque(log: RobotLog, delay_s: float, how: str = "given") -> RobotLog:
+    """``log`` with the torque advanced by ``delay_s`` [s] in each segment: ``tau(t + d)``.
+
+    A record (``step: signals.delay_s``, the delay in ``delay_s``, ``how`` it was found) is
+    added to the log's records (the report's processing table and ``result.json``).
+    """
     if delay_s == 0.0:
         return log
     tau = np.empty_like(log.tau)
@@ -75,7 +82,11 @@ def shift_torque(log: RobotLog, delay_s: float) -> RobotLog:
         t = log.t[a:b]
         for j in range(tau.shape[1]):
             tau[a:b, j] = np.interp(t + delay_s, t, log.tau[a:b, j])
-    record = {"step": "signals.delay_s", "detail": f"torque advanced by {1e3 * delay_s:.3f} ms"}
+    record = {
+        "step": "signals.delay_s",
+        "detail": f"torque advanced by {1e3 * delay_s:.2f} ms ({how})",
+        "delay_s": delay_s,
+    }
     return replace(log, tau=tau, records=(*log.records, record))
 
 
@@ -130,13 +141,18 @@ class SignalCorrection:
     gains :
         The gains divided out (``ident payload`` with a gain reference), else None.
     logs :
-        The corrected logs, in the order given.
+        The corrected logs, in the order given (``(with_payload, without_payload)``, or one).
     """
 
     delay_s: float
     delay: DelayEstimate | None
     gains: PayloadGains | None
     logs: tuple[RobotLog, ...]
+
+    @property
+    def changed(self) -> bool:
+        """Whether a delay or gains were removed (or estimated)."""
+        return self.delay_s != 0.0 or self.delay is not None or self.gains is not None
 
     def summary(self) -> dict:
         """JSON-ready values for ``result.json`` / ``payload.json``."""
@@ -162,11 +178,16 @@ class SignalCorrection:
 
 def _delay(
     signals: SignalsConfig, log: RobotLog, pp: PreprocessConfig, pm: ParameterModel, robot: Robot
-) -> tuple[float, DelayEstimate | None]:
+) -> tuple[float, DelayEstimate | None, str]:
+    """The delay [s], its estimate (``auto``) or None, and how it was found (words)."""
     if signals.delay_s != "auto":
-        return float(signals.delay_s), None
+        return float(signals.delay_s), None, "given"
     found = estimate_log_delay(log, pm, robot, signals.max_delay_s, pp.trim_samples)
-    return found.delay_s, found
+    how = (
+        f"estimated within +-{1e3 * signals.max_delay_s:g} ms, fit relative residual "
+        f"{found.residual:.4f}"
+    )
+    return found.delay_s, found, how
 
 
 def correct_log(
@@ -183,8 +204,8 @@ def correct_log(
         return SignalCorrection(0.0, None, None, (log,))
     pp, _, _ = preprocess.resolve_for_log(pp, log)
     pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
-    delay_s, found = _delay(signals, log, pp, pm, robot)
-    return SignalCorrection(delay_s, found, None, (shift_torque(log, delay_s),))
+    delay_s, found, how = _delay(signals, log, pp, pm, robot)
+    return SignalCorrection(delay_s, found, None, (shift_torque(log, delay_s, how),))
 
 
 def correct_payload_logs(
@@ -199,14 +220,15 @@ def correct_payload_logs(
 ) -> SignalCorrection:
     """Both logs of ``ident payload`` with the delay (estimated on the log without the
     payload when there is one) and, with ``signals.gain_reference``, the gains removed."""
+    given = (with_payload,) if without_payload is None else (with_payload, without_payload)
     if signals.delay_s == 0.0 and signals.gain_reference is None:
-        return SignalCorrection(0.0, None, None, (with_payload, without_payload))  # type: ignore[arg-type]
+        return SignalCorrection(0.0, None, None, given)
     resolved, _, _ = preprocess.resolve_for_log(pp, with_payload)
     pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
-    delay_s, found = _delay(signals, without_payload or with_payload, resolved, pm, robot)
-    logs = [shift_torque(with_payload, delay_s)]
+    delay_s, found, how = _delay(signals, without_payload or with_payload, resolved, pm, robot)
+    logs = [shift_torque(with_payload, delay_s, how)]
     if without_payload is not None:
-        logs.append(shift_torque(without_payload, delay_s))
+        logs.append(shift_torque(without_payload, delay_s, how))
     gains = None
     if signals.gain_reference is not None and without_payload is not None:
         chain = chain_from_model(robot.model)
@@ -217,3 +239,19 @@ def correct_payload_logs(
         record = {"step": "signals.gain_reference", "detail": "torque divided by the gains"}
         logs = [replace(x, tau=x.tau / divide, records=(*x.records, record)) for x in logs]
     return SignalCorrection(delay_s, found, gains, tuple(logs))
+
+
+def identify_corrected_payload(cfg: PayloadConfig, robot: Robot) -> PayloadResult:
+    """``ident payload``: read both logs, remove ``cfg.signals``' delay and gains, estimate
+    the payload (:func:`ident.identify.payload.identify_payload`); the result's ``signals``
+    says what was removed."""
+    source = str(cfg.source or "config")
+    with_log, without_log = read_payload_logs(cfg, robot.model)
+    correction = correct_payload_logs(
+        cfg.signals, robot, cfg.preprocess, cfg.model, with_log, without_log, source=source
+    )
+    logs = (correction.logs[0], correction.logs[1] if without_log is not None else None)
+    result = identify_payload(cfg, robot=robot, logs=logs)
+    if not correction.changed:
+        return result
+    return replace(result, signals={**correction.summary(), "line": correction.line()})
