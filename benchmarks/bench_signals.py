@@ -27,8 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ident.config import read_yaml
-from ident.identify.config import ModelConfig, PreprocessConfig
-from ident.identify.config import SignalsConfig
+from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
 from ident.identify.logs import RobotLog
 from ident.identify.signal_correction import correct_payload_logs
 from ident.measure.mujoco_config import load_mujoco_measurement
@@ -79,14 +78,22 @@ def run_case(config: Path, *, seconds: float, seed: int = 0) -> dict:
     for with_payload in (True, False):
         section = dict(measurement)
         if with_payload:
-            section["payload"] = {"mass": MASS, "com": list(COM), "inertia": box_inertia(MASS, SIDES)}
-        sim = simulate(robot, t, q, dq, ddq, load_mujoco_measurement(section), rng=seed + with_payload)
+            section["payload"] = {
+                "mass": MASS,
+                "com": list(COM),
+                "inertia": box_inertia(MASS, SIDES),
+            }
+        sim = simulate(
+            robot, t, q, dq, ddq, load_mujoco_measurement(section), rng=seed + with_payload
+        )
         logs.append(log_of(sim))
     t_sim = time.perf_counter() - t0
     ident = raw["identification"]
     pp = PreprocessConfig.model_validate(ident["preprocess"])
     model = ModelConfig.model_validate({**ident["model"], "offset": True})
-    signals = SignalsConfig.model_validate({"delay_s": "auto", "gain_reference": {"payload_mass_kg": MASS}})
+    signals = SignalsConfig.model_validate(
+        {"delay_s": "auto", "gain_reference": {"payload_mass_kg": MASS}}
+    )
     t0 = time.perf_counter()
     out = correct_payload_logs(signals, robot, pp, model, logs[0], logs[1])
     return {
@@ -110,7 +117,10 @@ def main(argv: list[str] | None = None) -> int:
     configs = [REPO / "configs" / "ur5.yaml"]
     if not args.quick:
         configs.append(REPO / "configs" / "panda.yaml")
-    print("| robot | delay 5 ms: found [ms] | joint | gain true | gain found (1 std) | error [%] | payload torque RMS [N*m] |")
+    print(
+        "| robot | delay 5 ms: found [ms] | joint | gain true | gain found (1 std) "
+        "| error [%] | payload torque RMS [N*m] |"
+    )
     print("|---|---|---|---|---|---|---|")
     ok = True
     for config in configs:
@@ -122,8 +132,11 @@ def main(argv: list[str] | None = None) -> int:
             err = 100 * (g / true - 1)
             ok &= bool(abs(err) <= 1.0)
             delay = f"{row['delay_ms']:.2f}" if j == 0 else ""
-            print(f"| {row['robot'] if j == 0 else ''} | {delay} | {j + 1} | {true:.2f} | "
-                  f"{g:.4f} ({s:.4f}) | {err:+.2f} | {p:.3f} |", flush=True)
+            print(
+                f"| {row['robot'] if j == 0 else ''} | {delay} | {j + 1} | {true:.2f} | "
+                f"{g:.4f} ({s:.4f}) | {err:+.2f} | {p:.3f} |",
+                flush=True,
+            )
         print(f"(estimate {row['seconds']:.1f} s, simulation {row['sim_seconds']:.1f} s)")
     print("target met (delay within 1 ms, every gain within 1 %)" if ok else "TARGET MISSED")
     return 0 if ok else 1

@@ -95,9 +95,7 @@ def payload_gain_observations(
     Columns: the ``n_arm`` base columns of ``pm`` then the payload's 10; shape of ``R``
     (nv, n_arm + 10, n_arm + 10).
     """
-    red = payload_observations(
-        with_payload, pp, GainColumns(chain, pm, with_payload=True)
-    )
+    red = payload_observations(with_payload, pp, GainColumns(chain, pm, with_payload=True))
     return red.merge(
         payload_observations(without_payload, pp, GainColumns(chain, pm, with_payload=False))
     )
@@ -230,7 +228,7 @@ def estimate_payload_gains(red: ReducedObservations, n_arm: int, mass: float) ->
     gain_std[loaded] = np.sqrt(np.clip(np.diag(cov)[:k], 0.0, None))
     payload_rms = np.zeros(nv)
     sigma = np.full(nv, np.nan)
-    for i, (j, C, _, s) in enumerate(rows):
+    for j, C, _, s in rows:
         sigma[j] = s
         payload_rms[j] = s * float(np.linalg.norm(C @ phi)) / np.sqrt(max(red.n_rows[j], 1))
     return PayloadGains(

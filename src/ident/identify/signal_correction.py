@@ -27,12 +27,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
+from threadpoolctl import threadpool_limits
 
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
+from ident.errors import DataError
 from ident.identify import preprocess
 from ident.identify.accumulate import BaseColumns
-from ident.errors import DataError
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
 from ident.identify.logs import RobotLog
 from ident.identify.payload import PayloadResult, identify_payload, read_payload_logs
@@ -203,8 +204,9 @@ def correct_log(
     if signals.delay_s == 0.0:
         return SignalCorrection(0.0, None, None, (log,))
     pp, _, _ = preprocess.resolve_for_log(pp, log)
-    pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
-    delay_s, found, how = _delay(signals, log, pp, pm, robot)
+    with threadpool_limits(limits=1, user_api="blas"):  # small solves: threads only wait
+        pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
+        delay_s, found, how = _delay(signals, log, pp, pm, robot)
     return SignalCorrection(delay_s, found, None, (shift_torque(log, delay_s, how),))
 
 
@@ -223,22 +225,28 @@ def correct_payload_logs(
     given = (with_payload,) if without_payload is None else (with_payload, without_payload)
     if signals.delay_s == 0.0 and signals.gain_reference is None:
         return SignalCorrection(0.0, None, None, given)
-    resolved, _, _ = preprocess.resolve_for_log(pp, with_payload)
-    pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
-    delay_s, found, how = _delay(signals, without_payload or with_payload, resolved, pm, robot)
-    logs = [shift_torque(with_payload, delay_s, how)]
-    if without_payload is not None:
-        logs.append(shift_torque(without_payload, delay_s, how))
-    gains = None
-    if signals.gain_reference is not None and without_payload is not None:
-        chain = chain_from_model(robot.model)
-        red = payload_gain_observations(logs[0], logs[1], resolved, chain, pm)
-        n_arm = red.n_params - 10
-        gains = estimate_payload_gains(red, n_arm, signals.gain_reference.payload_mass_kg)
-        divide = np.where(np.isfinite(gains.gains), gains.gains, 1.0)
-        record = {"step": "signals.gain_reference", "detail": "torque divided by the gains"}
-        logs = [replace(x, tau=x.tau / divide, records=(*x.records, record)) for x in logs]
-    return SignalCorrection(delay_s, found, gains, tuple(logs))
+    with threadpool_limits(limits=1, user_api="blas"):  # small solves: threads only wait
+        resolved, _, _ = preprocess.resolve_for_log(pp, with_payload)
+        pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
+        delay_s, found, how = _delay(signals, without_payload or with_payload, resolved, pm, robot)
+        logs = [shift_torque(with_payload, delay_s, how)]
+        if without_payload is not None:
+            logs.append(shift_torque(without_payload, delay_s, how))
+        gains = None
+        if signals.gain_reference is not None and without_payload is not None:
+            chain = chain_from_model(robot.model)
+            red = payload_gain_observations(logs[0], logs[1], resolved, chain, pm)
+            n_arm = red.n_params - 10
+            gains = estimate_payload_gains(red, n_arm, signals.gain_reference.payload_mass_kg)
+            divide = np.where(np.isfinite(gains.gains), gains.gains, 1.0)
+            record = {
+                "step": "signals.gain_reference",
+                "detail": "torque divided by the gains (payload of known mass): "
+                + ", ".join(f"{g:.4f}" for g in divide),
+                "torque_gains": divide.tolist(),
+            }
+            logs = [replace(x, tau=x.tau / divide, records=(*x.records, record)) for x in logs]
+        return SignalCorrection(delay_s, found, gains, tuple(logs))
 
 
 def identify_corrected_payload(cfg: PayloadConfig, robot: Robot) -> PayloadResult:
