@@ -5,6 +5,8 @@ References: the gains, delay and payload given to the MuJoCo source, its exact s
 commanded torque (the true one, before delay, gain, offset and noise).
 """
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -22,6 +24,7 @@ from ident.identify.logs import RobotLog
 from ident.identify.observations import ReducedObservations
 from ident.identify.payload_gain import GainColumns, estimate_payload_gains
 from ident.identify.signal_correction import (
+    correct_log,
     correct_payload_logs,
     estimate_log_delay,
     shift_torque,
@@ -205,3 +208,46 @@ def test_signals_default_changes_nothing(ur5, pair):
     out = correct_payload_logs(SignalsConfig(), ur5, PreprocessConfig(), ModelConfig(), log, None)
     assert out.logs[0] is log
     assert not out.changed
+
+
+def test_identify_edge_advances_the_torque_by_the_given_delay(ur5, pair):
+    """``ident identify``'s edge: the log's torque at t is the measured one at t + delay, and
+    the processing record carries the delay (report table, result.json)."""
+    log = as_log(pair[1])
+    out = correct_log(SignalsConfig(delay_s=0.003), ur5, PreprocessConfig(), ModelConfig(), log)
+    (shifted,) = out.logs
+    np.testing.assert_allclose(shifted.tau[:-3], log.tau[3:], rtol=1e-12, atol=1e-12)
+    assert shifted.records[-1]["step"] == "signals.delay_s"
+    assert shifted.records[-1]["delay_s"] == 0.003
+    assert "3.00 ms (given)" in shifted.records[-1]["detail"]
+
+
+def test_ident_payload_removes_the_gains_and_reports_them(logs_on_disk, tmp_path):
+    """End to end: the payload's mass comes out as the reference (the gains make it so), the
+    gains of the loaded joints are in payload.json, and the terminal has one signals line."""
+    config = {
+        "name": "x",
+        "robot": {"urdf": str(UR5_URDF)},
+        "log": logs_on_disk[0],
+        "payload": {"without": logs_on_disk[1], "method": "wls"},
+        "model": {"offset": True},
+        "preprocess": {
+            "lowpass": {"cutoff_hz": 30.0},
+            "torque_lowpass": {"cutoff_hz": 30.0},
+            "trim_samples": 100,
+            "decimation": [],
+            "velocity_threshold": [0.1] * 6,
+        },
+        "signals": {"gain_reference": {"payload_mass_kg": PAYLOAD["mass"]}},
+    }
+    path = tmp_path / "payload.yaml"
+    path.write_text(yaml.safe_dump(config))
+    result = CliRunner().invoke(app, ["payload", str(path), "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    assert sum(line.startswith("signals: ") for line in result.output.splitlines()) == 1
+    (run,) = (tmp_path / "runs").iterdir()
+    summary = json.loads((run / "payload.json").read_text())
+    gains = np.asarray(summary["signals"]["torque_gains"]["gains"])
+    loaded = [0, 1, 2, 3, 5]
+    np.testing.assert_allclose(gains[loaded], GAINS[loaded], rtol=3e-3)
+    assert summary["mass_kg"] == pytest.approx(PAYLOAD["mass"], rel=0.01)

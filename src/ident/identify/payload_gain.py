@@ -190,8 +190,8 @@ def estimate_payload_gains(red: ReducedObservations, n_arm: int, mass: float) ->
         if dof <= 0:
             raise DataError(f"torque gains: joint {j + 1} has too few rows ({red.n_rows[j]}).")
         psi = np.linalg.lstsq(C, r, rcond=None)[0]
-        sigma = float(np.sqrt((np.sum((C @ psi - r) ** 2) + rho) / dof))
-        rows.append((j, C / sigma, r / sigma, sigma))
+        noise = float(np.sqrt((np.sum((C @ psi - r) ** 2) + rho) / dof))
+        rows.append((j, C / noise, r / noise, noise))
     if not rows:
         raise DataError("torque gains: the payload's columns act on no joint's rows.")
     loaded = np.array([j for j, *_ in rows], dtype=np.intp)
