@@ -58,10 +58,11 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Raw samples of the first segment the delay is estimated on (the regressor at the raw rate
-#: takes ``8 * nv * n_base`` bytes a sample: 30 000 samples of a 7-joint arm with 70 base
-#: columns are 120 MB).
-MAX_DELAY_SAMPLES = 30_000
+#: Raw samples of the first segment the delay is estimated on. The regressor at the raw rate
+#: takes ``8 * nv * n_base`` bytes a sample and is held about four times (computed, filtered,
+#: the rows of the fit and their Q factor): 20 000 samples of a 7-joint arm with 70 base
+#: columns are 4 x 78 MB.
+MAX_DELAY_SAMPLES = 20_000
 #: Low-pass of the positions before they are differentiated for the delay fit [Hz].
 DELAY_POSITION_CUTOFF_HZ = 30.0
 #: The one filter on both the regressor and the torque of the delay fit [Hz] (parallel
