@@ -19,6 +19,7 @@ from ident.cli import app
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
+from ident.identify import signal_correction
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
 from ident.identify.logs import RobotLog
 from ident.identify.observations import ReducedObservations
@@ -104,7 +105,7 @@ def test_gains_against_a_known_payload_mass_exact_states(ur5, pair):
     np.testing.assert_allclose(doubled.gains, GAINS / 2, rtol=1e-7)
 
 
-def test_correction_divides_the_gains_and_advances_the_torque(ur5, pair):
+def test_correction_divides_the_gains_and_advances_the_torque(ur5, pair, monkeypatch):
     """From processed logs (30 Hz low-pass of positions and torques, differentiated, rows
     above 0.1 rad/s): the gains of the joints the payload loads to 0.3 % and the corrected
     torque is the true one plus offset / gain to 0.5 % of its RMS; multiplying by the gains or
@@ -138,6 +139,13 @@ def test_correction_divides_the_gains_and_advances_the_torque(ur5, pair):
         assert np.all(error[loaded] < 5e-3 * rms[loaded])
         assert log.records[-2]["delay_s"] == delay
         np.testing.assert_allclose(log.records[-1]["torque_gains"], found.gains)
+    # a gain less determined than MAX_GAIN_STD is not applied: the joint keeps gain 1
+    monkeypatch.setattr(signal_correction, "MAX_GAIN_STD", 0.5 * float(found.gain_std[4]))
+    strict = correct_payload_logs(config, ur5, pp, ModelConfig(), logs[0], logs[1])
+    expected = found.gains.copy()
+    expected[4] = 1.0
+    np.testing.assert_allclose(strict.logs[0].records[-1]["torque_gains"], expected, rtol=1e-12)
+    assert "not applied (not determined) on joints [5]" in strict.line()
     # the wrong ways round
     rms = np.sqrt(np.mean(sims[0].tau_cmd ** 2, axis=0))
     multiplied = shift_torque(logs[0], delay).tau * GAINS - sims[0].tau_cmd - OFFSETS / GAINS

@@ -16,7 +16,8 @@ value, and fall in the trimmed edge).
 **Gains** (``ident payload`` with ``payload.without`` and ``signals.gain_reference``): the
 gains are estimated from both logs against the payload's known mass
 (:mod:`ident.identify.payload_gain`) after the delay is removed, and each joint's torque is
-divided by its gain in both logs. A joint the payload does not load keeps gain 1.
+divided by its gain in both logs. A joint whose gain is not determined to
+:data:`MAX_GAIN_STD` (the payload does not load it enough) keeps gain 1.
 
 The offsets ``o_j`` are the model's offset columns (``model.offset``).
 """
@@ -48,7 +49,9 @@ from ident.model import Robot
 
 __all__ = [
     "MAX_DELAY_SAMPLES",
+    "MAX_GAIN_STD",
     "SignalCorrection",
+    "applied_gains",
     "correct_log",
     "correct_payload_logs",
     "estimate_log_delay",
@@ -69,6 +72,8 @@ DELAY_POSITION_CUTOFF_HZ = 30.0
 #: filtering). On UR5 and Panda logs with a 5 ms delay: 4.87 and 5.46 ms at 5 Hz; 5.51 and
 #: 6.61 ms at 10 Hz; 5.04 and 3.33 ms at 2 Hz.
 DELAY_FIT_CUTOFF_HZ = 5.0
+#: A gain whose standard deviation is above this is not applied (the joint keeps gain 1).
+MAX_GAIN_STD = 0.01
 
 
 def shift_torque(log: RobotLog, delay_s: float, how: str = "given") -> RobotLog:
@@ -130,6 +135,14 @@ def estimate_log_delay(
     return estimate_delay(log.t[a:b][inner], tau[inner], Y[inner], max_delay_s=max_delay_s)
 
 
+def applied_gains(gains: PayloadGains) -> FloatArray:
+    """The gains the torque is divided by, shape (nv,): each estimated gain whose standard
+    deviation is at most :data:`MAX_GAIN_STD`, else 1 (a joint the payload barely loads: a
+    badly determined gain would add more error than the gain error it removes)."""
+    determined = np.isfinite(gains.gains) & (gains.gain_std <= MAX_GAIN_STD)
+    return np.where(determined, gains.gains, 1.0)
+
+
 @dataclass(frozen=True, eq=False)
 class SignalCorrection:
     """What the ``signals:`` section did.
@@ -163,6 +176,7 @@ class SignalCorrection:
             out["delay_fit_relative_residual"] = self.delay.residual
         if self.gains is not None:
             out["torque_gains"] = self.gains.summary()
+            out["torque_gains"]["applied"] = applied_gains(self.gains).tolist()
         return out
 
     def line(self) -> str:
@@ -175,6 +189,9 @@ class SignalCorrection:
                 for v, s in zip(self.gains.gains, self.gains.gain_std, strict=True)
             )
             text += f"; torque gains (payload of known mass) [{g}]"
+            kept = np.flatnonzero(applied_gains(self.gains) == 1.0) + 1
+            if kept.size:
+                text += f"; not applied (not determined) on joints {kept.tolist()}"
         return text
 
 
@@ -239,10 +256,11 @@ def correct_payload_logs(
             red = payload_gain_observations(logs[0], logs[1], resolved, chain, pm)
             n_arm = red.n_params - 10
             gains = estimate_payload_gains(red, n_arm, signals.gain_reference.payload_mass_kg)
-            divide = np.where(np.isfinite(gains.gains), gains.gains, 1.0)
+            divide = applied_gains(gains)
             record = {
                 "step": "signals.gain_reference",
-                "detail": "torque divided by the gains (payload of known mass): "
+                "detail": "torque divided by the gains (payload of known mass; 1: not "
+                f"determined to {100 * MAX_GAIN_STD:g} %): "
                 + ", ".join(f"{g:.4f}" for g in divide),
                 "torque_gains": divide.tolist(),
             }
