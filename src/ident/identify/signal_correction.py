@@ -72,6 +72,8 @@ DELAY_POSITION_CUTOFF_HZ = 30.0
 #: filtering). On UR5 and Panda logs with a 5 ms delay: 4.87 and 5.46 ms at 5 Hz; 5.51 and
 #: 6.61 ms at 10 Hz; 5.04 and 3.33 ms at 2 Hz.
 DELAY_FIT_CUTOFF_HZ = 5.0
+#: Time dropped at each end of the delay fit, after its filters [s] (their transients).
+DELAY_EDGE_S = 0.5
 #: A gain whose standard deviation is above this is not applied (the joint keeps gain 1).
 MAX_GAIN_STD = 0.01
 
@@ -108,7 +110,7 @@ def estimate_log_delay(
     same filter (a Coulomb step is smeared alike on both; the identification's own position
     filter, 10 Hz on the shipped configs, leaves the closed loop's acceleration content in
     the torque only and biased the delay by 5-7 ms on UR5 and Panda). ``trim_samples``
-    (at least 500) are dropped at each end, after the filters.
+    (at least :data:`DELAY_EDGE_S` of samples) are dropped at each end, after the filters.
 
     Raises
     ------
@@ -116,9 +118,9 @@ def estimate_log_delay(
         If the segment is shorter than four times ``max_delay_s`` after trimming.
     """
     a, b = log.segments[0]
-    edge = max(trim_samples, 500)
-    b = min(b, a + MAX_DELAY_SAMPLES + 2 * edge)
     fs = log.sampling_rate_hz
+    edge = max(trim_samples, int(np.ceil(DELAY_EDGE_S * fs)))
+    b = min(b, a + MAX_DELAY_SAMPLES + 2 * edge)
     cutoff = min(DELAY_POSITION_CUTOFF_HZ, 0.2 * fs)
     q, _ = preprocess.lowpass(log.q[a:b], fs, cutoff)
     dq, ddq, _ = preprocess.differentiate(q, fs)
