@@ -35,8 +35,9 @@ def payload(
     from ident.errors import IdentError
     from ident.fileio import atomic_write_text
     from ident.identify.model_files import model_files
-    from ident.identify.payload import arm_with_payload, identify_payload
+    from ident.identify.payload import arm_with_payload
     from ident.identify.payload_config import load_payload_config
+    from ident.identify.signal_correction import identify_corrected_payload
     from ident.inputs import check_output_dir
     from ident.model.selection import load_robot
     from ident.run.rundir import create_run_dir
@@ -46,7 +47,7 @@ def payload(
         cfg = load_payload_config(config)
         source = str(cfg.source or config)
         robot = load_robot(cfg.robot, source=source)
-        result = identify_payload(cfg, robot=robot)
+        result = identify_corrected_payload(cfg, robot)
         theta, names = arm_with_payload(robot, result.phi)
         files = model_files(robot, theta, names)  # every check before the run folder
         rundir = create_run_dir(out, cfg.name, info={"command": "payload", "config": str(config)})
@@ -78,4 +79,6 @@ def payload(
             f"fit: relative residual {result.wls.relative_residual:.4f}, pseudo-inertia "
             f"smallest eigenvalue {result.min_eigenvalue:.3g}"
         )
+        if result.signals is not None:
+            typer.echo(f"signals: {result.signals['line']}")
         typer.echo(f"model files: {urdf}, {mjcf}")

@@ -37,12 +37,14 @@ __all__ = [
     "EssentialConfig",
     "EstimationConfig",
     "FilterConfig",
+    "GainReferenceConfig",
     "IdentifyConfig",
     "LogConfig",
     "ModelConfig",
     "PreprocessConfig",
     "ReferenceConfig",
     "RegularizationConfig",
+    "SignalsConfig",
     "LogFile",
     "SignalFile",
     "TimeColumn",
@@ -483,6 +485,38 @@ class UrdfUpdateConfig(StrictModel):
     model_bootstrap: int = Field(default=30, ge=0, le=1000)
 
 
+class GainReferenceConfig(StrictModel):
+    """The reference of the torque gains: a payload of known mass [kg] (``ident payload``
+    with ``payload.without``; :mod:`ident.identify.payload_gain`)."""
+
+    payload_mass_kg: float = Field(gt=0.0)
+
+
+class SignalsConfig(StrictModel):
+    """Errors of the measured torque corrected where the log is read
+    (:mod:`ident.identify.signal_correction`).
+
+    ``delay_s``: the torque lags the positions by this [s] (``0``: none, the default) or
+    ``auto``: estimated within ``max_delay_s`` on the log (the fit's residual against the
+    delay). The torque is advanced by it before any processing. ``gain_reference``
+    (``ident payload`` only): with a payload of known mass and a log without it, a gain per
+    joint is estimated and every torque divided by it; ``null``: no gain correction.
+    """
+
+    delay_s: float | Literal["auto"] = 0.0
+    max_delay_s: float = Field(default=0.02, gt=0.0, le=1.0)
+    gain_reference: GainReferenceConfig | None = None
+
+    @model_validator(mode="after")
+    def _delay_in_bound(self) -> SignalsConfig:
+        if not isinstance(self.delay_s, str) and not 0.0 <= self.delay_s <= self.max_delay_s:
+            raise ValueError(
+                f"signals.delay_s = {self.delay_s:g} s: give a delay >= 0 and at most "
+                f"signals.max_delay_s = {self.max_delay_s:g} s, or 'auto'"
+            )
+        return self
+
+
 class IdentifyConfig(StrictModel):
     """Everything ``ident identify`` needs."""
 
@@ -496,6 +530,7 @@ class IdentifyConfig(StrictModel):
     validation: ValidationConfig = Field(default_factory=ValidationConfig)
     reference: ReferenceConfig = Field(default_factory=ReferenceConfig)
     urdf_update: UrdfUpdateConfig = Field(default_factory=UrdfUpdateConfig)
+    signals: SignalsConfig = Field(default_factory=SignalsConfig)
     source: Path | None = None
 
 
@@ -540,6 +575,11 @@ def load_identify_config(
     """
     path = Path(path)
     cfg = load_config_file(schema, path)
+    if cfg.signals.gain_reference is not None and schema is IdentifyConfig:
+        raise ConfigError(
+            f"{path}: signals.gain_reference: a payload of known mass is the gain reference of "
+            "'ident payload' (with payload.without); remove it from an identify config."
+        )
     base = path.resolve().parent
     try:
         logs = [resolve_log(entry, base) for entry in cfg.log.all_logs()]

@@ -26,6 +26,7 @@ are WLS's; the centre of mass's by the delta method.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,6 +64,7 @@ __all__ = [
     "estimate_payload",
     "identify_payload",
     "payload_observations",
+    "read_payload_logs",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -111,7 +113,9 @@ class PayloadColumns:
 
 
 def payload_observations(
-    log: RobotLog, pp: PreprocessConfig, columns: PayloadColumns
+    log: RobotLog,
+    pp: PreprocessConfig,
+    columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
 ) -> ReducedObservations:
     """The log's rows ``tau - Y theta_arm = [Y_n | E] x``, processed and reduced per joint.
 
@@ -171,6 +175,9 @@ class PayloadResult:
         Estimated extra parameters by name (friction, rotor inertia, offsets).
     timings :
         Seconds per stage.
+    signals :
+        What ``signals:`` removed from the logs (JSON-ready,
+        :meth:`ident.identify.signal_correction.SignalCorrection.summary`), or None.
     """
 
     phi: FloatArray
@@ -187,6 +194,7 @@ class PayloadResult:
     method: str
     extras: dict[str, float]
     timings: dict[str, float]
+    signals: dict | None = None
 
     def summary(self) -> dict:
         """JSON-ready values (SI) for ``payload.json``."""
@@ -207,6 +215,7 @@ class PayloadResult:
             "extras": self.extras,
             "message": (self.consistent or self.wls).message,
             "timings_s": self.timings,
+            **({} if self.signals is None else {"signals": self.signals}),
         }
 
 
@@ -372,6 +381,19 @@ def _settings(cfg: PayloadConfig, log: RobotLog) -> PreprocessConfig:
     return pp
 
 
+def read_payload_logs(cfg: PayloadConfig, model: pin.Model) -> tuple[RobotLog, RobotLog | None]:
+    """``(with_payload, without_payload or None)`` read from the config's log sections."""
+    source = str(cfg.source or "config")
+    joints = [str(model.names[i]) for i in range(1, model.njoints)]
+    with_log = read_log(cfg.log, cfg.transmission, joints, source=source)
+    without = cfg.payload.without
+    if without is None:
+        return with_log, None
+    return with_log, read_log(
+        without, cfg.transmission, joints, source=f"{source}: payload.without"
+    )
+
+
 def identify_payload(
     cfg: PayloadConfig,
     *,
@@ -399,17 +421,7 @@ def identify_payload(
     robot = robot if robot is not None else load_robot(cfg.robot, source=source)
     model = robot.model
     link, placement = _link_placement(model, cfg.payload.link, source)
-    joints = [str(model.names[i]) for i in range(1, model.njoints)]
-    if logs is None:
-        with_log = read_log(cfg.log, cfg.transmission, joints, source=source)
-        without = cfg.payload.without
-        without_log = (
-            None
-            if without is None
-            else read_log(without, cfg.transmission, joints, source=f"{source}: payload.without")
-        )
-    else:
-        with_log, without_log = logs
+    with_log, without_log = read_payload_logs(cfg, model) if logs is None else logs
     pp = _settings(cfg, with_log)
     if pp.velocity_threshold is not None and len(pp.velocity_threshold) != model.nv:
         raise ConfigError(

@@ -72,6 +72,11 @@ def load_payload_config(path: str | Path) -> PayloadConfig:
     cfg = load_identify_config(path, schema=PayloadConfig)
     assert isinstance(cfg, PayloadConfig)  # the schema asked for
     without = cfg.payload.without
+    if cfg.signals.gain_reference is not None and without is None:
+        raise ConfigError(
+            f"{path}: signals.gain_reference needs a log without the payload: add "
+            "payload.without (the same arm, same kind of motion), or remove gain_reference."
+        )
     if without is None:
         return cfg
     if without.more:

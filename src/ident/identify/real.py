@@ -2,7 +2,8 @@
 
 :func:`identify` reads the URDF (Pinocchio) and the log, converts motor-side signals to joint
 side (:mod:`ident.identify.logs`), checks the memory and time estimate
-(:func:`estimate_identify`), and hands the measurements to
+(:func:`estimate_identify`), removes the torque's delay (``signals:``,
+:func:`ident.identify.signal_correction.correct_log`), and hands the measurements to
 :func:`ident.identify.core.identify_measurements`, the one identification every command runs.
 Nothing here writes files; :mod:`ident.report.identify_report` does.
 """
@@ -21,6 +22,7 @@ from ident.identify.config import IdentifyConfig
 from ident.identify.core import IdentifyResult, identify_measurements
 from ident.identify.logs import RobotLog, estimate_log, read_log
 from ident.identify.model_intervals import estimated_seconds
+from ident.identify.signal_correction import correct_log
 from ident.inputs import JobEstimate, check_job
 from ident.model import Robot
 from ident.model.selection import load_robot
@@ -127,12 +129,14 @@ def identify(
     """
     t0 = time.perf_counter()
     source = str(cfg.source or "config")
-    model = load_robot(cfg.robot, source=source).model
+    robot = load_robot(cfg.robot, source=source)
+    model = robot.model
     joints = [model.names[i] for i in range(1, model.njoints)]
     reading = check_job(estimate_log(cfg.log))  # from the files' sizes, before reading
     if on_estimate is not None:
         on_estimate(reading)
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
+    (log,) = correct_log(cfg.signals, robot, cfg.preprocess, cfg.model, log, source=source).logs
     estimate = check_job(estimate_identify(cfg, log))
     extra = estimate_model_intervals(cfg, log.q.shape[1])
     if extra is not None:
