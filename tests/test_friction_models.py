@@ -4,6 +4,8 @@ References: closed forms written here (not the registry's code), Pinocchio's RNE
 simulated truth, and the values the MuJoCo source was given.
 """
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -24,6 +26,7 @@ from ident.dynamics.parameter_model import build_parameter_model, model_regresso
 from ident.errors import ConfigError
 from ident.identify.config import load_identify_config
 from ident.identify.friction_fit import FrictionRows, compare_friction_models, fit_friction_model
+from ident.identify.model_files import save_identified_model
 from ident.identify.real import identify
 from ident.measure.mujoco_config import check_joint_counts, load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate, write_log
@@ -243,6 +246,26 @@ def test_identify_with_friction_auto_picks_the_simulated_law(tmp_path, ur5):
     entry = friction_models_entry(result)
     assert entry["winner"] == "stribeck"
     assert "## Friction models" in "\n".join(friction_models_lines(result))
+    # the written model carries the law: the file's parameters are the simulated ones (SI)
+    # and the reload check reads them back to rounding
+    (tmp_path / "model").mkdir()
+    written = save_identified_model(result, tmp_path / "model")
+    assert written["written"]
+    assert written["friction_law"]["model"] == "stribeck"
+    print(
+        "LAW",
+        result.friction_law.held_out_residual,
+        result.friction_law.baseline_held_out_residual,
+        result.friction.fit("stribeck").held_out_residual,
+    )
+    assert written["reload_parity"]["friction_law"] < 1e-12
+    extras = json.loads((tmp_path / "model" / written["files"]["joint_extras"]).read_text())
+    params = extras["friction_law"]["parameters"]
+    for label, true, rtol in (("fc", 1.0, 0.1), ("fst", 1.5, 0.15), ("vs", 0.3, 0.15)):
+        got = [params[j][label] for j in robot.joint_names[:5]]  # the last: vs at its bound
+        np.testing.assert_allclose(got, true, rtol=rtol, err_msg=label)
+    held = written["friction_law"]["held_out_relative_residual"]
+    assert held["stribeck"] < held["viscous_coulomb"]
     sections["model"]["friction"] = "viscous_coulomb"
     (tmp_path / "plain.yaml").write_text(yaml.safe_dump(sections))
     plain = identify(load_identify_config(tmp_path / "plain.yaml"))

@@ -56,10 +56,12 @@ __all__ = [
     "fit_friction_model",
     "friction_rows",
     "predict_friction_rows",
+    "rest_parameters",
 ]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.intp]
 
 #: Common scale factors of the nonlinear parameters tried before the local fit.
 _SCAN = np.geomspace(0.05, 20.0, 9)
@@ -237,7 +239,7 @@ def _fit(
     nv = rows.tau.shape[1]
     weights = np.ones(nv) if weights is None else np.asarray(weights, dtype=float)
     keep, w, y = _weighted(rows, weights)
-    W = rows.W_rest.reshape(-1, rows.W_rest.shape[2])[keep] * w[:, None]
+    W = rows.W_rest.reshape(keep.size, rows.W_rest.shape[2])[keep] * w[:, None]
     Q, R = np.linalg.qr(W)
     d = np.abs(np.diag(R))
     if W.shape[1] and d.min() <= max(W.shape) * np.finfo(float).eps * d.max():
@@ -440,6 +442,25 @@ def _rows_of(
     return FrictionRows(W_rest=W, dq=dq, tau=tau, keep=keep, joints=joints)
 
 
+def _friction_columns(
+    chunked: accumulate.ChunkedLog, pm: ParameterModel
+) -> tuple[IntArray, BoolArray]:
+    """The planned base columns (indices into ``pm.base_names``) and which are the joints'
+    ``fv``/``fs``."""
+    order = np.asarray(chunked.fit_tasks[0].columns.order, dtype=np.intp)
+    names = [pm.base_names[i] for i in order]
+    return order, np.array([_FRICTION_BASE.fullmatch(n) is not None for n in names], dtype=bool)
+
+
+def rest_parameters(
+    chunked: accumulate.ChunkedLog, pm: ParameterModel, x: FloatArray
+) -> FloatArray:
+    """The entries of base parameters ``x`` (shape (n_base,), in ``pm.base_names``' order)
+    that multiply the columns of :func:`friction_rows`' ``W_rest``, shape (p,)."""
+    order, drop = _friction_columns(chunked, pm)
+    return np.asarray(x, dtype=float)[order][~drop]
+
+
 def friction_rows(
     chunked: accumulate.ChunkedLog, pm: ParameterModel, *, max_samples: int = MAX_SAMPLES
 ) -> tuple[FrictionRows, FrictionRows | None]:
@@ -448,9 +469,7 @@ def friction_rows(
 
     Every part is thinned evenly to at most ``max_samples`` decimated samples.
     """
-    columns = chunked.fit_tasks[0].columns
-    names = [pm.base_names[i] for i in columns.order]
-    drop = np.array([_FRICTION_BASE.fullmatch(n) is not None for n in names], dtype=bool)
+    _, drop = _friction_columns(chunked, pm)
     joints = tuple(sorted({*pm.terms.per_joint["fv"], *pm.terms.per_joint["fs"]}))
     if not joints:
         raise DataError("model.friction: no joint has viscous or Coulomb friction terms.")
