@@ -411,12 +411,14 @@ def _friction_models(
     except DataError as e:
         return None, None, [f"model.friction = {name}: the friction models were not fitted ({e})"]
     chosen = comparison.winner if name == "auto" else name
+    ambiguous = "" if name == "auto" else comparison.fit(name).ambiguous
+    problems = [f"model.friction = {name}: its fit is ambiguous, {ambiguous}"] if ambiguous else []
     consistent = None if written is None else written.constrained
     if chosen == comparison.baseline or consistent is None or not consistent.success:
-        return comparison, None, []
+        return comparison, None, problems
     rest = rest_parameters(chunked, pm, consistent.x)
     law = written_friction_law(comparison.fit(chosen), fit_rows, held_out, rest, joints)
-    return comparison, law, []
+    return comparison, law, problems
 
 
 def _accumulate(
