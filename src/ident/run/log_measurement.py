@@ -97,10 +97,10 @@ def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
     """
     m = config.measurement
     n = pm.terms.n_joints
-    values = {
-        "fv": np.array(per_joint(m.friction.viscous, n), dtype=float),  # type: ignore[union-attr]
-        "fs": np.array(per_joint(m.friction.coulomb, n), dtype=float),  # type: ignore[union-attr]
-        "Ia": per_joint(m.armature, n),  # type: ignore[union-attr]
+    values: dict[str, FloatArray] = {
+        "fv": np.asarray(per_joint(m.friction.viscous, n), dtype=np.float64),  # type: ignore[union-attr]
+        "fs": np.asarray(per_joint(m.friction.coulomb, n), dtype=np.float64),  # type: ignore[union-attr]
+        "Ia": np.asarray(per_joint(m.armature, n), dtype=np.float64),  # type: ignore[union-attr]
         "off": np.zeros(n),
     }
     law = getattr(getattr(m, "friction", None), "law", None)
