@@ -12,7 +12,7 @@ delay (recovered by :func:`estimate_delay`) and torque
 gains of 0.97 / 1.03 on joints 3 and 4 (recovered by :func:`estimate_gains` against the
 shoulder's known gain, on the rows above the velocity threshold).
 
-    python benchmarks/bench_friction.py            # 1.5-3 min on a loaded 2-core machine
+    python benchmarks/bench_friction.py    # 1.5-3 min; 4.5 min on 2 cores at load 11
 """
 
 from __future__ import annotations
