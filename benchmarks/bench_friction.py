@@ -6,11 +6,13 @@ quantization (2^19 counts per revolution) and 1 % Gaussian torque noise. The log
 ``ident identify`` does it (zero-phase 30 Hz low-pass of positions and torques, central
 differences, velocity threshold 0.05 rad/s) and every parameter fitted by separable least squares
 (:mod:`ident.identify.friction_fit`); the table gives the largest relative error over joints
-of each parameter. Then a 5 ms torque delay (recovered by :func:`estimate_delay`) and torque
+of each parameter, and whether the fit found a second minimum it cannot tell apart
+(``FrictionFit.ambiguous``: ``friction: auto`` does not pick such a model). Then a 5 ms torque
+delay (recovered by :func:`estimate_delay`) and torque
 gains of 0.97 / 1.03 on joints 3 and 4 (recovered by :func:`estimate_gains` against the
 shoulder's known gain, on the rows above the velocity threshold).
 
-    python benchmarks/bench_friction.py            # 1.5-3 min on a loaded 2-core machine
+    python benchmarks/bench_friction.py    # 1.5-3 min; 4.5 min on 2 cores at load 11
 """
 
 from __future__ import annotations
@@ -104,7 +106,7 @@ def friction_table(name: str, robot: Robot, reference) -> list[str]:
             errors.append(f"{label} {100 * err:.1f} %")
         rows.append(
             f"| {name} | {model_name} | {', '.join(errors)} | {100 * fit.fit_residual:.2f} % | "
-            f"{time.perf_counter() - t0:.1f} s |"
+            f"{'yes' if fit.ambiguous else 'no'} | {time.perf_counter() - t0:.1f} s |"
         )
     return rows
 
@@ -142,8 +144,8 @@ def signal_rows(name: str, robot: Robot, reference) -> list[str]:
 
 def main() -> None:
     friction = [
-        "| robot | model | largest error over joints | fit residual | time |",
-        "| --- |" * 1 + " --- | --- | --- | --- |",
+        "| robot | model | largest error over joints | fit residual | ambiguous | time |",
+        "| --- |" * 1 + " --- | --- | --- | --- | --- |",
     ]
     signal = ["| robot | injected | found | error |", "| --- | --- | --- | --- |"]
     for name, robot in robots().items():

@@ -189,6 +189,9 @@ def _print_summary(result: IdentifyResult, folder: Path, replay_note: str) -> No
             f"friction models (held-out relative residual): {ranked}; winner {f.winner}, "
             f"{100 * f.improvement():.2f} % below {f.baseline}"
         )
+        for x in f.fits:
+            if x.ambiguous:
+                typer.echo(f"note: friction model {x.model} not picked: {x.ambiguous}", err=True)
     typer.echo(replay_note)
     _echo_model(folder / "result.json")
     verdict = identify_verdict(result)  # the one the report and result.json show

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -83,6 +83,8 @@ class FrictionModel:
         The torque as text, for reports.
     uses_load :
         Whether the columns depend on ``load`` (fitted by a fixed point on the load).
+    units :
+        Unit of each parameter by label (SI), for the written model's joint-extras file.
     """
 
     name: str
@@ -93,6 +95,7 @@ class FrictionModel:
     initial: Callable[[FloatArray], FloatArray] | None = None
     formula: str = ""
     uses_load: bool = False
+    units: dict[str, str] = field(default_factory=dict)
 
     @property
     def is_linear(self) -> bool:
@@ -180,8 +183,27 @@ def _load_dependent(dq: FloatArray, load: FloatArray, p: FloatArray) -> FloatArr
     return np.stack([dq, sign, np.abs(load) * sign], axis=-1)
 
 
+#: Units of the registered models' parameters (``FrictionModel.units``).
+_UNITS = {
+    "fv": "N*m*s/rad",
+    "fc": "N*m",
+    "off": "N*m",
+    "fst": "N*m",
+    "vs": "rad/s",
+    "phi1": "N*m",
+    "phi2": "s/rad",
+    "phi3": "rad/s",
+    "fl": "1 (N*m per N*m of load)",
+}
+
 register_friction_model(
-    FrictionModel("viscous_coulomb", ("fv", "fc"), _viscous_coulomb, formula="fv dq + fc sign(dq)")
+    FrictionModel(
+        "viscous_coulomb",
+        ("fv", "fc"),
+        _viscous_coulomb,
+        formula="fv dq + fc sign(dq)",
+        units=_UNITS,
+    )
 )
 register_friction_model(
     FrictionModel(
@@ -189,6 +211,7 @@ register_friction_model(
         ("fv", "fc", "off"),
         _with_offset,
         formula="fv dq + fc sign(dq) + off",
+        units=_UNITS,
     )
 )
 register_friction_model(
@@ -200,6 +223,7 @@ register_friction_model(
         positive=(True,),
         initial=lambda dq: 0.2 * _velocity_scale(dq)[:, None],
         formula="fv dq + (fc + fst exp(-(dq/vs)^2)) sign(dq)",
+        units=_UNITS,
     )
 )
 register_friction_model(
@@ -211,6 +235,7 @@ register_friction_model(
         positive=(True, False),
         initial=lambda dq: np.stack([2.0 / _velocity_scale(dq), np.zeros(np.shape(dq)[1])], axis=1),
         formula="phi1 (s(phi2 (dq + phi3)) - s(phi2 phi3)), s(x) = 1/(1 + exp(-x))",
+        units=_UNITS,
     )
 )
 register_friction_model(
@@ -220,5 +245,6 @@ register_friction_model(
         _load_dependent,
         formula="fv dq + (fc + fl |load|) sign(dq)",
         uses_load=True,
+        units=_UNITS,
     )
 )

@@ -51,7 +51,13 @@ from ident.identify.estimators import (
     bounding_ellipsoids,
     consistent_identification_reduced,
 )
-from ident.identify.friction_fit import FrictionComparison, compare_friction_models, friction_rows
+from ident.identify.friction_fit import (
+    FrictionComparison,
+    compare_friction_models,
+    friction_rows,
+    rest_parameters,
+)
+from ident.identify.friction_law import WrittenFrictionLaw, written_friction_law
 from ident.identify.identifiability import Identifiability, standard_identifiability
 from ident.identify.logs import RobotLog
 from ident.identify.model_intervals import ModelIntervals, model_intervals
@@ -151,6 +157,10 @@ class IdentifyResult:
     friction :
         With ``model.friction`` other than ``viscous_coulomb``: the friction models fitted
         (that one, or every one for ``auto``) and ranked by held-out fit; else None.
+    friction_law :
+        The law the written model carries (:mod:`ident.identify.friction_law`): the
+        configured one, or ``auto``'s winner, when it is not ``viscous_coulomb`` and there is
+        a model to write; else None.
     model_intervals :
         Bootstrap intervals of the written model's standard parameters
         (:mod:`ident.identify.model_intervals`, ``urdf_update.model_bootstrap`` re-solves), or
@@ -186,6 +196,7 @@ class IdentifyResult:
     uncertainty_summary: dict | None = None
     identifiability: Identifiability | None = None
     friction: FrictionComparison | None = None
+    friction_law: WrittenFrictionLaw | None = None
     model_intervals: ModelIntervals | None = None
     model_intervals_note: str = ""
 
@@ -354,7 +365,9 @@ def _timed_extras(
                 chunked, (est, identified_model), out["uncertainty"], blocks, n_boot, scheduler
             )
     with _timed(timings, "friction_models"):
-        out["friction"], out["friction_problem"] = _friction_models(cfg, chunked, pm)
+        out["friction"], out["friction_law"], out["friction_problem"] = _friction_models(
+            cfg, chunked, pm, identified_model, tuple(joints)
+        )
     if cfg.model.friction == "viscous_coulomb":
         del timings["friction_models"]
     with _timed(timings, "motion"):
@@ -380,19 +393,34 @@ def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
 
 
 def _friction_models(
-    cfg: IdentifyConfig, chunked: accumulate.ChunkedLog, pm: ParameterModel
-) -> tuple[FrictionComparison | None, list[str]]:
-    """The friction models of ``model.friction`` fitted and ranked (None for the default), or
-    None and the reason as a warning: the identification is kept whatever happens here."""
+    cfg: IdentifyConfig,
+    chunked: accumulate.ChunkedLog,
+    pm: ParameterModel,
+    written: ConsistentIdentification | None,
+    joints: tuple[str, ...],
+) -> tuple[FrictionComparison | None, WrittenFrictionLaw | None, list[str]]:
+    """The friction models of ``model.friction`` fitted and ranked (None for the default), and
+    the law the written model carries (the configured one or the winner, when it is not
+    ``viscous_coulomb`` and ``written`` has a consistent estimate), or None and the reason as
+    a warning: the identification is kept whatever happens here."""
     name = cfg.model.friction
     if name == "viscous_coulomb":
-        return None, []
+        return None, None, []
     try:
         fit_rows, held_out = friction_rows(chunked, pm)
         names = None if name == "auto" else [name]
-        return compare_friction_models(fit_rows, held_out, names), []
+        comparison = compare_friction_models(fit_rows, held_out, names)
     except DataError as e:
-        return None, [f"model.friction = {name}: the friction models were not fitted ({e})"]
+        return None, None, [f"model.friction = {name}: the friction models were not fitted ({e})"]
+    chosen = comparison.winner if name == "auto" else name
+    ambiguous = "" if name == "auto" else comparison.fit(name).ambiguous
+    problems = [f"model.friction = {name}: its fit is ambiguous, {ambiguous}"] if ambiguous else []
+    consistent = None if written is None else written.constrained
+    if chosen == comparison.baseline or consistent is None or not consistent.success:
+        return comparison, None, problems
+    rest = rest_parameters(chunked, pm, consistent.x)
+    law = written_friction_law(comparison.fit(chosen), fit_rows, held_out, rest, joints)
+    return comparison, law, problems
 
 
 def _accumulate(

@@ -19,6 +19,13 @@ import numpy.typing as npt
 
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
+from ident.identify.friction_law import (
+    LAW_TORQUE_MODEL,
+    WrittenFrictionLaw,
+    friction_law_entry,
+    friction_law_torque,
+    native_theta,
+)
 from ident.identify.mjcf import identified_mjcf
 from ident.identify.urdf_update import IdentifiedModel, identified_urdf
 from ident.model import Robot
@@ -70,6 +77,7 @@ def model_files(
     *,
     nominal: npt.ArrayLike | None = None,
     coupled_pair: tuple[int, int] | None = None,
+    friction_law: WrittenFrictionLaw | None = None,
 ) -> ModelFiles:
     """The identified URDF, MJCF and joint-extras texts of a consistent estimate.
 
@@ -88,6 +96,10 @@ def model_files(
     coupled_pair :
         The joints (0-based) sharing the coupled motor, if ``theta`` has ``Iam{b}``
         (``ParameterModel.terms.coupled_wrist``); needed for the MJCF's tendon.
+    friction_law :
+        A friction law the model carries instead of ``fv``/``fs``
+        (:mod:`ident.identify.friction_law`): the joint-extras file gets its
+        ``"friction_law"``, the URDF's and MJCF's damping and friction its native part.
 
     Raises
     ------
@@ -96,6 +108,7 @@ def model_files(
         MuJoCo cannot compile the model.
     """
     source = str(robot.urdf_path or robot.name)
+    theta = native_theta(theta, names, friction_law)
     urdf = identified_urdf(
         robot.urdf_text,
         robot.model,
@@ -126,6 +139,9 @@ def model_files(
         extras["locked_joints"] = dict(robot.locked_joints)
     if urdf.welded_scale:
         extras["welded_links_scaled"] = dict(urdf.welded_scale)
+    if friction_law is not None:
+        extras["torque_model"] = LAW_TORQUE_MODEL
+        extras["friction_law"] = friction_law_entry(friction_law)
     return ModelFiles(
         urdf=urdf, mjcf=mjcf, extras_json=json.dumps(extras, indent=2) + "\n", paths={}
     )
@@ -141,6 +157,7 @@ def write_model_files(
     nominal: npt.ArrayLike | None = None,
     coupled_pair: tuple[int, int] | None = None,
     suffix: str = "identified",
+    friction_law: WrittenFrictionLaw | None = None,
 ) -> ModelFiles:
     """Write ``<stem>_identified.urdf``, ``<stem>_identified.xml``, ``<stem>_joint_extras.json``.
 
@@ -154,7 +171,14 @@ def write_model_files(
     :
         The texts and their ``paths``.
     """
-    files = model_files(robot, theta, names, nominal=nominal, coupled_pair=coupled_pair)
+    files = model_files(
+        robot,
+        theta,
+        names,
+        nominal=nominal,
+        coupled_pair=coupled_pair,
+        friction_law=friction_law,
+    )
     folder = Path(out_dir)
     paths = {
         "urdf": atomic_write_text(folder / f"{stem}_{suffix}.urdf", files.urdf.text),
@@ -178,11 +202,16 @@ class ReloadParity:
         loss) against rigid body + rotor inertia + viscous friction.
     n_states :
         Number of random states compared.
+    friction_law_relative_error :
+        With a friction law: ``max |law_file - law_fit| / max |law_fit|``, the law evaluated
+        from the written joint-extras file (:func:`friction_law_torque`) against the fit's
+        torques, on the identification samples; None without a law.
     """
 
     urdf_relative_error: float
     mjcf_relative_error: float
     n_states: int
+    friction_law_relative_error: float | None = None
 
 
 def reload_parity(
@@ -193,6 +222,7 @@ def reload_parity(
     *,
     n_states: int = 50,
     seed: int = 0,
+    friction_law: WrittenFrictionLaw | None = None,
 ) -> ReloadParity:
     """Reload the written URDF (Pinocchio) and MJCF (MuJoCo) and compare with the estimate.
 
@@ -200,14 +230,17 @@ def reload_parity(
     (plus ``Ia_j ddq_j + fv_j dq_j`` and the coupled motors' inertia and viscous terms for
     MuJoCo) on ``n_states`` random states within the
     robot's limits (:meth:`Robot.random_configurations`). Both errors are about 1e-15 for a
-    correct file; the tests hold them below 1e-9.
+    correct file; the tests hold them below 1e-9. With ``friction_law`` the files hold its
+    native part as ``fv``/``fs`` (the MJCF's damping is compared with it), and the law read
+    back from the joint-extras file is compared with the fit on its samples
+    (``friction_law_relative_error``, 0 to rounding for a correct file).
     """
     import mujoco
     import pinocchio as pin
 
     from ident.identify.urdf_update import model_of_urdf
 
-    theta = np.asarray(theta, dtype=float)
+    theta = native_theta(theta, names, friction_law)
     index = {name: i for i, name in enumerate(names)}
     n = robot.n_bodies
     q, dq, ddq = robot.random_configurations(n_states, rng=seed)
@@ -250,7 +283,15 @@ def reload_parity(
         mujoco.mj_inverse(model, mj_data)
         got[k] = mj_data.qfrc_inverse[dof]
     mjcf_error = float(np.abs(got - expected).max()) / max(float(np.abs(expected).max()), scale)
-    return ReloadParity(urdf_error, mjcf_error, n_states)
+    law_error = None
+    if friction_law is not None:
+        fitted = friction_law.torque(friction_law.dq, friction_law.load)
+        read = friction_law_torque(
+            json.loads(files.extras_json), friction_law.dq, friction_law.load
+        )
+        law_scale = max(float(np.abs(fitted).max()), np.finfo(float).tiny)
+        law_error = float(np.abs(read - fitted).max()) / law_scale
+    return ReloadParity(urdf_error, mjcf_error, n_states, law_error)
 
 
 def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
@@ -267,8 +308,10 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
     :
         JSON-ready: ``written`` (bool), ``method``, ``files`` (``urdf``, ``mjcf``,
         ``joint_extras``: names in ``out_dir``), ``reload_parity`` (``urdf``, ``mjcf``: the
-        largest relative torque difference; ``n_states``), ``held_out_relative_residual``
-        (the model's and the least-squares fit's, rows above the velocity threshold) and
+        largest relative torque difference; ``n_states``; ``friction_law`` with a law),
+        ``friction_law`` (with a law: its name and held-out residuals),
+        ``held_out_relative_residual`` (the model's and the least-squares fit's, rows above
+        the velocity threshold) and
         ``note`` (why nothing was written, or None). A model the files cannot represent (a
         :class:`~ident.errors.IdentError` from the write-back or MuJoCo) is a ``note``, not
         an exception: the estimate is saved before, the report says what happened.
@@ -306,6 +349,15 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
     entry["held_out_relative_residual"] = held_out
     est = model.constrained
     names = model.structure.names
+    law = getattr(result, "friction_law", None)
+    if law is not None:
+        entry["friction_law"] = {
+            "model": law.model,
+            "held_out_relative_residual": {
+                law.model: law.held_out_residual,
+                "viscous_coulomb": law.baseline_held_out_residual,
+            },
+        }
     try:
         robot = load_robot(result.config.robot)  # the identified chain, its locked joints
         files = write_model_files(
@@ -316,13 +368,14 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
             Path(result.config.robot.path).stem,
             nominal=model.structure.nominal,
             coupled_pair=result.parameters.terms.coupled_wrist,
+            friction_law=law,
         )
     except IdentError as e:
         entry["note"] = f"no model written: {e}"
         return entry
     entry.update(written=True, files={key: path.name for key, path in files.paths.items()})
     try:  # the files are written: a reload that fails is reported, never loses them
-        parity = reload_parity(robot, files, est.theta, names)
+        parity = reload_parity(robot, files, est.theta, names, friction_law=law)
     except IdentError as e:
         entry["note"] = f"written, but not reloaded: {e}"
         return entry
@@ -331,6 +384,8 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         "mjcf": parity.mjcf_relative_error,
         "n_states": parity.n_states,
     }
+    if parity.friction_law_relative_error is not None:
+        entry["reload_parity"]["friction_law"] = parity.friction_law_relative_error
     return entry
 
 

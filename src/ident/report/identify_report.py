@@ -319,6 +319,7 @@ def friction_models_entry(result: IdentifyResult) -> dict:
                 "held_out_relative_residual": f.held_out_residual,
                 "fit_relative_residual": f.fit_residual,
                 "success": f.success,
+                "ambiguous": f.ambiguous or None,
                 "parameters": {
                     label: values.tolist()
                     for label, values in zip(
@@ -356,6 +357,9 @@ def friction_models_lines(result: IdentifyResult) -> list[str]:
         f"| {f.model} | {_num(100 * f.held_out_residual, 4)} | {_num(100 * f.fit_residual, 4)} |"
         for f in comparison.fits
     ]
+    refused = [f for f in comparison.fits if f.ambiguous]
+    if refused:
+        lines += [""] + [f"- `{f.model}` is not picked: {f.ambiguous}." for f in refused]
     return [*lines, ""]
 
 

@@ -55,6 +55,19 @@ def model_section(
         else f"not computed ({model['note']})"
     )
     fits = ", ".join(f"{k} {pct(100 * v)}" for k, v in held.items() if v is not None)
+    law = model.get("friction_law")
+    if law is not None:
+        res = law["held_out_relative_residual"]
+        lines.append(
+            f"- The friction is the **{law['model']}** law, in `{files['joint_extras']}` "
+            "(`friction_law`: formula, units, parameters per joint); the URDF's and MJCF's "
+            "damping/friction hold its closest viscous + Coulomb curve, a MuJoCo user adds the "
+            "rest as `qfrc_applied` (docs/friction.md). Held out, these bodies with the law: "
+            f"{pct(100 * res[law['model']])}, with viscous + Coulomb: "
+            f"{pct(100 * res['viscous_coulomb'])}."
+        )
+        if parity and parity.get("friction_law") is not None:
+            reload += f"; the law read back from the file: {parity['friction_law']:.2g}"
     return lines + [
         "",
         "Reloaded (Pinocchio RNEA of the URDF, MuJoCo inverse dynamics of the MJCF), largest "

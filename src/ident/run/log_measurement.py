@@ -47,6 +47,7 @@ from ident.run.results import EliteOutcome, StageInfo, base_set_fields
 __all__ = [
     "LogOutcome",
     "identify_elite_log",
+    "friction_truth_note",
     "log_stage_info",
     "save_logs",
     "trajectory_column_norms",
@@ -90,20 +91,50 @@ def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
 
     Inertial parameters from the URDF (``pm.nominal``), ``fv<j>`` / ``fs<j>`` / ``Ia<j>`` from
     the configured viscous friction, Coulomb friction and armature of joint j, offsets 0.
+    A ``friction.law`` that is the identification's own linear model (``viscous_coulomb``,
+    ``viscous_coulomb_offset``) adds its ``fv``, ``fc`` (and ``off``) to these; another law has
+    no such truth (:func:`friction_truth_note`).
     """
     m = config.measurement
     n = pm.terms.n_joints
-    values = {
-        "fv": per_joint(m.friction.viscous, n),  # type: ignore[union-attr]
-        "fs": per_joint(m.friction.coulomb, n),  # type: ignore[union-attr]
-        "Ia": per_joint(m.armature, n),  # type: ignore[union-attr]
+    values: dict[str, FloatArray] = {
+        "fv": np.asarray(per_joint(m.friction.viscous, n), dtype=np.float64),  # type: ignore[union-attr]
+        "fs": np.asarray(per_joint(m.friction.coulomb, n), dtype=np.float64),  # type: ignore[union-attr]
+        "Ia": np.asarray(per_joint(m.armature, n), dtype=np.float64),  # type: ignore[union-attr]
+        "off": np.zeros(n),
     }
+    law = getattr(getattr(m, "friction", None), "law", None)
+    if law is not None and law.model in _LINEAR_LAWS:
+        for kind, label in (("fv", "fv"), ("fs", "fc"), ("off", "off")):
+            if label in law.values:
+                values[kind] = values[kind] + np.asarray(per_joint(law.values[label], n))
     truth = np.array(pm.nominal, dtype=float)
     for i, name in enumerate(pm.names):
         kind = name.rstrip("0123456789")
         if pm.extra_index[i] >= 0 and kind in values:
             truth[i] = float(values[kind][int(name[len(kind) :]) - 1])
     return truth
+
+
+#: Simulated friction laws whose parameters map onto the identification's ``fv``, ``fs``,
+#: ``off`` (:func:`true_parameters`).
+_LINEAR_LAWS = ("viscous_coulomb", "viscous_coulomb_offset")
+
+
+def friction_truth_note(config: RunConfig) -> str:
+    """Why the friction has no truth (empty when it has one): the MuJoCo source simulates a
+    ``friction.law`` (Stribeck, sigmoid, load-dependent) that the identification's viscous +
+    Coulomb parameters cannot equal, so their errors would compare different quantities."""
+    law = getattr(getattr(config.measurement, "friction", None), "law", None)
+    if law is None or law.model in _LINEAR_LAWS:
+        return ""
+    return (
+        f"the simulated friction is the {law.model!r} law (measurement.friction.law): the "
+        "joints' viscous and Coulomb parameters have no true value to compare with, so they "
+        "are left out of the truth verdict (their errors below are against the configured "
+        "viscous/coulomb alone; the friction-model comparison, model.friction: auto, judges "
+        "the law)"
+    )
 
 
 def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, ParameterModel]:
@@ -120,6 +151,12 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
     alone = tuple(
         b == names[i] for b, i in zip(pm.base.base_names, pm.base.independent, strict=True)
     )
+    share = reference_share(pm, truth, robot)
+    note = friction_truth_note(config)
+    if note:  # no friction truth: the base parameters holding friction are never major
+        friction = [i for i, name in enumerate(names) if name.rstrip("0123456789") in ("fv", "fs")]
+        holds = np.abs(np.asarray(pm.base.projection)[:, friction]).max(axis=1) > 0
+        share = np.where(holds, 0.0, share)
     info = StageInfo(
         name="whole",
         rows=rows,
@@ -128,9 +165,9 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
         base_method=pm.base.method,
         known_bodies_note="all bodies are unknown; friction and rotor inertia are identified "
         "with them (the simulator's truth: the URDF's inertials plus the configured friction "
-        "and armature)",
+        "and armature)" + (f"; {note}" if note else ""),
         base=pm.base,
-        reference_share=reference_share(pm, truth, robot),
+        reference_share=share,
         **base_set_fields(pm.base, names, truth),
     )
     return info, pm
