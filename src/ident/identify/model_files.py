@@ -330,16 +330,7 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         "note": None,
     }
     if model is None:
-        entry["note"] = (
-            "no model written: urdf_update.model is none"
-            if result.model is None
-            else f"no model written: {result.model.method} did not give a consistent estimate"
-            + (
-                f" ({result.model.constrained.message})"
-                if result.model.constrained is not None
-                else ""
-            )
-        )
+        entry["note"] = _not_written(result)
         return entry
     held_out = {
         label: _finite(result.predictions[key].metrics.total_relative_residual)
@@ -351,13 +342,7 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
     names = model.structure.names
     law = getattr(result, "friction_law", None)
     if law is not None:
-        entry["friction_law"] = {
-            "model": law.model,
-            "held_out_relative_residual": {
-                law.model: law.held_out_residual,
-                "viscous_coulomb": law.baseline_held_out_residual,
-            },
-        }
+        entry["friction_law"] = _law_entry(law)
     try:
         robot = load_robot(result.config.robot)  # the identified chain, its locked joints
         files = write_model_files(
@@ -387,6 +372,27 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
     if parity.friction_law_relative_error is not None:
         entry["reload_parity"]["friction_law"] = parity.friction_law_relative_error
     return entry
+
+
+def _not_written(result: Any) -> str:
+    """Why no model is written: switched off, or the consistent estimator did not converge."""
+    if result.model is None:
+        return "no model written: urdf_update.model is none"
+    why = result.model.constrained.message if result.model.constrained is not None else None
+    return f"no model written: {result.model.method} did not give a consistent estimate" + (
+        f" ({why})" if why is not None else ""
+    )
+
+
+def _law_entry(law: Any) -> dict[str, Any]:
+    """The written friction law's ``result.json`` entry: its name and held-out residuals."""
+    return {
+        "model": law.model,
+        "held_out_relative_residual": {
+            law.model: law.held_out_residual,
+            "viscous_coulomb": law.baseline_held_out_residual,
+        },
+    }
 
 
 def _finite(value: float) -> float | None:
