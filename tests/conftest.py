@@ -11,11 +11,19 @@ import re
 from pathlib import Path
 
 import pytest
+from threadpoolctl import threadpool_limits
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
 # Some test modules load the paper robot at import time, during collection.
 os.chdir(REPO_ROOT)
+
+# pytest-xdist runs one worker per core: a second BLAS thread per worker only oversubscribes
+# the cores (a 2000 x 6-row reduction took 7 s instead of 0.1 s on a loaded machine). The
+# variables reach the CLI subprocesses; threadpoolctl limits the library already loaded.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+threadpool_limits(limits=1, user_api="blas")
 
 
 @pytest.fixture(autouse=True)
