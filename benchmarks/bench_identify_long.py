@@ -196,8 +196,21 @@ def run_cli(cfg: Path, out: Path) -> dict:
     return {**json.loads(last), "output": proc.stdout, "stderr": proc.stderr}
 
 
-def per_sample(urdf: Path, n: int) -> tuple[float, float]:
-    """Seconds per sample: the chunked path's regressor + reduction, and Pinocchio's loop."""
+def per_sample(urdf: Path, n: int, trajectory: bool = False) -> tuple[float, float]:
+    """CPU seconds per sample: the chunked path's regressor + reduction, and Pinocchio's loop.
+
+    The states are random (normal), or with ``trajectory`` those of a Fourier excitation
+    (:func:`fourier`, 100 Hz): its rows are worse conditioned, as a log's are, so more of the
+    reduction takes the QR path (:mod:`ident.identify.accumulate`).
+
+    CPU time of the process (``time.process_time``, every thread counted), not wall time: on
+    a shared machine a wall-clock figure also counts the time the process waits for a core,
+    more for a longer measurement, so ratios read from it drift with the load. BLAS on one
+    thread, as the chunked path's workers run it: on a loaded 2-core machine a second OpenBLAS
+    thread made the reduction many times slower.
+    """
+    from threadpoolctl import threadpool_limits
+
     from ident.identify.accumulate import BaseColumns, reduce_chunk
     from ident.identify.real import build_parameter_model
 
@@ -207,20 +220,26 @@ def per_sample(urdf: Path, n: int) -> tuple[float, float]:
     pm = build_parameter_model(model, terms)
     rng = np.random.default_rng(1)
     q, dq, ddq = rng.normal(size=(3, n, 7))
+    if trajectory:
+        coeffs = rng.normal(scale=0.4, size=(2, 5, 7)) / np.arange(1, 6)[None, :, None]
+        q, dq, ddq = fourier(np.arange(n) / 100.0, coeffs)
     tau = rng.normal(size=(n, 7))
     keep = np.ones((n, 7), dtype=bool)
     columns = BaseColumns(chain, pm)
-    columns(q[:10], dq[:10], ddq[:10])  # compile outside the timing
-    t0 = time.perf_counter()
-    reduce_chunk(columns(q, dq, ddq), tau, keep)
-    ours = (time.perf_counter() - t0) / n
-    data = model.createData()
-    gram = np.zeros((70, 70))
-    t0 = time.perf_counter()
-    for k in range(n):
-        Y = pin.computeJointTorqueRegressor(model, data, q[k], dq[k], ddq[k])
-        gram += Y.T @ Y
-    theirs = (time.perf_counter() - t0) / n
+    with threadpool_limits(limits=1, user_api="blas"):
+        # compile and warm up outside the timing
+        m = min(n, 200)
+        reduce_chunk(columns(q[:m], dq[:m], ddq[:m]), tau[:m], keep[:m])
+        t0 = time.process_time()
+        reduce_chunk(columns(q, dq, ddq), tau, keep)
+        ours = (time.process_time() - t0) / n
+        data = model.createData()
+        gram = np.zeros((70, 70))
+        t0 = time.process_time()
+        for k in range(n):
+            Y = pin.computeJointTorqueRegressor(model, data, q[k], dq[k], ddq[k])
+            gram += Y.T @ Y
+        theirs = (time.process_time() - t0) / n
     return ours, theirs
 
 

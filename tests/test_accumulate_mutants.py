@@ -241,8 +241,9 @@ def test_chunk_record_states_the_counts():
     assert record == {
         "step": "chunked accumulation",
         "detail": "2 segment(s) in 7 chunks of at most 5000 raw samples (+ margins 120 raw / "
-        "45 trimmed samples for the filters); identification rows reduced per joint (QR) "
-        "chunk by chunk: 190 rows, no per-sample regressor kept",
+        "45 trimmed samples for the filters); identification rows reduced per joint chunk by "
+        "chunk (Cholesky of the scaled Gram matrix where its condition number is at most 1000, "
+        "QR elsewhere): 190 rows, no per-sample regressor kept",
     }
     skipped = SimpleNamespace(**{**vars(chunked), "skipped": ("0.1 s (short)", "0.2 s (x)")})
     assert accumulate.chunk_record(skipped, red)["detail"].endswith(

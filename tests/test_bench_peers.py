@@ -83,9 +83,9 @@ def test_sysid_objective_is_lowest_near_the_truth(case):
 
 
 def test_pinocchio_part_prints_its_table():
-    """The per-sample comparison runs (tiny sizes) and reports three rows against pin.rnea."""
+    """The per-sample comparison runs (tiny sizes) and reports four rows against pin.rnea."""
     text = bench_peers.pinocchio_part(n=50, repeat=1)
-    assert text.count("\n| ") == 4  # header + 3 rows
+    assert text.count("\n| ") == 5  # header + 4 rows (random states, loop, trajectory)
     assert "| 1.0x |" in text
 
 
