@@ -196,8 +196,30 @@ def _md_table(header: list[str], rows: list[list[str]]) -> list[str]:
 
 def render_markdown(result: CampaignResult, figures: list[str]) -> str:
     """The campaign report as Markdown (the HTML page is converted from it)."""
+    L = _md_header(result)
+    for group, keys in _groups(result).items():
+        L += _md_error_table(result, group, keys)
+    L += _md_wilcoxon_table(result)
+    for kind, tname, published in (
+        ("min", "Table 7", PAPER_TABLE7),
+        ("wilcoxon", "Table 9", PAPER_TABLE9),
+    ):
+        L += _md_win_tie_loss(result, kind, tname, published)
+    L += _md_disagreements(result)
+    L += ["## Convergence (like Figures 5-7)", ""]
+    for fig in figures:
+        L += [f"![{fig}]({fig})", ""]
+    L += [
+        "Mean over the runs of the best-so-far error; a mean error of 0 (or below, from "
+        "rounding) is drawn one decade below the smallest positive value of its panel.",
+        "",
+    ]
+    return "\n".join(L)
+
+
+def _md_header(result: CampaignResult) -> list[str]:
+    """Title, the campaign's settings and timing, and how to read it against the paper."""
     cfg = result.config
-    methods = cfg.methods
     n_runs = len(result.records)
     mean_run = float(np.mean([r.seconds for r in result.records]))
     where = (
@@ -207,7 +229,8 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
     )
     L: list[str] = [f"# Benchmark campaign `{cfg.name}`", ""]
     L += [
-        f"- Methods: {', '.join(_label(m) for m in methods)}; functions: {len(cfg.function_keys())}"
+        f"- Methods: {', '.join(_label(m) for m in cfg.methods)}; functions: "
+        f"{len(cfg.function_keys())}"
         f" ({cfg.functions if isinstance(cfg.functions, str) else 'list'}).",
         f"- Budget per run: **{cfg.max_nfev} evaluations** (population {cfg.popsize}, "
         f"{cfg.maxiter} iterations after the initial population); {cfg.runs} runs per "
@@ -232,26 +255,37 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
         f"at {cfg.alpha:g} (definitions in `ident.bench.campaign`).",
         "",
     ]
-    for group, keys in _groups(result).items():
-        tname, _, gname = GROUP_TITLES.get(group, ("Table", "Figure", group))
-        L += [f"## {tname}: {gname} functions (ours / paper)", ""]
-        header = ["Function", "Stat"] + [f"{_label(m)} ours / paper" for m in methods]
-        rows = []
-        for f in keys:
-            tid = _table_id(f)
-            stats = {m: summary_stats(result.errors(f, m)) for m in methods}
-            for k, stat in enumerate(("Min", "Ave", "StDev")):
-                cells = [
-                    f"{_g(stats[m][k])} / {_g(paper_value(tid, stat, m)) if tid else '—'}"
-                    for m in methods
-                ]
-                rows.append([get_function(f).label if k == 0 else "", stat, *cells])
-        L += _md_table(header, rows)
-    wt = wilcoxon_table(result)
-    L += ["## Table 8: Wilcoxon signed-rank p-values against the best by mean (ours / paper)", ""]
+    return L
+
+
+def _md_error_table(result: CampaignResult, group: str, keys: list[str]) -> list[str]:
+    """Tables 4-6: min, mean and standard deviation of the errors of each function of a group
+    and each method, ours beside the paper's."""
+    methods = result.config.methods
+    tname, _, gname = GROUP_TITLES.get(group, ("Table", "Figure", group))
+    L = [f"## {tname}: {gname} functions (ours / paper)", ""]
+    header = ["Function", "Stat"] + [f"{_label(m)} ours / paper" for m in methods]
+    rows = []
+    for f in keys:
+        tid = _table_id(f)
+        stats = {m: summary_stats(result.errors(f, m)) for m in methods}
+        for k, stat in enumerate(("Min", "Ave", "StDev")):
+            cells = [
+                f"{_g(stats[m][k])} / {_g(paper_value(tid, stat, m)) if tid else '—'}"
+                for m in methods
+            ]
+            rows.append([get_function(f).label if k == 0 else "", stat, *cells])
+    return L + _md_table(header, rows)
+
+
+def _md_wilcoxon_table(result: CampaignResult) -> list[str]:
+    """Table 8: Wilcoxon p-values of each method against the best by mean (NA for the best),
+    ours beside the paper's."""
+    methods = result.config.methods
+    L = ["## Table 8: Wilcoxon signed-rank p-values against the best by mean (ours / paper)", ""]
     header = ["Function", "best ours / paper"] + [_label(m) for m in methods]
     rows = []
-    for f, (best, row) in wt.items():
+    for f, (best, row) in wilcoxon_table(result).items():
         tid = _table_id(f)
         cells = []
         for m in methods:
@@ -266,27 +300,37 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
     L += _md_table(header, rows)
     L += ["NA marks the best-by-mean algorithm; a paper best of — means the paper's row has no "
           "NA entry (its Table 8 omits it on several rows).", ""]  # fmt: skip
-    for kind, tname, published in (
-        ("min", "Table 7", PAPER_TABLE7),
-        ("wilcoxon", "Table 9", PAPER_TABLE9),
-    ):
-        what = "minimum error" if kind == "min" else "Wilcoxon test"
-        L += [f"## {tname}: wins/ties/losses by {what} (ours / paper)", ""]
-        wtl = win_tie_loss(result, kind)  # type: ignore[arg-type]
-        rows = []
-        for g, per in wtl.items():
-            cells = []
-            for m in methods:
-                ours = "/".join(str(c) for c in per[m])
-                j = PAPER_ALGORITHMS.index(m) if m in PAPER_ALGORITHMS else None
-                pp = published.get(g)
-                cells.append(f"{ours} / {pp[j] if pp and j is not None else '—'}")
-            rows.append([g, *cells])
-        L += _md_table(["Group"] + [_label(m) for m in methods], rows)
-        if cfg.functions != "table":
-            L += ["The paper's counts are over its 12 functions per group; ours over the "
-                  "functions of this config only.", ""]  # fmt: skip
-    L += ["## Where we disagree with the paper", ""]
+    return L
+
+
+def _md_win_tie_loss(
+    result: CampaignResult, kind: str, tname: str, published: dict[str, Any]
+) -> list[str]:
+    """Table 7 (``kind="min"``) or 9 (``"wilcoxon"``): wins/ties/losses per function group,
+    ours beside the paper's ``published`` counts."""
+    cfg = result.config
+    what = "minimum error" if kind == "min" else "Wilcoxon test"
+    L = [f"## {tname}: wins/ties/losses by {what} (ours / paper)", ""]
+    wtl = win_tie_loss(result, kind)  # type: ignore[arg-type]
+    rows = []
+    for g, per in wtl.items():
+        cells = []
+        for m in cfg.methods:
+            ours = "/".join(str(c) for c in per[m])
+            j = PAPER_ALGORITHMS.index(m) if m in PAPER_ALGORITHMS else None
+            pp = published.get(g)
+            cells.append(f"{ours} / {pp[j] if pp and j is not None else '—'}")
+        rows.append([g, *cells])
+    L += _md_table(["Group"] + [_label(m) for m in cfg.methods], rows)
+    if cfg.functions != "table":
+        L += ["The paper's counts are over its 12 functions per group; ours over the "
+              "functions of this config only.", ""]  # fmt: skip
+    return L
+
+
+def _md_disagreements(result: CampaignResult) -> list[str]:
+    """Where our results disagree with the paper's (:func:`disagreements`), and the criteria."""
+    L = ["## Where we disagree with the paper", ""]
     dis = disagreements(result)
     L += [f"- {d}" for d in dis] if dis else ["- No disagreement by the criteria below."]
     L += [
@@ -294,17 +338,8 @@ def render_markdown(result: CampaignResult, figures: list[str]) -> str:
         "Criteria: a different best-by-mean algorithm, or a mean error more than 100x apart "
         f"(values below {SOLVED:g} count as solved).",
         "",
-        "## Convergence (like Figures 5-7)",
-        "",
     ]
-    for fig in figures:
-        L += [f"![{fig}]({fig})", ""]
-    L += [
-        "Mean over the runs of the best-so-far error; a mean error of 0 (or below, from "
-        "rounding) is drawn one decade below the smallest positive value of its panel.",
-        "",
-    ]
-    return "\n".join(L)
+    return L
 
 
 # ---------------------------------------------------------------------------------------------

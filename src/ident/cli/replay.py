@@ -8,12 +8,18 @@ import time
 import warnings
 import webbrowser
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, NamedTuple
 
 import typer
 
 from ident.cli._common import one_line, user_errors
 from ident.errors import DataError, IdentError, IdentWarning
+
+if TYPE_CHECKING:  # imported when the command runs: the CLI starts fast
+    from ident.model.selection import RobotSelection
+    from ident.trajectory import JointTrajectory
+    from ident.viz.environment import ClearanceMark, ReplayEnvironment
+    from ident.viz.replay import ReplayScene
 
 # Bounds of a replay: the animation holds one keyframe per 1/fps s of replay time for every
 # robot, and the page (or the browser) holds all of them.
@@ -176,112 +182,179 @@ def replay(
     """
     with user_errors():
         from ident.cli.verify import parse_locks
-        from ident.config import read_text_input
-        from ident.fileio import atomic_write_text
-        from ident.inputs import check_number, check_output_file, read_urdf_text
-        from ident.model.selection import selection_from_flags
-        from ident.trajectory import read_trajectory_csv
-        from ident.viz.environment import (
-            ReplayEnvironment,
-            run_clearance_mark,
-            run_environment,
-            run_traced_frame,
-        )
-        from ident.viz.replay import (
-            DEFAULT_FPS,
-            build_replay_scene,
-            replay_duration,
-            run_robot_selection,
-        )
-        from ident.viz.server import LoopbackMeshcatServer
 
-        check_number(speed, "--speed", low=MIN_SPEED, high=MAX_SPEED, hint="(1 = true speed)")
-        if html is None:
-            check_number(port, "--port", low=0, high=65535, integer=True, hint="(0: any free)")
-        else:
-            check_output_file(html, "--html")
-        for folder in package_dir or ():
-            if not folder.is_dir():
-                raise DataError(
-                    f"--package-dir {folder}: not a folder; give the folder that holds the "
-                    "package:// mesh packages (e.g. the parent of <package>/meshes)."
-                )
+        _check_options(speed, html, port, package_dir or [])
         locks = parse_locks(lock or [])
         urdf_path, csvs, run_data = _inputs(run_dir, urdf, trajectory, elites)
-        if run_dir is not None and urdf is None and not (locks or base_link or tip_link):
-            # the run's own chain: its locked joints, their values and its mesh folders
-            selection = run_robot_selection(
-                run_dir, _run_robot(run_dir, run_data), package_dir or ()
-            )
-        else:
-            selection = selection_from_flags(
-                urdf=urdf_path,
-                lock=locks,
-                base_link=base_link,
-                tip_link=tip_link,
-                package_dirs=list(package_dir or ()),
-            )
-        run_frame = run_traced_frame(run_data)
-        # the run's floor and obstacles (a floor at z = 0 without a run); the least
-        # clearance of an elite's own file (trajectory.csv has its own time axis)
-        try:
-            environment = run_environment(run_data) if run_data else ReplayEnvironment()
-            ranks = [_elite_rank(p) for p in csvs]
-            marks = [None if r is None else run_clearance_mark(run_data, r) for r in ranks]
-        except DataError as e:
-            raise DataError(f"{run_dir}/{e}") from None
-        read_urdf_text(urdf_path)
-        for p in csvs:  # one clear line for a binary, non-UTF-8 or huge file
-            read_text_input(p, what="trajectory", max_bytes=_MAX_TRAJECTORY_BYTES)
-        # positions suffice to replay: a log t, q_* is read too (dq, ddq derived, unused)
-        trajectories = [read_trajectory_csv(p, allow_positions_only=True) for p in csvs]
-        for p, traj in zip(csvs, trajectories, strict=True):
-            span = replay_duration(traj.t)  # the segments' spans (gaps are skipped)
-            if span / speed * DEFAULT_FPS > MAX_KEYFRAMES:
-                raise DataError(
-                    f"{p}: {span:.3g} s at --speed {speed:g} is "
-                    f"{span / speed / 3600:.3g} h of replay, more than the "
-                    f"{MAX_KEYFRAMES / DEFAULT_FPS / 3600:.2g} h a replay holds; raise --speed "
-                    "or cut the trajectory."
-                )
-        with warnings.catch_warnings(record=True) as caught:  # e.g. meshes not found
-            try:
-                warnings.simplefilter("always", IdentWarning)
-                scene = build_replay_scene(
-                    selection,
-                    trajectories,
-                    traced_frame=frame or run_frame,
-                    speed=speed,
-                    loop=loop,
-                    labels=[p.name for p in csvs],
-                    environment=environment,
-                    marks=marks,
-                )
-            finally:  # the mesh warnings also when the replay fails
-                for w in caught:
-                    if issubclass(w.category, IdentWarning):
-                        typer.echo(f"warning: {one_line(w.message)}", err=True)
-                    else:
-                        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        selection = _robot_selection(
+            run_dir, run_data, urdf, urdf_path, locks, base_link, tip_link, package_dir or []
+        )
+        context = _run_context(run_dir, run_data, csvs)
+        trajectories = _read_trajectories(urdf_path, csvs, speed)
+        scene = _record_scene(selection, trajectories, csvs, context, frame, speed, loop)
         what = f"{len(trajectories)} trajectory(ies), {scene.duration:.2f} s at speed {speed:g}"
         if html is not None:
-            page = scene.recorder.static_html(
-                f"ident replay: {urdf_path.stem}", scene.caption_html()
+            _write_page(html, scene, urdf_path, what)
+        else:
+            _serve(scene, port, open_browser, what)
+
+
+def _check_options(speed: float, html: Path | None, port: int, package_dirs: list[Path]) -> None:
+    """Check --speed, --port (served) or --html (written), and --package-dir."""
+    from ident.inputs import check_number, check_output_file
+
+    check_number(speed, "--speed", low=MIN_SPEED, high=MAX_SPEED, hint="(1 = true speed)")
+    if html is None:
+        check_number(port, "--port", low=0, high=65535, integer=True, hint="(0: any free)")
+    else:
+        check_output_file(html, "--html")
+    for folder in package_dirs:
+        if not folder.is_dir():
+            raise DataError(
+                f"--package-dir {folder}: not a folder; give the folder that holds the "
+                "package:// mesh packages (e.g. the parent of <package>/meshes)."
             )
-            atomic_write_text(html, page)
-            typer.echo(f"wrote {html} ({what}; traced frame {scene.traced_frame})")
-            return
-        with LoopbackMeshcatServer(port=port) as server:
-            server.push(scene.recorder)
-            typer.echo(f"replaying {what}; traced frame {scene.traced_frame}")
-            for k, (label, color) in enumerate(zip(scene.labels, scene.colors, strict=True)):
-                typer.echo(f"  robot {k} (path #{color:06x}): {label}")
-            typer.echo(f"open {server.web_url}  (Ctrl-C to stop)")
-            if open_browser and not webbrowser.open(server.web_url, new=2):
-                typer.echo("no system browser found: open the URL above yourself", err=True)
-            # SIGTERM (kill, systemd) stops the server like Ctrl-C does (user_errors).
-            while True:  # the server runs in a daemon thread; Ctrl-C ends this loop
-                time.sleep(0.5)
+
+
+def _robot_selection(
+    run_dir: Path | None,
+    run_data: dict,
+    urdf: Path | None,
+    urdf_path: Path,
+    locks: dict[str, float],
+    base_link: str | None,
+    tip_link: str | None,
+    package_dirs: list[Path],
+) -> RobotSelection:
+    """The replayed robot: a run folder's own chain (its locked joints, their values and its
+    mesh folders) when neither --urdf, --lock, --base-link nor --tip-link is given; else the
+    chain these flags select on ``urdf_path``."""
+    from ident.model.selection import selection_from_flags
+    from ident.viz.replay import run_robot_selection
+
+    if run_dir is not None and urdf is None and not (locks or base_link or tip_link):
+        return run_robot_selection(run_dir, _run_robot(run_dir, run_data), package_dirs)
+    return selection_from_flags(
+        urdf=urdf_path,
+        lock=locks,
+        base_link=base_link,
+        tip_link=tip_link,
+        package_dirs=list(package_dirs),
+    )
+
+
+class _RunContext(NamedTuple):
+    """What a run folder adds to the replay (``None`` and defaults without one)."""
+
+    traced_frame: str | None  # the run's traced frame
+    environment: ReplayEnvironment  # its floor and obstacles
+    marks: list[ClearanceMark | None]  # per trajectory CSV, an elite's least clearance
+
+
+def _run_context(run_dir: Path | None, run_data: dict, csvs: list[Path]) -> _RunContext:
+    """The run's traced frame, floor and obstacles (a floor at z = 0 without a run), and the
+    least clearance of each elite's own file (trajectory.csv has its own time axis)."""
+    from ident.viz.environment import (
+        ReplayEnvironment,
+        run_clearance_mark,
+        run_environment,
+        run_traced_frame,
+    )
+
+    run_frame = run_traced_frame(run_data)
+    try:
+        environment = run_environment(run_data) if run_data else ReplayEnvironment()
+        ranks = [_elite_rank(p) for p in csvs]
+        marks = [None if r is None else run_clearance_mark(run_data, r) for r in ranks]
+    except DataError as e:
+        raise DataError(f"{run_dir}/{e}") from None
+    return _RunContext(run_frame, environment, marks)
+
+
+def _read_trajectories(urdf_path: Path, csvs: list[Path], speed: float) -> list[JointTrajectory]:
+    """Check the URDF is readable, then read the trajectory CSVs (positions suffice) and bound
+    their replay: at most :data:`MAX_KEYFRAMES` keyframes each at ``speed``."""
+    from ident.config import read_text_input
+    from ident.inputs import read_urdf_text
+    from ident.trajectory import read_trajectory_csv
+    from ident.viz.replay import DEFAULT_FPS, replay_duration
+
+    read_urdf_text(urdf_path)
+    for p in csvs:  # one clear line for a binary, non-UTF-8 or huge file
+        read_text_input(p, what="trajectory", max_bytes=_MAX_TRAJECTORY_BYTES)
+    # positions suffice to replay: a log t, q_* is read too (dq, ddq derived, unused)
+    trajectories = [read_trajectory_csv(p, allow_positions_only=True) for p in csvs]
+    for p, traj in zip(csvs, trajectories, strict=True):
+        span = replay_duration(traj.t)  # the segments' spans (gaps are skipped)
+        if span / speed * DEFAULT_FPS > MAX_KEYFRAMES:
+            raise DataError(
+                f"{p}: {span:.3g} s at --speed {speed:g} is "
+                f"{span / speed / 3600:.3g} h of replay, more than the "
+                f"{MAX_KEYFRAMES / DEFAULT_FPS / 3600:.2g} h a replay holds; raise --speed "
+                "or cut the trajectory."
+            )
+    return trajectories
+
+
+def _record_scene(
+    selection: RobotSelection,
+    trajectories: list[JointTrajectory],
+    csvs: list[Path],
+    context: _RunContext,
+    frame: str | None,
+    speed: float,
+    loop: bool,
+) -> ReplayScene:
+    """The replay scene, one robot per CSV (labelled by its name); ``frame`` overrides the
+    run's traced frame. Mesh warnings are printed as ``warning: ...`` lines, also when the
+    scene fails."""
+    from ident.viz.replay import build_replay_scene
+
+    with warnings.catch_warnings(record=True) as caught:  # e.g. meshes not found
+        try:
+            warnings.simplefilter("always", IdentWarning)
+            return build_replay_scene(
+                selection,
+                trajectories,
+                traced_frame=frame or context.traced_frame,
+                speed=speed,
+                loop=loop,
+                labels=[p.name for p in csvs],
+                environment=context.environment,
+                marks=context.marks,
+            )
+        finally:  # the mesh warnings also when the replay fails
+            for w in caught:
+                if issubclass(w.category, IdentWarning):
+                    typer.echo(f"warning: {one_line(w.message)}", err=True)
+                else:
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def _write_page(html: Path, scene: ReplayScene, urdf_path: Path, what: str) -> None:
+    """Write the scene as a self-contained page (meshcat's static export) to ``html``."""
+    from ident.fileio import atomic_write_text
+
+    page = scene.recorder.static_html(f"ident replay: {urdf_path.stem}", scene.caption_html())
+    atomic_write_text(html, page)
+    typer.echo(f"wrote {html} ({what}; traced frame {scene.traced_frame})")
+
+
+def _serve(scene: ReplayScene, port: int, open_browser: bool, what: str) -> None:
+    """Serve the scene on 127.0.0.1 (``port`` or the next free one) until Ctrl-C."""
+    from ident.viz.server import LoopbackMeshcatServer
+
+    with LoopbackMeshcatServer(port=port) as server:
+        server.push(scene.recorder)
+        typer.echo(f"replaying {what}; traced frame {scene.traced_frame}")
+        for k, (label, color) in enumerate(zip(scene.labels, scene.colors, strict=True)):
+            typer.echo(f"  robot {k} (path #{color:06x}): {label}")
+        typer.echo(f"open {server.web_url}  (Ctrl-C to stop)")
+        if open_browser and not webbrowser.open(server.web_url, new=2):
+            typer.echo("no system browser found: open the URL above yourself", err=True)
+        # SIGTERM (kill, systemd) stops the server like Ctrl-C does (user_errors).
+        while True:  # the server runs in a daemon thread; Ctrl-C ends this loop
+            time.sleep(0.5)
 
 
 def register(app: typer.Typer) -> None:

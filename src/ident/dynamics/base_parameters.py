@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg
 
 from ident.dynamics.chain import FloatArray, IntArray, KinematicChain
@@ -317,39 +318,15 @@ def compute_base_parameters(
     DataError
         For a non-2-D or non-finite ``W``, a wrong number of names, or an unknown method.
     """
-    W = np.asarray(W, dtype=float)
-    names = tuple(names)
-    if W.ndim != 2:
-        raise DataError(f"W must be 2-D (n_rows, n_params), got shape {W.shape}")
-    if W.shape[1] != len(names):
-        raise DataError(f"W has {W.shape[1]} columns but {len(names)} names were given")
-    if not np.all(np.isfinite(W)):
-        raise DataError("W contains NaN or inf; check the states used to build it")
-    if method not in METHODS:
-        raise DataError(f"unknown base-parameter method {method!r}; use one of {METHODS}")
+    W, names = _checked_observation_matrix(W, names, method)
     tol = RANK_RTOL if rtol is None else float(rtol)
     zero_tol = float(max(W.shape) * np.finfo(float).eps) if rtol is None else tol
-    norms = np.linalg.norm(W, axis=0)
-    largest = float(norms.max()) if norms.size else 0.0
-    nonzero = norms > zero_tol * largest
-    unidentifiable = np.flatnonzero(~nonzero)
-    candidates = np.flatnonzero(nonzero)
-    normalized = np.zeros_like(W)
-    normalized[:, nonzero] = W[:, nonzero] / norms[nonzero]
+    normalized, norms, nonzero = _normalized_columns(W, zero_tol)
     search = _sequential if method == "sequential" else _pivoted_qr
-    independent, dependent, score_map = search(normalized, candidates, tol)
+    independent, dependent, score_map = search(normalized, np.flatnonzero(nonzero), tol)
     independent_idx = np.array(independent, dtype=np.intp)
     dependent_idx = np.array(dependent, dtype=np.intp)
-    # W_d = W_b K: least squares on normalized columns, then back to parameter units
-    k_normalized: FloatArray
-    if independent_idx.size and dependent_idx.size:
-        solution = np.linalg.lstsq(
-            normalized[:, independent_idx], normalized[:, dependent_idx], rcond=None
-        )[0]
-        k_normalized = np.asarray(solution, dtype=np.float64)
-    else:
-        k_normalized = np.zeros((independent_idx.size, dependent_idx.size))
-    K = k_normalized / norms[independent_idx, None] * norms[None, dependent_idx]
+    K, k_normalized = _combination_matrix(normalized, norms, independent_idx, dependent_idx)
     scores = np.zeros(len(names))
     for j, score in score_map.items():
         scores[j] = score
@@ -357,7 +334,7 @@ def compute_base_parameters(
         names=names,
         independent=independent_idx,
         dependent=dependent_idx,
-        unidentifiable=unidentifiable.astype(np.intp),
+        unidentifiable=np.flatnonzero(~nonzero).astype(np.intp),
         K=K,
         rank=int(independent_idx.size),
         tolerance=tol,
@@ -369,6 +346,59 @@ def compute_base_parameters(
     if note:
         warnings.warn(note[0].upper() + note[1:] + ".", IdentWarning, stacklevel=2)
     return base
+
+
+def _checked_observation_matrix(
+    W: FloatArray, names: Sequence[str], method: str
+) -> tuple[FloatArray, tuple[str, ...]]:
+    """``W`` as a float array (n_rows, n_params) and the names as a tuple, after checking
+    them and ``method``. Raises :class:`DataError`."""
+    W = np.asarray(W, dtype=float)
+    names = tuple(names)
+    if W.ndim != 2:
+        raise DataError(f"W must be 2-D (n_rows, n_params), got shape {W.shape}")
+    if W.shape[1] != len(names):
+        raise DataError(f"W has {W.shape[1]} columns but {len(names)} names were given")
+    if not np.all(np.isfinite(W)):
+        raise DataError("W contains NaN or inf; check the states used to build it")
+    if method not in METHODS:
+        raise DataError(f"unknown base-parameter method {method!r}; use one of {METHODS}")
+    return W, names
+
+
+def _normalized_columns(
+    W: FloatArray, zero_tol: float
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
+    """The columns of ``W`` (n_rows, n_params) divided by their norms.
+
+    Returns the normalized matrix (zero columns where ``nonzero`` is False), the column
+    norms (n_params,) in the columns' units, and ``nonzero`` (n_params,): the norm is above
+    ``zero_tol`` times the largest one.
+    """
+    norms = np.linalg.norm(W, axis=0)
+    largest = float(norms.max()) if norms.size else 0.0
+    nonzero = norms > zero_tol * largest
+    normalized = np.zeros_like(W)
+    normalized[:, nonzero] = W[:, nonzero] / norms[nonzero]
+    return normalized, norms, nonzero
+
+
+def _combination_matrix(
+    normalized: FloatArray, norms: FloatArray, independent: IntArray, dependent: IntArray
+) -> tuple[FloatArray, FloatArray]:
+    """``K`` with ``W_d = W_b K`` (n_base, n_dependent), in parameter units, and the same on
+    the normalized columns: least squares on the normalized columns, then scaled back by
+    the column ``norms``."""
+    k_normalized: FloatArray
+    if independent.size and dependent.size:
+        solution = np.linalg.lstsq(
+            normalized[:, independent], normalized[:, dependent], rcond=None
+        )[0]
+        k_normalized = np.asarray(solution, dtype=np.float64)
+    else:
+        k_normalized = np.zeros((independent.size, dependent.size))
+    K = k_normalized / norms[independent, None] * norms[None, dependent]
+    return K, k_normalized
 
 
 def torque_shares(W_base: FloatArray, beta: FloatArray) -> FloatArray:

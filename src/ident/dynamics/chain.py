@@ -191,49 +191,86 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
     placements = np.zeros((n, 4, 4))
     parents = np.zeros(n, dtype=np.intp)
     for i in range(1, model.njoints):
-        joint = model.joints[i]
-        name = model.names[i]
-        kind = joint.shortname()
-        found = _joint_axis(joint)
-        if found is None or joint.nq != 1 or joint.nv != 1:
-            what = {
-                "JointModelFreeFlyer": "a floating base (free-flyer)",
-                "JointModelSpherical": "a spherical joint",
-                "JointModelSphericalZYX": "a spherical joint",
-                "JointModelPlanar": "a planar joint",
-                "JointModelTranslation": "a 3-DoF translation joint",
-                "JointModelRUBX": "a continuous (unbounded) joint",
-                "JointModelRUBY": "a continuous (unbounded) joint",
-                "JointModelRUBZ": "a continuous (unbounded) joint",
-                "JointModelRevoluteUnboundedUnaligned": "a continuous (unbounded) joint",
-            }.get(kind, f"a joint of type {kind} (nq={joint.nq}, nv={joint.nv})")
-            hint = _CONTINUOUS_HINT if "continuous" in what else _FIX_HINT
-            raise ModelError(f"joint {name!r} of model {model.name!r} is {what}; {hint}.")
-        if joint.idx_q != i - 1 or joint.idx_v != i - 1:
-            raise ModelError(
-                f"joint {name!r} of model {model.name!r} has configuration index {joint.idx_q} "
-                f"(expected {i - 1}); {_FIX_HINT}."
-            )
-        parent = int(model.parents[i]) - 1
-        if parent != i - 2:
-            raise ModelError(
-                f"model {model.name!r} is branched: joint {name!r} is attached to "
-                f"{model.names[parent + 1]!r}, not to the previous joint "
-                f"{model.names[i - 1]!r}; {_FIX_HINT}."
-            )
-        if abs(np.linalg.norm(found[0]) - 1.0) > 1e-9:
-            raise ModelError(
-                f"joint {name!r} of model {model.name!r} has a non-unit axis {found[0]}; "
-                "normalize the joint axis."
-            )
-        names.append(name)
-        axes[i - 1], prismatic[i - 1] = found
+        names.append(model.names[i])
+        axes[i - 1], prismatic[i - 1] = _serial_joint_axis(model, i)
         placements[i - 1] = model.jointPlacements[i].homogeneous
-        parents[i - 1] = parent
+        parents[i - 1] = int(model.parents[i]) - 1
     if model.nq != n or model.nv != n:
         raise ModelError(
             f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {n} joints; {_FIX_HINT}."
         )
+    q_lower, q_upper, dq_max, tau_max = _joint_limits(model, n)
+    return KinematicChain(
+        joint_names=tuple(names),
+        parents=parents,
+        placements=placements,
+        axes=axes,
+        prismatic=prismatic,
+        gravity=np.array(model.gravity.linear, dtype=float),
+        q_lower=q_lower,
+        q_upper=q_upper,
+        dq_max=dq_max,
+        tau_max=tau_max,
+    )
+
+
+# What chain_from_model names a joint it cannot take, by Pinocchio's joint short name.
+_UNSUPPORTED_JOINTS = {
+    "JointModelFreeFlyer": "a floating base (free-flyer)",
+    "JointModelSpherical": "a spherical joint",
+    "JointModelSphericalZYX": "a spherical joint",
+    "JointModelPlanar": "a planar joint",
+    "JointModelTranslation": "a 3-DoF translation joint",
+    "JointModelRUBX": "a continuous (unbounded) joint",
+    "JointModelRUBY": "a continuous (unbounded) joint",
+    "JointModelRUBZ": "a continuous (unbounded) joint",
+    "JointModelRevoluteUnboundedUnaligned": "a continuous (unbounded) joint",
+}
+
+
+def _serial_joint_axis(model: pin.Model, i: int) -> tuple[np.ndarray, bool]:
+    """Unit axis (3,) in its joint frame and ``prismatic`` of joint ``i`` (1-based), after
+    checking that it is a 1-DoF joint of a serial chain with the expected indices.
+
+    Raises :class:`ModelError` naming the joint.
+    """
+    joint = model.joints[i]
+    name = model.names[i]
+    kind = joint.shortname()
+    found = _joint_axis(joint)
+    if found is None or joint.nq != 1 or joint.nv != 1:
+        what = _UNSUPPORTED_JOINTS.get(
+            kind, f"a joint of type {kind} (nq={joint.nq}, nv={joint.nv})"
+        )
+        hint = _CONTINUOUS_HINT if "continuous" in what else _FIX_HINT
+        raise ModelError(f"joint {name!r} of model {model.name!r} is {what}; {hint}.")
+    if joint.idx_q != i - 1 or joint.idx_v != i - 1:
+        raise ModelError(
+            f"joint {name!r} of model {model.name!r} has configuration index {joint.idx_q} "
+            f"(expected {i - 1}); {_FIX_HINT}."
+        )
+    parent = int(model.parents[i]) - 1
+    if parent != i - 2:
+        raise ModelError(
+            f"model {model.name!r} is branched: joint {name!r} is attached to "
+            f"{model.names[parent + 1]!r}, not to the previous joint "
+            f"{model.names[i - 1]!r}; {_FIX_HINT}."
+        )
+    if abs(np.linalg.norm(found[0]) - 1.0) > 1e-9:
+        raise ModelError(
+            f"joint {name!r} of model {model.name!r} has a non-unit axis {found[0]}; "
+            "normalize the joint axis."
+        )
+    return found
+
+
+def _joint_limits(
+    model: pin.Model, n: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Position [rad or m], velocity and effort limits of the ``n`` joints, shape (n,) each;
+    ``inf`` (``-inf`` for the lower bound) where unknown: not finite, ``>= 1e300``, an empty
+    position range, or a velocity or effort ``<= 0`` (URDFs without limits give 0 in
+    Pinocchio)."""
 
     def limits(values: np.ndarray, fill: float) -> np.ndarray:
         out = np.array(values, dtype=float).reshape(n)
@@ -249,18 +286,7 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
     q_lower[unknown], q_upper[unknown] = -np.inf, np.inf
     dq_max[dq_max <= 0.0] = np.inf
     tau_max[tau_max <= 0.0] = np.inf
-    return KinematicChain(
-        joint_names=tuple(names),
-        parents=parents,
-        placements=placements,
-        axes=axes,
-        prismatic=prismatic,
-        gravity=np.array(model.gravity.linear, dtype=float),
-        q_lower=q_lower,
-        q_upper=q_upper,
-        dq_max=dq_max,
-        tau_max=tau_max,
-    )
+    return q_lower, q_upper, dq_max, tau_max
 
 
 def random_states(

@@ -12,11 +12,14 @@ from __future__ import annotations
 import difflib
 import importlib
 import pickle
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from concurrent.futures import Executor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ident.errors import OptimizationError
 from ident.optim._common import (
@@ -227,37 +230,114 @@ def minimize(
         smaller than one population, a bad ``x0``, a ``workers`` that is not a whole number
         >= 1, or (``workers > 1``) an objective that cannot be pickled.
     """
-    mod = _module(method)
-    opts = check_options(method, options, {**COMMON_OPTIONS, **mod.defaults})
+    setup = _setup(fun, bounds, method, popsize, maxiter, max_nfev, x0, workers, options)
+    with _process_pool(setup.workers) as executor:
+        problem = _problem(fun, setup, as_rng(rng), callback, vectorized, executor)
+        # called here, so that warnings from problem.evaluate name the caller of minimize
+        extras = setup.spec.run(problem, setup.x0, **setup.options)
+    return _optimize_result(problem, extras, method)
+
+
+@dataclass(frozen=True, eq=False)
+class _Setup:
+    """A checked :func:`minimize` call: the method, its options and the box.
+
+    Attributes
+    ----------
+    spec, options :
+        The method and its options (``f_target``, ``target_tol`` taken out).
+    lower, upper :
+        The box, shape (dim,) each.
+    popsize, maxiter :
+        Population size and the number of iterations that will really be run.
+    x0 :
+        The checked initial points (k, dim), or None.
+    workers :
+        Processes evaluating the population.
+    f_target, target_tol :
+        Stop when ``fun <= f_target + target_tol`` (``f_target`` None: never).
+    """
+
+    spec: MethodSpec
+    options: dict[str, Any]
+    lower: npt.NDArray[np.float64]
+    upper: npt.NDArray[np.float64]
+    popsize: int
+    maxiter: int
+    x0: Any
+    workers: int
+    f_target: float | None
+    target_tol: float
+
+
+def _setup(
+    fun: Callable[..., Any],
+    bounds: Any,
+    method: str,
+    popsize: int | None,
+    maxiter: int | None,
+    max_nfev: int | None,
+    x0: Any,
+    workers: Any,
+    options: Mapping[str, Any],
+) -> _Setup:
+    """Check the arguments of :func:`minimize` (same meaning) in the order its ``Raises``
+    lists them. Raises :class:`OptimizationError`."""
+    spec = _module(method)
+    opts = check_options(method, options, {**COMMON_OPTIONS, **spec.defaults})
     lower, upper = parse_bounds(bounds)
-    popsize = int(mod.default_popsize if popsize is None else popsize)
-    min_pop = mod.min_popsize
+    popsize = int(spec.default_popsize if popsize is None else popsize)
+    min_pop = spec.min_popsize
     if popsize < min_pop:
         raise OptimizationError(f"method '{method}' needs popsize >= {min_pop}, got {popsize}")
     n_iter = plan_iterations(popsize, maxiter, max_nfev, default_maxiter=DEFAULT_MAXITER)
     pop0 = as_population(x0, lower.shape[0], popsize, lower, upper)
     workers = _check_workers(workers, fun)
     f_target, target_tol = opts.pop("f_target"), float(opts.pop("target_tol"))
+    return _Setup(spec, opts, lower, upper, popsize, n_iter, pop0, workers, f_target, target_tol)
+
+
+@contextmanager
+def _process_pool(workers: int) -> Iterator[Executor | None]:
+    """A process pool for ``workers > 1`` (None otherwise), shut down on exit, also on an
+    error."""
     executor = make_executor(int(workers))
     try:
-        problem = Problem(
-            fun,
-            lower,
-            upper,
-            popsize=popsize,
-            maxiter=n_iter,
-            rng=as_rng(rng),
-            callback=callback,
-            vectorized=vectorized,
-            workers=int(workers),
-            f_target=f_target,
-            target_tol=target_tol,
-            executor=executor,
-        )
-        extras = mod.run(problem, pop0, **opts)
+        yield executor
     finally:
         if executor is not None:
             executor.shutdown()
+
+
+def _problem(
+    fun: Callable[..., Any],
+    setup: _Setup,
+    rng: np.random.Generator,
+    callback: Callable[[IntermediateResult], Any] | None,
+    vectorized: bool,
+    executor: Executor | None,
+) -> Problem:
+    """The :class:`~ident.optim._common.Problem` a method iterates on (arguments as in
+    :func:`minimize`)."""
+    return Problem(
+        fun,
+        setup.lower,
+        setup.upper,
+        popsize=setup.popsize,
+        maxiter=setup.maxiter,
+        rng=rng,
+        callback=callback,
+        vectorized=vectorized,
+        workers=int(setup.workers),
+        f_target=setup.f_target,
+        target_tol=setup.target_tol,
+        executor=executor,
+    )
+
+
+def _optimize_result(problem: Problem, extras: Mapping[str, Any], method: str) -> OptimizeResult:
+    """The :class:`OptimizeResult` of a finished run: the best point, the history and the
+    method's extras; not a success when no finite objective value was found."""
     best, nfev = problem.history_arrays()
     history = OptimizeHistory(
         best_fun=best,

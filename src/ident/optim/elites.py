@@ -122,84 +122,140 @@ def find_feasible_elites(
             f"need n_particles >= 1, n_elites >= 1, maxiter >= 0, restarts >= 0; got "
             f"{n_particles}, {n_elites}, {maxiter}, {restarts}"
         )
-    gen = as_rng(rng)
-    span = upper - lower
-    dim = lower.shape[0]
-    x = lower + gen.random((n_particles, dim)) * span
-    v = (lower + gen.random((n_particles, dim)) * span - x) / 2.0
-    p, pf = x.copy(), np.full(n_particles, np.inf)
-    elites: list[FloatArray] = []
-    viols: list[float] = []
-    best_x, best_f = x[0].copy(), np.inf
-    nfev, nit, warned = 0, 0, False
+    search = _EliteSearch(violation, lower, upper, n_particles, as_rng(rng))
     attempt, attempt_start = 0, 0
-    message = ""
     while True:
-        f = np.asarray(violation(x), dtype=float)
-        if f.shape != (n_particles,):
-            raise OptimizationError(
-                f"violation returned shape {f.shape}; expected ({n_particles},)"
-            )
-        nfev += n_particles
-        bad = ~np.isfinite(f)
-        if bad.any():
-            f = np.where(bad, np.inf, f)
-            if not warned:
-                warned = True
-                warnings.warn(
-                    "violation returned NaN or inf; treated as the worst value",
-                    IdentWarning,
-                    stacklevel=2,
-                )
-        better = f < pf
-        p[better], pf[better] = x[better], f[better]
-        i = int(np.argmin(f))
-        if f[i] < best_f:
-            best_x, best_f = x[i].copy(), float(f[i])
-        take = np.flatnonzero(f <= tolerance)[: n_elites - len(elites)]
-        if take.size:
-            elites.extend(x[take].copy())
-            viols.extend(f[take].tolist())
-            x[take] = lower + gen.random((take.size, dim)) * span
-            v[take] = 0.0
-            p[take], pf[take] = x[take], np.inf
-        if len(elites) >= n_elites:
+        f = search.evaluate()
+        search.promote(f, tolerance, n_elites)
+        if len(search.elites) >= n_elites:
             message = f"{n_elites} elites found" + (
                 f" ({attempt} restart{'s' * (attempt > 1)} of the swarm)" if attempt else ""
             )
             break
-        if callback is not None and callback(IntermediateResult(best_x, best_f, nit, nfev)):
+        if callback is not None and callback(
+            IntermediateResult(search.best_x, search.best_f, search.nit, search.nfev)
+        ):
             message = "stopped by callback"
             break
-        if nit - attempt_start >= maxiter:
+        if search.nit - attempt_start >= maxiter:
             if attempt < restarts:  # a stalled swarm: start again from new random points
-                nit += 1  # the new swarm's evaluation is an iteration; maxiter more follow
-                attempt, attempt_start = attempt + 1, nit
-                x = lower + gen.random((n_particles, dim)) * span
-                v = (lower + gen.random((n_particles, dim)) * span - x) / 2.0
-                p, pf = x.copy(), np.full(n_particles, np.inf)
+                search.nit += 1  # the new swarm's evaluation is an iteration; maxiter more follow
+                attempt, attempt_start = attempt + 1, search.nit
+                search.new_swarm()
                 continue
             message = (
-                f"only {len(elites)} of {n_elites} elites after {nit} iterations "
-                f"({attempt + 1} swarms of {maxiter}; least violation {best_f:.3g}): the "
+                f"only {len(search.elites)} of {n_elites} elites after {search.nit} iterations "
+                f"({attempt + 1} swarms of {maxiter}; least violation {search.best_f:.3g}): the "
                 "search box holds too few designs that meet the constraints"
             )
             break
-        nit += 1
-        g = p[int(np.argmin(pf))]
-        r1, r2 = gen.random((n_particles, dim)), gen.random((n_particles, dim))
-        v = _CHI * (v + _C * r1 * (p - x) + _C * r2 * (g - x))
-        x = x + v
-        absorb_bounds(x, v, lower, upper)
-    k = len(elites)
-    return EliteSearchResult(
-        elites=np.array(elites).reshape(k, dim),
-        violations=np.array(viols),
-        nit=nit,
-        nfev=nfev,
-        success=k >= n_elites,
-        message=message,
-    )
+        search.nit += 1
+        search.move()
+    return search.result(n_elites, message)
+
+
+class _EliteSearch:
+    """The state of :func:`find_feasible_elites`: the swarm, the elites, the counters.
+
+    Attributes
+    ----------
+    x, v :
+        Positions and velocities of the particles, shape (n_particles, dim).
+    p, pf :
+        Personal best positions (n_particles, dim) and their violations (n_particles,),
+        ``inf`` for a new particle.
+    elites, viols :
+        Compliant points found (each shape (dim,)) and their violations, in order.
+    best_x, best_f :
+        The least-violating point evaluated so far and its violation.
+    nit, nfev :
+        Iterations after the initial swarm and evaluations of the violation.
+    """
+
+    def __init__(
+        self,
+        violation: Callable[[FloatArray], Any],
+        lower: FloatArray,
+        upper: FloatArray,
+        n_particles: int,
+        gen: np.random.Generator,
+    ) -> None:
+        self.violation, self.gen = violation, gen
+        self.lower, self.upper, self.span = lower, upper, upper - lower
+        self.n_particles = n_particles
+        self.new_swarm()
+        self.elites: list[FloatArray] = []
+        self.viols: list[float] = []
+        self.best_x, self.best_f = self.x[0].copy(), np.inf
+        self.nfev, self.nit, self.warned = 0, 0, False
+
+    def _uniform(self, n: int) -> FloatArray:
+        """``n`` points drawn uniformly in the box, shape (n, dim)."""
+        return self.lower + self.gen.random((n, self.lower.shape[0])) * self.span
+
+    def new_swarm(self) -> None:
+        """Random positions, velocities towards other random points, no personal best."""
+        self.x = self._uniform(self.n_particles)
+        self.v = (self._uniform(self.n_particles) - self.x) / 2.0
+        self.p, self.pf = self.x.copy(), np.full(self.n_particles, np.inf)
+
+    def evaluate(self) -> FloatArray:
+        """Violations of the particles, shape (n_particles,), NaN/inf as ``inf`` (an
+        :class:`IdentWarning` the first time); the personal and overall bests updated."""
+        f = np.asarray(self.violation(self.x), dtype=float)
+        if f.shape != (self.n_particles,):
+            raise OptimizationError(
+                f"violation returned shape {f.shape}; expected ({self.n_particles},)"
+            )
+        self.nfev += self.n_particles
+        bad = ~np.isfinite(f)
+        if bad.any():
+            f = np.where(bad, np.inf, f)
+            if not self.warned:
+                self.warned = True
+                warnings.warn(  # stacklevel: the caller of find_feasible_elites
+                    "violation returned NaN or inf; treated as the worst value",
+                    IdentWarning,
+                    stacklevel=3,
+                )
+        better = f < self.pf
+        self.p[better], self.pf[better] = self.x[better], f[better]
+        i = int(np.argmin(f))
+        if f[i] < self.best_f:
+            self.best_x, self.best_f = self.x[i].copy(), float(f[i])
+        return f
+
+    def promote(self, f: FloatArray, tolerance: float, n_elites: int) -> None:
+        """Make compliant particles (``f <= tolerance``) elites, up to ``n_elites`` in all, and
+        replace each by a new random particle at rest with no personal best (the swarm is
+        not pulled back to the same elite)."""
+        take = np.flatnonzero(f <= tolerance)[: n_elites - len(self.elites)]
+        if take.size:
+            self.elites.extend(self.x[take].copy())
+            self.viols.extend(f[take].tolist())
+            self.x[take] = self._uniform(take.size)
+            self.v[take] = 0.0
+            self.p[take], self.pf[take] = self.x[take], np.inf
+
+    def move(self) -> None:
+        """One constriction-PSO step towards the personal and global bests, bounds absorbed."""
+        g = self.p[int(np.argmin(self.pf))]
+        r1, r2 = self.gen.random(self.x.shape), self.gen.random(self.x.shape)
+        self.v = _CHI * (self.v + _C * r1 * (self.p - self.x) + _C * r2 * (g - self.x))
+        self.x = self.x + self.v
+        absorb_bounds(self.x, self.v, self.lower, self.upper)
+
+    def result(self, n_elites: int, message: str) -> EliteSearchResult:
+        """The outcome; a success when ``n_elites`` elites were found."""
+        k = len(self.elites)
+        return EliteSearchResult(
+            elites=np.array(self.elites).reshape(k, self.lower.shape[0]),
+            violations=np.array(self.viols),
+            nit=self.nit,
+            nfev=self.nfev,
+            success=k >= n_elites,
+            message=message,
+        )
 
 
 def spawn_from_elites(

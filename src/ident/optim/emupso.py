@@ -261,6 +261,50 @@ def _validate(opts: dict[str, Any]) -> None:
             raise OptimizationError(f"emupso option {name} must be >= 1, got {opts[name]}")
 
 
+def _archive_pool(
+    arch_x: FloatArray,
+    arch_f: FloatArray,
+    p: FloatArray,
+    pf: FloatArray,
+    span: FloatArray,
+    keep: dict[str, Any],
+) -> tuple[FloatArray, FloatArray]:
+    """The global archive (points (a, dim), values (a,)) joined with the local one: the best
+    distinct personal bests ``p`` (n, dim), ``pf`` (n,) of the current cycle (``keep``: the
+    ``size`` and ``distinct_tol`` of :func:`best_distinct`)."""
+    loc_x, loc_f = best_distinct(p, pf, span, **keep)
+    return np.vstack([arch_x, loc_x]), np.concatenate([arch_f, loc_f])
+
+
+def _pso_step(
+    x: FloatArray,
+    v: FloatArray,
+    p: FloatArray,
+    g_best: FloatArray,
+    w: float,
+    c1: float,
+    c2: float,
+    vmax: FloatArray,
+    lower: FloatArray,
+    upper: FloatArray,
+    rng: np.random.Generator,
+) -> None:
+    """One PSO move of positions ``x`` and velocities ``v`` (n, dim), in place.
+
+    ``v = w v + c1 r1 (p - x) + c2 r2 (g_best - x)`` with uniform ``r1``, ``r2`` (n, dim),
+    personal bests ``p`` (n, dim) and the swarm's best ``g_best`` (dim,); ``v`` clamped to
+    ``vmax`` (dim,), ``x += v``, then the velocity mirror at the box ``lower``..``upper``.
+    """
+    r1 = rng.random(x.shape)
+    r2 = rng.random(x.shape)
+    v *= w
+    v += c1 * r1 * (p - x)
+    v += c2 * r2 * (g_best - x)
+    clamp_velocity(v, vmax)
+    x += v
+    apply_bounds(x, v, lower, upper)
+
+
 def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
     """Run eMuPSO on ``problem``; returns the method-specific parts of the result."""
     _validate(opts)
@@ -295,15 +339,11 @@ def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
         t += 1
         if g >= big_g:
             # eq. 7-8: new cycle from the archives (section 3.3)
-            loc_x, loc_f = best_distinct(p, pf, span, **keep)
-            pool_x, pool_f = np.vstack([arch_x, loc_x]), np.concatenate([arch_f, loc_f])
+            pool_x, pool_f = _archive_pool(arch_x, arch_f, p, pf, span, keep)
             if opts["mutation"] == "gaussian":
+                n_elites = int(opts["n_elites"])
                 elites, _ = best_distinct(
-                    pool_x,
-                    pool_f,
-                    span,
-                    size=int(opts["n_elites"]),
-                    distinct_tol=keep["distinct_tol"],
+                    pool_x, pool_f, span, size=n_elites, distinct_tol=keep["distinct_tol"]
                 )
             else:
                 elites = np.zeros((0, problem.dim))
@@ -317,14 +357,7 @@ def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
             gi = int(np.argmin(pf))
             rad = swarm_radius(pf[gi], pf)
         else:
-            r1 = rng.random((n, problem.dim))
-            r2 = rng.random((n, problem.dim))
-            v *= w[t - 1]
-            v += c1 * r1 * (p - x)
-            v += c2[t - 1] * r2 * (p[gi] - x)
-            clamp_velocity(v, vmax * decay ** (t - 1))
-            x += v
-            apply_bounds(x, v, lo, hi)
+            _pso_step(x, v, p, p[gi], w[t - 1], c1, c2[t - 1], vmax * decay ** (t - 1), lo, hi, rng)
             f = problem.evaluate(x)
             better = f < pf
             p[better] = x[better]
@@ -337,10 +370,7 @@ def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
         stall.append(g)
         stop = problem.end_iteration(t)
 
-    loc_x, loc_f = best_distinct(p, pf, span, **keep)
-    arch_x, arch_f = best_distinct(
-        np.vstack([arch_x, loc_x]), np.concatenate([arch_f, loc_f]), span, **keep
-    )
+    arch_x, arch_f = best_distinct(*_archive_pool(arch_x, arch_f, p, pf, span, keep), span, **keep)
     return {
         "radius": np.array(radii),
         "stagnation": np.array(stall, dtype=np.int64),

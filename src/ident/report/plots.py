@@ -37,6 +37,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 FloatArray = npt.NDArray[np.float64]
@@ -335,32 +336,16 @@ def parameters_png(
         dev = 100.0 * (x[keep] - ref[keep]) / np.abs(ref[keep])
         bar = 300.0 * std[keep] / np.abs(ref[keep])
         for p_k, (ax, chunk) in enumerate(zip(axes, chunks, strict=True)):
-            pos = np.arange(len(chunk))
-            for mask, color, label in (
-                (strong[keep][chunk], "C3", "major (torque share >= 1 %)"),
-                (~strong[keep][chunk], "0.55", "minor"),
-            ):
-                if mask.any():
-                    ax.errorbar(
-                        pos[mask],
-                        dev[chunk][mask],
-                        yerr=bar[chunk][mask],
-                        fmt="o",
-                        ms=4,
-                        color=color,
-                        ecolor=color,
-                        capsize=2,
-                        label=label if highlight is not None and p_k == 0 else None,
-                    )
-            for b in bands:
-                ax.axhline(b, color="0.4", ls="--", lw=0.7)
-                ax.axhline(-b, color="0.4", ls="--", lw=0.7)
-            ax.axhline(0.0, color="k", lw=0.8)
-            ax.set_yscale("symlog", linthresh=1.0)
-            ax.set_xticks(pos, [names[int(keep[i])] for i in chunk], rotation=60, ha="right")
-            ax.set_xlim(-0.6, per - 0.4)  # same spacing on every panel
-            if highlight is not None and p_k == 0:
-                ax.legend(fontsize="small", loc="best")
+            _deviation_panel(
+                ax,
+                [names[int(keep[i])] for i in chunk],
+                dev[chunk],
+                bar[chunk],
+                strong[keep][chunk],
+                bands=bands,
+                n_slots=per,
+                legend=highlight is not None and p_k == 0,
+            )
     else:
         ax0 = axes[0]
         note = "no parameter with a reference value"
@@ -372,6 +357,48 @@ def parameters_png(
         heading += f"\n{n} parameters in {len(chunks)} panels, split between links"
     axes[0].set_title(heading)
     return figure_png(fig)
+
+
+def _deviation_panel(
+    ax: Axes,
+    labels: list[str],
+    dev: FloatArray,
+    bar: FloatArray,
+    strong: npt.NDArray[np.bool_],
+    *,
+    bands: Sequence[float],
+    n_slots: int,
+    legend: bool,
+) -> None:
+    """One panel of :func:`parameters_png`: deviations ``dev`` [%] with ±``bar`` [%] (3σ),
+    shape (k,), major parameters (``strong``) in the strong colour, dashed ``bands`` [%],
+    symmetric-log y axis, ``n_slots`` x positions (the same spacing on every panel)."""
+    pos = np.arange(len(labels))
+    for mask, color, label in (
+        (strong, "C3", "major (torque share >= 1 %)"),
+        (~strong, "0.55", "minor"),
+    ):
+        if mask.any():
+            ax.errorbar(
+                pos[mask],
+                dev[mask],
+                yerr=bar[mask],
+                fmt="o",
+                ms=4,
+                color=color,
+                ecolor=color,
+                capsize=2,
+                label=label if legend else None,
+            )
+    for b in bands:
+        ax.axhline(b, color="0.4", ls="--", lw=0.7)
+        ax.axhline(-b, color="0.4", ls="--", lw=0.7)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_yscale("symlog", linthresh=1.0)
+    ax.set_xticks(pos, labels, rotation=60, ha="right")
+    ax.set_xlim(-0.6, n_slots - 0.4)  # same spacing on every panel
+    if legend:
+        ax.legend(fontsize="small", loc="best")
 
 
 def torque_png(

@@ -232,17 +232,7 @@ def urdf_from_description(robot: RobotDescription) -> str:
         If a link or joint name collides with a generated one.
     """
     dh = robot.dh
-    n = dh.n_joints
-    generated = {BASE_LINK, FLANGE, WRIST_CENTRE, "flange_joint", "wrist_centre_joint"}
-    names = list(robot.link_names) + list(robot.joint_names)
-    clash = sorted(generated.intersection(names))
-    duplicates = sorted(set(robot.link_names).intersection(robot.joint_names))
-    if clash or duplicates:
-        where = f" ({robot.source})" if robot.source else ""
-        raise ModelError(
-            f"robot{where}: link/joint name(s) {', '.join(clash + duplicates)} collide with each "
-            f"other or with the generated frames {', '.join(sorted(generated))}; rename them."
-        )
+    _check_generated_names(robot)
     origins, flange = joint_origins(dh)
     radii = _link_radii(dh)
     root = ET.Element("robot", name=robot.name)
@@ -262,77 +252,112 @@ def urdf_from_description(robot: RobotDescription) -> str:
     plinth = 1.6 * radii[0]
     _cylinder(base, np.zeros(3), np.array([0, 0, plinth]), plinth, _JOINT_COLOUR[0])
 
-    mass, com, inertia_com = robot.mass, robot.com, robot.inertia_com
     parent = BASE_LINK
-    for i in range(n):
-        joint = ET.SubElement(root, "joint", name=robot.joint_names[i], type=dh.joint_types[i])
-        ET.SubElement(joint, "parent", link=parent)
-        ET.SubElement(joint, "child", link=robot.link_names[i])
-        _origin(joint, origins[i])
-        ET.SubElement(joint, "axis", xyz="0 0 1")
-        ET.SubElement(
-            joint,
-            "limit",
-            lower=_fmt(robot.q_lower[i]),
-            upper=_fmt(robot.q_upper[i]),
-            effort=_fmt(robot.effort_max[i]) if np.isfinite(robot.effort_max[i]) else "0",
-            velocity=_fmt(robot.dq_max[i]) if np.isfinite(robot.dq_max[i]) else "0",
-        )
+    for i in range(dh.n_joints):
+        _add_joint(root, robot, i, parent, origins[i])
         link = ET.SubElement(root, "link", name=robot.link_names[i])
-        # inertial frame: at the centre of mass, axes of DH frame i
-        dh_in_link = dh_frame_in_link(dh, i)
-        inertial_pose = dh_in_link.copy()
-        inertial_pose[:3, 3] = dh_in_link[:3, :3] @ com[i] + dh_in_link[:3, 3]
-        inertial = ET.SubElement(link, "inertial")
-        ET.SubElement(
-            inertial,
-            "origin",
-            xyz=_vector(inertial_pose[:3, 3]),
-            rpy=_vector(_rpy(inertial_pose[:3, :3]), snap=True),
-        )
-        ET.SubElement(inertial, "mass", value=_fmt(mass[i]))
-        tensor = inertia_com[i]
-        ET.SubElement(
-            inertial,
-            "inertia",
-            ixx=_fmt(tensor[0, 0]),
-            ixy=_fmt(tensor[0, 1]),
-            ixz=_fmt(tensor[0, 2]),
-            iyy=_fmt(tensor[1, 1]),
-            iyz=_fmt(tensor[1, 2]),
-            izz=_fmt(tensor[2, 2]),
-        )
-        # visuals: the joint housing, then the link body along the DH offsets to the next joint
-        radius = float(radii[i])
-        half = np.array([0.0, 0.0, 1.25 * radius])
-        _cylinder(link, -half, half, 1.25 * radius, _JOINT_COLOUR[0])
-        if dh.convention == "standard":
-            steps = dh.fixed_steps(i)
-        else:
-            steps = dh.fixed_steps(i + 1) if i + 1 < n else ()
-        points = _polyline(steps)
-        for start, end in zip(points[:-1], points[1:], strict=True):
-            _cylinder(link, start, end, radius, _LINK_COLOUR[0])
+        _add_inertial(link, robot, i)
+        _add_link_body(link, dh, i, float(radii[i]))
         parent = robot.link_names[i]
 
-    joint = ET.SubElement(root, "joint", name="flange_joint", type="fixed")
-    ET.SubElement(joint, "parent", link=parent)
-    ET.SubElement(joint, "child", link=FLANGE)
-    _origin(joint, flange)
-    flange_link = ET.SubElement(root, "link", name=FLANGE)
+    flange_link = _add_fixed_frame(root, "flange_joint", parent, FLANGE, flange)
     disc = np.array([0.0, 0.0, 0.3 * radii[-1]])
     _cylinder(flange_link, -disc, np.zeros(3), 0.8 * radii[-1], _JOINT_COLOUR[0])
 
     centre = wrist_centre(dh)
     if centre is not None:
         index, point = centre
-        joint = ET.SubElement(root, "joint", name="wrist_centre_joint", type="fixed")
-        ET.SubElement(joint, "parent", link=robot.link_names[index])
-        ET.SubElement(joint, "child", link=WRIST_CENTRE)
         pose = np.eye(4)
         pose[:3, 3] = point
-        _origin(joint, pose)
-        ET.SubElement(root, "link", name=WRIST_CENTRE)
+        _add_fixed_frame(root, "wrist_centre_joint", robot.link_names[index], WRIST_CENTRE, pose)
 
     ET.indent(root, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _check_generated_names(robot: RobotDescription) -> None:
+    """Raise :class:`ModelError` when a link or joint name is another's or a generated one."""
+    generated = {BASE_LINK, FLANGE, WRIST_CENTRE, "flange_joint", "wrist_centre_joint"}
+    names = list(robot.link_names) + list(robot.joint_names)
+    clash = sorted(generated.intersection(names))
+    duplicates = sorted(set(robot.link_names).intersection(robot.joint_names))
+    if clash or duplicates:
+        where = f" ({robot.source})" if robot.source else ""
+        raise ModelError(
+            f"robot{where}: link/joint name(s) {', '.join(clash + duplicates)} collide with each "
+            f"other or with the generated frames {', '.join(sorted(generated))}; rename them."
+        )
+
+
+def _add_joint(
+    root: ET.Element, robot: RobotDescription, i: int, parent: str, origin: FloatArray
+) -> None:
+    """The ``<joint>`` of DH row ``i`` (0-based): about (along) z of its frame, placed at
+    ``origin`` (shape (4, 4)) in the ``parent`` link; its limits [rad or m, rad/s or m/s,
+    N*m or N], an unknown velocity or effort written as ``0``."""
+    joint = ET.SubElement(root, "joint", name=robot.joint_names[i], type=robot.dh.joint_types[i])
+    ET.SubElement(joint, "parent", link=parent)
+    ET.SubElement(joint, "child", link=robot.link_names[i])
+    _origin(joint, origin)
+    ET.SubElement(joint, "axis", xyz="0 0 1")
+    ET.SubElement(
+        joint,
+        "limit",
+        lower=_fmt(robot.q_lower[i]),
+        upper=_fmt(robot.q_upper[i]),
+        effort=_fmt(robot.effort_max[i]) if np.isfinite(robot.effort_max[i]) else "0",
+        velocity=_fmt(robot.dq_max[i]) if np.isfinite(robot.dq_max[i]) else "0",
+    )
+
+
+def _add_inertial(link: ET.Element, robot: RobotDescription, i: int) -> None:
+    """The ``<inertial>`` of link ``i``: mass [kg] and the tensor about the centre of mass
+    [kg*m^2], in a frame at the centre of mass with the axes of DH frame ``i``."""
+    dh_in_link = dh_frame_in_link(robot.dh, i)
+    inertial_pose = dh_in_link.copy()
+    inertial_pose[:3, 3] = dh_in_link[:3, :3] @ robot.com[i] + dh_in_link[:3, 3]
+    inertial = ET.SubElement(link, "inertial")
+    ET.SubElement(
+        inertial,
+        "origin",
+        xyz=_vector(inertial_pose[:3, 3]),
+        rpy=_vector(_rpy(inertial_pose[:3, :3]), snap=True),
+    )
+    ET.SubElement(inertial, "mass", value=_fmt(robot.mass[i]))
+    tensor = robot.inertia_com[i]
+    ET.SubElement(
+        inertial,
+        "inertia",
+        ixx=_fmt(tensor[0, 0]),
+        ixy=_fmt(tensor[0, 1]),
+        ixz=_fmt(tensor[0, 2]),
+        iyy=_fmt(tensor[1, 1]),
+        iyz=_fmt(tensor[1, 2]),
+        izz=_fmt(tensor[2, 2]),
+    )
+
+
+def _add_link_body(link: ET.Element, dh: DHTable, i: int, radius: float) -> None:
+    """Visuals (and the same collisions) of link ``i``: the joint housing, then cylinders of
+    ``radius`` [m] along the DH offsets to the next joint."""
+    half = np.array([0.0, 0.0, 1.25 * radius])
+    _cylinder(link, -half, half, 1.25 * radius, _JOINT_COLOUR[0])
+    if dh.convention == "standard":
+        steps = dh.fixed_steps(i)
+    else:
+        steps = dh.fixed_steps(i + 1) if i + 1 < dh.n_joints else ()
+    points = _polyline(steps)
+    for start, end in zip(points[:-1], points[1:], strict=True):
+        _cylinder(link, start, end, radius, _LINK_COLOUR[0])
+
+
+def _add_fixed_frame(
+    root: ET.Element, joint_name: str, parent: str, child: str, pose: FloatArray
+) -> ET.Element:
+    """A fixed joint placing the new link ``child`` at ``pose`` (shape (4, 4)) in ``parent``;
+    returns the link element."""
+    joint = ET.SubElement(root, "joint", name=joint_name, type="fixed")
+    ET.SubElement(joint, "parent", link=parent)
+    ET.SubElement(joint, "child", link=child)
+    _origin(joint, pose)
+    return ET.SubElement(root, "link", name=child)

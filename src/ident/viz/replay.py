@@ -192,53 +192,86 @@ def load_visual_robot(
     urdf_path = Path(selection.urdf)
     if not urdf_path.is_file():
         raise ModelError(f"{urdf_path}: URDF file not found.")
-    dirs = [str(Path(d)) for d in (*package_dirs, *selection.package_dirs)]
-    dirs += [str(urdf_path.parent.resolve()), str(urdf_path.parent.resolve().parent)]
+    dirs = _mesh_folders(urdf_path, package_dirs, selection.package_dirs)
     # the identification's robot: its checks, chain and lock values (inertials not needed)
     robot_model = load_robot(selection.model_copy(update={"inertia_check": False}))
-    locked = dict(robot_model.locked_joints)
     text = robot_model.urdf_text
     where = str(urdf_path)
     model = build_model(continuous_as_revolute(parse_xml(text, where), text)[0], where)
+    visual_model = _urdf_geometry(model, urdf_path, dirs, package_hint)
+    if visual_model is None:
+        return robot_model.model, stick_figure(robot_model.model), True
+    if robot_model.locked_joints:
+        model, visual_model = _lock_joints(model, visual_model, dict(robot_model.locked_joints))
+    if len(visual_model.geometryObjects) == 0:
+        return model, stick_figure(model), True
+    return model, visual_model, False
+
+
+def _mesh_folders(
+    urdf_path: Path, package_dirs: Sequence[str | Path], selection_dirs: Sequence[str | Path]
+) -> list[str]:
+    """Folders searched for ``package://`` meshes, in order: ``package_dirs``, the selection's
+    ``package_dirs``, the URDF's folder and its parent (absolute)."""
+    dirs = [str(Path(d)) for d in (*package_dirs, *selection_dirs)]
+    return dirs + [str(urdf_path.parent.resolve()), str(urdf_path.parent.resolve().parent)]
+
+
+def _urdf_geometry(
+    model: pin.Model, urdf_path: Path, dirs: list[str], package_hint: str
+) -> pin.GeometryModel | None:
+    """The URDF's visual geometry of the full ``model``, else its collision geometry.
+
+    Meshes are checked before coal loads them (a missing or broken file is never a
+    segfault). When the visual geometry cannot be loaded, an :class:`IdentWarning` (attributed
+    to the caller of :func:`load_visual_robot`) names the problem and ``package_hint``, and
+    the collision geometry is used; ``None`` when that cannot be loaded either (or is empty):
+    the caller shows a stick figure. A URDF without visuals gives an empty model.
+    """
     check_urdf_meshes(urdf_path, dirs, collision=False)  # before coal: never a segfault
     try:
-        visual_model = pin.buildGeomFromUrdf(
+        return pin.buildGeomFromUrdf(
             model, str(urdf_path), pin.GeometryType.VISUAL, package_dirs=dirs
         )
     except (RuntimeError, ValueError) as e:
         problem = str(e).strip()
-        try:  # the collision meshes, when they are the ones shipped (configs/panda.yaml)
-            check_urdf_meshes(urdf_path, dirs, visual=False)  # before coal: never a segfault
-            visual_model = pin.buildGeomFromUrdf(
-                model, str(urdf_path), pin.GeometryType.COLLISION, package_dirs=dirs
-            )
-        except (RuntimeError, ValueError, ModelError):
-            visual_model = pin.GeometryModel()
-        if len(visual_model.geometryObjects) == 0:
-            warnings.warn(
-                f"{urdf_path}: cannot load the visual geometry ({problem}); showing a stick "
-                "figure of the kinematic chain instead. Give the folder that contains the "
-                f"mesh package with {package_hint}.",
-                IdentWarning,
-                stacklevel=2,
-            )
-            return robot_model.model, stick_figure(robot_model.model), True
-        warnings.warn(
-            f"{urdf_path}: cannot load the visual geometry ({problem}); showing the "
-            "collision geometry instead (the visual meshes' folder is given with "
-            f"{package_hint}).",
-            IdentWarning,
-            stacklevel=2,
+    try:  # the collision meshes, when they are the ones shipped (configs/panda.yaml)
+        check_urdf_meshes(urdf_path, dirs, visual=False)  # before coal: never a segfault
+        collision = pin.buildGeomFromUrdf(
+            model, str(urdf_path), pin.GeometryType.COLLISION, package_dirs=dirs
         )
-    if locked:
-        reference = pin.neutral(model)
-        for name, value in locked.items():
-            reference[model.joints[model.getJointId(name)].idx_q] = value
-        ids = [model.getJointId(name) for name in locked]
-        model, visual_model = pin.buildReducedModel(model, visual_model, ids, reference)
-    if len(visual_model.geometryObjects) == 0:
-        return model, stick_figure(model), True
-    return model, visual_model, False
+    except (RuntimeError, ValueError, ModelError):
+        collision = pin.GeometryModel()
+    # stacklevel 3: the warning names the caller of load_visual_robot
+    if len(collision.geometryObjects) == 0:
+        warnings.warn(
+            f"{urdf_path}: cannot load the visual geometry ({problem}); showing a stick "
+            "figure of the kinematic chain instead. Give the folder that contains the "
+            f"mesh package with {package_hint}.",
+            IdentWarning,
+            stacklevel=3,
+        )
+        return None
+    warnings.warn(
+        f"{urdf_path}: cannot load the visual geometry ({problem}); showing the "
+        "collision geometry instead (the visual meshes' folder is given with "
+        f"{package_hint}).",
+        IdentWarning,
+        stacklevel=3,
+    )
+    return collision
+
+
+def _lock_joints(
+    model: pin.Model, visual_model: pin.GeometryModel, locked: Mapping[str, float]
+) -> tuple[pin.Model, pin.GeometryModel]:
+    """Pinocchio's reduced model and geometry with the joints of ``locked`` held at their
+    values [rad or m] (the other joints at their neutral configuration)."""
+    reference = pin.neutral(model)
+    for name, value in locked.items():
+        reference[model.joints[model.getJointId(name)].idx_q] = value
+    ids = [model.getJointId(name) for name in locked]
+    return pin.buildReducedModel(model, visual_model, ids, reference)
 
 
 def run_robot_selection(
@@ -618,7 +651,30 @@ def build_replay_scene(
         Unreadable URDF or unknown traced frame.
     """
     selection = robot if isinstance(robot, RobotSelection) else RobotSelection(urdf=Path(robot))
-    urdf_path = Path(selection.path)
+    labels, marks = _checked_scene_options(trajectories, speed, fps, labels, marks)
+    scene_robot = _scene_robot(selection, traced_frame, package_dirs, package_hint)
+    motions = _replay_motions(scene_robot, trajectories, fps, speed, Path(selection.path))
+    return _record_scene(
+        scene_robot,
+        motions,
+        labels,
+        marks,
+        spacing=spacing,
+        fps=fps,
+        loop=loop,
+        environment=environment if environment is not None else ReplayEnvironment(),
+    )
+
+
+def _checked_scene_options(
+    trajectories: Sequence[JointTrajectory],
+    speed: float,
+    fps: float,
+    labels: Sequence[str] | None,
+    marks: Sequence[ClearanceMark | None] | None,
+) -> tuple[Sequence[str], Sequence[ClearanceMark | None]]:
+    """Check the replay options of :func:`build_replay_scene`; the labels and marks, one per
+    trajectory (defaults: ``trajectory <k>`` and no mark). Raises :class:`DataError`."""
     if len(trajectories) == 0:
         raise DataError("no trajectory to replay.")
     if not (math.isfinite(speed) and speed > 0.0):
@@ -633,110 +689,225 @@ def build_replay_scene(
         raise DataError(f"{len(marks)} clearance marks for {len(trajectories)} trajectories.")
     if not (math.isfinite(fps) and fps >= 1.0):
         raise DataError(f"fps = {fps} must be >= 1 keyframe per second.")
-    model, visual_model, fallback = load_visual_robot(
+    return labels, marks
+
+
+@dataclass(frozen=True, eq=False)
+class _SceneRobot:
+    """The replayed robot: kinematics, visual geometry and traced frame.
+
+    Attributes
+    ----------
+    model, geometry, fallback :
+        As returned by :func:`load_visual_robot`.
+    frame_name, frame_id :
+        The frame whose path is drawn: its name and Pinocchio id.
+    """
+
+    model: pin.Model
+    geometry: pin.GeometryModel
+    fallback: bool
+    frame_name: str
+    frame_id: int
+
+
+def _scene_robot(
+    selection: RobotSelection,
+    traced_frame: str | None,
+    package_dirs: Sequence[str | Path],
+    package_hint: str,
+) -> _SceneRobot:
+    """Load the robot of ``selection`` (:func:`load_visual_robot`) and find the traced frame
+    (``None``: :func:`default_traced_frame`). Raises :class:`ModelError`."""
+    model, geometry, fallback = load_visual_robot(
         selection, package_dirs, package_hint=package_hint
     )
-    frame_name = (
+    name = (
         traced_frame
         if traced_frame is not None
         else default_traced_frame(model, selection.tip_link)
     )
-    frame_id = _frame_id(model, frame_name, urdf_path)
+    frame_id = _frame_id(model, name, Path(selection.path))
+    return _SceneRobot(model, geometry, fallback, name, frame_id)
+
+
+@dataclass(frozen=True, eq=False)
+class _Motion:
+    """One trajectory as the scene draws it.
+
+    Attributes
+    ----------
+    trajectory, q :
+        The trajectory and the model's configurations at its samples, shape (n_samples, nq).
+    keyframes :
+        Configurations at the replay's keyframes (one per ``1 / fps`` s of replay time),
+        shape (n_frames, nq).
+    segment_starts :
+        First keyframe of each segment of the log (:func:`replay_segments`).
+    path_lines :
+        The traced frame's positions [m], one (n_points, 3) array per line drawn.
+    points :
+        Joint origins at every keyframe, then the traced path's points [m], shape (n, 3),
+        in the robot's own frame: what the spacing and the camera must show.
+    """
+
+    trajectory: JointTrajectory
+    q: FloatArray
+    keyframes: FloatArray
+    segment_starts: list[int]
+    path_lines: list[FloatArray]
+    points: FloatArray
+
+
+def _replay_motions(
+    robot: _SceneRobot,
+    trajectories: Sequence[JointTrajectory],
+    fps: float,
+    speed: float,
+    urdf_path: Path,
+) -> list[_Motion]:
+    """Keyframes, traced path and extent of each trajectory, replayed at ``fps`` keyframes
+    per second [1/s] and ``speed``. Raises :class:`DataError` (joints that do not match the
+    URDF at ``urdf_path``: :func:`joint_configurations`, every trajectory checked first)."""
+    model = robot.model
     configurations = [joint_configurations(model, t, urdf_path=urdf_path) for t in trajectories]
+    motions = []
+    for trajectory, q in zip(trajectories, configurations, strict=True):
+        keyframes, starts = _resample(trajectory, q, fps, speed)
+        # the traced path, one line per segment (at most _MAX_SEGMENT_LINES, else one line)
+        lines = _path_lines(model, q, replay_segments(trajectory.t), robot.frame_id)
+        joints = _joint_positions(model, keyframes).reshape(-1, 3)
+        points = np.vstack([joints, np.vstack(lines)])
+        motions.append(_Motion(trajectory, q, keyframes, starts, lines, points))
+    return motions
 
-    resampled = [
-        _resample(traj, q, fps, speed) for traj, q in zip(trajectories, configurations, strict=True)
-    ]
-    keyframes = [q for q, _ in resampled]
-    # the traced path, one line per segment (at most _MAX_SEGMENT_LINES, else one line)
-    path_parts = [
-        _path_lines(model, q, replay_segments(traj.t), frame_id)
-        for traj, q in zip(trajectories, configurations, strict=True)
-    ]
-    paths = [np.vstack(parts) for parts in path_parts]
-    joints = [_joint_positions(model, q).reshape(-1, 3) for q in keyframes]
-    extents = [np.ptp(np.vstack([j, p]), axis=0) for j, p in zip(joints, paths, strict=True)]
+
+def _record_scene(
+    robot: _SceneRobot,
+    motions: list[_Motion],
+    labels: Sequence[str],
+    marks: Sequence[ClearanceMark | None],
+    *,
+    spacing: float | None,
+    fps: float,
+    loop: bool,
+    environment: ReplayEnvironment,
+) -> ReplayScene:
+    """Record the scene: robot ``k`` (its motion, traced path, marker, clearance mark)
+    shifted by ``k * spacing`` [m] along world ``y``, the environment, the camera.
+
+    ``spacing=None``: 1.2 times the largest extent of the motions (at least 0.3 m). Other
+    arguments as in :func:`build_replay_scene`.
+    """
     if spacing is None:
-        spacing = 1.2 * max(max(float(e.max()) for e in extents), 0.3)
-
+        spacing = 1.2 * max(max(float(np.ptp(m.points, axis=0).max()) for m in motions), 0.3)
     recorder = SceneRecorder()
     vis = meshcat.Visualizer(window=recorder)
     animation = Animation(default_framerate=fps)
-    marker_radius = float(np.clip(0.015 * _characteristic_length(model), 0.004, 0.03))
-    robot_paths = []
+    marker_radius = float(np.clip(0.015 * _characteristic_length(robot.model), 0.004, 0.03))
+    roots = [f"{_ROOT}/robot_{k}" for k in range(len(motions))]
     camera_points = []
     notes: list[str] = []
-    for k, (q_frames, path) in enumerate(zip(keyframes, paths, strict=True)):
-        root = f"{_ROOT}/robot_{k}"
+    for k, (root, motion, mark) in enumerate(zip(roots, motions, marks, strict=True)):
         offset = np.array([0.0, k * spacing, 0.0])
-        viz = _BakedMeshVisualizer(model, None, visual_model)
-        with warnings.catch_warnings():
-            # Pinocchio warns through UserWarning for each unsupported geometry; keep them,
-            # but not its meshcat-version notice about get_image.
-            warnings.filterwarnings("ignore", message=".*get_image.*")
-            viz.initViewer(viewer=vis)
-            viz.loadViewerModel(rootNodeName=root)
-        vis[root].set_transform(pin.SE3(np.eye(3), offset).homogeneous)
-        _animate_robot(viz, animation, vis, root, q_frames)
-
-        color = _PATH_COLORS[k % len(_PATH_COLORS)]
-        for s, line in enumerate(path_parts[k]):
-            vis[f"{root}/path" + (f"_{s + 1}" if s else "")].set_object(
-                mg.Line(
-                    mg.PointsGeometry(line.T.astype(np.float32)),
-                    mg.LineBasicMaterial(color=color),
-                )
-            )
-        vis[f"{root}/marker"].set_object(
-            mg.Sphere(marker_radius), mg.MeshLambertMaterial(color=color)
-        )
-        marker_path = _frame_positions(model, q_frames, frame_id)
-        for frame, position in enumerate(marker_path):
-            with animation.at_frame(vis, frame) as frame_vis:
-                frame_vis[f"{root}/marker"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
-        robot_paths.append(f"/meshcat/{root}")
-        camera_points.append(np.vstack([joints[k], path]) + offset)
-        mark = marks[k]
+        _draw_robot(vis, animation, robot, root, offset, motion.keyframes)
+        _draw_traced_path(vis, animation, robot, root, motion, _path_color(k), marker_radius)
+        camera_points.append(motion.points + offset)
         if mark is not None:
-            position = _mark_position(model, trajectories[k], configurations[k], mark)
+            position = _mark_position(robot.model, motion.trajectory, motion.q, mark)
             if position is not None:
-                vis[f"{root}/closest"].set_object(
-                    mg.Sphere(2.0 * marker_radius), mg.MeshLambertMaterial(color=CLOSEST_COLOR)
-                )
-                vis[f"{root}/closest"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
+                _draw_closest(vis, root, position, 2.0 * marker_radius)
             notes.append(f"robot {k}: {mark.describe()} (red sphere)")
-        starts = resampled[k][1]
-        if len(starts) > 1:
-            at = ", ".join(f"{s / fps:.2f} s" for s in starts[1:])
-            notes.append(
-                f"robot {k}: {len(starts)} segments of the log (split at gaps or backwards "
-                f"time jumps), replayed one after another; segments 2.. start at {at}"
-            )
-
+        notes += _segment_notes(k, motion.segment_starts, fps)
     everything = np.vstack(camera_points)
-    environment_paths = draw_environment(
-        vis,
-        _ROOT,
-        [f"{_ROOT}/robot_{k}" for k in range(len(trajectories))],
-        environment if environment is not None else ReplayEnvironment(),
-        (everything.min(axis=0), everything.max(axis=0)),
-    )
-
+    bounds = (everything.min(axis=0), everything.max(axis=0))
+    environment_paths = draw_environment(vis, _ROOT, roots, environment, bounds)
     vis.window.send(SetAnimation(animation, play=True, repetitions=math.inf if loop else 1))
-    _set_camera(vis, np.vstack(camera_points), len(trajectories))
-    duration = max((q.shape[0] - 1) / fps for q in keyframes)
+    _set_camera(vis, everything, len(motions))
     return ReplayScene(
         recorder=recorder,
-        duration=duration,
-        robot_paths=tuple(robot_paths),
-        traced_frame=frame_name,
-        n_visuals=len(visual_model.geometryObjects),
-        fallback_geometry=fallback,
+        duration=max((m.keyframes.shape[0] - 1) / fps for m in motions),
+        robot_paths=tuple(f"/meshcat/{root}" for root in roots),
+        traced_frame=robot.frame_name,
+        n_visuals=len(robot.geometry.geometryObjects),
+        fallback_geometry=robot.fallback,
         labels=tuple(labels),
-        colors=tuple(_PATH_COLORS[k % len(_PATH_COLORS)] for k in range(len(trajectories))),
+        colors=tuple(_path_color(k) for k in range(len(motions))),
         environment_paths=environment_paths,
         notes=tuple(notes),
     )
+
+
+def _path_color(k: int) -> int:
+    """Colour (0xRRGGBB) of robot ``k``'s path and marker."""
+    return _PATH_COLORS[k % len(_PATH_COLORS)]
+
+
+def _draw_robot(
+    vis: meshcat.Visualizer,
+    animation: Animation,
+    robot: _SceneRobot,
+    root: str,
+    offset: FloatArray,
+    keyframes: FloatArray,
+) -> None:
+    """Load the robot's visual geometry under ``root``, placed at ``offset`` [m] (world,
+    shape (3,)), and animate it through ``keyframes`` (shape (n_frames, nq))."""
+    viz = _BakedMeshVisualizer(robot.model, None, robot.geometry)
+    with warnings.catch_warnings():
+        # Pinocchio warns through UserWarning for each unsupported geometry; keep them,
+        # but not its meshcat-version notice about get_image.
+        warnings.filterwarnings("ignore", message=".*get_image.*")
+        viz.initViewer(viewer=vis)
+        viz.loadViewerModel(rootNodeName=root)
+    vis[root].set_transform(pin.SE3(np.eye(3), offset).homogeneous)
+    _animate_robot(viz, animation, vis, root, keyframes)
+
+
+def _draw_traced_path(
+    vis: meshcat.Visualizer,
+    animation: Animation,
+    robot: _SceneRobot,
+    root: str,
+    motion: _Motion,
+    color: int,
+    marker_radius: float,
+) -> None:
+    """Draw the traced frame's path (``root/path``, ``root/path_2``, ...) and a sphere of
+    ``marker_radius`` [m] (``root/marker``) that follows the frame, keyframe by keyframe."""
+    for s, line in enumerate(motion.path_lines):
+        vis[f"{root}/path" + (f"_{s + 1}" if s else "")].set_object(
+            mg.Line(
+                mg.PointsGeometry(line.T.astype(np.float32)),
+                mg.LineBasicMaterial(color=color),
+            )
+        )
+    vis[f"{root}/marker"].set_object(mg.Sphere(marker_radius), mg.MeshLambertMaterial(color=color))
+    marker_path = _frame_positions(robot.model, motion.keyframes, robot.frame_id)
+    for frame, position in enumerate(marker_path):
+        with animation.at_frame(vis, frame) as frame_vis:
+            frame_vis[f"{root}/marker"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
+
+
+def _draw_closest(vis: meshcat.Visualizer, root: str, position: FloatArray, radius: float) -> None:
+    """A sphere of ``radius`` [m] (``root/closest``) at ``position`` [m], shape (3,): the
+    closest link at the least clearance."""
+    vis[f"{root}/closest"].set_object(
+        mg.Sphere(radius), mg.MeshLambertMaterial(color=CLOSEST_COLOR)
+    )
+    vis[f"{root}/closest"].set_transform(pin.SE3(np.eye(3), position).homogeneous)
+
+
+def _segment_notes(k: int, starts: list[int], fps: float) -> list[str]:
+    """Caption line of robot ``k`` when its log has several segments starting at keyframes
+    ``starts`` (keyframes per second ``fps`` [1/s]); none for one segment."""
+    if len(starts) <= 1:
+        return []
+    at = ", ".join(f"{s / fps:.2f} s" for s in starts[1:])
+    return [
+        f"robot {k}: {len(starts)} segments of the log (split at gaps or backwards "
+        f"time jumps), replayed one after another; segments 2.. start at {at}"
+    ]
 
 
 def _mark_position(
