@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -105,3 +106,55 @@ def test_write_docs_replaces_only_its_blocks(tmp_path):
     assert "middle\n" in text
     assert "\nkept\n" in text
     assert text.endswith("end\n")
+
+
+def test_figaroh_fixture_trajectory_matches_its_manifest():
+    """The UR10 fixture's training series rebuilt from its coefficients has the ranges FIGAROH's
+    manifest records (q range, max |dq|): a wrong series form (cos for sin, a missing 1/(k w),
+    a wrong centre) would not."""
+    fixture = bench_peers.load_ur10_fixture()
+    q, dq, ddq = bench_peers.fixture_trajectory(fixture)
+    assert q.shape == dq.shape == ddq.shape == (1000, 6)
+    np.testing.assert_allclose(np.ptp(q, axis=0), fixture["q_range_rad"], rtol=1e-12)
+    np.testing.assert_allclose(np.abs(dq).max(axis=0), fixture["dq_max_abs"], rtol=1e-12)
+    # ddq is the derivative of dq (central difference of the closed form's samples)
+    h = 1.0 / fixture["rate_hz"]
+    np.testing.assert_allclose(np.gradient(dq, h, axis=0)[1:-1], ddq[1:-1], atol=0.01)
+
+
+@pytest.fixture(scope="module")
+def excitation():
+    """The excitation piece at its --quick budget (UR10 with FIGAROH's limits, 7-joint Panda)."""
+    return bench_peers.excitation_part(None, quick=True)
+
+
+@pytest.mark.slow
+def test_excitation_figure_is_cond_of_the_raw_base_regressor(excitation):
+    """Each printed condition number equals numpy's cond() of the raw Pinocchio regressor of the
+    designed period restricted to the printed base columns, and those columns are a base (rank
+    of the full non-zero-column matrix by SVD). A column-normalised matrix (ident's own
+    criterion), friction columns, a missing or extra base column, or another trajectory's
+    samples would not give it."""
+    text, rows = excitation
+    assert {r["robot"] for r in rows} == {"ur10", "panda"}
+    for row in rows:
+        d = row["design"]
+        data = d.model.createData()
+        y = np.vstack(
+            [
+                pin.computeJointTorqueRegressor(d.model, data, q, v, a)
+                for q, v, a in zip(d.q, d.dq, d.ddq, strict=True)
+            ]
+        )
+        assert y.shape == (d.q.shape[0] * d.model.nv, 10 * d.model.nv)
+        nonzero = (y**2).sum(axis=0) >= 1e-6
+        assert set(row["columns"]) <= set(np.flatnonzero(nonzero))
+        sv = np.linalg.svd(y[:, nonzero], compute_uv=False)
+        rank = int(np.sum(sv > sv[0] * 1e-10))
+        w = y[:, row["columns"]]
+        assert np.linalg.matrix_rank(w) == rank == w.shape[1]
+        expected = np.linalg.cond(w)
+        assert row["cond"] == pytest.approx(expected, rel=1e-9)
+        assert f"| {expected:.4g} ({w.shape[1]} columns) |" in text
+        # the scaled matrix of ident's own criterion gives another figure
+        assert d.own_cond != pytest.approx(expected, rel=0.01)
