@@ -30,6 +30,13 @@
    parameters and the noise-free torque error ||W_b (beta - beta_true)|| / ||W_b beta_true||.
    Wall time of the identification call alone; peak memory as the growth of the process's peak
    resident set during that call (``resource.getrusage``).
+5. **Excitation** (``--parts excitation``, :func:`excitation_part`): ident's config-driven design
+   at FIGAROH's UR10 truth-fixture settings (figaroh-examples ``examples/ur10/data/truth/
+   manifest.json``: 10 s, 1000 samples at 100 Hz, ``|q - centre| <= 1.2`` rad, 0.7 x velocity
+   and 0.8 x torque limits; ``benchmarks/data/figaroh_ur10_truth_train.json``) and on the 7-joint
+   Panda (10 s, 1000 samples, 1 cm clearance), its condition number on FIGAROH's convention
+   (raw SI base regressor of the 10 standard parameters per link; details above
+   :data:`EXCITATION_FIXTURE`).
 
 ``--quick``: the UR5 only, mujoco.sysid from the near CAD only, 3 optimizer iterations.
 Default: one 10 s period (``--periods``; the configs log 3), 3 iterations (``--max-iters``).
