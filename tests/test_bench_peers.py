@@ -158,3 +158,53 @@ def test_excitation_figure_is_cond_of_the_raw_base_regressor(excitation):
         assert f"| {expected:.4g} ({w.shape[1]} columns) |" in text
         # the scaled matrix of ident's own criterion gives another figure
         assert d.own_cond != pytest.approx(expected, rel=0.01)
+
+
+needs_figaroh = pytest.mark.skipif(
+    importlib.util.find_spec("figaroh") is None, reason="figaroh (peers extra)"
+)
+
+
+@needs_figaroh
+def test_peer_convention_is_figarohs_regressor():
+    """FIGAROH's own regressor of the UR10 (its ``build_regressor_basic`` without friction,
+    actuator inertia or offset, its zero-column elimination at 1e-6) on the fixture's trajectory
+    equals the matrix the excitation piece conditions, row for row after FIGAROH's joint-major
+    order, and gives the same condition number on the piece's base columns: a friction column,
+    a scaled column or a different elimination would not."""
+    import warnings
+    from types import SimpleNamespace
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # ndcurves' converter registration
+        from figaroh.identification.parameter import get_standard_parameters
+        from figaroh.tools.regressor import (
+            build_regressor_basic,
+            build_regressor_reduced,
+            get_index_eliminate,
+        )
+    from robots import ERD_ROBOTS
+
+    model = pin.buildModelFromUrdf(str(ERD_ROBOTS / "ur_description/urdf/ur10_robot.urdf"))
+    q, dq, ddq = bench_peers.fixture_trajectory(bench_peers.load_ur10_fixture())
+    config = {
+        "has_friction": False,
+        "has_actuator_inertia": False,
+        "has_joint_offset": False,
+        "is_joint_torques": True,
+        "is_external_wrench": False,
+        "force_torque": None,
+        "act_idxv": list(range(model.nv)),
+    }
+    robot = SimpleNamespace(model=model, data=model.createData())
+    w_fig = build_regressor_basic(robot, q, dq, ddq, config)
+    eliminated, _ = get_index_eliminate(w_fig, get_standard_parameters(model, config), 1e-6)
+    w_fig = build_regressor_reduced(w_fig, eliminated)
+    kept = [c for c in range(10 * model.nv) if c not in eliminated]
+    w, columns = bench_peers.peer_columns(model, q, dq, ddq)
+    local = [kept.index(int(c)) for c in columns]  # raises if a base column was eliminated
+    # FIGAROH stacks joint-major (all samples of joint 1, then joint 2, ...)
+    ours = w.reshape(q.shape[0], model.nv, -1).transpose(1, 0, 2).reshape(-1, w.shape[1])
+    np.testing.assert_allclose(ours, w_fig[:, local], rtol=0, atol=1e-10 * np.abs(w_fig).max())
+    assert np.linalg.cond(w) == pytest.approx(np.linalg.cond(w_fig[:, local]), rel=1e-9)
+    assert np.linalg.matrix_rank(w_fig) == len(columns)
