@@ -682,7 +682,7 @@ def peer_columns(
 
     Raw SI rows of :func:`joint_torque_regressor` (10 standard parameters per link, Pinocchio's
     order), the columns with sum of squares < 1e-6 dropped, then ``base`` (indices into the
-    kept columns, as FIGAROH's protocol.yaml lists them) or, when None, the independent columns
+    standard parameters, :func:`fixture_base_columns`) or, when None, the independent columns
     of a column-pivoted QR of the raw matrix (LAPACK's; rank at 1e-10 of the largest pivot) in
     ascending order. Returns the matrix, shape (n_samples * nv, n_base), and its columns as
     indices into the standard parameters, shape (n_base,).
@@ -697,9 +697,17 @@ def peer_columns(
     if base is None:
         _, r, piv = scipy.linalg.qr(w[:, kept], mode="economic", pivoting=True)
         d = np.abs(np.diag(r))
-        base = np.sort(piv[: int(np.sum(d > 1e-10 * d[0]))])
-    columns = kept[np.asarray(base, dtype=int)]
+        columns = kept[np.sort(piv[: int(np.sum(d > 1e-10 * d[0]))])]
+    else:
+        columns = np.asarray(base, dtype=int)
     return w[:, columns], columns
+
+
+def fixture_base_columns(fixture: dict[str, Any]) -> FloatArray:
+    """FIGAROH's frozen base columns (protocol.yaml's base_indices, which index the columns
+    left after its eliminated_indices) as indices into the 60 standard parameters."""
+    kept = np.delete(np.arange(60), fixture["eliminated_indices"])
+    return kept[np.asarray(fixture["base_indices"], dtype=int)]
 
 
 def peer_base_regressor(
@@ -843,7 +851,7 @@ def design_excitation(
 
     1. the config's own criterion (eq. 15 on the scaled rigid-body base columns);
     2. the same optimizer on the peer's quantity: eq. 15 on FIGAROH's raw base columns of
-       design 1 (``base``: the kept-column indices of :func:`peer_columns`), every column
+       design 1 (``base``: standard-parameter indices, see :func:`peer_columns`), every column
        scaled by one number (``1 / sqrt(sigma_min sigma_max)`` of design 1's row-normalised
        matrix), so that its condition number is the raw one and the sigma terms stay small.
     """
@@ -934,9 +942,10 @@ def excitation_part(
         which = "example-robot-data's UR10 (CB3 lengths; FIGAROH's file: --figaroh-examples)"
     fq, fdq, fddq = fixture_trajectory(fixture)
     model = pin.buildModelFromUrdf(str(ur10_urdf))
-    frozen = np.linalg.cond(peer_base_regressor(model, fq, fdq, fddq, fixture["base_indices"]))
+    frozen_columns = fixture_base_columns(fixture)
+    frozen = np.linalg.cond(peer_base_regressor(model, fq, fdq, fddq, frozen_columns))
     # FIGAROH's frozen columns are a base of its own UR10 only (not of the CB3 lengths')
-    ur10_base = fixture["base_indices"] if frozen < 1e8 else None
+    ur10_base = frozen_columns if frozen < 1e8 else None
     theirs_cond = (
         frozen
         if ur10_base is not None
