@@ -1,6 +1,6 @@
 #!/bin/sh
-# Fetch FIGAROH's examples (TX40 identification example, its config and data) for
-# benchmarks/bench_peers.py --parts figaroh --figaroh-examples DEST.
+# Fetch FIGAROH's examples (TX40 identification example, its config and data; the UR10 URDF of
+# its truth fixture) for benchmarks/bench_peers.py --parts figaroh excitation --figaroh-examples DEST.
 #
 #   sh benchmarks/fetch_figaroh_examples.sh DEST [SOURCE]
 #
@@ -30,7 +30,7 @@ else
     [ -d "$REPO" ] || git clone --bare --filter=blob:none "$SOURCE" "$REPO"
 fi
 git -C "$REPO" archive "$COMMIT" examples/__init__.py examples/staubli_TX40 examples/templates \
-    models/staubli_tx40_description | tar -x -C "$DEST"
+    models/staubli_tx40_description examples/ur10/urdf | tar -x -C "$DEST"
 cd "$DEST/examples"
 ln -sfn staubli_TX40 staubli_tx40
 ln -sfn ../templates staubli_TX40/templates

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -105,3 +106,105 @@ def test_write_docs_replaces_only_its_blocks(tmp_path):
     assert "middle\n" in text
     assert "\nkept\n" in text
     assert text.endswith("end\n")
+
+
+def test_figaroh_fixture_trajectory_matches_its_manifest():
+    """The UR10 fixture's training series rebuilt from its coefficients has the ranges FIGAROH's
+    manifest records (q range, max |dq|): a wrong series form (cos for sin, a missing 1/(k w),
+    a wrong centre) would not."""
+    fixture = bench_peers.load_ur10_fixture()
+    q, dq, ddq = bench_peers.fixture_trajectory(fixture)
+    assert q.shape == dq.shape == ddq.shape == (1000, 6)
+    np.testing.assert_allclose(np.ptp(q, axis=0), fixture["q_range_rad"], rtol=1e-12)
+    np.testing.assert_allclose(np.abs(dq).max(axis=0), fixture["dq_max_abs"], rtol=1e-12)
+    # ddq is the derivative of dq (central difference of the closed form's samples)
+    h = 1.0 / fixture["rate_hz"]
+    np.testing.assert_allclose(np.gradient(dq, h, axis=0)[1:-1], ddq[1:-1], atol=0.01)
+
+
+@pytest.fixture(scope="module")
+def excitation():
+    """The excitation piece at its --quick budget (UR10 with FIGAROH's limits, 7-joint Panda)."""
+    return bench_peers.excitation_part(None, quick=True)
+
+
+@pytest.mark.slow
+def test_excitation_figure_is_cond_of_the_raw_base_regressor(excitation):
+    """Each printed condition number equals numpy's cond() of the raw Pinocchio regressor of the
+    designed period restricted to the printed base columns, and those columns are a base (rank
+    of the full non-zero-column matrix by SVD). A column-normalised matrix (ident's own
+    criterion), friction columns, a missing or extra base column, or another trajectory's
+    samples would not give it."""
+    text, rows = excitation
+    assert {r["robot"] for r in rows} == {"ur10", "panda"}
+    for row in rows:
+        d = row["design"]
+        data = d.model.createData()
+        y = np.vstack(
+            [
+                pin.computeJointTorqueRegressor(d.model, data, q, v, a)
+                for q, v, a in zip(d.q, d.dq, d.ddq, strict=True)
+            ]
+        )
+        assert y.shape == (d.q.shape[0] * d.model.nv, 10 * d.model.nv)
+        nonzero = (y**2).sum(axis=0) >= 1e-6
+        assert set(row["columns"]) <= set(np.flatnonzero(nonzero))
+        sv = np.linalg.svd(y[:, nonzero], compute_uv=False)
+        rank = int(np.sum(sv > sv[0] * 1e-10))
+        w = y[:, row["columns"]]
+        assert np.linalg.matrix_rank(w) == rank == w.shape[1]
+        expected = np.linalg.cond(w)
+        assert row["cond"] == pytest.approx(expected, rel=1e-9)
+        assert f"| {expected:.4g} ({w.shape[1]} columns) |" in text
+        # the scaled matrix of ident's own criterion gives another figure
+        assert d.own_cond != pytest.approx(expected, rel=0.01)
+
+
+needs_figaroh = pytest.mark.skipif(
+    importlib.util.find_spec("figaroh") is None, reason="figaroh (peers extra)"
+)
+
+
+@needs_figaroh
+def test_peer_convention_is_figarohs_regressor():
+    """FIGAROH's own regressor of the UR10 (its ``build_regressor_basic`` without friction,
+    actuator inertia or offset, its zero-column elimination at 1e-6) on the fixture's trajectory
+    equals the matrix the excitation piece conditions, row for row after FIGAROH's joint-major
+    order, and gives the same condition number on the piece's base columns: a friction column,
+    a scaled column or a different elimination would not."""
+    import warnings
+    from types import SimpleNamespace
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # ndcurves' converter registration
+        from figaroh.identification.parameter import get_standard_parameters
+        from figaroh.tools.regressor import (
+            build_regressor_basic,
+            build_regressor_reduced,
+            get_index_eliminate,
+        )
+    from robots import ERD_ROBOTS
+
+    model = pin.buildModelFromUrdf(str(ERD_ROBOTS / "ur_description/urdf/ur10_robot.urdf"))
+    q, dq, ddq = bench_peers.fixture_trajectory(bench_peers.load_ur10_fixture())
+    config = {
+        "has_friction": False,
+        "has_actuator_inertia": False,
+        "has_joint_offset": False,
+        "is_joint_torques": True,
+        "is_external_wrench": False,
+        "force_torque": None,
+        "act_idxv": list(range(model.nv)),
+    }
+    robot = SimpleNamespace(model=model, data=model.createData())
+    w_fig = build_regressor_basic(robot, q, dq, ddq, config)
+    eliminated, _ = get_index_eliminate(w_fig, get_standard_parameters(model, config), 1e-6)
+    w_fig = build_regressor_reduced(w_fig, eliminated)
+    kept = [c for c in range(10 * model.nv) if c not in eliminated]
+    w, columns = bench_peers.peer_columns(model, q, dq, ddq)
+    local = [kept.index(int(c)) for c in columns]  # raises if a base column was eliminated
+    # FIGAROH stacks joint-major (all samples of joint 1, then joint 2, ...)
+    ours = w.reshape(q.shape[0], model.nv, -1).transpose(1, 0, 2).reshape(-1, w.shape[1])
+    np.testing.assert_allclose(ours, w_fig[:, local], rtol=0, atol=1e-10 * np.abs(w_fig).max())
+    assert np.linalg.cond(w) == pytest.approx(np.linalg.cond(w_fig[:, local]), rel=1e-9)
+    assert np.linalg.matrix_rank(w_fig) == len(columns)
