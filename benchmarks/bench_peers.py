@@ -36,7 +36,11 @@
    and 0.8 x torque limits; ``benchmarks/data/figaroh_ur10_truth_train.json``) and on the 7-joint
    Panda (10 s, 1000 samples, 1 cm clearance), its condition number on FIGAROH's convention
    (raw SI base regressor of the 10 standard parameters per link; details above
-   :data:`EXCITATION_FIXTURE`).
+   :func:`excitation_part`).
+6. **FIGAROH's UR10 truth fixture** (``--parts ur10-truth``, ``benchmarks/peer_ur10_truth.py``):
+   ident's written model, fitted on FIGAROH's training series with their ``low`` noise, against
+   the noise-free truth on a validation series (goal 0.05 N*m, their tolerance 0.1 N*m), and
+   FIGAROH's base OLS on the same samples when the ``peers`` extra is installed.
 
 ``--quick``: the UR5 only, mujoco.sysid from the near CAD only, 3 optimizer iterations.
 Default: one 10 s period (``--periods``; the configs log 3), 3 iterations (``--max-iters``).
@@ -72,6 +76,9 @@ from ident.run.log_measurement import identify_config, true_parameters
 from ident.run.setup import load_run
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import peer_ur10_truth as ur10_truth  # noqa: E402
+
 FloatArray = np.ndarray
 
 
@@ -659,25 +666,10 @@ def figaroh_part(examples: Path | None) -> str:
 # (7 joints, fingers locked: the same kinematics as bench_identify_long's finger-less panda7),
 # not on the iiwa.
 
-EXCITATION_FIXTURE = Path(__file__).resolve().parent / "data" / "figaroh_ur10_truth_train.json"
 ZERO_COLUMN_TOL = 1e-6  # FIGAROH's: a column with sum of squares below it is dropped
-
-
-def load_ur10_fixture() -> dict[str, Any]:
-    """FIGAROH's UR10 truth fixture settings and training series (module comment above)."""
-    import json
-
-    return dict(json.loads(EXCITATION_FIXTURE.read_text(encoding="utf-8")))
-
-
-def fixture_trajectory(fixture: dict[str, Any]) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """q, dq, ddq [rad, rad/s, rad/s^2], shape (rows, 6) each, of the fixture's training series."""
-    a, b = np.asarray(fixture["a"]), np.asarray(fixture["b"])
-    kw = 2 * np.pi * fixture["fundamental_hz"] * np.arange(1, fixture["harmonics"] + 1)
-    t = np.arange(fixture["rows"]) / fixture["rate_hz"]
-    s, c = np.sin(np.outer(t, kw)), np.cos(np.outer(t, kw))
-    q = np.asarray(fixture["center_rad"]) + s @ (a / kw).T - c @ (b / kw).T
-    return q, c @ a.T + s @ b.T, -s @ (a * kw).T + c @ (b * kw).T
+# the fixture's numbers and its training series: one place, benchmarks/peer_ur10_truth.py
+load_ur10_fixture = ur10_truth.load_fixture
+fixture_trajectory = ur10_truth.fixture_trajectory
 
 
 def peer_columns(
@@ -930,21 +922,15 @@ def excitation_part(
     settings and its condition number on FIGAROH's convention (:func:`peer_columns`; for the
     UR10 on FIGAROH's own URDF, its protocol's frozen columns). ``quick``: 100 samples and a
     tiny budget (seconds)."""
-    import importlib.metadata
-
     fixture = load_ur10_fixture()
     theirs = (
         None if examples is None else examples / "examples" / "ur10" / "urdf" / "ur10_robot.urdf"
     )
     if theirs is not None and theirs.exists():
         ur10_urdf, which = theirs, "FIGAROH's ur10_robot.urdf"
-    else:  # the same limits on example-robot-data's UR10 (CB3 link lengths, not FIGAROH's)
-        share = importlib.metadata.distribution("example-robot-data").locate_file(
-            "cmeel.prefix/share"
-        )
-        ur10_urdf = Path(str(share)) / "example-robot-data/robots/ur_description/urdf"
-        ur10_urdf = ur10_urdf / "ur10_robot.urdf"
-        which = "example-robot-data's UR10 (CB3 lengths; FIGAROH's file: --figaroh-examples)"
+    else:  # the fixture's truth URDF: FIGAROH's kinematics (the regressor sees nothing else)
+        ur10_urdf = ROOT / "data" / "figaroh-ur10-truth" / "ur10_truth.urdf"
+        which = "FIGAROH's ur10_truth.urdf (data/figaroh-ur10-truth: its kinematics)"
     fq, fdq, fddq = fixture_trajectory(fixture)
     model = pin.buildModelFromUrdf(str(ur10_urdf))
     frozen_columns = fixture_base_columns(fixture)
@@ -1043,8 +1029,8 @@ def main(argv: list[str] | None = None) -> int:
         "--parts",
         nargs="+",
         default=None,
-        choices=["sysid", "pinocchio", "figaroh", "excitation"],
-        help="comparisons to run (default: all; --quick: sysid, pinocchio and excitation)",
+        choices=["sysid", "pinocchio", "figaroh", "ur10-truth", "excitation"],
+        help="comparisons to run (default: all; --quick: all but figaroh)",
     )
     ap.add_argument(
         "--figaroh-examples",
@@ -1077,9 +1063,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"command: {cmd}")
     sections: dict[str, str] = {}
     parts = args.parts or (
-        ["sysid", "pinocchio", "excitation"]
+        ["sysid", "pinocchio", "ur10-truth", "excitation"]
         if args.quick
-        else ["sysid", "pinocchio", "figaroh", "excitation"]
+        else ["sysid", "pinocchio", "figaroh", "ur10-truth", "excitation"]
     )
     if "pinocchio" in parts:
         sections["pinocchio"] = pinocchio_part(
@@ -1089,6 +1075,9 @@ def main(argv: list[str] | None = None) -> int:
     if "figaroh" in parts:
         sections["figaroh"] = figaroh_part(args.figaroh_examples)
         print("\n" + sections["figaroh"] + "\n", flush=True)
+    if "ur10-truth" in parts:  # FIGAROH's UR10 truth fixture (benchmarks/peer_ur10_truth.py)
+        sections["ur10-truth"] = ur10_truth.table(n_seeds=1 if args.quick else 5)
+        print("\n" + sections["ur10-truth"] + "\n", flush=True)
     if "excitation" in parts:
         sections["excitation"] = excitation_part(args.figaroh_examples, quick=args.quick)[0]
         print("\n" + sections["excitation"] + "\n", flush=True)

@@ -3,21 +3,24 @@
     PYTHONPATH=src python benchmarks/peer_ur10_truth.py [--seeds 5] [--noise low]
 
 The truth is FIGAROH's (``data/figaroh-ur10-truth``: a UR10e whose every link inertia is
-known, no friction). The logs are made here on FIGAROH's protocol v1 (their ``train.csv`` /
-``validation.csv`` are not shipped): training, the best-conditioned of 20 random 5-harmonic
-Fourier series (0.1 Hz, 10 s, 100 Hz, 1000 rows) around the home posture, each joint within
-1.2 rad of home and 0.7 of its velocity limit, torques within 0.8 of the effort limit (as
-theirs: best of seeds 0-19, condition number 77.0); validation, one more series at 0.125 Hz
-(8 s, 800 rows) never used to fit. Noise: their ``low`` level (per-joint torque sigma, 1 % of
-the joint's training torque RMS; 1e-5 rad on positions), one seed per training/validation pair.
+known, no friction). The training states are FIGAROH's own training series (its manifest's
+Fourier coefficients, ``benchmarks/data/figaroh_ur10_truth_train.json``: 0.1 Hz, 10 s, 100 Hz,
+1000 rows, the best-conditioned of their seeds 0-19, condition number 77.0); their logs
+(``train.csv``, ``validation.csv``) are not shipped, so the torques are computed here with
+Pinocchio on the truth and the validation series is made on their protocol (a random
+5-harmonic Fourier series at 0.125 Hz, 8 s, 800 rows around the home posture, within 1.2 rad
+of it, 0.7 of the velocity limits and 0.8 of the effort limits), never used to fit. Noise: their
+``low`` level (per-joint torque sigma, 1 % of the joint's training torque RMS; 1e-5 rad on
+positions), drawn here (seeds 101...).
 
 ident identifies the training log as a user would (a config; WLS on base parameters; its
 written, physically consistent model ``*_identified.urdf``), starting from a CAD model off the
 truth (masses x1.15, centres of mass 1 cm off): with the analytic states (``dq``, ``ddq`` of
 the series, which isolates the estimator, their ``analytic`` derivatives) and from the noisy
-positions alone (ident's low-pass and differentiation, their ``differentiated``). The
-written URDF is reloaded with Pinocchio and its inverse dynamics on the validation states
-compared with the noise-free truth's, per joint [N*m]: their tolerance is 0.1 N*m, the goal
+positions alone (ident's low-pass and differentiation, their ``differentiated``). FIGAROH's
+base OLS (its own functions, ``peer_figaroh_ols.py``, its own process) fits the same samples
+when the ``peers`` extra is installed. Each model's inverse dynamics on the validation states
+is compared with the noise-free truth's, per joint [N*m]: their tolerance is 0.1 N*m, the goal
 here 0.05 N*m; their acceptance thresholds (validation RMSE per joint) beside it.
 """
 
@@ -62,6 +65,30 @@ class States:
 def protocol() -> dict:
     """The fixture's settings (``data/figaroh-ur10-truth/protocol.yaml``)."""
     return yaml.safe_load((DATA / "protocol.yaml").read_text(encoding="utf-8"))
+
+
+FIXTURE = Path(__file__).resolve().parent / "data" / "figaroh_ur10_truth_train.json"
+
+
+def load_fixture() -> dict:
+    """FIGAROH's training series and limits of the fixture (``benchmarks/data/
+    figaroh_ur10_truth_train.json``: the manifest's coefficients, with source and licence)."""
+    return dict(json.loads(FIXTURE.read_text(encoding="utf-8")))
+
+
+def fixture_trajectory(fixture: dict) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """q, dq, ddq [rad, rad/s, rad/s^2], shape (rows, 6) each, of FIGAROH's training series:
+    their series is ident's Fourier form (``a``, ``b``: velocity amplitudes of harmonics
+    1..5, (6, 5) each) about ``center_rad``."""
+    t = np.arange(fixture["rows"]) / fixture["rate_hz"]
+    q, dq, ddq = fourier_series(
+        t,
+        np.asarray(fixture["a"], dtype=float)[None],
+        np.asarray(fixture["b"], dtype=float)[None],
+        np.asarray(fixture["center_rad"], dtype=float)[None],
+        2 * np.pi * fixture["fundamental_hz"],
+    )
+    return q[0], dq[0], ddq[0]
 
 
 def truth_model() -> pin.Model:
@@ -120,19 +147,11 @@ def base_condition(model: pin.Model, s: States) -> float:
     return float(np.linalg.cond(W[:, np.sort(piv[:rank])]))
 
 
-def training(model: pin.Model, prot: dict, seeds: range) -> tuple[States, float, int]:
-    """The best-conditioned feasible series of ``seeds`` (as the fixture's: best of 0-19)."""
-    best: tuple[States, float, int] | None = None
-    for seed in seeds:
-        s = random_series(model, prot["train"], prot, np.random.default_rng(seed))
-        if s is None:
-            continue
-        c = base_condition(model, s)
-        if best is None or c < best[1]:
-            best = (s, c, seed)
-    if best is None:
-        raise RuntimeError("no feasible training series")
-    return best
+def training() -> States:
+    """FIGAROH's own training series (:func:`fixture_trajectory`, their seed 18 of 0-19)."""
+    fixture = load_fixture()
+    q, dq, ddq = fixture_trajectory(fixture)
+    return States(np.arange(fixture["rows"]) / fixture["rate_hz"], q, dq, ddq)
 
 
 def cad_urdf(folder: Path) -> Path:
@@ -257,7 +276,8 @@ def table(n_seeds: int = 5, noise: str = "low") -> str:
     """The comparison as a markdown table (module docstring)."""
     prot = protocol()
     model = truth_model()
-    train, cond, seed = training(model, prot, range(20))
+    train = training()
+    cond = base_condition(model, train)
     validation = None
     for s in range(100, 200):
         validation = random_series(model, prot["validation"], prot, np.random.default_rng(s))
@@ -300,10 +320,10 @@ def table(n_seeds: int = 5, noise: str = "low") -> str:
         )
     accept = np.asarray(prot["acceptance_validation_rmse_nm"])
     lines = [
-        f"**FIGAROH's UR10 truth fixture** (noise `{noise}`, {n_seeds} seeds; our training "
-        f"series: seed {seed}, base condition number {cond:.1f}, theirs "
-        f"{prot['train_condition_number']:.1f} on theirs"
-        + (f"; FIGAROH's cond_num on ours: {figaroh[0][2]:.1f}" if figaroh else "")
+        f"**FIGAROH's UR10 truth fixture** (noise `{noise}`, {n_seeds} seeds; FIGAROH's "
+        f"training series, base condition number {prot['train_condition_number']:.1f}, "
+        f"{cond:.1f} on the columns of a pivoted QR"
+        + (f", {figaroh[0][2]:.1f} by FIGAROH's cond_num" if figaroh else "")
         + ")",
         "",
         "| tool, states | worst joint, mean over seeds [N*m] | worst over seeds [N*m] | per "
