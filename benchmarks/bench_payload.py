@@ -25,6 +25,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -68,31 +69,56 @@ def reference(robot, rate_hz: float, period_s: float, rng: np.random.Generator, 
     return t, q[0], dq[0], ddq[0]
 
 
-def run_case(config: Path, payload: tuple, folder: Path, *, seconds: float, seed: int) -> dict:
-    """Simulate both logs, run ``ident payload`` and compare with the truth."""
+def simulation_setup(
+    config: Path, *, seconds: float, seed: int
+) -> tuple[dict, Any, tuple[np.ndarray, ...], dict]:
+    """The robot of a run config, the reference motion (:func:`reference`, 10 s periods) and
+    the config's MuJoCo ``measurement`` section at 1 % torque noise for ``seconds`` of log:
+    ``(raw config, robot, (t, q, dq, ddq), measurement)``. Shared with bench_signals.py."""
     raw = read_yaml(config)
     selection = RobotSelection.model_validate(raw["robot"]).resolved(config.parent)
     robot = load_robot(selection)
     measurement = {k: v for k, v in raw["measurement"].items() if k != "source"}
-    rng = np.random.default_rng(seed)
-    t, q, dq, ddq = reference(robot, 1000.0, 10.0, rng, amplitude=0.35)
+    t, q, dq, ddq = reference(robot, 1000.0, 10.0, np.random.default_rng(seed), amplitude=0.35)
     rms = np.sqrt(np.mean(robot.rnea(q, dq, ddq) ** 2, axis=0))
-    mass, com, sides = payload
     measurement.update(
         torque_noise_std=(0.01 * rms).tolist(),
         n_periods=int(round(seconds / 10.0)),
         settle_periods=1,
         payload=None,
     )
+    return raw, robot, (t, q, dq, ddq), measurement
+
+
+def payload_section(payload: tuple) -> dict:
+    """A MuJoCo ``measurement.payload`` of ``(mass [kg], com (3,) [m], box sides (3,) [m])``."""
+    mass, com, sides = payload
+    return {"mass": mass, "com": list(com), "inertia": box_inertia(mass, sides)}
+
+
+def ident_payload(folder: Path, payload_cfg: dict) -> tuple[dict, float]:
+    """Write ``payload_cfg`` and run ``ident payload`` on it: its ``payload.json`` and the
+    command's wall time [s]."""
+    path = folder / "payload.yaml"
+    path.write_text(yaml.safe_dump(payload_cfg, sort_keys=False))
+    t0 = time.perf_counter()
+    result = CliRunner().invoke(app, ["payload", str(path), "--out", str(folder / "runs")])
+    elapsed = time.perf_counter() - t0
+    if result.exit_code != 0:
+        raise RuntimeError(result.output)
+    (summary_path,) = (folder / "runs").glob("*/payload.json")
+    return json.loads(summary_path.read_text()), elapsed
+
+
+def run_case(config: Path, payload: tuple, folder: Path, *, seconds: float, seed: int) -> dict:
+    """Simulate both logs, run ``ident payload`` and compare with the truth."""
+    raw, robot, (t, q, dq, ddq), measurement = simulation_setup(config, seconds=seconds, seed=seed)
+    mass, com, _ = payload
     logs = {}
     for name, with_payload in (("without", False), ("with", True)):
         section = dict(measurement)
         if with_payload:
-            section["payload"] = {
-                "mass": mass,
-                "com": list(com),
-                "inertia": box_inertia(mass, sides),
-            }
+            section["payload"] = payload_section(payload)
         cfg = load_mujoco_measurement(section)
         sim = simulate(robot, t, q, dq, ddq, cfg, rng=seed + with_payload)
         files = write_log(folder / name, sim)
@@ -108,15 +134,7 @@ def run_case(config: Path, payload: tuple, folder: Path, *, seconds: float, seed
         "payload": {"without": logs["without"], "method": "lmi"},
     }
     payload_cfg["robot"].pop("package_dirs", None)
-    path = folder / "payload.yaml"
-    path.write_text(yaml.safe_dump(payload_cfg, sort_keys=False))
-    t0 = time.perf_counter()
-    result = CliRunner().invoke(app, ["payload", str(path), "--out", str(folder / "runs")])
-    elapsed = time.perf_counter() - t0
-    if result.exit_code != 0:
-        raise RuntimeError(result.output)
-    (summary_path,) = (folder / "runs").glob("*/payload.json")
-    summary = json.loads(summary_path.read_text())
+    summary, elapsed = ident_payload(folder, payload_cfg)
     com_error = np.asarray(summary["com_m"]) - np.asarray(com)
     return {
         "robot": config.stem,
@@ -161,11 +179,9 @@ def run_designed_case(payload: tuple, folder: Path, *, seed: int) -> dict:
         torque_noise_std=(0.01 * rms).tolist(),
         settle_periods=0,
         n_periods=1,
-        payload={
-            "mass": mass,
-            "com": tool0.placement.act(np.asarray(com_in_tool0)).tolist(),
-            "inertia": box_inertia(mass, sides),
-        },
+        payload=payload_section(
+            (mass, tool0.placement.act(np.asarray(com_in_tool0)).tolist(), sides)
+        ),
     )
     sim = simulate(robot, t, q, dq, ddq, load_mujoco_measurement(measurement), rng=seed)
     files = write_log(folder / "with", sim)
@@ -184,15 +200,7 @@ def run_designed_case(payload: tuple, folder: Path, *, seed: int) -> dict:
         "model": {"viscous": moving, "coulomb": moving, "rotor_inertia": moving, "offset": False},
         "payload": {"link": "tool0", "method": "lmi"},
     }
-    path = folder / "payload.yaml"
-    path.write_text(yaml.safe_dump(payload_cfg, sort_keys=False))
-    t0 = time.perf_counter()
-    result = runner.invoke(app, ["payload", str(path), "--out", str(folder / "runs")])
-    elapsed = time.perf_counter() - t0
-    if result.exit_code != 0:
-        raise RuntimeError(result.output)
-    (summary_path,) = (folder / "runs").glob("*/payload.json")
-    summary = json.loads(summary_path.read_text())
+    summary, elapsed = ident_payload(folder, payload_cfg)
     com_error = np.asarray(summary["com_m"]) - np.asarray(com_in_tool0)
     return {
         "robot": f"ur5 designed, {len(moving)} joints {t[-1]:.0f} s, design {design_seconds:.0f} s",

@@ -30,17 +30,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ident.config import read_yaml
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
 from ident.identify.logs import RobotLog
 from ident.identify.signal_correction import correct_payload_logs
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate
-from ident.model.selection import RobotSelection, load_robot
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
-from bench_payload import box_inertia, reference  # noqa: E402
+from bench_payload import payload_section, simulation_setup  # noqa: E402
 
 DELAY_S = 0.005
 #: (label, mass [kg], centre of mass in the last link's frame [m], box sides [m])
@@ -69,31 +67,20 @@ def gains_of(nv: int) -> np.ndarray:
 
 
 def run_case(config: Path, payload: tuple, *, seconds: float, seed: int = 0) -> dict:
-    mass, com, sides = payload
-    raw = read_yaml(config)
-    selection = RobotSelection.model_validate(raw["robot"]).resolved(config.parent)
-    robot = load_robot(selection)
-    measurement = {k: v for k, v in raw["measurement"].items() if k != "source"}
-    rng = np.random.default_rng(seed)
-    t, q, dq, ddq = reference(robot, 1000.0, 10.0, rng, amplitude=0.35)
-    rms = np.sqrt(np.mean(robot.rnea(q, dq, ddq) ** 2, axis=0))
+    mass = payload[0]
+    raw, robot, (t, q, dq, ddq), measurement = simulation_setup(config, seconds=seconds, seed=seed)
     gains = gains_of(robot.nv)
-    measurement.update(
-        torque_noise_std=(0.01 * rms).tolist(),
-        n_periods=int(round(seconds / 10.0)),
-        settle_periods=1,
-        signals={"delay_s": DELAY_S, "torque_gain": gains.tolist(), "torque_offset": 0.2},
-    )
+    measurement["signals"] = {
+        "delay_s": DELAY_S,
+        "torque_gain": gains.tolist(),
+        "torque_offset": 0.2,
+    }
     logs = []
     t0 = time.perf_counter()
     for with_payload in (True, False):
         section = dict(measurement)
         if with_payload:
-            section["payload"] = {
-                "mass": mass,
-                "com": list(com),
-                "inertia": box_inertia(mass, sides),
-            }
+            section["payload"] = payload_section(payload)
         sim = simulate(
             robot, t, q, dq, ddq, load_mujoco_measurement(section), rng=seed + with_payload
         )
