@@ -153,7 +153,7 @@ def model_intervals(
     DataError
         Without a constrained estimate, or fewer than two successful re-solves.
     """
-    from ident.identify.estimators import get_estimator  # cvxpy: imported only when needed
+    from ident.identify.estimators import get_repeated_estimator  # cvxpy: only when needed
 
     est = identification.constrained
     if est is None or est.theta is None:
@@ -162,7 +162,7 @@ def model_intervals(
         raise DataError(f"model bootstrap: {n_boot} resamples; need at least 2.")
     b = blocks.nonempty()
     counts = bootstrap_counts(b.n_blocks, block_length, n_boot, rng)
-    estimator = get_estimator(identification.method)
+    estimator = get_repeated_estimator(identification.method)  # one program, re-solved
     problem = identification.problem
     t0 = time.perf_counter()
     samples = []
