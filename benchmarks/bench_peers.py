@@ -120,6 +120,10 @@ def make_case(name: str, *, periods: int = 1, seed: int = 0) -> Case:
 # ident
 
 
+#: Cases run_ident identified in this process (its first call pays the first-call costs).
+_IDENT_CALLS: list[str] = []
+
+
 def run_ident(case: Case) -> tuple[ToolRun, Any]:
     """Read the log as ``ident identify`` does and identify it; the estimate over pm.names."""
     robot = case.setup.robot
@@ -154,8 +158,10 @@ def run_ident(case: Case) -> tuple[ToolRun, Any]:
     parts = ", ".join(
         f"{k} {v:.2f}" for k, v in result.timings.items() if k not in ("total", "read") and v > 0.01
     )
+    _IDENT_CALLS.append(case.name)
+    which = "first call" if len(_IDENT_CALLS) == 1 else f"call {len(_IDENT_CALLS)}"
     note = (
-        f"first call in the process (numba kernels loaded from their on-disk cache; compiling "
+        f"{which} in the process (numba kernels loaded from their on-disk cache; compiling "
         f"them, once per installation, is not included); import of cvxpy {t_import:.2f} s, "
         f"outside the call as sysid's imports; the call's stages [s]: {parts}"
     )
