@@ -17,6 +17,7 @@ from ident.identify.estimators import (
     EstimationProblem,
     choose_regularization,
     get_estimator,
+    get_repeated_estimator,
     register_estimator,
     result_from_theta,
 )
@@ -264,6 +265,33 @@ def test_prior_on_unseen_directions_leaves_the_seen_ones_to_the_data():
     np.testing.assert_allclose(
         unseen.theta, problem.standard_completion(unseen.x), atol=1e-9 * np.abs(unseen.theta).max()
     )
+
+
+def test_repeated_lmi_gives_each_problem_the_plain_lmi_estimate():
+    """The weight grid's and the model bootstrap's estimator compiles one program and re-solves
+    it with each problem's data: each estimate is lmi's (a stale data parameter, a program
+    kept across a changed fixed-friction set or prior weight would give another)."""
+    problem, *_ = _ur5_problem(noise=2.0, inconsistent=True, regularization=0.1)
+    other, *_ = _ur5_problem(noise=2.0, seed=3, inconsistent=True, regularization=0.1)
+    problems = [
+        problem,
+        dataclasses.replace(other, structure=problem.structure),  # other data
+        dataclasses.replace(problem, regularization=10.0),  # other prior weight
+        problem,
+        dataclasses.replace(problem, options={"friction": "free"}),  # no fixed friction
+    ]
+    repeated = get_repeated_estimator("lmi")
+    thetas = []
+    for p in problems:
+        plain, again = get_estimator("lmi")(p), repeated(p)
+        assert again.success, again.message
+        scale = np.abs(plain.theta).max()
+        np.testing.assert_allclose(again.theta, plain.theta, rtol=0, atol=1e-5 * scale)
+        assert again.regularization == p.regularization
+        thetas.append(again.theta)
+    assert np.abs(thetas[1] - thetas[0]).max() > 1e-3 * np.abs(thetas[0]).max()
+    assert repeated.n_programs == 2  # one for the held friction, one for the free
+    assert get_repeated_estimator("wls") is get_estimator("wls")
 
 
 def test_positive_friction_is_held_at_its_wls_value():

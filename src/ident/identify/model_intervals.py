@@ -108,7 +108,11 @@ def resampled_observations(blocks: BlockEquations, multiplicity: FloatArray) -> 
     """One group of reduced rows with the normal equations ``sum_b m_b (A_b, c_b)`` of the
     blocks (weights already applied), ``multiplicity`` shape (n_blocks,)."""
     A = np.tensordot(multiplicity, blocks.A, axes=1)
-    c = multiplicity @ blocks.c
+    return _reduced(A, multiplicity @ blocks.c, float(multiplicity @ blocks.n_rows))
+
+
+def _reduced(A: FloatArray, c: FloatArray, n_rows: float) -> ReducedObservations:
+    """One group of reduced rows with normal equations ``(A, c)``, shapes (n, n) and (n,)."""
     R = scipy.linalg.cholesky(0.5 * (A + A.T), lower=False, check_finite=False)
     z = scipy.linalg.solve_triangular(R, c, trans="T", lower=False, check_finite=False)
     zz = float(z @ z)
@@ -117,7 +121,7 @@ def resampled_observations(blocks: BlockEquations, multiplicity: FloatArray) -> 
         z=z[None],
         rho=np.zeros(1),
         yty=np.array([zz]),
-        n_rows=np.array([int(round(float(multiplicity @ blocks.n_rows)))], dtype=np.int64),
+        n_rows=np.array([int(round(n_rows))], dtype=np.int64),
     )
 
 
@@ -153,7 +157,7 @@ def model_intervals(
     DataError
         Without a constrained estimate, or fewer than two successful re-solves.
     """
-    from ident.identify.estimators import get_estimator  # cvxpy: imported only when needed
+    from ident.identify.estimators import get_repeated_estimator  # cvxpy: only when needed
 
     est = identification.constrained
     if est is None or est.theta is None:
@@ -162,13 +166,17 @@ def model_intervals(
         raise DataError(f"model bootstrap: {n_boot} resamples; need at least 2.")
     b = blocks.nonempty()
     counts = bootstrap_counts(b.n_blocks, block_length, n_boot, rng)
-    estimator = get_estimator(identification.method)
+    estimator = get_repeated_estimator(identification.method)  # one program, re-solved
     problem = identification.problem
     t0 = time.perf_counter()
+    n = b.A.shape[1]
+    # every resample's normal equations in one product (one pass over the blocks)
+    A_all = (counts @ b.A.reshape(b.n_blocks, -1)).reshape(len(counts), n, n)
+    c_all, rows_all = counts @ b.c, counts @ b.n_rows
     samples = []
-    for m in counts:
+    for A, c, rows in zip(A_all, c_all, rows_all, strict=True):
         try:
-            obs = resampled_observations(b, m)
+            obs = _reduced(A, c, float(rows))
         except np.linalg.LinAlgError:  # a resample that does not see every base parameter
             continue
         fit = estimator(dataclasses.replace(problem, observations=obs, weights=np.ones(1)))

@@ -31,6 +31,7 @@ from ident.identify.estimators.registry import (
     Contract,
     get_contract,
     get_estimator,
+    get_repeated_estimator,
     register_estimator,
 )
 from ident.identify.estimators.regularization import (
@@ -53,6 +54,7 @@ __all__ = [
     "consistent_identification_reduced",
     "get_contract",
     "get_estimator",
+    "get_repeated_estimator",
     "register_estimator",
     "result_from_theta",
 ]

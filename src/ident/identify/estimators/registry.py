@@ -28,7 +28,9 @@ __all__ = [
     "Estimator",
     "get_contract",
     "get_estimator",
+    "get_repeated_estimator",
     "register_estimator",
+    "register_repeated",
 ]
 
 Estimator = Callable[["EstimationProblem"], "Estimate"]
@@ -70,6 +72,8 @@ UNCONSTRAINED = Contract(consistent=False, needs_prior=False)
 ESTIMATORS: dict[str, Estimator] = {}
 #: Their contracts by name.
 CONTRACTS: dict[str, Contract] = {}
+#: Factories of an estimator for many problems of one structure, by name (optional).
+REPEATED: dict[str, Callable[[], Estimator]] = {}
 
 
 def register_estimator(
@@ -120,3 +124,26 @@ def get_contract(name: str) -> Contract:
     """The :class:`Contract` of the estimator ``name`` (ConfigError for an unknown name)."""
     get_estimator(name)
     return CONTRACTS.get(name, UNCONSTRAINED)
+
+
+def register_repeated(name: str, factory: Callable[[], Estimator]) -> None:
+    """Register ``factory()`` as the estimator ``name`` for many problems of one structure.
+
+    The instance may keep work between calls (a compiled program) and must return what the
+    registered estimator returns for each problem, to the solver's tolerance.
+    """
+    REPEATED[name] = factory
+
+
+def get_repeated_estimator(name: str) -> Estimator:
+    """The estimator ``name`` for many problems of one structure (a weight grid, a bootstrap):
+    a fresh instance of its :func:`register_repeated` factory, else the estimator itself.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown name.
+    """
+    estimator = get_estimator(name)
+    factory = REPEATED.get(name)
+    return factory() if factory is not None else estimator

@@ -20,7 +20,7 @@ import numpy.typing as npt
 
 from ident.identify.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem
-from ident.identify.estimators.registry import get_estimator
+from ident.identify.estimators.registry import get_repeated_estimator
 from ident.identify.observations import ReducedObservations
 
 __all__ = ["DEFAULT_GRID", "RegularizationChoice", "choose_regularization"]
@@ -90,7 +90,7 @@ def choose_regularization(
         Relative slack: the smallest weight whose validation residual is at most
         ``(1 + tolerance)`` times the smallest one is chosen.
     """
-    estimator = get_estimator(method)
+    estimator = get_repeated_estimator(method)  # one program, re-solved per weight
     weights = np.asarray(sorted(float(w) for w in grid))
     if weights.size == 0 or weights[0] < 0:
         raise ValueError(f"grid must hold weights >= 0, got {list(grid)}")
