@@ -157,3 +157,56 @@ def test_mcap_chunked_identification_equals_in_memory(tmp_path):
         rtol=0,
         atol=1e-9,
     )
+
+
+def _joint_state_file(path: Path, q: np.ndarray, frame_ids, names) -> Path:
+    """``/joint_states`` messages with a frame id and joint names per message (small
+    chunks: several per file)."""
+    import ros_logs
+    from mcap.writer import CompressionType, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    types = store.types
+    with open(path, "wb") as f:
+        writer = Writer(f, chunk_size=1 << 16, compression=CompressionType.ZSTD)
+        writer.start(profile="ros2", library="ident tests")
+        schema = writer.register_schema(
+            "sensor_msgs/msg/JointState", "ros2msg", ros_logs.JOINT_STATE.encode()
+        )
+        channel = writer.register_channel("/joint_states", "cdr", schema)
+        for k, row in enumerate(q):
+            stamp = types["builtin_interfaces/msg/Time"](
+                sec=1 + k // 1000, nanosec=k % 1000 * 10**6
+            )
+            msg = types["sensor_msgs/msg/JointState"](
+                header=types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_ids[k]),
+                name=list(names[k]),
+                position=row,
+                velocity=2.0 * row,
+                effort=3.0 * row,
+            )
+            data = bytes(store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+            writer.add_message(channel, log_time=k * 10**6, data=data, publish_time=k * 10**6)
+        writer.finish()
+    return path
+
+
+def test_joint_states_read_at_once_equal_the_decoder_and_keep_its_checks(tmp_path):
+    """Messages that differ from the topic's first one in more than the stamp and numbers
+    (a longer frame id) are decoded one by one, with the same values; a joint renamed in
+    the middle (same length) is refused as the decoder-only path refuses it."""
+    n = 3000
+    q = np.random.default_rng(2).normal(size=(n, 3))
+    frames = ["" if k % 500 else "base_link" for k in range(n)]
+    names = [("a1", "a2", "a3")] * n
+    (table,) = read_tables(_joint_state_file(tmp_path / "frames.mcap", q, frames, names))
+    for j in range(3):
+        np.testing.assert_array_equal(table.columns[f"/joint_states/position/a{j + 1}"], q[:, j])
+        np.testing.assert_array_equal(table.columns[f"/joint_states/effort/a{j + 1}"], 3 * q[:, j])
+    np.testing.assert_allclose(table.columns["/joint_states/t"], np.arange(n) * 1e-3, atol=1e-12)
+    renamed = [("a1", "a2", "a3") if k < 2000 else ("a1", "b2", "a3") for k in range(n)]
+    from ident.errors import DataError
+
+    with pytest.raises(DataError, match="changes its fields"):
+        read_tables(_joint_state_file(tmp_path / "renamed.mcap", q, [""] * n, renamed))
