@@ -65,11 +65,19 @@ class Transmission:
     zero_offsets: FloatArray
 
     def joint_positions(self, q_motor: FloatArray) -> FloatArray:
-        """Joint angles [rad] from motor angles [rad], both shape (n_samples, n_joints)."""
+        """Joint angles [rad] from motor angles [rad], both shape (n_samples, n_joints);
+        ``q_motor`` itself (no copy of a long log) when the transmission does nothing."""
+        identity = np.array_equal(self.position_matrix, np.eye(self.position_matrix.shape[0]))
+        if identity and not np.any(self.zero_offsets):
+            return q_motor  # what the formula gives, bit for bit
         return np.linalg.solve(self.position_matrix, q_motor.T).T + self.zero_offsets
 
     def joint_torques(self, signal: FloatArray) -> FloatArray:
-        """Joint torques [N*m] from the motor-side signal, shape (n_samples, n_joints)."""
+        """Joint torques [N*m] from the motor-side signal, shape (n_samples, n_joints);
+        ``signal`` itself when the transmission does nothing."""
+        identity = np.array_equal(self.torque_matrix, np.eye(self.torque_matrix.shape[0]))
+        if identity and np.all(self.torque_constants == 1.0):
+            return signal
         return (signal * self.torque_constants) @ self.torque_matrix.T
 
     def coupled_pairs(self) -> list[tuple[int, int]]:
@@ -296,7 +304,9 @@ def _select(
                     f"{table.source}: column '{c}' not found; the header has "
                     f"{', '.join(table.columns)}."
                 )
-    data = np.column_stack([table.columns[c] for c in names])
+    data = _block([table.columns[c] for c in names])
+    if data is None:
+        data = np.column_stack([table.columns[c] for c in names])
     bad = ~np.isfinite(data)
     if bad.any():
         row, col = np.argwhere(bad)[0]
@@ -308,6 +318,31 @@ def _select(
             f"value(s), the first on {where}; clean or trim the log."
         )
     return data, names
+
+
+def _block(columns: list[FloatArray]) -> FloatArray | None:
+    """The (n_samples, k) array whose columns are ``columns``, as a view, when they are
+    evenly spaced columns of one float64 block (a reader's 2-D array: a numpy archive's
+    ``q``, a ROS topic's values); None otherwise (the caller copies them). A long log's
+    signals are then not copied once more."""
+    first = columns[0]
+    base = first.base
+    if (
+        base is None
+        or first.dtype != np.float64
+        or any(c.base is not base or c.strides != first.strides for c in columns)
+        or any(c.shape != first.shape or c.dtype != np.float64 for c in columns)
+    ):
+        return None
+    address = [c.__array_interface__["data"][0] for c in columns]
+    spacing = address[1] - address[0] if len(columns) > 1 else 8
+    steps = np.diff(address)
+    if spacing <= 0 or np.any(steps != spacing):
+        return None
+    view = np.lib.stride_tricks.as_strided(
+        first, shape=(first.shape[0], len(columns)), strides=(first.strides[0], spacing)
+    )
+    return view if np.shares_memory(view, base) else None
 
 
 def _find(tables: list[LogTable], name: str) -> LogTable:
@@ -328,16 +363,41 @@ def _missing_message(name: str, available: list[str], tables: list[LogTable]) ->
 
 
 class _Sources:
-    """The tables of every file a log config names, read once."""
+    """The tables of every file a log config names, read once.
 
-    def __init__(self, cfg: LogConfig) -> None:
+    Readers are told the columns the config names (reader option ``columns``, when every
+    signal names its columns), so that a ROS log keeps only those of its topics; a column not
+    found is looked up again in the files read whole, so the message lists every column.
+    """
+
+    def __init__(self, cfg: LogConfig, *, whole: bool = False) -> None:
+        self.cfg = cfg
+        signals = [s for s in (cfg.position, cfg.torque, cfg.velocity) if s is not None]
+        wanted: list[str] | None = None
+        if not whole and all(s.columns is not None for s in signals):
+            wanted = [c for s in signals for c in s.columns or []]
+            if cfg.time is not None:
+                wanted.append(cfg.time.column)
         self.by_path: dict[Path, list[LogTable]] = {}
         for f in cfg.sources():
             options = f.model_dump(exclude={"path", "format"})
             if options.get("time_column") is None and cfg.time is not None:
                 options["time_column"] = cfg.time.column
+            options["columns"] = wanted
             self.by_path[Path(f.path)] = read_tables(f.path, f.format, **options)
         self.all = [t for tables in self.by_path.values() for t in tables]
+        self.whole = wanted is None
+
+    def _find(self, tables: list[LogTable], name: str) -> LogTable:
+        """:func:`_find`, with the message of the files read whole when ``name`` is missing."""
+        try:
+            return _find(tables, name)
+        except DataError:
+            if self.whole:
+                raise
+            whole = _Sources(self.cfg, whole=True)
+            _find(whole.all, name)  # raises, listing every column
+            raise
 
     def signal(
         self, signal: SignalFile, n_joints: int, what: str, joint_names: tuple[str, ...]
@@ -354,7 +414,7 @@ class _Sources:
         if signal.columns is None:
             table = tables[0]
         else:
-            owners = [_find(tables, c) for c in signal.columns]
+            owners = [self._find(tables, c) for c in signal.columns]
             table = owners[0]
             if any(o is not table for o in owners):
                 table = _side_by_side(owners, signal.columns, what)

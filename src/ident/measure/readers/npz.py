@@ -115,8 +115,8 @@ def read_npz(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
                 if values.ndim == 1:
                     columns[name] = values
                 else:
-                    for k in range(values.shape[1]):
-                        columns[f"{name}/{k}"] = np.ascontiguousarray(values[:, k])
+                    for k in range(values.shape[1]):  # views: the array is not copied
+                        columns[f"{name}/{k}"] = values[:, k]
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as e:
         raise DataError(f"{path}: cannot read the numpy archive ({e}).") from e
     if not columns:
