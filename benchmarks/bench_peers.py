@@ -1049,8 +1049,11 @@ def main(argv: list[str] | None = None) -> int:
         "--parts",
         nargs="+",
         default=None,
-        choices=["sysid", "pinocchio", "figaroh", "ur10-truth", "excitation"],
+        choices=["sysid", "pinocchio", "figaroh", "ur10-truth", "excitation", "long-log"],
         help="comparisons to run (default: all; --quick: all but figaroh)",
+    )
+    ap.add_argument(
+        "--long-minutes", type=float, default=60.0, help="long-log part: minutes at 1 kHz"
     )
     ap.add_argument(
         "--figaroh-examples",
@@ -1083,9 +1086,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"command: {cmd}")
     sections: dict[str, str] = {}
     parts = args.parts or (
-        ["sysid", "pinocchio", "ur10-truth", "excitation"]
+        ["sysid", "pinocchio", "ur10-truth", "excitation", "long-log"]
         if args.quick
-        else ["sysid", "pinocchio", "figaroh", "ur10-truth", "excitation"]
+        else ["sysid", "pinocchio", "figaroh", "ur10-truth", "excitation", "long-log"]
     )
     if "pinocchio" in parts:
         sections["pinocchio"] = pinocchio_part(
@@ -1095,6 +1098,9 @@ def main(argv: list[str] | None = None) -> int:
     if "figaroh" in parts:
         sections["figaroh"] = figaroh_part(args.figaroh_examples)
         print("\n" + sections["figaroh"] + "\n", flush=True)
+    if "long-log" in parts:
+        sections["long-log"] = long_log_part(0.5 if args.quick else args.long_minutes)
+        print("\n" + sections["long-log"] + "\n", flush=True)
     if "ur10-truth" in parts:  # FIGAROH's UR10 truth fixture (benchmarks/peer_ur10_truth.py)
         sections["ur10-truth"] = ur10_truth.table(n_seeds=1 if args.quick else 5)
         print("\n" + sections["ur10-truth"] + "\n", flush=True)
@@ -1124,6 +1130,37 @@ def main(argv: list[str] | None = None) -> int:
             measured = {k: v for k, v in measured.items() if not k.startswith("sysid-")}
         write_docs(args.write_docs, measured, cmd, where)
     return 0
+
+
+# ---------------------------------------------------------------------------------------------
+# Long logs: ident identify on an hour at 1 kHz of a 7-joint arm, in its own process
+
+
+def long_log_part(minutes: float) -> str:
+    """``ident identify`` on ``minutes`` of a 7-joint 1 kHz numpy log (the Panda without
+    fingers, ``bench_identify_long.py``'s generator), in its own process: wall, CPU and peak
+    resident memory (goal for one hour: < 60 s and < 1 GB on 2 cores). No peer is run on it;
+    the MCAP variant of the same log is ``bench_identify_long.py --mcap-minutes``."""
+    import bench_identify_long as long_log
+
+    with tempfile.TemporaryDirectory(prefix="bench-peers-long-") as tmp:
+        folder = Path(tmp)
+        urdf = long_log.panda7(folder)
+        log = folder / "long.npz"
+        long_log.generate(urdf, minutes, 1000.0, log)
+        cfg = long_log.config(urdf, log, folder / "long.yaml", max_regressor_mb=256.0)
+        run = long_log.run_cli(cfg, folder / "runs")
+    n = int(minutes * 60 * 1000)
+    return "\n".join(
+        [
+            f"**Long log** ({minutes:g} min at 1 kHz, 7 joints: {n} samples, numpy archive)",
+            "",
+            "| tool | wall [s] | CPU [s] | peak RSS [MB] | goal (one hour) |",
+            "|---|---|---|---|---|",
+            f"| ident identify (chunked, own process) | {run['wall_s']:.1f} | "
+            f"{run['cpu_s']:.1f} | {run['peak_mb']:.0f} | < 60 s, < 1024 MB |",
+        ]
+    )
 
 
 def write_docs(path: Path, sections: dict[str, str], cmd: str, where: str) -> None:

@@ -90,6 +90,21 @@ def test_pinocchio_part_prints_its_table():
     assert "| 1.0x |" in text
 
 
+def test_long_log_part_runs_ident_identify_in_its_own_process():
+    """The long-log piece generates a 7-joint 1 kHz log, runs `ident identify` on it in a
+    subprocess and prints that process's wall, CPU and peak memory (3 s of log here; the hour
+    with --long-minutes 60). Catches a piece that reports nothing measured (a failed run raises)
+    or the parent's memory instead of the child's (the child's peak includes its own
+    interpreter, > 100 MB, and is printed as a whole number of MB)."""
+    text = bench_peers.long_log_part(0.05)
+    row = next(line for line in text.splitlines() if line.startswith("| ident identify"))
+    wall, cpu, peak = (float(c) for c in row.strip("|").split("|")[1:4])
+    assert 0.0 < wall
+    assert 0.0 < cpu
+    assert peak > 100.0
+    assert "3000 samples" in text
+
+
 def test_write_docs_replaces_only_its_blocks(tmp_path):
     """A run rewrites the blocks of the tables it printed and keeps every other line."""
     doc = tmp_path / "benchmarks.md"
