@@ -15,6 +15,14 @@ log without it, ``ident payload`` with the held joints' rows kept and friction t
 
 Run: ``python benchmarks/bench_payload.py [--quick]`` (about 2 min; ``--quick``: one robot, one
 payload, the designed row).
+
+``--coverage N [--robots ur5,panda,designed] [--seconds 10]`` measures instead whether the
+reported 95 % intervals hold the truth: the 2.5 kg payload, the same motion, ``N`` noise seeds
+(both logs re-simulated; ``designed``: one design, its log re-simulated); per case the share of
+seeds whose true mass and each centre-of-mass component lie within ``1.96 σ``, by the reported σ
+(the block bootstrap) and by the ordinary least-squares σ, and the RMS of error / σ (1 when
+calibrated). About 4 s a seed for the UR5 with 10 s logs, 3 s for the Panda, 2 s for the
+designed case (plus its 1 min design).
 """
 
 from __future__ import annotations
@@ -193,7 +201,8 @@ def coverage(configs: list[Path], n_seeds: int, seconds: float, folder: Path) ->
 
 
 def _coverage_table(rows: list[dict], seconds: float) -> None:
-    print(f"95 % interval coverage, 2.5 kg payload, 1 % torque noise, {seconds:g} s logs")
+    print(f"95 % interval coverage, 2.5 kg payload, 1 % torque noise, {seconds:g} s logs "
+          "(designed: one 6 s log)")  # fmt: skip
     print("| robot | seeds | σ | mass | CoM x | CoM y | CoM z | all | RMS error/σ | time [s] |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
