@@ -178,8 +178,8 @@ def payload_rows(
     its blocks in time order) hold ``block_samples`` consecutive decimated samples and never
     cross a chunk or segment boundary. Memory: ``nv * n_blocks * (p^2 + p + 1) * 8`` bytes for
     ``p`` columns, ``n_blocks <= n_samples / block_samples + n_chunks`` (with
-    :func:`block_length`, at most ``MAX_BLOCKS + n_chunks`` = 2048 + chunks over all logs:
-    about 110 MB for 7 joints and 31 columns).
+    :func:`block_length` over all logs, at most ``MAX_BLOCKS + n_chunks`` = 2048 + chunks:
+    about 110 MB for 7 joints and 31 columns; twice that while the chunks' blocks are joined).
 
     Raises
     ------
@@ -247,12 +247,13 @@ def weighted_blocks(per_joint: tuple[BlockEquations, ...], weights: FloatArray) 
     w2 = np.asarray(weights, dtype=float) ** 2
     if w2.shape != (len(per_joint),):
         raise DataError(f"{w2.size} weights for {len(per_joint)} joints.")
-    return BlockEquations(
-        A=np.einsum("j,jbpq->bpq", w2, np.stack([b.A for b in per_joint])),
-        c=np.einsum("j,jbp->bp", w2, np.stack([b.c for b in per_joint])),
-        n_rows=np.sum([b.n_rows for b in per_joint], axis=0).astype(np.int64),
-        block_samples=per_joint[0].block_samples,
-    )
+    A = np.zeros_like(per_joint[0].A)  # summed in place: one joint's size more in memory
+    c = np.zeros_like(per_joint[0].c)
+    for w, b in zip(w2, per_joint, strict=True):
+        A += w * b.A
+        c += w * b.c
+    n_rows = np.sum([b.n_rows for b in per_joint], axis=0).astype(np.int64)
+    return BlockEquations(A=A, c=c, n_rows=n_rows, block_samples=per_joint[0].block_samples)
 
 
 def merge_blocks(
