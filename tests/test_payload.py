@@ -130,6 +130,11 @@ def test_payload_recovered_against_the_simulated_truth(ur5, payload_config, tmp_
     assert abs(mass_error) < 4 * summary["mass_std_kg"] + 1e-6
     assert summary["mass_std_kg"] < 0.01 * truth.mass
     assert summary["pseudo_inertia_min_eigenvalue"] > 0.0
+    # the one calibrated σ, named (docs/uncertainty.md), and its 95 % interval
+    assert summary["std_method"] == "bootstrap"
+    assert "(bootstrap σ)" in result.output
+    lo, hi = summary["mass_interval_kg"]
+    assert hi - lo == pytest.approx(2 * 1.959964 * summary["mass_std_kg"])
     # the written URDF is the arm + payload: Pinocchio's RNEA of it is MuJoCo's truth model
     (urdf,) = run.glob("*_payload.urdf")
     written = model_of_urdf(urdf.read_text(), {})

@@ -67,8 +67,10 @@ def payload(
         )
         typer.echo(f"run folder: {rundir.path}")
         typer.echo(f"payload ({result.method.upper()}): mass {result.mass:.4g} +- "
-                   f"{result.mass_std:.2g} kg")  # fmt: skip
+                   f"{result.mass_std:.2g} kg ({result.std_method} σ)")  # fmt: skip
         typer.echo(f"centre of mass in {result.link}: [{com}] mm")
+        if result.std_note:
+            typer.echo(f"note: {result.std_note}")
         inertia = result.inertia_com
         typer.echo(
             "inertia about the centre of mass [kg*m^2]: "

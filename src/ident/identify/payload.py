@@ -19,8 +19,20 @@ of bounded size) and are reduced per joint (:func:`ident.identify.accumulate.red
 The estimate is WLS (:func:`ident.identify.estimate.least_squares_reduced`: standard
 deviations from the residual), then, with ``method: lmi``, the registry's ``lmi`` estimator
 on the same rows with the payload as its one body: pseudo-inertia positive definite, extras
->= 0 (:mod:`ident.identify.estimators.lmi`), no prior (the prior floor is 0). The intervals
-are WLS's; the centre of mass's by the delta method.
+>= 0 (:mod:`ident.identify.estimators.lmi`), no prior (the prior floor is 0).
+
+**Intervals.** The standard deviations are those of every identification
+(:func:`ident.identify.uncertainty.parameter_std`): a moving-block bootstrap of the WLS
+estimate over consecutive blocks of decimated samples (:mod:`ident.identify.uncertainty`),
+which holds on correlated residuals (filtered, decimated rows, closed-loop and friction
+errors), where the ordinary ``sigma^2 (W^T W)^-1`` comes out 2-3x too small. While the rows
+are reduced, each chunk also yields per-joint *unweighted* block normal equations
+``A_bj = sum_k Y_kj^T Y_kj``, ``c_bj = sum_k Y_kj^T y_kj`` (:func:`payload_rows`; blocks of
+``ceil(n_samples / MAX_BLOCKS)`` decimated samples that never cross a chunk, segment or log
+boundary); after WLS they are summed with its weights ``1 / sigma_j^2``
+(:func:`weighted_blocks`) and bootstrapped exactly as ``ident identify`` does. A log with too
+few blocks (no more blocks than unknowns) falls back to the ordinary standard deviations,
+with a note. The centre of mass's follow by the delta method from the same covariance.
 """
 
 from __future__ import annotations
@@ -47,6 +59,14 @@ from ident.identify.estimators.problem import EstimationProblem, ParameterStruct
 from ident.identify.logs import RobotLog, read_log
 from ident.identify.observations import ReducedObservations
 from ident.identify.payload_config import PayloadConfig
+from ident.identify.uncertainty import (
+    BlockEquations,
+    ParameterStd,
+    Uncertainty,
+    parameter_std,
+    parameter_uncertainty,
+    z_value,
+)
 from ident.model import Robot
 from ident.model.selection import load_robot
 from ident.robot.inertia import (
@@ -57,14 +77,21 @@ from ident.robot.inertia import (
 )
 
 __all__ = [
+    "INTERVAL_LEVEL",
     "PAYLOAD_NAMES",
     "PayloadColumns",
     "PayloadResult",
     "arm_with_payload",
+    "block_length",
+    "calibrated_std",
+    "decimated_samples",
     "estimate_payload",
     "identify_payload",
+    "merge_blocks",
     "payload_observations",
+    "payload_rows",
     "read_payload_logs",
+    "weighted_blocks",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -75,6 +102,9 @@ PAYLOAD_NAMES = tuple(f"{label}_payload" for label in PINOCCHIO_ORDER)
 #: Raw samples per chunk of a log (bounded memory: the columns of one chunk are computed at the
 #: log's rate, about 8 * nv * (10 + n_extra + 1) bytes a sample).
 CHUNK_SAMPLES = 50_000
+
+#: Confidence level of the intervals in ``payload.json``.
+INTERVAL_LEVEL = 0.95
 
 _MIN_NOMINAL_MASS = 0.05  # [kg] scale of the LMI's unknowns when WLS finds a tiny mass
 
@@ -112,15 +142,8 @@ class PayloadColumns:
         )
 
 
-def payload_observations(
-    log: RobotLog,
-    pp: PreprocessConfig,
-    columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
-) -> ReducedObservations:
-    """The log's rows ``tau - Y theta_arm = [Y_n | E] x``, processed and reduced per joint.
-
-    Every segment goes through :func:`ident.identify.accumulate.iter_chunks` in chunks of at
-    most :data:`CHUNK_SAMPLES` raw samples; rows below ``pp.velocity_threshold`` are dropped.
+def decimated_samples(log: RobotLog, pp: PreprocessConfig) -> int:
+    """Decimated samples of all the log's segments after trimming (the rows' time steps).
 
     Raises
     ------
@@ -128,7 +151,55 @@ def payload_observations(
         A segment shorter than the trimming.
     """
     fs = log.sampling_rate_hz
+    return sum(
+        accumulate.make_plan(b - a, pp, fs, pp.chunk_samples or CHUNK_SAMPLES).n_decimated
+        for a, b in log.segments
+    )
+
+
+def block_length(n_samples: int, max_blocks: int = accumulate.MAX_BLOCKS) -> int:
+    """Decimated samples per block for ``n_samples`` in all: ``ceil(n_samples / max_blocks)``
+    (1 on short logs), the rule of :func:`ident.identify.accumulate.block_equations`."""
+    return max(1, -(-int(n_samples) // int(max_blocks)))
+
+
+def payload_rows(
+    log: RobotLog,
+    pp: PreprocessConfig,
+    columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
+    block_samples: int,
+) -> tuple[ReducedObservations, tuple[BlockEquations, ...]]:
+    """The log's rows ``tau - Y theta_arm = [Y_n | E] x``, processed and reduced per joint,
+    and their unweighted block normal equations per joint.
+
+    Every segment goes through :func:`ident.identify.accumulate.iter_chunks` in chunks of at
+    most :data:`CHUNK_SAMPLES` raw samples; rows below ``pp.velocity_threshold`` are dropped.
+    The blocks (one :class:`~ident.identify.uncertainty.BlockEquations` per joint, weight 1,
+    its blocks in time order) hold ``block_samples`` consecutive decimated samples and never
+    cross a chunk or segment boundary. Memory: ``nv * n_blocks * (p^2 + p + 1) * 8`` bytes for
+    ``p`` columns, ``n_blocks <= n_samples / block_samples + n_chunks`` (with
+    :func:`block_length` over all logs, at most ``MAX_BLOCKS + n_chunks`` = 2048 + chunks:
+    about 110 MB for 7 joints and 31 columns; twice that while the chunks' blocks are joined).
+
+    Raises
+    ------
+    DataError
+        A segment shorter than the trimming.
+    """
+    red, parts = _reduce(log, pp, columns, block_samples)
+    return red, tuple(BlockEquations.concatenate(p) for p in parts)
+
+
+def _reduce(
+    log: RobotLog,
+    pp: PreprocessConfig,
+    columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
+    block_samples: int | None,
+) -> tuple[ReducedObservations, list[list[BlockEquations]]]:
+    """:func:`payload_rows`; no blocks when ``block_samples`` is None."""
+    fs = log.sampling_rate_hz
     total: ReducedObservations | None = None
+    parts: list[list[BlockEquations]] = [[] for _ in range(log.q.shape[1])]
     for a, b in log.segments:
         chunk = min(pp.chunk_samples or CHUNK_SAMPLES, b - a)
         plan = accumulate.make_plan(b - a, pp, fs, chunk)
@@ -139,9 +210,76 @@ def payload_observations(
             rhs = c.tau - c.Yb[:, :, -1]
             red = accumulate.reduce_chunk(c.Yb[:, :, :-1], rhs, keep)
             total = red if total is None else total.merge(red)
+            if block_samples is not None:
+                for j, joint in enumerate(parts):
+                    rows = slice(j, j + 1)
+                    joint.append(
+                        BlockEquations.from_samples(
+                            c.Yb[:, rows, :-1], rhs[:, rows], keep[:, rows], np.ones(1),
+                            block_samples,
+                        )
+                    )  # fmt: skip
     if total is None:
         raise DataError("the log has no samples.")
-    return total
+    return total, parts
+
+
+def payload_observations(
+    log: RobotLog,
+    pp: PreprocessConfig,
+    columns: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
+) -> ReducedObservations:
+    """The log's rows reduced per joint (:func:`payload_rows` without blocks).
+
+    Raises
+    ------
+    DataError
+        A segment shorter than the trimming.
+    """
+    return _reduce(log, pp, columns, None)[0]
+
+
+def weighted_blocks(per_joint: tuple[BlockEquations, ...], weights: FloatArray) -> BlockEquations:
+    """``A_b = sum_j w_j^2 A_bj``, ``c_b = sum_j w_j^2 c_bj`` of per-joint unweighted blocks
+    (each joint's blocks aligned in time, :func:`payload_rows`) and per-joint row weights
+    ``weights`` (nv,) [1/(N*m)]: the blocks :func:`~ident.identify.uncertainty.BlockEquations`
+    ``.from_samples`` gives with those weights."""
+    w2 = np.asarray(weights, dtype=float) ** 2
+    if w2.shape != (len(per_joint),):
+        raise DataError(f"{w2.size} weights for {len(per_joint)} joints.")
+    A = np.zeros_like(per_joint[0].A)  # summed in place: one joint's size more in memory
+    c = np.zeros_like(per_joint[0].c)
+    for w, b in zip(w2, per_joint, strict=True):
+        A += w * b.A
+        c += w * b.c
+    n_rows = np.sum([b.n_rows for b in per_joint], axis=0).astype(np.int64)
+    return BlockEquations(A=A, c=c, n_rows=n_rows, block_samples=per_joint[0].block_samples)
+
+
+def merge_blocks(
+    first: tuple[BlockEquations, ...], second: tuple[BlockEquations, ...]
+) -> tuple[BlockEquations, ...]:
+    """Per-joint blocks of two logs, the second's after the first's."""
+    return tuple(BlockEquations.concatenate([a, b]) for a, b in zip(first, second, strict=True))
+
+
+def calibrated_std(
+    wls: Estimate, blocks: tuple[BlockEquations, ...] | None
+) -> tuple[ParameterStd, Uncertainty | None]:
+    """The one standard deviation of ``wls`` (:func:`~ident.identify.uncertainty.parameter_std`)
+    from the per-joint ``blocks`` weighted by its ``1 / sigma_j``, as ``ident identify``
+    computes it; the ordinary one with a note when there are no blocks or too few."""
+    unc = None
+    if blocks is not None:
+        sigma = np.asarray(wls.sigma, dtype=float)
+        weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
+        try:
+            unc = parameter_uncertainty(
+                weighted_blocks(blocks, weights), wls.names, wls.x, wls.covariance, rng=0
+            )
+        except (DataError, np.linalg.LinAlgError):
+            unc = None
+    return parameter_std(wls, unc), unc
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,7 +292,8 @@ class PayloadResult:
         Payload parameters about the last joint's frame, Pinocchio order, shape (10,)
         (the consistent estimate with ``method: lmi``, else WLS).
     std :
-        Standard deviations of ``phi`` (WLS's, from the residual), shape (10,).
+        Standard deviations of ``phi``, shape (10,): the block bootstrap of the WLS estimate
+        (``std_method``), or its ordinary ones when the logs have too few blocks.
     link :
         Frame of ``com`` and ``inertia_com``.
     mass, mass_std :
@@ -178,6 +317,14 @@ class PayloadResult:
     signals :
         What ``signals:`` removed from the logs (JSON-ready,
         :meth:`ident.identify.signal_correction.SignalCorrection.summary`), or None.
+    std_method, std_note :
+        Where ``std`` comes from (``bootstrap`` or ``ordinary``) and, for ``ordinary``, why.
+    uncertainty :
+        The covariances of every interval method of the WLS estimate (payload then extras),
+        or None when the logs have too few blocks.
+    ordinary_mass_std, ordinary_com_std :
+        The ordinary (independent-residual) standard deviations of the mass [kg] and of the
+        centre of mass [m] (3,), for comparison.
     """
 
     phi: FloatArray
@@ -195,9 +342,23 @@ class PayloadResult:
     extras: dict[str, float]
     timings: dict[str, float]
     signals: dict | None = None
+    std_method: str = "ordinary"
+    std_note: str = ""
+    uncertainty: Uncertainty | None = None
+    ordinary_mass_std: float = float("nan")
+    ordinary_com_std: FloatArray | None = None
+
+    def intervals(self, level: float = INTERVAL_LEVEL) -> tuple[FloatArray, FloatArray]:
+        """``[lower, upper]`` of the mass [kg] (2,) and of the centre of mass [m] (3, 2) at
+        confidence ``level`` (normal, ``+- z std``)."""
+        z = z_value(level)
+        mass = np.array([self.mass - z * self.mass_std, self.mass + z * self.mass_std])
+        return mass, np.column_stack([self.com - z * self.com_std, self.com + z * self.com_std])
 
     def summary(self) -> dict:
         """JSON-ready values (SI) for ``payload.json``."""
+        mass_interval, com_interval = self.intervals()
+        unc = self.uncertainty
         return {
             "method": self.method,
             "link": self.link,
@@ -205,6 +366,28 @@ class PayloadResult:
             "mass_std_kg": self.mass_std,
             "com_m": self.com.tolist(),
             "com_std_m": self.com_std.tolist(),
+            # std / intervals: the one σ (std_method), as result.json's
+            "std_method": self.std_method,
+            **({"std_note": self.std_note} if self.std_note else {}),
+            "interval_level": INTERVAL_LEVEL,
+            "mass_interval_kg": mass_interval.tolist(),
+            "com_interval_m": com_interval.tolist(),
+            "ordinary_std": {
+                "mass_kg": self.ordinary_mass_std,
+                "com_m": None if self.ordinary_com_std is None else self.ordinary_com_std.tolist(),
+            },
+            **(
+                {}
+                if unc is None
+                else {
+                    "bootstrap": {
+                        "n_blocks": unc.n_blocks,
+                        "block_samples": unc.block_samples,
+                        "run_length_blocks": int(np.ceil(unc.bandwidth)),
+                        "n_boot": unc.n_boot,
+                    }
+                }
+            ),
             "inertia_com_kgm2": self.inertia_com.tolist(),
             "parameters_last_joint_frame": dict(zip(PAYLOAD_NAMES, self.phi.tolist(), strict=True)),
             "parameters_std": dict(zip(PAYLOAD_NAMES, self.std.tolist(), strict=True)),
@@ -248,6 +431,7 @@ def estimate_payload(
     method: str = "lmi",
     placement: pin.SE3 | None = None,
     link: str = "last link",
+    blocks: tuple[BlockEquations, ...] | None = None,
 ) -> PayloadResult:
     """WLS (and LMI) estimate of the payload from reduced rows ``[Y_n | E]`` (module docstring).
 
@@ -263,6 +447,9 @@ def estimate_payload(
         Pose of the reporting frame in the last joint's frame (default: identity).
     link :
         Name of the reporting frame.
+    blocks :
+        Per-joint unweighted block normal equations of the same rows (:func:`payload_rows`):
+        the standard deviations are their block bootstrap; None: the ordinary ones (a note).
 
     Raises
     ------
@@ -281,9 +468,12 @@ def estimate_payload(
         x = consistent.x
         timings["lmi"] = time.perf_counter() - t1
     phi = np.asarray(x[:10], dtype=float)
-    cov = wls.covariance[:10, :10]
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    mass, com, com_std, inertia_com = _in_reporting_frame(phi, cov, placement)
+    t2 = time.perf_counter()
+    sd, unc = calibrated_std(wls, blocks)
+    timings["intervals"] = time.perf_counter() - t2
+    std = sd.std[:10]
+    mass, com, com_std, inertia_com = _in_reporting_frame(phi, sd.covariance[:10, :10], placement)
+    ordinary = _in_reporting_frame(phi, wls.covariance[:10, :10], placement)[2]
     return PayloadResult(
         phi=phi,
         std=std,
@@ -299,6 +489,11 @@ def estimate_payload(
         method=method,
         extras=dict(zip(extra, (float(v) for v in x[10:]), strict=True)),
         timings=timings,
+        std_method=sd.method,
+        std_note=sd.note,
+        uncertainty=unc,
+        ordinary_mass_std=float(np.sqrt(max(wls.covariance[0, 0], 0.0))),
+        ordinary_com_std=ordinary,
     )
 
 
@@ -432,14 +627,23 @@ def identify_payload(
     chain = chain_from_model(model)
     theta_arm = parameters_from_model(model)
     t1 = time.perf_counter()
-    red = payload_observations(with_log, pp, PayloadColumns(chain, terms, theta_arm))
+    given = [with_log] if without_log is None else [with_log, without_log]
+    step = block_length(sum(decimated_samples(log, pp) for log in given))
+    red, blocks = payload_rows(with_log, pp, PayloadColumns(chain, terms, theta_arm), step)
     if without_log is not None:
         columns = PayloadColumns(chain, terms, theta_arm, with_payload=False)
-        red = red.merge(payload_observations(without_log, pp, columns))
+        red_without, blocks_without = payload_rows(without_log, pp, columns, step)
+        red = red.merge(red_without)
+        blocks = merge_blocks(blocks, blocks_without)
     t2 = time.perf_counter()
     try:
         result = estimate_payload(
-            red, extra_names(terms), method=cfg.payload.method, placement=placement, link=link
+            red,
+            extra_names(terms),
+            method=cfg.payload.method,
+            placement=placement,
+            link=link,
+            blocks=blocks,
         )
     except NotIdentifiable as e:
         raise NotIdentifiable(
