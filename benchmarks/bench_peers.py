@@ -767,7 +767,7 @@ UR10_JOINTS = (
 
 
 def excitation_configs(
-    folder: Path, ur10_urdf: Path, *, quick: bool
+    folder: Path, ur10_urdf: Path, *, quick: bool, fill_limits: bool = False
 ) -> dict[str, tuple[dict[str, Any], str]]:
     """The run configs of both cases (ident's config-driven design) and a settings line each.
 
@@ -797,6 +797,8 @@ def excitation_configs(
             "amplitude_bound": 0.05 if quick else 0.3,
         },
     }
+    if fill_limits:
+        excitation["options"]["fill_limits"] = True
     centre = fixture["center_rad"]
     ur10 = {
         "robot": {"urdf": str(_fixture_urdf(ur10_urdf, fixture, folder))},
