@@ -787,16 +787,19 @@ UR10_JOINTS = (
 
 
 def excitation_configs(
-    folder: Path, ur10_urdf: Path, *, quick: bool
+    folder: Path, ur10_urdf: Path, *, quick: bool, fill_limits: bool = True
 ) -> dict[str, tuple[dict[str, Any], str]]:
     """The run configs of both cases (ident's config-driven design) and a settings line each.
 
     Both: joint-space Fourier series, 5 harmonics, 10 s period, 1000 samples (``quick``: 100),
-    pso (ident's default) after a feasible-elite search. UR10: the fixture's limits in the URDF
+    each joint's series gained onto its limits (``excitation.options.fill_limits``, as FIGAROH
+    gains its series; ``fill_limits=False``: the coefficient box as it is), pso (ident's
+    default) after a feasible-elite search. UR10: the fixture's limits in the URDF
     (:func:`_fixture_urdf`), mean posture within 0.3 rad of the fixture's centre, torque limits
-    checked, no collision or floor (as the fixture). Panda: ``configs/panda.yaml``'s robot and
-    safety sections (floor, self-collision on its meshes, datasheet accelerations, URDF torque
-    limits) with a 1 cm clearance.
+    checked, no collision or floor (as the fixture), 100 pso iterations (cheap without
+    collision geometry). Panda: ``configs/panda.yaml``'s robot and safety sections (floor,
+    self-collision on its meshes, datasheet accelerations, URDF torque limits) with a 1 cm
+    clearance, 40 pso iterations.
     """
     fixture = load_ur10_fixture()
     if quick:
@@ -817,7 +820,10 @@ def excitation_configs(
             "amplitude_bound": 0.05 if quick else 0.3,
         },
     }
+    if fill_limits:
+        excitation["options"]["fill_limits"] = True
     centre = fixture["center_rad"]
+    ur10_swarm = swarm if quick else {**swarm, "maxiter": 100}
     ur10 = {
         "robot": {"urdf": str(_fixture_urdf(ur10_urdf, fixture, folder))},
         "stage": "whole",
@@ -836,7 +842,7 @@ def excitation_configs(
             "check_samples": 50,
         },
         "elites": elites,
-        "emupso": swarm,
+        "emupso": ur10_swarm,
     }
     panda = yaml.safe_load((ROOT / "configs" / "panda.yaml").read_text(encoding="utf-8"))
     for key in ("measurement", "identification", "quick", "controller"):
@@ -990,7 +996,9 @@ def excitation_part(
         "standard parameters per link, no friction or armature columns, columns with sum of "
         "squares < 1e-6 dropped, then the base columns (UR10: "
         f"{convention}; Panda: the independent columns of a column-pivoted QR), not "
-        "column-normalised. ident's own criterion (eq. 15 on its scaled rigid-body base "
+        "column-normalised. ident designs with each joint's series gained onto its limits "
+        "(`excitation.options.fill_limits: true`, as FIGAROH gains its series). ident's own "
+        "criterion (eq. 15 on its scaled rigid-body base "
         "columns) is shown beside it: its condition number is that of the column-normalised "
         f"matrix. UR10 model: {which}.",
         "",

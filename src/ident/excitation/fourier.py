@@ -17,6 +17,12 @@ eliminating the first harmonic:
 Design variables per moving joint (``2 N - 1`` of them): ``q0[<joint>]`` [rad] (the mean
 position), ``a<l>[<joint>]`` and ``b<l>[<joint>]`` for ``l = 2..N`` [rad/s] (velocity
 amplitudes).
+
+With ``fill_limits=True`` the design's ``a``, ``b`` of each moving joint are the *shape* of its
+motion: the family multiplies them by the joint's gain (:meth:`JointFourierFamily.fill_gains`),
+the largest factor that keeps the joint's position within its limits about ``q0``, its velocity
+and its acceleration within theirs over the whole period (between samples too: the peaks are
+bounded by :func:`fill_margin`), so that every design touches at least one of its joint's limits.
 """
 
 from __future__ import annotations
@@ -33,6 +39,8 @@ from ident.excitation.family import FloatArray, TrajectoryBatch, check_design, s
 
 __all__ = [
     "JointFourierFamily",
+    "FILL_SAMPLES_PER_HARMONIC",
+    "fill_margin",
     "fourier_bound_factors",
     "fourier_series",
     "resolve_joints",
@@ -128,6 +136,41 @@ def fourier_bound_factors(n_harmonics: int) -> tuple[float, float, float]:
     return float(c_q), float(c_v), float(c_a)
 
 
+#: The fill gains are computed on ``FILL_SAMPLES_PER_HARMONIC * N`` samples per period, a grid
+#: that depends on ``N`` only (not on ``n_samples``): a design is the same motion at any rate.
+FILL_SAMPLES_PER_HARMONIC = 256
+#: Relative slack of the fill gains against round-off (far below :func:`fill_margin`).
+FILL_ROUNDOFF = 1e-12
+
+
+def fill_margin(n_harmonics: int, samples_per_period: int) -> float:
+    """Relative bound of a trigonometric polynomial's peak between uniform samples.
+
+    For ``f`` of degree ``N`` (frequencies ``w l``, ``l <= N``) sampled ``M`` times per period,
+    at the peak ``t*`` of ``|f|``, ``f'(t*) = 0`` and a sample lies within ``h / 2 = pi / (w M)``;
+    Taylor and Bernstein's inequality (``max |f''| <= (N w)^2 max |f|``) give
+    ``max |f| <= max_k |f(t_k)| (1 + eps)`` and, for a zero-mean ``f``,
+    ``max f <= max_k f(t_k) + eps max_k |f(t_k)|``, with ``delta = (pi N / M)^2 / 2`` and
+    ``eps = delta / (1 - delta)``.
+
+    Parameters
+    ----------
+    n_harmonics :
+        ``N``.
+    samples_per_period :
+        ``M`` (> ``pi N sqrt(2)``).
+
+    Returns
+    -------
+    :
+        ``eps``, dimensionless; 7.5e-5 for the fill grid (``M = 256 N``).
+    """
+    delta = 0.5 * (np.pi * n_harmonics / samples_per_period) ** 2
+    if not delta < 1.0:
+        raise ValueError(f"{samples_per_period} samples are too few for {n_harmonics} harmonics")
+    return float(delta / (1.0 - delta))
+
+
 def _round_down(value: float) -> str:
     """``value`` rounded down to 2 significant digits, as text (a bound that stays safe)."""
     if not np.isfinite(value) or value <= 0.0:
@@ -159,6 +202,12 @@ class JointFourierFamily:
     amplitude_bound :
         Bound of the ``a``, ``b`` coefficients [rad/s], scalar or one per moving joint.
         Default: half the velocity limit of each joint (1 rad/s where unknown).
+    fill_limits :
+        Scale each moving joint's ``a``, ``b`` by its gain (:meth:`fill_gains`) so that the
+        motion reaches the joint's limits (position about ``q0``, velocity, acceleration),
+        like FIGAROH's per-joint gain. The design's coefficients are then a shape: only
+        their ratios matter, and :meth:`coefficients` / :meth:`trajectories` return the scaled
+        motion. Default False (the coefficients are used as they are).
 
     Notes
     -----
@@ -177,7 +226,10 @@ class JointFourierFamily:
         n_samples: int = 500,
         held_positions: npt.ArrayLike | None = None,
         amplitude_bound: float | npt.ArrayLike | None = None,
+        fill_limits: bool = False,
     ) -> None:
+        if not isinstance(fill_limits, (bool, np.bool_)):
+            raise ValueError(f"fill_limits must be true or false, got {fill_limits!r}")
         if n_harmonics < 2:
             raise ValueError(f"n_harmonics must be >= 2 (rest conditions), got {n_harmonics}")
         if not base_frequency > 0.0:
@@ -192,6 +244,10 @@ class JointFourierFamily:
         self.period = 2.0 * np.pi / self.base_frequency
         self.n_samples = int(n_samples)
         self.t = sample_times(self.n_samples, self.period)
+        self.fill_limits = bool(fill_limits)
+        n_fill = FILL_SAMPLES_PER_HARMONIC * self.n_harmonics
+        self.fill_times = sample_times(n_fill, self.period)
+        self.fill_margin = fill_margin(self.n_harmonics, n_fill)
         lower, upper = self.limits.finite_position_box()
         if held_positions is None:
             held = np.clip(np.zeros(self.limits.nq), lower, upper)
@@ -317,7 +373,67 @@ class JointFourierFamily:
         harmonics = np.arange(2, n_h + 1)
         a1 = -a_free.sum(axis=2, keepdims=True)
         b1 = -(b_free * harmonics).sum(axis=2, keepdims=True)
-        return np.concatenate([a1, a_free], axis=2), np.concatenate([b1, b_free], axis=2), q0
+        a = np.concatenate([a1, a_free], axis=2)
+        b = np.concatenate([b1, b_free], axis=2)
+        if self.fill_limits:
+            gain = self.fill_gains(a, b, q0)[:, :, None]
+            a, b = a * gain, b * gain
+        return a, b, q0
+
+    def fill_gains(self, a: FloatArray, b: FloatArray, q0: FloatArray) -> FloatArray:
+        """Per particle and moving joint, the largest factor ``s >= 0`` of ``a, b`` that keeps
+        the joint within its limits over the whole period.
+
+        On the fill grid (:data:`FILL_SAMPLES_PER_HARMONIC` ``* N`` samples per period) the
+        peaks of ``g = q - q0``, ``dq`` and ``ddq`` are inflated by :func:`fill_margin`'s
+        ``eps`` into bounds valid between the samples too: ``g_up = max g + eps max |g|``,
+        ``g_down = max(-g) + eps max |g|``, ``V = (1 + eps) max |dq|``,
+        ``A = (1 + eps) max |ddq|``. Then ``s = (1 - 1e-12) min((q_upper - q0) / g_up,
+        (q0 - q_lower) / g_down, dq_max / V, ddq_max / A)`` (an infinite limit drops its term;
+        ``q0`` outside its limits gives 0). A joint that does not move (all peaks 0) or has no
+        finite limit keeps ``s = 1``.
+
+        Parameters
+        ----------
+        a, b :
+            Unscaled coefficients [rad/s], shape (n_particles, n_moving, N).
+        q0 :
+            Offsets [rad], shape (n_particles, n_moving).
+
+        Returns
+        -------
+        :
+            Gains, dimensionless, shape (n_particles, n_moving).
+        """
+        # fourier_series's formulas, laid out (P, n_moving, M) for matrix products
+        wl = self.base_frequency * np.arange(1, self.n_harmonics + 1)
+        phase = np.outer(wl, self.fill_times)  # (N, M)
+        s, c = np.sin(phase), np.cos(phase)
+        g = (a / wl) @ s - (b / wl) @ c
+        dq = a @ c + b @ s
+        ddq = (b * wl) @ c - (a * wl) @ s
+        eps = self.fill_margin
+        spread = np.abs(g).max(axis=2)
+        peaks = (
+            g.max(axis=2) + eps * spread,
+            (-g).max(axis=2) + eps * spread,
+            (1.0 + eps) * np.abs(dq).max(axis=2),
+            (1.0 + eps) * np.abs(ddq).max(axis=2),
+        )
+        moving = list(self.moving_joints)
+        limits = self.limits
+        rooms = (
+            np.maximum(limits.q_upper[moving] - q0, 0.0),
+            np.maximum(q0 - limits.q_lower[moving], 0.0),
+            np.broadcast_to(limits.dq_max[moving], q0.shape),
+            np.broadcast_to(limits.ddq_max[moving], q0.shape),
+        )
+        gain = np.full(q0.shape, np.inf)
+        for peak, room in zip(peaks, rooms, strict=True):
+            ratio = np.divide(room, peak, out=np.full(q0.shape, np.inf), where=peak > 0.0)
+            gain = np.minimum(gain, ratio)
+        gain = np.where(np.isfinite(gain), gain * (1.0 - FILL_ROUNDOFF), 1.0)
+        return np.asarray(gain, dtype=float)
 
     def _states(self, x: FloatArray, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         a, b, q0 = self.coefficients(x)
