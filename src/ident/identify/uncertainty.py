@@ -412,7 +412,13 @@ def parameter_std(estimate: Any, unc: Uncertainty | None) -> ParameterStd:
         std=np.asarray(estimate.std, dtype=float),
         relative_std=np.asarray(estimate.relative_std, dtype=float),
         method="ordinary",
-        covariance=np.asarray(estimate.covariance, dtype=float),
+        # an estimate without a covariance (a summary) gives the diagonal of its std
+        covariance=np.asarray(
+            getattr(estimate, "covariance", None)
+            if getattr(estimate, "covariance", None) is not None
+            else np.diag(np.asarray(estimate.std, dtype=float) ** 2),
+            dtype=float,
+        ),
         note=ORDINARY_NOTE.format(why=why),
     )
 
