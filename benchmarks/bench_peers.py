@@ -44,7 +44,8 @@
    the noise-free truth on a validation series (goal 0.05 N*m, their tolerance 0.1 N*m), and
    FIGAROH's base OLS on the same samples when the ``peers`` extra is installed.
 
-``--quick``: the UR5 only, mujoco.sysid from the near CAD only, 3 optimizer iterations.
+``--quick``: the UR5 only, mujoco.sysid from the near CAD only, 3 optimizer iterations; the
+excitation at 100 samples, the UR10 truth on one seed, the long log on 30 s; no TX40 example.
 Default: one 10 s period (``--periods``; the configs log 3), 3 iterations (``--max-iters``).
 """
 
