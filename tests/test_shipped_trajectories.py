@@ -255,6 +255,8 @@ def test_shipped_run_trajectory_is_safe_by_an_independent_check(name, shipped_ru
     label, reason = VERDICTS[name]
     assert verdict["label"] == label, (reason, verdict)
     assert verdict["rule"] == "truth"  # simulated: judged against the simulator's truth
+    if name == "ur5-payload":  # the label is about the design, not the payload: it says so
+        assert "ident payload" in verdict["reason"], verdict
     limit = {"good": (5.0, 0.10), "usable": (20.0, 0.25)}.get(label)
     if limit:  # the numbers behind the label, within its thresholds (docs/verdict.md)
         assert verdict["worst_error_percent"] < limit[0], verdict

@@ -137,7 +137,13 @@ def verdict_entry(result: Any, data: dict[str, Any]) -> dict[str, Any]:
         )
     else:
         evidence = _dict_evidence(data)
-    return _entry(decide_verdict(evidence), evidence, elite, method)
+    entry = _entry(decide_verdict(evidence), evidence, elite, method)
+    if stage is not None and stage.name == "payload":  # what the label is about
+        entry["reason"] += (
+            "; it judges the design on the bare last body's 10 parameters: the payload itself "
+            "comes from `ident payload` on a log with it"
+        )
+    return entry
 
 
 def _entry(

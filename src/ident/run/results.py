@@ -175,7 +175,7 @@ class StageInfo(BaseParameterSet):
     Attributes
     ----------
     name :
-        ``wrist`` or ``arm``.
+        The stage's name (``whole``, ``payload``, ``wrist``, ``arm`` or a config's own).
     rows :
         Torque rows (joint indices, 0-based) of the stage.
     columns :
