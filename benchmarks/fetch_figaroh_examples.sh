@@ -29,8 +29,13 @@ else
     REPO="$DEST/.clone"
     [ -d "$REPO" ] || git clone --bare --filter=blob:none "$SOURCE" "$REPO"
 fi
-git -C "$REPO" archive "$COMMIT" examples/__init__.py examples/staubli_TX40 examples/templates \
-    models/staubli_tx40_description examples/ur10/urdf | tar -x -C "$DEST"
+# the archive to a file first: sh has no pipefail, and a failed `git archive | tar` would leave a
+# partial folder behind a zero exit status
+ARCHIVE="$DEST/.examples.tar"
+git -C "$REPO" archive -o "$ARCHIVE" "$COMMIT" examples/__init__.py examples/staubli_TX40 \
+    examples/templates models/staubli_tx40_description examples/ur10/urdf
+tar -x -C "$DEST" -f "$ARCHIVE"
+rm -f "$ARCHIVE"
 cd "$DEST/examples"
 ln -sfn staubli_TX40 staubli_tx40
 ln -sfn ../templates staubli_TX40/templates
