@@ -496,17 +496,53 @@ def _parameter_section(
 ) -> list[str]:
     elite = executed_elite(data) or data["elites"][0]
     md = [f"## Identified vs true parameters (elite {elite['rank']}, executed)", ""]
+    md += _held_out_summary(data)
+    md += _parameter_figures(figures)
+    if not elite["estimates"]:
+        return md + ["> **No estimate**: every estimator failed on this trajectory (below).", ""]
+    # residuals per torque row of the stage; older result.json files have no joint units
+    all_units = data["robot"].get("joint_units") or ["N*m"] * len(data["robot"]["joint_names"])
+    units = [all_units[r] for r in stage["torque_rows"]]
+    for m, est in elite["estimates"].items():
+        md += _estimate_summary(m, est, units)
+        md += _table(
+            [
+                "base parameter",
+                "unit",
+                "true",
+                "identified",
+                "σ",
+                "σ [%]",
+                "error [%]",
+                "error / σ",
+                "torque share [%]",
+                "major",
+            ],
+            _estimate_rows(est, stage),
+            left=(0, 1, 9),
+        )
+    return md + _parameter_legend()
+
+
+def _held_out_summary(data: dict[str, Any]) -> list[str]:
+    """The verdict's residual, consistency and worst σ of a simulated log identified as a real
+    one (empty otherwise)."""
     v = stored_verdict(data)
-    # a simulated log, identified as a real one
-    if v.get("residual_where") == "held-out data" and v.get("residual") is not None:
-        label, text = _residual_text(v)
-        md += [
-            f"{label}: {text}. Physical consistency: {_consistency_text(data, v)}. Worst "
-            f"relative std of the parameters carrying >= {100 * MAJOR_SHARE:g} % of the "
-            f"torques: {pct(v.get('worst_std_percent'))} ({v.get('worst_std_name')}; "
-            f"{v.get('std_method') or 'ordinary'} σ).",
-            "",
-        ]
+    if v.get("residual_where") != "held-out data" or v.get("residual") is None:
+        return []
+    label, text = _residual_text(v)
+    return [
+        f"{label}: {text}. Physical consistency: {_consistency_text(data, v)}. Worst "
+        f"relative std of the parameters carrying >= {100 * MAJOR_SHARE:g} % of the "
+        f"torques: {pct(v.get('worst_std_percent'))} ({v.get('worst_std_name')}; "
+        f"{v.get('std_method') or 'ordinary'} σ).",
+        "",
+    ]
+
+
+def _parameter_figures(figures: set[str] | frozenset[str]) -> list[str]:
+    """The parameter and validation figures of the section (a note when no validation)."""
+    md = []
     if "figures/parameters.png" in figures:
         md += [
             "![Identified vs true base parameters, relative deviation with ±3σ bars]"
@@ -524,60 +560,50 @@ def _parameter_section(
             "validation trajectory.",
             "",
         ]
-    if not elite["estimates"]:
-        return md + ["> **No estimate**: every estimator failed on this trajectory (below).", ""]
+    return md
+
+
+def _estimate_summary(method: str, est: dict[str, Any], units: list[str]) -> list[str]:
+    """Heading and one-paragraph fit summary of one estimator (residuals in joint ``units``)."""
+    rms = zip(est["residual_rms"], units, strict=True)
+    return [
+        f"### {method.upper()}",
+        "",
+        f"Relative residual {pct(100 * (est['relative_residual'] or 0))}, RMS per joint "
+        f"{', '.join(f'{_fmt(v)} {u}' for v, u in rms)}; condition number "
+        f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
+        f"errors within 3σ ({est.get('std_method') or 'ordinary'} σ). "
+        f"{'' if est['message'] == 'ok' else est['message']}",
+        "",
+    ]
+
+
+def _estimate_rows(est: dict[str, Any], stage: dict[str, Any]) -> list[list[str]]:
+    """One table row per base parameter: true, identified, σ, errors, torque share."""
     true = stage["true_base"]
     names = stage["base_names"]
-    # residuals per torque row of the stage; older result.json files have no joint units
-    all_units = data["robot"].get("joint_units") or ["N*m"] * len(data["robot"]["joint_names"])
-    units = [all_units[r] for r in stage["torque_rows"]]
-    for m, est in elite["estimates"].items():
-        major = est.get("major") or [False] * len(names)
-        share = est.get("torque_share") or [None] * len(names)
-        rows = []
-        for i, name in enumerate(names):
-            rows.append(
-                [
-                    f"`{name}`" + (" (alone)" if stage["identifiable_alone"][i] else ""),
-                    parameter_unit(name) or "—",
-                    _fmt(true[i]),
-                    _fmt(est["x"][i]),
-                    _fmt(est["std"][i]),
-                    _fmt(_rel_std(est, i), 3),
-                    _fmt(est["rel_error_percent"][i], 3),
-                    _fmt(est["normalized_error"][i], 3),
-                    _fmt(None if share[i] is None else 100 * share[i], 2),
-                    "yes" if major[i] else "",
-                ]
-            )
-        rms = zip(est["residual_rms"], units, strict=True)
-        md += [
-            f"### {m.upper()}",
-            "",
-            f"Relative residual {pct(100 * (est['relative_residual'] or 0))}, RMS per joint "
-            f"{', '.join(f'{_fmt(v)} {u}' for v, u in rms)}; condition number "
-            f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
-            f"errors within 3σ ({est.get('std_method') or 'ordinary'} σ). "
-            f"{'' if est['message'] == 'ok' else est['message']}",
-            "",
+    major = est.get("major") or [False] * len(names)
+    share = est.get("torque_share") or [None] * len(names)
+    return [
+        [
+            f"`{name}`" + (" (alone)" if stage["identifiable_alone"][i] else ""),
+            parameter_unit(name) or "—",
+            _fmt(true[i]),
+            _fmt(est["x"][i]),
+            _fmt(est["std"][i]),
+            _fmt(_rel_std(est, i), 3),
+            _fmt(est["rel_error_percent"][i], 3),
+            _fmt(est["normalized_error"][i], 3),
+            _fmt(None if share[i] is None else 100 * share[i], 2),
+            "yes" if major[i] else "",
         ]
-        md += _table(
-            [
-                "base parameter",
-                "unit",
-                "true",
-                "identified",
-                "σ",
-                "σ [%]",
-                "error [%]",
-                "error / σ",
-                "torque share [%]",
-                "major",
-            ],
-            rows,
-            left=(0, 1, 9),
-        )
-    md += [
+        for i, name in enumerate(names)
+    ]
+
+
+def _parameter_legend() -> list[str]:
+    """What the columns of the parameter tables mean."""
+    return [
         "Units SI; a base parameter has the unit of the parameter it is named after. "
         "σ: standard deviation of the estimate (the moving-block bootstrap's on a simulated "
         "log, the ordinary one otherwise: the method is named above, docs/uncertainty.md); "
@@ -589,7 +615,6 @@ def _parameter_section(
         "identifiable alone.",
         "",
     ]
-    return md
 
 
 def _rel_std(est: dict[str, Any], i: int) -> float | None:
