@@ -175,71 +175,59 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         "`reference_torque_share` in result.json).",
         "",
     ]
-    excitation = data["config"]["excitation"]
+    md += _design_variable_note(data["config"]["excitation"])
+    header = ["", *[f"elite {e['rank']}" for e in elites]]
+    md += _table(header, _elite_rows(data))
+    for e in elites:
+        for m, message in e["failures"].items():
+            md += [f"> **Elite {e['rank']}, {m}**: {message}", ""]
+    return md
+
+
+def _design_variable_note(excitation: dict[str, Any]) -> list[str]:
+    """Units of the design variables of the paper's and the joint Fourier families."""
     if excitation["family"].startswith("paper_"):
         unit = excitation.get("options", {}).get("length_unit", 1e-3)
         what = "mm" if unit == 1e-3 else f"units of {unit:g} m"
-        md += [
+        return [
             f"Design variables as in Tables 2-3: a0, d0, e0, f0 in {what}; b0, c0 in {what} "
             "per second.",
             "",
         ]
-    elif excitation["family"] == "joint_fourier":
-        md += [
+    if excitation["family"] == "joint_fourier":
+        return [
             "Design variables of the joint-space Fourier series (docs/excitation.md): q0 "
             "(mean position) in rad, the a, b coefficients of harmonics 2..N in rad/s "
             "(harmonic 1 follows from rest at both ends).",
             "",
         ]
+    return []
+
+
+def _elite_rows(data: dict[str, Any]) -> list[list[str]]:
+    """Rows of the elite table: design variables, fitness, then per estimator the condition
+    numbers and error sums (one column per elite)."""
+    elites = data["elites"]
     names = data["excitation"]["variable_names"]
-    header = ["", *[f"elite {e['rank']}" for e in elites]]
     rows = [[f"`{n}`", *[_fmt(e["x"][i]) for e in elites]] for i, n in enumerate(names)]
     rows.append(["fitness", *[_fmt(e["fitness"]) for e in elites]])
     rows.append(["cond (scaled, objective)", *[_fmt(e["objective"].get("cond")) for e in elites]])
     methods = list(data["config"]["estimation"]["methods"])
+
+    def row(label: str, method: str, key: str, scale: Any = None) -> list[str]:
+        values = [e["estimates"].get(method, {}).get(key) for e in elites]
+        return [label, *[_fmt(v if scale is None else scale(v)) for v in values]]
+
     for m in methods:
-        rows.append(
-            [
-                f"cond (SI, {m})",
-                *[_fmt(e["estimates"].get(m, {}).get("condition_number")) for e in elites],
-            ]
-        )
+        rows.append(row(f"cond (SI, {m})", m, "condition_number"))
     for m in methods:
+        rows.append(row(f"Error(all) {m} [%]", m, "error_sum_percent"))
+        rows.append(row(f"Error(share >= 1e-4) {m} [%]", m, "error_sum_significant_percent"))
         rows.append(
-            [
-                f"Error(all) {m} [%]",
-                *[_fmt(e["estimates"].get(m, {}).get("error_sum_percent")) for e in elites],
-            ]
+            row(f"max rel. error, major parameters, {m} [%]", m, "max_rel_error_major", percent)
         )
-        rows.append(
-            [
-                f"Error(share >= 1e-4) {m} [%]",
-                *[
-                    _fmt(e["estimates"].get(m, {}).get("error_sum_significant_percent"))
-                    for e in elites
-                ],
-            ]
-        )
-        rows.append(
-            [
-                f"max rel. error, major parameters, {m} [%]",
-                *[
-                    _fmt(percent(e["estimates"].get(m, {}).get("max_rel_error_major")))
-                    for e in elites
-                ],
-            ]
-        )
-        rows.append(
-            [
-                f"Error(all-2) {m} [%]",
-                *[_fmt(e["estimates"].get(m, {}).get("error_sum_best_percent")) for e in elites],
-            ]
-        )
-    md += _table(header, rows)
-    for e in elites:
-        for m, message in e["failures"].items():
-            md += [f"> **Elite {e['rank']}, {m}**: {message}", ""]
-    return md
+        rows.append(row(f"Error(all-2) {m} [%]", m, "error_sum_best_percent"))
+    return rows
 
 
 # ----------------------------------------------------------------------------- page
