@@ -875,6 +875,29 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
     :func:`result_dict` writes; :mod:`ident.identify.verdict`)."""
     est = result.estimate
     v = verdict_entry(result)
+    truth = v["rule"] == "truth"
+    return Headline(
+        verdict=Verdict(v["label"], v["reason"], v["rule"]),
+        rule=VERDICT_RULE if truth else VERDICT_RULE_REAL,
+        worst=(
+            pct(v["worst_error_percent"]) + f" ({v['worst_error_name']}; against the "
+            "simulator's truth, validation.truth)"
+            if truth
+            else "— (a real log: no true values; see the relative std below)"
+        ),
+        worst_label="Worst error, major parameters",
+        residual=_headline_residual(result, v),
+        residual_label="Torque residual, held-out data",
+        condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
+        consistency=_headline_consistency(result, urdf, model, v),
+        safety="not checked (a measured log: the motion was already executed)",
+        warnings=list(v["warnings"]),
+        extra=_headline_extra(result, v),
+    )
+
+
+def _headline_residual(result: IdentifyResult, v: dict) -> str:
+    """The verdict's torque residual, where it was measured, and the other estimators'."""
     residual = v["residual"]
     judged = v["method"] if v["method"] in result.predictions else "identified"
     others = ", ".join(
@@ -887,6 +910,17 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
         if v["residual_where"] == "held-out data"
         else ("identification rows (no held-out part)")
     )
+    return (
+        "—"
+        if residual is None
+        else f"{pct(100 * residual)} on the {where}, {judged}" + (f" ({others})" if others else "")
+    )
+
+
+def _headline_consistency(
+    result: IdentifyResult, urdf: UrdfUpdate, model: dict | None, v: dict
+) -> str:
+    """Physical consistency of the links, the identified model's files and the cautious copy."""
     written = [link for link in urdf.links if link.status == "updated"]
     rejected = [link for link in urdf.links if link.status == "nominal (inconsistent)"]
     if v["n_links"]:
@@ -911,7 +945,13 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
             f"; cautious copy: {len(written)} links updated and consistent, {len(rejected)} "
             "kept nominal because the identified values are inconsistent"
         )
-    extra: list[tuple[str, str]] = [
+    return consistency
+
+
+def _headline_extra(result: IdentifyResult, v: dict) -> list[tuple[str, str]]:
+    """The headline's extra rows: the least-squares message, the fit and the worst σ."""
+    est = result.estimate
+    return [
         (
             "Least squares",
             est.message
@@ -927,30 +967,6 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
             f"{v.get('std_method') or 'ordinary'} σ)",
         ),
     ]
-    truth = v["rule"] == "truth"
-    return Headline(
-        verdict=Verdict(v["label"], v["reason"], v["rule"]),
-        rule=VERDICT_RULE if truth else VERDICT_RULE_REAL,
-        worst=(
-            pct(v["worst_error_percent"]) + f" ({v['worst_error_name']}; against the "
-            "simulator's truth, validation.truth)"
-            if truth
-            else "— (a real log: no true values; see the relative std below)"
-        ),
-        worst_label="Worst error, major parameters",
-        residual=(
-            "—"
-            if residual is None
-            else f"{pct(100 * residual)} on the {where}, {judged}"
-            + (f" ({others})" if others else "")
-        ),
-        residual_label="Torque residual, held-out data",
-        condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
-        consistency=consistency,
-        safety="not checked (a measured log: the motion was already executed)",
-        warnings=list(v["warnings"]),
-        extra=extra,
-    )
 
 
 def parameters_figure(result: IdentifyResult) -> bytes:
