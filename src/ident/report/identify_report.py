@@ -201,8 +201,6 @@ def result_dict(
     pm = result.parameters
     est = result.estimate
     sd = result.parameter_std
-    expressions = pm.base.expressions()
-    essential = result.essential
     out = {
         "name": result.config.name,
         "method": est.method,
@@ -221,29 +219,9 @@ def result_dict(
         # std / relative_std_pct: the one σ every part of the result uses (std_method)
         "std_method": sd.method,
         "std_note": sd.note,
-        "base_parameters": [
-            {
-                "name": name,
-                "expression": expr,
-                "value": float(est.x[k]),
-                "std": float(sd.std[k]),
-                "relative_std_pct": _finite(sd.relative_std[k]),
-                "ordinary_std": float(est.std[k]),
-                "nominal": float(pm.base.projection[k] @ pm.nominal),
-            }
-            for k, (name, expr) in enumerate(zip(pm.base_names, expressions, strict=True))
-        ],
+        "base_parameters": _base_parameters_entry(result),
         "unidentifiable": [pm.names[i] for i in pm.base.unidentifiable],
-        "essential": None
-        if essential is None
-        else {
-            "names": list(essential.estimate.names),
-            "values": essential.estimate.x.tolist(),
-            "relative_std_pct": [_finite(v) for v in essential.estimate.relative_std],
-            "relative_residual": essential.estimate.relative_residual,
-            "dropped": list(essential.dropped),
-            "stop_reason": essential.stop_reason,
-        },
+        "essential": _essential_entry(result),
         "validation": {
             label: {
                 "above_velocity_threshold": p.metrics.as_dict(),
@@ -251,15 +229,9 @@ def result_dict(
             }
             for label, p in result.predictions.items()
         },
-        "reference_comparison": [
-            {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()}
-            for row in result.comparison
-        ],
+        "reference_comparison": _finite_rows(result.comparison),
         "reference_note": result.reference_note,
-        "reference_essential": [
-            {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()}
-            for row in result.reference_essential
-        ],
+        "reference_essential": _finite_rows(result.reference_essential),
         "processing": list(result.records),
     }
     if replay_note is not None:
@@ -275,6 +247,48 @@ def result_dict(
     if result.friction is not None:
         out["friction_models"] = friction_models_entry(result)
     return out
+
+
+def _base_parameters_entry(result: IdentifyResult) -> list[dict]:
+    """One entry per base parameter: expression, value, the one σ, the ordinary σ, nominal."""
+    pm = result.parameters
+    est = result.estimate
+    sd = result.parameter_std
+    expressions = pm.base.expressions()
+    return [
+        {
+            "name": name,
+            "expression": expr,
+            "value": float(est.x[k]),
+            "std": float(sd.std[k]),
+            "relative_std_pct": _finite(sd.relative_std[k]),
+            "ordinary_std": float(est.std[k]),
+            "nominal": float(pm.base.projection[k] @ pm.nominal),
+        }
+        for k, (name, expr) in enumerate(zip(pm.base_names, expressions, strict=True))
+    ]
+
+
+def _essential_entry(result: IdentifyResult) -> dict | None:
+    """The essential-parameter estimate (None when not computed)."""
+    essential = result.essential
+    if essential is None:
+        return None
+    return {
+        "names": list(essential.estimate.names),
+        "values": essential.estimate.x.tolist(),
+        "relative_std_pct": [_finite(v) for v in essential.estimate.relative_std],
+        "relative_residual": essential.estimate.relative_residual,
+        "dropped": list(essential.dropped),
+        "stop_reason": essential.stop_reason,
+    }
+
+
+def _finite_rows(rows: Sequence[dict]) -> list[dict]:
+    """``rows`` with every float made JSON-safe (non-finite -> None, :func:`_finite`)."""
+    return [
+        {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()} for row in rows
+    ]
 
 
 def _cautious_entry(result: IdentifyResult, urdf: UrdfUpdate) -> dict:
