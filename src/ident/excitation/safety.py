@@ -480,6 +480,134 @@ def _motion_coefficients(model: pin.Model, geom: pin.GeometryModel, n_robot: int
     return out
 
 
+def _reach(
+    model: pin.Model,
+    objects: Sequence[pin.GeometryObject],
+    joint_of: Sequence[int],
+    coefficients: FloatArray,
+) -> float:
+    """A bound [m] on the distance of any point of the robot from its base: for each of the
+    robot's objects (``joint_of``: its parent joint), the first joint's offset plus the
+    object's motion coefficient about it, or its bounding radius when fixed to the base."""
+    offsets = [float(np.linalg.norm(p.translation)) for p in model.jointPlacements]
+    return max(
+        (
+            float(coefficients[g, model.joints[1].idx_v]) + offsets[1]
+            if joint_of[g] > 0
+            else _bounding_radius(objects[g])
+            for g in range(len(joint_of))
+        ),
+        default=0.0,
+    )
+
+
+def _add_environment(geom: pin.GeometryModel, config: SafetyConfig) -> list[str]:
+    """Add the floor and the obstacles of ``config`` to ``geom``; their names, in order.
+
+    Obstacles are attached to the universe (joint 0, frame 0), fixed in the base frame.
+    """
+    import coal
+
+    environment: list[str] = []
+    if config.floor.enabled:
+        floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), float(config.floor.z))
+        geom.addGeometryObject(pin.GeometryObject(FLOOR, 0, 0, pin.SE3.Identity(), floor))
+        environment.append(FLOOR)
+    for k, obstacle in enumerate(config.obstacles):
+        name = obstacle.name or f"obstacle_{k + 1}_{obstacle.kind}"
+        shape, pose = _obstacle_geometry(obstacle)
+        geom.addGeometryObject(pin.GeometryObject(name, 0, 0, pose, shape))
+        environment.append(name)
+    return environment
+
+
+def _candidate_pairs(
+    link_of: Sequence[str],
+    environment: Sequence[str],
+    excluded: Mapping[tuple[str, str], str],
+    self_collision: bool,
+) -> list[tuple[int, int, str, str]]:
+    """``(geom a, geom b, pair name, kind)`` of every pair that may be checked: the robot's
+    link pairs not ``excluded`` (with ``self_collision``), then every robot object against
+    each environment object (numbered after the ``len(link_of)`` robot objects)."""
+    n_robot = len(link_of)
+    candidates: list[tuple[int, int, str, str]] = []
+    if self_collision:
+        for a in range(n_robot):
+            for b in range(a + 1, n_robot):
+                name = f"{link_of[a]}|{link_of[b]}"
+                if link_of[a] != link_of[b] and _pair_key(link_of[a], link_of[b]) not in excluded:
+                    candidates.append((a, b, name, "self"))
+    for e, env_name in enumerate(environment):
+        kind = "floor" if env_name == FLOOR else "obstacle"
+        for a in range(n_robot):
+            candidates.append((a, n_robot + e, f"{link_of[a]}|{env_name}", kind))
+    return candidates
+
+
+def _constant_pairs(
+    objects: Sequence[pin.GeometryObject],
+    candidates: Sequence[tuple[int, int, str, str]],
+    constant: Mapping[int, float],
+) -> tuple[ExcludedPair, ...]:
+    """The ``candidates`` no motion changes (``constant``: candidate index -> distance [m]),
+    named by the robot object and the environment object."""
+    return tuple(
+        ExcludedPair(
+            f"{objects[candidates[k][0]].name}|{candidates[k][2].split('|', 1)[1]}",
+            f"constant distance {d:.4f} m (no joint moves one relative to the other); judged once",
+        )
+        for k, d in constant.items()
+    )
+
+
+def _pair_motion_coefficients(
+    coefficients: FloatArray,
+    n_environment: int,
+    pairs: Sequence[tuple[int, int, str, str]],
+    group: npt.NDArray[np.int64],
+    n_pairs: int,
+    nv: int,
+) -> FloatArray:
+    """Read-only shape (n_pairs, nv): per checked pair, the largest over its geometry
+    ``pairs`` (row ``group[p]``) of the robot objects' ``coefficients`` (shape
+    (n_robot, nv); 0 for the environment) of the joints that move one side but not both."""
+    out = np.zeros((n_pairs, nv))
+    padded = np.vstack([coefficients, np.zeros((n_environment, nv))])
+    for p, (a, b, _, _) in enumerate(pairs):
+        # the joints above both bodies move them together: only the others change the
+        # pair's relative posture (for an environment pair, every joint above the link)
+        common = (padded[a] > 0.0) & (padded[b] > 0.0)
+        row = out[group[p]]
+        np.maximum(row, np.where(common, 0.0, padded[a] + padded[b]), out=row)
+    out.setflags(write=False)
+    return out
+
+
+def _mesh_pairs(
+    geom: pin.GeometryModel, pairs: Sequence[tuple[int, int, str, str]]
+) -> npt.NDArray[np.bool_]:
+    """Per geometry pair, whether a mesh is on either side (where the hull and the geometry
+    differ: the exact certificate measures them on the mesh)."""
+    import coal
+
+    is_mesh = [isinstance(o.geometry, coal.BVHModelBase) for o in geom.geometryObjects]
+    return np.array([is_mesh[a] or is_mesh[b] for a, b, _, _ in pairs], dtype=bool)
+
+
+def _effort_max(model: pin.Model, torque_limits: bool) -> FloatArray:
+    """Read-only torque limits [N*m or N], shape (nv,): the model's effort limits, ``inf``
+    where unknown or when ``torque_limits`` is off."""
+    effort = np.asarray(getattr(model, "effortLimit", np.zeros(0)), dtype=float)
+    known = np.isfinite(effort) & (effort > 0.0) & (effort < 1e300)
+    if effort.shape != (model.nv,) or not torque_limits:
+        known = np.zeros(model.nv, dtype=bool)
+        effort = np.zeros(model.nv)
+    out = np.where(known, effort, np.inf)
+    out.setflags(write=False)
+    return out
+
+
 class SafetyModel:
     """Collision geometry, environment and limits of one robot; see the module docstring.
 
@@ -525,8 +653,6 @@ class SafetyModel:
         rng: np.random.Generator | int | None = 0,
         lower_margin: bool | None = None,
     ) -> None:
-        import coal
-
         self.config = config
         self.clearance_m = float(config.clearance_m)
         # the default margin (no safety.clearance_m given) may be lowered to one the robot's
@@ -546,67 +672,28 @@ class SafetyModel:
         link_of = [model.frames[o.parentFrame].name for o in objects]
         joint_of = [int(o.parentJoint) for o in objects]
         coefficients = _motion_coefficients(model, geom, n_robot)
-        offsets = [float(np.linalg.norm(p.translation)) for p in model.jointPlacements]
-        self.reach_m = max(
-            (
-                float(coefficients[g, model.joints[1].idx_v]) + offsets[1]
-                if joint_of[g] > 0
-                else _bounding_radius(objects[g])
-                for g in range(n_robot)
-            ),
-            default=0.0,
-        )
+        self.reach_m = _reach(model, objects, joint_of, coefficients)
         if n_robot and self.clearance_m > self.reach_m:
             raise ConfigError(
                 f"safety.clearance_m = {self.clearance_m:g} m is larger than the robot's reach "
                 f"({self.reach_m:.3f} m): no posture could keep it; give a margin of a few "
                 "centimetres (default 0.03)."
             )
-        # obstacles are attached to the universe (joint 0, frame 0), fixed in the base frame
-        environment: list[str] = []
-        if config.floor.enabled:
-            floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), float(config.floor.z))
-            geom.addGeometryObject(pin.GeometryObject(FLOOR, 0, 0, pin.SE3.Identity(), floor))
-            environment.append(FLOOR)
-        for k, obstacle in enumerate(config.obstacles):
-            name = obstacle.name or f"obstacle_{k + 1}_{obstacle.kind}"
-            shape, pose = _obstacle_geometry(obstacle)
-            geom.addGeometryObject(pin.GeometryObject(name, 0, 0, pose, shape))
-            environment.append(name)
+        environment = _add_environment(geom, config)
         self.postures = self._exclusion_postures(reference_q, rng)
         excluded = (
             self._self_exclusions(robot, geom, link_of, joint_of, n_robot)
             if config.self_collision
             else {}
         )
-        candidates: list[tuple[int, int, str, str]] = []  # (geom a, geom b, pair name, kind)
-        if config.self_collision:
-            for a in range(n_robot):
-                for b in range(a + 1, n_robot):
-                    name = f"{link_of[a]}|{link_of[b]}"
-                    if (
-                        link_of[a] != link_of[b]
-                        and _pair_key(link_of[a], link_of[b]) not in excluded
-                    ):
-                        candidates.append((a, b, name, "self"))
-        for e, env_name in enumerate(environment):
-            kind = "floor" if env_name == FLOOR else "obstacle"
-            for a in range(n_robot):
-                candidates.append((a, n_robot + e, f"{link_of[a]}|{env_name}", kind))
+        candidates = _candidate_pairs(link_of, environment, excluded, config.self_collision)
         _estimate_environment(n_robot, len(environment))
         constant = self._judge_candidates(geom, candidates, home_q)
         kept = [k for k in range(len(candidates)) if k not in constant]
         self.excluded_pairs = tuple(
             ExcludedPair(f"{a}|{b}", reason) for (a, b), reason in excluded.items()
         )
-        self.constant_pairs = tuple(
-            ExcludedPair(
-                f"{objects[candidates[k][0]].name}|{candidates[k][2].split('|', 1)[1]}",
-                f"constant distance {d:.4f} m (no joint moves one relative to the other); "
-                "judged once",
-            )
-            for k, d in constant.items()
-        )
+        self.constant_pairs = _constant_pairs(objects, candidates, constant)
         geom.removeAllCollisionPairs()
         for k in kept:
             geom.addCollisionPair(pin.CollisionPair(candidates[k][0], candidates[k][1]))
@@ -614,35 +701,18 @@ class SafetyModel:
         hull = geom.clone()
         _convexify(hull)
         self.geometry_model = hull
-        geometry_pair_names = [candidates[k][2] for k in kept]
+        kept_pairs = [candidates[k] for k in kept]
+        geometry_pair_names = [pair[2] for pair in kept_pairs]
         self.pair_names: tuple[str, ...] = tuple(dict.fromkeys(geometry_pair_names))
-        kinds = {candidates[k][2]: candidates[k][3] for k in kept}
+        kinds = {pair[2]: pair[3] for pair in kept_pairs}
         self.pair_kinds: tuple[str, ...] = tuple(kinds[n] for n in self.pair_names)
         self._group = np.array([self.pair_names.index(n) for n in geometry_pair_names], dtype=int)
-        self.motion_coefficients = np.zeros((self.n_pairs, model.nv))
-        padded = np.vstack([coefficients, np.zeros((len(environment), model.nv))])
-        for p, k in enumerate(kept):
-            a, b = candidates[k][0], candidates[k][1]
-            # the joints above both bodies move them together: only the others change the
-            # pair's relative posture (for an environment pair, every joint above the link)
-            common = (padded[a] > 0.0) & (padded[b] > 0.0)
-            row = self.motion_coefficients[self._group[p]]
-            np.maximum(row, np.where(common, 0.0, padded[a] + padded[b]), out=row)
-        self.motion_coefficients.setflags(write=False)
-        # pairs where the hull and the geometry differ (a mesh on either side): the exact
-        # certificate measures them on the mesh
-        is_mesh = [isinstance(o.geometry, coal.BVHModelBase) for o in geom.geometryObjects]
-        self._mesh_pairs = np.array(
-            [is_mesh[candidates[k][0]] or is_mesh[candidates[k][1]] for k in kept], dtype=bool
+        self.motion_coefficients = _pair_motion_coefficients(
+            coefficients, len(environment), kept_pairs, self._group, self.n_pairs, model.nv
         )
+        self._mesh_pairs = _mesh_pairs(geom, kept_pairs)
         self._hull_proxy_poor = self._poor_hull_pairs()
-        effort = np.asarray(getattr(robot.model, "effortLimit", np.zeros(0)), dtype=float)
-        known = np.isfinite(effort) & (effort > 0.0) & (effort < 1e300)
-        if effort.shape != (robot.model.nv,) or not config.torque_limits:
-            known = np.zeros(robot.model.nv, dtype=bool)
-            effort = np.zeros(robot.model.nv)
-        self.effort_max: FloatArray = np.where(known, effort, np.inf)
-        self.effort_max.setflags(write=False)
+        self.effort_max: FloatArray = _effort_max(robot.model, config.torque_limits)
 
         self._prepare_fast()
 
