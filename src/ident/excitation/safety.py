@@ -608,6 +608,51 @@ def _effort_max(model: pin.Model, torque_limits: bool) -> FloatArray:
     return out
 
 
+def _adjacent_pairs(
+    parents: Sequence[int], link_of: Sequence[str], joint_of: Sequence[int], n_robot: int
+) -> tuple[dict[tuple[str, str], str], dict[tuple[str, str], list[tuple[int, int]]]]:
+    """The robot's link pairs (keyed by the sorted link names) that are adjacent or hold a
+    payload, with the reason, and the geometry object pairs ``(a, b)`` of every link pair
+    (``link_of``, ``joint_of``: the link and parent joint of each of the ``n_robot`` robot
+    objects; ``parents``: each joint's parent joint)."""
+    excluded: dict[tuple[str, str], str] = {}
+    geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]] = {}
+    for a in range(n_robot):
+        for b in range(a + 1, n_robot):
+            if link_of[a] == link_of[b]:
+                continue
+            key = _pair_key(link_of[a], link_of[b])
+            ja, jb = joint_of[a], joint_of[b]
+            # a payload's box is checked against the links next to it: only the links
+            # it is fixed to (the same joint) are excluded
+            next_to = PAYLOAD not in key and (parents[ja] == jb or parents[jb] == ja)
+            if ja == jb and PAYLOAD in key:
+                excluded.setdefault(key, "payload attached (fixed to this link)")
+            elif ja == jb or next_to:
+                excluded.setdefault(key, "adjacent")
+            geometry_pairs.setdefault(key, []).append((a, b))
+    return excluded, geometry_pairs
+
+
+def _add_srdf_exclusions(excluded: dict[tuple[str, str], str], srdf: Path, links: set[str]) -> None:
+    """Add to ``excluded`` the pairs of ``links`` the SRDF disables (not already excluded)."""
+    for first, second, reason in _read_srdf(srdf):
+        key = _pair_key(first, second)
+        if first in links and second in links and key not in excluded:
+            excluded[key] = f"SRDF ({reason})"
+
+
+def _flat_pairs(
+    tested: Sequence[tuple[str, str]],
+    geometry_pairs: Mapping[tuple[str, str], list[tuple[int, int]]],
+) -> tuple[list[tuple[int, int]], npt.NDArray[np.int64]]:
+    """The geometry object pairs of the ``tested`` link pairs, in order, and the index in
+    ``tested`` of the link pair each belongs to."""
+    pairs = [ab for k in tested for ab in geometry_pairs[k]]
+    owner = np.array([i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int)
+    return pairs, owner
+
+
 class SafetyModel:
     """Collision geometry, environment and limits of one robot; see the module docstring.
 
@@ -733,33 +778,29 @@ class SafetyModel:
         is closer than the margin in every posture is an input error.
         """
         parents = list(self.model.parents)
-        excluded: dict[tuple[str, str], str] = {}
-        geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]] = {}
-        for a in range(n_robot):
-            for b in range(a + 1, n_robot):
-                if link_of[a] == link_of[b]:
-                    continue
-                key = _pair_key(link_of[a], link_of[b])
-                ja, jb = joint_of[a], joint_of[b]
-                # a payload's box is checked against the links next to it: only the links
-                # it is fixed to (the same joint) are excluded
-                next_to = PAYLOAD not in key and (parents[ja] == jb or parents[jb] == ja)
-                if ja == jb and PAYLOAD in key:
-                    excluded.setdefault(key, "payload attached (fixed to this link)")
-                elif ja == jb or next_to:
-                    excluded.setdefault(key, "adjacent")
-                geometry_pairs.setdefault(key, []).append((a, b))
+        excluded, geometry_pairs = _adjacent_pairs(parents, link_of, joint_of, n_robot)
         if self.config.srdf is not None:
-            links = set(link_of)
-            for first, second, reason in _read_srdf(Path(self.config.srdf)):
-                key = _pair_key(first, second)
-                if first in links and second in links and key not in excluded:
-                    excluded[key] = f"SRDF ({reason})"
+            _add_srdf_exclusions(excluded, Path(self.config.srdf), set(link_of))
         tested = [k for k in geometry_pairs if k not in excluded]
         if not tested:
             return excluded
-        pairs = [ab for k in tested for ab in geometry_pairs[k]]
-        owner = np.array([i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int)
+        self._add_contact_exclusions(excluded, geom, tested, geometry_pairs)
+        if self.clearance_m > 0.0:
+            tested = [k for k in tested if k not in excluded]
+            self._settle_margin(geom, tested, geometry_pairs)
+        return excluded
+
+    def _add_contact_exclusions(
+        self,
+        excluded: dict[tuple[str, str], str],
+        geom: pin.GeometryModel,
+        tested: list[tuple[str, str]],
+        geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+    ) -> None:
+        """Add to ``excluded`` the ``tested`` link pairs in contact (exact geometry) in the
+        reference posture, or in at least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random
+        ones (``geometry_pairs``: the geometry object pairs of each link pair)."""
+        pairs, owner = _flat_pairs(tested, geometry_pairs)
         contact = self._collisions(geom, pairs, self.postures, margin=0.0)  # (n, n_pairs)
         by_link = np.zeros((contact.shape[0], len(tested)), dtype=bool)
         np.logical_or.at(by_link.T, owner, contact.T)
@@ -774,45 +815,52 @@ class SafetyModel:
                 excluded[key] = (
                     f"always in contact (in {100 * fraction:.1f} % of {n_random} random postures)"
                 )
-        if self.clearance_m > 0.0:
-            tested = [k for k in tested if k not in excluded]
-            pairs = [ab for k in tested for ab in geometry_pairs[k]]
-            owner = np.array(
-                [i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int
+
+    def _settle_margin(
+        self,
+        geom: pin.GeometryModel,
+        tested: list[tuple[str, str]],
+        geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+    ) -> None:
+        """Check that every ``tested`` link pair can keep the margin in some posture.
+
+        A margin the user did not choose is lowered (halved, down to
+        :data:`MIN_LOWERED_CLEARANCE_M`) until they can (``clearance_m`` and ``margin_note``
+        updated); a pair closer than the margin in every posture is a :class:`ConfigError`.
+        """
+        pairs, owner = _flat_pairs(tested, geometry_pairs)
+        always = self._always_within(geom, pairs, owner, len(tested), self.clearance_m)
+        margin = self.clearance_m
+        # a margin the user did not choose is lowered (halved, down to 2 mm) until every
+        # pair can keep it in some posture; a chosen one is an input error below
+        while self.lower_margin and always.any() and margin / 2.0 >= MIN_LOWERED_CLEARANCE_M:
+            margin /= 2.0
+            always = self._always_within(geom, pairs, owner, len(tested), margin)
+        if margin < self.clearance_m and not always.any():
+            close = ", ".join(
+                f"{a}-{b}"
+                for (a, b), hit in zip(
+                    tested,
+                    self._always_within(geom, pairs, owner, len(tested), self.clearance_m),
+                    strict=True,
+                )
+                if hit
             )
-            always = self._always_within(geom, pairs, owner, len(tested), self.clearance_m)
-            margin = self.clearance_m
-            # a margin the user did not choose is lowered (halved, down to 2 mm) until every
-            # pair can keep it in some posture; a chosen one is an input error below
-            while self.lower_margin and always.any() and margin / 2.0 >= MIN_LOWERED_CLEARANCE_M:
-                margin /= 2.0
-                always = self._always_within(geom, pairs, owner, len(tested), margin)
-            if margin < self.clearance_m and not always.any():
-                close = ", ".join(
-                    f"{a}-{b}"
-                    for (a, b), hit in zip(
-                        tested,
-                        self._always_within(geom, pairs, owner, len(tested), self.clearance_m),
-                        strict=True,
-                    )
-                    if hit
+            self.margin_note = (
+                f"safety margin lowered from the default {self.clearance_m:g} m to "
+                f"{margin:g} m: the links {close} are closer than the default in every "
+                "sampled posture (set safety.clearance_m to choose the margin)"
+            )
+            self.clearance_m = margin
+        for i, key in enumerate(tested):
+            if always[i]:
+                raise ConfigError(
+                    f"safety.clearance_m = {self.clearance_m:g} m: the links {key[0]} and "
+                    f"{key[1]} are closer than that in every one of "
+                    f"{self.postures.shape[0]} postures (the reference and random ones), so "
+                    "no trajectory can keep it; lower safety.clearance_m, or disable the "
+                    "pair in a MoveIt SRDF (safety.srdf) if they may touch."
                 )
-                self.margin_note = (
-                    f"safety margin lowered from the default {self.clearance_m:g} m to "
-                    f"{margin:g} m: the links {close} are closer than the default in every "
-                    "sampled posture (set safety.clearance_m to choose the margin)"
-                )
-                self.clearance_m = margin
-            for i, key in enumerate(tested):
-                if always[i]:
-                    raise ConfigError(
-                        f"safety.clearance_m = {self.clearance_m:g} m: the links {key[0]} and "
-                        f"{key[1]} are closer than that in every one of "
-                        f"{self.postures.shape[0]} postures (the reference and random ones), so "
-                        "no trajectory can keep it; lower safety.clearance_m, or disable the "
-                        "pair in a MoveIt SRDF (safety.srdf) if they may touch."
-                    )
-        return excluded
 
     def _always_within(
         self,
