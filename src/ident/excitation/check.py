@@ -26,6 +26,7 @@ Where the samples come from (say which, :attr:`SafetyReport.resampling`):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -354,24 +355,65 @@ def check_trajectory(
     del robot  # the safety model carries the robot's model, names and limits
     if not rate_hz >= MIN_CHECK_RATE_HZ:
         raise ValueError(f"rate_hz must be >= {MIN_CHECK_RATE_HZ:g} Hz, got {rate_hz}")
-    t = np.asarray(t, dtype=float)
-    q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
-    nq = safety.limits.nq
-    if t.ndim != 1 or any(a.shape != (t.shape[0], nq) for a in (q, dq, ddq)):
-        raise ValueError(
-            f"t must have shape (n,) and q, dq, ddq shape (n, {nq}); got {t.shape}, "
-            f"{q.shape}, {dq.shape}, {ddq.shape}"
-        )
+    t, q, dq, ddq = _checked_arrays(safety.limits.nq, t, q, dq, ddq)
     finite = bool(np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.isfinite(ddq)))
     resampling = "none"
     if t.shape[0] > 1 and finite and np.max(np.diff(t)) > (1.0 + 1e-9) / rate_hz:
         t, q, dq, ddq = _resample(t, q, dq, ddq, rate_hz)
         resampling = "cubic_hermite"
     limits = safety.limits
-    names = limits.joint_names
-    checks: list[ConstraintCheck] = []
-
     clearance, between = certified_clearances(safety, t, q, dq, ddq)
+    checks = _clearance_checks(safety, t, clearance, between)
+    checks += _position_checks(limits, t, q, finite)
+    velocity_ratio = _ratio(dq, limits.dq_max)
+    acceleration_ratio = _ratio(ddq, limits.ddq_max)
+    if finite:
+        tau = joint_torques(safety.robot_model, q, dq, ddq)
+    else:
+        tau = np.full(dq.shape, np.inf)
+    torque_ratio = _ratio(tau, safety.effort_max)
+    for kind, series, limit, ratio in (
+        ("velocity", dq, limits.dq_max, velocity_ratio),
+        ("acceleration", ddq, limits.ddq_max, acceleration_ratio),
+        ("torque", tau, safety.effort_max, torque_ratio),
+    ):
+        checks += _peak_checks(kind, limits.joint_names, t, series, limit, ratio, finite)
+    usable = finite and all(c.ok for c in checks)
+    return SafetyReport(
+        usable=bool(usable),
+        rate_hz=float(rate_hz),
+        resampling=resampling,
+        t=t,
+        pair_names=safety.pair_names,
+        clearance=clearance,
+        velocity_ratio=velocity_ratio,
+        acceleration_ratio=acceleration_ratio,
+        torque_ratio=torque_ratio,
+        checks=tuple(checks),
+        not_checked=_not_checked(safety),
+    )
+
+
+def _checked_arrays(
+    nq: int, t: npt.ArrayLike, q: npt.ArrayLike, dq: npt.ArrayLike, ddq: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``t`` shape (n,) and ``q, dq, ddq`` shape (n, nq) as float arrays; ValueError otherwise."""
+    t = np.asarray(t, dtype=float)
+    q, dq, ddq = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, dq, ddq))
+    if t.ndim != 1 or any(a.shape != (t.shape[0], nq) for a in (q, dq, ddq)):
+        raise ValueError(
+            f"t must have shape (n,) and q, dq, ddq shape (n, {nq}); got {t.shape}, "
+            f"{q.shape}, {dq.shape}, {ddq.shape}"
+        )
+    return t, q, dq, ddq
+
+
+def _clearance_checks(
+    safety: SafetyModel, t: FloatArray, clearance: FloatArray, between: FloatArray
+) -> list[ConstraintCheck]:
+    """The smallest clearance [m] of every checked pair, at the samples (shape (n, n_pairs))
+    or certified ``between`` them (shape (n_pairs,)), against the safety margin."""
+    checks = []
     for k, pair in enumerate(safety.pair_names):
         i = int(np.argmin(clearance[:, k]))
         value = float(clearance[i, k])
@@ -387,10 +429,19 @@ def check_trajectory(
                 between=float(between[k]),
             )  # fmt: skip
         )
+    return checks
+
+
+def _position_checks(
+    limits: Any, t: FloatArray, q: FloatArray, finite: bool
+) -> list[ConstraintCheck]:
+    """The sample of every joint with a position limit that comes nearest to (or furthest
+    past) it; an infinite excess when a state is not finite."""
     lower, upper = limits.q_lower, limits.q_upper
     with np.errstate(invalid="ignore"):
         past = np.maximum(q - upper, lower - q)
-    for j, joint in enumerate(names):
+    checks = []
+    for j, joint in enumerate(limits.joint_names):
         if not (np.isfinite(lower[j]) or np.isfinite(upper[j])):
             continue
         i = int(np.nanargmax(past[:, j])) if finite else 0
@@ -401,51 +452,47 @@ def check_trajectory(
                 f"position:{joint}", "position", float(q[i, j]), float(bound), float(t[i]), excess
             )  # fmt: skip
         )
-    velocity_ratio = _ratio(dq, limits.dq_max)
-    acceleration_ratio = _ratio(ddq, limits.ddq_max)
-    if finite:
-        tau = joint_torques(safety.robot_model, q, dq, ddq)
-    else:
-        tau = np.full(dq.shape, np.inf)
-    torque_ratio = _ratio(tau, safety.effort_max)
-    for kind, series, limit, ratio in (
-        ("velocity", dq, limits.dq_max, velocity_ratio),
-        ("acceleration", ddq, limits.ddq_max, acceleration_ratio),
-        ("torque", tau, safety.effort_max, torque_ratio),
-    ):
-        for j, joint in enumerate(names):
-            if not np.isfinite(limit[j]):
-                continue
-            i = int(np.argmax(ratio[:, j])) if finite else 0
-            peak = float(abs(series[i, j])) if finite else float("inf")
-            checks.append(
-                ConstraintCheck(
-                    f"{kind}:{joint}",
-                    kind,
-                    peak,
-                    float(limit[j]),
-                    float(t[i]),
-                    peak - float(limit[j]),
-                    peak / float(limit[j]),
-                )  # fmt: skip
-            )
-    usable = finite and all(c.ok for c in checks)
-    return SafetyReport(
-        usable=bool(usable),
-        rate_hz=float(rate_hz),
-        resampling=resampling,
-        t=t,
-        pair_names=safety.pair_names,
-        clearance=clearance,
-        velocity_ratio=velocity_ratio,
-        acceleration_ratio=acceleration_ratio,
-        torque_ratio=torque_ratio,
-        checks=tuple(checks),
-        not_checked=tuple(
-            (e.pair, e.reason)
-            for e in (
-                *getattr(safety, "excluded_pairs", ()),
-                *getattr(safety, "constant_pairs", ()),
-            )
-        ),
+    return checks
+
+
+def _peak_checks(
+    kind: str,
+    names: Sequence[str],
+    t: FloatArray,
+    series: FloatArray,
+    limit: FloatArray,
+    ratio: FloatArray,
+    finite: bool,
+) -> list[ConstraintCheck]:
+    """The peak of ``|series|`` (shape (n, nq)) of every joint with a finite ``limit``, as a
+    ``kind`` check (``ratio``: ``|series| / limit``); an infinite peak when a state is not
+    finite."""
+    checks = []
+    for j, joint in enumerate(names):
+        if not np.isfinite(limit[j]):
+            continue
+        i = int(np.argmax(ratio[:, j])) if finite else 0
+        peak = float(abs(series[i, j])) if finite else float("inf")
+        checks.append(
+            ConstraintCheck(
+                f"{kind}:{joint}",
+                kind,
+                peak,
+                float(limit[j]),
+                float(t[i]),
+                peak - float(limit[j]),
+                peak / float(limit[j]),
+            )  # fmt: skip
+        )
+    return checks
+
+
+def _not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
+    """``(pair, reason)`` of the safety model's excluded and constant-distance pairs."""
+    return tuple(
+        (e.pair, e.reason)
+        for e in (
+            *getattr(safety, "excluded_pairs", ()),
+            *getattr(safety, "constant_pairs", ()),
+        )
     )

@@ -480,6 +480,179 @@ def _motion_coefficients(model: pin.Model, geom: pin.GeometryModel, n_robot: int
     return out
 
 
+def _reach(
+    model: pin.Model,
+    objects: Sequence[pin.GeometryObject],
+    joint_of: Sequence[int],
+    coefficients: FloatArray,
+) -> float:
+    """A bound [m] on the distance of any point of the robot from its base: for each of the
+    robot's objects (``joint_of``: its parent joint), the first joint's offset plus the
+    object's motion coefficient about it, or its bounding radius when fixed to the base."""
+    offsets = [float(np.linalg.norm(p.translation)) for p in model.jointPlacements]
+    return max(
+        (
+            float(coefficients[g, model.joints[1].idx_v]) + offsets[1]
+            if joint_of[g] > 0
+            else _bounding_radius(objects[g])
+            for g in range(len(joint_of))
+        ),
+        default=0.0,
+    )
+
+
+def _add_environment(geom: pin.GeometryModel, config: SafetyConfig) -> list[str]:
+    """Add the floor and the obstacles of ``config`` to ``geom``; their names, in order.
+
+    Obstacles are attached to the universe (joint 0, frame 0), fixed in the base frame.
+    """
+    import coal
+
+    environment: list[str] = []
+    if config.floor.enabled:
+        floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), float(config.floor.z))
+        geom.addGeometryObject(pin.GeometryObject(FLOOR, 0, 0, pin.SE3.Identity(), floor))
+        environment.append(FLOOR)
+    for k, obstacle in enumerate(config.obstacles):
+        name = obstacle.name or f"obstacle_{k + 1}_{obstacle.kind}"
+        shape, pose = _obstacle_geometry(obstacle)
+        geom.addGeometryObject(pin.GeometryObject(name, 0, 0, pose, shape))
+        environment.append(name)
+    return environment
+
+
+def _candidate_pairs(
+    link_of: Sequence[str],
+    environment: Sequence[str],
+    excluded: Mapping[tuple[str, str], str],
+    self_collision: bool,
+) -> list[tuple[int, int, str, str]]:
+    """``(geom a, geom b, pair name, kind)`` of every pair that may be checked: the robot's
+    link pairs not ``excluded`` (with ``self_collision``), then every robot object against
+    each environment object (numbered after the ``len(link_of)`` robot objects)."""
+    n_robot = len(link_of)
+    candidates: list[tuple[int, int, str, str]] = []
+    if self_collision:
+        for a in range(n_robot):
+            for b in range(a + 1, n_robot):
+                name = f"{link_of[a]}|{link_of[b]}"
+                if link_of[a] != link_of[b] and _pair_key(link_of[a], link_of[b]) not in excluded:
+                    candidates.append((a, b, name, "self"))
+    for e, env_name in enumerate(environment):
+        kind = "floor" if env_name == FLOOR else "obstacle"
+        for a in range(n_robot):
+            candidates.append((a, n_robot + e, f"{link_of[a]}|{env_name}", kind))
+    return candidates
+
+
+def _constant_pairs(
+    objects: Sequence[pin.GeometryObject],
+    candidates: Sequence[tuple[int, int, str, str]],
+    constant: Mapping[int, float],
+) -> tuple[ExcludedPair, ...]:
+    """The ``candidates`` no motion changes (``constant``: candidate index -> distance [m]),
+    named by the robot object and the environment object."""
+    return tuple(
+        ExcludedPair(
+            f"{objects[candidates[k][0]].name}|{candidates[k][2].split('|', 1)[1]}",
+            f"constant distance {d:.4f} m (no joint moves one relative to the other); judged once",
+        )
+        for k, d in constant.items()
+    )
+
+
+def _pair_motion_coefficients(
+    coefficients: FloatArray,
+    n_environment: int,
+    pairs: Sequence[tuple[int, int, str, str]],
+    group: npt.NDArray[np.int64],
+    n_pairs: int,
+    nv: int,
+) -> FloatArray:
+    """Read-only shape (n_pairs, nv): per checked pair, the largest over its geometry
+    ``pairs`` (row ``group[p]``) of the robot objects' ``coefficients`` (shape
+    (n_robot, nv); 0 for the environment) of the joints that move one side but not both."""
+    out = np.zeros((n_pairs, nv))
+    padded = np.vstack([coefficients, np.zeros((n_environment, nv))])
+    for p, (a, b, _, _) in enumerate(pairs):
+        # the joints above both bodies move them together: only the others change the
+        # pair's relative posture (for an environment pair, every joint above the link)
+        common = (padded[a] > 0.0) & (padded[b] > 0.0)
+        row = out[group[p]]
+        np.maximum(row, np.where(common, 0.0, padded[a] + padded[b]), out=row)
+    out.setflags(write=False)
+    return out
+
+
+def _mesh_pairs(
+    geom: pin.GeometryModel, pairs: Sequence[tuple[int, int, str, str]]
+) -> npt.NDArray[np.bool_]:
+    """Per geometry pair, whether a mesh is on either side (where the hull and the geometry
+    differ: the exact certificate measures them on the mesh)."""
+    import coal
+
+    is_mesh = [isinstance(o.geometry, coal.BVHModelBase) for o in geom.geometryObjects]
+    return np.array([is_mesh[a] or is_mesh[b] for a, b, _, _ in pairs], dtype=bool)
+
+
+def _effort_max(model: pin.Model, torque_limits: bool) -> FloatArray:
+    """Read-only torque limits [N*m or N], shape (nv,): the model's effort limits, ``inf``
+    where unknown or when ``torque_limits`` is off."""
+    effort = np.asarray(getattr(model, "effortLimit", np.zeros(0)), dtype=float)
+    known = np.isfinite(effort) & (effort > 0.0) & (effort < 1e300)
+    if effort.shape != (model.nv,) or not torque_limits:
+        known = np.zeros(model.nv, dtype=bool)
+        effort = np.zeros(model.nv)
+    out = np.where(known, effort, np.inf)
+    out.setflags(write=False)
+    return out
+
+
+def _adjacent_pairs(
+    parents: Sequence[int], link_of: Sequence[str], joint_of: Sequence[int], n_robot: int
+) -> tuple[dict[tuple[str, str], str], dict[tuple[str, str], list[tuple[int, int]]]]:
+    """The robot's link pairs (keyed by the sorted link names) that are adjacent or hold a
+    payload, with the reason, and the geometry object pairs ``(a, b)`` of every link pair
+    (``link_of``, ``joint_of``: the link and parent joint of each of the ``n_robot`` robot
+    objects; ``parents``: each joint's parent joint)."""
+    excluded: dict[tuple[str, str], str] = {}
+    geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]] = {}
+    for a in range(n_robot):
+        for b in range(a + 1, n_robot):
+            if link_of[a] == link_of[b]:
+                continue
+            key = _pair_key(link_of[a], link_of[b])
+            ja, jb = joint_of[a], joint_of[b]
+            # a payload's box is checked against the links next to it: only the links
+            # it is fixed to (the same joint) are excluded
+            next_to = PAYLOAD not in key and (parents[ja] == jb or parents[jb] == ja)
+            if ja == jb and PAYLOAD in key:
+                excluded.setdefault(key, "payload attached (fixed to this link)")
+            elif ja == jb or next_to:
+                excluded.setdefault(key, "adjacent")
+            geometry_pairs.setdefault(key, []).append((a, b))
+    return excluded, geometry_pairs
+
+
+def _add_srdf_exclusions(excluded: dict[tuple[str, str], str], srdf: Path, links: set[str]) -> None:
+    """Add to ``excluded`` the pairs of ``links`` the SRDF disables (not already excluded)."""
+    for first, second, reason in _read_srdf(srdf):
+        key = _pair_key(first, second)
+        if first in links and second in links and key not in excluded:
+            excluded[key] = f"SRDF ({reason})"
+
+
+def _flat_pairs(
+    tested: Sequence[tuple[str, str]],
+    geometry_pairs: Mapping[tuple[str, str], list[tuple[int, int]]],
+) -> tuple[list[tuple[int, int]], npt.NDArray[np.int64]]:
+    """The geometry object pairs of the ``tested`` link pairs, in order, and the index in
+    ``tested`` of the link pair each belongs to."""
+    pairs = [ab for k in tested for ab in geometry_pairs[k]]
+    owner = np.array([i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int)
+    return pairs, owner
+
+
 class SafetyModel:
     """Collision geometry, environment and limits of one robot; see the module docstring.
 
@@ -525,8 +698,6 @@ class SafetyModel:
         rng: np.random.Generator | int | None = 0,
         lower_margin: bool | None = None,
     ) -> None:
-        import coal
-
         self.config = config
         self.clearance_m = float(config.clearance_m)
         # the default margin (no safety.clearance_m given) may be lowered to one the robot's
@@ -546,67 +717,28 @@ class SafetyModel:
         link_of = [model.frames[o.parentFrame].name for o in objects]
         joint_of = [int(o.parentJoint) for o in objects]
         coefficients = _motion_coefficients(model, geom, n_robot)
-        offsets = [float(np.linalg.norm(p.translation)) for p in model.jointPlacements]
-        self.reach_m = max(
-            (
-                float(coefficients[g, model.joints[1].idx_v]) + offsets[1]
-                if joint_of[g] > 0
-                else _bounding_radius(objects[g])
-                for g in range(n_robot)
-            ),
-            default=0.0,
-        )
+        self.reach_m = _reach(model, objects, joint_of, coefficients)
         if n_robot and self.clearance_m > self.reach_m:
             raise ConfigError(
                 f"safety.clearance_m = {self.clearance_m:g} m is larger than the robot's reach "
                 f"({self.reach_m:.3f} m): no posture could keep it; give a margin of a few "
                 "centimetres (default 0.03)."
             )
-        # obstacles are attached to the universe (joint 0, frame 0), fixed in the base frame
-        environment: list[str] = []
-        if config.floor.enabled:
-            floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), float(config.floor.z))
-            geom.addGeometryObject(pin.GeometryObject(FLOOR, 0, 0, pin.SE3.Identity(), floor))
-            environment.append(FLOOR)
-        for k, obstacle in enumerate(config.obstacles):
-            name = obstacle.name or f"obstacle_{k + 1}_{obstacle.kind}"
-            shape, pose = _obstacle_geometry(obstacle)
-            geom.addGeometryObject(pin.GeometryObject(name, 0, 0, pose, shape))
-            environment.append(name)
+        environment = _add_environment(geom, config)
         self.postures = self._exclusion_postures(reference_q, rng)
         excluded = (
             self._self_exclusions(robot, geom, link_of, joint_of, n_robot)
             if config.self_collision
             else {}
         )
-        candidates: list[tuple[int, int, str, str]] = []  # (geom a, geom b, pair name, kind)
-        if config.self_collision:
-            for a in range(n_robot):
-                for b in range(a + 1, n_robot):
-                    name = f"{link_of[a]}|{link_of[b]}"
-                    if (
-                        link_of[a] != link_of[b]
-                        and _pair_key(link_of[a], link_of[b]) not in excluded
-                    ):
-                        candidates.append((a, b, name, "self"))
-        for e, env_name in enumerate(environment):
-            kind = "floor" if env_name == FLOOR else "obstacle"
-            for a in range(n_robot):
-                candidates.append((a, n_robot + e, f"{link_of[a]}|{env_name}", kind))
+        candidates = _candidate_pairs(link_of, environment, excluded, config.self_collision)
         _estimate_environment(n_robot, len(environment))
         constant = self._judge_candidates(geom, candidates, home_q)
         kept = [k for k in range(len(candidates)) if k not in constant]
         self.excluded_pairs = tuple(
             ExcludedPair(f"{a}|{b}", reason) for (a, b), reason in excluded.items()
         )
-        self.constant_pairs = tuple(
-            ExcludedPair(
-                f"{objects[candidates[k][0]].name}|{candidates[k][2].split('|', 1)[1]}",
-                f"constant distance {d:.4f} m (no joint moves one relative to the other); "
-                "judged once",
-            )
-            for k, d in constant.items()
-        )
+        self.constant_pairs = _constant_pairs(objects, candidates, constant)
         geom.removeAllCollisionPairs()
         for k in kept:
             geom.addCollisionPair(pin.CollisionPair(candidates[k][0], candidates[k][1]))
@@ -614,35 +746,18 @@ class SafetyModel:
         hull = geom.clone()
         _convexify(hull)
         self.geometry_model = hull
-        geometry_pair_names = [candidates[k][2] for k in kept]
+        kept_pairs = [candidates[k] for k in kept]
+        geometry_pair_names = [pair[2] for pair in kept_pairs]
         self.pair_names: tuple[str, ...] = tuple(dict.fromkeys(geometry_pair_names))
-        kinds = {candidates[k][2]: candidates[k][3] for k in kept}
+        kinds = {pair[2]: pair[3] for pair in kept_pairs}
         self.pair_kinds: tuple[str, ...] = tuple(kinds[n] for n in self.pair_names)
         self._group = np.array([self.pair_names.index(n) for n in geometry_pair_names], dtype=int)
-        self.motion_coefficients = np.zeros((self.n_pairs, model.nv))
-        padded = np.vstack([coefficients, np.zeros((len(environment), model.nv))])
-        for p, k in enumerate(kept):
-            a, b = candidates[k][0], candidates[k][1]
-            # the joints above both bodies move them together: only the others change the
-            # pair's relative posture (for an environment pair, every joint above the link)
-            common = (padded[a] > 0.0) & (padded[b] > 0.0)
-            row = self.motion_coefficients[self._group[p]]
-            np.maximum(row, np.where(common, 0.0, padded[a] + padded[b]), out=row)
-        self.motion_coefficients.setflags(write=False)
-        # pairs where the hull and the geometry differ (a mesh on either side): the exact
-        # certificate measures them on the mesh
-        is_mesh = [isinstance(o.geometry, coal.BVHModelBase) for o in geom.geometryObjects]
-        self._mesh_pairs = np.array(
-            [is_mesh[candidates[k][0]] or is_mesh[candidates[k][1]] for k in kept], dtype=bool
+        self.motion_coefficients = _pair_motion_coefficients(
+            coefficients, len(environment), kept_pairs, self._group, self.n_pairs, model.nv
         )
+        self._mesh_pairs = _mesh_pairs(geom, kept_pairs)
         self._hull_proxy_poor = self._poor_hull_pairs()
-        effort = np.asarray(getattr(robot.model, "effortLimit", np.zeros(0)), dtype=float)
-        known = np.isfinite(effort) & (effort > 0.0) & (effort < 1e300)
-        if effort.shape != (robot.model.nv,) or not config.torque_limits:
-            known = np.zeros(robot.model.nv, dtype=bool)
-            effort = np.zeros(robot.model.nv)
-        self.effort_max: FloatArray = np.where(known, effort, np.inf)
-        self.effort_max.setflags(write=False)
+        self.effort_max: FloatArray = _effort_max(robot.model, config.torque_limits)
 
         self._prepare_fast()
 
@@ -663,33 +778,29 @@ class SafetyModel:
         is closer than the margin in every posture is an input error.
         """
         parents = list(self.model.parents)
-        excluded: dict[tuple[str, str], str] = {}
-        geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]] = {}
-        for a in range(n_robot):
-            for b in range(a + 1, n_robot):
-                if link_of[a] == link_of[b]:
-                    continue
-                key = _pair_key(link_of[a], link_of[b])
-                ja, jb = joint_of[a], joint_of[b]
-                # a payload's box is checked against the links next to it: only the links
-                # it is fixed to (the same joint) are excluded
-                next_to = PAYLOAD not in key and (parents[ja] == jb or parents[jb] == ja)
-                if ja == jb and PAYLOAD in key:
-                    excluded.setdefault(key, "payload attached (fixed to this link)")
-                elif ja == jb or next_to:
-                    excluded.setdefault(key, "adjacent")
-                geometry_pairs.setdefault(key, []).append((a, b))
+        excluded, geometry_pairs = _adjacent_pairs(parents, link_of, joint_of, n_robot)
         if self.config.srdf is not None:
-            links = set(link_of)
-            for first, second, reason in _read_srdf(Path(self.config.srdf)):
-                key = _pair_key(first, second)
-                if first in links and second in links and key not in excluded:
-                    excluded[key] = f"SRDF ({reason})"
+            _add_srdf_exclusions(excluded, Path(self.config.srdf), set(link_of))
         tested = [k for k in geometry_pairs if k not in excluded]
         if not tested:
             return excluded
-        pairs = [ab for k in tested for ab in geometry_pairs[k]]
-        owner = np.array([i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int)
+        self._add_contact_exclusions(excluded, geom, tested, geometry_pairs)
+        if self.clearance_m > 0.0:
+            tested = [k for k in tested if k not in excluded]
+            self._settle_margin(geom, tested, geometry_pairs)
+        return excluded
+
+    def _add_contact_exclusions(
+        self,
+        excluded: dict[tuple[str, str], str],
+        geom: pin.GeometryModel,
+        tested: list[tuple[str, str]],
+        geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+    ) -> None:
+        """Add to ``excluded`` the ``tested`` link pairs in contact (exact geometry) in the
+        reference posture, or in at least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random
+        ones (``geometry_pairs``: the geometry object pairs of each link pair)."""
+        pairs, owner = _flat_pairs(tested, geometry_pairs)
         contact = self._collisions(geom, pairs, self.postures, margin=0.0)  # (n, n_pairs)
         by_link = np.zeros((contact.shape[0], len(tested)), dtype=bool)
         np.logical_or.at(by_link.T, owner, contact.T)
@@ -704,45 +815,52 @@ class SafetyModel:
                 excluded[key] = (
                     f"always in contact (in {100 * fraction:.1f} % of {n_random} random postures)"
                 )
-        if self.clearance_m > 0.0:
-            tested = [k for k in tested if k not in excluded]
-            pairs = [ab for k in tested for ab in geometry_pairs[k]]
-            owner = np.array(
-                [i for i, k in enumerate(tested) for _ in geometry_pairs[k]], dtype=int
+
+    def _settle_margin(
+        self,
+        geom: pin.GeometryModel,
+        tested: list[tuple[str, str]],
+        geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+    ) -> None:
+        """Check that every ``tested`` link pair can keep the margin in some posture.
+
+        A margin the user did not choose is lowered (halved, down to
+        :data:`MIN_LOWERED_CLEARANCE_M`) until they can (``clearance_m`` and ``margin_note``
+        updated); a pair closer than the margin in every posture is a :class:`ConfigError`.
+        """
+        pairs, owner = _flat_pairs(tested, geometry_pairs)
+        always = self._always_within(geom, pairs, owner, len(tested), self.clearance_m)
+        margin = self.clearance_m
+        # a margin the user did not choose is lowered (halved, down to 2 mm) until every
+        # pair can keep it in some posture; a chosen one is an input error below
+        while self.lower_margin and always.any() and margin / 2.0 >= MIN_LOWERED_CLEARANCE_M:
+            margin /= 2.0
+            always = self._always_within(geom, pairs, owner, len(tested), margin)
+        if margin < self.clearance_m and not always.any():
+            close = ", ".join(
+                f"{a}-{b}"
+                for (a, b), hit in zip(
+                    tested,
+                    self._always_within(geom, pairs, owner, len(tested), self.clearance_m),
+                    strict=True,
+                )
+                if hit
             )
-            always = self._always_within(geom, pairs, owner, len(tested), self.clearance_m)
-            margin = self.clearance_m
-            # a margin the user did not choose is lowered (halved, down to 2 mm) until every
-            # pair can keep it in some posture; a chosen one is an input error below
-            while self.lower_margin and always.any() and margin / 2.0 >= MIN_LOWERED_CLEARANCE_M:
-                margin /= 2.0
-                always = self._always_within(geom, pairs, owner, len(tested), margin)
-            if margin < self.clearance_m and not always.any():
-                close = ", ".join(
-                    f"{a}-{b}"
-                    for (a, b), hit in zip(
-                        tested,
-                        self._always_within(geom, pairs, owner, len(tested), self.clearance_m),
-                        strict=True,
-                    )
-                    if hit
+            self.margin_note = (
+                f"safety margin lowered from the default {self.clearance_m:g} m to "
+                f"{margin:g} m: the links {close} are closer than the default in every "
+                "sampled posture (set safety.clearance_m to choose the margin)"
+            )
+            self.clearance_m = margin
+        for i, key in enumerate(tested):
+            if always[i]:
+                raise ConfigError(
+                    f"safety.clearance_m = {self.clearance_m:g} m: the links {key[0]} and "
+                    f"{key[1]} are closer than that in every one of "
+                    f"{self.postures.shape[0]} postures (the reference and random ones), so "
+                    "no trajectory can keep it; lower safety.clearance_m, or disable the "
+                    "pair in a MoveIt SRDF (safety.srdf) if they may touch."
                 )
-                self.margin_note = (
-                    f"safety margin lowered from the default {self.clearance_m:g} m to "
-                    f"{margin:g} m: the links {close} are closer than the default in every "
-                    "sampled posture (set safety.clearance_m to choose the margin)"
-                )
-                self.clearance_m = margin
-            for i, key in enumerate(tested):
-                if always[i]:
-                    raise ConfigError(
-                        f"safety.clearance_m = {self.clearance_m:g} m: the links {key[0]} and "
-                        f"{key[1]} are closer than that in every one of "
-                        f"{self.postures.shape[0]} postures (the reference and random ones), so "
-                        "no trajectory can keep it; lower safety.clearance_m, or disable the "
-                        "pair in a MoveIt SRDF (safety.srdf) if they may touch."
-                    )
-        return excluded
 
     def _always_within(
         self,

@@ -201,8 +201,6 @@ def result_dict(
     pm = result.parameters
     est = result.estimate
     sd = result.parameter_std
-    expressions = pm.base.expressions()
-    essential = result.essential
     out = {
         "name": result.config.name,
         "method": est.method,
@@ -221,29 +219,9 @@ def result_dict(
         # std / relative_std_pct: the one σ every part of the result uses (std_method)
         "std_method": sd.method,
         "std_note": sd.note,
-        "base_parameters": [
-            {
-                "name": name,
-                "expression": expr,
-                "value": float(est.x[k]),
-                "std": float(sd.std[k]),
-                "relative_std_pct": _finite(sd.relative_std[k]),
-                "ordinary_std": float(est.std[k]),
-                "nominal": float(pm.base.projection[k] @ pm.nominal),
-            }
-            for k, (name, expr) in enumerate(zip(pm.base_names, expressions, strict=True))
-        ],
+        "base_parameters": _base_parameters_entry(result),
         "unidentifiable": [pm.names[i] for i in pm.base.unidentifiable],
-        "essential": None
-        if essential is None
-        else {
-            "names": list(essential.estimate.names),
-            "values": essential.estimate.x.tolist(),
-            "relative_std_pct": [_finite(v) for v in essential.estimate.relative_std],
-            "relative_residual": essential.estimate.relative_residual,
-            "dropped": list(essential.dropped),
-            "stop_reason": essential.stop_reason,
-        },
+        "essential": _essential_entry(result),
         "validation": {
             label: {
                 "above_velocity_threshold": p.metrics.as_dict(),
@@ -251,15 +229,9 @@ def result_dict(
             }
             for label, p in result.predictions.items()
         },
-        "reference_comparison": [
-            {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()}
-            for row in result.comparison
-        ],
+        "reference_comparison": _finite_rows(result.comparison),
         "reference_note": result.reference_note,
-        "reference_essential": [
-            {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()}
-            for row in result.reference_essential
-        ],
+        "reference_essential": _finite_rows(result.reference_essential),
         "processing": list(result.records),
     }
     if replay_note is not None:
@@ -275,6 +247,48 @@ def result_dict(
     if result.friction is not None:
         out["friction_models"] = friction_models_entry(result)
     return out
+
+
+def _base_parameters_entry(result: IdentifyResult) -> list[dict]:
+    """One entry per base parameter: expression, value, the one σ, the ordinary σ, nominal."""
+    pm = result.parameters
+    est = result.estimate
+    sd = result.parameter_std
+    expressions = pm.base.expressions()
+    return [
+        {
+            "name": name,
+            "expression": expr,
+            "value": float(est.x[k]),
+            "std": float(sd.std[k]),
+            "relative_std_pct": _finite(sd.relative_std[k]),
+            "ordinary_std": float(est.std[k]),
+            "nominal": float(pm.base.projection[k] @ pm.nominal),
+        }
+        for k, (name, expr) in enumerate(zip(pm.base_names, expressions, strict=True))
+    ]
+
+
+def _essential_entry(result: IdentifyResult) -> dict | None:
+    """The essential-parameter estimate (None when not computed)."""
+    essential = result.essential
+    if essential is None:
+        return None
+    return {
+        "names": list(essential.estimate.names),
+        "values": essential.estimate.x.tolist(),
+        "relative_std_pct": [_finite(v) for v in essential.estimate.relative_std],
+        "relative_residual": essential.estimate.relative_residual,
+        "dropped": list(essential.dropped),
+        "stop_reason": essential.stop_reason,
+    }
+
+
+def _finite_rows(rows: Sequence[dict]) -> list[dict]:
+    """``rows`` with every float made JSON-safe (non-finite -> None, :func:`_finite`)."""
+    return [
+        {k: (_finite(v) if isinstance(v, float) else v) for k, v in row.items()} for row in rows
+    ]
 
 
 def _cautious_entry(result: IdentifyResult, urdf: UrdfUpdate) -> dict:
@@ -875,6 +889,29 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
     :func:`result_dict` writes; :mod:`ident.identify.verdict`)."""
     est = result.estimate
     v = verdict_entry(result)
+    truth = v["rule"] == "truth"
+    return Headline(
+        verdict=Verdict(v["label"], v["reason"], v["rule"]),
+        rule=VERDICT_RULE if truth else VERDICT_RULE_REAL,
+        worst=(
+            pct(v["worst_error_percent"]) + f" ({v['worst_error_name']}; against the "
+            "simulator's truth, validation.truth)"
+            if truth
+            else "— (a real log: no true values; see the relative std below)"
+        ),
+        worst_label="Worst error, major parameters",
+        residual=_headline_residual(result, v),
+        residual_label="Torque residual, held-out data",
+        condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
+        consistency=_headline_consistency(result, urdf, model, v),
+        safety="not checked (a measured log: the motion was already executed)",
+        warnings=list(v["warnings"]),
+        extra=_headline_extra(result, v),
+    )
+
+
+def _headline_residual(result: IdentifyResult, v: dict) -> str:
+    """The verdict's torque residual, where it was measured, and the other estimators'."""
     residual = v["residual"]
     judged = v["method"] if v["method"] in result.predictions else "identified"
     others = ", ".join(
@@ -887,6 +924,17 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
         if v["residual_where"] == "held-out data"
         else ("identification rows (no held-out part)")
     )
+    return (
+        "—"
+        if residual is None
+        else f"{pct(100 * residual)} on the {where}, {judged}" + (f" ({others})" if others else "")
+    )
+
+
+def _headline_consistency(
+    result: IdentifyResult, urdf: UrdfUpdate, model: dict | None, v: dict
+) -> str:
+    """Physical consistency of the links, the identified model's files and the cautious copy."""
     written = [link for link in urdf.links if link.status == "updated"]
     rejected = [link for link in urdf.links if link.status == "nominal (inconsistent)"]
     if v["n_links"]:
@@ -911,7 +959,13 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
             f"; cautious copy: {len(written)} links updated and consistent, {len(rejected)} "
             "kept nominal because the identified values are inconsistent"
         )
-    extra: list[tuple[str, str]] = [
+    return consistency
+
+
+def _headline_extra(result: IdentifyResult, v: dict) -> list[tuple[str, str]]:
+    """The headline's extra rows: the least-squares message, the fit and the worst σ."""
+    est = result.estimate
+    return [
         (
             "Least squares",
             est.message
@@ -927,30 +981,6 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
             f"{v.get('std_method') or 'ordinary'} σ)",
         ),
     ]
-    truth = v["rule"] == "truth"
-    return Headline(
-        verdict=Verdict(v["label"], v["reason"], v["rule"]),
-        rule=VERDICT_RULE if truth else VERDICT_RULE_REAL,
-        worst=(
-            pct(v["worst_error_percent"]) + f" ({v['worst_error_name']}; against the "
-            "simulator's truth, validation.truth)"
-            if truth
-            else "— (a real log: no true values; see the relative std below)"
-        ),
-        worst_label="Worst error, major parameters",
-        residual=(
-            "—"
-            if residual is None
-            else f"{pct(100 * residual)} on the {where}, {judged}"
-            + (f" ({others})" if others else "")
-        ),
-        residual_label="Torque residual, held-out data",
-        condition=f"{est.condition_number:.4g} (base observation matrix, {est.method.upper()})",
-        consistency=consistency,
-        safety="not checked (a measured log: the motion was already executed)",
-        warnings=list(v["warnings"]),
-        extra=extra,
-    )
 
 
 def parameters_figure(result: IdentifyResult) -> bytes:

@@ -67,132 +67,24 @@ def result_to_dict(result: Any) -> dict[str, Any]:
         "name": config.name,
         "seed": config.seed,
         "config": json.loads(config.model_dump_json()),
-        "robot": {
-            "name": result.robot_name,
-            "joint_names": list(result.joint_names),
-            "joint_units": _joint_units(result),
-            "q_limits": _arr(result.q_limits),
-            "dq_limits": _arr(result.dq_limits),
-            "ddq_limits": _arr(result.ddq_limits),
-        },
-        "excitation": {
-            "family": config.excitation.family,
-            "criterion": config.excitation.criterion,
-            "variable_names": list(result.variable_names),
-            "bounds": _arr(result.bounds),
-            "traced_frame": result.traced_frame,
-            "moving_joints": list(result.moving_joints),
-        },
+        "robot": _robot_entry(result),
+        "excitation": _excitation_entry(result),
         "warnings": list(result.warnings),
     }
     stage = result.stage
     if stage is not None:
-        counts = stage.counts
-        out["stage"] = {
-            "name": stage.name,
-            "torque_rows": list(stage.rows),
-            "standard_names": list(stage.standard_names),
-            "true_standard": _arr(stage.true_standard),
-            "base_method": stage.base_method,
-            "known_bodies": stage.known_bodies_note,
-            "counts": {
-                "independent": counts[0],
-                "dependent": counts[1],
-                "unidentifiable": counts[2],
-                "n_base": len(stage.base_names),
-            },
-            "paper_counts": _paper_counts(stage.name),
-            "independent": list(stage.independent),
-            "dependent": list(stage.dependent),
-            "unidentifiable": list(stage.unidentifiable),
-            "base_names": list(stage.base_names),
-            "base_expressions": list(stage.base_expressions),
-            "true_base": _arr(stage.true_base),
-            "identifiable_alone": list(stage.alone),
-            "reference_torque_share": None
-            if stage.reference_share is None
-            else _arr(stage.reference_share),
-            "major_share": MAJOR_SHARE,
-            "frames": "body",
-            "dh_frames": _frame_base_dict(stage.dh_frames),
-            "paper_comparison": _paper_comparison(stage),
-        }
+        out["stage"] = _stage_entry(stage)
     out["initial_elites"] = {
         "x": None if result.initial_elites is None else _arr(result.initial_elites),
         "message": result.elite_search_message,
     }
     out["optimization"] = {
         "n_runs_finished": len(result.runs),
-        "runs": [
-            {
-                "index": r.index,
-                "best_fitness": _num(r.fun),
-                "x": _arr(r.x),
-                "history": _arr(r.history),
-                "mutation_iterations": list(r.mutation_iterations),
-                "nit": r.nit,
-                "nfev": r.nfev,
-                "message": r.message,
-                "archive": {"x": _arr(r.archive_x), "fitness": _arr(r.archive_fun)},
-            }
-            for r in result.runs
-        ],
+        "runs": [_run_entry(r) for r in result.runs],
     }
-    elites = []
-    for e in result.elites:
-        estimates = {}
-        unc = getattr(getattr(e.log, "result", None), "uncertainty", None)
-        for method, est in e.estimates.items():
-            sd = parameter_std(est, unc)  # the one σ (a simulated log's bootstrap)
-            entry = {
-                "x": _arr(est.x),
-                "std": _arr(sd.std),
-                "relative_std_percent": _arr(sd.relative_std),
-                "std_method": sd.method,
-                "condition_number": _num(est.condition_number),
-                "residual_rms": _arr(est.residual_rms),
-                "relative_residual": _num(est.relative_residual),
-                "sigma": _arr(est.sigma),
-                "n_samples": int(est.n_samples),
-                "message": est.message,
-            }
-            if stage is not None:
-                entry.update(
-                    error_measures(
-                        est.x,
-                        sd.std,
-                        stage.true_base,
-                        e.base_column_norms,
-                        e.true_torque_norm,
-                        stage.reference_share,
-                    )
-                )
-                if sd.calibrated and unc is not None:  # a simulated log's
-                    entry["within_95_interval"] = interval_coverage(unc, stage.true_base)
-                    entry["interval_method"] = unc.method
-            estimates[method] = entry
-        elites.append(
-            {
-                "rank": e.rank,
-                "x": _arr(e.x),
-                "fitness": _num(e.fitness),
-                "objective": {k: _num(v) for k, v in e.details.items()},
-                "estimates": estimates,
-                "failures": dict(e.failures),
-                "trajectory_csv": f"elites/elite_{e.rank}.csv",
-                "safety": None
-                if getattr(e, "safety_check", None) is None
-                else {"usable": bool(e.safety_check.usable), "summary": e.safety_check.summary()},
-                "path_csv": None if e.traced_points is None else f"elites/elite_{e.rank}_path.csv",
-                "safety_series": _safety_series(getattr(e, "safety_check", None)),
-            }
-        )
+    elites = [_elite_entry(e, stage) for e in result.elites]
     out["elites"] = elites
-    plan = getattr(result, "executable", None)
-    if plan is not None:  # the elite the robot may run (the best one that passed the check)
-        out["chosen_elite"] = plan.elite
-    else:
-        out["chosen_elite"] = 1 if elites else None
+    out["chosen_elite"] = _chosen_elite(result, elites)
     # optional results of later pipeline steps (read with defaults: older results lack them)
     for key in ("consistency", "safety"):
         entry = _plain(getattr(result, key, None))
@@ -205,6 +97,143 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     out["executed_elite"] = result.executed_rank
     out["verdict"] = verdict_entry(result, out)
     return out
+
+
+def _robot_entry(result: Any) -> dict[str, Any]:
+    """``robot`` entry of ``result.json``: joint names, torque units and limits."""
+    return {
+        "name": result.robot_name,
+        "joint_names": list(result.joint_names),
+        "joint_units": _joint_units(result),
+        "q_limits": _arr(result.q_limits),
+        "dq_limits": _arr(result.dq_limits),
+        "ddq_limits": _arr(result.ddq_limits),
+    }
+
+
+def _excitation_entry(result: Any) -> dict[str, Any]:
+    """``excitation`` entry of ``result.json``: the family, criterion and design variables."""
+    config = result.config
+    return {
+        "family": config.excitation.family,
+        "criterion": config.excitation.criterion,
+        "variable_names": list(result.variable_names),
+        "bounds": _arr(result.bounds),
+        "traced_frame": result.traced_frame,
+        "moving_joints": list(result.moving_joints),
+    }
+
+
+def _stage_entry(stage: Any) -> dict[str, Any]:
+    """``stage`` entry of ``result.json``: the stage's parameters and their base set."""
+    counts = stage.counts
+    return {
+        "name": stage.name,
+        "torque_rows": list(stage.rows),
+        "standard_names": list(stage.standard_names),
+        "true_standard": _arr(stage.true_standard),
+        "base_method": stage.base_method,
+        "known_bodies": stage.known_bodies_note,
+        "counts": {
+            "independent": counts[0],
+            "dependent": counts[1],
+            "unidentifiable": counts[2],
+            "n_base": len(stage.base_names),
+        },
+        "paper_counts": _paper_counts(stage.name),
+        "independent": list(stage.independent),
+        "dependent": list(stage.dependent),
+        "unidentifiable": list(stage.unidentifiable),
+        "base_names": list(stage.base_names),
+        "base_expressions": list(stage.base_expressions),
+        "true_base": _arr(stage.true_base),
+        "identifiable_alone": list(stage.alone),
+        "reference_torque_share": None
+        if stage.reference_share is None
+        else _arr(stage.reference_share),
+        "major_share": MAJOR_SHARE,
+        "frames": "body",
+        "dh_frames": _frame_base_dict(stage.dh_frames),
+        "paper_comparison": _paper_comparison(stage),
+    }
+
+
+def _run_entry(run: Any) -> dict[str, Any]:
+    """One optimizer run of ``optimization.runs``: its best point, history and archive."""
+    return {
+        "index": run.index,
+        "best_fitness": _num(run.fun),
+        "x": _arr(run.x),
+        "history": _arr(run.history),
+        "mutation_iterations": list(run.mutation_iterations),
+        "nit": run.nit,
+        "nfev": run.nfev,
+        "message": run.message,
+        "archive": {"x": _arr(run.archive_x), "fitness": _arr(run.archive_fun)},
+    }
+
+
+def _elite_entry(elite: Any, stage: Any) -> dict[str, Any]:
+    """One entry of ``elites``: the elite's design, estimates and safety check."""
+    unc = getattr(getattr(elite.log, "result", None), "uncertainty", None)
+    estimates = {
+        method: _estimate_entry(est, unc, elite, stage) for method, est in elite.estimates.items()
+    }
+    check = getattr(elite, "safety_check", None)
+    return {
+        "rank": elite.rank,
+        "x": _arr(elite.x),
+        "fitness": _num(elite.fitness),
+        "objective": {k: _num(v) for k, v in elite.details.items()},
+        "estimates": estimates,
+        "failures": dict(elite.failures),
+        "trajectory_csv": f"elites/elite_{elite.rank}.csv",
+        "safety": None
+        if check is None
+        else {"usable": bool(check.usable), "summary": check.summary()},
+        "path_csv": None if elite.traced_points is None else f"elites/elite_{elite.rank}_path.csv",
+        "safety_series": _safety_series(check),
+    }
+
+
+def _estimate_entry(est: Any, unc: Any, elite: Any, stage: Any) -> dict[str, Any]:
+    """One estimator's entry of an elite: the estimate, its σ and (with a stage) its errors."""
+    sd = parameter_std(est, unc)  # the one σ (a simulated log's bootstrap)
+    entry = {
+        "x": _arr(est.x),
+        "std": _arr(sd.std),
+        "relative_std_percent": _arr(sd.relative_std),
+        "std_method": sd.method,
+        "condition_number": _num(est.condition_number),
+        "residual_rms": _arr(est.residual_rms),
+        "relative_residual": _num(est.relative_residual),
+        "sigma": _arr(est.sigma),
+        "n_samples": int(est.n_samples),
+        "message": est.message,
+    }
+    if stage is not None:
+        entry.update(
+            error_measures(
+                est.x,
+                sd.std,
+                stage.true_base,
+                elite.base_column_norms,
+                elite.true_torque_norm,
+                stage.reference_share,
+            )
+        )
+        if sd.calibrated and unc is not None:  # a simulated log's
+            entry["within_95_interval"] = interval_coverage(unc, stage.true_base)
+            entry["interval_method"] = unc.method
+    return entry
+
+
+def _chosen_elite(result: Any, elites: list[dict[str, Any]]) -> Any:
+    """Rank of the elite the robot may run (the best one that passed the check)."""
+    plan = getattr(result, "executable", None)
+    if plan is not None:
+        return plan.elite
+    return 1 if elites else None
 
 
 def _safety_series(report: Any) -> dict[str, Any] | None:

@@ -175,71 +175,59 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         "`reference_torque_share` in result.json).",
         "",
     ]
-    excitation = data["config"]["excitation"]
+    md += _design_variable_note(data["config"]["excitation"])
+    header = ["", *[f"elite {e['rank']}" for e in elites]]
+    md += _table(header, _elite_rows(data))
+    for e in elites:
+        for m, message in e["failures"].items():
+            md += [f"> **Elite {e['rank']}, {m}**: {message}", ""]
+    return md
+
+
+def _design_variable_note(excitation: dict[str, Any]) -> list[str]:
+    """Units of the design variables of the paper's and the joint Fourier families."""
     if excitation["family"].startswith("paper_"):
         unit = excitation.get("options", {}).get("length_unit", 1e-3)
         what = "mm" if unit == 1e-3 else f"units of {unit:g} m"
-        md += [
+        return [
             f"Design variables as in Tables 2-3: a0, d0, e0, f0 in {what}; b0, c0 in {what} "
             "per second.",
             "",
         ]
-    elif excitation["family"] == "joint_fourier":
-        md += [
+    if excitation["family"] == "joint_fourier":
+        return [
             "Design variables of the joint-space Fourier series (docs/excitation.md): q0 "
             "(mean position) in rad, the a, b coefficients of harmonics 2..N in rad/s "
             "(harmonic 1 follows from rest at both ends).",
             "",
         ]
+    return []
+
+
+def _elite_rows(data: dict[str, Any]) -> list[list[str]]:
+    """Rows of the elite table: design variables, fitness, then per estimator the condition
+    numbers and error sums (one column per elite)."""
+    elites = data["elites"]
     names = data["excitation"]["variable_names"]
-    header = ["", *[f"elite {e['rank']}" for e in elites]]
     rows = [[f"`{n}`", *[_fmt(e["x"][i]) for e in elites]] for i, n in enumerate(names)]
     rows.append(["fitness", *[_fmt(e["fitness"]) for e in elites]])
     rows.append(["cond (scaled, objective)", *[_fmt(e["objective"].get("cond")) for e in elites]])
     methods = list(data["config"]["estimation"]["methods"])
+
+    def row(label: str, method: str, key: str, scale: Any = None) -> list[str]:
+        values = [e["estimates"].get(method, {}).get(key) for e in elites]
+        return [label, *[_fmt(v if scale is None else scale(v)) for v in values]]
+
     for m in methods:
-        rows.append(
-            [
-                f"cond (SI, {m})",
-                *[_fmt(e["estimates"].get(m, {}).get("condition_number")) for e in elites],
-            ]
-        )
+        rows.append(row(f"cond (SI, {m})", m, "condition_number"))
     for m in methods:
+        rows.append(row(f"Error(all) {m} [%]", m, "error_sum_percent"))
+        rows.append(row(f"Error(share >= 1e-4) {m} [%]", m, "error_sum_significant_percent"))
         rows.append(
-            [
-                f"Error(all) {m} [%]",
-                *[_fmt(e["estimates"].get(m, {}).get("error_sum_percent")) for e in elites],
-            ]
+            row(f"max rel. error, major parameters, {m} [%]", m, "max_rel_error_major", percent)
         )
-        rows.append(
-            [
-                f"Error(share >= 1e-4) {m} [%]",
-                *[
-                    _fmt(e["estimates"].get(m, {}).get("error_sum_significant_percent"))
-                    for e in elites
-                ],
-            ]
-        )
-        rows.append(
-            [
-                f"max rel. error, major parameters, {m} [%]",
-                *[
-                    _fmt(percent(e["estimates"].get(m, {}).get("max_rel_error_major")))
-                    for e in elites
-                ],
-            ]
-        )
-        rows.append(
-            [
-                f"Error(all-2) {m} [%]",
-                *[_fmt(e["estimates"].get(m, {}).get("error_sum_best_percent")) for e in elites],
-            ]
-        )
-    md += _table(header, rows)
-    for e in elites:
-        for m, message in e["failures"].items():
-            md += [f"> **Elite {e['rank']}, {m}**: {message}", ""]
-    return md
+        rows.append(row(f"Error(all-2) {m} [%]", m, "error_sum_best_percent"))
+    return rows
 
 
 # ----------------------------------------------------------------------------- page
@@ -496,17 +484,53 @@ def _parameter_section(
 ) -> list[str]:
     elite = executed_elite(data) or data["elites"][0]
     md = [f"## Identified vs true parameters (elite {elite['rank']}, executed)", ""]
+    md += _held_out_summary(data)
+    md += _parameter_figures(figures)
+    if not elite["estimates"]:
+        return md + ["> **No estimate**: every estimator failed on this trajectory (below).", ""]
+    # residuals per torque row of the stage; older result.json files have no joint units
+    all_units = data["robot"].get("joint_units") or ["N*m"] * len(data["robot"]["joint_names"])
+    units = [all_units[r] for r in stage["torque_rows"]]
+    for m, est in elite["estimates"].items():
+        md += _estimate_summary(m, est, units)
+        md += _table(
+            [
+                "base parameter",
+                "unit",
+                "true",
+                "identified",
+                "σ",
+                "σ [%]",
+                "error [%]",
+                "error / σ",
+                "torque share [%]",
+                "major",
+            ],
+            _estimate_rows(est, stage),
+            left=(0, 1, 9),
+        )
+    return md + _parameter_legend()
+
+
+def _held_out_summary(data: dict[str, Any]) -> list[str]:
+    """The verdict's residual, consistency and worst σ of a simulated log identified as a real
+    one (empty otherwise)."""
     v = stored_verdict(data)
-    # a simulated log, identified as a real one
-    if v.get("residual_where") == "held-out data" and v.get("residual") is not None:
-        label, text = _residual_text(v)
-        md += [
-            f"{label}: {text}. Physical consistency: {_consistency_text(data, v)}. Worst "
-            f"relative std of the parameters carrying >= {100 * MAJOR_SHARE:g} % of the "
-            f"torques: {pct(v.get('worst_std_percent'))} ({v.get('worst_std_name')}; "
-            f"{v.get('std_method') or 'ordinary'} σ).",
-            "",
-        ]
+    if v.get("residual_where") != "held-out data" or v.get("residual") is None:
+        return []
+    label, text = _residual_text(v)
+    return [
+        f"{label}: {text}. Physical consistency: {_consistency_text(data, v)}. Worst "
+        f"relative std of the parameters carrying >= {100 * MAJOR_SHARE:g} % of the "
+        f"torques: {pct(v.get('worst_std_percent'))} ({v.get('worst_std_name')}; "
+        f"{v.get('std_method') or 'ordinary'} σ).",
+        "",
+    ]
+
+
+def _parameter_figures(figures: set[str] | frozenset[str]) -> list[str]:
+    """The parameter and validation figures of the section (a note when no validation)."""
+    md = []
     if "figures/parameters.png" in figures:
         md += [
             "![Identified vs true base parameters, relative deviation with ±3σ bars]"
@@ -524,60 +548,50 @@ def _parameter_section(
             "validation trajectory.",
             "",
         ]
-    if not elite["estimates"]:
-        return md + ["> **No estimate**: every estimator failed on this trajectory (below).", ""]
+    return md
+
+
+def _estimate_summary(method: str, est: dict[str, Any], units: list[str]) -> list[str]:
+    """Heading and one-paragraph fit summary of one estimator (residuals in joint ``units``)."""
+    rms = zip(est["residual_rms"], units, strict=True)
+    return [
+        f"### {method.upper()}",
+        "",
+        f"Relative residual {pct(100 * (est['relative_residual'] or 0))}, RMS per joint "
+        f"{', '.join(f'{_fmt(v)} {u}' for v, u in rms)}; condition number "
+        f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
+        f"errors within 3σ ({est.get('std_method') or 'ordinary'} σ). "
+        f"{'' if est['message'] == 'ok' else est['message']}",
+        "",
+    ]
+
+
+def _estimate_rows(est: dict[str, Any], stage: dict[str, Any]) -> list[list[str]]:
+    """One table row per base parameter: true, identified, σ, errors, torque share."""
     true = stage["true_base"]
     names = stage["base_names"]
-    # residuals per torque row of the stage; older result.json files have no joint units
-    all_units = data["robot"].get("joint_units") or ["N*m"] * len(data["robot"]["joint_names"])
-    units = [all_units[r] for r in stage["torque_rows"]]
-    for m, est in elite["estimates"].items():
-        major = est.get("major") or [False] * len(names)
-        share = est.get("torque_share") or [None] * len(names)
-        rows = []
-        for i, name in enumerate(names):
-            rows.append(
-                [
-                    f"`{name}`" + (" (alone)" if stage["identifiable_alone"][i] else ""),
-                    parameter_unit(name) or "—",
-                    _fmt(true[i]),
-                    _fmt(est["x"][i]),
-                    _fmt(est["std"][i]),
-                    _fmt(_rel_std(est, i), 3),
-                    _fmt(est["rel_error_percent"][i], 3),
-                    _fmt(est["normalized_error"][i], 3),
-                    _fmt(None if share[i] is None else 100 * share[i], 2),
-                    "yes" if major[i] else "",
-                ]
-            )
-        rms = zip(est["residual_rms"], units, strict=True)
-        md += [
-            f"### {m.upper()}",
-            "",
-            f"Relative residual {pct(100 * (est['relative_residual'] or 0))}, RMS per joint "
-            f"{', '.join(f'{_fmt(v)} {u}' for v, u in rms)}; condition number "
-            f"{_fmt(est['condition_number'])}; {100 * (est['within_3std'] or 0):.0f} % of the "
-            f"errors within 3σ ({est.get('std_method') or 'ordinary'} σ). "
-            f"{'' if est['message'] == 'ok' else est['message']}",
-            "",
+    major = est.get("major") or [False] * len(names)
+    share = est.get("torque_share") or [None] * len(names)
+    return [
+        [
+            f"`{name}`" + (" (alone)" if stage["identifiable_alone"][i] else ""),
+            parameter_unit(name) or "—",
+            _fmt(true[i]),
+            _fmt(est["x"][i]),
+            _fmt(est["std"][i]),
+            _fmt(_rel_std(est, i), 3),
+            _fmt(est["rel_error_percent"][i], 3),
+            _fmt(est["normalized_error"][i], 3),
+            _fmt(None if share[i] is None else 100 * share[i], 2),
+            "yes" if major[i] else "",
         ]
-        md += _table(
-            [
-                "base parameter",
-                "unit",
-                "true",
-                "identified",
-                "σ",
-                "σ [%]",
-                "error [%]",
-                "error / σ",
-                "torque share [%]",
-                "major",
-            ],
-            rows,
-            left=(0, 1, 9),
-        )
-    md += [
+        for i, name in enumerate(names)
+    ]
+
+
+def _parameter_legend() -> list[str]:
+    """What the columns of the parameter tables mean."""
+    return [
         "Units SI; a base parameter has the unit of the parameter it is named after. "
         "σ: standard deviation of the estimate (the moving-block bootstrap's on a simulated "
         "log, the ordinary one otherwise: the method is named above, docs/uncertainty.md); "
@@ -589,7 +603,6 @@ def _parameter_section(
         "identifiable alone.",
         "",
     ]
-    return md
 
 
 def _rel_std(est: dict[str, Any], i: int) -> float | None:
