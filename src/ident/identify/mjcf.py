@@ -199,7 +199,7 @@ def _add_coupled_motors(
 
 def _with_bodies(urdf_text: str, bodies: Mapping[str, npt.ArrayLike], source: str) -> str:
     """The URDF with the ``bodies`` as the only inertials (all other links massless)."""
-    from ident.robot.inertia import com_and_inertia
+    from ident.robot.inertia import URDF_INERTIA_ENTRIES, com_and_inertia
 
     root = ET.fromstring(urdf_text)
     links = {link.get("name"): link for link in root.findall("link")}
@@ -217,12 +217,7 @@ def _with_bodies(urdf_text: str, bodies: Mapping[str, npt.ArrayLike], source: st
         ET.SubElement(
             inertial,
             "inertia",
-            ixx=_fmt(inertia[0, 0]),
-            ixy=_fmt(inertia[0, 1]),
-            ixz=_fmt(inertia[0, 2]),
-            iyy=_fmt(inertia[1, 1]),
-            iyz=_fmt(inertia[1, 2]),
-            izz=_fmt(inertia[2, 2]),
+            {key: _fmt(inertia[i, j]) for key, (i, j) in URDF_INERTIA_ENTRIES.items()},
         )
     return ET.tostring(root, encoding="unicode")
 

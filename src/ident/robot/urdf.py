@@ -37,6 +37,7 @@ import numpy.typing as npt
 
 from ident.errors import ModelError
 from ident.robot.dh import DHTable, Step, elementary_transform, rot_z, trans_z
+from ident.robot.inertia import URDF_INERTIA_ENTRIES
 from ident.robot.robot_config import RobotDescription
 
 __all__ = [
@@ -328,12 +329,7 @@ def _add_inertial(link: ET.Element, robot: RobotDescription, i: int) -> None:
     ET.SubElement(
         inertial,
         "inertia",
-        ixx=_fmt(tensor[0, 0]),
-        ixy=_fmt(tensor[0, 1]),
-        ixz=_fmt(tensor[0, 2]),
-        iyy=_fmt(tensor[1, 1]),
-        iyz=_fmt(tensor[1, 2]),
-        izz=_fmt(tensor[2, 2]),
+        {key: _fmt(tensor[i, j]) for key, (i, j) in URDF_INERTIA_ENTRIES.items()},
     )
 
 
