@@ -118,6 +118,23 @@ def ident_payload(folder: Path, payload_cfg: dict) -> tuple[dict, float]:
     return json.loads(summary_path.read_text()), elapsed
 
 
+def result_row(label: str, mass: float, com: Any, summary: dict, seconds: float) -> dict:
+    """One table row: ``ident payload``'s ``summary`` (payload.json) against the true ``mass``
+    [kg] and centre of mass ``com`` (3,) [m, in the reported link's frame]."""
+    com_error = np.asarray(summary["com_m"]) - np.asarray(com)
+    return {
+        "robot": label,
+        "mass": mass,
+        "mass_error_pct": 100.0 * (summary["mass_kg"] - mass) / mass,
+        "mass_std_pct": 100.0 * summary["mass_std_kg"] / mass,
+        "com_error_mm": 1e3 * float(np.linalg.norm(com_error)),
+        "com_std_mm": 1e3 * float(np.linalg.norm(summary["com_std_m"])),
+        "min_eig": summary["pseudo_inertia_min_eigenvalue"],
+        "seconds": seconds,
+        "summary": summary,
+    }
+
+
 def run_case(
     config: Path,
     payload: tuple,
@@ -154,18 +171,7 @@ def run_case(
     }
     payload_cfg["robot"].pop("package_dirs", None)
     summary, elapsed = ident_payload(folder, payload_cfg)
-    com_error = np.asarray(summary["com_m"]) - np.asarray(com)
-    return {
-        "robot": config.stem,
-        "mass": mass,
-        "mass_error_pct": 100.0 * (summary["mass_kg"] - mass) / mass,
-        "mass_std_pct": 100.0 * summary["mass_std_kg"] / mass,
-        "com_error_mm": 1e3 * float(np.linalg.norm(com_error)),
-        "com_std_mm": 1e3 * float(np.linalg.norm(summary["com_std_m"])),
-        "min_eig": summary["pseudo_inertia_min_eigenvalue"],
-        "seconds": elapsed,
-        "summary": summary,
-    }
+    return result_row(config.stem, mass, com, summary, elapsed)
 
 
 def normalized_errors(summary: dict, mass: float, com: tuple) -> dict:
@@ -281,18 +287,8 @@ def run_designed_case(
         "payload": {"link": "tool0", "method": "lmi"},
     }
     summary, elapsed = ident_payload(folder, payload_cfg)
-    com_error = np.asarray(summary["com_m"]) - np.asarray(com_in_tool0)
-    return {
-        "robot": f"ur5 designed, {len(moving)} joints {t[-1]:.0f} s, design {design_seconds:.0f} s",
-        "mass": mass,
-        "mass_error_pct": 100.0 * (summary["mass_kg"] - mass) / mass,
-        "mass_std_pct": 100.0 * summary["mass_std_kg"] / mass,
-        "com_error_mm": 1e3 * float(np.linalg.norm(com_error)),
-        "com_std_mm": 1e3 * float(np.linalg.norm(summary["com_std_m"])),
-        "min_eig": summary["pseudo_inertia_min_eigenvalue"],
-        "seconds": elapsed,
-        "summary": summary,
-    }
+    label = f"ur5 designed, {len(moving)} joints {t[-1]:.0f} s, design {design_seconds:.0f} s"
+    return result_row(label, mass, com_in_tool0, summary, elapsed)
 
 
 #: The designed row's payload: (mass [kg], centre of mass in tool0's frame [m], box sides [m]).
