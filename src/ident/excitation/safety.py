@@ -109,6 +109,16 @@ def _near_robot(value: Vector3) -> Vector3:
     return value
 
 
+def _box_edges(value: Vector3, limit: float, what: str) -> Vector3:
+    """``value``, a box's edge lengths [m], each in ``(0, limit]``."""
+    if min(value) <= 0.0 or max(value) > limit:
+        raise ValueError(
+            f"every {what} edge must be in (0, {limit:g}] m, got {list(value)} "
+            "(millimetres typed as metres?)"
+        )
+    return value
+
+
 # ---------------------------------------------------------------------- config schema
 class FloorConfig(StrictModel):
     """The floor: the half-space ``z <= z`` of the base frame [m]."""
@@ -127,12 +137,7 @@ class BoxObstacle(StrictModel):
     @field_validator("size")
     @classmethod
     def _positive(cls, value: Vector3) -> Vector3:
-        if min(value) <= 0.0 or max(value) > MAX_SIZE_M:
-            raise ValueError(
-                f"every box edge must be in (0, {MAX_SIZE_M:g}] m, got {list(value)} "
-                "(millimetres typed as metres?)"
-            )
-        return value
+        return _box_edges(value, MAX_SIZE_M, "box")
 
     @field_validator("position")
     @classmethod
@@ -214,12 +219,7 @@ class PayloadBox(StrictModel):
     @field_validator("size")
     @classmethod
     def _positive(cls, value: Vector3) -> Vector3:
-        if min(value) <= 0.0 or max(value) > MAX_PAYLOAD_SIZE_M:
-            raise ValueError(
-                f"every payload box edge must be in (0, {MAX_PAYLOAD_SIZE_M:g}] m, got "
-                f"{list(value)} (millimetres typed as metres?)"
-            )
-        return value
+        return _box_edges(value, MAX_PAYLOAD_SIZE_M, "payload box")
 
     @field_validator("position")
     @classmethod
