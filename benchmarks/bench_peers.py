@@ -687,45 +687,12 @@ def figaroh_part(examples: Path | None) -> str:
 # (7 joints, fingers locked: the same kinematics as bench_identify_long's finger-less panda7),
 # not on the iiwa.
 
-ZERO_COLUMN_TOL = 1e-6  # FIGAROH's: a column with sum of squares below it is dropped
-# the fixture's numbers and its training series: one place, benchmarks/peer_ur10_truth.py
+# the fixture's numbers, its training series and FIGAROH's base regressor: one place,
+# benchmarks/peer_ur10_truth.py
 load_ur10_fixture = ur10_truth.load_fixture
 fixture_trajectory = ur10_truth.fixture_trajectory
-
-
-def peer_columns(
-    model: pin.Model, q: FloatArray, dq: FloatArray, ddq: FloatArray, base: Any = None
-) -> tuple[FloatArray, FloatArray]:
-    """FIGAROH's base regressor and its columns.
-
-    Raw SI rows of :func:`joint_torque_regressor` (10 standard parameters per link, Pinocchio's
-    order), the columns with sum of squares < 1e-6 dropped, then ``base`` (indices into the
-    standard parameters, :func:`fixture_base_columns`) or, when None, the independent columns
-    of a column-pivoted QR of the raw matrix (LAPACK's; rank at 1e-10 of the largest pivot) in
-    ascending order. Returns the matrix, shape (n_samples * nv, n_base), and its columns as
-    indices into the standard parameters, shape (n_base,).
-    """
-    import scipy.linalg
-
-    from ident.dynamics.chain import chain_from_model
-
-    w = joint_torque_regressor(chain_from_model(model), q, dq, ddq)
-    w = w.reshape(-1, w.shape[2])
-    kept = np.flatnonzero((w**2).sum(axis=0) >= ZERO_COLUMN_TOL)
-    if base is None:
-        _, r, piv = scipy.linalg.qr(w[:, kept], mode="economic", pivoting=True)
-        d = np.abs(np.diag(r))
-        columns = kept[np.sort(piv[: int(np.sum(d > 1e-10 * d[0]))])]
-    else:
-        columns = np.asarray(base, dtype=int)
-    return w[:, columns], columns
-
-
-def fixture_base_columns(fixture: dict[str, Any]) -> FloatArray:
-    """FIGAROH's frozen base columns (protocol.yaml's base_indices, which index the columns
-    left after its eliminated_indices) as indices into the 60 standard parameters."""
-    kept = np.delete(np.arange(60), fixture["eliminated_indices"])
-    return kept[np.asarray(fixture["base_indices"], dtype=int)]
+peer_columns = ur10_truth.peer_columns
+fixture_base_columns = ur10_truth.fixture_base_columns
 
 
 def peer_base_regressor(
