@@ -10,6 +10,10 @@ for signals with many columns, samples on axis 0: the columns are the inner loop
 transposed or copied per column, and only every ``step``-th output sample is written (the
 decimation of a long log's regressor filters hundreds of columns: scipy moves the axis and
 copies the array on every pass).
+
+:class:`ZeroPhaseStream` is the same filter for a signal that arrives in pieces of rows (a long
+log's regressor, computed a block at a time): its memory is set by its block, not by the
+signal's length.
 """
 
 from __future__ import annotations
@@ -19,7 +23,13 @@ import numpy.typing as npt
 from numba import njit
 from scipy import signal
 
-__all__ = ["central_differences", "sosfiltfilt", "zero_phase_lowpass"]
+__all__ = [
+    "ZeroPhaseStream",
+    "central_differences",
+    "decay_length",
+    "sosfiltfilt",
+    "zero_phase_lowpass",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -51,12 +61,17 @@ def zero_phase_lowpass(
 
 
 def sosfiltfilt(
-    sos: npt.ArrayLike, x: npt.ArrayLike, step: int = 1, *, skip_zero_columns: bool = False
+    sos: npt.ArrayLike,
+    x: npt.ArrayLike,
+    step: int = 1,
+    *,
+    skip_zero_columns: bool = False,
+    padlen: int | None = None,
 ) -> FloatArray:
     """Forward-backward filtering along axis 0, every ``step``-th sample of the result.
 
-    Equal to ``scipy.signal.sosfiltfilt(sos, x, axis=0)[::step]`` (to round-off; the same
-    operations in the same order, see the module docstring).
+    Equal to ``scipy.signal.sosfiltfilt(sos, x, axis=0, padlen=padlen)[::step]`` (to
+    round-off; the same operations in the same order, see the module docstring).
 
     Parameters
     ----------
@@ -71,6 +86,8 @@ def sosfiltfilt(
         Find the columns (of ``x`` flattened to (n_samples, -1)) that are zero throughout and
         leave them zero without filtering (exactly what filtering gives): a joint's regressor
         row has no term of the bodies before it, about half of a serial arm's columns.
+    padlen :
+        Rows of the odd extension on each side; default scipy's (:func:`padding`).
 
     Returns
     -------
@@ -80,8 +97,7 @@ def sosfiltfilt(
     sos = np.ascontiguousarray(sos, dtype=np.float64)
     x = np.asarray(x, dtype=np.float64)
     n = x.shape[0]
-    ntaps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
-    edge = 3 * ntaps
+    edge = padding(sos) if padlen is None else padlen
     if n <= edge:
         raise ValueError(
             f"The length of the input vector x must be greater than padlen, which is {edge}."
@@ -97,6 +113,144 @@ def sosfiltfilt(
         zi = np.ascontiguousarray(signal.sosfilt_zi(sos))
         _sosfiltfilt(sos, zi, flat, columns, edge, step, out)
     return out.reshape(-1, *x.shape[1:])
+
+
+def padding(sos: FloatArray) -> int:
+    """Rows of scipy's odd extension on each side (``sosfiltfilt``'s default ``padlen``:
+    three times the taps, a section with zero ``b2`` and ``a2`` counting one less)."""
+    ntaps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    return 3 * ntaps
+
+
+def decay_length(sos: npt.ArrayLike, rtol: float = 1e-14, max_len: int = 2_000_000) -> int:
+    """Samples after which the impulse response of ``sos`` stays below ``rtol`` of its peak
+    (how far the transient of a wrong start reaches into a filtered signal)."""
+    n = 1024
+    while True:
+        x = np.zeros(n)
+        x[0] = 1.0
+        h = np.abs(signal.sosfilt(sos, x))
+        above = np.flatnonzero(h > rtol * h.max())
+        if above[-1] < n // 2 or n >= max_len:
+            return int(above[-1]) + 1
+        n *= 4
+
+
+class ZeroPhaseStream:
+    """:func:`sosfiltfilt` ``(sos, x, step)`` of a signal ``x`` (n, c) pushed in pieces of rows.
+
+    The forward pass runs as rows arrive, its state carried from piece to piece: exactly
+    scipy's. The backward pass needs the rows after each output, so it runs on blocks of
+    ``block`` rows once :func:`decay_length` more forward rows (the warm-up) exist, starting
+    from the steady state of the last of them (``sosfilt_zi`` times its value): the start's
+    error has decayed below 1e-14 of the filter's response by the block. The last block starts
+    from the end of the odd extension, as scipy does (bit for bit there, and everywhere when
+    the signal has fewer than ``block`` + warm-up rows). Memory: ``block`` + warm-up rows of
+    ``c`` columns, whatever the signal's length; the result depends on ``block``, never on how
+    the rows were split into pieces.
+
+    >>> stream = ZeroPhaseStream(signal.butter(4, 0.1, output="sos"), n_columns=2, step=5)
+    >>> x = np.random.default_rng(0).normal(size=(100_000, 2))
+    >>> y = np.concatenate([stream.push(x[:30_000]), stream.push(x[30_000:]), stream.finish()])
+    >>> bool(np.abs(y - sosfiltfilt(signal.butter(4, 0.1, output="sos"), x, 5)).max() < 1e-13)
+    True
+    """
+
+    def __init__(self, sos: npt.ArrayLike, n_columns: int, step: int = 1, block: int = 0):
+        self.sos = np.ascontiguousarray(sos, dtype=np.float64)
+        self.zi = np.ascontiguousarray(signal.sosfilt_zi(self.sos))
+        self.step = step
+        self.edge = padding(self.sos)
+        self.warm_up = decay_length(self.sos)
+        # 4 warm-ups per block: the backward pass runs over 1.25 times the rows
+        self.block = block or max(2048, 4 * self.warm_up)
+        n_sections = self.sos.shape[0]
+        self._z0 = np.zeros((n_sections, n_columns))
+        self._z1 = np.zeros((n_sections, n_columns))
+        # forward output of rows [emitted, emitted + fill) of the signal
+        self._buffer = np.empty((self.block + self.warm_up + self.edge, n_columns))
+        self._fill = 0
+        self._emitted = 0
+        self._received = 0
+        self._head: list[FloatArray] = []  # rows held until the odd extension's start is known
+        self._tail = np.empty((0, n_columns))  # the last edge + 1 rows, for the end's extension
+
+    @property
+    def n_rows(self) -> int:
+        """Rows pushed so far."""
+        return self._received + sum(len(h) for h in self._head)
+
+    def push(self, x: FloatArray) -> FloatArray:
+        """Filter the rows ``x`` (k, c); the output rows (every ``step``-th) now final."""
+        x = np.asarray(x, dtype=np.float64)
+        if not self._received and self.n_rows + len(x) <= self.edge:
+            self._head.append(x.copy())
+            return self._none()
+        if self._head:
+            x = np.concatenate([*self._head, x])
+            self._head = []
+        if not self._received:
+            self._start(x)
+        self._tail = np.concatenate([self._tail, x[-(self.edge + 1) :]])[-(self.edge + 1) :]
+        self._received += len(x)
+        return self._forward(x, flush=False)
+
+    def finish(self) -> FloatArray:
+        """The remaining output rows: the end's odd extension and the last backward pass.
+
+        Raises
+        ------
+        ValueError
+            If the signal has no more rows than the padding (scipy's error).
+        """
+        if not self._received:
+            raise ValueError(
+                "The length of the input vector x must be greater than padlen, which is "
+                f"{self.edge}."
+            )
+        last, before = self._tail[-1], self._tail[-2::-1][: self.edge]
+        return self._forward(2.0 * last - before, flush=True)
+
+    def _none(self) -> FloatArray:
+        return np.empty((0, self._buffer.shape[1]))
+
+    def _start(self, x: FloatArray) -> None:
+        """The forward state after the start's odd extension ``2 x[0] - x[edge - r]``."""
+        head = 2.0 * x[0] - x[self.edge : 0 : -1]
+        self._z0[:] = self.zi[:, :1] * head[0]
+        self._z1[:] = self.zi[:, 1:] * head[0]
+        _forward_rows(self.sos, self._z0, self._z1, head, head)
+
+    def _forward(self, x: FloatArray, flush: bool) -> FloatArray:
+        """Forward-filter ``x`` into the buffer, emitting each block that has its warm-up;
+        ``flush``: ``x`` is the end's extension, and everything left is emitted."""
+        out = [self._none()]
+        buf, full = self._buffer, self.block + self.warm_up
+        pos = 0
+        while pos < len(x):
+            k = min(len(x) - pos, len(buf) - self._fill)
+            into = buf[self._fill : self._fill + k]
+            _forward_rows(self.sos, self._z0, self._z1, x[pos : pos + k], into)
+            self._fill += k
+            pos += k
+            while self._fill >= full and not flush:
+                out.append(self._backward(full - 1, self.block))
+        if flush:
+            out.append(self._backward(self._fill - 1, self._received - self._emitted))
+        return np.concatenate(out)
+
+    def _backward(self, last: int, n_rows: int) -> FloatArray:
+        """Backward pass over buffer rows ``last`` down to 0; the output of its first
+        ``n_rows`` rows (signal rows ``emitted ...``), which then leave the buffer."""
+        first, step = self._emitted, self.step
+        n_out = len(range(-(-first // step) * step, first + n_rows, step))
+        out = np.empty((n_out, self._buffer.shape[1]))
+        _backward_rows(self.sos, self.zi, self._buffer, last, n_rows, first, step, out)
+        left = self._fill - n_rows
+        self._buffer[:left] = self._buffer[n_rows : self._fill]
+        self._fill = left
+        self._emitted += n_rows
+        return out
 
 
 def central_differences(q: npt.ArrayLike, sampling_rate_hz: float) -> tuple[FloatArray, FloatArray]:
@@ -208,3 +362,49 @@ def _sosfiltfilt(  # noqa: PLR0913
         if 0 <= j < n and j % step == 0:
             for c in range(cols):
                 out[j // step, columns[c]] = v[c]
+
+
+@njit(cache=True, nogil=True)
+def _forward_rows(
+    sos: FloatArray, z0s: FloatArray, z1s: FloatArray, x: FloatArray, out: FloatArray
+) -> None:
+    """The rows of ``x`` (k, c) filtered forward into ``out`` (k, c; may be ``x``), states
+    carried; each row is copied, then filtered while in cache."""
+    for r in range(x.shape[0]):
+        v = out[r]
+        for c in range(v.size):
+            v[c] = x[r, c]
+        _filter_row(sos, z0s, z1s, v)
+
+
+@njit(cache=True, nogil=True)
+def _backward_rows(  # noqa: PLR0913
+    sos: FloatArray,
+    zi0: FloatArray,
+    buf: FloatArray,
+    last: int,
+    n_rows: int,
+    first: int,
+    step: int,
+    out: FloatArray,
+) -> None:
+    """Backward pass over ``buf`` rows ``last`` down to 0 (not modified), from the state
+    ``zi0 * buf[last]``; row ``r < n_rows`` is signal row ``first + r``, written to ``out``
+    when a multiple of ``step`` (``out[0]`` the first such row)."""
+    n_sections, cols = sos.shape[0], buf.shape[1]
+    z0s = np.empty((n_sections, cols))
+    z1s = np.empty((n_sections, cols))
+    for s in range(n_sections):
+        for c in range(cols):
+            z0s[s, c] = zi0[s, 0] * buf[last, c]
+            z1s[s, c] = zi0[s, 1] * buf[last, c]
+    v = np.empty(cols)
+    out0 = (first + step - 1) // step
+    for r in range(last, -1, -1):
+        for c in range(cols):
+            v[c] = buf[r, c]
+        _filter_row(sos, z0s, z1s, v)
+        i = first + r
+        if r < n_rows and i % step == 0:
+            for c in range(cols):
+                out[i // step - out0, c] = v[c]
