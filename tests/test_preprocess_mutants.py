@@ -15,6 +15,7 @@ from scipy import signal
 from ident.errors import ConfigError, DataError
 from ident.identify.config import FilterConfig, PreprocessConfig
 from ident.identify.preprocess import (
+    DecimationStream,
     antialias_sos,
     decimate,
     decimation_factors,
@@ -144,6 +145,26 @@ def test_decimate_constant_exactly_and_the_shortest_stage():
         "decimation by 2: only 27 samples left, too few for the zero-phase anti-aliasing "
         "filter; use a longer log or less decimation."
     )
+
+
+def test_decimation_stream_equals_decimate_in_stages():
+    """Rows pushed a block at a time, as a chunk's regressor: equal to the whole array's
+    decimation; the second stage's too-short error is decimate's."""
+    x = np.random.default_rng(5).normal(size=(200_003, 4)).cumsum(axis=0)
+    (whole,), _, _ = decimate([x], [10, 1, 2], 1000.0)
+    stream = DecimationStream([10, 1, 2], 4)
+    parts = [stream.push(x[a : a + 2048]) for a in range(0, x.shape[0], 2048)]
+    y = np.concatenate([*parts, stream.finish()])
+    assert y.shape == whole.shape
+    np.testing.assert_allclose(y, whole, rtol=0, atol=1e-13 * np.abs(whole).max())
+    assert not DecimationStream([], 4).stages  # no factor: rows pass as they are
+    short = DecimationStream([2, 2], 1)
+    short.push(np.ones((53, 1)))  # 27 rows after the first stage: too few for the second
+    with pytest.raises(DataError) as err:
+        short.finish()
+    with pytest.raises(DataError) as ref:
+        decimate([np.ones((53, 1))], [2, 2], 100.0)
+    assert str(err.value) == str(ref.value)
 
 
 def test_decimate_keeps_every_factor_th_sample_from_the_first():
