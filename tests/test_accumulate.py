@@ -232,3 +232,29 @@ def test_tx40_constrained_estimate_by_chunks_equals_in_memory():
     np.testing.assert_allclose(
         b.predictions["lmi"].tau_pred, a.predictions["lmi"].tau_pred, rtol=0, atol=1e-7
     )
+
+
+def test_a_column_zero_at_first_is_filtered_once_it_moves():
+    """Columns zero in the first block are left out of the filtering; one that turns nonzero
+    later (a joint held, then moving) must still come out as the whole log's decimation."""
+    fs, n = 1000.0, 30_000
+    rng = np.random.default_rng(7)
+    tau = rng.normal(size=(n, 2))
+    dq = rng.normal(size=(n, 2))
+    late = np.where(np.arange(n) > 2 * accumulate.ROW_BLOCK, np.sin(np.arange(n) / 50.0), 0.0)
+
+    def columns(q, dq, ddq):
+        k = q[:, 0].astype(int)  # the sample index, carried in q
+        Y = np.zeros((k.size, 2, 3))
+        Y[:, 0, 0] = np.cos(k / 30.0)
+        Y[:, 1, 2] = late[k]  # zero in the first blocks, then not
+        return Y
+
+    q = np.repeat(np.arange(n, dtype=float)[:, None], 2, axis=1)
+    tau_d, Yb_d, dq_d = accumulate.decimated_rows(columns, q, dq, dq, tau, [10, 2])
+    (t_ref, Y_ref, dq_ref), _, _ = preprocess.decimate([tau, columns(q, dq, dq), dq], [10, 2], fs)
+    assert np.abs(Y_ref[:, 1, 2]).max() > 0.5
+    np.testing.assert_allclose(Yb_d, Y_ref, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(tau_d, t_ref, rtol=0, atol=1e-13 * np.abs(t_ref).max())
+    np.testing.assert_allclose(dq_d, dq_ref, rtol=0, atol=1e-13 * np.abs(dq_ref).max())
+    assert not Yb_d[:, 0, 1].any()  # a column zero throughout stays zero

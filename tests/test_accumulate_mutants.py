@@ -201,13 +201,21 @@ def test_memory_and_chunk_size_rules():
     assert accumulate.regressor_bytes(1000, 6, 50) == 8 * 1000 * 6 * 50 * 3
     workers = accumulate.local_workers()
     assert workers == max(1, min(4, len(os.sched_getaffinity(0))))
-    budget = (128 << 20) // workers
-    assert accumulate.default_chunk_samples((10, 20), 6, 60) == max(1024, budget // (8 * 6 * 60))
+    # a chunk: 4 position-sized arrays per raw sample, the decimated rows twice, and blocks
+    row = 8.0 * 6 * (60 + 2)
+    assert accumulate.chunk_bytes(1000, 6, 60, 20) == pytest.approx(
+        1000 * (8 * 4 * 6 + 2 * row / 20) + 4 * accumulate.ROW_BLOCK * row
+    )
+    per_sample = 8 * 4 * 6 + 2 * row / 20
+    extent = int((64 << 20) // per_sample)
+    # the budget holds the chunk with its margins on both sides
+    assert accumulate.default_chunk_samples((10, 20), 6, 60, 20) == extent - 60
     # the margins set a floor: never more margin than chunk
-    assert accumulate.default_chunk_samples((10**6, 10**6), 6, 60) == 2 * 10**6
+    assert accumulate.default_chunk_samples((10**6, 10**6), 6, 60, 20) == 2 * 10**6
     # a huge regressor row: at least 1024 samples
     assert accumulate.default_chunk_samples((1, 1), 7, 10**7) == 1024
-    assert accumulate.default_chunk_samples((1, 1), 1, 0) == max(1024, budget // 8)
+    # without decimation the rows are kept at full rate: smaller chunks
+    assert accumulate.default_chunk_samples((0, 0), 6, 60) < extent / 5
 
 
 def _log(n, nv=2, segments=None):

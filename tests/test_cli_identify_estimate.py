@@ -33,14 +33,22 @@ def _invoke(out: Path):
     return CliRunner().invoke(app, ["identify", str(CONFIG), "--out", str(out), "--no-replay"])
 
 
-def test_in_memory_estimate_is_the_whole_regressor():
+def test_in_memory_estimate_is_the_whole_log_as_one_chunk():
+    import ident.identify.accumulate as accumulate
+
     cfg = load_identify_config(CONFIG)
     nv, n = 3, 10**5
     est = real.estimate_identify(cfg, _log(cfg, n))
-    # closed form: rigid (10 nv) + extra (4 nv) columns, 3 copies, plus 8 log arrays
-    regressor = 8.0 * n * nv * (14 * nv) * 3
-    assert est.memory_bytes == pytest.approx(400e6 + 8.0 * 8 * n * nv + regressor)
-    assert est.seconds == pytest.approx(n * nv**2 * 4e-7)
+    # closed form: the log (t, q, tau), the whole log as one chunk of rigid (10 nv) + extra
+    # (4 nv) columns (decimation auto: counted as none), the uncertainty's blocks
+    assert cfg.preprocess.decimation == "auto"
+    step = 1
+    per_sample = 8.0 * 4 * nv + 2 * 8.0 * nv * (14 * nv + 2) / step
+    chunk = n * per_sample + 4 * accumulate.ROW_BLOCK * 8.0 * nv * (14 * nv + 2)
+    assert chunk == pytest.approx(accumulate.chunk_bytes(n, nv, 14 * nv, step))
+    blocks = 8.0 * accumulate.MAX_BLOCKS * (14 * nv) ** 2
+    assert est.memory_bytes == pytest.approx(400e6 + 8.0 * n * (2 * nv + 1) + chunk + blocks)
+    assert est.seconds == pytest.approx(n * nv**2 * 2.5e-7)
     assert "in memory" in est.what
     # above preprocess.max_regressor_mb (1 GB) the automatic path is by chunks
     assert "by chunks" in real.estimate_identify(cfg, _log(cfg, 10**6)).what
@@ -52,14 +60,14 @@ def test_chunked_estimate_grows_only_with_the_log_arrays():
     cfg = cfg.model_copy(update={"preprocess": pp})
     small, big = (real.estimate_identify(cfg, _log(cfg, n)) for n in (10**6, 2 * 10**6))
     assert "by chunks" in big.what
-    assert big.memory_bytes - small.memory_bytes == pytest.approx(8.0 * 8 * 10**6 * 3)
+    assert big.memory_bytes - small.memory_bytes == pytest.approx(8.0 * 10**6 * (2 * 3 + 1))
     assert big.seconds == pytest.approx(2 * small.seconds)
 
 
 def test_estimate_of_the_long_log_benchmark():
     # benchmarks/bench_identify_long.py, measured: 3.6 million samples x 7 joints by chunks,
-    # 37 s wall (60 s of CPU) on a quiet 2-core machine, peak 1.63 GB; the estimate is of that
-    # order and errs long (one core's time)
+    # 23 s wall (37 s of CPU) on a quiet 2-core machine, peak 0.96 GB; the estimate is of that
+    # order and errs long (one core's time) and high
     import ident.identify.accumulate as accumulate
 
     cfg = load_identify_config(CONFIG)
@@ -69,7 +77,7 @@ def test_estimate_of_the_long_log_benchmark():
     assert accumulate.use_chunks(dataclasses.replace(log, q=q), cfg.preprocess, 98)
     assert "by chunks" in est.what
     assert 37 < est.seconds < 3 * 37
-    assert 1.63e9 < est.memory_bytes < 2 * 1.63e9
+    assert 0.96e9 < est.memory_bytes < 1.5 * 0.96e9
 
 
 def test_long_log_estimate_is_printed(tmp_path, monkeypatch):

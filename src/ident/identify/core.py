@@ -661,7 +661,8 @@ def _chunk_samples(log: RobotLog, pp: PreprocessConfig, n_base: int) -> int:
     if not accumulate.use_chunks(log, pp, 14 * nv):
         return max(b - a for a, b in log.segments)
     margins = accumulate.margin_samples(pp, log.sampling_rate_hz)
-    return pp.chunk_samples or accumulate.default_chunk_samples(margins, nv, n_base)
+    step = preprocess.decimation_step(pp)
+    return pp.chunk_samples or accumulate.default_chunk_samples(margins, nv, n_base, step)
 
 
 def _reference(cfg: IdentifyConfig, pm: ParameterModel) -> ReferenceWeights | None:

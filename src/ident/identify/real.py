@@ -17,7 +17,7 @@ from pathlib import Path
 import pinocchio as pin
 
 from ident.dynamics.parameter_model import PRIORITY_LABELS, ParameterModel, build_parameter_model
-from ident.identify import accumulate
+from ident.identify import accumulate, preprocess
 from ident.identify.config import IdentifyConfig
 from ident.identify.core import IdentifyResult, identify_measurements
 from ident.identify.logs import RobotLog, estimate_log, read_log
@@ -52,38 +52,41 @@ def load_robot_model(urdf: str | Path) -> pin.Model:
 
 
 # Cost model of estimate_identify, from benchmarks/bench_identify_long.py (one hour at 1 kHz of a
-# 7-joint arm, 3.6 million samples, by chunks on a quiet 2-core machine: 37 s wall, 60 s of CPU,
-# peak 1.63 GB). The CPU time, rounded up, is used (the wall time on one core), so on more cores
+# 7-joint arm, 3.6 million samples, by chunks on a quiet 2-core machine: 23 s wall, 37 s of CPU,
+# peak 0.96 GB). The CPU time, rounded up, is used (the wall time on one core), so on more cores
 # the estimate errs long, as an estimate that may refuse a job should.
-_SECONDS_PER_SAMPLE_JOINT2 = 4e-7
-_BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba
-_LOG_ARRAYS = 8  # t, q, tau, filtered q and tau, dq, ddq, mask: (n_samples, nv) each
+_SECONDS_PER_SAMPLE_JOINT2 = 2.5e-7
+_BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba, cvxpy, matplotlib
 
 
 def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
     """Rough peak memory and wall time of identifying ``log`` (n_samples, nv).
 
-    Time: ``n_samples * nv^2`` (the regressor's rows and columns). Memory: the log's arrays
-    and either the whole regressor (in memory) or one chunk's
-    (:func:`ident.identify.accumulate.use_chunks` decides, as the core does).
+    Time: ``n_samples * nv^2`` (the regressor's rows and columns). Memory: the log's arrays,
+    the chunks in flight (:func:`ident.identify.accumulate.chunk_bytes`: one per worker, or the
+    whole log as one chunk when :func:`~ident.identify.accumulate.use_chunks` says so, as the
+    core decides) and the uncertainty's blocks. A decimation still ``auto`` counts as none, so
+    the estimate errs high.
     """
     n_samples, nv = log.q.shape
     n_columns = 10 * nv + 4 * nv  # rigid bodies and the extra terms, as the core counts
-    log_bytes = 8.0 * _LOG_ARRAYS * n_samples * nv
-    if accumulate.use_chunks(log, cfg.preprocess, n_columns):
-        chunk = cfg.preprocess.chunk_samples or accumulate.default_chunk_samples(
-            (0, 0), nv, n_columns
-        )
+    pp = cfg.preprocess
+    step = 1 if isinstance(pp.decimation, str) else preprocess.decimation_step(pp)
+    per_joint = 2 if log.dq is None else 4  # q, tau (and measured dq, ddq); t
+    log_bytes = 8.0 * n_samples * (per_joint * nv + 1)
+    if accumulate.use_chunks(log, pp, n_columns):
+        chunk = pp.chunk_samples or accumulate.default_chunk_samples((0, 0), nv, n_columns, step)
         # one chunk in flight per thread
         in_flight = min(accumulate.local_workers(), -(-n_samples // chunk))
-        regressor = in_flight * accumulate.regressor_bytes(min(n_samples, chunk), nv, n_columns)
+        work = in_flight * accumulate.chunk_bytes(min(n_samples, chunk), nv, n_columns, step)
         path = "by chunks"
     else:
-        regressor = accumulate.regressor_bytes(n_samples, nv, n_columns)
+        work = accumulate.chunk_bytes(n_samples, nv, n_columns, step)
         path = "in memory"
+    blocks = 8.0 * min(accumulate.MAX_BLOCKS, n_samples) * n_columns**2
     return JobEstimate(
         f"identify: {n_samples} samples x {nv} joints, {path}",
-        _BYTES_BASE + log_bytes + regressor,
+        _BYTES_BASE + log_bytes + work + blocks,
         n_samples * nv**2 * _SECONDS_PER_SAMPLE_JOINT2,
     )
 
