@@ -207,7 +207,7 @@ def test_memory_and_chunk_size_rules():
         1000 * (8 * 4 * 6 + 2 * row / 20) + 4 * accumulate.ROW_BLOCK * row
     )
     per_sample = 8 * 4 * 6 + 2 * row / 20
-    extent = int((64 << 20) // per_sample)
+    extent = int(accumulate.CHUNK_BUDGET_BYTES // per_sample)
     # the budget holds the chunk with its margins on both sides
     assert accumulate.default_chunk_samples((10, 20), 6, 60, 20) == extent - 60
     # the margins set a floor: never more margin than chunk

@@ -92,16 +92,20 @@ def test_pinocchio_part_prints_its_table():
 
 def test_long_log_part_runs_ident_identify_in_its_own_process():
     """The long-log piece generates a 7-joint 1 kHz log, runs `ident identify` on it in a
-    subprocess and prints that process's wall, CPU and peak memory (3 s of log here; the hour
-    with --long-minutes 60). Catches a piece that reports nothing measured (a failed run raises)
-    or the parent's memory instead of the child's (the child's peak includes its own
-    interpreter, > 100 MB, and is printed as a whole number of MB)."""
+    subprocess, from a numpy archive and from an MCAP, and prints that process's wall, CPU and
+    peak memory and the model it wrote (3 s of log here; the hour with --long-minutes 60).
+    Catches a piece that reports nothing measured (a failed run raises), the parent's memory
+    instead of the child's (the child's peak includes its own interpreter, > 100 MB, and is
+    printed as a whole number of MB), or an MCAP row that is not the MCAP's."""
     text = bench_peers.long_log_part(0.05)
-    row = next(line for line in text.splitlines() if line.startswith("| ident identify"))
-    wall, cpu, peak = (float(c) for c in row.strip("|").split("|")[1:4])
-    assert 0.0 < wall
-    assert 0.0 < cpu
-    assert peak > 100.0
+    rows = [line for line in text.splitlines() if line.startswith(("| numpy", "| MCAP"))]
+    assert [r.split()[1] for r in rows] == ["numpy", "MCAP"]
+    for row in rows:
+        wall, cpu, peak = (float(c) for c in row.strip("|").split("|")[1:4])
+        assert 0.0 < wall
+        assert 0.0 < cpu
+        assert peak > 100.0
+        assert "URDF + MJCF, reloaded to" in row
     assert "3000 samples" in text
 
 

@@ -729,7 +729,7 @@ def _results(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -
 
 #: Memory a local worker gives to the samples of its chunk (:func:`default_chunk_samples`);
 #: the blocks of :func:`chunk_bytes` come on top.
-CHUNK_BUDGET_BYTES = 64 << 20
+CHUNK_BUDGET_BYTES = 48 << 20
 
 
 def chunk_bytes(extent: int, nv: int, n_columns: int, step: int) -> float:
@@ -966,12 +966,13 @@ def _prediction_std_task(
     c, _ = task.chunk()
     order = task.columns.order
     p = order.size
-    Yb = np.empty_like(c.Yb[:, :, :p])
-    Yb[:, :, order] = c.Yb[:, :, :p]
     rows = task.columns.rows  # sigma (n_rows,) of the explained joints; the others are masked
     sigma_all = np.zeros(rows.size)
     sigma_all[rows] = sigma
-    return {k: prediction_std(Yb, C, sigma_all) for k, C in covariances.items()}
+    # the covariances in kernel order (y_base^T C y_base = y_kernel^T C[order][:, order]
+    # y_kernel), not a base-order copy of the chunk's rows
+    kernel = np.ix_(order, order)
+    return {k: prediction_std(c.Yb[:, :, :p], C[kernel], sigma_all) for k, C in covariances.items()}
 
 
 def prediction_std_log(

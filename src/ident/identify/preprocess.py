@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 from scipy import signal
+from scipy.linalg import blas
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import FilterConfig, PreprocessConfig
@@ -354,10 +355,11 @@ def _spectra(q: FloatArray) -> Iterator[FloatArray]:
         # design matrix and workspace took ~200 MB a joint for an hour at 1 kHz)
         x = q[:, j] - q[:, j].mean()
         if kk > 0:
-            x -= (float(k @ x) / kk) * k
+            x = blas.daxpy(k, x, a=-float(k @ x) / kk)  # x -= slope * k, in place
         x *= window
-        spectrum = np.fft.rfft(x)
-        yield np.abs(spectrum) ** 2
+        power = np.abs(np.fft.rfft(x))
+        power *= power
+        yield power
 
 
 def _stages(factor: int) -> list[int]:

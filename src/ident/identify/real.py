@@ -52,8 +52,8 @@ def load_robot_model(urdf: str | Path) -> pin.Model:
 
 
 # Cost model of estimate_identify, from benchmarks/bench_identify_long.py (one hour at 1 kHz of a
-# 7-joint arm, 3.6 million samples, by chunks on a quiet 2-core machine: 23 s wall, 37 s of CPU,
-# peak 0.96 GB). The CPU time, rounded up, is used (the wall time on one core), so on more cores
+# 7-joint arm, 3.6 million samples, by chunks on a quiet 2-core machine: 26 s wall, 41 s of CPU,
+# peak 900 MiB). The CPU time, rounded up, is used (the wall time on one core), so on more cores
 # the estimate errs long, as an estimate that may refuse a job should.
 _SECONDS_PER_SAMPLE_JOINT2 = 2.5e-7
 _BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba, cvxpy, matplotlib

@@ -461,7 +461,9 @@ def prediction_std(Yb: FloatArray, covariance: FloatArray, sigma: FloatArray) ->
     # C = V diag(e) V^T (symmetric, PSD up to round-off): r^T C r = ||diag(sqrt(e)) V^T r||^2
     e, V = np.linalg.eigh(0.5 * (covariance + covariance.T))
     F = V * np.sqrt(np.clip(e, 0.0, None))[None, :]
-    var = np.sum((Yb @ F) ** 2, axis=-1)
+    P = Yb @ F
+    P *= P  # in place: one temporary of the rows' size, not two
+    var = P.sum(axis=-1)
     return np.sqrt(np.clip(var, 0.0, None) + np.asarray(sigma, dtype=float)[None, :] ** 2)
 
 
