@@ -27,6 +27,7 @@ __all__ = [
     "ZeroPhaseStream",
     "central_differences",
     "decay_length",
+    "derivative",
     "sosfiltfilt",
     "zero_phase_lowpass",
 ]
@@ -272,10 +273,15 @@ def central_differences(q: npt.ArrayLike, sampling_rate_hz: float) -> tuple[Floa
     dq, ddq :
         Velocities and accelerations, each of the shape of ``q``.
     """
-    step = 1.0 / sampling_rate_hz
-    dq = np.gradient(q, step, axis=0, edge_order=2)
-    ddq = np.gradient(dq, step, axis=0, edge_order=2)
-    return dq, ddq
+    dq = derivative(q, sampling_rate_hz)
+    return dq, derivative(dq, sampling_rate_hz)
+
+
+def derivative(x: npt.ArrayLike, sampling_rate_hz: float) -> FloatArray:
+    """One step of :func:`central_differences`: the derivative of uniformly sampled ``x``
+    (n_samples >= 3, ...) along axis 0, same shape (a caller that needs ``dq`` and ``ddq`` one
+    at a time, freeing each before the next, calls it twice)."""
+    return np.gradient(x, 1.0 / sampling_rate_hz, axis=0, edge_order=2)
 
 
 @njit(cache=True, nogil=True)

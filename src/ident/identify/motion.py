@@ -27,7 +27,7 @@ from ident.errors import DataError
 from ident.signals import sosfiltfilt
 from ident.trajectory import JointTrajectory
 
-__all__ = ["DEFAULT_REPLAY_RATE_HZ", "decimation_factor", "measured_motion"]
+__all__ = ["DEFAULT_REPLAY_RATE_HZ", "antialiased", "decimation_factor", "measured_motion"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -44,6 +44,38 @@ def decimation_factor(sampling_rate_hz: float, max_rate_hz: float) -> int:
     if max_rate_hz <= 0:
         raise ValueError(f"max_rate_hz = {max_rate_hz} must be > 0")
     return max(1, math.ceil(sampling_rate_hz / max_rate_hz - 1e-9))
+
+
+def antialiased(
+    x: FloatArray, sampling_rate_hz: float, max_rate_hz: float = DEFAULT_REPLAY_RATE_HZ
+) -> FloatArray:
+    """One signal (n, ...) of :func:`measured_motion`, decimated to at most ``max_rate_hz``
+    (every ``decimation_factor``-th sample of its zero-phase anti-aliasing filter; ``x`` as it
+    is when no decimation is needed). A caller may decimate its signals one at a time with it
+    and free each full-rate one before computing the next (the replay motion of a long log).
+
+    Raises
+    ------
+    DataError
+        If the signal is too short for the anti-aliasing filter.
+    """
+    factor = decimation_factor(sampling_rate_hz, max_rate_hz)
+    if factor == 1:
+        return x
+    cutoff = _ANTIALIAS_EDGE * 0.5 * (sampling_rate_hz / factor)
+    sos = signal.butter(_ANTIALIAS_ORDER, cutoff, fs=sampling_rate_hz, output="sos")
+    # Odd extension over ~3 periods of the cut-off: the edge transient of the forward-backward
+    # pass decays inside the padding (sosfiltfilt's default of 27 samples leaves errors of
+    # 0.1 rad at the end of a log cut mid-motion).
+    n = x.shape[0]
+    padlen = min(n - 1, math.ceil(3.0 * sampling_rate_hz / cutoff))
+    if n <= 3 * (2 * len(sos) + 1):
+        raise DataError(
+            f"measured motion: {n} samples are too few for the anti-aliasing filter "
+            f"(needs more than {3 * (2 * len(sos) + 1)})."
+        )
+    # ident's compiled filter: only every factor-th sample is written, no copies of x
+    return sosfiltfilt(sos, x, factor, padlen=padlen)
 
 
 def measured_motion(
@@ -87,26 +119,12 @@ def measured_motion(
     """
     factor = decimation_factor(sampling_rate_hz, max_rate_hz)
     fs = sampling_rate_hz / factor
-    arrays = [q, dq, ddq, tau]
+    arrays = [antialiased(x, sampling_rate_hz, max_rate_hz) for x in (q, dq, ddq, tau)]
     how = "no decimation needed"
     if factor > 1:
-        cutoff = _ANTIALIAS_EDGE * 0.5 * fs
-        sos = signal.butter(_ANTIALIAS_ORDER, cutoff, fs=sampling_rate_hz, output="sos")
-        # Odd extension over ~3 periods of the cut-off: the edge transient of the
-        # forward-backward pass decays inside the padding (sosfiltfilt's default of 27
-        # samples leaves errors of 0.1 rad at the end of a log cut mid-motion).
-        n = q.shape[0]
-        padlen = min(n - 1, math.ceil(3.0 * sampling_rate_hz / cutoff))
-        if n <= 3 * (2 * len(sos) + 1):
-            raise DataError(
-                f"measured motion: {n} samples are too few for the anti-aliasing filter "
-                f"(needs more than {3 * (2 * len(sos) + 1)})."
-            )
-        # ident's compiled filter: only every factor-th sample is written, no copies of x
-        arrays = [sosfiltfilt(sos, x, factor, padlen=padlen) for x in arrays]
         how = (
-            f"zero-phase Butterworth order {_ANTIALIAS_ORDER} at {cutoff:g} Hz, then every "
-            f"{factor}th sample"
+            f"zero-phase Butterworth order {_ANTIALIAS_ORDER} at {_ANTIALIAS_EDGE * 0.5 * fs:g} "
+            f"Hz, then every {factor}th sample"
         )
     q_d, dq_d, ddq_d, tau_d = arrays
     t_d = np.asarray(t[::factor], dtype=float)

@@ -39,6 +39,7 @@ if TYPE_CHECKING:
 __all__ = [
     "DecimationStream",
     "antialias_sos",
+    "check_differentiable",
     "decimate",
     "decimation_factors",
     "decimation_step",
@@ -123,14 +124,19 @@ def differentiate(q: FloatArray, sampling_rate_hz: float) -> tuple[FloatArray, F
         ``dq`` [rad/s], ``ddq`` [rad/s^2] (each shape of ``q``) and the record. Exact on
         polynomials of degree <= 2 (``dq``) and on degree <= 1 of ``dq`` for ``ddq``.
     """
-    if q.shape[0] < 3:
-        raise DataError(f"need at least 3 samples to differentiate, got {q.shape[0]}.")
+    check_differentiable(q.shape[0])
     dq, ddq = central_differences(q, sampling_rate_hz)
     return (
         dq,
         ddq,
         {"step": "differentiate", "detail": "central differences (np.gradient) to dq, ddq"},
     )
+
+
+def check_differentiable(n_samples: int) -> None:
+    """Raise :class:`DataError` when :func:`differentiate` cannot run on ``n_samples``."""
+    if n_samples < 3:
+        raise DataError(f"need at least 3 samples to differentiate, got {n_samples}.")
 
 
 def trim(arrays: list[FloatArray], n_edge: int) -> tuple[list[FloatArray], dict]:
