@@ -11,10 +11,10 @@
 2. Runs ``ident identify`` on it in a subprocess (the log is longer than
    ``preprocess.max_regressor_mb`` allows in memory, so the chunked path runs) and prints
    its wall time and peak resident memory (targets, issue 25: < 60 s and < 1 GB on 2 cores;
-   measured for one hour: peak 1.54 GB, 154 s wall and 104 s of CPU at load 3-5 on the
-   shared 2-core machine, 37 s wall on a quiet one before; the peak is the interpreter and
-   its libraries, ~0.37 GB, the log's t, q, tau, 0.43 GB, and the chunks in flight, ~0.5 GB,
-   see docs/benchmarks.md).
+   measured for one hour on an idle machine: 26 s wall, 41 s of CPU, peak 900 MiB: the
+   interpreter and its libraries, ~0.3 GB, the log's t, q, tau, 0.43 GB, two chunks in
+   flight, ~0.1 GB each; before the chunks' regressor was streamed through the decimation
+   filters, 52 s and 1.5 GB; see docs/benchmarks.md).
 3. Per sample: the chunked path (regressor kernel + extra columns + base columns +
    reduction) against a Python loop over ``pinocchio.computeJointTorqueRegressor`` plus the
    matrix product ``Y^T Y``, measured in this run (target: >= 8x).
@@ -23,9 +23,9 @@
 5. The same kind of log as a bare MCAP file of ``sensor_msgs/JointState`` messages at 1 kHz
    (``--mcap-minutes``; 0 skips it), identified by ``ident identify`` in a subprocess: wall
    time and peak memory (target: bounded like the numpy log, i.e. the log's columns plus the
-   chunked identification, not the decoded messages. Measured for one hour: peak 1.63 GB,
-   read in 12 s, 110 s wall at load 3-7; the reader before held every message of the file as
-   an object, ~800 bytes each, and decoded 70 us per message; the one before that kept a dict
+   chunked identification, not the decoded messages. Measured for one hour: 28 s wall, peak
+   within 20 MB of the numpy log's; the reader before held every message of the file as an
+   object, ~800 bytes each, and decoded 70 us per message; the one before that kept a dict
    per message and reached 5.4 GB).
 """
 
@@ -179,7 +179,22 @@ def config(
     return path
 
 
-_RUNNER = """
+#: ``peak_mb()`` in a child interpreter: its own peak resident set [MB], VmHWM. Not
+#: ``ru_maxrss``, which a child started with ``subprocess`` inherits from its parent at exec
+#: (measured: a child of a 1.2 GB parent reported 1170 MB by ru_maxrss, 11 MB by VmHWM).
+PEAK_MB_SOURCE = """
+def peak_mb():
+    import resource
+    try:
+        with open("/proc/self/status") as f:
+            return next(int(x.split()[1]) for x in f if x.startswith("VmHWM:")) / 1024
+    except (OSError, StopIteration):  # not Linux
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+"""
+
+_RUNNER = (
+    PEAK_MB_SOURCE
+    + """
 import resource, sys, time, json
 t0 = time.perf_counter()
 from ident.cli import app
@@ -188,9 +203,9 @@ try:
 finally:
     usage = resource.getrusage(resource.RUSAGE_SELF)
     cpu = usage.ru_utime + usage.ru_stime
-    print(json.dumps({"wall_s": time.perf_counter() - t0, "cpu_s": cpu,
-                      "peak_mb": usage.ru_maxrss / 1024}))
+    print(json.dumps({"wall_s": time.perf_counter() - t0, "cpu_s": cpu, "peak_mb": peak_mb()}))
 """
+)
 
 
 def run_cli(cfg: Path, out: Path) -> dict:

@@ -53,6 +53,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
+import os
 import platform
 import resource
 import sys
@@ -81,6 +83,7 @@ from ident.run.setup import load_run
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import peer_ur10_truth as ur10_truth  # noqa: E402
+from bench_identify_long import PEAK_MB_SOURCE  # noqa: E402
 
 FloatArray = np.ndarray
 
@@ -566,7 +569,9 @@ def pinocchio_part(n: int = 2000, repeat: int = 5) -> str:
 # ---------------------------------------------------------------------------------------------
 # FIGAROH on the TX40 log, its own example (fetched by benchmarks/fetch_figaroh_examples.sh)
 
-_FIGAROH_CHILD = """
+_FIGAROH_CHILD = (
+    PEAK_MB_SOURCE
+    + """
 import json, os, resource, sys, time
 root = sys.argv[1]
 os.chdir(os.path.join(root, "examples", "staubli_TX40"))
@@ -586,10 +591,13 @@ print("RESULT " + json.dumps({
     "rmse": float(iden.rms_error),
     "relative": float(np.linalg.norm(res) / np.linalg.norm(iden.tau_noised)),
     "rows": int(np.asarray(iden.tau_noised).size), "wall": wall,
-    "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}))
+    "rss_mb": peak_mb()}))
 """
+)
 
-_IDENT_CHILD = """
+_IDENT_CHILD = (
+    PEAK_MB_SOURCE
+    + """
 import json, resource, sys, time
 import numpy as np
 from ident.identify.config import load_identify_config
@@ -604,8 +612,9 @@ print("RESULT " + json.dumps({
     "rmse": float(np.sqrt(np.mean(np.asarray(e.residual_rms) ** 2))),
     "relative": float(e.relative_residual), "held_out": float(held),
     "rows": int(r.n_identify_rows), "wall": wall,
-    "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}))
+    "rss_mb": peak_mb()}))
 """
+)
 
 
 def _child(code: str, *args: str) -> dict[str, Any]:
@@ -1113,28 +1122,57 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def long_log_part(minutes: float) -> str:
-    """``ident identify`` on ``minutes`` of a 7-joint 1 kHz numpy log (the Panda without
-    fingers, ``bench_identify_long.py``'s generator), in its own process: wall, CPU and peak
-    resident memory (goal for one hour: < 60 s and < 1 GB on 2 cores). No peer is run on it;
-    the MCAP variant of the same log is ``bench_identify_long.py --mcap-minutes``."""
+    """``ident identify`` on ``minutes`` of a 7-joint 1 kHz log (the Panda without fingers,
+    ``bench_identify_long.py``'s generator), as a numpy archive and as an MCAP of JointState
+    messages, each in its own process: wall, CPU and peak resident memory, and the consistent
+    model written (goal for one hour from MCAP: < 60 s and < 1 GB on 2 cores). No peer is run
+    on it."""
     import bench_identify_long as long_log
 
+    rows = []
     with tempfile.TemporaryDirectory(prefix="bench-peers-long-") as tmp:
         folder = Path(tmp)
         urdf = long_log.panda7(folder)
         log = folder / "long.npz"
         long_log.generate(urdf, minutes, 1000.0, log)
-        cfg = long_log.config(urdf, log, folder / "long.yaml", max_regressor_mb=256.0)
-        run = long_log.run_cli(cfg, folder / "runs")
+        model = pin.buildModelFromUrdf(str(urdf))
+        joints = [model.names[i] for i in range(1, model.njoints)]
+        mcap = folder / "long.mcap"
+        long_log.write_mcap(mcap, log, joints)
+        cases = {
+            f"numpy archive ({log.stat().st_size / 2**20:.0f} MB)": long_log.config(
+                urdf, log, folder / "long.yaml", max_regressor_mb=256.0
+            ),
+            f"MCAP of JointState ({mcap.stat().st_size / 2**20:.0f} MB, zstd)": long_log.config(
+                urdf,
+                mcap,
+                folder / "mcap.yaml",
+                position=[f"/joint_states/position/{j}" for j in joints],
+                torque=[f"/joint_states/effort/{j}" for j in joints],
+                max_regressor_mb=256.0,
+            ),
+        }
+        for k, (what, cfg) in enumerate(cases.items()):
+            load = os.getloadavg()[0]
+            run = long_log.run_cli(cfg, folder / f"runs-{k}")
+            (rundir,) = (folder / f"runs-{k}").iterdir()
+            written = json.loads((rundir / "result.json").read_text())["model"]
+            parity = max(written["reload_parity"]["urdf"], written["reload_parity"]["mjcf"])
+            rows.append(
+                f"| {what} | {run['wall_s']:.1f} | {run['cpu_s']:.1f} | {run['peak_mb']:.0f} | "
+                f"{written['method']} URDF + MJCF, reloaded to {parity:.0e} | {load:.1f} |"
+            )
     n = int(minutes * 60 * 1000)
     return "\n".join(
         [
-            f"**Long log** ({minutes:g} min at 1 kHz, 7 joints: {n} samples, numpy archive)",
+            f"**Long log** ({minutes:g} min at 1 kHz, 7 joints: {n} samples; `ident identify` "
+            "in its own process, chunked)",
             "",
-            "| tool | wall [s] | CPU [s] | peak RSS [MB] | goal (one hour) |",
-            "|---|---|---|---|---|",
-            f"| ident identify (chunked, own process) | {run['wall_s']:.1f} | "
-            f"{run['cpu_s']:.1f} | {run['peak_mb']:.0f} | < 60 s, < 1024 MB |",
+            "| log | wall [s] | CPU [s] | peak RSS [MB] | written model | load at start |",
+            "|---|---|---|---|---|---|",
+            *rows,
+            "",
+            "Goal for one hour from MCAP: < 60 s and < 1 GB (1024 MB) on 2 cores.",
         ]
     )
 

@@ -270,13 +270,18 @@ def test_bag_declaring_a_missing_compression():
         read_tables(HOSTILE_LOGS / "bag_zstd_declared")
 
 
+# VmHWM, this process's own peak [kB]: ru_maxrss starts at the parent's (the pytest worker's,
+# often above this child's whole run), inherited at exec, and would make the growth 0
 _RSS = """
-import resource, sys
+import sys
 from ident.measure.readers import read_tables
+def peak_kb():
+    with open("/proc/self/status") as f:
+        return next(int(x.split()[1]) for x in f if x.startswith("VmHWM:"))
 read_tables(sys.argv[1])  # imports, decoders: warm
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+before = peak_kb()
 (table,) = read_tables(sys.argv[2])
-after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+after = peak_kb()
 print((after - before) * 1024, sum(c.nbytes for c in table.columns.values()))
 """
 
