@@ -192,6 +192,19 @@ def peak_mb():
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 """
 
+
+def mcap_config(urdf: Path, mcap: Path, path: Path, joints: list[str]) -> Path:
+    """:func:`config` for the MCAP of :func:`write_mcap` (its JointState columns by joint)."""
+    return config(
+        urdf,
+        mcap,
+        path,
+        position=[f"/joint_states/position/{j}" for j in joints],
+        torque=[f"/joint_states/effort/{j}" for j in joints],
+        max_regressor_mb=256.0,
+    )
+
+
 _RUNNER = (
     PEAK_MB_SOURCE
     + """
@@ -350,14 +363,7 @@ def mcap_case(urdf: Path, folder: Path, minutes: float, rate: float) -> None:
         f"MCAP: {n} JointState messages ({minutes:g} min at {rate:g} Hz, 7 joints) written in "
         f"{time.perf_counter() - t0:.1f} s; {size / 2**20:.0f} MB"
     )
-    cfg = config(
-        urdf,
-        path,
-        folder / "mcap.yaml",
-        position=[f"/joint_states/position/{j}" for j in joints],
-        torque=[f"/joint_states/effort/{j}" for j in joints],
-        max_regressor_mb=256.0,
-    )
+    cfg = mcap_config(urdf, path, folder / "mcap.yaml", joints)
     out = folder / "runs-mcap"
     run = run_cli(cfg, out)
     (rundir,) = out.iterdir()

@@ -1143,13 +1143,8 @@ def long_log_part(minutes: float) -> str:
             f"numpy archive ({log.stat().st_size / 2**20:.0f} MB)": long_log.config(
                 urdf, log, folder / "long.yaml", max_regressor_mb=256.0
             ),
-            f"MCAP of JointState ({mcap.stat().st_size / 2**20:.0f} MB, zstd)": long_log.config(
-                urdf,
-                mcap,
-                folder / "mcap.yaml",
-                position=[f"/joint_states/position/{j}" for j in joints],
-                torque=[f"/joint_states/effort/{j}" for j in joints],
-                max_regressor_mb=256.0,
+            f"MCAP of JointState ({mcap.stat().st_size / 2**20:.0f} MB, zstd)": (
+                long_log.mcap_config(urdf, mcap, folder / "mcap.yaml", joints)
             ),
         }
         for k, (what, cfg) in enumerate(cases.items()):
