@@ -246,7 +246,7 @@ def iter_chunks(
 
 
 #: Samples whose regressor rows are computed at once (then streamed through the decimation
-#: filters): ~7 MB for 7 joints and 60 columns, whatever the chunk's length.
+#: filters): 3.4 MB for 7 joints and 60 columns, whatever the chunk's length.
 ROW_BLOCK = 1024
 
 
@@ -741,7 +741,7 @@ def chunk_bytes(extent: int, nv: int, n_columns: int, step: int) -> float:
     extent: ~4 :data:`ROW_BLOCK` rows of every column (the regressor's row blocks and the
     decimation filters' buffers, :class:`~ident.identify.preprocess.DecimationStream`).
     Measured on an hour at 1 kHz of a 7-joint arm (57 base columns, step 20, chunks of 100 000
-    samples): ~85 MB a worker, this formula 101 MB.
+    samples, 131 000 with their margins): ~85 MiB a worker, this formula 82 MiB.
     """
     row = 8.0 * nv * (n_columns + 2)
     return extent * (8.0 * 4 * nv + 2 * row / step) + 4 * ROW_BLOCK * row
