@@ -28,6 +28,7 @@ __all__ = [
     "central_differences",
     "decay_length",
     "derivative",
+    "padding",
     "sosfiltfilt",
     "zero_phase_lowpass",
 ]

@@ -175,9 +175,7 @@ def make_plan(
     n_trim = n_samples - 2 * pp.trim_samples
     if n_trim <= 0:
         raise DataError(f"trim_samples = {pp.trim_samples} removes all {n_samples} samples.")
-    n_dec = n_trim
-    for factor in preprocess.decimation_factors(pp):
-        n_dec = -(-n_dec // factor)  # x[::f] keeps ceil(n / f)
+    n_dec = preprocess.decimated_length(n_trim, preprocess.decimation_factors(pp))
     signal_margin, decimation_margin = margin_samples(pp, sampling_rate_hz)
     return ChunkPlan(
         n_samples=n_samples,
@@ -288,10 +286,7 @@ def _streamed_rows(
     when ``every_column``); None if another one is nonzero later."""
     q, dq, ddq = states
     n, nv = tau.shape
-    n_out = n
-    for factor in factors:
-        n_out = -(-n_out // factor)  # x[::f] keeps ceil(n / f)
-    k0, k1 = kept if kept is not None else (0, n_out)
+    k0, k1 = kept if kept is not None else (0, preprocess.decimated_length(n, factors))
     tau_d, dq_d = np.empty((k1 - k0, nv)), np.empty((k1 - k0, nv))
     at = -k0  # output row of the next decimated row
     for lo in range(0, n, ROW_BLOCK):
@@ -359,7 +354,9 @@ def _gather(  # noqa: PLR0913
 
 
 def regressor_bytes(n_samples: int, nv: int, n_columns: int) -> int:
-    """Bytes of the in-memory path's regressor arrays (rigid + extra + base, decimation copy)."""
+    """Bytes of a log's full-rate regressor arrays (rigid + extra + base, decimation copy), the
+    size :func:`use_chunks` compares with ``preprocess.max_regressor_mb``. Neither path holds
+    them any more (:func:`decimated_rows`); the memory of a chunk is :func:`chunk_bytes`."""
     return 8 * n_samples * nv * n_columns * 3
 
 

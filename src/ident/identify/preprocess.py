@@ -31,7 +31,13 @@ from scipy.linalg import blas
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import FilterConfig, PreprocessConfig
-from ident.signals import ZeroPhaseStream, central_differences, sosfiltfilt, zero_phase_lowpass
+from ident.signals import (
+    ZeroPhaseStream,
+    central_differences,
+    padding,
+    sosfiltfilt,
+    zero_phase_lowpass,
+)
 
 if TYPE_CHECKING:
     from ident.identify.logs import RobotLog
@@ -41,6 +47,7 @@ __all__ = [
     "antialias_sos",
     "check_differentiable",
     "decimate",
+    "decimated_length",
     "decimation_factors",
     "decimation_step",
     "differentiate",
@@ -189,11 +196,8 @@ def decimate(
             continue
         n = out[0].shape[0]
         sos = antialias_sos(factor)
-        if n <= 3 * (2 * len(sos) + 1):
-            raise DataError(
-                f"decimation by {factor}: only {n} samples left, too few for the zero-phase "
-                "anti-aliasing filter; use a longer log or less decimation."
-            )
+        if n <= padding(sos):
+            raise _too_few_to_decimate(factor, n)
         out = [
             sosfiltfilt(sos, a.reshape(n, -1), factor, skip_zero_columns=True).reshape(
                 -1, *a.shape[1:]
@@ -211,6 +215,21 @@ def decimate(
             f"regressor rows alike: {n_in} -> {out[0].shape[0]} samples, "
             f"{sampling_rate_hz:g} -> {fs:g} Hz",
         },
+    )
+
+
+def decimated_length(n_samples: int, factors: list[int]) -> int:
+    """Samples left of ``n_samples`` after decimating by ``factors`` in turn (``x[::f]``
+    keeps ``ceil(n / f)``)."""
+    for factor in factors:
+        n_samples = -(-n_samples // factor)
+    return n_samples
+
+
+def _too_few_to_decimate(factor: int, n_samples: int) -> DataError:
+    return DataError(
+        f"decimation by {factor}: only {n_samples} samples left, too few for the zero-phase "
+        "anti-aliasing filter; use a longer log or less decimation."
     )
 
 
@@ -254,10 +273,7 @@ class DecimationStream:
             if out is not None:
                 out = stage.push(out)
             if stage.n_rows <= stage.edge:
-                raise DataError(
-                    f"decimation by {factor}: only {stage.n_rows} samples left, too few for the "
-                    "zero-phase anti-aliasing filter; use a longer log or less decimation."
-                )
+                raise _too_few_to_decimate(factor, stage.n_rows)
             last = stage.finish()
             out = last if out is None else np.concatenate([out, last])
         return np.empty((0, self.n_columns)) if out is None else out
