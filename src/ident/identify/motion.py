@@ -24,7 +24,7 @@ import numpy.typing as npt
 from scipy import signal
 
 from ident.errors import DataError
-from ident.signals import sosfiltfilt
+from ident.signals import padding, sosfiltfilt
 from ident.trajectory import JointTrajectory
 
 __all__ = ["DEFAULT_REPLAY_RATE_HZ", "antialiased", "decimation_factor", "measured_motion"]
@@ -46,6 +46,11 @@ def decimation_factor(sampling_rate_hz: float, max_rate_hz: float) -> int:
     return max(1, math.ceil(sampling_rate_hz / max_rate_hz - 1e-9))
 
 
+def _cutoff_hz(rate_hz: float) -> float:
+    """Cut-off [Hz] of the anti-aliasing filter for the decimated rate ``rate_hz``."""
+    return _ANTIALIAS_EDGE * 0.5 * rate_hz
+
+
 def antialiased(
     x: FloatArray, sampling_rate_hz: float, max_rate_hz: float = DEFAULT_REPLAY_RATE_HZ
 ) -> FloatArray:
@@ -62,17 +67,17 @@ def antialiased(
     factor = decimation_factor(sampling_rate_hz, max_rate_hz)
     if factor == 1:
         return x
-    cutoff = _ANTIALIAS_EDGE * 0.5 * (sampling_rate_hz / factor)
+    cutoff = _cutoff_hz(sampling_rate_hz / factor)
     sos = signal.butter(_ANTIALIAS_ORDER, cutoff, fs=sampling_rate_hz, output="sos")
     # Odd extension over ~3 periods of the cut-off: the edge transient of the forward-backward
     # pass decays inside the padding (sosfiltfilt's default of 27 samples leaves errors of
     # 0.1 rad at the end of a log cut mid-motion).
     n = x.shape[0]
     padlen = min(n - 1, math.ceil(3.0 * sampling_rate_hz / cutoff))
-    if n <= 3 * (2 * len(sos) + 1):
+    if n <= padding(sos):
         raise DataError(
             f"measured motion: {n} samples are too few for the anti-aliasing filter "
-            f"(needs more than {3 * (2 * len(sos) + 1)})."
+            f"(needs more than {padding(sos)})."
         )
     # ident's compiled filter: only every factor-th sample is written, no copies of x
     return sosfiltfilt(sos, x, factor, padlen=padlen)
@@ -123,8 +128,8 @@ def measured_motion(
     how = "no decimation needed"
     if factor > 1:
         how = (
-            f"zero-phase Butterworth order {_ANTIALIAS_ORDER} at {_ANTIALIAS_EDGE * 0.5 * fs:g} "
-            f"Hz, then every {factor}th sample"
+            f"zero-phase Butterworth order {_ANTIALIAS_ORDER} at {_cutoff_hz(fs):g} Hz, then "
+            f"every {factor}th sample"
         )
     q_d, dq_d, ddq_d, tau_d = arrays
     t_d = np.asarray(t[::factor], dtype=float)
