@@ -728,10 +728,13 @@ class Design:
     evaluations: int
 
 
-def _fixture_urdf(source: Path, fixture: dict[str, Any], folder: Path) -> Path:
+def _fixture_urdf(
+    source: Path, fixture: dict[str, Any], folder: Path
+) -> tuple[Path, tuple[str, ...]]:
     """``source`` with FIGAROH's fixture limits written into its joints' ``<limit>``:
     centre +- amplitude, the velocity and torque fractions (no acceleration limit); its meshes
-    removed (the fixture checks no collision)."""
+    removed (the fixture checks no collision). With the names of the joints, in the order of
+    the fixture's per-joint lists."""
     import xml.etree.ElementTree as ET
 
     tree = ET.parse(source)
@@ -750,17 +753,7 @@ def _fixture_urdf(source: Path, fixture: dict[str, Any], folder: Path) -> Path:
         limit.set("effort", repr(fixture["torque_fraction"] * fixture["torque_limit_nm"][k]))
     path = folder / "ur10_fixture_limits.urdf"
     tree.write(path)
-    return path
-
-
-UR10_JOINTS = (
-    "shoulder_pan_joint",
-    "shoulder_lift_joint",
-    "elbow_joint",
-    "wrist_1_joint",
-    "wrist_2_joint",
-    "wrist_3_joint",
-)
+    return path, tuple(str(j.get("name")) for j in joints)
 
 
 def excitation_configs(
@@ -801,14 +794,15 @@ def excitation_configs(
         excitation["options"]["fill_limits"] = True
     centre = fixture["center_rad"]
     ur10_swarm = swarm if quick else {**swarm, "maxiter": 100}
+    fixture_urdf, joints = _fixture_urdf(ur10_urdf, fixture, folder)
     ur10 = {
-        "robot": {"urdf": str(_fixture_urdf(ur10_urdf, fixture, folder))},
+        "robot": {"urdf": str(fixture_urdf)},
         "stage": "whole",
         "seed": 0,
         "excitation": {
             **excitation,
             "bounds": {
-                f"q0[{j}]": [centre[k] - 0.3, centre[k] + 0.3] for k, j in enumerate(UR10_JOINTS)
+                f"q0[{j}]": [centre[k] - 0.3, centre[k] + 0.3] for k, j in enumerate(joints)
             },
         },
         "optimizer": "pso",
