@@ -352,15 +352,30 @@ VELOCITY_MISMATCH = 0.2
 def excitation_band(q: FloatArray, sampling_rate_hz: float, energy: float = 0.999) -> float:
     """Frequency [Hz] below which ``energy`` of the detrended positions' power lies (largest
     over joints); ``q`` of shape (n_samples, n_joints)."""
+    return _spectral_summary(q, sampling_rate_hz, energy)[0]
+
+
+def _spectral_summary(
+    q: FloatArray, sampling_rate_hz: float, energy: float = 0.999
+) -> tuple[float, FloatArray]:
+    """One pass over the joints' spectra (:func:`_spectra`): the :func:`excitation_band` and,
+    per joint, the share of the power above fs/4 (NaN for a joint without power; the alias
+    warning's figure), shape (n_joints,)."""
     freqs = np.fft.rfftfreq(q.shape[0], 1.0 / sampling_rate_hz)
+    above = freqs > 0.25 * sampling_rate_hz
     band = 0.0
+    high = []
     for power in _spectra(q):
         total = power.sum()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            high.append(power[above].sum() / total)
         if total <= 0:
             continue
         cumulative = np.cumsum(power) / total
         band = max(band, float(freqs[np.searchsorted(cumulative, energy)]))
-    return band if band > 0 else float(freqs[1] if freqs.size > 1 else sampling_rate_hz / 4)
+    if band <= 0:
+        band = float(freqs[1] if freqs.size > 1 else sampling_rate_hz / 4)
+    return band, np.array(high, dtype=float)
 
 
 def _spectra(q: FloatArray) -> Iterator[FloatArray]:
@@ -451,7 +466,9 @@ def resolve_defaults(
         the report and plain-language warnings for the result.
     """
     fs = sampling_rate_hz
-    update, records = _auto_settings(pp, q, fs)
+    # the spectrum of every joint, once: the automatic settings and the alias warning
+    estimated_band, high = _spectral_summary(q, fs)
+    update, records = _auto_settings(pp, estimated_band, fs)
     cutoff = update.get("lowpass", pp.lowpass)
     cutoff_hz = cutoff.cutoff_hz if isinstance(cutoff, FilterConfig) else None
     warnings: list[str] = []
@@ -461,7 +478,7 @@ def resolve_defaults(
             "raw encoder steps amplify noise; remove the line to get a filter chosen from the "
             "excitation band."
         )
-    warnings += _alias_warnings(q, fs)
+    warnings += _alias_warnings(high, fs)
     if dq_logged is not None:
         record, problems = _velocity_check(q, dq_logged, fs, cutoff_hz)
         records.append(record)
@@ -470,14 +487,15 @@ def resolve_defaults(
 
 
 def _auto_settings(
-    pp: PreprocessConfig, q: FloatArray, fs: float
+    pp: PreprocessConfig, estimated_band: float, fs: float
 ) -> tuple[dict[str, object], list[dict]]:
-    """The ``auto`` low-pass and decimation chosen from the excitation band, and records."""
+    """The ``auto`` low-pass and decimation chosen from the excitation band (the configured
+    one, else ``estimated_band`` [Hz], :func:`excitation_band`), and records."""
     records: list[dict] = []
     band = pp.excitation_band_hz
     band_note = "configured"
     if band is None and (pp.lowpass == "auto" or pp.decimation == "auto"):
-        band = excitation_band(q, fs)
+        band = estimated_band
         band_note = "estimated: 99.9 % of the positions' power"
     update: dict[str, object] = {}
     cutoff_hz = pp.lowpass.cutoff_hz if isinstance(pp.lowpass, FilterConfig) else None
@@ -506,11 +524,9 @@ def _auto_settings(
     return update, records
 
 
-def _alias_warnings(q: FloatArray, fs: float) -> list[str]:
-    """A warning when positions carry power above fs/4 (aliased motion or noise)."""
-    above = np.fft.rfftfreq(q.shape[0], 1.0 / fs) > 0.25 * fs
-    with np.errstate(invalid="ignore", divide="ignore"):
-        high = np.array([power[above].sum() / power.sum() for power in _spectra(q)])
+def _alias_warnings(high: FloatArray, fs: float) -> list[str]:
+    """A warning when positions carry power above fs/4 (aliased motion or noise): ``high``,
+    each joint's share of its power there (:func:`_spectral_summary`)."""
     aliased = np.flatnonzero(high > ALIAS_POWER)
     if not aliased.size:
         return []
