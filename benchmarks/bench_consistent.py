@@ -32,7 +32,7 @@ from ident.dynamics.friction import ExtraTerms
 from ident.identify.config import load_identify_config
 from ident.identify.estimators import choose_regularization, get_estimator
 from ident.identify.estimators.identification import problem_from_states, standard_regressor
-from ident.identify.real import build_parameter_model, identify
+from ident.identify.pipeline.real import build_parameter_model, identify
 
 ROOT = Path(__file__).resolve().parents[1]
 BUDGET_S = 5.0

@@ -6,13 +6,13 @@ one fixed good excitation trajectory (``benchmarks/data/coverage_trajectories.js
 chosen elite of a full ``ident run`` of that config, seed 0, which passed the dense safety
 check; never re-optimized here) is simulated and identified once per seed exactly as
 ``ident run`` does (:func:`ident.run.log_measurement.measure_and_identify`: the simulator
-writes a log, the log reader reads it, :func:`ident.identify.core.identify_measurements`
+writes a log, the log reader reads it, :func:`ident.identify.pipeline.core.identify_measurements`
 identifies it). The seed draws the torque noise; the motion, hence the quantization, the
 filter and differentiation errors, the friction and the closed-loop errors, is the same in
 every seed: a bias the intervals must absorb, not average out.
 
 Printed per robot and interval method (``ordinary``: ``sigma^2 (W^T W)^-1``; ``hac`` and
-``bootstrap``: :mod:`ident.identify.uncertainty`):
+``bootstrap``: :mod:`ident.identify.estimation.uncertainty`):
 
 - the fraction of true base parameters inside their 95 % interval (goal 90-98 %);
 - the fraction of held-out torque samples (rows above the velocity threshold) inside their
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ident.identify.uncertainty import DEFAULT_METHOD, z_value
+from ident.identify.estimation.uncertainty import DEFAULT_METHOD, z_value
 from ident.run.config import load_run_config
 from ident.run.elite_identification import elite_trajectory
 from ident.run.log_measurement import log_stage_info, measure_and_identify

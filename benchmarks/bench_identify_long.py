@@ -235,7 +235,7 @@ def per_sample(urdf: Path, n: int, trajectory: bool = False) -> tuple[float, flo
 
     The states are random (normal), or with ``trajectory`` those of a Fourier excitation
     (:func:`fourier`, 100 Hz): its rows are worse conditioned, as a log's are, so more of the
-    reduction takes the QR path (:mod:`ident.identify.accumulate`).
+    reduction takes the QR path (:mod:`ident.identify.estimation.accumulate`).
 
     CPU time of the process (``time.process_time``, every thread counted), not wall time: on
     a shared machine a wall-clock figure also counts the time the process waits for a core,
@@ -245,8 +245,8 @@ def per_sample(urdf: Path, n: int, trajectory: bool = False) -> tuple[float, flo
     """
     from threadpoolctl import threadpool_limits
 
-    from ident.identify.accumulate import BaseColumns, reduce_chunk
-    from ident.identify.real import build_parameter_model
+    from ident.identify.estimation.accumulate import BaseColumns, reduce_chunk
+    from ident.identify.pipeline.real import build_parameter_model
 
     model = pin.buildModelFromUrdf(str(urdf))
     chain = chain_from_model(model)
@@ -280,7 +280,7 @@ def per_sample(urdf: Path, n: int, trajectory: bool = False) -> tuple[float, flo
 def compare(urdf: Path, folder: Path, minutes: float, rate: float) -> float:
     """Relative difference ``||x_chunked - x_memory|| / ||x_memory||`` on a short log."""
     from ident.identify.config import load_identify_config
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     log = folder / "short.npz"
     generate(urdf, minutes, rate, log, seed=3)

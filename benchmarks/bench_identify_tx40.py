@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ident.identify.config import load_identify_config
-from ident.identify.real import identify, load_robot_model
+from ident.identify.pipeline.real import identify, load_robot_model
 
 ROOT = Path(__file__).resolve().parents[1]
 BUDGET_S = 30.0

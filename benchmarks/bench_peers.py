@@ -72,8 +72,8 @@ import yaml
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel
 from ident.dynamics.regressor import joint_torque_regressor
-from ident.identify.core import identify_measurements
-from ident.identify.logs import read_log
+from ident.identify.pipeline.core import identify_measurements
+from ident.measure.logs import read_log
 from ident.measure.mujoco_model import dynamics_only_urdf
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.run.elite_identification import elite_trajectory
@@ -601,7 +601,7 @@ _IDENT_CHILD = (
 import json, resource, sys, time
 import numpy as np
 from ident.identify.config import load_identify_config
-from ident.identify.real import identify
+from ident.identify.pipeline.real import identify
 t0 = time.perf_counter()
 r = identify(load_identify_config(sys.argv[1]))
 wall = time.perf_counter() - t0

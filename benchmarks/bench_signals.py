@@ -12,7 +12,7 @@ and 1 % noise (of each joint's RMS torque). The logs are processed with the robo
 
 - the delay is estimated on the log without the payload (:func:`estimate_log_delay`),
 - both logs' torques are advanced by it and the gains estimated against the payload's known
-  mass (:mod:`ident.identify.payload_gain`).
+  mass (:mod:`ident.identify.payload.payload_gain`).
 
 The table prints the delay's error and each joint's gain error with its standard deviation.
 
@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
-from ident.identify.logs import RobotLog
-from ident.identify.signal_correction import correct_payload_logs
+from ident.measure.logs import RobotLog
+from ident.identify.corrections.signal_correction import correct_payload_logs
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate
 

@@ -53,7 +53,7 @@ PACKAGE = Path("src/ident")
 # module name -> (mutated source files, focused test files), paths from the repository root
 MODULES: dict[str, tuple[list[str], list[str]]] = {
     "verdict": (
-        ["src/ident/identify/verdict.py"],
+        ["src/ident/identify/assessment/verdict.py"],
         ["tests/test_verdict.py", "tests/test_verdict_mutants.py"],
     ),
     "base_parameters": (
@@ -61,15 +61,15 @@ MODULES: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_base_parameters.py", "tests/test_base_parameters_mutants.py"],
     ),
     "estimate": (
-        ["src/ident/identify/estimate.py"],
+        ["src/ident/identify/estimation/estimate.py"],
         ["tests/test_estimate.py", "tests/test_essential.py", "tests/test_estimate_mutants.py"],
     ),
     "preprocess": (
-        ["src/ident/identify/preprocess.py"],
+        ["src/ident/identify/estimation/preprocess.py"],
         ["tests/test_preprocess.py", "tests/test_preprocess_mutants.py"],
     ),
     "accumulate": (
-        ["src/ident/identify/accumulate.py"],
+        ["src/ident/identify/estimation/accumulate.py"],
         ["tests/test_accumulate.py", "tests/test_accumulate_mutants.py"],
     ),
     "estimators": (

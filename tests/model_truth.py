@@ -11,7 +11,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from ident.identify.urdf_update import model_of_urdf
+from ident.identify.model_files.urdf_update import model_of_urdf
 from ident.model.selection import RobotSelection, load_robot
 
 

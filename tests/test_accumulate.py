@@ -11,11 +11,11 @@ from robots import random_chain
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms, extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
-from ident.identify import accumulate, preprocess
+from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import PreprocessConfig, load_identify_config
-from ident.identify.essential import essential_parameters
-from ident.identify.estimate import least_squares
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.essential import essential_parameters
+from ident.identify.estimation.estimate import least_squares
+from ident.identify.estimation.observations import ReducedObservations
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -42,7 +42,7 @@ def test_chunks_equal_the_whole_log(decimation):
         decimation=decimation,
     )
     q, tau = _signals(n, 3, fs)
-    # whole-log path, as ident.identify.real does it
+    # whole-log path, as ident.identify.pipeline.real does it
     qf, _ = preprocess.lowpass(q, fs, 20.0, 4)
     tf, _ = preprocess.lowpass(tau, fs, 40.0, 2)
     dq, ddq, _ = preprocess.differentiate(qf, fs)
@@ -123,7 +123,7 @@ def test_essential_from_reduction_equals_dense():
 
 @pytest.mark.slow
 def test_tx40_chunked_equals_in_memory():
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     cfg = load_identify_config(ROOT / "configs" / "tx40.yaml")
     cfg = cfg.model_copy(update={"log": cfg.log.model_copy(update={"max_samples": 30000})})
@@ -145,7 +145,7 @@ def test_dask_scheduler_gives_the_local_result():
     cfg = load_identify_config(ROOT / "configs" / "examples" / "wide-csv.yaml")
     pp = cfg.preprocess.model_copy(update={"chunked": "always", "chunk_samples": 300})
     cfg = cfg.model_copy(update={"preprocess": pp})
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     local = identify(cfg)
     with distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=None) as lc:
@@ -171,7 +171,7 @@ def test_segments_of_one_log_merge(tmp_path):
     cfg["robot"]["urdf"] = str(ROOT / "data" / "examples" / "arm3.urdf")
     cfg["log"]["path"] = str(tmp_path / "gap.csv")
     (tmp_path / "gap.yaml").write_text(yaml.safe_dump(cfg))
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     result = identify(load_identify_config(tmp_path / "gap.yaml"))
     assert result.log.segments == ((0, 800), (800, 1600))
@@ -208,7 +208,7 @@ def test_long_log_benchmark_short_version():
 def test_tx40_constrained_estimate_by_chunks_equals_in_memory():
     # tx40-consistent (lmi): the chunked path (several logs, long logs) gives the same
     # consistent estimate, its held-out prediction and the whole-model URDF's parameters
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     cfg = load_identify_config(ROOT / "configs" / "tx40-consistent.yaml")
     estimation = cfg.estimation.model_copy(

@@ -1,4 +1,4 @@
-"""The chunk reduction's Gram path (ident.identify.accumulate.reduce_chunk) and its fallback.
+"""The chunk reduction's Gram path (ident.identify.estimation.accumulate.reduce_chunk) and its fallback.
 
 A joint's rows of a chunk are reduced from the Cholesky factor of their column-scaled Gram
 matrix when its condition estimate is at most ``GRAM_MAX_COND``; otherwise by CholeskyQR2 or
@@ -10,8 +10,8 @@ conditioned rows (where it squares the condition number) fails here.
 import numpy as np
 import pytest
 
-from ident.identify import accumulate
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation import accumulate
+from ident.identify.estimation.observations import ReducedObservations
 
 
 def _log(rng, n=400, nv=3, p=8):

@@ -1,4 +1,4 @@
-"""Chunked accumulation (ident.identify.accumulate) at its boundaries.
+"""Chunked accumulation (ident.identify.estimation.accumulate) at its boundaries.
 
 What a user relies on: cutting a log in chunks changes nothing (chunked normal equations equal
 the whole log's for any chunk size, with or without filters); the margins are as long as the
@@ -20,9 +20,9 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms, extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError
-from ident.identify import accumulate, preprocess
+from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import PreprocessConfig
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.observations import ReducedObservations
 
 
 def _decay(sos, n=400_000):

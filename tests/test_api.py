@@ -22,7 +22,7 @@ def test_every_exported_name_resolves():
 def test_documented_example_after_the_subpackage_was_imported():
     # the sub-package first (as any `from ident.identify... import` does), then the example
     code = f"""
-import ident.identify.real
+import ident.identify.pipeline.real
 import ident
 cfg = ident.load_identify_config({str(REPO_ROOT / "configs" / "examples" / "wide-csv.yaml")!r})
 identified = ident.identify_config(cfg)
@@ -37,7 +37,7 @@ print("ok")
 
 def test_identify_config_is_the_core_on_the_log_it_reads():
     import ident
-    from ident.identify.logs import read_log
+    from ident.measure.logs import read_log
 
     cfg = ident.load_identify_config(REPO_ROOT / "configs" / "examples" / "wide-csv.yaml")
     a = ident.identify_config(cfg)

@@ -24,7 +24,7 @@ from ident.dynamics.parameter_model import build_parameter_model, model_regresso
 from ident.dynamics.parameters import parameter_names
 from ident.dynamics.pinocchio_check import pinocchio_regressor
 from ident.errors import DataError, IdentWarning
-from ident.identify.estimate import least_squares
+from ident.identify.estimation.estimate import least_squares
 from ident.model import Robot
 
 NAMES = ("p0", "p1", "p2", "p3", "p4")

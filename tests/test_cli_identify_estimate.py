@@ -12,9 +12,9 @@ import pytest
 from typer.testing import CliRunner
 
 from ident.cli import app
-from ident.identify import real
+from ident.identify.pipeline import real
 from ident.identify.config import load_identify_config
-from ident.identify.logs import read_log
+from ident.measure.logs import read_log
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "configs" / "examples" / "wide-csv.yaml"
@@ -34,7 +34,7 @@ def _invoke(out: Path):
 
 
 def test_in_memory_estimate_is_the_whole_log_as_one_chunk():
-    import ident.identify.accumulate as accumulate
+    import ident.identify.estimation.accumulate as accumulate
 
     cfg = load_identify_config(CONFIG)
     nv, n = 3, 10**5
@@ -68,7 +68,7 @@ def test_estimate_of_the_long_log_benchmark():
     # benchmarks/bench_identify_long.py, measured: 3.6 million samples x 7 joints by chunks,
     # 26 s wall (41 s of CPU) on a quiet 2-core machine, peak 900 MiB; the estimate is of that
     # order and errs long (one core's time) and high
-    import ident.identify.accumulate as accumulate
+    import ident.identify.estimation.accumulate as accumulate
 
     cfg = load_identify_config(CONFIG)
     log = _log(cfg, 10)

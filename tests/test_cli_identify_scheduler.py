@@ -60,7 +60,7 @@ def test_scheduler_gives_the_local_estimate(tmp_path):
 
 def test_unreachable_scheduler_is_one_error_line(tmp_path, monkeypatch):
     pytest.importorskip("distributed")
-    import ident.identify.accumulate as accumulate
+    import ident.identify.estimation.accumulate as accumulate
 
     monkeypatch.setattr(accumulate, "DASK_CONNECT_TIMEOUT", "1s")
     out = tmp_path / "runs"

@@ -4,7 +4,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from ident.identify.consistency import (
+from ident.identify.estimation.consistency import (
     body_consistency,
     parameters_from_pseudo_inertia,
     pseudo_inertia,

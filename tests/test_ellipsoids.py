@@ -5,8 +5,8 @@ import pinocchio as pin
 import pytest
 import robots
 
-from ident.identify.consistency import pseudo_inertia
-from ident.identify.urdf_update import parse_urdf
+from ident.identify.estimation.consistency import pseudo_inertia
+from ident.identify.model_files.urdf_update import parse_urdf
 from ident.robot.ellipsoids import Ellipsoid, link_ellipsoids, minimum_volume_ellipsoid
 
 SIZE = np.array([0.4, 0.2, 0.1])

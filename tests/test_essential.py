@@ -1,6 +1,6 @@
 import numpy as np
 
-from ident.identify.essential import essential_parameters
+from ident.identify.estimation.essential import essential_parameters
 
 
 def test_drops_weak_zero_parameters_and_keeps_the_fit():

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from ident.errors import DataError, NotIdentifiable
-from ident.identify.estimate import least_squares, rank_report
+from ident.identify.estimation.estimate import least_squares, rank_report
 
 
 def _problem(rng, n_samples=400, n_rows=3, n_params=5):

@@ -1,4 +1,4 @@
-"""OLS / WLS (ident.identify.estimate) against textbook formulas computed here on the rows.
+"""OLS / WLS (ident.identify.estimation.estimate) against textbook formulas computed here on the rows.
 
 What a user relies on: the estimate and its standard deviations are the textbook ones
 (``sigma^2 (W^T W)^-1``, ``sigma^2 = ||r||^2 / (m - n)``); WLS weights each joint by the
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ident.errors import DataError, NotIdentifiable
-from ident.identify.estimate import least_squares, rank_report
+from ident.identify.estimation.estimate import least_squares, rank_report
 
 NAMES = ("a", "b", "c")
 
@@ -162,8 +162,8 @@ def test_wls_with_an_empty_group_and_a_one_row_group():
 
 
 def test_reduced_least_squares_checks_its_input():
-    from ident.identify.estimate import least_squares_reduced
-    from ident.identify.observations import ReducedObservations
+    from ident.identify.estimation.estimate import least_squares_reduced
+    from ident.identify.estimation.observations import ReducedObservations
 
     W, tau, _ = _data(n_samples=10)
     red = ReducedObservations.from_rows(W, tau.reshape(-1), np.tile([0, 1], 10), 2)
@@ -311,8 +311,8 @@ def test_rank_deficient_least_squares_raises_the_report():
 
 
 def test_reduced_least_squares_defaults_and_small_or_zero_torques():
-    from ident.identify.estimate import least_squares_reduced
-    from ident.identify.observations import ReducedObservations
+    from ident.identify.estimation.estimate import least_squares_reduced
+    from ident.identify.estimation.observations import ReducedObservations
 
     W, tau, _ = _data(n_samples=40)
     y = 1e-3 * tau.reshape(-1)  # torques of a small joint: ||tau|| below 1 N*m

@@ -11,7 +11,7 @@ from ident.dynamics.chain import chain_from_model, random_states
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError, DataError
-from ident.identify.estimate import least_squares, least_squares_reduced
+from ident.identify.estimation.estimate import least_squares, least_squares_reduced
 from ident.identify.estimators import (
     ESTIMATORS,
     EstimationProblem,
@@ -26,7 +26,7 @@ from ident.identify.estimators.log_cholesky import (
     log_cholesky_from_parameters,
     parameters_from_log_cholesky,
 )
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.observations import ReducedObservations
 
 
 # ---- registry -------------------------------------------------------------------------------
@@ -221,8 +221,8 @@ def test_log_cholesky_roundtrip_with_pinocchio():
 
 
 def test_lmi_with_bounding_ellipsoids_keeps_the_mass_inside():
-    from ident.identify.consistency import pseudo_inertia
-    from ident.identify.urdf_update import parse_urdf
+    from ident.identify.estimation.consistency import pseudo_inertia
+    from ident.identify.model_files.urdf_update import parse_urdf
     from ident.robot.ellipsoids import link_ellipsoids
 
     problem, *_ = _ur5_problem(noise=5.0, inconsistent=True, regularization=1e-3)

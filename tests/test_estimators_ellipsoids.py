@@ -11,8 +11,8 @@ from typer.testing import CliRunner
 from ident.cli import app
 from ident.errors import ConfigError
 from ident.identify.config import load_identify_config
-from ident.identify.consistency import pseudo_inertia
-from ident.identify.real import identify
+from ident.identify.estimation.consistency import pseudo_inertia
+from ident.identify.pipeline.real import identify
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "configs" / "examples" / "wide-csv.yaml"

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from ident.cli import app
 from ident.identify.config import load_identify_config
-from ident.identify.real import identify
+from ident.identify.pipeline.real import identify
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "configs" / "tx40-consistent.yaml"

@@ -1,4 +1,4 @@
-"""The friction law carried into the written model (``ident.identify.friction_law``).
+"""The friction law carried into the written model (``ident.identify.friction.friction_law``).
 
 References: the simulated law's true parameters and its closed form written in
 ``test_friction_models`` (not the registry's code), Pinocchio's regressor and MuJoCo's inverse
@@ -20,14 +20,14 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import DataError
-from ident.identify.friction_fit import fit_friction_model
-from ident.identify.friction_law import (
+from ident.identify.friction.friction_fit import fit_friction_model
+from ident.identify.friction.friction_law import (
     applied_friction_torque,
     friction_law_entry,
     friction_law_torque,
     written_friction_law,
 )
-from ident.identify.model_files import model_files, reload_parity
+from ident.identify.model_files.files import model_files, reload_parity
 from ident.model import Robot
 
 

@@ -25,9 +25,13 @@ from ident.dynamics.friction_models import (
 from ident.dynamics.parameter_model import build_parameter_model, model_regressors
 from ident.errors import ConfigError
 from ident.identify.config import load_identify_config
-from ident.identify.friction_fit import FrictionRows, compare_friction_models, fit_friction_model
-from ident.identify.model_files import save_identified_model
-from ident.identify.real import identify
+from ident.identify.friction.friction_fit import (
+    FrictionRows,
+    compare_friction_models,
+    fit_friction_model,
+)
+from ident.identify.model_files.files import save_identified_model
+from ident.identify.pipeline.real import identify
 from ident.measure.mujoco_config import check_joint_counts, load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate, write_log
 from ident.model import Robot
@@ -290,7 +294,7 @@ def _processed_rows(ur5, period, seed):
     """The bench's UR5 Stribeck log (benchmarks/bench_friction.py): 1 kHz, 2^19-count encoders,
     1 % torque noise, processed as identify does (30 Hz zero-phase low-pass, central
     differences, 200 edge samples dropped, velocity threshold 0.05 rad/s)."""
-    from ident.identify import preprocess
+    from ident.identify.estimation import preprocess
 
     robot = ur5[0]
     t, q, dq, ddq = fourier_reference(robot, period=period, seed=seed)

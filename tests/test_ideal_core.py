@@ -16,7 +16,7 @@ from conftest import REPO_ROOT
 from typer.testing import CliRunner
 
 from ident.cli import app
-from ident.identify.core import identify_measurements
+from ident.identify.pipeline.core import identify_measurements
 from ident.measure.ideal import simulate_measurements
 from ident.run.config import RunConfig
 from ident.run.elite_identification import (

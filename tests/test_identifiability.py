@@ -13,7 +13,7 @@ from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
 from ident.identify.estimators import get_estimator
 from ident.identify.estimators.identification import problem_from_states
-from ident.identify.identifiability import standard_identifiability
+from ident.identify.assessment.identifiability import standard_identifiability
 
 
 @pytest.fixture(scope="module")

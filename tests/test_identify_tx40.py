@@ -110,7 +110,7 @@ def test_identify_slice_agrees_with_reference(tmp_path):
     assert {"fv1", "fs1", "Ia3", "Iam6", "fvm6", "fsm6", "Izz1R"} <= names
     # cautious copy: the written standard parameters are the identified ones, the rest nominal
     from ident.dynamics.parameters import parameter_names, parameters_from_model
-    from ident.identify.real import load_robot_model
+    from ident.identify.pipeline.real import load_robot_model
 
     names = parameter_names(6)
     nominal = parameters_from_model(load_robot_model(DATA / "urdf" / "tx40_mdh_modified.urdf"))
@@ -155,7 +155,7 @@ def _check_measured_replay(run, data):
     """replay.html, trajectory.csv and robot.urdf of an identify run folder (4 s slice)."""
     from html.parser import HTMLParser
 
-    from ident.identify.real import load_robot_model
+    from ident.identify.pipeline.real import load_robot_model
     from ident.trajectory import read_trajectory_csv
 
     urdf = DATA / "urdf" / "tx40_mdh_modified.urdf"
@@ -461,7 +461,7 @@ def test_full_log_agrees_with_reference_within_two_percent(tmp_path):
     # well-excited parameters (bootstrap σ < 10 %, reference's ordinary σ < 5 %: 18 of them)
     # within 1.2 % measured, 2 % asserted.
     from ident.identify.config import load_identify_config
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     config = _config(tmp_path, validation={"identify_fraction": 1.0})
     result = identify(load_identify_config(config))

@@ -41,7 +41,7 @@ def _urdf_units() -> dict[str, str]:
 
 
 def test_joint_units_follow_the_urdf_joint_types():
-    from ident.identify.sanity import joint_units
+    from ident.identify.assessment.sanity import joint_units
 
     model = pin.buildModelFromUrdf(str(URDF))
     names = [model.names[i] for i in range(1, model.njoints)]
@@ -95,7 +95,7 @@ def test_parameter_units_follow_the_joint_type(rp2_run):
 
 
 def test_parameter_unit_without_joint_types_is_revolute():
-    from ident.identify.metrics import parameter_unit
+    from ident.identify.assessment.metrics import parameter_unit
 
     assert parameter_unit("fv2") == "N*m*s/rad"
     assert parameter_unit("fv2", ("N*m", "N")) == "N*s/m"

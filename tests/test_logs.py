@@ -5,7 +5,7 @@ import pytest
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import LogConfig, TransmissionConfig
-from ident.identify.logs import read_csv_columns, read_log, transmission_from_config
+from ident.measure.logs import read_csv_columns, read_log, transmission_from_config
 
 JOINTS = ("j1", "j2", "j3")
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ident.identify.config import load_identify_config
-from ident.identify.real import identify
+from ident.identify.pipeline.real import identify
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "configs" / "examples"

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ident.identify.sanity import joint_units, result_warnings
+from ident.identify.assessment.sanity import joint_units, result_warnings
 
 JOINTS = ("j1", "j2")
 
@@ -104,7 +104,7 @@ def _example_with_torque_sign(tmp_path, sign):
 
 
 def test_impossible_links_only_when_no_consistent_fit_exists(tmp_path):
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     # the simulated arm is a physical body: the WLS estimate completed with the URDF's values
     # makes link2 violate the triangle inequality, but a consistent set fits as well: no warning

@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from ident.identify.config import TransmissionConfig, load_identify_config
-from ident.identify.logs import read_log
+from ident.measure.logs import read_log
 from ident.measure.readers import read_tables
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -127,7 +127,7 @@ def test_mcap_chunked_identification_equals_in_memory(tmp_path):
     estimate to 1e-10 and the same held-out prediction."""
     import ros_logs
 
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     data = np.loadtxt(ROOT / "data" / "examples" / "wide.csv", delimiter=",", skiprows=1)
     t, q, tau = data[:, 0], data[:, 1:4], data[:, 4:7]

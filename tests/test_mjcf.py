@@ -9,7 +9,7 @@ import pytest
 from test_urdf_update import ROBOTS, perturbed_theta, robot_under_test
 
 from ident.errors import ModelError
-from ident.identify.model_files import model_files, write_model_files
+from ident.identify.model_files.files import model_files, write_model_files
 from ident.measure.mujoco_model import mujoco_urdf
 
 PARITY = [
@@ -150,7 +150,7 @@ def test_reload_parity_reports_the_files_errors():
     """The run-time check: ~1e-15 on the written files, large when a file is off."""
     import dataclasses
 
-    from ident.identify.model_files import reload_parity
+    from ident.identify.model_files.files import reload_parity
 
     robot = robot_under_test("panda-hand-locked")
     theta, names = perturbed_theta(robot, seed=9)
@@ -170,7 +170,7 @@ def test_reload_parity_reports_the_files_errors():
 def test_tx40_coupled_wrist_motor_is_a_tendon():
     """The TX40's shared wrist motor (Iam6, fvm6 on joints 5 and 6) is a fixed tendon
     q5 + q6 in the MJCF: mj_inverse has its inertia and viscous terms exactly."""
-    from ident.identify.model_files import reload_parity
+    from ident.identify.model_files.files import reload_parity
 
     robot = robot_under_test("tx40")
     theta, names = perturbed_theta(robot, seed=21)

@@ -9,7 +9,7 @@ import yaml
 from robots import rp2_identify_config
 
 from ident.identify.config import load_identify_config
-from ident.identify.real import identify
+from ident.identify.pipeline.real import identify
 
 #: rp2's friction (tests/robots.py); its inertials are the URDF's.
 FRICTION = {"fv1": 0.4, "fv2": 2.0, "fs1": 0.3, "fs2": 1.5}

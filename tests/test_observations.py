@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ident.errors import DataError
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.observations import ReducedObservations
 
 
 def _problem(seed: int = 0, m: int = 300, n: int = 7, g: int = 3):

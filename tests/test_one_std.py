@@ -1,6 +1,6 @@
 """One standard deviation everywhere: the verdict, the warnings, the reports and result.json
 read the default interval method's (the moving-block bootstrap's), not the ordinary one that
-assumes independent residuals (:func:`ident.identify.uncertainty.parameter_std`)."""
+assumes independent residuals (:func:`ident.identify.estimation.uncertainty.parameter_std`)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ident.identify.estimate import least_squares
-from ident.identify.uncertainty import BlockEquations, parameter_std, parameter_uncertainty
-from ident.identify.verdict import GOOD_STD_PERCENT, decide_verdict, log_evidence
+from ident.identify.estimation.estimate import least_squares
+from ident.identify.estimation.uncertainty import (
+    BlockEquations,
+    parameter_std,
+    parameter_uncertainty,
+)
+from ident.identify.assessment.verdict import GOOD_STD_PERCENT, decide_verdict, log_evidence
 
 ROOT = Path(__file__).resolve().parents[1]
 N, RHO, NOISE = 2000, 0.97, 0.5
@@ -119,7 +123,7 @@ def test_without_the_bootstrap_the_ordinary_std_is_used_and_said(correlated):
 def tiago(tmp_path_factory):
     """The shipped TIAGo example log identified once (about 2 s), and its report folder."""
     from ident.identify.config import load_identify_config
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
     from ident.report.identify_report import write_identify_report
 
     result = identify(load_identify_config(ROOT / "configs" / "examples" / "tiago.yaml"))

@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from ident.cli import app
 from ident.errors import ConfigError
 from ident.excitation.fourier import fourier_series
-from ident.identify.urdf_update import model_of_urdf
+from ident.identify.model_files.urdf_update import model_of_urdf
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_model import load_mujoco
 from ident.measure.mujoco_sim import simulate, write_log
@@ -167,8 +167,8 @@ def test_centre_of_mass_reported_in_another_frame_of_the_last_link(ur5):
     """Noise-free rows of a known payload: the estimate is exact, and the centre of mass in a
     frame at pose (R, p) in the last joint's frame is R^T (c - p) (a wrong-way transform, or
     the first moments used as a position, fails)."""
-    from ident.identify.observations import ReducedObservations
-    from ident.identify.payload import estimate_payload
+    from ident.identify.estimation.observations import ReducedObservations
+    from ident.identify.payload.payload import estimate_payload
 
     truth = load_mujoco_measurement({"payload": PAYLOAD}).payload
     phi = truth.parameters()

@@ -14,10 +14,10 @@ from robots import UR5_URDF
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameters import parameters_from_model
 from ident.excitation.fourier import fourier_series
-from ident.identify import preprocess
+from ident.identify.estimation import preprocess
 from ident.identify.config import ModelConfig, PreprocessConfig
-from ident.identify.logs import RobotLog
-from ident.identify.payload import (
+from ident.measure.logs import RobotLog
+from ident.identify.payload.payload import (
     PayloadColumns,
     block_length,
     decimated_samples,

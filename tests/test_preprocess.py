@@ -3,7 +3,13 @@ import pytest
 from scipy import signal
 
 from ident.errors import ConfigError, DataError
-from ident.identify.preprocess import decimate, differentiate, lowpass, trim, velocity_mask
+from ident.identify.estimation.preprocess import (
+    decimate,
+    differentiate,
+    lowpass,
+    trim,
+    velocity_mask,
+)
 
 
 def test_lowpass_is_minus_6_db_at_cutoff_and_zero_phase():
@@ -92,7 +98,7 @@ def test_velocity_mask():
 
 
 def test_motion_decimation_factor():
-    from ident.identify.motion import decimation_factor
+    from ident.identify.estimation.motion import decimation_factor
 
     assert decimation_factor(5000.0, 50.0) == 100
     assert decimation_factor(1000.0, 50.0) == 20
@@ -101,7 +107,7 @@ def test_motion_decimation_factor():
 
 
 def test_measured_motion_keeps_slow_angles_exactly():
-    from ident.identify.motion import measured_motion
+    from ident.identify.estimation.motion import measured_motion
 
     fs = 5000.0
     t = 0.004 + np.arange(20000) / fs
@@ -126,7 +132,7 @@ def test_measured_motion_keeps_slow_angles_exactly():
 
 
 def test_measured_motion_too_short_log():
-    from ident.identify.motion import measured_motion
+    from ident.identify.estimation.motion import measured_motion
 
     x = np.zeros((20, 2))
     with pytest.raises(DataError, match="measured motion: 20 samples are too few"):
@@ -135,7 +141,7 @@ def test_measured_motion_too_short_log():
 
 # --- automatic settings and data warnings (preprocess.resolve_defaults) -----------------------
 
-from ident.identify import preprocess  # noqa: E402
+from ident.identify.estimation import preprocess  # noqa: E402
 from ident.identify.config import PreprocessConfig  # noqa: E402
 
 

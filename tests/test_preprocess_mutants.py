@@ -1,4 +1,4 @@
-"""Preprocessing (ident.identify.preprocess) at its boundaries, against scipy and closed forms.
+"""Preprocessing (ident.identify.estimation.preprocess) at its boundaries, against scipy and closed forms.
 
 What a user relies on: the filter is scipy's zero-phase Butterworth and refuses exactly the
 logs scipy cannot pad; the decimation's passband is centred on 0 dB; the automatic settings
@@ -14,7 +14,7 @@ from scipy import signal
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import FilterConfig, PreprocessConfig
-from ident.identify.preprocess import (
+from ident.identify.estimation.preprocess import (
     DecimationStream,
     antialias_sos,
     decimate,

@@ -220,8 +220,8 @@ def test_identify_motion_of_a_two_segment_log_replays_both_segments():
     """``ident identify``'s measured motion holds every segment of the log (was: the first),
     and the replay shows them one after another: keyframes = sum over the segments."""
     from ident.identify.config import PreprocessConfig
-    from ident.identify.core import replay_motion
-    from ident.identify.logs import RobotLog
+    from ident.identify.pipeline.core import replay_motion
+    from ident.measure.logs import RobotLog
 
     fs, joints = 100.0, ("j1", "j2", "j3")
     urdf = ROOT / "data" / "examples" / "arm3.urdf"

@@ -80,7 +80,7 @@ import json  # noqa: E402
 import pytest  # noqa: E402
 
 from ident.errors import IdentError  # noqa: E402
-from ident.identify.metrics import error_measures  # noqa: E402
+from ident.identify.assessment.metrics import error_measures  # noqa: E402
 from ident.report.run_report import render_markdown, write_report  # noqa: E402
 
 

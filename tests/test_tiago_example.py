@@ -12,11 +12,11 @@ import pinocchio as pin
 import pytest
 from typer.testing import CliRunner
 
-import ident.identify.real
+import ident.identify.pipeline.real
 from ident.cli import app
-from ident.identify.consistency import pseudo_inertia_min_eigenvalue
-from ident.identify.model_files import reload_parity, write_model_files
-from ident.identify.urdf_update import model_of_urdf
+from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
+from ident.identify.model_files.files import reload_parity, write_model_files
+from ident.identify.model_files.urdf_update import model_of_urdf
 from ident.model.selection import load_robot
 from ident.robot.inertia import PINOCCHIO_ORDER
 
@@ -30,14 +30,14 @@ def run(tmp_path_factory):
     """``ident identify configs/examples/tiago.yaml --out TMP``, and the result it computed."""
     out = tmp_path_factory.mktemp("tiago")
     seen = []
-    original = ident.identify.real.identify
+    original = ident.identify.pipeline.real.identify
 
     def keep(*args, **kwargs):
         seen.append(original(*args, **kwargs))
         return seen[-1]
 
     with pytest.MonkeyPatch.context() as mp:  # the CLI imports identify when it runs
-        mp.setattr(ident.identify.real, "identify", keep)
+        mp.setattr(ident.identify.pipeline.real, "identify", keep)
         cli = CliRunner().invoke(app, ["identify", str(CONFIG), "--out", str(out)])
     assert cli.exit_code == 0, cli.output
     (folder,) = out.iterdir()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ident.identify.uncertainty import (
+from ident.identify.estimation.uncertainty import (
     BlockEquations,
     andrews_bandwidth,
     block_bootstrap,
@@ -145,7 +145,7 @@ def rp2(tmp_path_factory):
     from robots import rp2_identify_config
 
     from ident.identify.config import load_identify_config
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     cfg = load_identify_config(rp2_identify_config(tmp_path_factory.mktemp("rp2")))
     return cfg, identify(cfg)
@@ -154,7 +154,7 @@ def rp2(tmp_path_factory):
 def test_identify_blocks_reproduce_its_estimate_in_base_order(rp2):
     """The second pass's blocks (kernel -> base column order, WLS weights) solve to the
     identified WLS estimate, whole log or in chunks, and every held-out std is finite."""
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     cfg, result = rp2
     est, unc = result.estimate, result.uncertainty
@@ -182,7 +182,7 @@ def test_identify_blocks_reproduce_its_estimate_in_base_order(rp2):
 
 def test_report_intervals_are_the_default_methods(rp2):
     """result.json's intervals: x +- 1.96 std of the default method; unseen parameters named."""
-    from ident.identify.uncertainty import DEFAULT_METHOD
+    from ident.identify.estimation.uncertainty import DEFAULT_METHOD
     from ident.report.identify_report import result_dict
 
     _, result = rp2
@@ -203,7 +203,7 @@ def test_report_intervals_are_the_default_methods(rp2):
 
 
 def test_repeatability_flags_a_drifting_log_only():
-    from ident.identify.repeatability import repeatability
+    from ident.identify.assessment.repeatability import repeatability
 
     rng = np.random.default_rng(7)
     std = np.array([[0.1, 1.0, 0.01]] * 6) * rng.uniform(0.8, 1.2, (6, 3))

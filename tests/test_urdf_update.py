@@ -8,8 +8,8 @@ import pytest
 import yaml
 
 from ident.dynamics.parameters import parameter_names, parameters_from_model
-from ident.identify.real import load_robot_model
-from ident.identify.urdf_update import update_urdf_inertials
+from ident.identify.pipeline.real import load_robot_model
+from ident.identify.model_files.urdf_update import update_urdf_inertials
 from ident.robot.inertia import PINOCCHIO_ORDER, consistency_problems
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -112,7 +112,7 @@ def test_invalid_threshold():
 def tx40_result(tmp_path_factory):
     """WLS identification of the first 4 s of the measured TX40 log (decimated to 50 Hz)."""
     from ident.identify.config import load_identify_config
-    from ident.identify.real import identify
+    from ident.identify.pipeline.real import identify
 
     cfg = yaml.safe_load((ROOT / "configs" / "tx40.yaml").read_text())
     cfg["robot"]["urdf"] = str(URDF)
@@ -198,7 +198,7 @@ def test_whole_model_write_back_reproduces_the_estimate_torques(tmp_path):
 
     from ident.dynamics.chain import chain_from_model, random_states
     from ident.identify.estimators.identification import standard_regressor
-    from ident.identify.urdf_update import write_identified_model
+    from ident.identify.model_files.urdf_update import write_identified_model
 
     model, pm = _tx40_parameter_model()
     theta = _consistent_theta(pm)
@@ -245,7 +245,7 @@ def test_whole_model_write_back_loads_in_yourdfpy_and_mujoco(tmp_path):
 
     mujoco = pytest.importorskip("mujoco")
 
-    from ident.identify.urdf_update import write_identified_model
+    from ident.identify.model_files.urdf_update import write_identified_model
 
     _, pm = _tx40_parameter_model()
     theta = _consistent_theta(pm, seed=1)
@@ -267,7 +267,7 @@ def test_whole_model_write_back_loads_in_yourdfpy_and_mujoco(tmp_path):
 
 def test_whole_model_write_back_refuses_an_inconsistent_estimate():
     from ident.errors import ModelError
-    from ident.identify.urdf_update import write_identified_model
+    from ident.identify.model_files.urdf_update import write_identified_model
 
     _, pm = _tx40_parameter_model()
     theta = pm.nominal.copy()
@@ -288,7 +288,7 @@ def test_whole_model_write_back_refuses_an_inconsistent_estimate():
 )
 def test_odd_xml_is_refused_with_a_message(text, match):
     from ident.errors import ModelError
-    from ident.identify.urdf_update import write_identified_model
+    from ident.identify.model_files.urdf_update import write_identified_model
 
     _, pm = _tx40_parameter_model()
     with pytest.raises(ModelError, match=match):
@@ -367,7 +367,7 @@ def perturbed_theta(robot, seed, *, scale=None):
 
 def _without_edited_elements(text):
     """The text minus every top-level link's <inertial> and joint's <dynamics>, no blanks."""
-    from ident.identify.urdf_edit import spans
+    from ident.identify.model_files.urdf_edit import spans
 
     found = spans(text)
     cuts = [s.inertial for s in found.links.values() if s.inertial is not None]
@@ -401,7 +401,7 @@ def _reload_parity(robot, written_text, theta, tmp_path):
 
 @pytest.mark.parametrize("key", list(ROBOTS))
 def test_whole_model_write_back_reload_parity(key, tmp_path):
-    from ident.identify.urdf_update import identified_urdf
+    from ident.identify.model_files.urdf_update import identified_urdf
 
     robot = robot_under_test(key)
     theta, names = perturbed_theta(robot, seed=len(key))
@@ -428,8 +428,8 @@ def test_whole_model_write_back_reload_parity(key, tmp_path):
 def test_a_light_body_scales_its_welded_links_never_a_negative_mass(key, tmp_path):
     """A body lighter than its welded hand/gripper: the carrying link cannot take body minus
     nominal hand (negative mass); the welded links are scaled down, the sum stays exact."""
-    from ident.identify.fused_bodies import link_inertial, parse_urdf
-    from ident.identify.urdf_update import identified_urdf
+    from ident.identify.model_files.fused_bodies import link_inertial, parse_urdf
+    from ident.identify.model_files.urdf_update import identified_urdf
 
     robot = robot_under_test(key)
     last = robot.n_bodies - 1
@@ -448,7 +448,7 @@ def test_a_light_body_scales_its_welded_links_never_a_negative_mass(key, tmp_pat
 
 def test_write_back_refuses_a_model_with_other_locks():
     from ident.errors import ModelError
-    from ident.identify.urdf_update import write_identified_model
+    from ident.identify.model_files.urdf_update import write_identified_model
 
     robot = robot_under_test("panda-hand-locked")
     theta, names = perturbed_theta(robot, seed=0)
@@ -537,7 +537,7 @@ def test_write_back_of_an_odd_file(tmp_path):
     block naming a link and a joint: the reloaded bodies are the estimate's, the rest stays."""
     import pinocchio as pin
 
-    from ident.identify.urdf_update import identified_urdf
+    from ident.identify.model_files.urdf_update import identified_urdf
     from ident.model import Robot
 
     source = tmp_path / "odd.urdf"
@@ -578,7 +578,7 @@ def test_compose_body_keeps_as_much_of_the_welded_links_as_it_can():
     carrying link consistent (a rule that always put s = 0 would also be exact: it is not it)."""
     import pinocchio as pin
 
-    from ident.identify.urdf_update import compose_body
+    from ident.identify.model_files.urdf_update import compose_body
 
     hand = np.asarray(
         pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.1]))

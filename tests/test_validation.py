@@ -2,8 +2,12 @@ import numpy as np
 import pytest
 
 from ident.errors import ConfigError
-from ident.identify.reference import expression_to_vector, parse_expression, read_reference
-from ident.identify.validation import held_out_warnings, prediction_metrics, time_split
+from ident.identify.estimation.reference import (
+    expression_to_vector,
+    parse_expression,
+    read_reference,
+)
+from ident.identify.estimation.validation import held_out_warnings, prediction_metrics, time_split
 
 
 def test_prediction_metrics_closed_form():

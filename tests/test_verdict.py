@@ -14,9 +14,9 @@ from typer.testing import CliRunner
 
 from ident.cli import app
 from ident.identify.config import load_identify_config
-from ident.identify.metrics import error_measures
-from ident.identify.real import identify
-from ident.identify.verdict import (
+from ident.identify.assessment.metrics import error_measures
+from ident.identify.pipeline.real import identify
+from ident.identify.assessment.verdict import (
     THRESHOLDS,
     Evidence,
     covariance_torque_shares,

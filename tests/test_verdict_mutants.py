@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ident.identify.verdict import (
+from ident.identify.assessment.verdict import (
     MAJOR_SHARE,
     Evidence,
     Truth,

@@ -13,7 +13,7 @@ are imported on first use, so ``import ident`` is cheap)::
 
 ``ident.identify_config`` reads the log a config names and identifies it;
 ``ident.identify_measurements`` identifies measurements already in memory (a
-:class:`~ident.identify.logs.RobotLog`): the one identification every command runs.
+:class:`~ident.measure.logs.RobotLog`): the one identification every command runs.
 ``ident.identify`` is the sub-package, not a function. The stable API is this module's
 ``__all__`` and the registries (docs/api.md); everything else is internal.
 
@@ -53,10 +53,10 @@ _LAZY = {
     "register_family": "ident.excitation.registry",
     "minimize": "ident.optim",
     "register_estimator": "ident.identify.estimators",
-    "least_squares": "ident.identify.estimate",
+    "least_squares": "ident.identify.estimation.estimate",
     "load_identify_config": "ident.identify.config",
-    "identify_config": "ident.identify.real",
-    "identify_measurements": "ident.identify.core",
+    "identify_config": "ident.identify.pipeline.real",
+    "identify_measurements": "ident.identify.pipeline.core",
     "load_run": "ident.run.setup",
     "run_pipeline": "ident.run.pipeline",
 }

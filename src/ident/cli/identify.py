@@ -1,12 +1,12 @@
 """``ident identify CONFIG``: identify a real robot from its logs.
 
-Validates the config, runs :func:`ident.identify.real.identify`, and only when that succeeded
+Validates the config, runs :func:`ident.identify.pipeline.real.identify`, and only when that succeeded
 creates a new run folder ``<out>/<name>-<timestamp>/`` with the report (so a failed
 identification leaves nothing that looks like a result), the measured motion
 (``trajectory.csv``, ``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``;
 a failing replay is reported, never fatal). If writing the report fails, the folder is marked
 incomplete. ``--scheduler ADDRESS`` hands the chunks of a long log (see
-:mod:`ident.identify.accumulate`) to a running dask.distributed scheduler. Once the log is read,
+:mod:`ident.identify.estimation.accumulate`) to a running dask.distributed scheduler. Once the log is read,
 the estimated memory and time of the identification are printed when above a minute or 2 GB,
 and refused above the ceilings ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS`` (before any run
 folder).
@@ -29,7 +29,7 @@ import typer
 from ident.cli._common import check_scheduler_address, user_errors
 
 if TYPE_CHECKING:
-    from ident.identify.core import IdentifyResult
+    from ident.identify.pipeline.core import IdentifyResult
     from ident.inputs import JobEstimate
 
 __all__ = ["identify", "register"]
@@ -75,7 +75,7 @@ def identify(
     t_start = time.monotonic()
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
-    from ident.identify.real import identify as run_identify
+    from ident.identify.pipeline.real import identify as run_identify
     from ident.run.rundir import create_run_dir
 
     package_dirs = list(package_dir or ())
@@ -153,8 +153,8 @@ def _save_and_report(
 
 def _print_summary(result: IdentifyResult, folder: Path, replay_note: str) -> None:
     """The terminal's summary of a finished identification (the report says it at length)."""
-    from ident.identify.model_intervals import estimated_seconds
-    from ident.identify.verdict import identify_verdict
+    from ident.identify.assessment.model_intervals import estimated_seconds
+    from ident.identify.assessment.verdict import identify_verdict
     from ident.report.identify_report import joint_torque_units
 
     est = result.estimate

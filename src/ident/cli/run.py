@@ -254,7 +254,7 @@ def _summary(
     from rich.console import Console
     from rich.table import Table
 
-    from ident.identify.uncertainty import parameter_std
+    from ident.identify.estimation.uncertainty import parameter_std
     from ident.report.run_report import error_measures
 
     console = Console()

@@ -12,7 +12,7 @@ nonlinear parameters of each joint, shape (nv, n_nonlinear).
 A model without nonlinear parameters is *linear*: its columns enter the friction fit's
 regressor beside the rest of the model (one solve; ``viscous_coulomb`` is also the
 identification's own model, :mod:`ident.dynamics.friction`). The others are fitted around the
-linear estimate by separable least squares (:mod:`ident.identify.friction_fit`). Registered
+linear estimate by separable least squares (:mod:`ident.identify.friction.friction_fit`). Registered
 models (``sign(0) = 0``):
 
 =========================  ==================================================  ==============

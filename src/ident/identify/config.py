@@ -1,6 +1,6 @@
 """Schema of an ``ident identify`` config: robot, log files, transmission, processing, model.
 
-Every physical quantity is converted to SI here or in :mod:`ident.identify.logs` (degrees to
+Every physical quantity is converted to SI here or in :mod:`ident.measure.logs` (degrees to
 radians, amperes to N*m through the torque constants), once. Paths are relative to the config
 file. Example (``configs/tx40.yaml``)::
 
@@ -29,7 +29,7 @@ from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.friction_models import AUTO, get_friction_model
 from ident.errors import ConfigError, DataError
 from ident.identify.estimators import get_contract, get_estimator
-from ident.identify.reference import read_reference
+from ident.identify.estimation.reference import read_reference
 from ident.model.selection import RobotSelection
 
 __all__ = [
@@ -58,7 +58,7 @@ __all__ = [
 ]
 
 
-# Units a log may use per signal; ``ident.identify.logs`` converts them to SI once.
+# Units a log may use per signal; ``ident.measure.logs`` converts them to SI once.
 POSITION_UNITS = ("rad", "deg", "mrad", "m", "mm", "ticks")
 TORQUE_UNITS = ("N*m", "N", "A", "mA")
 VELOCITY_UNITS = ("rad/s", "deg/s", "rpm", "m/s", "mm/s", "ticks/s")
@@ -254,7 +254,7 @@ class FilterConfig(StrictModel):
 
 
 class PreprocessConfig(StrictModel):
-    """Signal processing before the regressor is built (see :mod:`ident.identify.preprocess`).
+    """Signal processing before the regressor is built (see :mod:`ident.identify.estimation.preprocess`).
 
     ``lowpass`` and ``decimation`` default to ``auto``: chosen from the sampling rate and the
     excitation band (``excitation_band_hz``, the highest frequency of the motion; estimated
@@ -268,7 +268,7 @@ class PreprocessConfig(StrictModel):
     decimation: list[int] | Literal["auto"] = "auto"
     excitation_band_hz: float | None = Field(default=None, gt=0.0)
     velocity_threshold: list[float] | None = None
-    # bounded memory (see ident.identify.accumulate): "auto" chunks logs with several
+    # bounded memory (see ident.identify.estimation.accumulate): "auto" chunks logs with several
     # segments or a regressor above max_regressor_mb; chunk_samples null = automatic
     chunked: Literal["auto", "always", "never"] = "auto"
     max_regressor_mb: float = Field(default=1024.0, gt=0.0)
@@ -299,7 +299,7 @@ class ModelConfig(StrictModel):
     ``coupled_wrist`` names the two joints whose motor is shared (TX40: ``[5, 6]``).
     ``friction``: a model of the friction registry (:mod:`ident.dynamics.friction_models`)
     fitted beside the identification on the joints with ``viscous`` or ``coulomb`` terms, or
-    ``auto`` (every model, ranked by held-out fit; :mod:`ident.identify.friction_fit`).
+    ``auto`` (every model, ranked by held-out fit; :mod:`ident.identify.friction.friction_fit`).
     ``viscous_coulomb`` (default) is the identification's own model: nothing more is fitted.
     """
 
@@ -344,7 +344,7 @@ class ModelConfig(StrictModel):
 
 
 class EssentialConfig(StrictModel):
-    """Essential-parameter reduction (see :mod:`ident.identify.essential`)."""
+    """Essential-parameter reduction (see :mod:`ident.identify.estimation.essential`)."""
 
     enabled: bool = True
     max_relative_std_pct: float = Field(default=10.0, gt=0.0)
@@ -457,11 +457,11 @@ class ReferenceConfig(StrictModel):
 
 
 class UrdfUpdateConfig(StrictModel):
-    """The identified model's files (see :mod:`ident.identify.model_files`).
+    """The identified model's files (see :mod:`ident.identify.model_files.files`).
 
     ``model: consistent`` (default): the physically consistent estimate of every link (the
     configured estimator when its contract promises consistency, else
-    :data:`~ident.identify.core.MODEL_METHOD` computed beside the least-squares fit, with the
+    :data:`~ident.identify.pipeline.core.MODEL_METHOD` computed beside the least-squares fit, with the
     prior along the directions the log does not see) is written as
     ``<urdf>_identified.urdf``, ``<urdf>_identified.xml`` (MJCF) and
     ``<urdf>_joint_extras.json``; ``none``: no model file.
@@ -481,20 +481,20 @@ class UrdfUpdateConfig(StrictModel):
     cautious: bool = False
     max_relative_std_pct: float = Field(default=10.0, gt=0.0)
     #: Re-solves of the written model's constrained fit for its intervals (0: none);
-    #: :mod:`ident.identify.model_intervals`.
+    #: :mod:`ident.identify.assessment.model_intervals`.
     model_bootstrap: int = Field(default=30, ge=0, le=1000)
 
 
 class GainReferenceConfig(StrictModel):
     """The reference of the torque gains: a payload of known mass [kg] (``ident payload``
-    with ``payload.without``; :mod:`ident.identify.payload_gain`)."""
+    with ``payload.without``; :mod:`ident.identify.payload.payload_gain`)."""
 
     payload_mass_kg: float = Field(gt=0.0)
 
 
 class SignalsConfig(StrictModel):
     """Errors of the measured torque corrected where the log is read
-    (:mod:`ident.identify.signal_correction`).
+    (:mod:`ident.identify.corrections.signal_correction`).
 
     ``delay_s``: the torque lags the positions by this [s] (``0``: none, the default) or
     ``auto``: estimated within ``max_delay_s`` on the log (the fit's residual against the

@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from ident.identify.verdict import Verdict
+from ident.identify.assessment.verdict import Verdict
 from ident.report.format import table
 
 __all__ = ["Headline", "headline_markdown"]

@@ -1,5 +1,5 @@
 """Report of ``ident identify``: report.md, report.html, result.json, parameters.csv, plots,
-the identified model (URDF, MJCF, joint extras; :mod:`ident.identify.model_files`).
+the identified model (URDF, MJCF, joint extras; :mod:`ident.identify.model_files.files`).
 
 Everything is written into an existing run folder through atomic writes; the HTML page embeds
 its figures (base64 PNG, readable offline). ``result.json`` holds no times, so the same config
@@ -20,11 +20,11 @@ import numpy as np
 from ident.dynamics.friction_models import get_friction_model
 from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.estimators.summary import consistency_summary
-from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
-from ident.identify.model_files import save_identified_model
-from ident.identify.real import IdentifyResult
-from ident.identify.urdf_update import UrdfUpdate, update_urdf_inertials
-from ident.identify.verdict import (
+from ident.identify.assessment.metrics import MAJOR_SHARE, error_measures, parameter_unit
+from ident.identify.model_files.files import save_identified_model
+from ident.identify.pipeline.real import IdentifyResult
+from ident.identify.model_files.urdf_update import UrdfUpdate, update_urdf_inertials
+from ident.identify.assessment.verdict import (
     VERDICT_RULE,
     VERDICT_RULE_REAL,
     Verdict,
@@ -84,9 +84,9 @@ def _urdf_text(result: IdentifyResult) -> str:
 
 def joint_torque_units(result: IdentifyResult) -> tuple[str, ...]:
     """Unit of each joint's torque, residuals and errors: ``"N*m"`` for a revolute joint,
-    ``"N"`` for a prismatic one (:func:`ident.identify.sanity.joint_units` of the robot the
+    ``"N"`` for a prismatic one (:func:`ident.identify.assessment.sanity.joint_units` of the robot the
     config selects, the robot that was identified)."""
-    from ident.identify.sanity import joint_units
+    from ident.identify.assessment.sanity import joint_units
     from ident.model.selection import load_robot
 
     model = load_robot(result.config.robot, source=result.config.source or "config").model
@@ -197,7 +197,7 @@ def result_dict(
     model: dict | None = None,
 ) -> dict:
     """JSON-ready summary of the identification (no times); ``model``: the identified model's
-    entry (:func:`~ident.identify.model_files.save_identified_model`)."""
+    entry (:func:`~ident.identify.model_files.files.save_identified_model`)."""
     pm = result.parameters
     est = result.estimate
     sd = result.parameter_std
@@ -378,7 +378,7 @@ def friction_models_lines(result: IdentifyResult) -> list[str]:
 
 
 def verdict_entry(result: IdentifyResult) -> dict:
-    """The ``verdict`` entry of ``result.json``: :func:`~ident.identify.verdict.identify_verdict`
+    """The ``verdict`` entry of ``result.json``: :func:`~ident.identify.assessment.verdict.identify_verdict`
     and the evidence it used (the report's summary shows the same value)."""
     v = identify_verdict(result)
     e = log_evidence(result, truth=truth_from_config(result.config.validation.truth))
@@ -886,7 +886,7 @@ def write_identify_report(
 
 def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = None) -> Headline:
     """The headline facts of an identification from a log, from its verdict entry (the one
-    :func:`result_dict` writes; :mod:`ident.identify.verdict`)."""
+    :func:`result_dict` writes; :mod:`ident.identify.assessment.verdict`)."""
     est = result.estimate
     v = verdict_entry(result)
     truth = v["rule"] == "truth"

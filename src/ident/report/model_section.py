@@ -1,7 +1,7 @@
 """The report's "Identified model" section: which file is which, reload parity, held-out fit.
 
 One renderer for ``ident identify`` and ``ident run`` reports, from the ``model`` entry of
-``result.json`` (:func:`ident.identify.model_files.save_identified_model`).
+``result.json`` (:func:`ident.identify.model_files.files.save_identified_model`).
 """
 
 from __future__ import annotations

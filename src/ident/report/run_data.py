@@ -4,7 +4,7 @@
 
 - ``result.json``: every number of the report, machine-readable (no times: the same config
   and seed give a byte-identical file; non-finite numbers are ``null``); the error measures
-  of :mod:`ident.identify.metrics` per elite and estimator;
+  of :mod:`ident.identify.assessment.metrics` per elite and estimator;
 - ``config.yaml``: the effective config (after ``--quick`` / ``--seed``);
 - ``robot.urdf``: the robot's URDF text (for the replay);
 - ``trajectory.csv``: the chosen elite (``ident.trajectory`` format: t, q, dq, ddq of the
@@ -35,8 +35,8 @@ import yaml
 
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
-from ident.identify.metrics import MAJOR_SHARE, _arr, _num, error_measures
-from ident.identify.uncertainty import interval_coverage, parameter_std
+from ident.identify.assessment.metrics import MAJOR_SHARE, _arr, _num, error_measures
+from ident.identify.estimation.uncertainty import interval_coverage, parameter_std
 from ident.report.paper import _paper_comparison, _paper_counts
 from ident.report.run_verdict import verdict_entry
 from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
@@ -50,7 +50,7 @@ def _joint_units(result: Any) -> list[str]:
     """Torque unit of each joint of the run: ``"N"`` (prismatic) or ``"N*m"``, from the URDF."""
     import pinocchio as pin
 
-    from ident.identify.sanity import joint_units
+    from ident.identify.assessment.sanity import joint_units
 
     model = pin.buildModelFromXML(str(result.urdf_text))
     units = dict(zip(model.names[1:], joint_units(model), strict=True))
@@ -317,11 +317,11 @@ def save_run_model(result: Any, run_dir: str | Path) -> dict[str, Any] | None:
 
     After :func:`save_run` (the data are saved first). The model is the physically consistent
     estimate of the log the simulator wrote for the elite ``trajectory.csv`` executes
-    (:func:`ident.identify.model_files.save_identified_model`); its entry, with ``elite``, is
+    (:func:`ident.identify.model_files.files.save_identified_model`); its entry, with ``elite``, is
     added to ``result.json`` as ``model``. None (nothing written) for a run without a
     simulated log (``measurement.source: ideal``) or without elites.
     """
-    from ident.identify.model_files import save_identified_model
+    from ident.identify.model_files.files import save_identified_model
 
     run_dir = Path(run_dir)
     rank = result.executed_rank
@@ -464,7 +464,7 @@ def _plain_value(v: Any) -> Any:
 def _validation_entry(result: Any) -> dict[str, Any] | None:
     """Prediction errors on the run's validation trajectory (``result.validation``: ``t``
     (n,), measured ``tau`` (n, n_rows) and ``tau_pred`` ``{method: (n, n_rows)}``)."""
-    from ident.identify.validation import prediction_metrics
+    from ident.identify.estimation.validation import prediction_metrics
 
     val = getattr(result, "validation", None)
     if val is None:

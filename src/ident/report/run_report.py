@@ -10,7 +10,7 @@ of the major parameters, torque residual, condition number, checks, warnings), t
 trajectory when the run has one), the parameter table with units and σ [%], the comparison
 with the paper (Tables 2-3 side by side, base-parameter counts), then the details
 (procedure, optimization, elites, base-parameter expressions, configuration). Every number
-comes from ``result.json``; the measures are computed by :mod:`ident.identify.metrics`
+comes from ``result.json``; the measures are computed by :mod:`ident.identify.assessment.metrics`
 when the run is saved.
 """
 
@@ -24,8 +24,8 @@ import numpy as np
 import yaml
 
 from ident.fileio import atomic_write_bytes, atomic_write_text
-from ident.identify.metrics import MAJOR_SHARE, error_measures, parameter_unit
-from ident.identify.verdict import VERDICT_RULE, VERDICT_RULE_REAL, Verdict
+from ident.identify.assessment.metrics import MAJOR_SHARE, error_measures, parameter_unit
+from ident.identify.assessment.verdict import VERDICT_RULE, VERDICT_RULE_REAL, Verdict
 from ident.report.format import fmt as _fmt
 from ident.report.format import pct, percent
 from ident.report.format import table as _table

@@ -1,15 +1,15 @@
 """The identify report's intervals and what the data cannot see (rendering only).
 
-Everything shown is computed by :mod:`ident.identify.uncertainty` and
-:mod:`ident.identify.identifiability` in the identification core and read from the
-:class:`~ident.identify.core.IdentifyResult`.
+Everything shown is computed by :mod:`ident.identify.estimation.uncertainty` and
+:mod:`ident.identify.assessment.identifiability` in the identification core and read from the
+:class:`~ident.identify.pipeline.core.IdentifyResult`.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from ident.identify.uncertainty import z_value
+from ident.identify.estimation.uncertainty import z_value
 
 __all__ = [
     "interval_cell",
@@ -144,7 +144,7 @@ def _seen(result: Any, name: str) -> str | None:
 
 def model_intervals_json(result: Any) -> dict | None:
     """``result.json``'s ``model_intervals``: the bootstrap of the written model's constrained
-    fit (:mod:`ident.identify.model_intervals`), every written standard parameter's value, σ
+    fit (:mod:`ident.identify.assessment.model_intervals`), every written standard parameter's value, σ
     and 95 % interval, and what the data see of it (no times: those are in ``run.json``)."""
     mi = result.model_intervals
     if mi is None:

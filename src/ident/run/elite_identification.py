@@ -2,9 +2,9 @@
 
 ``measurement.source: ideal``: joint torques from Pinocchio's RNEA on the true parameters plus
 the configured noise (:mod:`ident.measure.ideal`). The measurements become a
-:class:`~ident.identify.logs.RobotLog` (:func:`ideal_log`: the measured states kept, the torques
+:class:`~ident.measure.logs.RobotLog` (:func:`ideal_log`: the measured states kept, the torques
 of the known bodies outside the stage subtracted from the measured ones) and go through
-:func:`ident.identify.core.identify_measurements`, as a log does, with the stage's parameter
+:func:`ident.identify.pipeline.core.identify_measurements`, as a log does, with the stage's parameter
 model (its unknown bodies, its base parameters, its torque rows) and settings that keep every
 sample (:func:`ideal_identify_config`: no filter, trim, decimation or velocity threshold;
 identified and validated on the whole period). Every estimator of ``estimation.methods`` is
@@ -30,10 +30,10 @@ from ident.identify.config import (
     UrdfUpdateConfig,
     ValidationConfig,
 )
-from ident.identify.core import identify_measurements
+from ident.identify.pipeline.core import identify_measurements
 from ident.identify.estimators import get_contract
-from ident.identify.logs import RobotLog
-from ident.identify.observations import ReducedObservations
+from ident.measure.logs import RobotLog
+from ident.identify.estimation.observations import ReducedObservations
 from ident.measure.ideal import Measurements, NoiseModel, simulate_measurements
 from ident.run.config import MeasurementSection, RunConfig
 from ident.run.results import EliteOutcome, StageInfo

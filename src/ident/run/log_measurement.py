@@ -2,8 +2,8 @@
 
 For each reported elite, the closed-loop MuJoCo simulation (:mod:`ident.measure.mujoco_sim`)
 writes the log a robot controller would write; the log is read back by the same reader as a
-measured log (:func:`ident.identify.logs.read_log`) and identified by the same function as
-``ident identify`` (:func:`ident.identify.core.identify_measurements`), with the run config's
+measured log (:func:`ident.measure.logs.read_log`) and identified by the same function as
+``ident identify`` (:func:`ident.identify.pipeline.core.identify_measurements`), with the run config's
 ``identification`` sections. The run folder keeps the log and an ``identify.yaml`` next to it,
 so ``ident identify elites/elite_<k>/identify.yaml`` gives the run's estimate again.
 
@@ -35,8 +35,8 @@ from ident.identify.config import (
     TruthConfig,
     UrdfUpdateConfig,
 )
-from ident.identify.core import IdentifyResult, identify_measurements
-from ident.identify.logs import read_log
+from ident.identify.pipeline.core import IdentifyResult, identify_measurements
+from ident.measure.logs import read_log
 from ident.measure.mujoco_config import MujocoMeasurement, per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot

@@ -18,7 +18,7 @@ The paper's procedure (section 4.1) for one stage, as one pure function
    RNEA on the true parameters of the robot, with the configured noise
    (:mod:`ident.measure.ideal`).
 5. **Estimate.** The measurements go through the identification core
-   (:func:`ident.identify.core.identify_measurements`, as a log does): the stage's rows on the
+   (:func:`ident.identify.pipeline.core.identify_measurements`, as a log does): the stage's rows on the
    *measured* states, reduced to the stage's base parameters (computed once, on random states
    of the stage, by the configured method), estimated by the registry's estimators of
    ``estimation.methods`` (:mod:`ident.run.elite_identification`). Bodies outside the stage

@@ -53,7 +53,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import DataError
-from ident.identify.estimate import least_squares_reduced
+from ident.identify.estimation.estimate import least_squares_reduced
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
 
 __all__ = [

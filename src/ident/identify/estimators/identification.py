@@ -28,8 +28,8 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import ConfigError, ModelError
-from ident.identify.estimate import METHODS as LEAST_SQUARES
-from ident.identify.estimate import Estimate
+from ident.identify.estimation.estimate import METHODS as LEAST_SQUARES
+from ident.identify.estimation.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
 from ident.identify.estimators.registry import Contract, get_contract, get_estimator
 from ident.identify.estimators.regularization import (
@@ -37,7 +37,7 @@ from ident.identify.estimators.regularization import (
     RegularizationChoice,
     choose_regularization,
 )
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.observations import ReducedObservations
 
 __all__ = [
     "NONNEGATIVE_PREFIXES",
@@ -89,7 +89,7 @@ def bounding_ellipsoids(
         If the URDF cannot be read or a link has no ``<collision>`` or ``<visual>`` geometry
         that bounds a volume (the message names the link and the fix).
     """
-    from ident.identify.urdf_update import parse_urdf
+    from ident.identify.model_files.urdf_update import parse_urdf
     from ident.robot.ellipsoids import link_ellipsoids
 
     urdf = Path(urdf)
@@ -122,7 +122,7 @@ def structure_from_parameter_model(
     Parameters
     ----------
     pm :
-        :class:`ident.identify.real.ParameterModel` (names ``m1``, ``mcx1``, ..., extras).
+        :class:`ident.identify.pipeline.real.ParameterModel` (names ``m1``, ``mcx1``, ..., extras).
     body_names :
         Link of each joint, in joint order.
     ellipsoids :
@@ -185,7 +185,7 @@ def problem_from_states(
     Parameters
     ----------
     model, pm :
-        The robot and its parameter model (:func:`ident.identify.real.build_parameter_model`).
+        The robot and its parameter model (:func:`ident.identify.pipeline.real.build_parameter_model`).
     q, dq, ddq, tau :
         States and torques [SI], shapes (n_samples, nv).
     **fields :

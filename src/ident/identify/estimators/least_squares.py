@@ -1,6 +1,6 @@
 """``ols`` and ``wls``: unconstrained least squares of the base parameters.
 
-They solve the reduced problem exactly as :func:`ident.identify.estimate.least_squares` solves
+They solve the reduced problem exactly as :func:`ident.identify.estimation.estimate.least_squares` solves
 the rows (same estimate, standard deviations and residuals). When the problem carries a
 :class:`~ident.identify.estimators.problem.ParameterStructure`, the result also holds the
 standard parameters closest to the nominal ones that give the estimated base values
@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from ident.identify.consistency import body_consistency
-from ident.identify.estimate import Estimate, least_squares_reduced
+from ident.identify.estimation.consistency import body_consistency
+from ident.identify.estimation.estimate import Estimate, least_squares_reduced
 from ident.identify.estimators.problem import EstimationProblem
 from ident.identify.estimators.registry import Contract, register_estimator
 

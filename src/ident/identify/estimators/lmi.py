@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from ident.identify.consistency import PSEUDO_INERTIA_BASIS
-from ident.identify.estimate import Estimate
+from ident.identify.estimation.consistency import PSEUDO_INERTIA_BASIS
+from ident.identify.estimation.estimate import Estimate
 from ident.identify.estimators.constrained import (
     ScaledProblem,
     scaled_problem,

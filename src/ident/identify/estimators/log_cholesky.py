@@ -33,8 +33,8 @@ import numpy.typing as npt
 import pinocchio as pin
 import scipy.optimize
 
-from ident.identify.consistency import parameters_from_pseudo_inertia, pseudo_inertia
-from ident.identify.estimate import Estimate, least_squares_reduced
+from ident.identify.estimation.consistency import parameters_from_pseudo_inertia, pseudo_inertia
+from ident.identify.estimation.estimate import Estimate, least_squares_reduced
 from ident.identify.estimators.constrained import (
     scaled_problem,
     single_threaded_blas,

@@ -1,7 +1,7 @@
 """The one problem every estimator solves, and the parts of a result they share.
 
 Observation rows ``y = W_b beta + e`` are reduced per row group (joint) to triangular factors
-(:class:`~ident.identify.observations.ReducedObservations`), so that for any ``beta``
+(:class:`~ident.identify.estimation.observations.ReducedObservations`), so that for any ``beta``
 
 ``||W_b beta - y||^2 = sum_j ||R_j beta - z_j||^2 + rho_j``.
 
@@ -30,9 +30,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import DataError
-from ident.identify.consistency import body_consistency
-from ident.identify.estimate import Estimate
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.consistency import body_consistency
+from ident.identify.estimation.estimate import Estimate
+from ident.identify.estimation.observations import ReducedObservations
 
 __all__ = ["EstimationProblem", "ParameterStructure", "result_from_theta"]
 
@@ -154,7 +154,7 @@ class EstimationProblem:
         mean weighted squared residual (constrained estimators; ``G`` and the fixed floor:
         :mod:`ident.identify.estimators.constrained`).
     wls_passes :
-        Weighted solves of WLS (see :func:`~ident.identify.estimate.least_squares`).
+        Weighted solves of WLS (see :func:`~ident.identify.estimation.estimate.least_squares`).
     options :
         Estimator-specific options (see each estimator).
     """
@@ -226,7 +226,7 @@ def result_from_theta(
     message: str,
     regularization: float = 0.0,
 ) -> Estimate:
-    """An :class:`~ident.identify.estimate.Estimate` of standard parameters ``theta``.
+    """An :class:`~ident.identify.estimation.estimate.Estimate` of standard parameters ``theta``.
 
     ``x = K theta`` (base values, comparable with OLS/WLS), residuals from the reduced rows,
     per-body consistency, distance to the nominal. Standard deviations are not defined for a

@@ -2,7 +2,7 @@
 
 An estimator is a function ``estimate(problem: EstimationProblem) -> Estimate``
 (:class:`~ident.identify.estimators.problem.EstimationProblem`,
-:class:`~ident.identify.estimate.Estimate`) with a :class:`Contract` saying what it guarantees.
+:class:`~ident.identify.estimation.estimate.Estimate`) with a :class:`Contract` saying what it guarantees.
 Registering one makes it available as ``estimation.method: <name>``. The identification core,
 the report, the URDF write-back and the warnings read the contract, never the name.
 """
@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from ident.errors import ConfigError
 
 if TYPE_CHECKING:  # annotations only: the problem module does not import the registry
-    from ident.identify.estimate import Estimate
+    from ident.identify.estimation.estimate import Estimate
     from ident.identify.estimators.problem import EstimationProblem
 
 __all__ = [

@@ -18,10 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ident.identify.estimate import Estimate
+from ident.identify.estimation.estimate import Estimate
 from ident.identify.estimators.problem import EstimationProblem
 from ident.identify.estimators.registry import get_repeated_estimator
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.observations import ReducedObservations
 
 __all__ = ["DEFAULT_GRID", "RegularizationChoice", "choose_regularization"]
 
@@ -95,7 +95,7 @@ def choose_regularization(
     if weights.size == 0 or weights[0] < 0:
         raise ValueError(f"grid must hold weights >= 0, got {list(grid)}")
     if problem.weights is None:  # fit the WLS weights once, not once per grid point
-        from ident.identify.estimate import least_squares_reduced
+        from ident.identify.estimation.estimate import least_squares_reduced
 
         wls = least_squares_reduced(
             problem.observations, problem.names, method="wls", wls_passes=problem.wls_passes

@@ -1,6 +1,6 @@
 """What the report shows of the constrained estimation: per estimator and link, JSON-ready.
 
-Pure functions of an :class:`~ident.identify.core.IdentifyResult` (nothing is written here):
+Pure functions of an :class:`~ident.identify.pipeline.core.IdentifyResult` (nothing is written here):
 :func:`consistency_summary` for ``result.json`` and the report table, :func:`identified_model`
 for the whole-model URDF and its sidecar.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ident.identify.urdf_update import IdentifiedModel, identified_urdf
+from ident.identify.model_files.urdf_update import IdentifiedModel, identified_urdf
 
 __all__ = ["consistency_summary", "identified_model", "model_identification"]
 
@@ -111,7 +111,7 @@ def identified_model(result: Any) -> IdentifiedModel | None:
     (:class:`~ident.identify.estimators.registry.Contract`, ``consistent``) and whose estimate
     succeeded; an unconstrained estimator's parameters are reported, never written as a model.
     ``result.model`` is the configured estimator when it promises consistency, else the
-    default consistent one computed beside (:data:`ident.identify.core.MODEL_METHOD`).
+    default consistent one computed beside (:data:`ident.identify.pipeline.core.MODEL_METHOD`).
 
     Raises
     ------

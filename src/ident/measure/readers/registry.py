@@ -3,7 +3,7 @@
 A reader turns one file (or one bag folder) into one or more :class:`LogTable` objects: named
 1-D columns of equal length, in the units of the file, with the name of the time column when
 the file has one. Choosing columns, converting units and sides, joining tables and resampling
-happen afterwards, once (:mod:`ident.identify.logs`, :mod:`ident.measure.timebase`).
+happen afterwards, once (:mod:`ident.measure.logs`, :mod:`ident.measure.timebase`).
 
 Readers live in :data:`READERS`, keyed by the ``format:`` name of a log config; a file without
 ``format:`` gets the first registered reader whose ``detect`` accepts it. Built in:

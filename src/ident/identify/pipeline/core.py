@@ -1,22 +1,22 @@
 """The identification core: measurements -> identified base parameters, one code path.
 
 :func:`identify_measurements` is what every command runs on joint-side measurements, whatever
-their source: a log read by :func:`ident.identify.logs.read_log` (a robot's, or the one
+their source: a log read by :func:`ident.measure.logs.read_log` (a robot's, or the one
 ``ident run``'s MuJoCo simulator writes), or the measurements of ``ident run``'s ideal source
 (:mod:`ident.run.elite_identification`: the stage's torques with the known bodies' subtracted,
 the measured states used as they are, the stage's parameter model).
 
-1. automatic preprocessing settings (:func:`ident.identify.preprocess.resolve_defaults`);
+1. automatic preprocessing settings (:func:`ident.identify.estimation.preprocess.resolve_defaults`);
 2. the parameter model (rigid bodies plus friction, offsets, rotor inertias, coupled wrist;
    structural base parameters, :func:`ident.dynamics.parameter_model.build_parameter_model`);
-3. the accumulation (:mod:`ident.identify.accumulate`): low-pass, differentiate, trim,
+3. the accumulation (:mod:`ident.identify.estimation.accumulate`): low-pass, differentiate, trim,
    regressor, decimate, velocity threshold, split in time, rows reduced per joint; a whole
    segment is one chunk, a long log several (a size, not another implementation);
 4. the estimators of the registry on the reduced rows (:mod:`ident.identify.estimators`:
    OLS and WLS once each, and the configured one with its
    :class:`~ident.identify.estimators.registry.Contract`), essential parameters;
 5. validation: held-out prediction of the identified, essential, constrained, reference and
-   URDF-nominal parameters (:mod:`ident.identify.validation`) and the warnings.
+   URDF-nominal parameters (:mod:`ident.identify.estimation.validation`) and the warnings.
 
 The identified model (``urdf_update.model: consistent``, the default) is a physically
 consistent estimate of every link: the configured estimator's when its contract promises
@@ -42,39 +42,40 @@ from threadpoolctl import threadpool_limits
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.errors import ConfigError, DataError, NotIdentifiable
-from ident.identify import accumulate, preprocess, sanity
+from ident.identify.assessment import sanity
+from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import FilterConfig, IdentifyConfig, PreprocessConfig
-from ident.identify.essential import EssentialResult
-from ident.identify.estimate import Estimate, rank_report
+from ident.identify.estimation.essential import EssentialResult
+from ident.identify.estimation.estimate import Estimate, rank_report
 from ident.identify.estimators import (
     ConsistentIdentification,
     bounding_ellipsoids,
     consistent_identification_reduced,
 )
-from ident.identify.friction_fit import (
+from ident.identify.friction.friction_fit import (
     FrictionComparison,
     compare_friction_models,
     friction_rows,
     rest_parameters,
 )
-from ident.identify.friction_law import WrittenFrictionLaw, written_friction_law
-from ident.identify.identifiability import Identifiability, standard_identifiability
-from ident.identify.logs import RobotLog
-from ident.identify.model_intervals import ModelIntervals, model_intervals
-from ident.identify.motion import (
+from ident.identify.friction.friction_law import WrittenFrictionLaw, written_friction_law
+from ident.identify.assessment.identifiability import Identifiability, standard_identifiability
+from ident.measure.logs import RobotLog
+from ident.identify.assessment.model_intervals import ModelIntervals, model_intervals
+from ident.identify.estimation.motion import (
     DEFAULT_REPLAY_RATE_HZ,
     antialiased,
     decimation_factor,
     measured_motion,
 )
-from ident.identify.observations import ReducedObservations
-from ident.identify.reference import (
+from ident.identify.estimation.observations import ReducedObservations
+from ident.identify.estimation.reference import (
     ReferenceWeights,
     compare_with_reference,
     read_reference,
     reference_weights,
 )
-from ident.identify.uncertainty import (
+from ident.identify.estimation.uncertainty import (
     BlockEquations,
     ParameterStd,
     Uncertainty,
@@ -82,8 +83,12 @@ from ident.identify.uncertainty import (
     parameter_std,
     parameter_uncertainty,
 )
-from ident.identify.validation import ModelPrediction, held_out_warnings, prediction_metrics
-from ident.identify.verdict import truth_from_config
+from ident.identify.estimation.validation import (
+    ModelPrediction,
+    held_out_warnings,
+    prediction_metrics,
+)
+from ident.identify.assessment.verdict import truth_from_config
 from ident.model.selection import load_robot
 from ident.signals import derivative
 from ident.trajectory import JointTrajectory
@@ -147,29 +152,29 @@ class IdentifyResult:
         ``predictions[model.method]``.
     uncertainty :
         Covariances of the least-squares estimate robust to correlated residuals (HAC and
-        block bootstrap, :mod:`ident.identify.uncertainty`), or None when the log has too
+        block bootstrap, :mod:`ident.identify.estimation.uncertainty`), or None when the log has too
         few blocks for them.
     prediction_std :
         Per interval method (``"ordinary"``, ``"hac"``, ``"bootstrap"``), the standard
         deviation of every held-out torque about the identified prediction [N*m], shape
         (n_val, nv); empty without :attr:`uncertainty`.
     uncertainty_summary :
-        :func:`~ident.identify.uncertainty.coverage_summary` of :attr:`uncertainty` (held-out
+        :func:`~ident.identify.estimation.uncertainty.coverage_summary` of :attr:`uncertainty` (held-out
         coverage of the prediction intervals; coverage of ``validation.truth`` when set), or
         None.
     identifiability :
         Per standard parameter: alone, only in combination, or not seen
-        (:mod:`ident.identify.identifiability`).
+        (:mod:`ident.identify.assessment.identifiability`).
     friction :
         With ``model.friction`` other than ``viscous_coulomb``: the friction models fitted
         (that one, or every one for ``auto``) and ranked by held-out fit; else None.
     friction_law :
-        The law the written model carries (:mod:`ident.identify.friction_law`): the
+        The law the written model carries (:mod:`ident.identify.friction.friction_law`): the
         configured one, or ``auto``'s winner, when it is not ``viscous_coulomb`` and there is
         a model to write; else None.
     model_intervals :
         Bootstrap intervals of the written model's standard parameters
-        (:mod:`ident.identify.model_intervals`, ``urdf_update.model_bootstrap`` re-solves), or
+        (:mod:`ident.identify.assessment.model_intervals`, ``urdf_update.model_bootstrap`` re-solves), or
         None (switched off, no model, too few blocks; ``model_intervals_note`` says why when
         it failed).
     """
@@ -215,7 +220,7 @@ class IdentifyResult:
     def parameter_std(self) -> ParameterStd:
         """The standard deviation of :attr:`estimate` every consumer reads: the default
         interval method's, or the ordinary one when the log has too few blocks for it
-        (:func:`ident.identify.uncertainty.parameter_std`)."""
+        (:func:`ident.identify.estimation.uncertainty.parameter_std`)."""
         return parameter_std(self.estimate, self.uncertainty)
 
 
@@ -445,7 +450,7 @@ def _accumulate(
     ReducedObservations,
 ]:
     """The log cut in chunks and its identification rows reduced: ``(chunked, first, last,
-    merged)`` (:func:`ident.identify.accumulate.reduce_log`)."""
+    merged)`` (:func:`ident.identify.estimation.accumulate.reduce_log`)."""
     columns = accumulate.BaseColumns(chain_from_model(model), pm, reference)
     chunked = accumulate.plan_log(
         log,
@@ -503,7 +508,7 @@ def _model_intervals(
     scheduler: str | None,
 ) -> tuple[ModelIntervals | None, str]:
     """The bootstrap of the written model's constrained fit
-    (:mod:`ident.identify.model_intervals`) with the base parameters' bootstrap run length;
+    (:mod:`ident.identify.assessment.model_intervals`) with the base parameters' bootstrap run length;
     the blocks are rebuilt when the model's row weights are not those of the least-squares
     estimate (the first of ``fits``). None and the reason when it fails: the identification
     is kept."""
@@ -663,7 +668,7 @@ def _row_records(
 
 def _chunk_samples(log: RobotLog, pp: PreprocessConfig, n_base: int) -> int:
     """Raw samples per chunk: ``preprocess.chunk_samples`` (or an automatic size) when the
-    log is chunked (:func:`~ident.identify.accumulate.use_chunks`), else the longest segment
+    log is chunked (:func:`~ident.identify.estimation.accumulate.use_chunks`), else the longest segment
     (each segment is one chunk)."""
     nv = log.q.shape[1]
     if not accumulate.use_chunks(log, pp, 14 * nv):
@@ -843,7 +848,7 @@ def _warnings(
 ) -> list[str]:
     """Held-out, sanity and consistency warnings of the result; ``estimated``: the
     least-squares estimate and its robust covariances (the warnings read
-    :func:`~ident.identify.uncertainty.parameter_std`)."""
+    :func:`~ident.identify.estimation.uncertainty.parameter_std`)."""
     est, unc = estimated
     sd = parameter_std(est, unc)
     identified = predictions["identified"]
@@ -917,7 +922,7 @@ def _segment_motion(
     log: RobotLog, samples: tuple[int, int], pp: PreprocessConfig, joints: tuple[str, ...]
 ) -> JointTrajectory:
     """The measured motion of the log's samples ``[a, b)`` (:func:`replay_motion`), each
-    signal decimated for the replay (:func:`ident.identify.motion.antialiased`) as soon as it
+    signal decimated for the replay (:func:`ident.identify.estimation.motion.antialiased`) as soon as it
     is computed and freed before the next (10 minutes at 1 kHz of 7 joints: 34 MB a signal;
     ``dq`` and ``ddq`` are the identification's central differences, one at a time).
 

@@ -25,7 +25,7 @@ import numpy.typing as npt
 import scipy.linalg
 
 from ident.errors import DataError, NotIdentifiable
-from ident.identify.observations import ReducedObservations
+from ident.identify.estimation.observations import ReducedObservations
 
 __all__ = ["Estimate", "least_squares", "least_squares_reduced", "rank_report"]
 
@@ -81,7 +81,7 @@ class Estimate:
         works on them (:mod:`ident.identify.estimators`); empty otherwise.
     consistency :
         Per-body physical consistency of ``theta``
-        (:class:`~ident.identify.consistency.BodyConsistency`); empty without ``theta``.
+        (:class:`~ident.identify.estimation.consistency.BodyConsistency`); empty without ``theta``.
     group_residual_ss :
         Squared residual per row group ``||W_j x - y_j||^2`` [N^2*m^2], shape (n_groups,).
     regularization :
@@ -410,7 +410,7 @@ def least_squares_reduced(
 
     Gives the same estimate, standard deviations, per-group sigma, residuals and condition
     number as :func:`least_squares` on the rows (up to round-off), from
-    :class:`~ident.identify.observations.ReducedObservations` whose size does not depend on
+    :class:`~ident.identify.estimation.observations.ReducedObservations` whose size does not depend on
     the number of rows: ``||W_j x - y_j||^2 = ||R_j x - z_j||^2 + rho_j``.
 
     Parameters

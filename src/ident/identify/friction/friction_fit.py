@@ -1,6 +1,6 @@
 """Friction models fitted with the rigid-body model, and compared on held-out data.
 
-The rows are those of the identification (:mod:`ident.identify.accumulate`): the base columns
+The rows are those of the identification (:mod:`ident.identify.estimation.accumulate`): the base columns
 of everything but the joints' viscous and Coulomb friction (rigid bodies, rotor inertias,
 offsets, coupled-motor terms: ``W_rest``), the joint velocities, the measured torques and the
 velocity-threshold mask. A friction model of the registry (:mod:`ident.dynamics.friction_models`)
@@ -45,8 +45,8 @@ from threadpoolctl import threadpool_limits
 from ident.dynamics.friction_models import FRICTION_MODELS, FrictionModel, get_friction_model
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
-from ident.identify import accumulate
-from ident.identify.validation import prediction_metrics
+from ident.identify.estimation import accumulate
+from ident.identify.estimation.validation import prediction_metrics
 
 __all__ = [
     "FrictionComparison",

@@ -40,7 +40,7 @@ from ident.signals import (
 )
 
 if TYPE_CHECKING:
-    from ident.identify.logs import RobotLog
+    from ident.measure.logs import RobotLog
 
 __all__ = [
     "DecimationStream",

@@ -14,16 +14,16 @@ because a URDF carries none of them reliably. A second log without the payload a
 the same ``E`` columns and no ``Y_n`` columns, which pins the extras down.
 
 The logs go through the one preprocessing of every identification (low-pass, differentiate,
-trim, decimate, velocity threshold: :func:`ident.identify.accumulate.iter_chunks`, in chunks
-of bounded size) and are reduced per joint (:func:`ident.identify.accumulate.reduce_chunk`).
-The estimate is WLS (:func:`ident.identify.estimate.least_squares_reduced`: standard
+trim, decimate, velocity threshold: :func:`ident.identify.estimation.accumulate.iter_chunks`, in chunks
+of bounded size) and are reduced per joint (:func:`ident.identify.estimation.accumulate.reduce_chunk`).
+The estimate is WLS (:func:`ident.identify.estimation.estimate.least_squares_reduced`: standard
 deviations from the residual), then, with ``method: lmi``, the registry's ``lmi`` estimator
 on the same rows with the payload as its one body: pseudo-inertia positive definite, extras
 >= 0 (:mod:`ident.identify.estimators.lmi`), no prior (the prior floor is 0).
 
 **Intervals.** The standard deviations are those of every identification
-(:func:`ident.identify.uncertainty.parameter_std`): a moving-block bootstrap of the WLS
-estimate over consecutive blocks of decimated samples (:mod:`ident.identify.uncertainty`),
+(:func:`ident.identify.estimation.uncertainty.parameter_std`): a moving-block bootstrap of the WLS
+estimate over consecutive blocks of decimated samples (:mod:`ident.identify.estimation.uncertainty`),
 which holds on correlated residuals (filtered, decimated rows, closed-loop and friction
 errors), where the ordinary ``sigma^2 (W^T W)^-1`` comes out 2-3x too small. While the rows
 are reduced, each chunk also yields per-joint *unweighted* block normal equations
@@ -50,16 +50,16 @@ from ident.dynamics.friction import ExtraTerms, extra_columns, extra_names
 from ident.dynamics.gram import selected_rows
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.errors import ConfigError, DataError, NotIdentifiable
-from ident.identify import accumulate, preprocess
+from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import PreprocessConfig
-from ident.identify.consistency import pseudo_inertia_min_eigenvalue
-from ident.identify.estimate import Estimate, least_squares_reduced
+from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
+from ident.identify.estimation.estimate import Estimate, least_squares_reduced
 from ident.identify.estimators import get_estimator
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
-from ident.identify.logs import RobotLog, read_log
-from ident.identify.observations import ReducedObservations
-from ident.identify.payload_config import PayloadConfig
-from ident.identify.uncertainty import (
+from ident.measure.logs import RobotLog, read_log
+from ident.identify.estimation.observations import ReducedObservations
+from ident.identify.payload.payload_config import PayloadConfig
+from ident.identify.estimation.uncertainty import (
     BlockEquations,
     ParameterStd,
     Uncertainty,
@@ -159,7 +159,7 @@ def decimated_samples(log: RobotLog, pp: PreprocessConfig) -> int:
 
 def block_length(n_samples: int, max_blocks: int = accumulate.MAX_BLOCKS) -> int:
     """Decimated samples per block for ``n_samples`` in all: ``ceil(n_samples / max_blocks)``
-    (1 on short logs), the rule of :func:`ident.identify.accumulate.block_equations`."""
+    (1 on short logs), the rule of :func:`ident.identify.estimation.accumulate.block_equations`."""
     return max(1, -(-int(n_samples) // int(max_blocks)))
 
 
@@ -172,9 +172,9 @@ def payload_rows(
     """The log's rows ``tau - Y theta_arm = [Y_n | E] x``, processed and reduced per joint,
     and their unweighted block normal equations per joint.
 
-    Every segment goes through :func:`ident.identify.accumulate.iter_chunks` in chunks of at
+    Every segment goes through :func:`ident.identify.estimation.accumulate.iter_chunks` in chunks of at
     most :data:`CHUNK_SAMPLES` raw samples; rows below ``pp.velocity_threshold`` are dropped.
-    The blocks (one :class:`~ident.identify.uncertainty.BlockEquations` per joint, weight 1,
+    The blocks (one :class:`~ident.identify.estimation.uncertainty.BlockEquations` per joint, weight 1,
     its blocks in time order) hold ``block_samples`` consecutive decimated samples and never
     cross a chunk or segment boundary. Memory: ``nv * n_blocks * (p^2 + p + 1) * 8`` bytes for
     ``p`` columns, ``n_blocks <= n_samples / block_samples + n_chunks`` (with
@@ -242,7 +242,7 @@ def payload_observations(
 def weighted_blocks(per_joint: tuple[BlockEquations, ...], weights: FloatArray) -> BlockEquations:
     """``A_b = sum_j w_j^2 A_bj``, ``c_b = sum_j w_j^2 c_bj`` of per-joint unweighted blocks
     (each joint's blocks aligned in time, :func:`payload_rows`) and per-joint row weights
-    ``weights`` (nv,) [1/(N*m)]: the blocks :func:`~ident.identify.uncertainty.BlockEquations`
+    ``weights`` (nv,) [1/(N*m)]: the blocks :func:`~ident.identify.estimation.uncertainty.BlockEquations`
     ``.from_samples`` gives with those weights."""
     w2 = np.asarray(weights, dtype=float) ** 2
     if w2.shape != (len(per_joint),):
@@ -266,7 +266,7 @@ def merge_blocks(
 def calibrated_std(
     wls: Estimate, blocks: tuple[BlockEquations, ...] | None
 ) -> tuple[ParameterStd, Uncertainty | None]:
-    """The one standard deviation of ``wls`` (:func:`~ident.identify.uncertainty.parameter_std`)
+    """The one standard deviation of ``wls`` (:func:`~ident.identify.estimation.uncertainty.parameter_std`)
     from the per-joint ``blocks`` weighted by its ``1 / sigma_j``, as ``ident identify``
     computes it; the ordinary one with a note when there are no blocks or too few."""
     unc = None
@@ -316,7 +316,7 @@ class PayloadResult:
         Seconds per stage.
     signals :
         What ``signals:`` removed from the logs (JSON-ready,
-        :meth:`ident.identify.signal_correction.SignalCorrection.summary`), or None.
+        :meth:`ident.identify.corrections.signal_correction.SignalCorrection.summary`), or None.
     std_method, std_note :
         Where ``std`` comes from (``bootstrap`` or ``ordinary``) and, for ``ordinary``, why.
     uncertainty :
@@ -600,7 +600,7 @@ def identify_payload(
     Parameters
     ----------
     cfg :
-        Validated config (:func:`~ident.identify.payload_config.load_payload_config`).
+        Validated config (:func:`~ident.identify.payload.payload_config.load_payload_config`).
     robot :
         The arm without the payload (loaded from ``cfg.robot`` when not given).
     logs :
@@ -659,7 +659,7 @@ def arm_with_payload(robot: Robot, phi: npt.ArrayLike) -> tuple[FloatArray, tupl
     """Standard parameters of the arm with the payload added to its last body, and names.
 
     ``theta = theta_URDF`` with ``phi`` (about the last joint's frame) added to the last
-    body's 10 parameters; for :func:`ident.identify.model_files.write_model_files`.
+    body's 10 parameters; for :func:`ident.identify.model_files.files.write_model_files`.
     """
     theta = parameters_from_model(robot.model).copy()
     theta[-10:] += np.asarray(phi, dtype=float)

@@ -1,6 +1,6 @@
 """Intervals that cover: covariances of a least-squares estimate robust to correlated residuals.
 
-The ordinary covariance ``sigma^2 (W^T W)^-1`` of :mod:`ident.identify.estimate` assumes
+The ordinary covariance ``sigma^2 (W^T W)^-1`` of :mod:`ident.identify.estimation.estimate` assumes
 independent residuals. A log's residuals are not: the zero-phase low-pass filters, the
 differentiation of quantized encoders, closed-loop errors and unmodelled dynamics make
 neighbouring samples share their error, and the ordinary standard deviations come out too
@@ -10,7 +10,7 @@ covariances that do not assume independence are computed here, both from the *bl
 equations* of the identification rows (:class:`BlockEquations`: for consecutive blocks of
 decimated samples ``b``, ``A_b = sum_j w_j^2 W_bj^T W_bj`` and ``c_b = sum_j w_j^2 W_bj^T
 y_bj``, with the estimate's per-joint weights ``w_j = 1 / sigma_j``; blocks are filled chunk
-by chunk by :func:`ident.identify.accumulate.block_equations`, so memory does not grow with
+by chunk by :func:`ident.identify.estimation.accumulate.block_equations`, so memory does not grow with
 the log):
 
 ``hac``
@@ -391,7 +391,7 @@ class ParameterStd:
 def parameter_std(estimate: Any, unc: Uncertainty | None) -> ParameterStd:
     """The one standard deviation of an ``estimate`` (module docstring).
 
-    ``estimate``: an :class:`~ident.identify.estimate.Estimate` (``x``, ``std``,
+    ``estimate``: an :class:`~ident.identify.estimation.estimate.Estimate` (``x``, ``std``,
     ``relative_std``, shape (n,)). ``unc``'s default method when ``unc`` was computed for this
     very estimate (``unc.x`` equal to ``estimate.x``); else the estimate's ordinary standard
     deviations with the reason in the note (``unc`` None: no bootstrap, too few blocks).

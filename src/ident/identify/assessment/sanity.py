@@ -22,7 +22,7 @@ written to the report and ``result.json``). Residuals are quoted in each joint's
   (:func:`inconsistency_warnings`).
 
 The standard deviations are the result's one standard deviation (the default interval
-method's, :func:`ident.identify.uncertainty.parameter_std`), named in the sentences.
+method's, :func:`ident.identify.estimation.uncertainty.parameter_std`), named in the sentences.
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def result_warnings(
     names, x, std, relative_std :
         Base parameters: names, estimates (SI), standard deviations, relative std [%]: the
         result's one standard deviation
-        (:func:`ident.identify.uncertainty.parameter_std`).
+        (:func:`ident.identify.estimation.uncertainty.parameter_std`).
     projection :
         Base parameters as combinations of the standard ones, shape (n_base, n_all).
     all_names :

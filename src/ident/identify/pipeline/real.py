@@ -1,10 +1,10 @@
 """``ident identify``: read the log a config names, then the identification core.
 
 :func:`identify` reads the URDF (Pinocchio) and the log, converts motor-side signals to joint
-side (:mod:`ident.identify.logs`), checks the memory and time estimate
+side (:mod:`ident.measure.logs`), checks the memory and time estimate
 (:func:`estimate_identify`), removes the torque's delay (``signals:``,
-:func:`ident.identify.signal_correction.correct_log`), and hands the measurements to
-:func:`ident.identify.core.identify_measurements`, the one identification every command runs.
+:func:`ident.identify.corrections.signal_correction.correct_log`), and hands the measurements to
+:func:`ident.identify.pipeline.core.identify_measurements`, the one identification every command runs.
 Nothing here writes files; :mod:`ident.report.identify_report` does.
 """
 
@@ -17,12 +17,12 @@ from pathlib import Path
 import pinocchio as pin
 
 from ident.dynamics.parameter_model import PRIORITY_LABELS, ParameterModel, build_parameter_model
-from ident.identify import accumulate, preprocess
+from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import IdentifyConfig
-from ident.identify.core import IdentifyResult, identify_measurements
-from ident.identify.logs import RobotLog, estimate_log, read_log
-from ident.identify.model_intervals import estimated_seconds
-from ident.identify.signal_correction import correct_log
+from ident.identify.pipeline.core import IdentifyResult, identify_measurements
+from ident.measure.logs import RobotLog, estimate_log, read_log
+from ident.identify.assessment.model_intervals import estimated_seconds
+from ident.identify.corrections.signal_correction import correct_log
 from ident.inputs import JobEstimate, check_job
 from ident.model import Robot
 from ident.model.selection import load_robot
@@ -63,8 +63,8 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
     """Rough peak memory and wall time of identifying ``log`` (n_samples, nv).
 
     Time: ``n_samples * nv^2`` (the regressor's rows and columns). Memory: the log's arrays,
-    the chunks in flight (:func:`ident.identify.accumulate.chunk_bytes`: one per worker, or the
-    whole log as one chunk when :func:`~ident.identify.accumulate.use_chunks` says so, as the
+    the chunks in flight (:func:`ident.identify.estimation.accumulate.chunk_bytes`: one per worker, or the
+    whole log as one chunk when :func:`~ident.identify.estimation.accumulate.use_chunks` says so, as the
     core decides) and the uncertainty's blocks. A decimation still ``auto`` counts as none, so
     the estimate errs high.
     """
@@ -93,7 +93,7 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
 
 def estimate_model_intervals(cfg: IdentifyConfig, nv: int) -> JobEstimate | None:
     """The written model's bootstrap re-solves (``urdf_update.model_bootstrap``), or None when
-    there are none (:func:`ident.identify.model_intervals.estimated_seconds`)."""
+    there are none (:func:`ident.identify.assessment.model_intervals.estimated_seconds`)."""
     n_boot = cfg.urdf_update.model_bootstrap if cfg.urdf_update.model != "none" else 0
     if not n_boot:
         return None
@@ -113,11 +113,11 @@ def identify(
     on_estimate: Callable[[JobEstimate], None] | None = None,
 ) -> IdentifyResult:
     """Run the identification described by ``cfg``: read its log, then
-    :func:`~ident.identify.core.identify_measurements`.
+    :func:`~ident.identify.pipeline.core.identify_measurements`.
 
     ``scheduler``: a dask.distributed scheduler address for the chunks of a long log.
     ``on_estimate``: called with the estimate of reading the log (from the files' sizes,
-    :func:`ident.identify.logs.estimate_log`) before reading it, then with the memory and time
+    :func:`ident.measure.logs.estimate_log`) before reading it, then with the memory and time
     estimate (:func:`estimate_identify`) once the log is read, before the identification, and
     with that of the written model's bootstrap (:func:`estimate_model_intervals`) when there is
     one (``ident identify`` prints those above a minute); each is checked against the

@@ -15,7 +15,7 @@ of its 1e-6 kg*m first moments), so the summaries leave such parameters out:
 
 - *major* parameters: reference torque share (the stage's reference motion, the same set
   for every trajectory) of at least ``MAJOR_SHARE`` (1 %); the verdict
-  (:mod:`ident.identify.verdict`) and the worst error are about them;
+  (:mod:`ident.identify.assessment.verdict`) and the worst error are about them;
 - *significant* parameters: torque share of at least ``SIGNIFICANT_SHARE`` (1e-4); the
   paper-style error sums add their relative errors [%]: ``Error(n)`` over the ``n``
   significant parameters, ``Error(n-2)`` without the two largest (our reading of the paper's
@@ -209,7 +209,7 @@ def parameter_unit(name: str, joint_units: Sequence[str] = ()) -> str:
     ``fs``/``fc``, offset ``off``, each followed by the joint number; ``""`` when unknown.
 
     ``joint_units`` (the torque unit of each joint, ``"N"`` for a prismatic joint, see
-    :func:`ident.identify.sanity.joint_units`) gives the joint-space parameters of a prismatic
+    :func:`ident.identify.assessment.sanity.joint_units`) gives the joint-space parameters of a prismatic
     joint their own units: ``fv`` in N*s/m, ``fs``/``off`` in N, ``Ia`` (reflected rotor
     mass) in kg. Motor-side parameters (``Iam``, ``fvm``, ``fsm``) belong to rotary motors.
     """

@@ -4,7 +4,7 @@ When ``model.friction`` names a law other than ``viscous_coulomb``, or ``auto`` 
 identified model carries that law (:mod:`ident.dynamics.friction_models`):
 
 - **Its parameters** are those of its separable least-squares fit with the rest of the model
-  (:func:`ident.identify.friction_fit.compare_friction_models`). The written rigid bodies,
+  (:func:`ident.identify.friction.friction_fit.compare_friction_models`). The written rigid bodies,
   rotor inertias and offsets stay the consistent estimate's, which was fitted with viscous +
   Coulomb friction: the two were fitted separately (a consistent estimate with a nonlinear law
   is not implemented). Holding the consistent estimate and refitting only the law on what it
@@ -42,8 +42,8 @@ from scipy.optimize import nnls
 
 from ident.dynamics.friction_models import get_friction_model
 from ident.errors import DataError
-from ident.identify.friction_fit import FrictionFit, FrictionRows, fit_friction_model
-from ident.identify.validation import prediction_metrics
+from ident.identify.friction.friction_fit import FrictionFit, FrictionRows, fit_friction_model
+from ident.identify.estimation.validation import prediction_metrics
 
 __all__ = [
     "LAW_TORQUE_MODEL",
@@ -70,7 +70,7 @@ _APPLY = (
     "Pinocchio/URDF: add law_j(dq_j, load_j) to rnea (the URDF's damping/friction hold only "
     "its native part: do not add both). MuJoCo/MJCF: damping and frictionloss hold the native "
     "part; add qfrc_applied_j = law_j - native_damping_j dq_j - native_frictionloss_j "
-    "sign(dq_j) every step (ident.identify.friction_law.applied_friction_torque(file, dq, "
+    "sign(dq_j) every step (ident.identify.friction.friction_law.applied_friction_torque(file, dq, "
     "load)). load_j: the joint's torque without friction (rnea + rotor inertia + offset) "
     "[N*m], used by load-dependent laws only."
 )
@@ -138,10 +138,10 @@ def written_friction_law(
     Parameters
     ----------
     fit :
-        The law's separable least-squares fit (:func:`~ident.identify.friction_fit.
+        The law's separable least-squares fit (:func:`~ident.identify.friction.friction_fit.
         compare_friction_models`' fit of the chosen model): its parameters are written.
     rows, held_out :
-        Identification and held-out rows (:func:`~ident.identify.friction_fit.friction_rows`).
+        Identification and held-out rows (:func:`~ident.identify.friction.friction_fit.friction_rows`).
     rest :
         The written model's parameters of the columns of ``rows.W_rest``, shape (p,): the
         residuals of the written model with the law, and with ``viscous_coulomb`` fitted to

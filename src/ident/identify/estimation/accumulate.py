@@ -1,6 +1,6 @@
 """Accumulation of a log's observation rows in bounded memory: chunks reduced as they come.
 
-The one path of every identification (:func:`ident.identify.core.identify_measurements`): a
+The one path of every identification (:func:`ident.identify.pipeline.core.identify_measurements`): a
 log segment is processed in chunks of decimated samples (a whole segment is one chunk unless
 :func:`use_chunks` says otherwise; the regressor of every sample of one hour at 1 kHz of a
 7-joint arm would be 14 GB); each chunk
@@ -10,14 +10,14 @@ log segment is processed in chunks of decimated samples (a whole segment is one 
    round-off, so that the kept samples equal those of the whole-log processing to ~1e-12;
    chunks that touch an end of the segment take the end as the whole-log path does, with the
    same padding);
-2. low-passes and differentiates its positions (:mod:`ident.identify.preprocess`), then, a
+2. low-passes and differentiates its positions (:mod:`ident.identify.estimation.preprocess`), then, a
    :data:`ROW_BLOCK` of samples at a time, computes the rigid-body regressor (the numba kernel
    of :mod:`ident.dynamics.regressor`), the extra columns (:mod:`ident.dynamics.friction`) and
    the base columns and pushes them with the torques through the decimation filters
-   (:class:`~ident.identify.preprocess.DecimationStream`: the full-rate regressor of a chunk
+   (:class:`~ident.identify.estimation.preprocess.DecimationStream`: the full-rate regressor of a chunk
    never exists whole), keeping its own decimated samples (:func:`decimated_rows`);
 3. applies the velocity threshold and reduces its identification rows at once into a
-   :class:`~ident.identify.observations.ReducedObservations` (per-joint triangular factors),
+   :class:`~ident.identify.estimation.observations.ReducedObservations` (per-joint triangular factors),
    merged into the running one.
 
 Nothing per sample outlives a chunk except the held-out part's torques and predictions
@@ -65,15 +65,15 @@ from ident.dynamics.friction import extra_columns
 from ident.dynamics.gram import selected_rows
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError, IdentError
-from ident.identify import preprocess
+from ident.identify.estimation import preprocess
 from ident.identify.config import PreprocessConfig
-from ident.identify.essential import EssentialResult, backward_elimination
-from ident.identify.estimate import Estimate, least_squares_reduced
-from ident.identify.logs import RobotLog
-from ident.identify.observations import ReducedObservations, reduce_rows
-from ident.identify.reference import ReferenceWeights
-from ident.identify.uncertainty import BlockEquations, prediction_std
-from ident.identify.validation import time_split
+from ident.identify.estimation.essential import EssentialResult, backward_elimination
+from ident.identify.estimation.estimate import Estimate, least_squares_reduced
+from ident.measure.logs import RobotLog
+from ident.identify.estimation.observations import ReducedObservations, reduce_rows
+from ident.identify.estimation.reference import ReferenceWeights
+from ident.identify.estimation.uncertainty import BlockEquations, prediction_std
+from ident.identify.estimation.validation import time_split
 from ident.signals import decay_length
 
 __all__ = [
@@ -260,7 +260,7 @@ def decimated_rows(
     """``preprocess.decimate([tau, columns(q, dq, ddq), dq], factors)`` (shapes (n, nv),
     (n, nv, p), (n, nv) decimated; only the decimated rows ``kept = (k0, k1)`` when given),
     the regressor computed and filtered :data:`ROW_BLOCK` samples at a time
-    (:class:`~ident.identify.preprocess.DecimationStream`), never whole.
+    (:class:`~ident.identify.estimation.preprocess.DecimationStream`), never whole.
 
     Columns zero throughout the first block are left out of the filtering (about half of a
     serial arm's: a joint's row has no term of the bodies before it); filtering zeros gives
@@ -494,8 +494,8 @@ def estimate_reduced(
     method: str = "ols",
     wls_passes: int = 2,
 ) -> Estimate:
-    """OLS/WLS from a reduction: :func:`ident.identify.estimate.least_squares_reduced` (the
-    formulas of :func:`ident.identify.estimate.least_squares`, rows grouped by joint).
+    """OLS/WLS from a reduction: :func:`ident.identify.estimation.estimate.least_squares_reduced` (the
+    formulas of :func:`ident.identify.estimation.estimate.least_squares`, rows grouped by joint).
 
     Raises
     ------
@@ -515,7 +515,7 @@ def essential_reduced(
     max_relative_std_pct: float,
     max_residual_increase: float,
 ) -> EssentialResult:
-    """:func:`ident.identify.essential.essential_parameters` on a reduction (same rule:
+    """:func:`ident.identify.estimation.essential.essential_parameters` on a reduction (same rule:
     backward elimination of the largest relative std while the residual stays within
     ``1 + max_residual_increase`` of the full set's)."""
 
@@ -535,7 +535,7 @@ class BaseColumns:
     columns computed alone (``selected_rows``, no full regressor and no gather of it), then
     the extra columns. ``order[i]`` is the base parameter of kernel column ``i``.
 
-    With ``reference`` (:class:`~ident.identify.reference.ReferenceWeights`), one more column
+    With ``reference`` (:class:`~ident.identify.estimation.reference.ReferenceWeights`), one more column
     follows: the torques the reference's parameters predict, decimated like the rest.
     ``rows`` (nv,) marks the joints whose torque rows the model explains (``pm.rows``).
     """
@@ -736,7 +736,7 @@ def chunk_bytes(extent: int, nv: int, n_columns: int, step: int) -> float:
     differentiation's scratch) and, decimated by ``step``, the regressor's ``n_columns`` with
     the torques and velocities, twice (the chunk's and its consumer's copy). Whatever the
     extent: ~4 :data:`ROW_BLOCK` rows of every column (the regressor's row blocks and the
-    decimation filters' buffers, :class:`~ident.identify.preprocess.DecimationStream`).
+    decimation filters' buffers, :class:`~ident.identify.estimation.preprocess.DecimationStream`).
     Measured on an hour at 1 kHz of a 7-joint arm (57 base columns, step 20, chunks of 100 000
     samples, 131 000 with their margins): ~85 MiB a worker, this formula 82 MiB.
     """
@@ -933,7 +933,7 @@ def block_equations(
     max_blocks: int = MAX_BLOCKS,
 ) -> BlockEquations:
     """The identification rows' weighted normal equations by consecutive blocks, in time
-    order (a second pass over the chunks; :mod:`ident.identify.uncertainty`).
+    order (a second pass over the chunks; :mod:`ident.identify.estimation.uncertainty`).
 
     ``weights``: per-joint row weights ``1 / sigma_j``, one per joint the model explains
     (``pm.rows``, all nv by default). Blocks hold
@@ -979,7 +979,7 @@ def prediction_std_log(
     scheduler: str | None = None,
 ) -> dict[str, FloatArray]:
     """Standard deviation of every held-out torque about its prediction, per covariance
-    label, shape (n_validate, nv) [N*m] (:func:`ident.identify.uncertainty.prediction_std`;
+    label, shape (n_validate, nv) [N*m] (:func:`ident.identify.estimation.uncertainty.prediction_std`;
     same samples as :func:`predict_log`)."""
     parts = _run(_prediction_std_task, list(chunked.val_tasks), scheduler, covariances, sigma)
     return {k: np.concatenate([p[k] for p in parts]) for k in covariances}

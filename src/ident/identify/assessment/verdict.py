@@ -18,7 +18,7 @@ Two kinds of evidence:
   parameters that carry the torques (torque share >= ``MAJOR_SHARE`` on the identification
   rows, computed from the estimate's covariance: :func:`covariance_torque_shares`; the σ is
   the result's one standard deviation, the default interval method's:
-  :func:`ident.identify.uncertainty.parameter_std`), the
+  :func:`ident.identify.estimation.uncertainty.parameter_std`), the
   physical consistency of the reported estimate, and the warnings.
 
 In both, an unsafe trajectory gives ``unsafe`` (never ``usable``) and a missing estimate gives
@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ident.identify.metrics import MAJOR_SHARE, error_measures
-from ident.identify.uncertainty import parameter_std
+from ident.identify.assessment.metrics import MAJOR_SHARE, error_measures
+from ident.identify.estimation.uncertainty import parameter_std
 
 __all__ = [
     "GOOD_ERROR_PERCENT",
@@ -158,7 +158,7 @@ class Evidence:
         No truth: worst relative std [%] of the torque-carrying parameters and its name.
     std_method :
         The interval method of that std (``"bootstrap"``, or ``"ordinary"`` when the log has
-        too few blocks for it: :func:`ident.identify.uncertainty.parameter_std`).
+        too few blocks for it: :func:`ident.identify.estimation.uncertainty.parameter_std`).
     n_inconsistent, n_links :
         Links the reported estimate makes physically inconsistent, of ``n_links`` (None:
         not checked).
@@ -299,7 +299,7 @@ def truth_error(
 ) -> tuple[float, str | None, int] | None:
     """Worst relative error [%] of the major parameters, its name and the number of majors.
 
-    The measures of :func:`ident.identify.metrics.error_measures` (the same ones a run saves);
+    The measures of :func:`ident.identify.assessment.metrics.error_measures` (the same ones a run saves);
     None when the names are not the truth's.
     """
     if tuple(names) != tuple(truth.names):
@@ -327,7 +327,7 @@ def log_evidence(
     Parameters
     ----------
     result :
-        The :class:`~ident.identify.real.IdentifyResult`.
+        The :class:`~ident.identify.pipeline.real.IdentifyResult`.
     truth :
         The simulator's truth of a simulated log (None: a real log, judged without).
     safe :

@@ -3,8 +3,8 @@
 :func:`model_files` computes the three texts (nothing is written; any error is raised before a
 file exists); :func:`write_model_files` writes them into a folder as
 ``<stem>_identified.urdf``, ``<stem>_identified.xml`` and ``<stem>_joint_extras.json``.
-See :mod:`ident.identify.urdf_update` (URDF, links fused through fixed or locked joints) and
-:mod:`ident.identify.mjcf` (MJCF, the mapping of the joint extras to MuJoCo).
+See :mod:`ident.identify.model_files.urdf_update` (URDF, links fused through fixed or locked joints) and
+:mod:`ident.identify.model_files.mjcf` (MJCF, the mapping of the joint extras to MuJoCo).
 """
 
 from __future__ import annotations
@@ -19,15 +19,15 @@ import numpy.typing as npt
 
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
-from ident.identify.friction_law import (
+from ident.identify.friction.friction_law import (
     LAW_TORQUE_MODEL,
     WrittenFrictionLaw,
     friction_law_entry,
     friction_law_torque,
     native_theta,
 )
-from ident.identify.mjcf import identified_mjcf
-from ident.identify.urdf_update import IdentifiedModel, identified_urdf
+from ident.identify.model_files.mjcf import identified_mjcf
+from ident.identify.model_files.urdf_update import IdentifiedModel, identified_urdf
 from ident.model import Robot
 from ident.robot.inertia import PINOCCHIO_ORDER
 
@@ -98,7 +98,7 @@ def model_files(
         (``ParameterModel.terms.coupled_wrist``); needed for the MJCF's tendon.
     friction_law :
         A friction law the model carries instead of ``fv``/``fs``
-        (:mod:`ident.identify.friction_law`): the joint-extras file gets its
+        (:mod:`ident.identify.friction.friction_law`): the joint-extras file gets its
         ``"friction_law"``, the URDF's and MJCF's damping and friction its native part.
 
     Raises
@@ -238,7 +238,7 @@ def reload_parity(
     import mujoco
     import pinocchio as pin
 
-    from ident.identify.urdf_update import model_of_urdf
+    from ident.identify.model_files.urdf_update import model_of_urdf
 
     theta = native_theta(theta, names, friction_law)
     index = {name: i for i, name in enumerate(names)}
@@ -297,7 +297,7 @@ def reload_parity(
 def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
     """Write the identified model of an identification and return its ``result.json`` entry.
 
-    The model is ``result.model`` (:class:`~ident.identify.core.IdentifyResult`): the
+    The model is ``result.model`` (:class:`~ident.identify.pipeline.core.IdentifyResult`): the
     physically consistent estimate of every link. Its files are
     ``<stem>_identified.urdf``, ``<stem>_identified.xml`` and ``<stem>_joint_extras.json``
     (``<stem>``: the robot file's name, :func:`write_model_files`); once written, both model

@@ -30,7 +30,7 @@ through fixed or locked joints (:func:`fused_bodies`); it is split back exactly 
 :func:`compose_body` (the welded links keep their nominal inertials, or are scaled down when the
 carrying link would otherwise be inconsistent), so the reloaded model with the same locks has
 the written parameters. Only the edited ``<inertial>`` and ``<dynamics>`` elements change: the
-rest of the file is kept byte for byte (:mod:`ident.identify.urdf_edit`).
+rest of the file is kept byte for byte (:mod:`ident.identify.model_files.urdf_edit`).
 
 Both refuse a document type declaration (``<!DOCTYPE``/``<!ENTITY``): the robot loader
 (urdfdom) does not expand entities, so such a file would not describe the same robot to every
@@ -49,7 +49,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ModelError
-from ident.identify.fused_bodies import (
+from ident.identify.model_files.fused_bodies import (
     FusedBody,
     compose_body,
     fused_bodies,
@@ -57,7 +57,7 @@ from ident.identify.fused_bodies import (
     model_of_urdf,
     parse_urdf,
 )
-from ident.identify.urdf_edit import (
+from ident.identify.model_files.urdf_edit import (
     UrdfSpans,
     apply_edits,
     dynamics_edit,

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ident.identify.estimate import Estimate, least_squares
+from ident.identify.estimation.estimate import Estimate, least_squares
 
 __all__ = ["EssentialResult", "backward_elimination", "essential_parameters"]
 
@@ -67,7 +67,7 @@ def essential_parameters(
     names :
         Base parameter names, length n_base.
     method, groups, rows_per_sample :
-        Passed to :func:`~ident.identify.estimate.least_squares`.
+        Passed to :func:`~ident.identify.estimation.estimate.least_squares`.
     max_relative_std_pct :
         Stop once every kept parameter has a relative std at or below this [%].
     max_residual_increase :

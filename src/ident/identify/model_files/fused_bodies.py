@@ -198,7 +198,7 @@ def compose_body(body: FloatArray, welded: FloatArray) -> tuple[FloatArray, floa
     own, scale :
         The carrying link's parameters (10,) and ``s``; never a negative mass.
     """
-    from ident.identify.consistency import pseudo_inertia_min_eigenvalue
+    from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
     from ident.robot.inertia import consistency_problems
 
     body = np.asarray(body, dtype=float)

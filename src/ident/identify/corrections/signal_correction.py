@@ -1,13 +1,13 @@
 """The ``signals:`` section applied where a log is read: the torque's delay and gains.
 
-Model of the measured torque (:mod:`ident.identify.signal_errors`)::
+Model of the measured torque (:mod:`ident.identify.corrections.signal_errors`)::
 
     tau_measured_j(t) = g_j tau_j(t - d) + o_j
 
 **Delay.** ``signals.delay_s`` given, or ``auto``: :func:`estimate_log_delay` fits the
 configured model (the base parameters and extra columns of ``model:``) to the log's first
 segment, at most :data:`MAX_DELAY_SAMPLES` raw samples of it, for delays on a grid within
-``max_delay_s`` and keeps the best (:func:`ident.identify.signal_errors.estimate_delay`). The
+``max_delay_s`` and keeps the best (:func:`ident.identify.corrections.signal_errors.estimate_delay`). The
 positions are low-passed as the identification does it, the torques with the same zero-phase
 filter (so that the filter shifts neither). :func:`shift_torque` then advances every segment's
 torque by the delay (linear interpolation; the last ``d`` seconds of a segment hold its last
@@ -15,7 +15,7 @@ value, and fall in the trimmed edge).
 
 **Gains** (``ident payload`` with ``payload.without`` and ``signals.gain_reference``): the
 gains are estimated from both logs against the payload's known mass
-(:mod:`ident.identify.payload_gain`) after the delay is removed, and each joint's torque is
+(:mod:`ident.identify.payload.payload_gain`) after the delay is removed, and each joint's torque is
 divided by its gain in both logs. A joint whose gain is not determined to
 :data:`MAX_GAIN_STD` (the payload does not load it enough) keeps gain 1.
 
@@ -33,18 +33,18 @@ from threadpoolctl import threadpool_limits
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.errors import DataError
-from ident.identify import preprocess
-from ident.identify.accumulate import BaseColumns
+from ident.identify.estimation import preprocess
+from ident.identify.estimation.accumulate import BaseColumns
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
-from ident.identify.logs import RobotLog
-from ident.identify.payload import PayloadResult, identify_payload, read_payload_logs
-from ident.identify.payload_config import PayloadConfig
-from ident.identify.payload_gain import (
+from ident.measure.logs import RobotLog
+from ident.identify.payload.payload import PayloadResult, identify_payload, read_payload_logs
+from ident.identify.payload.payload_config import PayloadConfig
+from ident.identify.payload.payload_gain import (
     PayloadGains,
     estimate_payload_gains,
     payload_gain_observations,
 )
-from ident.identify.signal_errors import DelayEstimate, estimate_delay
+from ident.identify.corrections.signal_errors import DelayEstimate, estimate_delay
 from ident.model import Robot
 
 __all__ = [
@@ -272,7 +272,7 @@ def correct_payload_logs(
 
 def identify_corrected_payload(cfg: PayloadConfig, robot: Robot) -> PayloadResult:
     """``ident payload``: read both logs, remove ``cfg.signals``' delay and gains, estimate
-    the payload (:func:`ident.identify.payload.identify_payload`); the result's ``signals``
+    the payload (:func:`ident.identify.payload.payload.identify_payload`); the result's ``signals``
     says what was removed."""
     source = str(cfg.source or "config")
     with_log, without_log = read_payload_logs(cfg, robot.model)

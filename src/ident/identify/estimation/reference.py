@@ -25,8 +25,8 @@ from ident.dynamics.friction import (
 from ident.dynamics.gram import selected_rows
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
-from ident.identify.estimate import Estimate
-from ident.identify.uncertainty import ParameterStd
+from ident.identify.estimation.estimate import Estimate
+from ident.identify.estimation.uncertainty import ParameterStd
 
 __all__ = [
     "ReferenceParameter",
@@ -201,7 +201,7 @@ def compare_with_reference(
     """Match reference base parameters to ours: same expression, or a documented sum.
 
     ``sd``: the estimate's one standard deviation
-    (:func:`ident.identify.uncertainty.parameter_std`); the ``relative_std_pct`` of every row,
+    (:func:`ident.identify.estimation.uncertainty.parameter_std`); the ``relative_std_pct`` of every row,
     a sum's included (``sqrt(w @ C @ w)``), comes from it and ``std_method`` names it. The
     reference's own column is whatever the reference printed (an ordinary σ for a published
     OLS/WLS table)."""

@@ -19,7 +19,7 @@ a joint's row must also act on the reference joint's row (take a shoulder joint 
 reference, whose row carries the gravity of the links beyond it; the vertical first joint of a
 UR5 sees no gravity, and the gains measured against it are poorly determined). With an offset
 column in ``Y`` (``off_j``), the offset is ``o_j = g_j theta_off_j``. A payload of known mass
-as the reference: :mod:`ident.identify.payload_gain`.
+as the reference: :mod:`ident.identify.payload.payload_gain`.
 
 The homogeneous linear form ``Y_j theta - h_j tau_meas_j = 0`` (``h = 1 / g``) is one solve but
 wrong: it is an errors-in-variables problem whose least-squares solution shrinks ``theta`` and

@@ -1,0 +1,1 @@
+"""The friction room of ident.identify."""

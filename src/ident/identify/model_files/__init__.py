@@ -1,0 +1,1 @@
+"""The model_files room of ident.identify."""
