@@ -5,12 +5,12 @@ For each friction model of the registry the MuJoCo source simulates the robot wi
 quantization (2^19 counts per revolution) and 1 % Gaussian torque noise. The log is processed as
 ``ident identify`` does it (zero-phase 30 Hz low-pass of positions and torques, central
 differences, velocity threshold 0.05 rad/s) and every parameter fitted by separable least squares
-(:mod:`ident.identify.friction.friction_fit`); the table gives the largest relative error over joints
-of each parameter, and whether the fit found a second minimum it cannot tell apart
-(``FrictionFit.ambiguous``: ``friction: auto`` does not pick such a model). Then a 5 ms torque
-delay (recovered by :func:`estimate_delay`) and torque
-gains of 0.97 / 1.03 on joints 3 and 4 (recovered by :func:`estimate_gains` against the
-shoulder's known gain, on the rows above the velocity threshold).
+(:mod:`ident.identify.friction.friction_fit`); the table gives the largest relative error over
+joints of each parameter, and whether the fit found a second minimum it cannot tell apart
+(``FrictionFit.ambiguous``: ``friction: auto`` does not pick such a model). Then a 5 ms torque delay
+(recovered by :func:`estimate_delay`) and torque gains of 0.97 / 1.03 on joints 3 and 4 (recovered
+by :func:`estimate_gains` against the shoulder's known gain, on the rows above the velocity
+threshold).
 
     python benchmarks/bench_friction.py    # 1.5-3 min; 4.5 min on 2 cores at load 11
 """
@@ -27,9 +27,9 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.friction_models import get_friction_model
 from ident.dynamics.parameter_model import build_parameter_model, model_regressors
+from ident.identify.corrections.signal_errors import estimate_delay, estimate_gains
 from ident.identify.estimation import preprocess
 from ident.identify.friction.friction_fit import FrictionRows, fit_friction_model
-from ident.identify.corrections.signal_errors import estimate_delay, estimate_gains
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate
 from ident.model import Robot

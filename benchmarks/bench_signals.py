@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
-from ident.measure.logs import RobotLog
 from ident.identify.corrections.signal_correction import correct_payload_logs
+from ident.measure.logs import RobotLog
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate
 

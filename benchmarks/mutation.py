@@ -69,7 +69,10 @@ MODULES: dict[str, tuple[list[str], list[str]]] = {
         ["tests/test_preprocess.py", "tests/test_preprocess_mutants.py"],
     ),
     "accumulate": (
-        ["src/ident/identify/estimation/accumulate.py"],
+        [
+            "src/ident/identify/estimation/accumulate.py",
+            "src/ident/identify/estimation/log_chunks.py",
+        ],
         ["tests/test_accumulate.py", "tests/test_accumulate_mutants.py"],
     ),
     "estimators": (

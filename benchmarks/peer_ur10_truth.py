@@ -46,9 +46,9 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.excitation.fourier import fourier_series
 from ident.identify.config import load_identify_config
+from ident.identify.model_files.files import save_identified_model
 from ident.identify.pipeline.core import identify_measurements
 from ident.measure.logs import RobotLog
-from ident.identify.model_files.files import save_identified_model
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "figaroh-ur10-truth"

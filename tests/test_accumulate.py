@@ -11,8 +11,8 @@ from robots import random_chain
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms, extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
-from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import PreprocessConfig, load_identify_config
+from ident.identify.estimation import accumulate, preprocess
 from ident.identify.estimation.essential import essential_parameters
 from ident.identify.estimation.estimate import least_squares
 from ident.identify.estimation.observations import ReducedObservations

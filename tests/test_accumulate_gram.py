@@ -1,4 +1,5 @@
-"""The chunk reduction's Gram path (ident.identify.estimation.accumulate.reduce_chunk) and its fallback.
+"""The chunk reduction's Gram path (ident.identify.estimation.accumulate.reduce_chunk) and its
+fallback.
 
 A joint's rows of a chunk are reduced from the Cholesky factor of their column-scaled Gram
 matrix when its condition estimate is at most ``GRAM_MAX_COND``; otherwise by CholeskyQR2 or

@@ -20,8 +20,8 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms, extra_columns
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError
-from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import PreprocessConfig
+from ident.identify.estimation import accumulate, log_chunks, preprocess
 from ident.identify.estimation.observations import ReducedObservations
 
 
@@ -199,23 +199,23 @@ def test_reduce_chunk_of_a_rank_deficient_chunk_falls_back_to_householder():
 
 def test_memory_and_chunk_size_rules():
     assert accumulate.regressor_bytes(1000, 6, 50) == 8 * 1000 * 6 * 50 * 3
-    workers = accumulate.local_workers()
+    workers = log_chunks.local_workers()
     assert workers == max(1, min(4, len(os.sched_getaffinity(0))))
     # a chunk: 4 position-sized arrays per raw sample, the decimated rows twice, and blocks
     row = 8.0 * 6 * (60 + 2)
-    assert accumulate.chunk_bytes(1000, 6, 60, 20) == pytest.approx(
+    assert log_chunks.chunk_bytes(1000, 6, 60, 20) == pytest.approx(
         1000 * (8 * 4 * 6 + 2 * row / 20) + 4 * accumulate.ROW_BLOCK * row
     )
     per_sample = 8 * 4 * 6 + 2 * row / 20
-    extent = int(accumulate.CHUNK_BUDGET_BYTES // per_sample)
+    extent = int(log_chunks.CHUNK_BUDGET_BYTES // per_sample)
     # the budget holds the chunk with its margins on both sides
-    assert accumulate.default_chunk_samples((10, 20), 6, 60, 20) == extent - 60
+    assert log_chunks.default_chunk_samples((10, 20), 6, 60, 20) == extent - 60
     # the margins set a floor: never more margin than chunk
-    assert accumulate.default_chunk_samples((10**6, 10**6), 6, 60, 20) == 2 * 10**6
+    assert log_chunks.default_chunk_samples((10**6, 10**6), 6, 60, 20) == 2 * 10**6
     # a huge regressor row: at least 1024 samples
-    assert accumulate.default_chunk_samples((1, 1), 7, 10**7) == 1024
+    assert log_chunks.default_chunk_samples((1, 1), 7, 10**7) == 1024
     # without decimation the rows are kept at full rate: smaller chunks
-    assert accumulate.default_chunk_samples((0, 0), 6, 60) < extent / 5
+    assert log_chunks.default_chunk_samples((0, 0), 6, 60) < extent / 5
 
 
 def _log(n, nv=2, segments=None):
@@ -225,14 +225,14 @@ def _log(n, nv=2, segments=None):
 def test_use_chunks_follows_the_setting_the_segments_and_the_memory_bound():
     always = PreprocessConfig(chunked="always")
     never = PreprocessConfig(chunked="never", max_regressor_mb=1e-6)
-    assert accumulate.use_chunks(_log(100), always, 10)
-    assert not accumulate.use_chunks(_log(100, segments=[(0, 50), (50, 100)]), never, 10)
+    assert log_chunks.use_chunks(_log(100), always, 10)
+    assert not log_chunks.use_chunks(_log(100, segments=[(0, 50), (50, 100)]), never, 10)
     auto = PreprocessConfig(max_regressor_mb=1.0)  # 2^20 bytes
-    assert accumulate.use_chunks(_log(100, segments=[(0, 50), (50, 100)]), auto, 10)
+    assert log_chunks.use_chunks(_log(100, segments=[(0, 50), (50, 100)]), auto, 10)
     # 8 n nv c 3 bytes against the bound: 192 000 bytes (n = 1000) is not above it
     at_bound = PreprocessConfig(max_regressor_mb=192_000 / 2**20)
-    assert not accumulate.use_chunks(_log(1000), at_bound, 4)
-    assert accumulate.use_chunks(_log(1001), at_bound, 4)
+    assert not log_chunks.use_chunks(_log(1000), at_bound, 4)
+    assert log_chunks.use_chunks(_log(1001), at_bound, 4)
 
 
 def test_chunk_record_states_the_counts():
@@ -245,7 +245,7 @@ def test_chunk_record_states_the_counts():
         skipped=(),
     )
     red = SimpleNamespace(n_rows=np.array([100, 90]))
-    record = accumulate.chunk_record(chunked, red)
+    record = log_chunks.chunk_record(chunked, red)
     assert record == {
         "step": "chunked accumulation",
         "detail": "2 segment(s) in 7 chunks of at most 5000 raw samples (+ margins 120 raw / "
@@ -254,6 +254,6 @@ def test_chunk_record_states_the_counts():
         "QR elsewhere): 190 rows, no per-sample regressor kept",
     }
     skipped = SimpleNamespace(**{**vars(chunked), "skipped": ("0.1 s (short)", "0.2 s (x)")})
-    assert accumulate.chunk_record(skipped, red)["detail"].endswith(
+    assert log_chunks.chunk_record(skipped, red)["detail"].endswith(
         "no per-sample regressor kept; skipped too-short segment(s): 0.1 s (short); 0.2 s (x)"
     )

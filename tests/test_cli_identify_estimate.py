@@ -12,8 +12,8 @@ import pytest
 from typer.testing import CliRunner
 
 from ident.cli import app
-from ident.identify.pipeline import real
 from ident.identify.config import load_identify_config
+from ident.identify.pipeline import real
 from ident.measure.logs import read_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -35,6 +35,7 @@ def _invoke(out: Path):
 
 def test_in_memory_estimate_is_the_whole_log_as_one_chunk():
     import ident.identify.estimation.accumulate as accumulate
+    import ident.identify.estimation.log_chunks as log_chunks
 
     cfg = load_identify_config(CONFIG)
     nv, n = 3, 10**5
@@ -45,8 +46,8 @@ def test_in_memory_estimate_is_the_whole_log_as_one_chunk():
     step = 1
     per_sample = 8.0 * 4 * nv + 2 * 8.0 * nv * (14 * nv + 2) / step
     chunk = n * per_sample + 4 * accumulate.ROW_BLOCK * 8.0 * nv * (14 * nv + 2)
-    assert chunk == pytest.approx(accumulate.chunk_bytes(n, nv, 14 * nv, step))
-    blocks = 8.0 * accumulate.MAX_BLOCKS * (14 * nv) ** 2
+    assert chunk == pytest.approx(log_chunks.chunk_bytes(n, nv, 14 * nv, step))
+    blocks = 8.0 * log_chunks.MAX_BLOCKS * (14 * nv) ** 2
     assert est.memory_bytes == pytest.approx(400e6 + 8.0 * n * (2 * nv + 1) + chunk + blocks)
     assert est.seconds == pytest.approx(n * nv**2 * 2.5e-7)
     assert "in memory" in est.what
@@ -68,13 +69,13 @@ def test_estimate_of_the_long_log_benchmark():
     # benchmarks/bench_identify_long.py, measured: 3.6 million samples x 7 joints by chunks,
     # 26 s wall (41 s of CPU) on a quiet 2-core machine, peak 900 MiB; the estimate is of that
     # order and errs long (one core's time) and high
-    import ident.identify.estimation.accumulate as accumulate
+    import ident.identify.estimation.log_chunks as log_chunks
 
     cfg = load_identify_config(CONFIG)
     log = _log(cfg, 10)
     q = np.broadcast_to(np.float64(0.0), (3_600_000, 7))
     est = real.estimate_identify(cfg, dataclasses.replace(log, q=q, segments=((0, q.shape[0]),)))
-    assert accumulate.use_chunks(dataclasses.replace(log, q=q), cfg.preprocess, 98)
+    assert log_chunks.use_chunks(dataclasses.replace(log, q=q), cfg.preprocess, 98)
     assert "by chunks" in est.what
     assert 41 < est.seconds < 3 * 41
     assert 900 * 2**20 < est.memory_bytes < 1.5 * 900 * 2**20

@@ -60,9 +60,9 @@ def test_scheduler_gives_the_local_estimate(tmp_path):
 
 def test_unreachable_scheduler_is_one_error_line(tmp_path, monkeypatch):
     pytest.importorskip("distributed")
-    import ident.identify.estimation.accumulate as accumulate
+    import ident.identify.estimation.log_chunks as log_chunks
 
-    monkeypatch.setattr(accumulate, "DASK_CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(log_chunks, "DASK_CONNECT_TIMEOUT", "1s")
     out = tmp_path / "runs"
     res = _invoke(
         str(_chunked_config(tmp_path)), "--out", str(out), "--scheduler", "tcp://127.0.0.1:9"

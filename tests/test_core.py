@@ -1,5 +1,6 @@
-"""The identification core: one function (``ident.identify.pipeline.core.identify_measurements``) behind
-``ident run`` and ``ident identify``; whole-log and chunked accumulation are one code path."""
+"""The identification core: one function (``ident.identify.pipeline.core.identify_measurements``)
+behind ``ident run`` and ``ident identify``; whole-log and chunked accumulation are one code
+path."""
 
 import json
 import re
@@ -13,8 +14,8 @@ from typer.testing import CliRunner
 
 from ident.cli import app
 from ident.identify.config import FilterConfig, load_identify_config
-from ident.identify.pipeline.core import identify_measurements
 from ident.identify.estimators import registry
+from ident.identify.pipeline.core import identify_measurements
 from ident.measure.logs import read_log
 
 
@@ -139,8 +140,8 @@ def test_run_then_identify_its_log_same_estimate_with_an_unconstrained_toy(ridge
 def test_contract_decides_what_is_reported_not_the_name(ridge):
     # the toy promises no consistency: its estimate is reported beside WLS, checked for
     # consistency, and no model file is built from it (the contract is read, not the name)
-    from ident.identify.pipeline.core import MODEL_METHOD
     from ident.identify.estimators.summary import model_identification
+    from ident.identify.pipeline.core import MODEL_METHOD
 
     cfg, log = _wide_log()
     cfg = cfg.model_copy(

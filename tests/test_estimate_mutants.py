@@ -1,4 +1,5 @@
-"""OLS / WLS (ident.identify.estimation.estimate) against textbook formulas computed here on the rows.
+"""OLS / WLS (ident.identify.estimation.estimate) against textbook formulas computed here on the
+rows.
 
 What a user relies on: the estimate and its standard deviations are the textbook ones
 (``sigma^2 (W^T W)^-1``, ``sigma^2 = ||r||^2 / (m - n)``); WLS weights each joint by the

@@ -12,6 +12,7 @@ from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError, DataError
 from ident.identify.estimation.estimate import least_squares, least_squares_reduced
+from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.estimators import (
     ESTIMATORS,
     EstimationProblem,
@@ -26,7 +27,6 @@ from ident.identify.estimators.log_cholesky import (
     log_cholesky_from_parameters,
     parameters_from_log_cholesky,
 )
-from ident.identify.estimation.observations import ReducedObservations
 
 
 # ---- registry -------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ import pytest
 
 from ident.errors import ConfigError, DataError
 from ident.identify.estimation.estimate import least_squares_reduced
+from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.estimators import (
     ESTIMATORS,
     EstimationProblem,
@@ -26,7 +27,6 @@ from ident.identify.estimators import (
 )
 from ident.identify.estimators.registry import CONTRACTS, UNCONSTRAINED, Contract, get_contract
 from ident.identify.estimators.regularization import relative_residual
-from ident.identify.estimation.observations import ReducedObservations
 
 
 def _reduced(seed=0, n=120, p=3, noise=(0.1, 1.0)):

@@ -11,9 +11,9 @@ from robots import UR5_URDF
 
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
+from ident.identify.assessment.identifiability import standard_identifiability
 from ident.identify.estimators import get_estimator
 from ident.identify.estimators.identification import problem_from_states
-from ident.identify.assessment.identifiability import standard_identifiability
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ident.errors import ConfigError, DataError
-from ident.identify.config import LogConfig, TransmissionConfig
+from ident.measure.log_config import LogConfig, TransmissionConfig
 from ident.measure.logs import read_csv_columns, read_log, transmission_from_config
 
 JOINTS = ("j1", "j2", "j3")

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 import yaml
 
-from ident.identify.config import TransmissionConfig, load_identify_config
+from ident.identify.config import load_identify_config
+from ident.measure.log_config import TransmissionConfig
 from ident.measure.logs import read_log
 from ident.measure.readers import read_tables
 
@@ -36,7 +37,7 @@ def _traced_peak(fn):
 
 
 def _log_config(path: Path, **log) -> object:
-    from ident.identify.config import LogConfig
+    from ident.measure.log_config import LogConfig
 
     return LogConfig.model_validate({"path": str(path), **log})
 

@@ -18,8 +18,8 @@ from model_truth import truth_comparison
 from test_core import _wide_log
 
 from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
-from ident.identify.pipeline.core import identify_measurements
 from ident.identify.model_files.urdf_update import model_of_urdf
+from ident.identify.pipeline.core import identify_measurements
 from ident.model.selection import RobotSelection, load_robot
 from ident.report.identify_report import write_identify_report
 

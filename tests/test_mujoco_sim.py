@@ -13,8 +13,8 @@ from robots import PANDA_URDF, UR5_URDF
 
 from ident.errors import ConfigError, DataError
 from ident.identify.config import load_identify_config
-from ident.measure.logs import read_log
 from ident.identify.pipeline.real import identify
+from ident.measure.logs import read_log
 from ident.measure.mujoco_config import check_joint_counts, load_mujoco_measurement
 from ident.measure.mujoco_model import load_mujoco
 from ident.measure.mujoco_sim import (

@@ -12,13 +12,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from ident.identify.assessment.verdict import GOOD_STD_PERCENT, decide_verdict, log_evidence
 from ident.identify.estimation.estimate import least_squares
 from ident.identify.estimation.uncertainty import (
     BlockEquations,
     parameter_std,
     parameter_uncertainty,
 )
-from ident.identify.assessment.verdict import GOOD_STD_PERCENT, decide_verdict, log_evidence
 
 ROOT = Path(__file__).resolve().parents[1]
 N, RHO, NOISE = 2000, 0.97, 0.5

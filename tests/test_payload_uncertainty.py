@@ -14,9 +14,8 @@ from robots import UR5_URDF
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameters import parameters_from_model
 from ident.excitation.fourier import fourier_series
-from ident.identify.estimation import preprocess
 from ident.identify.config import ModelConfig, PreprocessConfig
-from ident.measure.logs import RobotLog
+from ident.identify.estimation import preprocess
 from ident.identify.payload.payload import (
     PayloadColumns,
     block_length,
@@ -25,6 +24,7 @@ from ident.identify.payload.payload import (
     merge_blocks,
     payload_rows,
 )
+from ident.measure.logs import RobotLog
 from ident.model import Robot
 
 PHI = pin.Inertia(2.5, np.array([-0.03, 0.02, 0.08]), np.diag([0.01, 0.012, 0.008]))

@@ -141,8 +141,8 @@ def test_measured_motion_too_short_log():
 
 # --- automatic settings and data warnings (preprocess.resolve_defaults) -----------------------
 
-from ident.identify.estimation import preprocess  # noqa: E402
 from ident.identify.config import PreprocessConfig  # noqa: E402
+from ident.identify.estimation import preprocess  # noqa: E402
 
 
 def _motion(fs=1000.0, seconds=20.0, f=0.5):

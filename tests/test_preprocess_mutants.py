@@ -1,4 +1,5 @@
-"""Preprocessing (ident.identify.estimation.preprocess) at its boundaries, against scipy and closed forms.
+"""Preprocessing (ident.identify.estimation.preprocess) at its boundaries, against scipy and closed
+forms.
 
 What a user relies on: the filter is scipy's zero-phase Butterworth and refuses exactly the
 logs scipy cannot pad; the decimation's passband is centred on 0 dB; the automatic settings

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ident.errors import ConfigError, DataError
-from ident.identify.config import LogConfig, TransmissionConfig
+from ident.measure.log_config import LogConfig, TransmissionConfig
 from ident.measure.logs import read_log
 from ident.measure.readers import READERS, LogTable, detect_format, read_tables, register_reader
 
@@ -412,8 +412,8 @@ def test_bag_with_mcap_storage_is_checked_for_bombs_too(tmp_path):
 def test_gzip_text_estimated_from_its_trailer_before_reading(tmp_path, monkeypatch):
     """A .csv.gz whose trailer says 3 GiB of text (the issue's 11 MB bomb) is refused from the
     estimate alone, before a byte is decompressed: ``ident identify`` checks it first."""
-    from ident.measure.logs import estimate_log
     from ident.inputs import check_job
+    from ident.measure.logs import estimate_log
 
     path = tmp_path / "bomb.csv.gz"
     with gzip.open(path, "wb") as f:

@@ -19,17 +19,17 @@ from ident.cli import app
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
-from ident.identify.corrections import signal_correction
 from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
-from ident.measure.logs import RobotLog
-from ident.identify.estimation.observations import ReducedObservations
-from ident.identify.payload.payload_gain import GainColumns, estimate_payload_gains
+from ident.identify.corrections import signal_correction
 from ident.identify.corrections.signal_correction import (
     correct_log,
     correct_payload_logs,
     estimate_log_delay,
     shift_torque,
 )
+from ident.identify.estimation.observations import ReducedObservations
+from ident.identify.payload.payload_gain import GainColumns, estimate_payload_gains
+from ident.measure.logs import RobotLog
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate, write_log
 from ident.model import Robot

@@ -12,8 +12,8 @@ from ident.dynamics.chain import chain_from_model
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model, model_regressors
 from ident.errors import DataError
-from ident.identify.estimation import preprocess
 from ident.identify.corrections.signal_errors import estimate_delay, estimate_gains
+from ident.identify.estimation import preprocess
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate
 from ident.model import Robot

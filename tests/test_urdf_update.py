@@ -8,8 +8,8 @@ import pytest
 import yaml
 
 from ident.dynamics.parameters import parameter_names, parameters_from_model
-from ident.identify.pipeline.real import load_robot_model
 from ident.identify.model_files.urdf_update import update_urdf_inertials
+from ident.identify.pipeline.real import load_robot_model
 from ident.robot.inertia import PINOCCHIO_ORDER, consistency_problems
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,9 +13,7 @@ from report_data import minimal_run_data
 from typer.testing import CliRunner
 
 from ident.cli import app
-from ident.identify.config import load_identify_config
 from ident.identify.assessment.metrics import error_measures
-from ident.identify.pipeline.real import identify
 from ident.identify.assessment.verdict import (
     THRESHOLDS,
     Evidence,
@@ -24,6 +22,8 @@ from ident.identify.assessment.verdict import (
     identify_verdict,
     log_evidence,
 )
+from ident.identify.config import load_identify_config
+from ident.identify.pipeline.real import identify
 from ident.report.run_report import render_markdown
 from ident.run.results import RunResult
 

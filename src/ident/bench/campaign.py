@@ -41,7 +41,7 @@ from pydantic import Field, ValidationInfo, field_validator
 from ident.bench.functions import appendix_functions, get_function, table_functions
 from ident.config import StrictModel, load_config_file
 from ident.errors import ConfigError, IdentError, OptimizationError
-from ident.identify.estimation.accumulate import DASK_CONNECT_TIMEOUT
+from ident.identify.estimation.log_chunks import DASK_CONNECT_TIMEOUT
 from ident.inputs import JobEstimate, check_number, max_workers, safe_component
 
 __all__ = [

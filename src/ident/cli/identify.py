@@ -1,14 +1,14 @@
 """``ident identify CONFIG``: identify a real robot from its logs.
 
-Validates the config, runs :func:`ident.identify.pipeline.real.identify`, and only when that succeeded
-creates a new run folder ``<out>/<name>-<timestamp>/`` with the report (so a failed
-identification leaves nothing that looks like a result), the measured motion
-(``trajectory.csv``, ``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``;
-a failing replay is reported, never fatal). If writing the report fails, the folder is marked
-incomplete. ``--scheduler ADDRESS`` hands the chunks of a long log (see
-:mod:`ident.identify.estimation.accumulate`) to a running dask.distributed scheduler. Once the log is read,
-the estimated memory and time of the identification are printed when above a minute or 2 GB,
-and refused above the ceilings ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS`` (before any run
+Validates the config, runs :func:`ident.identify.pipeline.real.identify`, and only when that
+succeeded creates a new run folder ``<out>/<name>-<timestamp>/`` with the report (so a failed
+identification leaves nothing that looks like a result), the measured motion (``trajectory.csv``,
+``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``; a failing replay is
+reported, never fatal). If writing the report fails, the folder is marked incomplete. ``--scheduler
+ADDRESS`` hands the chunks of a long log (see
+:mod:`ident.identify.estimation.accumulate`) to a running dask.distributed scheduler. Once the log
+is read, the estimated memory and time of the identification are printed when above a minute or 2
+GB, and refused above the ceilings ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS`` (before any run
 folder).
 
 Exit codes: 0 success (warnings, e.g. a held-out prediction worse than the URDF's nominal

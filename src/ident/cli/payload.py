@@ -1,12 +1,11 @@
 """``ident payload CONFIG``: the mass, centre of mass and inertia of a payload on an identified arm.
 
 Validates the config (:func:`ident.identify.payload.payload_config.load_payload_config`), reads the
-log(s) and estimates the payload (:func:`ident.identify.payload.payload.identify_payload`); only then
-creates the run folder ``<out>/<name>-<timestamp>/`` with ``payload.json`` (the estimate,
+log(s) and estimates the payload (:func:`ident.identify.payload.payload.identify_payload`); only
+then creates the run folder ``<out>/<name>-<timestamp>/`` with ``payload.json`` (the estimate,
 written first) and the arm + payload model files ``<stem>_payload.urdf`` / ``.xml``
-(:func:`ident.identify.model_files.files.model_files`: the URDF's last link's ``<inertial>``
-becomes arm + payload). Exit codes: 0 success; 2 bad input or a failed estimate (nothing
-written).
+(:func:`ident.identify.model_files.files.model_files`: the URDF's last link's ``<inertial>`` becomes
+arm + payload). Exit codes: 0 success; 2 bad input or a failed estimate (nothing written).
 """
 
 from __future__ import annotations
@@ -34,10 +33,10 @@ def payload(
     """Estimate a payload's mass, centre of mass and inertia from CONFIG's log(s)."""
     from ident.errors import IdentError
     from ident.fileio import atomic_write_text
+    from ident.identify.corrections.signal_correction import identify_corrected_payload
     from ident.identify.model_files.files import model_files
     from ident.identify.payload.payload import arm_with_payload
     from ident.identify.payload.payload_config import load_payload_config
-    from ident.identify.corrections.signal_correction import identify_corrected_payload
     from ident.inputs import check_output_dir
     from ident.model.selection import load_robot
     from ident.run.rundir import create_run_dir

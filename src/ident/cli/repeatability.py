@@ -3,8 +3,8 @@
 Identifies each config's log exactly as ``ident identify`` does (nothing is written) and prints,
 per base parameter, the spread of the estimates across the logs beside their predicted standard
 deviation (the default interval method, :mod:`ident.identify.estimation.uncertainty`), and which
-parameters disagree (:func:`ident.identify.assessment.repeatability.repeatability`: a drifting robot, a bad
-log). Exit 0 when they agree, 1 when some disagree, 2 for bad input.
+parameters disagree (:func:`ident.identify.assessment.repeatability.repeatability`: a drifting
+robot, a bad log). Exit 0 when they agree, 1 when some disagree, 2 for bad input.
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ def repeatability(
     import numpy as np
 
     from ident.errors import IdentError
+    from ident.identify.assessment.repeatability import repeatability as compare
     from ident.identify.config import load_identify_config
     from ident.identify.pipeline.real import identify
-    from ident.identify.assessment.repeatability import repeatability as compare
 
     with user_errors():
         if len(configs) < 2:

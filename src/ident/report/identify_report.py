@@ -19,11 +19,7 @@ import numpy as np
 
 from ident.dynamics.friction_models import get_friction_model
 from ident.fileio import atomic_write_bytes, atomic_write_text
-from ident.identify.estimators.summary import consistency_summary
 from ident.identify.assessment.metrics import MAJOR_SHARE, error_measures, parameter_unit
-from ident.identify.model_files.files import save_identified_model
-from ident.identify.pipeline.real import IdentifyResult
-from ident.identify.model_files.urdf_update import UrdfUpdate, update_urdf_inertials
 from ident.identify.assessment.verdict import (
     VERDICT_RULE,
     VERDICT_RULE_REAL,
@@ -32,6 +28,10 @@ from ident.identify.assessment.verdict import (
     log_evidence,
     truth_from_config,
 )
+from ident.identify.estimators.summary import consistency_summary
+from ident.identify.model_files.files import save_identified_model
+from ident.identify.model_files.urdf_update import UrdfUpdate, update_urdf_inertials
+from ident.identify.pipeline.real import IdentifyResult
 from ident.report.format import pct, percent
 from ident.report.headline import Headline, headline_markdown
 from ident.report.model_section import model_section
@@ -84,8 +84,8 @@ def _urdf_text(result: IdentifyResult) -> str:
 
 def joint_torque_units(result: IdentifyResult) -> tuple[str, ...]:
     """Unit of each joint's torque, residuals and errors: ``"N*m"`` for a revolute joint,
-    ``"N"`` for a prismatic one (:func:`ident.identify.assessment.sanity.joint_units` of the robot the
-    config selects, the robot that was identified)."""
+    ``"N"`` for a prismatic one (:func:`ident.identify.assessment.sanity.joint_units` of the robot
+    the config selects, the robot that was identified)."""
     from ident.identify.assessment.sanity import joint_units
     from ident.model.selection import load_robot
 
@@ -378,8 +378,9 @@ def friction_models_lines(result: IdentifyResult) -> list[str]:
 
 
 def verdict_entry(result: IdentifyResult) -> dict:
-    """The ``verdict`` entry of ``result.json``: :func:`~ident.identify.assessment.verdict.identify_verdict`
-    and the evidence it used (the report's summary shows the same value)."""
+    """The ``verdict`` entry of ``result.json``:
+    :func:`~ident.identify.assessment.verdict.identify_verdict` and the evidence it used (the
+    report's summary shows the same value)."""
     v = identify_verdict(result)
     e = log_evidence(result, truth=truth_from_config(result.config.validation.truth))
     return {

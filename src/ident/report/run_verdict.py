@@ -1,11 +1,11 @@
 """The verdict of an ``ident run`` and what it judges: the executed elite, its estimate.
 
-The verdict is decided once, by :func:`ident.identify.assessment.verdict.decide_verdict`, when the run's
-``result.json`` is written (:func:`verdict_entry`), and every renderer (terminal, report.md,
-report.html, ``ident report``) reads that entry (:func:`stored_verdict`). It judges the
-*executed* elite, the one ``trajectory.csv`` runs (``executed_elite`` in ``result.json``), and
-the estimator the report leads with (WLS when it ran). A run measured by a simulated log is
-judged by :func:`~ident.identify.assessment.verdict.log_evidence` on that log's identification with the
+The verdict is decided once, by :func:`ident.identify.assessment.verdict.decide_verdict`, when the
+run's ``result.json`` is written (:func:`verdict_entry`), and every renderer (terminal, report.md,
+report.html, ``ident report``) reads that entry (:func:`stored_verdict`). It judges the *executed*
+elite, the one ``trajectory.csv`` runs (``executed_elite`` in ``result.json``), and the estimator
+the report leads with (WLS when it ran). A run measured by a simulated log is judged by
+:func:`~ident.identify.assessment.verdict.log_evidence` on that log's identification with the
 simulator's truth, the same evidence ``ident identify`` gathers on the saved log.
 """
 

@@ -144,8 +144,9 @@ def _seen(result: Any, name: str) -> str | None:
 
 def model_intervals_json(result: Any) -> dict | None:
     """``result.json``'s ``model_intervals``: the bootstrap of the written model's constrained
-    fit (:mod:`ident.identify.assessment.model_intervals`), every written standard parameter's value, σ
-    and 95 % interval, and what the data see of it (no times: those are in ``run.json``)."""
+    fit (:mod:`ident.identify.assessment.model_intervals`), every written standard parameter's
+    value, σ and 95 % interval, and what the data see of it (no times: those are in
+    ``run.json``)."""
     mi = result.model_intervals
     if mi is None:
         note = getattr(result, "model_intervals_note", "")

@@ -3,7 +3,8 @@
 An ellipsoid ``E = {x : (x - c)^T Q^-1 (x - c) <= 1}`` (link frame, metres) in homogeneous
 form is ``Q_h = [[-Q^-1, Q^-1 c], [c^T Q^-1, 1 - c^T Q^-1 c]]``, so that
 ``[x; 1]^T Q_h [x; 1] = 1 - (x - c)^T Q^-1 (x - c)`` is >= 0 exactly inside ``E``. For a body
-with pseudo-inertia ``J = integral [x; 1][x; 1]^T dm`` (:mod:`ident.identify.estimation.consistency`),
+with pseudo-inertia ``J = integral [x; 1][x; 1]^T dm``
+(:mod:`ident.identify.estimation.consistency`),
 
 ``tr(J Q_h) = integral (1 - (x - c)^T Q^-1 (x - c)) dm >= 0``
 

@@ -4,11 +4,11 @@
 the configured noise (:mod:`ident.measure.ideal`). The measurements become a
 :class:`~ident.measure.logs.RobotLog` (:func:`ideal_log`: the measured states kept, the torques
 of the known bodies outside the stage subtracted from the measured ones) and go through
-:func:`ident.identify.pipeline.core.identify_measurements`, as a log does, with the stage's parameter
-model (its unknown bodies, its base parameters, its torque rows) and settings that keep every
-sample (:func:`ideal_identify_config`: no filter, trim, decimation or velocity threshold;
-identified and validated on the whole period). Every estimator of ``estimation.methods`` is
-the registry's (:mod:`ident.identify.estimators`).
+:func:`ident.identify.pipeline.core.identify_measurements`, as a log does, with the stage's
+parameter model (its unknown bodies, its base parameters, its torque rows) and settings that keep
+every sample (:func:`ideal_identify_config`: no filter, trim, decimation or velocity threshold;
+identified and validated on the whole period). Every estimator of ``estimation.methods`` is the
+registry's (:mod:`ident.identify.estimators`).
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ from ident.identify.config import (
     UrdfUpdateConfig,
     ValidationConfig,
 )
-from ident.identify.pipeline.core import identify_measurements
-from ident.identify.estimators import get_contract
-from ident.measure.logs import RobotLog
 from ident.identify.estimation.observations import ReducedObservations
+from ident.identify.estimators import get_contract
+from ident.identify.pipeline.core import identify_measurements
 from ident.measure.ideal import Measurements, NoiseModel, simulate_measurements
+from ident.measure.logs import RobotLog
 from ident.run.config import MeasurementSection, RunConfig
 from ident.run.results import EliteOutcome, StageInfo
 from ident.run.stage_info import stage_matrix

@@ -3,9 +3,9 @@
 For each reported elite, the closed-loop MuJoCo simulation (:mod:`ident.measure.mujoco_sim`)
 writes the log a robot controller would write; the log is read back by the same reader as a
 measured log (:func:`ident.measure.logs.read_log`) and identified by the same function as
-``ident identify`` (:func:`ident.identify.pipeline.core.identify_measurements`), with the run config's
-``identification`` sections. The run folder keeps the log and an ``identify.yaml`` next to it,
-so ``ident identify elites/elite_<k>/identify.yaml`` gives the run's estimate again.
+``ident identify`` (:func:`ident.identify.pipeline.core.identify_measurements`), with the run
+config's ``identification`` sections. The run folder keeps the log and an ``identify.yaml`` next to
+it, so ``ident identify elites/elite_<k>/identify.yaml`` gives the run's estimate again.
 
 The truth is the URDF's inertials plus the configured friction and rotor inertia (armature);
 offsets are zero. Its base-parameter projection is what the estimate is compared with.
@@ -28,14 +28,9 @@ from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
-from ident.identify.config import (
-    IdentifyConfig,
-    LogConfig,
-    TransmissionConfig,
-    TruthConfig,
-    UrdfUpdateConfig,
-)
+from ident.identify.config import IdentifyConfig, TruthConfig, UrdfUpdateConfig
 from ident.identify.pipeline.core import IdentifyResult, identify_measurements
+from ident.measure.log_config import LogConfig, TransmissionConfig
 from ident.measure.logs import read_log
 from ident.measure.mujoco_config import MujocoMeasurement, per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log

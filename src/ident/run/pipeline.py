@@ -18,15 +18,15 @@ The paper's procedure (section 4.1) for one stage, as one pure function
    RNEA on the true parameters of the robot, with the configured noise
    (:mod:`ident.measure.ideal`).
 5. **Estimate.** The measurements go through the identification core
-   (:func:`ident.identify.pipeline.core.identify_measurements`, as a log does): the stage's rows on the
-   *measured* states, reduced to the stage's base parameters (computed once, on random states
-   of the stage, by the configured method), estimated by the registry's estimators of
-   ``estimation.methods`` (:mod:`ident.run.elite_identification`). Bodies outside the stage
-   are known: their contribution to the torques is computed from their true parameters and
-   subtracted (for the wrist stage it is zero on the wrist rows, the wrist torques do not
-   depend on the arm bodies; for the arm stage it is the wrist bodies'). With
-   ``measurement.source: mujoco`` the simulator writes a log that is read and identified like
-   a measured one (:mod:`ident.run.log_measurement`).
+   (:func:`ident.identify.pipeline.core.identify_measurements`, as a log does): the stage's rows on
+   the *measured* states, reduced to the stage's base parameters (computed once, on random states of
+   the stage, by the configured method), estimated by the registry's estimators of
+   ``estimation.methods`` (:mod:`ident.run.elite_identification`). Bodies outside the stage are
+   known: their contribution to the torques is computed from their true parameters and subtracted
+   (for the wrist stage it is zero on the wrist rows, the wrist torques do not depend on the arm
+   bodies; for the arm stage it is the wrist bodies'). With ``measurement.source: mujoco`` the
+   simulator writes a log that is read and identified like a measured one
+   (:mod:`ident.run.log_measurement`).
 
 Random streams: one ``numpy.random.SeedSequence(config.seed)`` split into independent child
 streams for the elite search, each eMuPSO run, and each elite's measurement noise, so the

@@ -209,8 +209,8 @@ def parameter_unit(name: str, joint_units: Sequence[str] = ()) -> str:
     ``fs``/``fc``, offset ``off``, each followed by the joint number; ``""`` when unknown.
 
     ``joint_units`` (the torque unit of each joint, ``"N"`` for a prismatic joint, see
-    :func:`ident.identify.assessment.sanity.joint_units`) gives the joint-space parameters of a prismatic
-    joint their own units: ``fv`` in N*s/m, ``fs``/``off`` in N, ``Ia`` (reflected rotor
+    :func:`ident.identify.assessment.sanity.joint_units`) gives the joint-space parameters of a
+    prismatic joint their own units: ``fv`` in N*s/m, ``fs``/``off`` in N, ``Ia`` (reflected rotor
     mass) in kg. Motor-side parameters (``Iam``, ``fvm``, ``fsm``) belong to rotary motors.
     """
     joint = _JOINT_PARAMETER.match(name)

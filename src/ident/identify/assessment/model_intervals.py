@@ -2,20 +2,21 @@
 
 The identified model (``<urdf>_identified.urdf``) holds the standard parameters ``theta`` of a
 physically consistent estimate (``lmi`` by default, :mod:`ident.identify.estimators`). Its
-spread is that of the moving-block bootstrap of :mod:`ident.identify.estimation.uncertainty`, carried
-through the constrained estimator: each of ``n_boot`` resamples (the same run length ``L`` as
-the base parameters' bootstrap) sums the block normal equations with its multiplicities
-``m_b``, ``A* = sum_b m_b A_b`` and ``c* = sum_b m_b c_b``, turns them into one group of
-reduced rows (``R = chol(A*)``, upper, and ``z = R^-T c*``, so ``||R x - z||^2`` is the
-weighted least-squares cost up to a constant) and re-solves the same estimator with the same
-prior weight and options. The interval of each standard parameter is ``theta_i +- z_level
-std_i``, ``std_i`` the standard deviation of its re-estimates.
+spread is that of the moving-block bootstrap of :mod:`ident.identify.estimation.uncertainty`,
+carried through the constrained estimator: each of ``n_boot`` resamples (the same run length ``L``
+as the base parameters' bootstrap) sums the block normal equations with its multiplicities ``m_b``,
+``A* = sum_b m_b A_b`` and ``c* = sum_b m_b c_b``, turns them into one group of reduced rows (``R =
+chol(A*)``, upper, and ``z = R^-T c*``, so ``||R x - z||^2`` is the weighted least-squares cost up
+to a constant) and re-solves the same estimator with the same prior weight and options. The interval
+of each standard parameter is ``theta_i +- z_level std_i``, ``std_i`` the standard deviation of its
+re-estimates.
 
-What the intervals say depends on what the data see (:mod:`ident.identify.assessment.identifiability`):
-for a standard parameter a base parameter determines alone, it is an interval on that
-parameter; for one the data see only in a combination, or not at all, the re-estimates move
-only as the prior lets them (toward the URDF's nominal values along the unseen directions),
-so its interval is the spread of the written value, not an interval on the true one.
+What the intervals say depends on what the data see
+(:mod:`ident.identify.assessment.identifiability`): for a standard parameter a base parameter
+determines alone, it is an interval on that parameter; for one the data see only in a combination,
+or not at all, the re-estimates move only as the prior lets them (toward the URDF's nominal values
+along the unseen directions), so its interval is the spread of the written value, not an interval on
+the true one.
 
 Cost: ``n_boot`` constrained solves (``urdf_update.model_bootstrap``, default
 :data:`DEFAULT_N_BOOT`; ``0`` switches it off), each about as long as the model's own solve.
@@ -144,7 +145,7 @@ def model_intervals(
         estimate the written ``theta``).
     blocks :
         Block normal equations built with the problem's per-joint weights
-        (:func:`ident.identify.estimation.accumulate.block_equations`), base-parameter columns.
+        (:func:`ident.identify.estimation.log_chunks.block_equations`), base-parameter columns.
     block_length :
         Blocks per bootstrap run (the base parameters' ``ceil(bandwidth)``).
     n_boot :

@@ -1,9 +1,9 @@
 """Repeatability: do the estimates of several logs of one robot agree within their std?
 
 A robot identified twice should give the same parameters within their predicted standard
-deviations (:mod:`ident.identify.estimation.uncertainty`). When it does not, the robot drifted (friction
-changes with temperature and wear) or a log is bad. :func:`repeatability` compares the spread
-with the prediction, parameter by parameter, and names the log farthest from the others;
+deviations (:mod:`ident.identify.estimation.uncertainty`). When it does not, the robot drifted
+(friction changes with temperature and wear) or a log is bad. :func:`repeatability` compares the
+spread with the prediction, parameter by parameter, and names the log farthest from the others;
 ``ident repeatability CONFIG CONFIG...`` prints it.
 """
 

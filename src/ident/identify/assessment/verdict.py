@@ -299,8 +299,8 @@ def truth_error(
 ) -> tuple[float, str | None, int] | None:
     """Worst relative error [%] of the major parameters, its name and the number of majors.
 
-    The measures of :func:`ident.identify.assessment.metrics.error_measures` (the same ones a run saves);
-    None when the names are not the truth's.
+    The measures of :func:`ident.identify.assessment.metrics.error_measures` (the same ones a run
+    saves); None when the names are not the truth's.
     """
     if tuple(names) != tuple(truth.names):
         return None

@@ -7,11 +7,12 @@ Model of the measured torque (:mod:`ident.identify.corrections.signal_errors`)::
 **Delay.** ``signals.delay_s`` given, or ``auto``: :func:`estimate_log_delay` fits the
 configured model (the base parameters and extra columns of ``model:``) to the log's first
 segment, at most :data:`MAX_DELAY_SAMPLES` raw samples of it, for delays on a grid within
-``max_delay_s`` and keeps the best (:func:`ident.identify.corrections.signal_errors.estimate_delay`). The
-positions are low-passed as the identification does it, the torques with the same zero-phase
-filter (so that the filter shifts neither). :func:`shift_torque` then advances every segment's
-torque by the delay (linear interpolation; the last ``d`` seconds of a segment hold its last
-value, and fall in the trimmed edge).
+``max_delay_s`` and keeps the best
+(:func:`ident.identify.corrections.signal_errors.estimate_delay`). The positions are low-passed as
+the identification does it, the torques with the same zero-phase filter (so that the filter shifts
+neither). :func:`shift_torque` then advances every segment's torque by the delay (linear
+interpolation; the last ``d`` seconds of a segment hold its last value, and fall in the trimmed
+edge).
 
 **Gains** (``ident payload`` with ``payload.without`` and ``signals.gain_reference``): the
 gains are estimated from both logs against the payload's known mass
@@ -33,10 +34,10 @@ from threadpoolctl import threadpool_limits
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.errors import DataError
+from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
+from ident.identify.corrections.signal_errors import DelayEstimate, estimate_delay
 from ident.identify.estimation import preprocess
 from ident.identify.estimation.accumulate import BaseColumns
-from ident.identify.config import ModelConfig, PreprocessConfig, SignalsConfig
-from ident.measure.logs import RobotLog
 from ident.identify.payload.payload import PayloadResult, identify_payload, read_payload_logs
 from ident.identify.payload.payload_config import PayloadConfig
 from ident.identify.payload.payload_gain import (
@@ -44,7 +45,7 @@ from ident.identify.payload.payload_gain import (
     estimate_payload_gains,
     payload_gain_observations,
 )
-from ident.identify.corrections.signal_errors import DelayEstimate, estimate_delay
+from ident.measure.logs import RobotLog
 from ident.model import Robot
 
 __all__ = [

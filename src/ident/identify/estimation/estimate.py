@@ -410,8 +410,8 @@ def least_squares_reduced(
 
     Gives the same estimate, standard deviations, per-group sigma, residuals and condition
     number as :func:`least_squares` on the rows (up to round-off), from
-    :class:`~ident.identify.estimation.observations.ReducedObservations` whose size does not depend on
-    the number of rows: ``||W_j x - y_j||^2 = ||R_j x - z_j||^2 + rho_j``.
+    :class:`~ident.identify.estimation.observations.ReducedObservations` whose size does not depend
+    on the number of rows: ``||W_j x - y_j||^2 = ||R_j x - z_j||^2 + rho_j``.
 
     Parameters
     ----------

@@ -9,9 +9,9 @@ torques. They are decimated to a rate at or below ``max_rate_hz``: the replay an
 
 The anti-aliasing filter here is a zero-phase Butterworth (order 8, cut-off at 0.8 of the new
 Nyquist frequency), not the identification's Chebyshev I filter
-(:func:`ident.identify.estimation.preprocess.decimate`): a Butterworth filter is maximally flat, with a
-gain of exactly 1 at 0 Hz, so angles keep their values. The Chebyshev filter's passband ripple
-(+-0.58 % per stage) does not matter to the identification, which filters torques and
+(:func:`ident.identify.estimation.preprocess.decimate`): a Butterworth filter is maximally flat,
+with a gain of exactly 1 at 0 Hz, so angles keep their values. The Chebyshev filter's passband
+ripple (+-0.58 % per stage) does not matter to the identification, which filters torques and
 regressor alike, but on the TX40's angles two stages would move the arm by up to 0.047 rad.
 """
 

@@ -201,10 +201,10 @@ def compare_with_reference(
     """Match reference base parameters to ours: same expression, or a documented sum.
 
     ``sd``: the estimate's one standard deviation
-    (:func:`ident.identify.estimation.uncertainty.parameter_std`); the ``relative_std_pct`` of every row,
-    a sum's included (``sqrt(w @ C @ w)``), comes from it and ``std_method`` names it. The
-    reference's own column is whatever the reference printed (an ordinary σ for a published
-    OLS/WLS table)."""
+    (:func:`ident.identify.estimation.uncertainty.parameter_std`); the ``relative_std_pct`` of every
+    row, a sum's included (``sqrt(w @ C @ w)``), comes from it and ``std_method`` names it. The
+    reference's own column is whatever the reference printed (an ordinary σ for a published OLS/WLS
+    table)."""
     base = pm.base
     projection = base.projection
     base_names = pm.base_names

@@ -10,8 +10,8 @@ covariances that do not assume independence are computed here, both from the *bl
 equations* of the identification rows (:class:`BlockEquations`: for consecutive blocks of
 decimated samples ``b``, ``A_b = sum_j w_j^2 W_bj^T W_bj`` and ``c_b = sum_j w_j^2 W_bj^T
 y_bj``, with the estimate's per-joint weights ``w_j = 1 / sigma_j``; blocks are filled chunk
-by chunk by :func:`ident.identify.estimation.accumulate.block_equations`, so memory does not grow with
-the log):
+by chunk by :func:`ident.identify.estimation.log_chunks.block_equations`, so memory does not grow
+with the log):
 
 ``hac``
     Heteroscedasticity- and autocorrelation-consistent sandwich (Newey-West):

@@ -30,6 +30,7 @@ from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import ConfigError, ModelError
 from ident.identify.estimation.estimate import METHODS as LEAST_SQUARES
 from ident.identify.estimation.estimate import Estimate
+from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
 from ident.identify.estimators.registry import Contract, get_contract, get_estimator
 from ident.identify.estimators.regularization import (
@@ -37,7 +38,6 @@ from ident.identify.estimators.regularization import (
     RegularizationChoice,
     choose_regularization,
 )
-from ident.identify.estimation.observations import ReducedObservations
 
 __all__ = [
     "NONNEGATIVE_PREFIXES",
@@ -185,7 +185,8 @@ def problem_from_states(
     Parameters
     ----------
     model, pm :
-        The robot and its parameter model (:func:`ident.identify.pipeline.real.build_parameter_model`).
+        The robot and its parameter model
+        (:func:`ident.identify.pipeline.real.build_parameter_model`).
     q, dq, ddq, tau :
         States and torques [SI], shapes (n_samples, nv).
     **fields :

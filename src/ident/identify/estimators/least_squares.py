@@ -1,7 +1,7 @@
 """``ols`` and ``wls``: unconstrained least squares of the base parameters.
 
-They solve the reduced problem exactly as :func:`ident.identify.estimation.estimate.least_squares` solves
-the rows (same estimate, standard deviations and residuals). When the problem carries a
+They solve the reduced problem exactly as :func:`ident.identify.estimation.estimate.least_squares`
+solves the rows (same estimate, standard deviations and residuals). When the problem carries a
 :class:`~ident.identify.estimators.problem.ParameterStructure`, the result also holds the
 standard parameters closest to the nominal ones that give the estimated base values
 (:meth:`~ident.identify.estimators.problem.EstimationProblem.standard_completion`) and their

@@ -2,9 +2,9 @@
 
 An estimator is a function ``estimate(problem: EstimationProblem) -> Estimate``
 (:class:`~ident.identify.estimators.problem.EstimationProblem`,
-:class:`~ident.identify.estimation.estimate.Estimate`) with a :class:`Contract` saying what it guarantees.
-Registering one makes it available as ``estimation.method: <name>``. The identification core,
-the report, the URDF write-back and the warnings read the contract, never the name.
+:class:`~ident.identify.estimation.estimate.Estimate`) with a :class:`Contract` saying what it
+guarantees. Registering one makes it available as ``estimation.method: <name>``. The identification
+core, the report, the URDF write-back and the warnings read the contract, never the name.
 """
 
 from __future__ import annotations

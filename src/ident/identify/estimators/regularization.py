@@ -19,9 +19,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.identify.estimation.estimate import Estimate
+from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.estimators.problem import EstimationProblem
 from ident.identify.estimators.registry import get_repeated_estimator
-from ident.identify.estimation.observations import ReducedObservations
 
 __all__ = ["DEFAULT_GRID", "RegularizationChoice", "choose_regularization"]
 

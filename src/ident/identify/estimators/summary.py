@@ -1,6 +1,7 @@
 """What the report shows of the constrained estimation: per estimator and link, JSON-ready.
 
-Pure functions of an :class:`~ident.identify.pipeline.core.IdentifyResult` (nothing is written here):
+Pure functions of an :class:`~ident.identify.pipeline.core.IdentifyResult` (nothing is written
+here):
 :func:`consistency_summary` for ``result.json`` and the report table, :func:`identified_model`
 for the whole-model URDF and its sidecar.
 """

@@ -1,7 +1,7 @@
 """Friction models fitted with the rigid-body model, and compared on held-out data.
 
-The rows are those of the identification (:mod:`ident.identify.estimation.accumulate`): the base columns
-of everything but the joints' viscous and Coulomb friction (rigid bodies, rotor inertias,
+The rows are those of the identification (:mod:`ident.identify.estimation.accumulate`): the base
+columns of everything but the joints' viscous and Coulomb friction (rigid bodies, rotor inertias,
 offsets, coupled-motor terms: ``W_rest``), the joint velocities, the measured torques and the
 velocity-threshold mask. A friction model of the registry (:mod:`ident.dynamics.friction_models`)
 adds its columns for each joint that has friction.
@@ -45,7 +45,7 @@ from threadpoolctl import threadpool_limits
 from ident.dynamics.friction_models import FRICTION_MODELS, FrictionModel, get_friction_model
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
-from ident.identify.estimation import accumulate
+from ident.identify.estimation import log_chunks
 from ident.identify.estimation.validation import prediction_metrics
 
 __all__ = [
@@ -488,7 +488,7 @@ _FRICTION_BASE = re.compile(r"(fv|fs)\d+R?")
 
 
 def _rows_of(
-    tasks: Sequence[accumulate.ChunkTask], drop: BoolArray, joints: tuple[int, ...], stride: int
+    tasks: Sequence[log_chunks.ChunkTask], drop: BoolArray, joints: tuple[int, ...], stride: int
 ) -> FrictionRows:
     parts = []
     for task in tasks:
@@ -501,7 +501,7 @@ def _rows_of(
 
 
 def _friction_columns(
-    chunked: accumulate.ChunkedLog, pm: ParameterModel
+    chunked: log_chunks.ChunkedLog, pm: ParameterModel
 ) -> tuple[IntArray, BoolArray]:
     """The planned base columns (indices into ``pm.base_names``) and which are the joints'
     ``fv``/``fs``."""
@@ -511,7 +511,7 @@ def _friction_columns(
 
 
 def rest_parameters(
-    chunked: accumulate.ChunkedLog, pm: ParameterModel, x: FloatArray
+    chunked: log_chunks.ChunkedLog, pm: ParameterModel, x: FloatArray
 ) -> FloatArray:
     """The entries of base parameters ``x`` (shape (n_base,), in ``pm.base_names``' order)
     that multiply the columns of :func:`friction_rows`' ``W_rest``, shape (p,)."""
@@ -520,7 +520,7 @@ def rest_parameters(
 
 
 def friction_rows(
-    chunked: accumulate.ChunkedLog, pm: ParameterModel, *, max_samples: int = MAX_SAMPLES
+    chunked: log_chunks.ChunkedLog, pm: ParameterModel, *, max_samples: int = MAX_SAMPLES
 ) -> tuple[FrictionRows, FrictionRows | None]:
     """The identification and held-out rows of a planned log, without the joints' ``fv``/``fs``
     base columns (None for the held-out rows when the log has no held-out part).
@@ -532,7 +532,7 @@ def friction_rows(
     if not joints:
         raise DataError("model.friction: no joint has viscous or Coulomb friction terms.")
 
-    def stride(tasks: Sequence[accumulate.ChunkTask]) -> int:
+    def stride(tasks: Sequence[log_chunks.ChunkTask]) -> int:
         n = sum(t.d1 - t.d0 for t in tasks)
         return max(1, -(-n // max_samples))
 

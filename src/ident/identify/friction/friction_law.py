@@ -42,8 +42,8 @@ from scipy.optimize import nnls
 
 from ident.dynamics.friction_models import get_friction_model
 from ident.errors import DataError
-from ident.identify.friction.friction_fit import FrictionFit, FrictionRows, fit_friction_model
 from ident.identify.estimation.validation import prediction_metrics
+from ident.identify.friction.friction_fit import FrictionFit, FrictionRows, fit_friction_model
 
 __all__ = [
     "LAW_TORQUE_MODEL",
@@ -141,7 +141,8 @@ def written_friction_law(
         The law's separable least-squares fit (:func:`~ident.identify.friction.friction_fit.
         compare_friction_models`' fit of the chosen model): its parameters are written.
     rows, held_out :
-        Identification and held-out rows (:func:`~ident.identify.friction.friction_fit.friction_rows`).
+        Identification and held-out rows
+        (:func:`~ident.identify.friction.friction_fit.friction_rows`).
     rest :
         The written model's parameters of the columns of ``rows.W_rest``, shape (p,): the
         residuals of the written model with the law, and with ``viscous_coulomb`` fitted to

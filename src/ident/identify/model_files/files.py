@@ -3,7 +3,8 @@
 :func:`model_files` computes the three texts (nothing is written; any error is raised before a
 file exists); :func:`write_model_files` writes them into a folder as
 ``<stem>_identified.urdf``, ``<stem>_identified.xml`` and ``<stem>_joint_extras.json``.
-See :mod:`ident.identify.model_files.urdf_update` (URDF, links fused through fixed or locked joints) and
+See :mod:`ident.identify.model_files.urdf_update` (URDF, links fused through fixed or locked joints)
+and
 :mod:`ident.identify.model_files.mjcf` (MJCF, the mapping of the joint extras to MuJoCo).
 """
 

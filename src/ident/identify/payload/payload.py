@@ -14,25 +14,26 @@ because a URDF carries none of them reliably. A second log without the payload a
 the same ``E`` columns and no ``Y_n`` columns, which pins the extras down.
 
 The logs go through the one preprocessing of every identification (low-pass, differentiate,
-trim, decimate, velocity threshold: :func:`ident.identify.estimation.accumulate.iter_chunks`, in chunks
-of bounded size) and are reduced per joint (:func:`ident.identify.estimation.accumulate.reduce_chunk`).
-The estimate is WLS (:func:`ident.identify.estimation.estimate.least_squares_reduced`: standard
-deviations from the residual), then, with ``method: lmi``, the registry's ``lmi`` estimator
-on the same rows with the payload as its one body: pseudo-inertia positive definite, extras
->= 0 (:mod:`ident.identify.estimators.lmi`), no prior (the prior floor is 0).
+trim, decimate, velocity threshold: :func:`ident.identify.estimation.accumulate.iter_chunks`, in
+chunks of bounded size) and are reduced per joint
+(:func:`ident.identify.estimation.accumulate.reduce_chunk`). The estimate is WLS
+(:func:`ident.identify.estimation.estimate.least_squares_reduced`: standard deviations from the
+residual), then, with ``method: lmi``, the registry's ``lmi`` estimator on the same rows with the
+payload as its one body: pseudo-inertia positive definite, extras >= 0
+(:mod:`ident.identify.estimators.lmi`), no prior (the prior floor is 0).
 
 **Intervals.** The standard deviations are those of every identification
 (:func:`ident.identify.estimation.uncertainty.parameter_std`): a moving-block bootstrap of the WLS
-estimate over consecutive blocks of decimated samples (:mod:`ident.identify.estimation.uncertainty`),
-which holds on correlated residuals (filtered, decimated rows, closed-loop and friction
-errors), where the ordinary ``sigma^2 (W^T W)^-1`` comes out 2-3x too small. While the rows
-are reduced, each chunk also yields per-joint *unweighted* block normal equations
-``A_bj = sum_k Y_kj^T Y_kj``, ``c_bj = sum_k Y_kj^T y_kj`` (:func:`payload_rows`; blocks of
-``ceil(n_samples / MAX_BLOCKS)`` decimated samples that never cross a chunk, segment or log
-boundary); after WLS they are summed with its weights ``1 / sigma_j^2``
-(:func:`weighted_blocks`) and bootstrapped exactly as ``ident identify`` does. A log with too
-few blocks (no more blocks than unknowns) falls back to the ordinary standard deviations,
-with a note. The centre of mass's follow by the delta method from the same covariance.
+estimate over consecutive blocks of decimated samples
+(:mod:`ident.identify.estimation.uncertainty`), which holds on correlated residuals (filtered,
+decimated rows, closed-loop and friction errors), where the ordinary ``sigma^2 (W^T W)^-1`` comes
+out 2-3x too small. While the rows are reduced, each chunk also yields per-joint *unweighted* block
+normal equations ``A_bj = sum_k Y_kj^T Y_kj``, ``c_bj = sum_k Y_kj^T y_kj`` (:func:`payload_rows`;
+blocks of ``ceil(n_samples / MAX_BLOCKS)`` decimated samples that never cross a chunk, segment or
+log boundary); after WLS they are summed with its weights ``1 / sigma_j^2``
+(:func:`weighted_blocks`) and bootstrapped exactly as ``ident identify`` does. A log with too few
+blocks (no more blocks than unknowns) falls back to the ordinary standard deviations, with a note.
+The centre of mass's follow by the delta method from the same covariance.
 """
 
 from __future__ import annotations
@@ -50,15 +51,11 @@ from ident.dynamics.friction import ExtraTerms, extra_columns, extra_names
 from ident.dynamics.gram import selected_rows
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.errors import ConfigError, DataError, NotIdentifiable
-from ident.identify.estimation import accumulate, preprocess
 from ident.identify.config import PreprocessConfig
+from ident.identify.estimation import accumulate, log_chunks, preprocess
 from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
 from ident.identify.estimation.estimate import Estimate, least_squares_reduced
-from ident.identify.estimators import get_estimator
-from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
-from ident.measure.logs import RobotLog, read_log
 from ident.identify.estimation.observations import ReducedObservations
-from ident.identify.payload.payload_config import PayloadConfig
 from ident.identify.estimation.uncertainty import (
     BlockEquations,
     ParameterStd,
@@ -67,6 +64,10 @@ from ident.identify.estimation.uncertainty import (
     parameter_uncertainty,
     z_value,
 )
+from ident.identify.estimators import get_estimator
+from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
+from ident.identify.payload.payload_config import PayloadConfig
+from ident.measure.logs import RobotLog, read_log
 from ident.model import Robot
 from ident.model.selection import load_robot
 from ident.robot.inertia import (
@@ -157,9 +158,9 @@ def decimated_samples(log: RobotLog, pp: PreprocessConfig) -> int:
     )
 
 
-def block_length(n_samples: int, max_blocks: int = accumulate.MAX_BLOCKS) -> int:
+def block_length(n_samples: int, max_blocks: int = log_chunks.MAX_BLOCKS) -> int:
     """Decimated samples per block for ``n_samples`` in all: ``ceil(n_samples / max_blocks)``
-    (1 on short logs), the rule of :func:`ident.identify.estimation.accumulate.block_equations`."""
+    (1 on short logs), the rule of :func:`ident.identify.estimation.log_chunks.block_equations`."""
     return max(1, -(-int(n_samples) // int(max_blocks)))
 
 
@@ -172,12 +173,12 @@ def payload_rows(
     """The log's rows ``tau - Y theta_arm = [Y_n | E] x``, processed and reduced per joint,
     and their unweighted block normal equations per joint.
 
-    Every segment goes through :func:`ident.identify.estimation.accumulate.iter_chunks` in chunks of at
-    most :data:`CHUNK_SAMPLES` raw samples; rows below ``pp.velocity_threshold`` are dropped.
-    The blocks (one :class:`~ident.identify.estimation.uncertainty.BlockEquations` per joint, weight 1,
-    its blocks in time order) hold ``block_samples`` consecutive decimated samples and never
-    cross a chunk or segment boundary. Memory: ``nv * n_blocks * (p^2 + p + 1) * 8`` bytes for
-    ``p`` columns, ``n_blocks <= n_samples / block_samples + n_chunks`` (with
+    Every segment goes through :func:`ident.identify.estimation.accumulate.iter_chunks` in chunks of
+    at most :data:`CHUNK_SAMPLES` raw samples; rows below ``pp.velocity_threshold`` are dropped. The
+    blocks (one :class:`~ident.identify.estimation.uncertainty.BlockEquations` per joint, weight 1,
+    its blocks in time order) hold ``block_samples`` consecutive decimated samples and never cross a
+    chunk or segment boundary. Memory: ``nv * n_blocks * (p^2 + p + 1) * 8`` bytes for ``p``
+    columns, ``n_blocks <= n_samples / block_samples + n_chunks`` (with
     :func:`block_length` over all logs, at most ``MAX_BLOCKS + n_chunks`` = 2048 + chunks:
     about 110 MB for 7 joints and 31 columns; twice that while the chunks' blocks are joined).
 
@@ -242,8 +243,9 @@ def payload_observations(
 def weighted_blocks(per_joint: tuple[BlockEquations, ...], weights: FloatArray) -> BlockEquations:
     """``A_b = sum_j w_j^2 A_bj``, ``c_b = sum_j w_j^2 c_bj`` of per-joint unweighted blocks
     (each joint's blocks aligned in time, :func:`payload_rows`) and per-joint row weights
-    ``weights`` (nv,) [1/(N*m)]: the blocks :func:`~ident.identify.estimation.uncertainty.BlockEquations`
-    ``.from_samples`` gives with those weights."""
+    ``weights`` (nv,) [1/(N*m)]: the blocks
+    :func:`~ident.identify.estimation.uncertainty.BlockEquations` ``.from_samples`` gives with those
+    weights."""
     w2 = np.asarray(weights, dtype=float) ** 2
     if w2.shape != (len(per_joint),):
         raise DataError(f"{w2.size} weights for {len(per_joint)} joints.")
@@ -266,9 +268,10 @@ def merge_blocks(
 def calibrated_std(
     wls: Estimate, blocks: tuple[BlockEquations, ...] | None
 ) -> tuple[ParameterStd, Uncertainty | None]:
-    """The one standard deviation of ``wls`` (:func:`~ident.identify.estimation.uncertainty.parameter_std`)
-    from the per-joint ``blocks`` weighted by its ``1 / sigma_j``, as ``ident identify``
-    computes it; the ordinary one with a note when there are no blocks or too few."""
+    """The one standard deviation of ``wls``
+    (:func:`~ident.identify.estimation.uncertainty.parameter_std`) from the per-joint ``blocks``
+    weighted by its ``1 / sigma_j``, as ``ident identify`` computes it; the ordinary one with a note
+    when there are no blocks or too few."""
     unc = None
     if blocks is not None:
         sigma = np.asarray(wls.sigma, dtype=float)

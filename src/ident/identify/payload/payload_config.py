@@ -26,7 +26,8 @@ from pydantic import Field
 
 from ident.config import StrictModel
 from ident.errors import ConfigError
-from ident.identify.config import IdentifyConfig, LogConfig, load_identify_config, resolve_log
+from ident.identify.config import IdentifyConfig, load_identify_config, resolve_log
+from ident.measure.log_config import LogConfig
 
 __all__ = ["PayloadConfig", "PayloadSection", "load_payload_config"]
 

@@ -43,11 +43,11 @@ from ident.dynamics.chain import KinematicChain
 from ident.dynamics.gram import selected_rows
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
-from ident.identify.estimation.accumulate import BaseColumns
 from ident.identify.config import PreprocessConfig
-from ident.measure.logs import RobotLog
+from ident.identify.estimation.accumulate import BaseColumns
 from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.payload.payload import payload_observations
+from ident.measure.logs import RobotLog
 
 __all__ = ["GainColumns", "PayloadGains", "estimate_payload_gains", "payload_gain_observations"]
 

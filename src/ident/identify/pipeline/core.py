@@ -41,27 +41,14 @@ from threadpoolctl import threadpool_limits
 
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
-from ident.errors import ConfigError, DataError, NotIdentifiable
-from ident.identify.assessment import sanity
-from ident.identify.estimation import accumulate, preprocess
-from ident.identify.config import FilterConfig, IdentifyConfig, PreprocessConfig
-from ident.identify.estimation.essential import EssentialResult
-from ident.identify.estimation.estimate import Estimate, rank_report
-from ident.identify.estimators import (
-    ConsistentIdentification,
-    bounding_ellipsoids,
-    consistent_identification_reduced,
-)
-from ident.identify.friction.friction_fit import (
-    FrictionComparison,
-    compare_friction_models,
-    friction_rows,
-    rest_parameters,
-)
-from ident.identify.friction.friction_law import WrittenFrictionLaw, written_friction_law
+from ident.errors import ConfigError, DataError
 from ident.identify.assessment.identifiability import Identifiability, standard_identifiability
-from ident.measure.logs import RobotLog
 from ident.identify.assessment.model_intervals import ModelIntervals, model_intervals
+from ident.identify.assessment.verdict import truth_from_config
+from ident.identify.config import FilterConfig, IdentifyConfig, PreprocessConfig
+from ident.identify.estimation import accumulate, log_chunks, preprocess
+from ident.identify.estimation.essential import EssentialResult
+from ident.identify.estimation.estimate import Estimate
 from ident.identify.estimation.motion import (
     DEFAULT_REPLAY_RATE_HZ,
     antialiased,
@@ -71,7 +58,6 @@ from ident.identify.estimation.motion import (
 from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.estimation.reference import (
     ReferenceWeights,
-    compare_with_reference,
     read_reference,
     reference_weights,
 )
@@ -85,10 +71,28 @@ from ident.identify.estimation.uncertainty import (
 )
 from ident.identify.estimation.validation import (
     ModelPrediction,
-    held_out_warnings,
     prediction_metrics,
 )
-from ident.identify.assessment.verdict import truth_from_config
+from ident.identify.estimators import (
+    ConsistentIdentification,
+    bounding_ellipsoids,
+)
+from ident.identify.friction.friction_fit import (
+    FrictionComparison,
+    compare_friction_models,
+    friction_rows,
+    rest_parameters,
+)
+from ident.identify.friction.friction_law import WrittenFrictionLaw, written_friction_law
+from ident.identify.pipeline.estimates import (
+    all_warnings,
+    essential_result,
+    held_out_vectors,
+    merged_rows,
+    reference_comparisons,
+    run_estimators,
+)
+from ident.measure.logs import RobotLog
 from ident.model.selection import load_robot
 from ident.signals import derivative
 from ident.trajectory import JointTrajectory
@@ -159,9 +163,9 @@ class IdentifyResult:
         deviation of every held-out torque about the identified prediction [N*m], shape
         (n_val, nv); empty without :attr:`uncertainty`.
     uncertainty_summary :
-        :func:`~ident.identify.estimation.uncertainty.coverage_summary` of :attr:`uncertainty` (held-out
-        coverage of the prediction intervals; coverage of ``validation.truth`` when set), or
-        None.
+        :func:`~ident.identify.estimation.uncertainty.coverage_summary` of :attr:`uncertainty`
+        (held-out coverage of the prediction intervals; coverage of ``validation.truth`` when set),
+        or None.
     identifiability :
         Per standard parameter: alone, only in combination, or not seen
         (:mod:`ident.identify.assessment.identifiability`).
@@ -174,9 +178,9 @@ class IdentifyResult:
         a model to write; else None.
     model_intervals :
         Bootstrap intervals of the written model's standard parameters
-        (:mod:`ident.identify.assessment.model_intervals`, ``urdf_update.model_bootstrap`` re-solves), or
-        None (switched off, no model, too few blocks; ``model_intervals_note`` says why when
-        it failed).
+        (:mod:`ident.identify.assessment.model_intervals`, ``urdf_update.model_bootstrap``
+        re-solves), or None (switched off, no model, too few blocks; ``model_intervals_note`` says
+        why when it failed).
     """
 
     config: IdentifyConfig
@@ -299,20 +303,20 @@ def _identify(
     with _timed(timings, "accumulate"):
         reference = _reference(cfg, pm)
         chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
-    records = [*processing, accumulate.chunk_record(chunked, red), *_row_records(cfg, chunked, red)]
+    records = [*processing, log_chunks.chunk_record(chunked, red), *_row_records(cfg, chunked, red)]
     with _timed(timings, "estimate"):
-        cons = _estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
+        cons = run_estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
         est = cons.estimates[cfg.estimation.least_squares_method]
         identified_model = _model_identification(cfg, cons, model, pm, first, last, red, joints)
     with _timed(timings, "essential"):
-        essential = _essential(cfg, red, pm)
+        essential = essential_result(cfg, red, pm)
     with _timed(timings, "validate"):
-        vectors = _vectors(est, essential, cons, pm, identified_model)
+        vectors = held_out_vectors(est, essential, cons, pm, identified_model)
         tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
     extras = _timed_extras(
         timings, cfg, log, chunked, pm, (est, identified_model), joints, scheduler
     )
-    comparison, note, reference_essential = _comparisons(
+    comparison, note, reference_essential = reference_comparisons(
         cfg, pm, (est, parameter_std(est, extras["uncertainty"])), essential, reference
     )
     residual = tau_val - predictions["identified"].tau_pred
@@ -322,7 +326,7 @@ def _identify(
     fit = (est, extras["uncertainty"])  # the warnings read its one σ
     problems = [
         *auto_warnings,
-        *_warnings(cfg, model, pm, fit, cons, red, chunked, predictions, (tau_val, keep_val)),
+        *all_warnings(cfg, model, pm, fit, cons, red, chunked, predictions, (tau_val, keep_val)),
         *extras.pop("friction_problem"),
     ]
     timings["total"] = time.perf_counter() - t0
@@ -356,7 +360,7 @@ def _timed_extras(
     timings: dict[str, float],
     cfg: IdentifyConfig,
     log: RobotLog,
-    chunked: accumulate.ChunkedLog,
+    chunked: log_chunks.ChunkedLog,
     pm: ParameterModel,
     fits: tuple[Estimate, ConsistentIdentification | None],
     joints: list[str],
@@ -382,7 +386,7 @@ def _timed_extras(
         )
     if cfg.model.friction == "viscous_coulomb":
         del timings["friction_models"]
-    accumulate.release_free_memory()
+    log_chunks.release_free_memory()
     with _timed(timings, "motion"):
         out["motion"], out["motion_note"] = replay_motion(log, cfg.preprocess, tuple(joints))
     return out
@@ -407,7 +411,7 @@ def _timed(timings: dict[str, float], key: str) -> Iterator[None]:
 
 def _friction_models(
     cfg: IdentifyConfig,
-    chunked: accumulate.ChunkedLog,
+    chunked: log_chunks.ChunkedLog,
     pm: ParameterModel,
     written: ConsistentIdentification | None,
     joints: tuple[str, ...],
@@ -444,30 +448,30 @@ def _accumulate(
     reference: ReferenceWeights | None,
     scheduler: str | None,
 ) -> tuple[
-    accumulate.ChunkedLog,
+    log_chunks.ChunkedLog,
     ReducedObservations | None,
     ReducedObservations | None,
     ReducedObservations,
 ]:
     """The log cut in chunks and its identification rows reduced: ``(chunked, first, last,
-    merged)`` (:func:`ident.identify.estimation.accumulate.reduce_log`)."""
+    merged)`` (:func:`ident.identify.estimation.log_chunks.reduce_log`)."""
     columns = accumulate.BaseColumns(chain_from_model(model), pm, reference)
-    chunked = accumulate.plan_log(
+    chunked = log_chunks.plan_log(
         log,
         cfg.preprocess,
         columns,
         identify_fraction=cfg.validation.identify_fraction,
         chunk_samples=_chunk_samples(log, cfg.preprocess, len(pm.base_names)),
     )
-    first, last = accumulate.reduce_log(chunked, scheduler)
-    return chunked, first, last, _merged(first, last)
+    first, last = log_chunks.reduce_log(chunked, scheduler)
+    return chunked, first, last, merged_rows(first, last)
 
 
 def _predict(
-    chunked: accumulate.ChunkedLog, vectors: dict[str, FloatArray], scheduler: str | None
+    chunked: log_chunks.ChunkedLog, vectors: dict[str, FloatArray], scheduler: str | None
 ) -> tuple[FloatArray, npt.NDArray[np.bool_], dict[str, ModelPrediction]]:
     """Held-out torques, their mask and every vector's prediction with its metrics."""
-    tau_val, keep_val, tau_pred = accumulate.predict_log(chunked, vectors, scheduler)
+    tau_val, keep_val, tau_pred = log_chunks.predict_log(chunked, vectors, scheduler)
     predictions = {
         label: ModelPrediction(
             label,
@@ -481,7 +485,7 @@ def _predict(
 
 
 def _uncertainty(
-    chunked: accumulate.ChunkedLog, est: Estimate, scheduler: str | None
+    chunked: log_chunks.ChunkedLog, est: Estimate, scheduler: str | None
 ) -> tuple[Uncertainty | None, dict[str, FloatArray], BlockEquations | None]:
     """HAC and block-bootstrap covariances of ``est``, the held-out prediction standard
     deviations of every interval method and the block equations (none when the log has too
@@ -489,18 +493,18 @@ def _uncertainty(
     sigma = np.asarray(est.sigma, dtype=float)
     weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
     try:
-        blocks = accumulate.block_equations(chunked, weights, scheduler)
+        blocks = log_chunks.block_equations(chunked, weights, scheduler)
         unc = parameter_uncertainty(blocks, est.names, est.x, est.covariance, rng=0)
     except (DataError, np.linalg.LinAlgError):
         return None, {}, None
-    stds = accumulate.prediction_std_log(
+    stds = log_chunks.prediction_std_log(
         chunked, unc.covariance, np.nan_to_num(est.residual_rms), scheduler
     )
     return unc, stds, blocks
 
 
 def _model_intervals(
-    chunked: accumulate.ChunkedLog,
+    chunked: log_chunks.ChunkedLog,
     fits: tuple[Estimate, ConsistentIdentification],
     unc: Uncertainty,
     blocks: BlockEquations | None,
@@ -508,17 +512,17 @@ def _model_intervals(
     scheduler: str | None,
 ) -> tuple[ModelIntervals | None, str]:
     """The bootstrap of the written model's constrained fit
-    (:mod:`ident.identify.assessment.model_intervals`) with the base parameters' bootstrap run length;
-    the blocks are rebuilt when the model's row weights are not those of the least-squares
-    estimate (the first of ``fits``). None and the reason when it fails: the identification
-    is kept."""
+    (:mod:`ident.identify.assessment.model_intervals`) with the base parameters' bootstrap run
+    length; the blocks are rebuilt when the model's row weights are not those of the least-squares
+    estimate (the first of ``fits``). None and the reason when it fails: the identification is
+    kept."""
     est, identified = fits
     weights = np.asarray(identified.problem.weights, dtype=float)
     sigma = np.asarray(est.sigma, dtype=float)
     ls_weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
     try:
         if blocks is None or not np.allclose(weights, ls_weights, rtol=1e-12, atol=0.0):
-            blocks = accumulate.block_equations(chunked, weights, scheduler)
+            blocks = log_chunks.block_equations(chunked, weights, scheduler)
         length = int(np.ceil(unc.bandwidth))
         return model_intervals(identified, blocks, length, n_boot=n_boot, rng=1), ""
     except (DataError, np.linalg.LinAlgError, ValueError) as e:
@@ -639,7 +643,7 @@ def _preprocess_records(
 
 
 def _row_records(
-    cfg: IdentifyConfig, chunked: accumulate.ChunkedLog, red: ReducedObservations
+    cfg: IdentifyConfig, chunked: log_chunks.ChunkedLog, red: ReducedObservations
 ) -> list[dict]:
     """Records of the velocity threshold and of the time split."""
     thresholds = cfg.preprocess.velocity_threshold
@@ -668,14 +672,14 @@ def _row_records(
 
 def _chunk_samples(log: RobotLog, pp: PreprocessConfig, n_base: int) -> int:
     """Raw samples per chunk: ``preprocess.chunk_samples`` (or an automatic size) when the
-    log is chunked (:func:`~ident.identify.estimation.accumulate.use_chunks`), else the longest segment
-    (each segment is one chunk)."""
+    log is chunked (:func:`~ident.identify.estimation.log_chunks.use_chunks`), else the longest
+    segment (each segment is one chunk)."""
     nv = log.q.shape[1]
-    if not accumulate.use_chunks(log, pp, 14 * nv):
+    if not log_chunks.use_chunks(log, pp, 14 * nv):
         return max(b - a for a, b in log.segments)
     margins = accumulate.margin_samples(pp, log.sampling_rate_hz)
     step = preprocess.decimation_step(pp)
-    return pp.chunk_samples or accumulate.default_chunk_samples(margins, nv, n_base, step)
+    return pp.chunk_samples or log_chunks.default_chunk_samples(margins, nv, n_base, step)
 
 
 def _reference(cfg: IdentifyConfig, pm: ParameterModel) -> ReferenceWeights | None:
@@ -685,66 +689,6 @@ def _reference(cfg: IdentifyConfig, pm: ParameterModel) -> ReferenceWeights | No
     reference = read_reference(cfg.reference.base_parameters)
     values = np.array([r.value(cfg.reference.column)[0] for r in reference])
     return reference_weights(pm, reference, values)
-
-
-def _merged(
-    first: ReducedObservations | None, last: ReducedObservations | None
-) -> ReducedObservations:
-    red = last if first is None else first if last is None else first.merge(last)
-    assert red is not None  # plan_log raises without identification rows
-    if red.n_rows.sum() <= red.n_params:
-        raise DataError(
-            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters."
-        )
-    return red
-
-
-def _estimators(
-    cfg: IdentifyConfig,
-    model: pin.Model,
-    pm: ParameterModel,
-    first: ReducedObservations | None,
-    last: ReducedObservations | None,
-    red: ReducedObservations,
-    ellipsoids: tuple,
-    joints: list[str],
-    source: str,
-    *,
-    method: str | None = None,
-) -> ConsistentIdentification:
-    """OLS, WLS and the configured estimator (or ``method``) on the reduced rows (``first``
-    and ``last``: the identification rows in two parts, the last one choosing a prior's
-    weight)."""
-    est_cfg = cfg.estimation
-    if first is None or last is None:  # too few samples to split: the weight is chosen on all
-        first = last = red
-    try:
-        return consistent_identification_reduced(
-            model,
-            pm,
-            first,
-            last,
-            method=method or est_cfg.method,
-            weight=est_cfg.regularization.weight,
-            ellipsoids=ellipsoids,
-            options={"friction": est_cfg.friction},
-        )
-    except NotIdentifiable as e:
-        explained = range(len(joints)) if pm.rows is None else pm.rows  # one group each
-        idle = ", ".join(joints[r] for r, n in zip(explained, red.n_rows, strict=True) if n == 0)
-        if idle:
-            why = rank_report(red.R.reshape(-1, red.n_params), pm.base_names, advice="") or e
-            raise NotIdentifiable(
-                f"{source}: the log does not determine every base parameter. No sample of "
-                f"{idle} reaches its velocity threshold in the identification part (joint not "
-                f"moving?): {why} Record a motion that moves {idle}, or lower its velocity "
-                "threshold."
-            ) from e
-        raise NotIdentifiable(
-            f"{source}: the log does not determine every base parameter: {e}"
-        ) from e
-    except DataError as e:
-        raise DataError(f"{source}: {e}") from e
 
 
 def _model_identification(
@@ -765,120 +709,7 @@ def _model_identification(
     if cons.contract.consistent:
         return cons
     source = str(cfg.source or "config")
-    return _estimators(cfg, model, pm, first, last, red, (), joints, source, method=MODEL_METHOD)
-
-
-def _essential(
-    cfg: IdentifyConfig, red: ReducedObservations, pm: ParameterModel
-) -> EssentialResult | None:
-    ess = cfg.estimation.essential
-    if not ess.enabled:
-        return None
-    return accumulate.essential_reduced(
-        red,
-        tuple(pm.base_names),
-        method=cfg.estimation.least_squares_method,
-        max_relative_std_pct=ess.max_relative_std_pct,
-        max_residual_increase=ess.max_residual_increase,
-    )
-
-
-def _vectors(
-    est: Estimate,
-    essential: EssentialResult | None,
-    cons: ConsistentIdentification,
-    pm: ParameterModel,
-    model: ConsistentIdentification | None = None,
-) -> dict[str, FloatArray]:
-    """The base-parameter vectors predicted on the held-out rows, by label."""
-    vectors = {"identified": est.x}
-    for identification in (cons, model):
-        if identification is not None and identification.constrained is not None:
-            vectors[identification.method] = identification.constrained.x
-    if essential is not None:
-        x_ess = np.zeros(len(pm.base_names))
-        x_ess[list(essential.kept)] = essential.estimate.x
-        vectors["essential"] = x_ess
-    vectors["URDF nominal"] = pm.base.project(pm.nominal)
-    return vectors
-
-
-def _comparisons(
-    cfg: IdentifyConfig,
-    pm: ParameterModel,
-    fit: tuple[Estimate, ParameterStd],
-    essential: EssentialResult | None,
-    reference: ReferenceWeights | None,
-) -> tuple[list[dict], str, list[dict]]:
-    """Rows comparing with the reference's base and essential parameters, and the note;
-    ``fit``: the estimate and its one standard deviation."""
-    est, sd = fit
-    ref_cfg = cfg.reference
-    comparison: list[dict] = []
-    note = ""
-    if ref_cfg.base_parameters is not None:
-        comparison, note = compare_with_reference(
-            pm, est, sd, read_reference(ref_cfg.base_parameters), ref_cfg.column
-        )
-        if reference is not None and reference.missing:
-            note += f" Reference parameters without a column here: {', '.join(reference.missing)}."
-    rows_essential: list[dict] = []
-    if ref_cfg.essential_parameters is not None:
-        rows, _ = compare_with_reference(
-            pm, est, sd, read_reference(ref_cfg.essential_parameters), ref_cfg.column
-        )
-        kept = set(essential.estimate.names) if essential is not None else set()
-        for row in rows:
-            members = row["ours"].split(" + ") if row["ours"] else []
-            row["in_our_essential_set"] = bool(members) and all(m in kept for m in members)
-            rows_essential.append(row)
-    return comparison, note, rows_essential
-
-
-def _warnings(
-    cfg: IdentifyConfig,
-    model: pin.Model,
-    pm: ParameterModel,
-    estimated: tuple[Estimate, Uncertainty | None],
-    cons: ConsistentIdentification,
-    red: ReducedObservations,
-    chunked: accumulate.ChunkedLog,
-    predictions: dict[str, ModelPrediction],
-    held_out: tuple[FloatArray, npt.NDArray[np.bool_]],
-) -> list[str]:
-    """Held-out, sanity and consistency warnings of the result; ``estimated``: the
-    least-squares estimate and its robust covariances (the warnings read
-    :func:`~ident.identify.estimation.uncertainty.parameter_std`)."""
-    est, unc = estimated
-    sd = parameter_std(est, unc)
-    identified = predictions["identified"]
-    problems = held_out_warnings(
-        identified.metrics.total_relative_residual,
-        predictions["URDF nominal"].metrics.total_relative_residual,
-        max_relative_residual=cfg.validation.max_relative_residual,
-        in_sample=chunked.in_sample,
-        n_rows=int(red.n_rows.sum()),
-        n_params=len(pm.base_names),
-    )
-    problems += sanity.result_warnings(
-        joint_names=tuple(str(model.names[i]) for i in range(1, model.njoints)),
-        units=sanity.joint_units(model),
-        names=pm.base_names,
-        x=est.x,
-        std=sd.std,
-        relative_std=sd.relative_std,
-        std_method=sd.method,
-        projection=pm.base.projection,
-        all_names=pm.names,
-        column_norms=np.sqrt(np.einsum("gij,gij->j", red.R, red.R)),
-        tau_norm=float(np.sqrt(red.yty.sum())),
-        tau_validate=held_out[0],
-        tau_pred=identified.tau_pred,
-        keep_validate=held_out[1],
-    )
-    if not cons.contract.consistent:  # the estimator promises no consistency: check it
-        problems += sanity.inconsistency_warnings(cons, cfg.estimation.least_squares_method)
-    return list(problems)
+    return run_estimators(cfg, model, pm, first, last, red, (), joints, source, method=MODEL_METHOD)
 
 
 def replay_motion(
@@ -922,8 +753,8 @@ def _segment_motion(
     log: RobotLog, samples: tuple[int, int], pp: PreprocessConfig, joints: tuple[str, ...]
 ) -> JointTrajectory:
     """The measured motion of the log's samples ``[a, b)`` (:func:`replay_motion`), each
-    signal decimated for the replay (:func:`ident.identify.estimation.motion.antialiased`) as soon as it
-    is computed and freed before the next (10 minutes at 1 kHz of 7 joints: 34 MB a signal;
+    signal decimated for the replay (:func:`ident.identify.estimation.motion.antialiased`) as soon
+    as it is computed and freed before the next (10 minutes at 1 kHz of 7 joints: 34 MB a signal;
     ``dq`` and ``ddq`` are the identification's central differences, one at a time).
 
     Raises

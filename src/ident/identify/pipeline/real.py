@@ -4,8 +4,8 @@
 side (:mod:`ident.measure.logs`), checks the memory and time estimate
 (:func:`estimate_identify`), removes the torque's delay (``signals:``,
 :func:`ident.identify.corrections.signal_correction.correct_log`), and hands the measurements to
-:func:`ident.identify.pipeline.core.identify_measurements`, the one identification every command runs.
-Nothing here writes files; :mod:`ident.report.identify_report` does.
+:func:`ident.identify.pipeline.core.identify_measurements`, the one identification every command
+runs. Nothing here writes files; :mod:`ident.report.identify_report` does.
 """
 
 from __future__ import annotations
@@ -17,13 +17,13 @@ from pathlib import Path
 import pinocchio as pin
 
 from ident.dynamics.parameter_model import PRIORITY_LABELS, ParameterModel, build_parameter_model
-from ident.identify.estimation import accumulate, preprocess
-from ident.identify.config import IdentifyConfig
-from ident.identify.pipeline.core import IdentifyResult, identify_measurements
-from ident.measure.logs import RobotLog, estimate_log, read_log
 from ident.identify.assessment.model_intervals import estimated_seconds
+from ident.identify.config import IdentifyConfig
 from ident.identify.corrections.signal_correction import correct_log
+from ident.identify.estimation import log_chunks, preprocess
+from ident.identify.pipeline.core import IdentifyResult, identify_measurements
 from ident.inputs import JobEstimate, check_job
+from ident.measure.logs import RobotLog, estimate_log, read_log
 from ident.model import Robot
 from ident.model.selection import load_robot
 
@@ -63,10 +63,10 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
     """Rough peak memory and wall time of identifying ``log`` (n_samples, nv).
 
     Time: ``n_samples * nv^2`` (the regressor's rows and columns). Memory: the log's arrays,
-    the chunks in flight (:func:`ident.identify.estimation.accumulate.chunk_bytes`: one per worker, or the
-    whole log as one chunk when :func:`~ident.identify.estimation.accumulate.use_chunks` says so, as the
-    core decides) and the uncertainty's blocks. A decimation still ``auto`` counts as none, so
-    the estimate errs high.
+    the chunks in flight (:func:`ident.identify.estimation.log_chunks.chunk_bytes`: one per worker,
+    or the whole log as one chunk when :func:`~ident.identify.estimation.log_chunks.use_chunks` says
+    so, as the core decides) and the uncertainty's blocks. A decimation still ``auto`` counts as
+    none, so the estimate errs high.
     """
     n_samples, nv = log.q.shape
     n_columns = 10 * nv + 4 * nv  # rigid bodies and the extra terms, as the core counts
@@ -74,16 +74,16 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
     step = 1 if isinstance(pp.decimation, str) else preprocess.decimation_step(pp)
     per_joint = 2 if log.dq is None else 4  # q, tau (and measured dq, ddq); t
     log_bytes = 8.0 * n_samples * (per_joint * nv + 1)
-    if accumulate.use_chunks(log, pp, n_columns):
-        chunk = pp.chunk_samples or accumulate.default_chunk_samples((0, 0), nv, n_columns, step)
+    if log_chunks.use_chunks(log, pp, n_columns):
+        chunk = pp.chunk_samples or log_chunks.default_chunk_samples((0, 0), nv, n_columns, step)
         # one chunk in flight per thread
-        in_flight = min(accumulate.local_workers(), -(-n_samples // chunk))
-        work = in_flight * accumulate.chunk_bytes(min(n_samples, chunk), nv, n_columns, step)
+        in_flight = min(log_chunks.local_workers(), -(-n_samples // chunk))
+        work = in_flight * log_chunks.chunk_bytes(min(n_samples, chunk), nv, n_columns, step)
         path = "by chunks"
     else:
-        work = accumulate.chunk_bytes(n_samples, nv, n_columns, step)
+        work = log_chunks.chunk_bytes(n_samples, nv, n_columns, step)
         path = "in memory"
-    blocks = 8.0 * min(accumulate.MAX_BLOCKS, n_samples) * n_columns**2
+    blocks = 8.0 * min(log_chunks.MAX_BLOCKS, n_samples) * n_columns**2
     return JobEstimate(
         f"identify: {n_samples} samples x {nv} joints, {path}",
         _BYTES_BASE + log_bytes + work + blocks,
