@@ -14,7 +14,8 @@ motor-side signals to the joint side:
 - torques: ``tau = Rt (k * y)`` with ``k`` the current-to-torque constants [N*m/A] and
   ``Rt = Rq^T`` by default (power balance ``tau^T dq = y^T dq_motor``).
 
-This is the only module that reads log files; everything after it is in SI units.
+This module and :mod:`ident.measure.log_tables` are the only ones that read log files (through
+the readers); everything after them is in SI units.
 """
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
 """Accumulation of a log's observation rows in bounded memory: chunks reduced as they come.
 
-The one path of every identification (:func:`ident.identify.pipeline.core.identify_measurements`): a
-log segment is processed in chunks of decimated samples (a whole segment is one chunk unless
-:func:`use_chunks` says otherwise; the regressor of every sample of one hour at 1 kHz of a
-7-joint arm would be 14 GB); each chunk
+The one path of every identification
+(:func:`ident.identify.pipeline.core.identify_measurements`): a log segment is processed in
+chunks of decimated samples (a whole segment is one chunk unless
+:func:`~ident.identify.estimation.log_chunks.use_chunks` says otherwise; the regressor of every
+sample of one hour at 1 kHz of a 7-joint arm would be 14 GB); each chunk
 
 1. takes its raw samples plus margins on both sides (``margin_samples``: long enough for the
    impulse responses of the zero-phase low-pass and of the decimation filters to decay below
@@ -23,10 +24,11 @@ a
 
 Nothing per sample outlives a chunk except the held-out part's torques and predictions
 (``(n_validate, nv)`` each, for the report's plots), so memory is set by the chunk size
-(:func:`chunk_bytes`, :func:`default_chunk_samples`) and time is linear in the log length.
-The estimators (:mod:`ident.identify.estimators`) and the essential-parameter reduction work
-on the reduction alone. Several segments (gaps, windows) and several logs merge their
-reductions; ``scheduler=`` hands the chunks to a Dask cluster.
+(``log_chunks.chunk_bytes``, ``log_chunks.default_chunk_samples``) and time is linear in the
+log length. The estimators (:mod:`ident.identify.estimators`) and the essential-parameter
+reduction work on the reduction alone. Several segments (gaps, windows) and several logs merge
+their reductions; ``scheduler=`` hands the chunks to a Dask cluster
+(:mod:`ident.identify.estimation.log_chunks` runs the chunks; this module processes one).
 
 Chunk reduction, per joint: one Gram product of ``[W | y]`` (BLAS ``syrk``) and the Cholesky
 factor of its column-scaled form. When LAPACK's estimate of the scaled ``W`` block's condition
