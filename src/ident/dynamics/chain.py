@@ -184,10 +184,14 @@ class KinematicChain:
         the independent joints' (..., n): ``q_b = s q[c] + o``, ``dq_b = s dq[c]``, ..."""
         c, s = self.coordinates, self.scaling
         return (
-            np.ascontiguousarray(q[..., c] * s + self.offset),
+            self.body_positions(q),
             np.ascontiguousarray(dq[..., c] * s),
             np.ascontiguousarray(ddq[..., c] * s),
         )
+
+    def body_positions(self, q: FloatArray) -> FloatArray:
+        """Joint position of every body [rad or m], (..., nb), from ``q`` (..., n)."""
+        return np.ascontiguousarray(q[..., self.coordinates] * self.scaling + self.offset)
 
     @property
     def nq(self) -> int:
