@@ -82,8 +82,10 @@ def _uncoupled(text: str) -> tuple[pin.Model, np.ndarray, np.ndarray]:
 
 def test_reduced_dynamics_equal_pinocchio_projected_from_the_uncoupled_model(tmp_path):
     robot = Robot.from_urdf(_write(tmp_path, "arm.urdf", arm_urdf()))
-    assert robot.joint_names == ("j1", "j2") and robot.nq == robot.nv == 2
-    assert robot.n_bodies == 3 and [m.follower for m in robot.mimic_joints] == ["j3"]
+    assert robot.joint_names == ("j1", "j2")
+    assert robot.nq == robot.nv == 2
+    assert robot.n_bodies == 3
+    assert [m.follower for m in robot.mimic_joints] == ["j3"]
     full, G, offset = _uncoupled(robot.urdf_text)
     data = full.createData()
     q, dq, ddq = robot.random_configurations(20, rng=3)
@@ -128,7 +130,8 @@ def test_follower_range_narrows_the_leader_and_the_certificate_names_the_followe
 def test_locked_leader_locks_its_follower_at_the_mimic_value(tmp_path):
     path = _write(tmp_path, "gripper.urdf", gripper_urdf())
     robot = Robot.from_urdf(path, lock_joints={"finger_a": 0.01})
-    assert robot.joint_names == ("j1", "j2") and robot.mimic_joints == ()
+    assert robot.joint_names == ("j1", "j2")
+    assert robot.mimic_joints == ()
     assert robot.locked_joints == {"finger_a": 0.01, "finger_b": 2 * 0.01 - 0.005}
     full = pin.buildModelFromXML(robot.urdf_text)
     data = full.createData()
@@ -172,7 +175,8 @@ def test_safety_clearances_follow_the_mimic(tmp_path):
 def test_mujoco_follower_tracks_its_leader(tmp_path):
     robot = Robot.from_urdf(_write(tmp_path, "arm.urdf", arm_urdf()))
     mj = load_mujoco(robot, timestep_s=1e-3)
-    assert mj.model.neq == 1 and mj.model.nv == 3  # the follower is MuJoCo's, on an equality
+    assert mj.model.nv == 3  # the follower is a MuJoCo joint ...
+    assert mj.model.neq == 1  # ... on an equality constraint
     data = mujoco.MjData(mj.model)
     follower = mujoco.mj_name2id(mj.model, mujoco.mjtObj.mjOBJ_JOINT, "j3")
     t = np.arange(1500) * 1e-3
@@ -187,7 +191,9 @@ def test_mujoco_follower_tracks_its_leader(tmp_path):
         target = ddq_ref[k] + 400.0 * (q_ref[k] - q) + 40.0 * (dq_ref[k] - dq)
         data.qfrc_applied[mj.dof_index] = robot.rnea(q, dq, target)[0]
         mujoco.mj_step(mj.model, data)
-        coupling.append(data.qpos[mj.model.jnt_qposadr[follower]] - (M * data.qpos[mj.qpos_index[1]] + O))
+        coupling.append(
+            data.qpos[mj.model.jnt_qposadr[follower]] - (M * data.qpos[mj.qpos_index[1]] + O)
+        )
         tracking.append(np.abs(q_ref[k] - q).max())
     assert np.abs(coupling).max() < 1e-3
     assert max(tracking) < 1e-2  # the reduced model is MuJoCo's dynamics: tight tracking

@@ -55,10 +55,10 @@ import pinocchio as pin
 from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel
+from ident.dynamics.chain import chain_from_model
 from ident.errors import ConfigError, ModelError
 from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
 from ident.excitation.family import ConstraintViolations, FloatArray
-from ident.dynamics.chain import chain_from_model
 from ident.robot.meshes import check_urdf_meshes
 from ident.robot.mimic import coupled_model
 

@@ -32,6 +32,7 @@ from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, ModelError
 from ident.inputs import read_urdf_text
 from ident.robot.dh import DHTable
+from ident.robot.inertia import transform_matrix
 from ident.robot.mimic import (
     Mimic,
     coupled_model,
@@ -39,7 +40,6 @@ from ident.robot.mimic import (
     read_mimics,
     resolve_mimic_locks,
 )
-from ident.robot.inertia import transform_matrix
 from ident.robot.robot_config import RobotDescription, load_robot_config
 from ident.robot.urdf import dh_frame_in_link, urdf_from_description
 from ident.robot.urdf_load import (
@@ -169,10 +169,9 @@ class Robot:
         semi-definite with ``I1 + I2 >= I3``, relative tolerance
         :data:`~ident.robot.urdf_load.URDF_INERTIA_RTOL`); links that never move (fixed to the
         world, or behind locked joints only) cannot change the torques and are not checked.
-        A mimic joint (``<mimic joint="leader" multiplier="m" offset="o"/>``) moves with its
-        leader, ``q_f = m q_l + o``: on the chain it has no coordinate (``q`` holds the leader,
-        whose torque is ``tau_l + m tau_f``, and whose limits are narrowed to keep the
-        follower within its own); with its leader locked it is locked at ``m q_lock + o``.
+        A mimic joint moves with its leader, ``q_f = m q_l + o``: on the chain it has no
+        coordinate (the leader's torque is ``tau_l + m tau_f``, see :mod:`ident.robot.mimic`);
+        with its leader locked it is locked at ``m q_lock + o``.
 
         Parameters
         ----------
@@ -219,7 +218,6 @@ class Robot:
                 index = model.joints[model.getJointId(name)].idx_q
                 low, high = model.lowerPositionLimit[index], model.upperPositionLimit[index]
                 locked[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
-        # a follower of a locked leader is locked with it; one of a moving leader moves with it
         locked, coupled = resolve_mimic_locks(read_mimics(root, model, where), locked, given, where)
         if inertia_check:
             check_inertials(root, where, moving_links(model, locked))
@@ -227,14 +225,7 @@ class Robot:
         robot = cls(model, text, urdf_path=path)
         robot.continuous_joints = continuous
         robot.locked_joints = locked
-        robot.mimic_joints = coupled
-        if coupled:  # the leaders' limits keep the followers within theirs
-            limits = follower_limits(
-                robot.joint_names, robot.q_lower, robot.q_upper, robot.dq_max, coupled, where
-            )
-            for key, value in zip(("q_lower", "q_upper", "dq_max"), limits, strict=True):
-                value.setflags(write=False)
-                setattr(robot, key, value)
+        robot._follow_mimics(coupled, where)
         robot.package_dirs = tuple(str(p) for p in package_dirs)
         robot._check_serial(where)
         return robot
@@ -262,6 +253,18 @@ class Robot:
         robot = cls(model, text, description=description, ddq_max=description.ddq_max)
         robot._check_serial(str(description.source or description.name))
         return robot
+
+    def _follow_mimics(self, coupled: tuple[Mimic, ...], where: str) -> None:
+        """Keep the chain's mimic joints; narrow their leaders' limits to keep them in range."""
+        self.mimic_joints = coupled
+        if not coupled:
+            return
+        limits = follower_limits(
+            self.joint_names, self.q_lower, self.q_upper, self.dq_max, coupled, where
+        )
+        for key, value in zip(("q_lower", "q_upper", "dq_max"), limits, strict=True):
+            value.setflags(write=False)
+            setattr(self, key, value)
 
     def _check_serial(self, where: str) -> None:
         try:

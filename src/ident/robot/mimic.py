@@ -91,7 +91,9 @@ def _number(element: ET.Element, key: str, default: str, joint: str, where: str)
             "the file."
         ) from e
     if not math.isfinite(value):
-        raise ModelError(f"{where}: joint {joint!r}: <mimic {key}> is {value}; give a finite value.")
+        raise ModelError(
+            f"{where}: joint {joint!r}: <mimic {key}> is {value}; give a finite value."
+        )
     return value
 
 
@@ -127,9 +129,10 @@ def read_mimics(root: ET.Element, model: pin.Model, where: str) -> dict[str, Mim
             continue
         name, leader = joint.get("name", "?"), tag.get("joint", "")
         for joint_name in (name, leader):
-            if not model.existJointName(joint_name) or model.joints[
-                model.getJointId(joint_name)
-            ].nq != 1:
+            if (
+                not model.existJointName(joint_name)
+                or model.joints[model.getJointId(joint_name)].nq != 1
+            ):
                 raise ModelError(
                     f"{where}: joint {name!r} mimics {leader!r}, which is not a revolute or "
                     f"prismatic joint of the file; {_SUPPORTED}."

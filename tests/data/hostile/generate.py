@@ -543,8 +543,10 @@ def _urdf_files() -> None:
         for follower, leader in pairs:
             start = text.index(f'<joint name="{follower}"')
             end = text.index("</joint>", start) + len("</joint>")
-            text = text[:start] + text[start:end].replace("</joint>", mimic.format(leader)) + (
-                text[end:]
+            text = (
+                text[:start]
+                + text[start:end].replace("</joint>", mimic.format(leader))
+                + (text[end:])
             )
         _write(d / f"{name}.urdf", text)
     _write(d / "base.yaml", URDF_BASE)
