@@ -33,6 +33,7 @@ __all__ = [
     "follower_limits",
     "mimic_lock_reasons",
     "read_mimics",
+    "reject_coupled_chain",
     "resolve_mimic_locks",
 ]
 
@@ -283,3 +284,16 @@ def follower_limits(
                 f"[{mimic.q_lower:g}, {mimic.q_upper:g}]; fix the limits or the mimic."
             )
     return lower, upper, speed
+
+
+def reject_coupled_chain(model: pin.Model, what: str, where: str) -> None:
+    """Raise a ModelError naming the first mimic joint of ``model`` (one with no coordinate of
+    its own), for a step (``what``) that does not take a chain with mimic joints yet."""
+    for i in range(1, model.njoints):
+        if model.nvs[i] == 0:
+            raise ModelError(
+                f"{where}: joint {model.names[i]!r} is a mimic joint on the identified chain; "
+                f"{what} of such a chain is not supported yet (ident verify, the regressor, the "
+                "excitation's safety check and the MuJoCo model are); lock its leader (the "
+                "follower is locked with it) or choose a chain without it."
+            )

@@ -134,6 +134,7 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
     "robot_binary": RUN_BASE.replace(PAPER_ROBOT, "../yaml/binary.yaml"),
     "robot_zero_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/zero_joints.urdf"),
     "robot_three_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/three_joints.urdf"),
+    "robot_mimic_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/mimic.urdf"),  # not yet
     "robot_thirty_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/thirty_joints.urdf"),
     "robot_dtd_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/dtd_entity.urdf"),
     "name_traversal_and_bad_key": RUN_BASE + "name: ../../escape\nsed: 1\n",
