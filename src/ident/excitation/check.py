@@ -3,9 +3,10 @@
 :func:`check_trajectory` evaluates every constraint a robot needs at every sample of a grid at
 least as fine as ``rate_hz`` (default 1 kHz): the clearance of every checked link pair and
 obstacle of a :class:`~ident.excitation.safety.SafetyModel`, the joint position, velocity and
-acceleration limits, and the torque limits (nominal inverse dynamics). A trajectory is
-``usable`` only when every one of them holds at every sample; a trajectory with a non-finite
-state is never usable.
+acceleration limits, the torque limits (nominal inverse dynamics), and the position and velocity
+limits of the robot's mimic joints, which move with their leaders (:func:`follower_checks`). A
+trajectory is ``usable`` only when every one of them holds at every sample; a trajectory with a
+non-finite state is never usable.
 
 Clearances are a certificate (:func:`certified_clearances`): measured on the exact collision
 geometry (meshes as coal BVH, primitives as primitives) for every pair the safety model checks,

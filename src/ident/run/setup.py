@@ -83,7 +83,7 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
     """
     try:
         robot = load_robot(config.robot, source=source)
-        reject_coupled_chain(robot.model, "a run (its identification)", source)
+        reject_coupled_chain(robot.model, "a run (its identification)", str(source))
         # the limits the design and the dense check keep: the robot's, tightened by those of
         # each export target (libfranka, the UR model), set on the robot where all read them
         limits, limit_notes = effective_limits(config.controller.export, robot, source)
