@@ -392,8 +392,10 @@ def test_locked_panda_fingers_follow_their_values():
                     data.oMf[full.getFrameId(link)].homogeneous,
                     atol=1e-12,
                 )
-    # one finger locked: the other is the 8th joint of a serial chain
-    assert Robot.from_urdf(path, lock_joints=[FINGERS[0]]).joint_names[-1] == FINGERS[1]
+    # the leader finger locked: the other mimics it (multiplier 1), so it is locked with it
+    one = Robot.from_urdf(path, lock_joints={FINGERS[0]: 0.03})
+    assert one.nq == 7
+    assert one.locked_joints == {FINGERS[0]: 0.03, FINGERS[1]: 0.03}
     # names only: locked at 0
     assert Robot.from_urdf(path, lock_joints=list(FINGERS)).locked_joints == dict.fromkeys(
         FINGERS, 0.0

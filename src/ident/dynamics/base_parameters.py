@@ -450,11 +450,11 @@ def nearly_aligned_axes(
     """
     out = []
     g = np.asarray(chain.gravity, dtype=float)
-    for i, name in enumerate(chain.joint_names):
+    for i, name in enumerate(chain.body_names):
         axis = chain.placements[i, :3, :3] @ chain.axes[i]  # in the parent joint's frame
         p = int(chain.parents[i])
         if p >= 0:
-            other, reference = chain.joint_names[p], chain.axes[p]
+            other, reference = chain.body_names[p], chain.axes[p]
         elif np.linalg.norm(g) > 0:
             other, reference = "gravity", g / np.linalg.norm(g)
         else:

@@ -5,11 +5,18 @@ parent joint frame, joint axes in the joint frame, and a prismatic flag. The fra
 Pinocchio's joint frames, so the regressor built on them uses the same parameter vector as
 ``pin.computeJointTorqueRegressor`` (inertia about each joint frame origin; fixed links are
 already merged into the body of their parent joint by Pinocchio).
+
+A chain may couple joints: a URDF mimic joint made a Pinocchio mimic joint
+(:func:`ident.robot.mimic.coupled_model`) keeps its body and joint frame but has no coordinate;
+it moves with its leader, ``q_f = m q_l + o``. The chain's ``q`` then holds the independent
+joints only (``joint_names``, ``n_joints``) while the kinematic arrays have one row per body
+(``body_names``, ``n_bodies``); :meth:`KinematicChain.body_states` expands a state to the bodies
+and :meth:`KinematicChain.coupling` projects their torques back (``tau = G^T tau_bodies``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -69,17 +76,17 @@ class KinematicChain:
     Attributes
     ----------
     joint_names :
-        Names of the ``n`` joints, base to tip.
+        Names of the ``n`` independent joints (the coordinates of ``q``), base to tip.
     parents :
-        Parent joint index of each joint, shape (n,); -1 for the base (universe).
+        Parent body index of each body, shape (nb,); -1 for the base (universe).
         For a serial chain ``parents[i] == i - 1``.
     placements :
-        Placement of each joint frame in its parent joint frame at q = 0
-        (``model.jointPlacements``), homogeneous transforms [m], shape (n, 4, 4).
+        Placement of each body's joint frame in its parent's at q = 0
+        (``model.jointPlacements``), homogeneous transforms [m], shape (nb, 4, 4).
     axes :
-        Unit joint axis in the joint frame, shape (n, 3).
+        Unit joint axis in the joint frame, shape (nb, 3).
     prismatic :
-        True for prismatic joints, False for revolute ones, shape (n,).
+        True for prismatic joints, False for revolute ones, shape (nb,).
     gravity :
         Gravity vector in the base frame [m/s^2], shape (3,).
     q_lower, q_upper :
@@ -88,6 +95,14 @@ class KinematicChain:
         Velocity limits [rad/s or m/s], shape (n,); ``inf`` where unknown.
     tau_max :
         Effort limits [N*m or N], shape (n,); ``inf`` where unknown.
+    body_names :
+        The joint of each of the ``nb`` bodies, base to tip: ``joint_names`` plus the mimic
+        joints (followers); empty (the default) means ``joint_names``.
+    coordinates :
+        Index in ``q`` of the joint that moves each body, shape (nb,); default ``0..n-1``.
+    scaling, offset :
+        Each body's joint position is ``scaling * q[coordinates] + offset`` [rad or m],
+        shape (nb,); default 1 and 0 (a mimic joint's multiplier and offset otherwise).
     """
 
     joint_names: tuple[str, ...]
@@ -100,14 +115,27 @@ class KinematicChain:
     q_upper: FloatArray
     dq_max: FloatArray
     tau_max: FloatArray
+    body_names: tuple[str, ...] = ()
+    coordinates: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    scaling: FloatArray = field(default_factory=lambda: np.zeros(0))
+    offset: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
+        if not self.body_names:  # no mimic joint: one body per coordinate, unscaled
+            object.__setattr__(self, "body_names", tuple(self.joint_names))
+            object.__setattr__(self, "coordinates", np.arange(n, dtype=np.intp))
+            object.__setattr__(self, "scaling", np.ones(n))
+            object.__setattr__(self, "offset", np.zeros(n))
+        nb = len(self.body_names)
         shapes = {
-            "parents": (n,),
-            "placements": (n, 4, 4),
-            "axes": (n, 3),
-            "prismatic": (n,),
+            "parents": (nb,),
+            "placements": (nb, 4, 4),
+            "axes": (nb, 3),
+            "prismatic": (nb,),
+            "coordinates": (nb,),
+            "scaling": (nb,),
+            "offset": (nb,),
             "gravity": (3,),
             "q_lower": (n,),
             "q_upper": (n,),
@@ -125,8 +153,45 @@ class KinematicChain:
 
     @property
     def n_joints(self) -> int:
-        """Number of joints (= nq = nv = number of bodies)."""
+        """Number of independent joints (= nq = nv; = n_bodies without mimic joints)."""
         return len(self.joint_names)
+
+    @property
+    def n_bodies(self) -> int:
+        """Number of moving bodies (10 parameters each), mimic joints' bodies included."""
+        return len(self.body_names)
+
+    @property
+    def joint_bodies(self) -> IntArray:
+        """The body of each independent joint, shape (n,) (``0..n-1`` without mimic joints)."""
+        return np.array([self.body_names.index(name) for name in self.joint_names], dtype=np.intp)
+
+    @property
+    def coupled(self) -> bool:
+        """True when some body moves with a mimic joint (``n_bodies > n_joints``)."""
+        return self.n_bodies != self.n_joints
+
+    def coupling(self) -> FloatArray:
+        """``G`` of shape (nb, n): ``dq_bodies = G @ dq``, ``tau = G^T @ tau_bodies``."""
+        out = np.zeros((self.n_bodies, self.n_joints))
+        out[np.arange(self.n_bodies), self.coordinates] = self.scaling
+        return out
+
+    def body_states(
+        self, q: FloatArray, dq: FloatArray, ddq: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Joint positions, velocities and accelerations of every body, (..., nb) each, from
+        the independent joints' (..., n): ``q_b = s q[c] + o``, ``dq_b = s dq[c]``, ..."""
+        c, s = self.coordinates, self.scaling
+        return (
+            self.body_positions(q),
+            np.ascontiguousarray(dq[..., c] * s),
+            np.ascontiguousarray(ddq[..., c] * s),
+        )
+
+    def body_positions(self, q: FloatArray) -> FloatArray:
+        """Joint position of every body [rad or m], (..., nb), from ``q`` (..., n)."""
+        return np.ascontiguousarray(q[..., self.coordinates] * self.scaling + self.offset)
 
     @property
     def nq(self) -> int:
@@ -142,7 +207,9 @@ class KinematicChain:
         """Position limits with unknown ones replaced by ``DEFAULT_Q_RANGE`` (``[-pi, pi]`` rad,
         ``[-1, 1]`` m) [rad or m], shapes (n,)."""
         default_range = np.where(
-            self.prismatic, DEFAULT_Q_RANGE["prismatic"], DEFAULT_Q_RANGE["revolute"]
+            self.prismatic[self.joint_bodies],
+            DEFAULT_Q_RANGE["prismatic"],
+            DEFAULT_Q_RANGE["revolute"],
         )
         lower = np.where(np.isfinite(self.q_lower), self.q_lower, -default_range)
         upper = np.where(np.isfinite(self.q_upper), self.q_upper, default_range)
@@ -169,18 +236,23 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
     ----------
     model :
         Pinocchio model whose joints 1..njoints-1 form a serial chain of 1-DoF revolute
-        (about any axis) or prismatic joints.
+        (about any axis) or prismatic joints, some of which may be Pinocchio mimic joints of an
+        earlier one (:func:`ident.robot.mimic.coupled_model`).
 
     Returns
     -------
     :
-        The chain arrays, in Pinocchio's joint frames and joint order.
+        The chain arrays, in Pinocchio's joint frames and joint order; ``joint_names`` are the
+        independent joints, ``body_names`` every joint (mimic joints with their leader's
+        coordinate, multiplier and offset).
 
     Raises
     ------
     ModelError
-        Naming the offending joint, for a floating-base, multi-DoF, spherical, planar,
-        continuous (unbounded, nq = 2) or mimic joint, or a branched model.
+        Naming the offending joint, for a floating-base, multi-DoF, spherical, planar or
+        continuous (unbounded, nq = 2) joint, or a branched model. (A URDF ``<mimic>`` tag is
+        no error: :meth:`ident.Robot.from_urdf` couples a follower on the chain to its leader
+        or locks it with its leader, and names what it does not support.)
     """
     n = model.njoints - 1
     if n < 1:
@@ -190,16 +262,25 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
     prismatic = np.zeros(n, dtype=bool)
     placements = np.zeros((n, 4, 4))
     parents = np.zeros(n, dtype=np.intp)
+    coordinates, scaling, offset = np.zeros(n, dtype=np.intp), np.ones(n), np.zeros(n)
     for i in range(1, model.njoints):
-        names.append(model.names[i])
-        axes[i - 1], prismatic[i - 1] = _serial_joint_axis(model, i)
+        joint = model.joints[i]
+        if joint.shortname() == "JointModelMimic":
+            mimic = joint.extract()
+            coordinates[i - 1] = joint.idx_q  # the leader's
+            scaling[i - 1], offset[i - 1] = float(mimic.scaling), float(mimic.offset)
+        else:
+            coordinates[i - 1] = len(names)
+            names.append(model.names[i])
+        axes[i - 1], prismatic[i - 1] = _serial_joint_axis(model, i, int(coordinates[i - 1]))
         placements[i - 1] = model.jointPlacements[i].homogeneous
         parents[i - 1] = int(model.parents[i]) - 1
-    if model.nq != n or model.nv != n:
+    if model.nq != len(names) or model.nv != len(names):
         raise ModelError(
-            f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {n} joints; {_FIX_HINT}."
+            f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {len(names)} joints; "
+            f"{_FIX_HINT}."
         )
-    q_lower, q_upper, dq_max, tau_max = _joint_limits(model, n)
+    q_lower, q_upper, dq_max, tau_max = _joint_limits(model, len(names))
     return KinematicChain(
         joint_names=tuple(names),
         parents=parents,
@@ -211,7 +292,24 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
         q_upper=q_upper,
         dq_max=dq_max,
         tau_max=tau_max,
+        body_names=tuple(model.names[1:]),
+        coordinates=coordinates,
+        scaling=scaling,
+        offset=offset,
     )
+
+
+def _mimic_axis(model: pin.Model, i: int) -> tuple[np.ndarray, bool] | None:
+    """Unit axis and ``prismatic`` of mimic joint ``i``: its motion subspace is the scaled
+    axis of the joint it wraps (Pinocchio does not expose that joint)."""
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    motion = np.array(data.joints[i].S, dtype=float).reshape(6)
+    scaling = float(model.joints[i].extract().scaling)
+    linear, angular = motion[:3] / scaling, motion[3:] / scaling
+    if np.any(linear) and np.any(angular):
+        return None
+    return (linear, True) if np.any(linear) else (angular, False)
 
 
 # What chain_from_model names a joint it cannot take, by Pinocchio's joint short name.
@@ -228,26 +326,28 @@ _UNSUPPORTED_JOINTS = {
 }
 
 
-def _serial_joint_axis(model: pin.Model, i: int) -> tuple[np.ndarray, bool]:
+def _serial_joint_axis(model: pin.Model, i: int, index: int) -> tuple[np.ndarray, bool]:
     """Unit axis (3,) in its joint frame and ``prismatic`` of joint ``i`` (1-based), after
-    checking that it is a 1-DoF joint of a serial chain with the expected indices.
+    checking that it is a 1-DoF joint (or a mimic joint of one) of a serial chain with the
+    configuration index ``index``.
 
     Raises :class:`ModelError` naming the joint.
     """
     joint = model.joints[i]
     name = model.names[i]
     kind = joint.shortname()
-    found = _joint_axis(joint)
-    if found is None or joint.nq != 1 or joint.nv != 1:
+    mimic = kind == "JointModelMimic"
+    found = _mimic_axis(model, i) if mimic else _joint_axis(joint)
+    if found is None or (not mimic and (joint.nq != 1 or joint.nv != 1)):
         what = _UNSUPPORTED_JOINTS.get(
             kind, f"a joint of type {kind} (nq={joint.nq}, nv={joint.nv})"
         )
         hint = _CONTINUOUS_HINT if "continuous" in what else _FIX_HINT
         raise ModelError(f"joint {name!r} of model {model.name!r} is {what}; {hint}.")
-    if joint.idx_q != i - 1 or joint.idx_v != i - 1:
+    if joint.idx_q != index or joint.idx_v != index:
         raise ModelError(
             f"joint {name!r} of model {model.name!r} has configuration index {joint.idx_q} "
-            f"(expected {i - 1}); {_FIX_HINT}."
+            f"(expected {index}); {_FIX_HINT}."
         )
     parent = int(model.parents[i]) - 1
     if parent != i - 2:
@@ -318,7 +418,7 @@ def random_states(
         ``[-ddq_max, ddq_max]``; each of shape (n_samples, n).
     """
     rng = np.random.default_rng(rng)
-    n = chain.n_joints
+    n = chain.n_joints  # the independent joints (a mimic joint follows its leader)
     lower, upper = chain.position_box()
     dq_max = np.where(np.isfinite(chain.dq_max), chain.dq_max, DEFAULT_DQ_MAX)
     ddq_max = np.asarray(ddq_max, dtype=float)

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ident.dynamics.chain import FloatArray, KinematicChain
+from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError
 
 __all__ = ["regressor_gram", "selected_rows"]
@@ -92,6 +93,10 @@ def selected_rows(
         out = np.empty(shape)
     elif out.shape != shape:
         raise ValueError(f"out must have shape {shape}, got {out.shape}")
+    if chain.coupled:  # mimic joints: the projected regressor (rows summed), then selected
+        y = joint_torque_regressor(chain, q, dq, ddq)[:, rows_i][:, :, cols_i]
+        out[...] = (weights[:, None] * y).reshape(shape)
+        return out
     _kernels.selected_rows_into(
         *_kernels.chain_arrays(chain), q, dq, ddq, 0, q.shape[0], rows_i, cols_i, weights, out
     )
@@ -106,7 +111,7 @@ def _selection(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     n = chain.n_joints
     rows_i = _indices(rows, n, "rows")
-    cols_i = _indices(columns, 10 * n, "columns")
+    cols_i = _indices(columns, 10 * chain.n_bodies, "columns")
     if row_weights is None:
         weights = np.ones(rows_i.size)
     else:
@@ -161,8 +166,13 @@ def regressor_gram(
         for start in range(0, n_samples, chunk):
             stop = min(start + chunk, n_samples)
             block = buffer[: (stop - start) * rows_i.size]
-            _kernels.selected_rows_into(
-                *arrays, q[b], dq[b], ddq[b], start, stop, rows_i, cols_i, weights, block
-            )
+            if chain.coupled:
+                selected_rows(chain, q[b, start:stop], dq[b, start:stop], ddq[b, start:stop],
+                              rows=rows_i, columns=cols_i, row_weights=None, out=block)  # fmt: skip
+                block *= np.tile(weights, stop - start)[:, None]
+            else:
+                _kernels.selected_rows_into(
+                    *arrays, q[b], dq[b], ddq[b], start, stop, rows_i, cols_i, weights, block
+                )
             out[b] += block.T @ block
     return out if batched else out[0]

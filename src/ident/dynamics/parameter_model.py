@@ -117,14 +117,17 @@ def build_parameter_model(model: pin.Model, terms: ExtraTerms, *, rng: int = 0) 
     rng :
         Seed of the random states used to find the structural base parameters.
     """
-    n = model.nv
     chain = chain_from_model(model)
-    rigid_names = parameter_names(n)
+    rigid_names = parameter_names(chain.n_bodies)
     extras = extra_names(terms)
     names: list[str] = []
-    for j in range(1, n + 1):
-        names += [f"{label}{j}" for label in PRIORITY_LABELS]
-        names += [f"{kind}{j}" for kind in KINDS if j - 1 in terms.per_joint[kind]]
+    # body b's parameters, then its joint's terms (a mimic joint's body has none: no motor)
+    joint_of_body = {int(b): j for j, b in enumerate(chain.joint_bodies)}
+    for b in range(chain.n_bodies):
+        names += [f"{label}{b + 1}" for label in PRIORITY_LABELS]
+        j = joint_of_body.get(b)
+        if j is not None:
+            names += [f"{kind}{j + 1}" for kind in KINDS if j in terms.per_joint[kind]]
     names += [e for e in extras if e.startswith(("Iam", "fvm", "fsm"))]
     inertial_index = np.array(
         [rigid_names.index(nm) if nm in rigid_names else -1 for nm in names], dtype=np.intp
@@ -171,7 +174,7 @@ def stage_parameter_model(
         The joints (0-based) whose torques identify the stage.
     """
     n = model.nv
-    rigid_names = parameter_names(n)
+    rigid_names = parameter_names(model.njoints - 1)  # every body (mimic joints' too)
     names = tuple(rigid_names[c] for c in columns)
     if tuple(base.names) != names:
         raise ValueError("stage_parameter_model: the base parameters are not over the columns")

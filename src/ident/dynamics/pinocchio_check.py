@@ -54,10 +54,35 @@ def pinocchio_regressor(
         ``regressor @ parameters_from_model(model)`` gives torques [N*m or N].
     """
     q, dq, ddq = _as_samples(q, dq, ddq)
+    if model.nv != model.njoints - 1:  # mimic joints: Pinocchio's regressor rejects them
+        return _regressor_from_rnea(model, q, dq, ddq)
     data = model.createData()
     out = np.empty((q.shape[0], model.nv, 10 * (model.njoints - 1)))
     for k in range(q.shape[0]):  # Pinocchio evaluates one state at a time
         out[k] = pin.computeJointTorqueRegressor(model, data, q[k], dq[k], ddq[k])
+    return out
+
+
+def _regressor_from_rnea(
+    model: pin.Model, q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> FloatArray:
+    """Pinocchio's regressor column by column, for a model with mimic joints, which
+    ``pin.computeJointTorqueRegressor`` does not take: RNEA is linear in the parameters, so
+    column ``c`` is ``rnea(phi_0 + e_c) - rnea(phi_0)`` with every body's parameters ``phi_0``
+    (a unit mass at the frame origin, representable by ``pin.Inertia`` as ``e_c`` alone is not).
+    Shape (n_samples, nv, 10 * (njoints - 1))."""
+    n_bodies = model.njoints - 1
+    base = np.array([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0])
+    probe = model.copy()
+    for b in range(1, model.njoints):
+        probe.inertias[b] = pin.Inertia.FromDynamicParameters(base)
+    reference = pinocchio_rnea(probe, q, dq, ddq)
+    out = np.empty((q.shape[0], model.nv, 10 * n_bodies))
+    for b in range(n_bodies):
+        for k in range(10):
+            probe.inertias[b + 1] = pin.Inertia.FromDynamicParameters(base + np.eye(10)[k])
+            out[:, :, 10 * b + k] = pinocchio_rnea(probe, q, dq, ddq) - reference
+        probe.inertias[b + 1] = pin.Inertia.FromDynamicParameters(base)
     return out
 
 
@@ -158,7 +183,7 @@ def verification_report(
     report: dict[str, Any] = {"robot": model.name, "n_joints": model.nv}
     report.update(compare_with_pinocchio(model, q, dq, ddq))
     chain = chain_from_model(model)
-    names = list(parameter_names(chain.n_joints))
+    names = list(parameter_names(chain.n_bodies))
     W = joint_torque_regressor(chain, q, dq, ddq).reshape(-1, len(names))
     methods = _counts_both_methods(W, names)
     report.update(methods["qr"])
@@ -173,7 +198,7 @@ def verification_report(
     if parameter_map is not None:
         report[map_label] = _counts_both_methods(W @ parameter_map, names)
     stages: dict[str, Any] = {}
-    if chain.n_joints == 6:
+    if chain.n_joints == 6 and not chain.coupled:  # the paper's stages: a 6R arm, no mimic
         for name, stage in paper_stages(chain).items():
             moving = list(stage.moving_joints)
             states = stage_states(stage, q[:, moving], dq[:, moving], ddq[:, moving], chain.nq)

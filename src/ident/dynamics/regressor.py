@@ -26,7 +26,7 @@ import numpy as np
 from ident.dynamics.chain import FloatArray, KinematicChain
 from ident.errors import DataError
 
-__all__ = ["joint_torque_regressor", "joint_torque_regressor_numpy"]
+__all__ = ["joint_torque_regressor", "joint_torque_regressor_numpy", "project_rows"]
 
 
 def _check_states(
@@ -69,14 +69,29 @@ def joint_torque_regressor(
     :
         Regressor of shape (n_samples, nv, 10 * n_bodies) so that ``Y @ params`` gives the
         joint torques [N*m or N] of shape (n_samples, nv); parameters in the order of
-        :func:`~ident.dynamics.parameters.parameter_names`.
+        :func:`~ident.dynamics.parameters.parameter_names`. With mimic joints
+        (``chain.coupled``) the bodies' regressor at the expanded state is projected on the
+        independent joints: ``Y = G^T Y_bodies`` (:meth:`KinematicChain.coupling`), so a
+        leader's row is its own plus ``m`` times its follower's.
     """
     q, dq, ddq = _check_states(chain, q, dq, ddq)
     from ident.dynamics import _kernels
 
-    out = np.empty((q.shape[0], chain.n_joints, 10 * chain.n_joints))
+    if chain.coupled:
+        q, dq, ddq = chain.body_states(q, dq, ddq)
+    nb = chain.n_bodies
+    out = np.empty((q.shape[0], nb, 10 * nb))
     _kernels.regressor_into(*_kernels.chain_arrays(chain), q, dq, ddq, out)
-    return out
+    return project_rows(chain, out)
+
+
+def project_rows(chain: KinematicChain, y: FloatArray) -> FloatArray:
+    """Rows of the bodies' joints, shape (n_samples, nb, k), summed onto the independent
+    joints with the mimic multipliers: ``G^T y``, shape (n_samples, nv, k); ``y`` itself
+    without mimic joints."""
+    if not chain.coupled:
+        return y
+    return np.einsum("bj,sbk->sjk", chain.coupling(), y)
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -117,6 +132,8 @@ def joint_torque_regressor_numpy(
     Slower than the compiled kernel for small chains; kept as a readable reference.
     """
     q, dq, ddq = _check_states(chain, q, dq, ddq)
+    if chain.coupled:
+        q, dq, ddq = chain.body_states(q, dq, ddq)
     n_samples, n = q.shape
     rotations = np.empty((n, n_samples, 3, 3))  # parent_R_i
     translations = np.empty((n, n_samples, 3))  # parent_p_i [m]
@@ -166,4 +183,4 @@ def joint_torque_regressor_numpy(
                 moment = rotations[j] @ moment + np.cross(
                     translations[j][:, :, None], force, axis=1
                 )
-    return out
+    return project_rows(chain, out)

@@ -130,7 +130,7 @@ def whole_chain_stage(chain: KinematicChain) -> Stage:
     """Every joint moves, every torque is used, every body is unknown: what most users do."""
     every = tuple(range(chain.n_joints))
     held = tuple(float(x) for x in default_held_positions(chain))
-    return Stage("whole", every, every, every, held)
+    return Stage("whole", every, every, tuple(range(chain.n_bodies)), held)
 
 
 def payload_stage(chain: KinematicChain, n_moving: int = 3) -> Stage:
@@ -140,7 +140,7 @@ def payload_stage(chain: KinematicChain, n_moving: int = 3) -> Stage:
     n = chain.n_joints
     moving = tuple(range(max(0, n - n_moving), n))
     held = tuple(float(x) for x in default_held_positions(chain))
-    return Stage("payload", moving, tuple(range(n)), (n - 1,), held)
+    return Stage("payload", moving, tuple(range(n)), (chain.n_bodies - 1,), held)
 
 
 def custom_stage(
@@ -193,10 +193,12 @@ def custom_stage(
         if j in moving_idx:
             raise ModelError(f"stage.held: joint {joint!r} moves in this stage; hold it or not.")
         positions[j] = float(value)
+    # bodies by the joint that moves them (a mimic joint's body too)
+    first = chain.body_names.index(names[moving_idx[0]])
     if bodies is None:
-        body_idx = tuple(range(moving_idx[0], chain.n_joints))
+        body_idx = tuple(range(first, chain.n_bodies))
     else:
-        body_idx = tuple(sorted({index(j, "bodies") for j in bodies}))
+        body_idx = tuple(sorted({_body_index(chain, j) for j in bodies}))
     return Stage(name, moving_idx, moving_idx, body_idx, tuple(float(x) for x in positions))
 
 
@@ -238,6 +240,18 @@ def spherical_wrist_gap(model: object, rng: int = 0) -> float:
 STAGE_PRESETS = ("whole", "payload", "wrist", "arm")
 
 
+def _body_index(chain: KinematicChain, joint: str) -> int:
+    """The body moved by ``joint`` (an independent or a mimic joint of the chain)."""
+    if joint not in chain.body_names:
+        close = difflib.get_close_matches(joint, chain.body_names, n=1)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        raise ModelError(
+            f"stage.bodies: {joint!r} is not a joint of the chain; {hint}joints: "
+            f"{', '.join(chain.body_names)}."
+        )
+    return chain.body_names.index(joint)
+
+
 def select_stage(robot: object, spec: str | dict) -> Stage:
     """The stage a config asks for: a preset name or ``{moving, held, bodies}``.
 
@@ -265,10 +279,11 @@ def select_stage(robot: object, spec: str | dict) -> Stage:
             f"stage {spec!r} is unknown; presets: {', '.join(STAGE_PRESETS)}, or give "
             "{moving: [joints], held: {joint: position}, bodies: [joints]}."
         )
-    if chain.n_joints != 6:
+    if chain.n_joints != 6 or chain.coupled:
+        mimic = f" and {chain.n_bodies - chain.n_joints} mimic joints" if chain.coupled else ""
         raise ModelError(
             f"stage {spec!r} is the paper's, for a 6R arm with a spherical wrist; this chain has "
-            f"{chain.n_joints} joints. Use stage: whole (every joint), or a custom stage."
+            f"{chain.n_joints} joints{mimic}. Use stage: whole (every joint), or a custom stage."
         )
     gap = spherical_wrist_gap(robot.model)  # type: ignore[attr-defined]
     if gap > 1e-6:

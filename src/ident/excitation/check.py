@@ -3,9 +3,10 @@
 :func:`check_trajectory` evaluates every constraint a robot needs at every sample of a grid at
 least as fine as ``rate_hz`` (default 1 kHz): the clearance of every checked link pair and
 obstacle of a :class:`~ident.excitation.safety.SafetyModel`, the joint position, velocity and
-acceleration limits, and the torque limits (nominal inverse dynamics). A trajectory is
-``usable`` only when every one of them holds at every sample; a trajectory with a non-finite
-state is never usable.
+acceleration limits, the torque limits (nominal inverse dynamics), and the position and velocity
+limits of the robot's mimic joints, which move with their leaders (:func:`follower_checks`). A
+trajectory is ``usable`` only when every one of them holds at every sample; a trajectory with a
+non-finite state is never usable.
 
 Clearances are a certificate (:func:`certified_clearances`): measured on the exact collision
 geometry (meshes as coal BVH, primitives as primitives) for every pair the safety model checks,
@@ -33,8 +34,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ident.excitation.constraints import JointLimits
 from ident.excitation.family import FloatArray
 from ident.excitation.safety import SafetyModel, joint_torques
+from ident.robot.mimic import Mimic
 
 __all__ = [
     "MIN_CHECK_RATE_HZ",
@@ -43,6 +46,7 @@ __all__ = [
     "certified_clearances",
     "check_trajectory",
     "dense_family_states",
+    "follower_checks",
     "step_displacements",
 ]
 
@@ -330,7 +334,9 @@ def check_trajectory(
     Parameters
     ----------
     robot :
-        The robot (its names; the limits and the nominal model come from ``safety``).
+        The robot: its mimic joints (``mimic_joints``), whose own position and velocity limits
+        are checked through their leaders (:func:`follower_checks`); the leaders' limits and
+        the nominal model come from ``safety``.
     safety :
         The safety model (collision geometry, environment, margin, limits).
     t :
@@ -352,7 +358,8 @@ def check_trajectory(
     ValueError
         For ``rate_hz`` below 1 kHz, or arrays of inconsistent shapes.
     """
-    del robot  # the safety model carries the robot's model, names and limits
+    # the safety model carries the robot's model, names and limits; the robot its mimic joints
+    mimics = tuple(getattr(robot, "mimic_joints", ()))
     if not rate_hz >= MIN_CHECK_RATE_HZ:
         raise ValueError(f"rate_hz must be >= {MIN_CHECK_RATE_HZ:g} Hz, got {rate_hz}")
     t, q, dq, ddq = _checked_arrays(safety.limits.nq, t, q, dq, ddq)
@@ -378,6 +385,7 @@ def check_trajectory(
         ("torque", tau, safety.effort_max, torque_ratio),
     ):
         checks += _peak_checks(kind, limits.joint_names, t, series, limit, ratio, finite)
+    checks += follower_checks(mimics, limits.joint_names, t, q, dq, finite)
     usable = finite and all(c.ok for c in checks)
     return SafetyReport(
         usable=bool(usable),
@@ -485,6 +493,41 @@ def _peak_checks(
             )  # fmt: skip
         )
     return checks
+
+
+def follower_checks(
+    mimics: Sequence[Mimic],
+    joint_names: Sequence[str],
+    t: FloatArray,
+    q: FloatArray,
+    dq: FloatArray,
+    finite: bool,
+) -> list[ConstraintCheck]:
+    """Position and velocity checks of the mimic joints against their own limits.
+
+    A follower moves as ``q_f = m q_l + o``, ``dq_f = m dq_l`` (its leader's columns of ``q``
+    and ``dq``, shape (n, nq)); it is named ``position:<follower>``, ``velocity:<follower>``,
+    so a trajectory that keeps its leaders within theirs but drives a follower out of its range
+    is unsafe by the follower's name.
+    """
+    if not mimics:
+        return []
+    columns = [list(joint_names).index(m.leader) for m in mimics]
+    scale = np.array([m.multiplier for m in mimics])
+    followers = JointLimits(
+        joint_names=tuple(m.follower for m in mimics),
+        q_lower=np.array([m.q_lower for m in mimics]),
+        q_upper=np.array([m.q_upper for m in mimics]),
+        dq_max=np.array([m.dq_max for m in mimics]),
+        ddq_max=np.full(len(mimics), np.inf),
+    )
+    q_f = q[:, columns] * scale + np.array([m.offset for m in mimics])
+    dq_f = dq[:, columns] * scale
+    checks = _position_checks(followers, t, q_f, finite)
+    ratio = _ratio(dq_f, followers.dq_max)
+    return checks + _peak_checks(
+        "velocity", followers.joint_names, t, dq_f, followers.dq_max, ratio, finite
+    )
 
 
 def _not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:

@@ -328,7 +328,8 @@ class ExcitationObjective:
         self.safety = safety
         self.chain = _chain_of(robot)
         nv = len(robot.joint_names)
-        n_params = 10 * nv
+        n_bodies = self.chain.n_bodies  # a mimic joint's body has parameters, no coordinate
+        n_params = 10 * n_bodies
         rows = tuple(range(nv)) if stage is None else tuple(int(r) for r in stage.torque_rows)
         cols = tuple(range(n_params)) if stage is None else tuple(int(c) for c in stage.columns)
         self.rows = rows
@@ -339,7 +340,7 @@ class ExcitationObjective:
         if base_columns is None:
             from ident.dynamics.parameters import parameter_names
 
-            all_names = parameter_names(nv)
+            all_names = parameter_names(n_bodies)
             local = select_base_columns(w_ref, [all_names[c] for c in cols])
             self.columns = tuple(cols[i] for i in local)
         else:
@@ -360,7 +361,7 @@ class ExcitationObjective:
         """Names of the base columns kept (standard parameter labels, e.g. ``"Ixx5"``)."""
         from ident.dynamics.parameters import parameter_names
 
-        names = parameter_names(len(self.robot.joint_names))
+        names = parameter_names(self.chain.n_bodies)
         return tuple(names[c] for c in self.columns)
 
     def _reference_states(

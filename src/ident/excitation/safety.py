@@ -55,10 +55,12 @@ import pinocchio as pin
 from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel
+from ident.dynamics.chain import chain_from_model
 from ident.errors import ConfigError, ModelError
 from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
 from ident.excitation.family import ConstraintViolations, FloatArray
 from ident.robot.meshes import check_urdf_meshes
+from ident.robot.mimic import coupled_model
 
 __all__ = [
     "ALWAYS_IN_CONTACT_FRACTION",
@@ -384,7 +386,9 @@ def _kinematic_model_and_geometry(
             raise ModelError(
                 f"the URDF's joints {list(full.names[1:])} do not match the robot's {list(names)}"
             )
-    return full, geom
+    # the robot's mimic joints move with their leaders here too (the same q as robot.model)
+    mimics = getattr(robot, "mimic_joints", ())
+    return coupled_model(full, mimics, str(getattr(robot, "urdf_path", None) or "URDF")), geom
 
 
 def _convexify(geom: pin.GeometryModel) -> None:
@@ -467,14 +471,14 @@ def _motion_coefficients(model: pin.Model, geom: pin.GeometryModel, n_robot: int
     offsets = [
         float(np.linalg.norm(model.jointPlacements[j].translation)) for j in range(model.njoints)
     ]
+    chain = chain_from_model(model)  # a mimic joint moves with its leader: |m| per unit of it
     for g in range(n_robot):
         obj = geom.geometryObjects[g]
         reach = _bounding_radius(obj)
         j = int(obj.parentJoint)
         while j > 0:
-            joint = model.joints[j]
-            prismatic = "P" in joint.shortname().replace("JointModel", "")[:2]
-            out[g, joint.idx_v] = 1.0 if prismatic else reach
+            scale = abs(float(chain.scaling[j - 1]))
+            out[g, chain.coordinates[j - 1]] += scale * (1.0 if chain.prismatic[j - 1] else reach)
             reach += offsets[j]
             j = int(model.parents[j])
     return out
@@ -998,9 +1002,8 @@ class SafetyModel:
         """Sort the active geometry pairs into the vectorized ones and the coal ones."""
         import coal
 
-        from ident.dynamics.chain import chain_from_model
-
         chain = chain_from_model(self.model)
+        self._chain = chain  # its body_positions expand q over mimic joints
         self._placements, self._axes, self._prismatic = (
             chain.placements,
             chain.axes,
@@ -1172,7 +1175,8 @@ class SafetyModel:
         need = np.zeros(distances.shape, dtype=bool)
         joint, centre, axis, half, radius, cylinder = self._seg
         if joint.size:
-            frames = joint_frames(self._placements, self._axes, self._prismatic, q)
+            q_bodies = self._chain.body_positions(q)
+            frames = joint_frames(self._placements, self._axes, self._prismatic, q_bodies)
             frames = np.concatenate([np.broadcast_to(np.eye(4), (n, 1, 4, 4)), frames], axis=1)
             primitive_distances(
                 frames, joint, centre, axis, half, radius, cylinder, self._seg_pairs,

@@ -9,13 +9,18 @@ about 1e-15 relative):
 - the robot's locked joints become ``fixed`` joints whose origin includes the locked position
   (rotation ``q`` about the axis for a revolute joint, translation ``q`` along it for a prismatic
   one), as Pinocchio's reduced model does;
-- ``<dynamics>`` and ``<mimic>`` are dropped; damping, armature and friction are set from the
-  measurement config, never from the file;
+- ``<dynamics>`` is dropped; damping, armature and friction are set from the measurement
+  config, never from the file;
+- a mimic joint of the robot's chain keeps its ``<mimic>``: MuJoCo's URDF import makes it a joint
+  equality ``q_f = o + m q_l`` (``polycoef="o m 0 0 0"``), the only constraint left on (stiff:
+  ``solref`` twice the timestep), so the follower moves with its leader and the leader's force is
+  ``tau_l + m tau_f``; a locked follower is fixed like any locked joint;
 - a payload of the measurement config (``measurement.payload``) is a link ``ident_payload``
   welded (fixed joint) to its link, with the payload's mass, centre of mass and inertia.
 
 Compiled model settings: gravity from the Pinocchio model (``model.gravity``), contacts, joint
-limits, equality constraints and MuJoCo's friction loss off (``mjDSBL_CONSTRAINT``), springs off
+limits, equality constraints (but the mimic joints') and MuJoCo's friction loss off
+(``mjDSBL_CONSTRAINT``, or ``mjDSBL_CONTACT`` and no limits with mimic joints), springs off
 (``mjDSBL_SPRING``), semi-implicit Euler integration with explicit damping
 (``mjDSBL_EULERDAMP``: the stored ``qacc`` is the acceleration that is integrated). Joints are
 matched to the robot's by name; links fixed to the world are fused by MuJoCo (they do not move).
@@ -63,12 +68,25 @@ class MujocoRobot:
         robot's ``q``.
     dof_index :
         ``qvel``/``qacc``/force address of each robot joint, shape (nv,).
+    mimic :
+        Per mimic joint of the robot: its ``qpos`` address, ``qvel`` address, its leader's
+        index in ``q``, multiplier and offset (:meth:`set_state` places it).
     """
 
     model: mujoco.MjModel
     joint_names: tuple[str, ...]
     qpos_index: IntArray
     dof_index: IntArray
+    mimic: tuple[tuple[int, int, int, float, float], ...] = ()
+
+    def set_state(self, data: mujoco.MjData, q: FloatArray, dq: FloatArray) -> None:
+        """Set the robot's joints to ``q, dq`` (nq,) and each mimic joint to ``m q_l + o``,
+        ``m dq_l`` (on its equality constraint, so the simulation starts without a jolt)."""
+        data.qpos[self.qpos_index] = q
+        data.qvel[self.dof_index] = dq
+        for qpos, dof, leader, multiplier, offset in self.mimic:
+            data.qpos[qpos] = multiplier * q[leader] + offset
+            data.qvel[dof] = multiplier * dq[leader]
 
 
 def _origin(joint: ET.Element) -> tuple[FloatArray, FloatArray]:
@@ -178,10 +196,9 @@ def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) 
         if name not in joints:
             raise ModelError(f"{where}: locked joint {name!r} is not in the URDF.")
         _lock(joints[name], float(value))
-    for joint in joints.values():
-        for tag in ("dynamics", "mimic"):
-            for element in joint.findall(tag):
-                joint.remove(element)
+    for joint in joints.values():  # a locked joint lost its <mimic>; a moving follower keeps it
+        for element in joint.findall("dynamics"):
+            joint.remove(element)
     compiler = ET.SubElement(ET.SubElement(root, "mujoco"), "compiler")
     compiler.set("inertiafromgeom", "false")
     compiler.set("balanceinertia", "false")
@@ -223,7 +240,8 @@ def load_mujoco(
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ModelError(f"{where}: MuJoCo cannot compile the URDF ({first}).") from e
     mj_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(model.njnt)]
-    extra = sorted(set(mj_names) - set(robot.joint_names))
+    followers = {m.follower for m in robot.mimic_joints}
+    extra = sorted(set(mj_names) - set(robot.joint_names) - followers)
     missing = sorted(set(robot.joint_names) - set(mj_names))
     if extra or missing:
         raise ModelError(
@@ -240,10 +258,9 @@ def load_mujoco(
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
     model.opt.gravity[:] = np.asarray(robot.model.gravity.linear, dtype=float)
     model.opt.disableflags |= (
-        mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-        | mujoco.mjtDisableBit.mjDSBL_SPRING
-        | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+        mujoco.mjtDisableBit.mjDSBL_SPRING | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
     )
+    model.opt.disableflags |= _constraint_flags(model, timestep_s)
     model.jnt_limited[:] = 0
     model.jnt_stiffness[:] = 0.0
     model.dof_damping[:] = 0.0
@@ -255,4 +272,29 @@ def load_mujoco(
         joint_names=tuple(robot.joint_names),
         qpos_index=np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64),
         dof_index=np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64),
+        mimic=_mimic_addresses(model, robot),
     )
+
+
+def _constraint_flags(model: mujoco.MjModel, timestep_s: float) -> int:
+    """Disable bits of the constraints: all of them, or, when mimic joints' equalities are in
+    the model, contacts only (limits are off through ``jnt_limited``), with the equalities
+    made stiff (``solref`` time constant twice the timestep, MuJoCo's smallest stable one)."""
+    if model.neq == 0:
+        return int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    model.eq_solref[:] = [2.0 * timestep_s, 1.0]
+    model.eq_solimp[:, :3] = [0.99, 0.999, 0.001]
+    return int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+
+
+def _mimic_addresses(
+    model: mujoco.MjModel, robot: Robot
+) -> tuple[tuple[int, int, int, float, float], ...]:
+    """``(qpos, qvel address, leader index in q, multiplier, offset)`` per mimic joint."""
+    out = []
+    for mimic in robot.mimic_joints:
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, mimic.follower)
+        leader = list(robot.joint_names).index(mimic.leader)
+        out.append((int(model.jnt_qposadr[i]), int(model.jnt_dofadr[i]), leader,
+                    mimic.multiplier, mimic.offset))  # fmt: skip
+    return tuple(out)

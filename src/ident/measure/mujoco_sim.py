@@ -441,8 +441,7 @@ def _run_closed_loop(
     # A diverging simulation must fail loudly, not restart from qpos0.
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
     data = mujoco.MjData(model)
-    data.qpos[qi] = q_ref[0]
-    data.qvel[di] = dq_ref[0]
+    mj.set_state(data, q_ref[0], dq_ref[0])  # mimic joints on their leaders
     n_log = n_total - k0
     out = _LoopRun(*(np.empty((n_log, n)) for n in (robot.nq, nv, nv, robot.nq, nv)))
     q_prev = None

@@ -33,6 +33,13 @@ from ident.errors import DataError, ModelError
 from ident.inputs import read_urdf_text
 from ident.robot.dh import DHTable
 from ident.robot.inertia import transform_matrix
+from ident.robot.mimic import (
+    Mimic,
+    coupled_model,
+    follower_limits,
+    read_mimics,
+    resolve_mimic_locks,
+)
 from ident.robot.robot_config import RobotDescription, load_robot_config
 from ident.robot.urdf import dh_frame_in_link, urdf_from_description
 from ident.robot.urdf_load import (
@@ -82,11 +89,15 @@ class Robot:
     description :
         The full robot description when built from a config, else ``None``.
     joint_names :
-        Names of the joints, base to tip.
+        Names of the independent joints (the coordinates of ``q``), base to tip.
     continuous_joints :
         URDF joints declared continuous, modelled as revolute joints without position limit.
     locked_joints :
-        URDF joints held fixed (name -> position [rad or m]); not in the model.
+        URDF joints held fixed (name -> position [rad or m]); not in the model. A mimic joint
+        whose leader is locked is locked at its mimic value.
+    mimic_joints :
+        URDF mimic joints on the chain, each moving with its leader (a Pinocchio mimic joint
+        of the model: its body moves, it has no coordinate; see :mod:`ident.robot.mimic`).
     nq, nv, n_bodies :
         Configuration and velocity sizes, number of moving bodies.
     q_lower, q_upper :
@@ -111,7 +122,10 @@ class Robot:
         self.description = description
         self.dh: DHTable | None = description.dh if description is not None else None
         self.name: str = description.name if description is not None else model.name
-        self.joint_names: tuple[str, ...] = tuple(model.names[1:])
+        # the independent joints: a mimic joint (nv = 0) moves with its leader
+        self.joint_names: tuple[str, ...] = tuple(
+            model.names[i] for i in range(1, model.njoints) if model.nvs[i] > 0
+        )
         self.nq: int = model.nq
         self.nv: int = model.nv
         self.n_bodies: int = model.njoints - 1
@@ -130,6 +144,7 @@ class Robot:
             array.setflags(write=False)
         self.continuous_joints: tuple[str, ...] = ()
         self.locked_joints: dict[str, float] = {}
+        self.mimic_joints: tuple[Mimic, ...] = ()
         self.package_dirs: tuple[str, ...] = ()
 
     # ------------------------------------------------------------------ constructors
@@ -154,6 +169,9 @@ class Robot:
         semi-definite with ``I1 + I2 >= I3``, relative tolerance
         :data:`~ident.robot.urdf_load.URDF_INERTIA_RTOL`); links that never move (fixed to the
         world, or behind locked joints only) cannot change the torques and are not checked.
+        A mimic joint moves with its leader, ``q_f = m q_l + o``: on the chain it has no
+        coordinate (the leader's torque is ``tau_l + m tau_f``, see :mod:`ident.robot.mimic`);
+        with its leader locked it is locked at ``m q_lock + o``.
 
         Parameters
         ----------
@@ -177,7 +195,8 @@ class Robot:
         ModelError
             Naming the file, if it is missing or malformed, has a physically inconsistent
             inertial on a moving link, names an unknown joint or link, or is not a fixed-base
-            serial chain of revolute and prismatic joints once the locked joints are removed.
+            serial chain of revolute and prismatic joints once the locked joints are removed,
+            or has a mimic joint in a case :mod:`ident.robot.mimic` does not support.
         """
         path = Path(path)
         where = str(path)
@@ -193,17 +212,20 @@ class Robot:
             model.lowerPositionLimit[index] = -np.finfo(float).max
             model.upperPositionLimit[index] = np.finfo(float).max
         locked = lock_values(model, lock_joints, where)
+        given = tuple(locked)
         for name in chain_locks(model, base_link, tip_link, where):
             if name not in locked:
                 index = model.joints[model.getJointId(name)].idx_q
                 low, high = model.lowerPositionLimit[index], model.upperPositionLimit[index]
                 locked[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
+        locked, coupled = resolve_mimic_locks(read_mimics(root, model, where), locked, given, where)
         if inertia_check:
             check_inertials(root, where, moving_links(model, locked))
-        model = locked_model(model, locked, where)
+        model = coupled_model(locked_model(model, locked, where), coupled, where)
         robot = cls(model, text, urdf_path=path)
         robot.continuous_joints = continuous
         robot.locked_joints = locked
+        robot._follow_mimics(coupled, where)
         robot.package_dirs = tuple(str(p) for p in package_dirs)
         robot._check_serial(where)
         return robot
@@ -231,6 +253,18 @@ class Robot:
         robot = cls(model, text, description=description, ddq_max=description.ddq_max)
         robot._check_serial(str(description.source or description.name))
         return robot
+
+    def _follow_mimics(self, coupled: tuple[Mimic, ...], where: str) -> None:
+        """Keep the chain's mimic joints; narrow their leaders' limits to keep them in range."""
+        self.mimic_joints = coupled
+        if not coupled:
+            return
+        limits = follower_limits(
+            self.joint_names, self.q_lower, self.q_upper, self.dq_max, coupled, where
+        )
+        for key, value in zip(("q_lower", "q_upper", "dq_max"), limits, strict=True):
+            value.setflags(write=False)
+            setattr(self, key, value)
 
     def _check_serial(self, where: str) -> None:
         try:

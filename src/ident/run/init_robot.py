@@ -17,6 +17,7 @@ from ident.errors import ConfigError
 from ident.excitation.safety import build_safety_model
 from ident.inputs import read_urdf_text
 from ident.model.robot import Robot
+from ident.robot.mimic import mimic_lock_reasons, read_mimics
 from ident.robot.urdf_load import (
     build_model,
     chain_locks,
@@ -51,7 +52,8 @@ def choose_locks(
     """Joints to lock (name -> position) and one reason line per lock."""
     where = str(urdf)
     text = read_urdf_text(urdf)
-    revolute_text, _ = continuous_as_revolute(parse_xml(text, where), text)
+    root = parse_xml(text, where)
+    revolute_text, _ = continuous_as_revolute(root, text)
     model = build_model(revolute_text, where)
     reasons: dict[str, str] = {name: "given with --lock" for name in lock}
     if base_link is not None or tip_link is not None:
@@ -85,6 +87,11 @@ def choose_locks(
         idx = model.joints[jid].idx_q
         low, high = model.lowerPositionLimit[idx], model.upperPositionLimit[idx]
         values[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
+    mimics = read_mimics(root, model, where)
+    for name, why in mimic_lock_reasons(mimics, values).items():
+        if name not in lock:  # a lock given with --lock stands
+            values[name] = float(mimics[name].position(values[mimics[name].leader]))
+            reasons[name] = why
     lines = [f"{name} locked at {_fmt(values[name])}: {why}" for name, why in reasons.items()]
     return values, lines
 

@@ -24,6 +24,7 @@ from ident.inputs import JobEstimate, check_job
 from ident.measure.mujoco_config import check_joint_counts
 from ident.model import Robot
 from ident.model.selection import load_robot, set_robot_limits
+from ident.robot.mimic import reject_coupled_chain
 from ident.run.config import RunConfig, load_run_config
 from ident.run.exports.run_exports import effective_limits
 
@@ -82,6 +83,7 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
     """
     try:
         robot = load_robot(config.robot, source=source)
+        reject_coupled_chain(robot.model, "a run (its identification)", str(source))
         # the limits the design and the dense check keep: the robot's, tightened by those of
         # each export target (libfranka, the UR model), set on the robot where all read them
         limits, limit_notes = effective_limits(config.controller.export, robot, source)

@@ -134,6 +134,7 @@ RUN_CASES: dict[str, tuple[str, str] | str] = {
     "robot_binary": RUN_BASE.replace(PAPER_ROBOT, "../yaml/binary.yaml"),
     "robot_zero_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/zero_joints.urdf"),
     "robot_three_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/three_joints.urdf"),
+    "robot_mimic_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/mimic.urdf"),  # not yet
     "robot_thirty_joint_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/thirty_joints.urdf"),
     "robot_dtd_urdf": RUN_BASE.replace(PAPER_ROBOT, "../urdf/dtd_entity.urdf"),
     "name_traversal_and_bad_key": RUN_BASE + "name: ../../escape\nsed: 1\n",
@@ -349,6 +350,11 @@ VERIFY_CASES: dict[str, list[str] | tuple[list[str], str]] = {
     "urdf_inf_limit": ["--urdf", "{data}/urdf/inf_limit.urdf"],
     "urdf_dir": ["--urdf", "{data}/urdf"],
     "urdf_missing": ["--urdf", "{data}/urdf/nope.urdf"],
+    # mimic joints ident does not take: a follower of a follower, a follower above its leader,
+    # a follower locked while its leader moves
+    "urdf_mimic_of_mimic": ["--urdf", "{data}/urdf/mimic_of_mimic.urdf"],
+    "urdf_mimic_above_leader": ["--urdf", "{data}/urdf/mimic_above_leader.urdf"],
+    "urdf_mimic_follower_locked": ["--urdf", "{data}/urdf/mimic.urdf", "--lock", "j3=0.1"],
     "robot_bomb": ["--robot", "{data}/yaml/bomb.yaml"],
     "robot_300_joints": ["--robot", "{data}/urdf/many_joints.yaml"],  # above the job ceilings
     "robot_and_urdf": ["--robot", "{data}/urdf/base.yaml", "--urdf", "{data}/base/rp2.urdf"],
@@ -528,6 +534,22 @@ def _urdf_files() -> None:
     _write(d / "truncated.urdf", _urdf_chain(2)[:300])
     _write(d / "not_robot.urdf", '<?xml version="1.0"?>\n<html><body/></html>\n')
     _write(d / "inf_limit.urdf", _urdf_chain(2).replace('upper="1"', 'upper="inf"'))
+    mimic = '<mimic joint="{}" multiplier="-0.5" offset="0.1"/></joint>'
+    for name, pairs in (
+        ("mimic", (("j3", "j2"),)),
+        ("mimic_of_mimic", (("j3", "j2"), ("j2", "j1"))),
+        ("mimic_above_leader", (("j2", "j3"),)),
+    ):
+        text = _urdf_chain(3)
+        for follower, leader in pairs:
+            start = text.index(f'<joint name="{follower}"')
+            end = text.index("</joint>", start) + len("</joint>")
+            text = (
+                text[:start]
+                + text[start:end].replace("</joint>", mimic.format(leader))
+                + (text[end:])
+            )
+        _write(d / f"{name}.urdf", text)
     _write(d / "base.yaml", URDF_BASE)
     n = 300
     _write(

@@ -94,6 +94,7 @@ from ident.identify.pipeline.estimates import (
 )
 from ident.measure.logs import RobotLog
 from ident.model.selection import load_robot
+from ident.robot.mimic import reject_coupled_chain
 from ident.signals import derivative
 from ident.trajectory import JointTrajectory
 
@@ -546,6 +547,7 @@ def _uncertainty_summary(
 
 
 def _check_joints(log: RobotLog, model: pin.Model, source: str) -> list[str]:
+    reject_coupled_chain(model, "identification", source)
     joints = [str(model.names[i]) for i in range(1, model.njoints)]
     if list(log.joint_names) != joints:
         raise DataError(
