@@ -31,7 +31,7 @@ from ident.measure.readers.registry import TIME_NAMES, LogTable, check_regular_f
 __all__ = ["BLOCK_BYTES", "estimate_npz", "is_npz", "read_npz"]
 
 _READ_BYTES_PER_S = 200e6  # decompressed and converted per second (estimate)
-BLOCK_BYTES = 1 << 22  # bytes of a member decompressed and converted at once
+BLOCK_BYTES = 1 << 18  # bytes of a member decompressed and converted at once (256 kB)
 
 
 def is_npz(path: Path) -> bool:
