@@ -1,7 +1,7 @@
 """Long logs in bounded memory: one hour at 1 kHz of a 7-joint arm, end to end.
 
     PYTHONPATH=src python benchmarks/bench_identify_long.py [--minutes 60] [--rate 1000]
-        [--mcap-minutes 60]
+        [--mcap-minutes 60] [--csv-minutes 60] [--skip-npz]
 
 1. Generates the log of a Franka Panda with its fingers removed (7 joints): a random
    joint-space Fourier trajectory (5 harmonics of 0.1 Hz), ideal rigid-body torques (the
@@ -27,11 +27,17 @@
    within 20 MB of the numpy log's; the reader before held every message of the file as an
    object, ~800 bytes each, and decoded 70 us per message; the one before that kept a dict
    per message and reached 5.4 GB).
+6. The same kind of log as a wide ``.csv.gz`` (``t, q/0..6, tau/0..6``) and as a long CSV
+   (``t, joint, q, tau``: one row per sample and joint, 25.2 million rows for an hour;
+   ``--csv-minutes``; 0 skips them), identified by ``ident identify`` in a subprocess: wall
+   time and peak memory (target: < 1 GB, i.e. the columns plus a block of text, not the text
+   nor its rows as Python objects).
 """
 
 from __future__ import annotations
 
 import argparse
+import gzip
 import importlib.metadata
 import json
 import os
@@ -294,6 +300,75 @@ def compare(urdf: Path, folder: Path, minutes: float, rate: float) -> float:
     return float(np.linalg.norm(a - b) / np.linalg.norm(a))
 
 
+def write_csvs(npz: Path, folder: Path) -> tuple[Path, Path]:
+    """The numpy log as a wide ``.csv.gz`` and a long ``.csv`` (one row per sample and
+    joint), written a minute of samples at a time."""
+    data = np.load(npz)
+    t, q, tau = data["t"], data["q"], data["tau"]
+    nv = q.shape[1]
+    wide, long = folder / "long-wide.csv.gz", folder / "long-long.csv"
+    header = ",".join(["t"] + [f"q/{k}" for k in range(nv)] + [f"tau/{k}" for k in range(nv)])
+    with gzip.open(wide, "wt", compresslevel=1) as fw, open(long, "w") as fl:
+        fw.write(header + "\n")
+        fl.write("t,joint,q,tau\n")
+        for a in range(0, t.size, 60_000):
+            b = min(t.size, a + 60_000)
+            rows = np.column_stack([t[a:b], q[a:b], tau[a:b]])
+            np.savetxt(fw, rows, delimiter=",", fmt="%.17g")
+            joint = np.tile(np.arange(nv), b - a)
+            stacked = np.column_stack([np.repeat(t[a:b], nv), q[a:b].ravel(), tau[a:b].ravel()])
+            fl.writelines(
+                f"{r[0]!r},j{j},{r[1]!r},{r[2]!r}\n"
+                for r, j in zip(stacked.tolist(), joint, strict=True)
+            )
+    return wide, long
+
+
+def csv_case(urdf: Path, folder: Path, minutes: float, rate: float) -> None:
+    """Step 6: the log as a wide .csv.gz and a long CSV, identified in bounded memory."""
+    npz = folder / "csv-source.npz"
+    generate(urdf, minutes, rate, npz, seed=7)
+    t0 = time.perf_counter()
+    wide, long = write_csvs(npz, folder)
+    npz.unlink()
+    n = int(minutes * 60 * rate)
+    print(
+        f"CSV: {n} samples ({minutes:g} min at {rate:g} Hz, 7 joints) written in "
+        f"{time.perf_counter() - t0:.0f} s: wide .csv.gz {wide.stat().st_size / 2**20:.0f} MB, "
+        f"long .csv {long.stat().st_size / 2**20:.0f} MB"
+    )
+    cases = [
+        ("wide csv.gz", wide, None, None),
+        ("long csv", long, [f"q/j{k}" for k in range(7)], [f"tau/j{k}" for k in range(7)]),
+    ]
+    for what, path, position, torque in cases:
+        cfg = config(
+            urdf,
+            path,
+            folder / f"{path.stem}.yaml",
+            position=position,
+            torque=torque,
+            max_regressor_mb=256.0,
+        )
+        if what == "long csv":
+            text = yaml.safe_load(cfg.read_text())
+            text["log"]["format"] = "csv_long"
+            cfg.write_text(yaml.safe_dump(text))
+        out = folder / f"runs-{path.stem}"
+        run = run_cli(cfg, out)
+        (rundir,) = out.iterdir()
+        result = json.loads((rundir / "result.json").read_text())
+        estimates = [x for x in run["stderr"].splitlines() if x.startswith("estimate:")]
+        print(
+            f"ident identify on the {what}: wall {run['wall_s']:.1f} s, CPU {run['cpu_s']:.1f} "
+            f"s, peak memory {run['peak_mb']:.0f} MB (target < 1024 MB); relative residual "
+            f"{result['relative_residual']:.4f}; load average {os.getloadavg()[0]:.1f}"
+        )
+        for line in estimates:
+            print(f"  printed before the work: {line}")
+        path.unlink()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=60.0)
@@ -301,7 +376,8 @@ def main() -> None:
     parser.add_argument("--compare-minutes", type=float, default=1.0)
     parser.add_argument("--per-sample", type=int, default=20000)
     parser.add_argument("--mcap-minutes", type=float, default=60.0)
-    parser.add_argument("--skip-npz", action="store_true", help="only the MCAP case")
+    parser.add_argument("--csv-minutes", type=float, default=60.0)
+    parser.add_argument("--skip-npz", action="store_true", help="only the MCAP and CSV cases")
     args = parser.parse_args()
     from threadpoolctl import threadpool_limits
 
@@ -310,6 +386,8 @@ def main() -> None:
         urdf = panda7(folder)
         if args.mcap_minutes > 0:
             mcap_case(urdf, folder, args.mcap_minutes, args.rate)
+        if args.csv_minutes > 0:
+            csv_case(urdf, folder, args.csv_minutes, args.rate)
         if args.skip_npz:
             return
         t0 = time.perf_counter()

@@ -344,12 +344,14 @@ def test_csv_refuses_devices_long_lines_and_bombs(tmp_path, monkeypatch):
         f.write(b"t,q1,q2\n")
         f.write(b"0,0,0\n" * (4 << 20))
     monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "0.01")
-    with pytest.raises(ConfigError, match="many.csv.gz: reading at least 262144 rows x 3 col"):
+    # counted before anything is allocated: 12 bytes of numbers per 6 characters of text
+    with pytest.raises(ConfigError, match="many.csv.gz: reading at least 349525 lines"):
         read_tables(many)
     from ident.measure.readers import estimate_read
 
     estimate = estimate_read(many)  # from the gzip trailer: 24 MB of text before reading it
-    assert estimate.memory_bytes == pytest.approx(2 * 8 * 3 * (4 << 20), rel=0.01)
+    # three numbers and a line number per row, plus one block of text
+    assert estimate.memory_bytes == pytest.approx(8 * 4 * (4 << 20) + 32e6, rel=0.01)
 
 
 def test_csv_blocks_give_the_same_table_as_one_parse(tmp_path, monkeypatch):
@@ -381,8 +383,8 @@ def test_npz_checked_from_its_headers(tmp_path, monkeypatch):
             read_tables(HOSTILE_LOGS / f"{name}.npz")
     # a real compressed archive of 10 million samples (800 kB on disk) above the ceiling
     np.savez_compressed(tmp_path / "big.npz", t=np.zeros(10_000_000))
-    monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "0.1")
-    with pytest.raises(ConfigError, match="about 160 MB of memory.*IDENT_MAX_MEMORY_GB"):
+    monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "0.05")  # read as float64 plus one 256 kB block
+    with pytest.raises(ConfigError, match="about 80.3 MB of memory.*IDENT_MAX_MEMORY_GB"):
         read_tables(tmp_path / "big.npz")
     np.savez(tmp_path / "ok.npz", t=np.arange(5.0), q=np.ones((5, 2)), rate=100.0)
     (table,) = read_tables(tmp_path / "ok.npz")
@@ -431,7 +433,8 @@ def test_gzip_text_estimated_from_its_trailer_before_reading(tmp_path, monkeypat
     )
     estimate = estimate_log(cfg)
     rows = (3 << 30) / 10  # 10 characters per line
-    assert estimate.memory_bytes == pytest.approx(2 * 2 * 8 * 5 * rows, rel=0.01)
+    # reading (5 numbers and a line number per row, one block) and the signals beside it
+    assert estimate.memory_bytes == pytest.approx(2 * (8 * 6 * rows + 32e6), rel=0.01)
     monkeypatch.setenv("IDENT_MAX_MEMORY_GB", "2")
     with pytest.raises(ConfigError, match=r"reading the log \(bomb.csv.gz\).*above the memory"):
         check_job(estimate)

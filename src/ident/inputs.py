@@ -33,6 +33,8 @@ from ident.errors import ConfigError, ModelError
 
 __all__ = [
     "DEFAULT_MAX_HOURS",
+    "DEFAULT_MAX_MEMORY_GB",
+    "DEFAULT_MEMORY_SHARE",
     "MAX_HOURS_ENV",
     "MAX_MEMORY_ENV",
     "JobEstimate",
@@ -42,6 +44,7 @@ __all__ = [
     "check_output_dir",
     "check_output_file",
     "check_urdf_numbers",
+    "default_max_memory_gb",
     "max_workers",
     "read_urdf_text",
     "refuse_dtd",
@@ -52,8 +55,11 @@ __all__ = [
 MAX_MEMORY_ENV = "IDENT_MAX_MEMORY_GB"
 MAX_HOURS_ENV = "IDENT_MAX_HOURS"
 DEFAULT_MAX_HOURS = 24.0
-# share of the physical memory a job may plan to use when IDENT_MAX_MEMORY_GB is unset
-_DEFAULT_MEMORY_SHARE = 0.5
+# when IDENT_MAX_MEMORY_GB is unset, a job may plan to use a quarter of the physical memory,
+# at most 4 GB: a shared machine keeps room for others, and a small file that declares
+# gigabytes (a decompression bomb) is refused at once rather than read up to half the RAM
+DEFAULT_MEMORY_SHARE = 0.25
+DEFAULT_MAX_MEMORY_GB = 4.0
 _PSEUDO_FILE_SYSTEMS = (Path("/proc"), Path("/sys"), Path("/dev"))
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 _MAX_COMPONENT = 80
@@ -362,13 +368,19 @@ def _env_positive(name: str, default: float) -> float:
     return float(check_number(value, name, low=0.0, low_inclusive=False))
 
 
+def default_max_memory_gb() -> float:
+    """The memory ceiling [GB] when ``IDENT_MAX_MEMORY_GB`` is unset: a quarter of the
+    physical memory, at most :data:`DEFAULT_MAX_MEMORY_GB` (4 GB)."""
+    return min(DEFAULT_MAX_MEMORY_GB, DEFAULT_MEMORY_SHARE * _physical_memory() / 1e9)
+
+
 def resource_ceilings() -> tuple[float, float]:
     """(memory [bytes], time [s]) a job may plan to use.
 
-    ``IDENT_MAX_MEMORY_GB`` (default: half of the physical memory) and ``IDENT_MAX_HOURS``
+    ``IDENT_MAX_MEMORY_GB`` (default: :func:`default_max_memory_gb`) and ``IDENT_MAX_HOURS``
     (default :data:`DEFAULT_MAX_HOURS`) raise or lower them.
     """
-    memory_gb = _env_positive(MAX_MEMORY_ENV, _DEFAULT_MEMORY_SHARE * _physical_memory() / 1e9)
+    memory_gb = _env_positive(MAX_MEMORY_ENV, default_max_memory_gb())
     hours = _env_positive(MAX_HOURS_ENV, DEFAULT_MAX_HOURS)
     return memory_gb * 1e9, hours * 3600.0
 
@@ -383,9 +395,12 @@ def check_job(estimate: JobEstimate) -> JobEstimate:
     """
     memory, seconds = resource_ceilings()
     if estimate.memory_bytes > memory:
+        unset = not os.environ.get(MAX_MEMORY_ENV, "").strip()
+        default = " (the default: a quarter of the physical memory, at most 4 GB)" if unset else ""
         raise ResourceLimitError(
-            f"{estimate.describe()}, above the memory ceiling of {_bytes(memory)}; make the "
-            f"job smaller, or raise the ceiling with {MAX_MEMORY_ENV}=<GB> if the machine has it."
+            f"{estimate.describe()}, above the memory ceiling of {_bytes(memory)}{default}; "
+            f"make the job smaller, or raise the ceiling with {MAX_MEMORY_ENV}=<GB> if the "
+            "machine has it."
         )
     if estimate.seconds > seconds:
         raise ResourceLimitError(

@@ -8,6 +8,7 @@ format with :func:`register_reader` (see ``docs/logs.md``, "Extending").
 from __future__ import annotations
 
 from ident.measure.readers import csv as _csv
+from ident.measure.readers import csv_long as _csv_long
 from ident.measure.readers import npz as _npz
 from ident.measure.readers import ros as _ros
 from ident.measure.readers.registry import (
@@ -55,7 +56,7 @@ register_reader(
 )
 register_reader(
     "csv_long",
-    _csv.read_csv_long,
+    _csv_long.read_csv_long,
     description="CSV, one row per sample and joint (time, joint, values)",
     estimate=_csv.estimate_csv,
 )

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import gzip
 import io
-import re
 import struct
 import zlib
 from collections.abc import Iterator, Mapping
@@ -31,24 +30,30 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import DataError
-from ident.inputs import JobEstimate, check_job
+from ident.inputs import JobEstimate, check_job, resource_ceilings
 from ident.measure.readers.registry import TIME_NAMES, LogTable, check_regular_file
 
 __all__ = [
     "BLOCK_LINES",
+    "COUNT_BYTES",
     "MAX_LINE_CHARS",
+    "count_lines",
     "estimate_csv",
     "is_text",
     "open_text",
     "read_csv",
-    "read_csv_long",
     "sniff_delimiter",
 ]
 
 # A line of 10 000 numbers is about 200 000 characters: a longer one is not a log line.
 MAX_LINE_CHARS = 1 << 20
 BLOCK_LINES = 1 << 16  # lines parsed at once
+COUNT_BYTES = 1 << 20  # text decompressed at once to count the lines
+# the text and parsed numbers of a block held at once: 65 536 lines of up to ~200 characters
+_BLOCK_BYTES = 32e6
 _PARSE_BYTES_PER_S = 30e6  # text parsed per second (estimate)
+
+FloatArray = npt.NDArray[np.float64]
 
 _TEXT_SUFFIXES = {".csv", ".tsv", ".txt", ".dat", ".log"}
 
@@ -76,7 +81,7 @@ def sniff_delimiter(line: str) -> str | None:
     return None
 
 
-def _split(line: str, delimiter: str | None) -> list[str]:
+def split_fields(line: str, delimiter: str | None) -> list[str]:
     return [f.strip() for f in (line.split(delimiter) if delimiter else line.split())]
 
 
@@ -100,7 +105,7 @@ def text_size(path: Path) -> int:
     return max(isize, size)
 
 
-def _lines(path: Path) -> Iterator[tuple[int, str]]:
+def lines_of(path: Path) -> Iterator[tuple[int, str]]:
     """``(line number, text)`` of every line (1-based, blank lines included), each at most
     :data:`MAX_LINE_CHARS` long."""
     try:
@@ -121,47 +126,73 @@ def _lines(path: Path) -> Iterator[tuple[int, str]]:
         raise DataError(f"{path}: cannot read the log file ({e}).") from e
 
 
-def _first_line(lines: Iterator[tuple[int, str]]) -> str:
+def first_line(lines: Iterator[tuple[int, str]]) -> str:
     return next(lines, (0, ""))[1]
 
 
-def _check_memory(path: Path, n_rows: int, n_columns: int) -> None:
-    """Refuse when the numbers read so far need more than the memory ceiling (a block list
-    and the final array: twice the values)."""
-    check_job(
-        JobEstimate(
-            f"{path}: reading at least {n_rows} rows x {n_columns} columns",
-            2.0 * 8.0 * n_rows * n_columns,
-            0.0,
-        )
-    )
+def count_lines(path: Path, bytes_per_line: float) -> int:
+    """Lines of the text (decompressed, the last one without a line break counted), read
+    :data:`COUNT_BYTES` at a time in constant memory; refused as soon as their numbers
+    (``bytes_per_line`` each) would pass the memory ceiling, so a decompression bomb stops
+    here, before anything grows with it.
+
+    Raises
+    ------
+    ResourceLimitError
+        Naming the file, the lines counted so far and ``IDENT_MAX_MEMORY_GB``.
+    DataError
+        For an unreadable or damaged file.
+    """
+    ceiling, _ = resource_ceilings()
+    n, last = 0, b"\n"
+    try:
+        with _open_bytes(path) as f:
+            while chunk := f.read(COUNT_BYTES):
+                n += chunk.count(b"\n")
+                last = chunk[-1:]
+                if n * bytes_per_line > ceiling:  # a product and a comparison per block
+                    check_job(
+                        JobEstimate(f"{path}: reading at least {n} lines", n * bytes_per_line, 0.0)
+                    )
+    except (OSError, EOFError, zlib.error) as e:  # zlib: a damaged .gz
+        raise DataError(f"{path}: cannot read the log file ({e}).") from e
+    return n + (last != b"\n")
+
+
+def _open_bytes(path: Path) -> io.BufferedIOBase:
+    check_regular_file(path)
+    if path.suffix == ".gz":
+        return gzip.open(path, "rb")  # type: ignore[return-value]
+    return open(path, "rb")  # noqa: SIM115 - closed by the caller's with
 
 
 def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
     """Memory and time of reading the text log ``path`` (its size over its first line's)."""
     first = ""  # the first data line (the second non-blank one when there is a header)
     seen = 0
-    for _, line in _lines(path):
+    for _, line in lines_of(path):
         if line.strip():
             first, seen = line, seen + 1
             if seen == 2:
                 break
     size = text_size(path)
     n_rows = size / max(len(first), 1)
-    n_columns = max(len(_split(first, options.get("delimiter") or sniff_delimiter(first))), 1)
+    n_columns = max(len(split_fields(first, options.get("delimiter") or sniff_delimiter(first))), 1)
     return JobEstimate(
         f"reading {path.name}: about {n_rows:.3g} rows x {n_columns} columns",
-        2.0 * 8.0 * n_rows * n_columns,
+        8.0 * n_rows * (n_columns + 1) + _BLOCK_BYTES,  # the numbers, a line number per row
         size / _PARSE_BYTES_PER_S,
     )
 
 
-def _parse(
+def parse(
     path: Path,
     lines: list[tuple[int, str]],
     delimiter: str | None,
     header: list[str],
 ) -> FloatArray:
+    """The numbers of the text ``lines`` ``(line number, text)``, shape (len(lines),
+    len(header)); a line that is not numbers is named in the error."""
     if not lines:
         raise DataError(f"{path}: the file has no samples.")
     rows = [line for _, line in lines]
@@ -169,7 +200,7 @@ def _parse(
         data = np.loadtxt(rows, delimiter=delimiter, ndmin=2, dtype=float)
     except ValueError as e:
         for n, line in lines:
-            fields = _split(line, delimiter)
+            fields = split_fields(line, delimiter)
             if len(fields) != len(header):
                 raise DataError(
                     f"{path}: line {n} has {len(fields)} fields, the header has "
@@ -195,64 +226,84 @@ def _parse(
     return data
 
 
-FloatArray = npt.NDArray[np.float64]
-
-
-def _table(
-    path: Path, options: Mapping[str, Any]
-) -> tuple[FloatArray, list[str], npt.NDArray[np.int64]]:
-    lines = _lines(path)
-    first = _first_line(lines)
+def _header(
+    path: Path, first: str, options: Mapping[str, Any]
+) -> tuple[list[str], str | None, bool]:
+    """(column names, delimiter, whether ``first`` is a header line) of a wide text log."""
     delimiter = options.get("delimiter") or sniff_delimiter(first)
-    fields = _split(first, delimiter)
+    fields = split_fields(first, delimiter)
     has_header = options.get("header")
     if has_header is None:
         has_header = not all(_is_number(f) for f in fields if f)
     names = options.get("names")
     if has_header:
         header = [f.strip().strip('"') for f in fields]
-        body = lines
         if names is not None and len(names) != len(header):
             raise DataError(
                 f"{path}: names lists {len(names)} columns, the header has {len(header)}."
             )
-        if names is not None:
-            header = list(names)
     else:
-        body = _chain([(1, first)], lines)
         n = len(fields)
-        if names is not None:
-            if len(names) != n:
-                raise DataError(
-                    f"{path}: names lists {len(names)} columns, the file has {n} per line."
-                )
-            header = list(names)
-        else:
-            stem = path.name.split(".")[0]
-            header = [stem] if n == 1 else [f"{stem}:{k + 1}" for k in range(n)]
-    blocks: list[FloatArray] = []
-    numbers: list[npt.NDArray[np.int64]] = []
+        if names is not None and len(names) != n:
+            raise DataError(f"{path}: names lists {len(names)} columns, the file has {n} per line.")
+        stem = path.name.split(".")[0]
+        header = [stem] if n == 1 else [f"{stem}:{k + 1}" for k in range(n)]
+    return (list(names) if names is not None else header), delimiter, bool(has_header)
+
+
+def blocks(lines: Iterator[tuple[int, str]]) -> Iterator[list[tuple[int, str]]]:
+    """The non-blank lines (without their line break) by :data:`BLOCK_LINES`."""
     block: list[tuple[int, str]] = []
-
-    def flush() -> None:
-        blocks.append(_parse(path, block, delimiter, header))
-        numbers.append(np.array([n for n, _ in block], dtype=np.int64))
-        block.clear()
-        _check_memory(path, sum(len(b) for b in blocks), len(header))
-
-    for number, line in body:
+    for number, line in lines:
         if line.strip():
             block.append((number, line.rstrip("\r\n")))
             if len(block) == BLOCK_LINES:
-                flush()
+                yield block
+                block = []
     if block:
-        flush()
-    n_rows = sum(len(b) for b in blocks)
-    if not blocks:
+        yield block
+
+
+def grew(path: Path) -> DataError:
+    """The error for a file that holds more lines than were counted before reading it."""
+    return DataError(
+        f"{path}: the file grew while it was read (a log still being written?); copy it "
+        "once it is complete and read the copy."
+    )
+
+
+def _table(
+    path: Path, options: Mapping[str, Any]
+) -> tuple[FloatArray, list[str], npt.NDArray[np.int64]]:
+    """The numbers (rows, columns; column-major: every column contiguous), the column names
+    and the file line of every row. The lines are counted first (:func:`count_lines`), the
+    array allocated once (checked against the memory ceiling) and filled block by block."""
+    lines = lines_of(path)
+    first = first_line(lines)
+    header, delimiter, has_header = _header(path, first, options)
+    per_line = 8.0 * (len(header) + 1)  # the numbers and the line number
+    capacity = count_lines(path, per_line)
+    check_job(
+        JobEstimate(
+            f"{path}: {capacity} lines x {len(header)} columns",
+            capacity * per_line + _BLOCK_BYTES,
+            0.0,
+        )
+    )
+    data = np.empty((capacity, len(header)), order="F")
+    numbers = np.empty(capacity, dtype=np.int64)
+    n_rows = 0
+    for block in blocks(lines if has_header else _chain([(1, first)], lines)):
+        m = len(block)
+        if n_rows + m > capacity:
+            raise grew(path)
+        data[n_rows : n_rows + m] = parse(path, block, delimiter, header)
+        numbers[n_rows : n_rows + m] = [n for n, _ in block]
+        n_rows += m
+    if not n_rows:
         raise DataError(f"{path}: the file has no samples.")
-    # Fortran order: every column is contiguous, taken as a view
-    data = np.concatenate(blocks, axis=0, out=np.empty((n_rows, len(header)), order="F"))
-    return data, header, np.concatenate(numbers)
+    # the first rows of a column-major array: every column is still contiguous
+    return data[:n_rows], header, numbers[:n_rows]
 
 
 def _chain(*parts: Any) -> Iterator[tuple[int, str]]:
@@ -261,7 +312,7 @@ def _chain(*parts: Any) -> Iterator[tuple[int, str]]:
         yield from part
 
 
-def _time_name(names: list[str], options: Mapping[str, Any]) -> str | None:
+def time_name(names: list[str], options: Mapping[str, Any]) -> str | None:
     wanted = options.get("time_column")
     if wanted is not None:
         return wanted if wanted in names else None
@@ -283,85 +334,8 @@ def read_csv(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     return [
         LogTable(
             columns=columns,
-            time=_time_name(header, options),
+            time=time_name(header, options),
             source=str(path),
             line_numbers=line_no,
         )
     ]
-
-
-def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
-    """Read a long text log (one row per sample and joint) and pivot it to wide columns.
-
-    Options: ``time_column`` (default: a column named like time), ``joint_column`` (default
-    ``joint``), plus those of :func:`read_csv`. The joint column holds names (text) or numbers.
-    Every other column ``v`` becomes one column ``v/<joint>`` per joint, on the time stamps in
-    the order they first appear (never sorted); every joint must have one row at every time
-    stamp. NaN/inf stamps are refused naming the line.
-    """
-    lines = _lines(path)
-    first = _first_line(lines)
-    delimiter = options.get("delimiter") or sniff_delimiter(first)
-    header = [f.strip().strip('"') for f in _split(first, delimiter)]
-    joint_col = options.get("joint_column", "joint")
-    time_col = _time_name(header, options)
-    # a stamp column in other units (``time_ms``) orders the rows but is not taken for seconds:
-    # the config names it with its unit (``log.time: {column: time_ms, unit: ms}``)
-    unit_unknown = time_col is None and options.get("time_column") is None
-    if unit_unknown:
-        time_col = next(
-            (h for h in header if re.split(r"[^a-z]+", h.lower())[0] in TIME_NAMES), None
-        )
-    for what, name in (("joint_column", joint_col), ("time_column", time_col)):
-        if name is None or name not in header:
-            raise DataError(
-                f"{path}: long format needs a {what.replace('_', ' ')} "
-                f"({name or 'time'}); the header has {', '.join(header)}."
-            )
-    assert time_col is not None  # checked just above
-    j_idx = header.index(joint_col)
-    numbered = []
-    for number, line in lines:  # the long format is pivoted in memory: bounded by the ceiling
-        if line.strip():
-            numbered.append((number, line.rstrip("\r\n")))
-            if len(numbered) % BLOCK_LINES == 0:
-                _check_memory(path, 8 * len(numbered), len(header))  # text and lists
-    split = [_split(line, delimiter) for _, line in numbered]
-    joints_raw = [fields[j_idx] if len(fields) > j_idx else "" for fields in split]
-    numeric_header = [h for k, h in enumerate(header) if k != j_idx]
-    numeric_lines = [
-        (n, (delimiter or " ").join(f for k, f in enumerate(fields) if k != j_idx))
-        for (n, _), fields in zip(numbered, split, strict=True)
-    ]
-    data = _parse(path, numeric_lines, delimiter or None, numeric_header)
-    t = data[:, numeric_header.index(time_col)]
-    bad = np.flatnonzero(~np.isfinite(t))
-    if bad.size:
-        raise DataError(
-            f"{path}: time column '{time_col}': {bad.size} time stamp(s) are NaN or infinite, "
-            f"the first at line {numeric_lines[bad[0]][0]}; remove or repair those rows."
-        )
-    joint_names = list(dict.fromkeys(joints_raw))
-    # samples in the order of the file (never sorted: the time rule handles a backwards jump)
-    unique, first_row, inverse = np.unique(t, return_index=True, return_inverse=True)
-    appearance = np.argsort(first_row, kind="stable")
-    rank = np.empty(appearance.size, dtype=np.int64)
-    rank[appearance] = np.arange(appearance.size)
-    stamps = unique[appearance]
-    columns: dict[str, FloatArray] = {time_col: stamps}
-    joints_arr = np.array(joints_raw)
-    for joint in joint_names:
-        rows = np.flatnonzero(joints_arr == joint)
-        position = rank[inverse[rows]]
-        if rows.size != stamps.size or np.any(np.bincount(position, minlength=stamps.size) != 1):
-            raise DataError(
-                f"{path}: joint '{joint}' has {rows.size} rows for {stamps.size} time stamps; "
-                "every joint needs one row per time stamp in the long format (a stamp "
-                "repeated after a clock reset: split the file into several logs, log.more)."
-            )
-        for k, name in enumerate(numeric_header):
-            if name != time_col:
-                column = np.empty(stamps.size)
-                column[position] = data[rows, k]
-                columns[f"{name}/{joint}"] = column
-    return [LogTable(columns=columns, time=None if unit_unknown else time_col, source=str(path))]

@@ -20,7 +20,9 @@ duplicates and backwards jumps.
 
 Bounded memory: messages are decoded one at a time and their values written into arrays
 preallocated from the message counts the file declares (doubled when it declares none); the
-arrays' size is checked against ``IDENT_MAX_MEMORY_GB`` before each allocation. A compressed
+arrays' size is checked against ``IDENT_MAX_MEMORY_GB`` before each allocation. A bag
+compressed as whole files is decompressed 1 MB at a time into a temporary folder, refused as
+soon as it passes the same ceiling (or its zstd frame declares more). A compressed
 MCAP chunk may not declare more than :data:`MAX_CHUNK_BYTES` once decompressed, a message may
 not be longer than :data:`MAX_MESSAGE_BYTES` nor hold more than :data:`MAX_VALUES` numbers;
 all are checked before the data are decompressed or decoded.
@@ -38,16 +40,17 @@ columns: 37 % less memory on a long log); a topic that holds none of them keeps 
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ident.errors import DataError, IdentError
-from ident.inputs import JobEstimate, check_job
+from ident.inputs import JobEstimate, check_job, resource_ceilings
 from ident.measure.readers.registry import LogTable
 
 __all__ = [
@@ -67,6 +70,7 @@ __all__ = [
 MAX_CHUNK_BYTES = 64 << 20
 MAX_MESSAGE_BYTES = 16 << 20
 MAX_VALUES = 100_000  # numbers per message, i.e. columns of a topic
+_DECOMPRESS_BYTES = 1 << 20  # a whole-file compressed bag is decompressed 1 MB at a time
 _FIRST_CAPACITY = 4096  # rows allocated for a topic whose message count is not declared
 _SECONDS_PER_MESSAGE = 1e-4  # decoding and flattening one by one, measured: 70 us
 _SECONDS_PER_JOINT_STATE = 1e-5  # a JointState of an MCAP chunk read at once: 4.1 s for 600k
@@ -429,38 +433,101 @@ def estimate_rosbag(path: Path, options: Mapping[str, Any]) -> JobEstimate:
     return _estimate(path, n_messages, n_bytes)
 
 
+def _decompress_file(source: Path, target: Path) -> None:
+    """Decompress the zstd file ``source`` into ``target``, a block at a time, refused when
+    the size its frame declares, or the bytes written so far, pass the memory ceiling (the
+    bag's messages are read from it: a small file that decompresses to terabytes stops at
+    the ceiling, not when the disk is full).
+
+    Raises
+    ------
+    ResourceLimitError
+        Naming the file and ``IDENT_MAX_MEMORY_GB``.
+    """
+    import zstandard
+
+    ceiling, _ = resource_ceilings()
+
+    def refuse(size: float, what: str) -> None:
+        check_job(JobEstimate(f"{source}: {what} {size:.0f} bytes once decompressed", size, 0.0))
+
+    with open(source, "rb") as f:
+        declared = zstandard.frame_content_size(f.read(18))
+        if declared > ceiling:  # -1: not declared
+            refuse(declared, "declares")
+        f.seek(0)
+        total = 0
+        reader = zstandard.ZstdDecompressor().stream_reader(f, read_across_frames=True)
+        with open(target, "wb") as out:
+            while block := reader.read(_DECOMPRESS_BYTES):
+                total += len(block)
+                if total > ceiling:
+                    refuse(total, "holds more than")
+                out.write(block)
+
+
+def _decompressed_bag(path: Path, folder: Path) -> Path:
+    """``path`` itself, or when the bag is compressed as whole files (``compression_mode:
+    file``), a copy in ``folder`` with its files decompressed by :func:`_decompress_file`
+    and its ``metadata.yaml`` saying so (``rosbags`` would decompress them without a bound)."""
+    import yaml
+
+    from ident.config import read_yaml
+
+    metadata = read_yaml(path / "metadata.yaml")
+    info = metadata.get("rosbag2_bagfile_information") if isinstance(metadata, dict) else None
+    if not isinstance(info, dict) or str(info.get("compression_mode", "")).lower() != "file":
+        return path
+    names = []
+    for relative in info.get("relative_file_paths") or []:
+        source = path / PurePath(str(relative)).name
+        _decompress_file(source, folder / source.stem)
+        names.append(source.stem)
+    info = {**info, "relative_file_paths": names, "compression_mode": "", "compression_format": ""}
+    (folder / "metadata.yaml").write_text(
+        yaml.safe_dump({**metadata, "rosbag2_bagfile_information": info})
+    )
+    return folder
+
+
 def read_rosbag(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
-    """Read a ROS 2 bag folder (sqlite3 or mcap storage) with ``rosbags``."""
+    """Read a ROS 2 bag folder (sqlite3 or mcap storage) with ``rosbags``; a bag compressed
+    as whole files is decompressed with a bound first (:func:`_decompressed_bag`)."""
+    try:
+        with tempfile.TemporaryDirectory(prefix="ident-bag-") as tmp:
+            bag = _decompressed_bag(path, Path(tmp))
+            return _read_bag(path, bag, options)
+    except IdentError:
+        raise
+    except Exception as e:  # rosbags, sqlite3, zstandard, CDR decoding: a damaged bag
+        raise _damaged(path, "ROS 2 bag", e) from e
+
+
+def _read_bag(path: Path, bag: Path, options: Mapping[str, Any]) -> list[LogTable]:
+    """The tables of the bag folder ``path``, read from ``bag`` (itself or its decompressed
+    copy)."""
+    from mcap.reader import make_reader
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_typestore
 
     typestore = get_typestore(Stores.ROS2_HUMBLE)
     topics = options.get("topics")
-    try:
-        for storage in sorted(path.glob("*.mcap")):  # mcap storage: chunks checked first
-            from mcap.reader import make_reader
+    for storage in sorted(bag.glob("*.mcap")):  # mcap storage: chunks checked first
+        with open(storage, "rb") as f:
+            _check_chunks(storage, f, make_reader(f).get_summary())
+    with Reader(bag) as reader:
+        connections = [c for c in reader.connections if topics is None or c.topic in topics]
+        counts: dict[str, int] = {}
+        for c in connections:
+            counts[c.topic] = counts.get(c.topic, 0) + int(c.msgcount)
 
-            with open(storage, "rb") as f:
-                _check_chunks(storage, f, make_reader(f).get_summary())
-        with Reader(path) as reader:
-            connections = [c for c in reader.connections if topics is None or c.topic in topics]
-            counts: dict[str, int] = {}
-            for c in connections:
-                counts[c.topic] = counts.get(c.topic, 0) + int(c.msgcount)
+        def messages() -> Iterator[tuple[str, int, Any]]:
+            for conn, timestamp, raw in reader.messages(connections=connections):
+                if len(raw) > MAX_MESSAGE_BYTES:
+                    raise _too_big(path, f"a message of {conn.topic}", len(raw), MAX_MESSAGE_BYTES)
+                yield conn.topic, timestamp, typestore.deserialize_cdr(raw, conn.msgtype)
 
-            def messages() -> Iterator[tuple[str, int, Any]]:
-                for conn, timestamp, raw in reader.messages(connections=connections):
-                    if len(raw) > MAX_MESSAGE_BYTES:
-                        raise _too_big(
-                            path, f"a message of {conn.topic}", len(raw), MAX_MESSAGE_BYTES
-                        )
-                    yield conn.topic, timestamp, typestore.deserialize_cdr(raw, conn.msgtype)
-
-            return _tables(str(path), messages(), topics, counts, options.get("columns"))
-    except IdentError:
-        raise
-    except Exception as e:  # rosbags, sqlite3, zstandard, CDR decoding: a damaged bag
-        raise _damaged(path, "ROS 2 bag", e) from e
+        return _tables(str(path), messages(), topics, counts, options.get("columns"))
 
 
 def _check_chunks(path: Path, f: Any, summary: Any) -> None:
