@@ -16,6 +16,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ident.errors import ModelError
+from ident.robot.limits import JointLimits, UnknownLimit
 
 __all__ = [
     "BoolArray",
@@ -26,6 +27,7 @@ __all__ = [
     "DEFAULT_DQ_MAX",
     "DEFAULT_Q_RANGE",
     "chain_from_model",
+    "model_limits",
     "random_states",
 ]
 
@@ -88,6 +90,9 @@ class KinematicChain:
         Velocity limits [rad/s or m/s], shape (n,); ``inf`` where unknown.
     tau_max :
         Effort limits [N*m or N], shape (n,); ``inf`` where unknown.
+    unknown :
+        The limits above that are ``inf`` because the model gives none (0 or an empty range),
+        with the reason; a continuous joint's unlimited position is not listed.
     """
 
     joint_names: tuple[str, ...]
@@ -100,6 +105,7 @@ class KinematicChain:
     q_upper: FloatArray
     dq_max: FloatArray
     tau_max: FloatArray
+    unknown: tuple[UnknownLimit, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -199,7 +205,7 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
         raise ModelError(
             f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {n} joints; {_FIX_HINT}."
         )
-    q_lower, q_upper, dq_max, tau_max = _joint_limits(model, n)
+    limits = model_limits(model)
     return KinematicChain(
         joint_names=tuple(names),
         parents=parents,
@@ -207,10 +213,11 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
         axes=axes,
         prismatic=prismatic,
         gravity=np.array(model.gravity.linear, dtype=float),
-        q_lower=q_lower,
-        q_upper=q_upper,
-        dq_max=dq_max,
-        tau_max=tau_max,
+        q_lower=limits.q_lower,
+        q_upper=limits.q_upper,
+        dq_max=limits.dq_max,
+        tau_max=limits.tau_max,
+        unknown=limits.unknown,
     )
 
 
@@ -264,29 +271,66 @@ def _serial_joint_axis(model: pin.Model, i: int) -> tuple[np.ndarray, bool]:
     return found
 
 
-def _joint_limits(
-    model: pin.Model, n: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Position [rad or m], velocity and effort limits of the ``n`` joints, shape (n,) each;
-    ``inf`` (``-inf`` for the lower bound) where unknown: not finite, ``>= 1e300``, an empty
-    position range, or a velocity or effort ``<= 0`` (URDFs without limits give 0 in
-    Pinocchio)."""
+def model_limits(model: pin.Model, source: str = "the model") -> JointLimits:
+    """The position, velocity and effort limits of the 1-DoF joints of a Pinocchio model.
 
-    def limits(values: np.ndarray, fill: float) -> np.ndarray:
-        out = np.array(values, dtype=float).reshape(n)
+    Pinocchio turns a missing limit into 0 (an empty position range, a velocity or effort of
+    0): those limits are **unknown**, ``inf`` (``-inf`` for a lower bound) in the arrays and
+    listed in ``unknown`` with ``"<source> gives no ... limit"``. Pinocchio's ``+-max float``
+    (a continuous joint) is ``+-inf`` and unlimited, not unknown. Accelerations are not in a
+    model (``inf``, not listed: the robot lists them).
+
+    Parameters
+    ----------
+    model :
+        Pinocchio model; joint ``i`` (1-based) gives entry ``i - 1`` (its first configuration
+        and velocity index).
+    source :
+        Who the reasons blame (``"the URDF"``, ``"the robot description"``).
+
+    Returns
+    -------
+    :
+        Limits of shape (njoints - 1,) each [rad or m, /s, N*m or N].
+
+    Raises
+    ------
+    ModelError
+        For a joint whose lower position limit is above its upper one.
+    """
+    names = tuple(model.names[1:])
+    iq = [model.joints[i].idx_q for i in range(1, model.njoints)]
+    iv = [model.joints[i].idx_v for i in range(1, model.njoints)]
+
+    def limits(values: np.ndarray, index: list[int], fill: float) -> np.ndarray:
+        out = np.array(values, dtype=float).reshape(-1)[index]
         out[~np.isfinite(out) | (np.abs(out) >= 1e300)] = fill
         return out
 
-    q_lower = limits(model.lowerPositionLimit, -np.inf)
-    q_upper = limits(model.upperPositionLimit, np.inf)
-    dq_max = limits(model.velocityLimit, np.inf)
-    tau_max = limits(model.effortLimit, np.inf)
-    # URDFs without limits give 0 (not inf) in Pinocchio: treat an empty range as unknown.
-    unknown = q_upper <= q_lower
-    q_lower[unknown], q_upper[unknown] = -np.inf, np.inf
+    q_lower = limits(model.lowerPositionLimit, iq, -np.inf)
+    q_upper = limits(model.upperPositionLimit, iq, np.inf)
+    dq_max = limits(model.velocityLimit, iv, np.inf)
+    tau_max = limits(model.effortLimit, iv, np.inf)
+    unknown = []
+    for j, name in enumerate(names):
+        if q_upper[j] < q_lower[j]:
+            raise ModelError(
+                f"joint {name!r}: lower position limit {q_lower[j]:g} is above the upper one "
+                f"{q_upper[j]:g}; swap them."
+            )
+        if q_upper[j] == q_lower[j]:  # a URDF without limits gives 0 and 0
+            unknown.append(UnknownLimit("position", name, f"{source} gives no position limit"))
+        for kind, values in (("velocity", dq_max), ("torque", tau_max)):
+            if values[j] <= 0.0:
+                what = "effort" if kind == "torque" else kind
+                unknown.append(UnknownLimit(kind, name, f"{source} gives no {what} limit"))
+    empty = q_upper == q_lower
+    q_lower[empty], q_upper[empty] = -np.inf, np.inf
     dq_max[dq_max <= 0.0] = np.inf
     tau_max[tau_max <= 0.0] = np.inf
-    return q_lower, q_upper, dq_max, tau_max
+    return JointLimits(
+        names, q_lower, q_upper, dq_max, np.full(len(names), np.inf), tau_max, tuple(unknown)
+    )
 
 
 def random_states(
