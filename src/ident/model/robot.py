@@ -30,7 +30,6 @@ from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.pinocchio_check import pinocchio_rnea
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, ModelError
-from ident.inputs import read_urdf_text
 from ident.robot.dh import DHTable
 from ident.robot.inertia import transform_matrix
 from ident.robot.limits import UnknownLimit
@@ -42,13 +41,12 @@ from ident.robot.urdf_load import (
     chain_locks,
     check_inertials,
     continuous_as_revolute,
-    expand_xacro,
     lock_values,
     locked_model,
     moving_links,
-    needs_xacro,
     prepare_urdf,
     suggested_locks,
+    urdf_file_text,
 )
 
 __all__ = ["URDF_INERTIA_RTOL", "Robot", "continuous_as_revolute", "suggested_locks"]
@@ -193,9 +191,7 @@ class Robot:
         if not path.is_file():
             raise ModelError(f"{path}: URDF file not found; check the path.")
         # UTF-8, bounded, no DTD: what every parser of ident (Pinocchio, the write-back) reads
-        text = read_urdf_text(path)
-        if needs_xacro(path, text):
-            text = expand_xacro(path, package_dirs, where)
+        text = urdf_file_text(path, package_dirs, where)  # xacro expanded
         prepared = prepare_urdf(text, where)
         root, continuous = prepared.root, prepared.continuous
         model = build_model(prepared.text, where)

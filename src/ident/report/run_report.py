@@ -281,7 +281,8 @@ def _safety_text(data: dict[str, Any]) -> str:
     state = "ok" if ok else "**violated**" if ok is not None else text
     not_run = len(entry.get("checks_not_run") or [])
     if ok and not_run:  # never "ok" while a limit it needed was unknown
-        state = f"checked constraints hold, **{not_run} check{'s' if not_run != 1 else ''} not run**"
+        plural = "s" if not_run != 1 else ""
+        state = f"checked constraints hold, **{not_run} check{plural} not run**"
     return f"{state}: {executed}"
 
 

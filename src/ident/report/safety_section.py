@@ -137,9 +137,7 @@ def _verdict(series: dict[str, Any]) -> str:
     else:
         return "every constraint holds."
     if not_run:
-        held += (
-            f"; **{not_run} check{'s' if not_run != 1 else ''} not run** (listed below)"
-        )
+        held += f"; **{not_run} check{'s' if not_run != 1 else ''} not run** (listed below)"
     return held + "."
 
 

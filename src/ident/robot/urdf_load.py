@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from ident.errors import ModelError
+from ident.inputs import MAX_URDF_BYTES, read_urdf_text, refuse_dtd
 from ident.robot.inertia import consistency_problems, parameters_from_com
 
 __all__ = [
@@ -36,12 +37,14 @@ __all__ = [
     "expand_xacro",
     "lock_values",
     "locked_model",
+    "model_from_text",
     "moving_links",
     "needs_xacro",
     "parse_xml",
     "prepare_urdf",
     "PreparedURDF",
     "suggested_locks",
+    "urdf_file_text",
 ]
 
 #: Relative tolerance of the inertial consistency check of URDF links (to the largest principal
@@ -71,6 +74,24 @@ def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
             captured.extend(sink.read().decode("utf-8", "replace").splitlines())
 
 
+def urdf_file_text(
+    path: Path, package_dirs: Sequence[str | os.PathLike[str]] = (), where: str | None = None
+) -> str:
+    """The URDF text of a robot file: read (UTF-8, bounded, no DTD), expanded by xacro when it
+    is a ``.xacro`` file or still holds xacro (:func:`expand_xacro`)."""
+    where = str(path) if where is None else where
+    text = read_urdf_text(path)
+    if needs_xacro(path, text):
+        text = expand_xacro(path, package_dirs, where)
+        if len(text) > MAX_URDF_BYTES:
+            raise ModelError(
+                f"{where}: xacro expands the file to {len(text) >> 20} MB of URDF, more than "
+                f"{MAX_URDF_BYTES >> 20} MB; check its macros."
+            )
+        refuse_dtd(text, where)  # an included file may declare one
+    return text
+
+
 def needs_xacro(path: os.PathLike[str] | str, text: str) -> bool:
     """True for a ``.xacro`` file, or URDF text that still holds xacro (``${...}``, ``$(...)``
     or ``<xacro:...>`` elements)."""
@@ -80,28 +101,28 @@ def needs_xacro(path: os.PathLike[str] | str, text: str) -> bool:
 
 
 @contextlib.contextmanager
-def _find_in(package_dirs: Sequence[str | os.PathLike[str]]) -> Iterator[None]:
+def _find_in(package_dirs: Sequence[str | os.PathLike[str]]) -> Iterator[list[str]]:
     """Serve xacro's ``$(find pkg)`` from ``package_dirs`` (folders that hold the package
-    folders, as for ``package://`` URIs) instead of a ROS installation, for the ``with``."""
+    folders, as for ``package://`` URIs) instead of a ROS installation, for the ``with``; the
+    list it yields receives the packages not found (xacro wraps the exception)."""
     from xacro import substitution_args
+
+    missing: list[str] = []
 
     def find(package: str) -> str:
         for folder in package_dirs:
             candidate = Path(folder) / package
             if candidate.is_dir():
                 return str(candidate.resolve())
-        raise ModelError(
-            f"$(find {package}): no folder {package!r} in the package folders "
-            f"({', '.join(str(d) for d in package_dirs) or 'none given'}); give the folder that "
-            "holds it with robot.package_dirs (--package-dir DIR)"
-        )
+        missing.append(package)
+        raise LookupError(package)
 
     saved = substitution_args._eval_find
     saved_eval = substitution_args._eval_dict.get("find")
     substitution_args._eval_find = find
     substitution_args._eval_dict["find"] = find
     try:
-        yield
+        yield missing
     finally:
         substitution_args._eval_find = saved
         substitution_args._eval_dict["find"] = saved_eval
@@ -126,11 +147,20 @@ def expand_xacro(path: Path, package_dirs: Sequence[str | os.PathLike[str]], whe
             f"{where}: the file is xacro and the xacro package is not installed; install it "
             f"(pip install xacro) or expand the file yourself: {by_hand}"
         ) from e
+    missing: list[str] = []
     try:
-        with _find_in(package_dirs), contextlib.redirect_stdout(sys.stderr):
+        with _find_in(package_dirs) as missing, contextlib.redirect_stdout(sys.stderr):
             document = xacro.process_file(str(Path(path).resolve()))
         return str(document.toxml())
     except Exception as e:  # noqa: BLE001 - xacro raises anything (XacroException, NameError)
+        if missing:
+            dirs = ", ".join(str(d) for d in package_dirs) or "none given"
+            raise ModelError(
+                f"{where}: xacro's $(find {missing[0]}): no folder {missing[0]!r} in the "
+                f"package folders ({dirs}); give the folder that holds it with "
+                "robot.package_dirs (--package-dir DIR), or expand the file yourself: "
+                f"{by_hand}"
+            ) from e
         reason = " ".join(str(e).split()) or type(e).__name__
         raise ModelError(
             f"{where}: xacro cannot expand the file ({reason}); fix it or expand it yourself "
@@ -531,6 +561,13 @@ def build_model(text: str, where: str) -> pin.Model:
     if model.njoints < 2:
         raise ModelError(f"{where}: the URDF has no moving joint; a serial arm is needed.")
     return model
+
+
+def model_from_text(text: str, where: str) -> pin.Model:
+    """Pinocchio's model of a URDF text, read as :meth:`ident.Robot.from_urdf` reads it
+    (:func:`prepare_urdf`: continuous joints revolute, missing limits 0; the full tree, no
+    lock)."""
+    return build_model(prepare_urdf(text, where).text, where)
 
 
 def _body_joint(model: pin.Model, link: str, key: str, where: str) -> int:
