@@ -78,7 +78,9 @@ def test_swapped_and_non_finite_limits_are_one_error_line(tmp_path, inside, expe
     errors = [line for line in result.output.splitlines() if line.startswith("error:")]
     assert result.exit_code == 2, result.output
     assert len(errors) == 1, result.output
-    assert str(path) in errors[0] and "joint 'j2'" in errors[0] and expected in errors[0]
+    assert str(path) in errors[0]
+    assert "joint 'j2'" in errors[0]
+    assert expected in errors[0]
 
 
 def test_unknown_limits_are_named_with_the_urdf_reason_and_never_infinite_silently(tmp_path):
@@ -216,8 +218,10 @@ def test_init_writes_a_commented_guess_for_each_unknown_limit_and_the_run_checks
     assert "# guess: the URDF gives effort 0 for j1; set your robot's" in text
     assert "# guess: the URDF gives no velocity limit for j2; set your robot's" in text
     limits = yaml.safe_load(text)["robot"]["limits"]
-    assert set(limits["j1"]) == {"lower", "upper", "effort"} and set(limits["j2"]) >= {"velocity"}
-    assert limits["j1"]["lower"] < 0 < limits["j1"]["upper"] and limits["j1"]["effort"] > 0
+    assert set(limits["j1"]) == {"lower", "upper", "effort"}
+    assert set(limits["j2"]) >= {"velocity"}
+    assert limits["j1"]["lower"] < 0 < limits["j1"]["upper"]
+    assert limits["j1"]["effort"] > 0
     data = yaml.safe_load(text)["robot"]
     robot = load_robot(RobotSelection.model_validate({**data, "urdf": str(path)}))
     assert robot.unknown_limits == ()  # every check of the run has a limit
@@ -275,8 +279,10 @@ def test_a_xacro_file_that_cannot_be_expanded_is_one_error_line_with_the_command
     xacro, _ = _xacro_files(tmp_path)
     result = runner.invoke(app, ["verify", "--urdf", str(xacro)])  # no package folder given
     errors = [line for line in result.output.splitlines() if line.startswith("error:")]
-    assert result.exit_code == 2 and len(errors) == 1, result.output
-    assert "$(find armdesc)" in errors[0] and "--package-dir" in errors[0]
+    assert result.exit_code == 2, result.output
+    assert len(errors) == 1, result.output
+    assert "$(find armdesc)" in errors[0]
+    assert "--package-dir" in errors[0]
     assert "xacro arm.urdf.xacro > arm.urdf" in errors[0]
     broken = _write(tmp_path, xacro.read_text().replace("${pi/2}", "${nope/2}"), "b.xacro")
     with pytest.raises(ModelError, match=r"xacro cannot expand.*nope.*xacro b.xacro > b.urdf"):
@@ -291,7 +297,8 @@ def test_a_kinematic_loop_is_named_as_one(tmp_path):
     path = _write(tmp_path, text)
     result = runner.invoke(app, ["verify", "--urdf", str(path)])
     errors = [line for line in result.output.splitlines() if line.startswith("error:")]
-    assert result.exit_code == 2 and len(errors) == 1, result.output
+    assert result.exit_code == 2, result.output
+    assert len(errors) == 1, result.output
     assert errors[0] == (
         f"error: {path}: link 'l1' is the child of joints 'j1' and 'j2' (a kinematic loop); "
         "ident reads tree-shaped URDFs: remove one of the joints."
