@@ -139,7 +139,9 @@ def expand_xacro(path: Path, package_dirs: Sequence[str | os.PathLike[str]], whe
         not installed or cannot expand the file.
     """
     name = Path(path).name
-    by_hand = f"xacro {name} > {name.removesuffix('.xacro').removesuffix('.urdf')}.urdf"
+    # never the input's own name: the shell would empty it before xacro reads it
+    stem = name.removesuffix(".xacro") if name.endswith(".xacro") else f"{Path(name).stem}.expanded"
+    by_hand = f"xacro {name} > {stem.removesuffix('.urdf')}.urdf"
     try:
         import xacro
     except ImportError as e:
