@@ -254,7 +254,14 @@ def _configured_limits(
         ):
             if given is not None:
                 values[key][j] = min(values[key][j], given) if key == "dq_max" else given
-    return JointLimits(joint_names=tuple(names), **values)
+    return JointLimits(
+        tuple(names),
+        q_lower=values["q_lower"],
+        q_upper=values["q_upper"],
+        dq_max=values["dq_max"],
+        ddq_max=values["ddq_max"],
+        tau_max=values["tau_max"],
+    )
 
 
 def _limit_values(given: float | list[float] | dict[str, float] | None) -> list[float]:

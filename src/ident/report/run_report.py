@@ -276,7 +276,8 @@ def _safety_text(data: dict[str, Any]) -> str:
         return text
     if text == NOT_CHECKED:
         return executed
-    entry = data.get("safety") if isinstance(data.get("safety"), dict) else {}
+    safety = data.get("safety")
+    entry: dict[str, Any] = safety if isinstance(safety, dict) else {}
     ok = entry.get("ok")
     state = "ok" if ok else "**violated**" if ok is not None else text
     not_run = len(entry.get("checks_not_run") or [])
