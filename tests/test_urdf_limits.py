@@ -303,3 +303,13 @@ def test_a_kinematic_loop_is_named_as_one(tmp_path):
         f"error: {path}: link 'l1' is the child of joints 'j1' and 'j2' (a kinematic loop); "
         "ident reads tree-shaped URDFs: remove one of the joints."
     )
+
+
+def test_xacro_left_in_comments_is_not_expanded(tmp_path, monkeypatch):
+    # vendors' URDFs (TIAGo, xArm7) keep commented-out xacro: the file is a plain URDF
+    text = _urdf((GOOD, GOOD)).replace(
+        '<link name="l0"/>', '<link name="l0"/><!-- <link name="${prefix}x"/> $(find p) -->'
+    )
+    monkeypatch.setitem(sys.modules, "xacro", None)  # expanding would fail
+    robot = Robot.from_urdf(_write(tmp_path, text))
+    assert robot.joint_names == ("j1", "j2")

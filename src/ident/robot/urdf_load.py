@@ -92,12 +92,25 @@ def urdf_file_text(
     return text
 
 
+_XACRO_NAMESPACE = "{http://www.ros.org/wiki/xacro}"
+
+
 def needs_xacro(path: os.PathLike[str] | str, text: str) -> bool:
-    """True for a ``.xacro`` file, or URDF text that still holds xacro (``${...}``, ``$(...)``
-    or ``<xacro:...>`` elements)."""
+    """True for a ``.xacro`` file, or URDF text that still holds xacro outside its comments:
+    a ``<xacro:...>`` element, or ``${...}`` / ``$(...)`` in an attribute (vendors' URDFs
+    keep commented-out xacro; text that is not XML is left to the URDF parser's error)."""
     if str(path).lower().endswith(".xacro"):
         return True
-    return "${" in text or "$(" in text or "<xacro:" in text
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError:
+        return False
+    for element in root.iter():
+        if isinstance(element.tag, str) and element.tag.startswith(_XACRO_NAMESPACE):
+            return True
+        if any("${" in v or "$(" in v for v in element.attrib.values()):
+            return True
+    return False
 
 
 @contextlib.contextmanager
