@@ -227,9 +227,11 @@ _LIMIT = "<axis xyz='0 0 1'/><limit lower='-1' upper='1' effort='1' velocity='1'
             ),
             r"child link \[c\] of joint \[j\] not found",
         ),
-        (
-            _TWO_LINKS.format(kind="revolute", extra=""),
-            r"Joint \[j\] is of type REVOLUTE but it does not specify limits",
+        (  # a missing <limit> is unknown (tests/test_urdf_limits.py); a swapped one is not
+            _TWO_LINKS.format(
+                kind="revolute", extra='<limit lower="1" upper="-1" effort="1" velocity="1"/>'
+            ),
+            r"joint 'j': <limit lower=\"1\" upper=\"-1\">: lower is above upper",
         ),
     ],
 )

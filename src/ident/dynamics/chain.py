@@ -23,6 +23,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ident.errors import ModelError
+from ident.robot.limits import JointLimits, UnknownLimit
 
 __all__ = [
     "BoolArray",
@@ -33,6 +34,7 @@ __all__ = [
     "DEFAULT_DQ_MAX",
     "DEFAULT_Q_RANGE",
     "chain_from_model",
+    "model_limits",
     "random_states",
 ]
 
@@ -103,6 +105,9 @@ class KinematicChain:
     scaling, offset :
         Each body's joint position is ``scaling * q[coordinates] + offset`` [rad or m],
         shape (nb,); default 1 and 0 (a mimic joint's multiplier and offset otherwise).
+    unknown :
+        The limits above that are ``inf`` because the model gives none (0 or an empty range),
+        with the reason; a continuous joint's unlimited position is not listed.
     """
 
     joint_names: tuple[str, ...]
@@ -119,6 +124,7 @@ class KinematicChain:
     coordinates: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     scaling: FloatArray = field(default_factory=lambda: np.zeros(0))
     offset: FloatArray = field(default_factory=lambda: np.zeros(0))
+    unknown: tuple[UnknownLimit, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -280,7 +286,7 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
             f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {len(names)} joints; "
             f"{_FIX_HINT}."
         )
-    q_lower, q_upper, dq_max, tau_max = _joint_limits(model, len(names))
+    limits = model_limits(model)
     return KinematicChain(
         joint_names=tuple(names),
         parents=parents,
@@ -288,10 +294,11 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
         axes=axes,
         prismatic=prismatic,
         gravity=np.array(model.gravity.linear, dtype=float),
-        q_lower=q_lower,
-        q_upper=q_upper,
-        dq_max=dq_max,
-        tau_max=tau_max,
+        q_lower=limits.q_lower,
+        q_upper=limits.q_upper,
+        dq_max=limits.dq_max,
+        tau_max=limits.tau_max,
+        unknown=limits.unknown,
         body_names=tuple(model.names[1:]),
         coordinates=coordinates,
         scaling=scaling,
@@ -364,29 +371,69 @@ def _serial_joint_axis(model: pin.Model, i: int, index: int) -> tuple[np.ndarray
     return found
 
 
-def _joint_limits(
-    model: pin.Model, n: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Position [rad or m], velocity and effort limits of the ``n`` joints, shape (n,) each;
-    ``inf`` (``-inf`` for the lower bound) where unknown: not finite, ``>= 1e300``, an empty
-    position range, or a velocity or effort ``<= 0`` (URDFs without limits give 0 in
-    Pinocchio)."""
+def model_limits(model: pin.Model, source: str = "the model") -> JointLimits:
+    """The position, velocity and effort limits of the 1-DoF joints of a Pinocchio model.
 
-    def limits(values: np.ndarray, fill: float) -> np.ndarray:
-        out = np.array(values, dtype=float).reshape(n)
+    Pinocchio turns a missing limit into 0 (an empty position range, a velocity or effort of
+    0): those limits are **unknown**, ``inf`` (``-inf`` for a lower bound) in the arrays and
+    listed in ``unknown`` with ``"<source> gives no ... limit"``. Pinocchio's ``+-max float``
+    (a continuous joint) is ``+-inf`` and unlimited, not unknown. Accelerations are not in a
+    model (``inf``, not listed: the robot lists them).
+
+    Parameters
+    ----------
+    model :
+        Pinocchio model; each joint that is not a mimic follower gives one entry, in order (its
+        first configuration and velocity index).
+    source :
+        Who the reasons blame (``"the URDF"``, ``"the robot description"``).
+
+    Returns
+    -------
+    :
+        Limits of shape (n_independent_joints,) each [rad or m, /s, N*m or N].
+
+    Raises
+    ------
+    ModelError
+        For a joint whose lower position limit is above its upper one.
+    """
+    independent = [  # a mimic follower's q and v are its leader's
+        i for i in range(1, model.njoints) if model.joints[i].shortname() != "JointModelMimic"
+    ]
+    names = tuple(model.names[i] for i in independent)
+    iq = [model.joints[i].idx_q for i in independent]
+    iv = [model.joints[i].idx_v for i in independent]
+
+    def limits(values: np.ndarray, index: list[int], fill: float) -> np.ndarray:
+        out = np.array(values, dtype=float).reshape(-1)[index]
         out[~np.isfinite(out) | (np.abs(out) >= 1e300)] = fill
         return out
 
-    q_lower = limits(model.lowerPositionLimit, -np.inf)
-    q_upper = limits(model.upperPositionLimit, np.inf)
-    dq_max = limits(model.velocityLimit, np.inf)
-    tau_max = limits(model.effortLimit, np.inf)
-    # URDFs without limits give 0 (not inf) in Pinocchio: treat an empty range as unknown.
-    unknown = q_upper <= q_lower
-    q_lower[unknown], q_upper[unknown] = -np.inf, np.inf
+    q_lower = limits(model.lowerPositionLimit, iq, -np.inf)
+    q_upper = limits(model.upperPositionLimit, iq, np.inf)
+    dq_max = limits(model.velocityLimit, iv, np.inf)
+    tau_max = limits(model.effortLimit, iv, np.inf)
+    unknown = []
+    for j, name in enumerate(names):
+        if q_upper[j] < q_lower[j]:
+            raise ModelError(
+                f"joint {name!r}: lower position limit {q_lower[j]:g} is above the upper one "
+                f"{q_upper[j]:g}; swap them."
+            )
+        if q_upper[j] == q_lower[j]:  # a URDF without limits gives 0 and 0
+            unknown.append(UnknownLimit("position", name, f"{source} gives no position limit"))
+        for kind, values in (("velocity", dq_max), ("torque", tau_max)):
+            if values[j] <= 0.0:
+                what = "effort" if kind == "torque" else kind
+                unknown.append(UnknownLimit(kind, name, f"{source} gives no {what} limit"))
+    empty = q_upper == q_lower
+    q_lower[empty], q_upper[empty] = -np.inf, np.inf
     dq_max[dq_max <= 0.0] = np.inf
     tau_max[tau_max <= 0.0] = np.inf
-    return q_lower, q_upper, dq_max, tau_max
+    return JointLimits(
+        names, q_lower, q_upper, dq_max, np.full(len(names), np.inf), tau_max, tuple(unknown)
+    )
 
 
 def random_states(

@@ -37,6 +37,7 @@ import numpy.typing as npt
 from ident.excitation.constraints import JointLimits
 from ident.excitation.family import FloatArray
 from ident.excitation.safety import SafetyModel, joint_torques
+from ident.robot.limits import LIMIT_KINDS, describe_unknown
 from ident.robot.mimic import Mimic
 
 __all__ = [
@@ -47,6 +48,8 @@ __all__ = [
     "check_trajectory",
     "dense_family_states",
     "follower_checks",
+    "is_limit_check",
+    "not_run_note",
     "step_displacements",
 ]
 
@@ -142,9 +145,12 @@ class SafetyReport:
     checks :
         The worst sample of every constraint.
     not_checked :
-        ``(pair, reason)`` of the pairs the check leaves out: the safety model's excluded
-        robot link pairs (adjacent, SRDF, reference contact, always in contact) and its
-        constant-distance environment pairs (judged once when the model was built).
+        ``(what, reason)`` of everything the check leaves out: the safety model's excluded
+        robot link pairs (``what`` = ``"<link>|<link>"``: adjacent, SRDF, reference contact,
+        always in contact) and its constant-distance environment pairs (judged once when the
+        model was built), then the limits it could not check (``what`` = ``"<kind>:<joint>"``,
+        :meth:`checks_not_run`), because nobody gave them (``"the URDF gives effort 0"``) or
+        ``safety.torque_limits`` is off.
     """
 
     usable: bool
@@ -158,6 +164,11 @@ class SafetyReport:
     torque_ratio: FloatArray
     checks: tuple[ConstraintCheck, ...]
     not_checked: tuple[tuple[str, str], ...] = ()
+
+    def checks_not_run(self) -> tuple[str, ...]:
+        """The limit checks left out, one line each:
+        ``"torque not checked on j1: the URDF gives effort 0"``."""
+        return tuple(describe_unknown(w, r) for w, r in self.not_checked if is_limit_check(w))
 
     def failures(self) -> tuple[ConstraintCheck, ...]:
         """The violated constraints, worst clearance first."""
@@ -178,15 +189,41 @@ class SafetyReport:
         return min(pairs, key=lambda c: c.value) if pairs else None
 
     def summary(self) -> str:
-        """``"usable (...)"`` or ``"unsafe: <worst failure>; ..."`` in one line."""
+        """``"usable (...)"`` or ``"unsafe: <worst failure>; ..."`` in one line, followed by
+        ``"; N checks not run: ..."`` when a limit was unknown."""
+        not_run = not_run_note(self.checks_not_run())
         if self.usable:
             worst = self.min_clearance
             extra = f"; smallest clearance {worst.describe()}" if worst is not None else ""
-            return f"usable at {self.rate_hz:g} Hz{extra}"
+            return f"usable at {self.rate_hz:g} Hz{extra}{not_run}"
         fails = self.failures()
         shown = "; ".join(c.describe() for c in fails[:3])
         more = f" (+{len(fails) - 3} more)" if len(fails) > 3 else ""
-        return f"unsafe: {shown}{more}"
+        return f"unsafe: {shown}{more}{not_run}"
+
+
+def is_limit_check(what: str) -> bool:
+    """True for a ``not_checked`` entry naming a limit check (``"torque:j1"``), not a pair."""
+    kind, sep, _ = what.partition(":")
+    return bool(sep) and kind in LIMIT_KINDS
+
+
+def not_run_note(lines: Sequence[str]) -> str:
+    """``"; N checks not run: <line>; <line>"`` (the first lines of each reason grouped),
+    ``""`` for none: what a verdict appends so that it never reads as complete."""
+    if not lines:
+        return ""
+    grouped: dict[str, list[str]] = {}
+    for line in lines:  # "<kind> not checked on <joint>: <reason>"
+        head, _, reason = line.partition(": ")
+        kind, _, joint = head.partition(" not checked on ")
+        grouped.setdefault(f"{kind}\0{reason}", []).append(joint)
+    parts = []
+    for key, joints in grouped.items():
+        kind, reason = key.split("\0")
+        parts.append(f"{kind} not checked on {', '.join(joints)}: {reason}")
+    n = len(lines)
+    return f"; {n} check{'s' if n != 1 else ''} not run: " + "; ".join(parts)
 
 
 def dense_family_states(
@@ -398,7 +435,7 @@ def check_trajectory(
         acceleration_ratio=acceleration_ratio,
         torque_ratio=torque_ratio,
         checks=tuple(checks),
-        not_checked=_not_checked(safety),
+        not_checked=_not_checked(safety) + _limits_not_checked(safety),
     )
 
 
@@ -539,3 +576,24 @@ def _not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
             *getattr(safety, "constant_pairs", ()),
         )
     )
+
+
+def _limits_not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
+    """``("<kind>:<joint>", reason)`` of the limits the check could not compare with: the
+    robot's unknown ones (an unknown position with the default range the optimizer's
+    reference states assumed, :meth:`JointLimits.finite_position_box`), and
+    every torque limit when ``safety.torque_limits`` is off."""
+    limits = safety.limits
+    out = []
+    for u in limits.unknown:
+        if u.kind == "torque" and not safety.config.torque_limits:
+            continue  # said once below
+        reason = u.reason
+        if u.kind == "position":
+            low, high = limits.finite_position_box()
+            j = limits.joint_names.index(u.joint)
+            reason += f"; the optimizer assumed the default range [{low[j]:.4g}, {high[j]:.4g}]"
+        out.append((u.check, reason))
+    if not safety.config.torque_limits:
+        out += [(f"torque:{j}", "safety.torque_limits is false") for j in limits.joint_names]
+    return tuple(out)

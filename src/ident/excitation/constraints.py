@@ -13,8 +13,12 @@ Each constraint yields a dimensionless violation magnitude per particle, 0 when 
   family documents (see :mod:`ident.excitation.ik` and :mod:`ident.excitation.wrist`).
 
 Infinite limits never count as violated; for continuity, an infinite scale is replaced by
-2 pi rad, 1 rad/s and 1 rad/s^2 so that a jump is still seen. Non-finite states count as a
-violation of ``NONFINITE_VIOLATION`` so that penalties stay finite.
+2 pi rad, 1 rad/s and 1 rad/s^2 so that a jump is still seen. An infinite limit is either
+genuinely absent (a continuous joint's position) or unknown (``JointLimits.unknown``: the URDF
+gives none, 0 or an empty range): the optimizer cannot keep a trajectory within an unknown
+limit, so the dense check (:mod:`ident.excitation.check`) names each one as a check not run.
+Non-finite states count as a violation of ``NONFINITE_VIOLATION`` so that penalties stay
+finite.
 """
 
 from __future__ import annotations

@@ -61,6 +61,7 @@ from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
 from ident.excitation.family import ConstraintViolations, FloatArray
 from ident.robot.meshes import check_urdf_meshes
 from ident.robot.mimic import coupled_model
+from ident.robot.urdf_load import prepare_urdf
 
 __all__ = [
     "ALWAYS_IN_CONTACT_FRACTION",
@@ -346,9 +347,8 @@ def _attach_payload_box(model: pin.Model, geom: pin.GeometryModel, box: PayloadB
 
 
 def _revolute_text(text: str) -> str:
-    from ident.model import continuous_as_revolute
-
-    return continuous_as_revolute(ET.fromstring(text), text)[0]
+    """The text Pinocchio reads, rewritten as :meth:`ident.Robot.from_urdf` does."""
+    return prepare_urdf(text, "the URDF").text
 
 
 def _kinematic_model_and_geometry(
@@ -599,15 +599,11 @@ def _mesh_pairs(
     return np.array([is_mesh[a] or is_mesh[b] for a, b, _, _ in pairs], dtype=bool)
 
 
-def _effort_max(model: pin.Model, torque_limits: bool) -> FloatArray:
-    """Read-only torque limits [N*m or N], shape (nv,): the model's effort limits, ``inf``
-    where unknown or when ``torque_limits`` is off."""
-    effort = np.asarray(getattr(model, "effortLimit", np.zeros(0)), dtype=float)
-    known = np.isfinite(effort) & (effort > 0.0) & (effort < 1e300)
-    if effort.shape != (model.nv,) or not torque_limits:
-        known = np.zeros(model.nv, dtype=bool)
-        effort = np.zeros(model.nv)
-    out = np.where(known, effort, np.inf)
+def _effort_max(limits: JointLimits, torque_limits: bool) -> FloatArray:
+    """Read-only torque limits [N*m or N], shape (nv,): the robot's effort limits
+    (``limits.tau_max``), ``inf`` where unknown (``limits.unknown`` says why) or when
+    ``torque_limits`` is off."""
+    out = np.array(limits.tau_max if torque_limits else np.full(limits.nq, np.inf), dtype=float)
     out.setflags(write=False)
     return out
 
@@ -761,7 +757,7 @@ class SafetyModel:
         )
         self._mesh_pairs = _mesh_pairs(geom, kept_pairs)
         self._hull_proxy_poor = self._poor_hull_pairs()
-        self.effort_max: FloatArray = _effort_max(robot.model, config.torque_limits)
+        self.effort_max: FloatArray = _effort_max(self.limits, config.torque_limits)
 
         self._prepare_fast()
 

@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from ident.excitation.check import ConstraintCheck, SafetyReport
+from ident.excitation.check import ConstraintCheck, SafetyReport, is_limit_check
+from ident.robot.limits import describe_unknown
 
 __all__ = ["MAX_SERIES_POINTS", "check_entry", "safety_series", "worst_checks"]
 
@@ -89,7 +90,9 @@ def safety_series(report: SafetyReport, max_points: int = MAX_SERIES_POINTS) -> 
         required margin [m]); ``velocity_ratio``, ``acceleration_ratio``, ``torque_ratio``
         (n,), the largest ``|value| / limit`` over the joints at each sample (0 where no
         limit is known); ``worst_checks`` (:func:`worst_checks` as dicts); ``usable``,
-        ``rate_hz``; ``not_checked``, the pairs left out and why (``[{pair, reason}]``).
+        ``rate_hz``; ``not_checked``, the pairs left out and why (``{pair, reason}``) and the
+        limit checks not run (``{check, reason, text}``: the limit was unknown);
+        ``checks_not_run``, how many of the latter.
     """
     t = np.asarray(report.t, dtype=float)
     n = t.shape[0]
@@ -125,5 +128,14 @@ def safety_series(report: SafetyReport, max_points: int = MAX_SERIES_POINTS) -> 
         "clearance_m": float(margins[0]) if margins else None,
         **{name: _finite(r[index]) for name, r in ratios.items()},
         "worst_checks": [check_entry(c) for c in worst_checks(report)],
-        "not_checked": [{"pair": p, "reason": r} for p, r in report.not_checked],
+        "not_checked": [_not_checked_entry(w, r) for w, r in report.not_checked],
+        "checks_not_run": len(report.checks_not_run()),
     }
+
+
+def _not_checked_entry(what: str, reason: str) -> dict[str, str]:
+    """``{pair, reason}`` for a pair left out, ``{check, reason, text}`` for a limit check not
+    run (``text``: ``"torque not checked on j1: the URDF gives effort 0"``)."""
+    if is_limit_check(what):
+        return {"check": what, "reason": reason, "text": describe_unknown(what, reason)}
+    return {"pair": what, "reason": reason}

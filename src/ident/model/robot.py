@@ -25,14 +25,14 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from ident.dynamics.chain import chain_from_model, random_states
+from ident.dynamics.chain import chain_from_model, model_limits, random_states
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.pinocchio_check import pinocchio_rnea
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, ModelError
-from ident.inputs import read_urdf_text
 from ident.robot.dh import DHTable
 from ident.robot.inertia import transform_matrix
+from ident.robot.limits import UnknownLimit
 from ident.robot.mimic import (
     Mimic,
     coupled_model,
@@ -51,8 +51,9 @@ from ident.robot.urdf_load import (
     lock_values,
     locked_model,
     moving_links,
-    parse_xml,
+    prepare_urdf,
     suggested_locks,
+    urdf_file_text,
 )
 
 __all__ = ["URDF_INERTIA_RTOL", "Robot", "continuous_as_revolute", "suggested_locks"]
@@ -60,14 +61,12 @@ __all__ = ["URDF_INERTIA_RTOL", "Robot", "continuous_as_revolute", "suggested_lo
 FloatArray = npt.NDArray[np.float64]
 
 
-def _known(values: npt.ArrayLike, *, positive: bool = False) -> FloatArray:
-    """Replace unknown limits (non-finite, Pinocchio's +-max float, or <= 0) by inf."""
-    out = np.array(values, dtype=float)
-    unknown = ~np.isfinite(out) | (np.abs(out) >= 1e300)
-    if positive:
-        unknown |= out <= 0.0
-    out[unknown] = np.inf if positive else np.nan
-    return out
+#: Why a robot has no acceleration limit, per origin (URDFs carry none).
+_NO_ACCELERATION = {
+    "the URDF": "the URDF gives no acceleration limit (URDFs have none): set "
+    "robot.acceleration_limits",
+    "the robot description": "the robot description gives no acceleration limit",
+}
 
 
 class Robot:
@@ -101,10 +100,14 @@ class Robot:
     nq, nv, n_bodies :
         Configuration and velocity sizes, number of moving bodies.
     q_lower, q_upper :
-        Position limits [rad or m], shape (nq,); ``-inf``/``inf`` where unknown.
-    dq_max, ddq_max :
-        Velocity [rad/s or m/s] and acceleration [rad/s^2 or m/s^2] limits, shape (nv,);
-        ``inf`` where unknown (URDFs carry no acceleration limits).
+        Position limits [rad or m], shape (nq,); ``-inf``/``inf`` where unknown or unlimited
+        (a continuous joint).
+    dq_max, ddq_max, tau_max :
+        Velocity [rad/s or m/s], acceleration [rad/s^2 or m/s^2] and effort [N*m or N]
+        limits, shape (nv,); ``inf`` where unknown (URDFs carry no acceleration limits).
+    unknown_limits :
+        The limits above that nobody gave (:class:`ident.robot.limits.UnknownLimit`: kind,
+        joint, reason); every check that needs one names it instead of passing.
     """
 
     def __init__(
@@ -129,19 +132,23 @@ class Robot:
         self.nq: int = model.nq
         self.nv: int = model.nv
         self.n_bodies: int = model.njoints - 1
-        lower = _known(model.lowerPositionLimit)
-        upper = _known(model.upperPositionLimit)
-        empty = ~(upper > lower)  # URDFs without limits give lower == upper == 0
-        lower[empty | np.isnan(lower)] = -np.inf
-        upper[empty | np.isnan(upper)] = np.inf
-        self.q_lower: FloatArray = lower
-        self.q_upper: FloatArray = upper
-        self.dq_max: FloatArray = _known(model.velocityLimit, positive=True)
+        source = "the URDF" if description is None else "the robot description"
+        limits = model_limits(model, source)  # unknown (0 in Pinocchio) -> inf, with a reason
+        self.q_lower: FloatArray = np.array(limits.q_lower)
+        self.q_upper: FloatArray = np.array(limits.q_upper)
+        self.dq_max: FloatArray = np.array(limits.dq_max)
+        self.tau_max: FloatArray = np.array(limits.tau_max)
         self.ddq_max: FloatArray = (
             np.full(self.nv, np.inf) if ddq_max is None else np.array(ddq_max, dtype=float)
         )
-        for array in (self.q_lower, self.q_upper, self.dq_max, self.ddq_max):
+        for array in (self.q_lower, self.q_upper, self.dq_max, self.ddq_max, self.tau_max):
             array.setflags(write=False)
+        no_acceleration = [
+            UnknownLimit("acceleration", name, _NO_ACCELERATION[source])
+            for name, value in zip(limits.joint_names, self.ddq_max, strict=False)
+            if not np.isfinite(value)
+        ]
+        self.unknown_limits: tuple[UnknownLimit, ...] = (*limits.unknown, *no_acceleration)
         self.continuous_joints: tuple[str, ...] = ()
         self.locked_joints: dict[str, float] = {}
         self.mimic_joints: tuple[Mimic, ...] = ()
@@ -203,26 +210,26 @@ class Robot:
         if not path.is_file():
             raise ModelError(f"{path}: URDF file not found; check the path.")
         # UTF-8, bounded, no DTD: what every parser of ident (Pinocchio, the write-back) reads
-        text = read_urdf_text(path)
-        root = parse_xml(text, where)
-        revolute_text, continuous = continuous_as_revolute(root, text)
-        model = build_model(revolute_text, where)
+        text = urdf_file_text(path, package_dirs, where)  # xacro expanded
+        prepared = prepare_urdf(text, where)
+        root, continuous = prepared.root, prepared.continuous
+        model = build_model(prepared.text, where)
         for name in continuous:  # no position limit (Pinocchio's convention for unbounded)
             index = model.joints[model.getJointId(name)].idx_q
             model.lowerPositionLimit[index] = -np.finfo(float).max
             model.upperPositionLimit[index] = np.finfo(float).max
         locked = lock_values(model, lock_joints, where)
         given = tuple(locked)
-        for name in chain_locks(model, base_link, tip_link, where):
-            if name not in locked:
-                index = model.joints[model.getJointId(name)].idx_q
-                low, high = model.lowerPositionLimit[index], model.upperPositionLimit[index]
-                locked[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
+        _lock_off_chain(model, locked, base_link, tip_link, where)
         locked, coupled = resolve_mimic_locks(read_mimics(root, model, where), locked, given, where)
         if inertia_check:
             check_inertials(root, where, moving_links(model, locked))
         model = coupled_model(locked_model(model, locked, where), coupled, where)
         robot = cls(model, text, urdf_path=path)
+        robot.unknown_limits = tuple(  # the file says why (Pinocchio only has the 0)
+            UnknownLimit(u.kind, u.joint, prepared.unknown.get((u.kind, u.joint), u.reason))
+            for u in robot.unknown_limits
+        )
         robot.continuous_joints = continuous
         robot.locked_joints = locked
         robot._follow_mimics(coupled, where)
@@ -480,3 +487,19 @@ class Robot:
                 )
             out.append(array)
         return out[0], out[1], out[2]
+
+
+def _lock_off_chain(
+    model: pin.Model,
+    locked: dict[str, float],
+    base_link: str | None,
+    tip_link: str | None,
+    where: str,
+) -> None:
+    """Add to ``locked`` every joint off the chain ``base_link -> tip_link`` not locked yet, at 0
+    clipped into its position limits (0 where the range is empty)."""
+    for name in chain_locks(model, base_link, tip_link, where):
+        if name not in locked:
+            index = model.joints[model.getJointId(name)].idx_q
+            low, high = model.lowerPositionLimit[index], model.upperPositionLimit[index]
+            locked[name] = float(np.clip(0.0, low, high)) if high > low else 0.0

@@ -18,6 +18,8 @@ YAML forms::
       inertia_check: true               # false: load a file with broken inertials anyway
       velocity_limits: [2.0, 2.0, ...]  # rad/s, lower than the URDF's (one, one per joint,
       acceleration_limits: {j1: 10.0}   # rad/s^2  or a mapping joint name -> value)
+      limits:                           # per joint, SI: fill in what the URDF leaves unknown
+        j2: {lower: -2.9, upper: 2.9, velocity: 2.0, effort: 87.0}
 
 Relative paths are resolved against the folder of the config file.
 """
@@ -37,12 +39,40 @@ from ident.model.robot import Robot
 from ident.robot.limits import JointLimits, tighten_limits
 
 __all__ = [
+    "JointLimitOverride",
     "RobotSelection",
     "load_robot",
     "per_joint_limits",
     "selection_from_flags",
     "set_robot_limits",
 ]
+
+
+class JointLimitOverride(StrictModel):
+    """One joint's entry of ``robot.limits`` (SI: rad or m, rad/s or m/s, N*m or N).
+
+    Each given value tightens the file's (the tighter holds) and sets one the file leaves
+    unknown (no ``<limit>``, ``effort="0"``, ``lower == upper``), so that the checks run.
+    """
+
+    lower: float | None = None
+    upper: float | None = None
+    velocity: float | None = None
+    effort: float | None = None
+
+    @model_validator(mode="after")
+    def _valid(self) -> JointLimitOverride:
+        for key in ("lower", "upper", "velocity", "effort"):
+            value = getattr(self, key)
+            if value is not None and not math.isfinite(value):
+                raise ValueError(f"{key} = {value}: give a finite number")
+        for key in ("velocity", "effort"):
+            value = getattr(self, key)
+            if value is not None and not value > 0:
+                raise ValueError(f"{key} = {value}: give a positive limit")
+        if self.lower is not None and self.upper is not None and not self.lower < self.upper:
+            raise ValueError(f"lower = {self.lower} is not below upper = {self.upper}")
+        return self
 
 
 class RobotSelection(StrictModel):
@@ -73,6 +103,9 @@ class RobotSelection(StrictModel):
     velocity_limits :
         Joint velocity limits [rad/s or m/s], in the same forms; they tighten the file's
         (the lower of the two holds), e.g. to a controller's published limits.
+    limits :
+        Per joint name, position, velocity and effort limits (:class:`JointLimitOverride`):
+        they tighten the file's and set those it leaves unknown.
     """
 
     urdf: Path | None = None
@@ -85,6 +118,7 @@ class RobotSelection(StrictModel):
     inertia_check: bool = True
     acceleration_limits: float | list[float] | dict[str, float] | None = None
     velocity_limits: float | list[float] | dict[str, float] | None = None
+    limits: dict[str, JointLimitOverride] = {}
 
     @model_validator(mode="before")
     @classmethod
@@ -169,17 +203,8 @@ def load_robot(selection: RobotSelection, *, source: str | Path = "config") -> R
         )
     else:
         robot = Robot.from_config(selection.path)
-    dq_max = per_joint_limits(selection.velocity_limits, "velocity_limits", robot, source)
-    ddq_max = per_joint_limits(selection.acceleration_limits, "acceleration_limits", robot, source)
-    if dq_max is not None or ddq_max is not None:
-        no_limit = np.full(robot.nv, np.inf)
-        configured = JointLimits(
-            joint_names=tuple(robot.joint_names),
-            q_lower=-no_limit,
-            q_upper=no_limit,
-            dq_max=no_limit if dq_max is None else dq_max,
-            ddq_max=no_limit if ddq_max is None else ddq_max,
-        )
+    configured = _configured_limits(selection, robot, source)
+    if configured is not None:
         limits, _ = tighten_limits(JointLimits.from_robot(robot), configured, "robot")
         set_robot_limits(robot, limits)
     if selection.joints is not None and list(selection.joints) != list(robot.joint_names):
@@ -188,6 +213,55 @@ def load_robot(selection: RobotSelection, *, source: str | Path = "config") -> R
             f"in order ({', '.join(robot.joint_names)}); fix the list or the chain selection."
         )
     return robot
+
+
+def _configured_limits(
+    selection: RobotSelection, robot: Robot, source: str | Path
+) -> JointLimits | None:
+    """The limits the ``robot:`` section sets (``velocity_limits``, ``acceleration_limits``,
+    ``limits``), ``inf`` where it sets none; None when it sets none at all.
+
+    Raises
+    ------
+    ConfigError
+        For a list of the wrong length or a joint the chain does not move.
+    """
+    dq_max = per_joint_limits(selection.velocity_limits, "velocity_limits", robot, source)
+    ddq_max = per_joint_limits(selection.acceleration_limits, "acceleration_limits", robot, source)
+    if dq_max is None and ddq_max is None and not selection.limits:
+        return None
+    names = list(robot.joint_names)
+    none = np.full(robot.nv, np.inf)
+    values = {
+        "q_lower": -none,
+        "q_upper": none.copy(),
+        "dq_max": none.copy() if dq_max is None else dq_max,
+        "ddq_max": none.copy() if ddq_max is None else ddq_max,
+        "tau_max": none.copy(),
+    }
+    for name, entry in selection.limits.items():
+        if name not in names:
+            raise ConfigError(
+                f"{source}: robot.limits names {name!r}, not a moving joint of the chain; use "
+                f"one of {', '.join(names)}."
+            )
+        j = names.index(name)
+        for key, given in (
+            ("q_lower", entry.lower),
+            ("q_upper", entry.upper),
+            ("dq_max", entry.velocity),
+            ("tau_max", entry.effort),
+        ):
+            if given is not None:
+                values[key][j] = min(values[key][j], given) if key == "dq_max" else given
+    return JointLimits(
+        tuple(names),
+        q_lower=values["q_lower"],
+        q_upper=values["q_upper"],
+        dq_max=values["dq_max"],
+        ddq_max=values["ddq_max"],
+        tau_max=values["tau_max"],
+    )
 
 
 def _limit_values(given: float | list[float] | dict[str, float] | None) -> list[float]:
@@ -237,14 +311,16 @@ def per_joint_limits(
 def set_robot_limits(robot: Robot, limits: JointLimits) -> None:
     """Make ``limits`` the robot's (position, velocity, acceleration; read-only copies).
 
+    The limits still unknown (``limits.unknown``) become ``robot.unknown_limits``.
     Everything that keeps a trajectory within limits reads them from the robot
     (:meth:`ident.excitation.constraints.JointLimits.from_robot`): the excitation's constraints,
     the approach and return, and the dense safety check.
     """
-    for key in ("q_lower", "q_upper", "dq_max", "ddq_max"):
+    for key in ("q_lower", "q_upper", "dq_max", "ddq_max", "tau_max"):
         value = np.array(getattr(limits, key), dtype=float)
         value.setflags(write=False)
         setattr(robot, key, value)
+    robot.unknown_limits = tuple(limits.unknown)
 
 
 def selection_from_flags(

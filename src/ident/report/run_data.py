@@ -48,11 +48,10 @@ FORMAT = "ident-run/1"
 
 def _joint_units(result: Any) -> list[str]:
     """Torque unit of each joint of the run: ``"N"`` (prismatic) or ``"N*m"``, from the URDF."""
-    import pinocchio as pin
-
     from ident.identify.assessment.sanity import joint_units
+    from ident.robot.urdf_load import model_from_text
 
-    model = pin.buildModelFromXML(str(result.urdf_text))
+    model = model_from_text(str(result.urdf_text), "robot.urdf")
     units = dict(zip(model.names[1:], joint_units(model), strict=True))
     return [units.get(name, "N*m") for name in result.joint_names]
 
@@ -412,11 +411,12 @@ def write_replay(run_dir: str | Path) -> str:
 def _default_frame(run_dir: Path) -> str:
     """Name of the frame the replay traces by default for the run's robot."""
     try:
-        import pinocchio as pin
-
+        from ident.inputs import read_urdf_text
+        from ident.robot.urdf_load import model_from_text
         from ident.viz.replay import default_traced_frame
 
-        return default_traced_frame(pin.buildModelFromUrdf(str(run_dir / "robot.urdf")))
+        path = run_dir / "robot.urdf"
+        return default_traced_frame(model_from_text(read_urdf_text(path), str(path)))
     except Exception:  # only a label: never fail the replay for it
         return "default"
 

@@ -261,6 +261,9 @@ def _check_text(entry: Any) -> str:
         ok = entry.get("ok", entry.get("consistent", entry.get("safe")))
         note = entry.get("message") or entry.get("summary") or ""
         state = "ok" if ok else "**violated**" if ok is not None else ""
+        not_run = len(entry.get("checks_not_run") or [])
+        if ok and not_run:  # never "ok" while a limit it needed was unknown
+            state = f"{not_run} check{'s' if not_run != 1 else ''} not run"
         return ", ".join(s for s in (state, note) if s) or json.dumps(entry)[:200]
     return str(entry)
 
@@ -273,8 +276,14 @@ def _safety_text(data: dict[str, Any]) -> str:
         return text
     if text == NOT_CHECKED:
         return executed
-    ok = (data.get("safety") or {}).get("ok") if isinstance(data.get("safety"), dict) else None
+    safety = data.get("safety")
+    entry: dict[str, Any] = safety if isinstance(safety, dict) else {}
+    ok = entry.get("ok")
     state = "ok" if ok else "**violated**" if ok is not None else text
+    not_run = len(entry.get("checks_not_run") or [])
+    if ok and not_run:  # never "ok" while a limit it needed was unknown
+        plural = "s" if not_run != 1 else ""
+        state = f"checked constraints hold, **{not_run} check{plural} not run**"
     return f"{state}: {executed}"
 
 

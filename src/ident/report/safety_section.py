@@ -92,8 +92,7 @@ def safety_section(data: dict[str, Any], figures: set[str] | frozenset[str]) -> 
     md = ["## Trajectory safety", ""]
     md += [
         f"Dense check of {label} at {_fmt(series.get('rate_hz'))} Hz "
-        f"({series.get('n_checked')} samples, one period): "
-        + ("every constraint holds." if series.get("usable") else "**constraints violated**."),
+        f"({series.get('n_checked')} samples, one period): {_verdict(series)}",
         "",
     ]
     if CLEARANCE_FIGURE in figures:
@@ -122,13 +121,38 @@ def safety_section(data: dict[str, Any], figures: set[str] | frozenset[str]) -> 
     return md
 
 
+def _limits_not_run(series: dict[str, Any]) -> list[str]:
+    """``"torque not checked on j1: the URDF gives effort 0"`` per limit check not run."""
+    return [e["text"] for e in series.get("not_checked") or [] if "check" in e]
+
+
+def _verdict(series: dict[str, Any]) -> str:
+    """``every constraint holds.`` only when every limit was known; else the number of checks
+    not run (listed below the table)."""
+    not_run = len(_limits_not_run(series))
+    if not series.get("usable"):
+        held = "**constraints violated**"
+    elif not_run:
+        held = "every checked constraint holds"
+    else:
+        return "every constraint holds."
+    if not_run:
+        held += f"; **{not_run} check{'s' if not_run != 1 else ''} not run** (listed below)"
+    return held + "."
+
+
 def _not_checked(series: dict[str, Any]) -> list[str]:
-    """The pairs left out of the check and why (robot link pairs; environment pairs at a
-    constant distance, judged once)."""
-    entries = series.get("not_checked") or []
+    """The limit checks not run (unknown limits) and the pairs left out of the check and why
+    (robot link pairs; environment pairs at a constant distance, judged once)."""
+    md: list[str] = []
+    not_run = _limits_not_run(series)
+    if not_run:
+        md += ["", "Checks not run (the limit is unknown, or its check is switched off):", ""]
+        md += [f"- {line}" for line in not_run]
+    entries = [e for e in series.get("not_checked") or [] if "pair" in e]
     if not entries:
-        return []
-    md = [
+        return md
+    md += [
         "",
         "Pairs not checked along the trajectory (the exact geometry is measured for every "
         "other pair, between the samples too):",

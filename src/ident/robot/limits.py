@@ -1,9 +1,15 @@
 """Joint limits of a robot chain and the one rule that combines limits of several origins.
 
-The URDF's limits, the run config's (``robot.velocity_limits``, ``robot.acceleration_limits``)
-and an export target's published ones (libfranka, UR datasheets) meet in
-:func:`tighten_limits`; the excitation constraints (:mod:`ident.excitation.constraints`), the
-approach and return and the dense safety check read the result from the robot.
+The URDF's limits, the run config's (``robot.limits``, ``robot.velocity_limits``,
+``robot.acceleration_limits``) and an export target's published ones (libfranka, UR
+datasheets) meet in :func:`tighten_limits`; the excitation constraints
+(:mod:`ident.excitation.constraints`), the approach and return and the dense safety check read
+the result from the robot.
+
+A limit is known (a finite value), genuinely absent (a continuous joint's position: ``inf``)
+or **unknown**: the file gives none, or gives 0 or an empty range. An unknown limit is ``inf``
+in the arrays (nothing can be compared with it) *and* an :class:`UnknownLimit` with the reason,
+so that every check that cannot run names it instead of passing.
 """
 
 from __future__ import annotations
@@ -14,9 +20,46 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["JointLimits", "tighten_limits"]
+__all__ = ["LIMIT_KINDS", "JointLimits", "UnknownLimit", "describe_unknown", "tighten_limits"]
+
+#: The kinds of joint limit, as the checks name them (``torque`` is the URDF's ``effort``).
+LIMIT_KINDS = ("position", "velocity", "acceleration", "torque")
 
 FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class UnknownLimit:
+    """A limit a check needs but nobody gave (see the module docstring).
+
+    Attributes
+    ----------
+    kind :
+        One of :data:`LIMIT_KINDS`.
+    joint :
+        The joint's name.
+    reason :
+        Why it is unknown, e.g. ``"the URDF gives effort 0"``.
+    """
+
+    kind: str
+    joint: str
+    reason: str
+
+    @property
+    def check(self) -> str:
+        """The name of the check it leaves out: ``<kind>:<joint>``."""
+        return f"{self.kind}:{self.joint}"
+
+    def describe(self) -> str:
+        """``"torque not checked on j1: the URDF gives effort 0"``."""
+        return describe_unknown(self.check, self.reason)
+
+
+def describe_unknown(check: str, reason: str) -> str:
+    """``"<kind> not checked on <joint>: <reason>"`` for a check named ``<kind>:<joint>``."""
+    kind, _, joint = check.partition(":")
+    return f"{kind} not checked on {joint}: {reason}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,6 +74,11 @@ class JointLimits:
         Position limits [rad], shape (nq,); ``-inf``/``inf`` where unknown.
     dq_max, ddq_max :
         Velocity [rad/s] and acceleration [rad/s^2] limits, shape (nq,); ``inf`` where unknown.
+    tau_max :
+        Effort limits [N*m or N], shape (nq,); ``inf`` where unknown (default: all unknown).
+    unknown :
+        The limits that are ``inf`` above because nobody gave them, with the reason (a
+        continuous joint's position is unlimited, not unknown, and is not listed).
     """
 
     joint_names: tuple[str, ...]
@@ -38,10 +86,15 @@ class JointLimits:
     q_upper: FloatArray
     dq_max: FloatArray
     ddq_max: FloatArray
+    tau_max: FloatArray = None  # type: ignore[assignment]  # None: all unknown (inf)
+    unknown: tuple[UnknownLimit, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
-        for name in ("q_lower", "q_upper", "dq_max", "ddq_max"):
+        if self.tau_max is None:
+            object.__setattr__(self, "tau_max", np.full(n, np.inf))
+        object.__setattr__(self, "unknown", tuple(self.unknown))
+        for name in ("q_lower", "q_upper", "dq_max", "ddq_max", "tau_max"):
             value = np.array(getattr(self, name), dtype=float, copy=True)
             if value.shape != (n,):
                 raise ValueError(f"JointLimits.{name} must have shape ({n},), got {value.shape}")
@@ -54,12 +107,15 @@ class JointLimits:
         names = tuple(robot.joint_names)
         n = len(names)
         ddq = getattr(robot, "ddq_max", None)
+        tau = getattr(robot, "tau_max", None)
         return cls(
             joint_names=names,
             q_lower=np.asarray(robot.q_lower, dtype=float),
             q_upper=np.asarray(robot.q_upper, dtype=float),
             dq_max=np.asarray(robot.dq_max, dtype=float),
             ddq_max=np.full(n, np.inf) if ddq is None else np.asarray(ddq, dtype=float),
+            tau_max=np.full(n, np.inf) if tau is None else np.asarray(tau, dtype=float),
+            unknown=tuple(getattr(robot, "unknown_limits", ())),
         )
 
     @property
@@ -79,6 +135,7 @@ _LIMIT_KINDS = (
     ("q_upper", "position upper", "rad"),
     ("dq_max", "velocity", "rad/s"),
     ("ddq_max", "acceleration", "rad/s^2"),
+    ("tau_max", "effort", "N*m"),
 )
 
 
@@ -89,7 +146,9 @@ def tighten_limits(
 
     The one place where joint limits of different origins (the URDF, the run config, an export
     target such as libfranka) are combined: positions ``[max(lower), min(upper)]``, velocities
-    and accelerations ``min``; ``inf`` (``-inf`` for a lower bound) means no limit.
+    accelerations and efforts ``min``; ``inf`` (``-inf`` for a lower bound) means no limit. An
+    unknown limit of ``limits`` that ``bound`` sets (both sides, for a position) is known
+    afterwards; the others stay unknown.
 
     Parameters
     ----------
@@ -122,6 +181,7 @@ def tighten_limits(
         "q_upper": np.minimum(limits.q_upper, bound.q_upper),
         "dq_max": np.minimum(limits.dq_max, bound.dq_max),
         "ddq_max": np.minimum(limits.ddq_max, bound.ddq_max),
+        "tau_max": np.minimum(limits.tau_max, bound.tau_max),
     }
     notes = []
     for key, quantity, unit in _LIMIT_KINDS:
@@ -134,4 +194,24 @@ def tighten_limits(
         ]
         if changed:
             notes.append(f"{source}: {quantity} limits [{unit}] {', '.join(changed)}")
-    return JointLimits(joint_names=tuple(limits.joint_names), **values), tuple(notes)
+    unknown = tuple(u for u in limits.unknown if not _now_known(u, limits.joint_names, values))
+    return (
+        JointLimits(joint_names=tuple(limits.joint_names), unknown=unknown, **values),
+        tuple(notes),
+    )
+
+
+_KIND_ARRAYS = {
+    "position": ("q_lower", "q_upper"),
+    "velocity": ("dq_max",),
+    "acceleration": ("ddq_max",),
+    "torque": ("tau_max",),
+}
+
+
+def _now_known(
+    unknown: UnknownLimit, names: tuple[str, ...], values: dict[str, FloatArray]
+) -> bool:
+    """True when every array of ``unknown``'s kind is finite at its joint in ``values``."""
+    j = names.index(unknown.joint)
+    return all(np.isfinite(values[key][j]) for key in _KIND_ARRAYS[unknown.kind])

@@ -16,11 +16,14 @@ import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from ident.errors import ModelError
+from ident.inputs import MAX_URDF_BYTES, read_urdf_text, refuse_dtd
 from ident.robot.inertia import consistency_problems, parameters_from_com
 
 __all__ = [
@@ -28,12 +31,20 @@ __all__ = [
     "build_model",
     "chain_locks",
     "check_inertials",
+    "check_tree",
+    "checked_limits",
     "continuous_as_revolute",
+    "expand_xacro",
     "lock_values",
     "locked_model",
+    "model_from_text",
     "moving_links",
+    "needs_xacro",
     "parse_xml",
+    "prepare_urdf",
+    "PreparedURDF",
     "suggested_locks",
+    "urdf_file_text",
 ]
 
 #: Relative tolerance of the inertial consistency check of URDF links (to the largest principal
@@ -61,6 +72,115 @@ def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
             os.close(saved)
             sink.seek(0)
             captured.extend(sink.read().decode("utf-8", "replace").splitlines())
+
+
+def urdf_file_text(
+    path: Path, package_dirs: Sequence[str | os.PathLike[str]] = (), where: str | None = None
+) -> str:
+    """The URDF text of a robot file: read (UTF-8, bounded, no DTD), expanded by xacro when it
+    is a ``.xacro`` file or still holds xacro (:func:`expand_xacro`)."""
+    where = str(path) if where is None else where
+    text = read_urdf_text(path)
+    if needs_xacro(path, text):
+        text = expand_xacro(path, package_dirs, where)
+        if len(text) > MAX_URDF_BYTES:
+            raise ModelError(
+                f"{where}: xacro expands the file to {len(text) >> 20} MB of URDF, more than "
+                f"{MAX_URDF_BYTES >> 20} MB; check its macros."
+            )
+        refuse_dtd(text, where)  # an included file may declare one
+    return text
+
+
+_XACRO_NAMESPACE = "{http://www.ros.org/wiki/xacro}"
+
+
+def needs_xacro(path: os.PathLike[str] | str, text: str) -> bool:
+    """True for a ``.xacro`` file, or URDF text that still holds xacro outside its comments:
+    a ``<xacro:...>`` element, or ``${...}`` / ``$(...)`` in an attribute (vendors' URDFs
+    keep commented-out xacro; text that is not XML is left to the URDF parser's error)."""
+    if str(path).lower().endswith(".xacro"):
+        return True
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError:
+        return False
+    for element in root.iter():
+        if isinstance(element.tag, str) and element.tag.startswith(_XACRO_NAMESPACE):
+            return True
+        if any("${" in v or "$(" in v for v in element.attrib.values()):
+            return True
+    return False
+
+
+@contextlib.contextmanager
+def _find_in(package_dirs: Sequence[str | os.PathLike[str]]) -> Iterator[list[str]]:
+    """Serve xacro's ``$(find pkg)`` from ``package_dirs`` (folders that hold the package
+    folders, as for ``package://`` URIs) instead of a ROS installation, for the ``with``; the
+    list it yields receives the packages not found (xacro wraps the exception)."""
+    from xacro import substitution_args
+
+    missing: list[str] = []
+
+    def find(package: str) -> str:
+        for folder in package_dirs:
+            candidate = Path(folder) / package
+            if candidate.is_dir():
+                return str(candidate.resolve())
+        missing.append(package)
+        raise LookupError(package)
+
+    saved = substitution_args._eval_find
+    saved_eval = substitution_args._eval_dict.get("find")
+    substitution_args._eval_find = find
+    substitution_args._eval_dict["find"] = find
+    try:
+        yield missing
+    finally:
+        substitution_args._eval_find = saved
+        substitution_args._eval_dict["find"] = saved_eval
+
+
+def expand_xacro(path: Path, package_dirs: Sequence[str | os.PathLike[str]], where: str) -> str:
+    """The URDF text of a xacro file, expanded with the ``xacro`` package (no ROS needed:
+    ``$(find pkg)`` is looked up in ``package_dirs``).
+
+    Raises
+    ------
+    ModelError
+        One line naming the file and the command that expands it by hand, when ``xacro`` is
+        not installed or cannot expand the file.
+    """
+    name = Path(path).name
+    # never the input's own name: the shell would empty it before xacro reads it
+    stem = name.removesuffix(".xacro") if name.endswith(".xacro") else f"{Path(name).stem}.expanded"
+    by_hand = f"xacro {name} > {stem.removesuffix('.urdf')}.urdf"
+    try:
+        import xacro
+    except ImportError as e:
+        raise ModelError(
+            f"{where}: the file is xacro and the xacro package is not installed; install it "
+            f"(pip install xacro) or expand the file yourself: {by_hand}"
+        ) from e
+    missing: list[str] = []
+    try:
+        with _find_in(package_dirs) as missing, contextlib.redirect_stdout(sys.stderr):
+            document = xacro.process_file(str(Path(path).resolve()))
+        return str(document.toxml())
+    except Exception as e:  # noqa: BLE001 - xacro raises anything (XacroException, NameError)
+        if missing:
+            dirs = ", ".join(str(d) for d in package_dirs) or "none given"
+            raise ModelError(
+                f"{where}: xacro's $(find {missing[0]}): no folder {missing[0]!r} in the "
+                f"package folders ({dirs}); give the folder that holds it with "
+                "robot.package_dirs (--package-dir DIR), or expand the file yourself: "
+                f"{by_hand}"
+            ) from e
+        reason = " ".join(str(e).split()) or type(e).__name__
+        raise ModelError(
+            f"{where}: xacro cannot expand the file ({reason}); fix it or expand it yourself "
+            f"and give the URDF: {by_hand}"
+        ) from e
 
 
 def parse_xml(text: str, where: str) -> ET.Element:
@@ -116,6 +236,118 @@ def check_inertials(root: ET.Element, where: str, links: set[str] | None = None)
             )
 
 
+_MOVING_TYPES = ("revolute", "prismatic", "continuous")
+
+
+def _limit_value(limit: ET.Element, key: str, joint: str, where: str) -> float | None:
+    """The ``<limit key=...>`` of a joint as a finite float, ``None`` when absent.
+
+    Raises a ModelError naming the file, the joint and the attribute for text that is not a
+    finite number, and for a negative velocity or effort.
+    """
+    text = limit.get(key)
+    if text is None:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not np.isfinite(value):
+        fix = (
+            'give the limit in rad (m for a prismatic joint), or make the joint type="continuous" '
+            "if it turns without end"
+            if key in ("lower", "upper")
+            else f"give the joint's {key} limit as a positive number, or 0 if you do not know it"
+        )
+        raise ModelError(
+            f'{where}: joint {joint!r}: <limit {key}="{text}"> is not a finite number; {fix}.'
+        )
+    if key in ("velocity", "effort") and value < 0.0:
+        raise ModelError(
+            f'{where}: joint {joint!r}: <limit {key}="{text}"> is negative; give the {key} '
+            "limit as a positive magnitude."
+        )
+    return value
+
+
+def checked_limits(root: ET.Element, where: str) -> tuple[dict[tuple[str, str], str], bool]:
+    """Check the ``<limit>`` of every moving joint and say which limits the URDF leaves unknown.
+
+    A position range with ``lower > upper`` (swapped) and a limit that is not a finite number
+    are errors. A missing ``<limit>`` or attribute, a velocity or effort of 0 and an empty range
+    (``lower == upper``, both 0 included) are unknown: Pinocchio would read them as 0. Missing
+    ``effort`` / ``velocity`` attributes (and a missing ``<limit>``) are added as ``0`` to
+    ``root`` so that Pinocchio parses the joint; a position range with one side missing loses
+    the other (both unknown). A continuous joint's position is unlimited, not unknown.
+
+    Parameters
+    ----------
+    root :
+        The parsed ``<robot>`` element, completed in place.
+    where :
+        The file, for the messages.
+
+    Returns
+    -------
+    unknown, changed :
+        ``(kind, joint) -> reason`` (kind ``position``, ``velocity`` or ``torque``; reason
+        ``"the URDF gives effort 0"``), and whether ``root`` was completed.
+
+    Raises
+    ------
+    ModelError
+        Naming the file, the joint and the attribute, for a swapped range, a value that is not
+        a finite number, or a negative velocity or effort.
+    """
+    unknown: dict[tuple[str, str], str] = {}
+    changed = False
+    for joint in root.findall("joint"):
+        kind, name = joint.get("type"), joint.get("name", "?")
+        if kind not in _MOVING_TYPES:
+            continue
+        limit = joint.find("limit")
+        if limit is None:
+            limit = ET.SubElement(joint, "limit")
+            changed = True
+        for key, what in (("velocity", "velocity"), ("effort", "torque")):
+            value = _limit_value(limit, key, name, where)
+            if value is None:
+                unknown[what, name] = f"the URDF gives no {key} limit"
+                limit.set(key, "0")
+                changed = True
+            elif value == 0.0:
+                unknown[what, name] = f"the URDF gives {key} 0"
+        if kind != "continuous":
+            reason, trimmed = _position_unknown(limit, name, where)
+            changed |= trimmed
+            if reason:
+                unknown["position", name] = reason
+    return unknown, changed
+
+
+def _position_unknown(limit: ET.Element, joint: str, where: str) -> tuple[str, bool]:
+    """Why the ``lower``/``upper`` of a revolute or prismatic joint are unknown (``""``: known),
+    and whether a one-sided range was removed (Pinocchio would read the missing side as 0)."""
+    lower = _limit_value(limit, "lower", joint, where)
+    upper = _limit_value(limit, "upper", joint, where)
+    if lower is not None and upper is not None:
+        if lower > upper:
+            raise ModelError(
+                f'{where}: joint {joint!r}: <limit lower="{limit.get("lower")}" '
+                f'upper="{limit.get("upper")}">: lower is above upper (swapped?); give '
+                "lower < upper."
+            )
+        if lower == upper:
+            return f"the URDF gives lower = upper = {lower:g} (an empty range)", False
+        return "", False
+    if lower is None and upper is None:
+        return "the URDF gives no position limit", False
+    missing = "upper" if upper is None else "lower"
+    for key in ("lower", "upper"):
+        limit.attrib.pop(key, None)
+    return f"the URDF gives no {missing} position limit", True
+
+
 def continuous_as_revolute(root: ET.Element, text: str) -> tuple[str, tuple[str, ...]]:
     """Rewrite the continuous joints of a URDF as revolute joints without position limit.
 
@@ -154,6 +386,70 @@ def continuous_as_revolute(root: ET.Element, text: str) -> tuple[str, tuple[str,
     if not names:
         return text, ()
     return ET.tostring(root, encoding="unicode"), tuple(names)
+
+
+@dataclass(frozen=True)
+class PreparedURDF:
+    """A URDF text as Pinocchio will read it (see :func:`prepare_urdf`).
+
+    Attributes
+    ----------
+    root :
+        The parsed ``<robot>`` element, rewritten like ``text``.
+    text :
+        The text for Pinocchio: continuous joints as revolute ones, missing velocity and
+        effort limits as 0 (the input text itself when nothing changed).
+    continuous :
+        The continuous joints, in file order.
+    unknown :
+        ``(kind, joint) -> reason`` of the limits the file leaves unknown
+        (:func:`checked_limits`).
+    """
+
+    root: ET.Element
+    text: str
+    continuous: tuple[str, ...]
+    unknown: dict[tuple[str, str], str]
+
+
+def prepare_urdf(text: str, where: str) -> PreparedURDF:
+    """Parse, check and rewrite a URDF text for Pinocchio: the one way every reader of a URDF
+    (the robot, the collision geometry) turns the file into a model.
+
+    Raises
+    ------
+    ModelError
+        Naming the file: malformed XML, a kinematic loop (:func:`check_tree`), a bad limit
+        (:func:`checked_limits`).
+    """
+    root = parse_xml(text, where)
+    check_tree(root, where)
+    unknown, completed = checked_limits(root, where)
+    revolute_text, continuous = continuous_as_revolute(root, text)
+    if completed and not continuous:
+        revolute_text = ET.tostring(root, encoding="unicode")
+    return PreparedURDF(root, revolute_text, continuous, unknown)
+
+
+def check_tree(root: ET.Element, where: str) -> None:
+    """Raise a ModelError naming the link that is the child of two joints (a kinematic loop).
+
+    Pinocchio builds a tree; a second joint into a link would be reported as a missing body.
+    """
+    parent_joint: dict[str, str] = {}
+    for joint in root.findall("joint"):
+        child = joint.find("child")
+        link = None if child is None else child.get("link")
+        if link is None:
+            continue
+        name = joint.get("name", "?")
+        if link in parent_joint:
+            raise ModelError(
+                f"{where}: link {link!r} is the child of joints {parent_joint[link]!r} and "
+                f"{name!r} (a kinematic loop); ident reads tree-shaped URDFs: remove one of "
+                "the joints."
+            )
+        parent_joint[link] = name
 
 
 def lock_values(
@@ -280,6 +576,13 @@ def build_model(text: str, where: str) -> pin.Model:
     if model.njoints < 2:
         raise ModelError(f"{where}: the URDF has no moving joint; a serial arm is needed.")
     return model
+
+
+def model_from_text(text: str, where: str) -> pin.Model:
+    """Pinocchio's model of a URDF text, read as :meth:`ident.Robot.from_urdf` reads it
+    (:func:`prepare_urdf`: continuous joints revolute, missing limits 0; the full tree, no
+    lock)."""
+    return build_model(prepare_urdf(text, where).text, where)
 
 
 def _body_joint(model: pin.Model, link: str, key: str, where: str) -> int:

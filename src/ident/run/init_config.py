@@ -9,6 +9,8 @@ From the URDF alone it chooses
 - **limits**: the URDF's velocity limits; acceleration limits from the URDF's
   ``<limit acceleration=...>`` where present, otherwise the rule of thumb
   ``ddq_max = ACCELERATION_PER_VELOCITY * dq_max`` (full speed in a third of a second);
+  a position, velocity or effort limit the URDF leaves unknown (none, 0, an empty range) is
+  written to ``robot.limits`` as an explicit guess, marked as one, so that the run checks it;
 - **the excitation**: the joint-space Fourier series of ``configs/ur5.yaml`` (4 harmonics,
   10 s period) whose coefficient bound keeps *every* design of the search box within
   ``VELOCITY_MARGIN`` of each joint's velocity limit and within its acceleration limit
@@ -39,6 +41,7 @@ import numpy as np
 import yaml
 
 from ident.config import validate_config
+from ident.dynamics.chain import DEFAULT_Q_RANGE
 from ident.errors import ConfigError, IdentError
 from ident.excitation.fourier import fourier_bound_factors
 from ident.inputs import read_urdf_text
@@ -144,8 +147,8 @@ def init_config(
     if not urdf.is_file():
         raise ConfigError(f"{urdf}: URDF file not found; check the path.")
     text = read_urdf_text(urdf)
-    locks, lock_notes = choose_locks(urdf, base_link, tip_link, dict(lock or {}))
     dirs = find_package_dirs(urdf, text, list(package_dirs or []))
+    locks, lock_notes = choose_locks(urdf, base_link, tip_link, dict(lock or {}), dirs)
     selection = RobotSelection(
         urdf=urdf.resolve(),
         base_link=base_link,
@@ -154,9 +157,10 @@ def init_config(
         package_dirs=dirs,
     )
     robot = load_robot(selection, source=urdf)
-    c = _choose(robot, text)
+    c = _choose(robot, robot.urdf_text)  # xacro expanded
+    guesses, guess_notes = _limit_guesses(robot, c)
     lines = [
-        *_robot_lines(c, selection, output, urdf, lock_notes),
+        *_robot_lines(c, selection, output, urdf, lock_notes, guesses),
         *_excitation_lines(c, robot),
         *_safety_lines(c),
         *_measurement_lines(c),
@@ -164,7 +168,7 @@ def init_config(
     ]
     config_text = "\n".join(lines) + "\n"
     seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
-    notes = _notes(c, urdf, lock_notes)
+    notes = [*_notes(c, urdf, lock_notes), *guess_notes]
     return InitResult(config_text, tuple(notes), seconds, quick_seconds)
 
 
@@ -274,7 +278,12 @@ def _choose(robot: Any, text: str) -> _Choices:
 
 
 def _robot_lines(
-    c: _Choices, selection: RobotSelection, output: Path, urdf: Path, lock_notes: list[str]
+    c: _Choices,
+    selection: RobotSelection,
+    output: Path,
+    urdf: Path,
+    lock_notes: list[str],
+    guesses: list[str],
 ) -> list[str]:
     """The header and the ``robot:`` section (paths relative to the output's folder)."""
     folder = output.resolve().parent
@@ -309,10 +318,42 @@ def _robot_lines(
             f"{ACCELERATION_PER_VELOCITY:g} x the velocity limit (full speed in "
             f"{1 / ACCELERATION_PER_VELOCITY:.2g} s): replace with your robot's value"
         )
+    lines += guesses
     add("stage: whole                   # every joint moves, every body is unknown")
     add("seed: 0")
     add("")
     return lines
+
+
+def _limit_guesses(robot: Any, c: _Choices) -> tuple[list[str], list[str]]:
+    """The ``robot.limits`` lines for the limits the URDF leaves unknown (a velocity or effort
+    of 0 or none, an empty or missing position range), each an explicit value marked as a
+    guess so that the run checks against it, and one note per guess."""
+    names = list(c.names)
+    values: dict[str, list[str]] = {}
+    notes: list[str] = []
+    for u in robot.unknown_limits:
+        if u.kind == "acceleration":  # robot.acceleration_limits, written above
+            continue
+        j = names.index(u.joint)
+        half = DEFAULT_Q_RANGE["prismatic" if robot.chain.prismatic[j] else "revolute"]
+        guess = {
+            "position": [("lower", -half), ("upper", half)],
+            "velocity": [("velocity", float(c.dq_max[j]))],
+            # twice the gravity torque, at least twice the torque the excitation needs
+            "torque": [("effort", float(max(c.effort[j], 2.0 * c.torque[j])))],
+        }[u.kind]
+        why = f"guess: {u.reason} for {u.joint}; set your robot's"
+        for key, value in guess:
+            values.setdefault(u.joint, []).append(f"      {key}: {value:.4g}   # {why}")
+        notes.append(f"limits: {u.joint} {u.kind} {u.reason}: guessed, set your robot's")
+    if not values:
+        return [], []
+    lines = ["  limits:                      # per joint, SI (rad or m, rad/s, N*m)"]
+    for joint in names:
+        if joint in values:
+            lines += [f"    {joint}:", *values[joint]]
+    return lines, notes
 
 
 def _excitation_lines(c: _Choices, robot: Any) -> list[str]:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -15,15 +16,14 @@ import pinocchio as pin
 
 from ident.errors import ConfigError
 from ident.excitation.safety import build_safety_model
-from ident.inputs import read_urdf_text
 from ident.model.robot import Robot
 from ident.robot.mimic import mimic_lock_reasons, read_mimics
 from ident.robot.urdf_load import (
     build_model,
     chain_locks,
-    continuous_as_revolute,
-    parse_xml,
+    prepare_urdf,
     suggested_locks,
+    urdf_file_text,
 )
 
 __all__ = [
@@ -47,14 +47,18 @@ def _fmt(value: float) -> str:
 
 
 def choose_locks(
-    urdf: Path, base_link: str | None, tip_link: str | None, lock: dict[str, float]
+    urdf: Path,
+    base_link: str | None,
+    tip_link: str | None,
+    lock: dict[str, float],
+    package_dirs: Sequence[Path] = (),
 ) -> tuple[dict[str, float], list[str]]:
     """Joints to lock (name -> position) and one reason line per lock."""
     where = str(urdf)
-    text = read_urdf_text(urdf)
-    root = parse_xml(text, where)
-    revolute_text, _ = continuous_as_revolute(root, text)
-    model = build_model(revolute_text, where)
+    text = urdf_file_text(urdf, package_dirs, where)  # read as Robot.from_urdf reads it
+    prepared = prepare_urdf(text, where)
+    root = prepared.root
+    model = build_model(prepared.text, where)
     reasons: dict[str, str] = {name: "given with --lock" for name in lock}
     if base_link is not None or tip_link is not None:
         for name in chain_locks(model, base_link, tip_link, where):
@@ -116,7 +120,9 @@ def find_package_dirs(urdf: Path, text: str, given: list[Path]) -> list[Path]:
     URDF's folder that holds a folder ``NAME``."""
     if given:
         return [p.resolve() for p in given]
-    names = sorted(set(re.findall(r"package://([^/\"']+)/", text)))
+    # package:// URIs, and xacro's $(find NAME) (served from the same folders)
+    found_names = re.findall(r"package://([^/\"']+)/|\$\(find ([^)\s]+)\)", text)
+    names = sorted({a or b for a, b in found_names})
     found: list[Path] = []
     for name in names:
         for parent in urdf.resolve().parents:

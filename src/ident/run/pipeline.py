@@ -197,8 +197,17 @@ def run_pipeline(
         message="run complete",
         warnings=_run_warnings(config, state, plan),
         executable=plan,
-        safety={"ok": plan.usable, "message": plan.message},
+        safety=_safety_entry(plan, state.safety),
     )
+
+
+def _safety_entry(plan: Any, reports: list[Any]) -> dict[str, Any]:
+    """result.json's ``safety``: ``ok`` (the trajectory passed every check that ran), the
+    checks that could not run (an unknown limit: ``"torque not checked on j1: ..."``) and the
+    one-line message (which counts them too)."""
+    report = plan.report if plan.report is not None else (reports[0] if reports else None)
+    not_run = list(report.checks_not_run()) if report is not None else []
+    return {"ok": plan.usable, "checks_not_run": not_run, "message": plan.message}
 
 
 def _measurement_of(setup: RunSetup, problem: Any) -> tuple[StageInfo, Any]:

@@ -44,10 +44,11 @@ from pinocchio.visualize import MeshcatVisualizer
 from pinocchio.visualize.meshcat_visualizer import loadMesh
 
 from ident.errors import DataError, IdentWarning, ModelError
+from ident.inputs import read_urdf_text
 from ident.measure.timebase import find_segments
 from ident.model.selection import RobotSelection, load_robot
 from ident.robot.meshes import check_urdf_meshes
-from ident.robot.urdf_load import build_model, continuous_as_revolute, parse_xml
+from ident.robot.urdf_load import build_model, needs_xacro, prepare_urdf
 from ident.trajectory import JointTrajectory
 from ident.viz.environment import (
     CLOSEST_COLOR,
@@ -195,10 +196,10 @@ def load_visual_robot(
     dirs = _mesh_folders(urdf_path, package_dirs, selection.package_dirs)
     # the identification's robot: its checks, chain and lock values (inertials not needed)
     robot_model = load_robot(selection.model_copy(update={"inertia_check": False}))
-    text = robot_model.urdf_text
-    where = str(urdf_path)
-    model = build_model(continuous_as_revolute(parse_xml(text, where), text)[0], where)
-    visual_model = _urdf_geometry(model, urdf_path, dirs, package_hint)
+    text = robot_model.urdf_text  # xacro expanded
+    pinocchio_text = prepare_urdf(text, str(urdf_path)).text
+    model = build_model(pinocchio_text, str(urdf_path))
+    visual_model = _urdf_geometry(model, urdf_path, pinocchio_text, dirs, package_hint)
     if visual_model is None:
         return robot_model.model, stick_figure(robot_model.model), True
     if robot_model.locked_joints:
@@ -218,7 +219,7 @@ def _mesh_folders(
 
 
 def _urdf_geometry(
-    model: pin.Model, urdf_path: Path, dirs: list[str], package_hint: str
+    model: pin.Model, urdf_path: Path, text: str, dirs: list[str], package_hint: str
 ) -> pin.GeometryModel | None:
     """The URDF's visual geometry of the full ``model``, else its collision geometry.
 
@@ -226,20 +227,19 @@ def _urdf_geometry(
     segfault). When the visual geometry cannot be loaded, an :class:`IdentWarning` (attributed
     to the caller of :func:`load_visual_robot`) names the problem and ``package_hint``, and
     the collision geometry is used; ``None`` when that cannot be loaded either (or is empty):
-    the caller shows a stick figure. A URDF without visuals gives an empty model.
+    the caller shows a stick figure. A URDF without visuals gives an empty model. ``text``:
+    the URDF as Pinocchio reads it (:func:`ident.robot.urdf_load.prepare_urdf`).
     """
-    check_urdf_meshes(urdf_path, dirs, collision=False)  # before coal: never a segfault
+    # the file names itself in the messages; a xacro file is checked expanded
+    meshes = text if needs_xacro(urdf_path, read_urdf_text(urdf_path)) else urdf_path
+    check_urdf_meshes(meshes, dirs, collision=False)  # before coal: never a segfault
     try:
-        return pin.buildGeomFromUrdf(
-            model, str(urdf_path), pin.GeometryType.VISUAL, package_dirs=dirs
-        )
+        return pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL, None, dirs)
     except (RuntimeError, ValueError) as e:
         problem = str(e).strip()
     try:  # the collision meshes, when they are the ones shipped (configs/panda.yaml)
-        check_urdf_meshes(urdf_path, dirs, visual=False)  # before coal: never a segfault
-        collision = pin.buildGeomFromUrdf(
-            model, str(urdf_path), pin.GeometryType.COLLISION, package_dirs=dirs
-        )
+        check_urdf_meshes(meshes, dirs, visual=False)  # before coal: never a segfault
+        collision = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION, None, dirs)
     except (RuntimeError, ValueError, ModelError):
         collision = pin.GeometryModel()
     # stacklevel 3: the warning names the caller of load_visual_robot

@@ -97,6 +97,14 @@ measurement: {{torque_noise_std: 0.0}}
 RUN_CASES: dict[str, tuple[str, str] | str] = {
     # name: text, or (text, xfail reason)
     "n_samples_1e9": RUN_BASE.replace("n_samples: 100", "n_samples: 1000000000"),
+    # the URDF's limits are read once for every command: swapped, a guess that is not one
+    "urdf_swapped_limit": RUN_BASE.replace(PAPER_ROBOT, "../urdf/swapped_limit.urdf").replace(
+        "stage: wrist", "stage: whole"
+    ),
+    "limits_override_swapped": RUN_BASE.replace(
+        f"robot: {PAPER_ROBOT}",
+        "robot: {urdf: ../urdf/three_joints.urdf, limits: {j1: {lower: 1.0, upper: -1.0}}}",
+    ).replace("stage: wrist", "stage: whole"),
     "n_samples_float": RUN_BASE.replace("n_samples: 100", "n_samples: 1e9"),
     "maxiter_huge": RUN_BASE.replace("maxiter: 2,", "maxiter: 100000000,"),
     "particles_huge": RUN_BASE.replace("n_particles: 8,", "n_particles: 10000000,"),
@@ -348,6 +356,14 @@ VERIFY_CASES: dict[str, list[str] | tuple[list[str], str]] = {
     "urdf_truncated": ["--urdf", "{data}/urdf/truncated.urdf"],
     "urdf_not_robot": ["--urdf", "{data}/urdf/not_robot.urdf"],
     "urdf_inf_limit": ["--urdf", "{data}/urdf/inf_limit.urdf"],
+    "urdf_swapped_limit": ["--urdf", "{data}/urdf/swapped_limit.urdf"],
+    "urdf_nan_limit": ["--urdf", "{data}/urdf/nan_limit.urdf"],
+    "urdf_huge_velocity": ["--urdf", "{data}/urdf/huge_velocity.urdf"],
+    "urdf_negative_effort": ["--urdf", "{data}/urdf/negative_effort.urdf"],
+    "urdf_loop": ["--urdf", "{data}/urdf/loop.urdf"],
+    "urdf_xacro_no_package": ["--urdf", "{data}/urdf/arm.urdf.xacro"],
+    "urdf_xacro_bad_expression": ["--urdf", "{data}/urdf/bad_expression.urdf.xacro"],
+    "urdf_xacro_in_urdf": ["--urdf", "{data}/urdf/unexpanded.urdf"],
     "urdf_dir": ["--urdf", "{data}/urdf"],
     "urdf_missing": ["--urdf", "{data}/urdf/nope.urdf"],
     # mimic joints ident does not take: a follower of a follower, a follower above its leader,
@@ -550,6 +566,25 @@ def _urdf_files() -> None:
                 + (text[end:])
             )
         _write(d / f"{name}.urdf", text)
+    _write(
+        d / "swapped_limit.urdf",
+        _urdf_chain(2).replace('lower="-1" upper="1"', 'lower="1" upper="-1"'),
+    )
+    _write(d / "nan_limit.urdf", _urdf_chain(2).replace('lower="-1"', 'lower="nan"'))
+    _write(d / "huge_velocity.urdf", _urdf_chain(2).replace('velocity="1"', 'velocity="1e999"'))
+    _write(d / "negative_effort.urdf", _urdf_chain(2).replace('effort="10"', 'effort="-10"'))
+    _write(d / "loop.urdf", _urdf_chain(3).replace('<child link="l3"/>', '<child link="l1"/>'))
+    xacro = _urdf_chain(2).replace(
+        '<robot name="chain">',
+        '<robot name="chain" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:include filename="$(find nopkg)/parts.xacro"/>',
+    )
+    _write(d / "arm.urdf.xacro", xacro)
+    _write(
+        d / "bad_expression.urdf.xacro",
+        _urdf_chain(2).replace('upper="1"', 'upper="${undefined_name / 2}"'),
+    )
+    _write(d / "unexpanded.urdf", _urdf_chain(2).replace('upper="1"', 'upper="${pi/2"'))
     _write(d / "base.yaml", URDF_BASE)
     n = 300
     _write(

@@ -223,11 +223,10 @@ def model_of_urdf(
 ) -> pin.Model:
     """Pinocchio's model of a URDF as :meth:`ident.model.Robot.from_urdf` builds it.
 
-    Continuous joints as revolute ones, the joints ``locked`` held at their values; no
-    inertial check (the write-back reads the file's own values).
+    Continuous joints as revolute ones, missing limits as 0 (unknown), the joints ``locked``
+    held at their values; no inertial check (the write-back reads the file's own values).
     """
-    from ident.robot.urdf_load import build_model, continuous_as_revolute, locked_model
+    from ident.robot.urdf_load import locked_model, model_from_text
 
-    root = parse_urdf(urdf_text, source)
-    revolute, _ = continuous_as_revolute(root, urdf_text)
-    return locked_model(build_model(revolute, source), dict(locked or {}), source)
+    parse_urdf(urdf_text, source)  # the write-back's own XML errors first
+    return locked_model(model_from_text(urdf_text, source), dict(locked or {}), source)
