@@ -173,16 +173,28 @@ class SafetyReport:
         pairs = [c for c in self.checks if c.kind == "clearance"]
         return min(pairs, key=lambda c: c.value) if pairs else None
 
+    def unchecked(self) -> tuple[str, ...]:
+        """The whole checks left out, from :attr:`not_checked` (entries that are no link
+        pair): ``"self-collision not checked (safety.self_collision: false)"``, a link
+        without geometry."""
+        return tuple(
+            f"{what} {why}"
+            for what, why in self.not_checked
+            if "|" not in what and "not checked" in why
+        )
+
     def summary(self) -> str:
-        """``"usable (...)"`` or ``"unsafe: <worst failure>; ..."`` in one line."""
+        """``"usable (...)"`` or ``"unsafe: <worst failure>; ..."`` in one line, then the
+        checks left out (:meth:`unchecked`)."""
+        caveats = "".join(f"; {c}" for c in self.unchecked())
         if self.usable:
             worst = self.min_clearance
             extra = f"; smallest clearance {worst.describe()}" if worst is not None else ""
-            return f"usable at {self.rate_hz:g} Hz{extra}"
+            return f"usable at {self.rate_hz:g} Hz{extra}{caveats}"
         fails = self.failures()
         shown = "; ".join(c.describe() for c in fails[:3])
         more = f" (+{len(fails) - 3} more)" if len(fails) > 3 else ""
-        return f"unsafe: {shown}{more}"
+        return f"unsafe: {shown}{more}{caveats}"
 
 
 def dense_family_states(
@@ -487,12 +499,24 @@ def _peak_checks(
     return checks
 
 
+SELF_COLLISION_NOT_CHECKED = ("self-collision", "not checked (safety.self_collision: false)")
+"""The :attr:`SafetyReport.not_checked` entry of a model built without self-collision."""
+
+
 def _not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
-    """``(pair, reason)`` of the safety model's excluded and constant-distance pairs."""
-    return tuple(
-        (e.pair, e.reason)
-        for e in (
-            *getattr(safety, "excluded_pairs", ()),
-            *getattr(safety, "constant_pairs", ()),
-        )
+    """``(pair, reason)`` of the safety model's excluded and constant-distance pairs, then
+    whole checks left out (self-collision off) and its geometry notes (``(link, what)``:
+    a visual mesh used for collision, a link without geometry)."""
+    config = getattr(safety, "config", None)
+    off = () if config is None or config.self_collision else (SELF_COLLISION_NOT_CHECKED,)
+    return (
+        *(
+            (e.pair, e.reason)
+            for e in (
+                *getattr(safety, "excluded_pairs", ()),
+                *getattr(safety, "constant_pairs", ()),
+            )
+        ),
+        *off,
+        *getattr(safety, "geometry_notes", ()),
     )

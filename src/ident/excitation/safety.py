@@ -58,7 +58,7 @@ from ident.config import StrictModel
 from ident.errors import ConfigError, ModelError
 from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
 from ident.excitation.family import ConstraintViolations, FloatArray
-from ident.robot.meshes import check_urdf_meshes
+from ident.robot.meshes import check_urdf_meshes, resolve_urdf_meshes
 
 __all__ = [
     "ALWAYS_IN_CONTACT_FRACTION",
@@ -349,29 +349,82 @@ def _revolute_text(text: str) -> str:
     return continuous_as_revolute(ET.fromstring(text), text)[0]
 
 
-def _kinematic_model_and_geometry(
-    robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path]
-) -> tuple[pin.Model, pin.GeometryModel]:
-    """Pinocchio model (same joints as ``robot.model``) and its collision GeometryModel."""
-    check_urdf_meshes(urdf or getattr(robot, "urdf_text", None), package_dirs, visual=False)
+MESH_FIX = (
+    "give the folder that holds them with --package-dir / robot.package_dirs, or set "
+    "safety.self_collision: false to design without self-collision checks"
+)
+"""The fix named when collision meshes are missing (every command that builds a safety model)."""
+
+
+def _urdf_source(robot: Any, urdf: str | Path | None) -> tuple[str, Path | None, str]:
+    """The URDF text, its folder (None for text) and the name that locates it in messages."""
     if urdf is None:
         text = getattr(robot, "urdf_text", None)
         if text is None:
             raise ModelError("the robot has no URDF text; pass urdf= (a path or the text).")
-    elif isinstance(urdf, Path) or (isinstance(urdf, str) and not urdf.lstrip().startswith("<")):
-        text = Path(urdf).read_text(encoding="utf-8")
-    else:
-        text = str(urdf)
+        path = getattr(robot, "urdf_path", None)
+        return str(text), None if path is None else Path(path).parent, str(path or "the URDF")
+    if isinstance(urdf, Path) or (isinstance(urdf, str) and not urdf.lstrip().startswith("<")):
+        return Path(urdf).read_text(encoding="utf-8"), Path(urdf).parent, str(urdf)
+    return str(urdf), None, "the URDF"
+
+
+def _collision_urdf(
+    robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path], self_collision: bool
+) -> tuple[str, tuple[tuple[str, str], ...]]:
+    """The URDF text with its collision meshes found (absolute paths; a link's visual geometry
+    where its collision geometry is absent or missing) and the notes the certificate shows.
+
+    Raises
+    ------
+    ModelError
+        A collision mesh is missing while ``self_collision`` is on (one line: the first three
+        files, their count and :data:`MESH_FIX`), or a mesh would crash coal.
+    """
+    text, base, where = _urdf_source(robot, urdf)
+    resolved = resolve_urdf_meshes(text, package_dirs, base, visual_for_collision=True)
+    missing = resolved.missing_line("collision", where)
+    if missing and self_collision:
+        raise ModelError(f"{missing}; {MESH_FIX}.")
+    check_urdf_meshes(resolved.text, visual=False)  # before coal: never a segfault
+    notes = [(link, "visual mesh used for collision") for link in resolved.visual_for_collision]
+    lost = dict.fromkeys(m.link for m in resolved.missing if m.kind == "collision")
+    notes += [
+        (link, "not checked against the floor and obstacles: its collision mesh is missing")
+        for link in lost
+    ]
+    return resolved.text, tuple(notes)
+
+
+def _kinematic_model_and_geometry(
+    robot: Any,
+    urdf: str | Path | None,
+    package_dirs: Sequence[str | Path],
+    self_collision: bool = True,
+) -> tuple[pin.Model, pin.GeometryModel, tuple[tuple[str, str], ...]]:
+    """Pinocchio model (same joints as ``robot.model``), its collision GeometryModel and the
+    geometry notes of :func:`_collision_urdf` (``(link, what)``).
+
+    The meshes reach Pinocchio as absolute paths in the URDF text (:func:`ident.robot.meshes.
+    resolve_urdf_meshes`), not through Pinocchio's ``package_dirs``: its own lookup knows
+    neither the URDF's folder nor ``file://`` paths of another machine, and one resolver for
+    every loader keeps the safety model, the mesh checks and the replay on the same files.
+    """
+    text, notes = _collision_urdf(robot, urdf, package_dirs, self_collision)
     text = _revolute_text(text)
     full = pin.buildModelFromXML(text)
-    dirs = [str(d) for d in package_dirs]
     try:
-        geom = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION, None, dirs)
+        geom = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION, None, [])
     except (RuntimeError, ValueError) as e:
         raise ModelError(
-            f"cannot load the URDF's collision geometry ({str(e).splitlines()[0]}); give the "
-            "folders that hold package:// meshes as package_dirs."
+            f"cannot load the URDF's collision geometry ({str(e).splitlines()[0]}); {MESH_FIX}."
         ) from e
+    if len(geom.geometryObjects) == 0 and self_collision:
+        raise ModelError(
+            "the URDF has no collision or visual geometry, so self-collision cannot be "
+            "checked; add <collision> geometry to its links, or set safety.self_collision: "
+            "false to design without self-collision checks."
+        )
     names = tuple(robot.model.names[1:])
     if tuple(full.names[1:]) != names:
         locked = dict(getattr(robot, "locked_joints", {}) or {})
@@ -384,7 +437,7 @@ def _kinematic_model_and_geometry(
             raise ModelError(
                 f"the URDF's joints {list(full.names[1:])} do not match the robot's {list(names)}"
             )
-    return full, geom
+    return full, geom, notes
 
 
 def _convexify(geom: pin.GeometryModel) -> None:
@@ -671,6 +724,9 @@ class SafetyModel:
     constant_pairs :
         Environment pairs whose distance no motion changes (the base on the floor, a first
         link turning on it), judged once when the model is built, with their distance.
+    geometry_notes :
+        ``(link, what)``: links whose visual geometry stands in for their collision geometry,
+        and links left without geometry (``self_collision: false`` with a mesh missing).
     clearance_m :
         Required clearance [m].
     motion_coefficients :
@@ -708,7 +764,10 @@ class SafetyModel:
         self.margin_note = ""
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
-        model, geom = _kinematic_model_and_geometry(robot, urdf, package_dirs)
+        # geometry_notes: (link, what) of visual stand-ins and links without geometry
+        model, geom, self.geometry_notes = _kinematic_model_and_geometry(
+            robot, urdf, package_dirs, config.self_collision
+        )
         if config.payload_box is not None:  # part of the robot: before anything counts links
             _attach_payload_box(model, geom, config.payload_box)
         self.model = model
