@@ -26,7 +26,7 @@ Where the samples come from (say which, :attr:`SafetyReport.resampling`):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,12 +38,14 @@ from ident.excitation.safety import SafetyModel, joint_torques
 
 __all__ = [
     "MIN_CHECK_RATE_HZ",
+    "SELF_COLLISION_NOT_CHECKED",
     "ConstraintCheck",
     "SafetyReport",
     "certified_clearances",
     "check_trajectory",
     "dense_family_states",
     "step_displacements",
+    "unchecked_checks",
 ]
 
 MIN_CHECK_RATE_HZ = 1000.0
@@ -174,14 +176,8 @@ class SafetyReport:
         return min(pairs, key=lambda c: c.value) if pairs else None
 
     def unchecked(self) -> tuple[str, ...]:
-        """The whole checks left out, from :attr:`not_checked` (entries that are no link
-        pair): ``"self-collision not checked (safety.self_collision: false)"``, a link
-        without geometry."""
-        return tuple(
-            f"{what} {why}"
-            for what, why in self.not_checked
-            if "|" not in what and "not checked" in why
-        )
+        """The whole checks left out (:func:`unchecked_checks` of :attr:`not_checked`)."""
+        return unchecked_checks(self.not_checked)
 
     def summary(self) -> str:
         """``"usable (...)"`` or ``"unsafe: <worst failure>; ..."`` in one line, then the
@@ -497,6 +493,16 @@ def _peak_checks(
             )  # fmt: skip
         )
     return checks
+
+
+def unchecked_checks(not_checked: Iterable[Sequence[str]]) -> tuple[str, ...]:
+    """The whole checks a certificate left out, one phrase each, from its ``not_checked``
+    ``(pair, reason)`` entries (those that are no link pair):
+    ``"self-collision not checked (safety.self_collision: false)"``, a link without geometry.
+    The run's summary line, verdict and report say them next to the outcome."""
+    return tuple(
+        f"{what} {why}" for what, why in not_checked if "|" not in what and "not checked" in why
+    )
 
 
 SELF_COLLISION_NOT_CHECKED = ("self-collision", "not checked (safety.self_collision: false)")

@@ -66,6 +66,7 @@ __all__ = [
     "MAX_CLEARANCE_M",
     "MAX_OBSTACLES",
     "MAX_SIZE_M",
+    "MESH_FIX",
     "N_EXCLUSION_POSTURES",
     "BoxObstacle",
     "FloorConfig",
@@ -78,6 +79,7 @@ __all__ = [
     "SphereObstacle",
     "build_safety_model",
     "clearances",
+    "collision_geometry_problem",
     "collision_violations",
     "joint_torques",
     "torque_violations",
@@ -369,23 +371,31 @@ def _urdf_source(robot: Any, urdf: str | Path | None) -> tuple[str, Path | None,
     return str(urdf), None, "the URDF"
 
 
+def collision_geometry_problem(robot: Any, package_dirs: Sequence[str | Path] = ()) -> str:
+    """Why self-collision cannot be checked for ``robot`` (empty when it can): the missing
+    collision meshes (the first three and their count), or a URDF without geometry.
+
+    ``ident init`` asks before it writes ``safety.self_collision``; a safety model with
+    self-collision on raises it, with its fix (:data:`MESH_FIX` for missing meshes).
+    """
+    return _collision_urdf(robot, None, package_dirs)[2][0]
+
+
 def _collision_urdf(
-    robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path], self_collision: bool
-) -> tuple[str, tuple[tuple[str, str], ...]]:
+    robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path]
+) -> tuple[str, tuple[tuple[str, str], ...], tuple[str, str]]:
     """The URDF text with its collision meshes found (absolute paths; a link's visual geometry
-    where its collision geometry is absent or missing) and the notes the certificate shows.
+    where its collision geometry is absent or missing), the notes the certificate shows
+    (``(link, what)``), and why self-collision cannot be checked and the fix (``('', '')``
+    when it can).
 
     Raises
     ------
     ModelError
-        A collision mesh is missing while ``self_collision`` is on (one line: the first three
-        files, their count and :data:`MESH_FIX`), or a mesh would crash coal.
+        A mesh that would crash coal (:func:`ident.robot.meshes.check_urdf_meshes`).
     """
     text, base, where = _urdf_source(robot, urdf)
     resolved = resolve_urdf_meshes(text, package_dirs, base, visual_for_collision=True)
-    missing = resolved.missing_line("collision", where)
-    if missing and self_collision:
-        raise ModelError(f"{missing}; {MESH_FIX}.")
     check_urdf_meshes(resolved.text, visual=False)  # before coal: never a segfault
     notes = [(link, "visual mesh used for collision") for link in resolved.visual_for_collision]
     lost = dict.fromkeys(m.link for m in resolved.missing if m.kind == "collision")
@@ -393,7 +403,17 @@ def _collision_urdf(
         (link, "not checked against the floor and obstacles: its collision mesh is missing")
         for link in lost
     ]
-    return resolved.text, tuple(notes)
+    problem = resolved.missing_line("collision", where)
+    if problem:
+        return resolved.text, tuple(notes), (problem, MESH_FIX)
+    if "<collision" not in resolved.text:
+        problem = f"{where} has no <collision> or <visual> geometry"
+        fix = (
+            "add <collision> geometry to its links, or set safety.self_collision: false to "
+            "design without self-collision checks"
+        )
+        return resolved.text, tuple(notes), (problem, fix)
+    return resolved.text, tuple(notes), ("", "")
 
 
 def _kinematic_model_and_geometry(
@@ -410,7 +430,9 @@ def _kinematic_model_and_geometry(
     neither the URDF's folder nor ``file://`` paths of another machine, and one resolver for
     every loader keeps the safety model, the mesh checks and the replay on the same files.
     """
-    text, notes = _collision_urdf(robot, urdf, package_dirs, self_collision)
+    text, notes, (problem, fix) = _collision_urdf(robot, urdf, package_dirs)
+    if problem and self_collision:
+        raise ModelError(f"{problem}; {fix}.")
     text = _revolute_text(text)
     full = pin.buildModelFromXML(text)
     try:
@@ -419,12 +441,6 @@ def _kinematic_model_and_geometry(
         raise ModelError(
             f"cannot load the URDF's collision geometry ({str(e).splitlines()[0]}); {MESH_FIX}."
         ) from e
-    if len(geom.geometryObjects) == 0 and self_collision:
-        raise ModelError(
-            "the URDF has no collision or visual geometry, so self-collision cannot be "
-            "checked; add <collision> geometry to its links, or set safety.self_collision: "
-            "false to design without self-collision checks."
-        )
     names = tuple(robot.model.names[1:])
     if tuple(full.names[1:]) != names:
         locked = dict(getattr(robot, "locked_joints", {}) or {})
