@@ -396,7 +396,7 @@ def _collision_urdf(
     """
     text, base, where = _urdf_source(robot, urdf)
     resolved = resolve_urdf_meshes(text, package_dirs, base, visual_for_collision=True)
-    check_urdf_meshes(resolved.text, visual=False)  # before coal: never a segfault
+    check_urdf_meshes(resolved.text, visual=False, name=where)  # before coal: no segfault
     notes = [(link, "visual mesh used for collision") for link in resolved.visual_for_collision]
     lost = dict.fromkeys(m.link for m in resolved.missing if m.kind == "collision")
     notes += [

@@ -277,6 +277,7 @@ def check_urdf_meshes(
     *,
     collision: bool = True,
     visual: bool = True,
+    name: str = "the URDF",
 ) -> None:
     """Refuse the URDF meshes that would crash Pinocchio, coal or qhull.
 
@@ -289,6 +290,8 @@ def check_urdf_meshes(
     collision, visual :
         Which elements to check: ``<collision>`` meshes (flat ones refused too: their hull
         is built) and/or ``<visual>`` meshes.
+    name :
+        What names the URDF in an error when ``urdf`` is its text (its file, usually).
 
     Raises
     ------
@@ -305,7 +308,7 @@ def check_urdf_meshes(
         except (OSError, UnicodeDecodeError):
             return  # the URDF loader reports an unreadable file
     else:
-        where, text = "the URDF", str(urdf)
+        where, text = name, str(urdf)
     try:
         root = ET.fromstring(text)
     except ET.ParseError:

@@ -231,13 +231,13 @@ def _urdf_geometry(
     without visuals gives an empty model.
     """
     resolved = resolve_urdf_meshes(urdf_path.read_text(encoding="utf-8"), dirs, urdf_path.parent)
-    check_urdf_meshes(resolved.text, collision=False)  # before coal: never a segfault
+    check_urdf_meshes(resolved.text, collision=False, name=str(urdf_path))  # before coal
     missing = resolved.missing_line("visual", str(urdf_path))
     if not missing:
         return pin.buildGeomFromUrdfString(model, resolved.text, pin.GeometryType.VISUAL)
     collision = pin.GeometryModel()
     if not resolved.missing_line("collision", str(urdf_path)):
-        check_urdf_meshes(resolved.text, visual=False)  # before coal: never a segfault
+        check_urdf_meshes(resolved.text, visual=False, name=str(urdf_path))  # before coal
         collision = pin.buildGeomFromUrdfString(model, resolved.text, pin.GeometryType.COLLISION)
     # stacklevel 3: the warning names the caller of load_visual_robot
     if len(collision.geometryObjects) == 0:
