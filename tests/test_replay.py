@@ -345,7 +345,9 @@ def test_cli_joint_count_mismatch_names_the_csv_and_the_urdf(tmp_path):
 
 def test_cli_paper_trajectory_on_ur5_names_both_sides(tmp_path):
     csv = _write_csv(tmp_path / "paper.csv", make_trajectory(duration=0.5))
-    result = _invoke_replay("--urdf", UR5_URDF, "--trajectory", csv, "--html", tmp_path / "x.html")
+    urdf = tmp_path / "ur5_robot.urdf"  # away from its meshes (beside the original, found)
+    urdf.write_text(UR5_URDF.read_text())
+    result = _invoke_replay("--urdf", urdf, "--trajectory", csv, "--html", tmp_path / "x.html")
     assert result.exit_code == 2
     message = " ".join(result.output.split())  # undo the terminal's line wrapping
     # no --package-dir: no meshes, one warning line naming the option
@@ -353,7 +355,7 @@ def test_cli_paper_trajectory_on_ur5_names_both_sides(tmp_path):
     assert "stick figure" in message
     assert "with --package-dir" in message
     assert f"the joints of trajectory {csv} {list(JOINTS)}" in message
-    assert f"do not match the joints of URDF {UR5_URDF} ['shoulder_pan_joint'" in message
+    assert f"do not match the joints of URDF {urdf} ['shoulder_pan_joint'" in message
     assert "'wrist_3_joint']" in message
     assert "unknown to the URDF: ['joint_1'" in message
     assert not (tmp_path / "x.html").exists()

@@ -115,13 +115,18 @@ def test_selection_package_dirs_load_meshes_and_the_warning_names_the_option():
         scene = build_replay_scene(RobotSelection(urdf=UR5_URDF, package_dirs=[ERD_SHARE]), [traj])
     assert not scene.fallback_geometry
     assert scene.n_visuals == 7
-    # no mesh folder: a stick figure, and the warning names the caller's option
+    # no mesh folder: the collision meshes beside the URDF (robot/meshes) are found as ROS
+    # would, the visual ones nowhere; the warning counts them and names the caller's option
     panda = panda_selection(package_dirs=[])
-    with pytest.warns(IdentWarning, match=r"stick figure.*robot\.package_dirs in the config"):
+    with pytest.warns(
+        IdentWarning,
+        match=r"10 visual meshes not found: .*link0\.dae.*\(and 7 more\); showing the "
+        r"collision geometry.*robot\.package_dirs in the config",
+    ):
         scene = build_replay_scene(
             panda, [arm_trajectory()], package_hint="robot.package_dirs in the config"
         )
-    assert scene.fallback_geometry
+    assert not scene.fallback_geometry
 
 
 def _replay(*args):

@@ -131,7 +131,7 @@ def test_section_lists_the_pairs_not_checked_and_why():
     }
     data = {"chosen_elite": 1, "elites": [{"rank": 1, "safety_series": s}]}
     md = "\n".join(safety_section(data, set()))
-    assert "Pairs not checked along the trajectory" in md
+    assert "Not checked along the trajectory" in md
     # the table escapes the pipe of a pair name
     assert "| link_5\\|link_7 | reference contact (in contact in the reference posture) |" in md
     assert "| base_link_0\\|floor | constant distance -0.0030 m (...); judged once |" in md

@@ -27,7 +27,7 @@ Where the samples come from (say which, :attr:`SafetyReport.resampling`):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,6 +42,7 @@ from ident.robot.mimic import Mimic
 
 __all__ = [
     "MIN_CHECK_RATE_HZ",
+    "SELF_COLLISION_NOT_CHECKED",
     "ConstraintCheck",
     "SafetyReport",
     "certified_clearances",
@@ -51,6 +52,7 @@ __all__ = [
     "is_limit_check",
     "not_run_note",
     "step_displacements",
+    "unchecked_checks",
 ]
 
 MIN_CHECK_RATE_HZ = 1000.0
@@ -188,10 +190,16 @@ class SafetyReport:
         pairs = [c for c in self.checks if c.kind == "clearance"]
         return min(pairs, key=lambda c: c.value) if pairs else None
 
+    def unchecked(self) -> tuple[str, ...]:
+        """The whole checks left out (:func:`unchecked_checks` of :attr:`not_checked`)."""
+        return unchecked_checks(self.not_checked)
+
     def summary(self) -> str:
         """``"usable (...)"`` or ``"unsafe: <worst failure>; ..."`` in one line, followed by
-        ``"; N checks not run: ..."`` when a limit was unknown."""
-        not_run = not_run_note(self.checks_not_run())
+        the whole checks left out (:meth:`unchecked`) and ``"; N checks not run: ..."`` when a
+        limit was unknown."""
+        caveats = "".join(f"; {c}" for c in self.unchecked())
+        not_run = caveats + not_run_note(self.checks_not_run())
         if self.usable:
             worst = self.min_clearance
             extra = f"; smallest clearance {worst.describe()}" if worst is not None else ""
@@ -567,14 +575,36 @@ def follower_checks(
     )
 
 
-def _not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
-    """``(pair, reason)`` of the safety model's excluded and constant-distance pairs."""
+def unchecked_checks(not_checked: Iterable[Sequence[str]]) -> tuple[str, ...]:
+    """The whole checks a certificate left out, one phrase each, from its ``not_checked``
+    ``(pair, reason)`` entries (those that are no link pair):
+    ``"self-collision not checked (safety.self_collision: false)"``, a link without geometry.
+    The run's summary line, verdict and report say them next to the outcome."""
     return tuple(
-        (e.pair, e.reason)
-        for e in (
-            *getattr(safety, "excluded_pairs", ()),
-            *getattr(safety, "constant_pairs", ()),
-        )
+        f"{what} {why}" for what, why in not_checked if "|" not in what and "not checked" in why
+    )
+
+
+SELF_COLLISION_NOT_CHECKED = ("self-collision", "not checked (safety.self_collision: false)")
+"""The :attr:`SafetyReport.not_checked` entry of a model built without self-collision."""
+
+
+def _not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
+    """``(pair, reason)`` of the safety model's excluded and constant-distance pairs, then
+    whole checks left out (self-collision off) and its geometry notes (``(link, what)``:
+    a visual mesh used for collision, a link without geometry)."""
+    config = getattr(safety, "config", None)
+    off = () if config is None or config.self_collision else (SELF_COLLISION_NOT_CHECKED,)
+    return (
+        *(
+            (e.pair, e.reason)
+            for e in (
+                *getattr(safety, "excluded_pairs", ()),
+                *getattr(safety, "constant_pairs", ()),
+            )
+        ),
+        *off,
+        *getattr(safety, "geometry_notes", ()),
     )
 
 

@@ -59,7 +59,7 @@ from ident.dynamics.chain import chain_from_model
 from ident.errors import ConfigError, ModelError
 from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
 from ident.excitation.family import ConstraintViolations, FloatArray
-from ident.robot.meshes import check_urdf_meshes
+from ident.robot.meshes import check_urdf_meshes, resolve_urdf_meshes
 from ident.robot.mimic import coupled_model
 from ident.robot.urdf_load import prepare_urdf
 
@@ -69,6 +69,7 @@ __all__ = [
     "MAX_CLEARANCE_M",
     "MAX_OBSTACLES",
     "MAX_SIZE_M",
+    "MESH_FIX",
     "N_EXCLUSION_POSTURES",
     "BoxObstacle",
     "FloorConfig",
@@ -81,6 +82,7 @@ __all__ = [
     "SphereObstacle",
     "build_safety_model",
     "clearances",
+    "collision_geometry_problem",
     "collision_violations",
     "joint_torques",
     "torque_violations",
@@ -351,28 +353,95 @@ def _revolute_text(text: str) -> str:
     return prepare_urdf(text, "the URDF").text
 
 
-def _kinematic_model_and_geometry(
-    robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path]
-) -> tuple[pin.Model, pin.GeometryModel]:
-    """Pinocchio model (same joints as ``robot.model``) and its collision GeometryModel."""
-    check_urdf_meshes(urdf or getattr(robot, "urdf_text", None), package_dirs, visual=False)
+MESH_FIX = (
+    "give the folder that holds them with --package-dir / robot.package_dirs, or set "
+    "safety.self_collision: false to design without self-collision checks"
+)
+"""The fix named when collision meshes are missing (every command that builds a safety model)."""
+
+
+def _urdf_source(robot: Any, urdf: str | Path | None) -> tuple[str, Path | None, str]:
+    """The URDF text, its folder (None for text) and the name that locates it in messages."""
     if urdf is None:
         text = getattr(robot, "urdf_text", None)
         if text is None:
             raise ModelError("the robot has no URDF text; pass urdf= (a path or the text).")
-    elif isinstance(urdf, Path) or (isinstance(urdf, str) and not urdf.lstrip().startswith("<")):
-        text = Path(urdf).read_text(encoding="utf-8")
-    else:
-        text = str(urdf)
+        path = getattr(robot, "urdf_path", None)
+        return str(text), None if path is None else Path(path).parent, str(path or "the URDF")
+    if isinstance(urdf, Path) or (isinstance(urdf, str) and not urdf.lstrip().startswith("<")):
+        return Path(urdf).read_text(encoding="utf-8"), Path(urdf).parent, str(urdf)
+    return str(urdf), None, "the URDF"
+
+
+def collision_geometry_problem(robot: Any, package_dirs: Sequence[str | Path] = ()) -> str:
+    """Why self-collision cannot be checked for ``robot`` (empty when it can): the missing
+    collision meshes (the first three and their count), or a URDF without geometry.
+
+    ``ident init`` asks before it writes ``safety.self_collision``; a safety model with
+    self-collision on raises it, with its fix (:data:`MESH_FIX` for missing meshes).
+    """
+    return _collision_urdf(robot, None, package_dirs)[2][0]
+
+
+def _collision_urdf(
+    robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path]
+) -> tuple[str, tuple[tuple[str, str], ...], tuple[str, str]]:
+    """The URDF text with its collision meshes found (absolute paths; a link's visual geometry
+    where its collision geometry is absent or missing), the notes the certificate shows
+    (``(link, what)``), and why self-collision cannot be checked and the fix (``('', '')``
+    when it can).
+
+    Raises
+    ------
+    ModelError
+        A mesh that would crash coal (:func:`ident.robot.meshes.check_urdf_meshes`).
+    """
+    text, base, where = _urdf_source(robot, urdf)
+    resolved = resolve_urdf_meshes(text, package_dirs, base, visual_for_collision=True)
+    check_urdf_meshes(resolved.text, visual=False, name=where)  # before coal: no segfault
+    notes = [(link, "visual mesh used for collision") for link in resolved.visual_for_collision]
+    lost = dict.fromkeys(m.link for m in resolved.missing if m.kind == "collision")
+    notes += [
+        (link, "not checked against the floor and obstacles: its collision mesh is missing")
+        for link in lost
+    ]
+    problem = resolved.missing_line("collision", where)
+    if problem:
+        return resolved.text, tuple(notes), (problem, MESH_FIX)
+    if "<collision" not in resolved.text:
+        problem = f"{where} has no <collision> or <visual> geometry"
+        fix = (
+            "add <collision> geometry to its links, or set safety.self_collision: false to "
+            "design without self-collision checks"
+        )
+        return resolved.text, tuple(notes), (problem, fix)
+    return resolved.text, tuple(notes), ("", "")
+
+
+def _kinematic_model_and_geometry(
+    robot: Any,
+    urdf: str | Path | None,
+    package_dirs: Sequence[str | Path],
+    self_collision: bool = True,
+) -> tuple[pin.Model, pin.GeometryModel, tuple[tuple[str, str], ...]]:
+    """Pinocchio model (same joints as ``robot.model``), its collision GeometryModel and the
+    geometry notes of :func:`_collision_urdf` (``(link, what)``).
+
+    The meshes reach Pinocchio as absolute paths in the URDF text (:func:`ident.robot.meshes.
+    resolve_urdf_meshes`), not through Pinocchio's ``package_dirs``: its own lookup knows
+    neither the URDF's folder nor ``file://`` paths of another machine, and one resolver for
+    every loader keeps the safety model, the mesh checks and the replay on the same files.
+    """
+    text, notes, (problem, fix) = _collision_urdf(robot, urdf, package_dirs)
+    if problem and self_collision:
+        raise ModelError(f"{problem}; {fix}.")
     text = _revolute_text(text)
     full = pin.buildModelFromXML(text)
-    dirs = [str(d) for d in package_dirs]
     try:
-        geom = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION, None, dirs)
+        geom = pin.buildGeomFromUrdfString(full, text, pin.GeometryType.COLLISION, None, [])
     except (RuntimeError, ValueError) as e:
         raise ModelError(
-            f"cannot load the URDF's collision geometry ({str(e).splitlines()[0]}); give the "
-            "folders that hold package:// meshes as package_dirs."
+            f"cannot load the URDF's collision geometry ({str(e).splitlines()[0]}); {MESH_FIX}."
         ) from e
     names = tuple(robot.model.names[1:])
     if tuple(full.names[1:]) != names:
@@ -388,7 +457,11 @@ def _kinematic_model_and_geometry(
             )
     # the robot's mimic joints move with their leaders here too (the same q as robot.model)
     mimics = getattr(robot, "mimic_joints", ())
-    return coupled_model(full, mimics, str(getattr(robot, "urdf_path", None) or "URDF")), geom
+    return (
+        coupled_model(full, mimics, str(getattr(robot, "urdf_path", None) or "URDF")),
+        geom,
+        notes,
+    )
 
 
 def _convexify(geom: pin.GeometryModel) -> None:
@@ -671,6 +744,9 @@ class SafetyModel:
     constant_pairs :
         Environment pairs whose distance no motion changes (the base on the floor, a first
         link turning on it), judged once when the model is built, with their distance.
+    geometry_notes :
+        ``(link, what)``: links whose visual geometry stands in for their collision geometry,
+        and links left without geometry (``self_collision: false`` with a mesh missing).
     clearance_m :
         Required clearance [m].
     motion_coefficients :
@@ -708,7 +784,10 @@ class SafetyModel:
         self.margin_note = ""
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
-        model, geom = _kinematic_model_and_geometry(robot, urdf, package_dirs)
+        # geometry_notes: (link, what) of visual stand-ins and links without geometry
+        model, geom, self.geometry_notes = _kinematic_model_and_geometry(
+            robot, urdf, package_dirs, config.self_collision
+        )
         if config.payload_box is not None:  # part of the robot: before anything counts links
             _attach_payload_box(model, geom, config.payload_box)
         self.model = model

@@ -22,6 +22,7 @@ from ident.identify.assessment.verdict import (
     decide_verdict,
     log_evidence,
 )
+from ident.report.safety_section import series_unchecked
 
 __all__ = [
     "executed_elite",
@@ -143,6 +144,10 @@ def verdict_entry(result: Any, data: dict[str, Any]) -> dict[str, Any]:
             "; it judges the design on the bare last body's 10 parameters: the payload itself "
             "comes from `ident payload` on a log with it"
         )
+    # the certificate's checks left out (self-collision off), said with the label
+    entry["reason"] += "".join(
+        f"; {c}" for c in series_unchecked((elite or {}).get("safety_series"))
+    )
     return entry
 
 

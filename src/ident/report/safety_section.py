@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ident.excitation.check import unchecked_checks
 from ident.report.format import fmt as _fmt
 from ident.report.format import table as _table
 
@@ -154,14 +155,21 @@ def _not_checked(series: dict[str, Any]) -> list[str]:
         return md
     md += [
         "",
-        "Pairs not checked along the trajectory (the exact geometry is measured for every "
-        "other pair, between the samples too):",
+        "Not checked along the trajectory, or checked on stand-in geometry (the exact "
+        "geometry is measured for every other pair, between the samples too):",
         "",
     ]
     md += _table(
         ["pair", "why"], [[e.get("pair", ""), e.get("reason", "")] for e in entries], left=(0, 1)
     )
     return md
+
+
+def series_unchecked(series: dict[str, Any] | None) -> tuple[str, ...]:
+    """The whole checks an elite's ``safety_series`` left out (``"self-collision not checked
+    (...)"``), see :func:`ident.excitation.check.unchecked_checks`."""
+    entries = (series or {}).get("not_checked") or []
+    return unchecked_checks((e.get("pair", ""), e.get("reason", "")) for e in entries)
 
 
 def safety_headline(data: dict[str, Any]) -> str | None:
@@ -182,4 +190,5 @@ def safety_headline(data: dict[str, Any]) -> str | None:
         if series.get("clearance_m") is not None:
             text += f", margin {series['clearance_m'] * 1000:.0f} mm"
         text += ")"
+    text += "".join(f"; {c}" for c in series_unchecked(series))
     return text

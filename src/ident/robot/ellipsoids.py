@@ -31,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import ModelError
-from ident.robot.meshes import mesh_vertices
+from ident.robot.meshes import mesh_vertices, resolve_mesh_path
 
 __all__ = ["Ellipsoid", "link_ellipsoids", "link_geometry_points", "minimum_volume_ellipsoid"]
 
@@ -145,20 +145,6 @@ def _origin(element: ET.Element) -> tuple[FloatArray, FloatArray]:
     return pin.rpy.rpyToMatrix(rpy), xyz
 
 
-def _resolve(filename: str, package_dirs: Sequence[str | Path], base: Path | None) -> Path | None:
-    if filename.startswith("package://"):
-        rest = filename[len("package://") :]
-        for folder in package_dirs:
-            for candidate in (Path(folder) / rest, Path(folder) / rest.split("/", 1)[-1]):
-                if candidate.is_file():
-                    return candidate
-        return None
-    path = Path(filename.removeprefix("file://"))
-    if not path.is_absolute() and base is not None:
-        path = base / path
-    return path if path.is_file() else None
-
-
 def _shape_points(
     geometry: ET.Element, package_dirs: Sequence[str | Path], base: Path | None
 ) -> tuple[FloatArray, float | None] | None:
@@ -183,7 +169,7 @@ def _shape_points(
         return r * corners, r
     mesh = geometry.find("mesh")
     if mesh is not None:
-        path = _resolve(mesh.get("filename", ""), package_dirs, base)
+        path = resolve_mesh_path(mesh.get("filename", ""), package_dirs, base)
         if path is None:
             return None
         where = f"URDF mesh '{mesh.get('filename', '')}'"

@@ -16,15 +16,19 @@ and refuses, with one line naming the link, the file and the fix:
   or all vertices on one plane or one line (a zero-volume hull).
 
 Visual meshes may be flat (a decal, a label): only the first three rules apply to them.
-A mesh file that does not exist is left to Pinocchio, which reports it.
+A mesh file that does not exist is not checked here: :func:`resolve_urdf_meshes` finds the
+meshes the way ROS does (:func:`resolve_mesh_path`, the one resolver of every loader) and
+names the missing ones.
 """
 
 from __future__ import annotations
 
 import functools
 import os
+import urllib.parse
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -35,10 +39,13 @@ from ident.errors import ModelError
 __all__ = [
     "FLATNESS_TOLERANCE",
     "MAX_EXTENT_M",
+    "MissingMesh",
+    "ResolvedMeshes",
     "check_urdf_meshes",
     "mesh_problem",
     "mesh_vertices",
     "resolve_mesh_path",
+    "resolve_urdf_meshes",
 ]
 
 FLATNESS_TOLERANCE = 1e-6
@@ -58,31 +65,135 @@ _FIX = (
 )
 
 
-def resolve_mesh_path(filename: str, package_dirs: Sequence[str | Path]) -> Path | None:
-    """The file Pinocchio loads for a URDF ``<mesh filename=...>``, or None if none exists.
+def resolve_mesh_path(
+    filename: str, package_dirs: Sequence[str | Path], base: str | Path | None = None
+) -> Path | None:
+    """The file a URDF ``<mesh filename=...>`` names, found as ROS finds it; None if none exists.
 
-    ``package://`` and ``model://`` paths and relative paths are searched in
-    ``package_dirs`` then in ``ROS_PACKAGE_PATH`` (in that order, as Pinocchio does);
-    ``file://`` and absolute paths are taken as they are. Other schemes give None
-    (Pinocchio refuses them itself).
+    The one resolver of every mesh loader (safety geometry, replay, ellipsoids, mesh checks).
+    In order:
+
+    - ``package://pkg/rest`` (and ``model://``): ``rest`` in each folder of ``package_dirs``
+      then of ``ROS_PACKAGE_PATH`` that is the package ``pkg`` itself (its name is ``pkg``)
+      or holds it (``<dir>/pkg``, or a folder ``pkg`` up to :data:`_PACKAGE_DEPTH` levels
+      down, as ROS crawls its package path);
+    - a relative path: in the URDF's folder ``base``, then in the package folders (as
+      Pinocchio does);
+    - ``file://`` (percent-encoded or not) and plain absolute paths: as they are;
+    - when still missing (a ``file:///root/...`` path of the author's machine, a package not
+      given): the rest of the path after a folder named as a package of the package
+      folders (``.../share/pkg/meshes/a.stl``: ``meshes/a.stl`` in ``pkg``), then the
+      longest tail of the path, down to two parts (``meshes/base_link.STL``), under the
+      package folders, ``base`` and its parent and grandparent.
+
+    The extension may differ in case (``.STL`` for ``.stl``). Other schemes give None.
     """
-    dirs = [str(d) for d in package_dirs]
-    dirs += [p for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
-    if "://" in filename:
-        scheme, rest = filename.split("://", 1)
-        if scheme == "file":
-            candidates = [Path(rest)]
-        elif scheme in ("package", "model"):
-            candidates = [Path(d + "/" + rest) for d in dirs]
-        else:
-            return None
-    elif Path(filename).is_absolute():
-        candidates = [Path(filename)]
+    dirs = [Path(d) for d in package_dirs]
+    dirs += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
+    scheme, rest = filename.split("://", 1) if "://" in filename else ("", filename)
+    if scheme not in ("", "file", "package", "model"):
+        return None
+    if scheme == "file":
+        rest = rest if Path(rest).exists() else urllib.parse.unquote(rest)
+    candidates: list[Path] = []
+    if scheme in ("package", "model"):
+        package, _, inside = rest.partition("/")
+        for folder in dirs:
+            candidates += [p / inside for p in _package_folders(folder, package)]
+    elif Path(rest).is_absolute():
+        candidates.append(Path(rest))
     else:
-        candidates = [Path(d + "/" + filename) for d in dirs]
+        candidates += [Path(d) / rest for d in ([base] if base is not None else [])]
+        candidates += [folder / rest for folder in dirs]
     for path in candidates:
-        if path.is_file():
-            return path
+        found = _existing(path)
+        if found is not None:
+            return found
+    parts = [p for p in Path(rest).parts if p not in ("/", ".", "..")]
+    found = _in_named_package(parts, dirs)
+    if found is not None:
+        return found
+    roots = list(dirs)
+    if base is not None:
+        roots += [Path(base), Path(base).parent, Path(base).parent.parent]
+    return _tail_search(parts, roots)
+
+
+_PACKAGE_DEPTH = 3
+"""How deep under a package folder a ROS package is looked for (``ws/src/<repo>/<pkg>``)."""
+
+
+def _package_folders(folder: Path, package: str) -> list[Path]:
+    """The folders that may be ROS package ``package`` for a package-path entry ``folder``:
+    the entry itself when so named, ``folder/package``, and folders so named below it."""
+    found = [folder] if folder.name == package else []
+    found.append(folder / package)
+    return found + [p for p in _crawl(str(folder)).get(package, []) if p not in found]
+
+
+@functools.lru_cache(maxsize=64)
+def _crawl(folder: str) -> dict[str, list[Path]]:
+    """Folder name -> folders of that name up to :data:`_PACKAGE_DEPTH` levels below
+    ``folder`` (hidden folders skipped); cached per run."""
+    out: dict[str, list[Path]] = {}
+    level = [Path(folder)]
+    for _ in range(_PACKAGE_DEPTH):
+        below = []
+        for parent in level:
+            try:
+                children = [c for c in parent.iterdir() if c.is_dir() and c.name[:1] != "."]
+            except OSError:
+                continue
+            for child in sorted(children):
+                out.setdefault(child.name, []).append(child)
+            below += children
+        level = below
+    return out
+
+
+def _in_named_package(parts: Sequence[str], dirs: Sequence[Path]) -> Path | None:
+    """The file of a path of another machine (``/root/ws/install/pkg/share/pkg/meshes/a.stl``)
+    in a package of ``dirs`` named by one of its folders, the last such folder first
+    (``pkg`` then ``meshes/a.stl`` inside it)."""
+    for i in range(len(parts) - 2, -1, -1):
+        for folder in dirs:
+            for package in _package_folders(folder, parts[i]):
+                found = _existing(package.joinpath(*parts[i + 1 :]))
+                if found is not None:
+                    return found
+    return None
+
+
+def _existing(path: Path) -> Path | None:
+    """``path`` if it is a file, else a file beside it whose name differs only in the case
+    of its extension (``base.STL`` for ``base.stl``); None."""
+    if path.is_file():
+        return path
+    try:
+        siblings = list(path.parent.iterdir()) if path.suffix else []
+    except OSError:
+        return None
+    for sibling in sorted(siblings):
+        if (
+            sibling.stem == path.stem
+            and sibling.suffix.lower() == path.suffix.lower()
+            and sibling.is_file()
+        ):
+            return sibling
+    return None
+
+
+def _tail_search(parts: Sequence[str], roots: Sequence[Path]) -> Path | None:
+    """The first ``root / tail`` that exists, for the tails of ``parts`` longest first,
+    down to two parts (a folder and the file name; one for a bare file name)."""
+    if not parts:
+        return None
+    for n in range(len(parts), min(2, len(parts)) - 1, -1):
+        tail = Path(*parts[len(parts) - n :])
+        for root in roots:
+            found = _existing(root / tail)
+            if found is not None:
+                return found
     return None
 
 
@@ -166,6 +277,7 @@ def check_urdf_meshes(
     *,
     collision: bool = True,
     visual: bool = True,
+    name: str = "the URDF",
 ) -> None:
     """Refuse the URDF meshes that would crash Pinocchio, coal or qhull.
 
@@ -178,6 +290,8 @@ def check_urdf_meshes(
     collision, visual :
         Which elements to check: ``<collision>`` meshes (flat ones refused too: their hull
         is built) and/or ``<visual>`` meshes.
+    name :
+        What names the URDF in an error when ``urdf`` is its text (its file, usually).
 
     Raises
     ------
@@ -186,14 +300,15 @@ def check_urdf_meshes(
     """
     if urdf is None:
         return
+    base = None
     if isinstance(urdf, Path) or not str(urdf).lstrip().startswith("<"):
-        where = str(urdf)
+        where, base = str(urdf), Path(urdf).parent
         try:
             text = Path(urdf).read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError):
             return  # the URDF loader reports an unreadable file
     else:
-        where, text = "the URDF", str(urdf)
+        where, text = name, str(urdf)
     try:
         root = ET.fromstring(text)
     except ET.ParseError:
@@ -202,7 +317,7 @@ def check_urdf_meshes(
         for kind in ("collision",) * collision + ("visual",) * visual:
             for element in link.iter(kind):
                 for mesh in element.iter("mesh"):
-                    _check_one(mesh, link.get("name", "?"), kind, where, package_dirs)
+                    _check_one(mesh, link.get("name", "?"), kind, where, package_dirs, base)
 
 
 def mesh_vertices(path: str | Path, scale: str | None, *, where: str) -> np.ndarray:
@@ -248,13 +363,18 @@ def mesh_vertices(path: str | Path, scale: str | None, *, where: str) -> np.ndar
 
 
 def _check_one(
-    mesh: ET.Element, link: str, kind: str, where: str, package_dirs: Sequence[str | Path]
+    mesh: ET.Element,
+    link: str,
+    kind: str,
+    where: str,
+    package_dirs: Sequence[str | Path],
+    base: Path | None,
 ) -> None:
     filename = mesh.get("filename", "")
     head = f"{where}: link '{link}', <{kind}> mesh '{filename}'"
-    path = resolve_mesh_path(filename, package_dirs)
+    path = resolve_mesh_path(filename, package_dirs, base)
     if path is None:
-        return  # Pinocchio names the missing file (a mesh not shipped, as TIAGo's)
+        return  # resolve_urdf_meshes names the missing files (a mesh not shipped, as TIAGo's)
     scale, problem = _scale(mesh.get("scale"))
     if scale is None:
         raise ModelError(f"{head}: {problem}.")
@@ -262,3 +382,113 @@ def _check_one(
     found = mesh_problem(vertices, needs_volume=kind == "collision")
     if found is not None:
         raise ModelError(f"{head} ({path}): {found}; {_FIX}.")
+
+
+@dataclass(frozen=True)
+class MissingMesh:
+    """A ``<mesh>`` of a URDF that :func:`resolve_mesh_path` cannot find."""
+
+    link: str
+    kind: str  # "collision" or "visual"
+    filename: str  # as the URDF writes it
+
+
+@dataclass(frozen=True)
+class ResolvedMeshes:
+    """A URDF whose meshes are found (see :func:`resolve_urdf_meshes`).
+
+    Attributes
+    ----------
+    text :
+        The URDF text, every found mesh at its absolute path, every ``<visual>`` or
+        ``<collision>`` whose mesh is missing removed: Pinocchio, coal and meshcat load it as
+        it is, whatever the machine the file was written on.
+    missing :
+        The meshes not found (their elements were removed), in file order.
+    visual_for_collision :
+        Links whose ``<visual>`` elements became their ``<collision>`` ones (with
+        ``visual_for_collision=True``: no ``<collision>``, or a collision mesh missing).
+    """
+
+    text: str
+    missing: tuple[MissingMesh, ...]
+    visual_for_collision: tuple[str, ...] = ()
+
+    def missing_line(self, kind: str, where: str) -> str:
+        """``<where>: N <kind> mesh(es) not found: a, b, c (and N-3 more)`` (empty if none)."""
+        names = list(dict.fromkeys(m.filename for m in self.missing if m.kind == kind))
+        if not names:
+            return ""
+        more = f" (and {len(names) - 3} more)" if len(names) > 3 else ""
+        plural = "es" if len(names) > 1 else ""
+        return f"{where}: {len(names)} {kind} mesh{plural} not found: {', '.join(names[:3])}{more}"
+
+
+def resolve_urdf_meshes(
+    text: str,
+    package_dirs: Sequence[str | Path] = (),
+    base: str | Path | None = None,
+    *,
+    visual_for_collision: bool = False,
+) -> ResolvedMeshes:
+    """The URDF ``text`` with its meshes resolved by :func:`resolve_mesh_path`.
+
+    Resolving here, once, and handing Pinocchio absolute paths is what makes every loader
+    agree: Pinocchio's own lookup knows neither the URDF's folder (it gets text), nor
+    ``file://`` paths of another machine, nor package folders that are the package itself.
+
+    Parameters
+    ----------
+    text :
+        URDF XML text (unparsable text is returned as it is: the URDF loader reports it).
+    package_dirs :
+        Folders of (or holding) the ROS packages the meshes name.
+    base :
+        The URDF's folder (relative mesh paths, and the tail search).
+    visual_for_collision :
+        Let a link's visual geometry stand in for its collision geometry where it has no
+        ``<collision>`` or a collision mesh is missing (the safety model's geometry).
+    """
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError:
+        return ResolvedMeshes(text, ())
+    missing: list[MissingMesh] = []
+    stand_ins: list[str] = []
+    for link in root.iter("link"):
+        name = link.get("name", "?")
+        lost = {
+            kind: _resolve_elements(link, kind, package_dirs, base)
+            for kind in ("collision", "visual")
+        }
+        has_visual = link.find("visual") is not None and not lost["visual"]
+        no_collision = bool(lost["collision"]) or link.find("collision") is None
+        if visual_for_collision and has_visual and no_collision:
+            for element in link.findall("collision"):
+                link.remove(element)
+            for element in link.findall("visual"):
+                copy = ET.fromstring(ET.tostring(element))
+                copy.tag = "collision"
+                link.append(copy)
+            stand_ins.append(name)
+            lost["collision"] = []
+        missing += [MissingMesh(name, kind, f) for kind in lost for f in lost[kind]]
+    return ResolvedMeshes(ET.tostring(root, encoding="unicode"), tuple(missing), tuple(stand_ins))
+
+
+def _resolve_elements(
+    link: ET.Element, kind: str, package_dirs: Sequence[str | Path], base: str | Path | None
+) -> list[str]:
+    """Set the absolute path of every mesh of ``link``'s ``kind`` elements; remove the
+    elements whose mesh is missing and return its file names as the URDF writes them."""
+    lost = []
+    for element in link.findall(kind):
+        for mesh in element.iter("mesh"):
+            filename = mesh.get("filename", "")
+            path = resolve_mesh_path(filename, package_dirs, base)
+            if path is None:
+                lost.append(filename)
+                link.remove(element)
+                break
+            mesh.set("filename", str(path.resolve()))
+    return lost

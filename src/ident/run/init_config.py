@@ -44,6 +44,7 @@ from ident.config import validate_config
 from ident.dynamics.chain import DEFAULT_Q_RANGE
 from ident.errors import ConfigError, IdentError
 from ident.excitation.fourier import fourier_bound_factors
+from ident.excitation.safety import collision_geometry_problem
 from ident.inputs import read_urdf_text
 from ident.model.selection import RobotSelection, load_robot
 from ident.run.config import RunConfig
@@ -202,6 +203,7 @@ class _Choices:
     torque: np.ndarray
     noise: np.ndarray
     threshold: np.ndarray
+    geometry_problem: str = ""  # why self-collision cannot be checked ('' when it can)
 
     @property
     def velocity_note(self) -> str:
@@ -240,9 +242,12 @@ def _choose(robot: Any, text: str) -> _Choices:
     reach = robot_reach(robot, reference)
     guessed_clearance = float(np.clip(0.05 * reach, 0.01, 0.03))
     # halved while a link pair sits closer than it in every posture (UR base/upper arm)
-    clearance = keepable_clearance(robot, guessed_clearance)
-    floor_z = float(np.floor(base_bottom(robot) * 1e3) / 1e3) + 0.0  # mm, never above; no -0
-    home, home_clearance = clear_posture(robot, clearance, floor_z)
+    # missing meshes or no geometry: the config says self-collision is not checked
+    geometry_problem = collision_geometry_problem(robot, robot.package_dirs)
+    check_self = not geometry_problem
+    clearance = keepable_clearance(robot, guessed_clearance, check_self)
+    floor_z = float(np.floor(base_bottom(robot, check_self) * 1e3) / 1e3) + 0.0  # mm, no -0
+    home, home_clearance = clear_posture(robot, clearance, floor_z, check_self)
     # measurement guesses
     effort = effort_scale(robot)
     armature = ARMATURE_PER_EFFORT * effort
@@ -274,6 +279,7 @@ def _choose(robot: Any, text: str) -> _Choices:
         torque=torque,
         noise=np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque),
         threshold=np.minimum(0.15, 0.1 * amplitude * c_v),  # rad/s, below the design's speeds
+        geometry_problem=geometry_problem,
     )
 
 
@@ -409,11 +415,22 @@ def _safety_lines(c: _Choices) -> list[str]:
         "floor under its base's collision geometry",
         f"  clearance_m: {c.clearance:.3g}   # guess: 5 % of the reach {c.reach:.2f} m (1-3 cm)"
         + lowered,
-        "  self_collision: true",
+        *_self_collision_lines(c.geometry_problem),
         "  torque_limits: true",
         "  check_samples: 50            # samples per period of the optimization's term",
         "controller: {rate_hz: 1000.0, n_periods: 1}   # trajectory.csv: approach, period, return",
         "",
+    ]
+
+
+def _self_collision_lines(problem: str) -> list[str]:
+    """``self_collision: true``, or ``false`` with why when the geometry is missing."""
+    if not problem:
+        return ["  self_collision: true"]
+    return [
+        f"  # self-collision not checked: {problem};",
+        "  # give the meshes' folder (robot.package_dirs) and set self_collision: true",
+        "  self_collision: false",
     ]
 
 

@@ -182,12 +182,14 @@ def robot_reach(robot: Robot, q: np.ndarray) -> float:
     return float(max(np.linalg.norm(data.oMi[k].translation) for k in range(robot.model.njoints)))
 
 
-def base_bottom(robot: Robot) -> float:
+def base_bottom(robot: Robot, self_collision: bool = True) -> float:
     """Lowest point of the collision geometry fixed to the world (the base) [m], in the base
     frame; 0 without such geometry. Its bounding boxes' corners: exact for boxes, a lower
     bound for meshes and round shapes."""
     safety = build_safety_model(
-        robot, {"floor": {"enabled": False}}, package_dirs=robot.package_dirs
+        robot,
+        {"floor": {"enabled": False}, "self_collision": self_collision},
+        package_dirs=robot.package_dirs,
     )
     model, geometry = safety.model, safety.geometry_model
     data, gdata = model.createData(), pin.GeometryData(geometry)
@@ -214,25 +216,31 @@ def base_bottom(robot: Robot) -> float:
     return lowest
 
 
-def keepable_clearance(robot: Robot, clearance_m: float) -> float:
+def keepable_clearance(robot: Robot, clearance_m: float, self_collision: bool = True) -> float:
     """``clearance_m`` [m], halved (not below 2 mm) while a pair of the robot's links is closer
     than it in every sampled posture: a margin that some trajectory can keep."""
     safety = build_safety_model(
         robot,
-        {"clearance_m": clearance_m, "floor": {"enabled": False}},
+        {"clearance_m": clearance_m, "floor": {"enabled": False}, "self_collision": self_collision},
         package_dirs=robot.package_dirs,
         lower_margin=True,
     )
     return float(safety.clearance_m)
 
 
-def clear_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.ndarray, float]:
+def clear_posture(
+    robot: Robot, clearance_m: float, floor_z: float, self_collision: bool = True
+) -> tuple[np.ndarray, float]:
     """A posture clear of the floor and of itself: of the reference posture (0 clipped into the
     limits) and seeded random ones, the one whose smallest clearance is largest, preferring
     the reference posture while it keeps three margins. Returns it and its clearance [m]."""
     safety = build_safety_model(
         robot,
-        {"clearance_m": clearance_m, "floor": {"enabled": True, "z": floor_z}},
+        {
+            "clearance_m": clearance_m,
+            "floor": {"enabled": True, "z": floor_z},
+            "self_collision": self_collision,
+        },
         package_dirs=robot.package_dirs,
     )
     lower = np.where(np.isfinite(robot.q_lower), robot.q_lower, -np.pi)

@@ -44,11 +44,10 @@ from pinocchio.visualize import MeshcatVisualizer
 from pinocchio.visualize.meshcat_visualizer import loadMesh
 
 from ident.errors import DataError, IdentWarning, ModelError
-from ident.inputs import read_urdf_text
 from ident.measure.timebase import find_segments
 from ident.model.selection import RobotSelection, load_robot
-from ident.robot.meshes import check_urdf_meshes
-from ident.robot.urdf_load import build_model, needs_xacro, prepare_urdf
+from ident.robot.meshes import check_urdf_meshes, resolve_urdf_meshes
+from ident.robot.urdf_load import build_model, prepare_urdf
 from ident.trajectory import JointTrajectory
 from ident.viz.environment import (
     CLOSEST_COLOR,
@@ -223,39 +222,36 @@ def _urdf_geometry(
 ) -> pin.GeometryModel | None:
     """The URDF's visual geometry of the full ``model``, else its collision geometry.
 
-    Meshes are checked before coal loads them (a missing or broken file is never a
-    segfault). When the visual geometry cannot be loaded, an :class:`IdentWarning` (attributed
-    to the caller of :func:`load_visual_robot`) names the problem and ``package_hint``, and
-    the collision geometry is used; ``None`` when that cannot be loaded either (or is empty):
-    the caller shows a stick figure. A URDF without visuals gives an empty model. ``text``:
-    the URDF as Pinocchio reads it (:func:`ident.robot.urdf_load.prepare_urdf`).
+    The meshes are found by :func:`ident.robot.meshes.resolve_urdf_meshes` (the resolver of
+    every loader) and checked before coal loads them (a broken file is never a segfault).
+    When a visual mesh is missing, an :class:`IdentWarning` (attributed to the caller of
+    :func:`load_visual_robot`) names the first missing files, their count and
+    ``package_hint``, and the collision geometry is used when all of it is found; ``None``
+    otherwise (or when it is empty): the caller shows a stick figure of the frames. A URDF
+    without visuals gives an empty model. ``text``: the URDF as Pinocchio reads it
+    (:func:`ident.robot.urdf_load.prepare_urdf`: a xacro file expanded).
     """
-    # the file names itself in the messages; a xacro file is checked expanded
-    meshes = text if needs_xacro(urdf_path, read_urdf_text(urdf_path)) else urdf_path
-    check_urdf_meshes(meshes, dirs, collision=False)  # before coal: never a segfault
-    try:
-        return pin.buildGeomFromUrdfString(model, text, pin.GeometryType.VISUAL, None, dirs)
-    except (RuntimeError, ValueError) as e:
-        problem = str(e).strip()
-    try:  # the collision meshes, when they are the ones shipped (configs/panda.yaml)
-        check_urdf_meshes(meshes, dirs, visual=False)  # before coal: never a segfault
-        collision = pin.buildGeomFromUrdfString(model, text, pin.GeometryType.COLLISION, None, dirs)
-    except (RuntimeError, ValueError, ModelError):
-        collision = pin.GeometryModel()
+    resolved = resolve_urdf_meshes(text, dirs, urdf_path.parent)
+    check_urdf_meshes(resolved.text, collision=False, name=str(urdf_path))  # before coal
+    missing = resolved.missing_line("visual", str(urdf_path))
+    if not missing:
+        return pin.buildGeomFromUrdfString(model, resolved.text, pin.GeometryType.VISUAL)
+    collision = pin.GeometryModel()
+    if not resolved.missing_line("collision", str(urdf_path)):
+        check_urdf_meshes(resolved.text, visual=False, name=str(urdf_path))  # before coal
+        collision = pin.buildGeomFromUrdfString(model, resolved.text, pin.GeometryType.COLLISION)
     # stacklevel 3: the warning names the caller of load_visual_robot
     if len(collision.geometryObjects) == 0:
         warnings.warn(
-            f"{urdf_path}: cannot load the visual geometry ({problem}); showing a stick "
-            "figure of the kinematic chain instead. Give the folder that contains the "
-            f"mesh package with {package_hint}.",
+            f"{missing}; showing a stick figure of the kinematic chain instead. Give the "
+            f"folder that holds them with {package_hint}.",
             IdentWarning,
             stacklevel=3,
         )
         return None
     warnings.warn(
-        f"{urdf_path}: cannot load the visual geometry ({problem}); showing the "
-        "collision geometry instead (the visual meshes' folder is given with "
-        f"{package_hint}).",
+        f"{missing}; showing the collision geometry instead (the visual meshes' folder is "
+        f"given with {package_hint}).",
         IdentWarning,
         stacklevel=3,
     )

@@ -174,10 +174,14 @@ class ExportOutcome:
     refused :
         Export name -> why nothing was written (the target's rule it breaks, or a re-read
         mismatch).
+    unchecked :
+        The checks the trajectory's certificate left out (``"self-collision not checked
+        (...)"``), said on every written export's line.
     """
 
     written: dict[str, list[Path]] = field(default_factory=dict)
     refused: dict[str, str] = field(default_factory=dict)
+    unchecked: tuple[str, ...] = ()
 
     def lines(self, relative_to: Path | None = None) -> list[str]:
         """One line per export: its files, or why it was refused."""
@@ -185,7 +189,10 @@ class ExportOutcome:
         def show(p: Path) -> str:
             return str(p.relative_to(relative_to)) if relative_to is not None else str(p)
 
-        out = [f"{n}: {', '.join(show(p) for p in paths)}" for n, paths in self.written.items()]
+        caveat = "".join(f"; {c}" for c in self.unchecked)
+        out = [
+            f"{n}: {', '.join(show(p) for p in paths)}{caveat}" for n, paths in self.written.items()
+        ]
         out += [f"REFUSED {why}" for why in self.refused.values()]
         return out
 

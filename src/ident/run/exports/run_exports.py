@@ -7,6 +7,7 @@ ExecutablePlan` ``usable``): an unsafe run exports nothing, and says so.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -149,4 +150,6 @@ def export_run(result: Any, run_dir: str | Path) -> ExportOutcome | None:
     if ddq is not None and np.shape(ddq) == (len(trajectory.joint_names),):
         ddq_max = np.asarray(ddq, dtype=float)
     target = target_from_urdf(result.urdf_text, ddq_max)
-    return export_trajectory(names, trajectory, target, Path(run_dir) / EXPORT_FOLDER)
+    outcome = export_trajectory(names, trajectory, target, Path(run_dir) / EXPORT_FOLDER)
+    # self-collision off: said with each file written
+    return dataclasses.replace(outcome, unchecked=plan.report.unchecked())
