@@ -35,6 +35,7 @@ __all__ = [
     "RobotLog",
     "Transmission",
     "estimate_log",
+    "joint_order",
     "read_csv_columns",
     "read_log",
     "transmission_from_config",
@@ -418,13 +419,42 @@ class _Sources:
             table = owners[0]
             if any(o is not table for o in owners):
                 table = _side_by_side(owners, signal.columns, what)
-        data, _ = _select(table, signal.columns, n_joints, what)
+        data, names = _select(table, signal.columns, n_joints, what)
         if data.shape[1] != n_joints:
             raise DataError(
                 f"{table.source}: {data.shape[1]} {what} columns listed, the robot has "
                 f"{n_joints} joints ({', '.join(joint_names)})."
             )
+        order = joint_order(names, joint_names)
+        if order is not None and order != list(range(n_joints)):
+            data = data[:, order]  # columns named after the joints: matched by name
         return data, table
+
+
+def joint_order(names: list[str], joint_names: tuple[str, ...]) -> list[int] | None:
+    """Column of each joint when the column names name the model's joints, else None.
+
+    A column names joint ``j`` when it is ``j`` or ends with ``j`` after a separator
+    (``q_shoulder``, ``position/shoulder``, ``tau.shoulder``); the longest joint name wins.
+    None unless every joint is named by exactly one column (then the config's order is
+    kept: columns in joint order).
+    """
+    owner: dict[str, int] = {}
+    for k, name in enumerate(names):
+        found = [
+            j
+            for j in joint_names
+            if name == j or (name.endswith(j) and name[-len(j) - 1] in "_/.:-")
+        ]
+        if not found:
+            return None
+        joint = max(found, key=len)
+        if joint in owner:
+            return None
+        owner[joint] = k
+    if len(owner) != len(joint_names):
+        return None
+    return [owner[j] for j in joint_names]
 
 
 def _side_by_side(owners: list[LogTable], columns: list[str], what: str) -> LogTable:

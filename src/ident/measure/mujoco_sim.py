@@ -47,6 +47,7 @@ from scipy.interpolate import BPoly
 from ident.dynamics.friction_models import get_friction_model
 from ident.errors import DataError
 from ident.measure.ideal import quantize
+from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.measure.mujoco_config import (
     DEFAULT_DAMPING_RATIO,
     DEFAULT_NATURAL_FREQUENCY_RAD_S,
@@ -56,6 +57,8 @@ from ident.measure.mujoco_config import (
 )
 from ident.measure.mujoco_model import load_mujoco
 from ident.model import Robot
+
+route_mujoco_warnings()  # MuJoCo warnings as Python warnings, no MUJOCO_LOG.TXT
 
 __all__ = [
     "LOG_CSV",

@@ -30,6 +30,7 @@ from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.pinocchio_check import pinocchio_rnea
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, ModelError
+from ident.config import file_problem
 from ident.inputs import read_urdf_text
 from ident.robot.dh import DHTable
 from ident.robot.inertia import transform_matrix
@@ -181,8 +182,9 @@ class Robot:
         """
         path = Path(path)
         where = str(path)
-        if not path.is_file():
-            raise ModelError(f"{path}: URDF file not found; check the path.")
+        problem = file_problem(path)
+        if problem is not None:
+            raise ModelError(f"{path}: URDF file {problem}; check the path.")
         # UTF-8, bounded, no DTD: what every parser of ident (Pinocchio, the write-back) reads
         text = read_urdf_text(path)
         root = parse_xml(text, where)
