@@ -47,7 +47,6 @@ from scipy.interpolate import BPoly
 from ident.dynamics.friction_models import get_friction_model
 from ident.errors import DataError
 from ident.measure.ideal import quantize
-from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.measure.mujoco_config import (
     DEFAULT_DAMPING_RATIO,
     DEFAULT_NATURAL_FREQUENCY_RAD_S,
@@ -55,6 +54,7 @@ from ident.measure.mujoco_config import (
     check_joint_counts,
     per_joint,
 )
+from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.measure.mujoco_model import load_mujoco
 from ident.model import Robot
 

@@ -25,12 +25,12 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ident.config import file_problem
 from ident.dynamics.chain import chain_from_model, random_states
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.pinocchio_check import pinocchio_rnea
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError, ModelError
-from ident.config import file_problem
 from ident.inputs import read_urdf_text
 from ident.robot.dh import DHTable
 from ident.robot.inertia import transform_matrix

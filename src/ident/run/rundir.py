@@ -274,14 +274,14 @@ def failure_note(error: BaseException) -> str:
     return " ".join(text.split("\n"))[:2000]
 
 
-def _hold_signals() -> set[signal.Signals] | None:
+def _hold_signals() -> set[int | signal.Signals] | None:
     """Defer Ctrl-C and SIGTERM (main thread only: Python runs its handlers there)."""
     if threading.current_thread() is not threading.main_thread():
         return None
     return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
 
 
-def _release_signals(previous: set[signal.Signals] | None) -> None:
+def _release_signals(previous: set[int | signal.Signals] | None) -> None:
     """Undo :func:`_hold_signals`; a signal that came meanwhile is raised here (CPython runs
     pending handlers as pthread_sigmask returns)."""
     if previous is not None:
