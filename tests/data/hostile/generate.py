@@ -580,7 +580,7 @@ def _log_cases() -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------------
-# Hardening, round two (issue 27): meshes that crash native code, operating-system failures
+# Hardening, round two: meshes that crash native code, operating-system failures
 # (full disk, read-only folder, permission) in every command that writes, and the inputs that
 # gave tracebacks or silent wrong results. Cases may carry:
 #   setup:  {copy: <folder of this corpus>, to: <name in {tmp}>[, run_json: {...}]}  copied
