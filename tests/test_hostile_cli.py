@@ -329,6 +329,8 @@ def test_hostile_input_is_one_clear_error(case, outcomes):
     assert "Traceback" not in stderr, stderr
     assert r["exit_code"] == expect.get("exit", 2), stderr
     assert len(errors) == (1 if expect.get("exit", 2) == 2 else 0), stderr
+    for part in expect.get("match", []):  # the one line names the file, the field, the cause
+        assert part in errors[0], (part, errors[0])
     if expect.get("warning"):
         assert any(line.startswith("warning:") for line in stderr.splitlines()), stderr
     left = expect.get("left", "none")

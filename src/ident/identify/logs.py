@@ -401,7 +401,12 @@ class _Sources:
             raise
 
     def signal(
-        self, signal: SignalFile, n_joints: int, what: str, joint_names: tuple[str, ...]
+        self,
+        signal: SignalFile,
+        n_joints: int,
+        what: str,
+        joint_names: tuple[str, ...],
+        source: str = "config",
     ) -> tuple[FloatArray, LogTable]:
         if signal.path is not None:
             tables = self.by_path[Path(signal.path)]
@@ -420,10 +425,11 @@ class _Sources:
             if any(o is not table for o in owners):
                 table = _side_by_side(owners, signal.columns, what)
         data, names = _select(table, signal.columns, n_joints, what)
-        if data.shape[1] != n_joints:
-            raise DataError(
-                f"{table.source}: {data.shape[1]} {what} columns listed, the robot has "
-                f"{n_joints} joints ({', '.join(joint_names)})."
+        if data.shape[1] != n_joints:  # the config's list is wrong, not the file
+            raise ConfigError(
+                f"{source}: log.{what}.columns lists {data.shape[1]} columns "
+                f"({', '.join(names)}), the robot has {n_joints} joints "
+                f"({', '.join(joint_names)}); list one {what} column per joint, in joint order."
             )
         order = joint_order(names, joint_names)
         if order is not None and order != list(range(n_joints)):
@@ -706,7 +712,7 @@ def _read_one(
     """
     joint_names = tuple(joint_names)
     n_joints = len(joint_names)
-    parts = _signal_tables(cfg, joint_names)
+    parts = _signal_tables(cfg, joint_names, source)
     files = ", ".join(Path(f.path).name for f in cfg.sources())
     warnings = list(dict.fromkeys(w for _, table in parts for w in table.warnings))
     stamps = _Stamps.of(cfg, parts[0][1], files)
@@ -750,18 +756,18 @@ def _read_one(
 
 
 def _signal_tables(
-    cfg: LogConfig, joint_names: tuple[str, ...]
+    cfg: LogConfig, joint_names: tuple[str, ...], source: str = "config"
 ) -> list[tuple[FloatArray, LogTable]]:
     """Position, torque (and velocity) columns with their tables; the first part carries the
     table of the time column (``log.time.path``) when the time is in a file of its own."""
     n_joints = len(joint_names)
     sources = _Sources(cfg)
     parts = [
-        sources.signal(cfg.position, n_joints, "position", joint_names),
-        sources.signal(cfg.torque, n_joints, "torque", joint_names),
+        sources.signal(cfg.position, n_joints, "position", joint_names, source),
+        sources.signal(cfg.torque, n_joints, "torque", joint_names, source),
     ]
     if cfg.velocity is not None:
-        parts.append(sources.signal(cfg.velocity, n_joints, "velocity", joint_names))
+        parts.append(sources.signal(cfg.velocity, n_joints, "velocity", joint_names, source))
     if cfg.time is not None and cfg.time.path is not None:
         t_table = sources.by_path[Path(cfg.time.path)][0]
         t_table.column(cfg.time.column)

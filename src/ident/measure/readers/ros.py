@@ -444,6 +444,7 @@ def read_rosbag(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
                 _check_chunks(storage, f, make_reader(f).get_summary())
         with Reader(path) as reader:
             connections = [c for c in reader.connections if topics is None or c.topic in topics]
+            _register_types(path, typestore, connections)
             counts: dict[str, int] = {}
             for c in connections:
                 counts[c.topic] = counts.get(c.topic, 0) + int(c.msgcount)
@@ -461,6 +462,32 @@ def read_rosbag(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
         raise
     except Exception as e:  # rosbags, sqlite3, zstandard, CDR decoding: a damaged bag
         raise _damaged(path, "ROS 2 bag", e) from e
+
+
+def _register_types(path: Path, typestore: Any, connections: list[Any]) -> None:
+    """Make every connection's message type known: a standard ROS 2 type, or the definition
+    the bag carries; else one error naming the type (not "the file is damaged")."""
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
+    for conn in connections:
+        if conn.msgtype in typestore.fielddefs:
+            continue
+        msgdef = getattr(conn, "msgdef", None)
+        text = getattr(msgdef, "data", "") or ""
+        try:
+            if "MSG" in str(getattr(msgdef, "format", "")).upper() and text:
+                typestore.register(get_types_from_msg(text, conn.msgtype))
+            elif text:
+                typestore.register(get_types_from_idl(text))
+        except Exception:  # noqa: BLE001 - an unparsable definition: the type stays unknown
+            pass
+        if conn.msgtype not in typestore.fielddefs:
+            raise DataError(
+                f"{path}: topic {conn.topic}: message type {conn.msgtype} is not known: it is "
+                "no standard ROS 2 (Humble) type and the bag carries no definition of it; "
+                "leave the topic out with topics:, or record it with a ROS 2 that stores "
+                "message definitions."
+            )
 
 
 def _check_chunks(path: Path, f: Any, summary: Any) -> None:
