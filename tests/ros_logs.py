@@ -90,7 +90,7 @@ def joint_states(
 
 def float_array_bomb(path: Path, n_floats: int = 20_000_000, n_messages: int = 2) -> Path:
     """An MCAP of ``n_messages`` Float64MultiArray messages of ``n_floats`` zeros, one zstd
-    chunk each: 11 kB on disk, 160 MB per chunk once decompressed (the issue's bomb)."""
+    chunk each: 11 kB on disk, 160 MB per chunk once decompressed (a bomb)."""
     from mcap.writer import CompressionType, Writer
 
     cdr = b"\x00\x01\x00\x00" + struct.pack("<III", 0, 0, n_floats) + bytes(4 + 8 * n_floats)

@@ -303,7 +303,8 @@ def outcomes():
 
 def test_corpus_is_large_and_covers_every_command():
     commands = {c["args"][0] for c in CASES}
-    assert commands >= {"run", "identify", "verify", "urdf", "replay", "bench", "report"}
+    assert commands >= {"run", "identify", "verify", "urdf", "replay", "bench", "report", "init",
+                        "payload", "repeatability"}  # fmt: skip
     assert len(CASES) >= 400
     writers = {c["args"][0] for c in CASES if c.get("fault")}
     assert writers >= {"run", "identify", "urdf", "replay", "bench", "report"}
@@ -329,6 +330,8 @@ def test_hostile_input_is_one_clear_error(case, outcomes):
     assert "Traceback" not in stderr, stderr
     assert r["exit_code"] == expect.get("exit", 2), stderr
     assert len(errors) == (1 if expect.get("exit", 2) == 2 else 0), stderr
+    for part in expect.get("match", []):  # the one line names the file, the field, the cause
+        assert part in errors[0], (part, errors[0])
     if expect.get("warning"):
         assert any(line.startswith("warning:") for line in stderr.splitlines()), stderr
     left = expect.get("left", "none")

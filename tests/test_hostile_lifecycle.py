@@ -1,6 +1,8 @@
 """Lifecycle under hostile conditions: nothing finished is lost, SIGTERM acts like Ctrl-C."""
 
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -8,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+import typer
 from typer.testing import CliRunner
 
 from ident.cli import app
@@ -180,7 +183,7 @@ def test_urdf_writer_check_refuses_non_finite_numbers():
 
 
 # ---------------------------------------------------------------------------------------------
-# Operating-system failures (issue 27): one line, nothing half-written, the run folder says why
+# Operating-system failures: one line, nothing half-written, the run folder says why
 
 
 def _fail_writes(monkeypatch, code, name="*"):
@@ -324,3 +327,117 @@ def test_a_read_only_run_folder_is_one_line_for_report(small_disk):
     (line,) = [x for x in res.output.splitlines() if x.startswith("error:")]
     assert "Read-only file system (the file system is read-only" in line
     assert sorted(p.name for p in (small_disk / "run").rglob("*")) == before
+
+
+# ---------------------------------------------------------------------------------------------
+# SIGTERM at every file a command writes: complete after the last file, else incomplete and
+# named (tests/lifecycle_signals.py)
+
+
+def _only_child(parent: Path):
+    def find():
+        children = list(parent.iterdir()) if parent.is_dir() else []
+        return children[0] if children else None
+
+    return find
+
+
+@pytest.mark.slow
+def test_sigterm_at_each_file_of_bench(tmp_path):
+    from lifecycle_signals import sigterm_at_each_file
+
+    (tmp_path / "c.yaml").write_text(TINY)
+    out = tmp_path / "camp"
+    args = ["bench", str(tmp_path / "c.yaml"), "--out", str(out), "--no-progress"]
+    reset = lambda: shutil.rmtree(out, ignore_errors=True)  # noqa: E731
+    n = sigterm_at_each_file(
+        args, lambda: out if out.is_dir() else None, tmp_path, reset=reset, every=2
+    )
+    assert n >= 8  # run.json, 5 CSV files, campaign.json, report.md, figures, report.html
+
+
+@pytest.mark.slow
+def test_sigterm_at_each_file_of_identify(tmp_path):
+    from lifecycle_signals import sigterm_at_each_file
+
+    out = tmp_path / "runs"
+    config = ROOT / "tests/data/hostile/identify/base.yaml"
+    args = ["identify", str(config), "--out", str(out), "--no-replay"]
+    reset = lambda: shutil.rmtree(out, ignore_errors=True)  # noqa: E731
+    n = sigterm_at_each_file(args, _only_child(out), tmp_path, reset=reset, every=3)
+    assert n >= 8  # run.json, result.json, the model files, figures, report.md, report.html
+
+
+@pytest.mark.slow
+def test_sigterm_at_each_file_of_report_then_report_completes(tmp_path):
+    """Interrupted, the folder says the report is missing; the next report completes it."""
+    from lifecycle_signals import sigterm_at_each_file
+
+    run = tmp_path / "run"
+    source = ROOT / "tests/data/hostile/os/real_run"
+    before = sum(1 for p in source.rglob("*") if p.is_file())
+
+    def reset():
+        shutil.rmtree(run, ignore_errors=True)
+        shutil.copytree(source, run)
+
+    n = sigterm_at_each_file(
+        ["report", str(run)], lambda: run, tmp_path, reset=reset, before=before, every=2
+    )
+    assert n >= 3  # figures, report.md, report.html
+    # an interrupted report, then a whole one: complete again, with the run's message
+    reset()
+    message = json.loads((run / "run.json").read_text())["message"]
+    import ident.run.rundir as rundir
+
+    with pytest.raises(rundir.FolderInterrupted), rundir.rewriting(run, "report"):
+        raise KeyboardInterrupt
+    state = rundir.read_status(run)
+    assert (state["status"], state["missing"]) == ("incomplete", "report")
+    res = CliRunner().invoke(app, ["report", str(run)])
+    assert res.exit_code == 0, res.output
+    state = rundir.read_status(run)
+    assert (state["status"], state["message"]) == ("complete", message)
+    assert not (run / "INCOMPLETE").exists()
+
+
+def test_signal_while_the_folder_is_created_is_held_until_the_guard(tmp_path, monkeypatch):
+    """SIGTERM between mkdir and run.json (the moment 'ident identify' left 'running')."""
+    import ident.run.rundir as rundir
+    from ident.cli._common import user_errors
+
+    real = rundir.RunDir.update
+
+    def update_then_signal(self, **fields):
+        real(self, **fields)
+        if fields == {}:  # create_run_dir's first run.json
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(rundir.RunDir, "update", update_then_signal)
+    with pytest.raises(typer.Exit) as info, user_errors():
+        with rundir.run_folder(tmp_path, "x"):
+            raise AssertionError("the held signal must stop the block before its first line")
+    assert info.value.exit_code == 130
+    (folder,) = tmp_path.iterdir()
+    state = rundir.read_status(folder)
+    assert state["status"] == "incomplete"
+    assert (folder / "INCOMPLETE").is_file()
+
+
+def test_write_error_in_a_folder_names_it_and_marks_it(tmp_path, monkeypatch):
+    """bench on a full disk: exit 2, one line naming the file and the folder, incomplete."""
+    import errno
+
+    _fail_writes(monkeypatch, errno.ENOSPC, "stats.csv")
+    (tmp_path / "c.yaml").write_text(TINY)
+    out = tmp_path / "camp"
+    res = CliRunner().invoke(app, ["bench", str(tmp_path / "c.yaml"), "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    (line,) = [x for x in res.stderr.splitlines() if x.startswith("error:")]
+    assert f"{out / 'stats.csv'}: No space left on device" in line
+    assert f"({out} is incomplete)" in line
+    state = json.loads((out / "run.json").read_text())
+    assert state["status"] == "incomplete"
+    assert "No space left" in state["message"]
+    assert (out / "INCOMPLETE").is_file()
+    assert (out / "runs.csv").is_file()  # what was written before stays

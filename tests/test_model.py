@@ -259,7 +259,7 @@ def test_parameter_names(paper):
     assert names[-1] == "Izz6"
 
 
-# ---------------------------------------------------------------- third-party URDFs (issue 2)
+# ---------------------------------------------------------------- third-party URDFs
 ARMS = {
     "ur5": "ur_description/urdf/ur5_robot.urdf",
     "ur10": "ur_description/urdf/ur10_robot.urdf",

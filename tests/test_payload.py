@@ -6,6 +6,7 @@ simulator was given, and the written URDF reloaded by Pinocchio against MuJoCo's
 """
 
 import json
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -124,7 +125,7 @@ def test_payload_recovered_against_the_simulated_truth(ur5, payload_config, tmp_
     truth = load_mujoco_measurement({"payload": PAYLOAD}).payload
     mass_error = summary["mass_kg"] - truth.mass
     com_error = np.asarray(summary["com_m"]) - truth.com
-    assert abs(mass_error) < 0.02 * truth.mass  # the issue's targets
+    assert abs(mass_error) < 0.02 * truth.mass  # the targets: 2 % of the mass
     assert np.linalg.norm(com_error) < 0.005
     # the intervals cover the truth (4 std), and are not vacuous
     assert abs(mass_error) < 4 * summary["mass_std_kg"] + 1e-6
@@ -184,3 +185,70 @@ def test_centre_of_mass_reported_in_another_frame_of_the_last_link(ur5):
     np.testing.assert_allclose(result.mass, truth.mass, rtol=1e-8)
     inertia = np.array(PAYLOAD["inertia"])[[0, 1, 3, 1, 2, 4, 3, 4, 5]].reshape(3, 3)
     np.testing.assert_allclose(result.inertia_com, R.T @ inertia @ R, atol=1e-7)
+
+
+@pytest.mark.slow
+def test_reference_log_columns_matched_by_joint_name_and_a_bad_fit_warns(payload_config, tmp_path):
+    """The reference log's columns listed in another order: matched by name, the same estimate
+    as in joint order; columns that name no joint in the wrong order: a warning naming the
+    likely cause (was: 4.9 kg instead of 3 kg and a residual of 0.89, exit 0, no word)."""
+    _, config = payload_config
+    runs = {}
+    without = config["payload"]["without"]
+    for name, reorder in (("in_order", False), ("reversed", True)):
+        section = {k: dict(v) if isinstance(v, dict) else v for k, v in without.items()}
+        if reorder:
+            for key in ("position", "torque"):
+                section[key]["columns"] = section[key]["columns"][::-1]
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(yaml.safe_dump({**config, "payload": {"without": section}}))
+        result = CliRunner().invoke(app, ["payload", str(path), "--out", str(tmp_path / name)])
+        assert result.exit_code == 0, result.output
+        (run,) = (tmp_path / name).iterdir()
+        runs[name] = json.loads((run / "payload.json").read_text())
+        assert "warning:" not in result.output
+    assert runs["reversed"]["mass_kg"] == pytest.approx(runs["in_order"]["mass_kg"], rel=1e-9)
+    assert runs["reversed"]["relative_residual"] < 0.05
+    # torque columns renamed c0..c5 in reversed joint order: nothing to match them by
+    log = Path(without["torque"]["path"])
+    lines = log.read_text().splitlines()
+    header = lines[0].split(",")
+    taus = without["torque"]["columns"]
+    header = [f"c{len(taus) - 1 - taus.index(h)}" if h in taus else h for h in header]
+    renamed = tmp_path / "renamed.csv"
+    renamed.write_text("\n".join([",".join(header), *lines[1:]]) + "\n")
+    section = {k: dict(v) if isinstance(v, dict) else v for k, v in without.items()}
+    for key in ("time", "position", "torque"):
+        section[key]["path"] = str(renamed)
+    section["torque"]["columns"] = [f"c{k}" for k in range(len(taus))]
+    path = tmp_path / "renamed.yaml"
+    path.write_text(yaml.safe_dump({**config, "payload": {"without": section}}))
+    result = CliRunner().invoke(app, ["payload", str(path), "--out", str(tmp_path / "bad")])
+    assert result.exit_code == 0, result.output
+    (run,) = (tmp_path / "bad").iterdir()
+    summary = json.loads((run / "payload.json").read_text())
+    assert summary["relative_residual"] > 0.2
+    (warning,) = summary["warnings"]
+    assert "joint columns that do not match the URDF's joints" in warning
+    assert f"warning: {warning}" in result.output
+
+
+@pytest.mark.slow
+def test_sigterm_at_each_file_of_payload(payload_config, tmp_path):
+    """Interrupted at each file: exit 130 naming the folder, run.json incomplete, marker."""
+    import shutil
+
+    from lifecycle_signals import sigterm_at_each_file
+
+    _, config = payload_config
+    path = tmp_path / "payload.yaml"
+    path.write_text(yaml.safe_dump(config))
+    out = tmp_path / "runs"
+
+    def find():
+        children = list(out.iterdir()) if out.is_dir() else []
+        return children[0] if children else None
+
+    args = ["payload", str(path), "--out", str(out)]
+    reset = lambda: shutil.rmtree(out, ignore_errors=True)  # noqa: E731
+    assert sigterm_at_each_file(args, find, tmp_path, reset=reset) >= 4  # run.json, json, 2 models

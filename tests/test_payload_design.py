@@ -178,7 +178,7 @@ PAYLOAD_SIDES = (0.10, 0.08, 0.12)
 @pytest.mark.slow
 def test_designed_payload_excitation_recovers_a_simulated_payload(setup, tmp_path):
     """ident run (the design, its certificate, trajectory.csv) -> MuJoCo log with the payload
-    -> ident payload: mass within 2 %, centre of mass within 5 mm (the issue's targets)."""
+    -> ident payload: mass within 2 %, centre of mass within 5 mm (the targets)."""
     raw = yaml.safe_load(CONFIG.read_text())
     raw["robot"] = {**raw["robot"], "urdf": str((REPO / "robot/urdf/ur5.urdf").resolve())}
     raw["robot"]["package_dirs"] = [str((REPO / "robot/meshes").resolve())]

@@ -172,7 +172,7 @@ def test_gap_and_windows_make_segments(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
-# bounds and time as it goes wrong (issue 27): ROS 2 logs, text, numpy archives
+# bounds and time as it goes wrong: ROS 2 logs, text, numpy archives
 
 HOSTILE_LOGS = Path(__file__).resolve().parent / "data" / "hostile" / "logs"
 ROS_JOINTS = ("j1", "j2", "j3")
@@ -412,7 +412,7 @@ def test_bag_with_mcap_storage_is_checked_for_bombs_too(tmp_path):
 
 
 def test_gzip_text_estimated_from_its_trailer_before_reading(tmp_path, monkeypatch):
-    """A .csv.gz whose trailer says 3 GiB of text (the issue's 11 MB bomb) is refused from the
+    """A .csv.gz whose trailer says 3 GiB of text (an 11 MB bomb) is refused from the
     estimate alone, before a byte is decompressed: ``ident identify`` checks it first."""
     from ident.inputs import check_job
     from ident.measure.logs import estimate_log

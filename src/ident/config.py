@@ -37,6 +37,7 @@ __all__ = [
     "MAX_INT_DIGITS",
     "MAX_NODES",
     "StrictModel",
+    "file_problem",
     "load_config_file",
     "read_text_input",
     "read_yaml",
@@ -211,6 +212,20 @@ def _check_tree(loader: _BoundedLoader, root: Any) -> None:
     size(root, "")
 
 
+def file_problem(path: str | Path) -> str | None:
+    """Why ``path`` is no input file (``"not found"``, ``"is a folder"``, ``"is not a regular
+    file ..."``: a device such as /dev/zero, a FIFO, a socket), or None for a regular file.
+    Such a file is refused before it is opened: reading it could block or never end."""
+    path = Path(path)
+    if path.is_file():
+        return None
+    if path.is_dir():
+        return "is a folder"
+    if not path.exists():
+        return "not found"
+    return "is not a regular file (a device, a FIFO or a socket)"
+
+
 def read_text_input(path: str | Path, *, what: str = "file", max_bytes: int | None = None) -> str:
     """Read a UTF-8 text input file (a config, a CSV, a URDF) with one clear error.
 
@@ -230,9 +245,9 @@ def read_text_input(path: str | Path, *, what: str = "file", max_bytes: int | No
         binary (holds NUL bytes) or not UTF-8 (the message gives the byte offset).
     """
     path = Path(path)
-    if not path.is_file():
-        kind = "is a folder" if path.is_dir() else "not found"
-        raise ConfigError(f"{path}: {what} {kind}; check the path.")
+    problem = file_problem(path)
+    if problem is not None:
+        raise ConfigError(f"{path}: {what} {problem}; check the path.")
     try:
         with path.open("rb") as f:
             data = f.read() if max_bytes is None else f.read(max_bytes + 1)

@@ -13,6 +13,9 @@ import typer
 
 from ident.errors import IdentError
 from ident.fileio import describe_os_error
+from ident.run.rundir import failure_note
+
+# failure_note is re-exported: the commands' one word on what stopped a run
 
 __all__ = [
     "EXIT_INTERRUPTED",
@@ -56,15 +59,6 @@ def check_scheduler_address(address: str | None) -> None:
         )
 
 
-def failure_note(error: BaseException) -> str:
-    """What stopped a run, for its ``run.json`` ``message`` (one line)."""
-    if isinstance(error, OSError):
-        return one_line(describe_os_error(error))
-    if isinstance(error, KeyboardInterrupt):
-        return "interrupted (Ctrl-C or SIGTERM)"
-    return one_line(f"{type(error).__name__}: {error}")
-
-
 def _terminate(signum: int, frame: Any) -> None:
     """SIGTERM (kill, systemd, a CI timeout) takes the same path as Ctrl-C."""
     raise KeyboardInterrupt
@@ -88,7 +82,8 @@ def user_errors() -> Iterator[None]:
 
     Ctrl-C and SIGTERM exit with code 130 and a short note instead of a traceback (inside
     the block SIGTERM raises :class:`KeyboardInterrupt`, so that cleanup code written for
-    Ctrl-C, such as marking a run folder incomplete, runs for both). Running out of memory
+    Ctrl-C, such as marking a run folder incomplete, runs for both); the note names the
+    folder left incomplete (:class:`ident.run.rundir.FolderInterrupted`). Running out of memory
     and an operating-system failure (a full disk, a read-only folder, no permission:
     :func:`ident.fileio.describe_os_error`) are reported on one line too.
     """
@@ -107,7 +102,8 @@ def user_errors() -> Iterator[None]:
             err=True,
         )
         raise typer.Exit(code=EXIT_USER_ERROR) from None
-    except KeyboardInterrupt:
-        typer.echo("interrupted", err=True)
+    except KeyboardInterrupt as e:
+        folder = getattr(e, "folder", None)  # a FolderInterrupted names what it left
+        typer.echo("interrupted" + (f": {folder} is incomplete" if folder else ""), err=True)
         sys.stderr.flush()
         raise typer.Exit(code=EXIT_INTERRUPTED) from None

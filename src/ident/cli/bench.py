@@ -5,18 +5,20 @@ local worker processes (``--workers``, at most the CPU count) or on a running
 dask.distributed scheduler (``--scheduler tcp://HOST:PORT``, needs
 ``pip install 'ident[dask]'``), with a progress bar, then writes a new campaign folder (never
 overwriting one): ``campaigns/<name>-<timestamp>/`` or ``--out DIR`` (which must not exist or
-be empty).
+be empty), with a ``run.json`` that says whether it is complete.
 
 Everything is checked before the first run: the config, ``--workers``, that the output folder
 can be created, and the estimated memory and time (printed, and refused above the ceilings
 ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS``). A failed or interrupted campaign leaves no
 folder. A finished campaign is never thrown away: if ``--out`` was taken meanwhile (another
 campaign wrote there), the results go to a new folder beside it and the command says where.
+A write that fails (a full disk) or Ctrl-C / SIGTERM while the folder is written leaves it
+marked incomplete (``run.json``, ``INCOMPLETE``), named on the one ``error:`` or
+``interrupted:`` line (exit 2 or 130).
 """
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Annotated
 
@@ -42,30 +44,6 @@ def _check_out(out: Path | None) -> None:
         check_output_dir(out, "--out", must_be_new_or_empty=True)
     else:
         check_output_dir(DEFAULT_PARENT, "campaigns folder")
-
-
-def _create(folder: Path) -> bool:
-    """Create ``folder`` (or take it if it is an empty folder); False if it is taken."""
-    try:
-        folder.mkdir(parents=True)
-        return True
-    except FileExistsError:
-        return folder.is_dir() and not any(folder.iterdir())
-
-
-def _new_folder(out: Path | None, name: str) -> Path:
-    """Create the campaign folder (after the runs: a failed campaign leaves nothing).
-
-    ``--out`` taken meanwhile gives ``<out>-2``, ``<out>-3``, ...: a finished campaign is
-    never lost and never overwrites another.
-    """
-    stamp = time.strftime("%Y%m%d-%H%M%S")
-    base = out if out is not None else DEFAULT_PARENT / f"{name}-{stamp}"
-    for k in range(1, 1000):
-        folder = base if k == 1 else base.with_name(f"{base.name}-{k}")
-        if _create(folder):
-            return folder
-    raise OSError(f"no free campaign folder name next to {base}")  # pragma: no cover
 
 
 def bench(
@@ -94,6 +72,7 @@ def bench(
     )
     from ident.bench.report import disagreements, write_campaign
     from ident.inputs import check_job
+    from ident.run.rundir import run_folder
 
     with user_errors():
         check_scheduler_address(scheduler)
@@ -122,21 +101,16 @@ def bench(
                 scheduler=scheduler,
                 progress=lambda done, _total: bar.update(task, completed=done),
             )
-        try:
-            folder = _new_folder(out, cfg.name)
+        # created after the runs (a failed campaign leaves nothing); --out taken meanwhile
+        # gives <out>-2, ...; any error or interruption while writing marks it incomplete
+        parent = out if out is not None else DEFAULT_PARENT
+        info = {"command": "bench", "config": str(config)}
+        with run_folder(parent, cfg.name, info=info, exact=out is not None) as rundir:
+            folder = rundir.path
             if out is not None and folder != out:
                 typer.echo(f"{out} was taken meanwhile: results in {folder}", err=True)
             write_campaign(result, folder)
-        except OSError as e:
-            # the campaign finished: keep it somewhere writable rather than lose it
-            import tempfile
-
-            folder = Path(tempfile.mkdtemp(prefix=f"ident-bench-{cfg.name}-"))
-            write_campaign(result, folder)
-            typer.echo(
-                f"could not write the campaign folder ({e}); results saved in {folder}",
-                err=True,
-            )
+            rundir.finish("complete", f"{total} runs")
         typer.echo(f"wall time {result.wall_seconds:.1f} s")
         for line in disagreements(result)[:10]:
             typer.echo(f"  {line}")

@@ -1,15 +1,16 @@
 """``ident identify CONFIG``: identify a real robot from its logs.
 
-Validates the config, runs :func:`ident.identify.pipeline.real.identify`, and only when that
-succeeded creates a new run folder ``<out>/<name>-<timestamp>/`` with the report (so a failed
-identification leaves nothing that looks like a result), the measured motion (``trajectory.csv``,
-``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``; a failing replay is
-reported, never fatal). If writing the report fails, the folder is marked incomplete. ``--scheduler
-ADDRESS`` hands the chunks of a long log (see
-:mod:`ident.identify.estimation.accumulate`) to a running dask.distributed scheduler. Once the log
-is read, the estimated memory and time of the identification are printed when above a minute or 2
-GB, and refused above the ceilings ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS`` (before any run
-folder).
+Validates the config, runs :func:`ident.identify.pipeline.real.identify`, and only when
+that succeeded creates a new run folder ``<out>/<name>-<timestamp>/`` with the report (so a
+failed identification leaves nothing that looks like a result), the measured motion
+(``trajectory.csv``, ``robot.urdf``) and its replay (``replay.html``, unless ``--no-replay``;
+a failing replay is reported, never fatal). Any error, Ctrl-C or SIGTERM once the folder
+exists marks it incomplete (``run.json``, ``INCOMPLETE``) and names it (exit 2, or 130).
+``--scheduler ADDRESS`` hands the chunks of a long log (see
+:mod:`ident.identify.estimation.accumulate`) to a running dask.distributed scheduler. Once
+the log is read, the estimated memory and time of the identification are printed when above a
+minute or 2 GB, and refused above the ceilings ``IDENT_MAX_MEMORY_GB`` / ``IDENT_MAX_HOURS``
+(before any run folder).
 
 Exit codes: 0 success (warnings, e.g. a held-out prediction worse than the URDF's nominal
 parameters, are printed and recorded in ``result.json``); 1 a warning with
@@ -76,7 +77,7 @@ def identify(
     from ident.errors import IdentError
     from ident.identify.config import load_identify_config
     from ident.identify.pipeline.real import identify as run_identify
-    from ident.run.rundir import create_run_dir
+    from ident.run.rundir import run_folder
 
     package_dirs = list(package_dir or ())
     with user_errors():
@@ -95,18 +96,21 @@ def identify(
             info["scheduler"] = scheduler
         if package_dirs:
             info["package_dirs"] = [str(d) for d in package_dirs]
-        rundir = create_run_dir(out, f"{cfg.name}", info={**info, "started_at": started_at})
-        replay_note, timings = _save_and_report(result, rundir, replay, package_dirs)
         est = result.estimate
-        rundir.update(
-            timings_s={k: round(v, 3) for k, v in timings.items()},
-            warnings=list(result.warnings),
-        )
         message = est.message if not result.warnings else "; ".join(result.warnings)
-        # wall time of the whole command (config, identification, replay, report); the run is
-        # complete with its last write
-        rundir.update(wall_time_s=round(time.monotonic() - t_start, 3))
-        rundir.finish("complete", message, stamp_wall_time=False)
+        # any error or interruption from here on marks the folder incomplete and names it
+        with run_folder(out, f"{cfg.name}", info={**info, "started_at": started_at}) as rundir:
+            replay_note, timings = _save_and_report(result, rundir, replay, package_dirs)
+            rundir.update(
+                timings_s={k: round(v, 3) for k, v in timings.items()},
+                warnings=list(result.warnings),
+                missing=None,
+                complete_message=None,
+            )
+            # wall time of the whole command (config, identification, replay, report); the
+            # run is complete with its last write
+            rundir.update(wall_time_s=round(time.monotonic() - t_start, 3))
+            rundir.finish("complete", message, stamp_wall_time=False)
         _print_summary(result, rundir.path, replay_note)
     if result.warnings and cfg.validation.fail_on_warning:
         typer.echo(
@@ -118,32 +122,27 @@ def identify(
 def _save_and_report(
     result: IdentifyResult, rundir: Any, replay: bool, package_dirs: list[Path]
 ) -> tuple[str, dict[str, float]]:
-    """The estimate first, then the replay and the report; the folder is marked incomplete
-    when one fails. Returns the replay note and the timings with the replay's and report's."""
-    from ident.errors import IdentError
+    """The estimate first, then the replay and the report (the caller's guard marks the folder
+    incomplete when one fails). Returns the replay note and the timings with the replay's and
+    report's."""
     from ident.report.identify_report import (
         save_identify_data,
         write_identify_report,
         write_measured_replay,
     )
 
-    try:
-        save_identify_data(result, rundir.path)  # the estimate is safe before the rest
-        t0 = time.perf_counter()
-        replay_note = write_measured_replay(
-            result, rundir.path, replay=replay, package_dirs=package_dirs
-        )
-        rundir.update(replay=replay_note)
-        if replay and not replay_note.startswith("replay.html written"):
-            typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
-        t1 = time.perf_counter()
-        write_identify_report(result, rundir.path, replay_note=replay_note)
-    except (IdentError, OSError) as e:
-        rundir.finish("incomplete", f"writing the report failed: {e}")
-        raise IdentError(f"{rundir.path}: writing the report failed ({e}).") from e
-    except BaseException:
-        rundir.finish("incomplete", "interrupted while writing the report")
-        raise
+    save_identify_data(result, rundir.path)  # the estimate is safe before the rest
+    # from here 'ident report' can write what is missing
+    rundir.update(missing="report", complete_message=result.estimate.message)
+    t0 = time.perf_counter()
+    replay_note = write_measured_replay(
+        result, rundir.path, replay=replay, package_dirs=package_dirs
+    )
+    rundir.update(replay=replay_note)
+    if replay and not replay_note.startswith("replay.html written"):
+        typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
+    t1 = time.perf_counter()
+    write_identify_report(result, rundir.path, replay_note=replay_note)
     return replay_note, {
         **result.timings,
         "replay": t1 - t0,

@@ -4,8 +4,10 @@ Validates the config (:func:`ident.identify.payload.payload_config.load_payload_
 log(s) and estimates the payload (:func:`ident.identify.payload.payload.identify_payload`); only
 then creates the run folder ``<out>/<name>-<timestamp>/`` with ``payload.json`` (the estimate,
 written first) and the arm + payload model files ``<stem>_payload.urdf`` / ``.xml``
-(:func:`ident.identify.model_files.files.model_files`: the URDF's last link's ``<inertial>`` becomes
-arm + payload). Exit codes: 0 success; 2 bad input or a failed estimate (nothing written).
+(:func:`ident.identify.model_files.files.model_files`: the URDF's last link's ``<inertial>``
+becomes arm + payload). Exit codes: 0 success; 2 bad input or a failed estimate (nothing
+written); an error, Ctrl-C or SIGTERM while the folder is written marks it incomplete and names
+it (exit 2, or 130).
 """
 
 from __future__ import annotations
@@ -31,7 +33,6 @@ def payload(
     out: Annotated[Path, typer.Option(help="Parent folder of the run folders.")] = Path("runs"),
 ) -> None:
     """Estimate a payload's mass, centre of mass and inertia from CONFIG's log(s)."""
-    from ident.errors import IdentError
     from ident.fileio import atomic_write_text
     from ident.identify.corrections.signal_correction import identify_corrected_payload
     from ident.identify.model_files.files import model_files
@@ -39,7 +40,7 @@ def payload(
     from ident.identify.payload.payload_config import load_payload_config
     from ident.inputs import check_output_dir
     from ident.model.selection import load_robot
-    from ident.run.rundir import create_run_dir
+    from ident.run.rundir import run_folder
 
     with user_errors():
         check_output_dir(out, "--out")
@@ -49,17 +50,14 @@ def payload(
         result = identify_corrected_payload(cfg, robot)
         theta, names = arm_with_payload(robot, result.phi)
         files = model_files(robot, theta, names)  # every check before the run folder
-        rundir = create_run_dir(out, cfg.name, info={"command": "payload", "config": str(config)})
         summary = result.summary()
-        atomic_write_text(rundir.path / "payload.json", json.dumps(summary, indent=2) + "\n")
         stem = Path(str(robot.urdf_path or robot.name)).stem
-        try:
+        info = {"command": "payload", "config": str(config)}
+        with run_folder(out, cfg.name, info=info) as rundir:  # incomplete unless all written
+            atomic_write_text(rundir.path / "payload.json", json.dumps(summary, indent=2) + "\n")
             urdf = atomic_write_text(rundir.path / f"{stem}_payload.urdf", files.urdf_text)
             mjcf = atomic_write_text(rundir.path / f"{stem}_payload.xml", files.mjcf)
-        except OSError as e:
-            rundir.finish("incomplete", f"writing the model files failed: {e}")
-            raise IdentError(f"{rundir.path}: writing the model files failed ({e}).") from e
-        rundir.finish("complete", summary["message"])
+            rundir.finish("complete", summary["message"])
         mm = 1e3
         com = ", ".join(
             f"{mm * c:.1f} +- {mm * s:.1f}" for c, s in zip(result.com, result.com_std, strict=True)
@@ -83,3 +81,5 @@ def payload(
         if result.signals is not None:
             typer.echo(f"signals: {result.signals['line']}")
         typer.echo(f"model files: {urdf}, {mjcf}")
+        for line in result.warnings:  # payload.json's "warnings" too
+            typer.echo(f"warning: {line}", err=True)

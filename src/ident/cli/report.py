@@ -7,7 +7,9 @@
   (the identification itself is not repeated; run ``ident identify`` again for that).
 
 Anything else (a bench folder, a file, a folder without ``run.json``) is a user error: exit 2
-with one ``error:`` line.
+with one ``error:`` line, before anything is written. A failure or Ctrl-C / SIGTERM while the
+report is written marks the folder incomplete (``missing: report`` in ``run.json``); the next
+successful ``ident report`` marks it complete again.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ def report(
     the identification runs, from arrays that are not kept).
     """
     from ident.errors import IdentError
-    from ident.run.rundir import read_status, unfinished_note
+    from ident.run.rundir import read_status, rewriting, unfinished_note
 
     with user_errors():
         if not run_dir.is_dir():
@@ -51,28 +53,56 @@ def report(
         note = unfinished_note(run_dir, read_status(run_dir))
         if note is not None:
             typer.echo(f"warning: {note}", err=True)
-        kind = _kind(run_dir)
+        kind = _kind(run_dir)  # every input read and checked before anything is written
+        # an error or interruption while writing marks the folder incomplete (missing: the
+        # report); a later success where the report was all that was missing completes it
         if kind == "run":
-            from ident.report.run_report import write_replay, write_report
-
-            if not (run_dir / "replay.html").is_file():
-                typer.echo(write_replay(run_dir), err=True)
-            typer.echo(str(write_report(run_dir)))
             from ident.report.run_data import load_run
+
+            data = load_run(run_dir)
+            with rewriting(run_dir, "report"):
+                _rewrite_run_report(run_dir)
             from ident.report.run_verdict import stored_verdict
 
-            _echo_verdict(stored_verdict(load_run(run_dir)))
+            _echo_verdict(stored_verdict(data))
         else:
-            from ident.fileio import atomic_write_text
-            from ident.report.html import markdown_to_html
-
-            markdown = (run_dir / "report.md").read_text(encoding="utf-8")
-            name = json.loads((run_dir / "result.json").read_text(encoding="utf-8")).get("name")
-            page = markdown_to_html(markdown, title=f"ident identify: {name}", base_dir=run_dir)
-            typer.echo(str(atomic_write_text(run_dir / "report.html", page)))
-            data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
+            data, markdown = _identify_inputs(run_dir)
+            with rewriting(run_dir, "report"):
+                _rewrite_identify_report(run_dir, data, markdown)
             if isinstance(data.get("verdict"), dict):  # older folders have none
                 _echo_verdict(data["verdict"])
+
+
+def _rewrite_run_report(run_dir: Path) -> None:
+    """report.md, report.html and the figures of an 'ident run' folder (the replay if missing)."""
+    from ident.report.run_report import write_replay, write_report
+
+    if not (run_dir / "replay.html").is_file():
+        typer.echo(write_replay(run_dir), err=True)
+    typer.echo(str(write_report(run_dir)))
+
+
+def _identify_inputs(run_dir: Path) -> tuple[dict, str]:
+    """``result.json`` and ``report.md`` of an 'ident identify' folder (read before writing)."""
+    from ident.errors import IdentError
+
+    path = run_dir / "report.md"
+    try:
+        markdown = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise IdentError(f"{path}: unreadable ({e}); run 'ident identify' again.") from e
+    data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
+    return data, markdown
+
+
+def _rewrite_identify_report(run_dir: Path, data: dict, markdown: str) -> None:
+    """report.html of an 'ident identify' folder from its report.md."""
+    from ident.fileio import atomic_write_text
+    from ident.report.html import markdown_to_html
+
+    title = f"ident identify: {data.get('name')}"
+    page = markdown_to_html(markdown, title=title, base_dir=run_dir)
+    typer.echo(str(atomic_write_text(run_dir / "report.html", page)))
 
 
 def _echo_verdict(entry: dict) -> None:

@@ -2,9 +2,10 @@
 
 ``ident run`` validates the config, creates a new run folder ``<out>/<name>-<timestamp>/``,
 runs :func:`ident.run.pipeline.run_pipeline` with a progress bar (stderr), saves the data,
-the replay and the report, and prints a one-screen summary (stdout). Ctrl-C or an error
-during the run saves what finished and marks the folder incomplete (``run.json`` status,
-``INCOMPLETE`` file) before exiting (130 for Ctrl-C, 2 for a user error).
+the replay and the report, and prints a one-screen summary (stdout). Ctrl-C, SIGTERM or an
+error at any moment once the folder exists saves what finished and marks the folder incomplete
+(``run.json`` status, ``INCOMPLETE`` file) before exiting (130 for Ctrl-C and SIGTERM, 2 for a
+user error), naming the folder.
 
 ``ident report RUN_DIR`` (:mod:`ident.cli.report`) regenerates the report from the saved data.
 """
@@ -17,7 +18,7 @@ from typing import Annotated, Any
 
 import typer
 
-from ident.cli._common import EXIT_INTERRUPTED, EXIT_USER_ERROR, failure_note, user_errors
+from ident.cli._common import EXIT_USER_ERROR, failure_note, user_errors
 
 __all__ = ["register"]
 
@@ -43,12 +44,11 @@ def run(
     ] = True,
 ) -> None:
     """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
-    from ident.errors import IdentError
     from ident.inputs import check_output_dir
     from ident.run.config import load_run_config
     from ident.run.exports.run_exports import check_run_exports
-    from ident.run.pipeline import RunInterrupted, feasible_start, run_pipeline
-    from ident.run.rundir import create_run_dir
+    from ident.run.pipeline import feasible_start
+    from ident.run.rundir import run_folder
     from ident.run.setup import prepare_run
 
     with user_errors():
@@ -63,40 +63,25 @@ def run(
         check_run_exports(cfg, setup.robot, config)
         _setup_notes(setup)
         name = f"{cfg.name}-quick" if quick else str(cfg.name)
+        info = {
+            "config": str(config),
+            "seed": cfg.seed,
+            "quick": quick,
+            "command": " ".join(["ident", *sys.argv[1:]]),
+            "export_limits": list(setup.limit_notes),
+            "safety_margin_note": setup.safety.margin_note,
+        }
         with _ProgressDisplay(cfg) as display:
             # stage 1, the feasible elites, also before the folder exists: an excitation box
             # that holds no design meeting the constraints is an input error
             start = feasible_start(setup, progress=display.update)
-            rundir = create_run_dir(
-                out,
-                name,
-                info={
-                    "config": str(config),
-                    "seed": cfg.seed,
-                    "quick": quick,
-                    "command": " ".join(["ident", *sys.argv[1:]]),
-                    "export_limits": list(setup.limit_notes),
-                    "safety_margin_note": setup.safety.margin_note,
-                },
-            )
-            typer.echo(f"run folder: {rundir.path}", err=True)
-            try:
-                result = run_pipeline(start, progress=display.update)
-            except RunInterrupted as e:
-                _save_partial(e.partial, rundir)
-                if isinstance(e.cause, KeyboardInterrupt):
-                    typer.echo(f"interrupted: partial results in {rundir.path}", err=True)
-                    raise typer.Exit(code=EXIT_INTERRUPTED) from None
-                if isinstance(e.cause, IdentError):
-                    typer.echo(f"error: {e.cause} (run folder: {rundir.path})", err=True)
-                    raise typer.Exit(code=EXIT_USER_ERROR) from None
-                raise e.cause from None
-            except KeyboardInterrupt:
-                rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
-                raise
-        exports, replay_note = _save_results(result, rundir, replay)
-        report_path = _write_report(rundir)
-        rundir.finish("complete", result.message, stamp_wall_time=False)
+            # any error or interruption from here on marks the folder incomplete, names it
+            with run_folder(out, name, info=info) as rundir:
+                typer.echo(f"run folder: {rundir.path}", err=True)
+                result = _optimize(start, display, rundir)
+                exports, replay_note = _save_results(result, rundir, replay)
+                report_path = _write_report(rundir, result.message)
+                rundir.finish("complete", result.message, stamp_wall_time=False)
         _summary(result, rundir.path, report_path, replay_note, exports)
         for refusal in exports.refused.values() if exports is not None else ():
             typer.echo(f"error: export refused: {refusal}", err=True)
@@ -118,6 +103,21 @@ def _setup_notes(setup: Any) -> None:
         setup.estimate.memory_bytes > 2e9
     ):
         typer.echo(f"estimate: {setup.estimate.describe()}", err=True)
+
+
+def _optimize(start: Any, display: _ProgressDisplay, rundir: Any) -> Any:
+    """Run the pipeline from ``start``; an interrupted or failed run saves what it finished
+    (the folder marked incomplete with what is missing) before the error goes on."""
+    from ident.run.pipeline import RunInterrupted, run_pipeline
+    from ident.run.rundir import FolderInterrupted
+
+    try:
+        return run_pipeline(start, progress=display.update)
+    except RunInterrupted as e:
+        _save_partial(e.partial, rundir)
+        if isinstance(e.cause, KeyboardInterrupt):
+            raise FolderInterrupted(rundir.path) from None
+        raise e.cause from None
 
 
 def _save_results(result: Any, rundir: Any, replay: bool) -> tuple[Any, str]:
@@ -146,14 +146,16 @@ def _save_results(result: Any, rundir: Any, replay: bool) -> tuple[Any, str]:
     return exports, replay_note
 
 
-def _write_report(rundir: Any) -> Path:
+def _write_report(rundir: Any, message: str) -> Path:
     """The report, last: the data are saved, so if it fails 'ident report RUN_DIR' writes it
-    again; the run is complete only once it is written (the caller marks it)."""
+    again (``missing: report`` in run.json: that command then marks the run complete with
+    ``message``); the run is complete only once it is written (the caller marks it)."""
     from ident.report.run_report import write_report
 
+    rundir.update(missing="report", complete_message=message)
     rundir.stamp_wall_time()
     try:
-        return write_report(rundir.path)
+        path = write_report(rundir.path)
     except BaseException as e:
         rundir.finish(
             "incomplete",
@@ -164,6 +166,8 @@ def _write_report(rundir: Any) -> Path:
             err=True,
         )
         raise
+    rundir.update(missing=None, complete_message=None)
+    return path
 
 
 def _save_partial(partial: Any, rundir: Any) -> None:

@@ -54,7 +54,7 @@ import numpy.typing as npt
 import pinocchio as pin
 from pydantic import Field, field_validator, model_validator
 
-from ident.config import StrictModel
+from ident.config import StrictModel, file_problem
 from ident.dynamics.chain import chain_from_model
 from ident.errors import ConfigError, ModelError
 from ident.excitation.constraints import NONFINITE_VIOLATION, JointLimits
@@ -495,6 +495,9 @@ def _convexify(geom: pin.GeometryModel) -> None:
             obj.geometry = shape.convex
 
 
+_MAX_SRDF_BYTES = 10_000_000
+
+
 def _read_srdf(path: Path) -> list[tuple[str, str, str]]:
     """The ``<disable_collisions link1= link2= reason=/>`` entries of a MoveIt SRDF.
 
@@ -503,10 +506,15 @@ def _read_srdf(path: Path) -> list[tuple[str, str, str]]:
     ConfigError
         If the file cannot be read or parsed, or is larger than 10 MB.
     """
+    problem = file_problem(path)
+    if problem is not None:
+        raise ConfigError(f"safety.srdf: {path} {problem}; give MoveIt's .srdf file.")
     try:
-        if path.stat().st_size > 10_000_000:
+        with path.open("rb") as f:  # bounded: never more than 10 MB, whatever the file
+            data = f.read(_MAX_SRDF_BYTES + 1)
+        if len(data) > _MAX_SRDF_BYTES:
             raise ConfigError(f"safety.srdf: {path} is larger than 10 MB; is it an SRDF?")
-        root = ET.fromstring(path.read_bytes())
+        root = ET.fromstring(data)
     except (OSError, ET.ParseError) as e:
         raise ConfigError(
             f"safety.srdf: cannot read {path} as an SRDF ({e}); give MoveIt's .srdf file."

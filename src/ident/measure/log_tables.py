@@ -24,6 +24,7 @@ __all__ = [
     "Stamps",
     "join_segments",
     "join_signals",
+    "joint_order",
     "select_columns",
     "signal_tables",
     "uniform_grid",
@@ -150,7 +151,12 @@ class _Sources:
             raise
 
     def signal(
-        self, signal: SignalFile, n_joints: int, what: str, joint_names: tuple[str, ...]
+        self,
+        signal: SignalFile,
+        n_joints: int,
+        what: str,
+        joint_names: tuple[str, ...],
+        source: str = "config",
     ) -> tuple[FloatArray, LogTable]:
         if signal.path is not None:
             tables = self.by_path[Path(signal.path)]
@@ -168,13 +174,43 @@ class _Sources:
             table = owners[0]
             if any(o is not table for o in owners):
                 table = _side_by_side(owners, signal.columns, what)
-        data, _ = select_columns(table, signal.columns, n_joints, what)
-        if data.shape[1] != n_joints:
-            raise DataError(
-                f"{table.source}: {data.shape[1]} {what} columns listed, the robot has "
-                f"{n_joints} joints ({', '.join(joint_names)})."
+        data, names = select_columns(table, signal.columns, n_joints, what)
+        if data.shape[1] != n_joints:  # the config's list is wrong, not the file
+            raise ConfigError(
+                f"{source}: log.{what}.columns lists {data.shape[1]} columns "
+                f"({', '.join(names)}), the robot has {n_joints} joints "
+                f"({', '.join(joint_names)}); list one {what} column per joint, in joint order."
             )
+        order = joint_order(names, joint_names)
+        if order is not None and order != list(range(n_joints)):
+            data = data[:, order]  # columns named after the joints: matched by name
         return data, table
+
+
+def joint_order(names: list[str], joint_names: tuple[str, ...]) -> list[int] | None:
+    """Column of each joint when the column names name the model's joints, else None.
+
+    A column names joint ``j`` when it is ``j`` or ends with ``j`` after a separator
+    (``q_shoulder``, ``position/shoulder``, ``tau.shoulder``); the longest joint name wins.
+    None unless every joint is named by exactly one column (then the config's order is
+    kept: columns in joint order).
+    """
+    owner: dict[str, int] = {}
+    for k, name in enumerate(names):
+        found = [
+            j
+            for j in joint_names
+            if name == j or (name.endswith(j) and name[-len(j) - 1] in "_/.:-")
+        ]
+        if not found:
+            return None
+        joint = max(found, key=len)
+        if joint in owner:
+            return None
+        owner[joint] = k
+    if len(owner) != len(joint_names):
+        return None
+    return [owner[j] for j in joint_names]
 
 
 def _side_by_side(owners: list[LogTable], columns: list[str], what: str) -> LogTable:
@@ -289,18 +325,18 @@ def join_signals(
 
 
 def signal_tables(
-    cfg: LogConfig, joint_names: tuple[str, ...]
+    cfg: LogConfig, joint_names: tuple[str, ...], source: str = "config"
 ) -> list[tuple[FloatArray, LogTable]]:
     """Position, torque (and velocity) columns with their tables; the first part carries the
     table of the time column (``log.time.path``) when the time is in a file of its own."""
     n_joints = len(joint_names)
     sources = _Sources(cfg)
     parts = [
-        sources.signal(cfg.position, n_joints, "position", joint_names),
-        sources.signal(cfg.torque, n_joints, "torque", joint_names),
+        sources.signal(cfg.position, n_joints, "position", joint_names, source),
+        sources.signal(cfg.torque, n_joints, "torque", joint_names, source),
     ]
     if cfg.velocity is not None:
-        parts.append(sources.signal(cfg.velocity, n_joints, "velocity", joint_names))
+        parts.append(sources.signal(cfg.velocity, n_joints, "velocity", joint_names, source))
     if cfg.time is not None and cfg.time.path is not None:
         t_table = sources.by_path[Path(cfg.time.path)][0]
         t_table.column(cfg.time.column)

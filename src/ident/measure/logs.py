@@ -431,7 +431,7 @@ def _read_one(
     """
     joint_names = tuple(joint_names)
     n_joints = len(joint_names)
-    parts = signal_tables(cfg, joint_names)
+    parts = signal_tables(cfg, joint_names, source)
     files = ", ".join(Path(f.path).name for f in cfg.sources())
     warnings = list(dict.fromkeys(w for _, table in parts for w in table.warnings))
     stamps = Stamps.of(cfg, parts[0][1], files)

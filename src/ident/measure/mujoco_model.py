@@ -39,8 +39,11 @@ import pinocchio as pin
 
 from ident.errors import ModelError
 from ident.measure.mujoco_config import PayloadConfig
+from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.model import Robot
 from ident.robot.inertia import URDF_INERTIA_ENTRIES, com_and_inertia
+
+route_mujoco_warnings()  # MuJoCo warnings as Python warnings, no MUJOCO_LOG.TXT
 
 __all__ = ["PAYLOAD_LINK", "MujocoRobot", "dynamics_only_urdf", "load_mujoco", "mujoco_urdf"]
 

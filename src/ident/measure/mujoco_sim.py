@@ -54,8 +54,11 @@ from ident.measure.mujoco_config import (
     check_joint_counts,
     per_joint,
 )
+from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.measure.mujoco_model import load_mujoco
 from ident.model import Robot
+
+route_mujoco_warnings()  # MuJoCo warnings as Python warnings, no MUJOCO_LOG.TXT
 
 __all__ = [
     "LOG_CSV",

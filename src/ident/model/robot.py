@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from ident.config import file_problem
 from ident.dynamics.chain import chain_from_model, model_limits, random_states
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.pinocchio_check import pinocchio_rnea
@@ -207,8 +208,9 @@ class Robot:
         """
         path = Path(path)
         where = str(path)
-        if not path.is_file():
-            raise ModelError(f"{path}: URDF file not found; check the path.")
+        problem = file_problem(path)
+        if problem is not None:
+            raise ModelError(f"{path}: URDF file {problem}; check the path.")
         # UTF-8, bounded, no DTD: what every parser of ident (Pinocchio, the write-back) reads
         text = urdf_file_text(path, package_dirs, where)  # xacro expanded
         prepared = prepare_urdf(text, where)

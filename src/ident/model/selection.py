@@ -33,8 +33,8 @@ from typing import Any
 import numpy as np
 from pydantic import model_validator
 
-from ident.config import StrictModel
-from ident.errors import ConfigError
+from ident.config import StrictModel, file_problem
+from ident.errors import ConfigError, ModelError
 from ident.model.robot import Robot
 from ident.robot.limits import JointLimits, tighten_limits
 
@@ -192,6 +192,10 @@ def load_robot(selection: RobotSelection, *, source: str | Path = "config") -> R
     ConfigError
         If ``joints`` is given and differs from the selected chain's joints.
     """
+    problem = file_problem(selection.path)
+    if problem is not None:  # the config and its field, not only the path
+        key = "robot.urdf" if selection.urdf is not None else "robot.description"
+        raise ModelError(f"{source}: {key} = {selection.path} {problem}; check the path.")
     if selection.urdf is not None:
         robot = Robot.from_urdf(
             selection.urdf,

@@ -44,6 +44,9 @@ from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to
 __all__ = ["FORMAT", "load_run", "result_to_dict", "save_run", "save_run_model", "write_replay"]
 
 FORMAT = "ident-run/1"
+# the top-level fields every result.json of this format has (save_run writes them all)
+_REQUIRED_KEYS = ("status", "config", "robot", "excitation", "initial_elites", "optimization",
+                  "elites")  # fmt: skip
 
 
 def _joint_units(result: Any) -> list[str]:
@@ -432,8 +435,15 @@ def load_run(run_dir: Path) -> dict[str, Any]:
         data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as e:
         raise IdentError(f"{path}: not valid JSON ({e}); the run folder is damaged.") from e
-    if data.get("format") != FORMAT:
-        raise IdentError(f"{path}: format {data.get('format')!r} is not {FORMAT!r}.")
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        found = data.get("format") if isinstance(data, dict) else type(data).__name__
+        raise IdentError(f"{path}: format {found!r} is not {FORMAT!r}.")
+    missing = [k for k in _REQUIRED_KEYS if k not in data]
+    if missing:  # a hand-edited or truncated file: name the fields, not a KeyError
+        raise IdentError(
+            f"{path}: no {', '.join(missing)} (fields every {FORMAT} result.json has); the "
+            "run folder is damaged: run 'ident run' again."
+        )
     return data
 
 

@@ -509,6 +509,11 @@ def locked_model(model: pin.Model, locked: Mapping[str, float], where: str) -> p
     """
     if not locked:
         return model
+    if set(locked) >= {str(n) for n in model.names[1:]}:  # an empty chain: nothing to identify
+        raise ModelError(
+            f"{where}: every joint is locked ({', '.join(locked)}); no joint is left to "
+            "identify: lock fewer joints (--lock / robot.lock)."
+        )
     reference = pin.neutral(model)
     for name, value in locked.items():
         reference[model.joints[model.getJointId(name)].idx_q] = value

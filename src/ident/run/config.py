@@ -21,7 +21,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, Field, field_validator, model_validator
 
-from ident.config import StrictModel, load_config_file, read_yaml
+from ident.config import StrictModel, file_problem, load_config_file, read_yaml
 from ident.errors import ConfigError, OptimizationError
 from ident.excitation.registry import check_family_name
 from ident.excitation.safety import SafetyConfig
@@ -414,11 +414,13 @@ def load_run_config(path: str | Path) -> RunConfig:
     path = Path(path)
     config = load_config_file(RunConfig, path)
     robot = config.robot.resolved(path.parent.resolve())
-    if not robot.path.is_file():
+    problem = file_problem(robot.path)
+    if problem is not None:
         key = "robot.urdf" if robot.urdf is not None else "robot.description"
+        which = "does not exist" if problem == "not found" else problem
         raise ConfigError(
-            f"{path}: {key} = '{config.robot.path}' resolves to {robot.path}, which does not "
-            "exist; give the robot description or URDF path relative to this config file."
+            f"{path}: {key} = '{config.robot.path}' resolves to {robot.path}, which {which}; "
+            "give the robot description or URDF path relative to this config file."
         )
     if robot.description is not None and robot.path.suffix.lower() not in (".yaml", ".yml"):
         raise ConfigError(
@@ -432,10 +434,12 @@ def load_run_config(path: str | Path) -> RunConfig:
     update: dict[str, Any] = {"robot": robot, "name": config.name or path.stem}
     if config.safety is not None and config.safety.srdf is not None:
         srdf = path.parent.resolve() / config.safety.srdf
-        if not srdf.is_file():
+        problem = file_problem(srdf)
+        if problem is not None:
+            which = "does not exist" if problem == "not found" else problem
             raise ConfigError(
-                f"{path}: safety.srdf = '{config.safety.srdf}' resolves to {srdf}, which does "
-                "not exist; give MoveIt's .srdf path relative to this config file."
+                f"{path}: safety.srdf = '{config.safety.srdf}' resolves to {srdf}, which "
+                f"{which}; give MoveIt's .srdf path relative to this config file."
             )
         update["safety"] = config.safety.model_copy(update={"srdf": srdf})
     return config.model_copy(update=update)

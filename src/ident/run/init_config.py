@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ident.config import validate_config
+from ident.config import file_problem, validate_config
 from ident.dynamics.chain import DEFAULT_Q_RANGE
 from ident.errors import ConfigError, IdentError
 from ident.excitation.fourier import fourier_bound_factors
@@ -145,8 +145,9 @@ def init_config(
     """
     urdf = Path(urdf)
     output = Path(output)
-    if not urdf.is_file():
-        raise ConfigError(f"{urdf}: URDF file not found; check the path.")
+    problem = file_problem(urdf)
+    if problem is not None:
+        raise ConfigError(f"{urdf}: URDF file {problem}; check the path.")
     text = read_urdf_text(urdf)
     dirs = find_package_dirs(urdf, text, list(package_dirs or []))
     locks, lock_notes = choose_locks(urdf, base_link, tip_link, dict(lock or {}), dirs)

@@ -15,27 +15,42 @@ is rewritten atomically at every transition:
 
 ``result.json`` never contains times, so that the same config and seed give a
 byte-identical file.
+
+Every command that writes a folder writes it inside :func:`run_folder` (a new folder) or
+:func:`rewriting` (files rewritten into an existing one): whatever the moment of an error,
+Ctrl-C or SIGTERM, the folder ends ``complete`` only after its last file and ``incomplete``
+(with the marker) otherwise, and an interruption surfaces as :class:`FolderInterrupted`,
+which names the folder. Ctrl-C and SIGTERM are held while the folder is created and while
+its state is written, so that no folder is left without ``run.json`` or with ``running``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
+import signal
+import threading
 import time
+from collections.abc import Iterator
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
 from ident.errors import IdentError
-from ident.fileio import atomic_write_text
+from ident.fileio import atomic_write_text, describe_os_error
 from ident.inputs import safe_component
 
 __all__ = [
     "INCOMPLETE_MARKER",
     "RUN_STATE_FILE",
+    "FolderInterrupted",
     "RunDir",
     "create_run_dir",
+    "failure_note",
     "read_status",
+    "rewriting",
+    "run_folder",
     "unfinished_note",
 ]
 
@@ -95,6 +110,10 @@ class RunDir:
         """
         if status not in STATUSES[1:]:
             raise ValueError(f"final status must be complete or incomplete, got {status!r}")
+        with _signals_held():  # a second Ctrl-C never leaves the state half-recorded
+            self._finish(status, message, stamp_wall_time)
+
+    def _finish(self, status: str, message: str, stamp_wall_time: bool) -> None:
         fields: dict[str, Any] = {"status": status, "message": message, "finished_at": _now_iso()}
         if stamp_wall_time or "wall_time_s" not in self._state:
             fields["wall_time_s"] = round(time.monotonic() - self._t0, 3)
@@ -121,6 +140,7 @@ def create_run_dir(
     *,
     now: datetime | None = None,
     info: dict[str, Any] | None = None,
+    exact: bool = False,
 ) -> RunDir:
     """Create a new, empty run folder ``<out>/<name>-<YYYYmmdd-HHMMSS>``.
 
@@ -134,6 +154,9 @@ def create_run_dir(
         Time stamp of the folder name (UTC); the current time by default.
     info :
         Extra fields for ``run.json`` (command line, seed, ...).
+    exact :
+        The folder is ``out`` itself (``name`` unused), or ``out-2``, ``out-3``, ... when
+        ``out`` is taken meanwhile (an empty existing ``out`` is taken).
 
     Returns
     -------
@@ -148,19 +171,23 @@ def create_run_dir(
     out = Path(out)
     now = now or datetime.now(timezone.utc)
     stem = f"{safe_component(name, default='run')}-{now.strftime('%Y%m%d-%H%M%S')}"
+    parent, stem = (out.parent, out.name) if exact else (out, stem)
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        parent.mkdir(parents=True, exist_ok=True)
         for k in range(1, 1000):
-            path = out / (stem if k == 1 else f"{stem}-{k}")
+            path = parent / (stem if k == 1 else f"{stem}-{k}")
             try:
                 path.mkdir()  # exclusive: an earlier run is never reused
                 break
             except FileExistsError:
-                continue
+                if exact and k == 1 and path.is_dir() and not any(path.iterdir()):
+                    break  # an empty --out is the user's choice
         else:  # pragma: no cover - a thousand runs in one second
-            raise IdentError(f"{out}: could not find a free run folder name for {stem}.")
+            raise IdentError(f"{parent}: could not find a free run folder name for {stem}.")
     except OSError as e:
-        raise IdentError(f"{out}: cannot create the run folder ({e.strerror}); use --out.") from e
+        raise IdentError(
+            f"{parent}: cannot create the run folder ({e.strerror}); use --out."
+        ) from e
     run = RunDir(path, {"status": "running", "started_at": _now_iso(), **(info or {})})
     try:
         run.update()
@@ -219,3 +246,134 @@ def read_status(path: str | Path) -> dict[str, Any]:
 
 def _now_iso() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+# ---------------------------------------------------------------------------------------------
+# one mechanism for every command that writes a folder: complete after the last file,
+# incomplete (run.json and marker) on any error or interruption, whatever the moment
+
+_HELD_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+class FolderInterrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM stopped a command while it wrote ``folder``, now marked incomplete."""
+
+    def __init__(self, folder: Path) -> None:
+        super().__init__(str(folder))
+        self.folder = folder
+
+
+def failure_note(error: BaseException) -> str:
+    """What stopped a run, for its ``run.json`` ``message`` (one line)."""
+    if isinstance(error, OSError):
+        text = describe_os_error(error)
+    elif isinstance(error, KeyboardInterrupt):
+        text = "interrupted (Ctrl-C or SIGTERM)"
+    else:
+        text = f"{type(error).__name__}: {error}"
+    return " ".join(text.split("\n"))[:2000]
+
+
+def _hold_signals() -> set[int | signal.Signals] | None:
+    """Defer Ctrl-C and SIGTERM (main thread only: Python runs its handlers there)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+
+
+def _release_signals(previous: set[int | signal.Signals] | None) -> None:
+    """Undo :func:`_hold_signals`; a signal that came meanwhile is raised here (CPython runs
+    pending handlers as pthread_sigmask returns)."""
+    if previous is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    previous = _hold_signals()
+    try:
+        yield
+    finally:
+        _release_signals(previous)
+
+
+def _mark_stopped(run: RunDir, note: str) -> None:
+    """Mark ``run`` incomplete with ``note``, unless it completed (stopped after its last file:
+    nothing is missing) or the command recorded a more precise reason."""
+    if run.status == "running":
+        run.finish("incomplete", note)
+    elif run.status == "incomplete" and not (run.path / INCOMPLETE_MARKER).exists():
+        run.finish("incomplete", str(run.state.get("message") or note))
+
+
+def _naming_folder(run: RunDir, error: BaseException) -> BaseException:
+    """The exception to raise for ``error`` once ``run`` is marked: one that names the folder
+    (an interruption, a user error, an OS failure), or ``error`` itself."""
+    if run.status == "complete":
+        return error
+    if isinstance(error, KeyboardInterrupt):
+        return FolderInterrupted(run.path)
+    if isinstance(error, (IdentError, OSError)):
+        what = describe_os_error(error) if isinstance(error, OSError) else str(error)
+        return IdentError(f"{what.rstrip('.')} ({run.path} is incomplete).")
+    return error
+
+
+@contextlib.contextmanager
+def run_folder(
+    out: str | Path, name: str, *, info: dict[str, Any] | None = None, exact: bool = False
+) -> Iterator[RunDir]:
+    """Create a run folder (:func:`create_run_dir`) and guard the writing of its files.
+
+    The block writes the files and ends with ``run.finish("complete", ...)``. Any exception
+    out of the block marks the folder incomplete (``run.json`` and the marker) unless it was
+    marked complete; Ctrl-C and SIGTERM then raise :class:`FolderInterrupted`, and an
+    :class:`IdentError` or :class:`OSError` becomes an :class:`IdentError` naming the folder.
+    Signals are held from before the folder exists until this guard is in place.
+    """
+    previous = _hold_signals()
+    try:
+        run = create_run_dir(out, name, info=info, exact=exact)
+    except BaseException:
+        _release_signals(previous)
+        raise
+    try:
+        _release_signals(previous)  # a signal that came meanwhile is raised here, guarded
+        yield run
+    except BaseException as e:
+        _mark_stopped(run, failure_note(e))
+        raised = _naming_folder(run, e)
+        if raised is e:
+            raise
+        raise raised from e
+
+
+@contextlib.contextmanager
+def rewriting(path: str | Path, what: str) -> Iterator[RunDir]:
+    """Guard files rewritten into the existing run folder ``path`` (``ident report``).
+
+    A failure or an interruption marks the folder incomplete with ``missing: what`` (the
+    command's advice: write it again); a later success where ``what`` was all that was
+    missing marks the folder complete again, with the message it had. A folder still
+    ``running`` belongs to its own process: its state is left alone.
+    """
+    run = RunDir.open(path)
+    if run.status == "running":
+        yield run
+        return
+    try:
+        yield run
+    except BaseException as e:
+        note = f"stopped while writing the {what}: {failure_note(e)}"
+        if run.status == "complete":
+            run.update(missing=what, complete_message=run.state.get("message", ""))
+            run.finish("incomplete", note)
+        _mark_stopped(run, note)
+        raised = _naming_folder(run, e)
+        if raised is e:
+            raise
+        raise raised from e
+    if run.status == "incomplete" and run.state.get("missing") == what:
+        message = str(run.state.get("complete_message") or "")
+        run.update(missing=None, complete_message=None)
+        run.finish("complete", message)

@@ -43,6 +43,7 @@ from meshcat.commands import SetAnimation
 from pinocchio.visualize import MeshcatVisualizer
 from pinocchio.visualize.meshcat_visualizer import loadMesh
 
+from ident.config import file_problem
 from ident.errors import DataError, IdentWarning, ModelError
 from ident.measure.timebase import find_segments
 from ident.model.selection import RobotSelection, load_robot
@@ -190,8 +191,9 @@ def load_visual_robot(
     if selection.urdf is None:
         raise ModelError(f"{selection.path}: the replay needs a URDF (robot.urdf).")
     urdf_path = Path(selection.urdf)
-    if not urdf_path.is_file():
-        raise ModelError(f"{urdf_path}: URDF file not found.")
+    problem = file_problem(urdf_path)
+    if problem is not None:
+        raise ModelError(f"{urdf_path}: URDF file {problem}.")
     dirs = _mesh_folders(urdf_path, package_dirs, selection.package_dirs)
     # the identification's robot: its checks, chain and lock values (inertials not needed)
     robot_model = load_robot(selection.model_copy(update={"inertia_check": False}))

@@ -637,7 +637,7 @@ def _log_cases() -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------------
-# Hardening, round two (issue 27): meshes that crash native code, operating-system failures
+# Hardening, round two: meshes that crash native code, operating-system failures
 # (full disk, read-only folder, permission) in every command that writes, and the inputs that
 # gave tracebacks or silent wrong results. Cases may carry:
 #   setup:  {copy: <folder of this corpus>, to: <name in {tmp}>[, run_json: {...}]}  copied
@@ -1127,9 +1127,124 @@ def _hardening_cases(add) -> None:  # noqa: ANN001 - main's add()
             )
 
 
+# Causes named right: a device, a FIFO-like or a folder given as a URDF or SRDF, a log whose
+# joints never move, a config listing the wrong number of columns, every joint locked, a
+# damaged result.json; init, payload and repeatability on bad input. Each error line must name
+# the file and the field (expect.match).
+CAUSE_IDENTIFY = {
+    "urdf_dev_zero": IDENTIFY_BASE.replace("../base/rp2.urdf", "/dev/zero"),
+    "urdf_is_dir": IDENTIFY_BASE.replace("../base/rp2.urdf", "../base"),
+    "log_never_moves": IDENTIFY_BASE.replace("../base/q.csv", "../causes/q_still.csv"),
+    "columns_three_for_two_joints": IDENTIFY_BASE.replace(
+        "{path: ../base/q.csv}", "{path: ../causes/q3.csv, columns: [shoulder, slider, extra]}"
+    ),
+}
+
+
+def _cause_files() -> None:
+    causes = HERE / "causes"
+    _write(causes / "q_still.csv", _csv(["shoulder", "slider"], [[0.3, 0.1]] * 200))
+    rows = [[0.01 * k, 0.003 * k, 0.0] for k in range(200)]
+    _write(causes / "q3.csv", _csv(["shoulder", "slider", "extra"], rows))
+    for name, text in CAUSE_IDENTIFY.items():
+        _write(causes / f"identify_{name}.yaml", text)
+    _write(
+        causes / "payload_urdf_dev_zero.yaml", PAYLOAD_BASE.replace("../base/rp2.urdf", "/dev/zero")
+    )
+    _write(
+        causes / "payload_wrong_joint_names.yaml",
+        PAYLOAD_BASE.replace("{path: ../base/q.csv}", "{path: ../base/q.csv, columns: [j1, j2]}"),
+    )
+    _write(causes / "payload_urdf_is_dir.yaml", PAYLOAD_BASE.replace("../base/rp2.urdf", "../base"))
+    run = RUN_BASE
+    _write(causes / "run_srdf_dev_zero.yaml", run + "safety: {srdf: /dev/zero}\n")
+    _write(causes / "run_srdf_is_dir.yaml", run + "safety: {srdf: ../base}\n")
+    # a result.json without its elites (the rest of a real run)
+    damaged = HERE / "causes" / "no_elites"
+    shutil.rmtree(damaged, ignore_errors=True)
+    shutil.copytree(HERE / "os" / "real_run", damaged)
+    data = json.loads((damaged / "result.json").read_text())
+    data.pop("elites")
+    _write(damaged / "result.json", json.dumps(data, indent=1) + "\n")
+
+
+def _cause_cases(add) -> None:  # noqa: ANN001 - main's add()
+    c = "{data}/causes"
+    for name in CAUSE_IDENTIFY:
+        match = {
+            "urdf_dev_zero": ["/dev/zero", "is not a regular file"],
+            "urdf_is_dir": ["is a folder"],
+            "log_never_moves": ["identify_log_never_moves.yaml", "no joint moves", "shoulder"],
+            "columns_three_for_two_joints": [
+                "identify_columns_three_for_two_joints.yaml",
+                "log.position.columns",
+                "2 joints",
+            ],
+        }[name]
+        add(
+            f"identify-cause-{name}",
+            ["identify", f"{c}/identify_{name}.yaml", "--out", "{tmp}/r"],
+            expect={"match": match},
+        )
+    for name, match in (
+        ("srdf_dev_zero", ["run_srdf_dev_zero.yaml", "safety.srdf", "is not a regular file"]),
+        ("srdf_is_dir", ["run_srdf_is_dir.yaml", "safety.srdf", "is a folder"]),
+    ):
+        add(
+            f"run-cause-{name}",
+            ["run", f"{c}/run_{name}.yaml", "--out", "{tmp}/runs"],
+            expect={"match": match},
+        )
+    add(
+        "verify-cause-lock_every_joint",
+        ["verify", "--urdf", "{data}/base/rp2.urdf", "--lock", "shoulder", "--lock", "slider"],
+        expect={"match": ["rp2.urdf", "no joint is left to identify"]},
+    )
+    add(
+        "report-cause-no_elites",
+        ["report", "{tmp}/run"],
+        setup={"copy": "causes/no_elites", "to": "run"},
+        expect={"match": ["result.json", "no elites"], "left": "keep"},
+    )
+    for name, args, match in (
+        ("urdf_dev_zero", ["/dev/zero"], ["/dev/zero", "is not a regular file"]),
+        ("urdf_missing", ["{data}/base/nope.urdf"], ["nope.urdf", "not found"]),
+        ("urdf_is_dir", ["{data}/base"], ["base", "is a folder"]),
+        ("urdf_binary", ["{data}/yaml/binary.yaml"], ["binary.yaml", "binary"]),
+        ("urdf_dtd", ["{data}/urdf/dtd_entity.urdf"], ["dtd_entity.urdf", "DOCTYPE"]),
+        ("lock_unknown", ["{data}/base/rp2.urdf", "--lock", "elbow"], ["elbow"]),
+    ):
+        add(f"init-cause-{name}", ["init", *args, "-o", "{tmp}/c.yaml"], expect={"match": match})
+    for name, match in (
+        ("urdf_dev_zero", ["/dev/zero", "is not a regular file"]),
+        ("wrong_joint_names", ["q.csv", "column 'j1' not found"]),
+        ("urdf_is_dir", ["payload_urdf_is_dir.yaml", "is a folder"]),
+    ):
+        add(
+            f"payload-cause-{name}",
+            ["payload", f"{c}/payload_{name}.yaml", "--out", "{tmp}/r"],
+            expect={"match": match},
+        )
+    for name, args, match in (
+        ("one_config", ["{data}/identify/base.yaml"], ["at least two"]),
+        ("config_missing", ["{data}/identify/base.yaml", "{data}/nope.yaml"], ["nope.yaml"]),
+        (
+            "log_missing",
+            ["{data}/identify/base.yaml", "{data}/identify/log_missing.yaml"],
+            ["nope.csv"],
+        ),
+        (
+            "wrong_joint_count",
+            ["{data}/identify/base.yaml", f"{c}/identify_columns_three_for_two_joints.yaml"],
+            ["log.position.columns"],
+        ),
+    ):
+        add(f"repeatability-cause-{name}", ["repeatability", *args], expect={"match": match})
+
+
 def main() -> None:
     subs = ("base", "urdf", "runfolder", "yaml", "run", "identify", "bench", "payload", "mesh")
-    for sub in (*subs, "os"):
+    for sub in (*subs, "os", "causes"):
         shutil.rmtree(HERE / sub, ignore_errors=True)
     _base_files()
     _urdf_files()
@@ -1183,6 +1298,8 @@ def main() -> None:
     cases += _log_cases()
     _hardening_files()
     _hardening_cases(add)
+    _cause_files()
+    _cause_cases(add)
     # the environment is never excluded (the files in safety/ are written by hand)
     for path in sorted((HERE / "safety").glob("*.yaml")):
         add(

@@ -328,6 +328,8 @@ class PayloadResult:
     ordinary_mass_std, ordinary_com_std :
         The ordinary (independent-residual) standard deviations of the mass [kg] and of the
         centre of mass [m] (3,), for comparison.
+    warnings :
+        What makes the estimate suspect (a residual far above the torque noise), one line each.
     """
 
     phi: FloatArray
@@ -350,6 +352,7 @@ class PayloadResult:
     uncertainty: Uncertainty | None = None
     ordinary_mass_std: float = float("nan")
     ordinary_com_std: FloatArray | None = None
+    warnings: tuple[str, ...] = ()
 
     def intervals(self, level: float = INTERVAL_LEVEL) -> tuple[FloatArray, FloatArray]:
         """``[lower, upper]`` of the mass [kg] (2,) and of the centre of mass [m] (3, 2) at
@@ -402,6 +405,7 @@ class PayloadResult:
             "message": (self.consistent or self.wls).message,
             "timings_s": self.timings,
             **({} if self.signals is None else {"signals": self.signals}),
+            "warnings": list(self.warnings),
         }
 
 

@@ -14,9 +14,11 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pinocchio as pin
 
 from ident.dynamics.parameter_model import PRIORITY_LABELS, ParameterModel, build_parameter_model
+from ident.errors import DataError
 from ident.identify.assessment.model_intervals import estimated_seconds
 from ident.identify.config import IdentifyConfig
 from ident.identify.corrections.signal_correction import correct_log
@@ -139,6 +141,13 @@ def identify(
     if on_estimate is not None:
         on_estimate(reading)
     log = read_log(cfg.log, cfg.transmission, joints, source=source)
+    still = still_joints(log)
+    if len(still) == len(joints):  # said before "too few observations" hides it
+        raise DataError(
+            f"{source}: log: no joint moves ({', '.join(still)}: each position spans less "
+            f"than {STILL_SPAN:g} rad or m over the log); there is no motion to identify from: "
+            "give the log of an excitation (ident run writes one), or check log.position."
+        )
     (log,) = correct_log(cfg.signals, robot, cfg.preprocess, cfg.model, log, source=source).logs
     estimate = check_job(estimate_identify(cfg, log))
     extra = estimate_model_intervals(cfg, log.q.shape[1])
@@ -148,6 +157,24 @@ def identify(
         on_estimate(estimate)
         if extra is not None:
             on_estimate(extra)  # printed when above a minute
-    return identify_measurements(
-        cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
-    )
+    try:
+        return identify_measurements(
+            cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
+        )
+    except DataError as e:
+        if still and str(e).startswith("too few observations"):  # the cause, named
+            raise DataError(
+                f"{source}: joint(s) {', '.join(still)} never move in the log, so the rows "
+                f"that would determine their parameters are missing ({e})"
+            ) from e
+        raise
+
+
+#: A joint whose position spans less than this [rad or m] over a whole log never moves.
+STILL_SPAN = 1e-6
+
+
+def still_joints(log: RobotLog) -> list[str]:
+    """Names of the joints of ``log`` whose position spans less than :data:`STILL_SPAN`."""
+    span = np.ptp(log.q, axis=0) if log.q.shape[0] else np.zeros(log.q.shape[1])
+    return [str(n) for n, s in zip(log.joint_names, span, strict=True) if s < STILL_SPAN]

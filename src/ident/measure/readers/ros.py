@@ -521,6 +521,8 @@ def _read_bag(path: Path, bag: Path, options: Mapping[str, Any]) -> list[LogTabl
         for c in connections:
             counts[c.topic] = counts.get(c.topic, 0) + int(c.msgcount)
 
+        _register_types(path, typestore, connections)
+
         def messages() -> Iterator[tuple[str, int, Any]]:
             for conn, timestamp, raw in reader.messages(connections=connections):
                 if len(raw) > MAX_MESSAGE_BYTES:
@@ -528,6 +530,32 @@ def _read_bag(path: Path, bag: Path, options: Mapping[str, Any]) -> list[LogTabl
                 yield conn.topic, timestamp, typestore.deserialize_cdr(raw, conn.msgtype)
 
         return _tables(str(path), messages(), topics, counts, options.get("columns"))
+
+
+def _register_types(path: Path, typestore: Any, connections: list[Any]) -> None:
+    """Make every connection's message type known: a standard ROS 2 type, or the definition
+    the bag carries; else one error naming the type (not "the file is damaged")."""
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
+    for conn in connections:
+        if conn.msgtype in typestore.fielddefs:
+            continue
+        msgdef = getattr(conn, "msgdef", None)
+        text = getattr(msgdef, "data", "") or ""
+        try:
+            if "MSG" in str(getattr(msgdef, "format", "")).upper() and text:
+                typestore.register(get_types_from_msg(text, conn.msgtype))
+            elif text:
+                typestore.register(get_types_from_idl(text))
+        except Exception:  # noqa: BLE001 - an unparsable definition: the type stays unknown
+            pass
+        if conn.msgtype not in typestore.fielddefs:
+            raise DataError(
+                f"{path}: topic {conn.topic}: message type {conn.msgtype} is not known: it is "
+                "no standard ROS 2 (Humble) type and the bag carries no definition of it; "
+                "leave the topic out with topics:, or record it with a ROS 2 that stores "
+                "message definitions."
+            )
 
 
 def _check_chunks(path: Path, f: Any, summary: Any) -> None:

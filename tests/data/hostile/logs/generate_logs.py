@@ -1,4 +1,4 @@
-"""Hostile logs of the readers and of time (issue 27, items 2 and 4): files and their cases.
+"""Hostile logs of the readers and of time: files and their cases.
 
 ``python tests/data/hostile/logs/generate_logs.py`` (from the repository root) rewrites the
 files of this folder and prints the manifest entries; ``tests/data/hostile/generate.py``
