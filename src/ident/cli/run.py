@@ -3,8 +3,10 @@
 ``ident run`` validates the config, creates a new run folder ``<out>/<name>-<timestamp>/``,
 runs :func:`ident.run.pipeline.run_pipeline` with a progress bar (stderr), saves the data,
 the replay and the report, and prints a one-screen summary (stdout). Ctrl-C or an error
-during the run saves what finished and marks the folder incomplete (``run.json`` status,
-``INCOMPLETE`` file) before exiting (130 for Ctrl-C, 2 for a user error).
+during the run saves what finished and marks the folder incomplete (``run.json`` and
+``result.json`` status, ``INCOMPLETE`` file) before exiting: 130 for Ctrl-C, 1 for a run that
+stopped, identified nothing or has no safe trajectory (its cause on the last ``error:`` lines),
+2 only for bad input, found before the run folder exists.
 
 ``ident report RUN_DIR`` (:mod:`ident.cli.report`) regenerates the report from the saved data.
 """
@@ -17,10 +19,17 @@ from typing import Annotated, Any
 
 import typer
 
-from ident.cli._common import EXIT_INTERRUPTED, EXIT_USER_ERROR, failure_note, user_errors
+from ident.cli._common import (
+    EXIT_INTERRUPTED,
+    EXIT_USER_ERROR,
+    failure_note,
+    one_line,
+    user_errors,
+)
 
 __all__ = ["register"]
 
+#: The run ran and failed: nothing identified, no safe trajectory, or it stopped (2 is bad input)
 EXIT_NOT_IDENTIFIED = 1
 
 
@@ -78,6 +87,7 @@ def run(
                     "export_limits": list(setup.limit_notes),
                     "safety_margin_note": setup.safety.margin_note,
                 },
+                status_copy="result.json",
             )
             typer.echo(f"run folder: {rundir.path}", err=True)
             try:
@@ -87,25 +97,48 @@ def run(
                 if isinstance(e.cause, KeyboardInterrupt):
                     typer.echo(f"interrupted: partial results in {rundir.path}", err=True)
                     raise typer.Exit(code=EXIT_INTERRUPTED) from None
-                if isinstance(e.cause, IdentError):
-                    typer.echo(f"error: {e.cause} (run folder: {rundir.path})", err=True)
-                    raise typer.Exit(code=EXIT_USER_ERROR) from None
+                if isinstance(e.cause, IdentError):  # the input was checked: the run failed
+                    typer.echo(
+                        f"error: {one_line(e.partial.message)} (run folder: {rundir.path})",
+                        err=True,
+                    )
+                    raise typer.Exit(code=EXIT_NOT_IDENTIFIED) from None
                 raise e.cause from None
             except KeyboardInterrupt:
                 rundir.finish("incomplete", "interrupted (Ctrl-C) before the optimization")
                 raise
-        exports, replay_note = _save_results(result, rundir, replay)
-        report_path = _write_report(rundir)
+        try:
+            exports, replay_note = _save_results(result, rundir, replay)
+            report_path = _write_report(rundir)
+        except IdentError as e:  # about the run's own files: the run failed, not the input
+            typer.echo(f"error: the run stopped while writing its files: {one_line(e)}", err=True)
+            typer.echo(f"(run folder: {rundir.path})", err=True)
+            raise typer.Exit(code=EXIT_NOT_IDENTIFIED) from None
         rundir.finish("complete", result.message, stamp_wall_time=False)
         _summary(result, rundir.path, report_path, replay_note, exports)
-        for refusal in exports.refused.values() if exports is not None else ():
-            typer.echo(f"error: export refused: {refusal}", err=True)
-        if result.warnings:
-            for warning in result.warnings:
-                typer.echo(f"error: {warning}", err=True)
-            raise typer.Exit(code=EXIT_NOT_IDENTIFIED)
-        if exports is not None and exports.refused:
-            raise typer.Exit(code=EXIT_USER_ERROR)
+        raise typer.Exit(code=_final_lines(result, exports))
+
+
+def _final_lines(result: Any, exports: Any) -> int:
+    """The run's failures as ``error:`` lines after the summary; returns the exit code.
+
+    Refused exports, then the run's warnings (no safe trajectory: the link pair or limit and
+    the time; nothing identified), then, when the executed elite has no estimate, each of its
+    estimators' causes (the joint that did not move, the field to change): 1 with a warning,
+    2 when only an export was refused (its limits are input), else 0.
+    """
+    for refusal in exports.refused.values() if exports is not None else ():
+        typer.echo(f"error: export refused: {one_line(refusal)}", err=True)
+    for warning in result.warnings:
+        typer.echo(f"error: {one_line(warning)}", err=True)
+    rank = result.executed_rank
+    elite = next((e for e in result.elites if e.rank == rank), None)
+    if result.warnings and elite is not None and not elite.estimates:
+        for method, message in elite.failures.items():
+            typer.echo(f"error: elite {rank}, {method}: {one_line(message)}", err=True)
+    if result.warnings:
+        return EXIT_NOT_IDENTIFIED
+    return EXIT_USER_ERROR if exports is not None and exports.refused else 0
 
 
 def _setup_notes(setup: Any) -> None:
