@@ -22,6 +22,13 @@ def _only_run_dir(out):
     return dirs[0]
 
 
+def _statuses(run_dir):
+    """(status, message) of run.json and of result.json: they must be the same pair."""
+    state = json.loads((run_dir / "run.json").read_text())
+    data = json.loads((run_dir / "result.json").read_text())
+    return (state["status"], state["message"]), (data["status"], data["message"])
+
+
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("runs")
@@ -48,7 +55,8 @@ def test_quick_run_writes_every_file(quick_run):
         "replay.html",
     ):
         assert (run_dir / name).is_file(), name
-    assert json.loads((run_dir / "run.json").read_text())["status"] == "complete"
+    state, result = _statuses(run_dir)
+    assert state == result == ("complete", "run complete")
     assert not (run_dir / "INCOMPLETE").exists()
     assert f"Report: {run_dir / 'report.html'}" in output
     assert f"Run folder: {run_dir}" in output
@@ -312,7 +320,7 @@ def test_a_crash_keeps_the_folder_consistent_and_surfaces(tmp_path, monkeypatch)
     assert state["status"] == "incomplete"
     assert "crashed during the eMuPSO run 1 of 2: RuntimeError: boom" in state["message"]
     data = json.loads((run_dir / "result.json").read_text())
-    assert data["status"] == "incomplete"
+    assert (data["status"], data["message"]) == (state["status"], state["message"])
     assert data["initial_elites"]["x"] is not None
     result = runner.invoke(app, ["report", str(run_dir)])
     assert result.exit_code == 0, result.output
@@ -330,13 +338,43 @@ def test_no_identifiable_elite_exits_1_with_a_plain_report(tmp_path, monkeypatch
     result = _run(QUICK, "--out", tmp_path, "--no-replay")
     assert result.exit_code == 1
     assert "no elite trajectory identifies" in result.output
+    # the cause on the terminal, not only in the files
+    assert "error: elite 1, wls: not identifiable on this trajectory: parameters Izz6" in (
+        result.stderr
+    )
     run_dir = _only_run_dir(tmp_path)
+    state, saved = _statuses(run_dir)
+    assert state == saved == ("complete", "run complete")  # it ran; the verdict says the rest
     md = (run_dir / "report.md").read_text()
     assert "not identifiable on this trajectory: parameters Izz6, Ixx6" in md
     assert "No estimate" in md
     assert "nan" not in md.lower()
     data = json.loads((run_dir / "result.json").read_text())
     assert data["elites"][0]["estimates"] == {}
+
+
+def test_a_failure_on_the_runs_own_files_exits_1_and_both_files_say_incomplete(
+    tmp_path, monkeypatch
+):
+    """A step after result.json failing on a file of the run (it was the replay reading an
+    elite CSV with NaN torques): exit 1 with the cause, not 2 (bad input); run.json and
+    result.json both incomplete with the same message (result.json said 'complete')."""
+    import ident.report.run_report as run_report
+    from ident.errors import DataError
+
+    def unreadable(run_dir):
+        raise DataError(f"{run_dir}/elites/elite_1.csv: non-finite value in column 'tau_j1'")
+
+    monkeypatch.setattr(run_report, "write_replay", unreadable)
+    result = _run(QUICK, "--out", tmp_path)
+    assert result.exit_code == 1, result.output
+    assert "error: the run stopped while writing its files: " in result.stderr
+    run_dir = _only_run_dir(tmp_path)
+    state, saved = _statuses(run_dir)
+    assert state == saved
+    assert state[0] == "incomplete"
+    assert "stopped while saving the results: DataError: " in state[1]
+    assert (run_dir / "INCOMPLETE").is_file()
 
 
 def test_noisy_quick_run_errors_within_reported_std(tmp_path):

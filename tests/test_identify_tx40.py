@@ -446,7 +446,10 @@ def test_unexcited_joint_names_parameters(tmp_path):
     assert "7 independent combinations of these 14 are undetermined" in message
     for name in ("Ia4", "fv4", "Izz1R", "Ixz2R", "mcy4R"):
         assert message.count(name + ",") + message.count(name + " ") == 1, (name, message)
-    assert message.endswith("Record a motion that moves joint_4, or lower its velocity threshold.")
+    assert message.endswith(
+        "Record a motion that moves joint_4, or lower its velocity threshold "
+        "(preprocess.velocity_threshold)."
+    )
     assert "Reduce to base parameters" not in message  # they already are base parameters
 
 

@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 from ident.cli import app
 from ident.errors import ConfigError
 from ident.run.setup import load_run
+from ident.trajectory import read_trajectory_csv
 
 REPO = Path(__file__).resolve().parents[1]
 QUICK = REPO / "tests" / "data" / "run" / "quick-ur5-mujoco.yaml"
@@ -167,3 +168,70 @@ def test_torque_share_is_filled_and_matches_pinocchio_and_closed_form_friction(q
     # the report renders the column from these values (percent, never empty)
     report = (quick_run / "report.md").read_text()
     assert f"| {fmt(100 * share['fv1'], 2)} | yes |" in report
+
+
+def _statuses(run: Path) -> tuple[tuple[str, str], tuple[str, str]]:
+    state = json.loads((run / "run.json").read_text())
+    data = json.loads((run / "result.json").read_text())
+    return (state["status"], state["message"]), (data["status"], data["message"])
+
+
+@pytest.mark.slow
+def test_a_joint_below_its_velocity_threshold_is_named_with_the_field(tmp_path) -> None:
+    """wrist_3's velocity threshold at 100 rad/s: no sample reaches it, WLS fails. The run
+    ends with exit 1 and a terminal line naming the joint, its speed and the run config's
+    field (it ended with exit 2 on 'elites/elite_1.csv: non-finite value in column tau_...',
+    the run's own file, with run.json incomplete and result.json complete). The speed named
+    is the elite's (its commanded velocity, elites/elite_1.csv, tracked by the simulated
+    controller), and the simulated log is kept for 'ident identify'."""
+    text = QUICK.read_text().replace("../../../robot", str(REPO / "robot"))
+    config = tmp_path / "idle.yaml"
+    config.write_text(
+        text.replace("0.05, 0.05, 0.05, 0.05, 0.05, 0.05]", "0.05, 0.05, 0.05, 0.05, 0.05, 100]")
+    )
+    result = runner.invoke(
+        app, ["run", str(config), "--out", str(tmp_path / "runs"), "--no-replay"]
+    )
+    assert result.exit_code == 1, result.output
+    (line,) = [x for x in result.stderr.splitlines() if x.startswith("error: elite 1, wls: ")]
+    speed = float(line.split("wrist_3_joint moves at most ")[1].split(" rad/s")[0])
+    assert (
+        "below its identification.preprocess.velocity_threshold of 100 rad/s (entry 6 of 6)" in line
+    )
+    run = _only(tmp_path / "runs")
+    elite = read_trajectory_csv(run / "elites" / "elite_1.csv")  # readable: finite torques
+    assert elite.tau is not None
+    assert np.isfinite(elite.tau).all()
+    assert speed == pytest.approx(np.abs(elite.dq[:, 5]).max(), rel=0.1)
+    assert (run / "elites" / "elite_1" / "identify.yaml").is_file()
+    state, saved = _statuses(run)
+    assert state == saved == ("complete", "run complete")
+
+
+def test_a_failed_simulation_leaves_no_torques_and_names_its_cause(tmp_path, monkeypatch) -> None:
+    """The simulator failing for an elite: its CSV has the commanded motion and no tau_*
+    columns (they were NaN, which the replay then refused with exit 2), the terminal names
+    the simulator's message, the replay is written, and both status files agree."""
+    import ident.run.log_measurement as log_measurement
+    from ident.errors import DataError
+
+    def diverges(*args, **kwargs):
+        raise DataError("the computed-torque controller diverged at t = 1.25 s (test)")
+
+    monkeypatch.setattr(log_measurement, "simulate", diverges)
+    text = QUICK.read_text().replace("../../../robot", str(REPO / "robot"))
+    config = tmp_path / "diverging.yaml"
+    config.write_text(text)
+    result = runner.invoke(app, ["run", str(config), "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 1, result.output
+    assert (
+        "error: elite 1, wls: the simulation of elite 1 failed, nothing was measured: the "
+        "computed-torque controller diverged at t = 1.25 s (test)" in result.stderr
+    )
+    run = _only(tmp_path / "runs")
+    header = (run / "elites" / "elite_1.csv").read_text().splitlines()[0]
+    assert "tau_" not in header
+    assert "dq_wrist_3_joint" in header
+    assert (run / "replay.html").is_file()
+    state, saved = _statuses(run)
+    assert state == saved == ("complete", "run complete")

@@ -79,6 +79,52 @@ def test_the_papers_arm_stage_is_reported_unsafe_with_pair_and_time(tmp_path) ->
     # configs/arm.yaml's verdict: refused (exit 1), "unsafe" however well it would identify
     verdict = json.loads((run / "result.json").read_text(encoding="utf-8"))["verdict"]
     assert verdict["label"] == "unsafe", verdict
+    assert _statuses(run) == (("complete", "run complete"),) * 2
+
+
+def _statuses(run: Path) -> tuple[tuple[str, str], tuple[str, str]]:
+    """(status, message) of run.json and of result.json."""
+    state = json.loads((run / "run.json").read_text(encoding="utf-8"))
+    data = json.loads((run / "result.json").read_text(encoding="utf-8"))
+    return (state["status"], state["message"]), (data["status"], data["message"])
+
+
+@pytest.mark.slow
+def test_an_unsafe_run_whose_identification_fails_exits_1_naming_the_pair(
+    tmp_path, monkeypatch
+) -> None:
+    """configs/arm.yaml (unsafe) whose simulated torques of joint_2 turn NaN at sample 6: the
+    run still exits 1 naming the link pair and the time, then the measurement's cause (the
+    joint, the time, the run's own simulation); with the replay on, which read the elite's
+    CSV of NaN torques and ended the run with exit 2 and 'non-finite value in column'."""
+    import dataclasses
+
+    import ident.run.elite_identification as elite_identification
+
+    original = elite_identification.simulate_measurements
+
+    def nan_from_sample_6(*args, **kwargs):
+        meas = original(*args, **kwargs)
+        tau = meas.tau.copy()
+        tau[6:, 1] = np.nan
+        return dataclasses.replace(meas, tau=tau)
+
+    monkeypatch.setattr(elite_identification, "simulate_measurements", nan_from_sample_6)
+    result = runner.invoke(app, ["run", "configs/arm.yaml", "--quick", "--out", str(tmp_path)])
+    assert result.exit_code == 1, result.output
+    unsafe = "error: no elite trajectory is safe; elite 1 is unsafe: clearance:"
+    (line,) = [x for x in result.stderr.splitlines() if x.startswith(unsafe)]
+    assert " at t = " in line
+    run = _only(tmp_path)
+    t6 = read_trajectory_csv(run / "elites" / "elite_1.csv").t[6]  # the commanded time
+    assert (
+        "error: elite 1, wls: the run's own simulated measurement of elite 1 is not finite: "
+        f"the torque of joint_2 at t = {t6:.4g} s is nan" in result.stderr
+    )
+    assert "non-finite value in column" not in result.output
+    assert (run / "replay.html").is_file()
+    assert "tau_" not in (run / "elites" / "elite_1.csv").read_text().splitlines()[0]
+    assert _statuses(run) == (("complete", "run complete"),) * 2
 
 
 @pytest.mark.slow

@@ -60,3 +60,31 @@ def test_read_status_errors(tmp_path):
     (tmp_path / "run.json").write_text("{not json")
     with pytest.raises(IdentError, match="damaged"):
         read_status(tmp_path)
+
+
+def test_finish_writes_one_status_into_run_json_and_result_json(tmp_path):
+    """ident run's folder: result.json carries run.json's status and message, set by the one
+    call that ends the run (a run whose report failed after result.json was written said
+    'complete' in result.json and 'incomplete' in run.json)."""
+    run = create_run_dir(tmp_path, "arm", now=NOW, status_copy="result.json")
+    run.finish("incomplete", "interrupted before any result")  # no result.json yet: none made
+    assert not (run.path / "result.json").exists()
+    result = {"status": "running", "message": "saving the run's files", "x": [1.5, None]}
+    (run.path / "result.json").write_text(json.dumps(result))
+    run.finish("incomplete", "stopped while writing the report (DataError: boom)")
+    data = json.loads((run.path / "result.json").read_text())
+    state = read_status(run.path)
+    assert data["status"] == state["status"] == "incomplete"
+    assert (
+        data["message"] == state["message"] == "stopped while writing the report (DataError: boom)"
+    )
+    assert data["x"] == [1.5, None]
+    run.finish("complete", "run complete")
+    data = json.loads((run.path / "result.json").read_text())
+    assert (data["status"], data["message"]) == ("complete", "run complete")
+    assert read_status(run.path)["status"] == "complete"
+    # another command's result.json (ident identify: its own 'status') is left alone
+    other = create_run_dir(tmp_path, "identify", now=NOW)
+    (other.path / "result.json").write_text('{"status": "ok"}')
+    other.finish("complete", "done")
+    assert json.loads((other.path / "result.json").read_text())["status"] == "ok"

@@ -40,7 +40,15 @@ class TrajectoryError(IdentError):
 
 
 class NotIdentifiable(IdentError):
-    """The observation matrix is rank deficient for the requested parameters."""
+    """The observation matrix is rank deficient for the requested parameters.
+
+    ``idle_joints`` names the joints none of whose samples reached their velocity threshold
+    (empty when that is not the cause), so that a caller can name its own config field.
+    """
+
+    def __init__(self, message: str, *, idle_joints: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.idle_joints = idle_joints
 
 
 class OptimizationError(IdentError):

@@ -4,8 +4,10 @@
 runs :func:`ident.run.pipeline.run_pipeline` with a progress bar (stderr), saves the data,
 the replay and the report, and prints a one-screen summary (stdout). Ctrl-C, SIGTERM or an
 error at any moment once the folder exists saves what finished and marks the folder incomplete
-(``run.json`` status, ``INCOMPLETE`` file) before exiting (130 for Ctrl-C and SIGTERM, 2 for a
-user error), naming the folder.
+(``run.json`` and ``result.json`` status, ``INCOMPLETE`` file) before exiting, naming the
+folder: 130 for Ctrl-C and SIGTERM, 1 for a run that stopped, identified nothing or has no safe
+trajectory (its cause on the last ``error:`` lines), 2 only for bad input, found before the
+run folder exists.
 
 ``ident report RUN_DIR`` (:mod:`ident.cli.report`) regenerates the report from the saved data.
 """
@@ -18,10 +20,11 @@ from typing import Annotated, Any
 
 import typer
 
-from ident.cli._common import EXIT_USER_ERROR, failure_note, user_errors
+from ident.cli._common import EXIT_USER_ERROR, failure_note, one_line, user_errors
 
 __all__ = ["register"]
 
+#: The run ran and failed: nothing identified, no safe trajectory, or it stopped (2 is bad input)
 EXIT_NOT_IDENTIFIED = 1
 
 
@@ -76,21 +79,35 @@ def run(
             # that holds no design meeting the constraints is an input error
             start = feasible_start(setup, progress=display.update)
             # any error or interruption from here on marks the folder incomplete, names it
-            with run_folder(out, name, info=info) as rundir:
+            with run_folder(out, name, info=info, status_copy="result.json") as rundir:
                 typer.echo(f"run folder: {rundir.path}", err=True)
                 result = _optimize(start, display, rundir)
-                exports, replay_note = _save_results(result, rundir, replay)
-                report_path = _write_report(rundir, result.message)
+                exports, replay_note, report_path = _save_and_report(result, rundir, replay)
                 rundir.finish("complete", result.message, stamp_wall_time=False)
         _summary(result, rundir.path, report_path, replay_note, exports)
-        for refusal in exports.refused.values() if exports is not None else ():
-            typer.echo(f"error: export refused: {refusal}", err=True)
-        if result.warnings:
-            for warning in result.warnings:
-                typer.echo(f"error: {warning}", err=True)
-            raise typer.Exit(code=EXIT_NOT_IDENTIFIED)
-        if exports is not None and exports.refused:
-            raise typer.Exit(code=EXIT_USER_ERROR)
+        raise typer.Exit(code=_final_lines(result, exports))
+
+
+def _final_lines(result: Any, exports: Any) -> int:
+    """The run's failures as ``error:`` lines after the summary; returns the exit code.
+
+    Refused exports, then the run's warnings (no safe trajectory: the link pair or limit and
+    the time; nothing identified), then, when the executed elite has no estimate, each of its
+    estimators' causes (the joint that did not move, the field to change): 1 with a warning,
+    2 when only an export was refused (its limits are input), else 0.
+    """
+    for refusal in exports.refused.values() if exports is not None else ():
+        typer.echo(f"error: export refused: {one_line(refusal)}", err=True)
+    for warning in result.warnings:
+        typer.echo(f"error: {one_line(warning)}", err=True)
+    rank = result.executed_rank
+    elite = next((e for e in result.elites if e.rank == rank), None)
+    if result.warnings and elite is not None and not elite.estimates:
+        for method, message in elite.failures.items():
+            typer.echo(f"error: elite {rank}, {method}: {one_line(message)}", err=True)
+    if result.warnings:
+        return EXIT_NOT_IDENTIFIED
+    return EXIT_USER_ERROR if exports is not None and exports.refused else 0
 
 
 def _setup_notes(setup: Any) -> None:
@@ -108,6 +125,7 @@ def _setup_notes(setup: Any) -> None:
 def _optimize(start: Any, display: _ProgressDisplay, rundir: Any) -> Any:
     """Run the pipeline from ``start``; an interrupted or failed run saves what it finished
     (the folder marked incomplete with what is missing) before the error goes on."""
+    from ident.errors import IdentError
     from ident.run.pipeline import RunInterrupted, run_pipeline
     from ident.run.rundir import FolderInterrupted
 
@@ -117,7 +135,27 @@ def _optimize(start: Any, display: _ProgressDisplay, rundir: Any) -> Any:
         _save_partial(e.partial, rundir)
         if isinstance(e.cause, KeyboardInterrupt):
             raise FolderInterrupted(rundir.path) from None
+        if isinstance(e.cause, IdentError):  # the input was checked: the run failed
+            typer.echo(
+                f"error: {one_line(e.partial.message)} (run folder: {rundir.path})", err=True
+            )
+            raise typer.Exit(code=EXIT_NOT_IDENTIFIED) from None
         raise e.cause from None
+
+
+def _save_and_report(result: Any, rundir: Any, replay: bool) -> tuple[Any, str, Any]:
+    """:func:`_save_results` then the report; an error about the run's own files is the run's
+    failure (exit 1, the folder marked incomplete), not the input's."""
+    from ident.errors import IdentError
+
+    try:
+        exports, replay_note = _save_results(result, rundir, replay)
+        return exports, replay_note, _write_report(rundir, result.message)
+    except IdentError as e:
+        rundir.finish("incomplete", f"the run stopped while writing its files: {one_line(e)}")
+        typer.echo(f"error: the run stopped while writing its files: {one_line(e)}", err=True)
+        typer.echo(f"(run folder: {rundir.path})", err=True)
+        raise typer.Exit(code=EXIT_NOT_IDENTIFIED) from None
 
 
 def _save_results(result: Any, rundir: Any, replay: bool) -> tuple[Any, str]:

@@ -39,6 +39,7 @@ from ident.identify.assessment.metrics import MAJOR_SHARE, _arr, _num, error_mea
 from ident.identify.estimation.uncertainty import interval_coverage, parameter_std
 from ident.report.paper import _paper_comparison, _paper_counts
 from ident.report.run_verdict import verdict_entry
+from ident.run.rundir import RUNNING, write_result_json
 from ident.trajectory import JointTrajectory, read_trajectory_csv, trajectory_to_csv
 
 __all__ = ["FORMAT", "load_run", "result_to_dict", "save_run", "save_run_model", "write_replay"]
@@ -274,13 +275,17 @@ def _frame_base_dict(info: Any) -> dict[str, Any] | None:
 
 
 def _joint_trajectory(result: Any, elite: Any) -> JointTrajectory:
+    """An elite's commanded motion and, when they were measured, its torques: an elite whose
+    simulation failed has no ``tau_*`` columns (its ``failures`` say why), never NaN ones
+    that the run's own readers would refuse."""
+    tau = None if elite.tau is None else np.array(elite.tau, dtype=float)
     return JointTrajectory(
         t=np.array(elite.t, dtype=float),
         q=np.array(elite.q, dtype=float),
         dq=np.array(elite.dq, dtype=float),
         ddq=np.array(elite.ddq, dtype=float),
         joint_names=tuple(result.joint_names),
-        tau=np.array(elite.tau, dtype=float),
+        tau=tau if tau is not None and np.isfinite(tau).all() else None,
     )
 
 
@@ -309,9 +314,11 @@ def save_run(result: Any, run_dir: str | Path) -> None:
     validation = getattr(result, "validation", None)
     if validation is not None and _validation_entry(result) is not None:
         atomic_write_text(run_dir / "validation.csv", _validation_csv(result, validation))
-    # result.json last: its presence means the data files above are complete
-    text = json.dumps(data, indent=1, allow_nan=False) + "\n"
-    atomic_write_text(run_dir / "result.json", text)
+    # result.json last: its presence means the data files above are complete; the run is
+    # "running" until RunDir.finish marks it (with run.json) after its last file
+    if data["status"] == "complete":
+        data.update(status=RUNNING, message="saving the run's files")
+    write_result_json(run_dir / "result.json", data)
 
 
 def save_run_model(result: Any, run_dir: str | Path) -> dict[str, Any] | None:
@@ -329,12 +336,12 @@ def save_run_model(result: Any, run_dir: str | Path) -> dict[str, Any] | None:
     rank = result.executed_rank
     elite = next((e for e in result.elites if e.rank == rank), None)
     outcome = getattr(elite, "log", None)
-    if outcome is None:
+    if outcome is None or outcome.result is None:  # no log, or it did not identify
         return None
     entry = {"elite": rank, **save_identified_model(outcome.result, run_dir)}
     data = load_run(run_dir)
     data["model"] = entry
-    atomic_write_text(run_dir / "result.json", json.dumps(data, indent=1, allow_nan=False) + "\n")
+    write_result_json(run_dir / "result.json", data)
     return entry
 
 
@@ -374,7 +381,10 @@ def write_replay(run_dir: str | Path) -> str:
     trajectory_path = run_dir / "elites" / f"elite_{rank}.csv"
     if not trajectory_path.is_file():
         return "no replay: the run has no elite trajectory."
-    trajectory = read_trajectory_csv(trajectory_path)
+    try:
+        trajectory = read_trajectory_csv(trajectory_path)
+    except IdentError as e:  # the run's own file: a note, never the run's failure
+        return f"no replay: {e}"
     label = f"elite {rank} of {data.get('name')} ({stage} stage)" if data else label
     if not isinstance(chosen, int) and data.get("safety") is not None:
         label += " - UNSAFE, not for the robot"

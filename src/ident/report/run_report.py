@@ -411,7 +411,7 @@ def render_markdown(
         ),
         "",
     ]
-    if data["status"] != "complete":
+    if data["status"] == "incomplete":  # "running": the folder is being written
         md += [f"> **Incomplete run**: {data['message']}. Only what finished is reported.", ""]
     md += headline_markdown(_headline(data, stage))
     if data["elites"] and stage:

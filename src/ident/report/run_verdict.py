@@ -68,7 +68,7 @@ def validation_residual(data: dict[str, Any], method: str | None) -> float | Non
 def run_warnings(data: dict[str, Any], elite: dict[str, Any] | None) -> list[str]:
     """The run's warnings without those of the executed elite's log identification."""
     warnings = list(data.get("warnings", []))
-    if data.get("status") != "complete":
+    if data.get("status") == "incomplete":  # "running": the folder is being written
         warnings.insert(0, f"incomplete run: {data.get('message')}")
     if elite:
         warnings += [f"elite {elite['rank']}, {m}: {msg}" for m, msg in elite["failures"].items()]
@@ -125,16 +125,17 @@ def verdict_entry(result: Any, data: dict[str, Any]) -> dict[str, Any]:
     outcome = None
     if elite is not None:
         outcome = next((e for e in result.elites if e.rank == elite["rank"]), None)
-    log = getattr(outcome, "log", None)
+    # the log's identification (None for an ideal measurement or a log that did not identify)
+    identified = getattr(getattr(outcome, "log", None), "result", None)
     stage = result.stage
-    if log is not None and stage is not None and stage.reference_share is not None:
+    if identified is not None and stage is not None and stage.reference_share is not None:
         truth = Truth(
             names=tuple(stage.base_names),
             values=np.asarray(stage.true_base, dtype=float),
             reference_share=np.asarray(stage.reference_share, dtype=float),
         )
         evidence = log_evidence(
-            log.result, truth=truth, safe=_safe(data), extra_warnings=run_warnings(data, elite)
+            identified, truth=truth, safe=_safe(data), extra_warnings=run_warnings(data, elite)
         )
     else:
         evidence = _dict_evidence(data)

@@ -41,6 +41,7 @@ from ident.run.stage_info import stage_matrix
 
 __all__ = [
     "elite_trajectory",
+    "non_finite_measurement",
     "ideal_identify_config",
     "ideal_log",
     "identify_elite",
@@ -163,7 +164,10 @@ def identify_elite(
     norms: FloatArray | None = None
     true_norm: float | None = None
     methods = config.estimation.methods
+    unmeasured = non_finite_measurement(meas, tuple(robot.joint_names), index + 1)
     try:
+        if unmeasured:  # the run's own simulation: its cause, never a file that cannot be read
+            raise IdentError(unmeasured)
         result = identify_measurements(
             ideal_identify_config(config),
             ideal_log(robot, stage, meas),
@@ -194,11 +198,33 @@ def identify_elite(
         dq=dq,
         ddq=ddq,
         traced_points=traced,
-        tau=np.asarray(meas.tau),
+        tau=None if unmeasured else np.asarray(meas.tau),
         estimates=estimates,
         failures=failures,
         base_column_norms=norms,
         true_torque_norm=true_norm,
+    )
+
+
+def non_finite_measurement(meas: Measurements, joint_names: tuple[str, ...], rank: int) -> str:
+    """Why the simulated measurement of elite ``rank`` is unusable: its first non-finite torque
+    and where it comes from (the elite's states, or the dynamics on finite states); empty when
+    every torque is finite."""
+    bad = ~np.isfinite(np.asarray(meas.tau, dtype=float))
+    if not bad.any():
+        return ""
+    i, j = (int(k) for k in np.argwhere(bad)[0])
+    states = np.concatenate([np.ravel(meas.q[i]), np.ravel(meas.dq[i]), np.ravel(meas.ddq[i])])
+    cause = (
+        "the elite's own trajectory is not finite there (the excitation family's formula)"
+        if not np.isfinite(states).all()
+        else "the robot's true parameters give a non-finite torque at finite states (check "
+        "the URDF's inertials)"
+    )
+    return (
+        f"the run's own simulated measurement of elite {rank} is not finite: the torque of "
+        f"{joint_names[j]} at t = {float(meas.t[i]):.4g} s is {float(meas.tau[i, j])}: {cause}; "
+        "nothing was identified from it"
     )
 
 

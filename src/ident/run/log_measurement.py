@@ -13,6 +13,7 @@ offsets are zero. Its base-parameter projection is what the estimate is compared
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,10 +29,11 @@ from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
+from ident.identify.assessment.sanity import joint_units
 from ident.identify.config import IdentifyConfig, TruthConfig, UrdfUpdateConfig
 from ident.identify.pipeline.core import IdentifyResult, identify_measurements
 from ident.measure.log_config import LogConfig, TransmissionConfig
-from ident.measure.logs import read_log
+from ident.measure.logs import RobotLog, read_log
 from ident.measure.mujoco_config import MujocoMeasurement, per_joint
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
@@ -46,8 +48,11 @@ __all__ = [
     "log_stage_info",
     "save_logs",
     "trajectory_column_norms",
+    "identification_failure",
     "identify_config",
+    "identify_log",
     "measure_and_identify",
+    "simulate_log",
     "true_parameters",
     "write_identify_files",
 ]
@@ -70,14 +75,16 @@ class LogOutcome:
     log :
         The simulated log and its truth.
     result :
-        The identification of the log (the same object ``ident identify`` builds).
+        The identification of the log (the same object ``ident identify`` builds), or None
+        when it failed: the log is still kept, and its ``identify.yaml`` in the run folder
+        identifies it again once the cause is fixed.
     config :
         The identify config used (its ``log`` section points to a temporary copy; the run
         folder's ``identify.yaml`` points to the saved one).
     """
 
     log: SimulatedLog
-    result: IdentifyResult
+    result: IdentifyResult | None
     config: IdentifyConfig
 
 
@@ -240,6 +247,49 @@ def _absolute(section: dict[str, Any], folder: Path) -> dict[str, Any]:
     return {**section, "log": log}
 
 
+def simulate_log(
+    config: RunConfig,
+    robot: Robot,
+    t: FloatArray,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    *,
+    seed: Any,
+) -> tuple[SimulatedLog, RobotLog, IdentifyConfig]:
+    """Simulate one period of a trajectory in MuJoCo, write its log and read it back as a
+    measured log is read. Returns the simulation, the log read and its identify config.
+
+    Raises
+    ------
+    IdentError
+        From the simulator (a diverging controller) or the reader.
+    """
+    simulator = config.measurement
+    if not isinstance(simulator, MujocoMeasurement):
+        raise IdentError("the simulated log needs measurement.source: mujoco")
+    log = simulate(robot, t, q, dq, ddq, simulator, rng=np.random.default_rng(seed))
+    with tempfile.TemporaryDirectory(prefix="ident-log-") as tmp:
+        files = write_log(tmp, log)
+        section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))
+        cfg = identify_config(config, section)
+        read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
+    return log, read, cfg
+
+
+def identify_log(
+    cfg: IdentifyConfig, read: RobotLog, robot: Robot, *, source: Path | None = None
+) -> IdentifyResult:
+    """Identify a simulated log as ``ident identify`` does; ``source`` names it in messages
+    (the run folder's ``identify.yaml`` of the elite)."""
+    # the written model's bootstrap is `ident identify`'s (on elites/elite_<k>/identify.yaml):
+    # a run does not show it, and would pay its re-solves for every elite
+    quick = cfg.model_copy(
+        update={"urdf_update": UrdfUpdateConfig(model_bootstrap=0), "source": source}
+    )
+    return identify_measurements(quick, read, model=robot.model)
+
+
 def measure_and_identify(
     config: RunConfig,
     robot: Robot,
@@ -258,20 +308,56 @@ def measure_and_identify(
         From the simulator (diverging controller), the reader or the identification (a
         trajectory that does not excite every base parameter: ``NotIdentifiable``).
     """
-    simulator = config.measurement
-    if not isinstance(simulator, MujocoMeasurement):
-        raise IdentError("the simulated log needs measurement.source: mujoco")
-    log = simulate(robot, t, q, dq, ddq, simulator, rng=np.random.default_rng(seed))
-    with tempfile.TemporaryDirectory(prefix="ident-log-") as tmp:
-        files = write_log(tmp, log)
-        section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))
-        cfg = identify_config(config, section)
-        read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
-    # the written model's bootstrap is `ident identify`'s (on elites/elite_<k>/identify.yaml):
-    # a run does not show it, and would pay its re-solves for every elite
-    quick = cfg.model_copy(update={"urdf_update": UrdfUpdateConfig(model_bootstrap=0)})
-    result = identify_measurements(quick, read, model=robot.model)
-    return LogOutcome(log=log, result=result, config=cfg)
+    log, read, cfg = simulate_log(config, robot, t, q, dq, ddq, seed=seed)
+    return LogOutcome(log=log, result=identify_log(cfg, read, robot), config=cfg)
+
+
+def identification_failure(
+    error: IdentError, config: RunConfig, robot: Robot, log: SimulatedLog, rank: int
+) -> str:
+    """Why elite ``rank``'s simulated log did not identify, naming the run config's fields.
+
+    A joint that never reaches its velocity threshold is named with its entry of
+    ``identification.preprocess.velocity_threshold`` and its largest simulated speed
+    [rad/s or m/s]: the value the threshold must go below.
+    """
+    where = f"elite {rank}'s simulated log (elites/elite_{rank}/identify.yaml) did not identify"
+    idle = getattr(error, "idle_joints", ())
+    thresholds = config.identification.preprocess.velocity_threshold
+    if not idle or thresholds is None:
+        return f"{where}: {error}"
+    names = list(log.joint_names)
+    speeds = np.abs(np.asarray(log.dq_true, dtype=float)).max(axis=0)
+    units = dict(zip(robot.model.names[1:], joint_units(robot.model), strict=True))
+    clauses = []
+    for name in idle:
+        j = names.index(name)
+        unit = "m/s" if units.get(name) == "N" else "rad/s"
+        clauses.append(
+            f"{name} moves at most {speeds[j]:.3g} {unit}, below its "
+            f"identification.preprocess.velocity_threshold of {thresholds[j]:g} {unit} "
+            f"(entry {j + 1} of {len(names)})"
+        )
+    return (
+        f"{where}: no sample of {', '.join(idle)} reaches its velocity threshold: "
+        f"{'; '.join(clauses)}. Lower that entry of "
+        "identification.preprocess.velocity_threshold below the joint's speed, or let the "
+        "joint move more (excitation.options.amplitude_bound, excitation.bounds); the log is "
+        f"kept: 'ident identify elites/elite_{rank}/identify.yaml' with a lower "
+        f"preprocess.velocity_threshold identifies it. The identification said: {error}"
+    )
+
+
+def _period_torques(log: SimulatedLog, t: FloatArray) -> FloatArray:
+    """The logged (measured) torques of the first logged period at the trajectory's sample
+    times ``t`` (n,), shape (n, nv) [N*m]."""
+    start = log.t[0]
+    return np.column_stack(
+        [
+            np.interp(start + t, log.t, log.tau_measured[:, j])
+            for j in range(log.tau_measured.shape[1])
+        ]
+    )
 
 
 def identify_elite_log(
@@ -288,32 +374,15 @@ def identify_elite_log(
     """Simulate one elite in MuJoCo, identify its log; failures are recorded, not raised.
 
     The outcome's ``tau`` is the logged (measured) torque of the first logged period at the
-    trajectory's sample times; ``log`` holds the whole simulation for the run folder.
+    trajectory's sample times, None when the simulation itself failed (nothing measured);
+    ``log`` holds the whole simulation for the run folder, kept when only the identification
+    failed (``failures`` says why, naming the config field to change).
     """
     t, q, dq, ddq, traced = elite_trajectory(family, x)
     # the least-squares estimate, named by its own method (what ``ident identify`` reports
     # as "the estimate"); a constrained or other estimator's result is in the log outcome
     method = config.identification.estimation.least_squares_method
-    estimates: dict[str, Any] = {}
-    failures: dict[str, str] = {}
-    outcome: LogOutcome | None = None
-    tau = np.full((t.shape[0], robot.nv), np.nan)
-    norms: FloatArray | None = None
-    true_norm: float | None = None
-    try:
-        outcome = measure_and_identify(config, robot, t, q, dq, ddq, seed=seed)
-        estimates[method] = outcome.result.estimate
-        norms, true_norm = trajectory_column_norms(
-            outcome.result.parameters, robot, q, dq, ddq, stage.true_base
-        )
-        log = outcome.log
-        start = log.t[0]
-        tau = np.column_stack(
-            [np.interp(start + t, log.t, log.tau_measured[:, j]) for j in range(robot.nv)]
-        )
-    except IdentError as e:
-        failures[method] = str(e)
-    return EliteOutcome(
+    outcome = EliteOutcome(
         rank=index + 1,
         x=x,
         fitness=fitness,
@@ -323,10 +392,31 @@ def identify_elite_log(
         dq=dq,
         ddq=ddq,
         traced_points=traced,
-        tau=tau,
-        estimates=estimates,
-        failures=failures,
-        log=outcome,
+        tau=None,
+        estimates={},
+        failures={},
+    )
+    try:
+        log, read, cfg = simulate_log(config, robot, t, q, dq, ddq, seed=seed)
+    except IdentError as e:  # nothing measured: no torques, the simulator's cause
+        failure = f"the simulation of elite {index + 1} failed, nothing was measured: {e}"
+        return dataclasses.replace(outcome, failures={method: failure})
+    outcome = dataclasses.replace(
+        outcome, tau=_period_torques(log, t), log=LogOutcome(log=log, result=None, config=cfg)
+    )
+    try:
+        source = Path("elites") / f"elite_{index + 1}" / "identify.yaml"
+        result = identify_log(cfg, read, robot, source=source)
+    except IdentError as e:
+        failure = identification_failure(e, config, robot, log, index + 1)
+        return dataclasses.replace(outcome, failures={method: failure})
+    norms, true_norm = trajectory_column_norms(
+        result.parameters, robot, q, dq, ddq, stage.true_base
+    )
+    return dataclasses.replace(
+        outcome,
+        estimates={method: result.estimate},
+        log=LogOutcome(log=log, result=result, config=cfg),
         base_column_norms=norms,
         true_torque_norm=true_norm,
     )

@@ -229,7 +229,8 @@ class EliteOutcome:
     traced_points :
         Cartesian path of the traced point [m], shape (n_samples, 3), or None.
     tau :
-        Measured (simulated, noisy) torques [N*m], shape (n_samples, nv).
+        Measured (simulated, noisy) torques [N*m], shape (n_samples, nv); None when the
+        simulation of the elite failed (``failures`` says why: nothing was measured).
     estimates :
         ``{method: Estimate}`` for the estimators that succeeded.
     failures :
@@ -250,7 +251,7 @@ class EliteOutcome:
     dq: FloatArray
     ddq: FloatArray
     traced_points: FloatArray | None
-    tau: FloatArray
+    tau: FloatArray | None
     estimates: dict[str, Any]
     failures: dict[str, str]
     base_column_norms: FloatArray | None = None

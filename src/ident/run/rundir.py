@@ -14,7 +14,11 @@ is rewritten atomically at every transition:
              so that a plain ``ls`` shows it.
 
 ``result.json`` never contains times, so that the same config and seed give a
-byte-identical file.
+byte-identical file. Its ``status`` and ``message`` are those of ``run.json``: a folder made
+with ``status_copy="result.json"`` (``ident run``'s) has :meth:`RunDir.finish` write them into
+both, ``result.json`` first and ``run.json`` last, so a run is marked ``complete`` only after
+its last file and the two files never disagree. Until then ``result.json`` says ``running``
+(:data:`RUNNING`).
 
 Every command that writes a folder writes it inside :func:`run_folder` (a new folder) or
 :func:`rewriting` (files rewritten into an existing one): whatever the moment of an error,
@@ -43,6 +47,7 @@ from ident.inputs import safe_component
 
 __all__ = [
     "INCOMPLETE_MARKER",
+    "RUNNING",
     "RUN_STATE_FILE",
     "FolderInterrupted",
     "RunDir",
@@ -52,11 +57,20 @@ __all__ = [
     "rewriting",
     "run_folder",
     "unfinished_note",
+    "write_result_json",
 ]
 
 RUN_STATE_FILE = "run.json"
 INCOMPLETE_MARKER = "INCOMPLETE"
 STATUSES = ("running", "complete", "incomplete")
+RUNNING = STATUSES[0]
+
+
+def write_result_json(path: Path, data: dict[str, Any]) -> None:
+    """Write a run's ``result.json`` (JSON, indent 1; non-finite numbers must already be null)."""
+    atomic_write_text(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+
+
 _SAFE = re.compile(r"[^A-Za-z0-9._-]+")
 
 
@@ -66,10 +80,11 @@ class RunDir:
     Use :func:`create_run_dir` to make one; :meth:`open` wraps an existing folder.
     """
 
-    def __init__(self, path: Path, state: dict[str, Any]) -> None:
+    def __init__(self, path: Path, state: dict[str, Any], status_copy: str | None = None) -> None:
         self.path = path
         self._state = state
         self._t0 = time.monotonic()
+        self._status_copy = status_copy  # a JSON file whose status/message finish() sets too
 
     @classmethod
     def open(cls, path: str | Path) -> RunDir:
@@ -119,12 +134,18 @@ class RunDir:
             fields["wall_time_s"] = round(time.monotonic() - self._t0, 3)
         marker = self.path / INCOMPLETE_MARKER
         if status == "complete":
+            try:  # the results' status first: run.json says complete after every file
+                self._copy_status(status, message)
+            except OSError as e:
+                self.finish("incomplete", f"could not mark the results complete: {e}")
+                raise
             marker.unlink(missing_ok=True)
             self.update(**fields)
             return
         # on the way out of a failure (often a full disk): best effort, never a second error
         # that hides the first; run.json first, the marker (a convenience for ls) second
         for write in (
+            lambda: self._copy_status(status, message),
             lambda: self.update(**fields),
             lambda: atomic_write_text(marker, (message or "run did not finish") + "\n"),
         ):
@@ -132,6 +153,18 @@ class RunDir:
                 write()
             except OSError:
                 pass
+
+    def _copy_status(self, status: str, message: str) -> None:
+        """Set ``status`` and ``message`` of the status copy (``result.json``), if written."""
+        if self._status_copy is None:
+            return
+        path = self.path / self._status_copy
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):  # not written (the run stopped before): run.json says it
+            return
+        if isinstance(data, dict):
+            write_result_json(path, {**data, "status": status, "message": message})
 
 
 def create_run_dir(
@@ -141,6 +174,7 @@ def create_run_dir(
     now: datetime | None = None,
     info: dict[str, Any] | None = None,
     exact: bool = False,
+    status_copy: str | None = None,
 ) -> RunDir:
     """Create a new, empty run folder ``<out>/<name>-<YYYYmmdd-HHMMSS>``.
 
@@ -157,6 +191,9 @@ def create_run_dir(
     exact :
         The folder is ``out`` itself (``name`` unused), or ``out-2``, ``out-3``, ... when
         ``out`` is taken meanwhile (an empty existing ``out`` is taken).
+    status_copy :
+        A JSON file of the folder (``result.json``) whose ``status`` and ``message``
+        :meth:`RunDir.finish` sets with ``run.json``'s (see the module docstring).
 
     Returns
     -------
@@ -188,7 +225,7 @@ def create_run_dir(
         raise IdentError(
             f"{parent}: cannot create the run folder ({e.strerror}); use --out."
         ) from e
-    run = RunDir(path, {"status": "running", "started_at": _now_iso(), **(info or {})})
+    run = RunDir(path, {"status": RUNNING, "started_at": _now_iso(), **(info or {})}, status_copy)
     try:
         run.update()
     except OSError as e:  # a folder without run.json is no run: leave nothing behind
@@ -321,7 +358,12 @@ def _naming_folder(run: RunDir, error: BaseException) -> BaseException:
 
 @contextlib.contextmanager
 def run_folder(
-    out: str | Path, name: str, *, info: dict[str, Any] | None = None, exact: bool = False
+    out: str | Path,
+    name: str,
+    *,
+    info: dict[str, Any] | None = None,
+    exact: bool = False,
+    status_copy: str | None = None,
 ) -> Iterator[RunDir]:
     """Create a run folder (:func:`create_run_dir`) and guard the writing of its files.
 
@@ -333,7 +375,7 @@ def run_folder(
     """
     previous = _hold_signals()
     try:
-        run = create_run_dir(out, name, info=info, exact=exact)
+        run = create_run_dir(out, name, info=info, exact=exact, status_copy=status_copy)
     except BaseException:
         _release_signals(previous)
         raise

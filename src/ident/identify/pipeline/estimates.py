@@ -95,14 +95,16 @@ def run_estimators(
         )
     except NotIdentifiable as e:
         explained = range(len(joints)) if pm.rows is None else pm.rows  # one group each
-        idle = ", ".join(joints[r] for r, n in zip(explained, red.n_rows, strict=True) if n == 0)
-        if idle:
+        names = tuple(joints[r] for r, n in zip(explained, red.n_rows, strict=True) if n == 0)
+        if names:
+            idle = ", ".join(names)
             why = rank_report(red.R.reshape(-1, red.n_params), pm.base_names, advice="") or e
             raise NotIdentifiable(
                 f"{source}: the log does not determine every base parameter. No sample of "
                 f"{idle} reaches its velocity threshold in the identification part (joint not "
                 f"moving?): {why} Record a motion that moves {idle}, or lower its velocity "
-                "threshold."
+                "threshold (preprocess.velocity_threshold).",
+                idle_joints=names,
             ) from e
         raise NotIdentifiable(
             f"{source}: the log does not determine every base parameter: {e}"
