@@ -291,10 +291,12 @@ def _cad_table(rows: list[dict], coverage_rows: dict[str, list] | None = None) -
         s = row["summary"]
         floor = s["floor_relative_residual"]
         warn = "yes" if s["warnings"] else "no"
+        floor_pct = "-" if floor is None else f"{100 * floor:.2f}"
         print(f"| {row['robot']} | {s['arm_from']} | {row['mass_error_pct']:+.2f} "
-              f"({row['mass_std_pct']:.2f}) | {row['com_error_mm']:.1f} ({row['com_std_mm']:.1f}) "
-              f"| {100 * s['relative_residual']:.2f} ({'-' if floor is None else f'{100 * floor:.2f}'}) "
-              f"| {s['interval_factor']:.1f} | {warn} | {row['seconds']:.1f} |", flush=True)  # fmt: skip
+              f"({row['mass_std_pct']:.2f}) | {row['com_error_mm']:.1f} "
+              f"({row['com_std_mm']:.1f}) | {100 * s['relative_residual']:.2f} ({floor_pct}) "
+              f"| {s['interval_factor']:.1f} | {warn} | {row['seconds']:.1f} |",
+              flush=True)  # fmt: skip
     if coverage_rows:
         print("\n| case | seeds | mass | CoM x | CoM y | CoM z | all | RMS error/σ |")
         print("|---|---|---|---|---|---|---|---|")

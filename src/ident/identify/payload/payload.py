@@ -816,8 +816,10 @@ def _estimate_for_arm(
         result = estimate_payload_prior(red, extra, arm.names, prior, floor,
                                         placement=placement, link=link)  # fmt: skip
         if lost:
-            note = ("the payload direction(s) " + "; ".join(lost) + " are not separable from "
-                    "the arm's parameters in these logs: they come from the CAD prior.")  # fmt: skip
+            note = (
+                "the payload direction(s) " + "; ".join(lost) + " are not separable from the "
+                "arm's parameters in these logs: they come from the CAD prior."
+            )
     return _with_fit_check(result, floor, source_key, note)
 
 
