@@ -68,6 +68,9 @@ def payload(
         typer.echo(f"payload ({result.method.upper()}): mass {result.mass:.4g} +- "
                    f"{result.mass_std:.2g} kg ({result.std_method} σ)")  # fmt: skip
         typer.echo(f"centre of mass in {result.link}: [{com}] mm")
+        typer.echo(
+            f"arm from: {result.arm_from}" + (f" ({result.arm_note})" if result.arm_note else "")
+        )
         if result.std_note:
             typer.echo(f"note: {result.std_note}")
         inertia = result.inertia_com
@@ -80,6 +83,8 @@ def payload(
             f"fit: relative residual {result.wls.relative_residual:.4f}, pseudo-inertia "
             f"smallest eigenvalue {result.min_eigenvalue:.3g}"
         )
+        for warning in result.warnings:
+            typer.echo(f"warning: {warning}")
         if result.signals is not None:
             typer.echo(f"signals: {result.signals['line']}")
         typer.echo(f"model files: {urdf}, {mjcf}")
