@@ -443,7 +443,7 @@ def run_designed_case(
         "log": log,
         "preprocess": preprocess,
         "model": {"viscous": moving, "coulomb": moving, "rotor_inertia": moving, "offset": False},
-        "payload": {"link": "tool0", "method": "lmi"},
+        "payload": {"link": "tool0", "method": "lmi", "arm": "model"},  # the arm is its URDF
     }
     summary, elapsed = ident_payload(folder, payload_cfg)
     label = f"ur5 designed, {len(moving)} joints {t[-1]:.0f} s, design {design_seconds:.0f} s"
