@@ -236,7 +236,7 @@ def test_designed_payload_excitation_recovers_a_simulated_payload(setup, tmp_pat
             "rotor_inertia": [4, 5, 6],
             "offset": False,
         },  # fmt: skip
-        "payload": {"link": "tool0"},
+        "payload": {"link": "tool0", "arm": "model"},  # the simulated arm is its URDF
     }
     path = tmp_path / "payload.yaml"
     path.write_text(yaml.safe_dump(payload_config, sort_keys=False))

@@ -66,6 +66,9 @@ def payload(
         typer.echo(f"payload ({result.method.upper()}): mass {result.mass:.4g} +- "
                    f"{result.mass_std:.2g} kg ({result.std_method} σ)")  # fmt: skip
         typer.echo(f"centre of mass in {result.link}: [{com}] mm")
+        typer.echo(
+            f"arm from: {result.arm_from}" + (f" ({result.arm_note})" if result.arm_note else "")
+        )
         if result.std_note:
             typer.echo(f"note: {result.std_note}")
         inertia = result.inertia_com

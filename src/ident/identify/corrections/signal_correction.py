@@ -55,7 +55,6 @@ __all__ = [
     "applied_gains",
     "correct_log",
     "correct_payload_logs",
-    "residual_warnings",
     "estimate_log_delay",
     "identify_corrected_payload",
     "shift_torque",
@@ -283,30 +282,6 @@ def identify_corrected_payload(cfg: PayloadConfig, robot: Robot) -> PayloadResul
     )
     logs = (correction.logs[0], correction.logs[1] if without_log is not None else None)
     result = identify_payload(cfg, robot=robot, logs=logs)
-    result = replace(result, warnings=residual_warnings(result, logs))
     if not correction.changed:
         return result
     return replace(result, signals={**correction.summary(), "line": correction.line()})
-
-
-#: Relative residual above which a payload fit is suspect: a good log leaves about its torque
-#: noise (simulated logs with 1 % noise: 0.010; real arms a few %), while joint columns in
-#: another order than the URDF's joints leave 0.5-0.9.
-SUSPECT_RESIDUAL = 0.2
-
-
-def residual_warnings(
-    result: PayloadResult, logs: tuple[RobotLog, RobotLog | None]
-) -> tuple[str, ...]:
-    """A line when the fit leaves far more of the torques than a log's noise does."""
-    residual = float(result.wls.relative_residual)
-    if not residual > SUSPECT_RESIDUAL:
-        return ()
-    n_logs = sum(log is not None for log in logs)
-    return (
-        f"the fit leaves {100 * residual:.0f} % of the torques of the {n_logs} log(s) "
-        f"unexplained (a good log leaves its noise, a few %): the estimate is suspect. Likely "
-        "causes: a log's joint columns that do not match the URDF's joints (list them in joint "
-        "order or name them after the joints), a torque sign or unit wrong, a log of another "
-        "robot, a delay between the signals, or a friction term the model lacks.",
-    )

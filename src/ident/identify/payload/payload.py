@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -66,6 +66,7 @@ from ident.identify.estimation.uncertainty import (
 )
 from ident.identify.estimators import get_estimator
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
+from ident.identify.payload import payload_arm
 from ident.identify.payload.payload_config import PayloadConfig
 from ident.measure.logs import RobotLog, read_log
 from ident.model import Robot
@@ -111,11 +112,14 @@ _MIN_NOMINAL_MASS = 0.05  # [kg] scale of the LMI's unknowns when WLS finds a ti
 
 
 class PayloadColumns:
-    """Regressor columns of a payload problem: ``[Y_n | E | Y theta_arm]``, shape (n, nv, p+1).
+    """Regressor columns of a payload problem: ``[Y_n | E | Y_b | Y theta_arm]``, shape
+    (n, nv, p+1).
 
     ``Y_n`` are the last body's 10 columns (zero when ``with_payload`` is False), ``E`` the
-    extra columns of ``terms``, and the last column the torque the arm's known parameters
-    predict [N*m] (subtracted from the measured torque after decimation).
+    extra columns of ``terms``, ``Y_b`` the rigid-body columns ``arm_index`` (the arm's base
+    parameters' corrections, :mod:`ident.identify.payload.payload_arm`; none by default), and
+    the last column the torque the arm's known parameters predict [N*m] (subtracted from the
+    measured torque after decimation).
     """
 
     def __init__(
@@ -125,11 +129,13 @@ class PayloadColumns:
         theta_arm: FloatArray,
         *,
         with_payload: bool = True,
+        arm_index: npt.ArrayLike = (),
     ) -> None:
         self.chain = chain
         self.terms = terms
         self.theta_arm = np.asarray(theta_arm, dtype=float)
         self.with_payload = with_payload
+        self.arm_index = np.asarray(arm_index, dtype=np.intp)
         n_bodies = self.theta_arm.size // 10
         self.last = np.arange(10 * (n_bodies - 1), 10 * n_bodies)
 
@@ -139,8 +145,9 @@ class PayloadColumns:
         payload = Y[:, :, self.last] if self.with_payload else np.zeros((n, nv, 10))
         known = Y @ self.theta_arm
         return np.concatenate(
-            [payload, extra_columns(self.terms, dq, ddq), known[:, :, None]], axis=2
-        )
+            [payload, extra_columns(self.terms, dq, ddq), Y[:, :, self.arm_index],
+             known[:, :, None]], axis=2
+        )  # fmt: skip
 
 
 def decimated_samples(log: RobotLog, pp: PreprocessConfig) -> int:
@@ -328,8 +335,17 @@ class PayloadResult:
     ordinary_mass_std, ordinary_com_std :
         The ordinary (independent-residual) standard deviations of the mass [kg] and of the
         centre of mass [m] (3,), for comparison.
+    arm_from :
+        Where the arm's parameters come from
+        (:data:`~ident.identify.payload.payload_arm.ARM_FROM`'s text), ``""`` when not said.
+    arm_note :
+        How the arm was used (lost payload directions, the corrections' size), or ``""``.
     warnings :
-        What makes the estimate suspect (a residual far above the torque noise), one line each.
+        The fit's warnings (:func:`~ident.identify.payload.payload_arm.payload_fit_warnings`).
+    floor_residual :
+        Relative residual of the same rows with the arm free and no payload (NaN: not run).
+    interval_factor :
+        Factor the standard deviations were widened by for the fit's excess residual (>= 1).
     """
 
     phi: FloatArray
@@ -352,7 +368,11 @@ class PayloadResult:
     uncertainty: Uncertainty | None = None
     ordinary_mass_std: float = float("nan")
     ordinary_com_std: FloatArray | None = None
+    arm_from: str = ""
+    arm_note: str = ""
     warnings: tuple[str, ...] = ()
+    floor_residual: float = float("nan")
+    interval_factor: float = 1.0
 
     def intervals(self, level: float = INTERVAL_LEVEL) -> tuple[FloatArray, FloatArray]:
         """``[lower, upper]`` of the mass [kg] (2,) and of the centre of mass [m] (3, 2) at
@@ -399,13 +419,19 @@ class PayloadResult:
             "parameters_std": dict(zip(PAYLOAD_NAMES, self.std.tolist(), strict=True)),
             "pseudo_inertia_min_eigenvalue": self.min_eigenvalue,
             "relative_residual": self.wls.relative_residual,
+            "arm_from": self.arm_from,
+            **({"arm_note": self.arm_note} if self.arm_note else {}),
+            "floor_relative_residual": (
+                self.floor_residual if np.isfinite(self.floor_residual) else None
+            ),
+            "interval_factor": self.interval_factor,
+            "warnings": list(self.warnings),
             "residual_rms_per_joint": self.wls.residual_rms.tolist(),
             "condition_number": self.wls.condition_number,
             "extras": self.extras,
             "message": (self.consistent or self.wls).message,
             "timings_s": self.timings,
             **({} if self.signals is None else {"signals": self.signals}),
-            "warnings": list(self.warnings),
         }
 
 
@@ -439,13 +465,15 @@ def estimate_payload(
     placement: pin.SE3 | None = None,
     link: str = "last link",
     blocks: tuple[BlockEquations, ...] | None = None,
+    arm_names: tuple[str, ...] = (),
 ) -> PayloadResult:
-    """WLS (and LMI) estimate of the payload from reduced rows ``[Y_n | E]`` (module docstring).
+    """WLS (and LMI) estimate of the payload from reduced rows ``[Y_n | E | Y_b]`` (module
+    docstring).
 
     Parameters
     ----------
     red :
-        Reduced rows, columns ``PAYLOAD_NAMES + extra``.
+        Reduced rows, columns ``PAYLOAD_NAMES + extra + arm_names``.
     extra :
         Names of the extra columns (:func:`ident.dynamics.friction.extra_names`).
     method :
@@ -457,13 +485,16 @@ def estimate_payload(
     blocks :
         Per-joint unweighted block normal equations of the same rows (:func:`payload_rows`):
         the standard deviations are their block bootstrap; None: the ordinary ones (a note).
+    arm_names :
+        Names of the arm's base-parameter corrections estimated with the payload
+        (:mod:`ident.identify.payload.payload_arm`; none: the arm is the URDF's).
 
     Raises
     ------
     NotIdentifiable
         If the logs do not determine every payload and extra parameter (names them).
     """
-    names = PAYLOAD_NAMES + tuple(extra)
+    names = PAYLOAD_NAMES + tuple(extra) + tuple(arm_names)
     t0 = time.perf_counter()
     wls = least_squares_reduced(red, names, method="wls")
     timings = {"wls": time.perf_counter() - t0}
@@ -471,13 +502,34 @@ def estimate_payload(
     consistent = None
     if method == "lmi":
         t1 = time.perf_counter()
-        consistent = _consistent_estimate(red, wls, extra)
+        consistent = _consistent_estimate(red, wls, extra, names)
         x = consistent.x
         timings["lmi"] = time.perf_counter() - t1
-    phi = np.asarray(x[:10], dtype=float)
     t2 = time.perf_counter()
     sd, unc = calibrated_std(wls, blocks)
     timings["intervals"] = time.perf_counter() - t2
+    return _payload_result(
+        x, sd, wls, extra, placement=placement, link=link, method=method,
+        consistent=consistent, timings=timings, uncertainty=unc,
+    )  # fmt: skip
+
+
+def _payload_result(
+    x: FloatArray,
+    sd: ParameterStd,
+    wls: Estimate,
+    extra: tuple[str, ...],
+    *,
+    placement: pin.SE3 | None,
+    link: str,
+    method: str,
+    consistent: Estimate | None,
+    timings: dict[str, float],
+    uncertainty: Uncertainty | None,
+) -> PayloadResult:
+    """The :class:`PayloadResult` of the estimate ``x`` (payload, extras, arm) with the
+    standard deviations ``sd`` and the WLS ``wls`` (its ordinary covariance)."""
+    phi = np.asarray(x[:10], dtype=float)
     std = sd.std[:10]
     mass, com, com_std, inertia_com = _in_reporting_frame(phi, sd.covariance[:10, :10], placement)
     ordinary = _in_reporting_frame(phi, wls.covariance[:10, :10], placement)[2]
@@ -494,14 +546,59 @@ def estimate_payload(
         wls=wls,
         consistent=consistent,
         method=method,
-        extras=dict(zip(extra, (float(v) for v in x[10:]), strict=True)),
+        extras=dict(zip(extra, (float(v) for v in x[10 : 10 + len(extra)]), strict=True)),
         timings=timings,
         std_method=sd.method,
         std_note=sd.note,
-        uncertainty=unc,
+        uncertainty=uncertainty,
         ordinary_mass_std=float(np.sqrt(max(wls.covariance[0, 0], 0.0))),
         ordinary_com_std=ordinary,
     )
+
+
+def estimate_payload_prior(
+    red: ReducedObservations,
+    extra: tuple[str, ...],
+    arm_names: tuple[str, ...],
+    prior_cov: FloatArray,
+    floor: Estimate,
+    *,
+    placement: pin.SE3 | None = None,
+    link: str = "last link",
+) -> PayloadResult:
+    """Posterior mean and covariance of ``[phi | e | dbeta]`` with the prior
+    ``dbeta ~ N(0, prior_cov)`` (n_b, n_b) on the arm's base-parameter corrections
+    (:func:`~ident.identify.payload.payload_arm.cad_prior_covariance`) and the rows weighted by
+    the ``1 / sigma_j`` of ``floor`` (the same rows fitted with the arm free,
+    :func:`~ident.identify.payload.payload_arm.floor_fit`): a ridge toward the prior arm.
+    Columns of ``red``: ``PAYLOAD_NAMES + extra + arm_names``. ``std_method``: ``posterior``.
+    """
+    names = PAYLOAD_NAMES + tuple(extra) + tuple(arm_names)
+    t0 = time.perf_counter()
+    sigma = np.asarray(floor.sigma, dtype=float)
+    w = np.where(np.isfinite(sigma) & (sigma > 0) & (red.n_rows > 0), 1.0 / sigma, 0.0)
+    H = np.einsum("g,gki,gkj->ij", w**2, red.R, red.R)
+    g = np.einsum("g,gki,gk->i", w**2, red.R, red.z)
+    n_b = len(arm_names)
+    H[-n_b:, -n_b:] += np.linalg.inv(prior_cov)  # the prior's precision on dbeta
+    cov = np.linalg.inv(H)
+    x = cov @ g
+    ss = red.residual_ss(x)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
+    post = replace(
+        floor, x=x, names=names, std=std, relative_std=rel, covariance=cov,
+        residual_rms=np.sqrt(ss / np.maximum(red.n_rows, 1)),
+        relative_residual=float(np.sqrt(ss.sum() / red.yty.sum())),
+        group_residual_ss=ss, condition_number=float(np.linalg.cond(H)),
+        message="posterior with the CAD prior on the arm",
+    )  # fmt: skip
+    sd = ParameterStd(std=std, relative_std=rel, method="posterior", covariance=cov)
+    return _payload_result(
+        x, sd, post, extra, placement=placement, link=link, method="wls", consistent=None,
+        timings={"prior": time.perf_counter() - t0}, uncertainty=None,
+    )  # fmt: skip
 
 
 def _lmi_structure(
@@ -530,13 +627,13 @@ def _lmi_structure(
 
 
 def _consistent_estimate(
-    red: ReducedObservations, wls: Estimate, extra: tuple[str, ...]
+    red: ReducedObservations, wls: Estimate, extra: tuple[str, ...], names: tuple[str, ...]
 ) -> Estimate:
     """The registry's ``lmi`` estimate on the WLS rows: realizable payload, no prior.
 
-    Rows are weighted by WLS's per-joint ``1 / sigma`` (joints without rows get 0).
+    Rows are weighted by WLS's per-joint ``1 / sigma`` (joints without rows get 0); ``names``:
+    the payload's, the ``extra`` ones, then the arm's corrections (free).
     """
-    names = PAYLOAD_NAMES + tuple(extra)
     problem = EstimationProblem(
         observations=red,
         names=names,
@@ -602,7 +699,9 @@ def identify_payload(
     robot: Robot | None = None,
     logs: tuple[RobotLog, RobotLog | None] | None = None,
 ) -> PayloadResult:
-    """Read the config's logs and estimate the payload (module docstring).
+    """Read the config's logs and estimate the payload (module docstring); the arm's
+    parameters come from the log without the payload, the identified model or the CAD prior
+    (:mod:`ident.identify.payload.payload_arm`), and the result says which.
 
     Parameters
     ----------
@@ -632,25 +731,15 @@ def identify_payload(
         )
     terms = cfg.model.extra_terms(model.nv, source)
     chain = chain_from_model(model)
-    theta_arm = parameters_from_model(model)
+    arm = payload_arm.arm_base(chain, terms)
     t1 = time.perf_counter()
-    given = [with_log] if without_log is None else [with_log, without_log]
-    step = block_length(sum(decimated_samples(log, pp) for log in given))
-    red, blocks = payload_rows(with_log, pp, PayloadColumns(chain, terms, theta_arm), step)
-    if without_log is not None:
-        columns = PayloadColumns(chain, terms, theta_arm, with_payload=False)
-        red_without, blocks_without = payload_rows(without_log, pp, columns, step)
-        red = red.merge(red_without)
-        blocks = merge_blocks(blocks, blocks_without)
+    red, blocks = _all_rows(chain, terms, arm, parameters_from_model(model), pp,
+                            (with_log, without_log))  # fmt: skip
     t2 = time.perf_counter()
+    source_key = payload_arm.arm_source(cfg.payload.arm, robot.urdf_path, without_log is not None)
     try:
-        result = estimate_payload(
-            red,
-            extra_names(terms),
-            method=cfg.payload.method,
-            placement=placement,
-            link=link,
-            blocks=blocks,
+        result = _estimate_for_arm(
+            red, blocks, extra_names(terms), arm, source_key, cfg, model, placement, link
         )
     except NotIdentifiable as e:
         raise NotIdentifiable(
@@ -659,7 +748,101 @@ def identify_payload(
             "without the payload (payload.without), or leave out friction terms (model)."
         ) from e
     timings = {"read": t1 - t0, "accumulate": t2 - t1, **result.timings}
-    return PayloadResult(**{**result.__dict__, "timings": timings})
+    return replace(result, timings=timings)
+
+
+def _all_rows(
+    chain: KinematicChain,
+    terms: ExtraTerms,
+    arm: payload_arm.ArmBase,
+    theta_arm: FloatArray,
+    pp: PreprocessConfig,
+    logs: tuple[RobotLog, RobotLog | None],
+) -> tuple[ReducedObservations, tuple[BlockEquations, ...]]:
+    """Reduced rows and per-joint blocks ``[Y_n | E | Y_b]`` of both logs (the log without
+    the payload with zero ``Y_n``). The blocks are fewer than :data:`MAX_BLOCKS
+    <ident.identify.estimation.log_chunks.MAX_BLOCKS>` when the columns are many, so their
+    memory stays near 110 MB."""
+    given = [log for log in logs if log is not None]
+    nv = chain.nv
+    p = 10 + len(extra_names(terms)) + arm.index.size
+    budget = max(64, int(110e6 / (8 * nv * (p * p + p + 1))))
+    step = block_length(
+        sum(decimated_samples(log, pp) for log in given), min(log_chunks.MAX_BLOCKS, budget)
+    )
+    red, blocks = payload_rows(
+        given[0], pp, PayloadColumns(chain, terms, theta_arm, arm_index=arm.index), step
+    )
+    if len(given) > 1:
+        columns = PayloadColumns(chain, terms, theta_arm, with_payload=False, arm_index=arm.index)
+        red_without, blocks_without = payload_rows(given[1], pp, columns, step)
+        red = red.merge(red_without)
+        blocks = merge_blocks(blocks, blocks_without)
+    return red, blocks
+
+
+def _estimate_for_arm(
+    red: ReducedObservations,
+    blocks: tuple[BlockEquations, ...],
+    extra: tuple[str, ...],
+    arm: payload_arm.ArmBase,
+    source_key: str,
+    cfg: PayloadConfig,
+    model: pin.Model,
+    placement: pin.SE3,
+    link: str,
+) -> PayloadResult:
+    """The payload with the arm from ``source_key`` (:data:`payload_arm.ARM_FROM`), the
+    fit's warnings and the intervals widened by its excess residual."""
+    n_p = 10 + len(extra)
+    names = PAYLOAD_NAMES + tuple(extra) + arm.names
+    not_payload = np.arange(10, len(names))
+    floor = payload_arm.floor_fit(red, not_payload, names)
+    lost = payload_arm.lost_payload_directions(red, 10, names) if source_key == "without" else []
+    note = ""
+    if source_key == "without" and not lost:
+        result = estimate_payload(red, extra, method=cfg.payload.method, placement=placement,
+                                  link=link, blocks=blocks, arm_names=arm.names)  # fmt: skip
+        floor = result.wls  # the arm is free already: the fit is its own floor
+    elif source_key == "model":
+        keep = np.arange(n_p)
+        result = estimate_payload(payload_arm.select_columns(red, keep), extra,
+                                  method=cfg.payload.method, placement=placement, link=link,
+                                  blocks=payload_arm.select_blocks(blocks, keep))  # fmt: skip
+    else:
+        if floor is None:
+            raise NotIdentifiable("the log does not determine the arm's base parameters.")
+        prior = payload_arm.cad_prior_covariance(parameters_from_model(model), arm)
+        result = estimate_payload_prior(red, extra, arm.names, prior, floor,
+                                        placement=placement, link=link)  # fmt: skip
+        if lost:
+            note = (
+                "the payload direction(s) " + "; ".join(lost) + " are not separable from the "
+                "arm's parameters in these logs: they come from the CAD prior."
+            )
+    return _with_fit_check(result, floor, source_key, note)
+
+
+def _with_fit_check(
+    result: PayloadResult, floor: Estimate | None, source_key: str, note: str
+) -> PayloadResult:
+    """``result`` with its arm source, the fit's warnings and its standard deviations
+    widened by the excess residual (:func:`payload_arm.payload_fit_warnings`)."""
+    floor_residual = None if floor is None else float(floor.relative_residual)
+    warnings, factor = payload_arm.payload_fit_warnings(
+        result.wls.relative_residual, floor_residual, source_key
+    )
+    return replace(
+        result,
+        std=result.std * factor,
+        mass_std=result.mass_std * factor,
+        com_std=result.com_std * factor,
+        arm_from=payload_arm.ARM_FROM[source_key],
+        arm_note=note,
+        warnings=tuple(warnings),
+        floor_residual=float("nan") if floor_residual is None else floor_residual,
+        interval_factor=factor,
+    )
 
 
 def arm_with_payload(robot: Robot, phi: npt.ArrayLike) -> tuple[FloatArray, tuple[str, ...]]:

@@ -47,11 +47,18 @@ class PayloadSection(StrictModel):
     method :
         ``lmi``: physically consistent (pseudo-inertia positive definite, friction and rotor
         inertia >= 0); ``wls``: unconstrained weighted least squares.
+    arm :
+        Where the arm's parameters come from with one log (with ``without`` they always come
+        from both logs): ``model``: the URDF is exact (an identified arm); ``prior``: the URDF
+        is a CAD prior estimated with the payload; ``auto``: ``model`` for ``ident identify``'s
+        ``<stem>_identified.urdf`` with its ``<stem>_joint_extras.json`` beside it, else
+        ``prior`` (:mod:`ident.identify.payload.payload_arm`).
     """
 
     without: LogConfig | None = None
     link: str | None = Field(default=None, min_length=1)
     method: Literal["lmi", "wls"] = "lmi"
+    arm: Literal["auto", "model", "prior"] = "auto"
 
 
 class PayloadConfig(IdentifyConfig):
