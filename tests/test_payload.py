@@ -17,7 +17,7 @@ from robots import UR5_URDF
 from typer.testing import CliRunner
 
 from ident.cli import app
-from ident.errors import ConfigError
+from ident.errors import ConfigError, ModelError
 from ident.excitation.fourier import fourier_series
 from ident.identify.model_files.urdf_update import model_of_urdf
 from ident.measure.mujoco_config import load_mujoco_measurement
@@ -74,6 +74,25 @@ def test_mujoco_payload_is_a_body_welded_to_the_last_link(ur5):
         np.testing.assert_allclose(data.qfrc_inverse[mj.dof_index], expected, atol=1e-10)
         # the payload is felt: the arm alone differs by newtons
         assert np.abs(ur5.rnea(q, dq, ddq)[0] - expected).max() > 1.0
+
+
+_ONE_JOINT_URDF = """<robot name="one"><link name="base"/>
+<link name="arm"><inertial><mass value="2"/>
+<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/>
+<limit lower="-2" upper="2" effort="10" velocity="2"/></joint></robot>"""
+
+
+def test_mujoco_payload_link_must_be_a_urdf_link(tmp_path):
+    """An unknown link is refused, and so is "world" in a URDF without such a link (MuJoCo's
+    spec names its world body "world": a check asking MuJoCo only would take it)."""
+    urdf = tmp_path / "one.urdf"
+    urdf.write_text(_ONE_JOINT_URDF)
+    robot = Robot.from_urdf(urdf)
+    for link in ("nope", "world"):
+        cfg = load_mujoco_measurement({"payload": {**PAYLOAD, "link": link}})
+        with pytest.raises(ModelError, match=rf"payload.link = '{link}' is not a link"):
+            load_mujoco(robot, payload=cfg.payload)
 
 
 def test_mujoco_payload_must_be_a_rigid_body():

@@ -15,8 +15,9 @@ about 1e-15 relative):
   equality ``q_f = o + m q_l`` (``polycoef="o m 0 0 0"``), the only constraint left on (stiff:
   ``solref`` twice the timestep), so the follower moves with its leader and the leader's force is
   ``tau_l + m tau_f``; a locked follower is fixed like any locked joint;
-- a payload of the measurement config (``measurement.payload``) is a link ``ident_payload``
-  welded (fixed joint) to its link, with the payload's mass, centre of mass and inertia.
+- a payload of the measurement config (``measurement.payload``) is a body ``ident_payload``
+  without joint (welded) added to its link's body in MuJoCo's spec (``MjSpec``), with the
+  payload's mass, centre of mass and inertia.
 
 Compiled model settings: gravity from the Pinocchio model (``model.gravity``), contacts, joint
 limits, equality constraints (but the mimic joints') and MuJoCo's friction loss off
@@ -28,6 +29,14 @@ matched to the robot's by name; links fixed to the world are fused by MuJoCo (th
 
 from __future__ import annotations
 
+# xml.etree kept for mujoco_urdf, the URDF text edits made BEFORE MuJoCo's importer reads it:
+# the <mujoco><compiler inertiafromgeom/balanceinertia/discardvisual> extension must be in the
+# text the importer parses; a locked joint is folded into its URDF <origin> so MuJoCo computes
+# the body frame from that rpy, as it does for the identified MJCF whose text must not change
+# (identify/model_files/mjcf.py prints the compiled frames at full precision); and
+# yourdfpy's write drops unknown elements (checked on example-robot-data's UR5: its 6
+# <transmission>, 8 <gazebo> blocks and 24 comments are gone, rpy "0 0 0" becomes
+# "0.0 -0.0 0.0"). The payload is added with MjSpec (_add_payload).
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -41,7 +50,7 @@ from ident.errors import ModelError
 from ident.measure.mujoco_config import PayloadConfig
 from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.model import Robot
-from ident.robot.inertia import URDF_INERTIA_ENTRIES, com_and_inertia
+from ident.robot.inertia import com_and_inertia
 
 route_mujoco_warnings()  # MuJoCo warnings as Python warnings, no MUJOCO_LOG.TXT
 
@@ -126,54 +135,66 @@ def _lock(joint: ET.Element, value: float) -> None:
             joint.remove(element)
 
 
-def dynamics_only_urdf(robot: Robot, payload: PayloadConfig | None = None) -> str:
+def dynamics_only_urdf(robot: Robot) -> str:
     """The robot's URDF text prepared for MuJoCo (see the module docstring).
 
     Raises
     ------
     ModelError
-        If a locked joint, or the payload's link, is not in the URDF.
+        If a locked joint is not in the URDF.
     """
-    where = str(robot.urdf_path or robot.name)
-    text = mujoco_urdf(robot.urdf_text, robot.locked_joints, where)
-    if payload is None:
-        return text
-    return _with_payload(text, payload, robot.joint_names[-1], where)
+    return mujoco_urdf(robot.urdf_text, robot.locked_joints, str(robot.urdf_path or robot.name))
 
 
-def _with_payload(urdf_text: str, payload: PayloadConfig, last_joint: str, where: str) -> str:
-    """``urdf_text`` with the payload as a link welded to its link (default: the child of
-    ``last_joint``)."""
-    root = ET.fromstring(urdf_text)
-    links = {link.get("name") for link in root.findall("link")}
-    parent = payload.link
-    if parent is None:
-        for joint in root.findall("joint"):
-            child = joint.find("child")
-            if joint.get("name") == last_joint and child is not None:
-                parent = child.get("link")
-    if parent not in links:
+def _add_payload(spec: mujoco.MjSpec, robot: Robot, payload: PayloadConfig, where: str) -> None:
+    """Add the payload to ``spec`` as a body ``ident_payload`` without joint in the body of its
+    link (default: the child of the robot's last moving joint), in that link's frame.
+
+    A body without joint is welded to its parent: MuJoCo's ``fusestatic`` merges it as it merges
+    a URDF fixed joint's child (the compiled inertias were checked bitwise equal to those of a
+    ``<link>`` welded by a ``fixed`` ``<joint>`` in the URDF text, the former implementation).
+
+    Raises
+    ------
+    ModelError
+        If the payload's link is not a link of the URDF.
+    """
+    last = spec.joint(robot.joint_names[-1])
+    parent = payload.link if payload.link is not None else (last.parent.name if last else None)
+    # the URDF's links are the Pinocchio model's BODY frames (MuJoCo's spec also answers
+    # "world" for its world body, which a URDF need not have)
+    if parent is None or not robot.model.existBodyName(parent) or spec.body(parent) is None:
         raise ModelError(
             f"{where}: measurement.payload.link = {parent!r} is not a link of the URDF; "
             "name one of its links, or null for the last moving link."
         )
     mass, com, inertia = com_and_inertia(payload.parameters())
-    link = ET.Element("link", name=PAYLOAD_LINK)
-    inertial = ET.SubElement(link, "inertial")
-    ET.SubElement(inertial, "origin", xyz=" ".join(repr(float(c)) for c in com), rpy="0 0 0")
-    ET.SubElement(inertial, "mass", value=repr(float(mass)))
-    ET.SubElement(
-        inertial,
-        "inertia",
-        {key: repr(float(inertia[i, j])) for key, (i, j) in URDF_INERTIA_ENTRIES.items()},
+    spec.body(parent).add_body(
+        name=PAYLOAD_LINK,
+        mass=float(mass),
+        ipos=np.asarray(com, dtype=float),
+        fullinertia=[
+            inertia[0, 0],
+            inertia[1, 1],
+            inertia[2, 2],
+            inertia[0, 1],
+            inertia[0, 2],
+            inertia[1, 2],
+        ],  # fmt: skip
     )
-    joint = ET.fromstring(
-        f'<joint name="{PAYLOAD_LINK}_weld" type="fixed"><parent link="{parent}"/>'
-        f'<child link="{PAYLOAD_LINK}"/><origin xyz="0 0 0" rpy="0 0 0"/></joint>'
-    )
-    root.insert(0, link)
-    root.append(joint)
-    return ET.tostring(root, encoding="unicode")
+
+
+def _compile(robot: Robot, payload: PayloadConfig | None) -> mujoco.MjModel:
+    """MuJoCo's model of :func:`dynamics_only_urdf`, with the payload (:func:`load_mujoco`)."""
+    where = str(robot.urdf_path or robot.name)
+    try:
+        spec = mujoco.MjSpec.from_string(dynamics_only_urdf(robot))
+        if payload is not None:
+            _add_payload(spec, robot, payload, where)
+        return spec.compile()
+    except ValueError as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise ModelError(f"{where}: MuJoCo cannot compile the URDF ({first}).") from e
 
 
 def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) -> str:
@@ -237,11 +258,7 @@ def load_mujoco(
         If MuJoCo cannot compile the URDF, or its moving joints differ from the robot's.
     """
     where = str(robot.urdf_path or robot.name)
-    try:
-        model = mujoco.MjModel.from_xml_string(dynamics_only_urdf(robot, payload))
-    except ValueError as e:
-        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise ModelError(f"{where}: MuJoCo cannot compile the URDF ({first}).") from e
+    model = _compile(robot, payload)
     mj_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(model.njnt)]
     followers = {m.follower for m in robot.mimic_joints}
     extra = sorted(set(mj_names) - set(robot.joint_names) - followers)
