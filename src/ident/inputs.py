@@ -23,6 +23,11 @@ import math
 import os
 import re
 import tempfile
+
+# xml.etree: check_urdf_numbers checks EVERY attribute of EVERY element of a text about to be
+# written, unknown extensions included; yourdfpy keeps only what it models (checked: UR5's
+# <transmission>, <gazebo> blocks are gone after its round trip), and an inf it takes silently.
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from numbers import Integral, Real
 from pathlib import Path
@@ -275,8 +280,6 @@ def check_urdf_numbers(text: str, source: str) -> None:
     ModelError
         Naming the element, its ``name`` and the attribute.
     """
-    import xml.etree.ElementTree as ET
-
     for element in ET.fromstring(text).iter():
         for key, value in element.attrib.items():
             for word in value.split():

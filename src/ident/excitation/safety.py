@@ -43,6 +43,9 @@ J. Carpentier et al., "The Pinocchio C++ library", SII 2019 (``GeometryModel``);
 from __future__ import annotations
 
 import math
+
+# xml.etree: reads MoveIt's SRDF (<disable_collisions>), which yourdfpy does not read (URDF only)
+# and MjSpec has no counterpart for.
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass

@@ -22,6 +22,11 @@ scale, NaN vertices or an unreadable file is a :class:`~ident.errors.ModelError`
 
 from __future__ import annotations
 
+# xml.etree: reads the links of the tree the robot loader parsed and checked (one parse, DTD
+# refused); yourdfpy's reader cannot give the project's named errors: a non-number raises a bare
+# ValueError ("could not convert string to float: 'abc'", no joint, no field; the same for xacro's
+# "${-pi}"), and URDF.load re-parses malformed XML with lxml recover=True (checked: a truncated
+# file loads) and expands DTD entities (checked), which the project refuses.
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass

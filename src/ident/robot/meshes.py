@@ -26,6 +26,11 @@ from __future__ import annotations
 import functools
 import os
 import urllib.parse
+
+# xml.etree: rewrites mesh filenames in the user's URDF text (and stands in for missing meshes)
+# before Pinocchio reads it, the rest left as it is; yourdfpy's round trip drops what it does not
+# model (checked on example-robot-data's UR5: its 6 <transmission>, 8 <gazebo> blocks and 24
+# comments are gone) and rewrites numbers (rpy "0 0 0" -> "0.0 -0.0 0.0").
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass

@@ -7,6 +7,9 @@ turns their answers into a run config.
 from __future__ import annotations
 
 import re
+
+# xml.etree: reads <limit acceleration=...>, an extension yourdfpy does not model (yourdfpy.Limit
+# holds effort, velocity, lower, upper only; checked).
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path

@@ -40,6 +40,14 @@ reader.
 from __future__ import annotations
 
 import math
+
+# xml.etree: reads the URDF's structure (links, nominal <inertial>) next to the text spans of
+# urdf_edit, which write the edits so that the rest of the user's file stays byte for byte
+# (yourdfpy's round trip drops its 6 <transmission>, 8 <gazebo> blocks and 24 comments on example-
+# robot-data's UR5, checked, and gives no text positions); the nominal inertials are read with
+# Pinocchio's rpyToMatrix, so a link that is not written back is bit-identical in the reloaded
+# model; yourdfpy turns <origin rpy> into a matrix with its own code (checked: rpy 0.3 -1.2 2.1
+# differs from pin.rpy.rpyToMatrix by 1.1e-16).
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass, field
