@@ -36,10 +36,14 @@ MJCF reloads to the same model (inverse dynamics equal to about 1e-15 relative).
 from __future__ import annotations
 
 # xml.etree: MuJoCo's MjSpec does the conversion (from_string, joint extras, tendons, to_xml);
-# xml.etree is left for (1) _with_bodies, the URDF inertials replaced before MuJoCo's importer
-# reads them, and (2) _full_precision: MjSpec.to_xml prints 6 significant digits (checked on mujoco
-# 4.0.0: mass 1.234567890123 written "1.23457", the reloaded body_mass off by 2.1e-6, armature by
-# 2.1e-7), so the dynamics' numbers are rewritten at full precision.
+# xml.etree is left for (1) _with_bodies, the URDF inertials replaced in the text before MuJoCo's
+# importer reads it: doing it on the spec instead (mass, ipos, fullinertia, explicitinertial=False
+# for the others) gives bitwise-equal body_mass, body_inertia, dof_armature/damping/frictionloss
+# and the moving bodies' ipos/iquat, but the massless bodies' ipos/iquat differ (checked on UR5:
+# ee_link pos 0.0823 -> 0), 3 lines of the written MJCF; (2) _full_precision: MjSpec.to_xml prints
+# 6 significant digits (checked on mujoco 4.0.0: mass 1.234567890123 written "1.23457", the
+# reloaded body_mass off by 2.1e-6, armature by 2.1e-7), so the dynamics' numbers are rewritten at
+# full precision.
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from typing import Any
