@@ -66,6 +66,7 @@ __all__ = [
     "MAX_CLEARANCE_M",
     "MAX_OBSTACLES",
     "MAX_SIZE_M",
+    "MIN_LOWERED_CLEARANCE_M",
     "N_EXCLUSION_POSTURES",
     "BoxObstacle",
     "FloorConfig",
@@ -86,6 +87,9 @@ __all__ = [
 DEFAULT_CLEARANCE_M = 0.03
 # the default margin is halved down to this while a link pair cannot keep it [m]
 MIN_LOWERED_CLEARANCE_M = 0.002
+# a hull distance above this (or above a margin by this) proves the meshes apart: GJK's
+# tolerance (1e-6 m) with room to spare [m]
+_SCREEN_SLACK_M = 1e-4
 N_EXCLUSION_POSTURES = 1000  # random postures of the "always in contact" rule (MoveIt: 1000+)
 ALWAYS_IN_CONTACT_FRACTION = 0.95  # MoveIt setup assistant's default
 MAX_SIZE_M = 100.0  # obstacle sizes and positions, floor height [m]
@@ -642,6 +646,40 @@ def _add_srdf_exclusions(excluded: dict[tuple[str, str], str], srdf: Path, links
             excluded[key] = f"SRDF ({reason})"
 
 
+def _sphere_bounds(
+    model: pin.Model,
+    geom: pin.GeometryModel,
+    pairs: Sequence[tuple[int, int]],
+    postures: FloatArray,
+) -> FloatArray:
+    """Distances of the spheres around the geometry ``pairs`` (each about its local bounding
+    box's centre, of the box's half-diagonal: it holds the geometry) at ``postures`` [m],
+    shape (n_postures, n_pairs): a lower bound of the geometries' distance."""
+    objects = geom.geometryObjects
+    used = sorted({g for pair in pairs for g in pair})
+    centre = np.zeros((len(objects), 3))
+    radius = np.zeros(len(objects))
+    joint = np.zeros(len(objects), dtype=int)
+    for g in used:
+        shape = objects[g].geometry
+        shape.computeLocalAABB()
+        centre[g] = objects[g].placement.act(np.asarray(shape.aabb_center, dtype=float))
+        radius[g] = float(shape.aabb_radius)
+        joint[g] = int(objects[g].parentJoint)
+    data = model.createData()
+    rotation = np.empty((postures.shape[0], model.njoints, 3, 3))
+    translation = np.empty((postures.shape[0], model.njoints, 3))
+    for s, q in enumerate(postures):
+        pin.forwardKinematics(model, data, q)
+        for j in range(model.njoints):
+            rotation[s, j] = data.oMi[j].rotation
+            translation[s, j] = data.oMi[j].translation
+    world = np.einsum("sgij,gj->sgi", rotation[:, joint], centre) + translation[:, joint]
+    a, b = (np.array([pair[k] for pair in pairs], dtype=int) for k in (0, 1))
+    gap = np.linalg.norm(world[:, a] - world[:, b], axis=2)
+    return np.asarray(gap - radius[a] - radius[b])
+
+
 def _flat_pairs(
     tested: Sequence[tuple[str, str]],
     geometry_pairs: Mapping[tuple[str, str], list[tuple[int, int]]],
@@ -706,6 +744,9 @@ class SafetyModel:
             "clearance_m" not in config.model_fields_set if lower_margin is None else lower_margin
         )
         self.margin_note = ""
+        # per tested link pair: its largest clearance over the sampled postures [m] (exact
+        # below the margin asked for, at least that margin otherwise), see _settle_margin
+        self.keepable_clearances: dict[tuple[str, str], float] = {}
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
         model, geom = _kinematic_model_and_geometry(robot, urdf, package_dirs)
@@ -776,6 +817,10 @@ class SafetyModel:
         the SRDF, in contact (exact geometry) in the reference posture, or in contact in at
         least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random postures. A remaining pair that
         is closer than the margin in every posture is an input error.
+
+        The convex hulls screen the postures first (:meth:`_screen`): a hull contains its
+        mesh, so two hulls apart are two meshes apart; the exact geometry is measured only
+        where the hulls are close. The answer is the exact geometry's.
         """
         parents = list(self.model.parents)
         excluded, geometry_pairs = _adjacent_pairs(parents, link_of, joint_of, n_robot)
@@ -784,11 +829,36 @@ class SafetyModel:
         tested = [k for k in geometry_pairs if k not in excluded]
         if not tested:
             return excluded
-        self._add_contact_exclusions(excluded, geom, tested, geometry_pairs)
+        pairs, _ = _flat_pairs(tested, geometry_pairs)
+        hull = self._screen(geom, pairs)
+        screened = dict(zip(pairs, hull.T, strict=True))
+        self._add_contact_exclusions(excluded, geom, tested, geometry_pairs, screened)
         if self.clearance_m > 0.0:
             tested = [k for k in tested if k not in excluded]
-            self._settle_margin(geom, tested, geometry_pairs)
+            self._settle_margin(geom, tested, geometry_pairs, screened)
         return excluded
+
+    def _screen(self, geom: pin.GeometryModel, pairs: list[tuple[int, int]]) -> FloatArray:
+        """Lower bounds of the exact distances of the geometry ``pairs`` at the exclusion
+        postures [m], shape (n_postures, n_pairs): their convex hulls' signed distance (meshes
+        replaced by their hulls, primitives as they are; a hull contains its mesh) wherever
+        the bounding spheres (:func:`_sphere_bounds`, containing the geometry) are within
+        the margin (and :data:`_SCREEN_SLACK_M`), the spheres' distance elsewhere."""
+        out = _sphere_bounds(self.model, geom, pairs, self.postures)
+        near = out < self.clearance_m + _SCREEN_SLACK_M
+        if near.any():
+            hull = geom.clone()
+            _convexify(hull)
+            hull.removeAllCollisionPairs()
+            for a, b in pairs:
+                hull.addCollisionPair(pin.CollisionPair(a, b))
+            data, gdata = self.model.createData(), _geometry_data(hull)
+            for s in np.flatnonzero(near.any(axis=1)).tolist():  # coal: one posture at a time
+                pin.updateGeometryPlacements(self.model, data, hull, gdata, self.postures[s])
+                for p in np.flatnonzero(near[s]).tolist():
+                    out[s, p] = pin.computeDistance(hull, gdata, p).min_distance
+            hull.removeAllCollisionPairs()
+        return out
 
     def _add_contact_exclusions(
         self,
@@ -796,12 +866,16 @@ class SafetyModel:
         geom: pin.GeometryModel,
         tested: list[tuple[str, str]],
         geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+        screened: Mapping[tuple[int, int], FloatArray],
     ) -> None:
         """Add to ``excluded`` the ``tested`` link pairs in contact (exact geometry) in the
         reference posture, or in at least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random
-        ones (``geometry_pairs``: the geometry object pairs of each link pair)."""
+        ones (``geometry_pairs``: the geometry object pairs of each link pair; ``screened``:
+        their hulls' distances per posture, shape (n_postures,): the exact geometry is tested
+        only where the hulls are within :data:`_SCREEN_SLACK_M`)."""
         pairs, owner = _flat_pairs(tested, geometry_pairs)
-        contact = self._collisions(geom, pairs, self.postures, margin=0.0)  # (n, n_pairs)
+        where = np.column_stack([screened[ab] <= _SCREEN_SLACK_M for ab in pairs])
+        contact = self._collisions(geom, pairs, self.postures, 0.0, where)  # (n, n_pairs)
         by_link = np.zeros((contact.shape[0], len(tested)), dtype=bool)
         np.logical_or.at(by_link.T, owner, contact.T)
         n_random = self.postures.shape[0] - 1
@@ -821,30 +895,30 @@ class SafetyModel:
         geom: pin.GeometryModel,
         tested: list[tuple[str, str]],
         geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+        screened: Mapping[tuple[int, int], FloatArray],
     ) -> None:
         """Check that every ``tested`` link pair can keep the margin in some posture.
 
         A margin the user did not choose is lowered (halved, down to
         :data:`MIN_LOWERED_CLEARANCE_M`) until they can (``clearance_m`` and ``margin_note``
         updated); a pair closer than the margin in every posture is a :class:`ConfigError`.
+        Each pair's largest clearance over the postures is measured once
+        (:meth:`_largest_clearances`) and compared with every halved margin.
         """
         pairs, owner = _flat_pairs(tested, geometry_pairs)
-        always = self._always_within(geom, pairs, owner, len(tested), self.clearance_m)
+        hull = np.column_stack([screened[ab] for ab in pairs])
+        largest = self._largest_clearances(geom, pairs, owner, len(tested), hull)
+        self.keepable_clearances = dict(zip(tested, largest.tolist(), strict=True))
         margin = self.clearance_m
+        always = largest < margin  # closer than the margin in every posture
         # a margin the user did not choose is lowered (halved, down to 2 mm) until every
         # pair can keep it in some posture; a chosen one is an input error below
         while self.lower_margin and always.any() and margin / 2.0 >= MIN_LOWERED_CLEARANCE_M:
             margin /= 2.0
-            always = self._always_within(geom, pairs, owner, len(tested), margin)
+            always = largest < margin
         if margin < self.clearance_m and not always.any():
             close = ", ".join(
-                f"{a}-{b}"
-                for (a, b), hit in zip(
-                    tested,
-                    self._always_within(geom, pairs, owner, len(tested), self.clearance_m),
-                    strict=True,
-                )
-                if hit
+                f"{a}-{b}" for (a, b), d in zip(tested, largest, strict=True) if d < self.clearance_m
             )
             self.margin_note = (
                 f"safety margin lowered from the default {self.clearance_m:g} m to "
@@ -862,19 +936,55 @@ class SafetyModel:
                     "pair in a MoveIt SRDF (safety.srdf) if they may touch."
                 )
 
-    def _always_within(
+    def _largest_clearances(
         self,
         geom: pin.GeometryModel,
         pairs: list[tuple[int, int]],
         owner: npt.NDArray[np.int_],
         n_links: int,
-        margin: float,
-    ) -> npt.NDArray[np.bool_]:
-        """Per link pair, shape (n_links,): closer than ``margin`` in every sampled posture."""
-        within = self._collisions(geom, pairs, self.postures, margin=margin)
-        by_link = np.zeros((within.shape[0], n_links), dtype=bool)
-        np.logical_or.at(by_link.T, owner, within.T)
-        return np.asarray(np.all(by_link, axis=0))
+        hull: FloatArray,
+    ) -> FloatArray:
+        """Per link pair, the largest over the postures of its clearance (the smallest
+        distance of its geometry ``pairs``, ``owner``: the link pair of each) [m], shape
+        (n_links,): exact where below the margin; at least the margin otherwise.
+
+        ``hull`` (n_postures, n_pairs): the hulls' distances, lower bounds of the exact ones.
+        A link pair whose hulls keep the margin in some posture keeps it. For the others the
+        exact geometry is measured posture by posture (those whose hulls are farthest apart
+        first, and only the geometry pairs whose hulls are within the margin: the others
+        cannot bring the link pair below it), until a posture keeps the margin.
+        """
+        screen = self.clearance_m + _SCREEN_SLACK_M
+        link_hull = np.full((hull.shape[0], n_links), np.inf)
+        np.minimum.at(link_hull.T, owner, hull.T)
+        largest = link_hull.max(axis=0)
+        close = [i for i in range(n_links) if largest[i] < screen]
+        if not close:
+            return largest
+        columns = [int(p) for i in close for p in np.flatnonzero(owner == i)]
+        geom.removeAllCollisionPairs()
+        for p in columns:
+            geom.addCollisionPair(pin.CollisionPair(*pairs[p]))
+        data, gdata = self.model.createData(), _geometry_data(geom, signed=False)
+        for i in close:
+            mine = [k for k, p in enumerate(columns) if owner[p] == i]
+            largest[i] = -np.inf
+            for s in np.argsort(-link_hull[:, i], kind="stable").tolist():
+                pin.updateGeometryPlacements(self.model, data, geom, gdata, self.postures[s])
+                value = min(
+                    (
+                        pin.computeDistance(geom, gdata, k).min_distance
+                        if hull[s, columns[k]] < screen
+                        else hull[s, columns[k]]
+                        for k in mine
+                    ),
+                    default=np.inf,
+                )
+                largest[i] = max(largest[i], value)
+                if largest[i] >= self.clearance_m:
+                    break
+        geom.removeAllCollisionPairs()
+        return largest
 
     def _collisions(
         self,
@@ -882,12 +992,15 @@ class SafetyModel:
         pairs: list[tuple[int, int]],
         postures: FloatArray,
         margin: float,
+        where: npt.NDArray[np.bool_] | None = None,
     ) -> npt.NDArray[np.bool_]:
         """Whether each geometry pair (exact geometry) is closer than ``margin`` [m], shape
-        (n_postures, n_pairs)."""
+        (n_postures, n_pairs); ``where`` (same shape): test only there (False elsewhere)."""
         out = np.zeros((postures.shape[0], len(pairs)), dtype=bool)
         if not pairs:
             return out
+        if where is None:
+            where = np.ones(out.shape, dtype=bool)
         geom.removeAllCollisionPairs()
         for a, b in pairs:
             geom.addCollisionPair(pin.CollisionPair(a, b))
@@ -895,9 +1008,10 @@ class SafetyModel:
         gdata = pin.GeometryData(geom)
         for request in gdata.collisionRequests:
             request.security_margin = margin
-        for s, q in enumerate(postures):  # coal: one posture at a time
-            pin.computeCollisions(self.model, data, geom, gdata, q, False)
-            out[s] = [r.isCollision() for r in gdata.collisionResults]
+        for s in np.flatnonzero(where.any(axis=1)).tolist():  # coal: one posture at a time
+            pin.updateGeometryPlacements(self.model, data, geom, gdata, postures[s])
+            for p in np.flatnonzero(where[s]).tolist():
+                out[s, p] = pin.computeCollision(geom, gdata, p)
         geom.removeAllCollisionPairs()
         return out
 

@@ -52,6 +52,7 @@ from ident.run.init_robot import (
     find_package_dirs,
     keepable_clearance,
     robot_reach,
+    self_clearance_model,
     torque_scale,
     urdf_acceleration_limits,
 )
@@ -187,6 +188,7 @@ class _Choices:
     reach: float
     guessed_clearance: float
     clearance: float
+    close_pairs: tuple[str, ...]
     floor_z: float
     home: np.ndarray
     home_clearance: float
@@ -235,9 +237,10 @@ def _choose(robot: Any, text: str) -> _Choices:
     reference = np.clip(np.zeros(robot.nq), robot.q_lower, robot.q_upper)
     reach = robot_reach(robot, reference)
     guessed_clearance = float(np.clip(0.05 * reach, 0.01, 0.03))
-    # halved while a link pair sits closer than it in every posture (UR base/upper arm)
-    clearance = keepable_clearance(robot, guessed_clearance)
-    floor_z = float(np.floor(base_bottom(robot) * 1e3) / 1e3) + 0.0  # mm, never above; no -0
+    # lowered where a link pair never gets that far apart (UR base/upper arm)
+    self_model = self_clearance_model(robot, guessed_clearance)
+    clearance, close_pairs = keepable_clearance(self_model, guessed_clearance)
+    floor_z = float(np.floor(base_bottom(self_model) * 1e3) / 1e3) + 0.0  # mm, never above
     home, home_clearance = clear_posture(robot, clearance, floor_z)
     # measurement guesses
     effort = effort_scale(robot)
@@ -259,6 +262,7 @@ def _choose(robot: Any, text: str) -> _Choices:
         reach=reach,
         guessed_clearance=guessed_clearance,
         clearance=clearance,
+        close_pairs=tuple(close_pairs),
         floor_z=floor_z,
         home=home,
         home_clearance=home_clearance,
@@ -358,14 +362,17 @@ def _excitation_lines(c: _Choices, robot: Any) -> list[str]:
 def _safety_lines(c: _Choices) -> list[str]:
     """The ``safety:`` (floor, clearance) and ``controller:`` sections."""
     lowered = (
-        f", lowered from {c.guessed_clearance:.3g} m: a link pair is closer in every posture"
+        f", lowered from {c.guessed_clearance:.3g} m: half the largest clearance of a link "
+        "pair that never gets farther apart"
         if c.clearance < c.guessed_clearance
         else ""
     )
+    close = [f"  # {line}" for line in c.close_pairs]
     return [
         "safety:                        # in the optimization and, at 1 kHz, on the trajectory",
         f"  floor: {{enabled: true, z: {c.floor_z:.3f}}}   # guess: the robot stands on the "
         "floor under its base's collision geometry",
+        *close,
         f"  clearance_m: {c.clearance:.3g}   # guess: 5 % of the reach {c.reach:.2f} m (1-3 cm)"
         + lowered,
         "  self_collision: true",
@@ -440,6 +447,7 @@ def _notes(c: _Choices, urdf: Path, lock_notes: list[str]) -> list[str]:
         f"safety: floor at z = {c.floor_z:.3f} m (under the base), clearance "
         f"{c.clearance:.3g} m; mean postures around a posture "
         f"{c.home_clearance * 100:.0f} cm clear",
+        *[f"safety: margin below 1 cm: {line}" for line in c.close_pairs],
         f"measurement: friction, rotor inertia and noise are guesses scaled to {c.effort_note}",
     ]
 

@@ -14,7 +14,7 @@ import numpy as np
 import pinocchio as pin
 
 from ident.errors import ConfigError
-from ident.excitation.safety import build_safety_model
+from ident.excitation.safety import MIN_LOWERED_CLEARANCE_M, SafetyModel, build_safety_model
 from ident.inputs import read_urdf_text
 from ident.model.robot import Robot
 from ident.robot.urdf_load import (
@@ -26,6 +26,8 @@ from ident.robot.urdf_load import (
 )
 
 __all__ = [
+    "ENGINEER_CLEARANCE_M",
+    "MARGIN_ROOM",
     "base_bottom",
     "choose_locks",
     "clear_posture",
@@ -33,12 +35,18 @@ __all__ = [
     "find_package_dirs",
     "keepable_clearance",
     "robot_reach",
+    "self_clearance_model",
     "torque_scale",
     "urdf_acceleration_limits",
 ]
 
 _GRIPPER = re.compile(r"gripper|finger|hand", re.IGNORECASE)
 _N_POSTURES = 300
+#: A safety margin below this [m] is named with the link pairs that force it.
+ENGINEER_CLEARANCE_M = 0.01
+#: The margin is at most this fraction of a link pair's largest clearance.
+MARGIN_ROOM = 2.0
+_FAR_M = 0.15  # beyond this clearance [m] a posture is as good as any other
 
 
 def _fmt(value: float) -> str:
@@ -169,14 +177,24 @@ def robot_reach(robot: Robot, q: np.ndarray) -> float:
     return float(max(np.linalg.norm(data.oMi[k].translation) for k in range(robot.model.njoints)))
 
 
-def base_bottom(robot: Robot) -> float:
+def self_clearance_model(robot: Robot, clearance_m: float) -> SafetyModel:
+    """The robot's safety model without the floor, for :func:`base_bottom` and
+    :func:`keepable_clearance`: its margin ``clearance_m`` [m] halved (not below 2 mm) while a
+    link pair is closer than it in every sampled posture, each pair's largest clearance in
+    ``keepable_clearances``."""
+    return build_safety_model(
+        robot,
+        {"clearance_m": clearance_m, "floor": {"enabled": False}},
+        package_dirs=robot.package_dirs,
+        lower_margin=True,
+    )
+
+
+def base_bottom(safety: SafetyModel) -> float:
     """Lowest point of the collision geometry fixed to the world (the base) [m], in the base
     frame; 0 without such geometry. Its bounding boxes' corners: exact for boxes, a lower
     bound for meshes and round shapes."""
-    safety = build_safety_model(
-        robot, {"floor": {"enabled": False}}, package_dirs=robot.package_dirs
-    )
-    model, geometry = safety.model, safety.geometry_model
+    model, geometry = safety.model, safety.exact_geometry_model
     data, gdata = model.createData(), pin.GeometryData(geometry)
     reference = np.clip(np.zeros(model.nq), model.lowerPositionLimit, model.upperPositionLimit)
     pin.updateGeometryPlacements(model, data, geometry, gdata, reference)
@@ -201,16 +219,31 @@ def base_bottom(robot: Robot) -> float:
     return lowest
 
 
-def keepable_clearance(robot: Robot, clearance_m: float) -> float:
-    """``clearance_m`` [m], halved (not below 2 mm) while a pair of the robot's links is closer
-    than it in every sampled posture: a margin that some trajectory can keep."""
-    safety = build_safety_model(
-        robot,
-        {"clearance_m": clearance_m, "floor": {"enabled": False}},
-        package_dirs=robot.package_dirs,
-        lower_margin=True,
-    )
-    return float(safety.clearance_m)
+def keepable_clearance(safety: SafetyModel, clearance_m: float) -> tuple[float, list[str]]:
+    """A margin [m] every link pair of ``safety`` (:func:`self_clearance_model`) keeps with room:
+    ``clearance_m``, or, where a pair's largest clearance over the sampled postures is below
+    it, half that clearance (a pair asked for all it can give would have to stay in the
+    few postures that give it), in whole millimetres, not below 2 mm.
+
+    Returns the margin and, when it is below :data:`ENGINEER_CLEARANCE_M`, one line per pair
+    that forced it: the pair, its largest clearance and the MoveIt SRDF entry that would
+    leave it out (then a margin of 1-3 cm holds for the other pairs).
+    """
+    largest = {k: v for k, v in safety.keepable_clearances.items() if v < clearance_m}
+    margin = min([clearance_m, *(v / MARGIN_ROOM for v in largest.values())])
+    margin = max(float(np.floor(margin * 1e3) / 1e3), MIN_LOWERED_CLEARANCE_M)
+    if margin >= ENGINEER_CLEARANCE_M:
+        return margin, []
+    n = safety.postures.shape[0]
+    lines = [
+        f"the links {a} and {b} are never more than {v * 1e3:.1f} mm apart in {n} sampled "
+        f"postures: if they may touch (a joint's housings), leave the pair out with a MoveIt "
+        f'SRDF line <disable_collisions link1="{a}" link2="{b}" reason="Adjacent"/> '
+        "(safety.srdf) and raise safety.clearance_m to 0.01-0.03"
+        for (a, b), v in sorted(largest.items(), key=lambda kv: kv[1])
+        if v / MARGIN_ROOM < ENGINEER_CLEARANCE_M
+    ]
+    return margin, lines
 
 
 def clear_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.ndarray, float]:
@@ -231,8 +264,10 @@ def clear_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.
     postures = np.vstack([reference[None, :], near])
     if safety.n_pairs == 0:
         return reference, np.inf
-    worst = safety.clearances(postures).min(axis=1)
+    # exact below 15 cm, a lower bound (the hulls') above: the same choice
+    within = np.full((postures.shape[0], safety.n_pairs), _FAR_M)
+    worst = safety.clearances(postures, within).min(axis=1)
     if worst[0] >= 3.0 * clearance_m:
         return reference, float(worst[0])
-    best = int(np.argmax(np.minimum(worst, 0.15)))  # beyond 15 cm: the first such posture
+    best = int(np.argmax(np.minimum(worst, _FAR_M)))  # beyond 15 cm: the first such posture
     return postures[best], float(worst[best])
