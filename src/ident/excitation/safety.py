@@ -391,6 +391,51 @@ def _kinematic_model_and_geometry(
     return full, geom
 
 
+_LOADED: dict[tuple[Any, ...], tuple[pin.Model, pin.GeometryModel]] = {}
+_LOADED_HULLS: dict[tuple[Any, ...], pin.GeometryModel] = {}  # the same, meshes as hulls
+
+
+def _loaded_geometry(
+    robot: Any, urdf: str | Path | None, package_dirs: Sequence[str | Path]
+) -> tuple[pin.Model, pin.GeometryModel, tuple[Any, ...]]:
+    """:func:`_kinematic_model_and_geometry`, remembered for the last robot (its URDF text,
+    joints, locked joints and mesh folders): ``ident init`` builds three safety models of one
+    robot, and reading large meshes took seconds each time. Returns copies (the caller adds
+    the environment and a payload to them)."""
+    if urdf is None:
+        source = getattr(robot, "urdf_text", None)
+    elif isinstance(urdf, Path) or not urdf.lstrip().startswith("<"):
+        source = Path(urdf).read_text(encoding="utf-8")
+    else:
+        source = urdf
+    key = (
+        source,
+        tuple(robot.model.names),
+        tuple(sorted((getattr(robot, "locked_joints", {}) or {}).items())),
+        tuple(str(d) for d in package_dirs),
+    )
+    if key not in _LOADED:
+        _LOADED.clear()
+        _LOADED_HULLS.clear()
+        _LOADED[key] = _kinematic_model_and_geometry(robot, urdf, package_dirs)
+    model, geom = _LOADED[key]
+    return model.copy(), geom.clone(), key
+
+
+def _loaded_hulls(key: tuple[Any, ...], geom: pin.GeometryModel) -> pin.GeometryModel:
+    """A copy of ``geom`` with its meshes replaced by their hulls (:func:`_convexify`); the
+    first objects, those :func:`_loaded_geometry` loaded under ``key``, from the hulls made
+    once per robot, the others (environment, payload: primitives) as they are."""
+    if key not in _LOADED_HULLS:
+        hulls = _LOADED[key][1].clone()
+        _convexify(hulls)
+        _LOADED_HULLS[key] = hulls
+    out = _LOADED_HULLS[key].clone()
+    for obj in list(geom.geometryObjects)[out.ngeoms :]:
+        out.addGeometryObject(obj)
+    return out
+
+
 def _convexify(geom: pin.GeometryModel) -> None:
     """Replace mesh geometry by its convex hull (GJK/EPA then give penetration depths).
 
@@ -592,11 +637,21 @@ def _mesh_pairs(
     geom: pin.GeometryModel, pairs: Sequence[tuple[int, int, str, str]]
 ) -> npt.NDArray[np.bool_]:
     """Per geometry pair, whether a mesh is on either side (where the hull and the geometry
-    differ: the exact certificate measures them on the mesh)."""
+    differ: the exact certificate measures them on the mesh).
+
+    A mesh against a half-space (the floor, a plane) does not count: the point of a mesh
+    nearest a plane is a vertex, one of its hull's, so apart they have the same distance;
+    sunk in, :meth:`SafetyModel.clearances` keeps the deeper of the two, the hull's (its
+    deepest vertex).
+    """
     import coal
 
     is_mesh = [isinstance(o.geometry, coal.BVHModelBase) for o in geom.geometryObjects]
-    return np.array([is_mesh[a] or is_mesh[b] for a, b, _, _ in pairs], dtype=bool)
+    plane = [isinstance(o.geometry, coal.Halfspace) for o in geom.geometryObjects]
+    return np.array(
+        [(is_mesh[a] or is_mesh[b]) and not (plane[a] or plane[b]) for a, b, _, _ in pairs],
+        dtype=bool,
+    )
 
 
 def _effort_max(model: pin.Model, torque_limits: bool) -> FloatArray:
@@ -744,12 +799,13 @@ class SafetyModel:
             "clearance_m" not in config.model_fields_set if lower_margin is None else lower_margin
         )
         self.margin_note = ""
+        self._hull_geometry: pin.GeometryModel | None = None
         # per tested link pair: its largest clearance over the sampled postures [m] (exact
         # below the margin asked for, at least that margin otherwise), see _settle_margin
         self.keepable_clearances: dict[tuple[str, str], float] = {}
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
-        model, geom = _kinematic_model_and_geometry(robot, urdf, package_dirs)
+        model, geom, self._geometry_key = _loaded_geometry(robot, urdf, package_dirs)
         if config.payload_box is not None:  # part of the robot: before anything counts links
             _attach_payload_box(model, geom, config.payload_box)
         self.model = model
@@ -784,8 +840,10 @@ class SafetyModel:
         for k in kept:
             geom.addCollisionPair(pin.CollisionPair(candidates[k][0], candidates[k][1]))
         self.exact_geometry_model = geom
-        hull = geom.clone()
-        _convexify(hull)
+        hull = self._hulls(geom)
+        hull.removeAllCollisionPairs()
+        for k in kept:
+            hull.addCollisionPair(pin.CollisionPair(candidates[k][0], candidates[k][1]))
         self.geometry_model = hull
         kept_pairs = [candidates[k] for k in kept]
         geometry_pair_names = [pair[2] for pair in kept_pairs]
@@ -847,8 +905,7 @@ class SafetyModel:
         out = _sphere_bounds(self.model, geom, pairs, self.postures)
         near = out < self.clearance_m + _SCREEN_SLACK_M
         if near.any():
-            hull = geom.clone()
-            _convexify(hull)
+            hull = self._hulls(geom)
             hull.removeAllCollisionPairs()
             for a, b in pairs:
                 hull.addCollisionPair(pin.CollisionPair(a, b))
@@ -859,6 +916,13 @@ class SafetyModel:
                     out[s, p] = pin.computeDistance(hull, gdata, p).min_distance
             hull.removeAllCollisionPairs()
         return out
+
+    def _hulls(self, geom: pin.GeometryModel) -> pin.GeometryModel:
+        """``geom`` (robot and environment, before any pair is chosen) with every mesh
+        replaced by its convex hull (:func:`_convexify`), made once per model."""
+        if self._hull_geometry is None:
+            self._hull_geometry = _loaded_hulls(self._geometry_key, geom)
+        return self._hull_geometry
 
     def _add_contact_exclusions(
         self,
@@ -871,24 +935,46 @@ class SafetyModel:
         """Add to ``excluded`` the ``tested`` link pairs in contact (exact geometry) in the
         reference posture, or in at least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random
         ones (``geometry_pairs``: the geometry object pairs of each link pair; ``screened``:
-        their hulls' distances per posture, shape (n_postures,): the exact geometry is tested
-        only where the hulls are within :data:`_SCREEN_SLACK_M`)."""
+        their hulls' distances per posture, shape (n_postures,)).
+
+        The exact geometry is tested only where the hulls are within
+        :data:`_SCREEN_SLACK_M` (hulls apart: meshes apart), and a pair's random postures
+        only until so many are found apart that the fraction cannot be reached.
+        """
         pairs, owner = _flat_pairs(tested, geometry_pairs)
-        where = np.column_stack([screened[ab] <= _SCREEN_SLACK_M for ab in pairs])
-        contact = self._collisions(geom, pairs, self.postures, 0.0, where)  # (n, n_pairs)
-        by_link = np.zeros((contact.shape[0], len(tested)), dtype=bool)
-        np.logical_or.at(by_link.T, owner, contact.T)
+        near = np.column_stack([screened[ab] <= _SCREEN_SLACK_M for ab in pairs])
+        geom.removeAllCollisionPairs()
+        for a, b in pairs:
+            geom.addCollisionPair(pin.CollisionPair(a, b))
+        data, gdata = self.model.createData(), pin.GeometryData(geom)
+        for request in gdata.collisionRequests:
+            request.security_margin = 0.0
+
+        def contact(s: int, columns: npt.NDArray[np.int_]) -> bool:
+            pin.updateGeometryPlacements(self.model, data, geom, gdata, self.postures[s])
+            return any(pin.computeCollision(geom, gdata, int(p)) for p in columns if near[s, p])
+
         n_random = self.postures.shape[0] - 1
         for i, key in enumerate(tested):
-            fraction = float(np.mean(by_link[1:, i]))
+            columns = np.flatnonzero(owner == i)
+            maybe = near[:, columns].any(axis=1)
             # a payload touching a link in the reference posture (an arm folded onto its
             # tool) is no reason to trust the pair elsewhere: only the 95 % rule applies to it
-            if by_link[0, i] and PAYLOAD not in key:
+            if PAYLOAD not in key and maybe[0] and contact(0, columns):
                 excluded[key] = "reference contact (in contact in the reference posture)"
-            elif fraction >= ALWAYS_IN_CONTACT_FRACTION:
+                continue
+            hits, left = 0, int(maybe[1:].sum())
+            for s in (np.flatnonzero(maybe[1:]) + 1).tolist():
+                if (hits + left) / n_random < ALWAYS_IN_CONTACT_FRACTION:
+                    break  # the fraction cannot be reached any more
+                left -= 1
+                hits += contact(s, columns)
+            fraction = hits / n_random
+            if fraction >= ALWAYS_IN_CONTACT_FRACTION:
                 excluded[key] = (
                     f"always in contact (in {100 * fraction:.1f} % of {n_random} random postures)"
                 )
+        geom.removeAllCollisionPairs()
 
     def _settle_margin(
         self,
@@ -1036,7 +1122,10 @@ class SafetyModel:
             return constant
         pairs = [(candidates[k][0], candidates[k][1]) for k in env]
         n_env = min(self.postures.shape[0], 101)
-        within = self._collisions(geom, pairs, self.postures[:n_env], margin=self.clearance_m)
+        # the hulls screen: hulls apart by the margin are meshes apart by it
+        hull = self._exact_distances(self._hulls(geom), pairs, self.postures[:n_env])
+        near = hull < self.clearance_m + _SCREEN_SLACK_M
+        within = self._collisions(geom, pairs, self.postures[:n_env], self.clearance_m, near)
         always = [env[i] for i in np.flatnonzero(within.all(axis=0))]
         if always:
             probe = self.postures[: min(n_env, 6)]

@@ -46,6 +46,7 @@ _N_POSTURES = 300
 ENGINEER_CLEARANCE_M = 0.01
 #: The margin is at most this fraction of a link pair's largest clearance.
 MARGIN_ROOM = 2.0
+_N_CANDIDATES = 16  # postures of clear_posture measured on the exact geometry
 _FAR_M = 0.15  # beyond this clearance [m] a posture is as good as any other
 
 
@@ -249,7 +250,13 @@ def keepable_clearance(safety: SafetyModel, clearance_m: float) -> tuple[float, 
 def clear_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.ndarray, float]:
     """A posture clear of the floor and of itself: of the reference posture (0 clipped into the
     limits) and seeded random ones, the one whose smallest clearance is largest, preferring
-    the reference posture while it keeps three margins. Returns it and its clearance [m]."""
+    the reference posture while it keeps three margins. Returns it and its clearance [m].
+
+    The random postures are ranked by the optimizer's cheap clearances (a lower bound, meshes
+    as their hulls); the :data:`_N_CANDIDATES` best are measured on the exact geometry (up to
+    three margins, beyond which any posture will do) and the best of those is chosen. The
+    clearance returned is exact below three margins, a lower bound above.
+    """
     safety = build_safety_model(
         robot,
         {"clearance_m": clearance_m, "floor": {"enabled": True, "z": floor_z}},
@@ -261,13 +268,15 @@ def clear_posture(robot: Robot, clearance_m: float, floor_z: float) -> tuple[np.
     rng = np.random.default_rng(0)
     # postures near the reference first: a robot's zero is usually a sensible posture
     near = np.clip(reference + rng.uniform(-1.0, 1.0, (_N_POSTURES, robot.nq)), lower, upper)
-    postures = np.vstack([reference[None, :], near])
     if safety.n_pairs == 0:
         return reference, np.inf
-    # exact below 15 cm, a lower bound (the hulls') above: the same choice
-    within = np.full((postures.shape[0], safety.n_pairs), _FAR_M)
+    bound = np.minimum(safety.fast_clearances(near).min(axis=1), _FAR_M)
+    ranked = near[np.argsort(-bound, kind="stable")[:_N_CANDIDATES]]
+    postures = np.vstack([reference[None, :], ranked])
+    # exact below three margins, a lower bound (the hulls') above: beyond three margins,
+    # the reference posture, else the candidate the cheap clearances rank first
+    enough = 3.0 * clearance_m
+    within = np.full((postures.shape[0], safety.n_pairs), enough)
     worst = safety.clearances(postures, within).min(axis=1)
-    if worst[0] >= 3.0 * clearance_m:
-        return reference, float(worst[0])
-    best = int(np.argmax(np.minimum(worst, _FAR_M)))  # beyond 15 cm: the first such posture
+    best = 0 if worst[0] >= enough else int(np.argmax(np.minimum(worst, enough)))
     return postures[best], float(worst[best])
