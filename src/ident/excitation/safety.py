@@ -393,6 +393,8 @@ def _kinematic_model_and_geometry(
 
 _LOADED: dict[tuple[Any, ...], tuple[pin.Model, pin.GeometryModel]] = {}
 _LOADED_HULLS: dict[tuple[Any, ...], pin.GeometryModel] = {}  # the same, meshes as hulls
+# the last screening of SafetyModel._screen: its threshold [m] and its bounds
+_SCREENED: dict[tuple[Any, ...], tuple[float, FloatArray]] = {}
 
 
 def _loaded_geometry(
@@ -902,8 +904,14 @@ class SafetyModel:
         replaced by their hulls, primitives as they are; a hull contains its mesh) wherever
         the bounding spheres (:func:`_sphere_bounds`, containing the geometry) are within
         the margin (and :data:`_SCREEN_SLACK_M`), the spheres' distance elsewhere."""
+        threshold = self.clearance_m + _SCREEN_SLACK_M
+        key = (self._geometry_key, tuple(pairs), self.postures.tobytes())
+        if key in _SCREENED and _SCREENED[key][0] >= threshold:
+            # the same robot, pairs and postures screened at a margin at least as large (init
+            # builds three models): every bound there is exact below this one's threshold
+            return _SCREENED[key][1].copy()
         out = _sphere_bounds(self.model, geom, pairs, self.postures)
-        near = out < self.clearance_m + _SCREEN_SLACK_M
+        near = out < threshold
         if near.any():
             hull = self._hulls(geom)
             hull.removeAllCollisionPairs()
@@ -915,6 +923,8 @@ class SafetyModel:
                 for p in np.flatnonzero(near[s]).tolist():
                     out[s, p] = pin.computeDistance(hull, gdata, p).min_distance
             hull.removeAllCollisionPairs()
+        _SCREENED.clear()
+        _SCREENED[key] = (threshold, out.copy())
         return out
 
     def _hulls(self, geom: pin.GeometryModel) -> pin.GeometryModel:
@@ -957,7 +967,7 @@ class SafetyModel:
         n_random = self.postures.shape[0] - 1
         for i, key in enumerate(tested):
             columns = np.flatnonzero(owner == i)
-            maybe = near[:, columns].any(axis=1)
+            maybe = np.asarray(near[:, columns].any(axis=1), dtype=bool)
             # a payload touching a link in the reference posture (an arm folded onto its
             # tool) is no reason to trust the pair elsewhere: only the 95 % rule applies to it
             if PAYLOAD not in key and maybe[0] and contact(0, columns):
@@ -1004,7 +1014,9 @@ class SafetyModel:
             always = largest < margin
         if margin < self.clearance_m and not always.any():
             close = ", ".join(
-                f"{a}-{b}" for (a, b), d in zip(tested, largest, strict=True) if d < self.clearance_m
+                f"{a}-{b}"
+                for (a, b), d in zip(tested, largest, strict=True)
+                if d < self.clearance_m
             )
             self.margin_note = (
                 f"safety margin lowered from the default {self.clearance_m:g} m to "

@@ -29,6 +29,7 @@ __all__ = [
     "ENGINEER_CLEARANCE_M",
     "MARGIN_ROOM",
     "base_bottom",
+    "chain_tip_link",
     "choose_locks",
     "clear_posture",
     "effort_scale",
@@ -67,24 +68,7 @@ def choose_locks(
         for name in chain_locks(model, base_link, tip_link, where):
             reasons.setdefault(name, "outside the chain from the base link to the tip link")
     else:
-        for name in suggested_locks(model):
-            jid = model.getJointId(name)
-            leaf = not any(int(model.parents[k]) == jid for k in range(1, model.njoints))
-            reasons.setdefault(
-                name,
-                "a gripper finger (a single joint at the tip)"
-                if leaf
-                else "a side branch (the chain follows the deepest branch)",
-            )
-        # a moving gripper joint at the end of a serial chain: its fingers ride on the last link
-        kept = [
-            k for k in range(1, model.njoints) if model.names[k] not in reasons and model.nvs[k]
-        ]
-        for k in reversed(kept):
-            name = model.names[k]
-            if not _GRIPPER.search(name):
-                break
-            reasons[name] = "a gripper joint (named so): the fingers ride on the last link"
+        _branch_reasons(model, reasons)
     values: dict[str, float] = {}
     for name in reasons:
         if name in lock:
@@ -96,6 +80,58 @@ def choose_locks(
         values[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
     lines = [f"{name} locked at {_fmt(values[name])}: {why}" for name, why in reasons.items()]
     return values, lines
+
+
+def _branch_reasons(model: pin.Model, reasons: dict[str, str]) -> None:
+    """Add to ``reasons`` the joints :func:`suggested_locks` locks in a branched ``model``,
+    and a moving gripper joint at the end of its chain, each with why.
+
+    A locked joint is "a gripper finger" only if it hangs from the chain's last joint (a
+    finger of the tool at the tip); any other is off the chain (a head, the other arm), named
+    with the chain's first and last links.
+    """
+    locked = set(suggested_locks(model))
+    kept = [k for k in range(1, model.njoints) if model.names[k] not in locked]
+    tip = max(kept, default=0, key=lambda k: _depth(model, k))
+    chain = f"{_child_link(model, 0)}→{_child_link(model, tip)}"
+    for name in sorted(locked, key=model.getJointId):
+        jid = model.getJointId(name)
+        leaf = not any(int(model.parents[k]) == jid for k in range(1, model.njoints))
+        reasons.setdefault(
+            name,
+            "a gripper finger (a single joint at the tip)"
+            if leaf and int(model.parents[jid]) == tip and tip > 0
+            else f"not on the chain {chain} (a side branch: the chain follows the deepest one)",
+        )
+    # a moving gripper joint at the end of a serial chain: its fingers ride on the last link
+    kept = [k for k in range(1, model.njoints) if model.names[k] not in reasons and model.nvs[k]]
+    for k in reversed(kept):
+        name = model.names[k]
+        if not _GRIPPER.search(name):
+            break
+        reasons[name] = "a gripper joint (named so): the fingers ride on the last link"
+
+
+def _depth(model: pin.Model, joint: int) -> int:
+    """Number of joints from the root to ``joint`` (itself included)."""
+    depth = 0
+    while joint > 0:
+        depth, joint = depth + 1, int(model.parents[joint])
+    return depth
+
+
+def _child_link(model: pin.Model, joint: int) -> str:
+    """The link a joint moves (for joint 0, the root link): the first body frame on it."""
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    on_joint = [
+        f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == joint
+    ]
+    return (on_joint or bodies or ["?"])[0]
+
+
+def chain_tip_link(model: pin.Model) -> str:
+    """The link the last joint of a serial ``model`` moves (the chain's tip link)."""
+    return _child_link(model, model.njoints - 1)
 
 
 def urdf_acceleration_limits(urdf_text: str, joint_names: tuple[str, ...]) -> np.ndarray:
