@@ -139,10 +139,6 @@ def newcomer(urdf: Path, package_dir: Path | None) -> None:
         print(f"{'first hour':18s} wall {total_wall:7.1f} s  CPU {total_cpu:7.1f} s")
 
 
-if __name__ == "__main__":
-    main()
-
-
 def _seconds(text: str, pattern: str) -> float:
     """The duration after ``pattern`` in ``text`` ("36 s", "2.88 min", "1.2 h") [s]; NaN."""
     match = re.search(pattern + r"(\d+(?:\.\d+)?(?:e[+-]?\d+)?) (s|min|h|days)\b", text)
@@ -221,3 +217,7 @@ def zoo(names: list[str]) -> None:
                 f"{verdict[:24]:24s} {worst:>9s}  {clearance}",
                 flush=True,
             )
+
+
+if __name__ == "__main__":
+    main()
