@@ -50,7 +50,7 @@ ZOO: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("z1", "z1_description/urdf/z1.urdf", ()),
     ("xarm7", "xarm_description/urdf/xarm7.urdf", ()),
     ("so101", "so_arm_description/urdf/so101.urdf", ()),
-    ("baxter_left", "baxter_description/urdf/baxter.urdf", ("--tip-link", "left_hand")),
+    ("baxter_left", "baxter_description/urdf/baxter.urdf", ()),  # init picks the left arm
     ("tiago_arm", "tiago_description/robots/tiago.urdf", ("--tip-link", "arm_7_link")),
 )
 

@@ -53,10 +53,10 @@ def init(
     for note in result.notes:
         typer.echo(note)
     typer.echo(
-        f"wrote {output}; estimated wall time: 'ident run {output} --quick' about "
-        f"{result.quick_seconds:.0f} s, 'ident run {output}' about {result.seconds:.0f} s "
-        "of design, plus 10-30 s for the safety check, the simulation and the report (measured "
-        "on a busy 2-core machine)"
+        f"wrote {output}; estimated wall time on an idle 2-core machine (its CPU time): "
+        f"'ident run {output} --quick' about {result.quick_seconds:.0f} s, 'ident run "
+        f"{output}' about {result.seconds:.0f} s, start-up, safety check, simulation, "
+        "identification and report included"
     )
 
 
