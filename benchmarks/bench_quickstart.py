@@ -211,9 +211,12 @@ def zoo(names: list[str]) -> None:
             )
             run_est = _seconds(output, r"estimate: run: .*?memory and ")
             verdict, worst, clearance = _run_outcome(output)
+            # ident run prints its estimate only above a minute (the same model as init's)
+            shown = "-" if run_est != run_est else f"{run_est:.0f}"
+            ratio = "-" if run_est != run_est else f"{run_est / run_cpu:.2f}"
             print(
                 f"{name:12s} {init_cpu:9.1f} {run_cpu:9.1f} {init_est:8.0f} "
-                f"{init_est / run_cpu:6.2f} {run_est:8.0f} {run_est / run_cpu:6.2f}  "
+                f"{init_est / run_cpu:6.2f} {shown:>8s} {ratio:>6s}  "
                 f"{verdict[:24]:24s} {worst:>9s}  {clearance}",
                 flush=True,
             )
