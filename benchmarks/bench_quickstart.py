@@ -14,7 +14,14 @@ README.md and printed with the ratio measured / stated, so a stale documented ti
 ``--newcomer`` times the first hour of a robot the configs do not ship: ``ident init URDF``
 then the full ``ident run CONFIG`` it wrote, as ``docs/your-robot.md`` tells a newcomer to.
 
-Budget: about 1.5 min for the default pair on a loaded 2-core machine.
+``--zoo`` runs ``ident init`` then ``ident run CONFIG --quick`` on the example-robot-data arms
+(:data:`ZOO`; ``--zoo NAME ...`` for some of them) and prints per robot: the CPU of each,
+``init``'s and ``run``'s estimates of the quick run against its CPU (the ratio), the verdict,
+the worst parameter error and the smallest clearance (from the run folder's result.json).
+About 2-5 min of CPU per robot.
+
+Budget: about 1.5 min for the default pair on a loaded 2-core machine; ``--zoo``: about
+30 min for the eleven arms.
 """
 
 from __future__ import annotations
@@ -32,6 +39,20 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+
+#: The example-robot-data arms of ``--zoo``: name, URDF under robots/, extra ``init`` options.
+ZOO: tuple[tuple[str, str, tuple[str, ...]], ...] = (
+    ("ur3", "ur_description/urdf/ur3_robot.urdf", ()),
+    ("ur5", "ur_description/urdf/ur5_robot.urdf", ()),
+    ("ur10", "ur_description/urdf/ur10_robot.urdf", ()),
+    ("panda", "panda_description/urdf/panda.urdf", ()),
+    ("kinova", "kinova_description/robots/kinova.urdf", ()),
+    ("z1", "z1_description/urdf/z1.urdf", ()),
+    ("xarm7", "xarm_description/urdf/xarm7.urdf", ()),
+    ("so101", "so_arm_description/urdf/so101.urdf", ()),
+    ("baxter_left", "baxter_description/urdf/baxter.urdf", ()),  # init picks the left arm
+    ("tiago_arm", "tiago_description/robots/tiago.urdf", ("--tip-link", "arm_7_link")),
+)
 
 
 def stated_seconds(readme: str, config: str) -> float | None:
@@ -65,7 +86,13 @@ def main() -> None:
     parser.add_argument("--no-quick", action="store_true", help="skip the --quick run")
     parser.add_argument("--newcomer", type=Path, help="URDF: time ident init + the full run")
     parser.add_argument("--package-dir", type=Path, help="package:// folder of its meshes")
+    parser.add_argument(
+        "--zoo", nargs="*", metavar="NAME", help="init + run --quick on example-robot-data arms"
+    )
     args = parser.parse_args()
+    if args.zoo is not None:
+        zoo(args.zoo)
+        return
     if args.newcomer is not None:
         newcomer(args.newcomer, args.package_dir)
         return
@@ -110,6 +137,89 @@ def newcomer(urdf: Path, package_dir: Path | None) -> None:
             total_wall, total_cpu = total_wall + wall, total_cpu + cpu
             print(f"{name:18s} wall {wall:7.1f} s  CPU {cpu:7.1f} s  exit {code}  {verdict}")
         print(f"{'first hour':18s} wall {total_wall:7.1f} s  CPU {total_cpu:7.1f} s")
+
+
+def _seconds(text: str, pattern: str) -> float:
+    """The duration after ``pattern`` in ``text`` ("36 s", "2.88 min", "1.2 h") [s]; NaN."""
+    match = re.search(pattern + r"(\d+(?:\.\d+)?(?:e[+-]?\d+)?) (s|min|h|days)\b", text)
+    if match is None:
+        return float("nan")
+    scale = {"s": 1.0, "min": 60.0, "h": 3600.0, "days": 86400.0}[match.group(2)]
+    return float(match.group(1)) * scale
+
+
+def _cpu_job(args: list[str]) -> tuple[float, int, str]:
+    """Run ``ident`` with ``args``: child CPU time [s], exit code, stdout + stderr."""
+    ident = shutil.which("ident") or str(Path(sys.executable).with_name("ident"))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    done = subprocess.run([ident, *args], capture_output=True, text=True, check=False)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return cpu, done.returncode, done.stdout + done.stderr
+
+
+def _run_outcome(output: str) -> tuple[str, str, str]:
+    """Verdict, worst parameter error and smallest clearance of a run, from its result.json
+    (or the error line)."""
+    folder = next(
+        (ln.split(":", 1)[1].strip() for ln in output.splitlines() if ln.startswith("Run folder:")),
+        "",
+    )
+    result = Path(folder) / "result.json"
+    if not folder or not result.is_file():
+        error = next((ln for ln in output.splitlines() if ln.startswith("error:")), "failed")
+        return error[:60], "-", "-"
+    data = json.loads(result.read_text(encoding="utf-8"))
+    verdict = data.get("verdict", {})
+    worst = verdict.get("worst_error_percent")
+    match = re.search(
+        r"clearance (-?\d+(?:\.\d+)?) m at", data.get("safety", {}).get("message", "")
+    )
+    ok = "" if data.get("safety", {}).get("ok", False) else " UNSAFE"
+    return (
+        str(verdict.get("label", data.get("status", "?"))),
+        "-" if worst is None else f"{worst:.1f} %",
+        ("-" if match is None else f"{float(match.group(1)) * 1e3:.1f} mm") + ok,
+    )
+
+
+def zoo(names: list[str]) -> None:
+    """``ident init`` then ``ident run --quick`` on each arm of :data:`ZOO` (all, or
+    ``names``): CPU, estimates against the CPU, verdict, worst error, smallest clearance."""
+    import importlib.metadata
+
+    share = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share")
+    robots = Path(str(share)) / "example-robot-data/robots"
+    chosen = [z for z in ZOO if not names or z[0] in names]
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
+    print(
+        f"{'robot':12s} {'init CPU':>9s} {'quick CPU':>9s} {'init est':>8s} {'ratio':>6s} "
+        f"{'run est':>8s} {'ratio':>6s}  {'verdict':24s} {'worst err':>9s}  clearance"
+    )
+    with tempfile.TemporaryDirectory(prefix="ident-zoo-") as out:
+        for name, path, extra in chosen:
+            config = Path(out) / f"{name}.yaml"
+            init_cpu, code, text = _cpu_job(["init", str(robots / path), "-o", str(config), *extra])
+            if code != 0:
+                print(
+                    f"{name:12s} {init_cpu:9.1f}  init failed: {text.strip().splitlines()[-1][:90]}"
+                )
+                continue
+            init_est = _seconds(text, r"--quick' about ")
+            run_cpu, _, output = _cpu_job(
+                ["run", str(config), "--quick", "--no-replay", "--out", str(Path(out) / "runs")]
+            )
+            run_est = _seconds(output, r"estimate: run: .*?memory and ")
+            verdict, worst, clearance = _run_outcome(output)
+            # ident run prints its estimate only above a minute (the same model as init's)
+            shown = "-" if run_est != run_est else f"{run_est:.0f}"
+            ratio = "-" if run_est != run_est else f"{run_est / run_cpu:.2f}"
+            print(
+                f"{name:12s} {init_cpu:9.1f} {run_cpu:9.1f} {init_est:8.0f} "
+                f"{init_est / run_cpu:6.2f} {shown:>8s} {ratio:>6s}  "
+                f"{verdict[:24]:24s} {worst:>9s}  {clearance}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

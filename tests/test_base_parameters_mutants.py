@@ -181,8 +181,10 @@ def test_small_torques_have_the_same_shares():
 def _chain(axes, parents, gravity=(0.0, 0.0, -9.81)):
     """The fields of a KinematicChain that nearly_aligned_axes reads (identity placements)."""
     n = len(axes)
+    names = tuple(f"j{k + 1}" for k in range(n))
     return SimpleNamespace(
-        joint_names=tuple(f"j{k + 1}" for k in range(n)),
+        joint_names=names,
+        body_names=names,  # a chain without mimic joints: one body per joint
         parents=np.asarray(parents),
         placements=np.tile(np.eye(4), (n, 1, 1)),
         axes=np.asarray(axes, dtype=float),

@@ -120,7 +120,7 @@ def test_fit_warnings():
     assert payload_fit_warnings(0.004, 0.0039, "without") == ([], 1.0)
     warnings, factor = payload_fit_warnings(0.25, 0.01, "model")
     assert factor == pytest.approx(25.0)
-    assert any("> 0.2" in w for w in warnings)  # the plain residual limit
+    assert any("25 % of the torques unexplained" in w for w in warnings)  # the plain limit
     warnings, factor = payload_fit_warnings(0.01, None, "model")
     assert factor == 1.0
     assert any("not run" in w for w in warnings)

@@ -118,8 +118,13 @@ def _verdicts(selection: RobotSelection) -> dict[str, object]:
         # the rank is the question here, not a safety margin: robots whose links sit within
         # the default 3 cm in every posture, or legged robots whose feet start below z = 0,
         # are refused by the safety section (tests/test_safety_environment.py); the safety
-        # model is still built on every robot's collision meshes
-        safety = {"clearance_m": 0.0, "floor": {"enabled": False}}
+        # model is still built on every robot's collision meshes; robots without any geometry
+        # are refused unless self-collision is declined (tests/test_mesh_paths.py)
+        safety = {
+            "clearance_m": 0.0,
+            "floor": {"enabled": False},
+            "self_collision": _has_geometry(selection.urdf),
+        }
         setup = prepare_run(
             RunConfig(
                 robot=selection,
@@ -142,6 +147,11 @@ def _verdicts(selection: RobotSelection) -> dict[str, object]:
     except IdentError as e:
         out["identify"] = f"refused: {type(e).__name__}"
     return out
+
+
+def _has_geometry(path: Path) -> bool:
+    text = path.read_text()
+    return "<collision" in text or "<visual" in text
 
 
 def _loadable_by_pinocchio(path: Path) -> bool:

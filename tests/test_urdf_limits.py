@@ -121,7 +121,7 @@ def _sweep(robot: Robot, amplitude: tuple[float, float]) -> tuple[np.ndarray, ..
 
 
 def _check(robot: Robot, amplitude: tuple[float, float]):  # noqa: ANN202 - a SafetyReport
-    safety = build_safety_model(robot, {"floor": {"enabled": False}})
+    safety = build_safety_model(robot, {"floor": {"enabled": False}, "self_collision": False})
     return check_trajectory(robot, safety, *_sweep(robot, amplitude))
 
 

@@ -211,14 +211,43 @@ def read_trajectory_csv(path: str | Path, *, allow_positions_only: bool = False)
     names = tuple(blocks["q"])
     positions_only = "dq" not in blocks and "ddq" not in blocks
     if not (positions_only and allow_positions_only):
-        missing = [p + "_*" for p in ("dq", "ddq") if p not in blocks]
-        if missing:
-            hint = " (ident replay also reads position-only files t, q_*)" if positions_only else ""
-            raise DataError(
-                f"{path}: columns do not match the trajectory format; missing the "
-                f"{' and '.join(missing)} columns of joints {list(names)}, expected order "
-                f"t, q_*, dq_*, ddq_*[, tau_*]{hint}."
-            )
+        _require_derivative_blocks(path, blocks, names, positions_only)
+    data = _numeric_rows(path, header)
+    t = data[:, 0]
+    nj = len(names)
+    present = [p for p in _PREFIXES if p in blocks]
+    arrays = {p: data[:, 1 + k * nj : 1 + (k + 1) * nj] for k, p in enumerate(present)}
+    if positions_only:
+        arrays["dq"] = _derivative(arrays["q"], t)
+        arrays["ddq"] = _derivative(arrays["dq"], t)
+    return JointTrajectory(
+        t=t,
+        q=arrays["q"],
+        dq=arrays["dq"],
+        ddq=arrays["ddq"],
+        joint_names=names,
+        tau=arrays.get("tau"),
+        source=str(path),
+    )
+
+
+def _require_derivative_blocks(
+    path: Path, blocks: dict[str, list[str]], names: tuple[str, ...], positions_only: bool
+) -> None:
+    """Raise :class:`DataError` unless the header has the dq_* and ddq_* blocks."""
+    missing = [p + "_*" for p in ("dq", "ddq") if p not in blocks]
+    if missing:
+        hint = " (ident replay also reads position-only files t, q_*)" if positions_only else ""
+        raise DataError(
+            f"{path}: columns do not match the trajectory format; missing the "
+            f"{' and '.join(missing)} columns of joints {list(names)}, expected order "
+            f"t, q_*, dq_*, ddq_*[, tau_*]{hint}."
+        )
+
+
+def _numeric_rows(path: Path, header: list[str]) -> FloatArray:
+    """The data rows (n_samples, n_columns) of the CSV, checked: numeric, at least 2 samples,
+    one value per header column, finite, time (column 0) strictly increasing."""
     try:
         data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     except ValueError as e:
@@ -239,18 +268,4 @@ def read_trajectory_csv(path: str | Path, *, allow_positions_only: bool = False)
     if np.any(np.diff(t) <= 0):
         row = int(np.argmax(np.diff(t) <= 0)) + 2
         raise DataError(f"{path}: time column 't' is not strictly increasing (row {row}).")
-    nj = len(names)
-    present = [p for p in _PREFIXES if p in blocks]
-    arrays = {p: data[:, 1 + k * nj : 1 + (k + 1) * nj] for k, p in enumerate(present)}
-    if positions_only:
-        arrays["dq"] = _derivative(arrays["q"], t)
-        arrays["ddq"] = _derivative(arrays["dq"], t)
-    return JointTrajectory(
-        t=t,
-        q=arrays["q"],
-        dq=arrays["dq"],
-        ddq=arrays["ddq"],
-        joint_names=names,
-        tau=arrays.get("tau"),
-        source=str(path),
-    )
+    return data

@@ -350,51 +350,14 @@ def write_campaign(result: CampaignResult, folder: str | Path) -> list[Path]:
     """Write every file of the campaign folder (see module docstring); returns their paths."""
     folder = Path(folder)
     cfg = result.config
-    written: list[Path] = []
-    runs: list[list[Any]] = [
-        ["function", "table_id", "method", "run", "error", "f", "nfev", "nit", "seconds",
-         "n_nonfinite"]
-    ]  # fmt: skip
-    curves: list[list[Any]] = [["function", "method", "run", "nfev", "error"]]
-    for r in result.records:
-        runs.append([r.function, _table_id(r.function) or "", r.method, r.run, repr(r.error),
-                     repr(r.fun), r.nfev, r.nit, f"{r.seconds:.6f}", r.n_nonfinite])  # fmt: skip
-        curves += [
-            [r.function, r.method, r.run, int(n), repr(float(e))]
-            for n, e in zip(r.curve_nfev, r.curve_error, strict=True)
-        ]
-    written.append(atomic_write_text(folder / "runs.csv", _csv(runs)))
-    written.append(atomic_write_text(folder / "curves.csv", _csv(curves)))
-    stats: list[list[Any]] = [
-        ["function", "table_id", "method", "min", "mean", "std", "paper_min", "paper_mean",
-         "paper_std"]
-    ]  # fmt: skip
-    for f in cfg.function_keys():
-        tid = _table_id(f)
-        for m in cfg.methods:
-            s = summary_stats(result.errors(f, m))
-            p = [paper_value(tid, k, m) if tid else None for k in ("Min", "Ave", "StDev")]
-            stats.append([f, tid or "", m, *map(repr, s), *("" if v is None else v for v in p)])
-    written.append(atomic_write_text(folder / "stats.csv", _csv(stats)))
-    wil: list[list[Any]] = [
-        ["function", "table_id", "best", "paper_best", "method", "p", "paper_p"]
+    runs, curves = _runs_rows(result)
+    written = [
+        atomic_write_text(folder / "runs.csv", _csv(runs)),
+        atomic_write_text(folder / "curves.csv", _csv(curves)),
+        atomic_write_text(folder / "stats.csv", _csv(_stats_rows(result))),
+        atomic_write_text(folder / "wilcoxon.csv", _csv(_wilcoxon_rows(result))),
+        atomic_write_text(folder / "summary.csv", _csv(_summary_rows(result))),
     ]
-    for f, (best, row) in wilcoxon_table(result).items():
-        tid = _table_id(f)
-        for m in cfg.methods:
-            pv = paper_value(tid, "p", m) if tid else None
-            ours = "NA" if row[m] is None else repr(row[m])
-            paper_p = "" if pv is None else pv
-            wil.append([f, tid or "", best, _paper_best(tid) or "", m, ours, paper_p])
-    written.append(atomic_write_text(folder / "wilcoxon.csv", _csv(wil)))
-    summ: list[list[Any]] = [["table", "group", "method", "wins", "ties", "losses", "paper"]]
-    for kind, tname, paper in (("min", "7", PAPER_TABLE7), ("wilcoxon", "9", PAPER_TABLE9)):
-        for g, per in win_tie_loss(result, kind).items():  # type: ignore[arg-type]
-            for m in cfg.methods:
-                j = PAPER_ALGORITHMS.index(m) if m in PAPER_ALGORITHMS else None
-                pp = paper.get(g)
-                summ.append([tname, g, m, *per[m], pp[j] if pp and j is not None else ""])
-    written.append(atomic_write_text(folder / "summary.csv", _csv(summ)))
     figs = convergence_figures(result)
     for name, png in figs.items():
         written.append(atomic_write_bytes(folder / name, png))
@@ -414,6 +377,68 @@ def write_campaign(result: CampaignResult, folder: str | Path) -> list[Path]:
     page = markdown_to_html(md, title=f"ident bench: {cfg.name}", images=figs)
     written.append(atomic_write_text(folder / "report.html", page))
     return written
+
+
+def _runs_rows(result: CampaignResult) -> tuple[list[list[Any]], list[list[Any]]]:
+    """Rows (header first) of runs.csv (one per run) and curves.csv (one per curve point)."""
+    runs: list[list[Any]] = [
+        ["function", "table_id", "method", "run", "error", "f", "nfev", "nit", "seconds",
+         "n_nonfinite"]
+    ]  # fmt: skip
+    curves: list[list[Any]] = [["function", "method", "run", "nfev", "error"]]
+    for r in result.records:
+        runs.append([r.function, _table_id(r.function) or "", r.method, r.run, repr(r.error),
+                     repr(r.fun), r.nfev, r.nit, f"{r.seconds:.6f}", r.n_nonfinite])  # fmt: skip
+        curves += [
+            [r.function, r.method, r.run, int(n), repr(float(e))]
+            for n, e in zip(r.curve_nfev, r.curve_error, strict=True)
+        ]
+    return runs, curves
+
+
+def _stats_rows(result: CampaignResult) -> list[list[Any]]:
+    """Rows (header first) of stats.csv: min, mean, std of the errors per function and method,
+    next to the paper's."""
+    stats: list[list[Any]] = [
+        ["function", "table_id", "method", "min", "mean", "std", "paper_min", "paper_mean",
+         "paper_std"]
+    ]  # fmt: skip
+    for f in result.config.function_keys():
+        tid = _table_id(f)
+        for m in result.config.methods:
+            s = summary_stats(result.errors(f, m))
+            p = [paper_value(tid, k, m) if tid else None for k in ("Min", "Ave", "StDev")]
+            stats.append([f, tid or "", m, *map(repr, s), *("" if v is None else v for v in p)])
+    return stats
+
+
+def _wilcoxon_rows(result: CampaignResult) -> list[list[Any]]:
+    """Rows (header first) of wilcoxon.csv: the p-value of each method against the best, next
+    to the paper's."""
+    wil: list[list[Any]] = [
+        ["function", "table_id", "best", "paper_best", "method", "p", "paper_p"]
+    ]
+    for f, (best, row) in wilcoxon_table(result).items():
+        tid = _table_id(f)
+        for m in result.config.methods:
+            pv = paper_value(tid, "p", m) if tid else None
+            ours = "NA" if row[m] is None else repr(row[m])
+            paper_p = "" if pv is None else pv
+            wil.append([f, tid or "", best, _paper_best(tid) or "", m, ours, paper_p])
+    return wil
+
+
+def _summary_rows(result: CampaignResult) -> list[list[Any]]:
+    """Rows (header first) of summary.csv: wins, ties, losses per group and method of the
+    paper's tables 7 (min) and 9 (Wilcoxon), next to the paper's."""
+    summ: list[list[Any]] = [["table", "group", "method", "wins", "ties", "losses", "paper"]]
+    for kind, tname, paper in (("min", "7", PAPER_TABLE7), ("wilcoxon", "9", PAPER_TABLE9)):
+        for g, per in win_tie_loss(result, kind).items():  # type: ignore[arg-type]
+            for m in result.config.methods:
+                j = PAPER_ALGORITHMS.index(m) if m in PAPER_ALGORITHMS else None
+                pp = paper.get(g)
+                summ.append([tname, g, m, *per[m], pp[j] if pp and j is not None else ""])
+    return summ
 
 
 def load_campaign(folder: str | Path) -> CampaignResult:

@@ -151,8 +151,7 @@ def _save_and_report(result: Any, rundir: Any, replay: bool) -> tuple[Any, str, 
     try:
         exports, replay_note = _save_results(result, rundir, replay)
         return exports, replay_note, _write_report(rundir, result.message)
-    except IdentError as e:
-        rundir.finish("incomplete", f"the run stopped while writing its files: {one_line(e)}")
+    except IdentError as e:  # the folder is marked already, with the step that failed
         typer.echo(f"error: the run stopped while writing its files: {one_line(e)}", err=True)
         typer.echo(f"(run folder: {rundir.path})", err=True)
         raise typer.Exit(code=EXIT_NOT_IDENTIFIED) from None

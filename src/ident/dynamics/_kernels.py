@@ -31,9 +31,10 @@ def chain_arrays(chain: KinematicChain) -> tuple[FloatArray, FloatArray, np.ndar
 
 @njit(cache=True, fastmath=True, inline="always")
 def _scratch(n: int) -> tuple[Arr, Arr, Arr, Arr, Arr, Arr]:
-    """Per-call buffers of :func:`_forward`: rotations, positions, velocities, accelerations,
-    and the joint position each rotation and position was last computed for (valid where the
-    flag is set)."""
+    """Per-call buffers of :func:`_forward`: rot[i], pos[i] = parent_R_i, parent_p_i; per joint
+    frame vel[i] = (v, w), acc[i] = (classical linear acceleration a + w x v, alpha); and the
+    joint position each rotation and position was last computed for (valid where the flag is
+    set)."""
     return (
         np.empty((n, 3, 3)),
         np.empty((n, 3)),
@@ -79,37 +80,32 @@ def _joint_placement(
         pos[r] = placement[r, 3]
 
 
-@njit(cache=True, fastmath=True, inline="always")  # inlined: about 15% faster
-def _forward(
-    placements: Arr,
-    axes: Arr,
-    prismatic: Arr,
-    gravity: Arr,
-    q: Arr,
-    dq: Arr,
-    ddq: Arr,
-    rot: Arr,
-    pos: Arr,
-    vel: Arr,
-    acc: Arr,
-    last_q: Arr,
-    known: Arr,
-) -> None:
-    """Kinematics of one sample: parent_R_i, parent_p_i, and per joint frame
-    vel[i] = (v, w), acc[i] = (classical linear acceleration a + w x v, alpha).
+Chain = tuple[Arr, Arr, Arr, Arr]  # the arrays of chain_arrays
+Scratch = tuple[Arr, Arr, Arr, Arr, Arr, Arr]  # of _scratch: rot, pos, vel, acc, last_q, known
 
-    rot[i] and pos[i] depend on q[i] alone: they are kept from the previous sample where q[i]
-    is the same (a held joint: no sin, cos, product of rotations)."""
+
+@njit(cache=True, fastmath=True, inline="always")
+def _moved(q: Arr, last_q: Arr, known: Arr, i: int) -> bool:
+    """Whether joint i's rot[i], pos[i] must be computed for q[i] (not kept from the previous
+    sample: a held joint needs no sin, cos, product of rotations); records q[i] as computed."""
+    moved = not (known[i] and q[i] == last_q[i])
+    last_q[i] = q[i]
+    known[i] = True
+    return moved
+
+
+@njit(cache=True, fastmath=True, inline="always")  # inlined: about 15% faster
+def _forward(chain: Chain, q: Arr, dq: Arr, ddq: Arr, scratch: Scratch) -> None:
+    """Kinematics of one sample into ``scratch`` (the buffers of :func:`_scratch`)."""
+    placements, axes, prismatic, gravity = chain
+    rot, pos, vel, acc, last_q, known = scratch
     n = q.shape[0]
-    vx = vy = vz = wx = wy = wz = 0.0
+    vx = vy = vz = wx = wy = wz = bx = by = bz = 0.0  # b: angular acceleration
     ax, ay, az = -gravity[0], -gravity[1], -gravity[2]  # gravity as base acceleration
-    bx = by = bz = 0.0  # angular acceleration
     for i in range(n):
         kx, ky, kz = axes[i, 0], axes[i, 1], axes[i, 2]
-        if not (known[i] and q[i] == last_q[i]):  # else rot[i], pos[i] as computed for q[i]
+        if _moved(q, last_q, known, i):  # else rot[i], pos[i] as computed for q[i]
             _joint_placement(placements[i], kx, ky, kz, prismatic[i], q[i], rot[i], pos[i])
-        last_q[i] = q[i]
-        known[i] = True
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         # move the parent's motion to the new origin (in the parent frame)
         ux = vx + wy * pz - wz * py
@@ -163,32 +159,16 @@ def _forward(
 
 @njit(cache=True, fastmath=True, inline="always")
 def _sample(
-    placements: Arr,
-    axes: Arr,
-    prismatic: Arr,
-    gravity: Arr,
-    q: Arr,
-    dq: Arr,
-    ddq: Arr,
-    row_used: Arr,
-    body_used: Arr,
-    rot: Arr,
-    pos: Arr,
-    vel: Arr,
-    acc: Arr,
-    last_q: Arr,
-    known: Arr,
-    y: Arr,
+    chain: Chain, q: Arr, dq: Arr, ddq: Arr, row_used: Arr, body_used: Arr, scratch: Scratch, y: Arr
 ) -> None:
-    """Regressor of one sample into y (n, 10 n): entries (j, block i) for i >= j, row_used[j]
-    and body_used[i]; other entries are left untouched.
-
-    ``Y[j, block i] = S_j^T jX*_i A_i = (iX_j S_j)^T A_i``: the joint-j axis is carried up
-    the chain as a motion vector (u, r) and dotted with the wrench regressor of body i,
-    written out with its sparsity (mass: force only; inertia: moment only)."""
-    n = q.shape[0]
-    _forward(placements, axes, prismatic, gravity, q, dq, ddq, rot, pos, vel, acc, last_q, known)
-    for j in range(n):
+    """Regressor of one sample into y (n, 10 n), entries (j, block i) for i >= j, row_used[j],
+    body_used[i] (others untouched): ``Y[j, block i] = S_j^T jX*_i A_i = (iX_j S_j)^T A_i``, the
+    joint-j axis carried up the chain as a motion vector (u, r) dotted with the wrench regressor
+    of body i, written out with its sparsity (mass: force only; inertia: moment only)."""
+    _, axes, prismatic, _ = chain
+    rot, pos, vel, acc, _, _ = scratch
+    _forward(chain, q, dq, ddq, scratch)
+    for j in range(q.shape[0]):
         if not row_used[j]:
             continue
         kx, ky, kz = axes[j, 0], axes[j, 1], axes[j, 2]
@@ -196,7 +176,7 @@ def _sample(
             ux, uy, uz, rx, ry, rz = kx, ky, kz, 0.0, 0.0, 0.0
         else:
             ux, uy, uz, rx, ry, rz = 0.0, 0.0, 0.0, kx, ky, kz
-        for i in range(j, n):
+        for i in range(j, q.shape[0]):
             if i > j:
                 # motion transform parent -> i: u' = R^T (u + r x p), r' = R^T r
                 R = rot[i]
@@ -246,31 +226,15 @@ def regressor_into(
 ) -> None:
     """Full regressor of every sample into out (n_samples, n, 10 n)."""
     n = q.shape[1]
-    rot, pos, vel, acc, last_q, known = _scratch(n)
+    chain = (placements, axes, prismatic, gravity)
+    scratch = _scratch(n)
     used = np.ones(n, dtype=np.bool_)
     for k in range(q.shape[0]):
         y = out[k]
         for j in range(1, n):  # bodies before the joint: zero (serial chain)
             for c in range(10 * j):
                 y[j, c] = 0.0
-        _sample(
-            placements,
-            axes,
-            prismatic,
-            gravity,
-            q[k],
-            dq[k],
-            ddq[k],
-            used,
-            used,
-            rot,
-            pos,
-            vel,
-            acc,
-            last_q,
-            known,
-            y,
-        )
+        _sample(chain, q[k], dq[k], ddq[k], used, used, scratch, y)
 
 
 @njit(cache=True, fastmath=True, nogil=True)
@@ -292,7 +256,8 @@ def selected_rows_into(
     """Weighted rows/columns of samples start..stop-1, sample-major, into
     out[(k - start) * len(rows) + r, c] = weights[r] * Y_k[rows[r], columns[c]]."""
     n = q.shape[1]
-    rot, pos, vel, acc, last_q, known = _scratch(n)
+    chain = (placements, axes, prismatic, gravity)
+    scratch = _scratch(n)
     y = np.zeros((n, 10 * n))  # entries not computed stay zero (bodies before the joint)
     row_used = np.zeros(n, dtype=np.bool_)
     body_used = np.zeros(n, dtype=np.bool_)
@@ -302,24 +267,7 @@ def selected_rows_into(
         body_used[columns[c] // 10] = True
     n_rows = rows.shape[0]
     for k in range(start, stop):
-        _sample(
-            placements,
-            axes,
-            prismatic,
-            gravity,
-            q[k],
-            dq[k],
-            ddq[k],
-            row_used,
-            body_used,
-            rot,
-            pos,
-            vel,
-            acc,
-            last_q,
-            known,
-            y,
-        )
+        _sample(chain, q[k], dq[k], ddq[k], row_used, body_used, scratch, y)
         base = (k - start) * n_rows
         for r in range(n_rows):
             j = rows[r]

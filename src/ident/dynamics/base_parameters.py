@@ -298,39 +298,54 @@ def compute_base_parameters(
 
     Notes
     -----
-    Column units differ (kg, kg*m, kg*m^2 parameters give columns in m/s^2, m/s^2 and
-    1/s^2 times lever arms), and their norms differ by orders of magnitude; identifiability
-    does not depend on those units (scaling a parameter scales its column). So:
+    Column units differ (kg, kg*m, kg*m^2 parameters give columns in m/s^2, m/s^2 and 1/s^2
+    times lever arms), and their norms differ by orders of magnitude; identifiability does not
+    depend on those units (scaling a parameter scales its column). So:
 
     1. A column is *unidentifiable* when its norm is at most ``max(W.shape) * eps`` (or
        ``rtol`` when given) times the largest column norm (it is zero up to the round-off of
        the computation that produced it).
-    2. The other columns are divided by their norms, and the rank decisions are made on
-       this normalized matrix with ``rtol``: a column is independent when its part
-       orthogonal to the independent columns before it has a norm above ``rtol``
-       (sequential), or when ``|R_kk| > rtol * |R_00|`` (pivoted QR; ``|R_00| = 1``).
+    2. The other columns are divided by their norms, and the rank decisions are made on this
+       normalized matrix with ``rtol``: a column is independent when its part orthogonal to
+       the independent columns before it has a norm above ``rtol`` (sequential), or when
+       ``|R_kk| > rtol * |R_00|`` (pivoted QR; ``|R_00| = 1``).
 
-    The rank then equals ``numpy.linalg.matrix_rank`` of the normalized matrix, and is the
-    same for both methods unless a singular value sits at the tolerance.
-
-    Raises
-    ------
-    DataError
-        For a non-2-D or non-finite ``W``, a wrong number of names, or an unknown method.
+    The rank then equals ``numpy.linalg.matrix_rank`` of the normalized matrix, and is the same
+    for both methods unless a singular value sits at the tolerance. Raises :class:`DataError`
+    for a non-2-D or non-finite ``W``, a wrong number of names, or an unknown method.
     """
     W, names = _checked_observation_matrix(W, names, method)
     tol = RANK_RTOL if rtol is None else float(rtol)
     zero_tol = float(max(W.shape) * np.finfo(float).eps) if rtol is None else tol
     normalized, norms, nonzero = _normalized_columns(W, zero_tol)
     search = _sequential if method == "sequential" else _pivoted_qr
-    independent, dependent, score_map = search(normalized, np.flatnonzero(nonzero), tol)
+    found = search(normalized, np.flatnonzero(nonzero), tol)
+    base = _classified(names, normalized, norms, nonzero, found, tol, method)
+    note = base.near_dependence_note()
+    if note:
+        warnings.warn(note[0].upper() + note[1:] + ".", IdentWarning, stacklevel=2)
+    return base
+
+
+def _classified(
+    names: tuple[str, ...],
+    normalized: FloatArray,
+    norms: FloatArray,
+    nonzero: np.ndarray,
+    found: tuple[list[int], list[int], dict[int, float]],
+    tol: float,
+    method: str,
+) -> BaseParameters:
+    """The :class:`BaseParameters` of a column search's (independent, dependent, scores) on
+    the normalized matrix (n_rows, n_params) with column ``norms`` and ``nonzero`` mask."""
+    independent, dependent, score_map = found
     independent_idx = np.array(independent, dtype=np.intp)
     dependent_idx = np.array(dependent, dtype=np.intp)
     K, k_normalized = _combination_matrix(normalized, norms, independent_idx, dependent_idx)
     scores = np.zeros(len(names))
     for j, score in score_map.items():
         scores[j] = score
-    base = BaseParameters(
+    return BaseParameters(
         names=names,
         independent=independent_idx,
         dependent=dependent_idx,
@@ -342,10 +357,6 @@ def compute_base_parameters(
         scores=scores,
         _K_normalized=k_normalized,
     )
-    note = base.near_dependence_note()
-    if note:
-        warnings.warn(note[0].upper() + note[1:] + ".", IdentWarning, stacklevel=2)
-    return base
 
 
 def _checked_observation_matrix(

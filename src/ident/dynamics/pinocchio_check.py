@@ -17,7 +17,7 @@ from ident.dynamics.base_parameters import (
     compute_base_parameters,
     nearly_aligned_axes,
 )
-from ident.dynamics.chain import FloatArray, chain_from_model
+from ident.dynamics.chain import FloatArray, KinematicChain, chain_from_model
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.dynamics.stage import paper_stages, stage_observation_matrix, stage_states
@@ -197,23 +197,39 @@ def verification_report(
     ]
     if parameter_map is not None:
         report[map_label] = _counts_both_methods(W @ parameter_map, names)
-    stages: dict[str, Any] = {}
-    if chain.n_joints == 6 and not chain.coupled:  # the paper's stages: a 6R arm, no mimic
-        for name, stage in paper_stages(chain).items():
-            moving = list(stage.moving_joints)
-            states = stage_states(stage, q[:, moving], dq[:, moving], ddq[:, moving], chain.nq)
-            W_stage = stage_observation_matrix(chain, stage, *states)
-            columns = stage.columns
-            entry: dict[str, Any] = {
-                "moving_joints": [j + 1 for j in stage.moving_joints],
-                "torque_rows": [j + 1 for j in stage.torque_rows],
-                "bodies": [b + 1 for b in stage.bodies],
-                "held_positions": [stage.held_positions[j] for j in stage.held_joints],
-                "methods": _counts_both_methods(W_stage, [names[c] for c in columns]),
-            }
-            if parameter_map is not None:
-                mapped = W_stage @ parameter_map[np.ix_(columns, columns)]
-                entry[map_label] = _counts_both_methods(mapped, [names[c] for c in columns])
-            stages[name] = entry
-    report["stages"] = stages
+    report["stages"] = _paper_stage_counts(chain, q, dq, ddq, names, parameter_map, map_label)
     return report
+
+
+def _paper_stage_counts(
+    chain: KinematicChain,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    names: list[str],
+    parameter_map: FloatArray | None,
+    map_label: str,
+) -> dict[str, Any]:
+    """The ``stages`` entry of :func:`verification_report`: per paper stage of a 6R arm without
+    mimic joints, its joints, rows, bodies (1-based), held positions and base-parameter counts
+    from the states ``q, dq, ddq`` (n_samples, nq or nv); empty for any other robot."""
+    stages: dict[str, Any] = {}
+    if chain.n_joints != 6 or chain.coupled:  # the paper's stages: a 6R arm, no mimic
+        return stages
+    for name, stage in paper_stages(chain).items():
+        moving = list(stage.moving_joints)
+        states = stage_states(stage, q[:, moving], dq[:, moving], ddq[:, moving], chain.nq)
+        W_stage = stage_observation_matrix(chain, stage, *states)
+        columns = stage.columns
+        entry: dict[str, Any] = {
+            "moving_joints": [j + 1 for j in stage.moving_joints],
+            "torque_rows": [j + 1 for j in stage.torque_rows],
+            "bodies": [b + 1 for b in stage.bodies],
+            "held_positions": [stage.held_positions[j] for j in stage.held_joints],
+            "methods": _counts_both_methods(W_stage, [names[c] for c in columns]),
+        }
+        if parameter_map is not None:
+            mapped = W_stage @ parameter_map[np.ix_(columns, columns)]
+            entry[map_label] = _counts_both_methods(mapped, [names[c] for c in columns])
+        stages[name] = entry
+    return stages

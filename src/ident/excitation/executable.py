@@ -153,10 +153,8 @@ def executable_trajectory(
         The design, shape (n_vars,).
     home :
         Home posture [rad or m], shape (nq,): the robot starts and ends there at rest.
-    rate_hz :
-        Controller rate [Hz].
-    n_periods :
-        Periods of the excitation (>= 1).
+    rate_hz, n_periods :
+        Controller rate [Hz]; periods of the excitation (>= 1).
     limit_fraction :
         Fraction of the velocity and acceleration limits the transitions may use.
 
@@ -164,23 +162,10 @@ def executable_trajectory(
     -------
     :
         The trajectory, ``t`` starting at 0 [s]; its samples ``t_k = k * dt`` with
-        ``dt = period / round(period * rate_hz)``.
-
-    Raises
-    ------
-    ValueError
-        For ``n_periods < 1``, ``rate_hz <= 0`` or a home posture of the wrong shape.
+        ``dt = period / round(period * rate_hz)``. Raises ``ValueError`` for
+        ``n_periods < 1``, ``rate_hz <= 0`` or a home posture of the wrong shape.
     """
-    if n_periods < 1:
-        raise ValueError(f"n_periods must be >= 1, got {n_periods}")
-    if not rate_hz > 0.0:
-        raise ValueError(f"rate_hz must be > 0 Hz, got {rate_hz}")
-    limits = family.limits if hasattr(family, "limits") else None
-    if limits is None:
-        raise ValueError("the family must expose its joint limits as family.limits")
-    home = np.asarray(home, dtype=float)
-    if home.shape != (limits.nq,):
-        raise ValueError(f"home must have shape ({limits.nq},), got {home.shape}")
+    limits, home = _limits_and_home(family, home, rate_hz, n_periods)
     n = int(round(float(family.period) * rate_hz))
     dt = float(family.period) / n
     if not hasattr(family, "with_samples"):
@@ -189,14 +174,7 @@ def executable_trajectory(
     q, dq, ddq = batch.q[0], batch.dq[0], batch.ddq[0]
     rest = np.zeros(limits.nq)
     first = (q[0], dq[0], ddq[0])
-    approach_time = transition_duration(
-        (home, rest, rest), first, limits, limit_fraction=limit_fraction, timestep=dt
-    )
-    return_time = transition_duration(
-        first, (home, rest, rest), limits, limit_fraction=limit_fraction, timestep=dt
-    )
-    n_in = int(round(approach_time / dt))
-    n_out = int(round(return_time / dt))
+    n_in, n_out = _transition_steps((home, rest, rest), first, limits, limit_fraction, dt)
     # the approach's end is the excitation's first sample; the return starts at the end of
     # the last period
     t_in = np.arange(n_in, dtype=np.float64) * dt
@@ -214,3 +192,39 @@ def executable_trajectory(
         ddq=parts[2],
         joint_names=tuple(limits.joint_names),
     )
+
+
+def _limits_and_home(
+    family: Any, home: npt.ArrayLike, rate_hz: float, n_periods: int
+) -> tuple[Any, FloatArray]:
+    """The family's joint limits and the home posture as an array (nq,); raises the
+    ``ValueError`` of :func:`executable_trajectory` for a bad argument."""
+    if n_periods < 1:
+        raise ValueError(f"n_periods must be >= 1, got {n_periods}")
+    if not rate_hz > 0.0:
+        raise ValueError(f"rate_hz must be > 0 Hz, got {rate_hz}")
+    limits = family.limits if hasattr(family, "limits") else None
+    if limits is None:
+        raise ValueError("the family must expose its joint limits as family.limits")
+    home = np.asarray(home, dtype=float)
+    if home.shape != (limits.nq,):
+        raise ValueError(f"home must have shape ({limits.nq},), got {home.shape}")
+    return limits, home
+
+
+def _transition_steps(
+    at_home: tuple[FloatArray, FloatArray, FloatArray],
+    first: tuple[FloatArray, FloatArray, FloatArray],
+    limits: Any,
+    limit_fraction: float,
+    dt: float,
+) -> tuple[int, int]:
+    """Controller steps of the approach (home at rest -> ``first`` (q, dq, ddq)) and of the
+    return (-> home at rest), each within ``limit_fraction`` of the limits, ``dt`` [s]."""
+    approach_time = transition_duration(
+        at_home, first, limits, limit_fraction=limit_fraction, timestep=dt
+    )
+    return_time = transition_duration(
+        first, at_home, limits, limit_fraction=limit_fraction, timestep=dt
+    )
+    return int(round(approach_time / dt)), int(round(return_time / dt))

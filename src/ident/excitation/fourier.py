@@ -228,14 +228,7 @@ class JointFourierFamily:
         amplitude_bound: float | npt.ArrayLike | None = None,
         fill_limits: bool = False,
     ) -> None:
-        if not isinstance(fill_limits, (bool, np.bool_)):
-            raise ValueError(f"fill_limits must be true or false, got {fill_limits!r}")
-        if n_harmonics < 2:
-            raise ValueError(f"n_harmonics must be >= 2 (rest conditions), got {n_harmonics}")
-        if not base_frequency > 0.0:
-            raise ValueError(f"base_frequency must be > 0 rad/s, got {base_frequency}")
-        if n_samples < 2 * n_harmonics + 1:
-            raise ValueError(f"n_samples must be >= {2 * n_harmonics + 1}, got {n_samples}")
+        _check_settings(n_harmonics, base_frequency, n_samples, fill_limits)
         self.limits = JointLimits.from_robot(robot)
         self.joint_names = self.limits.joint_names
         self.moving_joints = resolve_joints(self.joint_names, moving_joints)
@@ -249,16 +242,7 @@ class JointFourierFamily:
         self.fill_times = sample_times(n_fill, self.period)
         self.fill_margin = fill_margin(self.n_harmonics, n_fill)
         lower, upper = self.limits.finite_position_box()
-        if held_positions is None:
-            held = np.clip(np.zeros(self.limits.nq), lower, upper)
-        else:
-            held = np.asarray(held_positions, dtype=float).copy()
-            if held.shape != (self.limits.nq,):
-                raise ValueError(
-                    f"held_positions must have shape ({self.limits.nq},), got {held.shape}"
-                )
-        held.setflags(write=False)
-        self.held_positions = held
+        self.held_positions = _held(held_positions, lower, upper)
         moving = list(self.moving_joints)
         self.amplitude_given = amplitude_bound is not None
         if amplitude_bound is None:
@@ -481,3 +465,31 @@ class JointFourierFamily:
             violations=violations,
             joint_names=self.joint_names,
         )
+
+
+def _check_settings(
+    n_harmonics: int, base_frequency: float, n_samples: int, fill_limits: object
+) -> None:
+    """Raise ``ValueError`` for a setting of :class:`JointFourierFamily` out of its range."""
+    if not isinstance(fill_limits, (bool, np.bool_)):
+        raise ValueError(f"fill_limits must be true or false, got {fill_limits!r}")
+    if n_harmonics < 2:
+        raise ValueError(f"n_harmonics must be >= 2 (rest conditions), got {n_harmonics}")
+    if not base_frequency > 0.0:
+        raise ValueError(f"base_frequency must be > 0 rad/s, got {base_frequency}")
+    if n_samples < 2 * n_harmonics + 1:
+        raise ValueError(f"n_samples must be >= {2 * n_harmonics + 1}, got {n_samples}")
+
+
+def _held(held_positions: npt.ArrayLike | None, lower: FloatArray, upper: FloatArray) -> FloatArray:
+    """Read-only positions (nq,) of the joints that do not move [rad or m]: the given ones, or
+    0 clipped into the finite position box (``lower``, ``upper``)."""
+    nq = lower.shape[0]
+    if held_positions is None:
+        held = np.clip(np.zeros(nq), lower, upper)
+    else:
+        held = np.asarray(held_positions, dtype=float).copy()
+        if held.shape != (nq,):
+            raise ValueError(f"held_positions must have shape ({nq},), got {held.shape}")
+    held.setflags(write=False)
+    return held

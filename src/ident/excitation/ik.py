@@ -266,6 +266,30 @@ def arm_inverse_kinematics(
     u, du, ddu = r - geometry.a1, dr, ddr
     v, dv, ddv = geometry.d1 - z, -dp[..., 2], -ddp[..., 2]
     a2, length = geometry.a2, geometry.forearm
+    th2, dth2, ddth2, beta, dphi, ddphi, excess = _shoulder_elbow(
+        (u, du, ddu), (v, dv, ddv), a2, length, elbow
+    )
+    th3 = beta - geometry.gamma
+    offsets = np.asarray(geometry.offsets[:3])
+    q = np.stack([th1, th2, th3], axis=-1) - offsets
+    q = (q + np.pi) % (2.0 * np.pi) - np.pi
+    dq = np.stack([dth1, dth2, dphi - dth2], axis=-1)
+    ddq = np.stack([ddth1, ddth2, ddphi - ddth2], axis=-1)
+    return ArmSolution(q=q, dq=dq, ddq=ddq, excess=excess / (a2 + length))
+
+
+def _shoulder_elbow(
+    u_motion: tuple[FloatArray, FloatArray, FloatArray],
+    v_motion: tuple[FloatArray, FloatArray, FloatArray],
+    a2: float,
+    length: float,
+    elbow: int,
+) -> tuple[FloatArray, ...]:
+    """Planar two-link inverse kinematics of the wrist centre (u, v) [m] with its first and
+    second derivatives, links ``a2`` and ``length`` [m]: theta2, its derivatives, beta =
+    theta3 + gamma, the forearm angle phi's derivatives, and the reachability excess [m]."""
+    u, du, ddu = u_motion
+    v, dv, ddv = v_motion
     rho = np.hypot(u, v)
     excess = np.maximum(np.maximum(rho - (a2 + length), abs(a2 - length) - rho), 0.0)
     cos_beta = np.clip((rho * rho - a2 * a2 - length * length) / (2.0 * a2 * length), -1.0, 1.0)
@@ -283,10 +307,4 @@ def arm_inverse_kinematics(
     rhs_v = ddv + a2 * s2 * dth2**2 + length * sp * dphi**2
     ddth2 = (length * cp * rhs_u + length * sp * rhs_v) / det
     ddphi = (-a2 * c2 * rhs_u - a2 * s2 * rhs_v) / det
-    th3 = beta - geometry.gamma
-    offsets = np.asarray(geometry.offsets[:3])
-    q = np.stack([th1, th2, th3], axis=-1) - offsets
-    q = (q + np.pi) % (2.0 * np.pi) - np.pi
-    dq = np.stack([dth1, dth2, dphi - dth2], axis=-1)
-    ddq = np.stack([ddth1, ddth2, ddphi - ddth2], axis=-1)
-    return ArmSolution(q=q, dq=dq, ddq=ddq, excess=excess / (a2 + length))
+    return th2, dth2, ddth2, beta, dphi, ddphi, excess

@@ -33,6 +33,7 @@ import numpy as np
 
 from ident.dynamics.stage import Stage
 from ident.errors import ConfigError
+from ident.excitation.family import FloatArray
 from ident.excitation.fourier import JointFourierFamily
 
 __all__ = ["PAYLOAD_PERIOD_S", "build_payload_family", "is_payload_stage"]
@@ -86,20 +87,8 @@ def build_payload_family(robot: Any, stage: Stage, options: dict[str, Any]) -> J
     n_moving = int(options.pop("n_moving", len(stage.moving_joints)))
     if not 1 <= n_moving <= n:
         raise ValueError(f"options.n_moving = {n_moving}: give 1 to {n} (the last joints)")
-    positions = np.asarray(stage.held_positions, dtype=float).copy()
     moving = tuple(range(n - n_moving, n))
-    held = options.pop("held", None) or {}
-    if not isinstance(held, Mapping):
-        raise ValueError(f"options.held must map joint names to positions [rad], got {held!r}")
-    for joint, value in held.items():
-        if joint not in names:
-            raise ValueError(f"options.held: {joint!r} is not a joint; joints: {', '.join(names)}")
-        if names.index(joint) in moving:
-            raise ValueError(
-                f"options.held: {joint!r} moves (the last {n_moving} joints move); hold it by "
-                "lowering n_moving, or leave it out"
-            )
-        positions[names.index(joint)] = float(value)
+    positions = _held_positions(stage, names, moving, options.pop("held", None) or {})
     options.setdefault("n_harmonics", 4)
     options.setdefault("base_frequency", 2.0 * np.pi / PAYLOAD_PERIOD_S)
     family = JointFourierFamily(robot, moving, held_positions=positions, **options)
@@ -112,3 +101,24 @@ def build_payload_family(robot: Any, stage: Stage, options: dict[str, Any]) -> J
             robot, moving, held_positions=positions, amplitude_bound=bound, **options
         )
     return family
+
+
+def _held_positions(
+    stage: Stage, names: tuple[str, ...], moving: tuple[int, ...], held: Any
+) -> FloatArray:
+    """Positions (nq,) [rad or m] of the joints: the stage's, with ``options.held``'s
+    ``{joint: position}`` over them; raises ``ValueError`` for a bad mapping, an unknown or a
+    moving joint."""
+    positions = np.asarray(stage.held_positions, dtype=float).copy()
+    if not isinstance(held, Mapping):
+        raise ValueError(f"options.held must map joint names to positions [rad], got {held!r}")
+    for joint, value in held.items():
+        if joint not in names:
+            raise ValueError(f"options.held: {joint!r} is not a joint; joints: {', '.join(names)}")
+        if names.index(joint) in moving:
+            raise ValueError(
+                f"options.held: {joint!r} moves (the last {len(moving)} joints move); hold it "
+                "by lowering n_moving, or leave it out"
+            )
+        positions[names.index(joint)] = float(value)
+    return positions

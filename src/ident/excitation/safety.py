@@ -43,6 +43,7 @@ J. Carpentier et al., "The Pinocchio C++ library", SII 2019 (``GeometryModel``);
 from __future__ import annotations
 
 import math
+import time
 
 # xml.etree: reads MoveIt's SRDF (<disable_collisions>), which yourdfpy does not read (URDF only)
 # and MjSpec has no counterpart for.
@@ -73,6 +74,7 @@ __all__ = [
     "MAX_OBSTACLES",
     "MAX_SIZE_M",
     "MESH_FIX",
+    "MIN_LOWERED_CLEARANCE_M",
     "N_EXCLUSION_POSTURES",
     "BoxObstacle",
     "FloorConfig",
@@ -94,6 +96,9 @@ __all__ = [
 DEFAULT_CLEARANCE_M = 0.03
 # the default margin is halved down to this while a link pair cannot keep it [m]
 MIN_LOWERED_CLEARANCE_M = 0.002
+# a hull distance above this (or above a margin by this) proves the meshes apart: GJK's
+# tolerance (1e-6 m) with room to spare [m]
+_SCREEN_SLACK_M = 1e-4
 N_EXCLUSION_POSTURES = 1000  # random postures of the "always in contact" rule (MoveIt: 1000+)
 ALWAYS_IN_CONTACT_FRACTION = 0.95  # MoveIt setup assistant's default
 MAX_SIZE_M = 100.0  # obstacle sizes and positions, floor height [m]
@@ -467,6 +472,67 @@ def _kinematic_model_and_geometry(
     )
 
 
+_LOADED: dict[
+    tuple[Any, ...], tuple[pin.Model, pin.GeometryModel, tuple[tuple[str, str], ...]]
+] = {}
+_LOADED_HULLS: dict[tuple[Any, ...], pin.GeometryModel] = {}  # the same, meshes as hulls
+# the last screening of SafetyModel._screen: its threshold [m] and its bounds
+_SCREENED: dict[tuple[Any, ...], tuple[float, FloatArray]] = {}
+
+
+def _loaded_geometry(
+    robot: Any,
+    urdf: str | Path | None,
+    package_dirs: Sequence[str | Path],
+    self_collision: bool = True,
+) -> tuple[pin.Model, pin.GeometryModel, tuple[tuple[str, str], ...], tuple[Any, ...]]:
+    """:func:`_kinematic_model_and_geometry`, remembered for the last robot (its URDF text,
+    joints, locked joints and mesh folders): ``ident init`` builds three safety models of one
+    robot, and reading large meshes took seconds each time. Returns copies (the caller adds
+    the environment and a payload to them) and the geometry notes."""
+    if urdf is None:
+        source = getattr(robot, "urdf_text", None)
+    elif isinstance(urdf, Path) or not urdf.lstrip().startswith("<"):
+        source = Path(urdf).read_text(encoding="utf-8")
+    else:
+        source = urdf
+    key = (
+        source,
+        tuple(robot.model.names),
+        tuple(sorted((getattr(robot, "locked_joints", {}) or {}).items())),
+        tuple(str(d) for d in package_dirs),
+        self_collision,
+    )
+    if key not in _LOADED:
+        _LOADED.clear()
+        _LOADED_HULLS.clear()
+        _LOADED[key] = _kinematic_model_and_geometry(robot, urdf, package_dirs, self_collision)
+    model, geom, notes = _LOADED[key]
+    return model.copy(), geom.clone(), notes, key
+
+
+def _loaded_hulls(key: tuple[Any, ...], geom: pin.GeometryModel) -> pin.GeometryModel:
+    """A copy of ``geom`` with its meshes replaced by their hulls (:func:`_convexify`); the
+    first objects, those :func:`_loaded_geometry` loaded under ``key``, from the hulls made
+    once per robot, the others (environment, payload: primitives) as they are."""
+    if key not in _LOADED_HULLS:
+        hulls = _LOADED[key][1].clone()
+        _convexify(hulls)
+        _LOADED_HULLS[key] = hulls
+    out = _LOADED_HULLS[key].clone()
+    for obj in list(geom.geometryObjects)[out.ngeoms :]:
+        out.addGeometryObject(obj)
+    return out
+
+
+def _with_pairs(geom: pin.GeometryModel, pairs: Sequence[tuple[Any, ...]]) -> pin.GeometryModel:
+    """``geom`` with exactly the collision pairs ``(a, b, ...)`` of ``pairs`` (in place)."""
+    geom.removeAllCollisionPairs()
+    for pair in pairs:
+        geom.addCollisionPair(pin.CollisionPair(pair[0], pair[1]))
+    return geom
+
+
 def _convexify(geom: pin.GeometryModel) -> None:
     """Replace mesh geometry by its convex hull (GJK/EPA then give penetration depths).
 
@@ -676,11 +742,21 @@ def _mesh_pairs(
     geom: pin.GeometryModel, pairs: Sequence[tuple[int, int, str, str]]
 ) -> npt.NDArray[np.bool_]:
     """Per geometry pair, whether a mesh is on either side (where the hull and the geometry
-    differ: the exact certificate measures them on the mesh)."""
+    differ: the exact certificate measures them on the mesh).
+
+    A mesh against a half-space (the floor, a plane) does not count: the point of a mesh
+    nearest a plane is a vertex, one of its hull's, so apart they have the same distance;
+    sunk in, :meth:`SafetyModel.clearances` keeps the deeper of the two, the hull's (its
+    deepest vertex).
+    """
     import coal
 
     is_mesh = [isinstance(o.geometry, coal.BVHModelBase) for o in geom.geometryObjects]
-    return np.array([is_mesh[a] or is_mesh[b] for a, b, _, _ in pairs], dtype=bool)
+    plane = [isinstance(o.geometry, coal.Halfspace) for o in geom.geometryObjects]
+    return np.array(
+        [(is_mesh[a] or is_mesh[b]) and not (plane[a] or plane[b]) for a, b, _, _ in pairs],
+        dtype=bool,
+    )
 
 
 def _effort_max(limits: JointLimits, torque_limits: bool) -> FloatArray:
@@ -726,6 +802,40 @@ def _add_srdf_exclusions(excluded: dict[tuple[str, str], str], srdf: Path, links
             excluded[key] = f"SRDF ({reason})"
 
 
+def _sphere_bounds(
+    model: pin.Model,
+    geom: pin.GeometryModel,
+    pairs: Sequence[tuple[int, int]],
+    postures: FloatArray,
+) -> FloatArray:
+    """Distances of the spheres around the geometry ``pairs`` (each about its local bounding
+    box's centre, of the box's half-diagonal: it holds the geometry) at ``postures`` [m],
+    shape (n_postures, n_pairs): a lower bound of the geometries' distance."""
+    objects = geom.geometryObjects
+    used = sorted({g for pair in pairs for g in pair})
+    centre = np.zeros((len(objects), 3))
+    radius = np.zeros(len(objects))
+    joint = np.zeros(len(objects), dtype=int)
+    for g in used:
+        shape = objects[g].geometry
+        shape.computeLocalAABB()
+        centre[g] = objects[g].placement.act(np.asarray(shape.aabb_center, dtype=float))
+        radius[g] = float(shape.aabb_radius)
+        joint[g] = int(objects[g].parentJoint)
+    data = model.createData()
+    rotation = np.empty((postures.shape[0], model.njoints, 3, 3))
+    translation = np.empty((postures.shape[0], model.njoints, 3))
+    for s, q in enumerate(postures):
+        pin.forwardKinematics(model, data, q)
+        for j in range(model.njoints):
+            rotation[s, j] = data.oMi[j].rotation
+            translation[s, j] = data.oMi[j].translation
+    world = np.einsum("sgij,gj->sgi", rotation[:, joint], centre) + translation[:, joint]
+    a, b = (np.array([pair[k] for pair in pairs], dtype=int) for k in (0, 1))
+    gap = np.linalg.norm(world[:, a] - world[:, b], axis=2)
+    return np.asarray(gap - radius[a] - radius[b])
+
+
 def _flat_pairs(
     tested: Sequence[tuple[str, str]],
     geometry_pairs: Mapping[tuple[str, str], list[tuple[int, int]]],
@@ -766,6 +876,13 @@ class SafetyModel:
         above both links of a pair move them together and count 0).
     reach_m :
         A bound on the distance of any point of the robot from its base [m].
+    seconds_per_posture, hull_seconds_per_posture :
+        CPU of one posture of the dense check [s] (the meshes' exact distances timed when
+        the model is built, at random postures), and of the same on the hulls (the
+        optimizer's cheap term), for the run's time estimate.
+    keepable_clearances :
+        Per tested link pair, its largest clearance over the sampled postures [m]: exact
+        below the margin asked for, at least that margin otherwise.
     effort_max :
         Torque limits [N*m or N], shape (nv,); ``inf`` where unknown or when torque limits are
         off.
@@ -793,10 +910,13 @@ class SafetyModel:
             "clearance_m" not in config.model_fields_set if lower_margin is None else lower_margin
         )
         self.margin_note = ""
+        self.seconds_per_posture = self.hull_seconds_per_posture = 0.0  # _poor_hull_pairs
+        self._hull_geometry: pin.GeometryModel | None = None
+        self.keepable_clearances: dict[tuple[str, str], float] = {}  # see _settle_margin
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
         # geometry_notes: (link, what) of visual stand-ins and links without geometry
-        model, geom, self.geometry_notes = _kinematic_model_and_geometry(
+        model, geom, self.geometry_notes, self._geometry_key = _loaded_geometry(
             robot, urdf, package_dirs, config.self_collision
         )
         if config.payload_box is not None:  # part of the robot: before anything counts links
@@ -829,14 +949,9 @@ class SafetyModel:
             ExcludedPair(f"{a}|{b}", reason) for (a, b), reason in excluded.items()
         )
         self.constant_pairs = _constant_pairs(objects, candidates, constant)
-        geom.removeAllCollisionPairs()
-        for k in kept:
-            geom.addCollisionPair(pin.CollisionPair(candidates[k][0], candidates[k][1]))
-        self.exact_geometry_model = geom
-        hull = geom.clone()
-        _convexify(hull)
-        self.geometry_model = hull
         kept_pairs = [candidates[k] for k in kept]
+        self.exact_geometry_model = _with_pairs(geom, kept_pairs)
+        self.geometry_model = _with_pairs(self._hulls(geom), kept_pairs)
         geometry_pair_names = [pair[2] for pair in kept_pairs]
         self.pair_names: tuple[str, ...] = tuple(dict.fromkeys(geometry_pair_names))
         kinds = {pair[2]: pair[3] for pair in kept_pairs}
@@ -866,6 +981,10 @@ class SafetyModel:
         the SRDF, in contact (exact geometry) in the reference posture, or in contact in at
         least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random postures. A remaining pair that
         is closer than the margin in every posture is an input error.
+
+        The convex hulls screen the postures first (:meth:`_screen`): a hull contains its
+        mesh, so two hulls apart are two meshes apart; the exact geometry is measured only
+        where the hulls are close. The answer is the exact geometry's.
         """
         parents = list(self.model.parents)
         excluded, geometry_pairs = _adjacent_pairs(parents, link_of, joint_of, n_robot)
@@ -874,11 +993,50 @@ class SafetyModel:
         tested = [k for k in geometry_pairs if k not in excluded]
         if not tested:
             return excluded
-        self._add_contact_exclusions(excluded, geom, tested, geometry_pairs)
+        pairs, _ = _flat_pairs(tested, geometry_pairs)
+        hull = self._screen(geom, pairs)
+        screened = dict(zip(pairs, hull.T, strict=True))
+        self._add_contact_exclusions(excluded, geom, tested, geometry_pairs, screened)
         if self.clearance_m > 0.0:
             tested = [k for k in tested if k not in excluded]
-            self._settle_margin(geom, tested, geometry_pairs)
+            self._settle_margin(geom, tested, geometry_pairs, screened)
         return excluded
+
+    def _screen(self, geom: pin.GeometryModel, pairs: list[tuple[int, int]]) -> FloatArray:
+        """Lower bounds of the exact distances of the geometry ``pairs`` at the exclusion
+        postures [m], shape (n_postures, n_pairs): their convex hulls' signed distance (meshes
+        replaced by their hulls, primitives as they are; a hull contains its mesh) wherever
+        the bounding spheres (:func:`_sphere_bounds`, containing the geometry) are within
+        the margin (and :data:`_SCREEN_SLACK_M`), the spheres' distance elsewhere."""
+        threshold = self.clearance_m + _SCREEN_SLACK_M
+        key = (self._geometry_key, tuple(pairs), self.postures.tobytes())
+        if key in _SCREENED and _SCREENED[key][0] >= threshold:
+            # the same robot, pairs and postures screened at a margin at least as large (init
+            # builds three models): every bound there is exact below this one's threshold
+            return _SCREENED[key][1].copy()
+        out = _sphere_bounds(self.model, geom, pairs, self.postures)
+        near = out < threshold
+        if near.any():
+            hull = self._hulls(geom)
+            hull.removeAllCollisionPairs()
+            for a, b in pairs:
+                hull.addCollisionPair(pin.CollisionPair(a, b))
+            data, gdata = self.model.createData(), _geometry_data(hull)
+            for s in np.flatnonzero(near.any(axis=1)).tolist():  # coal: one posture at a time
+                pin.updateGeometryPlacements(self.model, data, hull, gdata, self.postures[s])
+                for p in np.flatnonzero(near[s]).tolist():
+                    out[s, p] = pin.computeDistance(hull, gdata, p).min_distance
+            hull.removeAllCollisionPairs()
+        _SCREENED.clear()
+        _SCREENED[key] = (threshold, out.copy())
+        return out
+
+    def _hulls(self, geom: pin.GeometryModel) -> pin.GeometryModel:
+        """``geom`` (robot and environment, before any pair is chosen) with every mesh
+        replaced by its convex hull (:func:`_convexify`), made once per model."""
+        if self._hull_geometry is None:
+            self._hull_geometry = _loaded_hulls(self._geometry_key, geom)
+        return self._hull_geometry
 
     def _add_contact_exclusions(
         self,
@@ -886,55 +1044,83 @@ class SafetyModel:
         geom: pin.GeometryModel,
         tested: list[tuple[str, str]],
         geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+        screened: Mapping[tuple[int, int], FloatArray],
     ) -> None:
         """Add to ``excluded`` the ``tested`` link pairs in contact (exact geometry) in the
         reference posture, or in at least :data:`ALWAYS_IN_CONTACT_FRACTION` of the random
-        ones (``geometry_pairs``: the geometry object pairs of each link pair)."""
+        ones (``geometry_pairs``: the geometry object pairs of each link pair; ``screened``:
+        their hulls' distances per posture, shape (n_postures,)).
+
+        The exact geometry is tested only where the hulls are within
+        :data:`_SCREEN_SLACK_M` (hulls apart: meshes apart), and a pair's random postures
+        only until so many are found apart that the fraction cannot be reached.
+        """
         pairs, owner = _flat_pairs(tested, geometry_pairs)
-        contact = self._collisions(geom, pairs, self.postures, margin=0.0)  # (n, n_pairs)
-        by_link = np.zeros((contact.shape[0], len(tested)), dtype=bool)
-        np.logical_or.at(by_link.T, owner, contact.T)
+        near = np.column_stack([screened[ab] <= _SCREEN_SLACK_M for ab in pairs])
+        geom.removeAllCollisionPairs()
+        for a, b in pairs:
+            geom.addCollisionPair(pin.CollisionPair(a, b))
+        data, gdata = self.model.createData(), pin.GeometryData(geom)
+        for request in gdata.collisionRequests:
+            request.security_margin = 0.0
+
+        def contact(s: int, columns: npt.NDArray[np.int_]) -> bool:
+            pin.updateGeometryPlacements(self.model, data, geom, gdata, self.postures[s])
+            return any(pin.computeCollision(geom, gdata, int(p)) for p in columns if near[s, p])
+
         n_random = self.postures.shape[0] - 1
         for i, key in enumerate(tested):
-            fraction = float(np.mean(by_link[1:, i]))
+            columns = np.flatnonzero(owner == i)
+            maybe = np.asarray(near[:, columns].any(axis=1), dtype=bool)
             # a payload touching a link in the reference posture (an arm folded onto its
             # tool) is no reason to trust the pair elsewhere: only the 95 % rule applies to it
-            if by_link[0, i] and PAYLOAD not in key:
+            if PAYLOAD not in key and maybe[0] and contact(0, columns):
                 excluded[key] = "reference contact (in contact in the reference posture)"
-            elif fraction >= ALWAYS_IN_CONTACT_FRACTION:
+                continue
+            hits, left = 0, int(maybe[1:].sum())
+            for s in (np.flatnonzero(maybe[1:]) + 1).tolist():
+                if (hits + left) / n_random < ALWAYS_IN_CONTACT_FRACTION:
+                    break  # the fraction cannot be reached any more
+                left -= 1
+                hits += contact(s, columns)
+            fraction = hits / n_random
+            if fraction >= ALWAYS_IN_CONTACT_FRACTION:
                 excluded[key] = (
                     f"always in contact (in {100 * fraction:.1f} % of {n_random} random postures)"
                 )
+        geom.removeAllCollisionPairs()
 
     def _settle_margin(
         self,
         geom: pin.GeometryModel,
         tested: list[tuple[str, str]],
         geometry_pairs: dict[tuple[str, str], list[tuple[int, int]]],
+        screened: Mapping[tuple[int, int], FloatArray],
     ) -> None:
         """Check that every ``tested`` link pair can keep the margin in some posture.
 
         A margin the user did not choose is lowered (halved, down to
         :data:`MIN_LOWERED_CLEARANCE_M`) until they can (``clearance_m`` and ``margin_note``
         updated); a pair closer than the margin in every posture is a :class:`ConfigError`.
+        Each pair's largest clearance over the postures is measured once
+        (:meth:`_largest_clearances`) and compared with every halved margin.
         """
         pairs, owner = _flat_pairs(tested, geometry_pairs)
-        always = self._always_within(geom, pairs, owner, len(tested), self.clearance_m)
+        hull = np.column_stack([screened[ab] for ab in pairs])
+        largest = self._largest_clearances(geom, pairs, owner, len(tested), hull)
+        self.keepable_clearances = dict(zip(tested, largest.tolist(), strict=True))
         margin = self.clearance_m
+        always = largest < margin  # closer than the margin in every posture
         # a margin the user did not choose is lowered (halved, down to 2 mm) until every
         # pair can keep it in some posture; a chosen one is an input error below
         while self.lower_margin and always.any() and margin / 2.0 >= MIN_LOWERED_CLEARANCE_M:
             margin /= 2.0
-            always = self._always_within(geom, pairs, owner, len(tested), margin)
+            always = largest < margin
         if margin < self.clearance_m and not always.any():
             close = ", ".join(
                 f"{a}-{b}"
-                for (a, b), hit in zip(
-                    tested,
-                    self._always_within(geom, pairs, owner, len(tested), self.clearance_m),
-                    strict=True,
-                )
-                if hit
+                for (a, b), d in zip(tested, largest, strict=True)
+                if d < self.clearance_m
             )
             self.margin_note = (
                 f"safety margin lowered from the default {self.clearance_m:g} m to "
@@ -952,19 +1138,55 @@ class SafetyModel:
                     "pair in a MoveIt SRDF (safety.srdf) if they may touch."
                 )
 
-    def _always_within(
+    def _largest_clearances(
         self,
         geom: pin.GeometryModel,
         pairs: list[tuple[int, int]],
         owner: npt.NDArray[np.int_],
         n_links: int,
-        margin: float,
-    ) -> npt.NDArray[np.bool_]:
-        """Per link pair, shape (n_links,): closer than ``margin`` in every sampled posture."""
-        within = self._collisions(geom, pairs, self.postures, margin=margin)
-        by_link = np.zeros((within.shape[0], n_links), dtype=bool)
-        np.logical_or.at(by_link.T, owner, within.T)
-        return np.asarray(np.all(by_link, axis=0))
+        hull: FloatArray,
+    ) -> FloatArray:
+        """Per link pair, the largest over the postures of its clearance (the smallest
+        distance of its geometry ``pairs``, ``owner``: the link pair of each) [m], shape
+        (n_links,): exact where below the margin; at least the margin otherwise.
+
+        ``hull`` (n_postures, n_pairs): the hulls' distances, lower bounds of the exact ones.
+        A link pair whose hulls keep the margin in some posture keeps it. For the others the
+        exact geometry is measured posture by posture (those whose hulls are farthest apart
+        first, and only the geometry pairs whose hulls are within the margin: the others
+        cannot bring the link pair below it), until a posture keeps the margin.
+        """
+        screen = self.clearance_m + _SCREEN_SLACK_M
+        link_hull = np.full((hull.shape[0], n_links), np.inf)
+        np.minimum.at(link_hull.T, owner, hull.T)
+        largest = link_hull.max(axis=0)
+        close = [i for i in range(n_links) if largest[i] < screen]
+        if not close:
+            return largest
+        columns = [int(p) for i in close for p in np.flatnonzero(owner == i)]
+        geom.removeAllCollisionPairs()
+        for p in columns:
+            geom.addCollisionPair(pin.CollisionPair(*pairs[p]))
+        data, gdata = self.model.createData(), _geometry_data(geom, signed=False)
+        for i in close:
+            mine = [k for k, p in enumerate(columns) if owner[p] == i]
+            largest[i] = -np.inf
+            for s in np.argsort(-link_hull[:, i], kind="stable").tolist():
+                pin.updateGeometryPlacements(self.model, data, geom, gdata, self.postures[s])
+                value = min(
+                    (
+                        pin.computeDistance(geom, gdata, k).min_distance
+                        if hull[s, columns[k]] < screen
+                        else hull[s, columns[k]]
+                        for k in mine
+                    ),
+                    default=np.inf,
+                )
+                largest[i] = max(largest[i], value)
+                if largest[i] >= self.clearance_m:
+                    break
+        geom.removeAllCollisionPairs()
+        return largest
 
     def _collisions(
         self,
@@ -972,12 +1194,15 @@ class SafetyModel:
         pairs: list[tuple[int, int]],
         postures: FloatArray,
         margin: float,
+        where: npt.NDArray[np.bool_] | None = None,
     ) -> npt.NDArray[np.bool_]:
         """Whether each geometry pair (exact geometry) is closer than ``margin`` [m], shape
-        (n_postures, n_pairs)."""
+        (n_postures, n_pairs); ``where`` (same shape): test only there (False elsewhere)."""
         out = np.zeros((postures.shape[0], len(pairs)), dtype=bool)
         if not pairs:
             return out
+        if where is None:
+            where = np.ones(out.shape, dtype=bool)
         geom.removeAllCollisionPairs()
         for a, b in pairs:
             geom.addCollisionPair(pin.CollisionPair(a, b))
@@ -985,9 +1210,10 @@ class SafetyModel:
         gdata = pin.GeometryData(geom)
         for request in gdata.collisionRequests:
             request.security_margin = margin
-        for s, q in enumerate(postures):  # coal: one posture at a time
-            pin.computeCollisions(self.model, data, geom, gdata, q, False)
-            out[s] = [r.isCollision() for r in gdata.collisionResults]
+        for s in np.flatnonzero(where.any(axis=1)).tolist():  # coal: one posture at a time
+            pin.updateGeometryPlacements(self.model, data, geom, gdata, postures[s])
+            for p in np.flatnonzero(where[s]).tolist():
+                out[s, p] = pin.computeCollision(geom, gdata, p)
         geom.removeAllCollisionPairs()
         return out
 
@@ -1012,7 +1238,10 @@ class SafetyModel:
             return constant
         pairs = [(candidates[k][0], candidates[k][1]) for k in env]
         n_env = min(self.postures.shape[0], 101)
-        within = self._collisions(geom, pairs, self.postures[:n_env], margin=self.clearance_m)
+        # the hulls screen: hulls apart by the margin are meshes apart by it
+        hull = self._exact_distances(self._hulls(geom), pairs, self.postures[:n_env])
+        near = hull < self.clearance_m + _SCREEN_SLACK_M
+        within = self._collisions(geom, pairs, self.postures[:n_env], self.clearance_m, near)
         always = [env[i] for i in np.flatnonzero(within.all(axis=0))]
         if always:
             probe = self.postures[: min(n_env, 6)]
@@ -1077,12 +1306,36 @@ class SafetyModel:
 
     def _poor_hull_pairs(self) -> npt.NDArray[np.bool_]:
         """Mesh pairs whose hulls are closer than the margin in at least half of 100 sampled
-        postures: the cheap term measures them on the meshes (a hull would forbid too much)."""
+        postures: the cheap term measures them on the meshes (a hull would forbid too much).
+        Sets :attr:`seconds_per_posture` (:meth:`_measure_exact_cost`) on the way."""
         poor = np.zeros(self._mesh_pairs.shape, dtype=bool)
-        if not self._mesh_pairs.any() or self.clearance_m <= 0.0:
+        n = 101 if self._mesh_pairs.any() and self.clearance_m > 0.0 else 11
+        start = time.process_time()
+        hull = self._distances(self.geometry_model, self.postures[:n])
+        self.seconds_per_posture = (time.process_time() - start) / n
+        self.hull_seconds_per_posture = self.seconds_per_posture
+        if n == 11:
             return poor
-        hull = self._distances(self.geometry_model, self.postures[:101])
+        self._measure_exact_cost(hull)
         return self._mesh_pairs & (np.mean(hull < self.clearance_m, axis=0) >= 0.5)
+
+    def _measure_exact_cost(self, hull: FloatArray) -> None:
+        """Add to :attr:`seconds_per_posture` (the hulls' and primitives' CPU of one posture
+        of the dense check, timed) the meshes': from ``hull``, the hulls' distances at sampled
+        postures (n, n_geometry_pairs) [m], each mesh pair's exact distance (timed here on
+        one posture) where its hulls are within the margin and 1 mm (where the dense check,
+        :meth:`clearances` with ``within``, measures the mesh)."""
+        mesh = np.flatnonzero(self._mesh_pairs)
+        share = np.mean(hull[:, mesh] < self.clearance_m + 1e-3, axis=0)
+        needed = mesh[share > 0.0]
+        if not needed.size:
+            return
+        gdata = _geometry_data(self.exact_geometry_model)
+        row = np.zeros(hull.shape[1])
+        start = time.process_time()
+        self._exact_into(self.postures[1], needed.tolist(), gdata, row)
+        per_pair = (time.process_time() - start) / needed.size
+        self.seconds_per_posture += per_pair * float(share.sum())
 
     def _prepare_fast(self) -> None:
         """Sort the active geometry pairs into the vectorized ones and the coal ones."""

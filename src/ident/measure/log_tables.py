@@ -291,27 +291,9 @@ def join_signals(
                 )
             out.append(data if rows is None else data[rows])
             continue
-        from scipy.interpolate import make_interp_spline
-
-        what = _time_name(table, cfg)
-        found = timebase.find_anomalies(t_other)
-        if found.n_backwards and not found.n_nonfinite:
-            assert found.first_backwards is not None
-            raise DataError(
-                f"{what}: time goes back {found.n_backwards} time(s), the first at "
-                f"{timebase.place(found.first_backwards, table.line_numbers)}; a file joined "
-                "on time needs increasing stamps: split it into several logs (log.more) or "
-                "fix its clock."
-            )
-        cleaned = timebase.clean_time(t_other, what, table.line_numbers)
-        t_sorted = cleaned.t
-        warnings += cleaned.warnings
-        if t_sorted.size < 4:
-            raise DataError(f"{what}: {t_sorted.size} distinct stamps, at least 4 to join on.")
-        spline = make_interp_spline(t_sorted, data[cleaned.index], k=3, axis=0)
-        inside = (t_ref >= t_sorted[0]) & (t_ref <= t_sorted[-1])
+        values, inside = _on_time(data, table, cfg, t_other, t_ref, warnings)
         keep &= inside
-        out.append(spline(t_ref))
+        out.append(values)
         notes.append(f"{table.source} joined on time (cubic spline onto the position stamps)")
     if not keep.all():
         if not keep.any():
@@ -322,6 +304,37 @@ def join_signals(
         notes.append(f"kept the {int(keep.sum())} position samples where every source has data")
         return out, keep, "; ".join(notes), warnings
     return out, None, "; ".join(notes), warnings
+
+
+def _on_time(
+    data: FloatArray,
+    table: LogTable,
+    cfg: LogConfig,
+    t_other: FloatArray,
+    t_ref: FloatArray,
+    warnings: list[str],
+) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """``data`` (stamped ``t_other`` [s]) by cubic spline at the position stamps ``t_ref`` [s],
+    and the mask of the stamps inside its time span; appends the time cleaning's warnings."""
+    from scipy.interpolate import make_interp_spline
+
+    what = _time_name(table, cfg)
+    found = timebase.find_anomalies(t_other)
+    if found.n_backwards and not found.n_nonfinite:
+        assert found.first_backwards is not None
+        raise DataError(
+            f"{what}: time goes back {found.n_backwards} time(s), the first at "
+            f"{timebase.place(found.first_backwards, table.line_numbers)}; a file joined "
+            "on time needs increasing stamps: split it into several logs (log.more) or "
+            "fix its clock."
+        )
+    cleaned = timebase.clean_time(t_other, what, table.line_numbers)
+    t_sorted = cleaned.t
+    warnings += cleaned.warnings
+    if t_sorted.size < 4:
+        raise DataError(f"{what}: {t_sorted.size} distinct stamps, at least 4 to join on.")
+    spline = make_interp_spline(t_sorted, data[cleaned.index], k=3, axis=0)
+    return spline(t_ref), (t_ref >= t_sorted[0]) & (t_ref <= t_sorted[-1])
 
 
 def signal_tables(

@@ -116,34 +116,14 @@ def transmission_from_config(
     ConfigError
         If a list has the wrong length, a coupling index is out of range, or ``Rq`` is singular.
     """
-
-    def vector(key: str, value: list[float] | None, default: float) -> FloatArray:
-        if value is None:
-            return np.full(n_joints, default)
-        if len(value) != n_joints:
-            raise ConfigError(
-                f"{source}: transmission.{key} has {len(value)} entries, the log has "
-                f"{n_joints} joints; give one value per joint."
-            )
-        return np.asarray(value, dtype=float)
-
-    ratios = vector("gear_ratios", cfg.gear_ratios, 1.0)
+    ratios = _per_joint_vector("gear_ratios", cfg.gear_ratios, 1.0, n_joints, source)
     if side == "joint":
         if cfg.gear_ratios is not None or cfg.coupling:
             raise ConfigError(
                 f"{source}: log.side = joint but transmission.gear_ratios/coupling are set; "
                 "use log.side: motor for motor-side signals, or remove them."
             )
-    Rq = np.diag(ratios)
-    for k, entry in enumerate(cfg.coupling):
-        if entry.motor > n_joints or entry.joint > n_joints or entry.motor == entry.joint:
-            raise ConfigError(
-                f"{source}: transmission.coupling[{k}] = (motor {entry.motor}, joint "
-                f"{entry.joint}): indices are 1-based, distinct, at most {n_joints}."
-            )
-        Rq[entry.motor - 1, entry.joint - 1] = entry.ratio
-    if abs(np.linalg.det(Rq)) < 1e-12 * np.prod(np.abs(ratios)):
-        raise ConfigError(f"{source}: transmission matrix Rq is singular; check the coupling.")
+    Rq = _position_matrix(cfg, ratios, n_joints, source)
     if cfg.torque_matrix is not None:
         Rt = np.asarray(cfg.torque_matrix, dtype=float)
         if Rt.shape != (n_joints, n_joints):
@@ -156,9 +136,74 @@ def transmission_from_config(
     return Transmission(
         position_matrix=Rq,
         torque_matrix=Rt,
-        torque_constants=vector("torque_constants", cfg.torque_constants, 1.0),
-        zero_offsets=vector("zero_offsets", cfg.zero_offsets, 0.0),
+        torque_constants=_per_joint_vector(
+            "torque_constants", cfg.torque_constants, 1.0, n_joints, source
+        ),
+        zero_offsets=_per_joint_vector("zero_offsets", cfg.zero_offsets, 0.0, n_joints, source),
     )
+
+
+def _per_joint_vector(
+    key: str, value: list[float] | None, default: float, n_joints: int, source: str
+) -> FloatArray:
+    """``transmission.<key>`` as an array (n_joints,), ``default`` everywhere when unset."""
+    if value is None:
+        return np.full(n_joints, default)
+    if len(value) != n_joints:
+        raise ConfigError(
+            f"{source}: transmission.{key} has {len(value)} entries, the log has "
+            f"{n_joints} joints; give one value per joint."
+        )
+    return np.asarray(value, dtype=float)
+
+
+def _position_matrix(
+    cfg: TransmissionConfig, ratios: FloatArray, n_joints: int, source: str
+) -> FloatArray:
+    """``Rq`` (n_joints, n_joints): the gear ``ratios`` on the diagonal and the coupling terms
+    (motor row, joint column); raises :class:`ConfigError` for a bad index or a singular Rq."""
+    Rq = np.diag(ratios)
+    for k, entry in enumerate(cfg.coupling):
+        if entry.motor > n_joints or entry.joint > n_joints or entry.motor == entry.joint:
+            raise ConfigError(
+                f"{source}: transmission.coupling[{k}] = (motor {entry.motor}, joint "
+                f"{entry.joint}): indices are 1-based, distinct, at most {n_joints}."
+            )
+        Rq[entry.motor - 1, entry.joint - 1] = entry.ratio
+    if abs(np.linalg.det(Rq)) < 1e-12 * np.prod(np.abs(ratios)):
+        raise ConfigError(f"{source}: transmission matrix Rq is singular; check the coupling.")
+    return Rq
+
+
+def _in_si_units(
+    cfg: LogConfig,
+    transmission: TransmissionConfig,
+    q_raw: FloatArray,
+    tau_raw: FloatArray,
+    dq_raw: FloatArray | None,
+    source: str,
+) -> tuple[FloatArray, FloatArray, FloatArray | None, str]:
+    """The signals (n_samples, n_joints) in SI units (unit, scale, sign once per signal), still
+    on their logged side, and the note of the conversions ("" when none)."""
+    notes = []
+    pos_unit = cfg.position.unit or cfg.position_unit
+    trq_unit = cfg.torque.unit or cfg.torque_unit
+    q_raw, note = _to_si(q_raw, cfg.position, pos_unit, "position", source)
+    notes.append(note)
+    tau_raw, note = _to_si(tau_raw, cfg.torque, trq_unit, "torque", source)
+    notes.append(note)
+    if dq_raw is not None:
+        assert cfg.velocity is not None
+        dq_raw, note = _to_si(
+            dq_raw, cfg.velocity, cfg.velocity.unit or cfg.velocity_unit, "velocity", source
+        )
+        notes.append(note)
+    if trq_unit in ("A", "mA") and transmission.torque_constants is None:
+        raise ConfigError(
+            f"{source}: log.torque_unit = {trq_unit} needs transmission.torque_constants "
+            "[N*m/A], one per joint."
+        )
+    return q_raw, tau_raw, dq_raw, "; ".join(n for n in notes if n)
 
 
 def _matrix(a: FloatArray) -> str:
@@ -413,21 +458,15 @@ def _read_one(
 
     Parameters
     ----------
-    cfg :
-        The ``log`` section (paths already absolute).
-    transmission :
-        The ``transmission`` section.
+    cfg, transmission :
+        The ``log`` section (paths already absolute) and the ``transmission`` section.
     joint_names :
         Model joint names the columns map to, in order; their number is the number of columns.
     source :
         Config file name for messages.
 
-    Raises
-    ------
-    DataError
-        For missing or malformed files, columns, NaN/inf values, or a bad time column.
-    ConfigError
-        For an inconsistent transmission or unit.
+    Raises :class:`DataError` for missing or malformed files, columns, NaN/inf values, or a
+    bad time column; :class:`ConfigError` for an inconsistent transmission or unit.
     """
     joint_names = tuple(joint_names)
     n_joints = len(joint_names)
@@ -439,11 +478,7 @@ def _read_one(
     arrays, keep, join_note, join_warnings = join_signals(parts, cfg, stamps.t_join, stamps.rows)
     warnings += join_warnings
     t = stamps.t if keep is None or stamps.t is None else stamps.t[keep]
-    q_raw, tau_raw = arrays[0], arrays[1]
-    dq_raw = arrays[2] if cfg.velocity is not None else None
-    if cfg.max_samples is not None and t is None:
-        q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
-        dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
+    q_raw, tau_raw, dq_raw = _raw_signals(cfg, arrays, t)
     signals, records = _joint_side(cfg, transmission, q_raw, tau_raw, dq_raw, source)
     n = signals[0].shape[0]
     t, signals, segments, fs, time_note = uniform_grid(
@@ -474,6 +509,19 @@ def _read_one(
     )
 
 
+def _raw_signals(
+    cfg: LogConfig, arrays: list[FloatArray], t: FloatArray | None
+) -> tuple[FloatArray, FloatArray, FloatArray | None]:
+    """The joined position, torque (and velocity) columns (n_samples, n_joints) as logged,
+    cut to ``log.max_samples`` when the log has no time column ``t``."""
+    q_raw, tau_raw = arrays[0], arrays[1]
+    dq_raw = arrays[2] if cfg.velocity is not None else None
+    if cfg.max_samples is not None and t is None:
+        q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
+        dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
+    return q_raw, tau_raw, dq_raw
+
+
 def _joint_side(
     cfg: LogConfig,
     transmission: TransmissionConfig,
@@ -485,24 +533,9 @@ def _joint_side(
     """The signals in SI units on the joint side (units, scale, sign once per signal, then
     the transmission): ``[q, tau]`` (and ``dq``), and the records of both steps."""
     n_joints = q_raw.shape[1]
-    notes = []
-    pos_unit = cfg.position.unit or cfg.position_unit
-    trq_unit = cfg.torque.unit or cfg.torque_unit
-    q_raw, note = _to_si(q_raw, cfg.position, pos_unit, "position", source)
-    notes.append(note)
-    tau_raw, note = _to_si(tau_raw, cfg.torque, trq_unit, "torque", source)
-    notes.append(note)
-    if dq_raw is not None:
-        assert cfg.velocity is not None
-        dq_raw, note = _to_si(
-            dq_raw, cfg.velocity, cfg.velocity.unit or cfg.velocity_unit, "velocity", source
-        )
-        notes.append(note)
-    if trq_unit in ("A", "mA") and transmission.torque_constants is None:
-        raise ConfigError(
-            f"{source}: log.torque_unit = {trq_unit} needs transmission.torque_constants "
-            "[N*m/A], one per joint."
-        )
+    q_raw, tau_raw, dq_raw, unit_note = _in_si_units(
+        cfg, transmission, q_raw, tau_raw, dq_raw, source
+    )
     pos_side = cfg.position.side or cfg.side
     trq_side = cfg.torque.side or cfg.side
     vel_side = (cfg.velocity.side if cfg.velocity else None) or cfg.side
@@ -524,7 +557,6 @@ def _joint_side(
         Rq = trans.position_matrix if vel_side == "motor" else np.eye(n_joints)
         signals.append(np.asarray(np.linalg.solve(Rq, dq_raw.T).T, dtype=np.float64))
     records: list[dict] = []
-    unit_note = "; ".join(n for n in notes if n)
     if unit_note:
         records.append({"step": "units", "detail": unit_note})
     records.append(

@@ -259,6 +259,20 @@ def load_mujoco(
     """
     where = str(robot.urdf_path or robot.name)
     model = _compile(robot, payload)
+    ids = _robot_joint_ids(model, robot, where)
+    _set_dynamics_only(model, robot, timestep_s)
+    return MujocoRobot(
+        model=model,
+        joint_names=tuple(robot.joint_names),
+        qpos_index=np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64),
+        dof_index=np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64),
+        mimic=_mimic_addresses(model, robot),
+    )
+
+
+def _robot_joint_ids(model: mujoco.MjModel, robot: Robot, where: str) -> list[int]:
+    """MuJoCo ids of the robot's joints, in its order; raises :class:`ModelError` when the
+    moving joints differ (mimic followers aside) or one is not 1-DoF in MuJoCo."""
     mj_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(model.njnt)]
     followers = {m.follower for m in robot.mimic_joints}
     extra = sorted(set(mj_names) - set(robot.joint_names) - followers)
@@ -274,6 +288,13 @@ def load_mujoco(
     for name, i in zip(robot.joint_names, ids, strict=True):
         if int(model.jnt_type[i]) not in _ONE_DOF:
             raise ModelError(f"{where}: joint {name!r} is not a 1-DoF joint in MuJoCo.")
+    return ids
+
+
+def _set_dynamics_only(model: mujoco.MjModel, robot: Robot, timestep_s: float) -> None:
+    """Options of a dynamics-only model: Euler at ``timestep_s`` [s], the robot's gravity, no
+    springs, limits, stiffness, damping, armature, friction loss or gravity compensation,
+    constraints as :func:`_constraint_flags` sets them."""
     model.opt.timestep = timestep_s
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
     model.opt.gravity[:] = np.asarray(robot.model.gravity.linear, dtype=float)
@@ -287,13 +308,6 @@ def load_mujoco(
     model.dof_armature[:] = 0.0
     model.dof_frictionloss[:] = 0.0
     model.body_gravcomp[:] = 0.0
-    return MujocoRobot(
-        model=model,
-        joint_names=tuple(robot.joint_names),
-        qpos_index=np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64),
-        dof_index=np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64),
-        mimic=_mimic_addresses(model, robot),
-    )
 
 
 def _constraint_flags(model: mujoco.MjModel, timestep_s: float) -> int:

@@ -209,6 +209,26 @@ def reference_at_rate(
     """
     t = np.asarray(t, dtype=float)
     q, dq, ddq = (np.asarray(a, dtype=float) for a in (q, dq, ddq))
+    dt, n_ctrl = _sample_step(t, q, dq, ddq, rate_hz)
+    n, period = t.shape[0], t.shape[0] * dt
+    if n_ctrl == n:
+        return q.copy(), dq.copy(), ddq.copy()
+    knots = np.append(np.arange(n) * dt, period)
+    tc = np.arange(n_ctrl) / rate_hz
+    out = [np.empty((n_ctrl, q.shape[1])) for _ in range(3)]
+    for j in range(q.shape[1]):  # BPoly interpolates one scalar signal at a time
+        derivatives = np.stack([q[:, j], dq[:, j], ddq[:, j]], axis=1)
+        spline = BPoly.from_derivatives(knots, np.vstack([derivatives, derivatives[:1]]))
+        for order in range(3):
+            out[order][:, j] = spline(tc, nu=order)
+    return out[0], out[1], out[2]
+
+
+def _sample_step(
+    t: FloatArray, q: FloatArray, dq: FloatArray, ddq: FloatArray, rate_hz: float
+) -> tuple[float, int]:
+    """The reference's sample step dt [s] and the controller samples per period; raises the
+    :class:`DataError` of :func:`reference_at_rate`."""
     n = t.shape[0] if t.ndim == 1 else 0
     if n < 2 or any(a.ndim != 2 or a.shape[0] != n or a.shape != q.shape for a in (q, dq, ddq)):
         raise DataError(
@@ -228,17 +248,7 @@ def reference_at_rate(
             f"reference: the period {period:g} s is not a whole number of controller periods "
             f"(1 / {rate_hz:g} Hz); choose a period that is a multiple of {1.0 / rate_hz:g} s."
         )
-    if n_ctrl == n:
-        return q.copy(), dq.copy(), ddq.copy()
-    knots = np.append(np.arange(n) * dt, period)
-    tc = np.arange(n_ctrl) / rate_hz
-    out = [np.empty((n_ctrl, q.shape[1])) for _ in range(3)]
-    for j in range(q.shape[1]):  # BPoly interpolates one scalar signal at a time
-        derivatives = np.stack([q[:, j], dq[:, j], ddq[:, j]], axis=1)
-        spline = BPoly.from_derivatives(knots, np.vstack([derivatives, derivatives[:1]]))
-        for order in range(3):
-            out[order][:, j] = spline(tc, nu=order)
-    return out[0], out[1], out[2]
+    return dt, n_ctrl
 
 
 def controller_gains(
@@ -281,9 +291,8 @@ def simulate(
     *,
     rng: RngLike = None,
 ) -> SimulatedLog:
-    """Simulate the robot tracking a periodic reference in closed loop and log it.
-
-    The robot starts in the reference's initial state (position and velocity), is simulated for
+    """Simulate the robot tracking a periodic reference in closed loop and log it: it starts in
+    the reference's initial state (position and velocity), is simulated for
     ``settle_periods + n_periods`` periods and logged over the last ``n_periods``.
 
     Parameters
@@ -292,28 +301,15 @@ def simulate(
         The robot (URDF inertials; its locked joints are fixed in MuJoCo at their values).
     t, q, dq, ddq :
         One period of the reference: uniform times [s], shape (n_samples,); positions [rad],
-        velocities [rad/s], accelerations [rad/s^2], shape (n_samples, nq). Sampled at
-        ``config.rate_hz`` (used as is) or coarser (interpolated, see
-        :func:`reference_at_rate`).
-    config :
-        The ``measurement:`` section.
-    rng :
-        Generator or seed of the torque noise (the only random draw; the motion itself is
-        deterministic).
+        velocities [rad/s], accelerations [rad/s^2], shape (n_samples, nq); at ``config.rate_hz``
+        (used as is) or coarser (interpolated, see :func:`reference_at_rate`).
+    config, rng :
+        The ``measurement:`` section; generator or seed of the torque noise (the only random
+        draw; the motion itself is deterministic).
 
-    Returns
-    -------
-    :
-        The log and the truth.
-
-    Raises
-    ------
-    ConfigError
-        If a per-joint list of ``config`` does not have one entry per joint.
-    DataError
-        For a malformed reference, or when a tracking error reaches 1 rad (unstable gains).
-    ModelError
-        If MuJoCo cannot compile the robot.
+    Returns the log and the truth. Raises :class:`ConfigError` (a per-joint list of ``config``
+    without one entry per joint), :class:`DataError` (a malformed reference, a tracking error
+    reaching 1 rad: unstable gains), :class:`ModelError` (MuJoCo cannot compile the robot).
     """
     nv = robot.nv
     check_joint_counts(config, nv, joint_names=robot.joint_names)
@@ -326,10 +322,7 @@ def simulate(
     run = _run_closed_loop(robot, config, reference, truth, k0, n_total)
     t_log = np.arange(k0, n_total) / rate
     tau_measured = _measured_torque(t_log, run.tau_cmd, config, nv, rng)
-    current = torque_constants = None
-    if config.current is not None:
-        torque_constants = per_joint(config.current.torque_constants, nv)
-        current = tau_measured / torque_constants
+    current, torque_constants = _motor_current(tau_measured, config, nv)
     index = np.arange(k0, n_total) % n_ctrl
     return SimulatedLog(
         t=t_log,
@@ -348,6 +341,17 @@ def simulate(
         dq_reference=reference[1][index],
         ddq_reference=reference[2][index],
     )
+
+
+def _motor_current(
+    tau_measured: FloatArray, config: MujocoMeasurement, nv: int
+) -> tuple[FloatArray | None, FloatArray | None]:
+    """Logged motor current [A] (n_samples, nv) and torque constants [N*m/A] (nv,) when the
+    config logs currents, else (None, None)."""
+    if config.current is None:
+        return None, None
+    torque_constants = per_joint(config.current.torque_constants, nv)
+    return tau_measured / torque_constants, torque_constants
 
 
 def _checked_positions(robot: Robot, q: FloatArray) -> FloatArray:

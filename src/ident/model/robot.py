@@ -216,10 +216,7 @@ class Robot:
         prepared = prepare_urdf(text, where)
         root, continuous = prepared.root, prepared.continuous
         model = build_model(prepared.text, where)
-        for name in continuous:  # no position limit (Pinocchio's convention for unbounded)
-            index = model.joints[model.getJointId(name)].idx_q
-            model.lowerPositionLimit[index] = -np.finfo(float).max
-            model.upperPositionLimit[index] = np.finfo(float).max
+        _unbounded(model, continuous)
         locked = lock_values(model, lock_joints, where)
         given = tuple(locked)
         _lock_off_chain(model, locked, base_link, tip_link, where)
@@ -505,3 +502,12 @@ def _lock_off_chain(
             index = model.joints[model.getJointId(name)].idx_q
             low, high = model.lowerPositionLimit[index], model.upperPositionLimit[index]
             locked[name] = float(np.clip(0.0, low, high)) if high > low else 0.0
+
+
+def _unbounded(model: pin.Model, continuous: Sequence[str]) -> None:
+    """Give the ``continuous`` joints no position limit (Pinocchio's convention for unbounded:
+    ``-+max float``), in place."""
+    for name in continuous:
+        index = model.joints[model.getJointId(name)].idx_q
+        model.lowerPositionLimit[index] = -np.finfo(float).max
+        model.upperPositionLimit[index] = np.finfo(float).max

@@ -196,21 +196,17 @@ def minimize(
         One of :data:`METHODS`.
     rng :
         Generator or seed; the same ``rng`` gives an identical result (any ``workers``).
-    maxiter :
-        Iterations after the initial population (each evaluates one population). Default
-        1000, or what ``max_nfev`` allows.
-    popsize :
-        Population size (default 30, the paper's benchmark setting).
+    maxiter, popsize :
+        Iterations after the initial population (each evaluates one population; default 1000,
+        or what ``max_nfev`` allows); population size (default 30, the paper's benchmark).
     max_nfev :
         Evaluation budget, never exceeded: ``maxiter = min(maxiter, max_nfev // popsize - 1)``.
         Every time-varying schedule (eMuPSO ``w``/``c2``, WOA/GWO ``a``, GOA ``c``) is spread
         over that number of iterations.
     callback :
         ``callback(IntermediateResult)`` after every iteration; returning True stops the run.
-    vectorized :
-        See ``fun``.
-    workers :
-        Processes evaluating the population (``fun`` must be picklable when > 1).
+    vectorized, workers :
+        See ``fun``; processes evaluating the population (``fun`` picklable when > 1).
     x0 :
         Optional initial points (k, dim), k <= popsize, inside the bounds; the rest of the
         initial population is uniform (used to seed a run from elites).
@@ -218,17 +214,10 @@ def minimize(
         Method options (see ``method_defaults(method)``), plus ``f_target`` and
         ``target_tol``: stop when ``fun <= f_target + target_tol`` (paper eq. 7).
 
-    Returns
-    -------
-    :
-        :class:`OptimizeResult`.
-
-    Raises
-    ------
-    OptimizationError
-        Invalid bounds, unknown method or option (with the closest valid name), a budget
-        smaller than one population, a bad ``x0``, a ``workers`` that is not a whole number
-        >= 1, or (``workers > 1``) an objective that cannot be pickled.
+    Returns an :class:`OptimizeResult`. Raises :class:`OptimizationError` for invalid bounds, an
+    unknown method or option (with the closest valid name), a budget smaller than one
+    population, a bad ``x0``, a ``workers`` that is not a whole number >= 1, or
+    (``workers > 1``) an objective that cannot be pickled.
     """
     setup = _setup(fun, bounds, method, popsize, maxiter, max_nfev, x0, workers, options)
     with _process_pool(setup.workers) as executor:

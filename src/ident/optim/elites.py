@@ -123,35 +123,45 @@ def find_feasible_elites(
             f"{n_particles}, {n_elites}, {maxiter}, {restarts}"
         )
     search = _EliteSearch(violation, lower, upper, n_particles, as_rng(rng))
+    message = _run_swarms(search, n_elites, tolerance, maxiter, restarts, callback)
+    return search.result(n_elites, message)
+
+
+def _run_swarms(
+    search: _EliteSearch,
+    n_elites: int,
+    tolerance: float,
+    maxiter: int,
+    restarts: int,
+    callback: Callable[[IntermediateResult], Any] | None,
+) -> str:
+    """Evaluate and move ``search``'s swarm, a new random one per restart, until ``n_elites``
+    elites are found, the callback or the budget stops it; returns why it stopped."""
     attempt, attempt_start = 0, 0
     while True:
         f = search.evaluate()
         search.promote(f, tolerance, n_elites)
         if len(search.elites) >= n_elites:
-            message = f"{n_elites} elites found" + (
+            return f"{n_elites} elites found" + (
                 f" ({attempt} restart{'s' * (attempt > 1)} of the swarm)" if attempt else ""
             )
-            break
         if callback is not None and callback(
             IntermediateResult(search.best_x, search.best_f, search.nit, search.nfev)
         ):
-            message = "stopped by callback"
-            break
+            return "stopped by callback"
         if search.nit - attempt_start >= maxiter:
             if attempt < restarts:  # a stalled swarm: start again from new random points
                 search.nit += 1  # the new swarm's evaluation is an iteration; maxiter more follow
                 attempt, attempt_start = attempt + 1, search.nit
                 search.new_swarm()
                 continue
-            message = (
+            return (
                 f"only {len(search.elites)} of {n_elites} elites after {search.nit} iterations "
                 f"({attempt + 1} swarms of {maxiter}; least violation {search.best_f:.3g}): the "
                 "search box holds too few designs that meet the constraints"
             )
-            break
         search.nit += 1
         search.move()
-    return search.result(n_elites, message)
 
 
 class _EliteSearch:

@@ -308,7 +308,7 @@ def _pso_step(
 def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
     """Run eMuPSO on ``problem``; returns the method-specific parts of the result."""
     _validate(opts)
-    n, lo, hi, span = problem.popsize, problem.lower, problem.upper, problem.span
+    lo, hi, span = problem.lower, problem.upper, problem.span
     rng = problem.rng
     w, c2 = coefficient_schedules(
         problem.maxiter, opts["w_start"], opts["w_end"], opts["c2_start"], opts["c2_end"]
@@ -337,18 +337,8 @@ def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
     t = 0
     while not stop and t < problem.maxiter:
         t += 1
-        if g >= big_g:
-            # eq. 7-8: new cycle from the archives (section 3.3)
-            pool_x, pool_f = _archive_pool(arch_x, arch_f, p, pf, span, keep)
-            if opts["mutation"] == "gaussian":
-                n_elites = int(opts["n_elites"])
-                elites, _ = best_distinct(
-                    pool_x, pool_f, span, size=n_elites, distinct_tol=keep["distinct_tol"]
-                )
-            else:
-                elites = np.zeros((0, problem.dim))
-            arch_x, arch_f = best_distinct(pool_x, pool_f, span, **keep)
-            x = mutate_population(elites, n, lo, hi, opts["sigma_fraction"], rng)
+        if g >= big_g:  # eq. 7-8: new cycle from the archives (section 3.3)
+            x, arch_x, arch_f = _new_cycle(problem, arch_x, arch_f, p, pf, keep, opts)
             v[:] = 0.0
             f = problem.evaluate(x)
             p, pf = x.copy(), f.copy()
@@ -359,9 +349,7 @@ def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
         else:
             _pso_step(x, v, p, p[gi], w[t - 1], c1, c2[t - 1], vmax * decay ** (t - 1), lo, hi, rng)
             f = problem.evaluate(x)
-            better = f < pf
-            p[better] = x[better]
-            pf[better] = f[better]
+            _keep_better(p, pf, x, f)
             gi = int(np.argmin(pf))
             rad_new = swarm_radius(pf[gi], pf)
             g = stagnation_update(g, rad, rad_new, rtol)
@@ -377,3 +365,37 @@ def run(problem: Problem, x0: FloatArray | None, **opts: Any) -> dict[str, Any]:
         "mutation_iterations": np.array(mutations, dtype=np.int64),
         "archive": EliteArchive(x=arch_x, fun=arch_f),
     }
+
+
+def _new_cycle(
+    problem: Problem,
+    arch_x: FloatArray,
+    arch_f: FloatArray,
+    p: FloatArray,
+    pf: FloatArray,
+    keep: dict[str, Any],
+    opts: dict[str, Any],
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Eq. 7-8 (section 3.3): the new population (popsize, dim), mutated from the elites of the
+    archive and personal bests ``p`` (popsize, dim) with values ``pf``, and the new archive
+    (x, f)."""
+    pool_x, pool_f = _archive_pool(arch_x, arch_f, p, pf, problem.span, keep)
+    if opts["mutation"] == "gaussian":
+        n_elites = int(opts["n_elites"])
+        elites, _ = best_distinct(
+            pool_x, pool_f, problem.span, size=n_elites, distinct_tol=keep["distinct_tol"]
+        )
+    else:
+        elites = np.zeros((0, problem.dim))
+    arch_x, arch_f = best_distinct(pool_x, pool_f, problem.span, **keep)
+    x = mutate_population(
+        elites, problem.popsize, problem.lower, problem.upper, opts["sigma_fraction"], problem.rng
+    )
+    return x, arch_x, arch_f
+
+
+def _keep_better(p: FloatArray, pf: FloatArray, x: FloatArray, f: FloatArray) -> None:
+    """Personal bests ``p`` (n, dim), ``pf`` (n,) replaced in place where ``f`` < ``pf``."""
+    better = f < pf
+    p[better] = x[better]
+    pf[better] = f[better]

@@ -165,6 +165,7 @@ def _cell(tag: str, align: list[str], k: int, text: str, resolver: _ImageResolve
 
 
 def _blocks(lines: list[str], resolver: _ImageResolver) -> list[str]:
+    """HTML of each block (code, heading, table, list, quote, paragraph) of markdown lines."""
     out: list[str] = []
     i, n = 0, len(lines)
     while i < n:
@@ -172,71 +173,93 @@ def _blocks(lines: list[str], resolver: _ImageResolver) -> list[str]:
         if not line.strip():
             i += 1
             continue
-        if line.strip().startswith("```"):
-            j = i + 1
-            while j < n and not lines[j].strip().startswith("```"):
-                j += 1
-            out.append("<pre><code>" + html.escape("\n".join(lines[i + 1 : j])) + "</code></pre>")
-            i = j + 1
-            continue
         heading = _HEADING.match(line)
-        if heading:
+        if line.strip().startswith("```"):
+            block, i = _code_block(lines, i)
+        elif heading:
             level = len(heading.group(1))
             text = heading.group(2)
             anchor = re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
-            out.append(f'<h{level} id="{anchor}">{_inline(text, resolver)}</h{level}>')
-            i += 1
-            continue
-        if "|" in line and i + 1 < n and _TABLE_SEP.match(lines[i + 1]):
-            header = _cells(line)
-            align = [_alignment(c) for c in _cells(lines[i + 1])]
-            rows = []
-            j = i + 2
-            while j < n and lines[j].strip() and "|" in lines[j]:
-                rows.append(_cells(lines[j]))
-                j += 1
-
-            head = "".join(_cell("th", align, k, c, resolver) for k, c in enumerate(header))
-            body = "".join(
-                "<tr>"
-                + "".join(_cell("td", align, k, c, resolver) for k, c in enumerate(row))
-                + "</tr>"
-                for row in rows
-            )
-            out.append(f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
-            i = j
-            continue
-        if _BULLET.match(line):
-            items = []
-            while i < n and _BULLET.match(lines[i]):
-                items.append(_BULLET.match(lines[i]).group(1))  # type: ignore[union-attr]
-                i += 1
-                # continuation lines of a list item are indented
-                while i < n and lines[i].startswith("  ") and lines[i].strip():
-                    items[-1] += " " + lines[i].strip()
-                    i += 1
-            out.append(
-                "<ul>" + "".join(f"<li>{_inline(t, resolver)}</li>" for t in items) + "</ul>"
-            )
-            continue
-        if line.lstrip().startswith(">"):
-            quoted = []
-            while i < n and lines[i].lstrip().startswith(">"):
-                quoted.append(lines[i].lstrip()[1:].strip())
-                i += 1
-            out.append(f"<blockquote><p>{_inline(' '.join(quoted), resolver)}</p></blockquote>")
-            continue
-        para = []
-        while (
-            i < n
-            and lines[i].strip()
-            and not _HEADING.match(lines[i])
-            and not lines[i].strip().startswith("```")
-            and not _BULLET.match(lines[i])
-            and not lines[i].lstrip().startswith(">")
-            and not ("|" in lines[i] and i + 1 < n and _TABLE_SEP.match(lines[i + 1]))
-        ):
-            para.append(lines[i].strip())
-            i += 1
-        out.append(f"<p>{_inline(' '.join(para), resolver)}</p>")
+            block, i = f'<h{level} id="{anchor}">{_inline(text, resolver)}</h{level}>', i + 1
+        elif _table_starts(lines, i):
+            block, i = _table_block(lines, i, resolver)
+        elif _BULLET.match(line):
+            block, i = _list_block(lines, i, resolver)
+        elif line.lstrip().startswith(">"):
+            block, i = _quote_block(lines, i, resolver)
+        else:
+            block, i = _paragraph(lines, i, resolver)
+        out.append(block)
     return out
+
+
+def _table_starts(lines: list[str], i: int) -> bool:
+    """Whether line i is a table header (a ``|`` line followed by a separator line)."""
+    return "|" in lines[i] and i + 1 < len(lines) and bool(_TABLE_SEP.match(lines[i + 1]))
+
+
+def _code_block(lines: list[str], i: int) -> tuple[str, int]:
+    """The fenced code block opening at line i, and the line after its closing fence."""
+    j = i + 1
+    while j < len(lines) and not lines[j].strip().startswith("```"):
+        j += 1
+    return "<pre><code>" + html.escape("\n".join(lines[i + 1 : j])) + "</code></pre>", j + 1
+
+
+def _table_block(lines: list[str], i: int, resolver: _ImageResolver) -> tuple[str, int]:
+    """The table whose header is line i, and the line after its last row."""
+    n = len(lines)
+    header = _cells(lines[i])
+    align = [_alignment(c) for c in _cells(lines[i + 1])]
+    rows = []
+    j = i + 2
+    while j < n and lines[j].strip() and "|" in lines[j]:
+        rows.append(_cells(lines[j]))
+        j += 1
+    head = "".join(_cell("th", align, k, c, resolver) for k, c in enumerate(header))
+    body = "".join(
+        "<tr>" + "".join(_cell("td", align, k, c, resolver) for k, c in enumerate(row)) + "</tr>"
+        for row in rows
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>", j
+
+
+def _list_block(lines: list[str], i: int, resolver: _ImageResolver) -> tuple[str, int]:
+    """The bullet list starting at line i, and the line after it."""
+    n = len(lines)
+    items = []
+    while i < n and _BULLET.match(lines[i]):
+        items.append(_BULLET.match(lines[i]).group(1))  # type: ignore[union-attr]
+        i += 1
+        # continuation lines of a list item are indented
+        while i < n and lines[i].startswith("  ") and lines[i].strip():
+            items[-1] += " " + lines[i].strip()
+            i += 1
+    return "<ul>" + "".join(f"<li>{_inline(t, resolver)}</li>" for t in items) + "</ul>", i
+
+
+def _quote_block(lines: list[str], i: int, resolver: _ImageResolver) -> tuple[str, int]:
+    """The block quote starting at line i, and the line after it."""
+    quoted = []
+    while i < len(lines) and lines[i].lstrip().startswith(">"):
+        quoted.append(lines[i].lstrip()[1:].strip())
+        i += 1
+    return f"<blockquote><p>{_inline(' '.join(quoted), resolver)}</p></blockquote>", i
+
+
+def _paragraph(lines: list[str], i: int, resolver: _ImageResolver) -> tuple[str, int]:
+    """The paragraph starting at line i (up to a blank line or another block), and the line
+    after it."""
+    para = []
+    while (
+        i < len(lines)
+        and lines[i].strip()
+        and not _HEADING.match(lines[i])
+        and not lines[i].strip().startswith("```")
+        and not _BULLET.match(lines[i])
+        and not lines[i].lstrip().startswith(">")
+        and not _table_starts(lines, i)
+    ):
+        para.append(lines[i].strip())
+        i += 1
+    return f"<p>{_inline(' '.join(para), resolver)}</p>", i

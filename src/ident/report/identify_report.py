@@ -411,11 +411,39 @@ def _markdown(
     replay_note: str = "",
     model: dict | None = None,
 ) -> str:
-    pm = result.parameters
-    est = result.estimate
-    names = result.joint_names
+    """report.md of an identification: its sections in order."""
     units = joint_torque_units(result)
     lines = [
+        *_title_lines(result, replay_note),
+        *headline_markdown(_headline(result, urdf, model)),
+        *model_section(model, urdf_name),
+        *model_intervals_markdown(result),
+        "## Identified vs reference parameters",
+        "",
+        "![Identified base parameters: relative deviation from the reference (or the URDF's "
+        "nominal values) with ±3σ bars](figures/parameters.png)",
+        "",
+        "![measured vs predicted torque](figures/torque_validation.png)",
+        "",
+        *_processing_section(result, units),
+    ]
+    lines += _held_out_section(result, result.joint_names, units)
+    lines += ["", *friction_models_lines(result)]
+    lines += _base_parameter_section(result, units)
+    lines += _essential_section(result)
+    lines += _truth_section(result)
+    lines += uncertainty_markdown(result)
+    lines += _urdf_section(urdf, urdf_name)
+    lines += _consistency_section(result)
+    lines += ["", "## Timings", "", "| stage | seconds |", "| --- | --- |"]
+    lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _title_lines(result: IdentifyResult, replay_note: str) -> list[str]:
+    """Title and the paragraph naming the config, URDF, estimator and replay."""
+    pm, est = result.parameters, result.estimate
+    return [
         f"# Identification of `{result.config.name}` from a measured log",
         "",
         f"Config: `{result.config.source}`. URDF: `{_robot_file(result).name}`. "
@@ -428,21 +456,14 @@ def _markdown(
             else f"Motion replay: not available. {replay_note}"
         ),
         "",
-        *headline_markdown(_headline(result, urdf, model)),
-        *model_section(model, urdf_name),
-        *model_intervals_markdown(result),
-        "## Identified vs reference parameters",
-        "",
-        "![Identified base parameters: relative deviation from the reference (or the URDF's "
-        "nominal values) with ±3σ bars](figures/parameters.png)",
-        "",
-        "![measured vs predicted torque](figures/torque_validation.png)",
-        "",
-        "## Processing",
-        "",
-        "| step | what |",
-        "| --- | --- |",
     ]
+
+
+def _processing_section(result: IdentifyResult, units: Sequence[str]) -> list[str]:
+    """The processing steps, and the residual RMS and σ per joint on the identification part
+    (in the joint's torque ``units``)."""
+    est = result.estimate
+    lines = ["## Processing", "", "| step | what |", "| --- | --- |"]
     lines += [f"| {r['step']} | {r['detail']} |" for r in result.records]
     lines += [
         "",
@@ -453,25 +474,9 @@ def _markdown(
     ]
     lines += [
         f"| {n} | {_num(est.residual_rms[j])} {units[j]} | {_num(est.sigma[j])} {units[j]} |"
-        for j, n in enumerate(names)
+        for j, n in enumerate(result.joint_names)
     ]
-    lines += _held_out_section(result, names, units)
-    lines += ["", *friction_models_lines(result)]
-    lines += _base_parameter_section(result, units)
-    lines += _essential_section(result)
-    lines += _truth_section(result)
-    lines += uncertainty_markdown(result)
-    lines += _urdf_section(urdf, urdf_name)
-    lines += _consistency_section(result)
-    lines += [
-        "",
-        "## Timings",
-        "",
-        "| stage | seconds |",
-        "| --- | --- |",
-    ]
-    lines += [f"| {k} | {v:.3f} |" for k, v in result.timings.items()]
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def _base_parameter_section(result: IdentifyResult, units: Sequence[str]) -> list[str]:
@@ -840,8 +845,6 @@ def write_identify_report(
     :
         Paths written (report files; the replay's files are not listed).
     """
-    from ident.report.html import markdown_to_html
-
     folder = Path(folder)
     if replay_note is None:
         replay_note = write_measured_replay(result, folder, replay=replay)
@@ -851,6 +854,24 @@ def write_identify_report(
     urdf_name = (
         _robot_file(result).stem + "_cautious.urdf" if result.config.urdf_update.cautious else None
     )
+    written = _write_report_files(result, folder, urdf, urdf_name, replay_note, model)
+    if model["written"]:
+        written[:0] = [folder / name for name in model["files"].values()]
+    return written
+
+
+def _write_report_files(
+    result: IdentifyResult,
+    folder: Path,
+    urdf: UrdfUpdate,
+    urdf_name: str | None,
+    replay_note: str,
+    model: dict,
+) -> list[Path]:
+    """Write the figures, the cautious URDF (when ``urdf_name``), parameters.csv, result.json,
+    report.md and report.html; returns their paths."""
+    from ident.report.html import markdown_to_html
+
     png = torque_png(result)
     params_png = parameters_figure(result)
     markdown = _markdown(result, urdf, urdf_name, replay_note, model)
@@ -880,8 +901,6 @@ def write_identify_report(
             ),
         ),
     ]
-    if model["written"]:
-        written[:0] = [folder / name for name in model["files"].values()]
     return written
 
 

@@ -33,21 +33,7 @@ def model_section(
         return lines + [f"No model file: {note}.", ""]
     files, parity = model["files"], model["reload_parity"]
     held = model["held_out_relative_residual"] or {}
-    # a list, not a table: a file name in a narrow table column would break mid-word
-    lines += [
-        f"- `{files['urdf']}`: **the identified model**: your URDF with every moving link's "
-        f"inertial from the physically consistent {model['method']} estimate{where} (prior "
-        "toward the URDF on the directions the log does not see) and the joints' "
-        "damping/friction.",
-        f"- `{files['mjcf']}`: the same model as MJCF, joint extras as `armature`, `damping`, "
-        "`frictionloss` (no geometry: loads without meshes).",
-        f"- `{files['joint_extras']}`: every per-joint extra: rotor inertia, friction, offsets.",
-    ]
-    if cautious is not None:
-        lines.append(
-            f"- `{cautious}`: the cautious copy: only the well-identified standard parameters "
-            "changed, nominal values elsewhere (section below)."
-        )
+    lines += _file_lines(model, cautious, where)
     reload = (
         f"{parity['urdf']:.2g} (URDF), {parity['mjcf']:.2g} (MJCF), "
         f"{parity['n_states']} random states"
@@ -75,3 +61,24 @@ def model_section(
         f"{fits or '-'}. The files and the mapping to MuJoCo: docs/model-files.md.",
         "",
     ]
+
+
+def _file_lines(model: dict[str, Any], cautious: str | None, where: str) -> list[str]:
+    """One bullet per file of the model (see :func:`model_section`)."""
+    files = model["files"]
+    # a list, not a table: a file name in a narrow table column would break mid-word
+    lines = [
+        f"- `{files['urdf']}`: **the identified model**: your URDF with every moving link's "
+        f"inertial from the physically consistent {model['method']} estimate{where} (prior "
+        "toward the URDF on the directions the log does not see) and the joints' "
+        "damping/friction.",
+        f"- `{files['mjcf']}`: the same model as MJCF, joint extras as `armature`, `damping`, "
+        "`frictionloss` (no geometry: loads without meshes).",
+        f"- `{files['joint_extras']}`: every per-joint extra: rotor inertia, friction, offsets.",
+    ]
+    if cautious is not None:
+        lines.append(
+            f"- `{cautious}`: the cautious copy: only the well-identified standard parameters "
+            "changed, nominal values elsewhere (section below)."
+        )
+    return lines

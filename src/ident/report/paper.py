@@ -164,6 +164,7 @@ def _expression_table(entry: dict[str, Any], what: str) -> list[str]:
 
 
 def _dh_section(stage: dict[str, Any], dh: dict[str, Any]) -> list[str]:
+    """The stage's base parameters in DH frames, and where the paper's names fall in them."""
     md = [
         "### Comparison with the paper (DH frames)",
         "",
@@ -177,6 +178,24 @@ def _dh_section(stage: dict[str, Any], dh: dict[str, Any]) -> list[str]:
     comparison = stage.get("paper_comparison")
     if not comparison:
         return md
+    md += _paper_class_table(comparison)
+    if stage["name"] == "wrist":
+        md += [
+            "The paper lists Iyz6 both as independent and in combination and does not list "
+            "Ixy6 (21 distinct names for 22 identified parameters): one of the two Iyz6 is "
+            "probably Ixy6.",
+            "",
+        ]
+    md += _per_parameter_table(comparison)
+    md += [
+        'docs/paper-notes.md ("Base parameters of the paper\'s stages") explains each difference.',
+        "",
+    ]
+    return md
+
+
+def _paper_class_table(comparison: list[dict[str, Any]]) -> list[str]:
+    """Per class of the paper (rows), its names in each of our DH-frame classes (columns)."""
     classes = ["independent", "dependent", "unidentifiable"]
     present = {p for row in comparison for p in row["paper"]}
     order = ("independent", "dependent", "identified", "not listed")
@@ -193,7 +212,7 @@ def _dh_section(stage: dict[str, Any], dh: dict[str, Any]) -> list[str]:
                 ],
             ]
         )
-    md += [
+    md = [
         "Where the paper's names fall in our DH-frame classes (the paper's lists of section "
         "4.1; `mx5` read as mcx5, `mm` as m; parameters the paper does not list are its "
         "unidentifiable ones, which it does not name). Which member of a combination is "
@@ -201,24 +220,21 @@ def _dh_section(stage: dict[str, Any], dh: dict[str, Any]) -> list[str]:
         "independent + in combination (identified) against unidentifiable first:",
         "",
     ]
-    md += _table(
+    return md + _table(
         ["", "ours: independent", "ours: in combination", "ours: unidentifiable"],
         rows,
         left=(0, 1, 2, 3),
     )
-    if stage["name"] == "wrist":
-        md += [
-            "The paper lists Iyz6 both as independent and in combination and does not list "
-            "Ixy6 (21 distinct names for 22 identified parameters): one of the two Iyz6 is "
-            "probably Ixy6.",
-            "",
-        ]
-    md += [
+
+
+def _per_parameter_table(comparison: list[dict[str, Any]]) -> list[str]:
+    """Per parameter: the paper's class, ours in DH frames and ours in body frames."""
+    md = [
         "Per parameter (paper / ours in DH frames / ours in body frames, where the estimate's "
         "names can differ only because of the frames):",
         "",
     ]
-    md += _table(
+    return md + _table(
         ["parameter", "paper", "ours, DH frames", "ours, body frames"],
         [
             [
@@ -231,11 +247,6 @@ def _dh_section(stage: dict[str, Any], dh: dict[str, Any]) -> list[str]:
         ],
         left=(0, 1, 2, 3),
     )
-    md += [
-        'docs/paper-notes.md ("Base parameters of the paper\'s stages") explains each difference.',
-        "",
-    ]
-    return md
 
 
 #: Tables 2 (wrist) and 3 (arm) of the paper: per elite 1..6, as printed.

@@ -19,7 +19,7 @@ from __future__ import annotations
 import io
 import re
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -200,14 +200,7 @@ def trajectory_png(
     colors = [f"C{k}" for k in range(len(joint_labels))]
     panel = 1
     if path is not None:
-        path = np.asarray(path, dtype=float)
-        ax3 = fig.add_subplot(1, n_panels, panel, projection="3d")
-        ax3.plot(path[:, 0], path[:, 1], path[:, 2], lw=1.2)
-        ax3.scatter(*path[0], color="k", s=12, label="start")
-        ax3.set_xlabel("x [m]")
-        ax3.set_ylabel("y [m]")
-        ax3.set_zlabel("z [m]")
-        ax3.set_title("(a) Cartesian path")
+        _path_panel(fig.add_subplot(1, n_panels, panel, projection="3d"), path)
         panel += 1
     for values, limits, symmetric, label, letter, what in (
         (q, q_limits, False, "position [rad]", "b", "positions"),
@@ -215,14 +208,7 @@ def trajectory_png(
     ):
         ax = fig.add_subplot(1, n_panels, panel)
         panel += 1
-        for k, name in enumerate(joint_labels):
-            ax.plot(t, values[:, k], color=colors[k], lw=1.2, label=name)
-            if limits is not None:
-                lim = np.asarray(limits, dtype=float)[k]
-                low, high = (-abs(float(lim)), abs(float(lim))) if symmetric else lim
-                for value in (low, high):
-                    if np.isfinite(value):
-                        ax.axhline(value, color=colors[k], ls="--", lw=0.8, alpha=0.7)
+        _joint_curves(ax, t, values, limits, symmetric, joint_labels, colors)
         ax.set_xlabel("time [s]")
         ax.set_ylabel(f"joint {label}")
         letter = letter if path is not None else chr(ord(letter) - 1)
@@ -230,6 +216,38 @@ def trajectory_png(
         ax.grid(alpha=0.3)
         ax.legend(fontsize="small")
     return figure_png(fig)
+
+
+def _path_panel(ax3: Any, path: FloatArray) -> None:
+    """Panel (a) of :func:`trajectory_png`: the Cartesian path (n_samples, 3) [m], its start."""
+    path = np.asarray(path, dtype=float)
+    ax3.plot(path[:, 0], path[:, 1], path[:, 2], lw=1.2)
+    ax3.scatter(*path[0], color="k", s=12, label="start")
+    ax3.set_xlabel("x [m]")
+    ax3.set_ylabel("y [m]")
+    ax3.set_zlabel("z [m]")
+    ax3.set_title("(a) Cartesian path")
+
+
+def _joint_curves(
+    ax: Axes,
+    t: FloatArray,
+    values: FloatArray,
+    limits: FloatArray | None,
+    symmetric: bool,
+    joint_labels: Sequence[str],
+    colors: list[str],
+) -> None:
+    """One curve per joint of ``values`` (n_samples, n_joints) over ``t`` [s], its limits
+    dashed: (n_joints, 2) (lower, upper), or (n_joints,) drawn at +-limit when ``symmetric``."""
+    for k, name in enumerate(joint_labels):
+        ax.plot(t, values[:, k], color=colors[k], lw=1.2, label=name)
+        if limits is not None:
+            lim = np.asarray(limits, dtype=float)[k]
+            low, high = (-abs(float(lim)), abs(float(lim))) if symmetric else lim
+            for value in (low, high):
+                if np.isfinite(value):
+                    ax.axhline(value, color=colors[k], ls="--", lw=0.8, alpha=0.7)
 
 
 def estimate_png(
@@ -303,14 +321,12 @@ def parameters_png(
     x, std, reference :
         Estimate, its standard deviations and the reference (true or nominal) values, same
         unit per entry, shape (n,).
-    include :
-        Parameters drawn at all (e.g. the significant ones), length n; None: all.
-    highlight :
-        Parameters drawn in the strong colour (the major ones), length n; None: all.
-    reference_label :
-        What the reference is, for the axis label ("true", "nominal", "reference").
-    bands :
-        Deviations [%] drawn as dashed lines (the verdict's thresholds).
+    include, highlight :
+        Parameters drawn at all (e.g. the significant ones), and those drawn in the strong
+        colour (the major ones), length n; None: all.
+    reference_label, bands :
+        What the reference is, for the axis label ("true", "nominal", "reference");
+        deviations [%] drawn as dashed lines (the verdict's thresholds).
 
     Returns
     -------
@@ -320,11 +336,7 @@ def parameters_png(
         the reference within 3σ".
     """
     x, std, ref = (np.asarray(a, dtype=float) for a in (x, std, reference))
-    scale = float(np.max(np.abs(ref), initial=0.0))
-    drawn = np.abs(ref) > 1e-9 * scale
-    if include is not None:
-        drawn &= np.asarray(include, bool)
-    keep = np.flatnonzero(drawn)
+    keep = _drawn_parameters(ref, include)
     strong = np.ones(len(names), bool) if highlight is None else np.asarray(highlight, bool)
     n = len(keep)
     chunks = panel_chunks([names[int(i)] for i in keep]) if n else [[]]
@@ -335,21 +347,12 @@ def parameters_png(
     if n:
         dev = 100.0 * (x[keep] - ref[keep]) / np.abs(ref[keep])
         bar = 300.0 * std[keep] / np.abs(ref[keep])
-        for p_k, (ax, chunk) in enumerate(zip(axes, chunks, strict=True)):
-            _deviation_panel(
-                ax,
-                [names[int(keep[i])] for i in chunk],
-                dev[chunk],
-                bar[chunk],
-                strong[keep][chunk],
-                bands=bands,
-                n_slots=per,
-                legend=highlight is not None and p_k == 0,
-            )
+        labels = [names[int(i)] for i in keep]
+        legend = highlight is not None
+        _deviation_panels(axes, chunks, labels, dev, bar, strong[keep], bands, per, legend)
     else:
-        ax0 = axes[0]
         note = "no parameter with a reference value"
-        ax0.text(0.5, 0.5, note, ha="center", transform=ax0.transAxes)
+        axes[0].text(0.5, 0.5, note, ha="center", transform=axes[0].transAxes)
     for ax in axes:
         ax.set_ylabel(f"(identified - {reference_label}) / |{reference_label}| [%]")
         ax.grid(alpha=0.3, axis="y")
@@ -357,6 +360,41 @@ def parameters_png(
         heading += f"\n{n} parameters in {len(chunks)} panels, split between links"
     axes[0].set_title(heading)
     return figure_png(fig)
+
+
+def _drawn_parameters(ref: FloatArray, include: Sequence[bool] | None) -> npt.NDArray[np.intp]:
+    """Positions of the parameters drawn: a non-zero reference ``ref`` (n,), and ``include``."""
+    scale = float(np.max(np.abs(ref), initial=0.0))
+    drawn = np.abs(ref) > 1e-9 * scale
+    if include is not None:
+        drawn &= np.asarray(include, bool)
+    return np.flatnonzero(drawn)
+
+
+def _deviation_panels(
+    axes: Any,
+    chunks: list[list[int]],
+    labels: list[str],
+    dev: FloatArray,
+    bar: FloatArray,
+    strong: npt.NDArray[np.bool_],
+    bands: Sequence[float],
+    per: int,
+    legend: bool,
+) -> None:
+    """One :func:`_deviation_panel` per chunk (indices into the drawn parameters' ``labels``,
+    deviations ``dev`` [%], ±3σ bars ``bar`` [%], ``strong`` colour); legend on the first."""
+    for p_k, (ax, chunk) in enumerate(zip(axes, chunks, strict=True)):
+        _deviation_panel(
+            ax,
+            [labels[i] for i in chunk],
+            dev[chunk],
+            bar[chunk],
+            strong[chunk],
+            bands=bands,
+            n_slots=per,
+            legend=legend and p_k == 0,
+        )
 
 
 def _deviation_panel(

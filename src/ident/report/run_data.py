@@ -365,16 +365,9 @@ def write_replay(run_dir: str | Path) -> str:
         from ident.viz.replay import replay_html, run_robot_selection
     except ImportError as e:
         return f"no replay: ident.viz.replay is not available ({e})."
-    label, data = "elite 1", {}
-    try:
-        data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
-        if not isinstance(data, dict):
-            data = {}
-    except (OSError, ValueError):
-        data = {}
+    data = _result_or_empty(run_dir)
     traced_frame = run_traced_frame(data)
     config = data.get("config")
-    stage = config.get("stage") if isinstance(config, dict) else None
     # one period of the elite the robot may run; without one, elite 1, marked unsafe
     chosen = data.get("chosen_elite")
     rank = chosen if isinstance(chosen, int) else 1
@@ -385,14 +378,9 @@ def write_replay(run_dir: str | Path) -> str:
         trajectory = read_trajectory_csv(trajectory_path)
     except IdentError as e:  # the run's own file: a note, never the run's failure
         return f"no replay: {e}"
-    label = f"elite {rank} of {data.get('name')} ({stage} stage)" if data else label
-    if not isinstance(chosen, int) and data.get("safety") is not None:
-        label += " - UNSAFE, not for the robot"
     environment = run_environment(data)
     mark = run_clearance_mark(data, rank)
-    title = f"ident replay: {data.get('name') or run_dir.name}, elite {rank}"
-    if mark is not None:
-        title += f", {mark.describe()}"
+    label, title = _replay_captions(data, run_dir, rank, mark)
     page, problem = None, ""
     robot = config.get("robot") if isinstance(config, dict) else None
     for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
@@ -419,6 +407,29 @@ def write_replay(run_dir: str | Path) -> str:
     copy = str(run_dir / "robot.urdf")  # name the copy, not this folder's absolute path
     notes = "".join(f"; {str(w.message).replace(copy, 'robot.urdf').rstrip('.')}" for w in caught)
     return f"replay.html written (traced frame: {frame or _default_frame(run_dir)}){notes}."
+
+
+def _result_or_empty(run_dir: Path) -> dict[str, Any]:
+    """The run's result.json, or {} when it is missing, unreadable or not an object."""
+    try:
+        data = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _replay_captions(data: dict[str, Any], run_dir: Path, rank: int, mark: Any) -> tuple[str, str]:
+    """The replay's trajectory label (marked unsafe when no elite was chosen, under a safety
+    check) and page title (naming the smallest clearance ``mark``, a ClearanceMark or None)."""
+    config = data.get("config")
+    stage = config.get("stage") if isinstance(config, dict) else None
+    label = f"elite {rank} of {data.get('name')} ({stage} stage)" if data else "elite 1"
+    if not isinstance(data.get("chosen_elite"), int) and data.get("safety") is not None:
+        label += " - UNSAFE, not for the robot"
+    title = f"ident replay: {data.get('name') or run_dir.name}, elite {rank}"
+    if mark is not None:
+        title += f", {mark.describe()}"
+    return label, title
 
 
 def _default_frame(run_dir: Path) -> str:

@@ -49,13 +49,8 @@ __all__ = [
 
 
 def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
-    from ident.report.plots import (
-        convergence_png,
-        estimate_png,
-        parameters_png,
-        torque_png,
-        trajectory_png,
-    )
+    """The report's figures {relative path: PNG bytes} from the run folder and result.json."""
+    from ident.report.plots import convergence_png, torque_png
 
     figures: dict[str, bytes] = {}
     runs = data["optimization"]["runs"]
@@ -72,55 +67,75 @@ def _figures(run_dir: Path, data: dict[str, Any]) -> dict[str, bytes]:
     traj_path = run_dir / "trajectory.csv"
     elite = executed_elite(data)
     if elite is not None and traj_path.is_file():
-        rank = elite["rank"]
-        traj = read_trajectory_csv(traj_path)
-        moving = data["excitation"]["moving_joints"] or list(range(len(traj.joint_names)))
-        robot = data["robot"]
-        q_lim = np.array(
-            [[np.inf if v is None else v for v in row] for row in robot["q_limits"]], dtype=float
-        )
-        dq_lim = np.array([np.inf if v is None else v for v in robot["dq_limits"]], dtype=float)
-        path = None
-        path_csv = elite.get("path_csv")
-        if path_csv and (run_dir / path_csv).is_file():
-            path = np.loadtxt(run_dir / path_csv, delimiter=",", skiprows=1, ndmin=2)[:, 1:4]
-        figures["figures/trajectory.png"] = trajectory_png(
-            traj.t,
-            traj.q[:, moving],
-            traj.dq[:, moving],
-            [traj.joint_names[j] for j in moving],
-            q_limits=q_lim[moving],
-            dq_limits=dq_lim[moving],
-            path=path,
-            title=f"Executed trajectory, elite {rank} ({stage_name} stage)",
-        )
-        estimates = elite["estimates"]
-        if estimates and "stage" in data:
-            true = np.array(data["stage"]["true_base"], dtype=float)
-            figures["figures/estimate.png"] = estimate_png(
-                data["stage"]["base_names"],
-                true,
-                {
-                    m: (np.array(e["x"], dtype=float), np.array(e["std"], dtype=float))
-                    for m, e in estimates.items()
-                },
-                title=f"Elite {rank}: (identified - true) / std per base parameter",
-            )
-            method = headline_method(elite)
-            est = estimates[method]
-            figures["figures/parameters.png"] = parameters_png(
-                data["stage"]["base_names"],
-                np.array([np.nan if v is None else v for v in est["x"]], dtype=float),
-                np.array([np.nan if v is None else v for v in est["std"]], dtype=float),
-                true,
-                highlight=est.get("major"),
-                include=est.get("significant"),
-                title=f"Elite {rank}, {(method or '').upper()}: identified vs true",
-            )
+        figures["figures/trajectory.png"] = _trajectory_figure(run_dir, data, elite, stage_name)
+        if elite["estimates"] and "stage" in data:
+            figures.update(_estimate_figures(data, elite))
     figures.update(safety_figures(data))
     val_path = run_dir / "validation.csv"
     if val_path.is_file():
         figures["figures/validation.png"] = _validation_png(val_path, torque_png)
+    return figures
+
+
+def _trajectory_figure(
+    run_dir: Path, data: dict[str, Any], elite: dict[str, Any], stage_name: str
+) -> bytes:
+    """Executed trajectory of the moving joints (trajectory.csv) with their limits, and the
+    elite's Cartesian path when its CSV exists."""
+    from ident.report.plots import trajectory_png
+
+    traj = read_trajectory_csv(run_dir / "trajectory.csv")
+    moving = data["excitation"]["moving_joints"] or list(range(len(traj.joint_names)))
+    robot = data["robot"]
+    q_lim = np.array(
+        [[np.inf if v is None else v for v in row] for row in robot["q_limits"]], dtype=float
+    )
+    dq_lim = np.array([np.inf if v is None else v for v in robot["dq_limits"]], dtype=float)
+    path = None
+    path_csv = elite.get("path_csv")
+    if path_csv and (run_dir / path_csv).is_file():
+        path = np.loadtxt(run_dir / path_csv, delimiter=",", skiprows=1, ndmin=2)[:, 1:4]
+    return trajectory_png(
+        traj.t,
+        traj.q[:, moving],
+        traj.dq[:, moving],
+        [traj.joint_names[j] for j in moving],
+        q_limits=q_lim[moving],
+        dq_limits=dq_lim[moving],
+        path=path,
+        title=f"Executed trajectory, elite {elite['rank']} ({stage_name} stage)",
+    )
+
+
+def _estimate_figures(data: dict[str, Any], elite: dict[str, Any]) -> dict[str, bytes]:
+    """The elite's estimation errors in σ per estimator, and the headline estimator's
+    identified vs true base parameters."""
+    from ident.report.plots import estimate_png, parameters_png
+
+    rank, estimates = elite["rank"], elite["estimates"]
+    true = np.array(data["stage"]["true_base"], dtype=float)
+    figures = {
+        "figures/estimate.png": estimate_png(
+            data["stage"]["base_names"],
+            true,
+            {
+                m: (np.array(e["x"], dtype=float), np.array(e["std"], dtype=float))
+                for m, e in estimates.items()
+            },
+            title=f"Elite {rank}: (identified - true) / std per base parameter",
+        )
+    }
+    method = headline_method(elite)
+    est = estimates[method]
+    figures["figures/parameters.png"] = parameters_png(
+        data["stage"]["base_names"],
+        np.array([np.nan if v is None else v for v in est["x"]], dtype=float),
+        np.array([np.nan if v is None else v for v in est["std"]], dtype=float),
+        true,
+        highlight=est.get("major"),
+        include=est.get("significant"),
+        title=f"Elite {rank}, {(method or '').upper()}: identified vs true",
+    )
     return figures
 
 
@@ -336,6 +351,32 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
             f"{_fmt(est.get('condition_number'))} (SI base matrix, {(method or '').upper()}); "
             f"{_fmt(elite['objective'].get('cond'))} (scaled, the excitation objective)"
         )
+    extra = _headline_rows(data, v, elite, est, names)
+    return Headline(
+        verdict=Verdict(v["label"], v["reason"], v.get("rule", "truth")),
+        rule=VERDICT_RULE if v.get("rule", "truth") == "truth" else VERDICT_RULE_REAL,
+        worst=worst,
+        worst_label="Worst error, major parameters",
+        residual=residual_text,
+        residual_label=residual_label,
+        condition=cond,
+        consistency=_consistency_text(data, v),
+        safety=_safety_text(data),
+        warnings=list(v.get("warnings") or []),
+        extra=[(k, v) for k, v in extra],
+    )
+
+
+def _headline_rows(
+    data: dict[str, Any],
+    v: dict[str, Any],
+    elite: dict[str, Any] | None,
+    est: dict[str, Any],
+    names: list[str],
+) -> list[list[str]]:
+    """The headline's extra rows: paper's box, optimizer, estimate, worst relative std,
+    estimator note; ``v`` the stored verdict, ``est`` its estimator's entry of the elite."""
+    method = v.get("method")
     configured = data["config"].get("optimizer")
     box = paper_box_note(data)
     extra = [["Paper's box", box]] if box else []
@@ -371,19 +412,7 @@ def _headline(data: dict[str, Any], stage: dict[str, Any] | None) -> Headline:
         )
     if est and est.get("message") not in (None, "ok"):
         extra.append(["Estimator note", str(est["message"])])
-    return Headline(
-        verdict=Verdict(v["label"], v["reason"], v.get("rule", "truth")),
-        rule=VERDICT_RULE if v.get("rule", "truth") == "truth" else VERDICT_RULE_REAL,
-        worst=worst,
-        worst_label="Worst error, major parameters",
-        residual=residual_text,
-        residual_label=residual_label,
-        condition=cond,
-        consistency=_consistency_text(data, v),
-        safety=_safety_text(data),
-        warnings=list(v.get("warnings") or []),
-        extra=[(k, v) for k, v in extra],
-    )
+    return extra
 
 
 def render_markdown(
@@ -397,20 +426,7 @@ def render_markdown(
     config = data["config"]
     stage = data.get("stage")
     stage_name = stage["name"] if stage else config["stage"]
-    excitation = config["excitation"]
-    md = [
-        f"# ident run: {data.get('name')} ({stage_name} stage)",
-        "",
-        f"Robot `{data['robot']['name']}`, {stage_name} stage, excitation "
-        f"`{excitation['family']}`, seed {data['seed']}, simulated torques with noise std "
-        f"{config['measurement']['torque_noise_std']} N*m. "
-        + (
-            "Motion replay: [replay.html](replay.html)."
-            if has_replay
-            else "Motion replay: not available (see run.json)."
-        ),
-        "",
-    ]
+    md = _run_title(data, stage_name, has_replay)
     if data["status"] == "incomplete":  # "running": the folder is being written
         md += [f"> **Incomplete run**: {data['message']}. Only what finished is reported.", ""]
     md += headline_markdown(_headline(data, stage))
@@ -418,14 +434,7 @@ def render_markdown(
         md += _parameter_section(data, stage, figures)
     else:
         md += ["No elite trajectory was identified.", ""]
-    md += ["## Comparison with the paper", ""]
-    if stage and stage["name"] in ("wrist", "arm"):
-        md += paper_tables_section(data, headline_method(executed_elite(data)))
-    else:
-        md += [
-            "This stage is not one of the paper's (wrist, arm): Tables 2-3 do not apply.",
-            "",
-        ]
+    md += _paper_comparison(data, stage)
     md += _base_section(stage) if stage else []
     if data.get("model") is not None:  # a simulated log's identification: the model files
         md += model_section(
@@ -455,6 +464,32 @@ def render_markdown(
         "",
     ]
     return "\n".join(md)
+
+
+def _run_title(data: dict[str, Any], stage_name: str, has_replay: bool) -> list[str]:
+    """Title and the paragraph naming the robot, stage, excitation, seed, noise and replay."""
+    config = data["config"]
+    return [
+        f"# ident run: {data.get('name')} ({stage_name} stage)",
+        "",
+        f"Robot `{data['robot']['name']}`, {stage_name} stage, excitation "
+        f"`{config['excitation']['family']}`, seed {data['seed']}, simulated torques with noise "
+        f"std {config['measurement']['torque_noise_std']} N*m. "
+        + (
+            "Motion replay: [replay.html](replay.html)."
+            if has_replay
+            else "Motion replay: not available (see run.json)."
+        ),
+        "",
+    ]
+
+
+def _paper_comparison(data: dict[str, Any], stage: dict[str, Any] | None) -> list[str]:
+    """The paper's Tables 2-3 next to ours, for the paper's wrist and arm stages."""
+    md = ["## Comparison with the paper", ""]
+    if stage and stage["name"] in ("wrist", "arm"):
+        return md + paper_tables_section(data, headline_method(executed_elite(data)))
+    return md + ["This stage is not one of the paper's (wrist, arm): Tables 2-3 do not apply.", ""]
 
 
 def _run_facts(data: dict[str, Any], state: dict[str, Any]) -> list[str]:

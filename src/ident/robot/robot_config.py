@@ -280,20 +280,10 @@ def _check_finite(link: LinkEntry, index: int, source: Path) -> None:
 
 
 def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
+    """The description in SI units (m, rad, kg) of a parsed robot config."""
+    _check_table_sizes(raw, source)
     n_rows = len(raw.dh.rows)
-    if len(raw.joints) != n_rows or len(raw.links) != n_rows:
-        raise ConfigError(
-            f"{source}: dh.rows has {n_rows} rows, joints has {len(raw.joints)} entries and links "
-            f"has {len(raw.links)}; give one DH row, one joints entry and one links entry "
-            "per joint."
-        )
     columns = raw.dh.columns
-    for i, row in enumerate(raw.dh.rows):
-        if len(row) != len(columns):
-            raise ConfigError(
-                f"{source}: dh.rows[{i}] has {len(row)} values but dh.columns lists "
-                f"{len(columns)} ({', '.join(columns)}); give one value per column."
-            )
     length = LENGTH_UNITS[raw.units.length]
     angle = ANGLE_UNITS[raw.units.angle]
     mass_unit = MASS_UNITS[raw.units.mass]
@@ -316,26 +306,7 @@ def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
         values = [getattr(j, key) for j in raw.joints]
         return np.array([np.inf if v is None else v for v in values], dtype=float)
 
-    mass = np.array([link.mass for link in raw.links], dtype=float) / mass_unit
-    com = np.empty((n_rows, 3))
-    inertia_com = np.empty((n_rows, 3, 3))
-    parameters = np.empty((n_rows, 10))
-    for i, link in enumerate(raw.links):
-        _check_finite(link, i, source)
-        if link.com is not None:
-            com[i] = np.array(link.com) / length
-        else:
-            com[i] = np.array(link.first_moment) / (mass_unit * length) / mass[i]
-        c = link.inertia_com
-        tensor = np.array([[c.xx, c.xy, c.xz], [c.xy, c.yy, c.yz], [c.xz, c.yz, c.zz]])
-        inertia_com[i] = tensor / (mass_unit * length**2)
-        parameters[i] = parameters_from_com(mass[i], com[i], inertia_com[i])
-        problems = consistency_problems(parameters[i])
-        if problems:
-            raise ConfigError(
-                f"{source}: links[{i}].inertia_com: {problems[0]}; give the inertia about the "
-                "link's centre of mass (axes parallel to DH frame i), not about the frame origin."
-            )
+    mass, com, inertia_com, parameters = _links_si(raw, source, length, mass_unit)
     arrays = {
         "q_lower": limit("lower") / motion_unit,
         "q_upper": limit("upper") / motion_unit,
@@ -358,3 +329,53 @@ def _to_si(raw: RobotConfigFile, source: Path) -> RobotDescription:
         source=source,
         **arrays,
     )
+
+
+def _check_table_sizes(raw: RobotConfigFile, source: Path) -> None:
+    """Raise :class:`ConfigError` unless dh.rows, joints and links have one entry per joint
+    and every DH row one value per column."""
+    n_rows = len(raw.dh.rows)
+    if len(raw.joints) != n_rows or len(raw.links) != n_rows:
+        raise ConfigError(
+            f"{source}: dh.rows has {n_rows} rows, joints has {len(raw.joints)} entries and links "
+            f"has {len(raw.links)}; give one DH row, one joints entry and one links entry "
+            "per joint."
+        )
+    columns = raw.dh.columns
+    for i, row in enumerate(raw.dh.rows):
+        if len(row) != len(columns):
+            raise ConfigError(
+                f"{source}: dh.rows[{i}] has {len(row)} values but dh.columns lists "
+                f"{len(columns)} ({', '.join(columns)}); give one value per column."
+            )
+
+
+def _links_si(
+    raw: RobotConfigFile, source: Path, length: float, mass_unit: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Per link, in SI: mass (n,) [kg], centre of mass (n, 3) [m], inertia about it (n, 3, 3)
+    [kg*m^2] and the 10 parameters in DH frame i (n, 10); ``length``, ``mass_unit``: the
+    config's units per metre and per kilogram. Raises :class:`ConfigError` for non-finite
+    values or a physically inconsistent link."""
+    n_rows = len(raw.links)
+    mass = np.array([link.mass for link in raw.links], dtype=float) / mass_unit
+    com = np.empty((n_rows, 3))
+    inertia_com = np.empty((n_rows, 3, 3))
+    parameters = np.empty((n_rows, 10))
+    for i, link in enumerate(raw.links):
+        _check_finite(link, i, source)
+        if link.com is not None:
+            com[i] = np.array(link.com) / length
+        else:
+            com[i] = np.array(link.first_moment) / (mass_unit * length) / mass[i]
+        c = link.inertia_com
+        tensor = np.array([[c.xx, c.xy, c.xz], [c.xy, c.yy, c.yz], [c.xz, c.yz, c.zz]])
+        inertia_com[i] = tensor / (mass_unit * length**2)
+        parameters[i] = parameters_from_com(mass[i], com[i], inertia_com[i])
+        problems = consistency_problems(parameters[i])
+        if problems:
+            raise ConfigError(
+                f"{source}: links[{i}].inertia_com: {problems[0]}; give the inertia about the "
+                "link's centre of mass (axes parallel to DH frame i), not about the frame origin."
+            )
+    return mass, com, inertia_com, parameters

@@ -229,12 +229,8 @@ def urdf_from_description(robot: RobotDescription) -> str:
     -------
     :
         URDF XML text with ``base_link``, one link and joint per DH row (config names), the
-        ``flange`` frame and, for a spherical wrist, the ``wrist_centre`` frame.
-
-    Raises
-    ------
-    ModelError
-        If a link or joint name collides with a generated one.
+        ``flange`` frame and, for a spherical wrist, the ``wrist_centre`` frame. Raises
+        :class:`ModelError` if a link or joint name collides with a generated one.
     """
     dh = robot.dh
     _check_generated_names(robot)

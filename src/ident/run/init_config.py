@@ -33,6 +33,7 @@ it is returned; nothing here writes a file.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -44,18 +45,20 @@ from ident.config import file_problem, validate_config
 from ident.dynamics.chain import DEFAULT_Q_RANGE
 from ident.errors import ConfigError, IdentError
 from ident.excitation.fourier import fourier_bound_factors
-from ident.excitation.safety import collision_geometry_problem
+from ident.excitation.safety import N_EXCLUSION_POSTURES, collision_geometry_problem
 from ident.inputs import read_urdf_text
 from ident.model.selection import RobotSelection, load_robot
 from ident.run.config import RunConfig
 from ident.run.init_robot import (
     base_bottom,
+    chain_tip_link,
     choose_locks,
     clear_posture,
     effort_scale,
     find_package_dirs,
     keepable_clearance,
     robot_reach,
+    self_clearance_model,
     torque_scale,
     urdf_acceleration_limits,
 )
@@ -63,6 +66,7 @@ from ident.run.setup import estimate_run, prepare_run
 
 __all__ = [
     "ACCELERATION_PER_VELOCITY",
+    "INIT_STEPS",
     "N_HARMONICS",
     "PERIOD_S",
     "VELOCITY_MARGIN",
@@ -70,6 +74,13 @@ __all__ = [
     "init_config",
 ]
 
+#: What ``init_config`` reports to its ``progress`` callback, in order.
+INIT_STEPS = (
+    "reading the limits",
+    f"self-collision on {N_EXCLUSION_POSTURES + 1} postures",
+    "choosing a clear posture",
+    "checking the config as 'ident run' will",
+)
 N_HARMONICS = 4
 PERIOD_S = 10.0
 #: Share of each velocity limit the excitation may reach (a margin for tracking errors).
@@ -85,6 +96,9 @@ ARMATURE_PER_EFFORT = 0.003  # kg*m^2 per N*m (UR5: 0.5 for 150 N*m)
 NOISE_PER_EFFORT = 0.003  # N*m per N*m, at most ...
 NOISE_PER_TORQUE = 0.01  # ... and 1 % of the torque the excitation needs at the joint
 _Q0_HALF_WIDTH = 0.5  # rad: the mean postures' search box around the chosen posture
+#: Room kept from each position limit by every design of the box [rad or m] (at most 5 % of
+#: the joint's range).
+POSITION_MARGIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -123,6 +137,7 @@ def init_config(
     tip_link: str | None = None,
     lock: dict[str, float] | None = None,
     package_dirs: list[Path] | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> InitResult:
     """A validated, commented run config for the robot of ``urdf`` (see the module docstring).
 
@@ -137,6 +152,8 @@ def init_config(
         and gripper joints locked).
     package_dirs :
         Folders that hold the ``package://`` mesh packages; default: found above the URDF.
+    progress :
+        Called with the name of each of the :data:`INIT_STEPS` steps as it starts.
 
     Raises
     ------
@@ -159,7 +176,9 @@ def init_config(
         package_dirs=dirs,
     )
     robot = load_robot(selection, source=urdf)
-    c = _choose(robot, robot.urdf_text)  # xacro expanded
+    if tip_link is None:  # written: the replay traces the chain's tip, not the file's last link
+        selection = selection.model_copy(update={"tip_link": chain_tip_link(robot.model)})
+    c = _choose(robot, robot.urdf_text, progress or (lambda _step: None))  # xacro expanded
     guesses, guess_notes = _limit_guesses(robot, c)
     lines = [
         *_robot_lines(c, selection, output, urdf, lock_notes, guesses),
@@ -169,6 +188,8 @@ def init_config(
         *_identification_lines(c),
     ]
     config_text = "\n".join(lines) + "\n"
+    if progress is not None:
+        progress(INIT_STEPS[3])
     seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
     notes = [*_notes(c, urdf, lock_notes), *guess_notes]
     return InitResult(config_text, tuple(notes), seconds, quick_seconds)
@@ -187,12 +208,14 @@ class _Choices:
     ddq_max: np.ndarray
     ddq_known: np.ndarray
     w: float
+    c_q: float
     c_v: float
     c_a: float
     amplitude: np.ndarray
     reach: float
     guessed_clearance: float
     clearance: float
+    close_pairs: tuple[str, ...]
     floor_z: float
     home: np.ndarray
     home_clearance: float
@@ -224,8 +247,37 @@ class _Choices:
         )
 
 
-def _choose(robot: Any, text: str) -> _Choices:
-    """The limits, the excitation's bound, the geometry and the measurement guesses."""
+def _position_margin(robot: Any) -> np.ndarray:
+    """Per joint: the room kept from each position limit [rad or m], shape (n_joints,)."""
+    span = np.asarray(robot.q_upper, dtype=float) - np.asarray(robot.q_lower, dtype=float)
+    return np.minimum(POSITION_MARGIN, 0.05 * np.where(np.isfinite(span), span, np.inf))
+
+
+def _half_room(robot: Any) -> np.ndarray:
+    """Per joint: half its position range less the margins [rad or m] (inf without limits),
+    shape (n_joints,): how far a motion may swing about the range's middle."""
+    span = np.asarray(robot.q_upper, dtype=float) - np.asarray(robot.q_lower, dtype=float)
+    room = 0.5 * span - _position_margin(robot)
+    return np.where(np.isfinite(room), np.maximum(room, 0.0), np.inf)
+
+
+def _q0_box(c: _Choices, robot: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The mean postures' box [rad or m], shape (n_joints,) each: within ``_Q0_HALF_WIDTH`` of
+    the clear posture, and so far from each position limit that the widest motion of the
+    search box (``c_q * amplitude / w`` about the mean) keeps the margin; where the two do
+    not meet, the point of the second nearest the posture."""
+    swing = c.c_q * c.amplitude / c.w + _position_margin(robot)
+    lowest = np.asarray(robot.q_lower, dtype=float) + swing
+    highest = np.asarray(robot.q_upper, dtype=float) - swing
+    low = np.clip(c.home - _Q0_HALF_WIDTH, lowest, highest)
+    high = np.clip(c.home + _Q0_HALF_WIDTH, lowest, highest)
+    return low, high
+
+
+def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
+    """The limits, the excitation's bound, the geometry and the measurement guesses
+    (``progress``: called with each step of :data:`INIT_STEPS` as it starts)."""
+    progress(INIT_STEPS[0])
     # limits
     dq_urdf = np.asarray(robot.dq_max, dtype=float)
     dq_known = np.isfinite(dq_urdf) & (dq_urdf > 0)
@@ -235,19 +287,25 @@ def _choose(robot: Any, text: str) -> _Choices:
     ddq_max = np.where(ddq_known, ddq_urdf, ACCELERATION_PER_VELOCITY * dq_max)
     # excitation: every design of the box within the margins
     w = 2.0 * np.pi / PERIOD_S
-    _, c_v, c_a = fourier_bound_factors(N_HARMONICS)
+    c_q, c_v, c_a = fourier_bound_factors(N_HARMONICS)
     amplitude = VELOCITY_MARGIN * np.minimum(dq_max / c_v, ddq_max / (w * c_a))
+    # and within the position range: |q - q0| <= c_q A / w fits 70 % of each half range (the
+    # other 30 % on either side of the range's middle is the mean postures' room)
+    amplitude = np.minimum(amplitude, 0.7 * _half_room(robot) * w / c_q)
     amplitude = np.floor(amplitude * 1e4) / 1e4  # written with 4 decimals, never rounded up
     # geometry: floor, margin, a posture clear of both
     reference = np.clip(np.zeros(robot.nq), robot.q_lower, robot.q_upper)
     reach = robot_reach(robot, reference)
     guessed_clearance = float(np.clip(0.05 * reach, 0.01, 0.03))
-    # halved while a link pair sits closer than it in every posture (UR base/upper arm)
-    # missing meshes or no geometry: the config says self-collision is not checked
+    # lowered where a link pair never gets that far apart (UR base/upper arm); missing meshes
+    # or no geometry: the config says self-collision is not checked
+    progress(INIT_STEPS[1])
     geometry_problem = collision_geometry_problem(robot, robot.package_dirs)
     check_self = not geometry_problem
-    clearance = keepable_clearance(robot, guessed_clearance, check_self)
-    floor_z = float(np.floor(base_bottom(robot, check_self) * 1e3) / 1e3) + 0.0  # mm, no -0
+    self_model = self_clearance_model(robot, guessed_clearance, check_self)
+    clearance, close_pairs = keepable_clearance(self_model, guessed_clearance)
+    floor_z = float(np.floor(base_bottom(self_model) * 1e3) / 1e3) + 0.0  # mm, never above
+    progress(INIT_STEPS[2])
     home, home_clearance = clear_posture(robot, clearance, floor_z, check_self)
     # measurement guesses
     effort = effort_scale(robot)
@@ -263,12 +321,14 @@ def _choose(robot: Any, text: str) -> _Choices:
         ddq_max=ddq_max,
         ddq_known=ddq_known,
         w=w,
+        c_q=c_q,
         c_v=c_v,
         c_a=c_a,
         amplitude=amplitude,
         reach=reach,
         guessed_clearance=guessed_clearance,
         clearance=clearance,
+        close_pairs=tuple(close_pairs),
         floor_z=floor_z,
         home=home,
         home_clearance=home_clearance,
@@ -390,11 +450,15 @@ def _excitation_lines(c: _Choices, robot: Any) -> list[str]:
         f"posture {c.home_clearance * 100:.0f} cm"
     )
     add("                               # clear of the floor and of itself [rad]")
+    add("                               # and the widest motion about them within the limits")
+    lows, highs = _q0_box(c, robot)
     for j, name in enumerate(c.names):
-        low = max(c.home[j] - _Q0_HALF_WIDTH, robot.q_lower[j])
-        high = min(c.home[j] + _Q0_HALF_WIDTH, robot.q_upper[j])
+        # rounded inwards: the written box stays inside the computed one
+        low, high = np.ceil(lows[j] * 1e4) / 1e4, np.floor(highs[j] * 1e4) / 1e4
         if high > low:
             add(f"    q0[{name}]: [{low:.4f}, {high:.4f}]")
+        elif np.isfinite(lows[j]):  # a single mean posture: the family's bounds need width
+            add(f"    q0[{name}]: [{lows[j] - 5e-5:.4f}, {lows[j] + 5e-5:.4f}]")
     add("")
     add("elites: {n_particles: 10, n_elites: 5, maxiter: 100}")
     add("optimizer: pso                 # the best on arms like this one (docs/optimizers.md)")
@@ -406,14 +470,17 @@ def _excitation_lines(c: _Choices, robot: Any) -> list[str]:
 def _safety_lines(c: _Choices) -> list[str]:
     """The ``safety:`` (floor, clearance) and ``controller:`` sections."""
     lowered = (
-        f", lowered from {c.guessed_clearance:.3g} m: a link pair is closer in every posture"
+        f", lowered from {c.guessed_clearance:.3g} m: half the largest clearance of a link "
+        "pair that never gets farther apart"
         if c.clearance < c.guessed_clearance
         else ""
     )
+    close = [f"  # {line}" for line in c.close_pairs]
     return [
         "safety:                        # in the optimization and, at 1 kHz, on the trajectory",
         f"  floor: {{enabled: true, z: {c.floor_z:.3f}}}   # guess: the robot stands on the "
         "floor under its base's collision geometry",
+        *close,
         f"  clearance_m: {c.clearance:.3g}   # guess: 5 % of the reach {c.reach:.2f} m (1-3 cm)"
         + lowered,
         *_self_collision_lines(c.geometry_problem),
@@ -499,6 +566,7 @@ def _notes(c: _Choices, urdf: Path, lock_notes: list[str]) -> list[str]:
         f"safety: floor at z = {c.floor_z:.3f} m (under the base), clearance "
         f"{c.clearance:.3g} m; mean postures around a posture "
         f"{c.home_clearance * 100:.0f} cm clear",
+        *[f"safety: margin below 1 cm: {line}" for line in c.close_pairs],
         f"measurement: friction, rotor inertia and noise are guesses scaled to {c.effort_note}",
     ]
 
@@ -520,5 +588,5 @@ def _validate(text: str, output: Path, urdf: Path, dirs: list[Path]) -> tuple[fl
     quick = config.quick_version()
     return (
         float(setup.estimate.seconds),
-        float(estimate_run(quick, setup.robot, setup.family).seconds),
+        float(estimate_run(quick, setup.robot, setup.family, setup.safety).seconds),
     )

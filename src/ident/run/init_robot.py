@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from ident.errors import ConfigError
-from ident.excitation.safety import build_safety_model
+from ident.excitation.safety import MIN_LOWERED_CLEARANCE_M, SafetyModel, build_safety_model
 from ident.model.robot import Robot
 from ident.robot.mimic import mimic_lock_reasons, read_mimics
 from ident.robot.urdf_load import (
@@ -30,19 +30,29 @@ from ident.robot.urdf_load import (
 )
 
 __all__ = [
+    "ENGINEER_CLEARANCE_M",
+    "MARGIN_ROOM",
     "base_bottom",
+    "chain_tip_link",
     "choose_locks",
     "clear_posture",
     "effort_scale",
     "find_package_dirs",
     "keepable_clearance",
     "robot_reach",
+    "self_clearance_model",
     "torque_scale",
     "urdf_acceleration_limits",
 ]
 
 _GRIPPER = re.compile(r"gripper|finger|hand", re.IGNORECASE)
 _N_POSTURES = 300
+#: A safety margin below this [m] is named with the link pairs that force it.
+ENGINEER_CLEARANCE_M = 0.01
+#: The margin is at most this fraction of a link pair's largest clearance.
+MARGIN_ROOM = 2.0
+_N_CANDIDATES = 16  # postures of clear_posture measured on the exact geometry
+_FAR_M = 0.15  # beyond this clearance [m] a posture is as good as any other
 
 
 def _fmt(value: float) -> str:
@@ -67,24 +77,7 @@ def choose_locks(
         for name in chain_locks(model, base_link, tip_link, where):
             reasons.setdefault(name, "outside the chain from the base link to the tip link")
     else:
-        for name in suggested_locks(model):
-            jid = model.getJointId(name)
-            leaf = not any(int(model.parents[k]) == jid for k in range(1, model.njoints))
-            reasons.setdefault(
-                name,
-                "a gripper finger (a single joint at the tip)"
-                if leaf
-                else "a side branch (the chain follows the deepest branch)",
-            )
-        # a moving gripper joint at the end of a serial chain: its fingers ride on the last link
-        kept = [
-            k for k in range(1, model.njoints) if model.names[k] not in reasons and model.nvs[k]
-        ]
-        for k in reversed(kept):
-            name = model.names[k]
-            if not _GRIPPER.search(name):
-                break
-            reasons[name] = "a gripper joint (named so): the fingers ride on the last link"
+        _branch_reasons(model, reasons)
     values: dict[str, float] = {}
     for name in reasons:
         if name in lock:
@@ -101,6 +94,58 @@ def choose_locks(
             reasons[name] = why
     lines = [f"{name} locked at {_fmt(values[name])}: {why}" for name, why in reasons.items()]
     return values, lines
+
+
+def _branch_reasons(model: pin.Model, reasons: dict[str, str]) -> None:
+    """Add to ``reasons`` the joints :func:`suggested_locks` locks in a branched ``model``,
+    and a moving gripper joint at the end of its chain, each with why.
+
+    A locked joint is "a gripper finger" only if it hangs from the chain's last joint (a
+    finger of the tool at the tip); any other is off the chain (a head, the other arm), named
+    with the chain's first and last links.
+    """
+    locked = set(suggested_locks(model))
+    kept = [k for k in range(1, model.njoints) if model.names[k] not in locked]
+    tip = max(kept, default=0, key=lambda k: _depth(model, k))
+    chain = f"{_child_link(model, 0)}→{_child_link(model, tip)}"
+    for name in sorted(locked, key=model.getJointId):
+        jid = model.getJointId(name)
+        leaf = not any(int(model.parents[k]) == jid for k in range(1, model.njoints))
+        reasons.setdefault(
+            name,
+            "a gripper finger (a single joint at the tip)"
+            if leaf and int(model.parents[jid]) == tip and tip > 0
+            else f"not on the chain {chain} (a side branch: the chain follows the deepest one)",
+        )
+    # a moving gripper joint at the end of a serial chain: its fingers ride on the last link
+    kept = [k for k in range(1, model.njoints) if model.names[k] not in reasons and model.nvs[k]]
+    for k in reversed(kept):
+        name = model.names[k]
+        if not _GRIPPER.search(name):
+            break
+        reasons[name] = "a gripper joint (named so): the fingers ride on the last link"
+
+
+def _depth(model: pin.Model, joint: int) -> int:
+    """Number of joints from the root to ``joint`` (itself included)."""
+    depth = 0
+    while joint > 0:
+        depth, joint = depth + 1, int(model.parents[joint])
+    return depth
+
+
+def _child_link(model: pin.Model, joint: int) -> str:
+    """The link a joint moves (for joint 0, the root link): the first body frame on it."""
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    on_joint = [
+        f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == joint
+    ]
+    return (on_joint or bodies or ["?"])[0]
+
+
+def chain_tip_link(model: pin.Model) -> str:
+    """The link the last joint of a serial ``model`` moves (the chain's tip link)."""
+    return _child_link(model, model.njoints - 1)
 
 
 def urdf_acceleration_limits(urdf_text: str, joint_names: tuple[str, ...]) -> np.ndarray:
@@ -185,16 +230,26 @@ def robot_reach(robot: Robot, q: np.ndarray) -> float:
     return float(max(np.linalg.norm(data.oMi[k].translation) for k in range(robot.model.njoints)))
 
 
-def base_bottom(robot: Robot, self_collision: bool = True) -> float:
+def self_clearance_model(
+    robot: Robot, clearance_m: float, self_collision: bool = True
+) -> SafetyModel:
+    """The robot's safety model without the floor, for :func:`base_bottom` and
+    :func:`keepable_clearance`: its margin ``clearance_m`` [m] halved (not below 2 mm) while a
+    link pair is closer than it in every sampled posture, each pair's largest clearance in
+    ``keepable_clearances``."""
+    return build_safety_model(
+        robot,
+        {"clearance_m": clearance_m, "floor": {"enabled": False}, "self_collision": self_collision},
+        package_dirs=robot.package_dirs,
+        lower_margin=True,
+    )
+
+
+def base_bottom(safety: SafetyModel) -> float:
     """Lowest point of the collision geometry fixed to the world (the base) [m], in the base
     frame; 0 without such geometry. Its bounding boxes' corners: exact for boxes, a lower
     bound for meshes and round shapes."""
-    safety = build_safety_model(
-        robot,
-        {"floor": {"enabled": False}, "self_collision": self_collision},
-        package_dirs=robot.package_dirs,
-    )
-    model, geometry = safety.model, safety.geometry_model
+    model, geometry = safety.model, safety.exact_geometry_model
     data, gdata = model.createData(), pin.GeometryData(geometry)
     reference = np.clip(np.zeros(model.nq), model.lowerPositionLimit, model.upperPositionLimit)
     pin.updateGeometryPlacements(model, data, geometry, gdata, reference)
@@ -219,16 +274,31 @@ def base_bottom(robot: Robot, self_collision: bool = True) -> float:
     return lowest
 
 
-def keepable_clearance(robot: Robot, clearance_m: float, self_collision: bool = True) -> float:
-    """``clearance_m`` [m], halved (not below 2 mm) while a pair of the robot's links is closer
-    than it in every sampled posture: a margin that some trajectory can keep."""
-    safety = build_safety_model(
-        robot,
-        {"clearance_m": clearance_m, "floor": {"enabled": False}, "self_collision": self_collision},
-        package_dirs=robot.package_dirs,
-        lower_margin=True,
-    )
-    return float(safety.clearance_m)
+def keepable_clearance(safety: SafetyModel, clearance_m: float) -> tuple[float, list[str]]:
+    """A margin [m] every link pair of ``safety`` (:func:`self_clearance_model`) keeps with room:
+    ``clearance_m``, or, where a pair's largest clearance over the sampled postures is below
+    it, half that clearance (a pair asked for all it can give would have to stay in the
+    few postures that give it), in whole millimetres, not below 2 mm.
+
+    Returns the margin and, when it is below :data:`ENGINEER_CLEARANCE_M`, one line per pair
+    that forced it: the pair, its largest clearance and the MoveIt SRDF entry that would
+    leave it out (then a margin of 1-3 cm holds for the other pairs).
+    """
+    largest = {k: v for k, v in safety.keepable_clearances.items() if v < clearance_m}
+    margin = min([clearance_m, *(v / MARGIN_ROOM for v in largest.values())])
+    margin = max(float(np.floor(margin * 1e3) / 1e3), MIN_LOWERED_CLEARANCE_M)
+    if margin >= ENGINEER_CLEARANCE_M:
+        return margin, []
+    n = safety.postures.shape[0]
+    lines = [
+        f"the links {a} and {b} are never more than {v * 1e3:.1f} mm apart in {n} sampled "
+        f"postures: if they may touch (a joint's housings), leave the pair out with a MoveIt "
+        f'SRDF line <disable_collisions link1="{a}" link2="{b}" reason="Adjacent"/> '
+        "(safety.srdf) and raise safety.clearance_m to 0.01-0.03"
+        for (a, b), v in sorted(largest.items(), key=lambda kv: kv[1])
+        if v / MARGIN_ROOM < ENGINEER_CLEARANCE_M
+    ]
+    return margin, lines
 
 
 def clear_posture(
@@ -236,7 +306,13 @@ def clear_posture(
 ) -> tuple[np.ndarray, float]:
     """A posture clear of the floor and of itself: of the reference posture (0 clipped into the
     limits) and seeded random ones, the one whose smallest clearance is largest, preferring
-    the reference posture while it keeps three margins. Returns it and its clearance [m]."""
+    the reference posture while it keeps three margins. Returns it and its clearance [m].
+
+    The random postures are ranked by the optimizer's cheap clearances (a lower bound, meshes
+    as their hulls); the :data:`_N_CANDIDATES` best are measured on the exact geometry (up to
+    three margins, beyond which any posture will do) and the best of those is chosen. The
+    clearance returned is exact below three margins, a lower bound above.
+    """
     safety = build_safety_model(
         robot,
         {
@@ -252,11 +328,15 @@ def clear_posture(
     rng = np.random.default_rng(0)
     # postures near the reference first: a robot's zero is usually a sensible posture
     near = np.clip(reference + rng.uniform(-1.0, 1.0, (_N_POSTURES, robot.nq)), lower, upper)
-    postures = np.vstack([reference[None, :], near])
     if safety.n_pairs == 0:
         return reference, np.inf
-    worst = safety.clearances(postures).min(axis=1)
-    if worst[0] >= 3.0 * clearance_m:
-        return reference, float(worst[0])
-    best = int(np.argmax(np.minimum(worst, 0.15)))  # beyond 15 cm: the first such posture
+    bound = np.minimum(safety.fast_clearances(near).min(axis=1), _FAR_M)
+    ranked = near[np.argsort(-bound, kind="stable")[:_N_CANDIDATES]]
+    postures = np.vstack([reference[None, :], ranked])
+    # exact below three margins, a lower bound (the hulls') above: beyond three margins,
+    # the reference posture, else the candidate the cheap clearances rank first
+    enough = 3.0 * clearance_m
+    within = np.full((postures.shape[0], safety.n_pairs), enough)
+    worst = safety.clearances(postures, within).min(axis=1)
+    best = 0 if worst[0] >= enough else int(np.argmax(np.minimum(worst, enough)))
     return postures[best], float(worst[best])

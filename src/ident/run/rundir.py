@@ -32,11 +32,13 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import re
 import signal
 import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -311,18 +313,44 @@ def failure_note(error: BaseException) -> str:
     return " ".join(text.split("\n"))[:2000]
 
 
-def _hold_signals() -> set[int | signal.Signals] | None:
-    """Defer Ctrl-C and SIGTERM (main thread only: Python runs its handlers there)."""
+@dataclass
+class _Held:
+    """The handlers :func:`_hold_signals` replaced and the signals that came meanwhile."""
+
+    handlers: dict[int, Any]
+    pending: list[int]
+
+
+def _hold_signals() -> _Held | None:
+    """Defer Ctrl-C and SIGTERM (main thread only: Python runs its handlers there).
+
+    The Python handlers are replaced by one that records the signal: blocking the signal with
+    ``pthread_sigmask`` would hold it in this thread only, and another thread (a progress
+    display, a thread pool) would take it and have the main thread run the handler at once.
+    """
     if threading.current_thread() is not threading.main_thread():
         return None
-    return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+    held = _Held({}, [])
+    for number in _HELD_SIGNALS:
+        held.handlers[number] = signal.signal(number, lambda n, _f: held.pending.append(n))
+    return held
 
 
-def _release_signals(previous: set[int | signal.Signals] | None) -> None:
-    """Undo :func:`_hold_signals`; a signal that came meanwhile is raised here (CPython runs
-    pending handlers as pthread_sigmask returns)."""
-    if previous is not None:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+def _release_signals(held: _Held | None) -> None:
+    """Undo :func:`_hold_signals`; a signal that came meanwhile is delivered here, to the
+    handler it would have met (Ctrl-C's ``KeyboardInterrupt``, the CLI's SIGTERM handler)."""
+    if held is None:
+        return
+    for number, handler in held.handlers.items():
+        signal.signal(number, handler)
+    if not held.pending:
+        return
+    number = held.pending[0]
+    handler = held.handlers[number]
+    if callable(handler):
+        handler(number, None)
+    elif handler == signal.SIG_DFL:  # the default action, as if never held
+        os.kill(os.getpid(), number)
 
 
 @contextlib.contextmanager

@@ -123,7 +123,13 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
 _SECONDS_PER_SAMPLE_JOINT2 = 5e-6 / 36.0
 _SECONDS_PER_SIMULATED_STEP = 40e-6
 _SECONDS_PER_LOG_SAMPLE = 30e-6
-_SECONDS_PER_PAIR_POSTURE = 10e-6  # coal, a robot mesh's hull and a sphere (UR5: 9 us)
+# the dense check's CPU per posture over the one the safety model timed at random postures:
+# a designed trajectory keeps its meshes farther apart (SO-101 --quick: 300 s measured,
+# 1160 s from random postures); the approach and return are included
+_CERTIFICATE_SHARE = 0.25
+# start-up (imports), the safety model, the identification, the report and its figures:
+# 25-40 s of CPU measured on the UR5, Baxter and SO-101 --quick runs (2 cores, loaded)
+_SECONDS_FIXED = 30.0
 _BYTES_BASE = 400e6  # the interpreter with numpy, scipy, Pinocchio, numba, MuJoCo
 
 
@@ -148,13 +154,14 @@ def estimate_run(
     if config.safety is not None:  # the clearance and torque terms of the objective
         per_evaluation *= 3.0
     certificate = 0.0
-    if safety is not None:  # coal: about 10 us per geometry pair and posture (2 cores)
-        pairs = len(safety.geometry_model.collisionPairs)
-        per_evaluation += min(safety.config.check_samples, n) * pairs * _SECONDS_PER_PAIR_POSTURE
+    if safety is not None:  # the hulls' CPU per posture, timed when the model was built
+        per_evaluation += min(safety.config.check_samples, n) * safety.hull_seconds_per_posture
         period = float(getattr(family, "period", 10.0) or 10.0)
         certificate = (o.n_report_elites + 1) * period * safety.config.check_rate_hz
-        certificate *= pairs * _SECONDS_PER_PAIR_POSTURE
-    seconds = evaluations * per_evaluation + certificate
+        # the dense check, at the CPU per posture the safety model measured (meshes of
+        # 100k triangles cost milliseconds where their hulls are close)
+        certificate *= _CERTIFICATE_SHARE * safety.seconds_per_posture
+    seconds = evaluations * per_evaluation + certificate + _SECONDS_FIXED
     # the retry runs the optimizer (not the elite search) and the certificate once more
     retry = optimizer * per_evaluation + certificate if safety is not None else 0.0
     swarm_bytes = 8.0 * max(e.n_particles, o.n_particles) * n * nv * 6

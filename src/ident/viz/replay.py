@@ -432,30 +432,7 @@ def joint_configurations(
         )
     names = list(trajectory.joint_names)
     if sorted(names) != sorted(model_joints):
-        missing = [j for j in model_joints if j not in names]
-        extra = [j for j in names if j not in model_joints]
-        csv = f"trajectory {trajectory.source}" if trajectory.source else "the trajectory"
-        urdf = f"URDF {urdf_path}" if urdf_path is not None else "the URDF"
-        if len(names) != len(model_joints):
-            what = (
-                f"{csv} has {len(names)} joints {names}, {urdf} has {len(model_joints)} "
-                f"joints {model_joints}"
-            )
-        else:
-            what = f"the joints of {csv} {names} do not match the joints of {urdf} {model_joints}"
-        details = [f"missing from the trajectory: {missing}"] if missing else []
-        details += [f"unknown to the URDF: {extra}"] if extra else []
-        lock = (
-            "; or hold the joints the trajectory does not move fixed (--lock NAME=VALUE, "
-            "robot.lock in a config)"
-            if missing and not extra
-            else ""
-        )
-        raise DataError(
-            f"{what} ({'; '.join(details)}); the q_<joint> columns must name the URDF's "
-            "joints (any order): rename the columns or use the URDF of the robot that made "
-            f"the trajectory{lock}."
-        )
+        raise _joint_mismatch(names, model_joints, trajectory.source, urdf_path)
     q = np.tile(pin.neutral(model), (trajectory.n_samples, 1))
     for column, name in enumerate(names):
         joint = model.joints[model.getJointId(name)]
@@ -466,6 +443,37 @@ def joint_configurations(
             q[:, joint.idx_q] = np.cos(angle)
             q[:, joint.idx_q + 1] = np.sin(angle)
     return q
+
+
+def _joint_mismatch(
+    names: list[str], model_joints: list[str], source: str | None, urdf_path: str | Path | None
+) -> DataError:
+    """The error naming how the trajectory's joints (from the CSV ``source``) differ from the
+    URDF's, and the fix."""
+    missing = [j for j in model_joints if j not in names]
+    extra = [j for j in names if j not in model_joints]
+    csv = f"trajectory {source}" if source else "the trajectory"
+    urdf = f"URDF {urdf_path}" if urdf_path is not None else "the URDF"
+    if len(names) != len(model_joints):
+        what = (
+            f"{csv} has {len(names)} joints {names}, {urdf} has {len(model_joints)} "
+            f"joints {model_joints}"
+        )
+    else:
+        what = f"the joints of {csv} {names} do not match the joints of {urdf} {model_joints}"
+    details = [f"missing from the trajectory: {missing}"] if missing else []
+    details += [f"unknown to the URDF: {extra}"] if extra else []
+    lock = (
+        "; or hold the joints the trajectory does not move fixed (--lock NAME=VALUE, "
+        "robot.lock in a config)"
+        if missing and not extra
+        else ""
+    )
+    return DataError(
+        f"{what} ({'; '.join(details)}); the q_<joint> columns must name the URDF's "
+        "joints (any order): rename the columns or use the URDF of the robot that made "
+        f"the trajectory{lock}."
+    )
 
 
 def replay_segments(t: npt.ArrayLike) -> list[tuple[int, int]]:
@@ -616,51 +624,30 @@ def build_replay_scene(
     traced_frame :
         Pinocchio frame whose Cartesian path is drawn (``None``: ``flange``, ``tool0``, ...,
         else the model's last frame).
-    speed :
-        Replay speed factor (1: true speed, 0.5: half speed).
-    loop :
-        Repeat the animation forever instead of playing it once.
-    fps :
-        Keyframes per second of replay time [1/s].
-    spacing :
-        Distance between robots [m] (``None``: 1.2 times the largest extent of the motion).
-    labels :
-        Name of each trajectory (default ``trajectory 0``, ...), shown in the page's caption.
-    environment :
+    speed, loop, fps :
+        Replay speed factor (1: true speed, 0.5: half speed); repeat the animation forever
+        instead of playing it once; keyframes per second of replay time [1/s].
+    spacing, labels :
+        Distance between robots [m] (``None``: 1.2 times the largest extent of the motion);
+        name of each trajectory (default ``trajectory 0``, ...), shown in the page's caption.
+    environment, marks :
         Floor and obstacles (:class:`~ident.viz.environment.ReplayEnvironment`; ``None``: a
-        floor at z = 0 and no obstacle).
-    marks :
-        Per trajectory, the moment of its smallest clearance (or ``None``): a sphere at the
-        closest link at that time, and a caption line.
+        floor at z = 0 and no obstacle); per trajectory, the moment of its smallest clearance
+        (or ``None``): a sphere at the closest link at that time, and a caption line.
     package_hint :
         The option of the calling command that gives mesh folders, named in the warning when
         meshes are missing.
 
-    Returns
-    -------
-    :
-        The recorded scene.
-
-    Raises
-    ------
-    DataError
-        No trajectory, or joint names that do not match the URDF.
-    ModelError
-        Unreadable URDF or unknown traced frame.
+    Returns the recorded scene. Raises :class:`DataError` (no trajectory, joint names not the
+    URDF's) or :class:`ModelError` (unreadable URDF, unknown traced frame).
     """
     selection = robot if isinstance(robot, RobotSelection) else RobotSelection(urdf=Path(robot))
     labels, marks = _checked_scene_options(trajectories, speed, fps, labels, marks)
     scene_robot = _scene_robot(selection, traced_frame, package_dirs, package_hint)
     motions = _replay_motions(scene_robot, trajectories, fps, speed, Path(selection.path))
+    env = environment if environment is not None else ReplayEnvironment()
     return _record_scene(
-        scene_robot,
-        motions,
-        labels,
-        marks,
-        spacing=spacing,
-        fps=fps,
-        loop=loop,
-        environment=environment if environment is not None else ReplayEnvironment(),
+        scene_robot, motions, labels, marks, spacing=spacing, fps=fps, loop=loop, environment=env
     )
 
 

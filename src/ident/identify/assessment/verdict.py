@@ -228,19 +228,7 @@ def decide_verdict(e: Evidence) -> Verdict:
     if not e.estimated:
         return Verdict("not identified", "no estimate (every estimator failed)", rule)
     if e.truth_known:
-        if e.worst_error_percent is None:
-            return Verdict("not identified", "no error against the truth (no estimate)", rule)
-        worst = float(e.worst_error_percent)
-        what = f"worst major-parameter error {worst:.3g} %"
-        if e.worst_error_name:
-            what += f" ({e.worst_error_name})"
-        reason = "; ".join([f"{what}, {res_text}", *notes])
-        good = worst <= GOOD_ERROR_PERCENT and res <= GOOD_RESIDUAL and not e.warnings
-        if good:
-            return Verdict("good", reason, rule)
-        if worst <= USABLE_ERROR_PERCENT and res <= USABLE_RESIDUAL:
-            return Verdict("usable", reason, rule)
-        return Verdict("not identified", reason, rule)
+        return _truth_verdict(e, res, res_text, notes)
     if e.residual is None:
         return Verdict("not identified", "no torque prediction to judge", rule)
     std = math.inf if e.worst_std_percent is None else e.worst_std_percent
@@ -259,6 +247,25 @@ def decide_verdict(e: Evidence) -> Verdict:
     if good:
         return Verdict("good", reason, rule)
     if res <= USABLE_RESIDUAL:  # a log that predicts held-out torques is not "not identified"
+        return Verdict("usable", reason, rule)
+    return Verdict("not identified", reason, rule)
+
+
+def _truth_verdict(e: Evidence, res: float, res_text: str, notes: list[str]) -> Verdict:
+    """The simulation rule of :func:`decide_verdict`: worst major-parameter error against the
+    truth and relative torque residual ``res`` (described by ``res_text``)."""
+    rule = "truth"
+    if e.worst_error_percent is None:
+        return Verdict("not identified", "no error against the truth (no estimate)", rule)
+    worst = float(e.worst_error_percent)
+    what = f"worst major-parameter error {worst:.3g} %"
+    if e.worst_error_name:
+        what += f" ({e.worst_error_name})"
+    reason = "; ".join([f"{what}, {res_text}", *notes])
+    good = worst <= GOOD_ERROR_PERCENT and res <= GOOD_RESIDUAL and not e.warnings
+    if good:
+        return Verdict("good", reason, rule)
+    if worst <= USABLE_ERROR_PERCENT and res <= USABLE_RESIDUAL:
         return Verdict("usable", reason, rule)
     return Verdict("not identified", reason, rule)
 

@@ -219,31 +219,44 @@ def rank_report(
             "(not excited by the motion, or removed by the velocity threshold)"
         )
     live = np.flatnonzero(~dead)
-    if live.size:
-        Wn = W[:, live] / norms[live]
-        R = scipy.linalg.qr(Wn, mode="r", check_finite=False)[0][: live.size]
-        _, s, Vt = np.linalg.svd(R)
-        null = Vt[s <= tol * max(s[0], 1.0) * 10.0]
-        if null.shape[0]:
-            # one clause for the whole null space: the union of its supports, in column order
-            involved = np.zeros(n, dtype=bool)
-            for v in null:
-                involved[live[np.abs(v) > 1e-6 * np.abs(v).max()]] = True
-            members = np.flatnonzero(involved)
-            clause = (
-                "parameters "
-                + ", ".join(names[i] for i in members)
-                + " enter the torques only in a linear combination"
-            )
-            if null.shape[0] > 1:
-                clause += (
-                    f" ({null.shape[0]} independent combinations of these {members.size} "
-                    "are undetermined)"
-                )
-            parts.append(clause)
+    clause = _combination_clause(W[:, live] / norms[live], live, n, tol, names) if live.size else ""
+    if clause:
+        parts.append(clause)
     if not parts:
         return None
     return "; ".join(parts) + "." + (f" {advice}" if advice else "")
+
+
+def _combination_clause(
+    Wn: FloatArray,
+    live: npt.NDArray[np.intp],
+    n: int,
+    tol: float,
+    names: tuple[str, ...] | list[str],
+) -> str:
+    """The clause of :func:`rank_report` naming the parameters in a linear combination, from
+    the unit-norm columns ``Wn`` (m, len(live)) of the excited parameters ``live``; "" for
+    none."""
+    R = scipy.linalg.qr(Wn, mode="r", check_finite=False)[0][: live.size]
+    _, s, Vt = np.linalg.svd(R)
+    null = Vt[s <= tol * max(s[0], 1.0) * 10.0]
+    if not null.shape[0]:
+        return ""
+    # one clause for the whole null space: the union of its supports, in column order
+    involved = np.zeros(n, dtype=bool)
+    for v in null:
+        involved[live[np.abs(v) > 1e-6 * np.abs(v).max()]] = True
+    members = np.flatnonzero(involved)
+    clause = (
+        "parameters "
+        + ", ".join(names[i] for i in members)
+        + " enter the torques only in a linear combination"
+    )
+    if null.shape[0] > 1:
+        clause += (
+            f" ({null.shape[0]} independent combinations of these {members.size} are undetermined)"
+        )
+    return clause
 
 
 def _covariance_unit(R: FloatArray) -> FloatArray:
@@ -289,18 +302,9 @@ def least_squares(
         (Gautier's IDIM-WLS); each further pass re-estimates them from the previous WLS
         residual, which the noisiest joint no longer contaminates (iterated feasible GLS).
 
-    Returns
-    -------
-    :
-        The :class:`Estimate`.
-
-    Raises
-    ------
-    DataError
-        On shape mismatch, non-finite values, or too few rows (``m <= n_params``).
-    NotIdentifiable
-        If ``W`` is rank deficient; the message names the parameter(s) with no effect or in a
-        linear combination.
+    Returns the :class:`Estimate`. Raises :class:`DataError` on shape mismatch, non-finite
+    values, or too few rows (``m <= n_params``); :class:`NotIdentifiable` if ``W`` is rank
+    deficient, the message naming the parameter(s) with no effect or in a linear combination.
 
     Notes
     -----
@@ -311,25 +315,75 @@ def least_squares(
     """
     if method not in METHODS:
         raise DataError(f"method={method!r} is not one of {', '.join(METHODS)}.")
-    W = np.asarray(W, dtype=float)
-    if W.ndim != 2:
-        raise DataError(f"W must be 2-D (rows, parameters), got shape {W.shape}.")
-    m, n = W.shape
-    names = tuple(names)
-    if len(names) != n:
-        raise DataError(f"{len(names)} names for {n} columns of W.")
+    W, names = _checked_matrix(W, names)
+    m = W.shape[0]
     tau_flat, group_of_row, n_groups, n_samples = _as_groups(tau, m, rows_per_sample, groups)
-    if not np.all(np.isfinite(W)):
-        bad = sorted({names[j] for j in np.flatnonzero(~np.isfinite(W).all(axis=0))})
-        raise DataError(f"observation matrix has NaN/inf in the column(s) of {', '.join(bad)}.")
-    if not np.all(np.isfinite(tau_flat)):
-        raise DataError("measured torques contain NaN/inf values; clean or trim the log.")
+    _check_finite(W, tau_flat, names)
     # one implementation of the formulas: the rows reduced per group (a QR each), then
     # least_squares_reduced (same estimate, standard deviations and residuals)
     obs = ReducedObservations.from_rows(W, tau_flat, group_of_row, n_groups)
     return least_squares_reduced(
         obs, names, method=method, wls_passes=wls_passes, n_samples=n_samples
     )
+
+
+def _solve(
+    obs: ReducedObservations, names: tuple[str, ...]
+) -> tuple[FloatArray, FloatArray, float]:
+    """The least-squares solution (n_params,) of the reduced rows, their stacked triangular
+    factor and its condition number; raises :class:`NotIdentifiable` (naming the parameters,
+    :func:`rank_report`) when it is singular."""
+    R_all = obs.R.reshape(-1, obs.n_params)  # same column norms and singular values as W
+    R, z = obs.stacked()
+    x = scipy.linalg.solve_triangular(R, z, check_finite=False)
+    s = np.linalg.svd(R, compute_uv=False)
+    condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    if not np.isfinite(condition_number) or condition_number > 1.0 / np.finfo(float).eps:
+        singular = f"observation matrix is singular (cond={condition_number})."
+        raise NotIdentifiable(rank_report(R_all, names) or singular)
+    return x, R, condition_number
+
+
+def _noise_model(
+    obs: ReducedObservations,
+    method: str,
+    x: FloatArray,
+    R: FloatArray,
+    ss_group: FloatArray,
+    wls_passes: int,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, str]:
+    """(x, covariance, sigma per group, residual sum of squares per group, message) of OLS
+    (one pooled sigma) or WLS (:func:`_wls`), from the OLS solution ``x`` and its residuals."""
+    dof = int(obs.n_rows.sum()) - obs.n_params
+    sigma_pooled = float(np.sqrt(ss_group.sum() / dof))
+    if method == "ols":
+        cov = sigma_pooled**2 * _covariance_unit(R)
+        return x, cov, np.full(obs.n_groups, sigma_pooled), ss_group, "ok"
+    return _wls(obs, x, ss_group, sigma_pooled, wls_passes)
+
+
+def _checked_matrix(
+    W: FloatArray, names: tuple[str, ...] | list[str]
+) -> tuple[FloatArray, tuple[str, ...]]:
+    """``W`` as a 2-D float array (m, n_params) and its n_params column ``names`` as a tuple;
+    raises :class:`DataError` otherwise."""
+    W = np.asarray(W, dtype=float)
+    if W.ndim != 2:
+        raise DataError(f"W must be 2-D (rows, parameters), got shape {W.shape}.")
+    n = W.shape[1]
+    names = tuple(names)
+    if len(names) != n:
+        raise DataError(f"{len(names)} names for {n} columns of W.")
+    return W, names
+
+
+def _check_finite(W: FloatArray, tau_flat: FloatArray, names: tuple[str, ...]) -> None:
+    """Raise :class:`DataError` naming the columns of ``W`` or the torques with NaN/inf."""
+    if not np.all(np.isfinite(W)):
+        bad = sorted({names[j] for j in np.flatnonzero(~np.isfinite(W).all(axis=0))})
+        raise DataError(f"observation matrix has NaN/inf in the column(s) of {', '.join(bad)}.")
+    if not np.all(np.isfinite(tau_flat)):
+        raise DataError("measured torques contain NaN/inf values; clean or trim the log.")
 
 
 def _wls(
@@ -415,47 +469,26 @@ def least_squares_reduced(
 
     Parameters
     ----------
-    observations :
-        The reduced rows, one group per joint.
-    names :
-        Parameter names, length n_params.
+    observations, names :
+        The reduced rows, one group per joint; parameter names, length n_params.
     method, wls_passes :
         As in :func:`least_squares`.
     n_samples :
         Reported ``n_samples`` (default: the number of rows, as :func:`least_squares` with
         ``groups``).
 
-    Raises
-    ------
-    DataError, NotIdentifiable
-        As :func:`least_squares`.
+    Raises :class:`DataError`, :class:`NotIdentifiable` as :func:`least_squares`.
     """
     obs = observations
     names = _checked(obs, names, method)
-    n = obs.n_params
-    rows_in_group = obs.n_rows.astype(float)
     m = int(obs.n_rows.sum())
-    R_all = obs.R.reshape(-1, n)  # same column norms and singular values as W
-    R, z = obs.stacked()
-    x = scipy.linalg.solve_triangular(R, z, check_finite=False)
-    s = np.linalg.svd(R, compute_uv=False)
-    condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-    if not np.isfinite(condition_number) or condition_number > 1.0 / np.finfo(float).eps:
-        singular = f"observation matrix is singular (cond={condition_number})."
-        raise NotIdentifiable(rank_report(R_all, names) or singular)
-    dof = m - n
+    x, R, condition_number = _solve(obs, names)
     ss_group = obs.residual_ss(x)
-    sigma_pooled = float(np.sqrt(ss_group.sum() / dof))
-    message = "ok"
-    if method == "ols":
-        cov = sigma_pooled**2 * _covariance_unit(R)
-        sigma = np.full(obs.n_groups, sigma_pooled)
-    else:
-        x, cov, sigma, ss_group, message = _wls(obs, x, ss_group, sigma_pooled, wls_passes)
+    x, cov, sigma, ss_group, message = _noise_model(obs, method, x, R, ss_group, wls_passes)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         relative_std = np.where(x != 0.0, 100.0 * std / np.abs(x), np.inf)
-        residual_rms = np.sqrt(ss_group / rows_in_group)
+        residual_rms = np.sqrt(ss_group / obs.n_rows.astype(float))
     tau_norm = float(np.sqrt(obs.yty.sum()))
     relative_residual = float(np.sqrt(ss_group.sum()) / tau_norm) if tau_norm > 0 else float("inf")
     success = bool(np.all(np.isfinite(x)) and np.all(np.isfinite(std)))

@@ -11,6 +11,7 @@ and
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -87,11 +88,10 @@ def model_files(
     robot :
         The identified robot (its URDF text, Pinocchio model with the locked joints removed,
         locked joints and gravity are used).
-    theta :
+    theta, names :
         Standard parameters (per body ``m, mcx, ..., Izz`` about the joint frame, then the
-        extras ``Ia{j}``, ``fv{j}``, ``fs{j}``, ``off{j}``, ``Iam{b}``...), shape (n_std,) [SI].
-    names :
-        Names of ``theta``.
+        extras ``Ia{j}``, ``fv{j}``, ``fs{j}``, ``off{j}``, ``Iam{b}``...), shape (n_std,) [SI],
+        and their names.
     nominal :
         Optional nominal parameters in the order of ``names``, checked against the file.
     coupled_pair :
@@ -102,11 +102,8 @@ def model_files(
         (:mod:`ident.identify.friction.friction_law`): the joint-extras file gets its
         ``"friction_law"``, the URDF's and MJCF's damping and friction its native part.
 
-    Raises
-    ------
-    ModelError
-        If the estimate is physically inconsistent, the URDF does not match the robot, or
-        MuJoCo cannot compile the model.
+    Raises :class:`ModelError` if the estimate is physically inconsistent, the URDF does not
+    match the robot, or MuJoCo cannot compile the model.
     """
     source = str(robot.urdf_path or robot.name)
     theta = native_theta(theta, names, friction_law)
@@ -119,22 +116,39 @@ def model_files(
         coupled_pair=coupled_pair,
         source=source,
     )
-    theta = np.asarray(theta, dtype=float)
-    index = {name: i for i, name in enumerate(names)}
-    bodies = {
-        link: theta[[index[f"{label}{j}"] for label in PINOCCHIO_ORDER]]
-        for j, link in enumerate(urdf.links, start=1)
-    }
     mjcf = identified_mjcf(
         robot.urdf_text,
         tuple(robot.joint_names),
-        bodies,
+        _link_parameters(theta, names, urdf.links),
         urdf.sidecar["joints"],
         coupled_motors=urdf.sidecar["coupled_motors"],
         locked_joints=robot.locked_joints,
         gravity=np.asarray(robot.model.gravity.linear, dtype=float),
         source=source,
     )
+    extras = _joint_extras(urdf, robot, friction_law)
+    return ModelFiles(
+        urdf=urdf, mjcf=mjcf, extras_json=json.dumps(extras, indent=2) + "\n", paths={}
+    )
+
+
+def _link_parameters(
+    theta: npt.ArrayLike, names: tuple[str, ...], links: Sequence[str]
+) -> dict[str, FloatArray]:
+    """Each link's 10 parameters (10,) in Pinocchio's order, from ``theta`` (n_std,) by name."""
+    theta = np.asarray(theta, dtype=float)
+    index = {name: i for i, name in enumerate(names)}
+    return {
+        link: theta[[index[f"{label}{j}"] for label in PINOCCHIO_ORDER]]
+        for j, link in enumerate(links, start=1)
+    }
+
+
+def _joint_extras(
+    urdf: IdentifiedModel, robot: Robot, friction_law: WrittenFrictionLaw | None
+) -> dict[str, Any]:
+    """Content of the joint-extras file: the URDF's sidecar, the locked joints, the welded
+    links' scales and the friction law when there are any."""
     extras = dict(urdf.sidecar)
     if robot.locked_joints:
         extras["locked_joints"] = dict(robot.locked_joints)
@@ -143,9 +157,7 @@ def model_files(
     if friction_law is not None:
         extras["torque_model"] = LAW_TORQUE_MODEL
         extras["friction_law"] = friction_law_entry(friction_law)
-    return ModelFiles(
-        urdf=urdf, mjcf=mjcf, extras_json=json.dumps(extras, indent=2) + "\n", paths={}
-    )
+    return extras
 
 
 def write_model_files(
@@ -236,7 +248,6 @@ def reload_parity(
     back from the joint-extras file is compared with the fit on its samples
     (``friction_law_relative_error``, 0 to rounding for a correct file).
     """
-    import mujoco
     import pinocchio as pin
 
     from ident.identify.model_files.urdf_update import model_of_urdf
@@ -272,27 +283,40 @@ def reload_parity(
         shared = shared + motor["viscous"] * (dq[:, a] + dq[:, b])
         expected[:, a] += shared
         expected[:, b] += shared
-    model = mujoco.MjModel.from_xml_string(files.mjcf)
+    got = _mujoco_inverse_dynamics(files.mjcf, robot.joint_names, q, dq, ddq)
+    mjcf_error = float(np.abs(got - expected).max()) / max(float(np.abs(expected).max()), scale)
+    law_error = None if friction_law is None else _law_reload_error(files, friction_law)
+    return ReloadParity(urdf_error, mjcf_error, n_states, law_error)
+
+
+def _mujoco_inverse_dynamics(
+    mjcf: str, joint_names: Sequence[str], q: FloatArray, dq: FloatArray, ddq: FloatArray
+) -> FloatArray:
+    """MuJoCo's inverse dynamics of the MJCF text with constraints off (no friction loss):
+    joint torques [N*m or N] (n_states, n) at the states (n_states, n) of the named joints."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(mjcf)
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in robot.joint_names]
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joint_names]
     qpos = np.array([model.jnt_qposadr[i] for i in ids])
     dof = np.array([model.jnt_dofadr[i] for i in ids])
     mj_data = mujoco.MjData(model)
-    got = np.empty_like(expected)
-    for k in range(n_states):
+    got = np.empty_like(np.asarray(dq, dtype=float))
+    for k in range(q.shape[0]):
         mj_data.qpos[qpos], mj_data.qvel[dof], mj_data.qacc[dof] = q[k], dq[k], ddq[k]
         mujoco.mj_inverse(model, mj_data)
         got[k] = mj_data.qfrc_inverse[dof]
-    mjcf_error = float(np.abs(got - expected).max()) / max(float(np.abs(expected).max()), scale)
-    law_error = None
-    if friction_law is not None:
-        fitted = friction_law.torque(friction_law.dq, friction_law.load)
-        read = friction_law_torque(
-            json.loads(files.extras_json), friction_law.dq, friction_law.load
-        )
-        law_scale = max(float(np.abs(fitted).max()), np.finfo(float).tiny)
-        law_error = float(np.abs(read - fitted).max()) / law_scale
-    return ReloadParity(urdf_error, mjcf_error, n_states, law_error)
+    return got
+
+
+def _law_reload_error(files: ModelFiles, friction_law: WrittenFrictionLaw) -> float:
+    """``max |law_file - law_fit| / max |law_fit|`` on the fit's samples, the law read back
+    from the joint-extras file."""
+    fitted = friction_law.torque(friction_law.dq, friction_law.load)
+    read = friction_law_torque(json.loads(files.extras_json), friction_law.dq, friction_law.load)
+    law_scale = max(float(np.abs(fitted).max()), np.finfo(float).tiny)
+    return float(np.abs(read - fitted).max()) / law_scale
 
 
 def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
@@ -312,66 +336,72 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         largest relative torque difference; ``n_states``; ``friction_law`` with a law),
         ``friction_law`` (with a law: its name and held-out residuals),
         ``held_out_relative_residual`` (the model's and the least-squares fit's, rows above
-        the velocity threshold) and
-        ``note`` (why nothing was written, or None). A model the files cannot represent (a
-        :class:`~ident.errors.IdentError` from the write-back or MuJoCo) is a ``note``, not
-        an exception: the estimate is saved before, the report says what happened.
+        the velocity threshold) and ``note`` (why nothing was written, or None). A model the
+        files cannot represent (a :class:`~ident.errors.IdentError` from the write-back or
+        MuJoCo) is a ``note``, not an exception: the estimate is saved before, the report
+        says what happened.
     """
     from ident.identify.estimators.summary import model_identification
     from ident.model.selection import load_robot
 
     model = model_identification(result)
     ls_method = result.config.estimation.least_squares_method
-    entry: dict[str, Any] = {
-        "written": False,
-        "method": None if result.model is None else result.model.method,
-        "files": None,
-        "reload_parity": None,
-        "held_out_relative_residual": None,
-        "note": None,
-    }
+    method = None if result.model is None else result.model.method
+    entry: dict[str, Any] = {"written": False, "method": method, "files": None}
+    entry.update(reload_parity=None, held_out_relative_residual=None, note=None)
     if model is None:
         entry["note"] = _not_written(result)
         return entry
-    held_out = {
+    entry["held_out_relative_residual"] = {
         label: _finite(result.predictions[key].metrics.total_relative_residual)
         for label, key in ((model.method, model.method), (ls_method, "identified"))
         if key in result.predictions
     }
-    entry["held_out_relative_residual"] = held_out
-    est = model.constrained
-    names = model.structure.names
     law = getattr(result, "friction_law", None)
     if law is not None:
         entry["friction_law"] = _law_entry(law)
     try:
         robot = load_robot(result.config.robot)  # the identified chain, its locked joints
-        files = write_model_files(
-            robot,
-            est.theta,
-            names,
-            out_dir,
-            Path(result.config.robot.path).stem,
-            nominal=model.structure.nominal,
-            coupled_pair=result.parameters.terms.coupled_wrist,
-            friction_law=law,
-        )
+        files = _write_model(result, model, robot, out_dir, law)
     except IdentError as e:
         entry["note"] = f"no model written: {e}"
         return entry
     entry.update(written=True, files={key: path.name for key, path in files.paths.items()})
     try:  # the files are written: a reload that fails is reported, never loses them
-        parity = reload_parity(robot, files, est.theta, names, friction_law=law)
+        theta, names = model.constrained.theta, model.structure.names
+        parity = reload_parity(robot, files, theta, names, friction_law=law)
     except IdentError as e:
         entry["note"] = f"written, but not reloaded: {e}"
         return entry
-    entry["reload_parity"] = {
+    entry["reload_parity"] = _parity_entry(parity)
+    return entry
+
+
+def _write_model(
+    result: Any, model: Any, robot: Robot, out_dir: str | Path, law: Any
+) -> ModelFiles:
+    """:func:`write_model_files` of the identification's model (its consistent estimate)."""
+    return write_model_files(
+        robot,
+        model.constrained.theta,
+        model.structure.names,
+        out_dir,
+        Path(result.config.robot.path).stem,
+        nominal=model.structure.nominal,
+        coupled_pair=result.parameters.terms.coupled_wrist,
+        friction_law=law,
+    )
+
+
+def _parity_entry(parity: ReloadParity) -> dict[str, Any]:
+    """The ``reload_parity`` entry of :func:`save_identified_model`."""
+    entry: dict[str, Any] = {
         "urdf": parity.urdf_relative_error,
         "mjcf": parity.mjcf_relative_error,
         "n_states": parity.n_states,
     }
     if parity.friction_law_relative_error is not None:
-        entry["reload_parity"]["friction_law"] = parity.friction_law_relative_error
+        entry["friction_law"] = parity.friction_law_relative_error
     return entry
 
 

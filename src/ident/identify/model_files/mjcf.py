@@ -139,21 +139,12 @@ def identified_mjcf(
         MJCF text; MuJoCo compiles it without any mesh file, its moving joints are
         ``joint_names`` and its inverse dynamics is the URDF's (Pinocchio RNEA) plus
         ``armature ddq + damping dq`` (friction loss is a constraint: off in
-        ``mj_inverse`` with ``mjDSBL_CONSTRAINT``).
-
-    Raises
-    ------
-    ModelError
-        If MuJoCo cannot compile the URDF, or its moving joints differ from ``joint_names``.
+        ``mj_inverse`` with ``mjDSBL_CONSTRAINT``). Raises :class:`ModelError` if MuJoCo
+        cannot compile the URDF, or its moving joints differ from ``joint_names``.
     """
     text = mujoco_urdf(_with_bodies(urdf_text, bodies, source), dict(locked_joints or {}), source)
     spec = _spec(text, joint_names, source)
-    for name in joint_names:
-        joint = spec.joint(name)
-        values = extras.get(name, {})
-        joint.armature = float(values.get("rotor_inertia", 0.0))
-        joint.damping = _vector_or_scalar(joint.damping, float(values.get("viscous", 0.0)))
-        joint.frictionloss = float(values.get("coulomb", 0.0))
+    _set_joint_extras(spec, joint_names, extras)
     _add_coupled_motors(spec, coupled_motors, joint_names, source)
     spec.option.gravity = np.asarray(gravity, dtype=float)
     model = _compile(spec, source)
@@ -162,6 +153,19 @@ def identified_mjcf(
     ET.indent(root, space="  ")
     body = ET.tostring(root, encoding="unicode")
     return f"<!--{MJCF_NOTE}-->\n{body}\n"
+
+
+def _set_joint_extras(
+    spec: mujoco.MjSpec, joint_names: tuple[str, ...], extras: Mapping[str, Mapping[str, float]]
+) -> None:
+    """Each moving joint's ``armature``, ``damping`` and ``frictionloss`` from the sidecar's
+    rotor inertia, viscous and Coulomb friction (0 where missing)."""
+    for name in joint_names:
+        joint = spec.joint(name)
+        values = extras.get(name, {})
+        joint.armature = float(values.get("rotor_inertia", 0.0))
+        joint.damping = _vector_or_scalar(joint.damping, float(values.get("viscous", 0.0)))
+        joint.frictionloss = float(values.get("coulomb", 0.0))
 
 
 def _spec(text: str, joint_names: tuple[str, ...], source: str) -> mujoco.MjSpec:

@@ -257,11 +257,8 @@ def update_urdf_inertials(
         The identified robot's Pinocchio model (``Robot.model``); built from the text and
         ``locked`` when omitted.
 
-    Raises
-    ------
-    ModelError
-        If a joint or its child link is not in the URDF, or the model's joints differ from
-        ``joint_names``.
+    Raises :class:`ModelError` if a joint or its child link is not in the URDF, or the model's
+    joints differ from ``joint_names``.
     """
     if not max_relative_std_pct > 0:
         raise ValueError(f"max_relative_std_pct = {max_relative_std_pct} must be > 0")
@@ -270,14 +267,9 @@ def update_urdf_inertials(
     edits: list[Edit] = []
     updates: list[LinkUpdate] = []
     for i, fused in enumerate(bodies):
+        phi = np.array(nominal[10 * i : 10 * i + 10], dtype=float)
         update, link_edits = _cautious_link(
-            i,
-            fused,
-            np.array(nominal[10 * i : 10 * i + 10], dtype=float),
-            identified,
-            max_relative_std_pct,
-            urdf,
-            root,
+            i, fused, phi, identified, max_relative_std_pct, urdf, root
         )
         updates.append(update)
         edits.extend(link_edits)
@@ -304,22 +296,9 @@ def _cautious_link(
     """
     from ident.robot.inertia import consistency_problems
 
-    candidates: dict[str, tuple[float, float]] = {}
-    uncertain: dict[str, float] = {}
-    not_determined: list[str] = []
-    relative_std: dict[str, float] = {}
-    for k, label in enumerate(_LABELS):
-        name = f"{label}{i + 1}"
-        if name not in identified:
-            not_determined.append(name)
-            continue
-        value, rel_std = identified[name]
-        relative_std[name] = float(rel_std)
-        if math.isfinite(rel_std) and rel_std < max_relative_std_pct:
-            candidates[name] = (float(phi[k]), float(value))
-            phi[k] = value
-        else:
-            uncertain[name] = float(rel_std)
+    candidates, uncertain, not_determined, relative_std = _well_identified(
+        i, phi, identified, max_relative_std_pct
+    )
     problem = ""
     written: dict[str, tuple[float, float]] = {}
     rejected: dict[str, tuple[float, float]] = {}
@@ -349,6 +328,31 @@ def _cautious_link(
         welded_scale=scale,
     )
     return update, edits
+
+
+def _well_identified(
+    i: int, phi: FloatArray, identified: dict[str, tuple[float, float]], max_relative_std_pct: float
+) -> tuple[dict[str, tuple[float, float]], dict[str, float], list[str], dict[str, float]]:
+    """Body ``i``'s parameters sorted: candidates ``{name: (nominal, identified)}`` (relative
+    std below ``max_relative_std_pct`` [%]; written into ``phi`` (10,) in place), uncertain
+    ``{name: relative std}``, not determined names, and every relative std [%]."""
+    candidates: dict[str, tuple[float, float]] = {}
+    uncertain: dict[str, float] = {}
+    not_determined: list[str] = []
+    relative_std: dict[str, float] = {}
+    for k, label in enumerate(_LABELS):
+        name = f"{label}{i + 1}"
+        if name not in identified:
+            not_determined.append(name)
+            continue
+        value, rel_std = identified[name]
+        relative_std[name] = float(rel_std)
+        if math.isfinite(rel_std) and rel_std < max_relative_std_pct:
+            candidates[name] = (float(phi[k]), float(value))
+            phi[k] = value
+        else:
+            uncertain[name] = float(rel_std)
+    return candidates, uncertain, not_determined, relative_std
 
 
 @dataclass(frozen=True)
@@ -393,47 +397,32 @@ def identified_urdf(
         joints and meshes are kept as they are).
     model :
         The identified robot's Pinocchio model (``Robot.model``: continuous joints as revolute,
-        locked joints removed); body ``j`` (names ``m{j}``, ``mcx{j}``, ...) is carried by its
-        joint ``j``.
-    theta :
-        Standard parameters, shape (n_std,): per body ``m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz,
-        Iyz, Izz`` about the joint frame origin (Pinocchio), plus the extras ``Ia{j}``,
+        locked joints removed); body ``j`` (``m{j}``, ``mcx{j}``, ...) is carried by joint ``j``.
+    theta, names :
+        Standard parameters (n_std,) and their names: per body ``m, mcx, mcy, mcz, Ixx, Ixy,
+        Iyy, Ixz, Iyz, Izz`` about the joint frame origin (Pinocchio), plus the extras ``Ia{j}``,
         ``fv{j}``, ``fs{j}``, ``off{j}`` and coupled-motor ``Iam{b}``, ``fvm{b}``, ``fsm{b}``.
-    names :
-        Names of ``theta``.
     nominal :
         Optional check: the nominal parameters in the same order; each body must equal the sum
         of its links' inertials in the file (else the model is not this file's, e.g. other
         locks), to 1e-9 relative.
-    coupled_pair :
+    coupled_pair, source :
         The two joints ``(a, b)`` (0-based, ``ExtraTerms.coupled_wrist``) that share the
-        coupled motor ``Iam{b+1}``; recorded as the motor's ``"joints"`` in the sidecar.
-    source :
-        Name of the URDF for messages.
+        coupled motor ``Iam{b+1}``, recorded as the motor's ``"joints"`` in the sidecar; the
+        URDF's name for messages.
 
-    Returns
-    -------
-    :
-        The URDF text and the sidecar ``{"joints": {name: {"rotor_inertia", "viscous",
-        "coulomb", "offset"}}, "coupled_motors": [...], "torque_model": ...}`` [SI].
-        Only the ``<inertial>`` of the links of identified bodies and the ``<dynamics>`` of
-        the moving joints change (the viscous and Coulomb friction go into ``damping`` and
-        ``friction``); every other byte of the file is kept.
+    Returns the URDF text and the sidecar ``{"joints": {name: {"rotor_inertia", "viscous",
+    "coulomb", "offset"}}, "coupled_motors": [...], "torque_model": ...}`` [SI]. Only the
+    ``<inertial>`` of the links of identified bodies and the ``<dynamics>`` of the moving
+    joints change (the viscous and Coulomb friction go into ``damping`` and ``friction``);
+    every other byte of the file is kept. Each body (links fused through fixed and locked
+    joints) is split back by :func:`compose_body`, so the reloaded model (same locks) has the
+    estimate's torques and no link has a negative mass (module docstring).
 
-    Notes
-    -----
-    Each body (links fused through fixed and locked joints) is split back by
-    :func:`compose_body`, so the reloaded model (same locks) has the estimate's torques and no
-    link has a negative mass (module docstring).
-
-    Raises
-    ------
-    ModelError
-        If a body of ``theta`` is physically inconsistent (use a constrained estimator, or
-        the cautious :func:`update_urdf_inertials`), if the URDF has a DTD or is malformed, if
-        a joint or its child link is missing, or if ``nominal`` does not match the file.
-        Nothing is written then.
-    """
+    Raises :class:`ModelError`, writing nothing, if a body of ``theta`` is physically
+    inconsistent (use a constrained estimator, or the cautious :func:`update_urdf_inertials`),
+    the URDF has a DTD or is malformed, a joint or its child link is missing, or ``nominal``
+    does not match the file."""
     joint_names = tuple(model.names[1:])
     root, bodies = _model_and_bodies(urdf_text, joint_names, model, None, source)
     urdf = spans(urdf_text, source)
@@ -441,12 +430,8 @@ def identified_urdf(
     index = {name: i for i, name in enumerate(names)}
     plan = _checked_bodies(root, bodies, theta, index, nominal, source)
     edits, scales, joints = _body_edits(urdf, root, plan, theta, index)
-    sidecar = {
-        "units": "SI (kg*m^2, N*m*s/rad, N*m), joint side",
-        "torque_model": TORQUE_MODEL,
-        "joints": joints,
-        "coupled_motors": _coupled_motors(theta, index, joint_names, coupled_pair, source),
-    }
+    sidecar: dict[str, Any] = {"units": UNITS, "torque_model": TORQUE_MODEL, "joints": joints}
+    sidecar["coupled_motors"] = _coupled_motors(theta, index, joint_names, coupled_pair, source)
     return IdentifiedModel(
         text=apply_edits(urdf.data, edits),
         sidecar=sidecar,
@@ -454,6 +439,9 @@ def identified_urdf(
         welded_scale=scales,
     )
 
+
+#: Units of the joint-extras file (``IdentifiedModel.sidecar["units"]``).
+UNITS = "SI (kg*m^2, N*m*s/rad, N*m), joint side"
 
 #: The torque model of the joint-extras file (``IdentifiedModel.sidecar["torque_model"]``).
 TORQUE_MODEL = (

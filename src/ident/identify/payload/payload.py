@@ -812,6 +812,15 @@ def _estimate_for_arm(
     else:
         if floor is None:
             raise NotIdentifiable("the log does not determine the arm's base parameters.")
+        # The prior holds the arm, not the payload: its own columns must have full rank.
+        unexcited = payload_arm.lost_payload_directions(
+            payload_arm.select_columns(red, np.arange(n_p)), 10, names[:n_p]
+        )
+        if unexcited:
+            raise NotIdentifiable(
+                f"the log leaves {len(unexcited)} of the payload's 10 directions unexcited "
+                f"(the first: {unexcited[0]})."
+            )
         prior = payload_arm.cad_prior_covariance(parameters_from_model(model), arm)
         result = estimate_payload_prior(red, extra, arm.names, prior, floor,
                                         placement=placement, link=link)  # fmt: skip
