@@ -360,6 +360,7 @@ def resolve_log(log: LogConfig, base: Path) -> LogConfig:
             "position": signal(log.position),
             "torque": signal(log.torque),
             "velocity": signal(log.velocity),
+            "command": signal(log.command),
             "time": None
             if log.time is None
             else log.time.model_copy(update={"path": _resolve(log.time.path, base)}),
@@ -405,7 +406,7 @@ def load_identify_config(
         if entry.path is not None:
             checks.append((f"{where}.path", entry.path))
         checks += [(f"{where}.files[{k}].path", f.path) for k, f in enumerate(entry.files)]
-        for key in ("position", "torque", "velocity", "time"):
+        for key in ("position", "torque", "velocity", "command", "time"):
             value = getattr(entry, key)
             if value is not None and value.path is not None:
                 checks.append((f"{where}.{key}.path", value.path))

@@ -41,10 +41,15 @@ class SignalFile(StrictModel):
     ``columns`` names the columns in joint order (CSV header names, ``<value>/<joint>`` of a
     long CSV, ``<topic>/position/<joint>`` of a ROS log; ``ident logs inspect`` lists them);
     ``null`` takes every column of ``path`` (their count must equal the number of joints).
+    A name that is no column but the group of columns ``<name>/<joint>`` (a LeRobot feature
+    such as ``observation.state``) stands for the group: its joints must be the model's, but
+    for the ``exclude`` ones (a gripper the URDF does not model).
     ``path`` is optional when the columns are in the log's ``path``/``files``. ``unit`` and
     ``side`` override the log-wide ``*_unit`` and ``side``; ``scale`` (one value or one per
     joint) and ``sign`` (+1/-1 per joint) multiply the values after the unit conversion, and
-    ``counts_per_rev`` gives the encoder resolution of ``unit: ticks``.
+    ``counts_per_rev`` gives the encoder resolution of ``unit: ticks``, ``zero_tick`` (one
+    value or one per joint) the tick of the zero angle (``q = (ticks - zero_tick) 2 pi /
+    counts_per_rev``).
     """
 
     path: Path | None = None
@@ -55,6 +60,8 @@ class SignalFile(StrictModel):
     scale: float | list[float] = 1.0
     sign: list[float] | None = None
     counts_per_rev: float | None = Field(default=None, gt=0.0)
+    zero_tick: float | list[float] | None = None
+    exclude: list[str] = Field(default_factory=list)
 
     @field_validator("sign")
     @classmethod
@@ -101,6 +108,11 @@ class LogConfig(StrictModel):
     ``files`` (several, joined on time), and/or a ``path`` per signal (the historic form).
     Time: a ``time`` column, a column the reader recognises (``t``, ``time``, ROS stamps), or
     ``sampling_rate_hz`` for logs without time.
+
+    ``command`` (optional): the commanded positions (a position servo's set point, LeRobot's
+    ``action``), read beside the measured ones for an actuator model; every key it omits
+    (``unit``, ``counts_per_rev``, ``zero_tick``, ``scale``, ``sign``, ``side``,
+    ``exclude``) is the ``position`` signal's. Identification does not use it.
     """
 
     path: Path | None = None
@@ -109,6 +121,7 @@ class LogConfig(StrictModel):
     position: SignalFile
     torque: SignalFile
     velocity: SignalFile | None = None
+    command: SignalFile | None = None
     time: TimeColumn | None = None
     sampling_rate_hz: float | None = Field(default=None, gt=0.0)
     position_unit: str = "rad"
@@ -137,7 +150,7 @@ class LogConfig(StrictModel):
                 )
             merged = {**base, **entry}
             if "files" in entry or "path" in entry:  # new files: not the first log's signals'
-                for key in ("position", "torque", "velocity"):
+                for key in ("position", "torque", "velocity", "command"):
                     if key in merged and key not in entry and isinstance(merged[key], dict):
                         merged[key] = {k: v for k, v in merged[key].items() if k != "path"}
             out.append(LogConfig.model_validate(merged))
@@ -160,10 +173,19 @@ class LogConfig(StrictModel):
             ("position.unit", self.position.unit, POSITION_UNITS),
             ("torque.unit", self.torque.unit, TORQUE_UNITS),
             ("velocity.unit", self.velocity.unit if self.velocity else None, VELOCITY_UNITS),
+            ("command.unit", self.command.unit if self.command else None, POSITION_UNITS),
         ):
             if value is not None and value not in allowed:
                 raise ValueError(f"log.{key} = {value!r}; allowed: {', '.join(allowed)}")
         return self
+
+    def command_signal(self) -> SignalFile | None:
+        """``command`` with the keys it omits taken from ``position`` (None without one)."""
+        if self.command is None:
+            return None
+        own = self.command.model_dump(exclude_unset=True)
+        inherited = self.position.model_dump(exclude={"path", "columns", "delimiter"})
+        return SignalFile.model_validate({**inherited, **own})
 
     def _has_log_files(self) -> bool:
         return self.path is not None or bool(self.files)
@@ -173,7 +195,7 @@ class LogConfig(StrictModel):
         out = list(self.files)
         if self.path is not None:
             out.insert(0, LogFile(path=self.path, format=self.format))
-        for signal in (self.position, self.torque, self.velocity):
+        for signal in (self.position, self.torque, self.velocity, self.command):
             if signal is not None and signal.path is not None:
                 out.append(LogFile(path=signal.path, delimiter=signal.delimiter))
         if self.time is not None and self.time.path is not None:

@@ -9,6 +9,7 @@ its gaps and windows and resampled onto a uniform grid where its stamps are not
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,6 +23,7 @@ from ident.measure.readers import LogTable, read_tables
 
 __all__ = [
     "Stamps",
+    "expand_groups",
     "join_segments",
     "join_signals",
     "joint_order",
@@ -105,12 +107,86 @@ def _find(tables: list[LogTable], name: str) -> LogTable:
 
 
 def _missing_message(name: str, available: list[str], tables: list[LogTable]) -> str:
-    import difflib
-
     close = difflib.get_close_matches(name, available, n=3)
     hint = f" (closest: {', '.join(close)})" if close else ""
     files = ", ".join(sorted({t.source for t in tables}))
-    return f"{files}: column '{name}' not found{hint}; `ident logs inspect FILE` lists the columns."
+    shown = ", ".join(available[:40]) + (" ..." if len(available) > 40 else "")
+    return (
+        f"{files}: column '{name}' not found{hint}; the log has {shown} "
+        "(`ident logs inspect FILE` lists them)."
+    )
+
+
+def _group(name: str, tables: list[LogTable]) -> list[str]:
+    """The columns ``<name>/<x>`` of the first table that has them when ``name`` is no
+    column itself (a LeRobot feature, a ROS topic's field), else ``[]``."""
+    for table in tables:
+        if name in table.columns:
+            return []
+    for table in tables:
+        found = [c for c in table.columns if c.startswith(name + "/")]
+        if found:
+            return found
+    return []
+
+
+def expand_groups(
+    signal: SignalFile,
+    tables: list[LogTable],
+    joint_names: tuple[str, ...],
+    what: str,
+    source: str = "config",
+) -> list[str] | None:
+    """``signal.columns`` with every group name replaced by its columns but the ``exclude``
+    ones; a group's columns must then name the model's joints, one each (DataError naming
+    the group, the names without a joint, the joints without a column and the fix)."""
+    if signal.columns is None:
+        return None
+    out: list[str] = []
+    unused = list(signal.exclude)
+    for name in signal.columns:
+        members = _group(name, tables)
+        if not members:
+            out.append(name)  # a column (or a missing one: named when it is looked up)
+            continue
+        kept = [c for c in members if c.split("/")[-1] not in signal.exclude]
+        unused = [x for x in unused if not any(c.split("/")[-1] == x for c in members)]
+        if joint_order(kept, joint_names) is None:
+            raise DataError(_group_mismatch(name, kept, joint_names, tables, what))
+        out += kept
+    found = all(any(c in t.columns for t in tables) for c in out)
+    if unused and found:
+        raise ConfigError(
+            f"{source}: log.{what}.exclude names {', '.join(unused)}, which no group of "
+            f"log.{what}.columns holds; remove it or fix the name."
+        )
+    return out
+
+
+def _group_mismatch(
+    name: str, kept: list[str], joint_names: tuple[str, ...], tables: list[LogTable], what: str
+) -> str:
+    """The message of a group whose names are not the model's joints."""
+    source = next(t.source for t in tables if any(c.startswith(name + "/") for c in t.columns))
+    names = [c[len(name) + 1 :] for c in kept]
+
+    def names_joint(column: str, joint: str) -> bool:
+        return joint_order([column], (joint,)) is not None
+
+    extra = [
+        n
+        for c, n in zip(kept, names, strict=True)
+        if not any(names_joint(c, j) for j in joint_names)
+    ]
+    missing = [j for j in joint_names if not any(names_joint(c, j) for c in kept)]
+    return (
+        f"{source}: log.{what}.columns: '{name}' names {', '.join(names) or 'nothing'}, the "
+        f"URDF's joints are {', '.join(joint_names)}"
+        + (f"; not in the URDF: {', '.join(extra)}" if extra else "")
+        + (f"; no column for: {', '.join(missing)}" if missing else "")
+        + f"; leave a column out with log.{what}.exclude: [name], or list the columns one "
+        "per joint in joint order."
+    )
 
 
 class _Sources:
@@ -123,7 +199,9 @@ class _Sources:
 
     def __init__(self, cfg: LogConfig, *, whole: bool = False) -> None:
         self.cfg = cfg
-        signals = [s for s in (cfg.position, cfg.torque, cfg.velocity) if s is not None]
+        signals = [
+            s for s in (cfg.position, cfg.torque, cfg.velocity, cfg.command) if s is not None
+        ]
         wanted: list[str] | None = None
         if not whole and all(s.columns is not None for s in signals):
             wanted = [c for s in signals for c in s.columns or []]
@@ -167,14 +245,15 @@ class _Sources:
             )
         else:
             tables = self.all
-        if signal.columns is None:
+        columns = expand_groups(signal, tables, joint_names, what, source)
+        if columns is None:
             table = tables[0]
         else:
-            owners = [self._find(tables, c) for c in signal.columns]
+            owners = [self._find(tables, c) for c in columns]
             table = owners[0]
             if any(o is not table for o in owners):
-                table = _side_by_side(owners, signal.columns, what)
-        data, names = select_columns(table, signal.columns, n_joints, what)
+                table = _side_by_side(owners, columns, what)
+        data, names = select_columns(table, columns, n_joints, what)
         if data.shape[1] != n_joints:  # the config's list is wrong, not the file
             raise ConfigError(
                 f"{source}: log.{what}.columns lists {data.shape[1]} columns "
@@ -340,8 +419,9 @@ def _on_time(
 def signal_tables(
     cfg: LogConfig, joint_names: tuple[str, ...], source: str = "config"
 ) -> list[tuple[FloatArray, LogTable]]:
-    """Position, torque (and velocity) columns with their tables; the first part carries the
-    table of the time column (``log.time.path``) when the time is in a file of its own."""
+    """Position, torque (and velocity, and commanded position) columns with their tables; the
+    first part carries the table of the time column (``log.time.path``) when the time is in
+    a file of its own."""
     n_joints = len(joint_names)
     sources = _Sources(cfg)
     parts = [
@@ -350,6 +430,9 @@ def signal_tables(
     ]
     if cfg.velocity is not None:
         parts.append(sources.signal(cfg.velocity, n_joints, "velocity", joint_names, source))
+    command = cfg.command_signal()
+    if command is not None:
+        parts.append(sources.signal(command, n_joints, "command", joint_names, source))
     if cfg.time is not None and cfg.time.path is not None:
         t_table = sources.by_path[Path(cfg.time.path)][0]
         t_table.column(cfg.time.column)
@@ -366,7 +449,8 @@ def signal_tables(
 class Stamps:
     """A log's time stamps after the one rule for stamps (NaN refused, duplicates dropped,
     backwards jumps split): ``t`` (None without a time column), the rows kept (None: all),
-    the stamps the signals are joined on, the warnings, and the names for messages."""
+    the stamps the signals are joined on, the warnings, the names for messages, and the rows
+    where a recording starts (the position table's ``segment_starts``)."""
 
     t: FloatArray | None
     rows: npt.NDArray[np.intp] | None
@@ -374,14 +458,31 @@ class Stamps:
     warnings: list[str]
     file: str
     what: str
+    starts: tuple[int, ...] = ()
+
+    def breaks(self, keep: npt.NDArray[np.bool_] | None, n_rows: int) -> list[int]:
+        """Where a recording starts, as indices of the samples kept (the time rule's
+        ``rows``, then the join's mask ``keep``); ``n_rows``: the samples when the rule and
+        the join keep them all."""
+        if not self.starts:
+            return []
+        if self.rows is not None:
+            rows = self.rows
+        else:
+            rows = np.arange(keep.size if keep is not None else n_rows)
+        if keep is not None:
+            rows = rows[keep]
+        at = np.searchsorted(rows, np.asarray(self.starts))
+        return sorted({int(k) for k in at if 0 < k < rows.size})
 
     @classmethod
     def of(cls, cfg: LogConfig, ref_table: LogTable, files: str) -> Stamps:
         t_raw = _time_of(ref_table, cfg)
         t_file = cfg.time.path if cfg.time is not None and cfg.time.path is not None else files
         what = f"time column '{cfg.time.column}'" if cfg.time is not None else "time column"
+        starts = ref_table.segment_starts
         if t_raw is None:
-            return cls(None, None, None, [], str(t_file), what)
+            return cls(None, None, None, [], str(t_file), what, starts)
         limit = cfg.max_samples or t_raw.size
         cleaned = timebase.clean_time(
             t_raw[:limit],
@@ -394,7 +495,7 @@ class Stamps:
             rows, t_join = None, t_raw
         else:
             rows, t_join = cleaned.index, t_raw[cleaned.index]
-        return cls(cleaned.t, rows, t_join, list(cleaned.warnings), str(t_file), what)
+        return cls(cleaned.t, rows, t_join, list(cleaned.warnings), str(t_file), what, starts)
 
 
 def uniform_grid(
@@ -405,12 +506,15 @@ def uniform_grid(
     files: str,
     source: str,
     records: list[dict],
+    breaks: list[int] | None = None,
 ) -> tuple[FloatArray, list[FloatArray], list[tuple[int, int]], float, str]:
-    """The time of the signals: the given rate, or the stamps cut in segments (gaps,
-    windows) and, when not uniform or ``log.resample_hz`` is set, resampled per segment
-    (a record appended). Returns ``(t, signals, segments, rate [Hz], note)``."""
+    """The time of the signals: the given rate, or the stamps cut in segments (gaps, the
+    ``breaks`` where a recording starts, windows) and, when not uniform or
+    ``log.resample_hz`` is set, resampled per segment (a record appended). Returns
+    ``(t, signals, segments, rate [Hz], note)``."""
     windows = [(w.start_s, w.end_s) for w in cfg.windows]
     n = signals[0].shape[0]
+    breaks = breaks or []
     if t is None:
         if cfg.sampling_rate_hz is None:
             raise DataError(
@@ -418,13 +522,14 @@ def uniform_grid(
             )
         fs = float(cfg.sampling_rate_hz)
         t = np.arange(n) / fs
-        segments = _windowed(t, [(0, n)], windows, files, source)
+        segments = _windowed(t, timebase.split_segments([(0, n)], breaks), windows, files, source)
         return t, signals, segments, fs, f"sampling rate {fs:g} Hz (no time column)"
     unit = cfg.time.unit if cfg.time is not None else "s"
     timebase.check_rate(t, f"{stamps.file}: {stamps.what}", unit)
     t = t - t[0]
     summary = timebase.summarize_time(t, gap_factor=cfg.gap_factor)
     raw_segments = timebase.find_segments(t, gap_factor=cfg.gap_factor, max_gap_s=cfg.max_gap_s)
+    raw_segments = timebase.split_segments(raw_segments, breaks)
     segments = _windowed(t, raw_segments, windows, files, source)
     fs = cfg.resample_hz or summary.rate_hz
     time_note = f"{stamps.what}: {summary.text()}"
@@ -493,7 +598,7 @@ def join_segments(
         {
             "step": "segments",
             "detail": f"{len(lengths)} segment(s) of "
-            f"{', '.join(f'{m / fs:.3g} s' for m in lengths)} (gaps split the log"
+            f"{', '.join(f'{m / fs:.3g} s' for m in lengths)} (gaps or episodes split the log"
             + (f"; windows {windows}" if windows else "")
             + ")",
         }

@@ -38,7 +38,7 @@ from ident.measure.log_tables import (
     signal_tables,
     uniform_grid,
 )
-from ident.measure.readers import estimate_read, read_tables
+from ident.measure.readers import LogTable, estimate_read, read_tables
 
 __all__ = [
     "RobotLog",
@@ -242,6 +242,10 @@ class RobotLog:
     warnings :
         What reading changed in the data a user must know (duplicated stamps dropped, a
         backwards jump split, receive times used for missing stamps): count and first place.
+    q_cmd :
+        Commanded joint positions [rad or m] (``log.command``: a position servo's set point,
+        LeRobot's ``action``), shape (n_samples, n_joints), on the samples of ``q``; None
+        when the log names none. Carried for an actuator model; identification ignores it.
     """
 
     t: FloatArray
@@ -254,6 +258,7 @@ class RobotLog:
     dq: FloatArray | None = None
     warnings: tuple[str, ...] = ()
     ddq: FloatArray | None = None
+    q_cmd: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if not self.segments:
@@ -301,7 +306,8 @@ def _per_joint(value: float | list[float] | None, n: int, key: str, source: str)
 def _to_si(
     raw: FloatArray, signal: SignalFile, unit: str, what: str, source: str
 ) -> tuple[FloatArray, str]:
-    """Unit, scale and sign of one signal -> SI values and a note for the records."""
+    """Unit (ticks: less ``zero_tick``), scale and sign of one signal -> SI values and a note
+    for the records."""
     n = raw.shape[1]
     if unit in ("ticks", "ticks/s"):
         if signal.counts_per_rev is None:
@@ -312,11 +318,20 @@ def _to_si(
         factor = 2.0 * np.pi / signal.counts_per_rev
     else:
         factor = _UNIT_SCALE[unit]
+    zero = ""
+    if signal.zero_tick is not None:
+        if unit != "ticks":
+            raise ConfigError(
+                f"{source}: log.{what}.zero_tick is the tick of the zero angle of unit: ticks "
+                f"positions, the unit here is {unit}; remove it or set log.{what}.unit: ticks."
+            )
+        offset = _per_joint(signal.zero_tick, n, f"{what}.zero_tick", source)
+        raw, zero = raw - offset, f"({what} - zero_tick {offset.tolist()}) "
     gain = factor * _per_joint(signal.scale, n, f"{what}.scale", source)
     gain = gain * _per_joint(signal.sign, n, f"{what}.sign", source)
-    if np.all(gain == 1.0):
+    if np.all(gain == 1.0) and not zero:
         return raw, ""
-    return raw * gain, f"{what} {unit} x {gain.tolist()}"
+    return raw * gain, f"{zero or what + ' '}{unit} x {gain.tolist()}"
 
 
 def read_csv_columns(
@@ -390,7 +405,7 @@ def read_log(
             log = _to_rate(log, fs)
         parts.append(log)
     t, q, tau, dq, segments, records = [], [], [], [], [], list(first.records)
-    warnings = list(first.warnings)
+    warnings, q_cmd = list(first.warnings), []
     offset, start = 0.0, 0
     for k, log in enumerate(parts):
         t.append(log.t - log.t[0] + offset)
@@ -398,12 +413,12 @@ def read_log(
         q.append(log.q)
         tau.append(log.tau)
         dq.append(log.dq)
+        q_cmd.append(log.q_cmd)
         segments += [(a + start, b + start) for a, b in log.segments]
         start += log.n_samples
         if k:
             records += [{**r, "step": f"log {k + 1}: {r['step']}"} for r in log.records]
             warnings += [f"log.more[{k - 1}]: {w}" for w in log.warnings]
-    has_dq = all(d is not None for d in dq)
     return RobotLog(
         t=np.concatenate(t),
         q=np.concatenate(q),
@@ -412,14 +427,22 @@ def read_log(
         joint_names=first.joint_names,
         records=tuple(records),
         segments=tuple(segments),
-        dq=np.concatenate([d for d in dq if d is not None]) if has_dq else None,
+        dq=_all_or_none(dq),
         warnings=tuple(warnings),
+        q_cmd=_all_or_none(q_cmd),
     )
+
+
+def _all_or_none(parts: list[FloatArray | None]) -> FloatArray | None:
+    """The parts one after another when every log has the signal, else None."""
+    if any(p is None for p in parts):
+        return None
+    return np.concatenate([p for p in parts if p is not None])
 
 
 def _to_rate(log: RobotLog, rate_hz: float) -> RobotLog:
     """``log`` resampled per segment onto ``rate_hz`` (cubic spline)."""
-    signals = [log.q, log.tau] + ([log.dq] if log.dq is not None else [])
+    signals = [log.q, log.tau] + [x for x in (log.dq, log.q_cmd) if x is not None]
     t_out, x_out, segments, start = [], [], [], 0
     for a, b in log.segments:
         tg, xg = timebase.resample(
@@ -444,6 +467,7 @@ def _to_rate(log: RobotLog, rate_hz: float) -> RobotLog:
         segments=tuple(segments),
         dq=parts[2] if log.dq is not None else None,
         warnings=log.warnings,
+        q_cmd=parts[-1] if log.q_cmd is not None else None,
     )
 
 
@@ -478,16 +502,17 @@ def _read_one(
     arrays, keep, join_note, join_warnings = join_signals(parts, cfg, stamps.t_join, stamps.rows)
     warnings += join_warnings
     t = stamps.t if keep is None or stamps.t is None else stamps.t[keep]
-    q_raw, tau_raw, dq_raw = _raw_signals(cfg, arrays, t)
-    signals, records = _joint_side(cfg, transmission, q_raw, tau_raw, dq_raw, source)
+    breaks = stamps.breaks(keep, arrays[0].shape[0])
+    signals, records = _si_signals(cfg, transmission, arrays, t, parts, joint_names, source)
     n = signals[0].shape[0]
     t, signals, segments, fs, time_note = uniform_grid(
-        cfg, t, signals, stamps, files, source, records
+        cfg, t, signals, stamps, files, source, records, breaks
     )
     t, signals, segments = join_segments(t, signals, segments, n, fs, cfg, records)
     # float64 already (no copy): asarray only tells the type checker
-    q, tau = (np.asarray(x, dtype=np.float64) for x in signals[:2])
-    dq_out = np.asarray(signals[2], dtype=np.float64) if len(signals) > 2 else None
+    q, tau, *more = (np.asarray(x, dtype=np.float64) for x in signals)
+    dq_out = more.pop(0) if cfg.velocity is not None else None
+    q_cmd = more.pop(0) if cfg.command is not None else None
     records.insert(
         0,
         {
@@ -506,20 +531,95 @@ def _read_one(
         segments=tuple(segments),
         dq=dq_out,
         warnings=tuple(warnings),
+        q_cmd=q_cmd,
     )
 
 
 def _raw_signals(
     cfg: LogConfig, arrays: list[FloatArray], t: FloatArray | None
-) -> tuple[FloatArray, FloatArray, FloatArray | None]:
-    """The joined position, torque (and velocity) columns (n_samples, n_joints) as logged,
-    cut to ``log.max_samples`` when the log has no time column ``t``."""
+) -> tuple[FloatArray, FloatArray, FloatArray | None, FloatArray | None]:
+    """The joined position, torque (velocity, commanded position) columns (n_samples,
+    n_joints) as logged, cut to ``log.max_samples`` when the log has no time column ``t``."""
     q_raw, tau_raw = arrays[0], arrays[1]
     dq_raw = arrays[2] if cfg.velocity is not None else None
+    cmd_raw = arrays[-1] if cfg.command is not None else None
     if cfg.max_samples is not None and t is None:
         q_raw, tau_raw = q_raw[: cfg.max_samples], tau_raw[: cfg.max_samples]
         dq_raw = None if dq_raw is None else dq_raw[: cfg.max_samples]
-    return q_raw, tau_raw, dq_raw
+        cmd_raw = None if cmd_raw is None else cmd_raw[: cfg.max_samples]
+    return q_raw, tau_raw, dq_raw, cmd_raw
+
+
+def _si_signals(
+    cfg: LogConfig,
+    transmission: TransmissionConfig,
+    arrays: list[FloatArray],
+    t: FloatArray | None,
+    parts: list[tuple[FloatArray, LogTable]],
+    joint_names: tuple[str, ...],
+    source: str,
+) -> tuple[list[FloatArray], list[dict]]:
+    """The joined signals in SI on the joint side, ``[q, tau]`` (then ``dq``, ``q_cmd`` when
+    the log has them), positions checked against their source's angle bound; the records."""
+    q_raw, tau_raw, dq_raw, cmd_raw = _raw_signals(cfg, arrays, t)
+    signals, records = _joint_side(cfg, transmission, q_raw, tau_raw, dq_raw, source)
+    unit = cfg.position.unit or cfg.position_unit
+    _check_angles(signals[0], parts[0][1], unit, "position", joint_names)
+    command = cfg.command_signal()
+    if cmd_raw is not None and command is not None:
+        q_cmd, record = _command_positions(cfg, command, transmission, cmd_raw, source)
+        unit = command.unit or cfg.position_unit
+        _check_angles(q_cmd, parts[-1][1], unit, "command", joint_names)
+        signals.append(q_cmd)
+        records.append(record)
+    return signals, records
+
+
+def _command_positions(
+    cfg: LogConfig,
+    command: SignalFile,
+    transmission: TransmissionConfig,
+    raw: FloatArray,
+    source: str,
+) -> tuple[FloatArray, dict]:
+    """Commanded positions (n_samples, n_joints) in SI on the joint side, converted as the
+    measured ones are (unit, scale, sign, then the side's transmission and zero offsets)."""
+    values, note = _to_si(raw, command, command.unit or cfg.position_unit, "command", source)
+    side = command.side or cfg.side
+    trans = transmission_from_config(transmission, raw.shape[1], side="motor", source=source)
+    if side == "joint":  # the zero offsets only, as for the measured positions
+        n = raw.shape[1]
+        trans = Transmission(np.eye(n), np.eye(n), trans.torque_constants, trans.zero_offsets)
+    detail = f"commanded positions ({side} side)" + (f": {note}" if note else "")
+    return trans.joint_positions(values), {"step": "command", "detail": detail}
+
+
+def _check_angles(
+    q: FloatArray, table: LogTable, unit: str, what: str, joint_names: tuple[str, ...]
+) -> None:
+    """Refuse positions ``q`` [rad] (n_samples, n_joints) beyond the angle bound of their
+    source (servo angles: ``LogTable.angle_bound_rad``): logged in another unit than
+    ``unit``. The message names the file, the joint column and the unit key to set."""
+    bound = table.angle_bound_rad
+    if bound is None or unit in ("m", "mm") or q.size == 0:
+        return
+    peak = np.max(np.abs(q), axis=0)
+    if not np.any(peak > bound):
+        return
+    j = int(np.argmax(peak > bound))
+    fix = {
+        "deg": f"they look like ticks: set log.{what}.unit: ticks with counts_per_rev "
+        "(4096 for a Feetech STS3215) and zero_tick (2048)",
+        "ticks": f"check log.{what}.counts_per_rev and zero_tick",
+    }.get(
+        unit,
+        f"they look like ticks or degrees: set log.{what}.unit: deg, or unit: ticks with "
+        "counts_per_rev (4096 for a Feetech STS3215) and zero_tick (2048)",
+    )
+    raise DataError(
+        f"{table.source}: log.{what} of joint '{joint_names[j]}' reaches {peak[j]:.4g} rad "
+        f"read as {unit}, beyond the +-{bound:.3g} rad a servo's angle stays within; {fix}."
+    )
 
 
 def _joint_side(

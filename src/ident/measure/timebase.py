@@ -62,6 +62,7 @@ __all__ = [
     "is_uniform",
     "place",
     "resample",
+    "split_segments",
     "summarize_time",
     "velocity_mismatch",
     "windows_to_segments",
@@ -316,6 +317,16 @@ def find_segments(
     cuts = np.flatnonzero(dt > limit) + 1
     bounds = [0, *cuts.tolist(), t.size]
     return [(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True) if b > a]
+
+
+def split_segments(segments: list[Segment], starts: list[int]) -> list[Segment]:
+    """``segments`` cut at the sample indices ``starts`` (where a recording starts: an episode
+    of a dataset), whatever the time between says."""
+    out: list[Segment] = []
+    for a, b in segments:
+        bounds = [a, *sorted({int(c) for c in starts if a < c < b}), b]
+        out += list(zip(bounds[:-1], bounds[1:], strict=True))
+    return out
 
 
 def windows_to_segments(

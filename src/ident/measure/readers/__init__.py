@@ -1,14 +1,15 @@
 """Log readers: files a robot controller writes -> named columns in the file's own units.
 
 The registry and the table type are in :mod:`ident.measure.readers.registry`; this package
-registers the built-in readers (CSV/TSV, long CSV, ROS 2 bags, MCAP, npz) on import. Add a
-format with :func:`register_reader` (see ``docs/logs.md``, "Extending").
+registers the built-in readers (CSV/TSV, long CSV, ROS 2 bags, MCAP, npz, LeRobot datasets)
+on import. Add a format with :func:`register_reader` (see ``docs/logs.md``, "Extending").
 """
 
 from __future__ import annotations
 
 from ident.measure.readers import csv as _csv
 from ident.measure.readers import csv_long as _csv_long
+from ident.measure.readers import lerobot as _lerobot
 from ident.measure.readers import npz as _npz
 from ident.measure.readers import ros as _ros
 from ident.measure.readers.registry import (
@@ -53,6 +54,13 @@ register_reader(
     detect=_npz.is_npz,
     description="numpy archive",
     estimate=_npz.estimate_npz,
+)
+register_reader(
+    "lerobot",
+    _lerobot.read_lerobot,
+    detect=_lerobot.is_lerobot,
+    description="LeRobot dataset folder or episode .parquet",
+    estimate=_lerobot.estimate_lerobot,
 )
 register_reader(
     "csv_long",

@@ -15,6 +15,7 @@ Readers live in :data:`READERS`, keyed by the ``format:`` name of a log config; 
 ``rosbag``    ROS 2 bag folder (sqlite3 or mcap storage) read with ``rosbags``
 ``mcap``      a bare ``.mcap`` file with ROS 2 (CDR) messages read with ``mcap-ros2-support``
 ``npz``       a numpy archive (1-D arrays are columns, 2-D ``name`` -> ``name/0``, ...)
+``lerobot``   a LeRobot dataset folder (parquet episodes) or one episode ``.parquet`` file
 ============  ===========================================================================
 
 Add a format with :func:`register_reader` (see ``docs/logs.md``, "Extending").
@@ -68,6 +69,14 @@ class LogTable:
     warnings :
         What the reader did that a user must know (e.g. receive times used for messages
         without a stamp), one sentence each with the count and the first place.
+    segment_starts :
+        Rows (0-based, increasing, > 0) where an independent recording starts (an episode
+        of a dataset): the log is split there into segments whatever its time stamps say,
+        so nothing is filtered or differentiated across. Empty for one recording.
+    angle_bound_rad :
+        Largest plausible ``|position|`` [rad] of the source's angles (servo positions: one
+        turn and a margin); a position beyond it after the config's unit conversion was
+        logged in another unit and is refused. None: no bound (a continuous joint turns on).
     """
 
     columns: Mapping[str, FloatArray]
@@ -75,6 +84,8 @@ class LogTable:
     source: str = ""
     line_numbers: npt.NDArray[np.int64] | None = field(default=None, repr=False)
     warnings: tuple[str, ...] = ()
+    segment_starts: tuple[int, ...] = ()
+    angle_bound_rad: float | None = None
 
     @property
     def n_samples(self) -> int:

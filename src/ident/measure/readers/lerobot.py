@@ -1,0 +1,427 @@
+"""LeRobot datasets (v2.x layout): parquet tables of position-servo arms, one episode a segment.
+
+A dataset folder holds ``meta/info.json`` (``fps``; ``features``: per feature its ``dtype``,
+``shape`` and ``names``, the joint names) and ``data/chunk-000/episode_000000.parquet``, ...:
+one row per frame with ``timestamp`` [s] (from the episode's start), ``frame_index``,
+``episode_index``, ``index`` and the features, ``observation.state`` (measured positions) and
+``action`` (commanded positions) each a fixed-length list of numbers per frame. Every parquet
+file under ``data/`` is read, in path order (a file may hold several episodes: episodes are cut
+where ``episode_index`` changes). One episode ``.parquet`` file is read alone too (its
+``meta/info.json`` two folders up when there is one).
+
+Columns: a list feature ``f`` becomes ``f/<name>`` per element, its name from ``info.json``
+(``names`` a list, or a mapping holding one list such as ``{"motors": [...]}``; a ``.pos``
+suffix every name carries is dropped: ``shoulder_pan.pos`` -> ``shoulder_pan``), ``f/0``,
+``f/1`` ... without names; a scalar feature keeps its name. Images, videos and strings are
+not read.
+
+Time: the episodes one after another, as :mod:`ident.measure.logs` joins several logs: each
+episode's ``timestamp`` shifted to start :data:`EPISODE_GAP_S` after the previous episode's
+end (``windows:`` read this continued time), and every episode its own segment
+(:attr:`LogTable.segment_starts`): nothing is filtered or differentiated across an episode
+boundary, whatever ``gap_factor`` or ``max_gap_s`` say.
+
+Refused, naming the file and the field: a column the config needs that the dataset lacks
+(listing those it has), a timestamp that does not increase within an episode (naming the
+episode and the frame), ``fps`` of ``info.json`` that the timestamps contradict by more than
+:data:`FPS_RTOL`, list lengths that differ from the declared ``shape``, null rows. Positions
+are servo angles: after the config's unit conversion they must stay within
+:data:`ANGLE_BOUND_RAD` (:attr:`LogTable.angle_bound_rad`, checked by
+:mod:`ident.measure.logs`): ticks or degrees declared as radians are caught there.
+
+Bounded memory: the sizes come from the parquet footers (rows per row group, bytes per column
+chunk) before anything is read; the columns' float64 arrays plus the largest column chunk are
+checked against ``IDENT_MAX_MEMORY_GB`` and allocated once; then one column of one row group is
+read at a time (pyarrow) and converted into its place. Only the features the config names are
+read (with ``timestamp``, ``frame_index``, ``episode_index``).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from ident.config import read_text_input
+from ident.errors import ConfigError, DataError
+from ident.inputs import JobEstimate, check_job
+from ident.measure.readers.registry import LogTable, check_regular_file
+
+__all__ = [
+    "ANGLE_BOUND_RAD",
+    "EPISODE_GAP_S",
+    "FPS_RTOL",
+    "estimate_lerobot",
+    "is_lerobot",
+    "read_lerobot",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+# A servo's angle (one turn, STS3215 / Dynamixel position mode) with a margin for a calibration
+# offset: radians beyond it were logged in ticks (0..4095) or degrees.
+ANGLE_BOUND_RAD = 2.0 * np.pi * 1.5
+EPISODE_GAP_S = 1.0  # time between episodes in the continued time (as between logs)
+FPS_RTOL = 0.01  # relative difference of the median step from 1/fps that is refused
+_INFO_BYTES = 4 << 20  # info.json holds the features and paths, never data
+_TIME, _EPISODE, _FRAME = "timestamp", "episode_index", "frame_index"
+_SECONDS_PER_VALUE = 2e-8  # read and converted per value (estimate: 50 M values/s)
+
+
+def is_lerobot(path: Path) -> bool:
+    """Detector: a folder with ``meta/info.json``, or a ``.parquet`` file."""
+    if path.is_dir():
+        return (path / "meta" / "info.json").is_file()
+    return path.is_file() and path.suffix == ".parquet"
+
+
+@dataclass(frozen=True)
+class _Field:
+    """One numeric column of the parquet files: its values per row (``width``), the column
+    names it gives, and whether it is a list (else a scalar)."""
+
+    name: str
+    width: int
+    names: tuple[str, ...]
+    is_list: bool
+
+
+@dataclass(frozen=True, eq=False)
+class _Plan:
+    """What reading will do, from ``info.json`` and the parquet footers only."""
+
+    root: Path
+    files: tuple[Path, ...]
+    rows: tuple[int, ...]  # per file
+    fields: tuple[_Field, ...]
+    fps: float | None
+    info_path: Path | None
+    chunk_bytes: float  # the largest column chunk of a selected field, uncompressed
+
+    @property
+    def n_rows(self) -> int:
+        return sum(self.rows)
+
+    def memory_bytes(self) -> float:
+        """The float64 columns plus one column chunk and its float64 copy."""
+        width = sum(f.width for f in self.fields)
+        return 8.0 * self.n_rows * width + 3.0 * self.chunk_bytes
+
+
+def _dataset(path: Path) -> tuple[Path, tuple[Path, ...], Path | None]:
+    """(dataset root, parquet files in path order, info.json or None) of ``path``."""
+    if path.is_dir():
+        info = path / "meta" / "info.json"
+        if not info.is_file():
+            raise DataError(
+                f"{path}: not a LeRobot dataset (meta/info.json not found); give the dataset "
+                "folder (meta/ and data/ inside) or one episode .parquet file."
+            )
+        files = tuple(sorted((path / "data").rglob("*.parquet")))
+        if not files:
+            raise DataError(f"{path}: no .parquet file under data/; is the dataset complete?")
+        for f in files:
+            check_regular_file(f)
+        return path, files, info
+    check_regular_file(path)
+    info = path.parent.parent.parent / "meta" / "info.json"  # data/chunk-000/<file>
+    return path.parent, (path,), info if info.is_file() else None
+
+
+def _load_info(info_path: Path) -> dict[str, Any]:
+    """``info.json`` as a dict with a positive ``fps`` and a ``features`` mapping."""
+    try:
+        info = json.loads(read_text_input(info_path, what="dataset info", max_bytes=_INFO_BYTES))
+    except (ValueError, RecursionError) as e:
+        raise DataError(f"{info_path}: not valid JSON ({e}).") from e
+    except ConfigError as e:
+        raise DataError(str(e)) from e
+    if not isinstance(info, dict):
+        raise DataError(f"{info_path}: holds {type(info).__name__}, a JSON object expected.")
+    fps = info.get("fps")
+    if isinstance(fps, bool) or not isinstance(fps, int | float) or not 0 < fps < 1e6:
+        raise DataError(
+            f"{info_path}: fps = {fps!r}; the recording rate in frames per second expected."
+        )
+    if not isinstance(info.get("features", {}), dict):
+        raise DataError(f"{info_path}: features is not a mapping of feature name -> spec.")
+    return info
+
+
+def _declared_names(info: Mapping[str, Any] | None, name: str) -> list[str] | None:
+    """The element names ``info.json`` gives a feature (a list, or a mapping holding one
+    list), None when it gives none."""
+    spec = (info or {}).get("features", {}).get(name)
+    names = spec.get("names") if isinstance(spec, dict) else None
+    if isinstance(names, dict) and len(names) == 1:
+        names = next(iter(names.values()))
+    if isinstance(names, list) and names and all(isinstance(n, str) for n in names):
+        if all(n.endswith(".pos") for n in names):
+            names = [n.removesuffix(".pos") for n in names]
+        return names
+    return None
+
+
+def _declared_width(info: Mapping[str, Any] | None, name: str) -> int | None:
+    spec = (info or {}).get("features", {}).get(name)
+    shape = spec.get("shape") if isinstance(spec, dict) else None
+    if isinstance(shape, list) and shape and all(isinstance(s, int) and s > 0 for s in shape):
+        return int(np.prod(shape))
+    return None
+
+
+def _is_number(t: pa.DataType) -> bool:
+    return bool(pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t))
+
+
+def _field(
+    pf: pq.ParquetFile, file: Path, name: str, info: Mapping[str, Any] | None, info_path: Any
+) -> _Field | None:
+    """The :class:`_Field` of column ``name``, None when it holds no numbers (images, text)."""
+    t = pf.schema_arrow.field(name).type
+    if _is_number(t):
+        return _Field(name, 1, (name,), False)
+    if not (pa.types.is_list(t) or pa.types.is_fixed_size_list(t)) or not _is_number(t.value_type):
+        return None
+    declared = _declared_width(info, name)
+    width = t.list_size if pa.types.is_fixed_size_list(t) else declared
+    if width is None:  # a variable list and no info.json: the first row's length
+        first = pf.read_row_group(0, columns=[name]).column(0)
+        width = len(first[0]) if len(first) and first[0].is_valid else 0
+    if declared is not None and declared != width:
+        raise DataError(
+            f"{info_path}: features.{name}.shape declares {declared} values per frame, "
+            f"{file} holds lists of {width}; fix the shape or the file."
+        )
+    names = _declared_names(info, name) or [str(k) for k in range(width)]
+    if len(names) != width or len(set(names)) != width:
+        raise DataError(
+            f"{info_path}: features.{name}.names lists {len(names)} names "
+            f"({', '.join(names)}) for {width} values per frame, each once expected."
+        )
+    return _Field(name, width, tuple(f"{name}/{n}" for n in names), True)
+
+
+def _selected(wanted: Any, present: list[str]) -> list[str]:
+    """The columns to read: those the config names (``feature`` or ``feature/<name>``),
+    every one when it names none, and always the time, episode and frame columns."""
+    if wanted is None:
+        return list(present)
+    names = {str(w).split("/", 1)[0] for w in wanted} | {str(w) for w in wanted}
+    return [c for c in present if c in names or c in (_TIME, _EPISODE, _FRAME)]
+
+
+def _n_leaves(t: pa.DataType) -> int:
+    """Parquet leaf columns of an arrow type (a list of numbers: 1; an image struct: 2)."""
+    if t.num_fields == 0:
+        return 1
+    return sum(_n_leaves(t.field(k).type) for k in range(t.num_fields))
+
+
+def _chunk_bytes(pf: pq.ParquetFile, names: list[str]) -> float:
+    """The largest uncompressed column chunk of the columns ``names`` (footer only)."""
+    leaves: list[str] = []
+    for field in pf.schema_arrow:  # leaf columns in schema order
+        leaves += [field.name] * _n_leaves(field.type)
+    md, largest = pf.metadata, 0.0
+    for g in range(md.num_row_groups):
+        rg = md.row_group(g)
+        for j in range(min(rg.num_columns, len(leaves))):
+            if leaves[j] in names:
+                largest = max(largest, float(rg.column(j).total_uncompressed_size))
+    return largest
+
+
+def _plan(path: Path, options: Mapping[str, Any]) -> _Plan:
+    """Files, fields and sizes of reading ``path`` (footers and info.json only)."""
+    root, files, info_path = _dataset(path)
+    info = _load_info(info_path) if info_path is not None else None
+    rows, fields, chunk = [], None, 0.0
+    for file in files:
+        try:
+            pf = pq.ParquetFile(file)
+        except (OSError, pa.ArrowException) as e:
+            raise DataError(f"{file}: not a readable parquet file ({e}).") from e
+        present = pf.schema_arrow.names
+        for required in (_TIME, _EPISODE):
+            if required not in present:
+                raise DataError(
+                    f"{file}: column '{required}' not found; the file has {', '.join(present)} "
+                    "(a LeRobot episode has timestamp, frame_index, episode_index)."
+                )
+        names = _selected(options.get("columns"), present)
+        if fields is None:
+            found = [_field(pf, file, n, info, info_path or file) for n in names]
+            fields = tuple(f for f in found if f is not None)
+        _check_same_columns(file, present, fields)
+        rows.append(int(pf.metadata.num_rows))
+        chunk = max(chunk, _chunk_bytes(pf, [f.name for f in fields]))
+    assert fields is not None
+    fps = float(info["fps"]) if info is not None else None
+    return _Plan(root, files, tuple(rows), fields, fps, info_path, chunk)
+
+
+def _check_same_columns(file: Path, present: list[str], fields: tuple[_Field, ...]) -> None:
+    missing = [f.name for f in fields if f.name not in present]
+    if missing:
+        raise DataError(
+            f"{file}: column '{missing[0]}' not found (the dataset's first file has it); "
+            f"this file has {', '.join(present)}."
+        )
+
+
+def estimate_lerobot(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    """Memory and time of reading ``path``, from ``info.json`` and the parquet footers."""
+    plan = _plan(path, options)
+    values = plan.n_rows * sum(f.width for f in plan.fields)
+    return JobEstimate(
+        f"reading {path.name}: {plan.n_rows} frames x {len(plan.fields)} columns",
+        plan.memory_bytes(),
+        values * _SECONDS_PER_VALUE,
+    )
+
+
+def _values(column: pa.ChunkedArray, field: _Field, file: Path) -> FloatArray:
+    """One column of one row group as float64, shape (n_rows, field.width)."""
+    parts = []
+    for chunk in column.chunks:
+        if chunk.null_count:
+            raise DataError(
+                f"{file}: column '{field.name}' has {chunk.null_count} empty (null) row(s); "
+                "drop those frames or re-record the episode."
+            )
+        if not field.is_list:
+            parts.append(chunk.to_numpy(zero_copy_only=False).reshape(-1, 1))
+            continue
+        if pa.types.is_list(chunk.type):
+            lengths = np.diff(chunk.offsets.to_numpy())
+            if np.any(lengths != field.width):
+                k = int(np.flatnonzero(lengths != field.width)[0])
+                raise DataError(
+                    f"{file}: column '{field.name}' holds {lengths[k]} values in a row "
+                    f"(row {k} of its chunk), {field.width} expected in every row."
+                )
+        flat = chunk.flatten().to_numpy(zero_copy_only=False)
+        parts.append(flat.reshape(-1, field.width))
+    if not parts:
+        return np.empty((0, field.width))
+    return np.asarray(np.concatenate(parts), dtype=np.float64)
+
+
+def _read_columns(plan: _Plan) -> dict[str, FloatArray]:
+    """Every field's values (n_rows, width), column-major, filled one column chunk at a time."""
+    check_job(
+        JobEstimate(
+            f"{plan.root}: {plan.n_rows} frames x {sum(f.width for f in plan.fields)} values",
+            plan.memory_bytes(),
+            0.0,
+        )
+    )
+    out = {f.name: np.empty((plan.n_rows, f.width), order="F") for f in plan.fields}
+    start = 0
+    for file in plan.files:
+        try:
+            pf = pq.ParquetFile(file)
+            for g in range(pf.metadata.num_row_groups):
+                m = pf.metadata.row_group(g).num_rows
+                for field in plan.fields:
+                    column = pf.read_row_group(g, columns=[field.name]).column(0)
+                    out[field.name][start : start + m] = _values(column, field, file)
+                start += m
+        except (OSError, pa.ArrowException) as e:
+            raise DataError(f"{file}: cannot read the parquet file ({e}).") from e
+    return out
+
+
+def _file_of(plan: _Plan, row: int) -> Path:
+    ends = np.cumsum(plan.rows)
+    return plan.files[int(np.searchsorted(ends, row, side="right"))]
+
+
+def _check_episode(
+    plan: _Plan, t: FloatArray, frames: FloatArray, episode: int, first_row: int
+) -> None:
+    """Refuse the timestamps ``t`` [s] of one episode when they do not increase or contradict
+    ``fps``; ``frames`` are its ``frame_index`` values, for messages."""
+    file = _file_of(plan, first_row)
+    steps = np.diff(t)
+    bad = np.flatnonzero(~(steps > 0))
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise DataError(
+            f"{file}: column 'timestamp' of episode {episode} does not increase at frame "
+            f"{int(frames[k])} ({t[k - 1]:.9g} s then {t[k]:.9g} s); repair the episode's "
+            "timestamps (frame k at k/fps) or remove the episode from the dataset."
+        )
+    if plan.fps is None or steps.size == 0:
+        return
+    step = float(np.median(steps))
+    if abs(step * plan.fps - 1.0) > FPS_RTOL:
+        raise DataError(
+            f"{plan.info_path}: fps = {plan.fps:g} but the timestamps of episode {episode} "
+            f"({file}) step {step:.6g} s ({1.0 / step:.6g} Hz); set fps to the rate the "
+            "episodes were recorded at, or repair the timestamps."
+        )
+
+
+def _episodes(plan: _Plan, columns: dict[str, FloatArray]) -> tuple[FloatArray, list[int]]:
+    """The continued time [s] (each episode :data:`EPISODE_GAP_S` after the previous one's
+    end) and the rows where an episode starts after the first, every episode checked."""
+    t_raw = columns[_TIME][:, 0]
+    episode = columns[_EPISODE][:, 0]
+    frames = columns[_FRAME][:, 0] if _FRAME in columns else None
+    starts = (np.flatnonzero(np.diff(episode) != 0) + 1).tolist()
+    bounds = [0, *starts, t_raw.size]
+    t = np.empty_like(t_raw)
+    offset = 0.0
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if not np.all(np.isfinite(t_raw[a:b])):
+            k = a + int(np.flatnonzero(~np.isfinite(t_raw[a:b]))[0])
+            raise DataError(
+                f"{_file_of(plan, a)}: column 'timestamp' of episode {int(episode[a])} is "
+                f"{t_raw[k]} at row {k - a}; repair or remove the episode."
+            )
+        f = frames[a:b] if frames is not None else np.arange(b - a, dtype=float)
+        _check_episode(plan, t_raw[a:b], f, int(episode[a]), a)
+        if a:
+            offset = t[a - 1] + EPISODE_GAP_S - t_raw[a]
+        t[a:b] = t_raw[a:b] + offset
+    return t, starts
+
+
+def read_lerobot(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
+    """Read a LeRobot dataset folder or episode file (option ``columns``: the columns the
+    config names; only their features are read) as one table, episodes as segments."""
+    plan = _plan(path, options)
+    if plan.n_rows == 0:
+        raise DataError(f"{path}: the dataset holds no frames.")
+    values = _read_columns(plan)
+    t, starts = _episodes(plan, values)
+    columns: dict[str, FloatArray] = {}
+    for field in plan.fields:
+        for k, name in enumerate(field.names):
+            columns[name] = values[field.name][:, k]  # contiguous views (column-major)
+    columns[_TIME] = t
+    warnings: tuple[str, ...] = ()
+    if plan.info_path is None:
+        warnings = (
+            f"{path}: no meta/info.json two folders up: fps not checked against the "
+            "timestamps, joints named by index",
+        )
+    return [
+        LogTable(
+            columns=columns,
+            time=_TIME,
+            source=str(path),
+            warnings=warnings,
+            segment_starts=tuple(starts),
+            angle_bound_rad=ANGLE_BOUND_RAD,
+        )
+    ]
