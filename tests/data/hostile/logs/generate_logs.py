@@ -171,7 +171,48 @@ def _files() -> dict[str, dict]:
     with sqlite3.connect(next(bag.glob("*.db3"))) as db:
         db.execute("VACUUM")
     logs["bag_declares_missing_compression"] = {**ROS, "path": "bag_zstd_declared"}
+    logs.update(_lerobot_files())
     return logs
+
+
+def _lerobot_files() -> dict[str, dict]:
+    """LeRobot datasets (parquet, servo ticks): a column the config names missing, a
+    timestamp going back in an episode, ticks declared as radians."""
+    from lerobot_datasets import write_dataset
+
+    t, q, _ = _signals(60)
+    ticks = np.rint(2048.0 + 651.9 * np.column_stack([q, q[:, :1]]))  # shoulder, slider, gripper
+    effort = np.column_stack([np.cos(t), np.sin(t), np.zeros_like(t)])
+    episode = {"observation.state": ticks, "action": ticks + 3.0, "observation.effort": effort}
+    names = [*JOINTS, "gripper"]
+    log = {
+        "position": {
+            "columns": ["observation.state"],
+            "exclude": ["gripper"],
+            "unit": "ticks",
+            "counts_per_rev": 4096,
+            "zero_tick": 2048,
+        },
+        "command": {"columns": ["action"]},
+        "torque": {"columns": ["observation.effort"], "exclude": ["gripper"]},
+    }
+    out: dict[str, dict] = {}
+    for name in ("missing_column", "timestamp_back", "ticks_as_rad"):
+        folder = HERE / f"lerobot_{name}"
+        shutil.rmtree(folder, ignore_errors=True)
+        episodes = [dict(episode), dict(episode)]
+        if name == "missing_column":
+            episodes = [{k: v for k, v in e.items() if k != "observation.effort"} for e in episodes]
+        if name == "timestamp_back":
+            stamps = np.arange(60) / 30.0
+            stamps[40] = stamps[38]
+            episodes[1]["timestamp"] = stamps
+        write_dataset(folder, episodes, fps=30.0, names=names)
+        section = json.loads(json.dumps({**log, "path": folder.name}))
+        if name == "ticks_as_rad":
+            section["position"] = {"columns": ["observation.state"], "exclude": ["gripper"]}
+        out[f"lerobot_{name}"] = section
+    return out
 
 
 def cases() -> list[dict]:
