@@ -192,6 +192,8 @@ def _field(
         return None
     declared = _declared_width(info, name)
     width = t.list_size if pa.types.is_fixed_size_list(t) else declared
+    if width is None and pf.metadata.num_row_groups == 0:
+        width = 0
     if width is None:  # a variable list and no info.json: the first row's length
         first = pf.read_row_group(0, columns=[name]).column(0)
         width = len(first[0]) if len(first) and first[0].is_valid else 0
@@ -258,7 +260,10 @@ def _plan(path: Path, options: Mapping[str, Any]) -> _Plan:
                 )
         names = _selected(options.get("columns"), present)
         if fields is None:
-            found = [_field(pf, file, n, info, info_path or file) for n in names]
+            try:
+                found = [_field(pf, file, n, info, info_path or file) for n in names]
+            except (OSError, pa.ArrowException, IndexError) as e:
+                raise DataError(f"{file}: cannot read the parquet file ({e}).") from e
             fields = tuple(f for f in found if f is not None)
         _check_same_columns(file, present, fields)
         rows.append(int(pf.metadata.num_rows))
