@@ -489,11 +489,9 @@ def _read_one(
     source :
         Config file name for messages.
 
-    Raises :class:`DataError` for missing or malformed files, columns, NaN/inf values, or a
-    bad time column; :class:`ConfigError` for an inconsistent transmission or unit.
-    """
+    Raises :class:`DataError` for missing or malformed files, columns, NaN/inf values, a bad
+    time column; :class:`ConfigError` for an inconsistent transmission or unit."""
     joint_names = tuple(joint_names)
-    n_joints = len(joint_names)
     parts = signal_tables(cfg, joint_names, source)
     files = ", ".join(Path(f.path).name for f in cfg.sources())
     warnings = list(dict.fromkeys(w for _, table in parts for w in table.warnings))
@@ -517,7 +515,7 @@ def _read_one(
         0,
         {
             "step": "read",
-            "detail": f"{q.shape[0]} samples x {n_joints} joints from {files}; {time_note}"
+            "detail": f"{q.shape[0]} samples x {q.shape[1]} joints from {files}; {time_note}"
             + (f"; {join_note}" if join_note else ""),
         },
     )
