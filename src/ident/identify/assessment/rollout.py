@@ -59,6 +59,7 @@ __all__ = [
     "MAX_TIMESTEP_S",
     "MAX_WINDOWS",
     "NOT_RUN",
+    "ReferenceModel",
     "SD_FLOOR",
     "WINDOW_S",
     "RolloutMeasurements",
@@ -529,7 +530,10 @@ def rollout_not_run(reference: str, reason: str) -> dict[str, Any]:
 def rollout_text(entry: Mapping[str, Any] | None) -> str:
     """The one line every place shows of a rollout entry (:func:`rollout_check`)."""
     if entry is None:
-        return f"{NOT_RUN}: no rollout entry in this result (written before the check existed)"
+        return (
+            f"{NOT_RUN}: no rollout entry in result.json (an interrupted run, or one written "
+            "before the check existed)"
+        )
     if entry["objective"] is None:
         return str(entry["note"])
     reference = entry["reference"]
