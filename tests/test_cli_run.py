@@ -62,6 +62,19 @@ def test_quick_run_writes_every_file(quick_run):
     assert f"Run folder: {run_dir}" in output
 
 
+def test_an_ideal_measurement_names_the_rollout_check_it_cannot_run(quick_run):
+    """No simulated log, no MJCF: the rollout check says so in result.json, the report's
+    summary and the terminal."""
+    _, run_dir, output = quick_run
+    rollout = json.loads((run_dir / "result.json").read_text())["rollout"]
+    assert rollout["objective"] is None
+    assert rollout["note"] == (
+        "rollout check not run: no simulated log (measurement.source: ideal), so no MJCF is written"
+    )
+    assert f"| MJCF rollout | {rollout['note']} |" in (run_dir / "report.md").read_text()
+    assert "rollout check not run" in " ".join(output.replace("│", " ").split())
+
+
 def test_result_json_is_complete_and_exact(quick_run):
     _, run_dir, _ = quick_run
     data = json.loads((run_dir / "result.json").read_text())

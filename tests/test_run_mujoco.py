@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 
 from ident.cli import app
 from ident.errors import ConfigError
+from ident.identify.assessment.rollout import rollout_text
 from ident.run.setup import load_run
 from ident.trajectory import read_trajectory_csv
 
@@ -51,6 +52,7 @@ def quick_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("runs")
     result = runner.invoke(app, ["run", str(QUICK), "--out", str(out), "--no-replay"])
     assert result.exit_code == 0, result.output
+    (out / "terminal.txt").write_text(result.output)  # beside the run folder
     return _only(out)
 
 
@@ -91,6 +93,32 @@ def test_identify_on_the_run_folder_log_gives_the_runs_estimate(quick_run, tmp_p
     assert (
         f"{100 * inside:.0f} % inside their 95 % interval" in (quick_run / "report.md").read_text()
     )
+    # the same MJCF on the same held-out windows: the same rollout score; identify's reference
+    # is the URDF nominal (no rotor inertia, no friction): far worse than the identified MJCF
+    rollout, rollout_again = run["rollout"], again["rollout"]
+    assert rollout_again["objective"] == pytest.approx(rollout["objective"], rel=1e-9)
+    assert rollout_again["reference"] == "nominal"
+    assert rollout_again["reference_objective"] > 100.0 * rollout_again["objective"]
+
+
+def test_the_identified_mjcf_rollout_is_shown_beside_the_truths(quick_run) -> None:
+    """One entry in result.json, its line in the report's summary and in the terminal: the
+    identified MJCF replays the held-out log open loop about as well as the truth's MJCF
+    (measured: 1.1e-4 and 8.8e-5, 4 windows of 0.5 s); J ~ 1 would be errors as large as the
+    motion."""
+    rollout = json.loads((quick_run / "result.json").read_text())["rollout"]
+    assert rollout["reference"] == "truth"
+    assert rollout["note"] is None
+    assert rollout["reference_note"] is None
+    assert rollout["window_s"] == 0.5
+    assert 1 <= rollout["windows"] <= rollout["max_windows"] == 64
+    assert rollout["held_out"] is True
+    assert 0.0 < rollout["objective"] < 1e-2
+    assert 0.0 < rollout["reference_objective"] < 1e-2
+    text = rollout_text(rollout)
+    assert f"| MJCF rollout | {text} |" in (quick_run / "report.md").read_text()
+    terminal = (quick_run.parent / "terminal.txt").read_text().replace("│", " ")
+    assert f"MJCF rollout error {rollout['objective']:.3g}" in " ".join(terminal.split())
 
 
 def test_friction_and_rotor_inertia_are_recovered_from_the_simulated_log(quick_run) -> None:

@@ -201,10 +201,15 @@ def _print_summary(result: IdentifyResult, folder: Path, replay_note: str) -> No
 
 
 def _echo_model(result_json: Path) -> None:
-    """One line on the identified model (its files and reload parity) from ``result.json``."""
+    """One line on the identified model (its files and reload parity) and one on its MJCF's
+    rollout check, from ``result.json``."""
     import json
 
-    model = json.loads(result_json.read_text(encoding="utf-8")).get("model") or {}
+    from ident.identify.assessment.rollout import rollout_text
+
+    data = json.loads(result_json.read_text(encoding="utf-8"))
+    typer.echo(rollout_text(data.get("rollout")))  # the MJCF's rollout check, or why not run
+    model = data.get("model") or {}
     if not model.get("written"):
         typer.echo(f"model: {model.get('note') or 'not written'}")
         return

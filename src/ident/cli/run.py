@@ -354,8 +354,8 @@ def _summary(
         for method, message in best.failures.items():
             table.add_row(method.upper(), f"[red]{message}[/red]")
     table.add_row("replay", replay_note)
-    if data.get("model") is not None:  # a simulated log's identification: the model's files
-        table.add_row("identified model", _model_text(data["model"]))
+    for label, text in _model_rows(data):
+        table.add_row(label, text)
     v = stored_verdict(data)
     table.add_row("verdict", f"{v['label']} ({v['reason']})")
     for warning in v.get("warnings") or []:
@@ -367,6 +367,15 @@ def _summary(
     # plain lines, never truncated by the table layout
     typer.echo(f"Report: {report_path}")
     typer.echo(f"Run folder: {run_dir}")
+
+
+def _model_rows(data: dict[str, Any]) -> list[tuple[str, str]]:
+    """The summary's rows on the identified model (a simulated log's identification: its
+    files) and its MJCF's rollout check (or why it did not run), from ``result.json``."""
+    from ident.identify.assessment.rollout import rollout_text
+
+    rows = [] if data.get("model") is None else [("identified model", _model_text(data["model"]))]
+    return [*rows, ("MJCF rollout", rollout_text(data.get("rollout")))]
 
 
 def _model_text(model: dict[str, Any]) -> str:

@@ -20,6 +20,7 @@ import numpy as np
 from ident.dynamics.friction_models import get_friction_model
 from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.assessment.metrics import MAJOR_SHARE, error_measures, parameter_unit
+from ident.identify.assessment.rollout import identify_rollout, rollout_text
 from ident.identify.assessment.verdict import (
     VERDICT_RULE,
     VERDICT_RULE_REAL,
@@ -195,9 +196,12 @@ def result_dict(
     urdf: UrdfUpdate | None = None,
     replay_note: str | None = None,
     model: dict | None = None,
+    *,
+    rollout: dict | None = None,
 ) -> dict:
     """JSON-ready summary of the identification (no times); ``model``: the identified model's
-    entry (:func:`~ident.identify.model_files.files.save_identified_model`)."""
+    entry (:func:`~ident.identify.model_files.files.save_identified_model`), ``rollout`` its
+    MJCF's rollout check (:func:`~ident.identify.assessment.rollout.identify_rollout`)."""
     pm = result.parameters
     est = result.estimate
     sd = result.parameter_std
@@ -238,6 +242,8 @@ def result_dict(
         out["replay"] = replay_note
     if model is not None:
         out["model"] = model
+    if rollout is not None:
+        out["rollout"] = rollout
     if urdf is not None:
         out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)
@@ -410,12 +416,13 @@ def _markdown(
     urdf_name: str | None,
     replay_note: str = "",
     model: dict | None = None,
+    rollout: dict | None = None,
 ) -> str:
     """report.md of an identification: its sections in order."""
     units = joint_torque_units(result)
     lines = [
         *_title_lines(result, replay_note),
-        *headline_markdown(_headline(result, urdf, model)),
+        *headline_markdown(_headline(result, urdf, model, rollout)),
         *model_section(model, urdf_name),
         *model_intervals_markdown(result),
         "## Identified vs reference parameters",
@@ -850,11 +857,12 @@ def write_identify_report(
         replay_note = write_measured_replay(result, folder, replay=replay)
     # the identified model first (saved before the report, which can fail afterwards)
     model = save_identified_model(result, folder)
+    rollout = identify_rollout(result, folder, model)  # the MJCF against the URDF nominal
     urdf = identified_urdf(result)  # the cautious copy: its table is in the report either way
     urdf_name = (
         _robot_file(result).stem + "_cautious.urdf" if result.config.urdf_update.cautious else None
     )
-    written = _write_report_files(result, folder, urdf, urdf_name, replay_note, model)
+    written = _write_report_files(result, folder, urdf, urdf_name, replay_note, model, rollout)
     if model["written"]:
         written[:0] = [folder / name for name in model["files"].values()]
     return written
@@ -867,6 +875,7 @@ def _write_report_files(
     urdf_name: str | None,
     replay_note: str,
     model: dict,
+    rollout: dict | None = None,
 ) -> list[Path]:
     """Write the figures, the cautious URDF (when ``urdf_name``), parameters.csv, result.json,
     report.md and report.html; returns their paths."""
@@ -874,7 +883,7 @@ def _write_report_files(
 
     png = torque_png(result)
     params_png = parameters_figure(result)
-    markdown = _markdown(result, urdf, urdf_name, replay_note, model)
+    markdown = _markdown(result, urdf, urdf_name, replay_note, model, rollout)
     written = [
         atomic_write_bytes(folder / "figures" / "torque_validation.png", png),
         atomic_write_bytes(folder / "figures" / "parameters.png", params_png),
@@ -885,7 +894,11 @@ def _write_report_files(
         atomic_write_text(folder / "parameters.csv", _parameters_csv(result)),
         atomic_write_text(
             folder / "result.json",
-            json.dumps(result_dict(result, urdf, replay_note, model), indent=2, allow_nan=False)
+            json.dumps(
+                result_dict(result, urdf, replay_note, model, rollout=rollout),
+                indent=2,
+                allow_nan=False,
+            )
             + "\n",
         ),
         atomic_write_text(folder / "report.md", markdown),
@@ -904,7 +917,9 @@ def _write_report_files(
     return written
 
 
-def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = None) -> Headline:
+def _headline(
+    result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = None, rollout: dict | None = None
+) -> Headline:
     """The headline facts of an identification from a log, from its verdict entry (the one
     :func:`result_dict` writes; :mod:`ident.identify.assessment.verdict`)."""
     est = result.estimate
@@ -926,7 +941,7 @@ def _headline(result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = Non
         consistency=_headline_consistency(result, urdf, model, v),
         safety="not checked (a measured log: the motion was already executed)",
         warnings=list(v["warnings"]),
-        extra=_headline_extra(result, v),
+        extra=[*_headline_extra(result, v), ("MJCF rollout", rollout_text(rollout))],
     )
 
 

@@ -327,20 +327,26 @@ def save_run_model(result: Any, run_dir: str | Path) -> dict[str, Any] | None:
     After :func:`save_run` (the data are saved first). The model is the physically consistent
     estimate of the log the simulator wrote for the elite ``trajectory.csv`` executes
     (:func:`ident.identify.model_files.files.save_identified_model`); its entry, with ``elite``, is
-    added to ``result.json`` as ``model``. None (nothing written) for a run without a
-    simulated log (``measurement.source: ideal``) or without elites.
+    added to ``result.json`` as ``model``, and the MJCF's rollout check against the simulator's
+    truth as ``rollout`` (:func:`ident.identify.assessment.rollout.run_rollout`; "not run" and
+    why without a model). None (nothing written) for a run without a simulated log
+    (``measurement.source: ideal``) or without elites.
     """
+    from ident.identify.assessment.rollout import run_rollout
     from ident.identify.model_files.files import save_identified_model
 
     run_dir = Path(run_dir)
     rank = result.executed_rank
     elite = next((e for e in result.elites if e.rank == rank), None)
     outcome = getattr(elite, "log", None)
-    if outcome is None or outcome.result is None:  # no log, or it did not identify
-        return None
-    entry = {"elite": rank, **save_identified_model(outcome.result, run_dir)}
+    entry = None
+    if outcome is not None and outcome.result is not None:  # a log, and it identified
+        entry = {"elite": rank, **save_identified_model(outcome.result, run_dir)}
     data = load_run(run_dir)
-    data["model"] = entry
+    if entry is not None:
+        data["model"] = entry
+    payload = getattr(result.config.measurement, "payload", None)
+    data["rollout"] = run_rollout(outcome, payload, run_dir, entry)  # MJCF vs the truth
     write_result_json(run_dir / "result.json", data)
     return entry
 

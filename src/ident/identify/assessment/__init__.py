@@ -4,8 +4,9 @@
 ``identify_verdict``, ``log_evidence``, ``truth_from_config``), ``metrics`` (error measures
 against a known truth), ``sanity`` (the result's warnings, ``joint_units``),
 ``identifiability`` (which standard parameters the data see alone, in combination or not),
-``model_intervals`` (the bootstrap of the written model's constrained fit) and
-``repeatability`` (the spread of several identifications of one robot).
+``model_intervals`` (the bootstrap of the written model's constrained fit),
+``repeatability`` (the spread of several identifications of one robot) and ``rollout`` (open-loop
+MuJoCo rollouts of the written MJCF over held-out windows of the log).
 
 Above the estimation core, below ``friction`` (pyproject.toml's ``[tool.importlinter]``);
 import the submodules directly.

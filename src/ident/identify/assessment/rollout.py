@@ -1,0 +1,614 @@
+"""Rollout validation of a written MJCF: open-loop simulations over held-out windows of a log.
+
+The inverse-dynamics fit says how well a model predicts the torques of a measured motion; a
+simulator user needs the converse: given the measured torques, does MuJoCo reproduce the motion?
+:func:`rollout_score` answers it on windows of the log (default :data:`WINDOW_S` = 0.5 s, at
+most :data:`MAX_WINDOWS`, from its held-out part: the samples the identification kept aside,
+:func:`held_out_windows`). In each window ``w`` (samples ``s_w .. s_w + L``), MuJoCo starts from
+the measured state ``(q, dq)`` at ``s_w``, the measured joint torques are applied as
+``qfrc_applied`` held over each sample period (zero-order hold; the written MJCF has no
+actuators), with MuJoCo's timestep the sample period or a divisor of it (at most
+:data:`MAX_TIMESTEP_S`), and the predicted ``q^, dq^`` are compared with the measured ones at
+the ``L`` following samples. The objective (one formula, shown as "MJCF rollout")::
+
+    J = 1/W sum_w 1/(2 n L) sum_{k=1..L} sum_{j=1..n}
+          [ ((q^_wkj - q_wkj) / sd_q_j)^2 + ((dq^_wkj - dq_wkj) / sd_dq_j)^2 ]
+
+with ``n`` joints and ``sd_q_j``, ``sd_dq_j`` the standard deviations of the measured ``q_j``,
+``dq_j`` over every sample of every window (at least :data:`SD_FLOOR`). ``J = 0``: the model
+replays the log exactly; ``J ~ 1``: its errors are as large as the motion itself. The windows
+are rolled out in one call of MuJoCo's :mod:`mujoco.rollout`.
+
+Beside it, the same score of a reference model, written by the same MJCF writer
+(:func:`ident.identify.model_files.mjcf.identified_mjcf`, so both share MuJoCo's friction-loss
+and implicit-damping approximations and differ only in their parameters): in simulation
+(``ident run``) the truth, i.e. the simulator's bodies (URDF inertials, payload) and its
+armature, viscous and Coulomb friction, applied to the measured torque corrected by the
+simulated gain and offset; on a log (``ident identify``) the URDF's nominal bodies without
+joint extras. :func:`rollout_check` computes both once; the result's ``rollout`` entry
+(``result.json``), the report's row and the terminal line (:func:`rollout_text`) show that
+entry. A check that cannot run (no MJCF written, too few held-out samples, MuJoCo failing) says
+so: ``rollout check not run: <why>``.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+from mujoco import rollout as mj_rollout
+
+from ident.errors import DataError, IdentError, ModelError
+from ident.identify.estimation import preprocess
+from ident.identify.estimation.accumulate import margin_samples
+from ident.identify.model_files.fused_bodies import fused_bodies, parse_urdf
+from ident.identify.model_files.mjcf import identified_mjcf
+from ident.model import Robot
+from ident.model.selection import load_robot
+from ident.robot.inertia import transform_parameters
+
+__all__ = [
+    "MAX_TIMESTEP_S",
+    "MAX_WINDOWS",
+    "NOT_RUN",
+    "ReferenceModel",
+    "SD_FLOOR",
+    "WINDOW_S",
+    "RolloutMeasurements",
+    "RolloutScore",
+    "held_out_windows",
+    "identify_rollout",
+    "reference_mjcf",
+    "rollout_check",
+    "rollout_not_run",
+    "rollout_score",
+    "rollout_text",
+    "run_rollout",
+    "spread_windows",
+]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+#: Length of a rollout window [s].
+WINDOW_S = 0.5
+#: Most windows scored (spread evenly over the held-out part): bounds the time (~L steps each).
+MAX_WINDOWS = 64
+#: Longest MuJoCo timestep [s]: a slower log is integrated in several steps per sample.
+MAX_TIMESTEP_S = 1e-3
+#: Smallest standard deviation a joint's positions or velocities are divided by [rad or m,
+#: rad/s or m/s]: a joint that does not move still has a finite weight.
+SD_FLOOR = 1e-6
+#: How every message of a check that did not run starts.
+NOT_RUN = "rollout check not run"
+
+# One Euler step per sample period within this relative tolerance of the sample times.
+_UNIFORM_RTOL = 1e-6
+# What a model or its data can fail with: named in the entry's note, never raised.
+_FAILURES = (IdentError, ValueError, mujoco.FatalError)
+
+
+@dataclass(frozen=True, eq=False)
+class RolloutMeasurements:
+    """Measured motion and torques on a uniform time grid (samples on axis 0).
+
+    Attributes
+    ----------
+    t :
+        Time [s], shape (n,); uniform within each window (a window never spans a gap).
+    q, dq :
+        Joint positions [rad or m] and velocities [rad/s or m/s], shape (n, nv).
+    tau :
+        Joint torques [N*m or N], shape (n, nv), each held from its sample to the next.
+    joint_names :
+        The joints, in column order (matched by name in the MJCF).
+    """
+
+    t: FloatArray
+    q: FloatArray
+    dq: FloatArray
+    tau: FloatArray
+    joint_names: tuple[str, ...]
+
+    def with_torque(self, tau: FloatArray) -> RolloutMeasurements:
+        """The same motion with other torques ``tau`` (n, nv)."""
+        return RolloutMeasurements(self.t, self.q, self.dq, tau, self.joint_names)
+
+
+@dataclass(frozen=True, eq=False)
+class RolloutScore:
+    """The rollout objective of a model (:func:`rollout_score`).
+
+    Attributes
+    ----------
+    objective :
+        ``J`` of the module docstring (dimensionless).
+    per_window :
+        Each window's term of the mean, shape (W,), in the order of ``windows``.
+    timestep_s :
+        MuJoCo's timestep [s] (the sample period over ``substeps``).
+    substeps :
+        MuJoCo steps per sample period.
+    """
+
+    objective: float
+    per_window: FloatArray
+    timestep_s: float
+    substeps: int
+
+
+def rollout_score(
+    model: mujoco.MjModel | str | Path,
+    measurements: RolloutMeasurements,
+    windows: npt.ArrayLike,
+    *,
+    substeps: int | None = None,
+) -> RolloutScore:
+    """Score a MuJoCo model by open-loop rollouts over windows of measurements.
+
+    Parameters
+    ----------
+    model :
+        The model, or the path of its MJCF; copied, never changed. Its joints named
+        ``measurements.joint_names`` are driven (hinge or slide, any order); it has no
+        actuators. Its options are kept but the timestep (and auto-reset: a diverging
+        rollout must show as such, not restart from ``qpos0``).
+    measurements :
+        The measured motion and torques (:class:`RolloutMeasurements`).
+    windows :
+        ``[start, stop)`` sample ranges, shape (W, 2), all of the same length ``L + 1 >= 2``:
+        the state at ``start`` is the initial state, ``L`` steps are compared.
+    substeps :
+        MuJoCo steps per sample period; default: the fewest with a timestep of at most
+        :data:`MAX_TIMESTEP_S`.
+
+    Returns
+    -------
+    :
+        The objective ``J`` (module docstring) and its per-window terms.
+
+    Raises
+    ------
+    DataError
+        For malformed windows, non-uniform sample times in a window, a joint missing from
+        the model, a model with actuators, or a rollout that diverges (non-finite state).
+    """
+    mj = _model_copy(model)
+    starts, length = _checked_windows(windows, measurements.t.shape[0])
+    dt = _sample_period(measurements.t, starts, length)
+    substeps = substeps or max(1, math.ceil(dt / MAX_TIMESTEP_S - 1e-9))
+    mj.opt.timestep = dt / substeps
+    mj.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    qpos, dof = _joint_addresses(mj, measurements.joint_names)
+    q_hat, dq_hat = _rollout(mj, measurements, starts, length, substeps, (qpos, dof))
+    steps = starts[:, None] + np.arange(1, length)[None, :]  # (W, L) compared samples
+    span = starts[:, None] + np.arange(length)[None, :]
+    sd_q = np.maximum(measurements.q[span].reshape(-1, len(qpos)).std(axis=0), SD_FLOOR)
+    sd_dq = np.maximum(measurements.dq[span].reshape(-1, len(dof)).std(axis=0), SD_FLOOR)
+    e_q = (q_hat - measurements.q[steps]) / sd_q
+    e_dq = (dq_hat - measurements.dq[steps]) / sd_dq
+    per_window = 0.5 * (np.mean(e_q**2, axis=(1, 2)) + np.mean(e_dq**2, axis=(1, 2)))
+    return RolloutScore(float(np.mean(per_window)), per_window, float(mj.opt.timestep), substeps)
+
+
+def _model_copy(model: mujoco.MjModel | str | Path) -> mujoco.MjModel:
+    """A model this module may change: loaded from the MJCF path, or a copy of ``model``."""
+    if isinstance(model, mujoco.MjModel):
+        return copy.copy(model)  # MuJoCo's copy: its own arrays and options
+    try:
+        return mujoco.MjModel.from_xml_path(str(model))
+    except ValueError as e:
+        raise ModelError(f"{model}: MuJoCo cannot load the MJCF ({_first_line(e)}).") from e
+
+
+def _checked_windows(windows: npt.ArrayLike, n_samples: int) -> tuple[IntArray, int]:
+    """The windows' start samples (W,) and their common length ``L + 1`` (DataError)."""
+    w = np.asarray(windows)
+    if w.ndim != 2 or w.shape[0] == 0 or w.shape[1] != 2 or not np.issubdtype(w.dtype, np.integer):
+        raise DataError(f"rollout windows: need integer [start, stop) rows (W, 2), got {w.shape}.")
+    lengths = w[:, 1] - w[:, 0]
+    if np.any(lengths != lengths[0]) or lengths[0] < 2:
+        raise DataError("rollout windows: every window needs the same length of at least 2.")
+    if w.min() < 0 or w.max() > n_samples:
+        raise DataError(f"rollout windows: a window leaves the {n_samples} samples.")
+    return w[:, 0].astype(np.int64), int(lengths[0])
+
+
+def _sample_period(t: FloatArray, starts: IntArray, length: int) -> float:
+    """The common sample period [s] of the windows (DataError when not uniform)."""
+    steps = np.diff(t[starts[:, None] + np.arange(length)[None, :]], axis=1)
+    dt = float(np.median(steps))
+    if not dt > 0.0 or np.max(np.abs(steps - dt)) > _UNIFORM_RTOL * dt:
+        raise DataError("rollout windows: the sample times are not uniform within the windows.")
+    return dt
+
+
+def _joint_addresses(
+    model: mujoco.MjModel, joint_names: Sequence[str]
+) -> tuple[IntArray, IntArray]:
+    """``qpos`` and ``qvel`` addresses (nv,) of the named 1-DoF joints (DataError when one is
+    missing, not a hinge or slide, or the model has actuators)."""
+    if model.nu:
+        raise DataError(
+            f"the model has {model.nu} actuators: the rollout applies the measured joint "
+            "torques as qfrc_applied, to a model without actuators (the written MJCF)."
+        )
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in joint_names]
+    one_dof = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    bad = [
+        n
+        for n, i in zip(joint_names, ids, strict=True)
+        if i < 0 or model.jnt_type[i] not in one_dof
+    ]
+    if bad:
+        raise DataError(f"the model has no hinge or slide joint {', '.join(bad)}.")
+    return (
+        np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64),
+        np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64),
+    )
+
+
+def _rollout(
+    model: mujoco.MjModel,
+    measurements: RolloutMeasurements,
+    starts: IntArray,
+    length: int,
+    substeps: int,
+    addresses: tuple[IntArray, IntArray],
+) -> tuple[FloatArray, FloatArray]:
+    """Predicted ``q^``, ``dq^`` at the ``length - 1`` samples after each start, shapes
+    (W, L, nv): every window in one :func:`mujoco.rollout.rollout` call, the torque of sample
+    ``k`` held (``qfrc_applied``) over the ``substeps`` steps up to sample ``k + 1``."""
+    qpos, dof = addresses
+    data = mujoco.MjData(model)
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
+    initial = np.empty((starts.size, mujoco.mj_stateSize(model, full)))
+    for w, s in enumerate(starts):
+        mujoco.mj_resetData(model, data)
+        data.qpos[qpos], data.qvel[dof] = measurements.q[s], measurements.dq[s]
+        mujoco.mj_getState(model, data, initial[w], full)
+    held = measurements.tau[starts[:, None] + np.arange(length - 1)[None, :]]  # (W, L, nv)
+    control = np.zeros((starts.size, length - 1, model.nv))
+    control[:, :, dof] = held
+    control = np.repeat(control, substeps, axis=1)  # zero-order hold over the substeps
+    state, _ = mj_rollout.rollout(
+        model,
+        data,
+        initial,
+        control,
+        control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED.value,
+    )
+    state = state[:, substeps - 1 :: substeps]  # the state at each following sample
+    if not np.all(np.isfinite(state)):
+        raise DataError("MuJoCo's rollout diverged (non-finite state) in a window.")
+    q0 = mujoco.mj_stateSize(model, mujoco.mjtState.mjSTATE_TIME.value)
+    v0 = q0 + model.nq
+    return state[:, :, q0 + qpos], state[:, :, v0 + dof]
+
+
+def reference_mjcf(
+    robot: Robot,
+    extras: Mapping[str, Mapping[str, float]] | None = None,
+    payload: tuple[str | None, FloatArray] | None = None,
+) -> str:
+    """The MJCF of the robot's own bodies (its URDF inertials, fused as Pinocchio fuses them)
+    with the joint ``extras``, written by the identified model's writer.
+
+    Parameters
+    ----------
+    robot :
+        The robot (URDF text, Pinocchio model, locked joints, gravity).
+    extras :
+        ``{joint: {"rotor_inertia", "viscous", "coulomb"}}`` [SI] (the simulator's truth), or
+        None: no joint extras (the URDF's nominal model).
+    payload :
+        ``(link, parameters (10,))``: a rigid payload about ``link``'s origin [SI], Pinocchio
+        order, added to the body that carries ``link`` (None: the last moving joint's child
+        link, as the simulator's ``measurement.payload``), or None.
+
+    Raises
+    ------
+    ModelError
+        If the URDF's structure does not match the model, the payload's link is not a link of
+        the model, or MuJoCo cannot compile the bodies.
+    """
+    model = robot.model
+    source = str(robot.urdf_path or robot.name)
+    carriers = [
+        body.carrier for body in fused_bodies(parse_urdf(robot.urdf_text, source), model, source)
+    ]
+    bodies = {c: model.inertias[j].toDynamicParameters() for j, c in enumerate(carriers, start=1)}
+    if payload is not None:
+        link, parameters = payload
+        link = carriers[-1] if link is None else link
+        if not model.existFrame(link):
+            raise ModelError(f"{source}: the payload's link {link!r} is not a link of the robot.")
+        frame = model.frames[model.getFrameId(link)]
+        carrier = carriers[int(frame.parentJoint) - 1]
+        rotation, translation = frame.placement.rotation, frame.placement.translation
+        bodies[carrier] = bodies[carrier] + transform_parameters(parameters, rotation, translation)
+    return identified_mjcf(
+        robot.urdf_text,
+        tuple(robot.joint_names),
+        bodies,
+        extras or {},
+        locked_joints=robot.locked_joints,
+        gravity=np.asarray(model.gravity.linear, dtype=float),
+        source=source,
+    )
+
+
+def spread_windows(n_candidates: int, max_windows: int = MAX_WINDOWS) -> IntArray:
+    """Indices of at most ``max_windows`` of ``n_candidates`` windows, spread evenly (first and
+    last included), increasing, shape (min(n, max),)."""
+    if n_candidates <= max_windows:
+        return np.arange(n_candidates, dtype=np.int64)
+    return np.round(np.linspace(0, n_candidates - 1, max_windows)).astype(np.int64)
+
+
+def held_out_windows(
+    result: Any, window_s: float = WINDOW_S, max_windows: int = MAX_WINDOWS
+) -> tuple[RolloutMeasurements, IntArray]:
+    """The rollout windows of an identification's held-out part, and their measurements.
+
+    The held-out part is, per segment of ``result.log``, the raw samples between the first
+    and the last held-out time stamp (``result.t_validate``, the identification's time split;
+    the identification part itself when ``validation.identify_fraction`` is 1). It is cut in
+    windows of ``round(window_s * fs) + 1`` samples (consecutive windows share one sample), of
+    which at most ``max_windows`` are kept, spread evenly (:func:`spread_windows`). Each
+    window's ``q``, ``dq`` and ``tau`` are the identification's: low-pass and central
+    differences of ``preprocess`` (or the log's measured ``dq``), computed on the window with
+    the chunks' filter margins on both sides (:func:`margin_samples`).
+
+    Parameters
+    ----------
+    result :
+        An :class:`~ident.identify.pipeline.core.IdentifyResult` (``log``, ``t_validate``,
+        ``config.preprocess`` resolved).
+    window_s, max_windows :
+        Window length [s] and the most windows.
+
+    Returns
+    -------
+    :
+        The windows' samples, one after another (shape (W * (L + 1), nv)), and their
+        ``[start, stop)`` rows, shape (W, 2).
+
+    Raises
+    ------
+    DataError
+        When the held-out part is shorter than one window.
+    """
+    log, pp = result.log, result.config.preprocess
+    length = int(round(window_s * log.sampling_rate_hz)) + 1
+    candidates = [
+        (segment, s)
+        for segment, (lo, hi) in _held_out_ranges(log, np.asarray(result.t_validate))
+        for s in range(lo, hi - length + 1, length - 1)
+    ]
+    if not candidates:
+        raise DataError(
+            f"the held-out part of the log is shorter than one window of {window_s:g} s "
+            f"({length} samples at {log.sampling_rate_hz:g} Hz)."
+        )
+    margin = margin_samples(pp, log.sampling_rate_hz)[0]
+    pieces = [
+        _window_signals(log, candidates[i][0], candidates[i][1], length, pp, margin)
+        for i in spread_windows(len(candidates), max_windows)
+    ]
+    starts = np.arange(len(pieces), dtype=np.int64) * length
+    t, q, dq, tau = (np.concatenate([p[k] for p in pieces]) for k in range(4))
+    measurements = RolloutMeasurements(t, q, dq, tau, tuple(log.joint_names))
+    return measurements, np.column_stack([starts, starts + length])
+
+
+def _held_out_ranges(
+    log: Any, t_validate: FloatArray
+) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """Per segment with held-out samples: the segment and its held-out raw range [lo, hi)."""
+    out = []
+    for a, b in log.segments:
+        t = log.t[a:b]
+        inside = t_validate[(t_validate >= t[0]) & (t_validate <= t[-1])]
+        if inside.size:
+            lo = a + int(np.searchsorted(t, inside.min()))
+            out.append(((a, b), (lo, a + int(np.searchsorted(t, inside.max(), side="right")))))
+    return out
+
+
+def _window_signals(
+    log: Any, segment: tuple[int, int], start: int, length: int, pp: Any, margin: int
+) -> tuple[FloatArray, ...]:
+    """``t, q, dq, tau`` of the samples ``[start, start + length)`` processed as the
+    identification processes them, on the window plus ``margin`` samples each side."""
+    fs = log.sampling_rate_hz
+    r0, r1 = max(segment[0], start - margin), min(segment[1], start + length + margin)
+    q, tau = log.q[r0:r1], log.tau[r0:r1]
+    position = preprocess.position_filter(pp)
+    if log.dq is None and position is not None:
+        q, _ = preprocess.lowpass(q, fs, position.cutoff_hz, position.order)
+    if pp.torque_lowpass is not None:
+        flt = pp.torque_lowpass
+        tau, _ = preprocess.lowpass(tau, fs, flt.cutoff_hz, flt.order, what="tau")
+    dq = log.dq[r0:r1] if log.dq is not None else preprocess.differentiate(q, fs)[0]
+    keep = slice(start - r0, start - r0 + length)
+    return log.t[start : start + length], q[keep], dq[keep], tau[keep]
+
+
+#: Builds a reference model for a robot: its MJCF text and the map of the measured torque to
+#: the torque it is driven with, ``(tau - offset) / gain`` (offset, gain: (nv,) or scalars).
+ReferenceModel = Callable[[Robot], tuple[str, npt.ArrayLike, npt.ArrayLike]]
+
+
+def rollout_check(
+    result: Any,
+    mjcf: Path,
+    reference: str,
+    reference_model: ReferenceModel,
+    *,
+    offsets: npt.ArrayLike = 0.0,
+) -> dict[str, Any]:
+    """The rollout entry of an identification's written MJCF and of a reference model.
+
+    Parameters
+    ----------
+    result :
+        The identification (:func:`held_out_windows`; ``config.robot`` for the reference).
+    mjcf :
+        The written MJCF; driven by the measured torque minus ``offsets`` (nv,) [N*m or N],
+        the identified torque offsets (which the MJCF cannot hold).
+    reference, reference_model :
+        The reference's name (``"truth"``, ``"nominal"``) and how to build it.
+
+    Returns
+    -------
+    :
+        JSON-ready: ``objective`` (``J`` of the MJCF, module docstring), ``reference_objective``
+        (the reference's, on the same windows), ``reference``, ``windows`` (W), ``window_s``,
+        ``max_windows``, ``timestep_s``, ``held_out`` (False: no held-out part, the windows
+        are identification samples), ``note`` (``"rollout check not run: ..."``, else None)
+        and ``reference_note`` (why the reference was not scored, else None). Never raises
+        for the data or the model: what failed is the note.
+    """
+    try:
+        measurements, windows = held_out_windows(result)
+        driven = measurements.with_torque(measurements.tau - np.asarray(offsets, dtype=float))
+        score = rollout_score(mjcf, driven, windows)
+    except _FAILURES as e:
+        return rollout_not_run(reference, _first_line(e))
+    entry = _entry(reference, windows=int(windows.shape[0]), timestep_s=score.timestep_s)
+    entry.update(objective=score.objective)
+    entry["held_out"] = bool(result.config.validation.identify_fraction < 1.0)
+    try:
+        text, offset, gain = reference_model(load_robot(result.config.robot))
+        tau = (measurements.tau - np.asarray(offset, dtype=float)) / np.asarray(gain, dtype=float)
+        model = mujoco.MjModel.from_xml_string(text)
+        ref = rollout_score(model, measurements.with_torque(tau), windows, substeps=score.substeps)
+        entry["reference_objective"] = ref.objective
+    except _FAILURES as e:
+        entry["reference_note"] = f"the {reference} model was not scored: {_first_line(e)}"
+    return entry
+
+
+def _first_line(error: BaseException) -> str:
+    """The first line of an error's message (MuJoCo's can run over several)."""
+    text = str(error).strip()
+    return text.splitlines()[0] if text else type(error).__name__
+
+
+def _entry(reference: str, **values: Any) -> dict[str, Any]:
+    """A rollout entry with every key (see :func:`rollout_check`), ``values`` set."""
+    entry: dict[str, Any] = {
+        "objective": None,
+        "reference_objective": None,
+        "reference": reference,
+        "windows": 0,
+        "window_s": WINDOW_S,
+        "max_windows": MAX_WINDOWS,
+        "timestep_s": None,
+        "held_out": None,
+        "note": None,
+        "reference_note": None,
+    }
+    entry.update(values)
+    return entry
+
+
+def rollout_not_run(reference: str, reason: str) -> dict[str, Any]:
+    """The rollout entry of a check that could not run: its ``note`` says why."""
+    return _entry(reference, note=f"{NOT_RUN}: {reason}")
+
+
+def rollout_text(entry: Mapping[str, Any] | None) -> str:
+    """The one line every place shows of a rollout entry (:func:`rollout_check`)."""
+    if entry is None:
+        return (
+            f"{NOT_RUN}: no rollout entry in result.json (an interrupted run, or one written "
+            "before the check existed)"
+        )
+    if entry["objective"] is None:
+        return str(entry["note"])
+    reference = entry["reference"]
+    ref = (
+        f"{reference} model {entry['reference_objective']:.3g}"
+        if entry["reference_objective"] is not None
+        else str(entry["reference_note"])
+    )
+    part = "held-out part" if entry["held_out"] else "identification part (no held-out part)"
+    return (
+        f"MJCF rollout error {entry['objective']:.3g} ({ref}): open-loop MuJoCo rollouts "
+        f"driven by the measured torques, {entry['windows']} windows of {entry['window_s']:g} s "
+        f"(at most {entry['max_windows']}) of the log's {part}, timestep "
+        f"{1e3 * entry['timestep_s']:.3g} ms; mean squared error of q and dq over their std "
+        "(0: exact)"
+    )
+
+
+def identify_rollout(result: Any, folder: Path, model: Mapping[str, Any]) -> dict[str, Any]:
+    """The rollout entry of ``ident identify``: the MJCF written into ``folder`` (``model``:
+    :func:`~ident.identify.model_files.files.save_identified_model`'s entry) against the
+    URDF's nominal model (no joint extras)."""
+    return _written_check(
+        result, Path(folder), model, "nominal", lambda robot: (reference_mjcf(robot), 0.0, 1.0)
+    )
+
+
+def run_rollout(
+    outcome: Any, payload: Any, folder: Path, model: Mapping[str, Any] | None
+) -> dict[str, Any]:
+    """The rollout entry of ``ident run``: the MJCF of the executed elite's simulated log
+    (``outcome``: its :class:`~ident.run.log_measurement.LogOutcome`, None for an ideal
+    measurement) against the simulator's truth: bodies (with ``payload``, the
+    ``measurement.payload`` config or None), armature, viscous and Coulomb friction, driven by
+    the measured torque corrected by the simulated gain and offset."""
+    if outcome is None:
+        return rollout_not_run(
+            "truth", "no simulated log (measurement.source: ideal), so no MJCF is written"
+        )
+    truth, names = outcome.log.truth, outcome.log.joint_names
+    extras = {
+        name: {
+            "rotor_inertia": float(truth["armature"][j]),
+            "viscous": float(truth["viscous"][j]),
+            "coulomb": float(truth["coulomb"][j]),
+        }
+        for j, name in enumerate(names)
+    }
+    mass = None if payload is None else (payload.link, payload.parameters())
+
+    def truth_model(robot: Robot) -> tuple[str, FloatArray, FloatArray]:
+        return reference_mjcf(robot, extras, mass), truth["torque_offset"], truth["torque_gain"]
+
+    return _written_check(outcome.result, Path(folder), model or {}, "truth", truth_model)
+
+
+def _written_check(
+    result: Any,
+    folder: Path,
+    model: Mapping[str, Any],
+    reference: str,
+    reference_model: ReferenceModel,
+) -> dict[str, Any]:
+    """:func:`rollout_check` of the model files of ``model`` in ``folder``, or why not."""
+    if result is None:
+        return rollout_not_run(reference, "the log did not identify, so no MJCF is written")
+    if not model.get("written"):
+        return rollout_not_run(reference, f"no MJCF written ({model.get('note')})")
+    files = model["files"]
+    try:
+        sidecar = json.loads((folder / files["joint_extras"]).read_text(encoding="utf-8"))
+        joints = sidecar["joints"]
+        offsets = [float(joints.get(name, {}).get("offset", 0.0)) for name in result.joint_names]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
+        return rollout_not_run(reference, f"cannot read {files['joint_extras']} ({e})")
+    return rollout_check(
+        result, folder / files["mjcf"], reference, reference_model, offsets=offsets
+    )
