@@ -242,6 +242,11 @@ class RobotLog:
     warnings :
         What reading changed in the data a user must know (duplicated stamps dropped, a
         backwards jump split, receive times used for missing stamps): count and first place.
+    q_cmd :
+        Commanded joint positions [rad or m], shape (n_samples, n_joints), or None: what a
+        position-controlled joint was told to reach at each sample (a position actuator's
+        command, before its transport delay), beside the measured ``q``. Carried for the
+        record and for delay or tracking checks; the identification does not use it.
     """
 
     t: FloatArray
@@ -254,12 +259,17 @@ class RobotLog:
     dq: FloatArray | None = None
     warnings: tuple[str, ...] = ()
     ddq: FloatArray | None = None
+    q_cmd: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if not self.segments:
             object.__setattr__(self, "segments", ((0, int(self.t.shape[0])),))
         if self.ddq is not None and self.dq is None:
             raise ValueError("RobotLog: measured accelerations (ddq) need the velocities (dq)")
+        if self.q_cmd is not None and self.q_cmd.shape != self.q.shape:
+            raise ValueError(
+                f"RobotLog: q_cmd has shape {self.q_cmd.shape}, the positions {self.q.shape}"
+            )
 
     @property
     def n_samples(self) -> int:
