@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from robots import UR5_URDF
+from test_mimic import M, O, _write, arm_urdf
 from test_mujoco_sim import FRICTION, fourier_reference
 
 from ident.errors import ConfigError
@@ -108,6 +109,32 @@ def test_joint_parameters_map_one_to_one_onto_mujoco_fields(ur5):
     assert not mj.model.jnt_actfrclimited.any()
     plain = load_mujoco(ur5)
     assert plain.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+
+
+def test_mimic_follower_keeps_its_leader_with_native_friction_and_a_servo(tmp_path):
+    """A mimic joint's equality and the friction-loss constraints solved together: the follower
+    stays on ``M q_leader + O`` while position servos drive the leaders against friction."""
+    robot = Robot.from_urdf(_write(tmp_path, "arm.urdf", arm_urdf()))
+    servo = ActuatorConfig(kind="position", kp=400.0, kv=20.0)
+    mj = load_mujoco(robot, timestep_s=1e-3, actuator=servo, native_friction=True)
+    set_joint_parameters(mj, {"fs": np.array([0.3, 0.2])})
+    assert mj.model.neq == 1
+    data = mujoco.MjData(mj.model)
+    follower = mj.model.jnt_qposadr[mujoco.mj_name2id(mj.model, mujoco.mjtObj.mjOBJ_JOINT, "j3")]
+    t = np.arange(1000) * 1e-3
+    q_cmd = np.column_stack([0.5 * np.sin(2 * np.pi * t), 0.8 * np.sin(4 * np.pi * t)])
+    mj.set_state(data, q_cmd[0], np.zeros(2))
+    mj.start_control(data, q_cmd[0])
+    coupling, friction_rows, q = [], 0, np.empty_like(q_cmd)
+    for k in range(t.size):
+        data.ctrl[mj.actuator_index] = q_cmd[k]
+        mujoco.mj_step(mj.model, data)
+        q[k] = data.qpos[mj.qpos_index]
+        coupling.append(data.qpos[follower] - (M * q[k, 1] + O))
+        friction_rows = max(friction_rows, int(data.nf))
+    assert friction_rows == 2  # the leaders' friction loss is in the solver
+    assert np.abs(coupling).max() < 1e-3
+    assert np.all(np.ptp(q, axis=0) > 0.5 * np.ptp(q_cmd, axis=0))  # the servos move them
 
 
 @pytest.fixture(scope="module")
