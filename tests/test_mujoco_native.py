@@ -143,13 +143,18 @@ def ur5():
 
 
 # ----------------------------------------------------------------------------- actuators
+_START = 0.5  # [rad] the servo's position and command before the step to 1 rad
+
+
 def _step_response(robot, actuator: dict, n_steps: int, h: float, armature: float):
-    """Joint position and actuator force [rad, N*m] (n_steps,) after a unit step of the
-    position command at step 0, from rest at 0 with the command 0 held before."""
+    """Joint position and actuator force [rad, N*m] (n_steps,) after a step of the position
+    command from ``_START`` to 1 rad at step 0, from rest at ``_START`` with that command held
+    before (a delayed servo's history holds it: :meth:`MujocoRobot.start_control`)."""
     mj = load_mujoco(robot, timestep_s=h, actuator=ActuatorConfig(**actuator))
     set_joint_parameters(mj, {"Ia": np.array([armature])})
     data = mujoco.MjData(mj.model)
-    mj.start_control(data, np.zeros(1))
+    mj.set_state(data, np.array([_START]), np.zeros(1))
+    mj.start_control(data, np.array([_START]))
     data.ctrl[mj.actuator_index] = 1.0
     q, force = np.empty(n_steps), np.empty(n_steps)
     for k in range(n_steps):
@@ -161,7 +166,8 @@ def _step_response(robot, actuator: dict, n_steps: int, h: float, armature: floa
 def test_position_actuator_step_response_saturation_and_delay(tmp_path):
     """A vertical joint (no gravity torque), no friction: ``I ddq = kp (1 - q) - kv dq``.
 
-    The underdamped closed form ``1 - exp(-z w t) (cos(wd t) + z w / wd sin(wd t))``, with
+    The underdamped closed form ``q0 + (1 - q0) s(t)``,
+    ``s(t) = 1 - exp(-z w t) (cos(wd t) + z w / wd sin(wd t))``, with
     ``w^2 = kp / I``, ``2 z w = kv / I``, ``I`` the link's inertia plus the armature, matches
     MuJoCo's semi-implicit Euler to O(h w) (h = 0.1 ms, w = 31.6 rad/s: 1.4e-3 of the step
     measured; 0.05 kg*m^2 of armature lost would be 0.25). ``forcerange`` clips the force;
@@ -173,18 +179,19 @@ def test_position_actuator_step_response_saturation_and_delay(tmp_path):
     q, force = _step_response(robot, {"kind": "position", "kp": kp, "kv": kv}, n, h, Ia)
     w, z = np.sqrt(kp / inertia), kv / (2.0 * np.sqrt(kp * inertia))
     wd, t = w * np.sqrt(1.0 - z**2), h * np.arange(1, n + 1)
-    closed = 1.0 - np.exp(-z * w * t) * (np.cos(wd * t) + z * w / wd * np.sin(wd * t))
-    error = np.abs(q - closed).max()
-    assert error < 3e-3, f"max |q - closed form| = {error:.2e} rad"
-    assert force[0] == pytest.approx(kp)  # kp (1 - 0) - kv 0
+    step = 1.0 - _START
+    closed = 1.0 - step * np.exp(-z * w * t) * (np.cos(wd * t) + z * w / wd * np.sin(wd * t))
+    error = np.abs(q - closed).max() / step
+    assert error < 3e-3, f"max |q - closed form| = {error:.2e} of the step"
+    assert force[0] == pytest.approx(kp * step)  # kp (1 - q0) - kv 0
     # a heavier rotor: the same closed form with I + Ia (a lost armature would fail it)
     Ia = 0.05
     q_heavy, _ = _step_response(robot, {"kind": "position", "kp": kp, "kv": kv}, n, h, Ia)
     w = np.sqrt(kp / (inertia + Ia))
     z = kv / (2.0 * np.sqrt(kp * (inertia + Ia)))
     wd = w * np.sqrt(1.0 - z**2)
-    closed = 1.0 - np.exp(-z * w * t) * (np.cos(wd * t) + z * w / wd * np.sin(wd * t))
-    assert np.abs(q_heavy - closed).max() < 3e-3
+    closed = 1.0 - step * np.exp(-z * w * t) * (np.cos(wd * t) + z * w / wd * np.sin(wd * t))
+    assert np.abs(q_heavy - closed).max() / step < 3e-3
     # saturation: |force| <= 20 N*m, held at 20 while kp (1 - q) exceeds it
     sat, f_sat = _step_response(
         robot, {"kind": "position", "kp": kp, "kv": kv, "forcerange": 20.0}, n, h, 0.0
@@ -192,13 +199,14 @@ def test_position_actuator_step_response_saturation_and_delay(tmp_path):
     assert np.abs(f_sat).max() == pytest.approx(20.0, rel=1e-15)
     assert f_sat[0] == 20.0
     assert np.all(f_sat[:50] == 20.0)
-    np.testing.assert_allclose(sat[:50], 20.0 / inertia * h**2 * np.cumsum(np.arange(1, 51)))
-    # delay: exactly k steps later, bit for bit
+    climb = 20.0 / inertia * h**2 * np.cumsum(np.arange(1, 51))  # constant acceleration
+    np.testing.assert_allclose(sat[:50] - _START, climb, rtol=1e-9)
+    # delay: exactly k steps later, bit for bit; the held command before (no jump to 0)
     for k in (1, 3):
         late, f_late = _step_response(
             robot, {"kind": "position", "kp": kp, "kv": kv, "delay_steps": k}, n, h, 0.0
         )
-        assert np.all(late[:k] == 0.0)
+        assert np.all(late[:k] == _START)
         assert np.all(f_late[:k] == 0.0)
         assert np.array_equal(late[k:], q[:-k])
         assert np.array_equal(f_late[k:], force[:-k])
