@@ -243,9 +243,10 @@ class RobotLog:
         What reading changed in the data a user must know (duplicated stamps dropped, a
         backwards jump split, receive times used for missing stamps): count and first place.
     q_cmd :
-        Commanded joint positions [rad or m] (``log.command``: a position servo's set point,
-        LeRobot's ``action``), shape (n_samples, n_joints), on the samples of ``q``; None
-        when the log names none. Carried for an actuator model; identification ignores it.
+        Commanded joint positions [rad or m], shape (n_samples, n_joints), on the samples of
+        ``q``; None when the log names none. A position servo's set point before its transport
+        delay (``log.command``; LeRobot's ``action``; the simulator's position actuator).
+        Carried for an actuator model and tracking checks; identification ignores it.
     """
 
     t: FloatArray
@@ -265,6 +266,10 @@ class RobotLog:
             object.__setattr__(self, "segments", ((0, int(self.t.shape[0])),))
         if self.ddq is not None and self.dq is None:
             raise ValueError("RobotLog: measured accelerations (ddq) need the velocities (dq)")
+        if self.q_cmd is not None and self.q_cmd.shape != self.q.shape:
+            raise ValueError(
+                f"RobotLog: q_cmd has shape {self.q_cmd.shape}, the positions {self.q.shape}"
+            )
 
     @property
     def n_samples(self) -> int:

@@ -8,6 +8,11 @@ Example (every key optional except ``source``; SI units unless a key says otherw
       substeps: 1                # MuJoCo steps per controller period
       controller: {kind: computed_torque, kp: 10000.0, kd: 200.0}
       friction: {viscous: [0.5, 0.5, 0.4, 0.1, 0.1, 0.1], coulomb: 1.0}
+      # MuJoCo's native joint friction (dof_frictionloss, constraint solver) for the Coulomb term:
+      # friction: {semantics: mujoco, viscous: 0.5, coulomb: 1.0}
+      actuator: {kind: motor, forcerange: null, delay_steps: 0}
+      # or a position servo, the reference as its command (no controller section then):
+      # actuator: {kind: position, kp: 2000.0, kv: 50.0, forcerange: 150.0, delay_steps: 2}
       # or another law of the friction-model registry, applied on top:
       # friction: {law: {model: stribeck, values: {fv: 0.5, fc: 1.0, fst: 0.5, vs: 0.05}}}
       signals: {delay_s: 0.0, torque_gain: 1.0, torque_offset: 0.0}
@@ -44,6 +49,7 @@ from ident.robot.inertia import consistency_problems, parameters_from_com
 __all__ = [
     "DEFAULT_DAMPING_RATIO",
     "DEFAULT_NATURAL_FREQUENCY_RAD_S",
+    "ActuatorConfig",
     "ControllerConfig",
     "CurrentConfig",
     "FrictionConfig",
@@ -93,6 +99,8 @@ PositiveGain = Annotated[float | list[float], _per_joint_check(unit="(see kind)"
 PositiveTorqueConstant = Annotated[
     float | list[float], _per_joint_check(unit="N*m/A", positive=True)
 ]
+PositiveStiffness = Annotated[float | list[float], _per_joint_check(unit="N*m/rad", positive=True)]
+PositiveNm = Annotated[float | list[float], _per_joint_check(unit="N*m", positive=True)]
 
 
 class ControllerConfig(StrictModel):
@@ -168,22 +176,85 @@ class FrictionLawConfig(StrictModel):
 class FrictionConfig(StrictModel):
     """Joint friction of the simulated robot (the controller does not know it).
 
-    ``tau_friction = viscous * dq + coulomb * sign(dq)`` per joint, ``sign(0) = 0``, plus the
-    torque of ``law`` when given (applied like the Coulomb term; the load of ``load_dependent`` is
-    the commanded torque minus the friction).
+    ``tau_friction = viscous * dq + coulomb * sign(dq)`` per joint while the joint slides, plus
+    the torque of ``law`` when given (``semantics: ident`` only; applied like the Coulomb term;
+    the load of ``load_dependent`` is the commanded torque minus the friction).
 
     Attributes
     ----------
+    semantics :
+        How MuJoCo realizes the friction. ``ident``: the identification's own law, the Coulomb
+        term ``coulomb * sign(dq)`` (``sign(0) = 0``) applied as a generalized force from the
+        velocity at the start of every MuJoCo step (a joint that should stick chatters about
+        zero velocity). ``mujoco``: MuJoCo's native joint friction, ``coulomb`` as
+        ``dof_frictionloss`` solved by MuJoCo's constraint solver (a joint sticks while the
+        other forces stay within ``coulomb``, then slides against exactly ``coulomb``), not
+        the identification's model class.
     viscous :
         Viscous coefficients [N*m*s/rad] (MuJoCo's ``dof_damping``), >= 0.
     coulomb :
-        Coulomb levels [N*m], >= 0, applied as a generalized force opposing the velocity at the
-        start of every MuJoCo step.
+        Coulomb levels [N*m], >= 0.
+    law :
+        Another friction law of the registry, applied on top (``semantics: ident``).
     """
 
+    semantics: Literal["ident", "mujoco"] = "ident"
     viscous: NonNegativeViscous = 0.0
     coulomb: NonNegativeNm = 0.0
     law: FrictionLawConfig | None = None
+
+    @model_validator(mode="after")
+    def _law_is_ident_semantics(self) -> FrictionConfig:
+        if self.semantics == "mujoco" and self.law is not None:
+            raise ValueError(
+                "friction.law is applied as ident's own force law and MuJoCo has no such joint "
+                "friction; remove law, or use friction.semantics: ident"
+            )
+        return self
+
+
+class ActuatorConfig(StrictModel):
+    """The joint actuators MuJoCo simulates, one per robot joint (added to the model's spec).
+
+    Attributes
+    ----------
+    kind :
+        ``motor``: the force is the control, the controller's torque (MuJoCo's ``<motor>``).
+        ``position``: the control is a joint position ``q_cmd`` (the reference, sent at
+        ``rate_hz`` and held) and the force is ``kp (q_cmd - q) - kv dq`` (MuJoCo's
+        ``<position>``); the actuator is then the only controller (no ``controller`` section).
+    kp :
+        Position gain [N*m/rad], > 0; ``kind: position`` only, and required there.
+    kv :
+        Velocity gain [N*m*s/rad], >= 0; ``kind: position`` only (default 0, as MuJoCo's).
+    forcerange :
+        Saturation [N*m], > 0: the actuator force is clipped to ``[-forcerange, forcerange]``
+        (MuJoCo's ``forcerange``). ``null``: unlimited.
+    delay_steps :
+        Transport delay of the control, a whole number of MuJoCo timesteps
+        ``1 / (rate_hz * substeps)`` [s], >= 0: the force of a step uses the control set
+        ``delay_steps`` steps earlier (MuJoCo's actuator ``delay`` with a history buffer).
+    """
+
+    kind: Literal["motor", "position"] = "motor"
+    kp: PositiveStiffness | None = None
+    kv: NonNegativeViscous | None = None
+    forcerange: PositiveNm | None = None
+    delay_steps: int = Field(default=0, ge=0, le=10_000)
+
+    @model_validator(mode="after")
+    def _gains_of_the_kind(self) -> ActuatorConfig:
+        if self.kind == "position" and self.kp is None:
+            raise ValueError(
+                "actuator.kind: position needs actuator.kp [N*m/rad] (and kv [N*m*s/rad], "
+                "default 0); add them"
+            )
+        if self.kind == "motor" and (self.kp is not None or self.kv is not None):
+            raise ValueError(
+                "actuator.kp and kv are the gains of kind: position; remove them, or set "
+                "actuator.kind: position"
+            )
+        return self
 
 
 class SignalConfig(StrictModel):
@@ -271,7 +342,10 @@ class MujocoMeasurement(StrictModel):
     controller :
         The tracking controller (:class:`ControllerConfig`).
     friction :
-        Viscous and Coulomb friction and another law (:class:`FrictionConfig`).
+        Viscous and Coulomb friction, their semantics, and another law (:class:`FrictionConfig`).
+    actuator :
+        The joint actuators: torque motors (default) or position servos, their saturation and
+        command delay (:class:`ActuatorConfig`).
     armature :
         Rotor inertia reflected to the joint [kg*m^2] (MuJoCo's ``dof_armature``), >= 0.
     encoder_counts_per_rev :
@@ -298,6 +372,7 @@ class MujocoMeasurement(StrictModel):
     substeps: int = Field(default=1, ge=1, le=100)
     controller: ControllerConfig = ControllerConfig()
     friction: FrictionConfig = FrictionConfig()
+    actuator: ActuatorConfig = ActuatorConfig()
     armature: NonNegativeInertia = 0.0
     encoder_counts_per_rev: int | None = Field(default=None, ge=2)
     torque_noise_std: NonNegativeNm = 0.0
@@ -306,6 +381,24 @@ class MujocoMeasurement(StrictModel):
     settle_periods: int = Field(default=1, ge=0)
     n_periods: int = Field(default=2, ge=1)
     payload: PayloadConfig | None = None
+
+    @model_validator(mode="after")
+    def _actuator_fits(self) -> MujocoMeasurement:
+        position = self.actuator.kind == "position"
+        if position and "controller" in self.model_fields_set:
+            raise ValueError(
+                "controller: a position actuator tracks the reference itself with its kp, kv; "
+                "remove the controller section, or use actuator.kind: motor"
+            )
+        law = self.friction.law
+        changed = position or self.actuator.forcerange is not None or self.actuator.delay_steps
+        if law is not None and get_friction_model(law.model).uses_load and changed:
+            raise ValueError(
+                f"friction.law {law.model!r} takes the commanded torque as its load, which "
+                "only a motor actuator without forcerange and delay_steps applies as commanded; "
+                "use such an actuator, or a law without load"
+            )
+        return self
 
 
 def load_mujoco_measurement(
@@ -368,6 +461,9 @@ def check_joint_counts(
         "controller.kd": cfg.controller.kd,
         "friction.viscous": cfg.friction.viscous,
         "friction.coulomb": cfg.friction.coulomb,
+        "actuator.kp": cfg.actuator.kp,
+        "actuator.kv": cfg.actuator.kv,
+        "actuator.forcerange": cfg.actuator.forcerange,
         "armature": cfg.armature,
         "torque_noise_std": cfg.torque_noise_std,
         "current.torque_constants": None if cfg.current is None else cfg.current.torque_constants,

@@ -17,7 +17,9 @@ about 1e-15 relative):
   ``tau_l + m tau_f``; a locked follower is fixed like any locked joint;
 - a payload of the measurement config (``measurement.payload``) is a body ``ident_payload``
   without joint (welded) added to its link's body in MuJoCo's spec (``MjSpec``), with the
-  payload's mass, centre of mass and inertia.
+  payload's mass, centre of mass and inertia;
+- the actuators of the measurement config (``measurement.actuator``), when asked for, are added
+  to the spec, one per robot joint, named ``ident_<joint>`` (:func:`_add_actuators`).
 
 Compiled model settings: gravity from the Pinocchio model (``model.gravity``), contacts, joint
 limits, equality constraints (but the mimic joints') and MuJoCo's friction loss off
@@ -25,6 +27,8 @@ limits, equality constraints (but the mimic joints') and MuJoCo's friction loss 
 (``mjDSBL_SPRING``), semi-implicit Euler integration with explicit damping
 (``mjDSBL_EULERDAMP``: the stored ``qacc`` is the acceleration that is integrated). Joints are
 matched to the robot's by name; links fixed to the world are fused by MuJoCo (they do not move).
+With ``native_friction`` the constraint solver stays on for the joints' friction loss
+(``dof_frictionloss``, :func:`set_joint_parameters`); contacts and limits stay off.
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ from __future__ import annotations
 # "0.0 -0.0 0.0"). The payload is added with MjSpec (_add_payload).
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -47,14 +51,23 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ident.errors import ModelError
-from ident.measure.mujoco_config import PayloadConfig
+from ident.measure.mujoco_config import ActuatorConfig, PayloadConfig, per_joint
 from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.model import Robot
 from ident.robot.inertia import com_and_inertia
 
 route_mujoco_warnings()  # MuJoCo warnings as Python warnings, no MUJOCO_LOG.TXT
 
-__all__ = ["PAYLOAD_LINK", "MujocoRobot", "dynamics_only_urdf", "load_mujoco", "mujoco_urdf"]
+__all__ = [
+    "FRICTION_SOLIMP",
+    "JOINT_PARAMETER_FIELDS",
+    "PAYLOAD_LINK",
+    "MujocoRobot",
+    "dynamics_only_urdf",
+    "load_mujoco",
+    "mujoco_urdf",
+    "set_joint_parameters",
+]
 
 #: Name of the link that carries a simulated payload.
 PAYLOAD_LINK = "ident_payload"
@@ -63,6 +76,20 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 _ONE_DOF = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+#: ident's per-joint parameters (``ident.dynamics.friction``'s names) and the MuJoCo ``MjModel``
+#: field each one is, value for value: both SI and joint-side, the same quantity (revolute:
+#: N*m*s/rad, N*m, kg*m^2; prismatic: N*s/m, N, kg). :func:`set_joint_parameters` writes them.
+JOINT_PARAMETER_FIELDS = {"fv": "dof_damping", "fs": "dof_frictionloss", "Ia": "dof_armature"}
+
+#: Impedance of the joints' friction-loss constraints (MuJoCo's ``dof_solimp``: dmin, dmax,
+#: width, midpoint, power), with ``dof_solref = (2 h, 1)`` (time constant two timesteps, MuJoCo's
+#: smallest stable one). A friction constraint sits at zero violation, so its impedance is
+#: ``dmin``: 0.9999, MuJoCo's largest, lets a stuck joint creep by ``(1 - dmin) h a_free``
+#: [rad/s] (a_free: its acceleration without friction), 1e-4 of MuJoCo's default's (0.9, time
+#: constant 0.02 s: 0.02 rad/s on a 1-DoF test pendulum 2 N*m inside its friction band, and a
+#: smooth transition 0.2 rad/s wide instead of a stick-slip switch within one step).
+FRICTION_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +110,9 @@ class MujocoRobot:
     mimic :
         Per mimic joint of the robot: its ``qpos`` address, ``qvel`` address, its leader's
         index in ``q``, multiplier and offset (:meth:`set_state` places it).
+    actuator_index :
+        Id of each robot joint's actuator, shape (nv,) (``data.ctrl[actuator_index]``,
+        ``data.actuator_force[actuator_index]``); empty when none was added.
     """
 
     model: mujoco.MjModel
@@ -90,6 +120,7 @@ class MujocoRobot:
     qpos_index: IntArray
     dof_index: IntArray
     mimic: tuple[tuple[int, int, int, float, float], ...] = ()
+    actuator_index: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     def set_state(self, data: mujoco.MjData, q: FloatArray, dq: FloatArray) -> None:
         """Set the robot's joints to ``q, dq`` (nq,) and each mimic joint to ``m q_l + o``,
@@ -99,6 +130,16 @@ class MujocoRobot:
         for qpos, dof, leader, multiplier, offset in self.mimic:
             data.qpos[qpos] = multiplier * q[leader] + offset
             data.qvel[dof] = multiplier * dq[leader]
+
+    def start_control(self, data: mujoco.MjData, ctrl: FloatArray) -> None:
+        """Set the actuators' control to ``ctrl`` (nv,) [N*m or rad], and, for delayed
+        actuators, every sample of their history to it: the first steps then apply it, as if it
+        had been held forever (MuJoCo's reset history holds zeros)."""
+        data.ctrl[self.actuator_index] = ctrl
+        for i, value in zip(self.actuator_index, np.asarray(ctrl, dtype=float), strict=True):
+            n = int(self.model.actuator_history[i, 0])
+            if n > 0:
+                mujoco.mj_initCtrlHistory(self.model, data, int(i), None, np.full((n, 1), value))
 
 
 def _origin(joint: ET.Element) -> tuple[FloatArray, FloatArray]:
@@ -184,13 +225,57 @@ def _add_payload(spec: mujoco.MjSpec, robot: Robot, payload: PayloadConfig, wher
     )
 
 
-def _compile(robot: Robot, payload: PayloadConfig | None) -> mujoco.MjModel:
-    """MuJoCo's model of :func:`dynamics_only_urdf`, with the payload (:func:`load_mujoco`)."""
+def _add_actuators(
+    spec: mujoco.MjSpec, robot: Robot, actuator: ActuatorConfig, timestep_s: float
+) -> None:
+    """Add one actuator ``ident_<joint>`` per robot joint, in joint order (ids 0..nv-1 when the
+    URDF has none), acting on the joint with gear 1:
+
+    - ``motor``: force = control [N*m or N];
+    - ``position``: force = ``kp (control - q) - kv dq`` (MuJoCo's ``<position>``: gain ``kp``,
+      bias ``(0, -kp, -kv)``), the control a joint position [rad or m];
+    - ``forcerange``: the force clipped to ``[-f, f]`` (``forcelimited``);
+    - ``delay_steps = k > 0``: MuJoCo's actuator delay, a history of ``nsample = k`` controls
+      read with zero-order hold at ``time - (k - 1/2) h``: the sample exactly ``k`` steps old,
+      whatever the rounding of the accumulated ``time`` (a delay of exactly ``k h`` reads the
+      sample before it once ``time`` rounds low, measured after 40 000 steps of 0.1 ms).
+    """
+    n = robot.nv
+    kp = per_joint(actuator.kp if actuator.kp is not None else 0.0, n)
+    kv = per_joint(actuator.kv if actuator.kv is not None else 0.0, n)
+    limit = per_joint(actuator.forcerange, n) if actuator.forcerange is not None else None
+    for j, name in enumerate(robot.joint_names):
+        act = spec.add_actuator(
+            name=f"ident_{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
+        )
+        if actuator.kind == "position":
+            act.set_to_position(kp=float(kp[j]), kv=float(kv[j]))
+        else:
+            act.set_to_motor()
+        if limit is not None:
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.forcerange = [-float(limit[j]), float(limit[j])]
+        if actuator.delay_steps > 0:
+            act.nsample = actuator.delay_steps
+            act.interp = 0
+            act.delay = (actuator.delay_steps - 0.5) * timestep_s
+
+
+def _compile(
+    robot: Robot,
+    payload: PayloadConfig | None,
+    actuator: ActuatorConfig | None = None,
+    timestep_s: float = 0.001,
+) -> mujoco.MjModel:
+    """MuJoCo's model of :func:`dynamics_only_urdf`, with the payload and the actuators
+    (:func:`load_mujoco`)."""
     where = str(robot.urdf_path or robot.name)
     try:
         spec = mujoco.MjSpec.from_string(dynamics_only_urdf(robot))
         if payload is not None:
             _add_payload(spec, robot, payload, where)
+        if actuator is not None:
+            _add_actuators(spec, robot, actuator, timestep_s)
         return spec.compile()
     except ValueError as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
@@ -231,12 +316,17 @@ def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) 
 
 
 def load_mujoco(
-    robot: Robot, *, timestep_s: float = 0.001, payload: PayloadConfig | None = None
+    robot: Robot,
+    *,
+    timestep_s: float = 0.001,
+    payload: PayloadConfig | None = None,
+    actuator: ActuatorConfig | None = None,
+    native_friction: bool = False,
 ) -> MujocoRobot:
     """Compile the robot's dynamics-only MuJoCo model.
 
-    Damping, armature and friction loss are zero; set ``dof_damping`` and ``dof_armature`` at
-    ``dof_index`` for a simulation.
+    Damping, armature and friction loss are zero; set them with :func:`set_joint_parameters`
+    for a simulation.
 
     Parameters
     ----------
@@ -246,6 +336,13 @@ def load_mujoco(
         MuJoCo timestep [s].
     payload :
         A payload welded to a link (see the module docstring), or None.
+    actuator :
+        Actuators to add, one per robot joint (:func:`_add_actuators`), or None (no actuator:
+        forces go through ``qfrc_applied``).
+    native_friction :
+        Keep MuJoCo's constraint solver on for the joints' friction loss (contacts and joint
+        limits stay off; the friction constraints get ``dof_solref = (2 h, 1)`` and
+        :data:`FRICTION_SOLIMP`). False: no friction loss acts even when set.
 
     Returns
     -------
@@ -258,16 +355,41 @@ def load_mujoco(
         If MuJoCo cannot compile the URDF, or its moving joints differ from the robot's.
     """
     where = str(robot.urdf_path or robot.name)
-    model = _compile(robot, payload)
+    model = _compile(robot, payload, actuator, timestep_s)
     ids = _robot_joint_ids(model, robot, where)
-    _set_dynamics_only(model, robot, timestep_s)
+    _set_dynamics_only(model, robot, timestep_s, native_friction)
+    actuators = [] if actuator is None else [f"ident_{name}" for name in robot.joint_names]
     return MujocoRobot(
         model=model,
         joint_names=tuple(robot.joint_names),
         qpos_index=np.array([model.jnt_qposadr[i] for i in ids], dtype=np.int64),
         dof_index=np.array([model.jnt_dofadr[i] for i in ids], dtype=np.int64),
         mimic=_mimic_addresses(model, robot),
+        actuator_index=np.array(
+            [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in actuators],
+            dtype=np.int64,
+        ),
     )
+
+
+def set_joint_parameters(mj: MujocoRobot, values: Mapping[str, FloatArray]) -> None:
+    """Write ident's per-joint parameters into the MuJoCo model: the one map between them.
+
+    ``values[kind]`` (nv,) for ``kind`` in :data:`JOINT_PARAMETER_FIELDS` (``fv`` viscous
+    [N*m*s/rad], ``fs`` Coulomb [N*m], ``Ia`` rotor inertia [kg*m^2]; SI, joint side) goes
+    unchanged to that field (``dof_damping``, ``dof_frictionloss``, ``dof_armature``) at the
+    robot joints' dofs; a kind left out is not touched (zero after :func:`load_mujoco`). The
+    MuJoCo model then simulates ``tau = RNEA + Ia ddq + fv dq + fs sign(dq)`` while a joint
+    slides (``fs`` only with ``native_friction``); mimic followers keep zero.
+
+    Raises
+    ------
+    KeyError
+        For a kind that is not one of ident's joint parameters.
+    """
+    for kind, value in values.items():
+        field_array = getattr(mj.model, JOINT_PARAMETER_FIELDS[kind])
+        field_array[mj.dof_index] = np.asarray(value, dtype=float)
 
 
 def _robot_joint_ids(model: mujoco.MjModel, robot: Robot, where: str) -> list[int]:
@@ -291,18 +413,23 @@ def _robot_joint_ids(model: mujoco.MjModel, robot: Robot, where: str) -> list[in
     return ids
 
 
-def _set_dynamics_only(model: mujoco.MjModel, robot: Robot, timestep_s: float) -> None:
+def _set_dynamics_only(
+    model: mujoco.MjModel, robot: Robot, timestep_s: float, native_friction: bool = False
+) -> None:
     """Options of a dynamics-only model: Euler at ``timestep_s`` [s], the robot's gravity, no
-    springs, limits, stiffness, damping, armature, friction loss or gravity compensation,
-    constraints as :func:`_constraint_flags` sets them."""
+    springs, limits (position or actuator force), stiffness, damping, armature, friction loss or
+    gravity compensation, constraints as :func:`_constraint_flags` sets them."""
     model.opt.timestep = timestep_s
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
     model.opt.gravity[:] = np.asarray(robot.model.gravity.linear, dtype=float)
     model.opt.disableflags |= (
         mujoco.mjtDisableBit.mjDSBL_SPRING | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
     )
-    model.opt.disableflags |= _constraint_flags(model, timestep_s)
+    model.opt.disableflags |= _constraint_flags(model, timestep_s, native_friction)
     model.jnt_limited[:] = 0
+    # MuJoCo's URDF import turns <limit effort> into the joint's actuator force range; only
+    # measurement.actuator.forcerange saturates here
+    model.jnt_actfrclimited[:] = 0
     model.jnt_stiffness[:] = 0.0
     model.dof_damping[:] = 0.0
     model.dof_armature[:] = 0.0
@@ -310,14 +437,18 @@ def _set_dynamics_only(model: mujoco.MjModel, robot: Robot, timestep_s: float) -
     model.body_gravcomp[:] = 0.0
 
 
-def _constraint_flags(model: mujoco.MjModel, timestep_s: float) -> int:
+def _constraint_flags(model: mujoco.MjModel, timestep_s: float, native_friction: bool) -> int:
     """Disable bits of the constraints: all of them, or, when mimic joints' equalities are in
-    the model, contacts only (limits are off through ``jnt_limited``), with the equalities
-    made stiff (``solref`` time constant twice the timestep, MuJoCo's smallest stable one)."""
-    if model.neq == 0:
+    the model or the friction loss is native, contacts only (limits are off through
+    ``jnt_limited``), with the equalities made stiff (``solref`` time constant twice the
+    timestep, MuJoCo's smallest stable one) and the friction loss as :data:`FRICTION_SOLIMP`."""
+    if model.neq == 0 and not native_friction:
         return int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
     model.eq_solref[:] = [2.0 * timestep_s, 1.0]
     model.eq_solimp[:, :3] = [0.99, 0.999, 0.001]
+    if native_friction:
+        model.dof_solref[:] = [2.0 * timestep_s, 1.0]
+        model.dof_solimp[:] = FRICTION_SOLIMP
     return int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
 
 

@@ -1,34 +1,45 @@
 """Closed-loop MuJoCo simulation of an excitation, logged as a robot controller would.
 
 The simulated robot is the URDF's rigid bodies (:mod:`ident.measure.mujoco_model`) plus, per
-joint ``j``, what the ``measurement:`` config adds (:mod:`ident.measure.mujoco_config`):
+joint ``j``, what the ``measurement:`` config adds (:mod:`ident.measure.mujoco_config`), written
+into MuJoCo's model by the one map of ident's parameters to MuJoCo's fields
+(:func:`~ident.measure.mujoco_model.set_joint_parameters`):
 
 - rotor inertia ``Ia_j`` reflected to the joint (MuJoCo's ``dof_armature``);
 - viscous friction ``fv_j dq_j`` (``dof_damping``, integrated explicitly);
-- Coulomb friction ``fs_j sign(dq_j)`` (``sign(0) = 0``), the velocity taken at the start of
-  every MuJoCo step, applied through ``qfrc_applied``;
-- optionally a friction law of the registry (:mod:`ident.dynamics.friction_models`, e.g.
-  Stribeck), applied like the Coulomb term; a load-dependent law's load is the torque through
-  the gear, the command minus the friction;
+- Coulomb friction ``fs_j``: with ``friction.semantics: ident`` (the default) the
+  identification's own law ``fs_j sign(dq_j)`` (``sign(0) = 0``), the velocity taken at the
+  start of every MuJoCo step, applied through ``qfrc_applied``; with ``semantics: mujoco``
+  MuJoCo's ``dof_frictionloss``, solved by its constraint solver (stiction, then exactly
+  ``fs_j`` against the sliding direction);
+- optionally (``semantics: ident``) a friction law of the registry
+  (:mod:`ident.dynamics.friction_models`, e.g. Stribeck), applied like the Coulomb term; a
+  load-dependent law's load is the torque through the gear, the command minus the friction;
+- one actuator per joint (``measurement.actuator``): a torque motor fed by the controller, or a
+  position servo ``kp (q_cmd - q) - kv dq`` fed the reference; either saturated at
+  ``forcerange`` and delayed by ``delay_steps`` MuJoCo steps;
 - and on the measured torque a delay, a gain and an offset (``measurement.signals``).
 
-So at every MuJoCo step, with ``dq`` the velocity before the step and ``ddq`` the acceleration
-MuJoCo integrates (``qacc``)::
+So at every MuJoCo step, with ``dq`` the velocity before the step, ``ddq`` the acceleration
+MuJoCo integrates (``qacc``) and ``tau_act`` the actuators' force (``actuator_force``)::
 
-    tau_cmd = RNEA_urdf(q, dq, ddq) + Ia * ddq + fv * dq + fs * sign(dq)      (the truth)
+    tau_act = RNEA_urdf(q, dq, ddq) + Ia * ddq + fv * dq + fs * sign(dq)      (the truth)
 
-and the semi-implicit Euler step ``dq' = dq + h ddq``, ``q' = q + h dq'``. With one MuJoCo step
-per controller period (the default) the second central difference of the logged true positions
-is exactly ``h^2 ddq``, and their backward difference exactly ``h dq``.
+exactly with ``semantics: ident``, and while the joint slides with ``semantics: mujoco`` (to
+the constraint solver's tolerance; a stuck joint's friction is whatever holds it, within
+``fs``); then the semi-implicit Euler step ``dq' = dq + h ddq``, ``q' = q + h dq'``. With one
+MuJoCo step per controller period (the default) the second central difference of the logged
+true positions is exactly ``h^2 ddq``, and their backward difference exactly ``h dq``.
 
-A controller (computed torque on the nominal model, or PD plus gravity; see
+With a motor actuator a controller (computed torque on the nominal model, or PD plus gravity; see
 :class:`~ident.measure.mujoco_config.ControllerConfig`) tracks the reference at ``rate_hz`` from
 the encoder positions, its torque held over the period. It knows neither friction nor armature,
-so it tracks imperfectly, as on a real robot. The log holds, from the end of the settle periods
-on, one sample per controller period: the time stamp, the encoder positions, the commanded
-torque and the measured torque (commanded plus Gaussian noise) or current (measured torque over
-the torque constant). :func:`write_log` writes it as a CSV file with the ``log:`` section that
-``ident identify`` reads.
+so it tracks imperfectly, as on a real robot. With a position actuator the reference position is
+the command, held over the period. The log holds, from the end of the settle periods on, one
+sample per controller period: the time stamp, the encoder positions, the measured torque (the
+actuator force plus Gaussian noise) or current (measured torque over the torque constant), the
+commanded torque and, for a position actuator, the commanded position. :func:`write_log` writes
+it as a CSV file with the ``log:`` section that ``ident identify`` reads.
 """
 
 from __future__ import annotations
@@ -55,7 +66,7 @@ from ident.measure.mujoco_config import (
     per_joint,
 )
 from ident.measure.mujoco_log import route_mujoco_warnings
-from ident.measure.mujoco_model import load_mujoco
+from ident.measure.mujoco_model import MujocoRobot, load_mujoco, set_joint_parameters
 from ident.model import Robot
 
 route_mujoco_warnings()  # MuJoCo warnings as Python warnings, no MUJOCO_LOG.TXT
@@ -106,9 +117,12 @@ class SimulatedLog:
     q :
         Measured (encoder) joint positions [rad], shape (n_samples, nq).
     tau_cmd :
-        Commanded joint torques [N*m], held over each controller period, shape (n_samples, nv).
+        Commanded joint torques [N*m], shape (n_samples, nv): the controller's torque, held
+        over each controller period (motor actuator), or the servo's force ``tau_actuator``
+        (position actuator, which has no other torque command).
     tau_measured :
-        Measured joint torques [N*m]: ``tau_cmd`` plus Gaussian noise, shape (n_samples, nv).
+        Measured joint torques [N*m]: ``tau_actuator`` with the signal errors and Gaussian
+        noise, shape (n_samples, nv).
     current :
         Logged currents [A] ``tau_measured / torque_constants``, shape (n_samples, nv), or
         ``None`` when torques are logged.
@@ -127,6 +141,13 @@ class SimulatedLog:
         step [rad, rad/s, rad/s^2], shapes (n_samples, nq), (n_samples, nv), (n_samples, nv).
     q_reference, dq_reference, ddq_reference :
         The reference tracked at each time stamp, same shapes.
+    tau_actuator :
+        The actuators' force on the joints at each time stamp [N*m] (MuJoCo's
+        ``actuator_force`` of the step from it): the command after ``forcerange`` and
+        ``delay_steps``, shape (n_samples, nv). Equals ``tau_cmd`` for a motor without them.
+    q_cmd :
+        Commanded joint positions [rad] sent at each time stamp (before the actuator's delay),
+        shape (n_samples, nq), for a position actuator; ``None`` for a motor.
     """
 
     t: FloatArray
@@ -144,6 +165,8 @@ class SimulatedLog:
     q_reference: FloatArray
     dq_reference: FloatArray
     ddq_reference: FloatArray
+    tau_actuator: FloatArray
+    q_cmd: FloatArray | None = None
 
     def __post_init__(self) -> None:
         arrays = [
@@ -157,9 +180,10 @@ class SimulatedLog:
             self.q_reference,
             self.dq_reference,
             self.ddq_reference,
+            self.tau_actuator,
             *self.truth.values(),
         ]
-        for a in (self.current, self.torque_constants):
+        for a in (self.current, self.torque_constants, self.q_cmd):
             if a is not None:
                 arrays.append(a)
         for a in arrays:
@@ -321,7 +345,7 @@ def simulate(
     n_total = k0 + config.n_periods * n_ctrl
     run = _run_closed_loop(robot, config, reference, truth, k0, n_total)
     t_log = np.arange(k0, n_total) / rate
-    tau_measured = _measured_torque(t_log, run.tau_cmd, config, nv, rng)
+    tau_measured = _measured_torque(t_log, run.tau_actuator, config, nv, rng)
     current, torque_constants = _motor_current(tau_measured, config, nv)
     index = np.arange(k0, n_total) % n_ctrl
     return SimulatedLog(
@@ -340,6 +364,8 @@ def simulate(
         q_reference=reference[0][index],
         dq_reference=reference[1][index],
         ddq_reference=reference[2][index],
+        tau_actuator=run.tau_actuator,
+        q_cmd=run.q_cmd,
     )
 
 
@@ -426,6 +452,31 @@ class _LoopRun:
     ddq_true: FloatArray
     q_measured: FloatArray
     tau_cmd: FloatArray
+    tau_actuator: FloatArray
+    q_cmd: FloatArray | None
+
+
+def _simulator(
+    robot: Robot, config: MujocoMeasurement, truth: dict[str, FloatArray]
+) -> MujocoRobot:
+    """The MuJoCo model of the simulated robot: its actuators, and ident's true joint
+    parameters written by :func:`set_joint_parameters` (``fs`` as ``dof_frictionloss`` only
+    with ``friction.semantics: mujoco``)."""
+    native = config.friction.semantics == "mujoco"
+    mj = load_mujoco(
+        robot,
+        timestep_s=1.0 / (float(config.rate_hz) * config.substeps),
+        payload=config.payload,
+        actuator=config.actuator,
+        native_friction=native,
+    )
+    values = {"fv": truth["viscous"], "Ia": truth["armature"]}
+    if native:
+        values["fs"] = truth["coulomb"]
+    set_joint_parameters(mj, values)
+    # A diverging simulation must fail loudly, not restart from qpos0.
+    mj.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    return mj
 
 
 def _run_closed_loop(
@@ -437,40 +488,84 @@ def _run_closed_loop(
     n_total: int,
 ) -> _LoopRun:
     """Step the controller and MuJoCo for ``n_total`` periods, logging from period ``k0`` on."""
-    q_ref, dq_ref, ddq_ref = reference
+    q_ref, dq_ref = reference[0], reference[1]
     nv, rate, n_ctrl = robot.nv, float(config.rate_hz), q_ref.shape[0]
-    controller = _controller(robot, config, q_ref)
-    friction = _friction_law_torque(config, truth)
-    mj = load_mujoco(robot, timestep_s=1.0 / (rate * config.substeps), payload=config.payload)
-    model, qi, di = mj.model, mj.qpos_index, mj.dof_index
-    model.dof_damping[di] = truth["viscous"]
-    model.dof_armature[di] = truth["armature"]
-    # A diverging simulation must fail loudly, not restart from qpos0.
-    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-    data = mujoco.MjData(model)
+    position = config.actuator.kind == "position"
+    command = _command(robot, config, reference)
+    native = config.friction.semantics == "mujoco"
+    friction = None if native else _friction_law_torque(config, truth)
+    mj = _simulator(robot, config, truth)
+    data = mujoco.MjData(mj.model)
     mj.set_state(data, q_ref[0], dq_ref[0])  # mimic joints on their leaders
     n_log = n_total - k0
-    out = _LoopRun(*(np.empty((n_log, n)) for n in (robot.nq, nv, nv, robot.nq, nv)))
+    out = _LoopRun(
+        q_true=np.empty((n_log, robot.nq)),
+        dq_true=np.empty((n_log, nv)),
+        ddq_true=np.empty((n_log, nv)),
+        q_measured=np.empty((n_log, robot.nq)),
+        tau_cmd=np.empty((n_log, nv)),
+        tau_actuator=np.empty((n_log, nv)),
+        q_cmd=np.empty((n_log, robot.nq)) if position else None,
+    )
     q_prev = None
     for k in range(n_total):
-        j = k % n_ctrl
-        q_now = data.qpos[qi]
+        q_now = data.qpos[mj.qpos_index]
         counts = config.encoder_counts_per_rev
         q_m = quantize(q_now, counts) if counts is not None else q_now.copy()
         dq_m = dq_ref[0] if q_prev is None else (q_m - q_prev) * rate
-        _check_tracking(robot, q_ref[j] - q_m, k / rate)
-        tau = controller(q_m, dq_m, q_ref[j] - q_m, dq_ref[j] - dq_m, ddq_ref[j])
-        if k >= k0:
-            i = k - k0
-            out.q_true[i], out.dq_true[i], out.q_measured[i] = q_now, data.qvel[di], q_m
-            out.tau_cmd[i] = tau
-        for s in range(config.substeps):
-            data.qfrc_applied[di] = tau - friction(data.qvel[di], tau)
-            mujoco.mj_step(model, data)
-            if s == 0 and k >= k0:
-                out.ddq_true[k - k0] = data.qacc[di]  # the acceleration of the state before it
+        _check_tracking(robot, q_ref[k % n_ctrl] - q_m, k / rate)
+        ctrl = command(k % n_ctrl, q_m, dq_m)
+        if k == 0:
+            mj.start_control(data, ctrl)  # a delayed actuator's history holds it
+        data.ctrl[mj.actuator_index] = ctrl
+        i = k - k0
+        if i >= 0:
+            out.q_true[i], out.dq_true[i], out.q_measured[i] = q_now, data.qvel[mj.dof_index], q_m
+            if out.q_cmd is not None:
+                out.q_cmd[i] = ctrl
+        ddq, force = _step_period(mj, data, config.substeps, ctrl, friction)
+        if i >= 0:
+            out.ddq_true[i], out.tau_actuator[i] = ddq, force
+            out.tau_cmd[i] = force if position else ctrl
         q_prev = q_m
     return out
+
+
+def _command(
+    robot: Robot, config: MujocoMeasurement, reference: tuple[FloatArray, FloatArray, FloatArray]
+) -> Callable[[int, FloatArray, FloatArray], FloatArray]:
+    """``ctrl(j, q_m, dq_m)``, shape (nv,), the actuators' control for reference sample ``j``
+    from the encoder position and velocity estimate: the controller's torque [N*m] for motors,
+    the reference position [rad] itself for position servos."""
+    q_ref, dq_ref, ddq_ref = reference
+    if config.actuator.kind == "position":
+        return lambda j, q_m, dq_m: np.array(q_ref[j])
+    controller = _controller(robot, config, q_ref)
+    return lambda j, q_m, dq_m: controller(q_m, dq_m, q_ref[j] - q_m, dq_ref[j] - dq_m, ddq_ref[j])
+
+
+def _step_period(
+    mj: MujocoRobot,
+    data: mujoco.MjData,
+    substeps: int,
+    ctrl: FloatArray,
+    friction: Callable[[FloatArray, FloatArray], FloatArray] | None,
+) -> tuple[FloatArray, FloatArray]:
+    """Step MuJoCo ``substeps`` times with the control held (the ident-semantics friction
+    ``friction(dq, ctrl)`` [N*m] applied against the motion at every step, when given).
+
+    Returns the first step's acceleration ``qacc`` [rad/s^2] and actuator force [N*m] (nv,):
+    those of the state before the period.
+    """
+    first: tuple[FloatArray, FloatArray] | None = None
+    for _ in range(substeps):
+        if friction is not None:
+            data.qfrc_applied[mj.dof_index] = -friction(data.qvel[mj.dof_index], ctrl)
+        mujoco.mj_step(mj.model, data)
+        if first is None:
+            first = (data.qacc[mj.dof_index].copy(), data.actuator_force[mj.actuator_index].copy())
+    assert first is not None  # substeps >= 1 (the schema)
+    return first
 
 
 def _controller(
@@ -533,7 +628,7 @@ def _measured_torque(
 class LogFiles:
     """The files :func:`write_log` wrote."""
 
-    csv: Path  # the log: t, q_<joint>..., tau_<joint>... (or current_<joint>...), tau_cmd_...
+    csv: Path  # t, q_<joint>..., tau_<joint>... (or current_<joint>...), tau_cmd_..., [q_cmd_...]
     yaml: Path  # the ``log:`` (and, for currents, ``transmission:``) sections for identify
 
 
@@ -551,8 +646,9 @@ def write_log(folder: str | Path, log: SimulatedLog) -> LogFiles:
     """Write the log as ``log.csv`` and its ``log:`` section as ``log.yaml`` into ``folder``.
 
     ``log.csv``: a header ``t,q_<joint>...,tau_<joint>...,tau_cmd_<joint>...`` (``current_<joint>``
-    [A] in place of ``tau_<joint>`` [N*m] when currents are logged), then one row per sample;
-    every value is printed with 17 significant digits, so reading it back gives the same floats
+    [A] in place of ``tau_<joint>`` [N*m] when currents are logged; then ``q_cmd_<joint>...``
+    [rad], the commanded positions, for a position actuator), then one row per sample; every
+    value is printed with 17 significant digits, so reading it back gives the same floats
     bit for bit. ``log.yaml``: the ``log:`` section of an ``ident identify`` config for this file
     (time column ``t``, joint-side positions in rad, torques in N*m or currents in A), plus
     ``transmission: {torque_constants: [...]}`` for currents; its paths are relative to
@@ -567,7 +663,11 @@ def write_log(folder: str | Path, log: SimulatedLog) -> LogFiles:
     folder.mkdir(parents=True, exist_ok=True)
     q_cols, measured_cols, cmd_cols = log_columns(log)
     measured = log.current if log.current is not None else log.tau_measured
-    table = np.column_stack([log.t, log.q, measured, log.tau_cmd])
+    blocks = [log.t, log.q, measured, log.tau_cmd]
+    if log.q_cmd is not None:
+        cmd_cols = cmd_cols + [f"q_cmd_{name}" for name in log.joint_names]
+        blocks.append(log.q_cmd)
+    table = np.column_stack(blocks)
     csv_path = folder / LOG_CSV
     np.savetxt(
         csv_path,

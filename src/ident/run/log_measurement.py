@@ -274,6 +274,8 @@ def simulate_log(
         section = _absolute(yaml.safe_load(files.yaml.read_text(encoding="utf-8")), Path(tmp))
         cfg = identify_config(config, section)
         read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
+    if log.q_cmd is not None:  # a position actuator's command, row for row with the log read
+        read = dataclasses.replace(read, q_cmd=np.array(log.q_cmd))
     return log, read, cfg
 
 
