@@ -77,15 +77,19 @@ def sigterm_at_each_file(
     before: int = 0,
     every: int = 1,
     max_files: int = 60,
+    at: tuple[int, ...] | None = None,
 ) -> int:
     """Interrupt ``ident ARGS`` at its 1st, then every ``every``-th file until a run completes;
     returns the number of files the command wrote before its last one.
 
     ``find()`` is the folder the command writes (None before it exists); ``reset()`` clears
     what a run left (called before each run); ``before`` files are already in the folder.
-    ``every`` > 1 keeps a long command's test short (each run starts the command again).
+    ``every`` > 1 keeps a long command's test short (each run starts the command again);
+    ``at`` interrupts at those files only, then lets a last run complete (a long command:
+    its first file, one in the middle of the model files, and the end).
     """
-    for k in range(1, max_files + 1, every):
+    ks = range(1, max_files + 1, every) if at is None else (*at, max_files + 1)
+    for k in ks:
         reset()
         code, stderr, folder, sent = _interrupt_at(args, find, k, before, cwd)
         assert "Traceback" not in stderr, stderr

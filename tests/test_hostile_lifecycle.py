@@ -351,7 +351,7 @@ def test_sigterm_at_each_file_of_bench(tmp_path):
     args = ["bench", str(tmp_path / "c.yaml"), "--out", str(out), "--no-progress"]
     reset = lambda: shutil.rmtree(out, ignore_errors=True)  # noqa: E731
     n = sigterm_at_each_file(
-        args, lambda: out if out.is_dir() else None, tmp_path, reset=reset, every=2
+        args, lambda: out if out.is_dir() else None, tmp_path, reset=reset, at=(1, 5)
     )
     assert n >= 8  # run.json, 5 CSV files, campaign.json, report.md, figures, report.html
 
@@ -364,7 +364,7 @@ def test_sigterm_at_each_file_of_identify(tmp_path):
     config = ROOT / "tests/data/hostile/identify/base.yaml"
     args = ["identify", str(config), "--out", str(out), "--no-replay"]
     reset = lambda: shutil.rmtree(out, ignore_errors=True)  # noqa: E731
-    n = sigterm_at_each_file(args, _only_child(out), tmp_path, reset=reset, every=3)
+    n = sigterm_at_each_file(args, _only_child(out), tmp_path, reset=reset, at=(1, 6))
     assert n >= 8  # run.json, result.json, the model files, figures, report.md, report.html
 
 
@@ -382,7 +382,7 @@ def test_sigterm_at_each_file_of_report_then_report_completes(tmp_path):
         shutil.copytree(source, run)
 
     n = sigterm_at_each_file(
-        ["report", str(run)], lambda: run, tmp_path, reset=reset, before=before, every=2
+        ["report", str(run)], lambda: run, tmp_path, reset=reset, before=before, at=(1, 3)
     )
     assert n >= 3  # figures, report.md, report.html
     # an interrupted report, then a whole one: complete again, with the run's message
