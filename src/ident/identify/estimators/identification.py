@@ -194,10 +194,23 @@ def problem_from_states(
     """
     Y = standard_regressor(model, pm, q, dq, ddq)
     obs = ReducedObservations.from_samples(Y[:, :, pm.base.independent], tau)
+    return _problem_of_rows(model, pm, obs, (), **fields)
+
+
+def _problem_of_rows(
+    model: pin.Model,
+    pm: Any,
+    obs: ReducedObservations,
+    ellipsoids: tuple[Any, ...],
+    **fields: Any,
+) -> EstimationProblem:
+    """The base-coordinate :class:`EstimationProblem` of the reduced rows ``obs`` of the
+    robot ``model`` with parameter model ``pm`` (its structure with the bounding ``ellipsoids``
+    per body, :func:`structure_from_parameter_model`) and further ``fields``."""
     return EstimationProblem(
         observations=obs,
         names=tuple(pm.base_names),
-        structure=structure_from_parameter_model(pm, body_link_names(model)),
+        structure=structure_from_parameter_model(pm, body_link_names(model), ellipsoids),
         base_map=pm.base.projection,
         **fields,
     )
@@ -275,14 +288,7 @@ def consistent_identification_reduced(
     options :
         Options of the estimator (e.g. ``friction``).
     """
-    structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
-    obs = first.merge(last)
-    problem = EstimationProblem(
-        observations=obs,
-        names=tuple(pm.base_names),
-        structure=structure,
-        base_map=pm.base.projection,
-    )
+    problem = _problem_of_rows(model, pm, first.merge(last), ellipsoids)
     # the two least-squares estimates, once each (the report compares every estimator)
     estimates = {name: get_estimator(name)(problem) for name in LEAST_SQUARES}
     contract = get_contract(method)
@@ -291,16 +297,9 @@ def consistent_identification_reduced(
     seconds = 0.0
     if not contract.least_squares:
         t0 = time.perf_counter()
-        weights = 1.0 / np.asarray(estimates["wls"].sigma)
-        problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
-        if options:
-            problem = dataclasses.replace(problem, options=dict(options))
-        if contract.needs_prior and weight == "auto":
-            first_problem = dataclasses.replace(problem, observations=first)
-            choice = choose_regularization(first_problem, last, method=method, grid=grid)
-            weight = choice.weight
-        if contract.needs_prior:
-            problem = dataclasses.replace(problem, regularization=float(weight))
+        problem, choice = _configured_problem(
+            problem, estimates["wls"], (first, last), method, weight, grid, options
+        )
         constrained = get_estimator(method)(problem)
         estimates[method] = constrained
         seconds = time.perf_counter() - t0
@@ -310,7 +309,37 @@ def consistent_identification_reduced(
         estimates=estimates,
         constrained=constrained,
         regularization=choice,
-        structure=structure,
+        structure=problem.structure,
         seconds=seconds,
         problem=problem,
     )
+
+
+def _configured_problem(
+    problem: EstimationProblem,
+    wls: Estimate,
+    parts: tuple[ReducedObservations, ReducedObservations],
+    method: str,
+    weight: float | str,
+    grid: tuple[float, ...],
+    options: dict[str, Any] | None,
+) -> tuple[EstimationProblem, RegularizationChoice | None]:
+    """The problem of the configured (not least-squares) estimator ``method``: ``problem``'s rows
+    WLS-weighted (``1 / sigma_j`` of ``wls``, 0 for a joint without rows), with ``options``, and
+    with the prior weight when the contract needs a prior (``weight``, or chosen on ``grid`` with
+    the later rows of ``parts`` held out when ``"auto"``); and that choice, or None."""
+    contract = get_contract(method)
+    first, last = parts
+    weights = 1.0 / np.asarray(wls.sigma)
+    n_rows = problem.observations.n_rows
+    problem = dataclasses.replace(problem, weights=np.where(n_rows > 0, weights, 0.0))
+    if options:
+        problem = dataclasses.replace(problem, options=dict(options))
+    choice = None
+    if contract.needs_prior and weight == "auto":
+        first_problem = dataclasses.replace(problem, observations=first)
+        choice = choose_regularization(first_problem, last, method=method, grid=grid)
+        weight = choice.weight
+    if contract.needs_prior:
+        problem = dataclasses.replace(problem, regularization=float(weight))
+    return problem, choice

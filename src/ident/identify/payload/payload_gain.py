@@ -163,6 +163,33 @@ def _joint_rows(
     return C, r, float(red.rho[j]), int(red.n_rows[j]) - rank - rank_c
 
 
+def _loaded_rows(
+    red: ReducedObservations, n_arm: int
+) -> list[tuple[int, FloatArray, FloatArray, float]]:
+    """``(j, C_j / s_j, r_j / s_j, s_j)`` of each joint ``j`` whose rows the payload loads
+    (:func:`_joint_rows`), ``s_j`` the noise of its own least-squares fit ``C_j psi = r_j``
+    [N*m], so that every joint's rows weigh alike.
+
+    Raises
+    ------
+    DataError
+        If no joint's row carries the payload, or too few rows to estimate the noise.
+    """
+    rows: list[tuple[int, FloatArray, FloatArray, float]] = []
+    for j in range(red.n_groups):
+        C, r, rho, dof = _joint_rows(red, j, n_arm)
+        if not np.any(C):
+            continue
+        if dof <= 0:
+            raise DataError(f"torque gains: joint {j + 1} has too few rows ({red.n_rows[j]}).")
+        psi = np.linalg.lstsq(C, r, rcond=None)[0]
+        noise = float(np.sqrt((np.sum((C @ psi - r) ** 2) + rho) / dof))
+        rows.append((j, C / noise, r / noise, noise))
+    if not rows:
+        raise DataError("torque gains: the payload's columns act on no joint's rows.")
+    return rows
+
+
 def estimate_payload_gains(red: ReducedObservations, n_arm: int, mass: float) -> PayloadGains:
     """Per-joint torque gains and the payload from reduced rows ``[arm | payload]``.
 
@@ -182,18 +209,7 @@ def estimate_payload_gains(red: ReducedObservations, n_arm: int, mass: float) ->
         If no joint's row carries the payload, or too few rows to estimate the noise.
     """
     nv = red.n_groups
-    rows: list[tuple[int, FloatArray, FloatArray, float]] = []
-    for j in range(nv):
-        C, r, rho, dof = _joint_rows(red, j, n_arm)
-        if not np.any(C):
-            continue
-        if dof <= 0:
-            raise DataError(f"torque gains: joint {j + 1} has too few rows ({red.n_rows[j]}).")
-        psi = np.linalg.lstsq(C, r, rcond=None)[0]
-        noise = float(np.sqrt((np.sum((C @ psi - r) ** 2) + rho) / dof))
-        rows.append((j, C / noise, r / noise, noise))
-    if not rows:
-        raise DataError("torque gains: the payload's columns act on no joint's rows.")
+    rows = _loaded_rows(red, n_arm)
     loaded = np.array([j for j, *_ in rows], dtype=np.intp)
     k = loaded.size
 
