@@ -28,7 +28,7 @@ standard deviation (from the fit's Jacobian, white-noise assumption) is about
 accelerations, a last joint about which the payload's centre of mass lies) has no gain here.
 
 Rows come from the one preprocessing of every identification
-(:func:`ident.identify.payload.payload.payload_observations`, chunked, reduced per joint).
+(:func:`ident.identify.payload.payload_rows.payload_observations`, chunked, reduced per joint).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from ident.errors import DataError
 from ident.identify.config import PreprocessConfig
 from ident.identify.estimation.accumulate import BaseColumns
 from ident.identify.estimation.observations import ReducedObservations
-from ident.identify.payload.payload import payload_observations
+from ident.identify.payload.payload_rows import payload_observations
 from ident.measure.logs import RobotLog
 
 __all__ = ["GainColumns", "PayloadGains", "estimate_payload_gains", "payload_gain_observations"]
@@ -63,7 +63,7 @@ class GainColumns:
     The arm's columns are the base parameters of ``pm`` (inertial and extra terms,
     :class:`ident.identify.estimation.accumulate.BaseColumns`); the payload's the last body's 10
     standard columns, zero when ``with_payload`` is False; the last column is zero (no known
-    torque is subtracted: :func:`ident.identify.payload.payload.payload_observations`).
+    torque is subtracted: :func:`ident.identify.payload.payload_rows.payload_observations`).
     """
 
     def __init__(self, chain: KinematicChain, pm: ParameterModel, *, with_payload: bool) -> None:
