@@ -238,7 +238,7 @@ def estimate_gains(
         g[others] = x
         return g
 
-    def solve(x: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def solve(x: FloatArray) -> tuple[npt.NDArray[np.floating], npt.NDArray[np.floating]]:
         Ag = A * gains_of(x)[joint_of_row][:, None]
         theta, _, rank, _ = np.linalg.lstsq(Ag, y, rcond=None)
         if rank < p:

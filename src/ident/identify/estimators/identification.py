@@ -194,23 +194,20 @@ def problem_from_states(
     """
     Y = standard_regressor(model, pm, q, dq, ddq)
     obs = ReducedObservations.from_samples(Y[:, :, pm.base.independent], tau)
-    return _problem_of_rows(model, pm, obs, (), **fields)
+    structure = structure_from_parameter_model(pm, body_link_names(model))
+    return _problem_of_rows(pm, obs, structure, **fields)
 
 
 def _problem_of_rows(
-    model: pin.Model,
-    pm: Any,
-    obs: ReducedObservations,
-    ellipsoids: tuple[Any, ...],
-    **fields: Any,
+    pm: Any, obs: ReducedObservations, structure: ParameterStructure, **fields: Any
 ) -> EstimationProblem:
-    """The base-coordinate :class:`EstimationProblem` of the reduced rows ``obs`` of the
-    robot ``model`` with parameter model ``pm`` (its structure with the bounding ``ellipsoids``
-    per body, :func:`structure_from_parameter_model`) and further ``fields``."""
+    """The base-coordinate :class:`EstimationProblem` of the reduced rows ``obs`` with the
+    parameter model ``pm`` (base names and map), its ``structure``
+    (:func:`structure_from_parameter_model`) and further ``fields``."""
     return EstimationProblem(
         observations=obs,
         names=tuple(pm.base_names),
-        structure=structure_from_parameter_model(pm, body_link_names(model), ellipsoids),
+        structure=structure,
         base_map=pm.base.projection,
         **fields,
     )
@@ -288,7 +285,8 @@ def consistent_identification_reduced(
     options :
         Options of the estimator (e.g. ``friction``).
     """
-    problem = _problem_of_rows(model, pm, first.merge(last), ellipsoids)
+    structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
+    problem = _problem_of_rows(pm, first.merge(last), structure)
     # the two least-squares estimates, once each (the report compares every estimator)
     estimates = {name: get_estimator(name)(problem) for name in LEAST_SQUARES}
     contract = get_contract(method)
@@ -309,7 +307,7 @@ def consistent_identification_reduced(
         estimates=estimates,
         constrained=constrained,
         regularization=choice,
-        structure=problem.structure,
+        structure=structure,
         seconds=seconds,
         problem=problem,
     )
