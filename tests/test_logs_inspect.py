@@ -251,7 +251,7 @@ def test_identify_checks_the_reading_estimate_before_reading(tmp_path, monkeypat
     def never(*args, **kwargs):
         raise AssertionError("the log was read before its estimate was checked")
 
-    monkeypatch.setattr(ros, "_tables", never)
+    monkeypatch.setattr(ros, "message_tables", never)
     monkeypatch.setenv("IDENT_MAX_HOURS", "1e-6")  # 3.6 ms (1200 messages at 10 us: 12 ms)
     config = REPO / "configs" / "examples" / "mcap.yaml"
     result = runner.invoke(app, ["identify", str(config), "--out", str(tmp_path / "runs")])

@@ -17,6 +17,7 @@ and :meth:`KinematicChain.coupling` projects their torques back (``tau = G^T tau
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -260,9 +261,41 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
         no error: :meth:`ident.Robot.from_urdf` couples a follower on the chain to its leader
         or locks it with its leader, and names what it does not support.)
     """
-    n = model.njoints - 1
-    if n < 1:
+    if model.njoints - 1 < 1:
         raise ModelError(f"model {model.name!r} has no joints; {_FIX_HINT}.")
+    bodies = _body_arrays(model)
+    n_joints = len(bodies["joint_names"])
+    if model.nq != n_joints or model.nv != n_joints:
+        raise ModelError(
+            f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {n_joints} joints; "
+            f"{_FIX_HINT}."
+        )
+    limits = model_limits(model)
+    return KinematicChain(
+        **bodies,
+        gravity=np.array(model.gravity.linear, dtype=float),
+        q_lower=limits.q_lower,
+        q_upper=limits.q_upper,
+        dq_max=limits.dq_max,
+        tau_max=limits.tau_max,
+        unknown=limits.unknown,
+        body_names=tuple(model.names[1:]),
+    )
+
+
+def _body_arrays(model: pin.Model) -> dict[str, Any]:
+    """The per-body fields of :class:`KinematicChain` read from ``model`` (``n`` bodies):
+    ``joint_names`` (the independent joints), ``parents`` (n,), ``placements`` (n, 4, 4),
+    ``axes`` (n, 3), ``prismatic`` (n,) and each body's ``coordinates``, ``scaling`` and
+    ``offset`` (n,) (a mimic joint's: its leader's coordinate, multiplier and offset); every
+    joint checked by :func:`_serial_joint_axis`.
+
+    Raises
+    ------
+    ModelError
+        Naming the offending joint (:func:`chain_from_model`).
+    """
+    n = model.njoints - 1
     names: list[str] = []
     axes = np.zeros((n, 3))
     prismatic = np.zeros(n, dtype=bool)
@@ -281,29 +314,16 @@ def chain_from_model(model: pin.Model) -> KinematicChain:
         axes[i - 1], prismatic[i - 1] = _serial_joint_axis(model, i, int(coordinates[i - 1]))
         placements[i - 1] = model.jointPlacements[i].homogeneous
         parents[i - 1] = int(model.parents[i]) - 1
-    if model.nq != len(names) or model.nv != len(names):
-        raise ModelError(
-            f"model {model.name!r} has nq={model.nq}, nv={model.nv} for {len(names)} joints; "
-            f"{_FIX_HINT}."
-        )
-    limits = model_limits(model)
-    return KinematicChain(
-        joint_names=tuple(names),
-        parents=parents,
-        placements=placements,
-        axes=axes,
-        prismatic=prismatic,
-        gravity=np.array(model.gravity.linear, dtype=float),
-        q_lower=limits.q_lower,
-        q_upper=limits.q_upper,
-        dq_max=limits.dq_max,
-        tau_max=limits.tau_max,
-        unknown=limits.unknown,
-        body_names=tuple(model.names[1:]),
-        coordinates=coordinates,
-        scaling=scaling,
-        offset=offset,
-    )
+    return {
+        "joint_names": tuple(names),
+        "parents": parents,
+        "placements": placements,
+        "axes": axes,
+        "prismatic": prismatic,
+        "coordinates": coordinates,
+        "scaling": scaling,
+        "offset": offset,
+    }
 
 
 def _mimic_axis(model: pin.Model, i: int) -> tuple[np.ndarray, bool] | None:
@@ -414,6 +434,31 @@ def model_limits(model: pin.Model, source: str = "the model") -> JointLimits:
     q_upper = limits(model.upperPositionLimit, iq, np.inf)
     dq_max = limits(model.velocityLimit, iv, np.inf)
     tau_max = limits(model.effortLimit, iv, np.inf)
+    unknown = _unknown_limits(names, (q_lower, q_upper, dq_max, tau_max), source)
+    empty = q_upper == q_lower
+    q_lower[empty], q_upper[empty] = -np.inf, np.inf
+    dq_max[dq_max <= 0.0] = np.inf
+    tau_max[tau_max <= 0.0] = np.inf
+    return JointLimits(
+        names, q_lower, q_upper, dq_max, np.full(len(names), np.inf), tau_max, tuple(unknown)
+    )
+
+
+def _unknown_limits(
+    names: tuple[str, ...],
+    limits: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+    source: str,
+) -> list[UnknownLimit]:
+    """The limits Pinocchio's 0 leaves unknown (:func:`model_limits`): a position range of 0
+    (a URDF without limits gives 0 and 0), a velocity or effort <= 0, in joint order, each
+    blaming ``source``. ``limits`` is ``(q_lower, q_upper, dq_max, tau_max)``, shapes (n,).
+
+    Raises
+    ------
+    ModelError
+        For a joint whose lower position limit is above its upper one.
+    """
+    q_lower, q_upper, dq_max, tau_max = limits
     unknown = []
     for j, name in enumerate(names):
         if q_upper[j] < q_lower[j]:
@@ -427,13 +472,7 @@ def model_limits(model: pin.Model, source: str = "the model") -> JointLimits:
             if values[j] <= 0.0:
                 what = "effort" if kind == "torque" else kind
                 unknown.append(UnknownLimit(kind, name, f"{source} gives no {what} limit"))
-    empty = q_upper == q_lower
-    q_lower[empty], q_upper[empty] = -np.inf, np.inf
-    dq_max[dq_max <= 0.0] = np.inf
-    tau_max[tau_max <= 0.0] = np.inf
-    return JointLimits(
-        names, q_lower, q_upper, dq_max, np.full(len(names), np.inf), tau_max, tuple(unknown)
-    )
+    return unknown
 
 
 def random_states(

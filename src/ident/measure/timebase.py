@@ -204,13 +204,7 @@ def clean_time(
     """
     t = np.asarray(t, dtype=float)
     found = find_anomalies(t)
-    if found.n_nonfinite:
-        k = found.first_nonfinite
-        assert k is not None
-        raise DataError(
-            f"{source}: {found.n_nonfinite} time stamp(s) are NaN or infinite, the first at "
-            f"{place(k, line_numbers)} ({t[k]}); remove or repair those rows."
-        )
+    _refuse_nonfinite(t, found, source, line_numbers)
     index = np.arange(t.size, dtype=np.int64)
     warnings = []
     if found.n_duplicates:
@@ -224,18 +218,7 @@ def clean_time(
         )
     tk = t[index]
     if found.n_backwards:
-        dt = np.diff(tk)
-        cuts = np.flatnonzero(dt < 0) + 1
-        forward = dt[dt > 0]
-        step = float(np.median(forward)) if forward.size else 1.0
-        gap = max(1.0, 2.0 * gap_factor * step, 2.0 * (max_gap_s or 0.0))
-        shift = np.zeros(tk.size)
-        bounds = [0, *cuts.tolist(), tk.size]
-        offset = 0.0
-        for a, b in zip(bounds[1:-1], bounds[2:], strict=True):
-            offset += tk[a - 1] - tk[a] + gap  # part starts gap after the previous end
-            shift[a:b] = offset
-        tk = tk + shift
+        tk = _parts_apart(tk, gap_factor, max_gap_s)
         k = found.first_backwards
         assert k is not None
         warnings.append(
@@ -247,6 +230,39 @@ def clean_time(
     if tk.size < 2:
         raise DataError(f"{source}: fewer than 2 distinct time stamps; the log has no timing.")
     return CleanTime(t=tk, index=index, warnings=tuple(warnings))
+
+
+def _refuse_nonfinite(
+    t: FloatArray, found: TimeAnomalies, source: str, line_numbers: npt.ArrayLike | None
+) -> None:
+    """Raise a DataError naming the count and the first NaN/inf stamp of ``t`` [s], if any
+    (``found`` its anomalies)."""
+    if found.n_nonfinite:
+        k = found.first_nonfinite
+        assert k is not None
+        raise DataError(
+            f"{source}: {found.n_nonfinite} time stamp(s) are NaN or infinite, the first at "
+            f"{place(k, line_numbers)} ({t[k]}); remove or repair those rows."
+        )
+
+
+def _parts_apart(tk: FloatArray, gap_factor: float, max_gap_s: float | None) -> FloatArray:
+    """The distinct stamps ``tk`` [s], (n,), with each part after a backwards jump moved to
+    start a gap after the previous part's end: more than the gap rule of :func:`find_segments`
+    (``gap_factor`` times the median forward step, ``max_gap_s``) and at least 1 s, so that
+    every part becomes its own segment."""
+    dt = np.diff(tk)
+    cuts = np.flatnonzero(dt < 0) + 1
+    forward = dt[dt > 0]
+    step = float(np.median(forward)) if forward.size else 1.0
+    gap = max(1.0, 2.0 * gap_factor * step, 2.0 * (max_gap_s or 0.0))
+    shift = np.zeros(tk.size)
+    bounds = [0, *cuts.tolist(), tk.size]
+    offset = 0.0
+    for a, b in zip(bounds[1:-1], bounds[2:], strict=True):
+        offset += tk[a - 1] - tk[a] + gap  # part starts gap after the previous end
+        shift[a:b] = offset
+    return tk + shift
 
 
 def check_rate(t: FloatArray, source: str, unit: str = "s") -> float:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import functools
+import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -45,6 +46,7 @@ from ident.robot.robot_config import RobotDescription, load_robot_config
 from ident.robot.urdf import dh_frame_in_link, urdf_from_description
 from ident.robot.urdf_load import (
     URDF_INERTIA_RTOL,
+    PreparedURDF,
     build_model,
     chain_locks,
     check_inertials,
@@ -208,32 +210,12 @@ class Robot:
         """
         path = Path(path)
         where = str(path)
-        problem = file_problem(path)
-        if problem is not None:
-            raise ModelError(f"{path}: URDF file {problem}; check the path.")
-        # UTF-8, bounded, no DTD: what every parser of ident (Pinocchio, the write-back) reads
-        text = urdf_file_text(path, package_dirs, where)  # xacro expanded
-        prepared = prepare_urdf(text, where)
-        root, continuous = prepared.root, prepared.continuous
-        model = build_model(prepared.text, where)
-        _unbounded(model, continuous)
-        locked = lock_values(model, lock_joints, where)
-        given = tuple(locked)
-        _lock_off_chain(model, locked, base_link, tip_link, where)
-        locked, coupled = resolve_mimic_locks(read_mimics(root, model, where), locked, given, where)
-        if inertia_check:
-            check_inertials(root, where, moving_links(model, locked))
-        model = coupled_model(locked_model(model, locked, where), coupled, where)
-        robot = cls(model, text, urdf_path=path)
-        robot.unknown_limits = tuple(  # the file says why (Pinocchio only has the 0)
-            UnknownLimit(u.kind, u.joint, prepared.unknown.get((u.kind, u.joint), u.reason))
-            for u in robot.unknown_limits
+        text, prepared, model = _read_urdf(path, package_dirs, where)
+        model, locked, coupled = _moving_chain(
+            model, prepared.root, lock_joints, (base_link, tip_link), inertia_check, where
         )
-        robot.continuous_joints = continuous
-        robot.locked_joints = locked
-        robot._follow_mimics(coupled, where)
-        robot.package_dirs = tuple(str(p) for p in package_dirs)
-        robot._check_serial(where)
+        robot = cls(model, text, urdf_path=path)
+        robot._keep_urdf_facts(prepared, locked, coupled, package_dirs, where)
         return robot
 
     @classmethod
@@ -259,6 +241,27 @@ class Robot:
         robot = cls(model, text, description=description, ddq_max=description.ddq_max)
         robot._check_serial(str(description.source or description.name))
         return robot
+
+    def _keep_urdf_facts(
+        self,
+        prepared: PreparedURDF,
+        locked: dict[str, float],
+        coupled: tuple[Mimic, ...],
+        package_dirs: Sequence[str | Path],
+        where: str,
+    ) -> None:
+        """What :meth:`from_urdf` learnt from the file ``where``: why a limit is unknown (the
+        file says; Pinocchio only has the 0), the continuous, locked and mimic joints and the
+        mesh folders; then the chain is checked to be serial."""
+        self.unknown_limits = tuple(
+            UnknownLimit(u.kind, u.joint, prepared.unknown.get((u.kind, u.joint), u.reason))
+            for u in self.unknown_limits
+        )
+        self.continuous_joints = prepared.continuous
+        self.locked_joints = locked
+        self._follow_mimics(coupled, where)
+        self.package_dirs = tuple(str(p) for p in package_dirs)
+        self._check_serial(where)
 
     def _follow_mimics(self, coupled: tuple[Mimic, ...], where: str) -> None:
         """Keep the chain's mimic joints; narrow their leaders' limits to keep them in range."""
@@ -486,6 +489,58 @@ class Robot:
                 )
             out.append(array)
         return out[0], out[1], out[2]
+
+
+def _read_urdf(
+    path: Path, package_dirs: Sequence[str | Path], where: str
+) -> tuple[str, PreparedURDF, pin.Model]:
+    """The URDF file ``path`` as written (xacro expanded), as Pinocchio reads it
+    (:func:`~ident.robot.urdf_load.prepare_urdf`) and its whole Pinocchio model, the continuous
+    joints without position limit.
+
+    Raises
+    ------
+    ModelError
+        Naming the file, if it is missing or malformed.
+    """
+    problem = file_problem(path)
+    if problem is not None:
+        raise ModelError(f"{path}: URDF file {problem}; check the path.")
+    # UTF-8, bounded, no DTD: what every parser of ident (Pinocchio, the write-back) reads
+    text = urdf_file_text(path, package_dirs, where)  # xacro expanded
+    prepared = prepare_urdf(text, where)
+    model = build_model(prepared.text, where)
+    _unbounded(model, prepared.continuous)
+    return text, prepared, model
+
+
+def _moving_chain(
+    model: pin.Model,
+    root: ET.Element,
+    lock_joints: Mapping[str, float] | Sequence[str] | None,
+    ends: tuple[str | None, str | None],
+    inertia_check: bool,
+    where: str,
+) -> tuple[pin.Model, dict[str, float], tuple[Mimic, ...]]:
+    """The model of the joints that move, ``(model, locked, coupled)``: ``model`` (the whole
+    URDF's, ``root`` its parsed ``<robot>``) without the ``lock_joints``, the joints off the
+    chain ``ends = (base_link, tip_link)`` and the mimic joints of locked leaders
+    (``locked``: name -> position [rad or m]), with the chain's mimic joints ``coupled``; the
+    moving links' inertials checked when ``inertia_check``.
+
+    Raises
+    ------
+    ModelError
+        Naming the file ``where``: an unknown joint or link, an inconsistent inertial, a mimic
+        joint :mod:`ident.robot.mimic` does not support.
+    """
+    locked = lock_values(model, lock_joints, where)
+    given = tuple(locked)
+    _lock_off_chain(model, locked, *ends, where)
+    locked, coupled = resolve_mimic_locks(read_mimics(root, model, where), locked, given, where)
+    if inertia_check:
+        check_inertials(root, where, moving_links(model, locked))
+    return coupled_model(locked_model(model, locked, where), coupled, where), locked, coupled
 
 
 def _lock_off_chain(

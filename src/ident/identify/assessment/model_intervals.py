@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -36,6 +36,10 @@ import scipy.linalg
 from ident.errors import DataError
 from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.estimation.uncertainty import BlockEquations, bootstrap_counts, z_value
+
+if TYPE_CHECKING:  # annotations only: the estimators (cvxpy) are imported when needed
+    from ident.identify.estimators.problem import EstimationProblem
+    from ident.identify.estimators.registry import Estimator
 
 __all__ = [
     "DEFAULT_N_BOOT",
@@ -168,21 +172,8 @@ def model_intervals(
     b = blocks.nonempty()
     counts = bootstrap_counts(b.n_blocks, block_length, n_boot, rng)
     estimator = get_repeated_estimator(identification.method)  # one program, re-solved
-    problem = identification.problem
     t0 = time.perf_counter()
-    n = b.A.shape[1]
-    # every resample's normal equations in one product (one pass over the blocks)
-    A_all = (counts @ b.A.reshape(b.n_blocks, -1)).reshape(len(counts), n, n)
-    c_all, rows_all = counts @ b.c, counts @ b.n_rows
-    samples = []
-    for A, c, rows in zip(A_all, c_all, rows_all, strict=True):
-        try:
-            obs = _reduced(A, c, float(rows))
-        except np.linalg.LinAlgError:  # a resample that does not see every base parameter
-            continue
-        fit = estimator(dataclasses.replace(problem, observations=obs, weights=np.ones(1)))
-        if fit.success and fit.theta is not None:
-            samples.append(np.asarray(fit.theta, dtype=float))
+    samples = _resolved_samples(estimator, identification.problem, b, counts)
     if len(samples) < 2:
         raise DataError(f"model bootstrap: {len(samples)} of {n_boot} re-solves succeeded.")
     return ModelIntervals(
@@ -194,3 +185,26 @@ def model_intervals(
         block_length=int(block_length),
         seconds=time.perf_counter() - t0,
     )
+
+
+def _resolved_samples(
+    estimator: Estimator, problem: EstimationProblem, blocks: BlockEquations, counts: FloatArray
+) -> list[FloatArray]:
+    """The standard parameters of ``estimator`` re-solved on each resample of the non-empty
+    ``blocks`` (``counts`` its multiplicities, shape (n_boot, n_blocks)), ``problem`` the written
+    model's problem; a resample that does not see
+    every base parameter or whose solve fails is left out."""
+    n = blocks.A.shape[1]
+    # every resample's normal equations in one product (one pass over the blocks)
+    A_all = (counts @ blocks.A.reshape(blocks.n_blocks, -1)).reshape(len(counts), n, n)
+    c_all, rows_all = counts @ blocks.c, counts @ blocks.n_rows
+    samples = []
+    for A, c, rows in zip(A_all, c_all, rows_all, strict=True):
+        try:
+            obs = _reduced(A, c, float(rows))
+        except np.linalg.LinAlgError:  # a resample that does not see every base parameter
+            continue
+        fit = estimator(dataclasses.replace(problem, observations=obs, weights=np.ones(1)))
+        if fit.success and fit.theta is not None:
+            samples.append(np.asarray(fit.theta, dtype=float))
+    return samples

@@ -319,6 +319,21 @@ def truth_error(
     return float(worst), None if i is None else str(names[i]), int(sum(m["major"]))
 
 
+def _worst_carrying_std(est: Any, rel: FloatArray) -> tuple[float | None, str | None]:
+    """The largest relative standard deviation [%] ``rel`` (shape (n_base,)) among the base
+    parameters of ``est`` that carry a major share of the torques (every one when the shares are
+    not finite), and its name; ``(None, None)`` when none carries one."""
+    x = np.asarray(est.x, dtype=float)
+    # the ordinary covariance's inverse is the Gram matrix of the rows: shares, not a σ
+    shares = covariance_torque_shares(x, np.asarray(getattr(est, "covariance", ()), dtype=float))
+    carrying = shares >= MAJOR_SHARE if np.all(np.isfinite(shares)) else np.ones(x.size, bool)
+    if not carrying.any():
+        return None, None
+    rel_c = np.where(np.isfinite(rel[carrying]), rel[carrying], np.inf)
+    k = int(np.argmax(rel_c))
+    return float(rel_c[k]), str(np.asarray(est.names)[carrying][k])
+
+
 def log_evidence(
     result: Any,
     *,
@@ -345,16 +360,7 @@ def log_evidence(
     est = result.estimate
     x = np.asarray(est.x, dtype=float)
     sd = parameter_std(est, getattr(result, "uncertainty", None))
-    rel = sd.relative_std
-    # the ordinary covariance's inverse is the Gram matrix of the rows: shares, not a σ
-    shares = covariance_torque_shares(x, np.asarray(getattr(est, "covariance", ()), dtype=float))
-    carrying = shares >= MAJOR_SHARE if np.all(np.isfinite(shares)) else np.ones(x.size, bool)
-    worst_std, worst_std_name = None, None
-    if carrying.any():
-        rel_c = np.where(np.isfinite(rel[carrying]), rel[carrying], np.inf)
-        k = int(np.argmax(rel_c))
-        worst_std = float(rel_c[k])
-        worst_std_name = str(np.asarray(est.names)[carrying][k])
+    worst_std, worst_std_name = _worst_carrying_std(est, sd.relative_std)
     method = judged_method(result)
     pred = result.predictions.get(method, result.predictions.get("identified"))
     nominal = result.predictions.get("URDF nominal")

@@ -29,7 +29,7 @@ whose true gains were within 3 % of 1).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -226,18 +226,11 @@ def estimate_gains(
     DataError
         If ``Y`` is rank deficient on the kept rows.
     """
-    n, nv, _ = Y.shape
+    nv = Y.shape[1]
     used = range(nv) if joints is None else {*joints, reference_joint}
     others = np.array([j for j in sorted(used) if j != reference_joint], dtype=np.intp)
-    rows = np.ones((n, nv), bool) if keep is None else np.asarray(keep, bool).copy()
-    rows[:, [j for j in range(nv) if j not in used]] = False
-    rows = rows.reshape(-1)
-    joint_of_row = np.tile(np.arange(nv), n)[rows]
-    A = Y.reshape(n * nv, -1)[rows]
-    acting = np.any(A != 0.0, axis=0)  # columns of the unused joints' own parameters drop
-    A = A[:, acting]
+    A, y, joint_of_row, acting = _gain_rows(Y, tau, used, keep)
     p = A.shape[1]
-    y = np.asarray(tau, float).reshape(-1)[rows]
 
     def gains_of(x: FloatArray) -> FloatArray:
         g = np.full(nv, np.nan)
@@ -245,7 +238,7 @@ def estimate_gains(
         g[others] = x
         return g
 
-    def solve(x: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def solve(x: FloatArray) -> tuple[npt.NDArray[np.floating], npt.NDArray[np.floating]]:
         Ag = A * gains_of(x)[joint_of_row][:, None]
         theta, _, rank, _ = np.linalg.lstsq(Ag, y, rcond=None)
         if rank < p:
@@ -257,3 +250,21 @@ def estimate_gains(
         theta = np.full(acting.size, np.nan)
         theta[acting] = solve(result.x)[1]
     return GainEstimate(gains=gains_of(result.x), theta=theta)
+
+
+def _gain_rows(
+    Y: FloatArray, tau: FloatArray, used: Collection[int], keep: BoolArray | None
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.intp], BoolArray]:
+    """The kept rows of the ``used`` joints stacked: ``(A, y, joint_of_row, acting)``, the
+    regressor rows on the columns acting on them, shape (m, p'), the measured torques, shape
+    (m,), each row's joint, shape (m,), and which of the ``p`` columns of ``Y`` act, shape (p,)
+    (``Y`` shape (n, nv, p), ``tau`` and ``keep`` shape (n, nv))."""
+    n, nv, _ = Y.shape
+    rows = np.ones((n, nv), bool) if keep is None else np.asarray(keep, bool).copy()
+    rows[:, [j for j in range(nv) if j not in used]] = False
+    rows = rows.reshape(-1)
+    joint_of_row = np.tile(np.arange(nv), n)[rows]
+    A = Y.reshape(n * nv, -1)[rows]
+    acting = np.any(A != 0.0, axis=0)  # columns of the unused joints' own parameters drop
+    y = np.asarray(tau, float).reshape(-1)[rows]
+    return A[:, acting], y, joint_of_row, acting

@@ -123,14 +123,7 @@ def measured_motion(
         If the log is too short for the anti-aliasing filter.
     """
     factor = decimation_factor(sampling_rate_hz, max_rate_hz)
-    fs = sampling_rate_hz / factor
     arrays = [antialiased(x, sampling_rate_hz, max_rate_hz) for x in (q, dq, ddq, tau)]
-    how = "no decimation needed"
-    if factor > 1:
-        how = (
-            f"zero-phase Butterworth order {_ANTIALIAS_ORDER} at {_cutoff_hz(fs):g} Hz, then "
-            f"every {factor}th sample"
-        )
     q_d, dq_d, ddq_d, tau_d = arrays
     t_d = np.asarray(t[::factor], dtype=float)
     trajectory = JointTrajectory(
@@ -141,11 +134,27 @@ def measured_motion(
         joint_names=tuple(joint_names),
         tau=np.ascontiguousarray(tau_d),
     )
-    record = {
+    sizes = (q.shape[0], q_d.shape[0])
+    return trajectory, _motion_record(sizes, t_d, sampling_rate_hz, factor)
+
+
+def _motion_record(
+    sizes: tuple[int, int], t_d: FloatArray, sampling_rate_hz: float, factor: int
+) -> dict:
+    """The report's record of :func:`measured_motion`: ``sizes[0]`` samples at
+    ``sampling_rate_hz`` [Hz] decimated by ``factor`` to ``sizes[1]`` samples at the times
+    ``t_d`` [s]."""
+    fs = sampling_rate_hz / factor
+    how = "no decimation needed"
+    if factor > 1:
+        how = (
+            f"zero-phase Butterworth order {_ANTIALIAS_ORDER} at {_cutoff_hz(fs):g} Hz, then "
+            f"every {factor}th sample"
+        )
+    return {
         "step": "measured motion",
         "detail": f"processed q, dq, ddq and measured torques, {how}: "
-        f"{q.shape[0]} -> {q_d.shape[0]} samples, "
+        f"{sizes[0]} -> {sizes[1]} samples, "
         f"{sampling_rate_hz:g} -> {fs:g} Hz, {t_d[0]:.3f}..{t_d[-1]:.3f} s "
         "(trajectory.csv and replay.html; not used to identify)",
     }
-    return trajectory, record

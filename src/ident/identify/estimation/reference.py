@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -205,13 +206,9 @@ def compare_with_reference(
     row, a sum's included (``sqrt(w @ C @ w)``), comes from it and ``std_method`` names it. The
     reference's own column is whatever the reference printed (an ordinary σ for a published OLS/WLS
     table)."""
-    base = pm.base
-    projection = base.projection
-    base_names = pm.base_names
     coupled = coupling_convention_map(pm)
     rows = []
     for ref in reference:
-        vector = expression_to_vector(ref.terms, pm.names)
         ref_value, ref_rel = ref.value(column)
         row = {
             "reference": ref.expression,
@@ -224,31 +221,7 @@ def compare_with_reference(
             "match": "none",
             "nominal": None,
         }
-        if ref.lead in coupled:
-            members = [base_names.index(n) for n in coupled[ref.lead] if n in base_names]
-            if len(members) == len(coupled[ref.lead]):
-                weights = np.zeros(len(base_names))
-                weights[members] = 1.0
-                value = float(weights @ est.x)
-                std = float(np.sqrt(weights @ sd.covariance @ weights))
-                row.update(
-                    ours=" + ".join(coupled[ref.lead]),
-                    value=value,
-                    relative_std_pct=100.0 * std / abs(value) if value else float("inf"),
-                    match="coupling basis",
-                )
-        elif vector is not None:
-            for k in range(projection.shape[0]):
-                scale = np.max(np.abs(projection[k]))
-                if np.allclose(projection[k], vector, atol=2e-4 * max(scale, 1.0), rtol=1e-3):
-                    row.update(
-                        ours=base_names[k],
-                        value=float(est.x[k]),
-                        relative_std_pct=float(sd.relative_std[k]),
-                        match="same expression",
-                        nominal=float(projection[k] @ pm.nominal),
-                    )
-                    break
+        row.update(_match(pm, est, sd, ref, coupled))
         rows.append(row)
     note = (
         f"Reference values: the '{column}' column. Values are compared where the reference "
@@ -258,6 +231,50 @@ def compare_with_reference(
         "'fv_j + fvm', 'Ia_j + Iam'."
     )
     return rows, note
+
+
+def _match(
+    pm: ParameterModel,
+    est: Estimate,
+    sd: ParameterStd,
+    reference: ReferenceParameter,
+    coupled: dict[str, list[str]],
+) -> dict[str, Any]:
+    """The fields of ``reference``'s comparison row that name our matching base parameter
+    (``ours``, ``value``, ``relative_std_pct``, ``match``, and ``nominal`` for the same
+    expression), or ``{}`` when none matches: a sum of ours for a coupled-wrist parameter
+    (``coupled``, :func:`coupling_convention_map`), else the base parameter whose expression
+    equals the reference's (coefficients within 2e-4)."""
+    base_names = pm.base_names
+    if reference.lead in coupled:
+        members = [base_names.index(n) for n in coupled[reference.lead] if n in base_names]
+        if len(members) != len(coupled[reference.lead]):
+            return {}
+        weights = np.zeros(len(base_names))
+        weights[members] = 1.0
+        value = float(weights @ est.x)
+        std = float(np.sqrt(weights @ sd.covariance @ weights))
+        return {
+            "ours": " + ".join(coupled[reference.lead]),
+            "value": value,
+            "relative_std_pct": 100.0 * std / abs(value) if value else float("inf"),
+            "match": "coupling basis",
+        }
+    vector = expression_to_vector(reference.terms, pm.names)
+    if vector is None:
+        return {}
+    projection = pm.base.projection
+    for k in range(projection.shape[0]):
+        scale = np.max(np.abs(projection[k]))
+        if np.allclose(projection[k], vector, atol=2e-4 * max(scale, 1.0), rtol=1e-3):
+            return {
+                "ours": base_names[k],
+                "value": float(est.x[k]),
+                "relative_std_pct": float(sd.relative_std[k]),
+                "match": "same expression",
+                "nominal": float(projection[k] @ pm.nominal),
+            }
+    return {}
 
 
 @dataclass(frozen=True, eq=False)

@@ -156,16 +156,8 @@ def scaled_problem(problem: EstimationProblem, method: str) -> ScaledProblem:
     ):
         if value not in allowed:
             raise DataError(f"{method}: option {name} = {value!r}; use one of {allowed}.")
-    obs = problem.observations
-    if problem.weights is not None:
-        weights = np.asarray(problem.weights, dtype=float)
-        with np.errstate(divide="ignore"):
-            sigma = np.where(weights > 0, 1.0 / weights, np.inf)
-    else:
-        wls = least_squares_reduced(obs, problem.names, method="wls", wls_passes=problem.wls_passes)
-        sigma = np.asarray(wls.sigma, dtype=float)
-        weights = np.where(obs.n_rows > 0, 1.0 / sigma, 0.0)
-    Rs, zs = obs.stacked(weights)
+    weights, sigma = _group_weights(problem)
+    Rs, zs = problem.observations.stacked(weights)
     scale = structure.scales()
     K = problem.K
     RK = Rs @ K
@@ -173,20 +165,7 @@ def scaled_problem(problem: EstimationProblem, method: str) -> ScaledProblem:
     A = RK * scale[None, :] / root_m
     b = (zs - RK @ structure.nominal) / root_m
     prior = structure.prior_weights() * scale
-    G = np.eye(structure.n_std)
-    if directions == "unseen":
-        # rows spanning the null space of K S: the directions no data see
-        _, s, Vt = np.linalg.svd(K * scale[None, :])
-        rank = int(np.sum(s > s[0] * max(K.shape) * np.finfo(float).eps)) if s.size else 0
-        G = Vt[rank:]
-    floor = float(problem.options.get("prior_floor", PRIOR_FLOOR))
-    inertial = np.flatnonzero(prior)
-    prior_rows = np.vstack(
-        [
-            np.sqrt(floor) * np.diag(prior)[inertial],
-            np.sqrt(float(problem.regularization)) * G * prior[None, :],
-        ]
-    )
+    prior_rows = _prior_rows(problem, K, scale, prior, directions)
     fixed = np.zeros(0, dtype=np.intp)
     fixed_theta = np.zeros(0)
     if friction == "least_squares" and structure.friction.size:
@@ -201,6 +180,45 @@ def scaled_problem(problem: EstimationProblem, method: str) -> ScaledProblem:
         scale=scale,
         sigma=sigma,
         structure=structure,
+    )
+
+
+def _group_weights(problem: EstimationProblem) -> tuple[FloatArray, FloatArray]:
+    """The row weight of each group of ``problem``'s rows and the noise standard deviation
+    behind it [N*m], shapes (n_groups,): ``problem.weights`` when given (``inf`` where the
+    weight is 0), else ``1 / sigma`` of its WLS estimate (0 for a group without rows)."""
+    obs = problem.observations
+    if problem.weights is not None:
+        weights = np.asarray(problem.weights, dtype=float)
+        with np.errstate(divide="ignore"):
+            sigma = np.where(weights > 0, 1.0 / weights, np.inf)
+    else:
+        wls = least_squares_reduced(obs, problem.names, method="wls", wls_passes=problem.wls_passes)
+        sigma = np.asarray(wls.sigma, dtype=float)
+        weights = np.where(obs.n_rows > 0, 1.0 / sigma, 0.0)
+    return weights, sigma
+
+
+def _prior_rows(
+    problem: EstimationProblem, K: FloatArray, scale: FloatArray, prior: FloatArray, directions: str
+) -> FloatArray:
+    """``M`` of :class:`ScaledProblem`: the floor ``sqrt(lambda_0) P`` on every inertial
+    direction over ``sqrt(lambda) G P``, ``G`` the identity or, with ``directions ==
+    "unseen"``, rows spanning the null space of ``K S`` (the directions no data see); ``scale``
+    is ``S`` and ``prior`` the diagonal of ``P``, shapes (n_std,), ``K`` ``problem.K``."""
+    G = np.eye(prior.size)
+    if directions == "unseen":
+        # rows spanning the null space of K S: the directions no data see
+        _, s, Vt = np.linalg.svd(K * scale[None, :])
+        rank = int(np.sum(s > s[0] * max(K.shape) * np.finfo(float).eps)) if s.size else 0
+        G = Vt[rank:]
+    floor = float(problem.options.get("prior_floor", PRIOR_FLOOR))
+    inertial = np.flatnonzero(prior)
+    return np.vstack(
+        [
+            np.sqrt(floor) * np.diag(prior)[inertial],
+            np.sqrt(float(problem.regularization)) * G * prior[None, :],
+        ]
     )
 
 

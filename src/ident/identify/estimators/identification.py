@@ -194,10 +194,20 @@ def problem_from_states(
     """
     Y = standard_regressor(model, pm, q, dq, ddq)
     obs = ReducedObservations.from_samples(Y[:, :, pm.base.independent], tau)
+    structure = structure_from_parameter_model(pm, body_link_names(model))
+    return _problem_of_rows(pm, obs, structure, **fields)
+
+
+def _problem_of_rows(
+    pm: Any, obs: ReducedObservations, structure: ParameterStructure, **fields: Any
+) -> EstimationProblem:
+    """The base-coordinate :class:`EstimationProblem` of the reduced rows ``obs`` with the
+    parameter model ``pm`` (base names and map), its ``structure``
+    (:func:`structure_from_parameter_model`) and further ``fields``."""
     return EstimationProblem(
         observations=obs,
         names=tuple(pm.base_names),
-        structure=structure_from_parameter_model(pm, body_link_names(model)),
+        structure=structure,
         base_map=pm.base.projection,
         **fields,
     )
@@ -276,13 +286,7 @@ def consistent_identification_reduced(
         Options of the estimator (e.g. ``friction``).
     """
     structure = structure_from_parameter_model(pm, body_link_names(model), ellipsoids)
-    obs = first.merge(last)
-    problem = EstimationProblem(
-        observations=obs,
-        names=tuple(pm.base_names),
-        structure=structure,
-        base_map=pm.base.projection,
-    )
+    problem = _problem_of_rows(pm, first.merge(last), structure)
     # the two least-squares estimates, once each (the report compares every estimator)
     estimates = {name: get_estimator(name)(problem) for name in LEAST_SQUARES}
     contract = get_contract(method)
@@ -291,16 +295,9 @@ def consistent_identification_reduced(
     seconds = 0.0
     if not contract.least_squares:
         t0 = time.perf_counter()
-        weights = 1.0 / np.asarray(estimates["wls"].sigma)
-        problem = dataclasses.replace(problem, weights=np.where(obs.n_rows > 0, weights, 0.0))
-        if options:
-            problem = dataclasses.replace(problem, options=dict(options))
-        if contract.needs_prior and weight == "auto":
-            first_problem = dataclasses.replace(problem, observations=first)
-            choice = choose_regularization(first_problem, last, method=method, grid=grid)
-            weight = choice.weight
-        if contract.needs_prior:
-            problem = dataclasses.replace(problem, regularization=float(weight))
+        problem, choice = _configured_problem(
+            problem, estimates["wls"], (first, last), method, weight, grid, options
+        )
         constrained = get_estimator(method)(problem)
         estimates[method] = constrained
         seconds = time.perf_counter() - t0
@@ -314,3 +311,33 @@ def consistent_identification_reduced(
         seconds=seconds,
         problem=problem,
     )
+
+
+def _configured_problem(
+    problem: EstimationProblem,
+    wls: Estimate,
+    parts: tuple[ReducedObservations, ReducedObservations],
+    method: str,
+    weight: float | str,
+    grid: tuple[float, ...],
+    options: dict[str, Any] | None,
+) -> tuple[EstimationProblem, RegularizationChoice | None]:
+    """The problem of the configured (not least-squares) estimator ``method``: ``problem``'s rows
+    WLS-weighted (``1 / sigma_j`` of ``wls``, 0 for a joint without rows), with ``options``, and
+    with the prior weight when the contract needs a prior (``weight``, or chosen on ``grid`` with
+    the later rows of ``parts`` held out when ``"auto"``); and that choice, or None."""
+    contract = get_contract(method)
+    first, last = parts
+    weights = 1.0 / np.asarray(wls.sigma)
+    n_rows = problem.observations.n_rows
+    problem = dataclasses.replace(problem, weights=np.where(n_rows > 0, weights, 0.0))
+    if options:
+        problem = dataclasses.replace(problem, options=dict(options))
+    choice = None
+    if contract.needs_prior and weight == "auto":
+        first_problem = dataclasses.replace(problem, observations=first)
+        choice = choose_regularization(first_problem, last, method=method, grid=grid)
+        weight = choice.weight
+    if contract.needs_prior:
+        problem = dataclasses.replace(problem, regularization=float(weight))
+    return problem, choice

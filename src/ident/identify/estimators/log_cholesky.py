@@ -39,7 +39,11 @@ from ident.identify.estimators.constrained import (
     scaled_problem,
     single_threaded_blas,
 )
-from ident.identify.estimators.problem import EstimationProblem, result_from_theta
+from ident.identify.estimators.problem import (
+    EstimationProblem,
+    ParameterStructure,
+    result_from_theta,
+)
 from ident.identify.estimators.registry import Contract, register_estimator
 
 __all__ = ["log_cholesky", "log_cholesky_from_parameters", "parameters_from_log_cholesky"]
@@ -107,10 +111,8 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
     sp = scaled_problem(problem, "log_cholesky")
     structure = sp.structure
     n_std = structure.n_std
-    bodies = structure.bodies
-    inertial = bodies.reshape(-1)
-    nonnegative = structure.nonnegative
-    free = np.setdiff1d(np.setdiff1d(np.arange(n_std), inertial), nonnegative)
+    inertial = structure.bodies.reshape(-1)
+    free = np.setdiff1d(np.setdiff1d(np.arange(n_std), inertial), structure.nonnegative)
     weight = problem.regularization
     # prior rows M u with u = (theta - nominal) / scale
     G = sp.prior_rows / sp.scale[None, :]
@@ -126,32 +128,56 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         v[active] = v_active
         return v
 
-    def theta_and_jacobian(v: FloatArray) -> tuple[FloatArray, FloatArray]:
-        theta = np.empty(n_std)
-        jac = np.zeros((n_std, n_std))
-        for index in bodies:
-            lc = pin.LogCholeskyParameters(v[index])
-            theta[index] = lc.toDynamicParameters()
-            jac[np.ix_(index, index)] = lc.calculateJacobian()
-        theta[nonnegative] = v[nonnegative] ** 2
-        jac[nonnegative, nonnegative] = 2.0 * v[nonnegative]
-        theta[free] = v[free]
-        jac[free, free] = 1.0
-        return theta, jac
-
     def residual(v_active: FloatArray) -> FloatArray:
-        theta, _ = theta_and_jacobian(full(v_active))
+        theta, _ = _theta_and_jacobian(full(v_active), structure, free)
         return np.concatenate([A_theta @ theta - b_theta, G @ (theta - structure.nominal)])
 
     def jacobian(v_active: FloatArray) -> FloatArray:
-        _, jac = theta_and_jacobian(full(v_active))
+        _, jac = _theta_and_jacobian(full(v_active), structure, free)
         jac = jac[:, active]
         return np.vstack([A_theta @ jac, G @ jac])
 
     # a trial step may overflow exp(); the trust region then shrinks it (not an error)
     with np.errstate(over="ignore", invalid="ignore"):
         solution = _solve(residual, jacobian, v0[active], problem)
-    theta, _ = theta_and_jacobian(full(solution.x))
+    theta, _ = _theta_and_jacobian(full(solution.x), structure, free)
+    success, message = _outcome(solution, theta)
+    return result_from_theta(
+        problem,
+        theta,
+        method="log_cholesky",
+        sigma=sp.sigma,
+        success=success,
+        message=message,
+        regularization=weight,
+    )
+
+
+def _theta_and_jacobian(
+    v: FloatArray, structure: ParameterStructure, free: npt.NDArray[np.intp]
+) -> tuple[FloatArray, FloatArray]:
+    """The standard parameters of the log-Cholesky variables ``v`` and their Jacobian
+    ``d theta / d v``, shapes (n_std,) and (n_std, n_std): each body's 10 through
+    :class:`pinocchio.LogCholeskyParameters`, the nonnegative ones (friction) squared, the
+    ``free`` ones as they are."""
+    n_std = structure.n_std
+    nonnegative = structure.nonnegative
+    theta = np.empty(n_std)
+    jac = np.zeros((n_std, n_std))
+    for index in structure.bodies:
+        lc = pin.LogCholeskyParameters(v[index])
+        theta[index] = lc.toDynamicParameters()
+        jac[np.ix_(index, index)] = lc.calculateJacobian()
+    theta[nonnegative] = v[nonnegative] ** 2
+    jac[nonnegative, nonnegative] = 2.0 * v[nonnegative]
+    theta[free] = v[free]
+    jac[free, free] = 1.0
+    return theta, jac
+
+
+def _outcome(solution: Any, theta: FloatArray) -> tuple[bool, str]:
+    """Whether the solver's ``solution`` (``scipy.optimize.least_squares``) with the standard
+    parameters ``theta`` is an estimate, and the message saying how it ended."""
     # Every finite point of the parametrization is consistent, so an estimate stopped by the
     # evaluation budget is usable: that happens when the optimum lies on the consistency
     # boundary (a degenerate body), which the parametrization reaches only asymptotically.
@@ -163,15 +189,7 @@ def _log_cholesky(problem: EstimationProblem) -> Estimate:
         )
     else:
         message = "ok" if success else f"log-Cholesky: {solution.message}"
-    return result_from_theta(
-        problem,
-        theta,
-        method="log_cholesky",
-        sigma=sp.sigma,
-        success=success,
-        message=message,
-        regularization=weight,
-    )
+    return success, message
 
 
 def _start(problem: EstimationProblem, sp: Any, free: npt.NDArray[np.intp]) -> FloatArray:

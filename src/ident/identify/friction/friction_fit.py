@@ -266,34 +266,10 @@ def _fit(
     success, message, nfev = True, "linear model: one least-squares solve", 1
     ambiguous = ""
     if not model.is_linear:
-        assert model.initial is not None  # checked by register_friction_model
-        initial = np.asarray(model.initial(rows.dq), dtype=float)
-
-        def cost(x: FloatArray) -> float:
-            return float(np.sum(solve(decode(x))[0] ** 2))
-
-        x_best = _scanned_start(cost, initial, positive, rows.joints)
-        # positive parameters within a factor _RANGE of their start: past the velocities seen,
-        # a Stribeck velocity makes its column a copy of the Coulomb one (a flat direction)
-        span = np.where(np.tile(positive, nv), np.log(_RANGE), np.inf)
-        x_start = initial.copy()
-        x_start[:, positive] = np.log(initial[:, positive])
-        bounds = (x_start.reshape(-1) - span, x_start.reshape(-1) + span)
-        x_best = np.clip(x_best, *bounds)
-        # steps from the scan's best, the first trust region 0.1 wide (in log scale: 10 %);
-        # from x_best itself the first region is |x_best| wide and left the scan's basin
-        result = least_squares(
-            lambda dx: solve(decode(x_best + dx))[0],
-            np.zeros_like(x_best),
-            bounds=(bounds[0] - x_best, bounds[1] - x_best),
-            method="trf",
-            x_scale=_STEP,
-            max_nfev=400,
+        x, success, message, nfev, ambiguous = _nonlinear_search(
+            model, rows, lambda x: solve(decode(x))[0]
         )
-        p0 = decode(x_best + result.x)
-        success, message, nfev = bool(result.success), str(result.message), int(result.nfev)
-        nfev += _SCAN.size + _JOINT_SCAN.size * (_SWEEPS + 1) * len(rows.joints)
-        ambiguous = _ambiguity(cost, x_best + result.x, initial, model, rows.joints)
+        p0 = decode(x)
     r, c, Fw = solve(p0 if p0.size else np.zeros((nv, 0)))
     rest = np.linalg.solve(R, Q.T @ (y - Fw @ c)) if W.shape[1] else np.zeros(0)
     linear = np.zeros((nv, len(model.linear)))
@@ -313,6 +289,49 @@ def _fit(
     pred = predict_friction_rows(fit, rows)
     total = prediction_metrics(rows.tau, pred, rows.keep).total_relative_residual
     return FrictionFit(**{**fit.__dict__, "fit_residual": float(total)})
+
+
+def _nonlinear_search(
+    model: FrictionModel, rows: FrictionRows, residual: Callable[[FloatArray], FloatArray]
+) -> tuple[FloatArray, bool, str, int, str]:
+    """The nonlinear parameters of a nonlinear ``model`` minimising ``||residual(x)||``:
+    ``(x, success, message, nfev, ambiguous)``, ``x`` shape (nv * n_nonlinear,) with the
+    positive parameters on a log scale, the solver's outcome, the cost evaluations (the scans'
+    included) and why the minimum is not determined (or "", :func:`_ambiguity`).
+
+    Started from the best of the scans of :func:`_scanned_start`, then
+    ``scipy.optimize.least_squares`` with each positive parameter within a factor
+    :data:`_RANGE` of ``model.initial``. ``residual`` is the projected residual of the whole
+    fit for ``x`` (the linear parameters eliminated, module docstring)."""
+    assert model.initial is not None  # checked by register_friction_model
+    nv = rows.tau.shape[1]
+    positive = np.asarray(model.positive, dtype=bool)
+    initial = np.asarray(model.initial(rows.dq), dtype=float)
+
+    def cost(x: FloatArray) -> float:
+        return float(np.sum(residual(x) ** 2))
+
+    x_best = _scanned_start(cost, initial, positive, rows.joints)
+    # positive parameters within a factor _RANGE of their start: past the velocities seen,
+    # a Stribeck velocity makes its column a copy of the Coulomb one (a flat direction)
+    span = np.where(np.tile(positive, nv), np.log(_RANGE), np.inf)
+    x_start = initial.copy()
+    x_start[:, positive] = np.log(initial[:, positive])
+    bounds = (x_start.reshape(-1) - span, x_start.reshape(-1) + span)
+    x_best = np.clip(x_best, *bounds)
+    # steps from the scan's best, the first trust region 0.1 wide (in log scale: 10 %);
+    # from x_best itself the first region is |x_best| wide and left the scan's basin
+    result = least_squares(
+        lambda dx: residual(x_best + dx),
+        np.zeros_like(x_best),
+        bounds=(bounds[0] - x_best, bounds[1] - x_best),
+        method="trf",
+        x_scale=_STEP,
+        max_nfev=400,
+    )
+    nfev = int(result.nfev) + _SCAN.size + _JOINT_SCAN.size * (_SWEEPS + 1) * len(rows.joints)
+    ambiguous = _ambiguity(cost, x_best + result.x, initial, model, rows.joints)
+    return x_best + result.x, bool(result.success), str(result.message), nfev, ambiguous
 
 
 def _ambiguity(

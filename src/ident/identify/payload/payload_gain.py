@@ -28,7 +28,7 @@ standard deviation (from the fit's Jacobian, white-noise assumption) is about
 accelerations, a last joint about which the payload's centre of mass lies) has no gain here.
 
 Rows come from the one preprocessing of every identification
-(:func:`ident.identify.payload.payload.payload_observations`, chunked, reduced per joint).
+(:func:`ident.identify.payload.payload_rows.payload_observations`, chunked, reduced per joint).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from ident.errors import DataError
 from ident.identify.config import PreprocessConfig
 from ident.identify.estimation.accumulate import BaseColumns
 from ident.identify.estimation.observations import ReducedObservations
-from ident.identify.payload.payload import payload_observations
+from ident.identify.payload.payload_rows import payload_observations
 from ident.measure.logs import RobotLog
 
 __all__ = ["GainColumns", "PayloadGains", "estimate_payload_gains", "payload_gain_observations"]
@@ -63,7 +63,7 @@ class GainColumns:
     The arm's columns are the base parameters of ``pm`` (inertial and extra terms,
     :class:`ident.identify.estimation.accumulate.BaseColumns`); the payload's the last body's 10
     standard columns, zero when ``with_payload`` is False; the last column is zero (no known
-    torque is subtracted: :func:`ident.identify.payload.payload.payload_observations`).
+    torque is subtracted: :func:`ident.identify.payload.payload_rows.payload_observations`).
     """
 
     def __init__(self, chain: KinematicChain, pm: ParameterModel, *, with_payload: bool) -> None:
@@ -163,6 +163,33 @@ def _joint_rows(
     return C, r, float(red.rho[j]), int(red.n_rows[j]) - rank - rank_c
 
 
+def _loaded_rows(
+    red: ReducedObservations, n_arm: int
+) -> list[tuple[int, FloatArray, FloatArray, float]]:
+    """``(j, C_j / s_j, r_j / s_j, s_j)`` of each joint ``j`` whose rows the payload loads
+    (:func:`_joint_rows`), ``s_j`` the noise of its own least-squares fit ``C_j psi = r_j``
+    [N*m], so that every joint's rows weigh alike.
+
+    Raises
+    ------
+    DataError
+        If no joint's row carries the payload, or too few rows to estimate the noise.
+    """
+    rows: list[tuple[int, FloatArray, FloatArray, float]] = []
+    for j in range(red.n_groups):
+        C, r, rho, dof = _joint_rows(red, j, n_arm)
+        if not np.any(C):
+            continue
+        if dof <= 0:
+            raise DataError(f"torque gains: joint {j + 1} has too few rows ({red.n_rows[j]}).")
+        psi = np.linalg.lstsq(C, r, rcond=None)[0]
+        noise = float(np.sqrt((np.sum((C @ psi - r) ** 2) + rho) / dof))
+        rows.append((j, C / noise, r / noise, noise))
+    if not rows:
+        raise DataError("torque gains: the payload's columns act on no joint's rows.")
+    return rows
+
+
 def estimate_payload_gains(red: ReducedObservations, n_arm: int, mass: float) -> PayloadGains:
     """Per-joint torque gains and the payload from reduced rows ``[arm | payload]``.
 
@@ -182,18 +209,7 @@ def estimate_payload_gains(red: ReducedObservations, n_arm: int, mass: float) ->
         If no joint's row carries the payload, or too few rows to estimate the noise.
     """
     nv = red.n_groups
-    rows: list[tuple[int, FloatArray, FloatArray, float]] = []
-    for j in range(nv):
-        C, r, rho, dof = _joint_rows(red, j, n_arm)
-        if not np.any(C):
-            continue
-        if dof <= 0:
-            raise DataError(f"torque gains: joint {j + 1} has too few rows ({red.n_rows[j]}).")
-        psi = np.linalg.lstsq(C, r, rcond=None)[0]
-        noise = float(np.sqrt((np.sum((C @ psi - r) ** 2) + rho) / dof))
-        rows.append((j, C / noise, r / noise, noise))
-    if not rows:
-        raise DataError("torque gains: the payload's columns act on no joint's rows.")
+    rows = _loaded_rows(red, n_arm)
     loaded = np.array([j for j, *_ in rows], dtype=np.intp)
     k = loaded.size
 

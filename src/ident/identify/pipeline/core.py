@@ -45,7 +45,7 @@ from ident.errors import ConfigError, DataError
 from ident.identify.assessment.identifiability import Identifiability, standard_identifiability
 from ident.identify.assessment.model_intervals import ModelIntervals, model_intervals
 from ident.identify.assessment.verdict import truth_from_config
-from ident.identify.config import FilterConfig, IdentifyConfig, PreprocessConfig
+from ident.identify.config import IdentifyConfig, PreprocessConfig
 from ident.identify.estimation import accumulate, log_chunks, preprocess
 from ident.identify.estimation.essential import EssentialResult
 from ident.identify.estimation.estimate import Estimate
@@ -92,6 +92,7 @@ from ident.identify.pipeline.estimates import (
     reference_comparisons,
     run_estimators,
 )
+from ident.identify.pipeline.records import preprocess_records, row_records
 from ident.measure.logs import RobotLog
 from ident.model.selection import load_robot
 from ident.robot.mimic import reject_coupled_chain
@@ -288,23 +289,15 @@ def _identify(
     timings: dict[str, float] = {"read": read_s}
     t0 = time.perf_counter() - read_s
     source = str(cfg.source or "config")
-    model = model if model is not None else load_robot(cfg.robot, source=source).model
-    joints = _check_joints(log, model, source)
-    ellipsoids = _ellipsoids(cfg, model, source)
-    cfg, log, auto_warnings = _resolve_settings(cfg, log)
-    # the processing's records check its settings (cutoff below Nyquist...) before any chunk
-    processing = [
-        *log.records,
-        *_preprocess_records(
-            cfg.preprocess, log.sampling_rate_hz, model.nv, source, states=log.ddq is not None
-        ),
-    ]
+    cfg, log, model, joints, ellipsoids, auto_warnings, processing = _checked_inputs(
+        cfg, log, model, source
+    )
     with _timed(timings, "base_parameters"):
         pm = parameters if parameters is not None else _parameter_model(cfg, model, source, rng)
     with _timed(timings, "accumulate"):
         reference = _reference(cfg, pm)
         chunked, first, last, red = _accumulate(cfg, log, model, pm, reference, scheduler)
-    records = [*processing, log_chunks.chunk_record(chunked, red), *_row_records(cfg, chunked, red)]
+    records = [*processing, log_chunks.chunk_record(chunked, red), *row_records(cfg, chunked, red)]
     with _timed(timings, "estimate"):
         cons = run_estimators(cfg, model, pm, first, last, red, ellipsoids, joints, source)
         est = cons.estimates[cfg.estimation.least_squares_method]
@@ -312,24 +305,14 @@ def _identify(
     with _timed(timings, "essential"):
         essential = essential_result(cfg, red, pm)
     with _timed(timings, "validate"):
-        vectors = held_out_vectors(est, essential, cons, pm, identified_model)
-        tau_val, keep_val, predictions = _predict(chunked, vectors, scheduler)
+        held_out = _held_out(chunked, pm, (est, essential, cons, identified_model), scheduler)
     extras = _timed_extras(
         timings, cfg, log, chunked, pm, (est, identified_model), joints, scheduler
     )
     comparison, note, reference_essential = reference_comparisons(
         cfg, pm, (est, parameter_std(est, extras["uncertainty"])), essential, reference
     )
-    residual = tau_val - predictions["identified"].tau_pred
-    extras["uncertainty_summary"] = _uncertainty_summary(
-        cfg, extras["uncertainty"], extras["prediction_std"], residual, keep_val
-    )
-    fit = (est, extras["uncertainty"])  # the warnings read its one σ
-    problems = [
-        *auto_warnings,
-        *all_warnings(cfg, model, pm, fit, cons, red, chunked, predictions, (tau_val, keep_val)),
-        *extras.pop("friction_problem"),
-    ]
+    judged = _judged(cfg, model, pm, (est, cons), (chunked, red), held_out, extras, auto_warnings)
     timings["total"] = time.perf_counter() - t0
     return IdentifyResult(
         config=cfg,
@@ -338,10 +321,6 @@ def _identify(
         parameters=pm,
         estimate=est,
         essential=essential,
-        t_validate=chunked.t_validate,
-        tau_validate=tau_val,
-        keep_validate=keep_val,
-        predictions=predictions,
         comparison=tuple(comparison),
         reference_note=note,
         joint_names=tuple(joints),
@@ -349,12 +328,69 @@ def _identify(
         n_identify_rows=int(red.n_rows.sum()),
         timings=timings,
         reference_essential=tuple(reference_essential),
-        warnings=tuple(problems),
         consistent=cons,
         reduction=red,
         model=identified_model,
+        **held_out,
         **extras,
+        **judged,
     )
+
+
+def _checked_inputs(
+    cfg: IdentifyConfig, log: RobotLog, model: pin.Model | None, source: str
+) -> tuple[IdentifyConfig, RobotLog, pin.Model, list[str], tuple, list[str], list[dict]]:
+    """Everything checked before any chunk is computed: ``(cfg, log, model, joints, ellipsoids,
+    warnings, records)``, the config and the log with their ``auto`` preprocessing settings
+    resolved, the robot's model (loaded from ``cfg.robot`` when ``model`` is None), its joint
+    names (the log's), the links' bounding ellipsoids when asked, the warnings of reading the log
+    and of the automatic settings, and the records of the processing (which check its settings:
+    cutoff below Nyquist...)."""
+    model = model if model is not None else load_robot(cfg.robot, source=source).model
+    joints = _check_joints(log, model, source)
+    ellipsoids = _ellipsoids(cfg, model, source)
+    cfg, log, auto_warnings = _resolve_settings(cfg, log)
+    processing = [
+        *log.records,
+        *preprocess_records(
+            cfg.preprocess, log.sampling_rate_hz, model.nv, source, states=log.ddq is not None
+        ),
+    ]
+    return cfg, log, model, joints, ellipsoids, auto_warnings, processing
+
+
+def _judged(
+    cfg: IdentifyConfig,
+    model: pin.Model,
+    pm: ParameterModel,
+    fits: tuple[Estimate, ConsistentIdentification],
+    rows: tuple[log_chunks.ChunkedLog, ReducedObservations],
+    held_out: dict[str, Any],
+    extras: dict[str, Any],
+    auto_warnings: list[str],
+) -> dict[str, Any]:
+    """The coverage of the intervals (``uncertainty_summary``) and every warning (``warnings``:
+    ``auto_warnings``, the estimates', then the friction models' ``extras["friction_problem"]``,
+    which is taken out of ``extras``), as :class:`IdentifyResult` fields.
+
+    ``fits`` is the least-squares estimate and every estimator's identification, ``rows`` the
+    chunked log and its reduced identification rows, ``held_out`` what :func:`_held_out` returned,
+    ``extras`` what :func:`_timed_extras` returned."""
+    est, cons = fits
+    chunked, red = rows
+    tau_val, keep_val = held_out["tau_validate"], held_out["keep_validate"]
+    predictions = held_out["predictions"]
+    residual = tau_val - predictions["identified"].tau_pred
+    summary = _uncertainty_summary(
+        cfg, extras["uncertainty"], extras["prediction_std"], residual, keep_val
+    )
+    fit = (est, extras["uncertainty"])  # the warnings read its one σ
+    problems = [
+        *auto_warnings,
+        *all_warnings(cfg, model, pm, fit, cons, red, chunked, predictions, (tau_val, keep_val)),
+        *extras.pop("friction_problem"),
+    ]
+    return {"uncertainty_summary": summary, "warnings": tuple(problems)}
 
 
 def _timed_extras(
@@ -468,10 +504,21 @@ def _accumulate(
     return chunked, first, last, merged_rows(first, last)
 
 
-def _predict(
-    chunked: log_chunks.ChunkedLog, vectors: dict[str, FloatArray], scheduler: str | None
-) -> tuple[FloatArray, npt.NDArray[np.bool_], dict[str, ModelPrediction]]:
-    """Held-out torques, their mask and every vector's prediction with its metrics."""
+def _held_out(
+    chunked: log_chunks.ChunkedLog,
+    pm: ParameterModel,
+    fits: tuple[
+        Estimate, EssentialResult | None, ConsistentIdentification, ConsistentIdentification | None
+    ],
+    scheduler: str | None,
+) -> dict[str, Any]:
+    """The held-out prediction of every vector of ``fits`` (the least-squares estimate, the
+    essential parameters, every estimator's identification and the identified model's,
+    :func:`~ident.identify.pipeline.estimates.held_out_vectors`), as :class:`IdentifyResult`
+    fields: the held-out time [s] and torques [N*m] with their mask, shapes (n_val,),
+    (n_val, nv), (n_val, nv), and every prediction with its metrics."""
+    est, essential, cons, identified_model = fits
+    vectors = held_out_vectors(est, essential, cons, pm, identified_model)
     tau_val, keep_val, tau_pred = log_chunks.predict_log(chunked, vectors, scheduler)
     predictions = {
         label: ModelPrediction(
@@ -482,7 +529,12 @@ def _predict(
         )
         for label, pred in tau_pred.items()
     }
-    return tau_val, keep_val, predictions
+    return {
+        "t_validate": chunked.t_validate,
+        "tau_validate": tau_val,
+        "keep_validate": keep_val,
+        "predictions": predictions,
+    }
 
 
 def _uncertainty(
@@ -590,86 +642,6 @@ def _parameter_model(
 ) -> ParameterModel:
     terms = cfg.model.extra_terms(model.nv, source)
     return build_parameter_model(model, terms, rng=rng)
-
-
-def _preprocess_records(
-    pp: PreprocessConfig, fs: float, nv: int, source: str, *, states: bool
-) -> list[dict]:
-    """The records of the processing every chunk does (checked before any chunk runs);
-    ``states``: the log carries measured velocities and accelerations, used as they are."""
-    records = []
-    thresholds = pp.velocity_threshold
-    if thresholds is not None and len(thresholds) != nv:
-        raise ConfigError(
-            f"{source}: preprocess.velocity_threshold has {len(thresholds)} values, the robot "
-            f"has {nv} joints; give one per joint [rad/s]."
-        )
-    for key, flt, what in (
-        ("lowpass", None if states else preprocess.position_filter(pp), "q"),
-        ("torque_lowpass", pp.torque_lowpass, "tau"),
-    ):
-        if not isinstance(flt, FilterConfig):
-            continue
-        if not 0.0 < flt.cutoff_hz < 0.5 * fs:
-            raise ConfigError(
-                f"{source}: preprocess.{key}.cutoff_hz = {flt.cutoff_hz:g} Hz is not below the "
-                f"Nyquist frequency {0.5 * fs:g} Hz; choose a lower cutoff."
-            )
-        records.append(
-            {
-                "step": f"low-pass {what}",
-                "detail": f"zero-phase Butterworth, order {flt.order}, cutoff "
-                f"{flt.cutoff_hz:g} Hz at {fs:g} Hz",
-            }
-        )
-    records.append(
-        {"step": "states", "detail": "measured q, dq, ddq used as they are"}
-        if states
-        else {"step": "differentiate", "detail": "central differences (np.gradient)"}
-    )
-    records.append(
-        {"step": "trim", "detail": f"dropped {pp.trim_samples} samples at each end of a segment"}
-    )
-    factors = preprocess.decimation_factors(pp)
-    if factors:
-        step = preprocess.decimation_step(pp)
-        records.append(
-            {
-                "step": "decimate",
-                "detail": f"zero-phase decimation by {' x '.join(map(str, factors))} "
-                "(Chebyshev I order 8, forward-backward) of torques and regressor rows alike, "
-                f"{fs:g} -> {fs / step:g} Hz",
-            }
-        )
-    return records
-
-
-def _row_records(
-    cfg: IdentifyConfig, chunked: log_chunks.ChunkedLog, red: ReducedObservations
-) -> list[dict]:
-    """Records of the velocity threshold and of the time split."""
-    thresholds = cfg.preprocess.velocity_threshold
-    kept = red.n_rows.tolist()
-    fraction = cfg.validation.identify_fraction
-    return [
-        {
-            "step": "velocity threshold",
-            "detail": "none (all samples kept)"
-            if thresholds is None
-            else "dropped the rows of joint j where abs(dq_j) < threshold_j "
-            f"{[round(float(v), 4) for v in thresholds]} rad/s; identification rows kept per "
-            f"joint {kept}",
-            "kept": kept,
-        },
-        {
-            "step": "time split",
-            "detail": f"identify on the first {100 * fraction:.4g} % of each segment, validate "
-            f"on the {chunked.t_validate.size} later samples"
-            + (" (none: validated in sample)" if chunked.in_sample else "")
-            + " (errors reported on the rows above the velocity threshold, as identified, "
-            "and on all samples)",
-        },
-    ]
 
 
 def _chunk_samples(log: RobotLog, pp: PreprocessConfig, n_base: int) -> int:

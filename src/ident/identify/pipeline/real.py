@@ -149,14 +149,7 @@ def identify(
             "give the log of an excitation (ident run writes one), or check log.position."
         )
     (log,) = correct_log(cfg.signals, robot, cfg.preprocess, cfg.model, log, source=source).logs
-    estimate = check_job(estimate_identify(cfg, log))
-    extra = estimate_model_intervals(cfg, log.q.shape[1])
-    if extra is not None:
-        check_job(extra)
-    if on_estimate is not None:
-        on_estimate(estimate)
-        if extra is not None:
-            on_estimate(extra)  # printed when above a minute
+    _check_identify_job(cfg, log, on_estimate)
     try:
         return identify_measurements(
             cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
@@ -168,6 +161,28 @@ def identify(
                 f"that would determine their parameters are missing ({e})"
             ) from e
         raise
+
+
+def _check_identify_job(
+    cfg: IdentifyConfig, log: RobotLog, on_estimate: Callable[[JobEstimate], None] | None
+) -> None:
+    """The memory and time estimate of identifying ``log`` (:func:`estimate_identify`) and that
+    of the written model's bootstrap when there is one (:func:`estimate_model_intervals`),
+    each checked against the ceilings, then handed to ``on_estimate``.
+
+    Raises
+    ------
+    ResourceLimitError
+        If an estimate is above the ceilings (:func:`ident.inputs.check_job`).
+    """
+    estimate = check_job(estimate_identify(cfg, log))
+    extra = estimate_model_intervals(cfg, log.q.shape[1])
+    if extra is not None:
+        check_job(extra)
+    if on_estimate is not None:
+        on_estimate(estimate)
+        if extra is not None:
+            on_estimate(extra)  # printed when above a minute
 
 
 #: A joint whose position spans less than this [rad or m] over a whole log never moves.

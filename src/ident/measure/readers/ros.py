@@ -40,18 +40,25 @@ columns: 37 % less memory on a long log); a topic that holds none of them keeps 
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass
 from pathlib import Path, PurePath
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from ident.errors import DataError, IdentError
 from ident.inputs import JobEstimate, check_job, resource_ceilings
 from ident.measure.readers.registry import LogTable
+from ident.measure.readers.ros_messages import (
+    MAX_VALUES,
+    MessageBlock,
+    RepeatedName,
+    flatten,
+    message_tables,
+    stamp_ns,
+)
 
 __all__ = [
     "MAX_CHUNK_BYTES",
@@ -69,9 +76,7 @@ __all__ = [
 # leave a wide margin and stop a decompression bomb before it is decompressed.
 MAX_CHUNK_BYTES = 64 << 20
 MAX_MESSAGE_BYTES = 16 << 20
-MAX_VALUES = 100_000  # numbers per message, i.e. columns of a topic
 _DECOMPRESS_BYTES = 1 << 20  # a whole-file compressed bag is decompressed 1 MB at a time
-_FIRST_CAPACITY = 4096  # rows allocated for a topic whose message count is not declared
 _SECONDS_PER_MESSAGE = 1e-4  # decoding and flattening one by one, measured: 70 us
 _SECONDS_PER_JOINT_STATE = 1e-5  # a JointState of an MCAP chunk read at once: 4.1 s for 600k
 # messages at load 11 on 2 cores (a long log's figure; mcap_chunks)
@@ -85,262 +90,6 @@ def is_rosbag(path: Path) -> bool:
 def is_mcap(path: Path) -> bool:
     """Detector: a file named ``*.mcap``."""
     return path.is_file() and path.suffix == ".mcap"
-
-
-def _fields(msg: Any) -> list[str]:
-    names = getattr(type(msg), "__dataclass_fields__", None)
-    if names is not None:
-        return [n for n in names if n != "__msgtype__"]
-    return [n for n in getattr(type(msg), "__slots__", ()) if not n.startswith("_")]
-
-
-def _stamp_ns(msg: Any) -> int | None:
-    """``header.stamp`` [ns], None when the message has no header or a zero stamp."""
-    header = getattr(msg, "header", None)
-    stamp = getattr(header, "stamp", None)
-    if stamp is None:
-        return None
-    ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-    return ns if ns > 0 else None
-
-
-class _RepeatedName(Exception):
-    """A ``name`` list naming one joint more than once."""
-
-
-def _flatten(
-    msg: Any, prefix: str, keys: list[str] | None, values: list[float], shape: list[Any]
-) -> None:
-    """Append the numeric fields of ``msg`` as column names (unless ``keys`` is None: names
-    are made once per topic) and values; ``shape`` gets what the names depend on (the joint
-    names and array sizes), compared from message to message."""
-    names: Any = getattr(msg, "name", None)
-    by_name = (
-        isinstance(names, list | tuple)
-        and len(names) > 0
-        and all(isinstance(n, str) for n in names)
-    )
-    if by_name:
-        shape.append(tuple(names))
-        if len(set(names)) != len(names):
-            repeated = next(n for n in names if names.count(n) > 1)
-            raise _RepeatedName(
-                f"{prefix}/name lists joint '{repeated}' {names.count(repeated)} times "
-                f"({', '.join(names)}); each joint must appear once (a repeated name would "
-                "merge joints): fix the publisher or drop this topic (topics:)"
-            )
-    for field in _fields(msg):
-        if field == "header":
-            continue
-        value = getattr(msg, field)
-        if isinstance(value, bool | int | float | np.integer | np.floating):
-            if keys is not None:
-                keys.append(f"{prefix}/{field}")
-            values.append(float(value))
-        elif isinstance(value, np.ndarray | list | tuple):
-            arr = np.asarray(value)
-            if arr.dtype.kind not in "iuf" or arr.ndim != 1:
-                continue
-            shape.append(arr.size)
-            if keys is not None:
-                if by_name and arr.size == len(names):
-                    keys += [f"{prefix}/{field}/{n}" for n in names]
-                else:
-                    keys += [f"{prefix}/{field}/{k}" for k in range(arr.size)]
-            values += arr.tolist()
-        elif _fields(value):
-            _flatten(value, f"{prefix}/{field}", keys, values, shape)
-
-
-@dataclass(frozen=True, eq=False)
-class _Block:
-    """Consecutive messages of one topic with a header, decoded at once: their values (m,
-    n_values) in the columns of the topic's first message, stamps [ns] (0: none) and
-    recorded times [ns], shape (m,)."""
-
-    topic: str
-    shape: list[Any]
-    values: npt.NDArray[np.float64]
-    stamps: npt.NDArray[np.int64]
-    recorded: npt.NDArray[np.int64]
-
-
-class _Topic:
-    """One topic's values, written message by message into preallocated arrays."""
-
-    def __init__(
-        self,
-        source: str,
-        topic: str,
-        keys: list[str],
-        shape: list[Any],
-        capacity: int,
-        wanted: frozenset[str] | None = None,
-    ) -> None:
-        # the values kept: the wanted keys when the topic has any, else all of them
-        select = [k for k, key in enumerate(keys) if wanted is not None and key in wanted]
-        self.select: npt.NDArray[np.intp] | None = np.array(select) if select else None
-        if self.select is not None:
-            keys = [keys[k] for k in select]
-        self.source, self.topic, self.keys, self.shape = source, topic, keys, shape
-        self.n = 0
-        self.values: npt.NDArray[np.float64] = np.empty((0, len(keys)))
-        self.stamps: npt.NDArray[np.int64] = np.empty(0, dtype=np.int64)
-        self.recorded: npt.NDArray[np.int64] = np.empty(0, dtype=np.int64)
-        self.has_header = False
-        self.n_missing = 0
-        self.first_missing: int | None = None
-        self._allocate(max(1, capacity))
-
-    def _allocate(self, capacity: int) -> None:
-        per_row = 8 * (len(self.keys) + 2)  # values, stamp, recorded time
-        check_job(
-            JobEstimate(
-                f"{self.source}: {self.topic}: {capacity} messages x {len(self.keys)} values",
-                per_row * capacity,  # the columns are views of these arrays
-                0.0,
-            )
-        )
-        # column-major: every column of the table is a contiguous view of this block
-        values = np.empty((capacity, len(self.keys)), order="F")
-        stamps = np.empty(capacity, dtype=np.int64)
-        recorded = np.empty(capacity, dtype=np.int64)
-        if self.n:
-            values[: self.n] = self.values[: self.n]
-            stamps[: self.n] = self.stamps[: self.n]
-            recorded[: self.n] = self.recorded[: self.n]
-        self.values, self.stamps, self.recorded = values, stamps, recorded
-
-    def add(self, msg: Any, recorded_ns: int, shape: list[Any], values: list[float]) -> None:
-        if shape != self.shape:
-            raise DataError(
-                f"{self.source}: topic {self.topic} changes its fields (joint names) at "
-                f"message {self.n}; split the recording or read another topic (topics:)."
-            )
-        if self.n == self.values.shape[0]:
-            self._allocate(2 * self.n)
-        stamp = _stamp_ns(msg)
-        if getattr(msg, "header", None) is not None:
-            self.has_header = True
-        if stamp is None:
-            self.n_missing += 1
-            if self.first_missing is None:
-                self.first_missing = self.n
-            stamp = 0
-        if self.select is None:
-            self.values[self.n] = values
-        else:
-            self.values[self.n] = np.asarray(values)[self.select]
-        self.stamps[self.n] = stamp
-        self.recorded[self.n] = recorded_ns
-        self.n += 1
-
-    def add_block(self, block: _Block) -> None:
-        """Messages decoded a chunk at once (:mod:`ident.measure.readers.mcap_chunks`)."""
-        if block.shape != self.shape:
-            raise DataError(
-                f"{self.source}: topic {self.topic} changes its fields (joint names) at "
-                f"message {self.n}; split the recording or read another topic (topics:)."
-            )
-        m = block.values.shape[0]
-        if self.n + m > self.values.shape[0]:
-            self._allocate(max(2 * self.n, self.n + m))
-        values = block.values if self.select is None else block.values[:, self.select]
-        self.values[self.n : self.n + m] = values
-        self.stamps[self.n : self.n + m] = block.stamps
-        self.recorded[self.n : self.n + m] = block.recorded
-        self.has_header = True
-        missing = np.flatnonzero(block.stamps == 0)
-        if missing.size and self.first_missing is None:
-            self.first_missing = self.n + int(missing[0])
-        self.n_missing += int(missing.size)
-        self.n += m
-
-    def times_ns(self) -> tuple[npt.NDArray[np.int64], str | None]:
-        """Stamps [ns] by the rule of the module docstring, and the warning it gives."""
-        if not self.has_header:
-            return self.recorded[: self.n], None
-        if self.n_missing == 0:
-            return self.stamps[: self.n], None
-        warning = (
-            f"{self.source}: {self.topic}: {self.n_missing} of {self.n} messages have no "
-            f"header.stamp, the first is message {self.first_missing}; the topic uses the "
-            "time each message was recorded"
-        )
-        return self.recorded[: self.n], warning
-
-
-def _tables(
-    source: str,
-    messages: Iterable[tuple[str, int, Any] | _Block],
-    topics: list[str] | None,
-    counts: Mapping[str, int],
-    columns: Iterable[str] | None = None,
-) -> list[LogTable]:
-    """Group ``(topic, recorded_ns, message)`` into one table per topic (in recorded order).
-
-    ``counts``: messages per topic the file declares (preallocation), when it does.
-    ``columns``: the columns to keep (option ``columns``, module docstring), None for all.
-    """
-    wanted = None if columns is None else frozenset(columns)
-    built: dict[str, _Topic] = {}
-    for item in messages:
-        if isinstance(item, _Block):  # follows the topic's first message, read one by one
-            built[item.topic].add_block(item)
-            continue
-        topic, recorded_ns, msg = item
-        if topics is not None and topic not in topics:
-            continue
-        entry = built.get(topic)
-        keys: list[str] | None = [] if entry is None else None
-        values: list[float] = []
-        shape: list[Any] = []
-        try:
-            _flatten(msg, topic, keys, values, shape)
-        except _RepeatedName as e:
-            n = entry.n if entry is not None else 0
-            raise DataError(f"{source}: message {n} of {topic}: {e}.") from None
-        if len(values) > MAX_VALUES:
-            raise DataError(
-                f"{source}: a message of {topic} holds {len(values)} numbers, more than "
-                f"{MAX_VALUES} per message; read other topics (topics:)."
-            )
-        if not values:
-            continue
-        if entry is None:
-            assert keys is not None
-            capacity = counts.get(topic) or _FIRST_CAPACITY
-            entry = built[topic] = _Topic(source, topic, keys, shape, capacity, wanted)
-        entry.add(msg, recorded_ns, shape, values)
-    if topics is not None:
-        missing = [t for t in topics if t not in built]
-        if missing:
-            raise DataError(
-                f"{source}: topic(s) {', '.join(missing)} have no numeric messages; the file "
-                f"has {', '.join(sorted(built)) or 'none'}."
-            )
-    if not built:
-        return []
-    times = {topic: entry.times_ns() for topic, entry in built.items()}
-    t0 = min(int(ns.min()) for ns, _ in times.values())
-    tables = []
-    for topic, entry in built.items():
-        ns, warning = times[topic]
-        columns = {f"{topic}/t": (ns - t0).astype(float) * 1e-9}
-        block = entry.values
-        if entry.n < block.shape[0] // 2:  # far fewer messages than declared: trim the block
-            block = np.asfortranarray(block[: entry.n])
-        for k, key in enumerate(entry.keys):
-            columns[key] = block[: entry.n, k]  # views, no copy
-        tables.append(
-            LogTable(
-                columns=columns,
-                time=f"{topic}/t",
-                source=f"{source} {topic}",
-                warnings=(warning,) if warning else (),
-            )
-        )
-    return tables
 
 
 def _damaged(path: Path, what: str, e: Exception) -> DataError:
@@ -382,7 +131,7 @@ def _joint_state_bytes(path: Path, f: Any, channel: Any, n: int) -> float:
         f.seek(0)
         for schema, ch, message in make_reader(f).iter_messages(topics=[channel.topic]):
             values: list[float] = []
-            _flatten(_Decoders().get(path, schema, ch)(message.data), ch.topic, None, values, [])
+            flatten(_Decoders().get(path, schema, ch)(message.data), ch.topic, None, values, [])
             return max(0.0, n * (len(message.data) + 24.0 - 8.0 * (len(values) + 2)))
     except Exception:  # a bound is still given; reading reports the problem
         return 0.0
@@ -529,7 +278,7 @@ def _read_bag(path: Path, bag: Path, options: Mapping[str, Any]) -> list[LogTabl
                     raise _too_big(path, f"a message of {conn.topic}", len(raw), MAX_MESSAGE_BYTES)
                 yield conn.topic, timestamp, typestore.deserialize_cdr(raw, conn.msgtype)
 
-        return _tables(str(path), messages(), topics, counts, options.get("columns"))
+        return message_tables(str(path), messages(), topics, counts, options.get("columns"))
 
 
 def _register_types(path: Path, typestore: Any, connections: list[Any]) -> None:
@@ -678,11 +427,11 @@ def _linear_messages(path: Path, f: Any, cut: list[str]) -> Iterator[tuple[Any, 
 
 def _indexed_messages(
     path: Path, f: Any, summary: Any, topics: list[str] | None, decoders: _Decoders
-) -> Iterator[tuple[str, int, Any] | _Block]:
+) -> Iterator[tuple[str, int, Any] | MessageBlock]:
     """The messages of an MCAP file with a summary, one chunk at a time, in file order
     (:func:`~ident.measure.readers.mcap_chunks.chunk_messages`): ``(topic, recorded_ns,
     message)``, and after a ``JointState`` topic's first message, the topic's messages of a
-    chunk that fit its layout as one :class:`_Block`."""
+    chunk that fit its layout as one :class:`MessageBlock`."""
     from ident.measure.readers.mcap_chunks import JointStateLayout, chunk_messages
 
     layouts: dict[int, JointStateLayout | None] = {}
@@ -723,14 +472,14 @@ def _layout(msg: Any, topic: str, data: bytes) -> Any:
     values: list[float] = []
     shape: list[Any] = []
     try:
-        _flatten(msg, topic, None, values, shape)
-    except _RepeatedName:
+        flatten(msg, topic, None, values, shape)
+    except RepeatedName:
         return None
-    layout = JointStateLayout.of(data, values, _stamp_ns(msg))
+    layout = JointStateLayout.of(data, values, stamp_ns(msg))
     return None if layout is None else (layout, shape)
 
 
-def _block(layout_shape: Any, channel: Any, data: bytes, found: list) -> _Block | None:
+def _block(layout_shape: Any, channel: Any, data: bytes, found: list) -> MessageBlock | None:
     """The messages ``found`` ``(log_time, offset, length)`` of one chunk as a block, or None
     when one of them does not fit the layout."""
     layout, shape = layout_shape
@@ -742,15 +491,13 @@ def _block(layout_shape: Any, channel: Any, data: bytes, found: list) -> _Block 
     if not fits.all():
         return None
     recorded = np.array([t for t, _, _ in found], dtype=np.int64)
-    return _Block(channel.topic, shape, values, stamps, recorded)
+    return MessageBlock(channel.topic, shape, values, stamps, recorded)
 
 
 def read_mcap(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     """Read a bare ``.mcap`` file of ROS 2 messages (in the order of the file: one chunk is
     decompressed at a time). A file without a readable summary (cut off by a crash) is read
     record by record up to its damaged end, with a warning."""
-    import dataclasses
-
     from mcap.reader import make_reader
 
     topics = options.get("topics")
@@ -761,42 +508,18 @@ def read_mcap(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
                 summary = reader.get_summary()
             except Exception:  # no footer: a recording cut off, read record by record
                 summary = None
-            counts: dict[str, int] = {}
-            cut: list[str] = []
-            if summary is not None and summary.chunk_indexes:
-                _check_chunks(path, f, summary)
-                if summary.statistics is not None:
-                    for channel_id, n in summary.statistics.channel_message_counts.items():
-                        channel = summary.channels.get(channel_id)
-                        if channel is not None:
-                            counts[channel.topic] = counts.get(channel.topic, 0) + int(n)
-                tables = _tables(
-                    str(path),
-                    _indexed_messages(path, f, summary, topics, _Decoders()),
-                    topics,
-                    counts,
-                    options.get("columns"),
-                )
-                return tables  # a complete file: nothing cut
-            found = _linear_messages(path, f, cut)
-            decoders = _Decoders()
-
-            def messages() -> Iterator[tuple[str, int, Any]]:
-                for schema, channel, message in found:
-                    if topics is not None and channel.topic not in topics:
-                        continue
-                    if len(message.data) > MAX_MESSAGE_BYTES:
-                        raise _too_big(
-                            path,
-                            f"a message of {channel.topic}",
-                            len(message.data),
-                            MAX_MESSAGE_BYTES,
-                        )
-                    decode = decoders.get(path, schema, channel)
-                    yield channel.topic, message.log_time, decode(message.data)
-
-            tables = _tables(str(path), messages(), topics, counts, options.get("columns"))
-            return [dataclasses.replace(t, warnings=(*t.warnings, *cut)) for t in tables]
+            if summary is None or not summary.chunk_indexes:
+                return _linear_tables(path, f, topics, options.get("columns"))
+            _check_chunks(path, f, summary)
+            counts = _declared_counts(summary)
+            tables = message_tables(
+                str(path),
+                _indexed_messages(path, f, summary, topics, _Decoders()),
+                topics,
+                counts,
+                options.get("columns"),
+            )
+            return tables  # a complete file: nothing cut
     except IdentError:
         raise
     except MemoryError as e:
@@ -806,3 +529,42 @@ def read_mcap(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
         ) from e
     except Exception as e:  # mcap, zstd/lz4, CDR decoding, struct: a damaged file
         raise _damaged(path, "MCAP file", e) from e
+
+
+def _declared_counts(summary: Any) -> dict[str, int]:
+    """Messages per topic an MCAP file's ``summary`` declares (none without statistics)."""
+    counts: dict[str, int] = {}
+    if summary.statistics is not None:
+        for channel_id, n in summary.statistics.channel_message_counts.items():
+            channel = summary.channels.get(channel_id)
+            if channel is not None:
+                counts[channel.topic] = counts.get(channel.topic, 0) + int(n)
+    return counts
+
+
+def _linear_tables(
+    path: Path, f: Any, topics: list[str] | None, columns: Iterable[str] | None
+) -> list[LogTable]:
+    """The tables of the open MCAP file ``f`` (``path``) without a usable summary, read
+    record by record (:func:`_linear_messages`); at a damaged end, every table carries the
+    warning of where it was cut."""
+    cut: list[str] = []
+    found = _linear_messages(path, f, cut)
+    decoders = _Decoders()
+
+    def messages() -> Iterator[tuple[str, int, Any]]:
+        for schema, channel, message in found:
+            if topics is not None and channel.topic not in topics:
+                continue
+            if len(message.data) > MAX_MESSAGE_BYTES:
+                raise _too_big(
+                    path,
+                    f"a message of {channel.topic}",
+                    len(message.data),
+                    MAX_MESSAGE_BYTES,
+                )
+            decode = decoders.get(path, schema, channel)
+            yield channel.topic, message.log_time, decode(message.data)
+
+    tables = message_tables(str(path), messages(), topics, {}, columns)
+    return [dataclasses.replace(t, warnings=(*t.warnings, *cut)) for t in tables]
