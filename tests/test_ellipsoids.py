@@ -79,6 +79,20 @@ def test_minimum_volume_ellipsoid_of_a_sphere_sample_is_the_sphere():
     assert e.contains(points).all()
 
 
+def test_minimum_volume_ellipsoid_of_a_filled_box_is_its_circumscribed_ellipsoid():
+    # a box's corners among 20 000 interior points (a mesh's count): the minimum-volume
+    # ellipsoid is the box's, centred, semi-axes sqrt(3) times the half-sides (closed form);
+    # only the 8 corners touch it, so the interior points must not change it
+    rng = np.random.default_rng(0)
+    half = np.array([0.1, 0.2, 0.4])
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+    points = np.vstack([corners, rng.uniform(-half, half, size=(20_000, 3))]) + 0.5
+    e = minimum_volume_ellipsoid(points, tol=1e-9)
+    np.testing.assert_allclose(e.center, 0.5, atol=1e-6)
+    np.testing.assert_allclose(np.sort(e.semi_axes), np.sqrt(3) * half, rtol=1e-4)
+    assert e.contains(points).all()
+
+
 def test_ur5_meshes_give_ellipsoids_holding_the_link_mass_centre():
     text = robots.UR5_URDF.read_text()
     model = pin.buildModelFromUrdf(str(robots.UR5_URDF))
