@@ -386,7 +386,7 @@ def test_fast_clearances_of_a_posture_do_not_depend_on_the_others(paper):
 
 
 def test_segment_distance_closed_forms():
-    from ident.excitation._fast_clearance import segment_distances
+    from ident.excitation.safety.primitives import segment_distances
 
     p = np.array([[0.0, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]])
     q = np.array([[1.0, 0, 0], [1, 0, 0], [1, 0, 0], [0, 0, 0]])

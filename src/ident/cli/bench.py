@@ -20,7 +20,7 @@ marked incomplete (``run.json``, ``INCOMPLETE``), named on the one ``error:`` or
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -61,18 +61,14 @@ def bench(
     progress: Annotated[bool, typer.Option(help="Show a progress bar.")] = True,
 ) -> None:
     """Compare eMuPSO with PSO, WOA, GWO, GOA and DE on the benchmark functions of CONFIG."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
     from ident.bench.campaign import (
         check_workers,
         estimate_campaign,
         load_campaign_config,
         make_tasks,
-        run_campaign,
     )
-    from ident.bench.report import disagreements, write_campaign
+    from ident.bench.report import disagreements
     from ident.inputs import check_job
-    from ident.run.rundir import run_folder
 
     with user_errors():
         check_scheduler_address(scheduler)
@@ -87,31 +83,55 @@ def bench(
             f"x {cfg.runs} runs, {cfg.max_nfev} evaluations each"
         )
         typer.echo(f"estimate: {estimate.describe()}")
-        with Progress(
-            TextColumn("[progress.description]{task.description}"),
-            BarColumn(),
-            TextColumn("{task.completed}/{task.total}"),
-            TimeRemainingColumn(),
-            disable=not progress,
-        ) as bar:
-            task = bar.add_task("bench", total=total)
-            result = run_campaign(
-                cfg,
-                workers=workers,
-                scheduler=scheduler,
-                progress=lambda done, _total: bar.update(task, completed=done),
-            )
-        # created after the runs (a failed campaign leaves nothing); --out taken meanwhile
-        # gives <out>-2, ...; any error or interruption while writing marks it incomplete
-        parent = out if out is not None else DEFAULT_PARENT
-        info = {"command": "bench", "config": str(config)}
-        with run_folder(parent, cfg.name, info=info, exact=out is not None) as rundir:
-            folder = rundir.path
-            if out is not None and folder != out:
-                typer.echo(f"{out} was taken meanwhile: results in {folder}", err=True)
-            write_campaign(result, folder)
-            rundir.finish("complete", f"{total} runs")
+        result = _run_with_progress(cfg, total, workers, scheduler, progress)
+        folder = _write_campaign_folder(result, cfg, config, out, total)
         typer.echo(f"wall time {result.wall_seconds:.1f} s")
         for line in disagreements(result)[:10]:
             typer.echo(f"  {line}")
         typer.echo(f"report: {folder / 'report.html'}")
+
+
+def _run_with_progress(
+    cfg: Any, total: int, workers: int, scheduler: str | None, progress: bool
+) -> Any:
+    """Run the ``total`` runs of the campaign ``cfg`` (:func:`ident.bench.campaign.
+    run_campaign`) behind a progress bar (``progress``: shown); its result."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from ident.bench.campaign import run_campaign
+
+    with Progress(
+        TextColumn("[progress.description]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeRemainingColumn(),
+        disable=not progress,
+    ) as bar:
+        task = bar.add_task("bench", total=total)
+        return run_campaign(
+            cfg,
+            workers=workers,
+            scheduler=scheduler,
+            progress=lambda done, _total: bar.update(task, completed=done),
+        )
+
+
+def _write_campaign_folder(
+    result: Any, cfg: Any, config: Path, out: Path | None, total: int
+) -> Path:
+    """Write the campaign's ``result`` into a new folder (``out``, else under
+    :data:`DEFAULT_PARENT`); its path."""
+    from ident.bench.report import write_campaign
+    from ident.run.rundir import run_folder
+
+    # created after the runs (a failed campaign leaves nothing); --out taken meanwhile
+    # gives <out>-2, ...; any error or interruption while writing marks it incomplete
+    parent = out if out is not None else DEFAULT_PARENT
+    info = {"command": "bench", "config": str(config)}
+    with run_folder(parent, cfg.name, info=info, exact=out is not None) as rundir:
+        folder = rundir.path
+        if out is not None and folder != out:
+            typer.echo(f"{out} was taken meanwhile: results in {folder}", err=True)
+        write_campaign(result, folder)
+        rundir.finish("complete", f"{total} runs")
+    return folder

@@ -74,21 +74,12 @@ def identify(
     """Identify base, friction and actuator parameters from CONFIG's measured log."""
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
     t_start = time.monotonic()
-    from ident.errors import IdentError
     from ident.identify.config import load_identify_config
     from ident.identify.pipeline.real import identify as run_identify
-    from ident.run.rundir import run_folder
 
     package_dirs = list(package_dir or ())
     with user_errors():
-        from ident.inputs import check_number, check_output_dir
-
-        check_number(seed, "--seed", low=0, high=2**63 - 1, integer=True)
-        check_output_dir(out, "--out")
-        for d in package_dirs:
-            if not d.is_dir():
-                raise IdentError(f"--package-dir {d}: not a folder.")
-        check_scheduler_address(scheduler)
+        _check_options(seed, out, package_dirs, scheduler)
         cfg = load_identify_config(config)
         result = run_identify(cfg, rng=seed, scheduler=scheduler, on_estimate=_print_estimate)
         info = {"command": "identify", "config": str(config), "seed": seed}
@@ -96,27 +87,66 @@ def identify(
             info["scheduler"] = scheduler
         if package_dirs:
             info["package_dirs"] = [str(d) for d in package_dirs]
-        est = result.estimate
-        message = est.message if not result.warnings else "; ".join(result.warnings)
-        # any error or interruption from here on marks the folder incomplete and names it
-        with run_folder(out, f"{cfg.name}", info={**info, "started_at": started_at}) as rundir:
-            replay_note, timings = _save_and_report(result, rundir, replay, package_dirs)
-            rundir.update(
-                timings_s={k: round(v, 3) for k, v in timings.items()},
-                warnings=list(result.warnings),
-                missing=None,
-                complete_message=None,
-            )
-            # wall time of the whole command (config, identification, replay, report); the
-            # run is complete with its last write
-            rundir.update(wall_time_s=round(time.monotonic() - t_start, 3))
-            rundir.finish("complete", message, stamp_wall_time=False)
-        _print_summary(result, rundir.path, replay_note)
+        info["started_at"] = started_at
+        folder, replay_note = _write_run(result, out, cfg.name, info, replay, package_dirs, t_start)
+        _print_summary(result, folder, replay_note)
     if result.warnings and cfg.validation.fail_on_warning:
         typer.echo(
             "error: validation.fail_on_warning is set and the result has warnings.", err=True
         )
         raise typer.Exit(code=1)
+
+
+def _check_options(seed: int, out: Path, package_dirs: list[Path], scheduler: str | None) -> None:
+    """Refuse a bad ``--seed``, ``--out``, ``--package-dir`` or ``--scheduler`` before any work.
+
+    Raises
+    ------
+    IdentError
+        One line naming the option and the fix.
+    """
+    from ident.errors import IdentError
+    from ident.inputs import check_number, check_output_dir
+
+    check_number(seed, "--seed", low=0, high=2**63 - 1, integer=True)
+    check_output_dir(out, "--out")
+    for d in package_dirs:
+        if not d.is_dir():
+            raise IdentError(f"--package-dir {d}: not a folder.")
+    check_scheduler_address(scheduler)
+
+
+def _write_run(
+    result: IdentifyResult,
+    out: Path,
+    name: str,
+    info: dict[str, Any],
+    replay: bool,
+    package_dirs: list[Path],
+    t_start: float,
+) -> tuple[Path, str]:
+    """Write the identification into a new run folder under ``out`` (``info``: the fields of
+    its ``run.json``; ``t_start``: the command's start, :func:`time.monotonic` [s]); its path
+    and the replay's note. Any error or interruption marks the folder incomplete and names
+    it."""
+    from ident.run.rundir import run_folder
+
+    est = result.estimate
+    message = est.message if not result.warnings else "; ".join(result.warnings)
+    # any error or interruption from here on marks the folder incomplete and names it
+    with run_folder(out, f"{name}", info=info) as rundir:
+        replay_note, timings = _save_and_report(result, rundir, replay, package_dirs)
+        rundir.update(
+            timings_s={k: round(v, 3) for k, v in timings.items()},
+            warnings=list(result.warnings),
+            missing=None,
+            complete_message=None,
+        )
+        # wall time of the whole command (config, identification, replay, report); the
+        # run is complete with its last write
+        rundir.update(wall_time_s=round(time.monotonic() - t_start, 3))
+        rundir.finish("complete", message, stamp_wall_time=False)
+    return rundir.path, replay_note
 
 
 def _save_and_report(

@@ -124,6 +124,27 @@ def _elite_rank(path: Path) -> int | None:
     return int(match.group(1)) if match else None
 
 
+# The options that select the robot's chain and its meshes (their help is the command's
+# --help).
+_PackageDirOption = Annotated[
+    list[Path] | None,
+    typer.Option(help="Folder holding package:// mesh packages (repeatable)."),
+]
+_LockOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--lock",
+        help="Hold joint NAME fixed at VALUE [rad or m] (0 if omitted), e.g. the fingers "
+        "of a gripper; repeatable. Replaces the run's chain selection.",
+        metavar="NAME[=VALUE]",
+    ),
+]
+_BaseLinkOption = Annotated[
+    str | None, typer.Option("--base-link", help="First link of the chain.")
+]
+_TipLinkOption = Annotated[str | None, typer.Option("--tip-link", help="Last link of the chain.")]
+
+
 def replay(
     run_dir: Annotated[
         Path | None,
@@ -153,25 +174,10 @@ def replay(
     open_browser: Annotated[
         bool, typer.Option("--open", help="Open the viewer in the system's web browser.")
     ] = False,
-    package_dir: Annotated[
-        list[Path] | None,
-        typer.Option(help="Folder holding package:// mesh packages (repeatable)."),
-    ] = None,
-    lock: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--lock",
-            help="Hold joint NAME fixed at VALUE [rad or m] (0 if omitted), e.g. the fingers "
-            "of a gripper; repeatable. Replaces the run's chain selection.",
-            metavar="NAME[=VALUE]",
-        ),
-    ] = None,
-    base_link: Annotated[
-        str | None, typer.Option("--base-link", help="First link of the chain.")
-    ] = None,
-    tip_link: Annotated[
-        str | None, typer.Option("--tip-link", help="Last link of the chain.")
-    ] = None,
+    package_dir: _PackageDirOption = None,
+    lock: _LockOption = None,
+    base_link: _BaseLinkOption = None,
+    tip_link: _TipLinkOption = None,
 ) -> None:
     """Replay the excitation motion of RUN_DIR (or --urdf/--trajectory) in meshcat.
 

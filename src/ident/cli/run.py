@@ -295,64 +295,19 @@ def _summary(
     from rich.console import Console
     from rich.table import Table
 
-    from ident.identify.estimation.uncertainty import parameter_std
-    from ident.report.run_report import error_measures
-
-    console = Console()
-    stage = result.stage
-    table = Table(title=f"ident run {result.config.name}: {stage.name} stage", show_header=False)
-    indep, dep, unid = stage.counts
-    table.add_row(
-        "base parameters",
-        f"{len(stage.base_names)} ({indep}/{dep}/{unid} independent/combined/unidentifiable, "
-        "body frames)",
-    )
-    if stage.dh_frames is not None:
-        i, d, u = stage.dh_frames.counts
-        paper = {"wrist": "15/7/8", "arm": "20/2/8"}.get(stage.name)
-        table.add_row(
-            "paper's DH frames",
-            f"{i}/{d}/{u}" + (f" (paper: {paper})" if paper else ""),
-        )
     from ident.report.run_data import load_run
     from ident.report.run_report import evaluation_budget, optimizer_name
     from ident.report.run_verdict import stored_verdict
 
+    console = Console()
+    stage = result.stage
+    table = Table(title=f"ident run {result.config.name}: {stage.name} stage", show_header=False)
+    _stage_rows(table, stage)
     data = load_run(run_dir)  # the saved result: the verdict the reports show
     table.add_row("evaluation budget", evaluation_budget(data))
     table.add_row(f"{optimizer_name(data)} runs", ", ".join(f"{r.fun:.5g}" for r in result.runs))
     if result.elites:
-        plan = result.executable
-        chosen = result.executed_rank or 1
-        best = result.elites[chosen - 1]
-        table.add_row(
-            "chosen elite" if plan is not None and plan.usable else "elite 1 (UNSAFE)",
-            f"{chosen}: fitness {best.fitness:.6g}, "
-            f"cond (scaled) {best.details.get('cond', float('nan')):.4g}",
-        )
-        if plan is not None:
-            table.add_row("safety", plan.message)
-        unc = getattr(getattr(best.log, "result", None), "uncertainty", None)
-        for method, est in best.estimates.items():
-            sd = parameter_std(est, unc)  # the one σ the report shows
-            m = error_measures(
-                est.x,
-                sd.std,
-                stage.true_base,
-                best.base_column_norms,
-                best.true_torque_norm,
-                stage.reference_share,
-            )
-            major = m.get("max_rel_error_major")
-            table.add_row(
-                method.upper(),
-                ("" if major is None else f"worst error {100 * major:.3g} % (major parameters), ")
-                + f"{100 * m['max_rel_error']:.3g} % (torque share >= 1e-4), "
-                + f"{100 * m['within_3std']:.0f} % within 3 std ({sd.method}), "
-                + f"cond {est.condition_number:.4g}",
-            )
-        for method, message in best.failures.items():
-            table.add_row(method.upper(), f"[red]{message}[/red]")
+        _elite_rows(table, result)
     table.add_row("replay", replay_note)
     for label, text in _model_rows(data):
         table.add_row(label, text)
@@ -376,6 +331,64 @@ def _model_rows(data: dict[str, Any]) -> list[tuple[str, str]]:
 
     rows = [] if data.get("model") is None else [("identified model", _model_text(data["model"]))]
     return [*rows, ("MJCF rollout", rollout_text(data.get("rollout")))]
+
+
+def _stage_rows(table: Any, stage: Any) -> None:
+    """The summary's rows of the stage: its base parameters (body frames) and their counts in
+    the paper's DH frames."""
+    indep, dep, unid = stage.counts
+    table.add_row(
+        "base parameters",
+        f"{len(stage.base_names)} ({indep}/{dep}/{unid} independent/combined/unidentifiable, "
+        "body frames)",
+    )
+    if stage.dh_frames is not None:
+        i, d, u = stage.dh_frames.counts
+        paper = {"wrist": "15/7/8", "arm": "20/2/8"}.get(stage.name)
+        table.add_row(
+            "paper's DH frames",
+            f"{i}/{d}/{u}" + (f" (paper: {paper})" if paper else ""),
+        )
+
+
+def _elite_rows(table: Any, result: Any) -> None:
+    """The summary's rows of the chosen elite (elite 1, marked unsafe, when none was chosen):
+    its fitness, its safety and each estimator's errors against the true parameters."""
+    from ident.identify.estimation.uncertainty import parameter_std
+    from ident.report.run_report import error_measures
+
+    stage = result.stage
+    plan = result.executable
+    chosen = result.executed_rank or 1
+    best = result.elites[chosen - 1]
+    table.add_row(
+        "chosen elite" if plan is not None and plan.usable else "elite 1 (UNSAFE)",
+        f"{chosen}: fitness {best.fitness:.6g}, "
+        f"cond (scaled) {best.details.get('cond', float('nan')):.4g}",
+    )
+    if plan is not None:
+        table.add_row("safety", plan.message)
+    unc = getattr(getattr(best.log, "result", None), "uncertainty", None)
+    for method, est in best.estimates.items():
+        sd = parameter_std(est, unc)  # the one σ the report shows
+        m = error_measures(
+            est.x,
+            sd.std,
+            stage.true_base,
+            best.base_column_norms,
+            best.true_torque_norm,
+            stage.reference_share,
+        )
+        major = m.get("max_rel_error_major")
+        table.add_row(
+            method.upper(),
+            ("" if major is None else f"worst error {100 * major:.3g} % (major parameters), ")
+            + f"{100 * m['max_rel_error']:.3g} % (torque share >= 1e-4), "
+            + f"{100 * m['within_3std']:.0f} % within 3 std ({sd.method}), "
+            + f"cond {est.condition_number:.4g}",
+        )
+    for method, message in best.failures.items():
+        table.add_row(method.upper(), f"[red]{message}[/red]")
 
 
 def _model_text(model: dict[str, Any]) -> str:

@@ -25,6 +25,32 @@ DEFAULT_TOLERANCE = 1e-9
 MAX_SAMPLES = 100_000
 
 
+# The options that select a URDF's chain, beside --robot and --urdf (their help is the
+# command's --help).
+_LockOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--lock",
+        help="With --urdf: hold joint NAME fixed at VALUE [rad or m] (0 if omitted), "
+        "e.g. the fingers of a gripper; repeatable.",
+        metavar="NAME[=VALUE]",
+    ),
+]
+_BaseLinkOption = Annotated[
+    str | None, typer.Option("--base-link", help="With --urdf: first link of the chain.")
+]
+_TipLinkOption = Annotated[
+    str | None, typer.Option("--tip-link", help="With --urdf: last link of the chain.")
+]
+_InertiaCheckOption = Annotated[
+    bool,
+    typer.Option(
+        "--inertia-check/--no-inertia-check",
+        help="Refuse moving links with physically impossible inertials.",
+    ),
+]
+
+
 def verify(
     robot: Annotated[
         Path | None,
@@ -39,28 +65,10 @@ def verify(
         float, typer.Option("--tolerance", help="Largest accepted relative error.")
     ] = DEFAULT_TOLERANCE,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-    lock: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--lock",
-            help="With --urdf: hold joint NAME fixed at VALUE [rad or m] (0 if omitted), "
-            "e.g. the fingers of a gripper; repeatable.",
-            metavar="NAME[=VALUE]",
-        ),
-    ] = None,
-    base_link: Annotated[
-        str | None, typer.Option("--base-link", help="With --urdf: first link of the chain.")
-    ] = None,
-    tip_link: Annotated[
-        str | None, typer.Option("--tip-link", help="With --urdf: last link of the chain.")
-    ] = None,
-    inertia_check: Annotated[
-        bool,
-        typer.Option(
-            "--inertia-check/--no-inertia-check",
-            help="Refuse moving links with physically impossible inertials.",
-        ),
-    ] = True,
+    lock: _LockOption = None,
+    base_link: _BaseLinkOption = None,
+    tip_link: _TipLinkOption = None,
+    inertia_check: _InertiaCheckOption = True,
 ) -> None:
     """Compare the hand-derived regressor with Pinocchio on random states within the limits.
 
@@ -179,8 +187,8 @@ def parse_locks(specs: list[str]) -> dict[str, float]:
 
 
 def _print_table(report: dict[str, Any]) -> None:
+    """The verification ``report`` (:func:`run_verification`) as rich tables and notes."""
     from rich.console import Console
-    from rich.table import Table
 
     console = Console()
     console.print(
@@ -195,6 +203,31 @@ def _print_table(report: dict[str, Any]) -> None:
             "continuous joints, modelled as revolute without position limit: "
             + ", ".join(report["continuous_joints"])
         )
+    console.print(_regressor_table(report))
+    counts, notes = _base_parameter_table(report)
+    console.print(counts)
+    for note in notes:
+        console.print(note)
+    if "dh_frames" in report:
+        console.print(
+            "frames: 'model' = parameters about the URDF link (joint) frames, 'DH' = about the "
+            "DH frames of the config (the paper's)."
+        )
+    for pair in report.get("nearly_aligned_axes", []):
+        console.print(
+            f"nearly aligned axes: {pair['joint']} and {pair['other']} are "
+            f"{pair['nominal_deg']:g} deg apart to within {pair['deviation_rad']:.2g} rad (URDF "
+            f"angles rounded?); the base parameters treat them as exactly aligned (rank "
+            f"tolerance {report['rank_tolerance']:g})"
+        )
+    if not report["ranks_agree"]:
+        console.print("[red]the two base-parameter methods disagree on the rank[/red]")
+
+
+def _regressor_table(report: dict[str, Any]) -> Any:
+    """The regressor's and the torques' largest errors against Pinocchio, ok or FAILED."""
+    from rich.table import Table
+
     checks = Table(title="Hand-derived regressor vs Pinocchio")
     for column in ("check", "max abs error", "max rel error", "status"):
         checks.add_column(column)
@@ -205,7 +238,13 @@ def _print_table(report: dict[str, Any]) -> None:
     ):
         status = "[green]ok[/green]" if report[rel_key] <= ok else "[red]FAILED[/red]"
         checks.add_row(label, f"{report[abs_key]:.2e}", f"{report[rel_key]:.2e}", status)
-    console.print(checks)
+    return checks
+
+
+def _base_parameter_table(report: dict[str, Any]) -> tuple[Any, list[str]]:
+    """The base-parameter counts of the robot and of each stage, per method and frames, and
+    a note per stage on the joints that move and the bodies that are unknown."""
+    from rich.table import Table
 
     counts = Table(title="Base parameters (numerical rank)")
     for column in ("scope", "frames", "method", "rank", "indep.", "dep.", "unident.", "of"):
@@ -228,23 +267,7 @@ def _print_table(report: dict[str, Any]) -> None:
             f"{name}: joints {stage['moving_joints']} move, torques {stage['torque_rows']}, "
             f"bodies {stage['bodies']} unknown; the other joints held at {held}"
         )
-    console.print(counts)
-    for note in notes:
-        console.print(note)
-    if "dh_frames" in report:
-        console.print(
-            "frames: 'model' = parameters about the URDF link (joint) frames, 'DH' = about the "
-            "DH frames of the config (the paper's)."
-        )
-    for pair in report.get("nearly_aligned_axes", []):
-        console.print(
-            f"nearly aligned axes: {pair['joint']} and {pair['other']} are "
-            f"{pair['nominal_deg']:g} deg apart to within {pair['deviation_rad']:.2g} rad (URDF "
-            f"angles rounded?); the base parameters treat them as exactly aligned (rank "
-            f"tolerance {report['rank_tolerance']:g})"
-        )
-    if not report["ranks_agree"]:
-        console.print("[red]the two base-parameter methods disagree on the rank[/red]")
+    return counts, notes
 
 
 def register(app: typer.Typer) -> None:

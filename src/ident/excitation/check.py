@@ -403,34 +403,13 @@ def check_trajectory(
     ValueError
         For ``rate_hz`` below 1 kHz, or arrays of inconsistent shapes.
     """
-    # the safety model carries the robot's model, names and limits; the robot its mimic joints
-    mimics = tuple(getattr(robot, "mimic_joints", ()))
-    if not rate_hz >= MIN_CHECK_RATE_HZ:
-        raise ValueError(f"rate_hz must be >= {MIN_CHECK_RATE_HZ:g} Hz, got {rate_hz}")
-    t, q, dq, ddq = _checked_arrays(safety.limits.nq, t, q, dq, ddq)
-    finite = bool(np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.isfinite(ddq)))
-    resampling = "none"
-    if t.shape[0] > 1 and finite and np.max(np.diff(t)) > (1.0 + 1e-9) / rate_hz:
-        t, q, dq, ddq = _resample(t, q, dq, ddq, rate_hz)
-        resampling = "cubic_hermite"
-    limits = safety.limits
+    t, q, dq, ddq, finite, resampling = _dense_samples(safety.limits.nq, t, q, dq, ddq, rate_hz)
     clearance, between = certified_clearances(safety, t, q, dq, ddq)
     checks = _clearance_checks(safety, t, clearance, between)
-    checks += _position_checks(limits, t, q, finite)
-    velocity_ratio = _ratio(dq, limits.dq_max)
-    acceleration_ratio = _ratio(ddq, limits.ddq_max)
-    if finite:
-        tau = joint_torques(safety.robot_model, q, dq, ddq)
-    else:
-        tau = np.full(dq.shape, np.inf)
-    torque_ratio = _ratio(tau, safety.effort_max)
-    for kind, series, limit, ratio in (
-        ("velocity", dq, limits.dq_max, velocity_ratio),
-        ("acceleration", ddq, limits.ddq_max, acceleration_ratio),
-        ("torque", tau, safety.effort_max, torque_ratio),
-    ):
-        checks += _peak_checks(kind, limits.joint_names, t, series, limit, ratio, finite)
-    checks += follower_checks(mimics, limits.joint_names, t, q, dq, finite)
+    (velocity_ratio, acceleration_ratio, torque_ratio), limit_checks = _limit_checks(
+        robot, safety, t, q, dq, ddq, finite
+    )
+    checks += limit_checks
     usable = finite and all(c.ok for c in checks)
     return SafetyReport(
         usable=bool(usable),
@@ -445,6 +424,70 @@ def check_trajectory(
         checks=tuple(checks),
         not_checked=_not_checked(safety) + _limits_not_checked(safety),
     )
+
+
+def _dense_samples(
+    nq: int,
+    t: npt.ArrayLike,
+    q: npt.ArrayLike,
+    dq: npt.ArrayLike,
+    ddq: npt.ArrayLike,
+    rate_hz: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, bool, str]:
+    """The samples checked: ``t, q, dq, ddq`` as given when they are at least as fine as
+    ``rate_hz`` [Hz] (or not finite), else interpolated on a uniform grid at ``rate_hz``
+    (:func:`_resample`); whether every state is finite, and the resampling used
+    (:attr:`SafetyReport.resampling`).
+
+    Raises
+    ------
+    ValueError
+        For ``rate_hz`` below :data:`MIN_CHECK_RATE_HZ`, or arrays of inconsistent shapes.
+    """
+    if not rate_hz >= MIN_CHECK_RATE_HZ:
+        raise ValueError(f"rate_hz must be >= {MIN_CHECK_RATE_HZ:g} Hz, got {rate_hz}")
+    t, q, dq, ddq = _checked_arrays(nq, t, q, dq, ddq)
+    finite = bool(np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.all(np.isfinite(ddq)))
+    resampling = "none"
+    if t.shape[0] > 1 and finite and np.max(np.diff(t)) > (1.0 + 1e-9) / rate_hz:
+        t, q, dq, ddq = _resample(t, q, dq, ddq, rate_hz)
+        resampling = "cubic_hermite"
+    return t, q, dq, ddq, finite, resampling
+
+
+def _limit_checks(
+    robot: Any,
+    safety: SafetyModel,
+    t: FloatArray,
+    q: FloatArray,
+    dq: FloatArray,
+    ddq: FloatArray,
+    finite: bool,
+) -> tuple[tuple[FloatArray, FloatArray, FloatArray], list[ConstraintCheck]]:
+    """The joint limits' checks, in order: the positions, the peaks of the velocity,
+    acceleration and torque of every joint (the torques from the nominal inverse dynamics,
+    ``inf`` when a state is not finite), and the limits of ``robot``'s mimic joints
+    (:func:`follower_checks`); with the velocity, acceleration and torque ratios to the
+    limits, shape (n_samples, nv)."""
+    # the safety model carries the robot's model, names and limits; the robot its mimic joints
+    mimics = tuple(getattr(robot, "mimic_joints", ()))
+    limits = safety.limits
+    checks = _position_checks(limits, t, q, finite)
+    velocity_ratio = _ratio(dq, limits.dq_max)
+    acceleration_ratio = _ratio(ddq, limits.ddq_max)
+    if finite:
+        tau = joint_torques(safety.robot_model, q, dq, ddq)
+    else:
+        tau = np.full(dq.shape, np.inf)
+    torque_ratio = _ratio(tau, safety.effort_max)
+    for kind, series, limit, ratio in (
+        ("velocity", dq, limits.dq_max, velocity_ratio),
+        ("acceleration", ddq, limits.ddq_max, acceleration_ratio),
+        ("torque", tau, safety.effort_max, torque_ratio),
+    ):
+        checks += _peak_checks(kind, limits.joint_names, t, series, limit, ratio, finite)
+    checks += follower_checks(mimics, limits.joint_names, t, q, dq, finite)
+    return (velocity_ratio, acceleration_ratio, torque_ratio), checks
 
 
 def _checked_arrays(

@@ -368,7 +368,9 @@ def write_replay(run_dir: str | Path) -> str:
             run_environment,
             run_traced_frame,
         )
-        from ident.viz.replay import replay_html, run_robot_selection
+
+        # the page is drawn by _replay_page; a replay module that cannot load is a note here
+        from ident.viz.replay import replay_html, run_robot_selection  # noqa: F401
     except ImportError as e:
         return f"no replay: ident.viz.replay is not available ({e})."
     data = _result_or_empty(run_dir)
@@ -387,15 +389,49 @@ def write_replay(run_dir: str | Path) -> str:
     environment = run_environment(data)
     mark = run_clearance_mark(data, rank)
     label, title = _replay_captions(data, run_dir, rank, mark)
-    page, problem = None, ""
     robot = config.get("robot") if isinstance(config, dict) else None
-    for frame in dict.fromkeys((traced_frame, None)):  # the family's traced point, else default
+    frames = tuple(dict.fromkeys((traced_frame, None)))  # the family's traced point, else default
+    page, frame, caught, problem = _replay_page(
+        run_dir, robot if isinstance(robot, dict) else None, trajectory, frames,
+        label=label, environment=environment, mark=mark, title=title,
+    )  # fmt: skip
+    if page is None:
+        return problem
+    atomic_write_text(run_dir / "replay.html", page)
+    copy = str(run_dir / "robot.urdf")  # name the copy, not this folder's absolute path
+    notes = "".join(f"; {str(w.message).replace(copy, 'robot.urdf').rstrip('.')}" for w in caught)
+    return f"replay.html written (traced frame: {frame or _default_frame(run_dir)}){notes}."
+
+
+def _replay_page(
+    run_dir: Path,
+    robot: dict[str, Any] | None,
+    trajectory: JointTrajectory,
+    frames: tuple[str | None, ...],
+    *,
+    label: str,
+    environment: Any,
+    mark: Any,
+    title: str,
+) -> tuple[str | None, str | None, list[warnings.WarningMessage], str]:
+    """The replay page of ``trajectory`` (:func:`ident.viz.replay.replay_html`) tracing the
+    first of ``frames`` that works (``None``: the replay's default frame), on the run's chain,
+    locked joints and mesh folders (``robot``: the config's robot section).
+
+    Returns the page (``None`` when every frame failed), the frame, the warnings of the page
+    (e.g. meshes not found) and the note of the last failure. Never raises.
+    """
+    from ident.viz.replay import replay_html, run_robot_selection
+
+    page, problem, frame = None, "", None
+    caught: list[warnings.WarningMessage] = []
+    for frame in frames:
         try:
             with warnings.catch_warnings(record=True) as caught:  # e.g. meshes not found
                 warnings.simplefilter("always")
                 page = replay_html(
                     # the run's chain, locked joints and mesh folders (robot.package_dirs)
-                    run_robot_selection(run_dir, robot if isinstance(robot, dict) else None),
+                    run_robot_selection(run_dir, robot),
                     [trajectory],
                     traced_frame=frame,
                     labels=[label],
@@ -407,12 +443,7 @@ def write_replay(run_dir: str | Path) -> str:
             break
         except Exception as e:  # the replay is a convenience: a failure must not lose the run
             problem = f"no replay: {type(e).__name__}: {e}"
-    if page is None:
-        return problem
-    atomic_write_text(run_dir / "replay.html", page)
-    copy = str(run_dir / "robot.urdf")  # name the copy, not this folder's absolute path
-    notes = "".join(f"; {str(w.message).replace(copy, 'robot.urdf').rstrip('.')}" for w in caught)
-    return f"replay.html written (traced frame: {frame or _default_frame(run_dir)}){notes}."
+    return page, frame, caught, problem
 
 
 def _result_or_empty(run_dir: Path) -> dict[str, Any]:

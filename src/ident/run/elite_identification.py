@@ -159,12 +159,46 @@ def identify_elite(
     meas = simulate_measurements(
         robot.model, t, q, dq, ddq, noise_model(config), rng=np.random.default_rng(seed)
     )
+    unmeasured = non_finite_measurement(meas, tuple(robot.joint_names), index + 1)
+    estimates, failures, norms, true_norm = _estimate_elite(config, robot, stage, meas, unmeasured)
+    return EliteOutcome(
+        rank=index + 1,
+        x=x,
+        fitness=fitness,
+        details=details,
+        t=t,
+        q=q,
+        dq=dq,
+        ddq=ddq,
+        traced_points=traced,
+        tau=None if unmeasured else np.asarray(meas.tau),
+        estimates=estimates,
+        failures=failures,
+        base_column_norms=norms,
+        true_torque_norm=true_norm,
+    )
+
+
+def _estimate_elite(
+    config: RunConfig,
+    robot: Any,
+    stage: StageInfo,
+    meas: Measurements,
+    unmeasured: str,
+) -> tuple[dict[str, Any], dict[str, str], FloatArray | None, float | None]:
+    """The stage's base parameters estimated from an elite's measurements ``meas`` by every
+    method of ``config.estimation.methods``; ``unmeasured``: why the simulation gave no
+    usable measurement (empty when it did).
+
+    Returns the successful estimates and each failed method's message (every method fails
+    with the same message when the measurements cannot be identified), and the base columns'
+    norms and the true torque norm (:func:`_column_norms`; None without an identification).
+    """
     estimates: dict[str, Any] = {}
     failures: dict[str, str] = {}
     norms: FloatArray | None = None
     true_norm: float | None = None
     methods = config.estimation.methods
-    unmeasured = non_finite_measurement(meas, tuple(robot.joint_names), index + 1)
     try:
         if unmeasured:  # the run's own simulation: its cause, never a file that cannot be read
             raise IdentError(unmeasured)
@@ -188,22 +222,7 @@ def identify_elite(
             else:
                 failures[method] = est.message
         norms, true_norm = _column_norms(result.reduction, stage.true_base)
-    return EliteOutcome(
-        rank=index + 1,
-        x=x,
-        fitness=fitness,
-        details=details,
-        t=t,
-        q=q,
-        dq=dq,
-        ddq=ddq,
-        traced_points=traced,
-        tau=None if unmeasured else np.asarray(meas.tau),
-        estimates=estimates,
-        failures=failures,
-        base_column_norms=norms,
-        true_torque_norm=true_norm,
-    )
+    return estimates, failures, norms, true_norm
 
 
 def non_finite_measurement(meas: Measurements, joint_names: tuple[str, ...], rank: int) -> str:

@@ -36,7 +36,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import yaml
@@ -162,22 +162,9 @@ def init_config(
     """
     urdf = Path(urdf)
     output = Path(output)
-    problem = file_problem(urdf)
-    if problem is not None:
-        raise ConfigError(f"{urdf}: URDF file {problem}; check the path.")
-    text = read_urdf_text(urdf)
-    dirs = find_package_dirs(urdf, text, list(package_dirs or []))
-    locks, lock_notes = choose_locks(urdf, base_link, tip_link, dict(lock or {}), dirs)
-    selection = RobotSelection(
-        urdf=urdf.resolve(),
-        base_link=base_link,
-        tip_link=tip_link,
-        lock=locks,
-        package_dirs=dirs,
+    selection, robot, dirs, lock_notes = _select_robot(
+        urdf, base_link, tip_link, dict(lock or {}), list(package_dirs or [])
     )
-    robot = load_robot(selection, source=urdf)
-    if tip_link is None:  # written: the replay traces the chain's tip, not the file's last link
-        selection = selection.model_copy(update={"tip_link": chain_tip_link(robot.model)})
     c = _choose(robot, robot.urdf_text, progress or (lambda _step: None))  # xacro expanded
     guesses, guess_notes = _limit_guesses(robot, c)
     lines = [
@@ -193,6 +180,41 @@ def init_config(
     seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
     notes = [*_notes(c, urdf, lock_notes), *guess_notes]
     return InitResult(config_text, tuple(notes), seconds, quick_seconds)
+
+
+def _select_robot(
+    urdf: Path,
+    base_link: str | None,
+    tip_link: str | None,
+    lock: dict[str, float],
+    package_dirs: list[Path],
+) -> tuple[RobotSelection, Any, list[Path], list[str]]:
+    """The robot selection ``ident init`` writes (the chain's tip named), the robot it loads,
+    the mesh folders (``package_dirs``, else found above the URDF) and the notes on the
+    joints it locks (:func:`~ident.run.init_robot.choose_locks`).
+
+    Raises
+    ------
+    IdentError
+        The URDF cannot be read or loaded, or the chain or a lock is wrong.
+    """
+    problem = file_problem(urdf)
+    if problem is not None:
+        raise ConfigError(f"{urdf}: URDF file {problem}; check the path.")
+    text = read_urdf_text(urdf)
+    dirs = find_package_dirs(urdf, text, package_dirs)
+    locks, lock_notes = choose_locks(urdf, base_link, tip_link, lock, dirs)
+    selection = RobotSelection(
+        urdf=urdf.resolve(),
+        base_link=base_link,
+        tip_link=tip_link,
+        lock=locks,
+        package_dirs=dirs,
+    )
+    robot = load_robot(selection, source=urdf)
+    if tip_link is None:  # written: the replay traces the chain's tip, not the file's last link
+        selection = selection.model_copy(update={"tip_link": chain_tip_link(robot.model)})
+    return selection, robot, dirs, lock_notes
 
 
 @dataclass(frozen=True, eq=False)
@@ -278,21 +300,100 @@ def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
     """The limits, the excitation's bound, the geometry and the measurement guesses
     (``progress``: called with each step of :data:`INIT_STEPS` as it starts)."""
     progress(INIT_STEPS[0])
-    # limits
+    dq_max, dq_known, ddq_max, ddq_known = _limits(robot, text)
+    w = 2.0 * np.pi / PERIOD_S
+    c_q, c_v, c_a = fourier_bound_factors(N_HARMONICS)
+    amplitude = _amplitude(robot, dq_max, ddq_max, w, (c_q, c_v, c_a))
+    g = _geometry(robot, progress)
+    # measurement guesses
+    effort = effort_scale(robot)
+    armature = ARMATURE_PER_EFFORT * effort
+    torque = torque_scale(
+        robot, g.home, amplitude * c_v, amplitude * c_a * w, armature, _Q0_HALF_WIDTH
+    )
+    return _Choices(
+        robot_name=str(robot.name),
+        names=tuple(robot.joint_names),
+        dq_max=dq_max,
+        dq_known=dq_known,
+        ddq_max=ddq_max,
+        ddq_known=ddq_known,
+        w=w,
+        c_q=c_q,
+        c_v=c_v,
+        c_a=c_a,
+        amplitude=amplitude,
+        reach=g.reach,
+        guessed_clearance=g.guessed_clearance,
+        clearance=g.clearance,
+        close_pairs=tuple(g.close_pairs),
+        floor_z=g.floor_z,
+        home=g.home,
+        home_clearance=g.home_clearance,
+        effort=effort,
+        effort_known=np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0),
+        viscous=VISCOUS_PER_EFFORT * effort,
+        coulomb=COULOMB_PER_EFFORT * effort,
+        armature=armature,
+        torque=torque,
+        noise=np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque),
+        threshold=np.minimum(0.15, 0.1 * amplitude * c_v),  # rad/s, below the design's speeds
+        geometry_problem=g.problem,
+    )
+
+
+def _limits(robot: Any, text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The velocity and acceleration limits [rad/s, rad/s^2] and where the URDF gives them
+    (``text``: its text, xacro expanded); elsewhere :data:`DEFAULT_VELOCITY` and
+    :data:`ACCELERATION_PER_VELOCITY` times the velocity limit."""
     dq_urdf = np.asarray(robot.dq_max, dtype=float)
     dq_known = np.isfinite(dq_urdf) & (dq_urdf > 0)
     dq_max = np.where(dq_known, dq_urdf, DEFAULT_VELOCITY)
     ddq_urdf = urdf_acceleration_limits(text, robot.joint_names)
     ddq_known = np.isfinite(ddq_urdf)
     ddq_max = np.where(ddq_known, ddq_urdf, ACCELERATION_PER_VELOCITY * dq_max)
+    return dq_max, dq_known, ddq_max, ddq_known
+
+
+def _amplitude(
+    robot: Any,
+    dq_max: np.ndarray,
+    ddq_max: np.ndarray,
+    w: float,
+    factors: tuple[float, float, float],
+) -> np.ndarray:
+    """The Fourier bound per joint [rad/s]: every design of the box keeps the velocity and
+    acceleration limits ``dq_max``, ``ddq_max`` (with :data:`VELOCITY_MARGIN`) and the
+    position range (``w``: the base frequency [rad/s]; ``factors``: the bound factors
+    ``c_q, c_v, c_a`` of :func:`~ident.excitation.fourier.fourier_bound_factors`)."""
+    c_q, c_v, c_a = factors
     # excitation: every design of the box within the margins
-    w = 2.0 * np.pi / PERIOD_S
-    c_q, c_v, c_a = fourier_bound_factors(N_HARMONICS)
     amplitude = VELOCITY_MARGIN * np.minimum(dq_max / c_v, ddq_max / (w * c_a))
     # and within the position range: |q - q0| <= c_q A / w fits 70 % of each half range (the
     # other 30 % on either side of the range's middle is the mean postures' room)
     amplitude = np.minimum(amplitude, 0.7 * _half_room(robot) * w / c_q)
-    amplitude = np.floor(amplitude * 1e4) / 1e4  # written with 4 decimals, never rounded up
+    return np.floor(amplitude * 1e4) / 1e4  # written with 4 decimals, never rounded up
+
+
+class _Geometry(NamedTuple):
+    """The geometry ``ident init`` derives: the robot's reach, the guessed and the kept
+    clearance margins and the link pairs closer than the guess [m], the floor height (its
+    base's bottom) [m], a clear home posture [rad] and its clearance [m], and why
+    self-collision cannot be checked ('' when it can)."""
+
+    reach: float
+    guessed_clearance: float
+    clearance: float
+    close_pairs: list[str]
+    floor_z: float
+    home: np.ndarray
+    home_clearance: float
+    problem: str
+
+
+def _geometry(robot: Any, progress: Callable[[str], None]) -> _Geometry:
+    """The floor, the margin and a posture clear of both (``progress``: called with the steps
+    of :data:`INIT_STEPS` that start here)."""
     # geometry: floor, margin, a posture clear of both
     reference = np.clip(np.zeros(robot.nq), robot.q_lower, robot.q_upper)
     reach = robot_reach(robot, reference)
@@ -307,40 +408,15 @@ def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
     floor_z = float(np.floor(base_bottom(self_model) * 1e3) / 1e3) + 0.0  # mm, never above
     progress(INIT_STEPS[2])
     home, home_clearance = clear_posture(robot, clearance, floor_z, check_self)
-    # measurement guesses
-    effort = effort_scale(robot)
-    armature = ARMATURE_PER_EFFORT * effort
-    torque = torque_scale(
-        robot, home, amplitude * c_v, amplitude * c_a * w, armature, _Q0_HALF_WIDTH
-    )
-    return _Choices(
-        robot_name=str(robot.name),
-        names=tuple(robot.joint_names),
-        dq_max=dq_max,
-        dq_known=dq_known,
-        ddq_max=ddq_max,
-        ddq_known=ddq_known,
-        w=w,
-        c_q=c_q,
-        c_v=c_v,
-        c_a=c_a,
-        amplitude=amplitude,
-        reach=reach,
-        guessed_clearance=guessed_clearance,
-        clearance=clearance,
-        close_pairs=tuple(close_pairs),
-        floor_z=floor_z,
-        home=home,
-        home_clearance=home_clearance,
-        effort=effort,
-        effort_known=np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0),
-        viscous=VISCOUS_PER_EFFORT * effort,
-        coulomb=COULOMB_PER_EFFORT * effort,
-        armature=armature,
-        torque=torque,
-        noise=np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque),
-        threshold=np.minimum(0.15, 0.1 * amplitude * c_v),  # rad/s, below the design's speeds
-        geometry_problem=geometry_problem,
+    return _Geometry(
+        reach,
+        guessed_clearance,
+        clearance,
+        close_pairs,
+        floor_z,
+        home,
+        home_clearance,
+        geometry_problem,
     )
 
 

@@ -164,33 +164,9 @@ def run_pipeline(
     base = _base_result(setup, problem.bounds, stage_info)
     state = _State()
     try:
-        if start is None:
-            _search_elites(setup, problem, streams[0], state, notify)
-        else:
-            state.elites, state.elite_message = start.elites, start.elite_message
-        _optimize(setup, problem, streams[1], state, notify)
-        chosen_x, chosen_f = _choose(setup, problem, state)
-        problem, chosen_x, chosen_f, retry_note = _retry_at_wider_margin(
-            setup, problem, streams[1], state, notify, chosen_x, chosen_f
-        )
-        _measure(setup, problem, stage_info, measure, chosen_x, chosen_f, streams[2], state, notify)
-        state.phase = "executable trajectory"
-        plan = plan_executable(
-            config, setup.robot, setup.family, setup.safety, chosen_x, state.safety
-        )
-        if retry_note:
-            plan = dataclasses.replace(plan, message=retry_note + plan.message)
-    except KeyboardInterrupt as e:
-        raise RunInterrupted(
-            state.partial(base, f"interrupted (Ctrl-C) during the {state.phase}"), e
-        ) from e
-    except IdentError as e:
-        raise RunInterrupted(
-            state.partial(base, f"stopped during the {state.phase}: {e}"), e
-        ) from e
-    except Exception as e:  # a crash: keep what finished, then let it surface
-        message = f"crashed during the {state.phase}: {type(e).__name__}: {e}"
-        raise RunInterrupted(state.partial(base, message), e) from e
+        plan = _run_stages(setup, start, problem, stage_info, measure, streams, state, notify)
+    except (KeyboardInterrupt, Exception) as e:  # a crash too: keep what finished
+        raise _interrupted(state, base, e) from e
     return _replace(
         state.partial(base, ""),
         status="complete",
@@ -199,6 +175,52 @@ def run_pipeline(
         executable=plan,
         safety=_safety_entry(plan, state.safety),
     )
+
+
+def _interrupted(state: _State, base: RunResult, cause: BaseException) -> RunInterrupted:
+    """The :class:`RunInterrupted` of a run stopped by ``cause`` (Ctrl-C, an input error or a
+    crash) during ``state.phase``: the finished part, marked incomplete with the reason."""
+    if isinstance(cause, KeyboardInterrupt):
+        message = f"interrupted (Ctrl-C) during the {state.phase}"
+    elif isinstance(cause, IdentError):
+        message = f"stopped during the {state.phase}: {cause}"
+    else:  # a crash: keep what finished, then let it surface
+        message = f"crashed during the {state.phase}: {type(cause).__name__}: {cause}"
+    return RunInterrupted(state.partial(base, message), cause)
+
+
+def _run_stages(
+    setup: RunSetup,
+    start: FeasibleStart | None,
+    problem: Any,
+    stage_info: StageInfo,
+    measure: Any,
+    streams: list[np.random.SeedSequence],
+    state: _State,
+    notify: ProgressCallback,
+) -> Any:
+    """The stages of a run after its set-up, each recording its results in ``state``: the
+    initial elites (``start``'s when given), the optimizer runs, the chosen designs (optimized
+    again with a wider margin when every elite is a little inside the margin between the
+    checked samples), the measured and identified elites; returns the executable plan of the
+    chosen design."""
+    if start is None:
+        _search_elites(setup, problem, streams[0], state, notify)
+    else:
+        state.elites, state.elite_message = start.elites, start.elite_message
+    _optimize(setup, problem, streams[1], state, notify)
+    chosen_x, chosen_f = _choose(setup, problem, state)
+    problem, chosen_x, chosen_f, retry_note = _retry_at_wider_margin(
+        setup, problem, streams[1], state, notify, chosen_x, chosen_f
+    )
+    _measure(setup, problem, stage_info, measure, chosen_x, chosen_f, streams[2], state, notify)
+    state.phase = "executable trajectory"
+    plan = plan_executable(
+        setup.config, setup.robot, setup.family, setup.safety, chosen_x, state.safety
+    )
+    if retry_note:
+        plan = dataclasses.replace(plan, message=retry_note + plan.message)
+    return plan
 
 
 def _safety_entry(plan: Any, reports: list[Any]) -> dict[str, Any]:

@@ -211,6 +211,29 @@ def create_run_dir(
     now = now or datetime.now(timezone.utc)
     stem = f"{safe_component(name, default='run')}-{now.strftime('%Y%m%d-%H%M%S')}"
     parent, stem = (out.parent, out.name) if exact else (out, stem)
+    path = _new_folder(parent, stem, exact)
+    run = RunDir(path, {"status": RUNNING, "started_at": _now_iso(), **(info or {})}, status_copy)
+    try:
+        run.update()
+    except OSError as e:  # a folder without run.json is no run: leave nothing behind
+        path.rmdir()
+        raise IdentError(
+            f"{path / RUN_STATE_FILE}: cannot write the run state ({e.strerror}); free some "
+            "space or use --out."
+        ) from e
+    return run
+
+
+def _new_folder(parent: Path, stem: str, exact: bool) -> Path:
+    """Create and return the folder ``parent/stem``, or ``stem-2``, ``stem-3``, ... when it is
+    taken (``exact``: an empty existing ``stem`` is taken as it is). The folder is made
+    exclusively: an earlier run is never reused.
+
+    Raises
+    ------
+    IdentError
+        If ``parent`` cannot be created or written.
+    """
     try:
         parent.mkdir(parents=True, exist_ok=True)
         for k in range(1, 1000):
@@ -227,16 +250,7 @@ def create_run_dir(
         raise IdentError(
             f"{parent}: cannot create the run folder ({e.strerror}); use --out."
         ) from e
-    run = RunDir(path, {"status": RUNNING, "started_at": _now_iso(), **(info or {})}, status_copy)
-    try:
-        run.update()
-    except OSError as e:  # a folder without run.json is no run: leave nothing behind
-        path.rmdir()
-        raise IdentError(
-            f"{path / RUN_STATE_FILE}: cannot write the run state ({e.strerror}); free some "
-            "space or use --out."
-        ) from e
-    return run
+    return path
 
 
 def unfinished_note(path: str | Path, state: dict[str, Any]) -> str | None:

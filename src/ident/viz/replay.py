@@ -20,18 +20,19 @@ Scene layout (meshcat paths)::
     /meshcat/replay/floor                         the floor (:mod:`ident.viz.environment`)
     /meshcat/replay/robot_<k>/environment/<name>  obstacles of robot k
     /meshcat/replay/robot_<k>/closest             closest link at the least clearance
+
+The robot is loaded by :mod:`ident.viz.visual_robot`, the trajectories' keyframes and traced
+paths computed by :mod:`ident.viz.motion`; this module records the scene and writes the page.
 """
 
 from __future__ import annotations
 
-import difflib
 import html
 import math
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import meshcat
 import meshcat.geometry as mg
@@ -43,12 +44,8 @@ from meshcat.commands import SetAnimation
 from pinocchio.visualize import MeshcatVisualizer
 from pinocchio.visualize.meshcat_visualizer import loadMesh
 
-from ident.config import file_problem
-from ident.errors import DataError, IdentWarning, ModelError
-from ident.measure.timebase import find_segments
-from ident.model.selection import RobotSelection, load_robot
-from ident.robot.meshes import check_urdf_meshes, resolve_urdf_meshes
-from ident.robot.urdf_load import build_model, prepare_urdf
+from ident.errors import DataError
+from ident.model.selection import RobotSelection
 from ident.trajectory import JointTrajectory
 from ident.viz.environment import (
     CLOSEST_COLOR,
@@ -56,7 +53,23 @@ from ident.viz.environment import (
     ReplayEnvironment,
     draw_environment,
 )
+from ident.viz.motion import (
+    _frame_positions,
+    _Motion,
+    _replay_motions,
+    joint_configurations,
+    replay_duration,
+    replay_segments,
+)
 from ident.viz.recorder import SceneRecorder
+from ident.viz.visual_robot import (
+    _characteristic_length,
+    _scene_robot,
+    _SceneRobot,
+    default_traced_frame,
+    load_visual_robot,
+    run_robot_selection,
+)
 
 __all__ = [
     "DEFAULT_FPS",
@@ -71,19 +84,19 @@ __all__ = [
     "run_robot_selection",
 ]
 
+
 FloatArray = npt.NDArray[np.float64]
 
+
 DEFAULT_FPS = 30.0
-# Frames tried, in order, when no traced frame is given (the paper robot's flange first).
-_PREFERRED_TRACED_FRAMES = ("flange", "tool0", "tool", "ee_link", "wrist_centre")
+
+
 # Line colours of robots 0, 1, ... (0xRRGGBB), cycled: dark and saturated, so they stand out
 # on meshcat's light sky and on the grey floor (no white, no yellow).
 _PATH_COLORS = (0xC2255C, 0x1971C2, 0x2B8A3E, 0xD9480F, 0x6741D9, 0x0B7285)
+
+
 _ROOT = "replay"
-# Keep the path line light: a 1 kHz, 60 s log is decimated to at most this many points.
-_MAX_PATH_POINTS = 4000
-# Segments of a log drawn as lines of their own (more: one line through all of them).
-_MAX_SEGMENT_LINES = 50
 
 
 @dataclass(frozen=True)
@@ -145,429 +158,6 @@ class _BakedMeshVisualizer(MeshcatVisualizer):
         if isinstance(geometry_object.geometry, coal.BVHModelBase):
             return loadMesh(geometry_object.geometry)
         return super().loadMeshFromFile(geometry_object)
-
-
-def load_visual_robot(
-    robot: str | Path | RobotSelection,
-    package_dirs: Sequence[str | Path] = (),
-    *,
-    package_hint: str = "--package-dir",
-) -> tuple[pin.Model, pin.GeometryModel, bool]:
-    """Load the kinematics and visual geometry of a robot selection (a URDF and its chain).
-
-    The robot is chosen as for the identification (:func:`ident.model.selection.load_robot`:
-    the chain ``base_link``..``tip_link``, the locked joints and their values); the visual
-    geometry is the whole URDF's, with the links behind locked joints fixed at their lock
-    values (Pinocchio's reduced model and geometry, ``pin.buildReducedModel``), so a hand
-    locked half open is drawn half open and moves with the arm.
-
-    Parameters
-    ----------
-    robot :
-        A URDF file (nothing locked) or a :class:`~ident.model.selection.RobotSelection`
-        with resolved paths. Meshes may be ``package://`` URIs or paths relative to the URDF.
-    package_dirs :
-        More folders that contain the ``package://`` roots, searched after the selection's
-        ``package_dirs`` (the URDF's folder and its parent are always searched).
-    package_hint :
-        The option that gives mesh folders in the calling command, named in the warning
-        when meshes are missing (``--package-dir``, or ``robot.package_dirs`` of a config).
-
-    Returns
-    -------
-    model, visual_model, fallback :
-        Pinocchio model of the moving joints (the selection's chain, locked joints removed;
-        continuous joints as revolute), visual geometry model and whether the geometry is a
-        stick figure built from the kinematics (URDF without visuals, or with meshes that
-        cannot be found: an :class:`IdentWarning` names the missing file and the option).
-
-    Raises
-    ------
-    ModelError
-        The file does not exist, is not a URDF Pinocchio can parse, or the selection is not
-        a serial chain (the message names the joints to lock).
-    """
-    selection = robot if isinstance(robot, RobotSelection) else RobotSelection(urdf=Path(robot))
-    if selection.urdf is None:
-        raise ModelError(f"{selection.path}: the replay needs a URDF (robot.urdf).")
-    urdf_path = Path(selection.urdf)
-    problem = file_problem(urdf_path)
-    if problem is not None:
-        raise ModelError(f"{urdf_path}: URDF file {problem}.")
-    dirs = _mesh_folders(urdf_path, package_dirs, selection.package_dirs)
-    # the identification's robot: its checks, chain and lock values (inertials not needed)
-    robot_model = load_robot(selection.model_copy(update={"inertia_check": False}))
-    text = robot_model.urdf_text  # xacro expanded
-    pinocchio_text = prepare_urdf(text, str(urdf_path)).text
-    model = build_model(pinocchio_text, str(urdf_path))
-    visual_model = _urdf_geometry(model, urdf_path, pinocchio_text, dirs, package_hint)
-    if visual_model is None:
-        return robot_model.model, stick_figure(robot_model.model), True
-    if robot_model.locked_joints:
-        model, visual_model = _lock_joints(model, visual_model, dict(robot_model.locked_joints))
-    if len(visual_model.geometryObjects) == 0:
-        return model, stick_figure(model), True
-    return model, visual_model, False
-
-
-def _mesh_folders(
-    urdf_path: Path, package_dirs: Sequence[str | Path], selection_dirs: Sequence[str | Path]
-) -> list[str]:
-    """Folders searched for ``package://`` meshes, in order: ``package_dirs``, the selection's
-    ``package_dirs``, the URDF's folder and its parent (absolute)."""
-    dirs = [str(Path(d)) for d in (*package_dirs, *selection_dirs)]
-    return dirs + [str(urdf_path.parent.resolve()), str(urdf_path.parent.resolve().parent)]
-
-
-def _urdf_geometry(
-    model: pin.Model, urdf_path: Path, text: str, dirs: list[str], package_hint: str
-) -> pin.GeometryModel | None:
-    """The URDF's visual geometry of the full ``model``, else its collision geometry.
-
-    The meshes are found by :func:`ident.robot.meshes.resolve_urdf_meshes` (the resolver of
-    every loader) and checked before coal loads them (a broken file is never a segfault).
-    When a visual mesh is missing, an :class:`IdentWarning` (attributed to the caller of
-    :func:`load_visual_robot`) names the first missing files, their count and
-    ``package_hint``, and the collision geometry is used when all of it is found; ``None``
-    otherwise (or when it is empty): the caller shows a stick figure of the frames. A URDF
-    without visuals gives an empty model. ``text``: the URDF as Pinocchio reads it
-    (:func:`ident.robot.urdf_load.prepare_urdf`: a xacro file expanded).
-    """
-    resolved = resolve_urdf_meshes(text, dirs, urdf_path.parent)
-    check_urdf_meshes(resolved.text, collision=False, name=str(urdf_path))  # before coal
-    missing = resolved.missing_line("visual", str(urdf_path))
-    if not missing:
-        return pin.buildGeomFromUrdfString(model, resolved.text, pin.GeometryType.VISUAL)
-    collision = pin.GeometryModel()
-    if not resolved.missing_line("collision", str(urdf_path)):
-        check_urdf_meshes(resolved.text, visual=False, name=str(urdf_path))  # before coal
-        collision = pin.buildGeomFromUrdfString(model, resolved.text, pin.GeometryType.COLLISION)
-    # stacklevel 3: the warning names the caller of load_visual_robot
-    if len(collision.geometryObjects) == 0:
-        warnings.warn(
-            f"{missing}; showing a stick figure of the kinematic chain instead. Give the "
-            f"folder that holds them with {package_hint}.",
-            IdentWarning,
-            stacklevel=3,
-        )
-        return None
-    warnings.warn(
-        f"{missing}; showing the collision geometry instead (the visual meshes' folder is "
-        f"given with {package_hint}).",
-        IdentWarning,
-        stacklevel=3,
-    )
-    return collision
-
-
-def _lock_joints(
-    model: pin.Model, visual_model: pin.GeometryModel, locked: Mapping[str, float]
-) -> tuple[pin.Model, pin.GeometryModel]:
-    """Pinocchio's reduced model and geometry with the joints of ``locked`` held at their
-    values [rad or m] (the other joints at their neutral configuration)."""
-    reference = pin.neutral(model)
-    for name, value in locked.items():
-        reference[model.joints[model.getJointId(name)].idx_q] = value
-    ids = [model.getJointId(name) for name in locked]
-    return pin.buildReducedModel(model, visual_model, ids, reference)
-
-
-def run_robot_selection(
-    run_dir: str | Path,
-    robot: Mapping[str, Any] | RobotSelection | None,
-    package_dirs: Sequence[str | Path] = (),
-) -> RobotSelection:
-    """The robot selection of a run folder's ``robot.urdf`` (the copy of the run's URDF).
-
-    Parameters
-    ----------
-    run_dir :
-        The run folder; its ``robot.urdf`` is the file loaded.
-    robot :
-        The run config's ``robot`` section with resolved paths (``result.json``'s
-        ``config.robot``, or the :class:`RobotSelection` itself), or ``None``.
-    package_dirs :
-        Folders searched first for ``package://`` meshes.
-
-    Returns
-    -------
-    :
-        The run's chain, locked joints and their values, on ``robot.urdf``; mesh folders:
-        ``package_dirs``, the section's ``package_dirs``, then the original URDF's folder and
-        its parent (meshes given relative to the original file). A DH description or no
-        section: ``robot.urdf`` alone.
-
-    Raises
-    ------
-    ModelError
-        The section is not a valid robot selection (a damaged ``result.json``).
-    """
-    urdf = Path(run_dir) / "robot.urdf"
-    dirs = [Path(d) for d in package_dirs]
-    if robot is None:
-        return RobotSelection(urdf=urdf, package_dirs=dirs)
-    try:
-        selection = (
-            robot if isinstance(robot, RobotSelection) else RobotSelection.model_validate(robot)
-        )
-    except ValueError as e:  # pydantic's ValidationError is a ValueError
-        raise ModelError(f"{run_dir}: the run's robot section is not valid ({e}).") from e
-    if selection.urdf is None:  # a DH description: robot.urdf is generated, nothing locked
-        return RobotSelection(urdf=urdf, package_dirs=dirs)
-    original = Path(selection.urdf)
-    dirs += [*selection.package_dirs, original.parent, original.parent.parent]
-    return selection.model_copy(update={"urdf": urdf, "package_dirs": dirs})
-
-
-def _characteristic_length(model: pin.Model) -> float:
-    """Sum of the joint and frame offsets [m]: the size of the robot when stretched."""
-    length = sum(float(np.linalg.norm(p.translation)) for p in model.jointPlacements)
-    tips = [f for f in model.frames if f.type == pin.FrameType.BODY or f.type == pin.OP_FRAME]
-    length += max((float(np.linalg.norm(f.placement.translation)) for f in tips), default=0.0)
-    return max(length, 0.1)
-
-
-def stick_figure(model: pin.Model) -> pin.GeometryModel:
-    """Visual geometry made of the kinematics: a sphere per joint, a cylinder per link.
-
-    Used when a URDF has no visuals or its meshes are missing, so the motion stays visible.
-    """
-    import coal  # Pinocchio's geometry library, installed with pin
-
-    size = _characteristic_length(model)
-    radius = float(np.clip(0.02 * size, 0.005, 0.05))
-    geometry = pin.GeometryModel()
-    grey, orange = np.array([0.6, 0.6, 0.65, 1.0]), np.array([0.9, 0.45, 0.1, 1.0])
-
-    def segment(name: str, parent_joint: int, start: FloatArray, end: FloatArray) -> None:
-        vector = end - start
-        length = float(np.linalg.norm(vector))
-        if length < 1e-6:
-            return
-        rotation = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), vector / length)
-        placement = pin.SE3(rotation.toRotationMatrix(), (start + end) / 2)
-        obj = pin.GeometryObject(name, parent_joint, placement, coal.Cylinder(radius, length))
-        obj.meshColor = grey
-        geometry.addGeometryObject(obj)
-
-    for j in range(1, model.njoints):
-        ball = pin.GeometryObject(
-            f"joint_{model.names[j]}", j, pin.SE3.Identity(), coal.Sphere(1.6 * radius)
-        )
-        ball.meshColor = orange
-        geometry.addGeometryObject(ball)
-        segment(
-            f"link_{model.names[j]}",
-            model.parents[j],
-            np.zeros(3),
-            np.asarray(model.jointPlacements[j].translation),
-        )
-    # Tip segment: from each leaf joint to its farthest attached frame (flange, tool).
-    leaves = set(range(1, model.njoints)) - set(model.parents[1:])
-    for leaf in sorted(leaves):
-        attached = [f for f in model.frames if f.parentJoint == leaf]
-        if attached:
-            tip = max(attached, key=lambda f: float(np.linalg.norm(f.placement.translation)))
-            segment(f"tip_{tip.name}", leaf, np.zeros(3), np.asarray(tip.placement.translation))
-    return geometry
-
-
-def default_traced_frame(model: pin.Model, tip_link: str | None = None) -> str:
-    """Frame traced when none is given: ``flange``, ``tool0``, ...; else the last frame on the
-    body of ``tip_link`` (the chain's tip: its tool, a locked hand's centre), else the last
-    frame."""
-    for name in _PREFERRED_TRACED_FRAMES:
-        if model.existFrame(name):
-            return name
-    if tip_link is not None and model.existFrame(tip_link):
-        joint = model.frames[model.getFrameId(tip_link)].parentJoint
-        return [f.name for f in model.frames if f.parentJoint == joint][-1]
-    return model.frames[len(model.frames) - 1].name
-
-
-def _frame_id(model: pin.Model, name: str, urdf_path: Path) -> int:
-    if model.existFrame(name):
-        return int(model.getFrameId(name))
-    names = [f.name for f in model.frames]
-    close = difflib.get_close_matches(name, names, n=3)
-    hint = f" Did you mean {close}?" if close else ""
-    raise ModelError(f"{urdf_path}: no frame '{name}' to trace.{hint} Frames: {names}.")
-
-
-def joint_configurations(
-    model: pin.Model, trajectory: JointTrajectory, *, urdf_path: str | Path | None = None
-) -> FloatArray:
-    """Configurations of ``model`` along a trajectory whose columns are named joints.
-
-    The trajectory's joints are matched to the model's by name (any column order).
-
-    Parameters
-    ----------
-    model :
-        Pinocchio model of a fixed-base robot (revolute, prismatic, continuous joints).
-    trajectory :
-        Joint positions [rad] or [m], shape (n_samples, n_joints). Its ``source`` (the CSV)
-        is named in messages.
-    urdf_path :
-        The model's URDF, named in messages.
-
-    Returns
-    -------
-    :
-        Configurations, shape (n_samples, model.nq); a continuous joint's angle becomes
-        its (cos, sin) pair.
-
-    Raises
-    ------
-    DataError
-        The trajectory's joint names are not exactly the model's 1-DoF joints.
-    ModelError
-        The model has a joint with more than one degree of freedom (floating base...).
-    """
-    model_joints = [model.names[j] for j in range(1, model.njoints)]
-    multi = [model.names[j] for j in range(1, model.njoints) if model.joints[j].nv != 1]
-    if multi:
-        raise ModelError(
-            f"replay supports 1-DoF joints only; joints {multi} have several degrees of freedom."
-        )
-    names = list(trajectory.joint_names)
-    if sorted(names) != sorted(model_joints):
-        raise _joint_mismatch(names, model_joints, trajectory.source, urdf_path)
-    q = np.tile(pin.neutral(model), (trajectory.n_samples, 1))
-    for column, name in enumerate(names):
-        joint = model.joints[model.getJointId(name)]
-        angle = trajectory.q[:, column]
-        if joint.nq == 1:
-            q[:, joint.idx_q] = angle
-        else:  # continuous joint: unit complex number (cos, sin)
-            q[:, joint.idx_q] = np.cos(angle)
-            q[:, joint.idx_q + 1] = np.sin(angle)
-    return q
-
-
-def _joint_mismatch(
-    names: list[str], model_joints: list[str], source: str | None, urdf_path: str | Path | None
-) -> DataError:
-    """The error naming how the trajectory's joints (from the CSV ``source``) differ from the
-    URDF's, and the fix."""
-    missing = [j for j in model_joints if j not in names]
-    extra = [j for j in names if j not in model_joints]
-    csv = f"trajectory {source}" if source else "the trajectory"
-    urdf = f"URDF {urdf_path}" if urdf_path is not None else "the URDF"
-    if len(names) != len(model_joints):
-        what = (
-            f"{csv} has {len(names)} joints {names}, {urdf} has {len(model_joints)} "
-            f"joints {model_joints}"
-        )
-    else:
-        what = f"the joints of {csv} {names} do not match the joints of {urdf} {model_joints}"
-    details = [f"missing from the trajectory: {missing}"] if missing else []
-    details += [f"unknown to the URDF: {extra}"] if extra else []
-    lock = (
-        "; or hold the joints the trajectory does not move fixed (--lock NAME=VALUE, "
-        "robot.lock in a config)"
-        if missing and not extra
-        else ""
-    )
-    return DataError(
-        f"{what} ({'; '.join(details)}); the q_<joint> columns must name the URDF's "
-        "joints (any order): rename the columns or use the URDF of the robot that made "
-        f"the trajectory{lock}."
-    )
-
-
-def replay_segments(t: npt.ArrayLike) -> list[tuple[int, int]]:
-    """Sample ranges of a trajectory that are replayed one after another.
-
-    A log is split where its time stops increasing (a backwards jump: two runs appended, a
-    clock reset) and at gaps (a step longer than :data:`ident.measure.timebase.GAP_FACTOR`
-    median steps, the rule of the log readers, :func:`ident.measure.timebase.find_segments`):
-    the replay shows each segment at its own speed and skips the time between them.
-
-    Parameters
-    ----------
-    t :
-        Time stamps [s], shape (n_samples,).
-
-    Returns
-    -------
-    :
-        ``[(start, stop), ...]`` index ranges covering ``0..n_samples`` in order.
-    """
-    t = np.asarray(t, dtype=float)
-    backwards = np.flatnonzero(np.diff(t) <= 0.0) + 1
-    bounds = [0, *backwards.tolist(), t.size]
-    out: list[tuple[int, int]] = []
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        out += [(a + c, a + d) for c, d in find_segments(t[a:b])]
-    return out
-
-
-def replay_duration(t: npt.ArrayLike, speed: float = 1.0) -> float:
-    """Replay time [s] of a trajectory with time stamps ``t`` [s]: its segments' spans / speed."""
-    t = np.asarray(t, dtype=float)
-    return sum(float(t[b - 1] - t[a]) for a, b in replay_segments(t)) / speed
-
-
-def _resample(
-    trajectory: JointTrajectory, q: FloatArray, fps: float, speed: float
-) -> tuple[FloatArray, list[int]]:
-    """Configurations at replay times ``k / fps``, segment after segment.
-
-    Within a segment (:func:`replay_segments`) starting at ``t_s``, replay frame ``k`` shows
-    trajectory time ``t_s + k * speed / fps``; the next segment starts at the next frame.
-    Returns the configurations, shape (n_frames, nq), and the first frame of each segment.
-    """
-    parts, starts, n = [], [], 0
-    for a, b in replay_segments(trajectory.t):
-        t = trajectory.t[a:b] - trajectory.t[a]
-        n_frames = int(math.floor(t[-1] / speed * fps + 1e-9)) + 1
-        t_frames = np.arange(n_frames) * speed / fps
-        out = np.empty((n_frames, q.shape[1]))
-        for k in range(q.shape[1]):  # linear interpolation; keyframes are dense (fps >= 10)
-            out[:, k] = np.interp(t_frames, t, q[a:b, k])
-        parts.append(out)
-        starts.append(n)
-        n += n_frames
-    return np.vstack(parts), starts
-
-
-def _frame_positions(model: pin.Model, q: FloatArray, frame_id: int) -> FloatArray:
-    """World positions [m] of a frame, shape (n_samples, 3)."""
-    data = model.createData()
-    out = np.empty((q.shape[0], 3))
-    for k in range(q.shape[0]):  # Pinocchio evaluates one configuration at a time
-        pin.framesForwardKinematics(model, data, q[k])
-        out[k] = data.oMf[frame_id].translation
-    return out
-
-
-def _joint_positions(model: pin.Model, q: FloatArray) -> FloatArray:
-    """World positions [m] of every joint origin, shape (n_samples, njoints, 3)."""
-    data = model.createData()
-    out = np.empty((q.shape[0], model.njoints, 3))
-    for k in range(q.shape[0]):
-        pin.forwardKinematics(model, data, q[k])
-        out[k] = np.array([m.translation for m in data.oMi])
-    return out
-
-
-def _path_lines(
-    model: pin.Model, q: FloatArray, segments: list[tuple[int, int]], frame_id: int
-) -> list[FloatArray]:
-    """The traced frame's positions [m], one (n_points, 3) array per segment (a single one,
-    across the segments, beyond :data:`_MAX_SEGMENT_LINES` segments)."""
-    if len(segments) == 1 or len(segments) > _MAX_SEGMENT_LINES:
-        return [_frame_positions(model, _decimate(q, _MAX_PATH_POINTS), frame_id)]
-    budget = max(2, _MAX_PATH_POINTS // len(segments))
-    return [_frame_positions(model, _decimate(q[a:b], budget), frame_id) for a, b in segments]
-
-
-def _decimate(points: FloatArray, max_points: int) -> FloatArray:
-    if points.shape[0] <= max_points:
-        return points
-    index = np.unique(np.linspace(0, points.shape[0] - 1, max_points).round().astype(int))
-    return points[index]
 
 
 def _set_camera(vis: meshcat.Visualizer, points: FloatArray, n_robots: int) -> None:
@@ -675,96 +265,6 @@ def _checked_scene_options(
     if not (math.isfinite(fps) and fps >= 1.0):
         raise DataError(f"fps = {fps} must be >= 1 keyframe per second.")
     return labels, marks
-
-
-@dataclass(frozen=True, eq=False)
-class _SceneRobot:
-    """The replayed robot: kinematics, visual geometry and traced frame.
-
-    Attributes
-    ----------
-    model, geometry, fallback :
-        As returned by :func:`load_visual_robot`.
-    frame_name, frame_id :
-        The frame whose path is drawn: its name and Pinocchio id.
-    """
-
-    model: pin.Model
-    geometry: pin.GeometryModel
-    fallback: bool
-    frame_name: str
-    frame_id: int
-
-
-def _scene_robot(
-    selection: RobotSelection,
-    traced_frame: str | None,
-    package_dirs: Sequence[str | Path],
-    package_hint: str,
-) -> _SceneRobot:
-    """Load the robot of ``selection`` (:func:`load_visual_robot`) and find the traced frame
-    (``None``: :func:`default_traced_frame`). Raises :class:`ModelError`."""
-    model, geometry, fallback = load_visual_robot(
-        selection, package_dirs, package_hint=package_hint
-    )
-    name = (
-        traced_frame
-        if traced_frame is not None
-        else default_traced_frame(model, selection.tip_link)
-    )
-    frame_id = _frame_id(model, name, Path(selection.path))
-    return _SceneRobot(model, geometry, fallback, name, frame_id)
-
-
-@dataclass(frozen=True, eq=False)
-class _Motion:
-    """One trajectory as the scene draws it.
-
-    Attributes
-    ----------
-    trajectory, q :
-        The trajectory and the model's configurations at its samples, shape (n_samples, nq).
-    keyframes :
-        Configurations at the replay's keyframes (one per ``1 / fps`` s of replay time),
-        shape (n_frames, nq).
-    segment_starts :
-        First keyframe of each segment of the log (:func:`replay_segments`).
-    path_lines :
-        The traced frame's positions [m], one (n_points, 3) array per line drawn.
-    points :
-        Joint origins at every keyframe, then the traced path's points [m], shape (n, 3),
-        in the robot's own frame: what the spacing and the camera must show.
-    """
-
-    trajectory: JointTrajectory
-    q: FloatArray
-    keyframes: FloatArray
-    segment_starts: list[int]
-    path_lines: list[FloatArray]
-    points: FloatArray
-
-
-def _replay_motions(
-    robot: _SceneRobot,
-    trajectories: Sequence[JointTrajectory],
-    fps: float,
-    speed: float,
-    urdf_path: Path,
-) -> list[_Motion]:
-    """Keyframes, traced path and extent of each trajectory, replayed at ``fps`` keyframes
-    per second [1/s] and ``speed``. Raises :class:`DataError` (joints that do not match the
-    URDF at ``urdf_path``: :func:`joint_configurations`, every trajectory checked first)."""
-    model = robot.model
-    configurations = [joint_configurations(model, t, urdf_path=urdf_path) for t in trajectories]
-    motions = []
-    for trajectory, q in zip(trajectories, configurations, strict=True):
-        keyframes, starts = _resample(trajectory, q, fps, speed)
-        # the traced path, one line per segment (at most _MAX_SEGMENT_LINES, else one line)
-        lines = _path_lines(model, q, replay_segments(trajectory.t), robot.frame_id)
-        joints = _joint_positions(model, keyframes).reshape(-1, 3)
-        points = np.vstack([joints, np.vstack(lines)])
-        motions.append(_Motion(trajectory, q, keyframes, starts, lines, points))
-    return motions
 
 
 def _record_scene(

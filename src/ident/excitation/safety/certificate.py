@@ -1,0 +1,143 @@
+"""The exact clearances of a safety model's checked pairs: what the dense check certifies.
+
+Meshes are measured as they are (coal BVH), primitives as primitives; the convex hulls (a
+lower bound: a hull contains its mesh) stand in only where a caller says the exact value is
+not needed (:func:`_clearances` with ``within``). :func:`_poor_hull_pairs` times one posture
+of the dense check and finds the mesh pairs whose hulls are too poor a proxy for the cheap
+term, when the model is built.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ident.excitation.family import FloatArray
+from ident.excitation.safety.distances import (
+    CheckedPairs,
+    _distances,
+    _exact_into,
+    _geometry_data,
+)
+
+__all__: list[str] = []  # the package's own steps, imported by name
+
+
+def _clearances(
+    checked: CheckedPairs, q: npt.ArrayLike, within: npt.ArrayLike | None = None
+) -> FloatArray:
+    """:meth:`ident.excitation.safety.SafetyModel.clearances` of the ``checked`` pairs [m],
+    shape (n_samples, n_pairs)."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    out = np.full((q.shape[0], checked.n_pairs), np.inf)
+    if checked.n_pairs == 0:
+        return out
+    finite = np.all(np.isfinite(q), axis=1)
+    q = np.where(finite[:, None], q, 0.0)
+    distances = _distances(checked.model, checked.hulls, q)
+    mesh = checked.mesh
+    if mesh.any():
+        if within is None:
+            need = np.broadcast_to(mesh, distances.shape).copy()
+        else:
+            limit = np.asarray(within, dtype=float)[:, checked.group]
+            need = mesh[None, :] & (distances < limit)
+        gdata = _geometry_data(checked.exact)
+        for s in np.flatnonzero(need.any(axis=1)):
+            _exact_into(checked, q[s], np.flatnonzero(need[s]).tolist(), gdata, distances[s])
+        if within is not None:  # each pair's smallest value exact
+            _exact_smallest(checked, q, distances, need, gdata)
+    out = checked.pair_minimum(distances)
+    out[~finite] = -np.inf
+    return out
+
+
+def _exact_smallest(
+    checked: CheckedPairs,
+    q: FloatArray,
+    distances: FloatArray,
+    need: npt.NDArray[np.bool_],
+    gdata: pin.GeometryData,
+) -> None:
+    """Make each mesh pair's smallest value of ``distances`` (n_samples, n_geometry_pairs)
+    [m] exact, in place: ``need`` marks the values already exact; the others (the hulls'
+    distances, lower bounds) are measured in increasing order until one is not below the
+    smallest distance found."""
+    for p in np.flatnonzero(checked.mesh):
+        known = need[:, p]
+        best = distances[known, p].min() if known.any() else np.inf
+        rest = np.flatnonzero(~known)
+        for s in rest[np.argsort(distances[rest, p], kind="stable")]:
+            if distances[s, p] >= best:  # hulls in increasing order: done
+                break
+            _exact_into(checked, q[s], [int(p)], gdata, distances[s])
+            best = min(best, distances[s, p])
+
+
+def _pair_clearances(checked: CheckedPairs, q: npt.ArrayLike, columns: Sequence[int]) -> FloatArray:
+    """:meth:`ident.excitation.safety.SafetyModel.pair_clearances` of the ``checked`` pairs
+    [m], shape (n_samples, len(columns))."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    columns = [int(c) for c in columns]
+    out = np.full((q.shape[0], len(columns)), np.inf)
+    where = {c: i for i, c in enumerate(columns)}
+    group = checked.group
+    pairs = [p for p in range(group.size) if int(group[p]) in where]
+    model, geom = checked.model, checked.exact
+    data, gdata = model.createData(), _geometry_data(geom)
+    for s in range(q.shape[0]):
+        if not np.all(np.isfinite(q[s])):
+            out[s] = -np.inf
+            continue
+        pin.updateGeometryPlacements(model, data, geom, gdata, q[s])
+        for p in pairs:
+            d = pin.computeDistance(geom, gdata, p).min_distance
+            i = where[int(group[p])]
+            out[s, i] = min(out[s, i], d)
+    return out
+
+
+def _poor_hull_pairs(
+    checked: CheckedPairs, postures: FloatArray, clearance_m: float
+) -> tuple[npt.NDArray[np.bool_], float, float]:
+    """Mesh pairs whose hulls are closer than the margin ``clearance_m`` [m] in at least half
+    of 100 sampled ``postures``: the cheap term measures them on the meshes (a hull would
+    forbid too much). Also returns the model's ``seconds_per_posture`` (the CPU of one
+    posture of the dense check, :func:`_exact_cost` included) and
+    ``hull_seconds_per_posture`` (the hulls' alone) [s]."""
+    poor = np.zeros(checked.mesh.shape, dtype=bool)
+    n = 101 if checked.mesh.any() and clearance_m > 0.0 else 11
+    start = time.process_time()
+    hull = _distances(checked.model, checked.hulls, postures[:n])
+    seconds_per_posture = (time.process_time() - start) / n
+    hull_seconds_per_posture = seconds_per_posture
+    if n == 11:
+        return poor, seconds_per_posture, hull_seconds_per_posture
+    seconds_per_posture += _exact_cost(checked, postures, clearance_m, hull)
+    poor = checked.mesh & (np.mean(hull < clearance_m, axis=0) >= 0.5)
+    return poor, seconds_per_posture, hull_seconds_per_posture
+
+
+def _exact_cost(
+    checked: CheckedPairs, postures: FloatArray, clearance_m: float, hull: FloatArray
+) -> float:
+    """The meshes' CPU of one posture of the dense check [s], to add to the hulls' and
+    primitives' (timed): from ``hull``, the hulls' distances at sampled ``postures``
+    (n, n_geometry_pairs) [m], each mesh pair's exact distance (timed here on one posture)
+    where its hulls are within the margin and 1 mm (where the dense check,
+    :func:`_clearances` with ``within``, measures the mesh)."""
+    mesh = np.flatnonzero(checked.mesh)
+    share = np.mean(hull[:, mesh] < clearance_m + 1e-3, axis=0)
+    needed = mesh[share > 0.0]
+    if not needed.size:
+        return 0.0
+    gdata = _geometry_data(checked.exact)
+    row = np.zeros(hull.shape[1])
+    start = time.process_time()
+    _exact_into(checked, postures[1], needed.tolist(), gdata, row)
+    per_pair = (time.process_time() - start) / needed.size
+    return per_pair * float(share.sum())
