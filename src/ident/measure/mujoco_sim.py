@@ -331,9 +331,8 @@ def simulate(
         The ``measurement:`` section; generator or seed of the torque noise (the only random
         draw; the motion itself is deterministic).
 
-    Returns the log and the truth. Raises :class:`ConfigError` (a per-joint list of ``config``
-    without one entry per joint), :class:`DataError` (a malformed reference, a tracking error
-    reaching 1 rad: unstable gains), :class:`ModelError` (MuJoCo cannot compile the robot).
+    Returns the log and the truth. Raises ConfigError (a per-joint list without one entry per
+    joint), DataError (a malformed reference; tracking error reaching 1 rad), ModelError.
     """
     nv = robot.nv
     check_joint_counts(config, nv, joint_names=robot.joint_names)
@@ -344,10 +343,9 @@ def simulate(
     k0 = config.settle_periods * n_ctrl
     n_total = k0 + config.n_periods * n_ctrl
     run = _run_closed_loop(robot, config, reference, truth, k0, n_total)
-    t_log = np.arange(k0, n_total) / rate
+    t_log, index = np.arange(k0, n_total) / rate, np.arange(k0, n_total) % n_ctrl
     tau_measured = _measured_torque(t_log, run.tau_actuator, config, nv, rng)
     current, torque_constants = _motor_current(tau_measured, config, nv)
-    index = np.arange(k0, n_total) % n_ctrl
     return SimulatedLog(
         t=t_log,
         q=run.q_measured,

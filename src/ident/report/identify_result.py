@@ -50,9 +50,8 @@ def result_dict(
     *,
     rollout: dict | None = None,
 ) -> dict:
-    """JSON-ready summary of the identification (no times); ``model``: the identified model's
-    entry (:func:`~ident.identify.model_files.files.save_identified_model`), ``rollout`` its
-    MJCF's rollout check (:func:`~ident.identify.assessment.rollout.identify_rollout`)."""
+    """JSON-ready summary of the identification (no times); ``model``, ``rollout``: the
+    identified model's entry and its MJCF's rollout check (model files, assessment.rollout)."""
     pm = result.parameters
     est = result.estimate
     sd = result.parameter_std
@@ -89,12 +88,9 @@ def result_dict(
         "reference_essential": _finite_rows(result.reference_essential),
         "processing": list(result.records),
     }
-    if replay_note is not None:
-        out["replay"] = replay_note
-    if model is not None:
-        out["model"] = model
-    if rollout is not None:
-        out["rollout"] = rollout
+    for key, value in (("replay", replay_note), ("model", model), ("rollout", rollout)):
+        if value is not None:  # in this order in the file
+            out[key] = value
     if urdf is not None:
         out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)
