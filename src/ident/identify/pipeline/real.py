@@ -2,7 +2,8 @@
 
 :func:`identify` reads the URDF (Pinocchio) and the log, converts motor-side signals to joint
 side (:mod:`ident.measure.logs`), checks the memory and time estimate
-(:func:`estimate_identify`), removes the torque's delay (``signals:``,
+(:func:`estimate_identify`), gives a position servo's log its torque from the servo's law
+(``actuator:``, :mod:`ident.identify.actuators`), removes the torque's delay (``signals:``,
 :func:`ident.identify.corrections.signal_correction.correct_log`), and hands the measurements to
 :func:`ident.identify.pipeline.core.identify_measurements`, the one identification every command
 runs. Nothing here writes files; :mod:`ident.report.identify_report` does.
@@ -10,6 +11,7 @@ runs. Nothing here writes files; :mod:`ident.report.identify_report` does.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +21,7 @@ import pinocchio as pin
 
 from ident.dynamics.parameter_model import PRIORITY_LABELS, ParameterModel, build_parameter_model
 from ident.errors import DataError
+from ident.identify.actuators.registry import get_actuator
 from ident.identify.assessment.model_intervals import estimated_seconds
 from ident.identify.config import IdentifyConfig
 from ident.identify.corrections.signal_correction import correct_log
@@ -148,6 +151,9 @@ def identify(
             f"than {STILL_SPAN:g} rad or m over the log); there is no motion to identify from: "
             "give the log of an excitation (ident run writes one), or check log.position."
         )
+    # a servo's torque from its law (the gain, delay, saturation: identify/actuators)
+    prepared = get_actuator(cfg.actuator.kind).prepare(cfg, model, log, source)
+    cfg, log = prepared.config, prepared.log
     (log,) = correct_log(cfg.signals, robot, cfg.preprocess, cfg.model, log, source=source).logs
     estimate = check_job(estimate_identify(cfg, log))
     extra = estimate_model_intervals(cfg, log.q.shape[1])
@@ -158,7 +164,7 @@ def identify(
         if extra is not None:
             on_estimate(extra)  # printed when above a minute
     try:
-        return identify_measurements(
+        result = identify_measurements(
             cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
         )
     except DataError as e:
@@ -168,6 +174,7 @@ def identify(
                 f"that would determine their parameters are missing ({e})"
             ) from e
         raise
+    return dataclasses.replace(result, actuator=prepared.fit)
 
 
 #: A joint whose position spans less than this [rad or m] over a whole log never moves.
