@@ -252,6 +252,8 @@ def result_dict(
     out["verdict"] = verdict_entry(result)
     if result.friction is not None:
         out["friction_models"] = friction_models_entry(result)
+    if result.actuator is not None:  # a position servo's gains, delay, saturation
+        out["actuator"] = result.actuator.summary()
     return out
 
 
@@ -436,6 +438,7 @@ def _markdown(
     ]
     lines += _held_out_section(result, result.joint_names, units)
     lines += ["", *friction_models_lines(result)]
+    lines += [] if result.actuator is None else result.actuator.lines()
     lines += _base_parameter_section(result, units)
     lines += _essential_section(result)
     lines += _truth_section(result)

@@ -307,6 +307,33 @@ class ServoFit:
             "undetermined": self.undetermined(),
         }
 
+    def line(self) -> str:
+        """One line for the terminal."""
+        how = "identified, scale from the URDF's mass" if self.scale == "mass" else "given"
+        kp = ", ".join(_pm(k, s) for k, s in zip(self.kp, self.kp_std, strict=True))
+        damping = ", ".join(_pm(d, s) for d, s in zip(self.damping, self.damping_std, strict=True))
+        saturated = (
+            "not checked (no actuator.forcerange)"
+            if self.forcerange is None
+            else f"{self.n_saturated.tolist()}, {self.n_excluded} samples excluded"
+        )
+        return (
+            f"position servos: kp [{kp}] N*m/rad ({how}); kd + fv [{damping}] N*m*s/rad (not "
+            f"separable); delay {self.delay_samples} samples = {1e3 * self.delay_s:.4g} ms "
+            f"({'scanned' if self.delay_auto else 'given'}); saturated samples {saturated}"
+        )
+
+    def mjcf_servos(self) -> dict[str, dict[str, float | None]]:
+        """``{joint: {"kp", "forcerange"}}`` of the identified MJCF's ``<position>`` actuators
+        (:func:`ident.identify.model_files.mjcf.identified_mjcf`)."""
+        return {
+            name: {
+                "kp": float(self.kp[j]),
+                "forcerange": None if self.forcerange is None else float(self.forcerange[j]),
+            }
+            for j, name in enumerate(self.joint_names)
+        }
+
     def lines(self) -> list[str]:
         """Markdown of the fit: a table per joint, then the delay, saturation and what the data
         do not fix (the report and the terminal read this one text)."""

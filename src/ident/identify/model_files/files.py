@@ -11,7 +11,7 @@ and
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -80,6 +80,7 @@ def model_files(
     nominal: npt.ArrayLike | None = None,
     coupled_pair: tuple[int, int] | None = None,
     friction_law: WrittenFrictionLaw | None = None,
+    position_servos: Mapping[str, Mapping[str, float | None]] | None = None,
 ) -> ModelFiles:
     """The identified URDF, MJCF and joint-extras texts of a consistent estimate.
 
@@ -101,6 +102,10 @@ def model_files(
         A friction law the model carries instead of ``fv``/``fs``
         (:mod:`ident.identify.friction.friction_law`): the joint-extras file gets its
         ``"friction_law"``, the URDF's and MJCF's damping and friction its native part.
+    position_servos :
+        ``{joint: {"kp", "forcerange"}}`` of a robot driven by position servos
+        (:meth:`ident.identify.actuators.servo_fit.ServoFit.mjcf_servos`): the MJCF gets a
+        ``<position>`` actuator per joint, the joint-extras file its ``"position_servos"``.
 
     Raises :class:`ModelError` if the estimate is physically inconsistent, the URDF does not
     match the robot, or MuJoCo cannot compile the model.
@@ -125,8 +130,15 @@ def model_files(
         locked_joints=robot.locked_joints,
         gravity=np.asarray(robot.model.gravity.linear, dtype=float),
         source=source,
+        position_servos=position_servos,
     )
     extras = _joint_extras(urdf, robot, friction_law)
+    if position_servos:
+        extras["position_servos"] = {
+            "law": "tau = clip(kp (q_cmd(t - d) - q) - kd dq, +-forcerange); kd is in the "
+            "joint's viscous term (kd + fv, not separable)",
+            "joints": {name: dict(values) for name, values in position_servos.items()},
+        }
     return ModelFiles(
         urdf=urdf, mjcf=mjcf, extras_json=json.dumps(extras, indent=2) + "\n", paths={}
     )
@@ -171,6 +183,7 @@ def write_model_files(
     coupled_pair: tuple[int, int] | None = None,
     suffix: str = "identified",
     friction_law: WrittenFrictionLaw | None = None,
+    position_servos: Mapping[str, Mapping[str, float | None]] | None = None,
 ) -> ModelFiles:
     """Write ``<stem>_identified.urdf``, ``<stem>_identified.xml``, ``<stem>_joint_extras.json``.
 
@@ -191,6 +204,7 @@ def write_model_files(
         nominal=nominal,
         coupled_pair=coupled_pair,
         friction_law=friction_law,
+        position_servos=position_servos,
     )
     folder = Path(out_dir)
     paths = {
@@ -390,7 +404,14 @@ def _write_model(
         nominal=model.structure.nominal,
         coupled_pair=result.parameters.terms.coupled_wrist,
         friction_law=law,
+        position_servos=_position_servos(result),
     )
+
+
+def _position_servos(result: Any) -> dict[str, dict[str, float | None]] | None:
+    """The MJCF's ``<position>`` actuators of an identification of position servos, or None."""
+    fit = getattr(result, "actuator", None)
+    return None if fit is None else fit.mjcf_servos()
 
 
 def _parity_entry(parity: ReloadParity) -> dict[str, Any]:
