@@ -62,6 +62,7 @@ from ident.signals import derivative
 __all__ = [
     "FIRST_FIT_QUANTILE",
     "MAX_SATURATION_ROUNDS",
+    "MIN_SHARED_SHARE",
     "Scale",
     "ServoFit",
     "kp_scale",
@@ -69,6 +70,7 @@ __all__ = [
     "scaled_fit",
     "servo_log",
     "servo_rows",
+    "shared_share",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -79,6 +81,9 @@ MAX_SATURATION_ROUNDS = 4
 #: With a force range and the gains unknown, the first fit uses the samples whose every
 #: joint's error is at most this quantile of that joint's errors.
 FIRST_FIT_QUANTILE = 0.75
+#: A joint whose torque is less than this share from parameters shared with other joints has
+#: its gain barely tied to the common scale (named in :meth:`ServoFit.undetermined`).
+MIN_SHARED_SHARE = 0.1
 #: The URDF's mass the motion must see at least, relative to the total, to fix the scale.
 MIN_SEEN_MASS = 1e-3
 
@@ -181,13 +186,27 @@ def servo_rows(red: ReducedObservations) -> tuple[FloatArray, npt.NDArray[np.int
 @dataclass(frozen=True, eq=False)
 class _Fit:
     """One scaled fit: ``u = [beta, kp]`` (n_base + nv,), its covariance, the WLS of ``v``,
-    the squared residual [N^2*m^2] and the relative residual ``||W beta - kp e|| / ||kp e||``."""
+    the squared residual [N^2*m^2], the relative residual ``||W beta - kp e|| / ||kp e||`` and
+    each joint's torque share of the shared parameters (:func:`shared_share`)."""
 
     u: FloatArray
     covariance: FloatArray
     estimate: Estimate
     residual_ss: float
     relative_residual: float
+    shared: FloatArray
+
+
+def shared_share(red: ReducedObservations, beta: FloatArray) -> FloatArray:
+    """Per joint, the share of its torque ``||W_j beta||`` that parameters shared with other
+    joints' rows carry, ``||W_j,S beta_S|| / ||W_j beta||`` (nv,): what ties its gain to the
+    common scale (a column enters joint ``j`` where ``R_j`` has it, :func:`servo_rows`)."""
+    carried = np.any(red.R != 0.0, axis=1)  # (nv, p)
+    shared = carried.sum(axis=0) > 1
+    total = np.linalg.norm(red.R @ beta, axis=1)
+    part = np.linalg.norm(red.R[:, :, shared] @ beta[shared], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(total > 0, part / total, 0.0)
 
 
 def scaled_fit(red: ReducedObservations, scale: Scale, method: str = "wls") -> _Fit:
@@ -209,7 +228,7 @@ def scaled_fit(red: ReducedObservations, scale: Scale, method: str = "wls") -> _
     kp = u[red.n_params :]
     torque_ss = float(np.sum(kp**2 * red.yty))
     relative = float(np.sqrt(ss / torque_ss)) if torque_ss > 0 else float("inf")
-    return _Fit(u, cov, est, ss, relative)
+    return _Fit(u, cov, est, ss, relative, shared_share(red, u[: red.n_params]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -243,6 +262,10 @@ class ServoFit:
         between such samples too short to filter.
     relative_residual :
         ``||W beta - kp e|| / ||kp e||`` of the final fit (identification rows).
+    shared_share :
+        Per joint, the share of its torque carried by parameters shared with other joints
+        (nv,): a joint below :data:`MIN_SHARED_SHARE` has its gain barely tied to the common
+        scale (a light last link whose torque is its own rotor inertia and friction).
     """
 
     joint_names: tuple[str, ...]
@@ -261,6 +284,7 @@ class ServoFit:
     n_saturated: npt.NDArray[np.int64]
     n_excluded: int
     relative_residual: float
+    shared_share: FloatArray
 
     @property
     def delay_s(self) -> float:
@@ -274,6 +298,17 @@ class ServoFit:
             f"the common scale of every parameter and kp: not in the data, fixed by "
             f"{self.scale_note}",
         ]
+        loose = [
+            f"{name} ({100 * share:.2g} %)"
+            for name, share in zip(self.joint_names, self.shared_share, strict=True)
+            if share < MIN_SHARED_SHARE
+        ]
+        if self.scale == "mass" and loose:
+            out.append(
+                f"the gains of {', '.join(loose)}: barely tied to the common scale (the share "
+                "of the joint's torque from parameters shared with other joints); an "
+                "unmodelled torque there (stiction) moves them: give actuator.kp"
+            )
         if self.forcerange is None:
             out.append("saturation: not checked (actuator.forcerange not given)")
         return out
@@ -304,6 +339,7 @@ class ServoFit:
             ),
             "excluded_samples": self.n_excluded,
             "relative_residual": self.relative_residual,
+            "shared_torque_share": self.shared_share.tolist(),
             "undetermined": self.undetermined(),
         }
 
@@ -646,6 +682,7 @@ def _servo_fit(
         n_saturated=saturated.sum(axis=0).astype(np.int64),
         n_excluded=problem.log.n_samples - kept,
         relative_residual=fit.relative_residual,
+        shared_share=fit.shared,
     )
 
 
