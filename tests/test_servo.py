@@ -17,7 +17,8 @@ from ident.dynamics.actuators import saturated_samples, servo_error
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError
-from ident.identify.actuators.servo_fit import Scale, scaled_fit
+from ident.identify.actuators.servo_fit import Scale, scaled_fit, shared_share
+from ident.identify.assessment.rollout import RolloutMeasurements, rollout_score
 from ident.identify.config import load_identify_config
 from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.model_files.files import model_files
@@ -166,6 +167,18 @@ def test_scaled_fit_recovers_gains_and_parameters_of_exact_homogeneous_rows():
     np.testing.assert_allclose(scaled_fit(red, given, "wls").u[:p], beta, rtol=1e-10)
 
 
+def test_shared_share_is_the_torque_of_the_columns_other_joints_also_carry():
+    """Joint 1 carries columns 0 and 1, joint 2 columns 1 and 2: column 1 ties them."""
+    rng = np.random.default_rng(4)
+    W = rng.standard_normal((300, 2, 3))
+    W[:, 0, 2] = W[:, 1, 0] = 0.0
+    beta = np.array([1.0, 0.2, 3.0])
+    red = ReducedObservations.from_samples(W, W @ beta)
+    tau = W @ beta
+    expected = np.linalg.norm(W[:, :, 1] * beta[1], axis=0) / np.linalg.norm(tau, axis=0)
+    np.testing.assert_allclose(shared_share(red, beta), expected, rtol=1e-10)
+
+
 # ----------------------------------------------------------------------------- end to end
 @pytest.mark.slow
 @pytest.mark.parametrize("scale", ["mass", "kp"])
@@ -230,6 +243,35 @@ def test_identified_mjcf_servo_force_is_kp_times_the_error(servo_log):
     assert model.dof_damping[0] == pytest.approx(1.8)
     extras = yaml.safe_load(files.extras_json)
     assert extras["position_servos"]["joints"]["j1"] == {"kp": 61.5, "forcerange": 3.0}
+
+
+def test_rollout_of_a_servo_mjcf_is_driven_by_the_measured_torques_alone(servo_log):
+    """The rollout check applies the measured torques; a servo MJCF's <position> actuators
+    (ctrl 0) are switched off, so it scores as the same model without them (exactly)."""
+    folder, robot, _ = servo_log
+    pm = build_parameter_model(robot.model, ExtraTerms.from_options(2, offset=False))
+    theta = pm.nominal.copy()
+    theta[pm.names.index("fv1")] = 1.8
+    servos = {"j1": {"kp": 60.0, "forcerange": 10.0}, "j2": {"kp": 30.0, "forcerange": None}}
+    plain = mujoco.MjModel.from_xml_string(model_files(robot, theta, pm.names).mjcf)
+    text = model_files(robot, theta, pm.names, position_servos=servos).mjcf
+    model = mujoco.MjModel.from_xml_string(text)
+    assert model.nu == 2
+    dt, n = 1e-3, 201
+    plain.opt.timestep = dt
+    data = mujoco.MjData(plain)
+    t = np.arange(n) * dt
+    tau = np.column_stack([9.0 + 2.0 * np.sin(5 * t), 0.5 * np.cos(7 * t)])
+    q, dq = np.zeros((n, 2)), np.zeros((n, 2))
+    for k in range(n):
+        q[k], dq[k] = data.qpos, data.qvel
+        data.qfrc_applied[:] = tau[k]
+        mujoco.mj_step(plain, data)
+    measured = RolloutMeasurements(t, q, dq, tau, ("j1", "j2"))
+    windows = np.array([[0, 100], [100, 200]])
+    alone = rollout_score(plain, measured, windows).objective
+    assert alone < 1e-20
+    assert rollout_score(model, measured, windows).objective == pytest.approx(alone, abs=1e-20)
 
 
 # ----------------------------------------------------------------------------- bad input
