@@ -196,8 +196,11 @@ def test_servo_log_without_torque_identifies_gains_delay_and_parameters(servo_lo
     actuator = {"kind": "position", "forcerange": FORCERANGE, "max_delay_s": 0.008}
     if scale == "kp":
         actuator["kp"] = KP.tolist()
-    result = identify(load_identify_config(_config(folder, actuator)))
+    estimates = []
+    result = identify(load_identify_config(_config(folder, actuator)), on_estimate=estimates.append)
     fit = result.actuator
+    # the job's estimate counts the servo's fits: 5 delays, then 3 rounds of 3
+    assert any(e.what.endswith(", 14 servo fits first") for e in estimates)
     errors = _errors(result, robot)
     report = ", ".join(f"{k} {v:.3f} %" for k, v in errors.items())
     print(f"servo fit (scale from {scale}): delay {fit.delay_samples} samples; {report}")

@@ -250,7 +250,8 @@ class RobotLog:
         Commanded joint positions [rad or m], shape (n_samples, n_joints), on the samples of
         ``q``; None when the log names none. A position servo's set point before its transport
         delay (``log.command``; LeRobot's ``action``; the simulator's position actuator).
-        Carried for an actuator model and tracking checks; identification ignores it.
+        The position servo's model uses it (``actuator: {kind: position}``,
+        :mod:`ident.identify.actuators.servo_fit`); the rest of identification ignores it.
     """
 
     t: FloatArray

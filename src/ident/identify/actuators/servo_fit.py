@@ -68,6 +68,7 @@ __all__ = [
     "kp_scale",
     "mass_scale",
     "scaled_fit",
+    "servo_fit_count",
     "servo_log",
     "servo_rows",
     "shared_share",
@@ -523,6 +524,15 @@ def _delays(act: ActuatorSection, rate_hz: float) -> tuple[int, ...]:
     if act.delay == "auto":
         return tuple(range(int(np.floor(act.max_delay_s * rate_hz + 1e-9)) + 1))
     return (int(round(float(act.delay) * rate_hz)),)
+
+
+def servo_fit_count(act: ActuatorSection, rate_hz: float) -> int:
+    """The most accumulations of the log :func:`servo_log` makes (0 for a motor): every delay
+    scanned, then three per further saturation round (for the job's estimate)."""
+    if act.kind != "position":
+        return 0
+    rounds = MAX_SATURATION_ROUNDS - 1 if act.forcerange is not None else 0
+    return len(_delays(act, rate_hz)) + 3 * rounds
 
 
 def _fit_with_saturation(

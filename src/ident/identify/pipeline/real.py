@@ -22,6 +22,7 @@ import pinocchio as pin
 from ident.dynamics.parameter_model import PRIORITY_LABELS, ParameterModel, build_parameter_model
 from ident.errors import DataError
 from ident.identify.actuators.registry import get_actuator
+from ident.identify.actuators.servo_fit import servo_fit_count
 from ident.identify.assessment.model_intervals import estimated_seconds
 from ident.identify.config import IdentifyConfig
 from ident.identify.corrections.signal_correction import correct_log
@@ -89,10 +90,13 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
         work = log_chunks.chunk_bytes(n_samples, nv, n_columns, step)
         path = "in memory"
     blocks = 8.0 * min(log_chunks.MAX_BLOCKS, n_samples) * n_columns**2
+    # a position servo's log is accumulated once per delay and saturation round beforehand
+    passes = 1 + servo_fit_count(cfg.actuator, log.sampling_rate_hz)
+    servo = f", {passes - 1} servo fits first" if passes > 1 else ""
     return JobEstimate(
-        f"identify: {n_samples} samples x {nv} joints, {path}",
+        f"identify: {n_samples} samples x {nv} joints, {path}{servo}",
         _BYTES_BASE + log_bytes + work + blocks,
-        n_samples * nv**2 * _SECONDS_PER_SAMPLE_JOINT2,
+        passes * n_samples * nv**2 * _SECONDS_PER_SAMPLE_JOINT2,
     )
 
 
@@ -151,11 +155,11 @@ def identify(
             f"than {STILL_SPAN:g} rad or m over the log); there is no motion to identify from: "
             "give the log of an excitation (ident run writes one), or check log.position."
         )
+    estimate = check_job(estimate_identify(cfg, log))  # before the servo's fits too
     # a servo's torque from its law (the gain, delay, saturation: identify/actuators)
     prepared = get_actuator(cfg.actuator.kind).prepare(cfg, model, log, source)
     cfg, log = prepared.config, prepared.log
     (log,) = correct_log(cfg.signals, robot, cfg.preprocess, cfg.model, log, source=source).logs
-    estimate = check_job(estimate_identify(cfg, log))
     extra = estimate_model_intervals(cfg, log.q.shape[1])
     if extra is not None:
         check_job(extra)
