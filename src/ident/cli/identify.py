@@ -221,6 +221,8 @@ def _print_summary(result: IdentifyResult, folder: Path, replay_note: str) -> No
         for x in f.fits:
             if x.ambiguous:
                 typer.echo(f"note: friction model {x.model} not picked: {x.ambiguous}", err=True)
+    if result.actuator is not None:
+        typer.echo(result.actuator.line())
     typer.echo(replay_note)
     _echo_model(folder / "result.json")
     verdict = identify_verdict(result)  # the one the report and result.json show

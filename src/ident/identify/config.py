@@ -25,15 +25,18 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from ident.config import StrictModel, load_config_file
+from ident.dynamics.actuators import ACTUATOR_LAWS, actuator_law
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.friction_models import AUTO, get_friction_model
 from ident.errors import ConfigError, DataError
 from ident.identify.estimation.reference import read_reference
 from ident.identify.estimators import get_contract, get_estimator
 from ident.measure.log_config import LogConfig, SignalFile, TransmissionConfig
+from ident.measure.mujoco_config import PositiveNm, PositiveStiffness
 from ident.model.selection import RobotSelection
 
 __all__ = [
+    "ActuatorSection",
     "EssentialConfig",
     "EstimationConfig",
     "FilterConfig",
@@ -323,6 +326,70 @@ class SignalsConfig(StrictModel):
         return self
 
 
+class ActuatorSection(StrictModel):
+    """``actuator:``: what drives the joints, so what the log's torque is
+    (:mod:`ident.dynamics.actuators`; the estimation: :mod:`ident.identify.actuators`).
+
+    ``kind: motor`` (default): the torque is logged (``log.torque``). ``kind: position``: a
+    position servo logging its command (``log.command``) and no torque, whose torque is
+    ``clip(kp (q_cmd(t - d) - q) - kd dq, +-forcerange)``; the data fix it only up to one
+    common scale, set by ``scale_from``: ``mass`` (the URDF's mass, in the part of it the motion
+    sees) or ``kp`` (the gain ``kp`` [N*m/rad] given, one value or one per joint, from a
+    datasheet). Default: ``kp`` when ``kp`` is given, else ``mass``. ``forcerange`` [N*m]
+    (one value or one per joint): samples where the servo may reach it are excluded (``null``:
+    never saturates). ``delay``: the command's transport delay [s] (rounded to whole samples),
+    or ``auto``: the whole number of samples within ``max_delay_s`` with the smallest residual.
+    """
+
+    kind: str = "motor"
+    kp: PositiveStiffness | None = None
+    forcerange: PositiveNm | None = None
+    delay: float | Literal["auto"] = "auto"
+    max_delay_s: float = Field(default=0.05, gt=0.0, le=1.0)
+    scale_from: Literal["mass", "kp"] | None = None
+
+    @field_validator("kind")
+    @classmethod
+    def _known(cls, value: str) -> str:
+        if value not in ACTUATOR_LAWS:
+            raise ValueError(f"{value!r}; allowed: {', '.join(ACTUATOR_LAWS)}")
+        return value
+
+    @model_validator(mode="after")
+    def _options_of_the_kind(self) -> ActuatorSection:
+        if self.kind != "position":
+            given = [k for k in ("kp", "forcerange", "scale_from") if getattr(self, k) is not None]
+            if given:
+                raise ValueError(
+                    f"actuator.{given[0]} is an option of kind: position (a servo logging no "
+                    "torque); remove it, or set actuator.kind: position"
+                )
+            return self
+        if not isinstance(self.delay, str) and not 0.0 <= self.delay <= self.max_delay_s:
+            raise ValueError(
+                f"actuator.delay = {self.delay:g} s: give a delay >= 0 and at most "
+                f"actuator.max_delay_s = {self.max_delay_s:g} s, or 'auto'"
+            )
+        if self.scale_from == "kp" and self.kp is None:
+            raise ValueError(
+                "actuator.scale_from: kp needs actuator.kp [N*m/rad] (the servo's gain, from "
+                "its datasheet); give it, or set scale_from: mass"
+            )
+        if self.scale_from == "mass" and self.kp is not None:
+            raise ValueError(
+                "actuator.kp is used only with scale_from: kp (the gain fixes the scale); "
+                "remove kp to identify it from the URDF's mass, or set scale_from: kp"
+            )
+        return self
+
+    @property
+    def scale(self) -> str:
+        """What fixes the scale: ``kp`` (given) or ``mass`` (the URDF's)."""
+        if self.scale_from is not None:
+            return self.scale_from
+        return "kp" if self.kp is not None else "mass"
+
+
 class IdentifyConfig(StrictModel):
     """Everything ``ident identify`` needs."""
 
@@ -337,7 +404,46 @@ class IdentifyConfig(StrictModel):
     reference: ReferenceConfig = Field(default_factory=ReferenceConfig)
     urdf_update: UrdfUpdateConfig = Field(default_factory=UrdfUpdateConfig)
     signals: SignalsConfig = Field(default_factory=SignalsConfig)
+    actuator: ActuatorSection = Field(default_factory=ActuatorSection)
     source: Path | None = None
+
+    @model_validator(mode="after")
+    def _log_of_the_actuator(self) -> IdentifyConfig:
+        law = actuator_law(self.actuator.kind)
+        for n, entry in enumerate(self.log.all_logs()):
+            where = "log" if n == 0 else f"log.more[{n - 1}]"
+            if law.logs_torque and entry.torque is None:
+                raise ValueError(
+                    f"{where}.torque is missing: name the logged torques (or currents), or set "
+                    "actuator.kind: position for a position servo that logs none"
+                )
+            if not law.logs_torque and entry.torque is not None:
+                raise ValueError(
+                    f"{where}.torque: actuator.kind: {law.kind} takes its torque from the "
+                    "servo's law, not from the log; remove log.torque, or set actuator.kind: "
+                    "motor"
+                )
+            if law.needs_command and entry.command is None:
+                raise ValueError(
+                    f"{where}.command is missing: actuator.kind: {law.kind} needs the "
+                    "commanded positions (a LeRobot dataset's 'action'); name them"
+                )
+        if not law.logs_torque:
+            self._check_servo_options()
+        return self
+
+    def _check_servo_options(self) -> None:
+        """What a servo's log cannot have: a torque delay (no torque), no viscous column."""
+        if self.signals.delay_s != 0.0:
+            raise ValueError(
+                "signals.delay_s: the log has no torque to delay; the command's delay is "
+                "actuator.delay. Remove signals.delay_s"
+            )
+        if self.model.viscous is not True:
+            raise ValueError(
+                "model.viscous must be true with actuator.kind: position: the servo's kd "
+                "multiplies dq as the viscous friction does (kd + fv is identified per joint)"
+            )
 
 
 def _resolve(path: Path | None, base: Path) -> Path | None:

@@ -112,14 +112,18 @@ class LogConfig(StrictModel):
     ``command`` (optional): the commanded positions (a position servo's set point, LeRobot's
     ``action``), read beside the measured ones for an actuator model; every key it omits
     (``unit``, ``counts_per_rev``, ``zero_tick``, ``scale``, ``sign``, ``side``,
-    ``exclude``) is the ``position`` signal's. Identification does not use it.
+    ``exclude``) is the ``position`` signal's. The identification uses it with a position
+    servo's actuator model (the identify config's ``actuator: {kind: position}``).
+
+    ``torque`` may be absent only for such a log (a position servo logs no torque: its torque
+    is the actuator's law ``kp (q_cmd(t - d) - q) - kd dq``); the identify config checks it.
     """
 
     path: Path | None = None
     format: str | None = None
     files: list[LogFile] = Field(default_factory=list)
     position: SignalFile
-    torque: SignalFile
+    torque: SignalFile | None = None
     velocity: SignalFile | None = None
     command: SignalFile | None = None
     time: TimeColumn | None = None
@@ -171,7 +175,7 @@ class LogConfig(StrictModel):
             ("torque_unit", self.torque_unit, TORQUE_UNITS),
             ("velocity_unit", self.velocity_unit, VELOCITY_UNITS),
             ("position.unit", self.position.unit, POSITION_UNITS),
-            ("torque.unit", self.torque.unit, TORQUE_UNITS),
+            ("torque.unit", self.torque.unit if self.torque else None, TORQUE_UNITS),
             ("velocity.unit", self.velocity.unit if self.velocity else None, VELOCITY_UNITS),
             ("command.unit", self.command.unit if self.command else None, POSITION_UNITS),
         ):

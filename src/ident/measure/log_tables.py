@@ -419,15 +419,19 @@ def _on_time(
 def signal_tables(
     cfg: LogConfig, joint_names: tuple[str, ...], source: str = "config"
 ) -> list[tuple[FloatArray, LogTable]]:
-    """Position, torque (and velocity, and commanded position) columns with their tables; the
+    """Position, torque (and velocity, and commanded position) columns with their tables (the
+    torque NaN on the positions' table when the log has none, ``log.torque`` absent); the
     first part carries the table of the time column (``log.time.path``) when the time is in
     a file of its own."""
     n_joints = len(joint_names)
     sources = _Sources(cfg)
     parts = [
         sources.signal(cfg.position, n_joints, "position", joint_names, source),
-        sources.signal(cfg.torque, n_joints, "torque", joint_names, source),
     ]
+    if cfg.torque is not None:
+        parts.append(sources.signal(cfg.torque, n_joints, "torque", joint_names, source))
+    else:  # no torque logged (a position servo's log): NaN, on the positions' own samples
+        parts.append((np.full(parts[0][0].shape, np.nan), parts[0][1]))
     if cfg.velocity is not None:
         parts.append(sources.signal(cfg.velocity, n_joints, "velocity", joint_names, source))
     command = cfg.command_signal()

@@ -187,11 +187,13 @@ def _in_si_units(
     on their logged side, and the note of the conversions ("" when none)."""
     notes = []
     pos_unit = cfg.position.unit or cfg.position_unit
-    trq_unit = cfg.torque.unit or cfg.torque_unit
     q_raw, note = _to_si(q_raw, cfg.position, pos_unit, "position", source)
     notes.append(note)
-    tau_raw, note = _to_si(tau_raw, cfg.torque, trq_unit, "torque", source)
-    notes.append(note)
+    trq_unit = "N*m"
+    if cfg.torque is not None:  # else NaN: no torque logged
+        trq_unit = cfg.torque.unit or cfg.torque_unit
+        tau_raw, note = _to_si(tau_raw, cfg.torque, trq_unit, "torque", source)
+        notes.append(note)
     if dq_raw is not None:
         assert cfg.velocity is not None
         dq_raw, note = _to_si(
@@ -222,7 +224,9 @@ class RobotLog:
     q :
         Joint positions [rad or m], shape (n_samples, n_joints).
     tau :
-        Joint torques [N*m or N], shape (n_samples, n_joints).
+        Joint torques [N*m or N], shape (n_samples, n_joints); NaN when the log has none
+        (``log.torque`` absent: a position servo's log, whose torque the actuator model of
+        :mod:`ident.identify.actuators` gives from ``q_cmd``).
     sampling_rate_hz :
         Sampling rate [Hz] (the same in every segment).
     joint_names :
@@ -246,7 +250,8 @@ class RobotLog:
         Commanded joint positions [rad or m], shape (n_samples, n_joints), on the samples of
         ``q``; None when the log names none. A position servo's set point before its transport
         delay (``log.command``; LeRobot's ``action``; the simulator's position actuator).
-        Carried for an actuator model and tracking checks; identification ignores it.
+        The position servo's model uses it (``actuator: {kind: position}``,
+        :mod:`ident.identify.actuators.servo_fit`); the rest of identification ignores it.
     """
 
     t: FloatArray
@@ -516,26 +521,15 @@ def _read_one(
     q, tau, *more = (np.asarray(x, dtype=np.float64) for x in signals)
     dq_out = more.pop(0) if cfg.velocity is not None else None
     q_cmd = more.pop(0) if cfg.command is not None else None
-    records.insert(
-        0,
-        {
-            "step": "read",
-            "detail": f"{q.shape[0]} samples x {q.shape[1]} joints from {files}; {time_note}"
-            + (f"; {join_note}" if join_note else ""),
-        },
+    detail = (
+        f"{q.shape[0]} samples x {q.shape[1]} joints from {files}; {time_note}"
+        + (f"; {join_note}" if join_note else "")
+        + ("; no torque logged (log.torque absent)" if cfg.torque is None else "")
     )
-    return RobotLog(
-        t=t,
-        q=q,
-        tau=tau,
-        sampling_rate_hz=fs,
-        joint_names=joint_names,
-        records=tuple(records),
-        segments=tuple(segments),
-        dq=dq_out,
-        warnings=tuple(warnings),
-        q_cmd=q_cmd,
-    )
+    records.insert(0, {"step": "read", "detail": detail})
+    return RobotLog(t=t, q=q, tau=tau, sampling_rate_hz=fs, joint_names=joint_names,
+                    records=tuple(records), segments=tuple(segments), dq=dq_out,
+                    warnings=tuple(warnings), q_cmd=q_cmd)  # fmt: skip
 
 
 def _raw_signals(
@@ -640,7 +634,7 @@ def _joint_side(
         cfg, transmission, q_raw, tau_raw, dq_raw, source
     )
     pos_side = cfg.position.side or cfg.side
-    trq_side = cfg.torque.side or cfg.side
+    trq_side = (cfg.torque.side if cfg.torque else None) or cfg.side
     vel_side = (cfg.velocity.side if cfg.velocity else None) or cfg.side
     any_motor = "motor" in (pos_side, trq_side, vel_side if dq_raw is not None else "joint")
     trans = transmission_from_config(

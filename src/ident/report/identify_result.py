@@ -99,6 +99,8 @@ def result_dict(
     out["verdict"] = verdict_entry(result)
     if result.friction is not None:
         out["friction_models"] = friction_models_entry(result)
+    if result.actuator is not None:  # a position servo's gains, delay, saturation
+        out["actuator"] = result.actuator.summary()
     return out
 
 

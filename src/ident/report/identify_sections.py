@@ -93,6 +93,7 @@ def _markdown(
     ]
     lines += _held_out_section(result, result.joint_names, units)
     lines += ["", *friction_models_lines(result)]
+    lines += [] if result.actuator is None else result.actuator.lines()
     lines += _base_parameter_section(result, units)
     lines += _essential_section(result)
     lines += _truth_section(result)

@@ -6,8 +6,9 @@ simulator user needs the converse: given the measured torques, does MuJoCo repro
 most :data:`MAX_WINDOWS`, from its held-out part: the samples the identification kept aside,
 :func:`held_out_windows`). In each window ``w`` (samples ``s_w .. s_w + L``), MuJoCo starts from
 the measured state ``(q, dq)`` at ``s_w``, the measured joint torques are applied as
-``qfrc_applied`` held over each sample period (zero-order hold; the written MJCF has no
-actuators), with MuJoCo's timestep the sample period or a divisor of it (at most
+``qfrc_applied`` held over each sample period (zero-order hold; the model's actuators, a
+position servo's ``<position>`` ones, are switched off: the measured torques stand for them),
+with MuJoCo's timestep the sample period or a divisor of it (at most
 :data:`MAX_TIMESTEP_S`), and the predicted ``q^, dq^`` are compared with the measured ones at
 the ``L`` following samples. The objective (one formula, shown as "MJCF rollout")::
 
@@ -158,9 +159,10 @@ def rollout_score(
     ----------
     model :
         The model, or the path of its MJCF; copied, never changed. Its joints named
-        ``measurements.joint_names`` are driven (hinge or slide, any order); it has no
-        actuators. Its options are kept but the timestep (and auto-reset: a diverging
-        rollout must show as such, not restart from ``qpos0``).
+        ``measurements.joint_names`` are driven (hinge or slide, any order); its actuators
+        (a position servo's) are switched off, the measured torques stand for them. Its
+        options are kept but the timestep (and auto-reset: a diverging rollout must show as
+        such, not restart from ``qpos0``).
     measurements :
         The measured motion and torques (:class:`RolloutMeasurements`).
     windows :
@@ -179,7 +181,7 @@ def rollout_score(
     ------
     DataError
         For malformed windows, non-uniform sample times in a window, a joint missing from
-        the model, a model with actuators, or a rollout that diverges (non-finite state).
+        the model, or a rollout that diverges (non-finite state).
     """
     mj = _model_copy(model)
     starts, length = _checked_windows(windows, measurements.t.shape[0])
@@ -187,6 +189,9 @@ def rollout_score(
     substeps = substeps or max(1, math.ceil(dt / MAX_TIMESTEP_S - 1e-9))
     mj.opt.timestep = dt / substeps
     mj.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    # the measured torques stand for the actuators: a position servo's MJCF has <position>
+    # actuators, which would otherwise pull toward ctrl = 0 on top of them
+    mj.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION
     qpos, dof = _joint_addresses(mj, measurements.joint_names)
     q_hat, dq_hat = _rollout(mj, measurements, starts, length, substeps, (qpos, dof))
     steps = starts[:, None] + np.arange(1, length)[None, :]  # (W, L) compared samples
@@ -235,12 +240,7 @@ def _joint_addresses(
     model: mujoco.MjModel, joint_names: Sequence[str]
 ) -> tuple[IntArray, IntArray]:
     """``qpos`` and ``qvel`` addresses (nv,) of the named 1-DoF joints (DataError when one is
-    missing, not a hinge or slide, or the model has actuators)."""
-    if model.nu:
-        raise DataError(
-            f"the model has {model.nu} actuators: the rollout applies the measured joint "
-            "torques as qfrc_applied, to a model without actuators (the written MJCF)."
-        )
+    missing, or not a hinge or slide)."""
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in joint_names]
     one_dof = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     bad = [

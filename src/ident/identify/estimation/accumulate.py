@@ -47,6 +47,7 @@ same ``delta`` for the sum, whatever the other chunks).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -126,18 +127,32 @@ class ChunkPlan:
         return [(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
 
 
+@functools.lru_cache(maxsize=64)
+def _lowpass_decay(order: int, cutoff_hz: float, sampling_rate_hz: float) -> int:
+    """:func:`decay_length` of a Butterworth low-pass [samples] (cached: a log of many
+    segments plans each with the same filters)."""
+    sos = signal.butter(order, cutoff_hz, fs=sampling_rate_hz, output="sos")
+    return decay_length(sos)
+
+
+@functools.lru_cache(maxsize=64)
+def _antialias_decay(factor: int) -> int:
+    """:func:`decay_length` of the decimation filter of ``factor`` [samples] (cached)."""
+    return decay_length(preprocess.antialias_sos(factor))
+
+
 def margin_samples(pp: PreprocessConfig, sampling_rate_hz: float) -> tuple[int, int]:
     """``(signal_margin, decimation_margin)`` in raw samples for the settings ``pp``."""
     signal_margin = 4  # np.gradient twice: two neighbours, edge formulas one further
     for flt in (preprocess.position_filter(pp), pp.torque_lowpass):
         if flt is not None:
-            sos = signal.butter(flt.order, flt.cutoff_hz, fs=sampling_rate_hz, output="sos")
-            signal_margin = max(signal_margin, 2 * decay_length(sos) + 4)
+            decay = _lowpass_decay(flt.order, flt.cutoff_hz, sampling_rate_hz)
+            signal_margin = max(signal_margin, 2 * decay + 4)
     decimation_margin, scale = 0, 1
     for factor in preprocess.decimation_factors(pp):
         if factor == 1:
             continue
-        decimation_margin += scale * (2 * decay_length(preprocess.antialias_sos(factor)) + 2)
+        decimation_margin += scale * (2 * _antialias_decay(factor) + 2)
         scale *= factor
     step = preprocess.decimation_step(pp)
     decimation_margin = step * int(np.ceil(decimation_margin / step))

@@ -56,11 +56,13 @@ __all__ = [
     "chunk_record",
     "default_chunk_samples",
     "local_workers",
+    "merged_rows",
     "plan_log",
     "predict_log",
     "prediction_std_log",
     "reduce_log",
     "release_free_memory",
+    "segment_chunk_samples",
     "use_chunks",
 ]
 
@@ -255,6 +257,32 @@ def use_chunks(log: RobotLog, pp: PreprocessConfig, n_columns: int) -> bool:
     n, nv = log.q.shape
     too_big = regressor_bytes(n, nv, n_columns) > pp.max_regressor_mb * 2**20
     return len(log.segments) > 1 or too_big
+
+
+def segment_chunk_samples(log: RobotLog, pp: PreprocessConfig, n_base: int) -> int:
+    """Raw samples per chunk: ``preprocess.chunk_samples`` (or an automatic size) when the
+    log is chunked (:func:`use_chunks`), else the longest segment (each segment is one
+    chunk)."""
+    nv = log.q.shape[1]
+    if not use_chunks(log, pp, 14 * nv):
+        return max(b - a for a, b in log.segments)
+    margins = margin_samples(pp, log.sampling_rate_hz)
+    step = preprocess.decimation_step(pp)
+    return pp.chunk_samples or default_chunk_samples(margins, nv, n_base, step)
+
+
+def merged_rows(
+    first: ReducedObservations | None, last: ReducedObservations | None
+) -> ReducedObservations:
+    """The two parts of :func:`reduce_log` merged; :class:`DataError` when they hold no more
+    rows than parameters."""
+    red = last if first is None else first if last is None else first.merge(last)
+    assert red is not None  # plan_log raises without identification rows
+    if red.n_rows.sum() <= red.n_params:
+        raise DataError(
+            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters."
+        )
+    return red
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,7 +11,7 @@ and
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,6 +72,20 @@ class ModelFiles:
         return self.urdf.text
 
 
+def _servo_extras(
+    position_servos: Mapping[str, Mapping[str, float | None]] | None,
+) -> dict[str, Any]:
+    """The joint-extras entry of position servos (empty without)."""
+    if not position_servos:
+        return {}
+    law = (
+        "tau = clip(kp (q_cmd(t - d) - q) - kd dq, +-forcerange); kd is in the joint's viscous "
+        "term (kd + fv, not separable)"
+    )
+    joints = {name: dict(values) for name, values in position_servos.items()}
+    return {"position_servos": {"law": law, "joints": joints}}
+
+
 def model_files(
     robot: Robot,
     theta: npt.ArrayLike,
@@ -80,30 +94,31 @@ def model_files(
     nominal: npt.ArrayLike | None = None,
     coupled_pair: tuple[int, int] | None = None,
     friction_law: WrittenFrictionLaw | None = None,
+    position_servos: Mapping[str, Mapping[str, float | None]] | None = None,
 ) -> ModelFiles:
     """The identified URDF, MJCF and joint-extras texts of a consistent estimate.
 
     Parameters
     ----------
     robot :
-        The identified robot (its URDF text, Pinocchio model with the locked joints removed,
-        locked joints and gravity are used).
+        The identified robot (URDF text, model without the locked joints, locks, gravity).
     theta, names :
         Standard parameters (per body ``m, mcx, ..., Izz`` about the joint frame, then the
         extras ``Ia{j}``, ``fv{j}``, ``fs{j}``, ``off{j}``, ``Iam{b}``...), shape (n_std,) [SI],
         and their names.
     nominal :
-        Optional nominal parameters in the order of ``names``, checked against the file.
+        Nominal parameters in the order of ``names`` (optional), checked against the file.
     coupled_pair :
-        The joints (0-based) sharing the coupled motor, if ``theta`` has ``Iam{b}``
-        (``ParameterModel.terms.coupled_wrist``); needed for the MJCF's tendon.
+        The joints (0-based) sharing the coupled motor if ``theta`` has ``Iam{b}``: a tendon.
     friction_law :
         A friction law the model carries instead of ``fv``/``fs``
         (:mod:`ident.identify.friction.friction_law`): the joint-extras file gets its
         ``"friction_law"``, the URDF's and MJCF's damping and friction its native part.
+    position_servos :
+        ``{joint: {"kp", "forcerange"}}`` of position servos (``ServoFit.mjcf_servos``): a
+        ``<position>`` actuator per joint in the MJCF, ``"position_servos"`` in the extras.
 
-    Raises :class:`ModelError` if the estimate is physically inconsistent, the URDF does not
-    match the robot, or MuJoCo cannot compile the model.
+    Raises :class:`ModelError` (an inconsistent estimate, a URDF not of the robot, MuJoCo).
     """
     source = str(robot.urdf_path or robot.name)
     theta = native_theta(theta, names, friction_law)
@@ -125,8 +140,9 @@ def model_files(
         locked_joints=robot.locked_joints,
         gravity=np.asarray(robot.model.gravity.linear, dtype=float),
         source=source,
+        position_servos=position_servos,
     )
-    extras = _joint_extras(urdf, robot, friction_law)
+    extras = {**_joint_extras(urdf, robot, friction_law), **_servo_extras(position_servos)}
     return ModelFiles(
         urdf=urdf, mjcf=mjcf, extras_json=json.dumps(extras, indent=2) + "\n", paths={}
     )
@@ -171,6 +187,7 @@ def write_model_files(
     coupled_pair: tuple[int, int] | None = None,
     suffix: str = "identified",
     friction_law: WrittenFrictionLaw | None = None,
+    position_servos: Mapping[str, Mapping[str, float | None]] | None = None,
 ) -> ModelFiles:
     """Write ``<stem>_identified.urdf``, ``<stem>_identified.xml``, ``<stem>_joint_extras.json``.
 
@@ -191,6 +208,7 @@ def write_model_files(
         nominal=nominal,
         coupled_pair=coupled_pair,
         friction_law=friction_law,
+        position_servos=position_servos,
     )
     folder = Path(out_dir)
     paths = {
@@ -390,7 +408,14 @@ def _write_model(
         nominal=model.structure.nominal,
         coupled_pair=result.parameters.terms.coupled_wrist,
         friction_law=law,
+        position_servos=_position_servos(result),
     )
+
+
+def _position_servos(result: Any) -> dict[str, dict[str, float | None]] | None:
+    """The MJCF's ``<position>`` actuators of an identification of position servos, or None."""
+    fit = getattr(result, "actuator", None)
+    return None if fit is None else fit.mjcf_servos()
 
 
 def _parity_entry(parity: ReloadParity) -> dict[str, Any]:

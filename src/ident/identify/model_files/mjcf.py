@@ -68,7 +68,10 @@ MJCF_NOTE = """
   integrated implicitly in simulation); frictionloss = Coulomb friction (approximate: a
   constraint-based dry friction bounded by it, not the torque fs*sign(dq)). A coupled motor is
   a fixed tendon q_a + q_b with its armature, damping and frictionloss. Torque offsets are not
-  represented: see the joint-extras file.
+  represented: see the joint-extras file. Position servos (a robot whose log had no torque):
+  a <position> actuator per joint, kp as identified (or given), forcerange as configured, kv =
+  0: the servo's kd and the viscous friction are known only as their sum, which is the joint's
+  damping.
 """
 
 
@@ -103,6 +106,7 @@ def identified_mjcf(
     locked_joints: Mapping[str, float] | None = None,
     gravity: npt.ArrayLike = (0.0, 0.0, -9.81),
     source: str = "identified URDF",
+    position_servos: Mapping[str, Mapping[str, float | None]] | None = None,
 ) -> str:
     """The MJCF text of an identified robot.
 
@@ -126,33 +130,32 @@ def identified_mjcf(
         "viscous", "coulomb"}`` becomes a fixed tendon ``q_a + q_b`` with that ``armature``,
         ``damping`` and ``frictionloss``: exactly the coupled motor's ``Iam (ddq_a + ddq_b)``
         and ``fvm (dq_a + dq_b)`` in rows ``a`` and ``b`` (``fsm`` as a friction loss).
-    locked_joints :
-        Joints held fixed (name -> position [rad or m]), as the identified robot.
-    gravity :
-        Gravity [m/s^2], shape (3,) (``Robot.model.gravity.linear``).
-    source :
-        Name of the URDF for messages.
+    locked_joints, gravity, source :
+        Joints held fixed (name -> position [rad or m]), as the identified robot; gravity
+        [m/s^2], shape (3,); the URDF's name for messages.
+    position_servos :
+        ``{joint: {"kp", "forcerange"}}`` [N*m/rad, N*m or None]: a ``<position>`` actuator
+        ``servo_<joint>``, ``kp (ctrl - q)`` clipped (``kv = 0``: ``kd`` is in the damping,
+        ``kd + fv``, not separable); not in ``mj_inverse``'s ``qfrc_inverse``.
 
     Returns
     -------
     :
         MJCF text; MuJoCo compiles it without any mesh file, its moving joints are
         ``joint_names`` and its inverse dynamics is the URDF's (Pinocchio RNEA) plus
-        ``armature ddq + damping dq`` (friction loss is a constraint: off in
-        ``mj_inverse`` with ``mjDSBL_CONSTRAINT``). Raises :class:`ModelError` if MuJoCo
-        cannot compile the URDF, or its moving joints differ from ``joint_names``.
+        ``armature ddq + damping dq`` (friction loss is a constraint: off in ``mj_inverse``
+        with ``mjDSBL_CONSTRAINT``). Raises :class:`ModelError` (MuJoCo, joints differ).
     """
     text = mujoco_urdf(_with_bodies(urdf_text, bodies, source), dict(locked_joints or {}), source)
     spec = _spec(text, joint_names, source)
     _set_joint_extras(spec, joint_names, extras)
     _add_coupled_motors(spec, coupled_motors, joint_names, source)
+    _add_position_servos(spec, position_servos or {}, joint_names, source)
     spec.option.gravity = np.asarray(gravity, dtype=float)
-    model = _compile(spec, source)
     root = ET.fromstring(spec.to_xml())
-    _full_precision(root, model)
+    _full_precision(root, _compile(spec, source))
     ET.indent(root, space="  ")
-    body = ET.tostring(root, encoding="unicode")
-    return f"<!--{MJCF_NOTE}-->\n{body}\n"
+    return f"<!--{MJCF_NOTE}-->\n{ET.tostring(root, encoding='unicode')}\n"
 
 
 def _set_joint_extras(
@@ -210,6 +213,26 @@ def _add_coupled_motors(
         tendon.frictionloss = float(motor.get("coulomb", 0.0))
 
 
+def _add_position_servos(
+    spec: mujoco.MjSpec,
+    servos: Mapping[str, Mapping[str, float | None]],
+    joint_names: tuple[str, ...],
+    source: str,
+) -> None:
+    """One ``<position>`` actuator ``servo_<joint>`` per entry (:func:`identified_mjcf`)."""
+    for name, values in servos.items():
+        if name not in joint_names:
+            raise ModelError(f"{source}: position servo of {name!r}: no such moving joint.")
+        act = spec.add_actuator(
+            name=f"servo_{name}", target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT
+        )
+        act.set_to_position(kp=float(values["kp"] or 0.0), kv=0.0)
+        limit = values.get("forcerange")
+        if limit is not None:
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.forcerange = [-float(limit), float(limit)]
+
+
 def _with_bodies(urdf_text: str, bodies: Mapping[str, npt.ArrayLike], source: str) -> str:
     """The URDF with the ``bodies`` as the only inertials (all other links massless)."""
     from ident.robot.inertia import URDF_INERTIA_ENTRIES, com_and_inertia
@@ -264,6 +287,13 @@ def _full_precision(root: ET.Element, model: mujoco.MjModel) -> None:
         element.set("armature", _fmt(model.tendon_armature[i]))
         element.set("damping", _fmt(model.tendon_damping[i]))
         element.set("frictionloss", _fmt(model.tendon_frictionloss[i]))
+    for element in root.iter("position"):  # the servos: their gain at full precision
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, element.get("name", ""))
+        if i < 0:
+            raise ModelError(f"MJCF: actuator {element.get('name')!r} not in the compiled model.")
+        element.set("kp", _fmt(model.actuator_gainprm[i, 0]))
+        if model.actuator_forcelimited[i]:
+            element.set("forcerange", _fmt(model.actuator_forcerange[i]))
     for element in root.iterfind("worldbody//joint"):  # not a tendon's <joint joint=...>
         i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, element.get("name", ""))
         if i < 0:

@@ -80,6 +80,15 @@ def load_payload_config(path: str | Path) -> PayloadConfig:
     cfg = load_identify_config(path, schema=PayloadConfig)
     assert isinstance(cfg, PayloadConfig)  # the schema asked for
     without = cfg.payload.without
+    if cfg.actuator.kind != "motor":
+        raise ConfigError(
+            f"{path}: actuator.kind: {cfg.actuator.kind}: 'ident payload' needs logged torques "
+            "(or currents); remove the actuator section and name log.torque."
+        )
+    if without is not None and without.torque is None:
+        raise ConfigError(
+            f"{path}: payload.without.torque is missing: name the logged torques (or currents)."
+        )
     if cfg.signals.gain_reference is not None and without is None:
         raise ConfigError(
             f"{path}: signals.gain_reference needs a log without the payload: add "

@@ -42,6 +42,7 @@ from threadpoolctl import threadpool_limits
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.errors import ConfigError, DataError
+from ident.identify.actuators.servo_fit import ServoFit
 from ident.identify.assessment.identifiability import Identifiability, standard_identifiability
 from ident.identify.assessment.model_intervals import ModelIntervals, model_intervals
 from ident.identify.assessment.verdict import truth_from_config
@@ -183,6 +184,9 @@ class IdentifyResult:
         (:mod:`ident.identify.assessment.model_intervals`, ``urdf_update.model_bootstrap``
         re-solves), or None (switched off, no model, too few blocks; ``model_intervals_note`` says
         why when it failed).
+    actuator :
+        The position servos' fit (``actuator.kind: position``: gains, ``kd + fv``, delay,
+        saturation; :mod:`ident.identify.actuators.servo_fit`), or None (torque logged).
     """
 
     config: IdentifyConfig
@@ -216,6 +220,7 @@ class IdentifyResult:
     friction_law: WrittenFrictionLaw | None = None
     model_intervals: ModelIntervals | None = None
     model_intervals_note: str = ""
+    actuator: ServoFit | None = None
 
     @property
     def status(self) -> str:
@@ -498,7 +503,7 @@ def _accumulate(
         cfg.preprocess,
         columns,
         identify_fraction=cfg.validation.identify_fraction,
-        chunk_samples=_chunk_samples(log, cfg.preprocess, len(pm.base_names)),
+        chunk_samples=log_chunks.segment_chunk_samples(log, cfg.preprocess, len(pm.base_names)),
     )
     first, last = log_chunks.reduce_log(chunked, scheduler)
     return chunked, first, last, merged_rows(first, last)
@@ -642,18 +647,6 @@ def _parameter_model(
 ) -> ParameterModel:
     terms = cfg.model.extra_terms(model.nv, source)
     return build_parameter_model(model, terms, rng=rng)
-
-
-def _chunk_samples(log: RobotLog, pp: PreprocessConfig, n_base: int) -> int:
-    """Raw samples per chunk: ``preprocess.chunk_samples`` (or an automatic size) when the
-    log is chunked (:func:`~ident.identify.estimation.log_chunks.use_chunks`), else the longest
-    segment (each segment is one chunk)."""
-    nv = log.q.shape[1]
-    if not log_chunks.use_chunks(log, pp, 14 * nv):
-        return max(b - a for a, b in log.segments)
-    margins = accumulate.margin_samples(pp, log.sampling_rate_hz)
-    step = preprocess.decimation_step(pp)
-    return pp.chunk_samples or log_chunks.default_chunk_samples(margins, nv, n_base, step)
 
 
 def _reference(cfg: IdentifyConfig, pm: ParameterModel) -> ReferenceWeights | None:

@@ -19,6 +19,7 @@ from ident.identify.config import IdentifyConfig
 from ident.identify.estimation import accumulate, log_chunks
 from ident.identify.estimation.essential import EssentialResult
 from ident.identify.estimation.estimate import Estimate, rank_report
+from ident.identify.estimation.log_chunks import merged_rows
 from ident.identify.estimation.observations import ReducedObservations
 from ident.identify.estimation.reference import (
     ReferenceWeights,
@@ -49,18 +50,6 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def merged_rows(
-    first: ReducedObservations | None, last: ReducedObservations | None
-) -> ReducedObservations:
-    red = last if first is None else first if last is None else first.merge(last)
-    assert red is not None  # plan_log raises without identification rows
-    if red.n_rows.sum() <= red.n_params:
-        raise DataError(
-            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters."
-        )
-    return red
 
 
 def run_estimators(

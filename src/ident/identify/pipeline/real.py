@@ -2,7 +2,8 @@
 
 :func:`identify` reads the URDF (Pinocchio) and the log, converts motor-side signals to joint
 side (:mod:`ident.measure.logs`), checks the memory and time estimate
-(:func:`estimate_identify`), removes the torque's delay (``signals:``,
+(:func:`estimate_identify`), gives a position servo's log its torque from the servo's law
+(``actuator:``, :mod:`ident.identify.actuators`), removes the torque's delay (``signals:``,
 :func:`ident.identify.corrections.signal_correction.correct_log`), and hands the measurements to
 :func:`ident.identify.pipeline.core.identify_measurements`, the one identification every command
 runs. Nothing here writes files; :mod:`ident.report.identify_report` does.
@@ -10,6 +11,7 @@ runs. Nothing here writes files; :mod:`ident.report.identify_report` does.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +21,8 @@ import pinocchio as pin
 
 from ident.dynamics.parameter_model import PRIORITY_LABELS, ParameterModel, build_parameter_model
 from ident.errors import DataError
+from ident.identify.actuators.registry import get_actuator
+from ident.identify.actuators.servo_fit import servo_fit_count
 from ident.identify.assessment.model_intervals import estimated_seconds
 from ident.identify.config import IdentifyConfig
 from ident.identify.corrections.signal_correction import correct_log
@@ -86,10 +90,13 @@ def estimate_identify(cfg: IdentifyConfig, log: RobotLog) -> JobEstimate:
         work = log_chunks.chunk_bytes(n_samples, nv, n_columns, step)
         path = "in memory"
     blocks = 8.0 * min(log_chunks.MAX_BLOCKS, n_samples) * n_columns**2
+    # a position servo's log is accumulated once per delay and saturation round beforehand
+    passes = 1 + servo_fit_count(cfg.actuator, log.sampling_rate_hz)
+    servo = f", {passes - 1} servo fits first" if passes > 1 else ""
     return JobEstimate(
-        f"identify: {n_samples} samples x {nv} joints, {path}",
+        f"identify: {n_samples} samples x {nv} joints, {path}{servo}",
         _BYTES_BASE + log_bytes + work + blocks,
-        n_samples * nv**2 * _SECONDS_PER_SAMPLE_JOINT2,
+        passes * n_samples * nv**2 * _SECONDS_PER_SAMPLE_JOINT2,
     )
 
 
@@ -148,10 +155,14 @@ def identify(
             f"than {STILL_SPAN:g} rad or m over the log); there is no motion to identify from: "
             "give the log of an excitation (ident run writes one), or check log.position."
         )
+    estimate = check_job(estimate_identify(cfg, log))  # before the servo's fits too
+    # a servo's torque from its law (the gain, delay, saturation: identify/actuators)
+    prepared = get_actuator(cfg.actuator.kind).prepare(cfg, model, log, source)
+    cfg, log = prepared.config, prepared.log
     (log,) = correct_log(cfg.signals, robot, cfg.preprocess, cfg.model, log, source=source).logs
-    _check_identify_job(cfg, log, on_estimate)
+    _check_identify_job(cfg, log, estimate, on_estimate)
     try:
-        return identify_measurements(
+        result = identify_measurements(
             cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
         )
     except DataError as e:
@@ -161,21 +172,25 @@ def identify(
                 f"that would determine their parameters are missing ({e})"
             ) from e
         raise
+    return dataclasses.replace(result, actuator=prepared.fit)
 
 
 def _check_identify_job(
-    cfg: IdentifyConfig, log: RobotLog, on_estimate: Callable[[JobEstimate], None] | None
+    cfg: IdentifyConfig,
+    log: RobotLog,
+    estimate: JobEstimate,
+    on_estimate: Callable[[JobEstimate], None] | None,
 ) -> None:
-    """The memory and time estimate of identifying ``log`` (:func:`estimate_identify`) and that
-    of the written model's bootstrap when there is one (:func:`estimate_model_intervals`),
-    each checked against the ceilings, then handed to ``on_estimate``.
+    """The identification's ``estimate`` (:func:`estimate_identify`, checked already, before
+    a servo's fits) and that of the written model's bootstrap when there is one
+    (:func:`estimate_model_intervals`), checked against the ceilings; both handed to
+    ``on_estimate``.
 
     Raises
     ------
     ResourceLimitError
-        If an estimate is above the ceilings (:func:`ident.inputs.check_job`).
+        If the bootstrap's estimate is above the ceilings (:func:`ident.inputs.check_job`).
     """
-    estimate = check_job(estimate_identify(cfg, log))
     extra = estimate_model_intervals(cfg, log.q.shape[1])
     if extra is not None:
         check_job(extra)

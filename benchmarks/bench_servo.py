@@ -1,0 +1,181 @@
+"""Position servos that log no torque: gains, ``kd + fv``, armature and friction over seeds.
+
+For each seed (the Fourier coefficients of the reference), MuJoCo simulates the robot driven by
+``<position>`` servos (``kp``, ``kv``, a 2-step command delay) with joint damping, friction loss
+and armature, logs the encoder positions (2^19 counts per revolution on the UR5) and the
+commands, no torque; ``ident identify`` then runs with ``actuator: {kind: position}`` twice:
+the gains identified (scale from the URDF's mass) and given (``scale_from: kp``). Printed per
+seed and scale: the delay found, the largest relative error of ``kp`` (of every joint, and of
+the joints whose gain the shared parameters tie to the scale; the others are named, as the
+result names them), ``kd + fv`` (against
+``kv + damping``), the rotor inertias (``Ia``, where a base parameter is one) and the Coulomb
+friction (``fs``, against the friction loss), and the seconds of the identification.
+
+    python benchmarks/bench_servo.py [--robot ur5|arm2] [--seeds 5] [--threshold 0.2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from test_mujoco_sim import fourier_reference  # noqa: E402
+from test_servo import ARM  # noqa: E402
+
+from ident.identify.actuators.servo_fit import MIN_SHARED_SHARE  # noqa: E402
+from ident.identify.config import load_identify_config  # noqa: E402
+from ident.identify.pipeline.real import identify  # noqa: E402
+from ident.measure.mujoco_config import load_mujoco_measurement  # noqa: E402
+from ident.measure.mujoco_sim import simulate, write_log  # noqa: E402
+from ident.model import Robot  # noqa: E402
+
+RATE = 500.0
+DELAY_STEPS = 2
+#: Per robot: the URDF, the servos' kp [N*m/rad] and kv [N*m*s/rad], MuJoCo's damping, friction
+#: loss and armature, the reference's period [s] and amplitude [rad/s], the encoder.
+ROBOTS = {
+    "ur5": {
+        "urdf": ROOT / "robot" / "urdf" / "ur5.urdf",
+        "kp": [3000.0, 3000.0, 1500.0, 300.0, 300.0, 150.0],
+        "kv": [60.0, 60.0, 30.0, 5.0, 5.0, 3.0],
+        "damping": [3.0, 3.0, 2.0, 0.5, 0.5, 0.5],
+        "coulomb": [5.0, 5.0, 3.0, 1.0, 1.0, 1.0],
+        "armature": [0.5, 0.5, 0.3, 0.05, 0.05, 0.05],
+        "period": 4.0,
+        "amplitude": 1.5,
+        "encoder": 2**19,
+    },
+    "arm2": {
+        "urdf": None,  # tests/test_servo.py's two links
+        "kp": [60.0, 30.0],
+        "kv": [1.5, 0.8],
+        "damping": [0.3, 0.2],
+        "coulomb": [0.4, 0.2],
+        "armature": [0.05, 0.05],
+        "period": 3.0,
+        "amplitude": 2.0,
+        "encoder": 2**16,
+    },
+}
+
+
+def simulated_log(folder: Path, robot: Robot, spec: dict, seed: int) -> None:
+    """Simulate the servos on the seed's reference and write ``log.csv`` / ``log.yaml``."""
+    actuator = {"kind": "position", "kp": spec["kp"], "kv": spec["kv"]}
+    measurement = {
+        "rate_hz": RATE,
+        "friction": {"viscous": spec["damping"], "coulomb": spec["coulomb"]}
+        | {"semantics": "mujoco"},
+        "armature": spec["armature"],
+        "actuator": actuator | {"delay_steps": DELAY_STEPS},
+        "encoder_counts_per_rev": spec["encoder"],
+        "settle_periods": 1,
+        "n_periods": 2,
+    }
+    reference = fourier_reference(
+        robot, period=spec["period"], seed=seed, amplitude=spec["amplitude"], rate_hz=RATE
+    )
+    write_log(folder, simulate(robot, *reference, load_mujoco_measurement(measurement), rng=0))
+
+
+def identify_config(
+    folder: Path, robot: Robot, urdf: Path, actuator: dict, threshold: float
+) -> Path:
+    """The identify config of the log in ``folder``: torque dropped, commands named, rows
+    below ``threshold`` [rad/s] dropped (the friction loss's stiction)."""
+    log = yaml.safe_load((folder / "log.yaml").read_text())["log"]
+    del log["torque"]
+    log["command"] = {"columns": [f"q_cmd_{name}" for name in robot.joint_names]}
+    cfg = {
+        "robot": {"urdf": str(urdf)},
+        "log": log,
+        "actuator": actuator,
+        "preprocess": {"lowpass": {"cutoff_hz": 20.0}, "trim_samples": 100, "decimation": [5]}
+        | {"velocity_threshold": [threshold] * robot.nv},
+        "model": {"offset": False},
+        "urdf_update": {"model": "none"},
+    }
+    path = folder / "identify.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def worst(found: np.ndarray, true: np.ndarray, names: list[str]) -> str:
+    """The largest relative error [%] and its parameter's name."""
+    errors = 100.0 * np.abs(np.asarray(found) / np.asarray(true) - 1.0)
+    k = int(np.nanargmax(errors))
+    return f"{errors[k]:.2f} % ({names[k]})"
+
+
+def extras(result, prefix: str, true: list[float]) -> str:
+    """The worst error of the base parameters ``<prefix><j>`` that stand alone (how many)."""
+    found = dict(zip(result.estimate.names, result.estimate.x, strict=True))
+    names = [f"{prefix}{j + 1}" for j in range(len(true)) if f"{prefix}{j + 1}" in found]
+    if not names:
+        return "n/a"
+    truth = [true[int(n[len(prefix) :]) - 1] for n in names]
+    return worst([found[n] for n in names], truth, names) + f" of {len(names)}"
+
+
+def row(result, spec: dict, seconds: float) -> str:
+    fit = result.actuator
+    kp, kdfv = np.array(spec["kp"]), np.add(spec["kv"], spec["damping"])
+    joints = [f"j{j + 1}" for j in range(kp.size)]
+    tied = np.flatnonzero(fit.shared_share >= MIN_SHARED_SHARE)
+    named = [joints[j] for j in tied]
+    loose = [j for k, j in enumerate(joints) if k not in tied] if fit.scale == "mass" else []
+    return (
+        f"| {fit.scale} | {fit.delay_samples} | {worst(fit.kp, kp, joints)} "
+        f"| {worst(fit.kp[tied], kp[tied], named) if fit.scale == 'mass' else '-'} "
+        f"| {', '.join(loose) or '-'} | {worst(fit.damping, kdfv, joints)} "
+        f"| {extras(result, 'Ia', spec['armature'])} | {extras(result, 'fs', spec['coulomb'])} "
+        f"| {fit.n_excluded} | {seconds:.1f} |"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", choices=sorted(ROBOTS), default="ur5")
+    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument(
+        "--threshold", type=float, default=0.2, help="velocity threshold [rad/s] of every joint"
+    )
+    args = parser.parse_args()
+    spec = ROBOTS[args.robot]
+    print(
+        f"{args.robot}: servos kp {spec['kp']}, kv {spec['kv']}, delay {DELAY_STEPS} steps; "
+        f"velocity threshold {args.threshold} rad/s"
+    )
+    print(
+        "| seed | scale | delay [samples] | kp | kp, tied joints | named loose | kd + fv | Ia | fs "
+        "| excluded | s |"
+    )
+    print("| --- | --- | ---: | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        urdf = spec["urdf"]
+        if urdf is None:
+            urdf = folder / "arm2.urdf"
+            urdf.write_text(ARM)
+        robot = Robot.from_urdf(urdf)
+        for seed in range(args.seeds):
+            simulated_log(folder, robot, spec, seed)
+            for actuator in ({}, {"kp": spec["kp"]}):
+                section = {"kind": "position"} | actuator
+                path = identify_config(folder, robot, urdf, section, args.threshold)
+                t0 = time.perf_counter()
+                result = identify(load_identify_config(path))
+                print(f"| {seed} " + row(result, spec, time.perf_counter() - t0), flush=True)
+
+
+if __name__ == "__main__":
+    main()
