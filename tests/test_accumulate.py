@@ -188,8 +188,9 @@ def test_long_log_benchmark_short_version():
     import subprocess
     import sys
 
-    args = ["--minutes", "0.5", "--per-sample", "300", "--compare-minutes", "0.3"]
-    args += ["--mcap-minutes", "0.3"]  # the MCAP case too, short
+    args = ["--minutes", "0.1", "--per-sample", "300", "--compare-minutes", "0.1"]
+    args += ["--mcap-minutes", "0.1", "--csv-minutes", "0.1"]  # MCAP and CSV too, short (the
+    # CSV case's default is the hour: 10 minutes of CI)
     proc = subprocess.run(
         [sys.executable, str(ROOT / "benchmarks" / "bench_identify_long.py"), *args],
         capture_output=True,
@@ -216,12 +217,12 @@ def test_tx40_constrained_estimate_by_chunks_equals_in_memory():
     )
     cfg = cfg.model_copy(
         update={
-            "log": cfg.log.model_copy(update={"max_samples": 30000}),
+            "log": cfg.log.model_copy(update={"max_samples": 12000}),
             "estimation": estimation,
         }
     )
     a = identify(cfg)
-    pp = cfg.preprocess.model_copy(update={"chunked": "always", "chunk_samples": 6000})
+    pp = cfg.preprocess.model_copy(update={"chunked": "always", "chunk_samples": 2500})
     b = identify(cfg.model_copy(update={"preprocess": pp}))
     assert any(r["step"] == "chunked accumulation" for r in b.records)
     assert b.consistent.constrained.consistent
