@@ -17,6 +17,9 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import functools
+
+# xml.etree: only the type of the parsed <robot> that robot/urdf_load.prepare_urdf hands over
+# (its parsing and the reason for it are there).
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from pathlib import Path
