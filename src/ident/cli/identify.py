@@ -172,6 +172,7 @@ def _save_and_report(
     if replay and not replay_note.startswith("replay.html written"):
         typer.echo(f"warning: {replay_note} (run.json says so too)", err=True)
     t1 = time.perf_counter()
+    _echo_refinement_estimate(result)
     write_identify_report(result, rundir.path, replay_note=replay_note)
     return replay_note, {
         **result.timings,
@@ -232,15 +233,37 @@ def _print_summary(result: IdentifyResult, folder: Path, replay_note: str) -> No
         typer.echo(f"warning: {w}", err=True)
 
 
+def _echo_refinement_estimate(result: IdentifyResult) -> None:
+    """Before a refinement on rollouts (``refinement: rollout``): its bound and CPU estimate."""
+    from ident.identify.assessment.rollout import WINDOW_S
+    from ident.identify.refinement.rollout_refinement import estimated_cpu_s
+
+    cfg = result.config.refinement
+    if cfg.method == "none":
+        return
+    nv = len(result.joint_names)
+    samples = int(round(WINDOW_S * result.log.sampling_rate_hz)) + 1
+    seconds = estimated_cpu_s(cfg.max_windows, samples, nv, cfg.max_iterations)
+    typer.echo(
+        f"refinement on rollouts: at most {cfg.max_iterations} iterations of {3 * nv + 1} "
+        f"rollouts of at most {cfg.max_windows} windows of {WINDOW_S:g} s "
+        f"(refinement.max_iterations, max_windows): about {seconds:.0f} s of CPU at most"
+    )
+
+
 def _echo_model(result_json: Path) -> None:
     """One line on the identified model (its files and reload parity) and one on its MJCF's
     rollout check, from ``result.json``."""
     import json
 
     from ident.identify.assessment.rollout import rollout_text
+    from ident.identify.refinement.rollout_refinement import refinement_text
 
     data = json.loads(result_json.read_text(encoding="utf-8"))
     typer.echo(rollout_text(data.get("rollout")))  # the MJCF's rollout check, or why not run
+    refined = refinement_text(data.get("refinement"))  # None: not asked for
+    if refined is not None:
+        typer.echo(refined)
     model = data.get("model") or {}
     if not model.get("written"):
         typer.echo(f"model: {model.get('note') or 'not written'}")

@@ -328,9 +328,12 @@ def _model_rows(data: dict[str, Any]) -> list[tuple[str, str]]:
     """The summary's rows on the identified model (a simulated log's identification: its
     files) and its MJCF's rollout check (or why it did not run), from ``result.json``."""
     from ident.identify.assessment.rollout import rollout_text
+    from ident.identify.refinement.rollout_refinement import refinement_text
 
     rows = [] if data.get("model") is None else [("identified model", _model_text(data["model"]))]
-    return [*rows, ("MJCF rollout", rollout_text(data.get("rollout")))]
+    rows.append(("MJCF rollout", rollout_text(data.get("rollout"))))
+    refined = refinement_text(data.get("refinement"))  # None: not asked for
+    return rows if refined is None else [*rows, ("MJCF refinement", refined)]
 
 
 def _stage_rows(table: Any, stage: Any) -> None:

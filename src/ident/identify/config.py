@@ -45,6 +45,7 @@ __all__ = [
     "ModelConfig",
     "PreprocessConfig",
     "ReferenceConfig",
+    "RefinementConfig",
     "RegularizationConfig",
     "SignalsConfig",
     "TruthConfig",
@@ -390,6 +391,26 @@ class ActuatorSection(StrictModel):
         return "kp" if self.kp is not None else "mass"
 
 
+class RefinementConfig(StrictModel):
+    """Refinement of the written MJCF's joint extras on MuJoCo rollouts (``refinement:``).
+
+    ``method: rollout`` adjusts each moving joint's ``frictionloss``, ``damping`` and
+    ``armature`` (never the link inertials) so that open-loop MuJoCo rollouts of windows of the
+    identification part replay the log, warm-started from and pulled toward the regressor's
+    values (:mod:`ident.identify.refinement.rollout_refinement`); the shorthand
+    ``refinement: rollout`` is ``{method: rollout}``. ``none`` (the default) writes the
+    regressor's values only. The CPU is bounded by ``max_windows`` training windows of 0.5 s
+    and ``max_iterations`` iterations (trust-region Gauss-Newton), each ``3 n + 1`` rollouts
+    of the windows (``n`` joints).
+    """
+
+    method: Literal["none", "rollout"] = "none"
+    max_windows: int = Field(default=12, ge=1, le=64)
+    max_iterations: int = Field(default=8, ge=1, le=50)
+    #: Weight of the prior term, relative to the training objective at the start.
+    prior_weight: float = Field(default=0.01, ge=0.0, le=1e6)
+
+
 class IdentifyConfig(StrictModel):
     """Everything ``ident identify`` needs."""
 
@@ -405,7 +426,14 @@ class IdentifyConfig(StrictModel):
     urdf_update: UrdfUpdateConfig = Field(default_factory=UrdfUpdateConfig)
     signals: SignalsConfig = Field(default_factory=SignalsConfig)
     actuator: ActuatorSection = Field(default_factory=ActuatorSection)
+    refinement: RefinementConfig = Field(default_factory=RefinementConfig)
     source: Path | None = None
+
+    @field_validator("refinement", mode="before")
+    @classmethod
+    def _method_shorthand(cls, value: object) -> object:
+        """``refinement: rollout`` (or ``none``) is ``{method: ...}``."""
+        return {"method": value} if isinstance(value, str) else value
 
     @model_validator(mode="after")
     def _log_of_the_actuator(self) -> IdentifyConfig:
@@ -430,6 +458,12 @@ class IdentifyConfig(StrictModel):
                 )
         if not law.logs_torque:
             self._check_servo_options()
+        if self.refinement.method != "none" and self.actuator.kind != "motor":
+            raise ValueError(
+                f"refinement.method: {self.refinement.method} refines joint extras driven by "
+                f"logged torques; actuator.kind: {self.actuator.kind}'s gains and delay are not "
+                "refined. Remove refinement (or set refinement: none)"
+            )
         return self
 
     def _check_servo_options(self) -> None:

@@ -26,6 +26,7 @@ from ident.identify.assessment.rollout import identify_rollout
 from ident.identify.model_files.files import save_identified_model
 from ident.identify.model_files.urdf_update import UrdfUpdate, update_urdf_inertials
 from ident.identify.pipeline.real import IdentifyResult
+from ident.identify.refinement.rollout_refinement import refinement_entry
 from ident.report.identify_result import (
     _robot_file,
     friction_models_entry,
@@ -226,11 +227,15 @@ def write_identify_report(
     # the identified model first (saved before the report, which can fail afterwards)
     model = save_identified_model(result, folder)
     rollout = identify_rollout(result, folder, model)  # the MJCF against the URDF nominal
+    # refinement: rollout rewrites the MJCF (joint extras) when accepted; scored before
+    refinement = refinement_entry(result, folder, model, rollout)
     urdf = identified_urdf(result)  # the cautious copy: its table is in the report either way
     urdf_name = (
         _robot_file(result).stem + "_cautious.urdf" if result.config.urdf_update.cautious else None
     )
-    written = _write_report_files(result, folder, urdf, urdf_name, replay_note, model, rollout)
+    written = _write_report_files(
+        result, folder, urdf, urdf_name, replay_note, model, (rollout, refinement)
+    )
     if model["written"]:
         written[:0] = [folder / name for name in model["files"].values()]
     return written
@@ -243,7 +248,7 @@ def _write_report_files(
     urdf_name: str | None,
     replay_note: str,
     model: dict,
-    rollout: dict | None = None,
+    checks: tuple[dict | None, dict | None] = (None, None),
 ) -> list[Path]:
     """Write the figures, the cautious URDF (when ``urdf_name``), parameters.csv, result.json,
     report.md and report.html; returns their paths."""
@@ -251,7 +256,8 @@ def _write_report_files(
 
     png = torque_png(result)
     params_png = parameters_figure(result)
-    markdown = _markdown(result, urdf, urdf_name, replay_note, model, rollout)
+    rollout, refinement = checks  # the MJCF's rollout check and refinement entries
+    markdown = _markdown(result, urdf, urdf_name, replay_note, model, rollout, refinement)
     written = [
         atomic_write_bytes(folder / "figures" / "torque_validation.png", png),
         atomic_write_bytes(folder / "figures" / "parameters.png", params_png),
@@ -263,7 +269,9 @@ def _write_report_files(
         atomic_write_text(
             folder / "result.json",
             json.dumps(
-                result_dict(result, urdf, replay_note, model, rollout=rollout),
+                result_dict(
+                    result, urdf, replay_note, model, rollout=rollout, refinement=refinement
+                ),
                 indent=2,
                 allow_nan=False,
             )

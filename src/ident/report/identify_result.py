@@ -49,9 +49,11 @@ def result_dict(
     model: dict | None = None,
     *,
     rollout: dict | None = None,
+    refinement: dict | None = None,
 ) -> dict:
-    """JSON-ready summary of the identification (no times); ``model``, ``rollout``: the
-    identified model's entry and its MJCF's rollout check (model files, assessment.rollout)."""
+    """JSON-ready summary of the identification (no times); ``model``, ``rollout``,
+    ``refinement``: the identified model's entry, its MJCF's rollout check and refinement
+    (model files, assessment.rollout, refinement.rollout_refinement)."""
     pm = result.parameters
     est = result.estimate
     sd = result.parameter_std
@@ -88,7 +90,12 @@ def result_dict(
         "reference_essential": _finite_rows(result.reference_essential),
         "processing": list(result.records),
     }
-    for key, value in (("replay", replay_note), ("model", model), ("rollout", rollout)):
+    for key, value in (
+        ("replay", replay_note),
+        ("model", model),
+        ("rollout", rollout),
+        ("refinement", refinement),
+    ):
         if value is not None:  # in this order in the file
             out[key] = value
     if urdf is not None:

@@ -20,6 +20,7 @@ from ident.identify.assessment.verdict import (
 from ident.identify.estimators.summary import consistency_summary
 from ident.identify.model_files.urdf_update import UrdfUpdate
 from ident.identify.pipeline.real import IdentifyResult
+from ident.identify.refinement.rollout_refinement import refinement_text
 from ident.report.format import pct, percent
 from ident.report.headline import Headline, headline_markdown
 from ident.report.identify_result import _robot_file, joint_torque_units, verdict_entry
@@ -74,12 +75,13 @@ def _markdown(
     replay_note: str = "",
     model: dict | None = None,
     rollout: dict | None = None,
+    refinement: dict | None = None,
 ) -> str:
     """report.md of an identification: its sections in order."""
     units = joint_torque_units(result)
     lines = [
         *_title_lines(result, replay_note),
-        *headline_markdown(_headline(result, urdf, model, rollout)),
+        *headline_markdown(_headline(result, urdf, model, rollout, refinement)),
         *model_section(model, urdf_name),
         *model_intervals_markdown(result),
         "## Identified vs reference parameters",
@@ -446,7 +448,11 @@ def _consistency_section(result: IdentifyResult) -> list[str]:
 
 
 def _headline(
-    result: IdentifyResult, urdf: UrdfUpdate, model: dict | None = None, rollout: dict | None = None
+    result: IdentifyResult,
+    urdf: UrdfUpdate,
+    model: dict | None = None,
+    rollout: dict | None = None,
+    refinement: dict | None = None,
 ) -> Headline:
     """The headline facts of an identification from a log, from its verdict entry (the one
     :func:`result_dict` writes; :mod:`ident.identify.assessment.verdict`)."""
@@ -469,7 +475,11 @@ def _headline(
         consistency=_headline_consistency(result, urdf, model, v),
         safety="not checked (a measured log: the motion was already executed)",
         warnings=list(v["warnings"]),
-        extra=[*_headline_extra(result, v), ("MJCF rollout", rollout_text(rollout))],
+        extra=[
+            *_headline_extra(result, v),
+            ("MJCF rollout", rollout_text(rollout)),
+            *_refinement_row(refinement),
+        ],
     )
 
 
@@ -544,3 +554,9 @@ def _headline_extra(result: IdentifyResult, v: dict) -> list[tuple[str, str]]:
             f"{v.get('std_method') or 'ordinary'} σ)",
         ),
     ]
+
+
+def _refinement_row(entry: dict | None) -> list[tuple[str, str]]:
+    """The summary's row of result.json's ``refinement`` entry (none when not asked for)."""
+    text = refinement_text(entry)
+    return [] if text is None else [("MJCF refinement", text)]

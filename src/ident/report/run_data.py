@@ -329,11 +329,14 @@ def save_run_model(result: Any, run_dir: str | Path) -> dict[str, Any] | None:
     (:func:`ident.identify.model_files.files.save_identified_model`); its entry, with ``elite``, is
     added to ``result.json`` as ``model``, and the MJCF's rollout check against the simulator's
     truth as ``rollout`` (:func:`ident.identify.assessment.rollout.run_rollout`; "not run" and
-    why without a model). None (nothing written) for a run without a simulated log
+    why without a model), and with a model its ``refinement`` entry
+    (:func:`ident.identify.refinement.rollout_refinement.refinement_entry`). None (nothing written)
+    for a run without a simulated log
     (``measurement.source: ideal``) or without elites.
     """
     from ident.identify.assessment.rollout import run_rollout
     from ident.identify.model_files.files import save_identified_model
+    from ident.identify.refinement.rollout_refinement import refinement_entry
 
     run_dir = Path(run_dir)
     rank = result.executed_rank
@@ -347,6 +350,9 @@ def save_run_model(result: Any, run_dir: str | Path) -> dict[str, Any] | None:
         data["model"] = entry
     payload = getattr(result.config.measurement, "payload", None)
     data["rollout"] = run_rollout(outcome, payload, run_dir, entry)  # MJCF vs the truth
+    # refinement: rollout rewrites the MJCF's joint extras when accepted
+    if entry is not None and outcome is not None:
+        data["refinement"] = refinement_entry(outcome.result, run_dir, entry, data["rollout"])
     write_result_json(run_dir / "result.json", data)
     return entry
 

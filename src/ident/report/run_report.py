@@ -27,6 +27,7 @@ from ident.fileio import atomic_write_bytes, atomic_write_text
 from ident.identify.assessment.metrics import MAJOR_SHARE, error_measures, parameter_unit
 from ident.identify.assessment.rollout import rollout_text
 from ident.identify.assessment.verdict import VERDICT_RULE, VERDICT_RULE_REAL, Verdict
+from ident.identify.refinement.rollout_refinement import refinement_text
 from ident.report.format import fmt as _fmt
 from ident.report.format import pct, percent
 from ident.report.format import table as _table
@@ -414,6 +415,9 @@ def _headline_rows(
     if est and est.get("message") not in (None, "ok"):
         extra.append(["Estimator note", str(est["message"])])
     extra.append(["MJCF rollout", rollout_text(data.get("rollout"))])  # or why not run
+    refined = refinement_text(data.get("refinement"))  # None: not asked for
+    if refined is not None:
+        extra.append(["MJCF refinement", refined])
     return extra
 
 

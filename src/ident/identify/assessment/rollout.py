@@ -69,11 +69,15 @@ __all__ = [
     "identify_rollout",
     "reference_mjcf",
     "rollout_check",
+    "identification_windows",
+    "joint_addresses",
     "rollout_not_run",
+    "rollout_residuals",
     "rollout_score",
     "rollout_text",
     "run_rollout",
     "spread_windows",
+    "written_offsets",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -183,6 +187,33 @@ def rollout_score(
         For malformed windows, non-uniform sample times in a window, a joint missing from
         the model, or a rollout that diverges (non-finite state).
     """
+    e_q, e_dq, timestep, substeps = _scaled_errors(model, measurements, windows, substeps)
+    per_window = 0.5 * (np.mean(e_q**2, axis=(1, 2)) + np.mean(e_dq**2, axis=(1, 2)))
+    return RolloutScore(float(np.mean(per_window)), per_window, timestep, substeps)
+
+
+def rollout_residuals(
+    model: mujoco.MjModel | str | Path,
+    measurements: RolloutMeasurements,
+    windows: npt.ArrayLike,
+    *,
+    substeps: int | None = None,
+) -> FloatArray:
+    """The residuals of :func:`rollout_score`'s objective: ``r`` of shape (2 W L nv,) with
+    ``sum(r**2) = J`` (the scaled ``q`` and ``dq`` errors over ``sqrt(2 W L nv)``); the
+    parameters and errors as :func:`rollout_score`'s."""
+    e_q, e_dq, _, _ = _scaled_errors(model, measurements, windows, substeps)
+    return np.concatenate([e_q.ravel(), e_dq.ravel()]) / math.sqrt(2.0 * e_q.size)
+
+
+def _scaled_errors(
+    model: mujoco.MjModel | str | Path,
+    measurements: RolloutMeasurements,
+    windows: npt.ArrayLike,
+    substeps: int | None,
+) -> tuple[FloatArray, FloatArray, float, int]:
+    """The rollout's ``q`` and ``dq`` errors over the measured standard deviations, shapes
+    (W, L, nv), MuJoCo's timestep [s] and substeps (:func:`rollout_score`)."""
     mj = _model_copy(model)
     starts, length = _checked_windows(windows, measurements.t.shape[0])
     dt = _sample_period(measurements.t, starts, length)
@@ -192,7 +223,7 @@ def rollout_score(
     # the measured torques stand for the actuators: a position servo's MJCF has <position>
     # actuators, which would otherwise pull toward ctrl = 0 on top of them
     mj.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION
-    qpos, dof = _joint_addresses(mj, measurements.joint_names)
+    qpos, dof = joint_addresses(mj, measurements.joint_names)
     q_hat, dq_hat = _rollout(mj, measurements, starts, length, substeps, (qpos, dof))
     steps = starts[:, None] + np.arange(1, length)[None, :]  # (W, L) compared samples
     span = starts[:, None] + np.arange(length)[None, :]
@@ -200,8 +231,7 @@ def rollout_score(
     sd_dq = np.maximum(measurements.dq[span].reshape(-1, len(dof)).std(axis=0), SD_FLOOR)
     e_q = (q_hat - measurements.q[steps]) / sd_q
     e_dq = (dq_hat - measurements.dq[steps]) / sd_dq
-    per_window = 0.5 * (np.mean(e_q**2, axis=(1, 2)) + np.mean(e_dq**2, axis=(1, 2)))
-    return RolloutScore(float(np.mean(per_window)), per_window, float(mj.opt.timestep), substeps)
+    return e_q, e_dq, float(mj.opt.timestep), substeps
 
 
 def _model_copy(model: mujoco.MjModel | str | Path) -> mujoco.MjModel:
@@ -236,9 +266,7 @@ def _sample_period(t: FloatArray, starts: IntArray, length: int) -> float:
     return dt
 
 
-def _joint_addresses(
-    model: mujoco.MjModel, joint_names: Sequence[str]
-) -> tuple[IntArray, IntArray]:
+def joint_addresses(model: mujoco.MjModel, joint_names: Sequence[str]) -> tuple[IntArray, IntArray]:
     """``qpos`` and ``qvel`` addresses (nv,) of the named 1-DoF joints (DataError when one is
     missing, or not a hinge or slide)."""
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) for name in joint_names]
@@ -387,16 +415,50 @@ def held_out_windows(
     DataError
         When the held-out part is shorter than one window.
     """
+    ranges = _held_out_ranges(result.log, np.asarray(result.t_validate))
+    return _part_windows(result, ranges, "held-out", window_s, max_windows)
+
+
+def identification_windows(
+    result: Any, window_s: float = WINDOW_S, max_windows: int = MAX_WINDOWS
+) -> tuple[RolloutMeasurements, IntArray]:
+    """Rollout windows of the identification part, disjoint from :func:`held_out_windows`'.
+
+    Per segment of ``result.log``, the raw samples before its held-out range (the whole
+    segment when it has none; a segment's samples after it too), without the
+    ``preprocess.trim_samples`` at each end of the segment; cut, spread and processed as
+    :func:`held_out_windows` does (same parameters, returns and errors). No window shares a
+    sample with a held-out window.
+    """
+    log = result.log
+    trim = int(result.config.preprocess.trim_samples)
+    held = dict(_held_out_ranges(log, np.asarray(result.t_validate)))
+    ranges = []
+    for a, b in log.segments:
+        lo, hi = held.get((a, b), (b, b))
+        for r0, r1 in ((a + trim, lo - 1), (hi + 1, b - trim)):
+            if r1 > r0:
+                ranges.append(((a, b), (r0, r1)))
+    return _part_windows(result, ranges, "identification", window_s, max_windows)
+
+
+def _part_windows(
+    result: Any,
+    ranges: Sequence[tuple[tuple[int, int], tuple[int, int]]],
+    part: str,
+    window_s: float,
+    max_windows: int,
+) -> tuple[RolloutMeasurements, IntArray]:
+    """The windows of the raw ranges ``(segment, [lo, hi))`` of a part of the log
+    (:func:`held_out_windows`); DataError naming ``part`` when none fits."""
     log, pp = result.log, result.config.preprocess
     length = int(round(window_s * log.sampling_rate_hz)) + 1
     candidates = [
-        (segment, s)
-        for segment, (lo, hi) in _held_out_ranges(log, np.asarray(result.t_validate))
-        for s in range(lo, hi - length + 1, length - 1)
+        (segment, s) for segment, (lo, hi) in ranges for s in range(lo, hi - length + 1, length - 1)
     ]
     if not candidates:
         raise DataError(
-            f"the held-out part of the log is shorter than one window of {window_s:g} s "
+            f"the {part} part of the log is shorter than one window of {window_s:g} s "
             f"({length} samples at {log.sampling_rate_hz:g} Hz)."
         )
     margin = margin_samples(pp, log.sampling_rate_hz)[0]
@@ -604,11 +666,21 @@ def _written_check(
         return rollout_not_run(reference, f"no MJCF written ({model.get('note')})")
     files = model["files"]
     try:
-        sidecar = json.loads((folder / files["joint_extras"]).read_text(encoding="utf-8"))
-        joints = sidecar["joints"]
-        offsets = [float(joints.get(name, {}).get("offset", 0.0)) for name in result.joint_names]
+        offsets = written_offsets(folder, files, result.joint_names)
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
         return rollout_not_run(reference, f"cannot read {files['joint_extras']} ({e})")
     return rollout_check(
         result, folder / files["mjcf"], reference, reference_model, offsets=offsets
     )
+
+
+def written_offsets(
+    folder: Path, files: Mapping[str, str], joint_names: Sequence[str]
+) -> list[float]:
+    """The identified torque offsets [N*m or N] (nv,) of the joint-extras file ``files
+    ["joint_extras"]`` in ``folder`` (0 for a joint without one), which the MJCF cannot hold:
+    its rollouts are driven by the measured torque minus them. Raises OSError, ValueError,
+    KeyError, TypeError or AttributeError for a file that is missing or malformed."""
+    sidecar = json.loads((folder / files["joint_extras"]).read_text(encoding="utf-8"))
+    joints = sidecar["joints"]
+    return [float(joints.get(name, {}).get("offset", 0.0)) for name in joint_names]

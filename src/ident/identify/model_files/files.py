@@ -10,6 +10,7 @@ and
 
 from __future__ import annotations
 
+import copy
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ __all__ = [
     "ModelFiles",
     "ReloadParity",
     "model_files",
+    "mujoco_inverse_dynamics",
     "reload_parity",
     "save_identified_model",
     "write_model_files",
@@ -301,20 +303,21 @@ def reload_parity(
         shared = shared + motor["viscous"] * (dq[:, a] + dq[:, b])
         expected[:, a] += shared
         expected[:, b] += shared
-    got = _mujoco_inverse_dynamics(files.mjcf, robot.joint_names, q, dq, ddq)
+    got = mujoco_inverse_dynamics(files.mjcf, robot.joint_names, q, dq, ddq)
     mjcf_error = float(np.abs(got - expected).max()) / max(float(np.abs(expected).max()), scale)
     law_error = None if friction_law is None else _law_reload_error(files, friction_law)
     return ReloadParity(urdf_error, mjcf_error, n_states, law_error)
 
 
-def _mujoco_inverse_dynamics(
-    mjcf: str, joint_names: Sequence[str], q: FloatArray, dq: FloatArray, ddq: FloatArray
+def mujoco_inverse_dynamics(
+    mjcf: str | Any, joint_names: Sequence[str], q: FloatArray, dq: FloatArray, ddq: FloatArray
 ) -> FloatArray:
-    """MuJoCo's inverse dynamics of the MJCF text with constraints off (no friction loss):
-    joint torques [N*m or N] (n_states, n) at the states (n_states, n) of the named joints."""
+    """MuJoCo's inverse dynamics of the MJCF text (or a copy of an ``MjModel``) with
+    constraints off (no friction loss): joint torques [N*m or N] (n_states, n) at the states
+    (n_states, n) of the named joints."""
     import mujoco
 
-    model = mujoco.MjModel.from_xml_string(mjcf)
+    model = mujoco.MjModel.from_xml_string(mjcf) if isinstance(mjcf, str) else copy.copy(mjcf)
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joint_names]
     qpos = np.array([model.jnt_qposadr[i] for i in ids])

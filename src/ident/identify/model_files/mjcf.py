@@ -55,7 +55,7 @@ import numpy.typing as npt
 from ident.errors import ModelError
 from ident.measure.mujoco_model import mujoco_urdf
 
-__all__ = ["MJCF_NOTE", "identified_mjcf"]
+__all__ = ["MJCF_NOTE", "identified_mjcf", "with_joint_values"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -306,3 +306,28 @@ def _full_precision(root: ET.Element, model: mujoco.MjModel) -> None:
         element.set("damping", _fmt(model.dof_damping[dof]))
         element.set("armature", _fmt(model.dof_armature[dof]))
         element.set("frictionloss", _fmt(model.dof_frictionloss[dof]))
+
+
+def with_joint_values(
+    mjcf: str, values: Mapping[str, Mapping[str, float]], note: str | None = None
+) -> str:
+    """The MJCF text of :func:`identified_mjcf` with other joint values, its comments kept.
+
+    ``values``: ``{joint: {attribute: value}}`` with attributes among ``frictionloss``,
+    ``damping`` [N*m or N, N*m*s/rad or N*s/m] and ``armature`` [kg*m^2 or kg], written at full
+    precision on the ``<joint>`` of that name (a ModelError for a joint the MJCF does not have);
+    ``note``: a comment added after the file's first one (what changed and why).
+    """
+    head, sep, body = mjcf.partition("<mujoco")
+    root = ET.fromstring(sep + body)
+    joints = {j.get("name"): j for j in root.iterfind("worldbody//joint")}
+    for name, attributes in values.items():
+        if name not in joints:
+            raise ModelError(f"MJCF: no joint {name!r} to set {', '.join(attributes)} on.")
+        for key, value in attributes.items():
+            if key not in ("frictionloss", "damping", "armature"):
+                raise ModelError(f"MJCF: joint attribute {key!r} is not a joint extra.")
+            joints[name].set(key, _fmt(value))
+    ET.indent(root, space="  ")
+    comment = "" if note is None else f"<!-- {note} -->\n"
+    return f"{head}{comment}{ET.tostring(root, encoding='unicode')}\n"

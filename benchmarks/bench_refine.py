@@ -1,0 +1,154 @@
+"""Refinement on MuJoCo rollouts: the truth, the regressor's MJCF and the refined one.
+
+For each robot (``configs/ur5.yaml``, ``configs/panda.yaml``), the run config's measurement is
+made MuJoCo-native (``friction.semantics: mujoco``: Coulomb friction as ``frictionloss`` with
+the constraint solver, damping, armature); MuJoCo simulates the closed-loop computed-torque
+controller tracking a smooth 3-harmonic reference (period 10 s, one settling period and the
+config's logged periods) and writes the controller's log; ``ident identify`` runs with the run
+config's ``identification`` section and ``refinement: rollout``, writing the identified MJCF;
+the rollout check scores it against the simulator's truth (same MJCF writer), and the
+refinement adjusts its joints' frictionloss, damping and armature. Printed per robot: the
+held-out rollout objective ``J`` of the truth, of the regressor's MJCF and of the refined one,
+the refined one's distance to the truth's [%], the held-out torque errors before and after,
+whether the refinement was accepted, its iterations and CPU seconds (and the estimate).
+
+    python benchmarks/bench_refine.py [--robots ur5 panda] [--seed 0] [--amplitude 0.8]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from test_mujoco_sim import fourier_reference  # noqa: E402
+
+from ident.identify.assessment.rollout import reference_mjcf, rollout_check  # noqa: E402
+from ident.identify.config import load_identify_config  # noqa: E402
+from ident.identify.model_files.files import save_identified_model  # noqa: E402
+from ident.identify.pipeline.real import identify  # noqa: E402
+from ident.identify.refinement.rollout_refinement import refinement_entry, refinement_text  # noqa: E402
+from ident.measure.mujoco_config import load_mujoco_measurement  # noqa: E402
+from ident.measure.mujoco_sim import simulate, write_log  # noqa: E402
+from ident.model.selection import RobotSelection, load_robot  # noqa: E402
+
+PERIOD_S = 10.0
+
+
+def native_measurement(run: dict) -> dict:
+    """The run config's measurement, MuJoCo-native (friction loss through the solver)."""
+    m = {k: v for k, v in run["measurement"].items() if k != "source"}
+    m["friction"] = {**m["friction"], "semantics": "mujoco"}
+    return m
+
+
+def identify_config(folder: Path, run_path: Path, run: dict) -> Path:
+    """The identify config of the log in ``folder``: the run config's robot (absolute paths)
+    and identification sections, ``refinement: rollout``."""
+    robot = dict(run["robot"])
+    robot["urdf"] = str((run_path.parent / robot["urdf"]).resolve())
+    robot["package_dirs"] = [str((run_path.parent / p).resolve()) for p in robot["package_dirs"]]
+    cfg = {
+        "name": run_path.stem,
+        "robot": robot,
+        "log": yaml.safe_load((folder / "log.yaml").read_text())["log"],
+        **run["identification"],
+        "urdf_update": {"model": "consistent"},
+        "refinement": "rollout",
+    }
+    path = folder / "identify.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def truth_model(measurement: dict):
+    """The reference model of the rollout check: the robot's bodies with the truth's extras."""
+
+    def build(robot):
+        extras = {
+            name: {
+                "rotor_inertia": float(measurement["armature"][j]),
+                "viscous": float(measurement["friction"]["viscous"][j]),
+                "coulomb": float(measurement["friction"]["coulomb"][j]),
+            }
+            for j, name in enumerate(robot.joint_names)
+        }
+        return reference_mjcf(robot, extras), 0.0, 1.0
+
+    return build
+
+
+def bench(name: str, folder: Path, seed: int, amplitude: float) -> dict:
+    """Simulate, identify, check and refine one robot; the refinement entry and timings."""
+    run_path = ROOT / "configs" / f"{name}.yaml"
+    run = yaml.safe_load(run_path.read_text())
+    measurement = native_measurement(run)
+    t0 = time.process_time()
+    write_log(folder, _simulate(run_path, run, measurement, seed, amplitude))
+    path = identify_config(folder, run_path, run)
+    t_sim = time.process_time() - t0
+    cfg = load_identify_config(path)
+    result = identify(cfg)
+    model = save_identified_model(result, folder)
+    offsets = [0.0] * len(result.joint_names)
+    rollout = rollout_check(
+        result, folder / model["files"]["mjcf"], "truth", truth_model(measurement), offsets=offsets
+    )
+    entry = refinement_entry(result, folder, model, rollout)
+    return {"entry": entry, "rollout": rollout, "t_sim": t_sim}
+
+
+def _simulate(run_path: Path, run: dict, measurement: dict, seed: int, amplitude: float):
+    """The simulated log of the run config's robot on a smooth reference."""
+    selection = RobotSelection.model_validate(run["robot"]).resolved(run_path.parent)
+    robot = load_robot(selection)
+    reference = fourier_reference(
+        robot, period=PERIOD_S, seed=seed, amplitude=amplitude, rate_hz=measurement["rate_hz"]
+    )
+    return simulate(robot, *reference, load_mujoco_measurement(measurement), rng=seed)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", nargs="+", default=["ur5", "panda"])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--amplitude", type=float, default=0.8, help="rad/s, Fourier bound")
+    parser.add_argument("--json", type=Path, default=None, help="write the entries here")
+    args = parser.parse_args()
+    print(
+        "| robot | J truth | J regressor | J refined | refined vs truth | torque err before "
+        "| torque err after | accepted | iterations | CPU s (estimate) |"
+    )
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: |")
+    out = {}
+    for name in args.robots:
+        with tempfile.TemporaryDirectory() as tmp:
+            got = bench(name, Path(tmp), args.seed, args.amplitude)
+        e = got["entry"]
+        out[name] = got
+        if e.get("accepted") is None:
+            print(f"| {name} | {e['note']} |", flush=True)
+            continue
+        ref, after = e["reference_objective"], e["objective_after"]
+        print(
+            f"| {name} | {ref:.4g} | {e['objective_before']:.4g} | {after:.4g} "
+            f"| {100 * (after / ref - 1):+.1f} % | {e['torque_error_before']:.4g} "
+            f"| {e['torque_error_after']:.4g} | {e['accepted']} | {e['iterations']} "
+            f"| {e['cpu_s']:.1f} ({e['cpu_estimate_s']:.1f}) |",
+            flush=True,
+        )
+        print(f"  {refinement_text(e)}", flush=True)
+    if args.json is not None:
+        args.json.write_text(json.dumps(out, indent=2, default=float))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,200 @@
+"""Refinement of the MJCF's joint extras on MuJoCo rollouts
+(:mod:`ident.identify.refinement.rollout_refinement`).
+
+Reference: a log that MuJoCo itself simulates open loop from a model with known friction loss,
+damping and armature (the planted truth), on a two-link arm whose axes are vertical (gravity
+does not load it, so random torques give a bounded motion).
+"""
+
+import json
+
+import mujoco
+import numpy as np
+import pytest
+import yaml
+from robots import rp2_identify_config
+from typer.testing import CliRunner
+
+from ident.errors import ConfigError
+from ident.identify.assessment.rollout import (
+    RolloutMeasurements,
+    reference_mjcf,
+    rollout_score,
+)
+from ident.identify.config import load_identify_config
+from ident.identify.refinement.rollout_refinement import (
+    PATIENCE,
+    joint_values,
+    refine_joint_extras,
+    refinement_text,
+    rejection_reasons,
+    torque_error,
+    with_values,
+)
+from ident.model import Robot
+
+# Two links turning about vertical axes: gravity does not load the joints.
+ARM = """<robot name="planar2"><link name="base"/>
+<link name="l1"><inertial><origin xyz="0.2 0.01 0"/><mass value="2.0"/>
+ <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.03"/></inertial></link>
+<link name="l2"><inertial><origin xyz="0.15 0 0"/><mass value="1.0"/>
+ <inertia ixx="0.005" ixy="0" ixz="0" iyy="0.012" iyz="0" izz="0.012"/></inertial></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+ <limit lower="-3" upper="3" effort="100" velocity="10"/></joint>
+<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.4 0 0"/>
+ <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="100" velocity="10"/></joint></robot>"""
+
+NAMES = ("j1", "j2")
+#: The planted truth, rows frictionloss, damping, armature [SI].
+TRUTH = np.array([[0.3, 0.15], [0.4, 0.25], [0.05, 0.03]])
+RATE = 1000.0
+LENGTH = 301  # 0.3 s windows
+TRAIN = np.array([[k * 300, k * 300 + LENGTH] for k in range(6)])  # 0 .. 1.8 s
+HELD = np.array([[k * 300, k * 300 + LENGTH] for k in range(7, 11)])  # 2.1 .. 3.3 s
+
+
+@pytest.fixture(scope="module")
+def planted(tmp_path_factory):
+    """The truth's model and 3.4 s of its open-loop motion under random smooth torques."""
+    urdf = tmp_path_factory.mktemp("planar") / "planar2.urdf"
+    urdf.write_text(ARM)
+    robot = Robot.from_urdf(urdf)
+    extras = {
+        name: {"coulomb": TRUTH[0, j], "viscous": TRUTH[1, j], "rotor_inertia": TRUTH[2, j]}
+        for j, name in enumerate(NAMES)
+    }
+    truth = mujoco.MjModel.from_xml_string(reference_mjcf(robot, extras))
+    truth.opt.timestep = 1.0 / RATE
+    n = int(3.4 * RATE) + 1
+    t = np.arange(n) / RATE
+    rng = np.random.default_rng(1)
+    phases, freqs = rng.uniform(0, 2 * np.pi, (4, 2)), np.array([0.7, 1.3, 2.1, 3.4])
+    tau = sum(np.sin(2 * np.pi * f * t[:, None] + p) for f, p in zip(freqs, phases, strict=True))
+    tau = tau * np.array([1.5, 0.6])
+    data = mujoco.MjData(truth)
+    q, dq = np.zeros((n, 2)), np.zeros((n, 2))
+    for k in range(n):
+        q[k], dq[k] = data.qpos, data.qvel
+        data.qfrc_applied[:] = tau[k]
+        mujoco.mj_step(truth, data)
+    return truth, RolloutMeasurements(t, q, dq, tau, NAMES)
+
+
+def test_refinement_recovers_planted_extras_from_30_percent_off(planted):
+    """Start 30 % off (up or down per value); no prior: the refinement finds the planted
+    values within 2 % and its held-out objective reaches the truth's (measured 1e-?)."""
+    truth, measured = planted
+    off = np.array([[1.3, 0.7], [0.7, 1.3], [1.3, 0.7]])
+    start = with_values(truth, NAMES, TRUTH * off)
+    assert np.allclose(joint_values(start, NAMES), TRUTH * off)
+    fit = refine_joint_extras(
+        start, (measured, TRAIN), (measured, HELD), max_iterations=12, prior_weight=0.0
+    )
+    assert fit.best > 0
+    np.testing.assert_allclose(fit.refined, TRUTH, rtol=1e-3)
+    j_truth = rollout_score(truth, measured, HELD).objective
+    j_start = rollout_score(start, measured, HELD).objective
+    assert fit.held_out[0] == pytest.approx(j_start, rel=1e-9)
+    assert fit.held_out[fit.best] <= j_truth + 1e-6 * j_start
+    # ident's torque law explains the log better with the planted values (0.051 vs 0.10)
+    assert torque_error(truth, measured, HELD) < torque_error(start, measured, HELD)
+
+
+def test_a_refinement_the_held_out_windows_refuse_is_not_accepted(planted):
+    """The training windows come from other values than the held-out ones, which the start
+    replays exactly: every iterate moves away on the held-out windows, so the search stops
+    after PATIENCE iterations, keeps the start, and the reason is named."""
+    truth, measured = planted
+    other = with_values(truth, NAMES, TRUTH * 1.5)  # drives the training windows' motion
+    data = mujoco.MjData(other)
+    q, dq = measured.q.copy(), measured.dq.copy()
+    for k in range(TRAIN[-1, 1]):  # from rest, as the fixture's motion
+        q[k], dq[k] = data.qpos, data.qvel
+        data.qfrc_applied[:] = measured.tau[k]
+        mujoco.mj_step(other, data)
+    train = RolloutMeasurements(measured.t, q, dq, measured.tau, NAMES)
+    fit = refine_joint_extras(
+        truth, (train, TRAIN), (measured, HELD), max_iterations=10, prior_weight=0.0
+    )
+    assert fit.best == 0
+    assert fit.iterations == PATIENCE
+    assert min(fit.held_out[1:]) > fit.held_out[0]
+    np.testing.assert_array_equal(fit.refined, TRUTH)
+    (reason,) = rejection_reasons(fit, 0.1, 0.1)
+    assert reason.startswith("no iterate improved the held-out rollout objective")
+    assert "early stop" in reason
+    improved = type(fit)(**{**vars(fit), "best": 1})
+    assert rejection_reasons(improved, 0.1, 0.1) == []
+    assert "torque error would rise from 0.1 to 0.11" in rejection_reasons(improved, 0.1, 0.11)[0]
+
+
+@pytest.mark.parametrize(
+    ("refinement", "field"),
+    [
+        ("gradient", "refinement.method"),
+        ({"method": "rollout", "max_iterations": 0}, "refinement.max_iterations"),
+        ({"method": "rollout", "max_windows": 100}, "refinement.max_windows"),
+        ({"method": "rollout", "prior_weight": -1.0}, "refinement.prior_weight"),
+        ({"method": "rollout", "windows": 3}, "refinement.windows"),
+    ],
+)
+def test_bad_refinement_sections_are_one_line_config_errors(tmp_path, refinement, field):
+    path = rp2_identify_config(tmp_path)
+    cfg = yaml.safe_load(path.read_text())
+    path.write_text(yaml.safe_dump({**cfg, "refinement": refinement}))
+    with pytest.raises(ConfigError) as info:
+        load_identify_config(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert str(path) in message
+    assert field in message, message
+
+
+def test_bad_refinement_exits_2_before_any_folder(tmp_path):
+    from ident.cli import app
+
+    path = rp2_identify_config(tmp_path)
+    cfg = yaml.safe_load(path.read_text())
+    path.write_text(yaml.safe_dump({**cfg, "refinement": {"method": "rollout", "max_windows": 0}}))
+    out = tmp_path / "runs"
+    result = CliRunner().invoke(app, ["identify", str(path), "--out", str(out), "--no-replay"])
+    assert result.exit_code == 2, result.output
+    lines = [x for x in result.output.splitlines() if x.strip()]
+    assert len(lines) == 1, result.output
+    assert lines[0].startswith("error:")
+    assert "refinement.max_windows" in lines[0]
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.slow
+def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_path):
+    """``ident identify`` with ``refinement: rollout`` on the rp2 log: result.json's entry,
+    the report's row and the terminal line are one text; accepted, the MJCF's joints carry the
+    entry's refined values and the URDF is the regressor's."""
+    from ident.cli import app
+
+    path = rp2_identify_config(tmp_path)
+    cfg = yaml.safe_load(path.read_text())
+    refinement = {"method": "rollout", "max_windows": 4, "max_iterations": 3}
+    path.write_text(yaml.safe_dump({**cfg, "refinement": refinement}))
+    out = tmp_path / "runs"
+    result = CliRunner().invoke(app, ["identify", str(path), "--out", str(out), "--no-replay"])
+    assert result.exit_code == 0, result.output
+    (folder,) = [p for p in out.iterdir() if p.is_dir()]
+    data = json.loads((folder / "result.json").read_text())
+    entry = data["refinement"]
+    text = refinement_text(entry)
+    assert text in result.output
+    assert f"| MJCF refinement | {text} |" in (folder / "report.md").read_text()
+    assert "refinement on rollouts: at most 3 iterations of 7 rollouts" in result.output
+    assert entry["train_windows"] <= 4
+    assert entry["held_out_windows"] == data["rollout"]["windows"]
+    assert entry["objective_before"] == pytest.approx(data["rollout"]["objective"], rel=1e-9)
+    mjcf = mujoco.MjModel.from_xml_path(str(folder / data["model"]["files"]["mjcf"]))
+    names = tuple(entry["parameters"])
+    column = 1 if entry["accepted"] else 0
+    expected = [
+        [entry["parameters"][n][a][column] for n in names]
+        for a in ("frictionloss", "damping", "armature")
+    ]
+    np.testing.assert_allclose(joint_values(mjcf, names), expected, rtol=1e-12)
