@@ -52,8 +52,7 @@ def result_dict(
     refinement: dict | None = None,
 ) -> dict:
     """JSON-ready summary of the identification (no times); ``model``, ``rollout``,
-    ``refinement``: the identified model's entry, its MJCF's rollout check and refinement
-    (model files, assessment.rollout, refinement.rollout_refinement)."""
+    ``refinement``: the model's entry, its MJCF's rollout check and refinement."""
     pm = result.parameters
     est = result.estimate
     sd = result.parameter_std
@@ -90,14 +89,8 @@ def result_dict(
         "reference_essential": _finite_rows(result.reference_essential),
         "processing": list(result.records),
     }
-    for key, value in (
-        ("replay", replay_note),
-        ("model", model),
-        ("rollout", rollout),
-        ("refinement", refinement),
-    ):
-        if value is not None:  # in this order in the file
-            out[key] = value
+    checks = {"replay": replay_note, "model": model, "rollout": rollout, "refinement": refinement}
+    out.update({k: v for k, v in checks.items() if v is not None})  # in this order in the file
     if urdf is not None:
         out["urdf"] = _cautious_entry(result, urdf)
     out["consistency"] = consistency_summary(result)

@@ -194,54 +194,26 @@ def refine_joint_extras(
     DataError
         When a rollout fails (a window, a joint missing, divergence).
     """
-    names = train[0].joint_names
     start = time.process_time()
-    substeps = rollout_score(model, held[0], held[1]).substeps
-    x0 = np.maximum(joint_values(model, names), 0.0)  # MuJoCo's values are never negative
-    scale = _scales(x0)
-    z0 = (x0 / scale).ravel()
-
-    def score(z: FloatArray, windows: Windows) -> FloatArray:
-        mj = with_values(model, names, z.reshape(x0.shape) * scale)
-        return rollout_residuals(mj, windows[0], windows[1], substeps=substeps)
-
-    t0 = time.process_time()
-    r0 = score(z0, train)
-    j0 = float(r0 @ r0)
-    one = time.process_time() - t0
-    course = _Course(z0, float(np.sum(score(z0, held) ** 2)), j0)
-    estimate = one * max_iterations * (z0.size + 2) + (time.process_time() - start)
-    prior = math.sqrt(prior_weight / z0.size)
-
-    seen = {z0.tobytes(): r0}  # the training residuals of the iterates (the callback's)
-
-    def residuals(z: FloatArray) -> FloatArray:
-        r = seen.get(z.tobytes())
-        if r is None:
-            r = score(z, train)
-            if len(seen) > 2 * z.size + 4:  # an iteration's evaluations are enough
-                del seen[next(iter(seen))]
-            seen[z.tobytes()] = r
-        return np.concatenate([r / math.sqrt(max(j0, 1e-300)), prior * (z - z0)])
+    p = _Problem(model, train, held, prior_weight)
+    course = _Course(p.z0, float(np.sum(p.score(p.z0, held) ** 2)), p.j0)
+    estimate = p.one_s * max_iterations * (p.z0.size + 2) + (time.process_time() - start)
 
     def callback(intermediate_result: Any) -> None:  # the name scipy's introspection wants
         z = np.asarray(intermediate_result.x, dtype=float)
-        r = seen.get(z.tobytes())
-        r = score(z, train) if r is None else r
-        course.record(z, float(np.sum(score(z, held) ** 2)), float(r @ r))
+        course.record(z, float(np.sum(p.score(z, held) ** 2)), p.train_objective(z))
         course.check(max_iterations)
 
     stop = "converged (least_squares' tolerances)"
-    if j0 > 0.0:
+    if p.j0 > 0.0:
         out = least_squares(
-            residuals, z0, bounds=(0.0, np.inf), method="trf", diff_step=DIFF_STEP,
+            p.residuals, p.z0, bounds=(0.0, np.inf), method="trf", diff_step=DIFF_STEP,
             max_nfev=4 * max_iterations, callback=callback, x_scale=1.0,
         )  # fmt: skip
         stop = course.stop or ("converged" if out.status > 0 else str(out.message))
-    refined = course.best_z.reshape(x0.shape) * scale
     return Refinement(
-        initial=x0,
-        refined=refined,
+        initial=p.x0,
+        refined=p.values(course.best_z),
         held_out=tuple(course.held),
         train=tuple(course.train),
         best=course.best,
@@ -249,6 +221,56 @@ def refine_joint_extras(
         estimate_s=estimate,
         stop=stop,
     )
+
+
+class _Problem:
+    """The scaled least-squares problem of :func:`refine_joint_extras` (module docstring)."""
+
+    def __init__(
+        self, model: mujoco.MjModel, train: Windows, held: Windows, prior_weight: float
+    ) -> None:
+        self.model, self.train, self.names = model, train, train[0].joint_names
+        self.substeps = rollout_score(model, held[0], held[1]).substeps
+        # MuJoCo's values are never negative; the scales: module docstring
+        self.x0 = np.maximum(joint_values(model, self.names), 0.0)
+        self.scale = _scales(self.x0)
+        self.z0 = (self.x0 / self.scale).ravel()
+        self.prior = math.sqrt(prior_weight / self.z0.size)
+        t0 = time.process_time()
+        r0 = self.score(self.z0, train)
+        self.one_s = time.process_time() - t0  # CPU of one rollout of the training windows
+        self.j0 = float(r0 @ r0)
+        # the training residuals of the latest evaluations (the callback's iterate among them)
+        self.seen = {self.z0.tobytes(): r0}
+
+    def values(self, z: FloatArray) -> FloatArray:
+        """The joint values (3, nv) [SI] of scaled variables ``z`` (3 nv,)."""
+        return z.reshape(self.x0.shape) * self.scale
+
+    def score(self, z: FloatArray, windows: Windows) -> FloatArray:
+        """Rollout residuals of ``z`` on ``windows`` (:func:`rollout_residuals`)."""
+        mj = with_values(self.model, self.names, self.values(z))
+        return rollout_residuals(mj, windows[0], windows[1], substeps=self.substeps)
+
+    def train_residuals(self, z: FloatArray) -> FloatArray:
+        """:meth:`score` on the training windows, remembered for an iteration's evaluations."""
+        r = self.seen.get(z.tobytes())
+        if r is None:
+            r = self.score(z, self.train)
+            if len(self.seen) > 2 * z.size + 4:
+                del self.seen[next(iter(self.seen))]
+            self.seen[z.tobytes()] = r
+        return r
+
+    def train_objective(self, z: FloatArray) -> float:
+        """``J_train(z)``."""
+        r = self.train_residuals(z)
+        return float(r @ r)
+
+    def residuals(self, z: FloatArray) -> FloatArray:
+        """The residuals of ``F`` (module docstring): data over ``sqrt(J_train(z0))``, prior."""
+        r = self.train_residuals(z) / math.sqrt(max(self.j0, 1e-300))
+        return np.concatenate([r, self.prior * (z - self.z0)])
 
 
 class _Course:
