@@ -50,7 +50,7 @@ def native_measurement(run: dict) -> dict:
     return m
 
 
-def identify_config(folder: Path, run_path: Path, run: dict) -> Path:
+def identify_config(folder: Path, run_path: Path, run: dict, refinement: dict) -> Path:
     """The identify config of the log in ``folder``: the run config's robot (absolute paths)
     and identification sections, ``refinement: rollout``."""
     robot = dict(run["robot"])
@@ -62,7 +62,7 @@ def identify_config(folder: Path, run_path: Path, run: dict) -> Path:
         "log": yaml.safe_load((folder / "log.yaml").read_text())["log"],
         **run["identification"],
         "urdf_update": {"model": "consistent"},
-        "refinement": "rollout",
+        "refinement": {"method": "rollout", **refinement},
     }
     path = folder / "identify.yaml"
     path.write_text(yaml.safe_dump(cfg))
@@ -86,14 +86,14 @@ def truth_model(measurement: dict):
     return build
 
 
-def bench(name: str, folder: Path, seed: int, amplitude: float) -> dict:
+def bench(name: str, folder: Path, seed: int, amplitude: float, refinement: dict) -> dict:
     """Simulate, identify, check and refine one robot; the refinement entry and timings."""
     run_path = ROOT / "configs" / f"{name}.yaml"
     run = yaml.safe_load(run_path.read_text())
     measurement = native_measurement(run)
     t0 = time.process_time()
     write_log(folder, _simulate(run_path, run, measurement, seed, amplitude))
-    path = identify_config(folder, run_path, run)
+    path = identify_config(folder, run_path, run, refinement)
     t_sim = time.process_time() - t0
     cfg = load_identify_config(path)
     result = identify(cfg)
@@ -122,7 +122,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--amplitude", type=float, default=0.8, help="rad/s, Fourier bound")
     parser.add_argument("--json", type=Path, default=None, help="write the entries here")
+    for key in ("max_windows", "max_iterations"):
+        parser.add_argument(f"--{key.replace('_', '-')}", type=int, default=None)
+    parser.add_argument("--prior-weight", type=float, default=None)
     args = parser.parse_args()
+    refinement = {
+        key: getattr(args, key)
+        for key in ("max_windows", "max_iterations", "prior_weight")
+        if getattr(args, key) is not None
+    }
     print(
         "| robot | J truth | J regressor | J refined | refined vs truth | torque err before "
         "| torque err after | accepted | iterations | CPU s (estimate) |"
@@ -131,7 +139,7 @@ def main() -> None:
     out = {}
     for name in args.robots:
         with tempfile.TemporaryDirectory() as tmp:
-            got = bench(name, Path(tmp), args.seed, args.amplitude)
+            got = bench(name, Path(tmp), args.seed, args.amplitude, refinement)
         e = got["entry"]
         out[name] = got
         if e.get("accepted") is None:

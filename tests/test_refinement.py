@@ -7,6 +7,7 @@ does not load it, so random torques give a bounded motion).
 """
 
 import json
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -198,3 +199,26 @@ def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_p
         for a in ("frictionloss", "damping", "armature")
     ]
     np.testing.assert_allclose(joint_values(mjcf, names), expected, rtol=1e-12)
+
+
+def test_a_run_configs_identification_section_carries_the_refinement(tmp_path):
+    """``ident run``: ``identification.refinement`` reaches the log's identify config, and a
+    bad value is the run config's one-line error naming the field."""
+    from ident.run.config import load_run_config
+    from ident.run.log_measurement import identify_config
+
+    root = Path(__file__).resolve().parents[1]
+    run = yaml.safe_load((root / "configs" / "ur5.yaml").read_text())
+    run["robot"].update(
+        urdf=str(root / "robot" / "urdf" / "ur5.urdf"),
+        package_dirs=[str(root / "robot" / "meshes")],
+    )
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump({**run, "identification": {"refinement": "rollout"}}))
+    columns = {"time": {"column": "t"}, "position": {"columns": ["q"] * 6}}
+    log = {"log": {"path": str(path), **columns, "torque": {"columns": ["tau"] * 6}}}
+    assert identify_config(load_run_config(path), log).refinement.method == "rollout"
+    bad = {"identification": {"refinement": {"method": "rollout", "prior_weight": -1}}}
+    path.write_text(yaml.safe_dump({**run, **bad}))
+    with pytest.raises(ConfigError, match=r"identification\.refinement\.prior_weight"):
+        load_run_config(path)

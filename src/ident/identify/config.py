@@ -52,6 +52,7 @@ __all__ = [
     "UrdfUpdateConfig",
     "ValidationConfig",
     "load_identify_config",
+    "refinement_shorthand",
     "resolve_log",
 ]
 
@@ -411,6 +412,11 @@ class RefinementConfig(StrictModel):
     prior_weight: float = Field(default=0.01, ge=0.0, le=1e6)
 
 
+def refinement_shorthand(value: object) -> object:
+    """``refinement: rollout`` (or ``none``) is ``{method: ...}``; other values unchanged."""
+    return {"method": value} if isinstance(value, str) else value
+
+
 class IdentifyConfig(StrictModel):
     """Everything ``ident identify`` needs."""
 
@@ -432,8 +438,7 @@ class IdentifyConfig(StrictModel):
     @field_validator("refinement", mode="before")
     @classmethod
     def _method_shorthand(cls, value: object) -> object:
-        """``refinement: rollout`` (or ``none``) is ``{method: ...}``."""
-        return {"method": value} if isinstance(value, str) else value
+        return refinement_shorthand(value)
 
     @model_validator(mode="after")
     def _log_of_the_actuator(self) -> IdentifyConfig:

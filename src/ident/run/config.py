@@ -30,7 +30,9 @@ from ident.identify.config import (
     EstimationConfig,
     ModelConfig,
     PreprocessConfig,
+    RefinementConfig,
     ValidationConfig,
+    refinement_shorthand,
 )
 from ident.identify.estimators.registry import get_contract, get_estimator
 from ident.inputs import read_urdf_text
@@ -246,6 +248,12 @@ class LogIdentificationSection(StrictModel):
     model: ModelConfig = ModelConfig(offset=False)
     estimation: EstimationConfig = EstimationConfig(essential=EssentialConfig(enabled=False))
     validation: ValidationConfig = ValidationConfig()
+    refinement: RefinementConfig = RefinementConfig()
+
+    @field_validator("refinement", mode="before")
+    @classmethod
+    def _method_shorthand(cls, value: object) -> object:
+        return refinement_shorthand(value)
 
 
 class ControllerSection(StrictModel):

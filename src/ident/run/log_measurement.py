@@ -235,6 +235,7 @@ def identify_config(
         model=ident.model,
         estimation=ident.estimation,
         validation=ident.validation,
+        refinement=ident.refinement,
     )
 
 

@@ -279,19 +279,24 @@ class _Course:
     def __init__(self, z0: FloatArray, held0: float, train0: float) -> None:
         self.held, self.train = [held0], [train0]
         self.best, self.best_z, self.stop = 0, z0, ""
+        self.last, self.moves, self.best_move = z0, 0, 0
 
     def record(self, z: FloatArray, held: float, train: float) -> None:
+        if not np.array_equal(z, self.last):  # an iteration whose step was refused: no move
+            self.moves += 1
+        self.last = z.copy()
         self.held.append(held)
         self.train.append(train)
         if held < self.held[self.best]:
-            self.best, self.best_z = len(self.held) - 1, z.copy()
+            self.best, self.best_z, self.best_move = len(self.held) - 1, z.copy(), self.moves
 
     def check(self, max_iterations: int) -> None:
-        """Raise StopIteration (least_squares' stop) at the cap or without progress."""
+        """Raise StopIteration (least_squares' stop) at the cap or after :data:`PATIENCE`
+        moves (iterations whose step was taken) without a better held-out objective."""
         done = len(self.held) - 1
         if done >= max_iterations:
             self.stop = f"iteration cap ({max_iterations}, refinement.max_iterations)"
-        elif done - self.best >= PATIENCE:
+        elif self.moves - self.best_move >= PATIENCE:
             self.stop = f"early stop: no better held-out objective in {PATIENCE} iterations"
         if self.stop:
             raise StopIteration
