@@ -92,7 +92,8 @@ def bench(name: str, folder: Path, seed: int, amplitude: float, refinement: dict
     run = yaml.safe_load(run_path.read_text())
     measurement = native_measurement(run)
     t0 = time.process_time()
-    write_log(folder, _simulate(run_path, run, measurement, seed, amplitude))
+    if not (folder / "log.yaml").exists():  # --keep: a log simulated before is reused
+        write_log(folder, _simulate(run_path, run, measurement, seed, amplitude))
     path = identify_config(folder, run_path, run, refinement)
     t_sim = time.process_time() - t0
     cfg = load_identify_config(path)
@@ -122,6 +123,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--amplitude", type=float, default=0.8, help="rad/s, Fourier bound")
     parser.add_argument("--json", type=Path, default=None, help="write the entries here")
+    parser.add_argument(
+        "--keep", type=Path, default=None, help="folder of the logs, reused when there"
+    )
     for key in ("max_windows", "max_iterations"):
         parser.add_argument(f"--{key.replace('_', '-')}", type=int, default=None)
     parser.add_argument("--prior-weight", type=float, default=None)
@@ -138,8 +142,12 @@ def main() -> None:
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: |")
     out = {}
     for name in args.robots:
-        with tempfile.TemporaryDirectory() as tmp:
-            got = bench(name, Path(tmp), args.seed, args.amplitude, refinement)
+        if args.keep is not None:
+            (args.keep / name).mkdir(parents=True, exist_ok=True)
+            got = bench(name, args.keep / name, args.seed, args.amplitude, refinement)
+        else:
+            with tempfile.TemporaryDirectory() as tmp:
+                got = bench(name, Path(tmp), args.seed, args.amplitude, refinement)
         e = got["entry"]
         out[name] = got
         if e.get("accepted") is None:

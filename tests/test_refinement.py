@@ -222,3 +222,25 @@ def test_a_run_configs_identification_section_carries_the_refinement(tmp_path):
     path.write_text(yaml.safe_dump({**run, **bad}))
     with pytest.raises(ConfigError, match=r"identification\.refinement\.prior_weight"):
         load_run_config(path)
+
+
+def test_refined_values_rewrite_only_the_mjcf_joints(tmp_path):
+    """The accepted values are written into the MJCF's joints at full precision (MuJoCo reads
+    them back bit for bit), its bodies unchanged and its header kept with the added note."""
+    from ident.identify.model_files.mjcf import MJCF_NOTE, with_joint_values
+    from ident.identify.refinement.rollout_refinement import MJCF_ATTRIBUTES
+
+    urdf = tmp_path / "planar2.urdf"
+    urdf.write_text(ARM)
+    text = reference_mjcf(Robot.from_urdf(urdf), None)
+    refined = TRUTH * (1.0 + np.pi * 1e-7)  # digits a 6-digit writer would lose
+    values = {
+        name: {MJCF_ATTRIBUTES[k]: refined[i, j] for i, k in enumerate(("fs", "fv", "Ia"))}
+        for j, name in enumerate(NAMES)
+    }
+    out = with_joint_values(text, values, "refined here")
+    assert out.startswith(f"<!--{MJCF_NOTE}-->\n<!-- refined here -->\n<mujoco")
+    before, after = mujoco.MjModel.from_xml_string(text), mujoco.MjModel.from_xml_string(out)
+    np.testing.assert_array_equal(joint_values(after, NAMES), refined)
+    np.testing.assert_array_equal(after.body_mass, before.body_mass)
+    np.testing.assert_array_equal(after.body_inertia, before.body_inertia)
