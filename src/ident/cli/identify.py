@@ -242,12 +242,11 @@ def _echo_refinement_estimate(result: IdentifyResult) -> None:
     if cfg.method == "none":
         return
     nv = len(result.joint_names)
-    samples = int(round(WINDOW_S * result.log.sampling_rate_hz)) + 1
-    seconds = estimated_cpu_s(cfg.max_windows, samples, nv, cfg.max_iterations)
+    seconds = estimated_cpu_s(cfg.max_windows, result.log.sampling_rate_hz, nv, cfg.max_iterations)
     typer.echo(
         f"refinement on rollouts: at most {cfg.max_iterations} iterations of {3 * nv + 1} "
         f"rollouts of at most {cfg.max_windows} windows of {WINDOW_S:g} s "
-        f"(refinement.max_iterations, max_windows): about {seconds:.0f} s of CPU at most"
+        f"(refinement.max_iterations, max_windows): estimated {seconds:.0f} s of CPU or less"
     )
 
 

@@ -47,6 +47,7 @@ from scipy.optimize import least_squares
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
 from ident.identify.assessment.rollout import (
+    MAX_TIMESTEP_S,
     WINDOW_S,
     RolloutMeasurements,
     held_out_windows,
@@ -93,9 +94,10 @@ SCALE_FLOOR = 0.05
 DIFF_STEP = 1e-3
 #: Iterations without a better held-out objective before the search stops.
 PATIENCE = 2
-#: CPU seconds of one MuJoCo step per joint (measured: UR5 with friction loss, 2-core machine
-#: shared, ~6 us per step per joint); only for the estimate printed before a refinement.
-STEP_CPU_S = 6e-6
+#: CPU seconds of one MuJoCo step of a rollout, per ``1 + nv`` (measured on a shared 2-core
+#: machine: 21 us per step of the UR5 with friction loss, 11 us of a 2-joint arm); only for
+#: the estimate printed before a refinement.
+STEP_CPU_S = 3.5e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,13 +152,16 @@ def with_values(model: mujoco.MjModel, joint_names: Sequence[str], x: FloatArray
     return out
 
 
-def estimated_cpu_s(n_windows: int, window_samples: int, nv: int, iterations: int) -> float:
-    """CPU seconds of a refinement [s], before any rollout: ``iterations`` of ``3 nv + 1``
-    rollouts of ``n_windows`` training windows and the held-out windows (at most as many as
-    :func:`held_out_windows` keeps, 64), ``window_samples`` steps each, :data:`STEP_CPU_S`
-    per step and joint."""
+def estimated_cpu_s(n_windows: int, sampling_rate_hz: float, nv: int, iterations: int) -> float:
+    """CPU seconds of a refinement [s], before any rollout: ``iterations`` of ``3 nv + 2``
+    rollouts of ``n_windows`` training windows and one of the held-out windows (at most as
+    many as :func:`held_out_windows` keeps, 64), each window :data:`WINDOW_S` long in MuJoCo
+    steps of at most :data:`~ident.identify.assessment.rollout.MAX_TIMESTEP_S` (the sample
+    period or a divisor of it), :data:`STEP_CPU_S` per step and ``1 + nv``."""
+    substeps = max(1, math.ceil(1.0 / (sampling_rate_hz * MAX_TIMESTEP_S) - 1e-9))
+    steps = substeps * round(WINDOW_S * sampling_rate_hz)
     per_iteration = (3 * nv + 2) * n_windows + 64
-    return float(iterations * per_iteration * window_samples * nv * STEP_CPU_S)
+    return float(iterations * per_iteration * steps * (1 + nv) * STEP_CPU_S)
 
 
 def _scales(x0: FloatArray) -> FloatArray:
