@@ -175,7 +175,6 @@ def test_bad_dataset_is_one_error_line_exit_2_nothing_written(tmp_path, name):
     assert not out.exists()
 
 
-
 def test_long_episode_keeps_its_frame_time_where_float32_stamps_blur(tmp_path):
     """A 600 s episode at 30 fps: its float32 stamps (``frame / fps`` rounded, as LeRobot writes
     them) step unevenly past 512 s; the reader takes ``frame_index / fps`` (exact, so the log

@@ -44,7 +44,8 @@ def so101():
 
 def test_so101_urdf_is_a_light_five_joint_servo_arm(so101):
     masses = [so101.model.inertias[j].mass for j in range(1, so101.model.njoints)]
-    assert so101.joint_names[0] == "shoulder_pan" and so101.nv == 5
+    assert so101.joint_names[0] == "shoulder_pan"
+    assert so101.nv == 5
     assert all(0.05 <= m <= 0.2 for m in masses), masses
     assert np.allclose(so101.model.effortLimit, 2.9)
 
@@ -103,7 +104,8 @@ def test_init_servo_needs_servo_for_log(tmp_path):
     args = ["init", str(make_so101.URDF), "-o", str(out), "--log", str(make_so101.DATASET)]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 2, result.output
-    assert result.output.startswith("error:") and "--servo" in result.output
+    assert result.output.startswith("error:")
+    assert "--servo" in result.output
     assert not out.exists()
 
 
@@ -117,13 +119,16 @@ def test_init_servo_config_validates_and_runs_on_the_example_dataset(tmp_path):
     result = CliRunner().invoke(app, [*args, str(make_so101.DATASET)])
     assert result.exit_code == 0, result.output
     cfg = load_identify_config(out)
-    assert cfg.actuator.kind == "position" and cfg.actuator.scale == "mass"
-    assert cfg.log.format == "lerobot" and cfg.log.position.unit == "ticks"
+    assert cfg.actuator.kind == "position"
+    assert cfg.actuator.scale == "mass"
+    assert cfg.log.format == "lerobot"
+    assert cfg.log.position.unit == "ticks"
     assert cfg.log.position.exclude == ["gripper"]
     assert cfg.preprocess.decimation == [5]  # 500 fps -> 100 Hz rows
     fit = identify(cfg).actuator
     assert fit.delay_candidates[0] <= fit.delay_samples <= 5  # scanned over 0..10 ms
-    assert fit.kp.shape == (5,) and np.all(np.isfinite(fit.kp))
+    assert fit.kp.shape == (5,)
+    assert np.all(np.isfinite(fit.kp))
 
 
 def test_registry_imports_no_pyarrow():

@@ -11,6 +11,11 @@ from ident.cli._common import user_errors
 
 __all__ = ["init", "register"]
 
+_SERVO_HELP = (
+    "Position servos that log no torque: write an 'ident identify' config for a LeRobot "
+    "dataset (--log) instead of a run config."
+)
+
 
 def init(
     urdf: Annotated[Path, typer.Argument(help="The robot's URDF.")],
@@ -29,22 +34,15 @@ def init(
         list[Path] | None,
         typer.Option("--package-dir", help="Folder holding the package:// mesh packages."),
     ] = None,
-    servo: Annotated[
-        bool,
-        typer.Option(
-            "--servo",
-            help="Position servos that log no torque: write an 'ident identify' config for a "
-            "LeRobot dataset (--log) instead of a run config.",
-        ),
-    ] = False,
+    servo: Annotated[bool, typer.Option("--servo", help=_SERVO_HELP)] = False,
     log: Annotated[
         Path | None,
         typer.Option("--log", help="With --servo: the LeRobot dataset folder to identify."),
     ] = None,
 ) -> None:
-    """Write a run config for the robot of URDF: the chain, limits, safety, a simulated
-    measurement and a budget, every guess marked; then run it with 'ident run CONFIG'.
-    With --servo: an identify config for its position servos and a LeRobot dataset."""
+    """Write a run config for the robot of URDF (chain, limits, safety, a simulated
+    measurement, a budget; every guess marked), to run with 'ident run CONFIG'; with
+    --servo, an identify config for its position servos and a LeRobot dataset."""
     if servo or log is not None:
         _init_servo(urdf, output, servo, log)
         return

@@ -183,4 +183,9 @@ def lerobot_log_section(
     if exclude:
         position["exclude"] = list(exclude)
     position |= {"unit": "ticks", "counts_per_rev": counts_per_rev, "zero_tick": zero_tick}
-    return {"path": path, "format": "lerobot", "position": position, "command": {"columns": [ACTION]}}
+    return {
+        "path": path,
+        "format": "lerobot",
+        "position": position,
+        "command": {"columns": [ACTION]},
+    }
