@@ -136,3 +136,12 @@ def test_registry_imports_no_pyarrow():
     code = "import sys, ident.measure.readers; print('pyarrow' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_committed_urdf_is_what_ident_urdf_writes():
+    """robot/urdf/so101.urdf is generated: ``ident urdf configs/so101.yaml`` writes it again."""
+    from ident.robot.robot_config import load_robot_config
+    from ident.robot.urdf import urdf_from_description
+
+    text = urdf_from_description(load_robot_config(ROOT / "configs" / "so101.yaml"))
+    assert text == make_so101.URDF.read_text()
