@@ -111,7 +111,7 @@ def write_dataset(
         features[key] = {"dtype": dtype, "shape": [1], "names": None}
     meta = {
         "codebase_version": "v2.1",
-        "robot_type": "so101",
+        "robot_type": "so100",
         "total_episodes": len(episodes),
         "total_frames": index,
         "chunks_size": 1000,
@@ -170,7 +170,8 @@ def write_simulated_dataset(
         action = to_ticks(log.q_cmd, counts_per_rev, zero_tick)
         episodes.append({STATE: np.hstack([state, held]), ACTION: np.hstack([action, held])})
     names = [*first.joint_names, *extra]
-    return write_dataset(root, episodes, fps=first.rate_hz, names=names)
+    info = {"robot_type": "so101"}
+    return write_dataset(root, episodes, fps=first.rate_hz, names=names, info=info)
 
 
 def lerobot_log_section(
