@@ -11,7 +11,14 @@ result names them), ``kd + fv`` (against
 ``kv + damping``), the rotor inertias (``Ia``, where a base parameter is one) and the Coulomb
 friction (``fs``, against the friction loss), and the seconds of the identification.
 
-    python benchmarks/bench_servo.py [--robot ur5|arm2] [--seeds 5] [--threshold 0.2]
+    python benchmarks/bench_servo.py [--robot ur5|arm2|so101] [--seeds 5] [--threshold 0.2]
+
+``so101``: the SO-101-like arm of ``data/examples/make_so101.py`` (4096-tick encoders, a 4 ms
+delay, a force range), each seed two episodes written as a LeRobot dataset and identified
+with ``configs/examples/lerobot-so101.yaml`` three ways: the scale from the URDF's mass and
+the delay scanned; ``kp`` given, the delay scanned; both given. Beside the errors, the
+held-out rollout (1 s windows, :func:`~ident.identify.assessment.rollout.rollout_score`) of
+the identified MJCF over that of the truth's (1.00: as good as the truth).
 """
 
 from __future__ import annotations
@@ -22,17 +29,28 @@ import tempfile
 import time
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "data" / "examples"))
 
+import make_so101  # noqa: E402
 from test_mujoco_sim import fourier_reference  # noqa: E402
 from test_servo import ARM  # noqa: E402
 
+from ident.dynamics.actuators import servo_error  # noqa: E402
+from ident.errors import IdentError  # noqa: E402
 from ident.identify.actuators.servo_fit import MIN_SHARED_SHARE  # noqa: E402
+from ident.identify.assessment.rollout import (  # noqa: E402
+    held_out_windows,
+    reference_mjcf,
+    rollout_score,
+)
 from ident.identify.config import load_identify_config  # noqa: E402
+from ident.identify.model_files.files import save_identified_model  # noqa: E402
 from ident.identify.pipeline.real import identify  # noqa: E402
 from ident.measure.mujoco_config import load_mujoco_measurement  # noqa: E402
 from ident.measure.mujoco_sim import simulate, write_log  # noqa: E402
@@ -142,14 +160,105 @@ def row(result, spec: dict, seconds: float) -> str:
     )
 
 
+SO101 = make_so101.SERVO | {"period": make_so101.PERIOD_S, "encoder": make_so101.COUNTS_PER_REV}
+ROLLOUT_WINDOW_S = 1.0
+
+
+def so101_rollout(result, folder: Path) -> float:
+    """Held-out rollout objective of the identified MJCF over the truth's, 1 s windows: the
+    identified model driven by the log's ``kp e`` (its gains and delay), the truth (URDF
+    bodies, armature, kv + damping, friction loss) by the servos' own ``kp e`` (true gains,
+    the 2-sample delay) on the same samples."""
+    entry = save_identified_model(result, folder)
+    if not entry["written"]:
+        return float("nan")
+    measured, windows = held_out_windows(result, window_s=ROLLOUT_WINDOW_S)
+    score = rollout_score(folder / entry["files"]["mjcf"], measured, windows)
+    spec, log = SO101, result.log
+    extras = {
+        name: {
+            "rotor_inertia": spec["armature"][j],
+            "viscous": spec["kv"][j] + spec["damping"][j],
+            "coulomb": spec["coulomb"][j],
+        }
+        for j, name in enumerate(result.joint_names)
+    }
+    truth = mujoco.MjModel.from_xml_string(reference_mjcf(Robot.from_urdf(make_so101.URDF), extras))
+    e = servo_error(log.q, log.q_cmd, spec["delay_steps"], log.segments)
+    rows = np.searchsorted(log.t, measured.t)  # the windows' samples in the log
+    tau = np.asarray(spec["kp"]) * e[rows]
+    ref = rollout_score(truth, measured.with_torque(tau), windows, substeps=score.substeps)
+    return score.objective / ref.objective
+
+
+def so101_config(folder: Path, actuator: dict) -> Path:
+    """The example's identify config on the dataset in ``folder``, ``actuator`` replaced."""
+    cfg = yaml.safe_load((ROOT / "configs" / "examples" / "lerobot-so101.yaml").read_text())
+    cfg["robot"]["urdf"] = str(make_so101.URDF)
+    cfg["log"]["path"] = str(folder / "dataset")
+    cfg["actuator"] = {"kind": "position", "forcerange": SO101["forcerange"]} | actuator
+    path = folder / "identify.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def run_so101(seeds: int) -> None:
+    """Print one row per seed and way of fixing the scale and the delay (module docstring)."""
+    print(
+        "| seed | scale | delay | delay [samples] | kp | kd + fv | Ia | Ia, lag-corrected | fs "
+        "| rollout / truth | s |\n| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: "
+        "| ---: | ---: |"
+    )
+    robot = Robot.from_urdf(make_so101.URDF)
+    ways = [
+        ("mass", "scan", {"max_delay_s": 0.01}),
+        ("kp", "scan", {"max_delay_s": 0.01, "kp": SO101["kp"]}),
+        ("kp", "given", {"delay": 0.004, "kp": SO101["kp"]}),
+    ]
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        for seed in range(seeds):
+            logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1))
+            make_so101.write(folder / "dataset", logs)
+            for scale, delay, actuator in ways:
+                t0 = time.perf_counter()
+                try:
+                    result = identify(load_identify_config(so101_config(folder, actuator)))
+                except IdentError as e:  # the row says why, the other ways still run
+                    print(f"| {seed} | {scale} | {delay} | failed: {e} |", flush=True)
+                    continue
+                seconds = time.perf_counter() - t0
+                ratio = so101_rollout(result, folder / f"model-{seed}-{scale}-{delay}")
+                row = so101_row(result, ratio, seconds)
+                print(f"| {seed} | {scale} | {delay} " + row, flush=True)
+
+
+def so101_row(result, ratio: float, seconds: float) -> str:
+    fit, spec = result.actuator, SO101
+    kp, kdfv = np.array(spec["kp"]), np.add(spec["kv"], spec["damping"])
+    joints = [f"j{j + 1}" for j in range(kp.size)]
+    kp_text = worst(fit.kp, kp, joints) if fit.scale == "mass" else "given"
+    # the simulated positions lag their velocity by half a step (semi-implicit Euler): the
+    # central differences see an armature smaller by (kd + fv) h / 2
+    lagged = np.asarray(spec["armature"]) - kdfv / (2.0 * make_so101.RATE_HZ)
+    return (
+        f"| {fit.delay_samples} | {kp_text} | {worst(fit.damping, kdfv, joints)} "
+        f"| {extras(result, 'Ia', spec['armature'])} | {extras(result, 'Ia', list(lagged))} "
+        f"| {extras(result, 'fs', spec['coulomb'])} | {ratio:.3f} | {seconds:.1f} |"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", choices=sorted(ROBOTS), default="ur5")
+    parser.add_argument("--robot", choices=[*sorted(ROBOTS), "so101"], default="ur5")
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument(
         "--threshold", type=float, default=0.2, help="velocity threshold [rad/s] of every joint"
     )
     args = parser.parse_args()
+    if args.robot == "so101":
+        run_so101(args.seeds)
+        return
     spec = ROBOTS[args.robot]
     print(
         f"{args.robot}: servos kp {spec['kp']}, kv {spec['kv']}, delay {DELAY_STEPS} steps; "

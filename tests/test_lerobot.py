@@ -173,3 +173,24 @@ def test_bad_dataset_is_one_error_line_exit_2_nothing_written(tmp_path, name):
     for part in expect:
         assert part in errors[0], (part, errors[0])
     assert not out.exists()
+
+
+def test_long_episode_keeps_its_frame_time_where_float32_stamps_blur(tmp_path):
+    """A 600 s episode at 30 fps: its float32 stamps (``frame / fps`` rounded, as LeRobot writes
+    them) step unevenly past 512 s; the reader takes ``frame_index / fps`` (exact, so the log
+    is not resampled), and an episode whose stamps are not ``frame / fps`` (recorded jitter)
+    keeps its own stamps."""
+    n = 18_000
+    state = np.full((n, 4), float(ZERO_TICK))
+    stamps = np.arange(n) / FPS
+    assert np.ptp(np.diff(stamps.astype(np.float32).astype(float))) > 1e-3 / FPS  # the blur
+    root = write_dataset(tmp_path / "long", [{"observation.state": state}], fps=FPS, names=NAMES)
+    position = {"columns": ["observation.state"], "exclude": ["gripper"], **TICKS}
+    section = {"path": str(root), "position": position}
+    log = read_log(LogConfig.model_validate(section), TransmissionConfig(), tuple(NAMES[:3]))
+    np.testing.assert_array_equal(log.t, stamps)  # frame / fps in float64, exactly
+    assert not any(r["step"] == "resample" for r in log.records)
+    jitter = stamps[:300] + np.random.default_rng(6).uniform(-2e-4, 2e-4, 300)
+    episode = {"observation.state": state[:300], "timestamp": jitter}
+    (table,) = read_tables(write_dataset(tmp_path / "jitter", [episode], fps=FPS, names=NAMES))
+    np.testing.assert_array_equal(table.columns["timestamp"], jitter.astype(np.float32))

@@ -11,6 +11,11 @@ from ident.cli._common import user_errors
 
 __all__ = ["init", "register"]
 
+_SERVO_HELP = (
+    "Position servos that log no torque: write an 'ident identify' config for a LeRobot "
+    "dataset (--log) instead of a run config."
+)
+
 
 def init(
     urdf: Annotated[Path, typer.Argument(help="The robot's URDF.")],
@@ -29,9 +34,18 @@ def init(
         list[Path] | None,
         typer.Option("--package-dir", help="Folder holding the package:// mesh packages."),
     ] = None,
+    servo: Annotated[bool, typer.Option("--servo", help=_SERVO_HELP)] = False,
+    log: Annotated[
+        Path | None,
+        typer.Option("--log", help="With --servo: the LeRobot dataset folder to identify."),
+    ] = None,
 ) -> None:
-    """Write a run config for the robot of URDF: the chain, limits, safety, a simulated
-    measurement and a budget, every guess marked; then run it with 'ident run CONFIG'."""
+    """Write a run config for the robot of URDF (chain, limits, safety, a simulated
+    measurement, a budget; every guess marked), to run with 'ident run CONFIG'; with
+    --servo, an identify config for its position servos and a LeRobot dataset."""
+    if servo or log is not None:
+        _init_servo(urdf, output, servo, log)
+        return
     with user_errors():
         from ident.cli.verify import parse_locks
         from ident.fileio import atomic_write_text
@@ -58,6 +72,25 @@ def init(
         f"{output}' about {result.seconds:.0f} s, start-up, safety check, simulation, "
         "identification and report included"
     )
+
+
+def _init_servo(urdf: Path, output: Path, servo: bool, log: Path | None) -> None:
+    """``ident init URDF --servo [--log DATASET]``: the identify config of
+    :mod:`ident.run.init_servo`, checked, then written."""
+    with user_errors():
+        from ident.errors import ConfigError
+        from ident.fileio import atomic_write_text
+        from ident.inputs import check_output_file
+        from ident.run.init_servo import init_servo_config
+
+        if not servo:
+            raise ConfigError("--log is the dataset of --servo; add --servo, or remove --log.")
+        check_output_file(output, "--output")
+        result = init_servo_config(urdf, output, log)
+        atomic_write_text(output, result.text)
+    for note in result.notes:
+        typer.echo(note)
+    typer.echo(f"wrote {output}; identify with 'ident identify {output}'")
 
 
 class _InitProgress:

@@ -72,6 +72,7 @@ __all__ = [
     "VELOCITY_MARGIN",
     "InitResult",
     "init_config",
+    "select_robot",
 ]
 
 #: What ``init_config`` reports to its ``progress`` callback, in order.
@@ -162,7 +163,7 @@ def init_config(
     """
     urdf = Path(urdf)
     output = Path(output)
-    selection, robot, dirs, lock_notes = _select_robot(
+    selection, robot, dirs, lock_notes = select_robot(
         urdf, base_link, tip_link, dict(lock or {}), list(package_dirs or [])
     )
     c = _choose(robot, robot.urdf_text, progress or (lambda _step: None))  # xacro expanded
@@ -182,7 +183,7 @@ def init_config(
     return InitResult(config_text, tuple(notes), seconds, quick_seconds)
 
 
-def _select_robot(
+def select_robot(
     urdf: Path,
     base_link: str | None,
     tip_link: str | None,

@@ -7,11 +7,16 @@ on import. Add a format with :func:`register_reader` (see ``docs/logs.md``, "Ext
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ident.inputs import JobEstimate
 from ident.measure.readers import csv as _csv
 from ident.measure.readers import csv_long as _csv_long
-from ident.measure.readers import lerobot as _lerobot
 from ident.measure.readers import npz as _npz
 from ident.measure.readers import ros as _ros
+from ident.measure.readers.lerobot_layout import is_lerobot
 from ident.measure.readers.registry import (
     READERS,
     TIME_NAMES,
@@ -55,12 +60,28 @@ register_reader(
     description="numpy archive",
     estimate=_npz.estimate_npz,
 )
+
+
+# The LeRobot reader needs pyarrow (0.15 s to import): imported when a dataset is read, not by
+# every command that imports the registry.
+def _read_lerobot(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
+    from ident.measure.readers.lerobot import read_lerobot
+
+    return read_lerobot(path, options)
+
+
+def _estimate_lerobot(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    from ident.measure.readers.lerobot import estimate_lerobot
+
+    return estimate_lerobot(path, options)
+
+
 register_reader(
     "lerobot",
-    _lerobot.read_lerobot,
-    detect=_lerobot.is_lerobot,
+    _read_lerobot,
+    detect=is_lerobot,
     description="LeRobot dataset folder or episode .parquet",
-    estimate=_lerobot.estimate_lerobot,
+    estimate=_estimate_lerobot,
 )
 register_reader(
     "csv_long",

@@ -19,7 +19,9 @@ Time: the episodes one after another, as :mod:`ident.measure.logs` joins several
 episode's ``timestamp`` shifted to start :data:`EPISODE_GAP_S` after the previous episode's
 end (``windows:`` read this continued time), and every episode its own segment
 (:attr:`LogTable.segment_starts`): nothing is filtered or differentiated across an episode
-boundary, whatever ``gap_factor`` or ``max_gap_s`` say.
+boundary, whatever ``gap_factor`` or ``max_gap_s`` say. An episode whose float32 timestamps
+are ``frame_index / fps`` rounded (as LeRobot writes them) takes ``frame_index / fps`` in
+float64: exact however long the episode (float32 stamps look jittered past 512 s).
 
 Refused, naming the file and the field: a column the config needs that the dataset lacks
 (listing those it has), a timestamp that does not increase within an episode (naming the
@@ -52,6 +54,13 @@ import pyarrow.parquet as pq
 from ident.config import read_text_input
 from ident.errors import ConfigError, DataError
 from ident.inputs import JobEstimate, check_job
+from ident.measure.readers.lerobot_layout import (
+    EPISODE_COLUMN,
+    FRAME_COLUMN,
+    INFO_PATH,
+    TIME_COLUMN,
+    is_lerobot,
+)
 from ident.measure.readers.registry import LogTable, check_regular_file
 
 __all__ = [
@@ -71,15 +80,11 @@ ANGLE_BOUND_RAD = 2.0 * np.pi * 1.5
 EPISODE_GAP_S = 1.0  # time between episodes in the continued time (as between logs)
 FPS_RTOL = 0.01  # relative difference of the median step from 1/fps that is refused
 _INFO_BYTES = 4 << 20  # info.json holds the features and paths, never data
-_TIME, _EPISODE, _FRAME = "timestamp", "episode_index", "frame_index"
+_TIME, _EPISODE, _FRAME = TIME_COLUMN, EPISODE_COLUMN, FRAME_COLUMN
+# A float32 stamp is its value to 2^-24 relative (half a unit in the last place); twice that
+# tells LeRobot's frame_index / fps from recorded stamps (which differ by clock jitter).
+_FLOAT32_ROUNDING = 2.0**-23
 _SECONDS_PER_VALUE = 2e-8  # read and converted per value (estimate: 50 M values/s)
-
-
-def is_lerobot(path: Path) -> bool:
-    """Detector: a folder with ``meta/info.json``, or a ``.parquet`` file."""
-    if path.is_dir():
-        return (path / "meta" / "info.json").is_file()
-    return path.is_file() and path.suffix == ".parquet"
 
 
 @dataclass(frozen=True)
@@ -118,7 +123,7 @@ class _Plan:
 def _dataset(path: Path) -> tuple[Path, tuple[Path, ...], Path | None]:
     """(dataset root, parquet files in path order, info.json or None) of ``path``."""
     if path.is_dir():
-        info = path / "meta" / "info.json"
+        info = path / INFO_PATH
         if not info.is_file():
             raise DataError(
                 f"{path}: not a LeRobot dataset (meta/info.json not found); give the dataset "
@@ -131,7 +136,7 @@ def _dataset(path: Path) -> tuple[Path, tuple[Path, ...], Path | None]:
             check_regular_file(f)
         return path, files, info
     check_regular_file(path)
-    info = path.parent.parent.parent / "meta" / "info.json"  # data/chunk-000/<file>
+    info = path.parent.parent.parent / INFO_PATH  # data/chunk-000/<file>
     return path.parent, (path,), info if info.is_file() else None
 
 
@@ -395,10 +400,27 @@ def _episodes(plan: _Plan, columns: dict[str, FloatArray]) -> tuple[FloatArray, 
             )
         f = frames[a:b] if frames is not None else np.arange(b - a, dtype=float)
         _check_episode(plan, t_raw[a:b], f, int(episode[a]), a)
+        stamps = _frame_time(t_raw[a:b], f if frames is not None else None, plan.fps)
         if a:
-            offset = t[a - 1] + EPISODE_GAP_S - t_raw[a]
-        t[a:b] = t_raw[a:b] + offset
+            offset = t[a - 1] + EPISODE_GAP_S - stamps[0]
+        t[a:b] = stamps + offset
     return t, starts
+
+
+def _frame_time(t: FloatArray, frames: FloatArray | None, fps: float | None) -> FloatArray:
+    """One episode's time [s]: ``frame_index / fps`` when its timestamps are that time rounded
+    to float32 (LeRobot writes them so), else the timestamps as given.
+
+    Why: float32 keeps 24 bits, so past 512 s of an episode the stamps' rounding reaches 0.1 %
+    of a 30 Hz step and the steps look jittered (the log would be resampled, the rollout check
+    refuse its windows); the frame index is exact.
+    """
+    if frames is None or fps is None:
+        return t
+    exact = frames / fps
+    if np.all(np.abs(t - exact) <= _FLOAT32_ROUNDING * np.maximum(np.abs(exact), 1.0 / fps)):
+        return exact
+    return t
 
 
 def read_lerobot(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
