@@ -70,7 +70,9 @@ def _ur5_log(seconds: float, step_s: float | None, seed: int = 0) -> tuple[np.nd
 
 
 def _estimator(model: pin.Model, **settings: float) -> StreamingEstimator:
-    terms = ModelConfig(viscous=True, coulomb=True, rotor_inertia=True, offset=False).extra_terms(6, "test")
+    terms = ModelConfig(viscous=True, coulomb=True, rotor_inertia=True, offset=False).extra_terms(
+        6, "test"
+    )
     s = StreamSettings(**{"consistent": False, "solve_every_s": 1e9, **settings})
     return StreamingEstimator(chain_from_model(model), terms, parameters_from_model(model),
                               RATE_HZ, s)  # fmt: skip
@@ -166,7 +168,8 @@ def test_no_change_no_alarm(step_log: tuple[np.ndarray, ...]) -> None:
     k = int(11.0 * RATE_HZ)
     est = _estimator(model)
     _feed(est, t[:k], q[:k], tau[:k])
-    assert est.n_tests > 0 and not est.events
+    assert est.n_tests > 0
+    assert not est.events
 
 
 def test_controller_exports_and_limits() -> None:
@@ -224,13 +227,15 @@ def test_cli_replays_a_log(tmp_path: Path, step_log: tuple[np.ndarray, ...]) -> 
     result = CliRunner().invoke(app, ["stream", str(path), "--speed", "0", "--out",
                                       str(tmp_path / "runs")])  # fmt: skip
     assert result.exit_code == 0, result.output
-    assert "change (payload)" in result.output and "set_target_payload(" in result.output
+    assert "change (payload)" in result.output
+    assert "set_target_payload(" in result.output
     (summary,) = (tmp_path / "runs").glob("*/stream.json")
     data = json.loads(summary.read_text())
     (change,) = data["changes"]
     assert change["after"]["mass_kg"] == pytest.approx(PAYLOAD[0], rel=0.02)
     checks = {c["name"]: c["status"] for c in change["limit_checks"]}
-    assert checks["rated payload"] == "pass" and checks["centre of mass distance"] == "not run"
+    assert checks["rated payload"] == "pass"
+    assert checks["centre of mass distance"] == "not run"
 
 
 def test_bad_config_is_one_error_line(tmp_path: Path) -> None:
@@ -242,6 +247,8 @@ def test_bad_config_is_one_error_line(tmp_path: Path) -> None:
                                       str(tmp_path / "runs")])  # fmt: skip
     assert result.exit_code == 2
     lines = [x for x in result.output.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error:"), result.output
-    assert "stream.yaml" in lines[0] and "window" in lines[0]
+    assert len(lines) == 1, result.output
+    assert lines[0].startswith("error:")
+    assert "stream.yaml" in lines[0]
+    assert "window" in lines[0]
     assert not (tmp_path / "runs").exists()

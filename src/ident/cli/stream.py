@@ -14,11 +14,17 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from ident.cli._common import user_errors
+
+if TYPE_CHECKING:  # annotations only: the command imports the library when it runs
+    from ident.identify.payload.controller_load import LoadLimits
+    from ident.identify.streaming.estimator import StreamingEstimator
+    from ident.identify.streaming.replay import StreamRun
+    from ident.identify.streaming.stream_config import StreamConfig
 
 __all__ = ["register", "stream"]
 
@@ -93,7 +99,8 @@ def _print_event(event: dict, link: str) -> None:
                     for c, i in zip(a["com_m"], a["com_interval_m"], strict=True))  # fmt: skip
     typer.echo(
         f"change ({event['kind']}) at t = {event['t_onset_s']:.2f} s, detected at "
-        f"{event['t_alarm_s']:.2f} s (statistic {event['statistic']:.4g} > {event['threshold']:.4g})"
+        f"{event['t_alarm_s']:.2f} s (statistic {event['statistic']:.4g} > "
+        f"{event['threshold']:.4g})"
     )
     typer.echo(f"  new mass {a['mass_kg']:.4g} kg [{lo:.4g}, {hi:.4g}] (95 %), centre of mass "
                f"in {link} [mm]: {com}")  # fmt: skip
@@ -103,7 +110,13 @@ def _print_event(event: dict, link: str) -> None:
         typer.echo(f"  check {check['name']}: {check['status']} ({check['detail']})")
 
 
-def _summary(cfg, estimator, result, limits, link: str) -> dict:  # noqa: ANN001
+def _summary(
+    cfg: StreamConfig,
+    estimator: StreamingEstimator,
+    result: StreamRun,
+    limits: LoadLimits,
+    link: str,
+) -> dict:
     """``stream.json``'s content."""
     settings = cfg.stream.settings()
     return {
@@ -122,7 +135,7 @@ def _summary(cfg, estimator, result, limits, link: str) -> dict:  # noqa: ANN001
     }
 
 
-def _timeline_csv(estimator) -> str:  # noqa: ANN001
+def _timeline_csv(estimator: StreamingEstimator) -> str:
     """The scheduled estimates: time, method, mass and its interval, centre of mass."""
     lines = ["t_s,method,mass_kg,mass_lo_kg,mass_hi_kg,com_x_m,com_y_m,com_z_m,effective_rows"]
     for e in estimator.timeline:

@@ -87,24 +87,25 @@ def check_load(
     """The checks of the module docstring for a payload ``mass`` [kg] (its interval
     ``mass_interval``), ``com`` (3,) [m] and ``inertia_com`` (3, 3) [kg*m^2]."""
     lo, hi = mass_interval
-    checks = [LimitCheck("mass positive", "pass" if lo > 0 else "fail",
-                         f"95 % interval [{lo:.4g}, {hi:.4g}] kg")]  # fmt: skip
+    checks = [_check("mass positive", lo > 0, f"95 % interval [{lo:.4g}, {hi:.4g}] kg")]
     if limits.max_mass_kg is None:
         checks.append(LimitCheck("rated payload", "not run", "no max_mass_kg given"))
     else:
-        ok = hi <= limits.max_mass_kg
-        checks.append(LimitCheck("rated payload", "pass" if ok else "fail",
-                                 f"upper end {hi:.4g} kg vs {limits.max_mass_kg:.4g} kg"))  # fmt: skip
+        detail = f"upper end {hi:.4g} kg vs {limits.max_mass_kg:.4g} kg"
+        checks.append(_check("rated payload", hi <= limits.max_mass_kg, detail))
     dist = float(np.linalg.norm(np.asarray(com, dtype=float)))
+    name = "centre of mass distance"
     if limits.max_com_distance_m is None:
-        checks.append(LimitCheck("centre of mass distance", "not run",
-                                 "no max_com_distance_m given"))  # fmt: skip
+        checks.append(LimitCheck(name, "not run", "no max_com_distance_m given"))
     else:
-        ok = dist <= limits.max_com_distance_m
-        checks.append(LimitCheck("centre of mass distance", "pass" if ok else "fail",
-                                 f"{1e3 * dist:.1f} mm vs {1e3 * limits.max_com_distance_m:.1f} mm"))  # fmt: skip
+        detail = f"{1e3 * dist:.1f} mm vs {1e3 * limits.max_com_distance_m:.1f} mm"
+        checks.append(_check(name, dist <= limits.max_com_distance_m, detail))
     ev = np.linalg.eigvalsh(np.asarray(inertia_com, dtype=float))
     physical = bool(ev[0] > 0 and ev[0] + ev[1] >= ev[2] - 1e-12 * max(ev[2], 1e-300))
-    checks.append(LimitCheck("physical inertia", "pass" if physical else "fail",
-                             "principal moments " + ", ".join(f"{v:.3g}" for v in ev) + " kg*m^2"))  # fmt: skip
+    moments = ", ".join(f"{v:.3g}" for v in ev)
+    checks.append(_check("physical inertia", physical, f"principal moments {moments} kg*m^2"))
     return checks
+
+
+def _check(name: str, ok: bool, detail: str) -> LimitCheck:
+    return LimitCheck(name, "pass" if ok else "fail", detail)

@@ -29,6 +29,7 @@ become the new reference.
 
 from __future__ import annotations
 
+import time
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -260,6 +261,7 @@ class StreamingEstimator:
         self.events: list[ChangeEvent] = []
         self.n_tests = 0
         self.max_ratio = 0.0  # largest statistic / threshold of a test without alarm
+        self.solve_cpu_s = 0.0  # CPU time of the scheduled solves [s]
         self._st = _State(ref=Epochs([self._empty()], []), block=self._empty(),
                           next_solve=settings.solve_every_s)  # fmt: skip
         self._rows_in_block = 0
@@ -426,6 +428,7 @@ class StreamingEstimator:
     def _track(self, t: float) -> None:
         """The scheduled solve of reference + window (and its consistent estimate)."""
         st = self._st
+        c0 = time.process_time()
         current = st.ref.copy()
         for b in st.ring:
             current.add(b, self.gamma)
@@ -440,6 +443,7 @@ class StreamingEstimator:
             except NotIdentifiable:
                 pass  # the WLS stands, named by its method
         self.timeline.append(self._estimate(t, x, sol.covariance, method, sol))
+        self.solve_cpu_s += time.process_time() - c0
 
     def _consistent(self, epochs: Epochs) -> FloatArray:
         """The registry's ``lmi`` estimate (the current payload realizable, friction >= 0) on

@@ -58,7 +58,9 @@ class CausalDifferentiator:
         self._history = np.zeros((0, 2 * self.nv))  # the last window - 1 samples of [q | tau]
         self._phase = 0  # samples since the start, modulo the window
 
-    def push(self, q: FloatArray, tau: FloatArray) -> tuple[FloatArray, ...]:
+    def push(
+        self, q: FloatArray, tau: FloatArray
+    ) -> tuple[npt.NDArray[np.intp], FloatArray, FloatArray, FloatArray, FloatArray]:
         """Filter one block ``q``, ``tau`` (n, nv) and return the rows it completes:
         ``(index, q, dq, ddq, tau)`` with ``index`` (m,) the rows' sample indices in this block
         (each row describes the instant ``delay`` samples before it) and the signals (m, nv).
@@ -68,7 +70,7 @@ class CausalDifferentiator:
         h = self._history.shape[0]
         # rows every `window` samples from the first valid output (sample window - 1)
         first = (w - 1 - self._phase) % w
-        index = np.arange(first, n, w)
+        index = np.arange(first, n, w, dtype=np.intp)
         index = index[h + index >= w - 1]
         self._phase = (self._phase + n) % w
         self._history = buf[-(w - 1) :] if w > 1 else buf[:0]
