@@ -80,6 +80,7 @@ _COMMAND_MODULES = (
     "identify",
     "repeatability",
     "payload",
+    "stream",
     "logs",
     "bench",
     "replay",

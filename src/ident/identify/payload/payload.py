@@ -97,6 +97,8 @@ __all__ = [
     "decimated_samples",
     "estimate_payload",
     "identify_payload",
+    "in_reporting_frame",
+    "link_placement",
     "merge_blocks",
     "payload_observations",
     "payload_rows",
@@ -278,7 +280,7 @@ class PayloadResult:
         }
 
 
-def _link_placement(model: pin.Model, link: str | None, source: str) -> tuple[str, pin.SE3]:
+def link_placement(model: pin.Model, link: str | None, source: str) -> tuple[str, pin.SE3]:
     """The frame reported (name, placement in the last joint's frame)."""
     last = model.njoints - 1
     if link is None:
@@ -374,8 +376,8 @@ def _payload_result(
     standard deviations ``sd`` and the WLS ``wls`` (its ordinary covariance)."""
     phi = np.asarray(x[:10], dtype=float)
     std = sd.std[:10]
-    mass, com, com_std, inertia_com = _in_reporting_frame(phi, sd.covariance[:10, :10], placement)
-    ordinary = _in_reporting_frame(phi, wls.covariance[:10, :10], placement)[2]
+    mass, com, com_std, inertia_com = in_reporting_frame(phi, sd.covariance[:10, :10], placement)
+    ordinary = in_reporting_frame(phi, wls.covariance[:10, :10], placement)[2]
     return PayloadResult(
         phi=phi,
         std=std,
@@ -487,7 +489,7 @@ def _consistent_estimate(
     return get_estimator("lmi")(problem)
 
 
-def _in_reporting_frame(
+def in_reporting_frame(
     phi: FloatArray, cov: FloatArray, placement: pin.SE3 | None
 ) -> tuple[float, FloatArray, FloatArray, FloatArray]:
     """Mass [kg], centre of mass [m] (3,), its std [m] (3,), inertia about it [kg*m^2] (3, 3).
@@ -564,7 +566,7 @@ def identify_payload(
     t0 = time.perf_counter()
     robot = robot if robot is not None else load_robot(cfg.robot, source=source)
     model = robot.model
-    link, placement = _link_placement(model, cfg.payload.link, source)
+    link, placement = link_placement(model, cfg.payload.link, source)
     with_log, without_log = read_payload_logs(cfg, model) if logs is None else logs
     pp = _settings(cfg, with_log)
     if pp.velocity_threshold is not None and len(pp.velocity_threshold) != model.nv:
