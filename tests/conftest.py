@@ -6,12 +6,14 @@ same result whatever folder it is started from.
 """
 
 import fcntl
+import functools
 import os
 import re
 from pathlib import Path
 
 import pytest
 from threadpoolctl import threadpool_limits
+from xdist.scheduler import LoadFileScheduling
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 
@@ -24,6 +26,33 @@ os.chdir(REPO_ROOT)
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 threadpool_limits(limits=1, user_api="blas")
+
+
+#: The xdist work unit of every test file that reads :func:`shipped_run`'s folders.
+SHIPPED_RUNS_UNIT = "tests/<files reading shipped runs>"
+
+
+class _ShippedRunsTogether(LoadFileScheduling):
+    """pytest-xdist's ``--dist loadfile``, except that the files reading the shipped runs are
+    one work unit: one worker runs each shipped config once and its readers one after the
+    other, instead of the second worker waiting on the first one's file lock (a full run
+    takes minutes). The units go out largest first (xdist's default reordering)."""
+
+    def _split_scope(self, nodeid: str) -> str:
+        path = nodeid.split("::", 1)[0]
+        return SHIPPED_RUNS_UNIT if _reads_shipped_runs(path) else path
+
+
+@functools.cache
+def _reads_shipped_runs(path: str) -> bool:
+    file = REPO_ROOT / path
+    return file.suffix == ".py" and "shipped_run" in file.read_text(encoding="utf-8")
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> LoadFileScheduling | None:
+    if config.getoption("dist") != "loadfile":
+        return None  # another mode asked for on the command line: xdist's own
+    return _ShippedRunsTogether(config, log)  # type: ignore[arg-type]
 
 
 @pytest.fixture(autouse=True)
