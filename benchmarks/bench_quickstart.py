@@ -16,9 +16,13 @@ then the full ``ident run CONFIG`` it wrote, as ``docs/your-robot.md`` tells a n
 
 ``--zoo`` runs ``ident init`` then ``ident run CONFIG --quick`` on the example-robot-data arms
 (:data:`ZOO`; ``--zoo NAME ...`` for some of them) and prints per robot: the CPU of each,
-``init``'s and ``run``'s estimates of the quick run against its CPU (the ratio), the verdict,
-the worst parameter error and the smallest clearance (from the run folder's result.json).
-About 2-5 min of CPU per robot.
+``init``'s and ``run``'s estimates of the quick run against its CPU (the ratio, marked ``!``
+outside [0.5, 2]), the verdict, the worst parameter error, the smallest clearance (from the
+run folder's result.json) and the independent check: the run's ``trajectory.csv`` re-checked
+with plain Pinocchio + coal by ``independent_safety.py`` (beside this file; none of ident's
+safety code). About 2-5 min of CPU per robot. ``--full NAME ...`` does the same with the full
+budget (``ident run CONFIG``, no ``--quick``; 2-15 min of CPU per robot); ``--keep DIR``
+keeps the configs and run folders.
 
 Budget: about 1.5 min for the default pair on a loaded 2-core machine; ``--zoo``: about
 30 min for the eleven arms.
