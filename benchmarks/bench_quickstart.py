@@ -16,9 +16,13 @@ then the full ``ident run CONFIG`` it wrote, as ``docs/your-robot.md`` tells a n
 
 ``--zoo`` runs ``ident init`` then ``ident run CONFIG --quick`` on the example-robot-data arms
 (:data:`ZOO`; ``--zoo NAME ...`` for some of them) and prints per robot: the CPU of each,
-``init``'s and ``run``'s estimates of the quick run against its CPU (the ratio), the verdict,
-the worst parameter error and the smallest clearance (from the run folder's result.json).
-About 2-5 min of CPU per robot.
+``init``'s and ``run``'s estimates of the quick run against its CPU (the ratio, marked ``!``
+outside [0.5, 2]), the verdict, the worst parameter error, the smallest clearance (from the
+run folder's result.json) and the independent check: the run's ``trajectory.csv`` re-checked
+with plain Pinocchio + coal by ``independent_safety.py`` (beside this file; none of ident's
+safety code). About 2-5 min of CPU per robot. ``--full NAME ...`` does the same with the full
+budget (``ident run CONFIG``, no ``--quick``; 2-15 min of CPU per robot); ``--keep DIR``
+keeps the configs and run folders.
 
 Budget: about 1.5 min for the default pair on a loaded 2-core machine; ``--zoo``: about
 30 min for the eleven arms.
@@ -89,9 +93,13 @@ def main() -> None:
     parser.add_argument(
         "--zoo", nargs="*", metavar="NAME", help="init + run --quick on example-robot-data arms"
     )
+    parser.add_argument(
+        "--full", nargs="+", metavar="NAME", help="init + the full run (no --quick) on these arms"
+    )
+    parser.add_argument("--keep", type=Path, help="--zoo/--full: keep the run folders here")
     args = parser.parse_args()
-    if args.zoo is not None:
-        zoo(args.zoo)
+    if args.zoo is not None or args.full is not None:
+        zoo(args.full or args.zoo, quick=args.full is None, keep=args.keep)
         return
     if args.newcomer is not None:
         newcomer(args.newcomer, args.package_dir)
@@ -158,18 +166,23 @@ def _cpu_job(args: list[str]) -> tuple[float, int, str]:
     return cpu, done.returncode, done.stdout + done.stderr
 
 
-def _run_outcome(output: str) -> tuple[str, str, str]:
-    """Verdict, worst parameter error and smallest clearance of a run, from its result.json
-    (or the error line)."""
+def _run_folder(output: str) -> Path | None:
+    """The run folder ``ident run`` printed ("Run folder: ..."), or None."""
     folder = next(
         (ln.split(":", 1)[1].strip() for ln in output.splitlines() if ln.startswith("Run folder:")),
         "",
     )
-    result = Path(folder) / "result.json"
-    if not folder or not result.is_file():
+    return Path(folder) if folder else None
+
+
+def _run_outcome(output: str) -> tuple[str, str, str]:
+    """Verdict, worst parameter error and smallest clearance of a run, from its result.json
+    (or the error line)."""
+    folder = _run_folder(output)
+    if folder is None or not (folder / "result.json").is_file():
         error = next((ln for ln in output.splitlines() if ln.startswith("error:")), "failed")
         return error[:60], "-", "-"
-    data = json.loads(result.read_text(encoding="utf-8"))
+    data = json.loads((folder / "result.json").read_text(encoding="utf-8"))
     verdict = data.get("verdict", {})
     worst = verdict.get("worst_error_percent")
     match = re.search(
@@ -183,9 +196,39 @@ def _run_outcome(output: str) -> tuple[str, str, str]:
     )
 
 
-def zoo(names: list[str]) -> None:
-    """``ident init`` then ``ident run --quick`` on each arm of :data:`ZOO` (all, or
-    ``names``): CPU, estimates against the CPU, verdict, worst error, smallest clearance."""
+def _independent(folder: Path | None) -> str:
+    """The run's trajectory re-checked by :mod:`independent_safety` (plain Pinocchio + coal,
+    none of ident's safety code): "pass 13.3 mm" (its smallest clearance), or what failed."""
+    from independent_safety import check_run_folder  # beside this file
+
+    if folder is None or not (folder / "trajectory.csv").is_file():
+        return "- (no trajectory)"
+    try:
+        verdict = check_run_folder(folder)
+    except Exception as e:  # a folder it cannot read: say so in the table
+        return f"error: {type(e).__name__}: {e}"[:80]
+    smallest = 1e3 * min(verdict.clearance_m, verdict.floor_m)
+    text = f"pass {smallest:.1f} mm" if verdict.ok else "FAIL " + "; ".join(verdict.failures)
+    unjustified = sum("excluded by ident, but" in n for n in verdict.notes)
+    if unjustified:
+        text += f" ({unjustified} exclusion(s) unjustified, checked)"
+    if verdict.not_checked:
+        text += " (not checked: " + "; ".join(verdict.not_checked) + ")"
+    return text
+
+
+def _ratio(estimate: float, measured: float) -> str:
+    """``estimate / measured``, flagged with ``!`` outside [0.5, 2]; "-" without an estimate."""
+    if estimate != estimate or measured <= 0:
+        return "-"
+    ratio = estimate / measured
+    return f"{ratio:.2f}" + ("" if 0.5 <= ratio <= 2.0 else "!")
+
+
+def zoo(names: list[str], quick: bool = True, keep: Path | None = None) -> None:
+    """``ident init`` then ``ident run --quick`` (the full run when not ``quick``) on each arm
+    of :data:`ZOO` (all, or ``names``): CPU, estimates against the CPU, verdict, worst error,
+    smallest clearance; the run folders are kept in ``keep`` when given."""
     import importlib.metadata
 
     share = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share")
@@ -193,10 +236,12 @@ def zoo(names: list[str]) -> None:
     chosen = [z for z in ZOO if not names or z[0] in names]
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
     print(
-        f"{'robot':12s} {'init CPU':>9s} {'quick CPU':>9s} {'init est':>8s} {'ratio':>6s} "
-        f"{'run est':>8s} {'ratio':>6s}  {'verdict':24s} {'worst err':>9s}  clearance"
+        f"{'robot':12s} {'init CPU':>9s} {'run CPU':>9s} {'init est':>8s} {'ratio':>6s} "
+        f"{'run est':>8s} {'ratio':>6s}  {'verdict':24s} {'worst err':>9s}  {'clearance':>10s}  "
+        "independent check"
     )
-    with tempfile.TemporaryDirectory(prefix="ident-zoo-") as out:
+    with tempfile.TemporaryDirectory(prefix="ident-zoo-") as tmp:
+        out = tmp if keep is None else str(keep)
         for name, path, extra in chosen:
             config = Path(out) / f"{name}.yaml"
             init_cpu, code, text = _cpu_job(["init", str(robots / path), "-o", str(config), *extra])
@@ -205,19 +250,20 @@ def zoo(names: list[str]) -> None:
                     f"{name:12s} {init_cpu:9.1f}  init failed: {text.strip().splitlines()[-1][:90]}"
                 )
                 continue
-            init_est = _seconds(text, r"--quick' about ")
+            init_est = _seconds(text, r"--quick' about " if quick else r"yaml' about ")
+            budget = ["--quick"] if quick else []
             run_cpu, _, output = _cpu_job(
-                ["run", str(config), "--quick", "--no-replay", "--out", str(Path(out) / "runs")]
+                ["run", str(config), *budget, "--no-replay", "--out", str(Path(out) / "runs")]
             )
             run_est = _seconds(output, r"estimate: run: .*?memory and ")
             verdict, worst, clearance = _run_outcome(output)
             # ident run prints its estimate only above a minute (the same model as init's)
             shown = "-" if run_est != run_est else f"{run_est:.0f}"
-            ratio = "-" if run_est != run_est else f"{run_est / run_cpu:.2f}"
             print(
                 f"{name:12s} {init_cpu:9.1f} {run_cpu:9.1f} {init_est:8.0f} "
-                f"{init_est / run_cpu:6.2f} {shown:>8s} {ratio:>6s}  "
-                f"{verdict[:24]:24s} {worst:>9s}  {clearance}",
+                f"{_ratio(init_est, run_cpu):>6s} {shown:>8s} {_ratio(run_est, run_cpu):>6s}  "
+                f"{verdict[:24]:24s} {worst:>9s}  {clearance:>10s}  "
+                f"{_independent(_run_folder(output))}",
                 flush=True,
             )
 

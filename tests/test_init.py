@@ -3,10 +3,13 @@ evaluation and the run loader; ``ident run --quick`` on arms the configs do not 
 
 from __future__ import annotations
 
+import importlib.util
 import json
+import re
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +27,16 @@ KINOVA = ERD_ROBOTS / "kinova_description/robots/kinova.urdf"
 Z1 = ERD_ROBOTS / "z1_description/urdf/z1.urdf"
 UR10 = ERD_ROBOTS / "ur_description/urdf/ur10_robot.urdf"
 UR3_GRIPPER = ERD_ROBOTS / "ur_description/urdf/ur3_gripper.urdf"
+INDEPENDENT_SAFETY = Path(__file__).resolve().parents[1] / "benchmarks" / "independent_safety.py"
+
+
+def _independent_safety():
+    """benchmarks/independent_safety.py: the run's trajectory re-checked without ident."""
+    spec = importlib.util.spec_from_file_location("independent_safety", INDEPENDENT_SAFETY)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["independent_safety"] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 def _corner_designs(family: JointFourierFamily, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -176,7 +189,18 @@ def test_init_then_run_quick_succeeds_first_time(tmp_path, name, urdf):
     assert result["safety"]["ok"] is True
     assert (folder / "trajectory.csv").is_file()
     assert "| Verdict |" in (folder / "report.md").read_text()
-    print(f"{name}: ident run --quick {seconds:.1f} s")
+    # the trajectory re-checked with plain Pinocchio + coal on the URDF's meshes, at >= 1 kHz:
+    # limits, RNEA torques, every link pair ident does not exclude (its exclusions adjacent or
+    # one body), the floor; the smallest clearance is the one ident reports (to its 0.1 mm)
+    verdict = _independent_safety().check_run_folder(folder)
+    assert verdict.ok, verdict.summary()
+    assert verdict.rate_hz >= 1000.0 - 1e-6
+    assert not verdict.not_checked
+    assert not any("excluded by ident, but" in n for n in verdict.notes), verdict.notes
+    reported = re.search(r"clearance (\d+\.\d+) m at", result["safety"]["message"])
+    smallest = min(verdict.clearance_m, verdict.floor_m)  # ident reports either
+    assert smallest == pytest.approx(float(reported.group(1)), abs=1e-4)
+    print(f"{name}: ident run --quick {seconds:.1f} s; independent check: {verdict.summary()}")
 
 
 PEDESTAL_URDF = """<?xml version="1.0"?>
