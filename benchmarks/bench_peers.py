@@ -1359,7 +1359,7 @@ def duel_part(args: argparse.Namespace, robots: list[str], max_iters: int) -> st
     for name in robots:
         for kind in kinds:
             for seed in seeds:
-                if (name, kind, seed) in done:
+                if (name, kind, seed) in done or args.no_run:
                     continue
                 record = duel_case(
                     name,
@@ -1395,6 +1395,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--seeds", type=int, default=5, help="duel: seeds 0..N-1 (--quick: 1)")
     ap.add_argument("--kinds", nargs="+", default=None, choices=list(LOG_KINDS))
+    ap.add_argument(
+        "--no-run",
+        action="store_true",
+        help="duel: run no case, only print (and write) the table of --records",
+    )
     ap.add_argument(
         "--records",
         type=Path,
