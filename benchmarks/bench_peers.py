@@ -328,6 +328,8 @@ def _theta_modifier(body_name: str) -> Any:
 #: armature, viscous and Coulomb friction); ``bad-cad``: every mass 4x, every centre of mass
 #: 8 cm off (outside the +-5 cm box sysid's parameter is then given), joint terms as ``cad``.
 SYSID_STARTS = ("cad", "ident", "bad-cad")
+#: Rollout threads of sysid's residual (its default: every core).
+SYSID_THREADS = 2
 #: The CAD start's joint terms over their truth (50 % off).
 JOINT_TERM_START = 1.5
 #: sysid's joint terms and the log's truth keys (``case.log.truth``).
@@ -371,6 +373,10 @@ def _joint_start(
             else:
                 out[j, attr] = JOINT_TERM_START * float(truth[key][k])
     return out
+
+
+class _BudgetSpent(Exception):
+    """Raised by run_sysid's iteration callback when its CPU budget is spent."""
 
 
 @dataclass
@@ -483,9 +489,9 @@ def sysid_problem(
         sensors.append(sysid.TimeSeries.from_names(tc + dt, measured, model))
         names.append(f"w{k}")
     seqs = sysid.ModelSequences(case.name, spec, names, states, controls, sensors)
-    # one rollout thread: the CPU time is what is compared, and the machine is shared
+    # CPU time is what is compared (every thread's), so the thread count changes the wall only
     residual_fn = sysid.build_residual_fn(
-        models_sequences=[seqs], sensor_weights=weights, n_threads=1
+        models_sequences=[seqs], sensor_weights=weights, n_threads=SYSID_THREADS
     )
     return SysidProblem(spec, joints, params, truth_params, residual_fn, len(names))
 
@@ -499,6 +505,7 @@ def run_sysid(
     max_iters: int,
     ident_model: mujoco.MjModel | None = None,
     max_windows: int | None = None,
+    cpu_budget_s: float | None = None,
 ) -> ToolRun:
     """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names.
 
@@ -506,7 +513,9 @@ def run_sysid(
     (each parameter scaled by its Jacobian column's norm, refreshed every iteration) and its own
     stopping tests (``xtol``, ``gtol`` 1e-8, or no further reduction) under a cap of
     ``max_iters``; ``info`` holds the iterations (finite-difference Jacobians) and the stop's
-    reason (``"maximum iterations reached."`` when the cap stopped it)."""
+    reason (``"maximum iterations reached."`` when the cap stopped it). ``cpu_budget_s``: stop
+    after the first iteration that ends past this much CPU time, with its iterate, reported as
+    not converged (a shared machine's time limit; None: no budget)."""
     from mujoco import sysid
 
     problem = sysid_problem(
@@ -521,23 +530,34 @@ def run_sysid(
 
     rss0 = _peak_rss_mb()
     c0, t0 = time.process_time(), time.perf_counter()
+    last = [problem.params.as_vector()]
+
+    def budget(log: list[Any]) -> None:  # the iterate so far; stop when the CPU budget is spent
+        last[0] = np.asarray(log[-1].candidate).ravel()
+        if cpu_budget_s is not None and time.process_time() - c0 > cpu_budget_s:
+            raise _BudgetSpent
+
     # sysid.optimize(optimizer="mujoco") is this call with verbosity FULLITER, which costs one
     # more finite-difference Jacobian at the end (for its log); FINAL prints the stop only
-    x, _ = minimize.least_squares(
-        x0=problem.params.as_vector(),
-        bounds=problem.params.get_bounds(),
-        residual=residual,
-        verbose=minimize.Verbosity.FINAL,
-        output=trace,
-        max_iter=max_iters,
-        x_scale="jac",
-    )
+    try:
+        x, _ = minimize.least_squares(
+            x0=problem.params.as_vector(),
+            bounds=problem.params.get_bounds(),
+            residual=residual,
+            verbose=minimize.Verbosity.FINAL,
+            output=trace,
+            max_iter=max_iters,
+            x_scale="jac",
+            iter_callback=budget,
+        )
+        stop = re.search(r"Terminated after \d+ iterations: ([^y]*)", trace.getvalue())
+        status = stop.group(1).strip() if stop else "unknown (no final message)"
+    except _BudgetSpent:
+        x, status = last[0], f"NOT converged: stopped by the CPU budget of {cpu_budget_s:g} s"
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     peak = _peak_rss_mb() - rss0
     opt.update_from_vector(x)
-    stop = re.search(r"Terminated after \d+ iterations: ([^y]*)", trace.getvalue())
     iterations = jacobians[0]
-    status = stop.group(1).strip() if stop else "unknown (no final message)"
     # sysid's objective 0.5 ||r||^2 at its start, its stop and the truth: how far it has to go
     y = {
         label: problem.objective(p)
@@ -713,6 +733,7 @@ def duel_case(
     max_iters: int = 200,
     starts: tuple[str, ...] = ("cad", "ident"),
     max_windows: int | None = None,
+    cpu_budget_s: float | None = None,
 ) -> dict[str, Any]:
     """One (robot, log kind, seed) of the duel: ident, then mujoco.sysid from each start, every
     model scored on the same held-out rollout windows (ident's held-out part, its
@@ -745,6 +766,7 @@ def duel_case(
             max_iters=max_iters,
             ident_model=ident_model,
             max_windows=max_windows,
+            cpu_budget_s=cpu_budget_s,
         )
         rows[s.tool] = _row(case, pm, s, (measurements, windows, model_mjcf(case, pm, s.x)))
         print(f"{name} {kind} seed {seed}: {s.tool}: {s.note}", flush=True)
@@ -1369,6 +1391,7 @@ def duel_part(args: argparse.Namespace, robots: list[str], max_iters: int) -> st
                     window_s=args.window,
                     max_iters=max_iters,
                     starts=starts,
+                    cpu_budget_s=args.sysid_cpu_budget,
                 )
                 records.append(record)
                 if args.records is not None:
@@ -1395,6 +1418,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--seeds", type=int, default=5, help="duel: seeds 0..N-1 (--quick: 1)")
     ap.add_argument("--kinds", nargs="+", default=None, choices=list(LOG_KINDS))
+    ap.add_argument(
+        "--sysid-cpu-budget",
+        type=float,
+        default=None,
+        help="duel: stop sysid after this many CPU seconds, reported as not converged",
+    )
     ap.add_argument(
         "--no-run",
         action="store_true",

@@ -116,6 +116,19 @@ def test_sysid_best_setup_smoke_reports_its_stop(identified):
     assert run.cpu_s > 0.0
     y = run.info["objective"]
     assert y["stop"] <= y["start"]  # Gauss-Newton with a line search never goes uphill
+    # a spent CPU budget stops it after its first iteration, named as not converged
+    run = bench_peers.run_sysid(
+        c,
+        pm,
+        start="ident",
+        window_s=0.5,
+        max_iters=5,
+        ident_model=ident_model,
+        max_windows=1,
+        cpu_budget_s=0.0,
+    )
+    assert run.info["status"].startswith("NOT converged")
+    assert run.info["iterations"] == 1
 
 
 def test_duel_models_are_the_rollout_checks_and_score_truth_best(identified):
