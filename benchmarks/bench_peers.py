@@ -754,7 +754,7 @@ def duel_case(
     }
     rows = {}
     for tool, (r, model) in fixed.items():
-        model = model or model_mjcf(case, pm, r.x)
+        model = model_mjcf(case, pm, r.x) if model is None else model
         r.cpu_s = r.cpu_s if tool == "ident" else float("nan")
         rows[tool] = _row(case, pm, r, (measurements, windows, model))
     for start in starts:
