@@ -849,7 +849,16 @@ def duel_table(records: list[dict[str, Any]]) -> str:
                 f"{_stat(cpu, '{:.1f}')} | {'; '.join(stops) or '-'} |"
             )
         v = duel_verdict(recs)
-        if v:
+        stopped = [
+            x for r in recs for x in r["rows"].values() if x.get("status", "").startswith("NOT")
+        ]
+        if stopped:  # a sysid stopped by the CPU budget: its figures are no verdict
+            out += [
+                "",
+                f"Targets not judged: {len(stopped)} sysid run(s) here stopped by the CPU budget "
+                "before converging.",
+            ]
+        elif v:
             holds = {
                 k: "holds" if ok else "fails"
                 for k, ok in (

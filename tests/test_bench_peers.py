@@ -205,6 +205,10 @@ def test_duel_table_gives_medians_worst_and_the_targets():
     assert v["base_ratio"] == pytest.approx(0.02 / 0.05)
     assert v["cpu_ratio"] == pytest.approx(100.0 / 3.0)
     assert "error 0.22x its (holds: <= 1/3), base error 0.40x (fails), CPU 33x less (holds" in text
+    records[1]["rows"]["mujoco.sysid (cad)"]["status"] = "NOT converged: stopped by the budget"
+    text = bench_peers.duel_table(records)
+    assert "Targets not judged: 1 sysid run(s)" in text
+    assert "holds" not in text
 
 
 def test_pinocchio_part_prints_its_table():
