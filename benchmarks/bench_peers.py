@@ -1,7 +1,8 @@
 """Side by side with the peers: ``ident`` against ``mujoco.sysid`` on the same simulated logs.
 
     PYTHONPATH=src python benchmarks/bench_peers.py [--quick] [--robots ur5 panda]
-        [--max-iters 30] [--markdown docs/benchmarks.md]
+        [--parts sysid ...] [--seeds 5] [--kinds ident mujoco] [--starts cad ident]
+        [--records FILE] [--write-docs docs/benchmarks.md]
 
 1. **Data.** The MuJoCo-simulated controller log of ``configs/<robot>.yaml`` (1 kHz computed-torque
    loop, viscous + Coulomb friction, armature, 2^19-count encoders, torque noise: the run's own
@@ -12,50 +13,62 @@
 2. **ident**: ``read_log`` + :func:`ident.identify_measurements` with the config's
    ``identification`` sections (WLS on base parameters; link inertias, armature, viscous and
    Coulomb friction).
-3. **mujoco.sysid** (MuJoCo 4.0's rollout-based Gauss-Newton): the same model built as an
-   ``MjSpec`` from the same URDF, one ``InertiaType.Pseudo`` (log-Cholesky) parameter per moving
-   body, ``armature``, ``damping`` and ``frictionloss`` per joint; the identification samples
-   cut into windows of ``--window`` seconds, each rolled out open loop from the logged state
-   (encoder position, central-difference velocity) under the logged torque and compared with
-   the logged positions. It starts from a CAD model off the truth (masses x0.8, centres of mass
-   2 cm off, joint terms at mid-range: ``--start cad``) and, for the case MuJoCo's maintainers
-   call unidentifiable from joint data, from a CAD model with every mass 4x and every centre
-   of mass 8 cm off, outside its +-5 cm box (``--starts bad-cad``).
+3. **mujoco.sysid** (MuJoCo 4.0's rollout-based Gauss-Newton) at its best set-up: the same
+   model built as an ``MjSpec`` from the same URDF, one ``InertiaType.Pseudo`` (log-Cholesky)
+   parameter per moving body, ``armature``, ``damping`` and ``frictionloss`` per joint; the
+   identification samples cut into windows of ``--window`` seconds (0.5), each rolled out open
+   loop from the logged state (encoder position, central-difference velocity) under the logged
+   torque and compared with the logged positions AND velocities, each joint's divided by its
+   standard deviation (the rollout objective's weighting); ``x_scale='jac'``; run to its own
+   convergence (its ``xtol``/``gtol`` tests or no further reduction) under a cap of
+   ``--max-iters`` (200), the iterations and the reason it stopped reported. Starts
+   (``--starts``, :data:`SYSID_STARTS`): ``cad``, the URDF's nominal bodies (the simulator's:
+   the CAD is exact) with every joint's armature, damping and frictionloss 1.5x its truth;
+   ``ident``, ident's written model; ``bad-cad``, every mass 4x and centre of mass 8 cm off.
 4. **The same yardsticks for both**, computed here once: each estimate is mapped to ``ident``'s
    standard parameters (Pinocchio's order per body, friction and armature per joint) and
-   projected on the base parameters; held-out torque error = RMS(prediction - measured torque)
-   / RMS(measured torque) per joint and over all joints, the prediction being the identified
-   model's inverse dynamics (rigid body + armature + viscous + Coulomb) on the simulator's
-   held-out states; parameter error = ||beta - beta_true|| / ||beta_true|| on the base
-   parameters and the noise-free torque error ||W_b (beta - beta_true)|| / ||W_b beta_true||.
-   Wall time of the identification call alone (ident: reading the log + estimate, intervals,
-   consistent model and its bootstrap; sysid: ``optimize``), each tool's imports outside it,
-   ident's call the first of the process; peak memory as the growth of the process's peak
-   resident set during that call (``resource.getrusage``).
-5. **Excitation** (``--parts excitation``, :func:`excitation_part`): ident's config-driven design
+   projected on the base parameters; torque error = ||prediction - commanded torque|| /
+   ||commanded torque|| on the held-out states (the simulator's noise-free torque; the
+   prediction is the identified model's inverse dynamics, rigid body + armature + viscous +
+   Coulomb), base-parameter error = ||beta - beta_true|| / ||beta_true||; the held-out rollout
+   objective J of :mod:`ident.identify.assessment.rollout` (open-loop MuJoCo rollouts under the
+   measured torque, 0.5 s windows of the held-out part, ident's preprocessing) of each model
+   written by ident's MJCF writer, on the same windows for every model, the truth included;
+   CPU time of the call (``time.process_time``, every thread: ident reading the log + estimate,
+   intervals, consistent model and its bootstrap; sysid ``optimize`` on one rollout thread),
+   each tool's imports outside it.
+5. **Logs of the duel** (``--parts sysid``, :func:`duel_case`): ``configs/<robot>.yaml``'s
+   measurement as ident simulates it (Coulomb friction exactly ident's regressor column) and
+   MuJoCo-native (``friction.semantics: mujoco``: frictionloss by the constraint solver),
+   ``--seeds`` seeds each (excitation offset and noise); medians and worst over seeds
+   (:func:`duel_table`). ``--records FILE`` keeps each case as a JSON line, so the full duel
+   (2 robots x 2 kinds x 5 seeds x 2 sysid runs, hours of CPU) can run in pieces.
+6. **Excitation** (``--parts excitation``, :func:`excitation_part`): ident's config-driven design
    at FIGAROH's UR10 truth-fixture settings (figaroh-examples ``examples/ur10/data/truth/
    manifest.json``: 10 s, 1000 samples at 100 Hz, ``|q - centre| <= 1.2`` rad, 0.7 x velocity
    and 0.8 x torque limits; ``benchmarks/data/figaroh_ur10_truth_train.json``) and on the 7-joint
    Panda (10 s, 1000 samples, 1 cm clearance), its condition number on FIGAROH's convention
    (raw SI base regressor of the 10 standard parameters per link; details above
    :func:`excitation_part`).
-6. **FIGAROH's UR10 truth fixture** (``--parts ur10-truth``, ``benchmarks/peer_ur10_truth.py``):
+7. **FIGAROH's UR10 truth fixture** (``--parts ur10-truth``, ``benchmarks/peer_ur10_truth.py``):
    ident's written model, fitted on FIGAROH's training series with their ``low`` noise, against
    the noise-free truth on a validation series (goal 0.05 N*m, their tolerance 0.1 N*m), and
    FIGAROH's base OLS on the same samples when the ``peers`` extra is installed.
 
-``--quick``: the UR5 only, mujoco.sysid from the near CAD only, 3 optimizer iterations; the
-excitation at 100 samples, the UR10 truth on one seed, the long log on 30 s; no TX40 example.
-Default: one 10 s period (``--periods``; the configs log 3), 3 iterations (``--max-iters``).
+``--quick``: the UR5's ident-simulated log, one seed, mujoco.sysid from ident's model only, 3
+optimizer iterations; the excitation at 100 samples, the UR10 truth on one seed, the long log on
+30 s; no TX40 example. Default: one 10 s period (``--periods``; the configs log 3).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import io
 import json
 import os
 import platform
+import re
 import resource
 import sys
 import tempfile
@@ -68,10 +81,15 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import yaml
+from mujoco import minimize
 
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel
 from ident.dynamics.regressor import joint_torque_regressor
+from ident.identify.assessment.rollout import SD_FLOOR, held_out_windows, rollout_score
+from ident.identify.model_files.files import save_identified_model
+from ident.identify.model_files.fused_bodies import fused_bodies, parse_urdf
+from ident.identify.model_files.mjcf import identified_mjcf
 from ident.identify.pipeline.core import identify_measurements
 from ident.measure.logs import read_log
 from ident.measure.mujoco_model import dynamics_only_urdf
@@ -107,6 +125,8 @@ class ToolRun:
     wall_s: float
     peak_mb: float
     note: str = ""
+    cpu_s: float = float("nan")  # process CPU time of the call [s] (every thread)
+    info: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 def _peak_rss_mb() -> float:
@@ -114,15 +134,24 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def make_case(name: str, *, periods: int = 1, seed: int = 0) -> Case:
+#: The simulated logs (``--kinds``): ``ident``, the configs' own ``measurement`` (Coulomb
+#: friction as ident's ``fs sign(dq)``, exactly ident's regressor column); ``mujoco``, the same
+#: with ``friction.semantics: mujoco`` (MuJoCo's frictionloss, solved by its constraint solver:
+#: sysid's model class, not ident's).
+LOG_KINDS = ("ident", "mujoco")
+
+
+def make_case(name: str, *, periods: int = 1, seed: int = 0, kind: str = "ident") -> Case:
     """Simulate ``periods`` 10 s periods of ``configs/<name>.yaml``'s log on a fixed excitation
-    (module docstring)."""
+    (module docstring), with the friction of ``kind`` (:data:`LOG_KINDS`)."""
     setup = load_run(ROOT / "configs" / f"{name}.yaml")
     config = setup.config
-    if periods != config.measurement.n_periods:
-        m = config.measurement.model_copy(update={"n_periods": periods})
-        config = config.model_copy(update={"measurement": m})
-        setup = dataclasses.replace(setup, config=config)
+    m = config.measurement.model_copy(update={"n_periods": periods})
+    if kind == "mujoco":
+        friction = m.friction.model_copy(update={"semantics": "mujoco"})
+        m = m.model_copy(update={"friction": friction})
+    config = config.model_copy(update={"measurement": m})
+    setup = dataclasses.replace(setup, config=config)
     bounds = setup.bounds
     rng = np.random.default_rng(seed)
     x = bounds.mean(axis=1) + 0.25 * (bounds[:, 1] - bounds[:, 0]) * rng.uniform(
@@ -163,10 +192,10 @@ def run_ident(case: Case) -> tuple[ToolRun, Any]:
 
         t_import = time.perf_counter() - t_import
         rss0 = _peak_rss_mb()
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         read = read_log(cfg.log, cfg.transmission, robot.joint_names, source=str(files.yaml))
         result = identify_measurements(cfg, read, model=robot.model)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         peak = _peak_rss_mb() - rss0
     pm = result.parameters
     # the base estimate, expressed back on pm.names through the base map's independent columns
@@ -188,7 +217,17 @@ def run_ident(case: Case) -> tuple[ToolRun, Any]:
             "; ident's own held-out figure (its filtered states, rows above the velocity "
             f"threshold): {held.metrics.total_relative_residual:.4f}"
         )
-    return ToolRun("ident", x, wall, peak, note), result
+    return ToolRun("ident", x, wall, peak, note, cpu_s=cpu), result
+
+
+def ident_written_model(result: Any) -> mujoco.MjModel:
+    """ident's written model (the MJCF ``ident identify`` writes: its consistent bodies,
+    armature, viscous and Coulomb friction as MuJoCo's frictionloss), loaded."""
+    with tempfile.TemporaryDirectory(prefix="bench-peers-model-") as tmp:
+        entry = save_identified_model(result, tmp)
+        if not entry["written"]:
+            raise RuntimeError(f"ident wrote no model: {entry['note']}")
+        return mujoco.MjModel.from_xml_path(str(Path(tmp) / entry["files"]["mjcf"]))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -235,12 +274,15 @@ def sysid_spec(case: Case) -> tuple[mujoco.MjSpec, list[str], list[str]]:
         for attr in ("armature", "damping", "frictionloss"):
             set_joint(sj, attr, 0.0)
         spec.add_actuator(name=f"{j}_motor", target=j, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        spec.add_sensor(
-            name=f"{j}_pos",
-            type=mujoco.mjtSensor.mjSENS_JOINTPOS,
-            objname=j,
-            objtype=mujoco.mjtObj.mjOBJ_JOINT,
-        )
+    # all positions, then all velocities: the sensor columns of the windows' measured data
+    for kind, sensor in (
+        ("pos", mujoco.mjtSensor.mjSENS_JOINTPOS),
+        ("vel", mujoco.mjtSensor.mjSENS_JOINTVEL),
+    ):
+        for j in joints:
+            spec.add_sensor(
+                name=f"{j}_{kind}", type=sensor, objname=j, objtype=mujoco.mjtObj.mjOBJ_JOINT
+            )
     return spec, bodies, joints
 
 
@@ -280,16 +322,61 @@ def _theta_modifier(body_name: str) -> Any:
     return modify
 
 
-def _start_spec(spec: mujoco.MjSpec, bodies: list[str], start: str) -> mujoco.MjSpec:
-    """A copy of ``spec`` with the CAD error of ``start`` on every moving body."""
+#: mujoco.sysid's starting models (``--starts``). ``cad``: the URDF's nominal bodies (which are
+#: the simulator's: a CAD that is exact) with every joint's armature, damping and frictionloss
+#: at :data:`JOINT_TERM_START` x its truth; ``ident``: ident's written model (its MJCF: bodies,
+#: armature, viscous and Coulomb friction); ``bad-cad``: every mass 4x, every centre of mass
+#: 8 cm off (outside the +-5 cm box sysid's parameter is then given), joint terms as ``cad``.
+SYSID_STARTS = ("cad", "ident", "bad-cad")
+#: Rollout threads of sysid's residual (its default: every core).
+SYSID_THREADS = 2
+#: The CAD start's joint terms over their truth (50 % off).
+JOINT_TERM_START = 1.5
+#: sysid's joint terms and the log's truth keys (``case.log.truth``).
+JOINT_TERMS = (("armature", "armature"), ("damping", "viscous"), ("frictionloss", "coulomb"))
+
+
+def _start_spec(
+    spec: mujoco.MjSpec, bodies: list[str], start: str, ident_model: mujoco.MjModel | None
+) -> mujoco.MjSpec:
+    """A copy of ``spec`` with the bodies of ``start`` (:data:`SYSID_STARTS`)."""
     bad = spec.copy()
-    mass, shift = {"cad": (0.8, 0.02), "bad-cad": (4.0, 0.08)}[start]
+    if start == "ident":
+        assert ident_model is not None, "the ident start needs ident's model"
+        for b in bodies:
+            mb, sb = ident_model.body(b), bad.body(b)
+            sb.mass = float(mb.mass[0])
+            sb.ipos, sb.iquat = np.array(mb.ipos), np.array(mb.iquat)
+            sb.inertia = np.array(mb.inertia)
+        return bad
+    mass, shift = {"cad": (1.0, 0.0), "bad-cad": (4.0, 0.08)}[start]
     for b in bodies:
         sb = bad.body(b)
         sb.mass = sb.mass * mass
         sb.inertia = np.array(sb.inertia) * mass
         sb.ipos = np.array(sb.ipos) + shift
     return bad
+
+
+def _joint_start(
+    case: Case, start: str, ident_model: mujoco.MjModel | None
+) -> dict[tuple[str, str], float]:
+    """``{(joint, attr): value}``: the joint terms sysid starts from (:data:`SYSID_STARTS`)."""
+    joints, truth = list(case.setup.robot.joint_names), case.log.truth
+    out = {}
+    for k, j in enumerate(joints):
+        for attr, key in JOINT_TERMS:
+            if start == "ident":
+                assert ident_model is not None
+                d = int(ident_model.joint(j).dofadr[0])
+                out[j, attr] = float(getattr(ident_model, f"dof_{attr}")[d])
+            else:
+                out[j, attr] = JOINT_TERM_START * float(truth[key][k])
+    return out
+
+
+class _BudgetSpent(Exception):
+    """Raised by run_sysid's iteration callback when its CPU budget is spent."""
 
 
 @dataclass
@@ -309,12 +396,18 @@ class SysidProblem:
         return 0.5 * float(np.sum(np.concatenate(r) ** 2))
 
 
-def sysid_problem(case: Case, *, start: str, window_s: float) -> SysidProblem:
-    """mujoco.sysid's parameters, windows and residual on the identification samples."""
+def _sysid_params(
+    case: Case,
+    spec: mujoco.MjSpec,
+    bodies: list[str],
+    start: str,
+    ident_model: mujoco.MjModel | None,
+) -> tuple[Any, Any]:
+    """sysid's parameters at the start and at the truth: one log-Cholesky inertia per moving
+    body, armature, damping and frictionloss per joint in a box of the robot's largest truth."""
     from mujoco import sysid  # optional: the `peers` extra (absl-py, colorama, tabulate)
 
-    spec, bodies, joints = sysid_spec(case)
-    start_spec = _start_spec(spec, bodies, start)
+    start_spec = _start_spec(spec, bodies, start, ident_model)
     start_model = start_spec.compile()
     truth = case.log.truth
     params = sysid.ParameterDict()
@@ -334,14 +427,15 @@ def sysid_problem(case: Case, *, start: str, window_s: float) -> SysidProblem:
         "damping": (0.0, 2.0 * float(np.max(truth["viscous"])) + 1.0),
         "frictionloss": (0.0, 2.0 * float(np.max(truth["coulomb"])) + 1.0),
     }
-    for j in joints:
-        for attr, (lo, hi) in limits.items():
+    for (j, attr), value in _joint_start(case, start, ident_model).items():
+        lo, hi = limits[attr]
 
-            def modify(s: mujoco.MjSpec, p: Any, j: str = j, attr: str = attr) -> None:
-                set_joint(s.joint(j), attr, float(p.value[0]))
+        def modify(s: mujoco.MjSpec, p: Any, j: str = j, attr: str = attr) -> None:
+            set_joint(s.joint(j), attr, float(p.value[0]))
 
-            params.add(sysid.Parameter(f"{j}_{attr}", 0.5 * (lo + hi), lo, hi, modifier=modify))
-
+        params.add(
+            sysid.Parameter(f"{j}_{attr}", float(np.clip(value, lo, hi)), lo, hi, modifier=modify)
+        )
     model = spec.compile()
     # the truth in sysid's parameters, read before the optimizer rewrites the spec's inertials
     truth_params = params.copy()
@@ -349,50 +443,121 @@ def sysid_problem(case: Case, *, start: str, window_s: float) -> SysidProblem:
         truth_params[f"{b}_inertia"].value = sysid.body_inertia_param(
             spec.copy(), model, b, sysid.InertiaType.Pseudo
         ).value
-    for k, j in enumerate(joints):
-        for attr, key in (
-            ("armature", "armature"),
-            ("damping", "viscous"),
-            ("frictionloss", "coulomb"),
-        ):
+    for k, j in enumerate(case.setup.robot.joint_names):
+        for attr, key in JOINT_TERMS:
             truth_params[f"{j}_{attr}"].value = np.array([float(truth[key][k])])
+    return params, truth_params
+
+
+def sysid_problem(
+    case: Case,
+    *,
+    start: str,
+    window_s: float,
+    ident_model: mujoco.MjModel | None = None,
+    max_windows: int | None = None,
+) -> SysidProblem:
+    """mujoco.sysid's parameters, windows and residual on the identification samples.
+
+    Windows of ``window_s`` seconds (at most ``max_windows``, the first ones), each rolled out
+    open loop from the logged state (encoder position, central-difference velocity) under the
+    logged torque; the residual is the positions and velocities at every following sample,
+    each joint's divided by its standard deviation over the identification samples (the
+    rollout objective's weighting, :mod:`ident.identify.assessment.rollout`).
+    """
+    from mujoco import sysid
+
+    spec, bodies, joints = sysid_spec(case)
+    params, truth_params = _sysid_params(case, spec, bodies, start, ident_model)
+    model = spec.compile()
     n_win = max(2, int(round(window_s * case.log.rate_hz)))
     q = np.asarray(case.log.q)
-    dq = np.gradient(q, 1.0 / case.log.rate_hz, axis=0)  # central differences of the encoder
-    tau = np.asarray(case.log.tau_measured)
     dt = 1.0 / case.log.rate_hz
+    dq = np.gradient(q, dt, axis=0)  # central differences of the encoder
+    tau = np.asarray(case.log.tau_measured)
+    n = case.n_identify
+    sd = np.concatenate([q[:n].std(axis=0), dq[:n].std(axis=0)])
+    weights = 1.0 / np.maximum(sd, SD_FLOOR)  # sensor order: positions, then velocities
     states, controls, sensors, names = [], [], [], []
-    for k, i0 in enumerate(range(0, case.n_identify - n_win - 1, n_win)):
-        data = mujoco.MjData(model)
+    for k, i0 in enumerate(range(0, n - n_win - 1, n_win)):
+        if max_windows is not None and k >= max_windows:
+            break
         states.append(sysid.create_initial_state(model, q[i0], dq[i0]))
         tc = np.arange(n_win) * dt
         controls.append(sysid.TimeSeries(tc, tau[i0 : i0 + n_win]))
-        sensors.append(sysid.TimeSeries.from_names(tc + dt, q[i0 + 1 : i0 + n_win + 1], model))
+        measured = np.hstack([q[i0 + 1 : i0 + n_win + 1], dq[i0 + 1 : i0 + n_win + 1]])
+        sensors.append(sysid.TimeSeries.from_names(tc + dt, measured, model))
         names.append(f"w{k}")
-        del data
     seqs = sysid.ModelSequences(case.name, spec, names, states, controls, sensors)
-    residual_fn = sysid.build_residual_fn(models_sequences=[seqs])
+    # CPU time is what is compared (every thread's), so the thread count changes the wall only
+    residual_fn = sysid.build_residual_fn(
+        models_sequences=[seqs], sensor_weights=weights, n_threads=SYSID_THREADS
+    )
     return SysidProblem(spec, joints, params, truth_params, residual_fn, len(names))
 
 
 def run_sysid(
-    case: Case, pm: ParameterModel, *, start: str, window_s: float, max_iters: int
+    case: Case,
+    pm: ParameterModel,
+    *,
+    start: str,
+    window_s: float,
+    max_iters: int,
+    ident_model: mujoco.MjModel | None = None,
+    max_windows: int | None = None,
+    cpu_budget_s: float | None = None,
 ) -> ToolRun:
-    """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names."""
+    """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names.
+
+    MuJoCo's Gauss-Newton (sysid's ``optimizer="mujoco"`` backend) with ``x_scale="jac"``
+    (each parameter scaled by its Jacobian column's norm, refreshed every iteration) and its own
+    stopping tests (``xtol``, ``gtol`` 1e-8, or no further reduction) under a cap of
+    ``max_iters``; ``info`` holds the iterations (finite-difference Jacobians) and the stop's
+    reason (``"maximum iterations reached."`` when the cap stopped it). ``cpu_budget_s``: stop
+    after the first iteration that ends past this much CPU time, with its iterate, reported as
+    not converged (a shared machine's time limit; None: no budget)."""
     from mujoco import sysid
 
-    problem = sysid_problem(case, start=start, window_s=window_s)
-    rss0 = _peak_rss_mb()
-    t0 = time.perf_counter()
-    opt, _ = sysid.optimize(
-        initial_params=problem.params,
-        residual_fn=problem.residual_fn,
-        optimizer="mujoco",
-        verbose=False,
-        max_iters=max_iters,
+    problem = sysid_problem(
+        case, start=start, window_s=window_s, ident_model=ident_model, max_windows=max_windows
     )
-    wall = time.perf_counter() - t0
+    trace, jacobians = io.StringIO(), [0]
+    opt = problem.params.copy()
+
+    def residual(x: FloatArray) -> FloatArray:  # sysid.optimize's, counting the Jacobians
+        jacobians[0] += int(x.ndim == 2 and x.shape[1] > 1)
+        return np.concatenate(problem.residual_fn(x, opt)[0])
+
+    rss0 = _peak_rss_mb()
+    c0, t0 = time.process_time(), time.perf_counter()
+    last = [problem.params.as_vector()]
+
+    def budget(log: list[Any]) -> None:  # the iterate so far; stop when the CPU budget is spent
+        last[0] = np.asarray(log[-1].candidate).ravel()
+        if cpu_budget_s is not None and time.process_time() - c0 > cpu_budget_s:
+            raise _BudgetSpent
+
+    # sysid.optimize(optimizer="mujoco") is this call with verbosity FULLITER, which costs one
+    # more finite-difference Jacobian at the end (for its log); FINAL prints the stop only
+    try:
+        x, _ = minimize.least_squares(
+            x0=problem.params.as_vector(),
+            bounds=problem.params.get_bounds(),
+            residual=residual,
+            verbose=minimize.Verbosity.FINAL,
+            output=trace,
+            max_iter=max_iters,
+            x_scale="jac",
+            iter_callback=budget,
+        )
+        stop = re.search(r"Terminated after \d+ iterations: ([^y]*)", trace.getvalue())
+        status = stop.group(1).strip() if stop else "unknown (no final message)"
+    except _BudgetSpent:
+        x, status = last[0], f"NOT converged: stopped by the CPU budget of {cpu_budget_s:g} s"
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     peak = _peak_rss_mb() - rss0
+    opt.update_from_vector(x)
+    iterations = jacobians[0]
     # sysid's objective 0.5 ||r||^2 at its start, its stop and the truth: how far it has to go
     y = {
         label: problem.objective(p)
@@ -401,11 +566,12 @@ def run_sysid(
     identified = sysid.apply_param_modifiers(opt, problem.spec)
     x = standard_from_mujoco(identified, pm, problem.joints)
     note = (
-        f"{problem.n_windows} windows of {window_s:g} s, {max_iters} iterations max; objective "
-        f"0.5||r||^2 at start {y['start']:.4g}, at stop {y['stop']:.4g}, "
-        f"at the truth {y['truth']:.4g}"
+        f"{problem.n_windows} windows of {window_s:g} s, x_scale='jac', {iterations} "
+        f"iterations (cap {max_iters}): {status}; objective 0.5||r||^2 at start "
+        f"{y['start']:.4g}, at stop {y['stop']:.4g}, at the truth {y['truth']:.4g}"
     )
-    return ToolRun(f"mujoco.sysid ({start})", x, wall, peak, note)
+    info = {"iterations": iterations, "status": status, "objective": y}
+    return ToolRun(f"mujoco.sysid ({start})", x, wall, peak, note, cpu_s=cpu, info=info)
 
 
 def standard_from_mujoco(
@@ -488,28 +654,228 @@ def check_mapping(case: Case, pm: ParameterModel) -> float:
     return float(np.max(np.abs(x - true_parameters(pm, case.setup.config))))
 
 
-def table(case: Case, rows: list[dict[str, Any]], n_samples: int) -> str:
-    """The markdown table of one robot."""
-    ref = next(r for r in rows if r["tool"] == "ident")
-    names = list(case.setup.robot.joint_names)
-    out = [
-        f"**{case.name}** ({len(names)} joints, {n_samples} samples at {case.log.rate_hz:g} Hz, "
-        f"identification {case.n_identify}, held out {n_samples - case.n_identify})",
-        "",
-        "| tool | held-out rel. RMS (all) | per joint | noise-free torque err. | base-param err. "
-        "| param torque err. | wall [s] | peak RSS growth [MB] | time / ident |",
-        "|---|---|---|---|---|---|---|---|---|",
+# ---------------------------------------------------------------------------------------------
+# the duel: both tools at their best set-up, several seeds, two log kinds (module docstring, 5)
+
+
+def model_mjcf(case: Case, pm: ParameterModel, x: FloatArray) -> mujoco.MjModel:
+    """A full estimate ``x`` over ``pm.names`` (standard parameters of every link, ``Ia``,
+    ``fv``, ``fs`` per joint) as a MuJoCo model, written by ident's MJCF writer (the one of
+    ident's own model and of the rollout check's truth)."""
+    robot = case.setup.robot
+    source = str(robot.urdf_path or robot.name)
+    carriers = [
+        b.carrier for b in fused_bodies(parse_urdf(robot.urdf_text, source), robot.model, source)
     ]
-    for r in rows:
-        pj = " ".join(f"{v:.3f}" for v in r["held_out_joint"])
-        out.append(
-            f"| {r['tool']} | {r['held_out']:.4f} | {pj} | {r['noise_free']:.4f} "
-            f"| {r['param']:.3g} | {r['param_torque']:.3g} | {r['wall_s']:.2f} "
-            f"| {r['peak_mb']:.0f} "
-            f"| {r['wall_s'] / ref['wall_s']:.1f}x |"
+    std = np.zeros(10 * len(carriers))
+    index = np.asarray(pm.inertial_index)
+    std[index[index >= 0]] = np.asarray(x)[index >= 0]
+    value = dict(zip(pm.names, np.asarray(x, dtype=float), strict=True))
+    extras = {
+        j: {
+            "rotor_inertia": value.get(f"Ia{k + 1}", 0.0),
+            "viscous": value.get(f"fv{k + 1}", 0.0),
+            "coulomb": value.get(f"fs{k + 1}", 0.0),
+        }
+        for k, j in enumerate(robot.joint_names)
+    }
+    text = identified_mjcf(
+        robot.urdf_text,
+        tuple(robot.joint_names),
+        {c: std[10 * k : 10 * k + 10] for k, c in enumerate(carriers)},
+        extras,
+        locked_joints=robot.locked_joints,
+        gravity=np.asarray(robot.model.gravity.linear, dtype=float),
+        source=source,
+    )
+    return mujoco.MjModel.from_xml_string(text)
+
+
+def cad_start(case: Case, pm: ParameterModel) -> FloatArray:
+    """sysid's CAD start over ``pm.names``: the truth's bodies, joint terms x1.5."""
+    x = true_parameters(pm, case.setup.config).copy()
+    extra = np.asarray(pm.inertial_index) < 0
+    x[extra] *= JOINT_TERM_START
+    return x
+
+
+#: The rows of a duel table, in order: the truth, the models the tools start from, the tools.
+DUEL_TOOLS = ("truth", "CAD start", "ident", "mujoco.sysid (cad)", "mujoco.sysid (ident)")
+
+
+def _row(
+    case: Case, pm: ParameterModel, run: ToolRun, rollout: tuple[Any, Any, mujoco.MjModel]
+) -> dict[str, Any]:
+    """One tool's JSON-ready figures on a case: torque and base errors (:func:`evaluate`),
+    the held-out rollout objective of its MuJoCo model, its CPU and wall time."""
+    measurements, windows, model = rollout
+    r = evaluate(case, pm, run)
+    return {
+        "torque": r["noise_free"],
+        "held_out": r["held_out"],
+        "base": r["param"],
+        "rollout": rollout_score(model, measurements, windows).objective,
+        # the hook for a refined model's rollout score (result.json's `refinement`): not built
+        "refined_rollout": None,
+        "cpu_s": None if np.isnan(run.cpu_s) else run.cpu_s,
+        "wall_s": run.wall_s,
+        **run.info,
+    }
+
+
+def duel_case(
+    name: str,
+    kind: str,
+    seed: int,
+    *,
+    periods: int = 1,
+    window_s: float = 0.5,
+    max_iters: int = 200,
+    starts: tuple[str, ...] = ("cad", "ident"),
+    max_windows: int | None = None,
+    cpu_budget_s: float | None = None,
+) -> dict[str, Any]:
+    """One (robot, log kind, seed) of the duel: ident, then mujoco.sysid from each start, every
+    model scored on the same held-out rollout windows (ident's held-out part, its
+    preprocessing; :func:`ident.identify.assessment.rollout.held_out_windows`), the truth and
+    the CAD start included. JSON-ready: the case, the load average at start and per tool
+    :func:`_row`'s figures."""
+    load = os.getloadavg()[0]
+    case = make_case(name, periods=periods, seed=seed, kind=kind)
+    run, result = run_ident(case)
+    pm = result.parameters
+    ident_model = ident_written_model(result)
+    measurements, windows = held_out_windows(result)
+    x_true = true_parameters(pm, case.setup.config)
+    fixed = {
+        "truth": (ToolRun("truth", x_true, 0.0, 0.0), model_mjcf(case, pm, x_true)),
+        "CAD start": (ToolRun("CAD start", cad_start(case, pm), 0.0, 0.0), None),
+        "ident": (run, ident_model),
+    }
+    rows = {}
+    for tool, (r, model) in fixed.items():
+        model = model_mjcf(case, pm, r.x) if model is None else model
+        r.cpu_s = r.cpu_s if tool == "ident" else float("nan")
+        rows[tool] = _row(case, pm, r, (measurements, windows, model))
+    for start in starts:
+        s = run_sysid(
+            case,
+            pm,
+            start=start,
+            window_s=window_s,
+            max_iters=max_iters,
+            ident_model=ident_model,
+            max_windows=max_windows,
+            cpu_budget_s=cpu_budget_s,
         )
-    notes = [f"- {r['tool']}: {r['note']}" for r in rows if r["note"]]
-    return "\n".join(out + [""] + notes)
+        rows[s.tool] = _row(case, pm, s, (measurements, windows, model_mjcf(case, pm, s.x)))
+        print(f"{name} {kind} seed {seed}: {s.tool}: {s.note}", flush=True)
+    return {
+        "robot": name,
+        "kind": kind,
+        "seed": seed,
+        "periods": periods,
+        "window_s": window_s,
+        "max_iters": max_iters,
+        "load_start": load,
+        "n_samples": case.log.n_samples,
+        "n_identify": case.n_identify,
+        "rollout_windows": int(windows.shape[0]),
+        "rows": rows,
+    }
+
+
+def _stat(values: list[float], fmt: str) -> str:
+    """``median (worst)`` of per-seed figures (worst: the largest)."""
+    if not values:
+        return "-"
+    return f"{fmt.format(float(np.median(values)))} ({fmt.format(max(values))})"
+
+
+def duel_verdict(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """The targets on one (robot, kind): ident's median torque and base errors at most 1/3 of
+    sysid's best start's (the start with the lower median), its median CPU at least 10x less."""
+    med = {
+        t: {k: float(np.median([r["rows"][t][k] for r in records])) for k in ("torque", "base")}
+        for t in records[0]["rows"]
+        if t.startswith("mujoco.sysid")
+    }
+    if not med:
+        return {}
+    best = min(med, key=lambda t: med[t]["torque"])
+    ours = {
+        k: float(np.median([r["rows"]["ident"][k] for r in records])) for k in ("torque", "base")
+    }
+    cpu = {t: float(np.median([r["rows"][t]["cpu_s"] for r in records])) for t in ("ident", best)}
+    return {
+        "best": best,
+        "torque_ratio": ours["torque"] / med[best]["torque"],
+        "base_ratio": ours["base"] / med[best]["base"],
+        "cpu_ratio": cpu[best] / cpu["ident"],
+    }
+
+
+def duel_table(records: list[dict[str, Any]]) -> str:
+    """The markdown tables of the duel, one per (robot, log kind): per tool the median and
+    worst over seeds of each figure, and the targets' verdict."""
+    out = []
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in records:
+        groups.setdefault((r["robot"], r["kind"]), []).append(r)
+    for (robot, kind), recs in sorted(groups.items()):
+        r0 = recs[0]
+        loads = [r["load_start"] for r in recs]
+        out += [
+            f"**{robot}, {kind}-simulated log** ({len(recs)} seeds: "
+            f"{', '.join(str(r['seed']) for r in recs)}; {r0['n_samples']} samples at 1 kHz, "
+            f"identification {r0['n_identify']}; {r0['rollout_windows']} held-out rollout "
+            f"windows of 0.5 s; load average at start {min(loads):.1f}-{max(loads):.1f})",
+            "",
+            "| model | torque err. | base-param err. | held-out rollout J | refined rollout J "
+            "| CPU [s] | sysid iterations, stop |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        tools = [t for t in DUEL_TOOLS if t in r0["rows"]]
+        tools += [t for t in r0["rows"] if t not in tools]
+        for tool in tools:
+            rows = [r["rows"][tool] for r in recs if tool in r["rows"]]
+            cpu = [x["cpu_s"] for x in rows if x["cpu_s"] is not None]
+            stops = sorted({f"{x['iterations']}: {x['status']}" for x in rows if "status" in x})
+            out.append(
+                f"| {tool} | {_stat([x['torque'] for x in rows], '{:.4f}')} "
+                f"| {_stat([x['base'] for x in rows], '{:.4f}')} "
+                f"| {_stat([x['rollout'] for x in rows], '{:.3g}')} "
+                "| not built | "
+                f"{_stat(cpu, '{:.1f}')} | {'; '.join(stops) or '-'} |"
+            )
+        v = duel_verdict(recs)
+        stopped = [
+            x for r in recs for x in r["rows"].values() if x.get("status", "").startswith("NOT")
+        ]
+        if stopped:  # a sysid stopped by the CPU budget: its figures are no verdict
+            out += [
+                "",
+                f"Targets not judged: {len(stopped)} sysid run(s) here stopped by the CPU budget "
+                "before converging.",
+            ]
+        elif v:
+            holds = {
+                k: "holds" if ok else "fails"
+                for k, ok in (
+                    ("torque", v["torque_ratio"] <= 1 / 3),
+                    ("base", v["base_ratio"] <= 1 / 3),
+                    ("cpu", v["cpu_ratio"] >= 10),
+                )
+            }
+            out += [
+                "",
+                f"Targets against sysid's best start here ({v['best']}, medians): ident's torque "
+                f"error {v['torque_ratio']:.2f}x its ({holds['torque']}: <= 1/3), base error "
+                f"{v['base_ratio']:.2f}x ({holds['base']}), CPU {v['cpu_ratio']:.0f}x less "
+                f"({holds['cpu']}: >= 10x).",
+            ]
+        out.append("")
+    return "\n".join(out).rstrip()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1010,18 +1376,74 @@ def machine() -> str:
     )
 
 
+def duel_part(args: argparse.Namespace, robots: list[str], max_iters: int) -> str:
+    """Run the duel's (robot, kind, seed) cases not yet in ``args.records`` and return the
+    table of every record (this run's and the file's)."""
+    kinds = args.kinds or (["ident"] if args.quick else list(LOG_KINDS))
+    starts = tuple(args.starts or (["ident"] if args.quick else ["cad", "ident"]))
+    seeds = range(1 if args.quick else args.seeds)
+    records: list[dict[str, Any]] = []
+    if args.records is not None and args.records.exists():
+        lines = args.records.read_text(encoding="utf-8").splitlines()
+        records = [json.loads(line) for line in lines if line.strip()]
+    done = {(r["robot"], r["kind"], r["seed"]) for r in records}
+    for name in robots:
+        for kind in kinds:
+            for seed in seeds:
+                if (name, kind, seed) in done or args.no_run:
+                    continue
+                record = duel_case(
+                    name,
+                    kind,
+                    seed,
+                    periods=args.periods,
+                    window_s=args.window,
+                    max_iters=max_iters,
+                    starts=starts,
+                    cpu_budget_s=args.sysid_cpu_budget,
+                )
+                records.append(record)
+                if args.records is not None:
+                    with args.records.open("a", encoding="utf-8") as f:
+                        f.write(json.dumps(record) + "\n")
+                print(duel_table([record]), flush=True)
+    return duel_table(records)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--robots", nargs="+", default=None)
-    ap.add_argument("--max-iters", type=int, default=None)
-    ap.add_argument("--window", type=float, default=0.2, help="rollout window [s]")
+    ap.add_argument(
+        "--max-iters", type=int, default=None, help="sysid's iteration cap (200; --quick 3)"
+    )
+    ap.add_argument("--window", type=float, default=0.5, help="sysid's rollout window [s]")
     ap.add_argument(
         "--starts",
         nargs="+",
         default=None,
-        choices=["cad", "bad-cad"],
-        help="mujoco.sysid's starting CAD models (default: both; --quick: cad)",
+        choices=list(SYSID_STARTS),
+        help="mujoco.sysid's starting models (default: cad ident; --quick: ident)",
+    )
+    ap.add_argument("--seeds", type=int, default=5, help="duel: seeds 0..N-1 (--quick: 1)")
+    ap.add_argument("--kinds", nargs="+", default=None, choices=list(LOG_KINDS))
+    ap.add_argument(
+        "--sysid-cpu-budget",
+        type=float,
+        default=None,
+        help="duel: stop sysid after this many CPU seconds, reported as not converged",
+    )
+    ap.add_argument(
+        "--no-run",
+        action="store_true",
+        help="duel: run no case, only print (and write) the table of --records",
+    )
+    ap.add_argument(
+        "--records",
+        type=Path,
+        default=None,
+        help="duel: append each (robot, kind, seed) as a JSON line here and skip those it "
+        "already holds (a long duel run in pieces); its table is of every record it holds",
     )
     ap.add_argument("--periods", type=int, default=1, help="logged 10 s periods (config: 3)")
     ap.add_argument(
@@ -1048,7 +1470,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = ap.parse_args(argv)
     robots = args.robots or (["ur5"] if args.quick else ["ur5", "panda"])
-    max_iters = args.max_iters or 3
+    max_iters = args.max_iters or (3 if args.quick else 200)
     try:
         import mujoco.sysid  # noqa: F401
 
@@ -1086,27 +1508,14 @@ def main(argv: list[str] | None = None) -> int:
     if "excitation" in parts:
         sections["excitation"] = excitation_part(args.figaroh_examples, quick=args.quick)[0]
         print("\n" + sections["excitation"] + "\n", flush=True)
-    for name in robots if "sysid" in parts else []:
-        case = make_case(name, periods=args.periods)
-        run, result = run_ident(case)
-        pm = result.parameters
-        gap = check_mapping(case, pm)
-        print(f"{name}: MuJoCo -> ident parameter map at the truth, max |diff| = {gap:.2e}")
-        ident_row = evaluate(case, pm, run)
-        if not have_sysid:
+    if "sysid" in parts:
+        if have_sysid:
+            sections["sysid-duel"] = duel_part(args, robots, max_iters)
+            print("\n" + sections["sysid-duel"] + "\n", flush=True)
+        else:
             print("mujoco.sysid not importable (pip install -e '.[peers]'): skipped")
-            print("\n" + table(case, [ident_row], case.log.n_samples) + "\n", flush=True)
-            continue
-        starts = args.starts or (["cad"] if args.quick else ["cad", "bad-cad"])
-        for start in starts:  # one table (one docs block) per start: sysid-ur5, sysid-ur5-bad-cad
-            srun = run_sysid(case, pm, start=start, window_s=args.window, max_iters=max_iters)
-            key = f"sysid-{name}" if start == "cad" else f"sysid-{name}-{start}"
-            sections[key] = table(case, [ident_row, evaluate(case, pm, srun)], case.log.n_samples)
-            print("\n" + sections[key] + "\n", flush=True)
     if args.write_docs is not None:  # a skipped peer keeps the figures the page has
         measured = {k: v for k, v in sections.items() if not v.endswith("skipped")}
-        if not have_sysid:
-            measured = {k: v for k, v in measured.items() if not k.startswith("sysid-")}
         write_docs(args.write_docs, measured, cmd, where)
     return 0
 
