@@ -34,6 +34,8 @@ from ident.model import Robot
 from ident.robot.inertia import PINOCCHIO_ORDER
 
 __all__ = [
+    "COVARIANCE_SUFFIX",
+    "covariance_json",
     "ModelFiles",
     "ReloadParity",
     "model_files",
@@ -385,6 +387,12 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         entry["note"] = f"no model written: {e}"
         return entry
     entry.update(written=True, files={key: path.name for key, path in files.paths.items()})
+    text = covariance_json(result)
+    if text is not None:  # the written model's uncertainty, for ident payload
+        stem = Path(result.config.robot.path).stem
+        entry["files"]["covariance"] = atomic_write_text(
+            Path(out_dir) / f"{stem}{COVARIANCE_SUFFIX}", text
+        ).name
     try:  # the files are written: a reload that fails is reported, never loses them
         theta, names = model.constrained.theta, model.structure.names
         parity = reload_parity(robot, files, theta, names, friction_law=law)
@@ -393,6 +401,40 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         return entry
     entry["reload_parity"] = _parity_entry(parity)
     return entry
+
+
+#: The file beside ``<stem>_identified.urdf`` holding its base parameters' covariance.
+COVARIANCE_SUFFIX = "_identified_covariance.json"
+
+
+def covariance_json(result: Any) -> str | None:
+    """The identification's base-parameter covariance, for a later user of the written model
+    (``ident payload`` propagates the arm's uncertainty into the payload's intervals).
+
+    ``{"parameter_names": (n_all,), "projection": T (n_base, n_all), "covariance": C (n_base,
+    n_base), "method": ...}``: ``beta = T theta`` over every parameter (inertial, SI, and the
+    extra terms), ``C`` the covariance of the least-squares ``beta`` by the identification's
+    one interval method (block bootstrap, or ordinary). The written model is the consistent
+    estimate, close to the least-squares one where the data see it: ``C`` is its spread there.
+    None when the estimate is not over the base parameters (an essential reduction).
+    """
+    pm, sd = result.parameters, result.parameter_std
+    if tuple(result.estimate.names) != tuple(pm.base_names):
+        return None
+    return (
+        json.dumps(
+            {
+                "description": "covariance of the identification's base parameters beta = T theta",
+                "method": sd.method,
+                "parameter_names": list(pm.names),
+                "base_names": list(pm.base_names),
+                "projection": np.asarray(pm.base.projection, dtype=float).tolist(),
+                "covariance": np.asarray(sd.covariance, dtype=float).tolist(),
+            },
+            allow_nan=False,
+        )
+        + "\n"
+    )
 
 
 def _write_model(
