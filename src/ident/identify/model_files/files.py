@@ -387,12 +387,7 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         entry["note"] = f"no model written: {e}"
         return entry
     entry.update(written=True, files={key: path.name for key, path in files.paths.items()})
-    text = covariance_json(result)
-    if text is not None:  # the written model's uncertainty, for ident payload
-        stem = Path(result.config.robot.path).stem
-        entry["files"]["covariance"] = atomic_write_text(
-            Path(out_dir) / f"{stem}{COVARIANCE_SUFFIX}", text
-        ).name
+    _write_covariance(result, out_dir, entry["files"])
     try:  # the files are written: a reload that fails is reported, never loses them
         theta, names = model.constrained.theta, model.structure.names
         parity = reload_parity(robot, files, theta, names, friction_law=law)
@@ -405,6 +400,16 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
 
 #: The file beside ``<stem>_identified.urdf`` holding its base parameters' covariance.
 COVARIANCE_SUFFIX = "_identified_covariance.json"
+
+
+def _write_covariance(result: Any, out_dir: str | Path, files: dict[str, str]) -> None:
+    """Write :func:`covariance_json` as ``<stem>_identified_covariance.json`` beside the model
+    (for ``ident payload``) and name it in ``files``; nothing when there is none."""
+    text = covariance_json(result)
+    if text is not None:
+        stem = Path(result.config.robot.path).stem
+        path = atomic_write_text(Path(out_dir) / f"{stem}{COVARIANCE_SUFFIX}", text)
+        files["covariance"] = path.name
 
 
 def covariance_json(result: Any) -> str | None:
