@@ -421,10 +421,11 @@ def covariance_json(result: Any) -> str | None:
     extra terms), ``C`` the covariance of the least-squares ``beta`` by the identification's
     one interval method (block bootstrap, or ordinary). The written model is the consistent
     estimate, close to the least-squares one where the data see it: ``C`` is its spread there.
-    None when the estimate is not over the base parameters (an essential reduction).
+    None when the estimate is not over the base parameters or its covariance is not finite.
     """
     pm, sd = result.parameters, result.parameter_std
-    if tuple(result.estimate.names) != tuple(pm.base_names):
+    covariance = np.asarray(sd.covariance, dtype=float)
+    if tuple(result.estimate.names) != tuple(pm.base_names) or not np.all(np.isfinite(covariance)):
         return None
     return (
         json.dumps(
@@ -434,7 +435,7 @@ def covariance_json(result: Any) -> str | None:
                 "parameter_names": list(pm.names),
                 "base_names": list(pm.base_names),
                 "projection": np.asarray(pm.base.projection, dtype=float).tolist(),
-                "covariance": np.asarray(sd.covariance, dtype=float).tolist(),
+                "covariance": covariance.tolist(),
             },
             allow_nan=False,
         )
