@@ -6,6 +6,8 @@ it with every link's mass and inertia x1.1 and centre of mass +1 cm in x (the sy
 that made the arm-fixed estimate miss by -2.5 % with two logs and -16 % with one).
 """
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -188,7 +190,16 @@ def test_identified_covariance_maps_identify_base_onto_the_payload_arm(ur5, tmp_
     T = np.hstack([arm.extra_projection, arm.projection])
     s = np.array([std[n] for n in extras + names])
     np.testing.assert_allclose(cov, (T * s**2) @ T.T, rtol=1e-8, atol=1e-12)
-    assert note == f"from ur5{COVARIANCE_SUFFIX}"
+    assert note == f"from ur5{COVARIANCE_SUFFIX}, the least-squares covariance"
+    # the written model's bootstrap (standard parameters, identity projection) is preferred
+    data = json.loads((tmp_path / f"ur5{COVARIANCE_SUFFIX}").read_text())
+    order = list(reversed(extras + names))
+    covariance = np.diag([std[n] ** 2 for n in order]).tolist()
+    data["model_bootstrap"] = {"n_samples": 30, "parameter_names": order, "covariance": covariance}
+    (tmp_path / f"ur5{COVARIANCE_SUFFIX}").write_text(json.dumps(data))
+    boot, note = identified_covariance(tmp_path / "ur5_identified.urdf", arm, extras, names)
+    np.testing.assert_allclose(boot, (T * s**2) @ T.T, rtol=1e-8, atol=1e-12)
+    assert note.endswith("the model's bootstrap")
     missing = identified_covariance(tmp_path / "panda_identified.urdf", arm, extras, names)
     assert missing[0] is None
     assert "no panda_identified_covariance.json" in missing[1]
@@ -215,9 +226,7 @@ def test_identified_arm_error_enters_the_intervals(ur5, cad_setup, tmp_path):
     assert abs(mass_z) < 1.96
     assert np.all(np.abs(com_z) < 1.96)
     assert 0.04 < result.mass_std < 0.08
-    assert "uncertainty (from ur5_identified_covariance.json) is in the intervals" in (
-        result.arm_note
-    )
+    assert "the least-squares covariance) is in the intervals" in result.arm_note
     sidecar.unlink()  # the arm taken as exact: the log's σ alone
     exact, _, exact_z, _ = _run(folder, urdf, logs, without=False)
     assert abs(exact_z) > 5

@@ -420,7 +420,10 @@ def covariance_json(result: Any) -> str | None:
     n_base), "method": ...}``: ``beta = T theta`` over every parameter (inertial, SI, and the
     extra terms), ``C`` the covariance of the least-squares ``beta`` by the identification's
     one interval method (block bootstrap, or ordinary). The written model is the consistent
-    estimate, close to the least-squares one where the data see it: ``C`` is its spread there.
+    estimate, whose constraints can hold it tighter than the least-squares spread (a light
+    last link): with the model's bootstrap re-solves, ``model_bootstrap`` holds their
+    covariance over the standard parameters (:func:`_model_bootstrap`), the written model's
+    own spread.
     None when the estimate is not over the base parameters or its covariance is not finite.
     """
     pm, sd = result.parameters, result.parameter_std
@@ -436,11 +439,32 @@ def covariance_json(result: Any) -> str | None:
                 "base_names": list(pm.base_names),
                 "projection": np.asarray(pm.base.projection, dtype=float).tolist(),
                 "covariance": covariance.tolist(),
+                **_model_bootstrap(result),
             },
             allow_nan=False,
         )
         + "\n"
     )
+
+
+def _model_bootstrap(result: Any) -> dict[str, Any]:
+    """``{"model_bootstrap": {...}}``: the covariance of the written model's own bootstrap
+    re-estimates (:mod:`ident.identify.assessment.model_intervals`) over its standard
+    parameters, ``{}`` without them (switched off, fewer than 10 re-solves, not finite)."""
+    intervals = getattr(result, "model_intervals", None)
+    if intervals is None or intervals.samples.shape[0] < 10:
+        return {}
+    covariance = np.cov(np.asarray(intervals.samples, dtype=float), rowvar=False)
+    if not np.all(np.isfinite(covariance)):
+        return {}
+    return {
+        "model_bootstrap": {
+            "method": intervals.method,
+            "n_samples": int(intervals.samples.shape[0]),
+            "parameter_names": list(intervals.names),
+            "covariance": covariance.tolist(),
+        }
+    }
 
 
 def _write_model(

@@ -185,7 +185,9 @@ def identified_covariance(
     """Covariance of the identified arm's error along the payload rows' arm corrections
     ``dbeta`` (n_b, n_b), from ``<stem>_identified_covariance.json`` beside ``ident identify``'s
     ``urdf`` (:func:`~ident.identify.model_files.files.covariance_json`: ``beta_id = T_id theta``,
-    its covariance ``C_id``), and a note; ``(None, why)`` when it is missing or does not map.
+    its covariance ``C_id``; with its ``model_bootstrap``, the written model's own re-estimates'
+    covariance over the standard parameters, ``T_id = I``), and a note; ``(None, why)`` when it
+    is missing or does not map.
 
     The corrections are ``dbeta = T_arm theta`` (:class:`ArmBase`, rigid and extra
     coefficients, ``extras`` and ``rigid`` name their columns). Both are base parameters of the
@@ -200,6 +202,10 @@ def identified_covariance(
     if not file.exists():
         return None, f"no {file.name} beside the identified URDF (an older ident identify)"
     data = json.loads(file.read_text(encoding="utf-8"))
+    if "model_bootstrap" in data:  # the written model's own spread: T_id = identity
+        boot = data["model_bootstrap"]
+        n = len(boot["parameter_names"])
+        data = {**boot, "projection": np.eye(n)}
     column = {name: k for k, name in enumerate(data["parameter_names"])}
     T_id = np.asarray(data["projection"], dtype=float)
     T_arm = np.zeros((len(base.names), T_id.shape[1]))
@@ -215,7 +221,8 @@ def identified_covariance(
             None,
             f"{file.name}'s base parameters do not map onto the payload's arm (other model terms)",
         )
-    return M @ np.asarray(data["covariance"], dtype=float) @ M.T, f"from {file.name}"
+    how = "the model's bootstrap" if "n_samples" in data else "the least-squares covariance"
+    return M @ np.asarray(data["covariance"], dtype=float) @ M.T, f"from {file.name}, {how}"
 
 
 def select_columns(red: ReducedObservations, keep: npt.ArrayLike) -> ReducedObservations:
