@@ -201,7 +201,10 @@ def identified_covariance(
     file = path.with_name(path.name[: -len("_identified.urdf")] + COVARIANCE_SUFFIX)
     if not file.exists():
         return None, f"no {file.name} beside the identified URDF (an older ident identify)"
-    data = json.loads(file.read_text(encoding="utf-8"))
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        return None, f"{file.name} unreadable ({e})"
     if "model_bootstrap" in data:  # the written model's own spread: T_id = identity
         boot = data["model_bootstrap"]
         n = len(boot["parameter_names"])
