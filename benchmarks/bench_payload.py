@@ -360,17 +360,19 @@ def cad_main(robots: list[str], n_seeds: int, seconds: float) -> int:
     return 0 if ok else 1
 
 
-def seeds_main(robots: list[str], n_seeds: int, seconds: float, signs_mode: str) -> int:
-    """``--seeds N``: the CAD cases (:func:`run_cad_case`, ``method: wls``) over ``N`` seeds,
-    each drawing its own motion and noise (and, with ``signs_mode`` ``random``, the sign of
-    every link's CAD errors); the table of :func:`_seeds_table`. Exit 1 when a two-log or
-    identified-arm case misses 2 % / 5 mm at any seed, or a one-log CAD case misses them
+def seeds_main(
+    robots: list[str], n_seeds: int, seconds: float, signs_mode: str, first: int = 0
+) -> int:
+    """``--seeds N``: the CAD cases (:func:`run_cad_case`, ``method: wls``) over ``N`` seeds
+    from ``first``, each drawing its own motion and noise (and, with ``signs_mode`` ``random``,
+    the sign of every link's CAD errors); the table of :func:`_seeds_table`. Exit 1 when a two-log
+    or identified-arm case misses 2 % / 5 mm at any seed, or a one-log CAD case misses them
     without a warning."""
     cases: dict[str, list[dict]] = {}
     cpu: dict[str, list[float]] = {}
     ok = True
     with tempfile.TemporaryDirectory() as tmp:
-        for k in range(n_seeds):  # the robots alternate: a cut-short run has both
+        for k in range(first, first + n_seeds):  # the robots alternate: a cut-short run has both
             for name in robots:
                 config = REPO / "configs" / f"{name}.yaml"
                 n_bodies = load_robot(RobotSelection.model_validate(read_yaml(config)["robot"])
@@ -615,10 +617,11 @@ def main(argv: list[str] | None = None) -> int:
         default="fixed",
         help="--seeds: every link's CAD error +10 %% / +1 cm (fixed) or of random sign per link",
     )
+    parser.add_argument("--first-seed", type=int, default=0, help="--seeds: the first seed")
     args = parser.parse_args(argv)
     if args.seeds > 0:
         robots = [r.strip() for r in args.robots.split(",")]
-        return seeds_main(robots, args.seeds, args.seconds, args.cad_signs)
+        return seeds_main(robots, args.seeds, args.seconds, args.cad_signs, args.first_seed)
     if args.cad:
         return cad_main([r.strip() for r in args.robots.split(",")], args.coverage, args.seconds)
     if args.coverage > 0:
