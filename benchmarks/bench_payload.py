@@ -385,6 +385,10 @@ def seeds_main(
                 cpu.setdefault(name, []).append(time.process_time() - t0)
                 for row in rows:
                     cases.setdefault(row["robot"], []).append(row)
+                    fields = ("robot", "mass_error_pct", "com_error_mm")
+                    record = {**{f: row[f] for f in fields}, "seed": k, "z": row["z"].tolist(),
+                              "warned": bool(row["summary"]["warnings"])}  # fmt: skip
+                    print(json.dumps(record), file=sys.stderr, flush=True)  # per seed, to merge
                     inside = abs(row["mass_error_pct"]) <= 2.0 and row["com_error_mm"] <= 5.0
                     ok &= inside or bool(row["summary"]["warnings"])
                 print(f"{name} seed {k}: {cpu[name][-1]:.0f} s CPU", file=sys.stderr, flush=True)
