@@ -103,6 +103,7 @@ def test_cli_writes_the_consistent_model(tmp_path, result):
         "urdf": "tx40_mdh_modified_identified.urdf",
         "mjcf": "tx40_mdh_modified_identified.xml",
         "joint_extras": "tx40_mdh_modified_joint_extras.json",
+        "covariance": "tx40_mdh_modified_identified_covariance.json",
     }
     assert max(data["model"]["reload_parity"][k] for k in ("urdf", "mjcf")) < 1e-9
     assert mujoco.MjModel.from_xml_path(str(folder / "tx40_mdh_modified_identified.xml")).nv == 6

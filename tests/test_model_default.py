@@ -39,6 +39,7 @@ def test_shipped_run_writes_the_consistent_model_and_it_matches_the_truth(name, 
         "urdf": f"{name}_identified.urdf",
         "mjcf": f"{name}_identified.xml",
         "joint_extras": f"{name}_joint_extras.json",
+        "covariance": f"{name}_identified_covariance.json",
     }
     assert max(model["reload_parity"]["urdf"], model["reload_parity"]["mjcf"]) <= 1e-9
     held = model["held_out_relative_residual"]  # consistency costs nothing held out

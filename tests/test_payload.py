@@ -273,3 +273,35 @@ def test_sigterm_at_each_file_of_payload(payload_config, tmp_path):
     assert (
         sigterm_at_each_file(args, find, tmp_path, reset=reset, at=(1, 3)) >= 4
     )  # run.json, json, 2 models
+
+
+def test_run_truth_holds_the_simulated_payload(ur5, tmp_path):
+    """``ident run``'s truth with ``measurement.payload``: the URDF's bodies with the payload
+    added to the body carrying its link, against Pinocchio's ``Inertia`` moved by the link's
+    placement (``se3Action``) and added to that joint's inertia; the truth without the payload
+    (what ``ident run`` compared with before) differs by the payload's mass."""
+    from ident.dynamics.parameters import parameters_from_model
+    from ident.run.config import load_run_config
+    from ident.run.log_measurement import log_stage_info, true_parameters
+
+    root = Path(__file__).resolve().parents[1]
+    data = yaml.safe_load((root / "configs" / "ur5.yaml").read_text())
+    data["robot"] = {"urdf": str(UR5_URDF)}
+    data["measurement"]["payload"] = {**PAYLOAD, "link": "tool0"}  # rotated, 8 cm off joint 6
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump(data))
+    config = load_run_config(path)
+    info, pm = log_stage_info(config, ur5)
+    truth = true_parameters(pm, config, ur5.model)
+    reference = ur5.model.copy()
+    frame = reference.frames[reference.getFrameId("tool0")]
+    inertia = pin.Inertia.FromDynamicParameters(config.measurement.payload.parameters())
+    joint = frame.parentJoint
+    reference.inertias[joint] = reference.inertias[joint] + frame.placement.act(inertia)
+    expected = parameters_from_model(reference)
+    rigid = pm.inertial_index >= 0
+    np.testing.assert_allclose(truth[rigid], expected[pm.inertial_index[rigid]], atol=1e-12)
+    np.testing.assert_allclose(info.true_base, pm.base.project(truth), atol=1e-12)
+    assert truth[pm.names.index("m6")] - pm.nominal[pm.names.index("m6")] == pytest.approx(3.0)
+    with pytest.raises(ValueError, match="needs the robot's model"):
+        true_parameters(pm, config)

@@ -6,6 +6,8 @@ it with every link's mass and inertia x1.1 and centre of mass +1 cm in x (the sy
 that made the arm-fixed estimate miss by -2.5 % with two logs and -16 % with one).
 """
 
+import json
+
 import numpy as np
 import pytest
 import yaml
@@ -13,15 +15,17 @@ from robots import UR5_URDF
 from test_payload import MEASUREMENT, PAYLOAD, PREPROCESS, _log
 
 from ident.dynamics.chain import chain_from_model
-from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.friction import ExtraTerms, extra_names
+from ident.dynamics.parameter_model import build_parameter_model
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.identify.estimation.observations import ReducedObservations
-from ident.identify.model_files.files import model_files
+from ident.identify.model_files.files import COVARIANCE_SUFFIX, covariance_json, model_files
 from ident.identify.payload.payload import PayloadColumns, identify_payload
 from ident.identify.payload.payload_arm import (
     ARM_FROM,
     arm_base,
     arm_source,
+    identified_covariance,
     lost_payload_directions,
     payload_fit_warnings,
 )
@@ -153,3 +157,77 @@ def test_payload_separable_from_the_arm_only_with_a_log_without_it(ur5):
     both = only.merge(ReducedObservations.from_samples(unloaded, np.zeros(loaded.shape[:2])))
     assert len(lost_payload_directions(only, 10, names)) == 10
     assert lost_payload_directions(both, 10, names) == []
+
+
+def _identify_sidecar(model, terms, std_by_name):
+    """``covariance_json`` of an identification of ``model`` whose standard parameters have
+    independent errors ``std_by_name`` (the rest 0): its base-parameter covariance
+    ``T diag(s^2) T^T`` over ``ident identify``'s own base parameters."""
+    from types import SimpleNamespace
+
+    pm = build_parameter_model(model, terms)
+    s = np.array([std_by_name.get(name, 0.0) for name in pm.names])
+    T = pm.base.projection
+    fake = SimpleNamespace(
+        parameters=pm,
+        estimate=SimpleNamespace(names=pm.base_names),
+        parameter_std=SimpleNamespace(method="bootstrap", covariance=(T * s**2) @ T.T),
+    )
+    return covariance_json(fake)
+
+
+def test_identified_covariance_maps_identify_base_onto_the_payload_arm(ur5, tmp_path):
+    """``ident identify``'s base parameters (its priority order, extras merged by name) mapped
+    onto the payload's arm corrections: the covariance equals the standard parameters'
+    ``diag(s^2)`` pushed through the payload's own projection (rigid and extra coefficients)."""
+    rng = np.random.default_rng(0)
+    names = parameter_names(ur5.n_bodies)
+    extras = extra_names(TERMS)
+    std = {n: float(v) for n, v in zip(names + extras, rng.uniform(0.01, 0.1, 78), strict=True)}
+    (tmp_path / f"ur5{COVARIANCE_SUFFIX}").write_text(_identify_sidecar(ur5.model, TERMS, std))
+    arm = arm_base(chain_from_model(ur5.model), TERMS)
+    cov, note = identified_covariance(tmp_path / "ur5_identified.urdf", arm, extras, names)
+    T = np.hstack([arm.extra_projection, arm.projection])
+    s = np.array([std[n] for n in extras + names])
+    np.testing.assert_allclose(cov, (T * s**2) @ T.T, rtol=1e-8, atol=1e-12)
+    assert note == f"from ur5{COVARIANCE_SUFFIX}, the least-squares covariance"
+    # the written model's bootstrap (standard parameters, identity projection) is preferred
+    data = json.loads((tmp_path / f"ur5{COVARIANCE_SUFFIX}").read_text())
+    order = list(reversed(extras + names))
+    covariance = np.diag([std[n] ** 2 for n in order]).tolist()
+    data["model_bootstrap"] = {"n_samples": 30, "parameter_names": order, "covariance": covariance}
+    (tmp_path / f"ur5{COVARIANCE_SUFFIX}").write_text(json.dumps(data))
+    boot, note = identified_covariance(tmp_path / "ur5_identified.urdf", arm, extras, names)
+    np.testing.assert_allclose(boot, (T * s**2) @ T.T, rtol=1e-8, atol=1e-12)
+    assert note.endswith("the model's bootstrap")
+    missing = identified_covariance(tmp_path / "panda_identified.urdf", arm, extras, names)
+    assert missing[0] is None
+    assert "no panda_identified_covariance.json" in missing[1]
+
+
+def test_identified_arm_error_enters_the_intervals(ur5, cad_setup, tmp_path):
+    """One log on an identified arm whose last link's mass is 0.09 kg off (3 % of the 3 kg
+    payload; its identification said m6 +- 0.06 kg): the payload's mass takes the error. The
+    interval that ignores the arm's error (the log's σ, about 0.5 %) misses the truth at many
+    σ; with the arm's covariance propagated (``cov = C_log + G C_arm G^T``) it holds it."""
+    folder, _, logs = cad_setup
+    theta = parameters_from_model(ur5.model).copy()
+    names = parameter_names(ur5.n_bodies)
+    theta[names.index("m6")] += 0.09
+    files = model_files(ur5, theta, names)
+    urdf = tmp_path / "ur5_identified.urdf"
+    urdf.write_text(files.urdf_text)
+    (tmp_path / "ur5_joint_extras.json").write_text(files.extras_json)
+    sidecar = tmp_path / f"ur5{COVARIANCE_SUFFIX}"
+    sidecar.write_text(_identify_sidecar(ur5.model, TERMS, {"m6": 0.06}))
+    result, truth, mass_z, com_z = _run(folder, urdf, logs, without=False)
+    assert result.arm_from == "identified model"
+    assert result.mass - truth.mass == pytest.approx(-0.09, abs=0.03)  # the arm's error
+    assert abs(mass_z) < 1.96
+    assert np.all(np.abs(com_z) < 1.96)
+    assert 0.04 < result.mass_std < 0.08
+    assert "the least-squares covariance) is in the intervals" in result.arm_note
+    sidecar.unlink()  # the arm taken as exact: the log's σ alone
+    exact, _, exact_z, _ = _run(folder, urdf, logs, without=False)
+    assert abs(exact_z) > 5
+    assert "not in the intervals" in exact.arm_note

@@ -21,12 +21,14 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 import yaml
 
 from ident.dynamics.base_parameters import torque_shares
 from ident.dynamics.chain import random_states
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
+from ident.dynamics.parameters import payload_on_joint
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import IdentError
 from ident.identify.assessment.sanity import joint_units
@@ -88,14 +90,24 @@ class LogOutcome:
     config: IdentifyConfig
 
 
-def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
+def true_parameters(
+    pm: ParameterModel, config: RunConfig, model: pin.Model | None = None
+) -> FloatArray:
     """The simulator's truth over the model's parameters ``pm.names``, shape (n_all,).
 
-    Inertial parameters from the URDF (``pm.nominal``), ``fv<j>`` / ``fs<j>`` / ``Ia<j>`` from
-    the configured viscous friction, Coulomb friction and armature of joint j, offsets 0.
-    A ``friction.law`` that is the identification's own linear model (``viscous_coulomb``,
-    ``viscous_coulomb_offset``) adds its ``fv``, ``fc`` (and ``off``) to these; another law has
-    no such truth (:func:`friction_truth_note`).
+    Inertial parameters from the URDF (``pm.nominal``) plus a simulated
+    ``measurement.payload``'s, added to the body that carries its link
+    (:func:`~ident.dynamics.parameters.payload_on_joint`; ``model``, the robot's Pinocchio
+    model, is needed then); ``fv<j>`` / ``fs<j>`` / ``Ia<j>`` from the configured viscous
+    friction, Coulomb friction and armature of joint j, offsets 0. A ``friction.law`` that is
+    the identification's own linear model (``viscous_coulomb``, ``viscous_coulomb_offset``) adds
+    its ``fv``, ``fc`` (and ``off``) to these; another law has no such truth
+    (:func:`friction_truth_note`).
+
+    Raises
+    ------
+    ValueError
+        If the measurement simulates a payload and ``model`` is not given.
     """
     m = config.measurement
     n = pm.terms.n_joints
@@ -111,6 +123,14 @@ def true_parameters(pm: ParameterModel, config: RunConfig) -> FloatArray:
             if label in law.values:
                 values[kind] = values[kind] + np.asarray(per_joint(law.values[label], n))
     truth = np.array(pm.nominal, dtype=float)
+    payload = getattr(m, "payload", None)
+    if payload is not None:
+        if model is None:
+            raise ValueError("true_parameters: the simulated payload needs the robot's model")
+        joint, phi = payload_on_joint(model, payload.link, payload.parameters())
+        inertial = pm.inertial_index
+        on_body = (inertial >= 10 * (joint - 1)) & (inertial < 10 * joint)
+        truth[on_body] += phi[inertial[on_body] - 10 * (joint - 1)]
     for i, name in enumerate(pm.names):
         kind = name.rstrip("0123456789")
         if pm.extra_index[i] >= 0 and kind in values:
@@ -147,7 +167,7 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
     """
     terms = config.identification.model.extra_terms(robot.nv, "identification.model")
     pm = build_parameter_model(robot.model, terms)
-    truth = true_parameters(pm, config)
+    truth = true_parameters(pm, config, robot.model)
     rows = tuple(range(robot.nv))
     names = pm.names
     alone = tuple(

@@ -47,6 +47,7 @@ import numpy as np
 import numpy.typing as npt
 from mujoco import rollout as mj_rollout
 
+from ident.dynamics.parameters import payload_on_joint
 from ident.errors import DataError, IdentError, ModelError
 from ident.identify.estimation import preprocess
 from ident.identify.estimation.accumulate import margin_samples
@@ -54,7 +55,6 @@ from ident.identify.model_files.fused_bodies import fused_bodies, parse_urdf
 from ident.identify.model_files.mjcf import identified_mjcf
 from ident.model import Robot
 from ident.model.selection import load_robot
-from ident.robot.inertia import transform_parameters
 
 __all__ = [
     "MAX_TIMESTEP_S",
@@ -356,13 +356,13 @@ def reference_mjcf(
     bodies = {c: model.inertias[j].toDynamicParameters() for j, c in enumerate(carriers, start=1)}
     if payload is not None:
         link, parameters = payload
-        link = carriers[-1] if link is None else link
-        if not model.existFrame(link):
-            raise ModelError(f"{source}: the payload's link {link!r} is not a link of the robot.")
-        frame = model.frames[model.getFrameId(link)]
-        carrier = carriers[int(frame.parentJoint) - 1]
-        rotation, translation = frame.placement.rotation, frame.placement.translation
-        bodies[carrier] = bodies[carrier] + transform_parameters(parameters, rotation, translation)
+        try:
+            joint, phi = payload_on_joint(model, link, parameters)
+        except ValueError:
+            raise ModelError(
+                f"{source}: the payload's link {link!r} is not a link of the robot."
+            ) from None
+        bodies[carriers[joint - 1]] = bodies[carriers[joint - 1]] + phi
     return identified_mjcf(
         robot.urdf_text,
         tuple(robot.joint_names),

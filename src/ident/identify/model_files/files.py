@@ -35,6 +35,8 @@ from ident.model import Robot
 from ident.robot.inertia import PINOCCHIO_ORDER
 
 __all__ = [
+    "COVARIANCE_SUFFIX",
+    "covariance_json",
     "ModelFiles",
     "ReloadParity",
     "model_files",
@@ -388,6 +390,7 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         entry["note"] = f"no model written: {e}"
         return entry
     entry.update(written=True, files={key: path.name for key, path in files.paths.items()})
+    _write_covariance(result, out_dir, entry["files"])
     try:  # the files are written: a reload that fails is reported, never loses them
         theta, names = model.constrained.theta, model.structure.names
         parity = reload_parity(robot, files, theta, names, friction_law=law)
@@ -396,6 +399,75 @@ def save_identified_model(result: Any, out_dir: str | Path) -> dict[str, Any]:
         return entry
     entry["reload_parity"] = _parity_entry(parity)
     return entry
+
+
+#: The file beside ``<stem>_identified.urdf`` holding its base parameters' covariance.
+COVARIANCE_SUFFIX = "_identified_covariance.json"
+
+
+def _write_covariance(result: Any, out_dir: str | Path, files: dict[str, str]) -> None:
+    """Write :func:`covariance_json` as ``<stem>_identified_covariance.json`` beside the model
+    (for ``ident payload``) and name it in ``files``; nothing when there is none."""
+    text = covariance_json(result)
+    if text is not None:
+        stem = Path(result.config.robot.path).stem
+        path = atomic_write_text(Path(out_dir) / f"{stem}{COVARIANCE_SUFFIX}", text)
+        files["covariance"] = path.name
+
+
+def covariance_json(result: Any) -> str | None:
+    """The identification's base-parameter covariance, for a later user of the written model
+    (``ident payload`` propagates the arm's uncertainty into the payload's intervals).
+
+    ``{"parameter_names": (n_all,), "projection": T (n_base, n_all), "covariance": C (n_base,
+    n_base), "method": ...}``: ``beta = T theta`` over every parameter (inertial, SI, and the
+    extra terms), ``C`` the covariance of the least-squares ``beta`` by the identification's
+    one interval method (block bootstrap, or ordinary). The written model is the consistent
+    estimate, whose constraints can hold it tighter than the least-squares spread (a light
+    last link): with the model's bootstrap re-solves, ``model_bootstrap`` holds their
+    covariance over the standard parameters (:func:`_model_bootstrap`), the written model's
+    own spread.
+    None when the estimate is not over the base parameters or its covariance is not finite.
+    """
+    pm, sd = result.parameters, result.parameter_std
+    covariance = np.asarray(sd.covariance, dtype=float)
+    if tuple(result.estimate.names) != tuple(pm.base_names) or not np.all(np.isfinite(covariance)):
+        return None
+    return (
+        json.dumps(
+            {
+                "description": "covariance of the identification's base parameters beta = T theta",
+                "method": sd.method,
+                "parameter_names": list(pm.names),
+                "base_names": list(pm.base_names),
+                "projection": np.asarray(pm.base.projection, dtype=float).tolist(),
+                "covariance": covariance.tolist(),
+                **_model_bootstrap(result),
+            },
+            allow_nan=False,
+        )
+        + "\n"
+    )
+
+
+def _model_bootstrap(result: Any) -> dict[str, Any]:
+    """``{"model_bootstrap": {...}}``: the covariance of the written model's own bootstrap
+    re-estimates (:mod:`ident.identify.assessment.model_intervals`) over its standard
+    parameters, ``{}`` without them (switched off, fewer than 10 re-solves, not finite)."""
+    intervals = getattr(result, "model_intervals", None)
+    if intervals is None or intervals.samples.shape[0] < 10:
+        return {}
+    covariance = np.cov(np.asarray(intervals.samples, dtype=float), rowvar=False)
+    if not np.all(np.isfinite(covariance)):
+        return {}
+    return {
+        "model_bootstrap": {
+            "method": intervals.method,
+            "n_samples": int(intervals.samples.shape[0]),
+            "parameter_names": list(intervals.names),
+            "covariance": covariance.tolist(),
+        }
+    }
 
 
 def _write_model(

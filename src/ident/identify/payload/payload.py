@@ -104,6 +104,7 @@ __all__ = [
     "payload_rows",
     "read_payload_logs",
     "weighted_blocks",
+    "with_arm_uncertainty",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -582,9 +583,12 @@ def identify_payload(
                             (with_log, without_log))  # fmt: skip
     t2 = time.perf_counter()
     source_key = payload_arm.arm_source(cfg.payload.arm, robot.urdf_path, without_log is not None)
+    arm_cov = payload_arm.identified_covariance(
+        robot.urdf_path, arm, extra_names(terms), parameter_names(arm.projection.shape[1] // 10)
+    )
     try:
         result = _estimate_for_arm(
-            red, blocks, extra_names(terms), arm, source_key, cfg, model, placement, link
+            red, blocks, extra_names(terms), arm, (source_key, arm_cov), cfg, model, placement, link
         )
     except NotIdentifiable as e:
         raise NotIdentifiable(
@@ -631,14 +635,18 @@ def _estimate_for_arm(
     blocks: tuple[BlockEquations, ...],
     extra: tuple[str, ...],
     arm: payload_arm.ArmBase,
-    source_key: str,
+    source: tuple[str, tuple[FloatArray | None, str]],
     cfg: PayloadConfig,
     model: pin.Model,
     placement: pin.SE3,
     link: str,
 ) -> PayloadResult:
-    """The payload with the arm from ``source_key`` (:data:`payload_arm.ARM_FROM`), the
-    fit's warnings and the intervals widened by its excess residual."""
+    """The payload with the arm from ``source``'s key (:data:`payload_arm.ARM_FROM`), the
+    fit's warnings and the intervals widened by its excess residual; ``source``'s second item
+    is the identified arm's covariance and its note
+    (:func:`~ident.identify.payload.payload_arm.identified_covariance`), propagated into the
+    intervals of ``model`` (:func:`with_arm_uncertainty`)."""
+    source_key, arm_cov = source
     n_p = 10 + len(extra)
     names = PAYLOAD_NAMES + tuple(extra) + arm.names
     not_payload = np.arange(10, len(names))
@@ -654,6 +662,7 @@ def _estimate_for_arm(
         result = estimate_payload(payload_arm.select_columns(red, keep), extra,
                                   method=cfg.payload.method, placement=placement, link=link,
                                   blocks=payload_arm.select_blocks(blocks, keep))  # fmt: skip
+        result = with_arm_uncertainty(result, red, *arm_cov, placement)
     else:
         if floor is None:
             raise NotIdentifiable("the log does not determine the arm's base parameters.")
@@ -677,6 +686,53 @@ def _estimate_for_arm(
     return _with_fit_check(result, floor, source_key, note)
 
 
+def with_arm_uncertainty(
+    result: PayloadResult,
+    red: ReducedObservations,
+    arm_cov: FloatArray | None,
+    source: str,
+    placement: pin.SE3 | None,
+) -> PayloadResult:
+    """``result`` (the arm taken as exact, its columns ``[Y_n | E]``) with the identified arm's
+    uncertainty propagated into its standard deviations.
+
+    The arm's error ``dbeta`` (covariance ``arm_cov`` (n_b, n_b),
+    :func:`~ident.identify.payload.payload_arm.identified_covariance`) enters the payload rows as
+    ``Y_b dbeta`` (``red``: columns ``[Y_n | E | Y_b]``); the WLS estimate moves by
+    ``G dbeta``, ``G = -H_aa^-1 H_ab`` with ``H = sum_j w_j^2 R_j^T R_j`` (``w_j = 1 / sigma_j``,
+    the estimate's weights; ``a`` the payload and extra columns, ``b`` the arm's). The arm
+    comes from another log, so its error is independent of this log's noise and
+    ``cov(phi) = C_log + G C_arm G^T`` (``C_log`` the log's bootstrap covariance). Without
+    ``arm_cov`` the intervals assume the arm exact and the note says why (``source``).
+    """
+    if arm_cov is None:
+        note = f"the identified arm's uncertainty is not in the intervals: {source}."
+        return replace(result, arm_note=note)
+    n_p = len(result.wls.names)
+    sigma = np.asarray(result.wls.sigma, dtype=float)
+    w = np.where(np.isfinite(sigma) & (sigma > 0) & (red.n_rows > 0), 1.0 / sigma, 0.0)
+    H = np.einsum("g,gki,gkj->ij", w**2, red.R, red.R)
+    G = -np.linalg.solve(H[:n_p, :n_p], H[:n_p, n_p:])[:10]
+    added = G @ arm_cov @ G.T  # (10, 10)
+    sd_log = result.std
+    covariance = _log_covariance(result)[:10, :10] + added
+    mass, com, com_std, _ = _in_reporting_frame(result.phi, covariance, placement)
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    note = (
+        f"the identified arm's uncertainty ({source}) is in the intervals: mass σ "
+        f"{1e3 * sd_log[0]:.2g} g from the log, {1e3 * np.sqrt(added[0, 0]):.2g} g from the arm."
+    )
+    return replace(result, std=std, mass_std=float(std[0]), com_std=com_std, arm_note=note)
+
+
+def _log_covariance(result: PayloadResult) -> FloatArray:
+    """The covariance ``result.std`` comes from: the bootstrap's, else the ordinary one."""
+    unc = result.uncertainty
+    if result.std_method != "ordinary" and unc is not None:
+        return np.asarray(unc.covariance[unc.method], dtype=float)
+    return np.asarray(result.wls.covariance, dtype=float)
+
+
 def _with_fit_check(
     result: PayloadResult, floor: Estimate | None, source_key: str, note: str
 ) -> PayloadResult:
@@ -692,7 +748,7 @@ def _with_fit_check(
         mass_std=result.mass_std * factor,
         com_std=result.com_std * factor,
         arm_from=payload_arm.ARM_FROM[source_key],
-        arm_note=note,
+        arm_note=note or result.arm_note,
         warnings=tuple(warnings),
         floor_residual=float("nan") if floor_residual is None else floor_residual,
         interval_factor=factor,

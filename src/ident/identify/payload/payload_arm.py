@@ -25,6 +25,7 @@ likely cause (:func:`payload_fit_warnings`).
 
 from __future__ import annotations
 
+import json
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,6 +42,7 @@ from ident.errors import IdentWarning, NotIdentifiable
 from ident.identify.estimation.estimate import Estimate, least_squares_reduced
 from ident.identify.estimation.observations import ReducedObservations, reduce_rows
 from ident.identify.estimation.uncertainty import BlockEquations
+from ident.identify.model_files.files import COVARIANCE_SUFFIX
 
 __all__ = [
     "ARM_FROM",
@@ -53,6 +55,7 @@ __all__ = [
     "arm_source",
     "cad_prior_covariance",
     "floor_fit",
+    "identified_covariance",
     "lost_payload_directions",
     "payload_fit_warnings",
     "select_blocks",
@@ -96,11 +99,15 @@ class ArmBase:
     projection :
         ``T`` with ``dbeta = T dtheta`` for a correction ``dtheta`` of the standard parameters,
         shape (n_b, 10 n_bodies).
+    extra_projection :
+        The same base parameters' coefficients on the extra terms (the extras' own columns
+        absorb them), shape (n_b, n_extra).
     """
 
     index: npt.NDArray[np.intp]
     names: tuple[str, ...]
     projection: FloatArray
+    extra_projection: FloatArray
 
 
 def arm_base(chain: KinematicChain, terms: ExtraTerms, *, rng: int = 0) -> ArmBase:
@@ -124,7 +131,12 @@ def arm_base(chain: KinematicChain, terms: ExtraTerms, *, rng: int = 0) -> ArmBa
     rows = np.flatnonzero(base.independent >= n_e)
     index = (base.independent[rows] - n_e).astype(np.intp)
     names = tuple(f"arm_{base.base_names[k]}" for k in rows)
-    return ArmBase(index=index, names=names, projection=base.projection[rows][:, n_e:])
+    return ArmBase(
+        index=index,
+        names=names,
+        projection=base.projection[rows][:, n_e:],
+        extra_projection=base.projection[rows][:, :n_e],
+    )
 
 
 def arm_source(setting: str, urdf: str | Path | None, has_without: bool) -> str:
@@ -165,6 +177,55 @@ def cad_prior_covariance(
     std[:, 4:] = (relative * np.abs(trace) / 2 + 2 * m * c * com_std)[:, None]
     T = base.projection
     return (T * std.reshape(-1) ** 2) @ T.T
+
+
+def identified_covariance(
+    urdf: str | Path | None, base: ArmBase, extras: tuple[str, ...], rigid: tuple[str, ...]
+) -> tuple[FloatArray | None, str]:
+    """Covariance of the identified arm's error along the payload rows' arm corrections
+    ``dbeta`` (n_b, n_b), from ``<stem>_identified_covariance.json`` beside ``ident identify``'s
+    ``urdf`` (:func:`~ident.identify.model_files.files.covariance_json`: ``beta_id = T_id theta``,
+    its covariance ``C_id``; with its ``model_bootstrap``, the written model's own re-estimates'
+    covariance over the standard parameters, ``T_id = I``), and a note; ``(None, why)`` when it
+    is missing or does not map.
+
+    The corrections are ``dbeta = T_arm theta`` (:class:`ArmBase`, rigid and extra
+    coefficients, ``extras`` and ``rigid`` name their columns). Both are base parameters of the
+    same columns, so ``T_arm = M T_id`` with ``M = T_arm T_id^+`` and ``cov(dbeta) = M C_id M^T``;
+    a residual ``||M T_id - T_arm|| > 1e-6 ||T_arm||`` means other model terms (the
+    identification's ``model`` differs from the payload's) and gives None.
+    """
+    path = Path(str(urdf)) if urdf is not None else None
+    if path is None or not path.name.endswith("_identified.urdf"):
+        return None, "the arm is not an identified model"
+    file = path.with_name(path.name[: -len("_identified.urdf")] + COVARIANCE_SUFFIX)
+    if not file.exists():
+        return None, f"no {file.name} beside the identified URDF (an older ident identify)"
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        return None, f"{file.name} unreadable ({e})"
+    if "model_bootstrap" in data:  # the written model's own spread: T_id = identity
+        boot = data["model_bootstrap"]
+        n = len(boot["parameter_names"])
+        data = {**boot, "projection": np.eye(n)}
+    column = {name: k for k, name in enumerate(data["parameter_names"])}
+    T_id = np.asarray(data["projection"], dtype=float)
+    T_arm = np.zeros((len(base.names), T_id.shape[1]))
+    for coefficients, names in ((base.extra_projection, extras), (base.projection, rigid)):
+        for k, name in enumerate(names):
+            if name in column:
+                T_arm[:, column[name]] += coefficients[:, k]
+            elif np.any(coefficients[:, k]):
+                return None, f"{file.name} has no parameter {name} (other model terms)"
+    M = np.linalg.lstsq(T_id.T, T_arm.T, rcond=None)[0].T
+    if np.linalg.norm(M @ T_id - T_arm) > 1e-6 * np.linalg.norm(T_arm):
+        return (
+            None,
+            f"{file.name}'s base parameters do not map onto the payload's arm (other model terms)",
+        )
+    how = "the model's bootstrap" if "n_samples" in data else "the least-squares covariance"
+    return M @ np.asarray(data["covariance"], dtype=float) @ M.T, f"from {file.name}, {how}"
 
 
 def select_columns(red: ReducedObservations, keep: npt.ArrayLike) -> ReducedObservations:
