@@ -19,6 +19,7 @@ import pinocchio as pin
 
 from ident.errors import ConfigError
 from ident.excitation.safety import MIN_LOWERED_CLEARANCE_M, SafetyModel, build_safety_model
+from ident.excitation.safety.fast import EXACT_WITHIN_M
 from ident.model.robot import Robot
 from ident.robot.mimic import mimic_lock_reasons, read_mimics
 from ident.robot.urdf_load import (
@@ -52,7 +53,7 @@ ENGINEER_CLEARANCE_M = 0.01
 #: The margin is at most this fraction of a link pair's largest clearance.
 MARGIN_ROOM = 2.0
 _N_CANDIDATES = 16  # postures of clear_posture measured on the exact geometry
-_FAR_M = 0.15  # beyond this clearance [m] a posture is as good as any other
+_FAR_M = EXACT_WITHIN_M  # beyond this clearance [m] a posture is as good as any other
 
 
 def _fmt(value: float) -> str:
