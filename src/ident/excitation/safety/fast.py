@@ -346,9 +346,9 @@ class FastClearances:
         apart = np.linalg.norm(world[:, :, 0] - world[:, :, 1], axis=-1) - radius.sum(axis=1)
         # a half-space (object 1): the sphere centre's height above it, minus the radius
         above = (n_world[:, :, 1] * world[:, :, 0]).sum(axis=-1) - o_world[:, :, 1]
-        plane = np.any(normal[:, 1] != 0.0, axis=1)
-        bounds = np.where(plane[None, :], above - radius[:, 0], apart)
-        return np.where(np.isfinite(radius).all(axis=1)[None, :], bounds, -np.inf)
+        plane = (normal[:, 1] != 0.0).any(axis=1)
+        bounds = np.where(plane, above - radius[:, 0], apart)
+        return np.where(np.isfinite(radius).all(axis=1), bounds, -np.inf)
 
     def _refine_context(self) -> list[Any]:
         """Pinocchio data, geometry data of the exact geometry, last posture placed."""
