@@ -716,7 +716,7 @@ def with_arm_uncertainty(
     added = G @ arm_cov @ G.T  # (10, 10)
     sd_log = result.std
     covariance = _log_covariance(result)[:10, :10] + added
-    mass, com, com_std, _ = _in_reporting_frame(result.phi, covariance, placement)
+    mass, com, com_std, _ = in_reporting_frame(result.phi, covariance, placement)
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     note = (
         f"the identified arm's uncertainty ({source}) is in the intervals: mass σ "
