@@ -32,7 +32,8 @@ def test_generate_reproduces_the_committed_corpus(tmp_path, monkeypatch, capsys)
     shutil.copytree(CORPUS, copy, ignore=shutil.ignore_patterns("__pycache__"))
     monkeypatch.setenv("IDENT_HOSTILE_DIR", str(copy))  # the scripts write the copy
     spec = importlib.util.spec_from_file_location("hostile_generate", CORPUS / "generate.py")
-    assert spec is not None and spec.loader is not None
+    assert spec is not None
+    assert spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     assert module.HERE == copy

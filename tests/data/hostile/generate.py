@@ -1,10 +1,12 @@
 """Write the hostile-input corpus of ``tests/test_hostile_cli.py`` (run from the repository root).
 
 ``python tests/data/hostile/generate.py [--refresh-run]`` rewrites every file of this folder
-from the tables below (``logs/`` through ``logs/generate_logs.py``), and ``manifest.yaml``: one entry per case with the command line that runs it
-(``{data}`` is this folder, ``{tmp}`` an empty working folder that must stay empty) and
-``isolate: true`` for the cases that run in a subprocess under memory and CPU limits.
-Every case must end with exit code 2, one ``error:`` line and nothing written.
+from the tables below (``logs/`` through ``logs/generate_logs.py``), and ``manifest.yaml``: one
+entry per case with the command line that runs it (``{data}`` is this folder, ``{tmp}`` an
+empty working folder that must stay empty) and ``isolate: true`` for the cases that run in a
+subprocess under memory and CPU limits. Every case must end with exit code 2, one ``error:``
+line and nothing written. ``tests/test_hostile_corpus_generated.py`` checks that the committed
+corpus is what this script writes: add cases here, never by hand.
 """
 
 from __future__ import annotations
