@@ -15,6 +15,7 @@ import gzip
 import json
 import math
 import os
+import runpy
 import shutil
 import struct
 import subprocess
@@ -635,8 +636,6 @@ def _run_folders() -> None:
 
 def _log_cases(*, write: bool = True) -> list[dict]:
     """Readers and time stamps (logs/generate_logs.py writes those files: ``write``)."""
-    import runpy
-
     module = runpy.run_path(str(Path(__file__).resolve().parent / "logs" / "generate_logs.py"))
     if write:
         module["write"]()
@@ -1256,7 +1255,7 @@ def _cause_cases(add) -> None:  # noqa: ANN001 - main's add()
 def _clear() -> None:
     """Remove the generated folders (``os/real_run`` stays: see :func:`_real_run_folder`)."""
     subs = ("base", "urdf", "runfolder", "yaml", "run", "identify", "bench", "payload", "mesh")
-    for sub in (*subs, "causes"):
+    for sub in (*subs, "causes", "round3"):
         shutil.rmtree(HERE / sub, ignore_errors=True)
     for path in (HERE / "os").glob("*"):
         if path.name != "real_run":
@@ -1320,6 +1319,9 @@ def main(*, refresh_run: bool = False, logs: bool = True) -> None:
     _hardening_cases(add)
     _cause_files()
     _cause_cases(add)
+    # hardening, round three: the newer features (round3.py)
+    round3 = runpy.run_path(str(Path(__file__).resolve().parent / "round3.py"))
+    round3["generate"](HERE, globals(), add)
     # the environment is never excluded (the files in safety/ are written by hand)
     cases.append({"comment": "safety: the environment is never excluded; absurd sizes are refused"})
     for path in sorted((HERE / "safety").glob("*.yaml")):

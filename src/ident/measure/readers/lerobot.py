@@ -76,9 +76,10 @@ _SECONDS_PER_VALUE = 2e-8  # read and converted per value (estimate: 50 M values
 
 
 def is_lerobot(path: Path) -> bool:
-    """Detector: a folder with ``meta/info.json``, or a ``.parquet`` file."""
+    """Detector: a folder with ``meta/info.json``, or a ``.parquet`` file (an ``info.json``
+    that is no file still marks a dataset: the reader names what it is)."""
     if path.is_dir():
-        return (path / "meta" / "info.json").is_file()
+        return (path / "meta" / "info.json").exists()
     return path.is_file() and path.suffix == ".parquet"
 
 
@@ -119,7 +120,9 @@ def _dataset(path: Path) -> tuple[Path, tuple[Path, ...], Path | None]:
     """(dataset root, parquet files in path order, info.json or None) of ``path``."""
     if path.is_dir():
         info = path / "meta" / "info.json"
-        if not info.is_file():
+        if info.exists():
+            check_regular_file(info)  # a folder or a device named as what it is
+        else:
             raise DataError(
                 f"{path}: not a LeRobot dataset (meta/info.json not found); give the dataset "
                 "folder (meta/ and data/ inside) or one episode .parquet file."
