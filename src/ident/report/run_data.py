@@ -35,9 +35,9 @@ import yaml
 
 from ident.config import short_repr
 from ident.errors import IdentError
-from ident.identify.assessment.rollout import rollout_text
 from ident.fileio import atomic_write_text
 from ident.identify.assessment.metrics import MAJOR_SHARE, _arr, _num, error_measures
+from ident.identify.assessment.rollout import rollout_text
 from ident.identify.estimation.uncertainty import interval_coverage, parameter_std
 from ident.report.paper import _paper_comparison, _paper_counts
 from ident.report.run_verdict import verdict_entry
