@@ -305,7 +305,7 @@ def test_corpus_is_large_and_covers_every_command():
     commands = {c["args"][0] for c in CASES}
     assert commands >= {"run", "identify", "verify", "urdf", "replay", "bench", "report", "init",
                         "payload", "repeatability"}  # fmt: skip
-    assert len(CASES) >= 400
+    assert len(CASES) >= 600
     writers = {c["args"][0] for c in CASES if c.get("fault")}
     assert writers >= {"run", "identify", "urdf", "replay", "bench", "report"}
     assert len({c["id"] for c in CASES}) == len(CASES)

@@ -21,12 +21,13 @@ from __future__ import annotations
 
 import difflib
 import math
+import typing
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 from ident.errors import ConfigError
 
@@ -59,13 +60,42 @@ _MERGE_TAG = "tag:yaml.org,2002:merge"
 _FLOAT_TAG = "tag:yaml.org,2002:float"
 
 
+def _takes_bool(annotation: Any) -> bool:
+    """Whether a field annotated ``annotation`` takes ``true``/``false`` as such (``bool``,
+    ``Any``, a ``Literal`` of them, or a union holding one)."""
+    if annotation is bool or annotation is Any:
+        return True
+    args = typing.get_args(annotation)
+    if typing.get_origin(annotation) is typing.Literal:
+        return any(isinstance(a, bool) for a in args)
+    return any(_takes_bool(a) for a in args if a is not None)
+
+
 class StrictModel(BaseModel):
     """Base for config sections: unknown keys are errors, instances are immutable.
 
     Float fields refuse NaN and infinities, also when given as the strings ``nan`` or ``inf``.
+    Number fields refuse ``true``/``false`` (pydantic's lax mode reads them as 1 and 0: a
+    ``sampling_rate_hz: true`` became a 1 Hz log).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_bool_for_a_number(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        for key, value in data.items():
+            values = value if isinstance(value, list) else [value]
+            field = cls.model_fields.get(key) if isinstance(key, str) else None
+            if field is None or not any(isinstance(v, bool) for v in values):
+                continue
+            if not _takes_bool(field.annotation):
+                raise ValueError(
+                    f"{key} = {value!r}: a yes/no value where a number or a name is expected"
+                )
+        return data
 
 
 def short_repr(value: Any, limit: int = _SHORT) -> str:

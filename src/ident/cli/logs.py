@@ -165,7 +165,7 @@ def inspect(
     topic: Annotated[
         list[str] | None, typer.Option(help="ROS topic to read (repeatable; default all).")
     ] = None,
-    max_columns: Annotated[int, typer.Option(help="Columns listed per table.")] = 60,
+    max_columns: Annotated[int, typer.Option(min=1, help="Columns listed per table.")] = 60,
 ) -> None:
     """List the columns/topics of FILE with rates, jitter, gaps and ranges; print a config
     skeleton."""

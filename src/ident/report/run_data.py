@@ -33,9 +33,11 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ident.config import short_repr
 from ident.errors import IdentError
 from ident.fileio import atomic_write_text
 from ident.identify.assessment.metrics import MAJOR_SHARE, _arr, _num, error_measures
+from ident.identify.assessment.rollout import rollout_text
 from ident.identify.estimation.uncertainty import interval_coverage, parameter_std
 from ident.report.paper import _paper_comparison, _paper_counts
 from ident.report.run_verdict import verdict_entry
@@ -508,7 +510,46 @@ def load_run(run_dir: Path) -> dict[str, Any]:
             f"{path}: no {', '.join(missing)} (fields every {FORMAT} result.json has); the "
             "run folder is damaged: run 'ident run' again."
         )
+    problem = _field_problem(data)
+    if problem:  # the same for a field of the wrong shape, before any file is written
+        raise IdentError(f"{path}: {problem}; the run folder is damaged: run 'ident run' again.")
     return data
+
+
+# the entries the report reads, and their JSON type (None: may also be null)
+_FIELD_TYPES: dict[str, tuple[type, bool]] = {
+    "config": (dict, False),
+    "robot": (dict, False),
+    "excitation": (dict, False),
+    "optimization": (dict, False),
+    "elites": (list, False),
+    "warnings": (list, True),
+    "stage": (dict, True),
+    "safety": (dict, True),
+    "model": (dict, True),
+    "rollout": (dict, True),
+}
+
+
+def _field_problem(data: dict[str, Any]) -> str:
+    """What is wrong with the shape of a result.json's fields the report reads ('' if
+    nothing): a field of another JSON type, an elite without its rank, a rollout entry the
+    report cannot show (:func:`~ident.identify.assessment.rollout.rollout_text` reads it)."""
+    for key, (kind, nullable) in _FIELD_TYPES.items():
+        value = data.get(key)
+        if (value is None and (nullable or key not in data)) or isinstance(value, kind):
+            continue
+        return f"{key} is {short_repr(value)}, not a JSON {'object' if kind is dict else 'list'}"
+    for n, elite in enumerate(data["elites"]):
+        if not isinstance(elite, dict) or not isinstance(elite.get("rank"), int):
+            return f"elites[{n}] is {short_repr(elite)}, not an elite with its rank"
+    if isinstance(data.get("model"), dict) and "elite" not in data["model"]:
+        return "model has no elite (the elite whose simulated log it identifies)"
+    try:
+        rollout_text(data.get("rollout"))
+    except (KeyError, TypeError, ValueError) as e:
+        return f"rollout lacks or mistypes {e} (the MJCF rollout check's entry)"
+    return ""
 
 
 def _plain(entry: Any) -> Any:

@@ -481,6 +481,19 @@ def resolve_urdf_meshes(
     return ResolvedMeshes(ET.tostring(root, encoding="unicode"), tuple(missing), tuple(stand_ins))
 
 
+def _not_a_file(filename: str, base: str | Path | None) -> str:
+    """`` (a folder)`` or `` (not a regular file)`` when the path a mesh names as it is
+    (absolute, or relative to the URDF's folder ``base``) exists as no file (a folder, a
+    device), so that "not found" names the cause; else ''."""
+    rest = filename.split("://", 1)[1] if filename.startswith("file://") else filename
+    if "://" in rest:
+        return ""
+    path = Path(rest) if Path(rest).is_absolute() or base is None else Path(base) / rest
+    if not path.exists() or path.is_file():
+        return ""
+    return " (a folder)" if path.is_dir() else " (not a regular file: a device or a pipe)"
+
+
 def _resolve_elements(
     link: ET.Element, kind: str, package_dirs: Sequence[str | Path], base: str | Path | None
 ) -> list[str]:
@@ -492,7 +505,7 @@ def _resolve_elements(
             filename = mesh.get("filename", "")
             path = resolve_mesh_path(filename, package_dirs, base)
             if path is None:
-                lost.append(filename)
+                lost.append(filename + _not_a_file(filename, base))
                 link.remove(element)
                 break
             mesh.set("filename", str(path.resolve()))

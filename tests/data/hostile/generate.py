@@ -1,10 +1,12 @@
 """Write the hostile-input corpus of ``tests/test_hostile_cli.py`` (run from the repository root).
 
-``python tests/data/hostile/generate.py`` rewrites every file of this folder from the tables
-below, and ``manifest.yaml``: one entry per case with the command line that runs it
-(``{data}`` is this folder, ``{tmp}`` an empty working folder that must stay empty) and
-``isolate: true`` for the cases that run in a subprocess under memory and CPU limits.
-Every case must end with exit code 2, one ``error:`` line and nothing written.
+``python tests/data/hostile/generate.py [--refresh-run]`` rewrites every file of this folder
+from the tables below (``logs/`` through ``logs/generate_logs.py``), and ``manifest.yaml``: one
+entry per case with the command line that runs it (``{data}`` is this folder, ``{tmp}`` an
+empty working folder that must stay empty) and ``isolate: true`` for the cases that run in a
+subprocess under memory and CPU limits. Every case must end with exit code 2, one ``error:``
+line and nothing written. ``tests/test_hostile_corpus_generated.py`` checks that the committed
+corpus is what this script writes: add cases here, never by hand.
 """
 
 from __future__ import annotations
@@ -13,14 +15,17 @@ import gzip
 import json
 import math
 import os
+import runpy
 import shutil
 import struct
 import subprocess
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parents[2]
+ROOT = Path(__file__).resolve().parents[3]
+#: the corpus folder written; ``IDENT_HOSTILE_DIR`` writes a copy elsewhere (the test that the
+#: committed corpus is what this script writes)
+HERE = Path(os.environ.get("IDENT_HOSTILE_DIR") or Path(__file__).resolve().parent)
 PAPER_ROBOT = "../../../../configs/paper6r.yaml"  # from a file in HERE/<sub>/
 
 
@@ -629,11 +634,12 @@ def _run_folders() -> None:
     _write(d / "no_trajectory_no_state" / "robot.urdf", (HERE / "base/rp2.urdf").read_text())
 
 
-def _log_cases() -> list[dict]:
-    """Readers and time stamps (logs/generate_logs.py writes those files)."""
-    import runpy
-
-    return runpy.run_path(str(HERE / "logs" / "generate_logs.py"))["cases"]()
+def _log_cases(*, write: bool = True) -> list[dict]:
+    """Readers and time stamps (logs/generate_logs.py writes those files: ``write``)."""
+    module = runpy.run_path(str(Path(__file__).resolve().parent / "logs" / "generate_logs.py"))
+    if write:
+        module["write"]()
+    return module["cases"]()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -747,8 +753,14 @@ OS_ERRNOS = ("ENOSPC", "EDQUOT", "EROFS", "EACCES", "EIO")
 RUN_FOLDER_FILES = ("result.json", "elite_1.csv", "report.md", "report.html", "*.png")
 
 
-def _real_run_folder() -> None:
-    """A real, small ``ident run`` folder (format of this version) for report/replay cases."""
+def _real_run_folder(*, refresh: bool) -> None:
+    """A real, small ``ident run`` folder for report/replay cases, made by ``ident run`` when
+    missing or with ``refresh`` (``--refresh-run``: its floats differ in the last digits from
+    machine to machine, so a plain regeneration keeps the committed one)."""
+    real = HERE / "os" / "real_run"
+    if real.is_dir() and not refresh:
+        return
+    shutil.rmtree(real, ignore_errors=True)
     out = HERE / "os" / "_runs"
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
     subprocess.run(
@@ -768,7 +780,6 @@ def _real_run_folder() -> None:
         cwd=ROOT,
     )
     (made,) = out.iterdir()
-    real = HERE / "os" / "real_run"
     made.rename(real)
     shutil.rmtree(out)
     for name in ("report.md", "report.html", "figures"):
@@ -781,11 +792,9 @@ def _real_run_folder() -> None:
     state = json.loads((real / "run.json").read_text())
     state = {k: state[k] for k in ("status", "message", "seed", "started_at", "finished_at")}
     _write(real / "run.json", json.dumps(state, indent=2) + "\n")
-    running_empty = HERE / "os" / "running_empty"
-    _write(running_empty / "run.json", json.dumps({"status": "running"}) + "\n")
 
 
-def _hardening_files() -> None:
+def _hardening_files(*, refresh_run: bool = False) -> None:
     mesh = HERE / "mesh"
     for name, data in MESH_FILES.items():
         _write(mesh / name, data)
@@ -815,8 +824,9 @@ def _hardening_files() -> None:
             "package_dirs: [.]", "package_dirs: [pkg/hostile_description]"
         ),
     )
-    _real_run_folder()
+    _real_run_folder(refresh=refresh_run)
     os_dir = HERE / "os"
+    _write(os_dir / "running_empty" / "run.json", json.dumps({"status": "running"}) + "\n")
     # identify: a reference table that is not UTF-8, binary, a folder, malformed
     _write(os_dir / "reference_latin1.csv", "m1 + caf\u00e9,1,2,3,4\n".encode("latin-1"))
     _write(os_dir / "reference_binary.csv", bytes(range(256)) * 4)
@@ -1242,10 +1252,19 @@ def _cause_cases(add) -> None:  # noqa: ANN001 - main's add()
         add(f"repeatability-cause-{name}", ["repeatability", *args], expect={"match": match})
 
 
-def main() -> None:
+def _clear() -> None:
+    """Remove the generated folders (``os/real_run`` stays: see :func:`_real_run_folder`)."""
     subs = ("base", "urdf", "runfolder", "yaml", "run", "identify", "bench", "payload", "mesh")
-    for sub in (*subs, "os", "causes"):
+    for sub in (*subs, "causes", "round3"):
         shutil.rmtree(HERE / sub, ignore_errors=True)
+    for path in (HERE / "os").glob("*"):
+        if path.name != "real_run":
+            shutil.rmtree(path) if path.is_dir() else path.unlink()
+
+
+def main(*, refresh_run: bool = False, logs: bool = True) -> None:
+    """Rewrite the corpus and its manifest (``logs``: also the files of ``logs/``)."""
+    _clear()
     _base_files()
     _urdf_files()
     _run_folders()
@@ -1295,12 +1314,16 @@ def main() -> None:
             args, reason = (spec, "") if isinstance(spec, list) else spec
             add(f"{command}-{name}", [command, *args], xfail=reason)
 
-    cases += _log_cases()
-    _hardening_files()
+    cases += _log_cases(write=logs)
+    _hardening_files(refresh_run=refresh_run)
     _hardening_cases(add)
     _cause_files()
     _cause_cases(add)
+    # hardening, round three: the newer features (round3.py)
+    round3 = runpy.run_path(str(Path(__file__).resolve().parent / "round3.py"))
+    round3["generate"](HERE, globals(), add)
     # the environment is never excluded (the files in safety/ are written by hand)
+    cases.append({"comment": "safety: the environment is never excluded; absurd sizes are refused"})
     for path in sorted((HERE / "safety").glob("*.yaml")):
         add(
             f"run-safety-{path.stem}",
@@ -1313,6 +1336,9 @@ def main() -> None:
         "# isolate: run in a subprocess under memory/CPU limits; xfail: a known gap (why).",
     ]
     for c in cases:
+        if "comment" in c:
+            lines.append(f"# {c['comment']}")
+            continue
         lines.append(f"- id: {c['id']}")
         lines.append(f"  args: {json.dumps(c['args'])}")
         if c.get("isolate"):
@@ -1323,8 +1349,8 @@ def main() -> None:
             if key in c:
                 lines.append(f"  {key}: {json.dumps(c[key])}")
     _write(HERE / "manifest.yaml", "\n".join(lines) + "\n")
-    print(f"{len(cases)} cases")
+    print(f"{sum('id' in c for c in cases)} cases")
 
 
 if __name__ == "__main__":
-    main()
+    main(refresh_run="--refresh-run" in sys.argv[1:])

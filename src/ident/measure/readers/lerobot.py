@@ -124,7 +124,9 @@ def _dataset(path: Path) -> tuple[Path, tuple[Path, ...], Path | None]:
     """(dataset root, parquet files in path order, info.json or None) of ``path``."""
     if path.is_dir():
         info = path / INFO_PATH
-        if not info.is_file():
+        if info.exists():
+            check_regular_file(info)  # a folder or a device named as what it is
+        else:
             raise DataError(
                 f"{path}: not a LeRobot dataset (meta/info.json not found); give the dataset "
                 "folder (meta/ and data/ inside) or one episode .parquet file."

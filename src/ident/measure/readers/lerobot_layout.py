@@ -31,7 +31,8 @@ DATA_PATH = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet"
 
 
 def is_lerobot(path: Path) -> bool:
-    """Detector: a folder with ``meta/info.json``, or a ``.parquet`` file."""
+    """Detector: a folder with ``meta/info.json``, or a ``.parquet`` file (an ``info.json``
+    that is no file still marks a dataset: the reader names what it is)."""
     if path.is_dir():
-        return (path / INFO_PATH).is_file()
+        return (path / INFO_PATH).exists()
     return path.is_file() and path.suffix == ".parquet"

@@ -182,6 +182,8 @@ def detect_format(path: str | Path) -> str:
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: log file not found.")
+    if not path.is_dir():  # a bag or dataset folder is a log; a device or a pipe is none
+        check_regular_file(path)
     for name, entry in READERS.items():
         if entry.detect is not None and entry.detect(path):
             return name

@@ -16,6 +16,7 @@ from __future__ import annotations
 import gzip
 import io
 import json
+import os
 import shutil
 import sqlite3
 import sys
@@ -24,8 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parents[3]
+ROOT = Path(__file__).resolve().parents[4]
+#: the folder written (``IDENT_HOSTILE_DIR``: a copy of the corpus, see ``../generate.py``)
+HERE = Path(os.environ.get("IDENT_HOSTILE_DIR") or Path(__file__).resolve().parents[1]) / "logs"
 URDF = "../base/rp2.urdf"
 JOINTS = ("shoulder", "slider")
 N, RATE = 200, 100.0
@@ -77,7 +79,8 @@ def _files() -> dict[str, dict]:
     logs: dict[str, dict] = {}
 
     logs["dev_zero"] = {**WIDE, "path": "/dev/zero", "format": "csv"}
-    with gzip.open(HERE / "long_line.csv.gz", "wb", compresslevel=9) as f:
+    # mtime=0: the same bytes at every regeneration
+    with gzip.GzipFile(HERE / "long_line.csv.gz", "wb", compresslevel=9, mtime=0) as f:
         f.write(b"t,q1,q2,tau1,tau2\n")
         f.write(b"0" * (8 << 20))  # one 8 MB line, no line break
     logs["csv_gz_long_line"] = {**WIDE, "path": "long_line.csv.gz"}
@@ -139,7 +142,8 @@ def _files() -> dict[str, dict]:
         np.lib.format.write_array_header_1_0(
             buf, {"descr": "<f8", "fortran_order": False, "shape": (100_000_000,)}
         )
-        z.writestr("t.npy", buf.getvalue() + bytes(8 * 1000))
+        member = zipfile.ZipInfo("t.npy", date_time=(1980, 1, 1, 0, 0, 0))  # fixed bytes
+        z.writestr(member, buf.getvalue() + bytes(8 * 1000), zipfile.ZIP_DEFLATED)
     for name in ("empty", "not_zip", "object", "string", "declares_100M"):
         logs[f"npz_{name}"] = {**WIDE, "path": f"{name}.npz"}
 
@@ -228,11 +232,16 @@ def cases() -> list[dict]:
     ]
 
 
-def main() -> None:
+def write() -> None:
+    """Rewrite the files of this folder and their configs."""
     for p in HERE.glob("identify-*.yaml"):
         p.unlink()
     for name, log in _files().items():
         (HERE / f"identify-{name}.yaml").write_text(_config(name, log))
+
+
+def main() -> None:
+    write()
     for c in cases():
         print(f"- id: {c['id']}\n  args: {json.dumps(c['args'])}\n  isolate: true")
 
