@@ -36,11 +36,17 @@ class _ShippedRunsTogether(LoadFileScheduling):
     """pytest-xdist's ``--dist loadfile``, except that the files reading the shipped runs are
     one work unit: one worker runs each shipped config once and its readers one after the
     other, instead of the second worker waiting on the first one's file lock (a full run
-    takes minutes). The units go out largest first (xdist's default reordering)."""
+    takes minutes). That unit goes out first (the suite's longest chain), the others by
+    their number of tests (xdist's default)."""
 
     def _split_scope(self, nodeid: str) -> str:
         path = nodeid.split("::", 1)[0]
         return SHIPPED_RUNS_UNIT if _reads_shipped_runs(path) else path
+
+    def _assign_work_unit(self, node: object) -> None:
+        if SHIPPED_RUNS_UNIT in self.workqueue:
+            self.workqueue.move_to_end(SHIPPED_RUNS_UNIT, last=False)
+        super()._assign_work_unit(node)  # type: ignore[arg-type]
 
 
 @functools.cache
