@@ -190,7 +190,10 @@ def test_long_log_benchmark_short_version():
     import subprocess
     import sys
 
-    args = ["--minutes", "0.1", "--per-sample", "300", "--compare-minutes", "0.1"]
+    # 250 Hz: 1 500 samples per 0.1 min case; the chunked-vs-in-memory comparison on 0.4 min
+    # (6 000 samples: still more than one chunk of 4 096)
+    args = ["--rate", "250", "--minutes", "0.1", "--per-sample", "300"]
+    args += ["--compare-minutes", "0.4"]
     args += ["--mcap-minutes", "0.1", "--csv-minutes", "0.1"]  # MCAP and CSV too, short (the
     # CSV case's default is the hour: 10 minutes of CI)
     proc = subprocess.run(
