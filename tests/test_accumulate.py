@@ -126,9 +126,11 @@ def test_tx40_chunked_equals_in_memory():
     from ident.identify.pipeline.real import identify
 
     cfg = load_identify_config(ROOT / "configs" / "tx40.yaml")
-    cfg = cfg.model_copy(update={"log": cfg.log.model_copy(update={"max_samples": 30000})})
+    # 12 000 samples in 5 chunks (as the constrained case below): the same number of chunk
+    # boundaries as 30 000 in chunks of 6 000, each chunk still longer than the filter margins
+    cfg = cfg.model_copy(update={"log": cfg.log.model_copy(update={"max_samples": 12000})})
     a = identify(cfg)
-    pp = cfg.preprocess.model_copy(update={"chunked": "always", "chunk_samples": 6000})
+    pp = cfg.preprocess.model_copy(update={"chunked": "always", "chunk_samples": 2500})
     b = identify(cfg.model_copy(update={"preprocess": pp}))
     assert any(r["step"] == "chunked accumulation" for r in b.records)
     np.testing.assert_allclose(b.estimate.x, a.estimate.x, rtol=1e-9)
@@ -188,7 +190,10 @@ def test_long_log_benchmark_short_version():
     import subprocess
     import sys
 
-    args = ["--minutes", "0.1", "--per-sample", "300", "--compare-minutes", "0.1"]
+    # 250 Hz: 1 500 samples per 0.1 min case; the chunked-vs-in-memory comparison on 0.4 min
+    # (6 000 samples: still more than one chunk of 4 096)
+    args = ["--rate", "250", "--minutes", "0.1", "--per-sample", "300"]
+    args += ["--compare-minutes", "0.4"]
     args += ["--mcap-minutes", "0.1", "--csv-minutes", "0.1"]  # MCAP and CSV too, short (the
     # CSV case's default is the hour: 10 minutes of CI)
     proc = subprocess.run(
