@@ -68,8 +68,9 @@ def _run_from_repository_root(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.fixture(scope="session")
 def shipped_run(tmp_path_factory: pytest.TempPathFactory):
-    """``shipped_run(name)``: the folder of ``ident run configs/<name>.yaml --no-replay`` (exit
-    0 asserted), run once per test session and shared by the tests that inspect it.
+    """``shipped_run(name, exit_code=0)``: the folder of ``ident run configs/<name>.yaml
+    --no-replay`` (its exit code asserted), run once per test session and shared by the tests
+    that inspect it.
 
     Under pytest-xdist the workers share it too: the first worker that needs a config runs it
     in the session's common temporary folder under a file lock, the others wait and reuse it
@@ -83,7 +84,7 @@ def shipped_run(tmp_path_factory: pytest.TempPathFactory):
     # a worker's folder is <session>/popen-gwN: the session's is shared by the workers
     shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
 
-    def run(name: str) -> Path:
+    def run(name: str, exit_code: int = 0) -> Path:
         out = shared / f"shipped-{name}"
         with open(shared / f"shipped-{name}.lock", "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
@@ -93,8 +94,10 @@ def shipped_run(tmp_path_factory: pytest.TempPathFactory):
                 result = CliRunner().invoke(
                     app, ["run", str(config), "--out", str(out), "--no-replay"]
                 )
-                assert result.exit_code == 0, result.output
-                (out / "done").write_text("")
+                assert result.exit_code == exit_code, result.output
+                (out / "done").write_text(str(result.exit_code))
+        # the exit code every caller expects (1: the run warns, e.g. the paper's arm is unsafe)
+        assert (out / "done").read_text() == str(exit_code)
         (folder,) = [p for p in out.iterdir() if p.is_dir()]
         return folder
 

@@ -1,8 +1,8 @@
 """Reports in a real headless Chromium at 1400x900: the headline block is on the first screen,
 no table cell is clipped, no word in a table is broken across lines, every figure is shown at
-100 % inside the window, and relative measures are in percent, for a run (wrist), the paper's
-wrist config (its summary's "Paper's box" row), a run with a joint-space Fourier excitation
-(arm stage), a URDF robot measured by MuJoCo (UR5) and an identification (TX40 log)."""
+100 % inside the window, and relative measures are in percent, for a run (quick wrist), the
+paper's wrist config (its summary's "Paper's box" row), a run with a joint-space Fourier
+excitation (arm stage), a URDF robot measured by MuJoCo (UR5) and an identification (TX40 log)."""
 
 from __future__ import annotations
 
@@ -25,18 +25,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "tests" / "data" / "run" / "quick-wrist.yaml"
-QUICK_UR5 = ROOT / "tests" / "data" / "run" / "quick-ur5-mujoco.yaml"
 KINDS = ["wrist", "wrist-paper", "arm-fourier", "ur5-mujoco", "identify"]
-
-
-def _arm_fourier(tmp_path: Path) -> Path:
-    """The quick wrist config on the arm stage (joint Fourier): a few seconds."""
-    text = QUICK.read_text().replace(
-        "robot: ../../../configs/paper6r.yaml", f"robot: {ROOT / 'configs' / 'paper6r.yaml'}"
-    )
-    path = tmp_path / "quick-arm.yaml"
-    path.write_text(text.replace("stage: wrist", "stage: arm"))
-    return path
 
 
 def _only(folder: Path) -> Path:
@@ -45,21 +34,29 @@ def _only(folder: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def reports(tmp_path_factory) -> dict[str, Path]:
+def reports(tmp_path_factory, shipped_run) -> dict[str, Path]:
+    """The report of each kind: the paper's wrist config, the arm's joint-space Fourier config
+    and the MuJoCo-measured UR5 are the session's shared runs of the shipped configs
+    (``configs/wrist.yaml``, ``arm-fourier.yaml``, ``ur5.yaml``: full settings, more elites
+    in the tables than their quick versions); the quick wrist run and the identification are
+    run here."""
     runner = CliRunner()
     out: dict[str, Path] = {}
     base = tmp_path_factory.mktemp("reports")
     for kind, args in (
         ("wrist", ["run", str(QUICK), "--no-replay"]),
-        ("wrist-paper", ["run", str(ROOT / "configs" / "wrist.yaml"), "--quick", "--no-replay"]),
-        ("arm-fourier", ["run", str(_arm_fourier(base)), "--no-replay"]),
-        ("ur5-mujoco", ["run", str(QUICK_UR5), "--no-replay"]),
         ("identify", ["identify", str(ROOT / "configs" / "tx40.yaml"), "--no-replay"]),
     ):
         folder = base / kind
         result = runner.invoke(app, [*args, "--out", str(folder)])
         assert result.exit_code in (0, 1), result.output
         out[kind] = _only(folder) / "report.html"
+    for kind, name in (
+        ("wrist-paper", "wrist"),
+        ("arm-fourier", "arm-fourier"),
+        ("ur5-mujoco", "ur5"),
+    ):
+        out[kind] = shipped_run(name) / "report.html"
     yield out
     shutil.rmtree(base, ignore_errors=True)
 
