@@ -48,12 +48,16 @@ def _expand(args: list[str], tmp: Path) -> list[str]:
 
 def _tree(folder: Path) -> dict[str, tuple[int, int]]:
     """Relative path -> (size, mtime_ns) of every file and folder under ``folder``."""
+    # walked before and after each of some 700 cases: plain strings, not Path objects (40 ms
+    # a walk of the corpus's 900 entries with them, 57 s of the suite's CPU)
     out = {}
-    for dirpath, dirnames, filenames in os.walk(folder):
+    root = str(folder)
+    start = len(root) + 1
+    for dirpath, dirnames, filenames in os.walk(root):
         for name in dirnames + filenames:
-            p = Path(dirpath) / name
-            st = p.lstat()
-            out[str(p.relative_to(folder))] = (st.st_size, st.st_mtime_ns)
+            path = os.path.join(dirpath, name)
+            st = os.lstat(path)
+            out[path[start:]] = (st.st_size, st.st_mtime_ns)
     return out
 
 
