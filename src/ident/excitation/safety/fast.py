@@ -235,7 +235,7 @@ class FastClearances:
         the margin ``clearance_m`` [m] (:meth:`_refine` makes it exact); ``finite`` (n,): the
         postures without NaN (the others are measured at 0).
         """
-        from ident.excitation.safety.primitives import joint_frames, primitive_distances
+        from ident.excitation.safety.primitives import primitive_distances
 
         n = q.shape[0]
         finite = np.all(np.isfinite(q), axis=1)
@@ -243,10 +243,9 @@ class FastClearances:
         distances = np.empty((n, len(self.geometry_model.collisionPairs)))
         need = np.zeros(distances.shape, dtype=bool)
         joint, centre, axis, half, radius, cylinder = self._seg
+        slow = list(self._slow_pairs)
+        frames = self._joint_frames(q)
         if joint.size:
-            q_bodies = self._chain.body_positions(q)
-            frames = joint_frames(self._placements, self._axes, self._prismatic, q_bodies)
-            frames = np.concatenate([np.broadcast_to(np.eye(4), (n, 1, 4, 4)), frames], axis=1)
             primitive_distances(
                 frames, joint, centre, axis, half, radius, cylinder, self._seg_pairs,
                 self._plane_pairs, self._plane_normals, self._plane_offsets, distances,
@@ -258,10 +257,19 @@ class FastClearances:
                 need[:, p] = (cylinder[i] | cylinder[k])[None, :] & (distances[:, p] < clearance_m)
                 if need.any():
                     self._inner_capsules(frames, p, need, distances)
-        slow = list(self._slow_pairs)
         if slow:
-            self._coal_bounds(q, slow, need, distances, clearance_m)
+            self._coal_bounds(q, frames, slow, need, distances, clearance_m)
         return q, distances, need, finite
+
+    def _joint_frames(self, q: FloatArray) -> FloatArray:
+        """Every joint's placement at the postures ``q`` (n, nq), the base's (identity) first:
+        shape (n, n_joints + 1, 4, 4)."""
+        from ident.excitation.safety.primitives import joint_frames
+
+        n = q.shape[0]
+        q_bodies = self._chain.body_positions(q)
+        frames = joint_frames(self._placements, self._axes, self._prismatic, q_bodies)
+        return np.concatenate([np.broadcast_to(np.eye(4), (n, 1, 4, 4)), frames], axis=1)
 
     def _inner_capsules(
         self,
@@ -301,19 +309,21 @@ class FastClearances:
     def _coal_bounds(
         self,
         q: FloatArray,
+        frames: FloatArray,
         slow: list[int],
         need: npt.NDArray[np.bool_],
         distances: FloatArray,
         clearance_m: float,
     ) -> None:
         """Measure the ``slow`` geometry pairs (coal, meshes as hulls) at the postures ``q``
-        into ``distances`` (n, n_geometry_pairs) [m], and mark in ``need`` the poor-hull mesh
-        pairs within the margin ``clearance_m`` [m] (in place)."""
+        (joint placements ``frames``, :meth:`_joint_frames`) into ``distances``
+        (n, n_geometry_pairs) [m], and mark in ``need`` the poor-hull mesh pairs within the
+        margin ``clearance_m`` [m] (in place)."""
         geom = self.geometry_model
         data, gdata = self.model.createData(), _geometry_data(geom)
         slow_pairs = np.asarray(slow, dtype=int)
         far = max(clearance_m, EXACT_WITHIN_M)
-        spheres = self._sphere_bounds(q, slow_pairs)
+        spheres = self._sphere_bounds(frames)
         distances[:, slow_pairs] = spheres
         for s in range(q.shape[0]):  # coal: one posture at a time, the near pairs only
             near = slow_pairs[spheres[s] < far]
@@ -324,19 +334,12 @@ class FastClearances:
         poor = np.flatnonzero(self._hull_proxy_poor)
         need[:, poor] = distances[:, poor] < clearance_m
 
-    def _sphere_bounds(self, q: FloatArray, slow: npt.NDArray[np.int_]) -> FloatArray:
-        """Lower bounds [m] of the ``slow`` pairs' distances at the postures ``q`` (n, nq):
-        the distance of their bounding spheres (of a sphere to a half-space), shape
-        (n, len(slow)); ``-inf`` where a pair has no sphere bound."""
-        from ident.excitation.safety.primitives import joint_frames
-
+    def _sphere_bounds(self, frames: FloatArray) -> FloatArray:
+        """Lower bounds [m] of the coal pairs' distances (``_slow_pairs``) at the postures of
+        the joint placements ``frames`` (:meth:`_joint_frames`): the distance of their
+        bounding spheres (of a sphere to a half-space), shape (n, n_slow_pairs); ``-inf``
+        where a pair has no sphere bound."""
         joint, centre, radius, normal, offset = self._slow_spheres
-        if not len(slow):
-            return np.zeros((q.shape[0], 0))
-        frames = joint_frames(
-            self._placements, self._axes, self._prismatic, self._chain.body_positions(q)
-        )
-        frames = np.concatenate([np.broadcast_to(np.eye(4), (q.shape[0], 1, 4, 4)), frames], 1)
         # world centres (n, n_pairs, 2, 3) and normals of the pairs' two objects
         placed = frames[:, joint]  # (n, n_pairs, 2, 4, 4)
         rotation, translation = placed[..., :3, :3], placed[..., :3, 3]
