@@ -215,3 +215,31 @@ def test_a_thin_plate_crossed_between_two_samples_is_caught() -> None:
     assert min(c.value for c in plate_checks) >= safety.clearance_m  # the samples are clear
     assert any(not c.ok for c in plate_checks)  # the certificate is not
     assert min(c.between for c in plate_checks) < 0.0
+
+
+def test_advancement_skips_only_what_keeps_the_limit_and_keeps_each_minimum_exact(
+    ur5_setup,
+) -> None:
+    """Conservative advancement (``clearances`` with ``travel``) against the exact distance at
+    every sample, on 0.25 s of the UR5 trajectory that comes into contact: no value above the
+    exact one, every value below the limit exact, each pair's smallest value exact, and the
+    same check verdict as without advancement."""
+    from ident.excitation.check import step_displacements
+
+    safety = ur5_setup.safety
+    traj = _ur5_seed0(ur5_setup)
+    window = (traj.t >= 3.75) & (traj.t < 4.0)
+    t, q, dq, ddq = (a[window] for a in (traj.t, traj.q, traj.dq, traj.ddq))
+    step = step_displacements(safety, t, dq, ddq)
+    travel = np.vstack([np.zeros((1, safety.n_pairs)), np.cumsum(step, axis=0)])
+    within = np.full((t.size, safety.n_pairs), safety.clearance_m + 0.02)
+    advanced = safety.clearances(q, within=within, travel=travel)
+    exact = safety.clearances(q)
+    assert np.all(advanced <= exact + 1e-6)  # GJK's tolerance: the bound is from another sample
+    below = exact < within
+    assert below.any()
+    assert (~below).any()
+    np.testing.assert_array_equal(advanced[below], exact[below])
+    np.testing.assert_array_equal(advanced.min(axis=0), exact.min(axis=0))
+    # the bound is used: some values above the limit are bounds, not the exact distance
+    assert np.any(advanced[~below] < exact[~below])

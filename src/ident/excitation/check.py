@@ -315,7 +315,9 @@ def certified_clearances(
     :data:`SUBDIVISIONS` (positions from the cubic Hermite interpolant of ``q`` and ``dq``,
     whose error, ``dt^4 / 384`` times the largest fourth derivative of ``q``, is below 1e-9
     rad at 1 kHz for the excitations here) and bounded again with ``D_k / SUBDIVISIONS``. The
-    exact (mesh) distance is computed wherever the hulls are within ``margin + 2 D + 1 mm``.
+    exact (mesh) distance is computed wherever the hulls are within ``margin + 2 D + 1 mm``,
+    except where the last exact value less the ``D`` summed since keeps that much
+    (conservative advancement, :meth:`SafetyModel.clearances` with ``travel``).
 
     Returns
     -------
@@ -336,7 +338,8 @@ def certified_clearances(
     near[:-1] = step
     near[1:] = np.maximum(near[1:], step)
     margin = safety.clearance_m
-    clearance = safety.clearances(q, within=margin + 2.0 * near + 1e-3)
+    travel = np.vstack([np.zeros((1, n_pairs)), np.cumsum(step, axis=0)])
+    clearance = safety.clearances(q, within=margin + 2.0 * near + 1e-3, travel=travel)
     bound = 0.5 * (clearance[:-1] + clearance[1:] - step)
     weak = (bound < margin) & (clearance[:-1] >= margin) & (clearance[1:] >= margin)
     for k in np.flatnonzero(weak.any(axis=1)):

@@ -9,6 +9,7 @@ term, when the model is built.
 
 from __future__ import annotations
 
+import bisect
 import time
 from collections.abc import Sequence
 
@@ -28,7 +29,10 @@ __all__: list[str] = []  # the package's own steps, imported by name
 
 
 def _clearances(
-    checked: CheckedPairs, q: npt.ArrayLike, within: npt.ArrayLike | None = None
+    checked: CheckedPairs,
+    q: npt.ArrayLike,
+    within: npt.ArrayLike | None = None,
+    travel: npt.ArrayLike | None = None,
 ) -> FloatArray:
     """:meth:`ident.excitation.safety.SafetyModel.clearances` of the ``checked`` pairs [m],
     shape (n_samples, n_pairs)."""
@@ -41,41 +45,142 @@ def _clearances(
     distances = _distances(checked.model, checked.hulls, q)
     mesh = checked.mesh
     if mesh.any():
+        gdata = _geometry_data(checked.exact)
         if within is None:
-            need = np.broadcast_to(mesh, distances.shape).copy()
+            for s in range(q.shape[0]):
+                _exact_into(checked, q[s], np.flatnonzero(mesh).tolist(), gdata, distances[s])
         else:
             limit = np.asarray(within, dtype=float)[:, checked.group]
             need = mesh[None, :] & (distances < limit)
-        gdata = _geometry_data(checked.exact)
-        for s in np.flatnonzero(need.any(axis=1)):
-            _exact_into(checked, q[s], np.flatnonzero(need[s]).tolist(), gdata, distances[s])
-        if within is not None:  # each pair's smallest value exact
-            _exact_smallest(checked, q, distances, need, gdata)
+            moved = None if travel is None else np.asarray(travel, dtype=float)[:, checked.group]
+            exact = _exact_needed(checked, q, distances, need, limit, moved, gdata)
+            _exact_smallest(checked, q, distances, exact, moved, gdata)
     out = checked.pair_minimum(distances)
     out[~finite] = -np.inf
     return out
+
+
+def _exact_needed(
+    checked: CheckedPairs,
+    q: FloatArray,
+    distances: FloatArray,
+    need: npt.NDArray[np.bool_],
+    limit: FloatArray,
+    travel: FloatArray | None,
+    gdata: pin.GeometryData,
+) -> npt.NDArray[np.bool_]:
+    """Where ``need`` (n_samples, n_geometry_pairs) marks a hull distance below ``limit`` [m],
+    a value of ``distances`` [m] that is exact or at least ``limit``, in place; returns where
+    the values are exact.
+
+    Without ``travel`` every needed value is measured. With it (a nondecreasing bound of each
+    pair's relative motion from the first sample [m], same shape), conservative advancement:
+    a distance changes no faster than its bodies move, so a pair measured ``e`` at sample
+    ``r`` is at least ``e - (travel[s] - travel[r])`` at a later sample ``s``; where that
+    bound keeps ``limit`` the sample is skipped and the bound (a better lower bound than the
+    hulls') stands in.
+    """
+    if travel is None:
+        for s in np.flatnonzero(need.any(axis=1)):
+            _exact_into(checked, q[s], np.flatnonzero(need[s]).tolist(), gdata, distances[s])
+        return need
+    exact = np.zeros_like(need)
+    last = np.full(need.shape[1], -np.inf)  # each pair's last exact distance [m]
+    since = np.zeros(need.shape[1])  # the travel at that sample [m]
+    for s in np.flatnonzero(need.any(axis=1)):
+        bound = last - (travel[s] - since)
+        skip = need[s] & (bound >= limit[s])
+        distances[s, skip] = np.maximum(distances[s, skip], bound[skip])
+        measured = np.flatnonzero(need[s] & ~skip)
+        if measured.size:
+            _exact_into(checked, q[s], measured.tolist(), gdata, distances[s])
+            last[measured] = distances[s, measured]
+            since[measured] = travel[s, measured]
+            exact[s, measured] = True
+    return exact
 
 
 def _exact_smallest(
     checked: CheckedPairs,
     q: FloatArray,
     distances: FloatArray,
-    need: npt.NDArray[np.bool_],
+    exact: npt.NDArray[np.bool_],
+    travel: FloatArray | None,
     gdata: pin.GeometryData,
 ) -> None:
     """Make each mesh pair's smallest value of ``distances`` (n_samples, n_geometry_pairs)
-    [m] exact, in place: ``need`` marks the values already exact; the others (the hulls'
-    distances, lower bounds) are measured in increasing order until one is not below the
-    smallest distance found."""
+    [m] exact, in place: ``exact`` marks the values already exact, the others are lower
+    bounds, measured in increasing order until one is not below the smallest exact distance
+    found. With ``travel`` (see :func:`_exact_needed`), :func:`_smallest_by_travel`."""
     for p in np.flatnonzero(checked.mesh):
-        known = need[:, p]
+        if travel is not None:
+            _smallest_by_travel(checked, q, distances, exact[:, p], travel[:, p], int(p), gdata)
+            continue
+        known = exact[:, p]
         best = distances[known, p].min() if known.any() else np.inf
         rest = np.flatnonzero(~known)
         for s in rest[np.argsort(distances[rest, p], kind="stable")]:
-            if distances[s, p] >= best:  # hulls in increasing order: done
+            if distances[s, p] >= best:  # lower bounds in increasing order: done
                 break
             _exact_into(checked, q[s], [int(p)], gdata, distances[s])
             best = min(best, distances[s, p])
+
+
+def _smallest_by_travel(
+    checked: CheckedPairs,
+    q: FloatArray,
+    distances: FloatArray,
+    exact: npt.NDArray[np.bool_],
+    travel: FloatArray,
+    p: int,
+    gdata: pin.GeometryData,
+) -> None:
+    """Geometry pair ``p``'s smallest value of ``distances`` made exact, in place. The
+    values are visited in increasing order, as without travel, but a sample is measured
+    only if its value is below the smallest exact distance found and so is its bound from
+    the nearest exact samples before and after it, less the ``travel`` (n_samples,) [m]
+    between (a distance changes no faster than its bodies move). At the end the unmeasured
+    values are raised to those bounds (:func:`_lower_bounds`; still lower bounds), so that
+    none is below the exact smallest."""
+    column = distances[:, p]  # a view: _exact_into writes through it
+    known = exact.copy()
+    measured = np.flatnonzero(known).tolist()  # sorted
+    best = column[known].min() if known.any() else np.inf
+    rest = np.flatnonzero(~known)
+    for s in rest[np.argsort(column[rest], kind="stable")].tolist():
+        if column[s] >= best:  # values in increasing order: done
+            break
+        i = bisect.bisect(measured, s)
+        if i > 0 and column[measured[i - 1]] - (travel[s] - travel[measured[i - 1]]) >= best:
+            continue
+        if i < len(measured) and column[measured[i]] - (travel[measured[i]] - travel[s]) >= best:
+            continue
+        _exact_into(checked, q[s], [p], gdata, distances[s])
+        measured.insert(i, s)
+        known[s] = True
+        best = min(best, column[s])
+    lower = _lower_bounds(column, known, travel)
+    column[~known] = lower[~known]
+
+
+def _lower_bounds(
+    column: FloatArray, known: npt.NDArray[np.bool_], travel: FloatArray
+) -> FloatArray:
+    """Lower bounds of one pair's distances (n_samples,) [m] at the samples not ``known``
+    (``inf`` at the known ones): the value itself, and the nearest exact values before and
+    after less the ``travel`` [m] between (a distance changes no faster than its bodies
+    move)."""
+    if not known.any():
+        return np.where(known, np.inf, column)
+    measured = np.flatnonzero(known)
+    samples = np.arange(column.size)
+    # a sample before the first (after the last) exact one takes that one's bound twice
+    before = measured[np.maximum(np.searchsorted(measured, samples, "right") - 1, 0)]
+    after = measured[np.minimum(np.searchsorted(measured, samples), measured.size - 1)]
+    from_before = column[before] - np.abs(travel - travel[before])
+    from_after = column[after] - np.abs(travel[after] - travel)
+    lower = np.maximum(column, np.maximum(from_before, from_after))
+    return np.where(known, np.inf, lower)
 
 
 def _pair_clearances(checked: CheckedPairs, q: npt.ArrayLike, columns: Sequence[int]) -> FloatArray:

@@ -330,7 +330,12 @@ class SafetyModel:
         """Number of checked link pairs."""
         return len(self.pair_names)
 
-    def clearances(self, q: npt.ArrayLike, within: npt.ArrayLike | None = None) -> FloatArray:
+    def clearances(
+        self,
+        q: npt.ArrayLike,
+        within: npt.ArrayLike | None = None,
+        travel: npt.ArrayLike | None = None,
+    ) -> FloatArray:
         """Signed distance of every checked link pair on the exact geometry [m].
 
         Meshes are measured as they are (coal BVH), primitives as primitives. Where two meshes
@@ -346,6 +351,13 @@ class SafetyModel:
             hull contains its mesh) stands in, except that each pair's smallest value is made
             exact (the postures are measured in increasing order of their hulls' distance
             until it exceeds the smallest exact distance found). Default: exact everywhere.
+        travel :
+            Optional with ``within``, shape (n_samples, n_pairs) [m], nondecreasing: a bound of
+            each pair's relative motion since the first sample (the pair's bodies move apart
+            or together by at most ``travel[s] - travel[r]`` between samples ``r < s``). Then
+            a sample whose exact distance provably stays above ``within`` (the last exact
+            value less the travel since) is not measured either (conservative advancement),
+            and each pair's smallest value is found with those bounds.
 
         Returns
         -------
@@ -353,7 +365,7 @@ class SafetyModel:
             Shape (n_samples, n_pairs), columns named by :attr:`pair_names`; never more than
             the exact distance.
         """
-        return _clearances(self._checked, q, within)
+        return _clearances(self._checked, q, within, travel)
 
     def pair_clearances(self, q: npt.ArrayLike, columns: Sequence[int]) -> FloatArray:
         """Exact clearances of some link pairs only [m], shape (n_samples, len(columns)).
