@@ -13,7 +13,7 @@ robot: the held-out rollout objective ``J`` of the truth, of the regressor's MJC
 refined one and of the written MJCF reloaded (the file carries what was scored), the refined
 one's distance to the truth's [%], the held-out torque errors before and after, whether the
 refinement was accepted, its training / held-out windows, iterations and CPU seconds (and the
-estimate).
+estimate); a NOTE when the held-out motion leaves a joint's range (:func:`outside_range`).
 
     python benchmarks/bench_refine.py [--robots ur5 panda] [--seed 0] [--amplitude 0.8]
 """
@@ -28,6 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import mujoco
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -114,8 +115,33 @@ def bench(name: str, folder: Path, seed: int, amplitude: float, refinement: dict
     )
     entry = refinement_entry(result, folder, model, rollout)
     # the written MJCF reloaded, on the same (offset-free) held-out windows
-    written = rollout_score(folder / model["files"]["mjcf"], *held_out_windows(result)).objective
-    return {"entry": entry, "rollout": rollout, "t_sim": t_sim, "written_objective": written}
+    held = held_out_windows(result)
+    written = rollout_score(folder / model["files"]["mjcf"], *held).objective
+    return {
+        "entry": entry,
+        "rollout": rollout,
+        "t_sim": t_sim,
+        "written_objective": written,
+        "outside_range": outside_range(folder / model["files"]["mjcf"], held[0]),
+    }
+
+
+def outside_range(mjcf: Path, measurements) -> dict[str, float]:
+    """The joints whose held-out positions leave the MJCF's ``range`` and by how much [rad or
+    m]: there MuJoCo's limit constraint acts in every rollout (the truth's too), while the
+    simulator that wrote the log did not stop the joint, so those windows' ``J`` is large."""
+    model = mujoco.MjModel.from_xml_path(str(mjcf))
+    out = {}
+    for j, name in enumerate(measurements.joint_names):
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if not model.jnt_limited[i]:
+            continue
+        low, high = model.jnt_range[i]
+        q = measurements.q[:, j]
+        excess = max(float(low - q.min()), float(q.max() - high))
+        if excess > 0.0:
+            out[name] = excess
+    return out
 
 
 def _simulate(run_path: Path, run: dict, measurement: dict, seed: int, amplitude: float):
@@ -177,6 +203,9 @@ def main() -> None:
             flush=True,
         )
         print(f"  {refinement_text(e)}", flush=True)
+        if got["outside_range"]:
+            where = ", ".join(f"{k} by {v:.3g}" for k, v in got["outside_range"].items())
+            print(f"  NOTE: the held-out motion leaves the joint range of {where}", flush=True)
     if args.json is not None:
         args.json.write_text(json.dumps(out, indent=2, default=float))
 
