@@ -171,12 +171,13 @@ def test_bad_refinement_exits_2_before_any_folder(tmp_path):
 def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_path):
     """``ident identify`` with ``refinement: rollout`` on the rp2 log: result.json's entry,
     the report's row and the terminal line are one text; accepted, the MJCF's joints carry the
-    entry's refined values and the URDF is the regressor's."""
+    entry's refined values and the URDF is the regressor's. By default the training windows
+    are every window of the identification part (8.4 s: 16 of 0.5 s), not a subset."""
     from ident.cli import app
 
     path = rp2_identify_config(tmp_path)
     cfg = yaml.safe_load(path.read_text())
-    refinement = {"method": "rollout", "max_windows": 4, "max_iterations": 3}
+    refinement = {"method": "rollout", "max_iterations": 3}
     path.write_text(yaml.safe_dump({**cfg, "refinement": refinement}))
     out = tmp_path / "runs"
     result = CliRunner().invoke(app, ["identify", str(path), "--out", str(out), "--no-replay"])
@@ -188,7 +189,8 @@ def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_p
     assert text in result.output
     assert f"| MJCF refinement | {text} |" in (folder / "report.md").read_text()
     assert "refinement on rollouts: at most 3 iterations of 7 rollouts" in result.output
-    assert entry["train_windows"] <= 4
+    assert entry["max_windows"] == 64
+    assert entry["train_windows"] == 16
     assert entry["held_out_windows"] == data["rollout"]["windows"]
     assert entry["objective_before"] == pytest.approx(data["rollout"]["objective"], rel=1e-9)
     mjcf = mujoco.MjModel.from_xml_path(str(folder / data["model"]["files"]["mjcf"]))
@@ -244,3 +246,29 @@ def test_refined_values_rewrite_only_the_mjcf_joints(tmp_path):
     np.testing.assert_array_equal(joint_values(after, NAMES), refined)
     np.testing.assert_array_equal(after.body_mass, before.body_mass)
     np.testing.assert_array_equal(after.body_inertia, before.body_inertia)
+
+
+def test_a_refined_copy_simulates_as_its_written_mjcf_reloaded(planted, tmp_path):
+    """The rollouts the refinement scores are those of the file it writes: values set on a
+    copy (armature 3x, so the friction-loss constraint's ``invweight0`` changes) roll out as
+    the MJCF rewritten with them and compiled by MuJoCo; without recomputing the compiler's
+    constants ``invweight0`` is off by a factor of 8 and a window's score by 8e-4."""
+    from ident.identify.model_files.mjcf import with_joint_values
+    from ident.identify.refinement.rollout_refinement import MJCF_ATTRIBUTES
+
+    truth, measured = planted
+    urdf = tmp_path / "planar2.urdf"
+    urdf.write_text(ARM)
+    text = reference_mjcf(Robot.from_urdf(urdf), None)
+    start = mujoco.MjModel.from_xml_string(text)
+    start.opt.timestep = 1.0 / RATE
+    refined = TRUTH * np.array([[1.0], [1.0], [3.0]])
+    values = {
+        name: {MJCF_ATTRIBUTES[k]: refined[i, j] for i, k in enumerate(("fs", "fv", "Ia"))}
+        for j, name in enumerate(NAMES)
+    }
+    reloaded = mujoco.MjModel.from_xml_string(with_joint_values(text, values))
+    copied = with_values(start, NAMES, refined)
+    np.testing.assert_allclose(copied.dof_invweight0, reloaded.dof_invweight0, rtol=1e-12)
+    score = rollout_score(copied, measured, HELD).per_window
+    np.testing.assert_allclose(score, rollout_score(reloaded, measured, HELD).per_window, rtol=1e-9)

@@ -402,11 +402,15 @@ class RefinementConfig(StrictModel):
     ``refinement: rollout`` is ``{method: rollout}``. ``none`` (the default) writes the
     regressor's values only. The CPU is bounded by ``max_windows`` training windows of 0.5 s
     and ``max_iterations`` iterations (trust-region Gauss-Newton), each ``3 n + 1`` rollouts
-    of the windows (``n`` joints).
+    of the windows (``n`` joints). By default every window of the identification part, up to
+    64 (the held-out check's cap): the training objective averages the log's noise over its
+    windows, and with fewer its optimum strays from the held-out one by more than the
+    regressor's own error (measured: 12 of the Panda's 40 windows left its refined model
+    7.7 % above the truth's held-out rollout error, all 40 reach 4.4 %).
     """
 
     method: Literal["none", "rollout"] = "none"
-    max_windows: int = Field(default=12, ge=1, le=64)
+    max_windows: int = Field(default=64, ge=1, le=64)
     max_iterations: int = Field(default=8, ge=1, le=50)
     #: Weight of the prior term, relative to the training objective at the start.
     prior_weight: float = Field(default=0.01, ge=0.0, le=1e6)

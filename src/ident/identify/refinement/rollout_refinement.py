@@ -146,9 +146,13 @@ def joint_values(model: mujoco.MjModel, joint_names: Sequence[str]) -> FloatArra
 
 
 def with_values(model: mujoco.MjModel, joint_names: Sequence[str], x: FloatArray) -> Any:
-    """A copy of ``model`` with the named joints' values ``x`` (3, nv) [SI] set."""
+    """A copy of ``model`` with the named joints' values ``x`` (3, nv) [SI] set, and the
+    constants MuJoCo's compiler derives from them recomputed (``mj_setConst``: the dofs'
+    ``invweight0``, which sets the friction-loss constraint's softness, includes the armature),
+    so the copy simulates as the MJCF file carrying ``x`` does once reloaded."""
     out = copy.copy(model)
     set_joint_parameters(_robot(out, joint_names), dict(zip(KINDS, np.asarray(x), strict=True)))
+    mujoco.mj_setConst(out, mujoco.MjData(out))
     return out
 
 
