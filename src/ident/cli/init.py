@@ -39,12 +39,15 @@ def init(
         Path | None,
         typer.Option("--log", help="With --servo: the LeRobot dataset folder to identify."),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Replace an existing --output file.")
+    ] = False,
 ) -> None:
     """Write a run config for the robot of URDF (chain, limits, safety, a simulated
     measurement, a budget; every guess marked), to run with 'ident run CONFIG'; with
     --servo, an identify config for its position servos and a LeRobot dataset."""
     if servo or log is not None:
-        _init_servo(urdf, output, servo, log)
+        _init_servo(urdf, output, servo, log, force)
         return
     with user_errors():
         from ident.cli.verify import parse_locks
@@ -52,7 +55,7 @@ def init(
         from ident.inputs import check_output_file
         from ident.run.init_config import init_config
 
-        check_output_file(output, "--output")
+        check_output_file(output, "--output", force_flag=None if force else "--force")
         with _InitProgress() as display:
             result = init_config(
                 urdf,
@@ -74,7 +77,7 @@ def init(
     )
 
 
-def _init_servo(urdf: Path, output: Path, servo: bool, log: Path | None) -> None:
+def _init_servo(urdf: Path, output: Path, servo: bool, log: Path | None, force: bool) -> None:
     """``ident init URDF --servo [--log DATASET]``: the identify config of
     :mod:`ident.run.init_servo`, checked, then written."""
     with user_errors():
@@ -85,7 +88,7 @@ def _init_servo(urdf: Path, output: Path, servo: bool, log: Path | None) -> None
 
         if not servo:
             raise ConfigError("--log is the dataset of --servo; add --servo, or remove --log.")
-        check_output_file(output, "--output")
+        check_output_file(output, "--output", force_flag=None if force else "--force")
         result = init_servo_config(urdf, output, log)
         atomic_write_text(output, result.text)
     for note in result.notes:
