@@ -169,7 +169,8 @@ def test_init_refuses_an_existing_output_unless_force(tmp_path, servo):
     res = CliRunner().invoke(app, ["init", str(RP2_URDF), *servo, "-o", str(out)])
     assert res.exit_code == 2
     (line,) = [s for s in res.output.splitlines() if s.strip()]
-    assert line.startswith(f"error: --output {out}: exists") and "--force" in line
+    assert line.startswith(f"error: --output {out}: exists")
+    assert "--force" in line
     assert out.read_text() == "# my edited config\n"  # untouched
     if servo:  # the servo config is written in milliseconds: --force replaces the file
         res = CliRunner().invoke(app, ["init", str(RP2_URDF), *servo, "-o", str(out), "--force"])

@@ -161,7 +161,8 @@ def test_logs_inspect_topic_reads_a_dataset_feature_and_is_refused_where_none(tm
         result = CliRunner().invoke(app, ["logs", "inspect", *args])
         assert result.exit_code == 2, result.output
         (line,) = result.output.splitlines()
-        assert line.startswith("error: ") and part in line, line
+        assert line.startswith("error: "), line
+        assert part in line, line
 
 
 def _rp2_case(tmp_path, name: str) -> tuple[str, list[str]]:

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ident.cli._common import user_errors
+from ident.cli._common import PackageDirOption, check_package_dirs, user_errors
 
 __all__ = ["init", "register"]
 
@@ -30,10 +30,7 @@ def init(
         list[str] | None,
         typer.Option("--lock", help="Hold a joint fixed: NAME or NAME=VALUE [rad or m]."),
     ] = None,
-    package_dir: Annotated[
-        list[Path] | None,
-        typer.Option("--package-dir", help="Folder holding the package:// mesh packages."),
-    ] = None,
+    package_dir: PackageDirOption = None,
     servo: Annotated[bool, typer.Option("--servo", help=_SERVO_HELP)] = False,
     log: Annotated[
         Path | None,
@@ -63,7 +60,7 @@ def init(
                 base_link=base_link,
                 tip_link=tip_link,
                 lock=parse_locks(lock or []),
-                package_dirs=list(package_dir or []),
+                package_dirs=check_package_dirs(package_dir),
                 progress=display.step,
             )
         atomic_write_text(output, result.text)

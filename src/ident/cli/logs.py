@@ -35,6 +35,7 @@ _PATTERNS = {
 _CURRENT = re.compile(_WORD.format("cur|current|curr|amp|amps|i|ia|ma"))
 _TIME = re.compile(_WORD.format("t|time|stamp|timestamp|sec|secs|seconds"))
 _TOPIC_FORMATS = ("rosbag", "mcap", "lerobot")  # the readers that honour --topic
+_TOPIC_HELP = "ROS topic, or LeRobot dataset feature, to read (repeatable; default all)."
 # unit hints in a name, e.g. ``pos_deg``, ``q[0] (rad)``, ``time[ms]``, ``cur_mA``
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _UNIT_HINTS = {
@@ -163,12 +164,7 @@ def inspect(
     format: Annotated[
         str | None, typer.Option("--format", help="Reader name (default: detected).")
     ] = None,
-    topic: Annotated[
-        list[str] | None,
-        typer.Option(
-            help="ROS topic, or LeRobot dataset feature, to read (repeatable; default all)."
-        ),
-    ] = None,
+    topic: Annotated[list[str] | None, typer.Option(help=_TOPIC_HELP)] = None,
     max_columns: Annotated[int, typer.Option(min=1, help="Columns listed per table.")] = 60,
 ) -> None:
     """List the columns/topics of FILE with rates, jitter, gaps and ranges; print a config

@@ -131,7 +131,9 @@ class JointLimits:
         ddq = getattr(robot, "ddq_max", None)
         tau = getattr(robot, "tau_max", None)
         chain = getattr(robot, "chain", None)  # an ident.Robot's: the joint types
-        prismatic = None if chain is None else chain.prismatic[chain.joint_bodies]
+        prismatic = (
+            np.zeros(n, dtype=bool) if chain is None else chain.prismatic[chain.joint_bodies]
+        )
         return cls(
             joint_names=names,
             q_lower=np.asarray(robot.q_lower, dtype=float),
@@ -231,15 +233,8 @@ def tighten_limits(
         if changed:
             notes.append(f"{source}: {quantity} limits [{unit}] {', '.join(changed)}")
     unknown = tuple(u for u in limits.unknown if not _now_known(u, limits.joint_names, values))
-    return (
-        JointLimits(
-            joint_names=tuple(limits.joint_names),
-            unknown=unknown,
-            prismatic=limits.prismatic,
-            **values,
-        ),
-        tuple(notes),
-    )
+    names, prismatic = tuple(limits.joint_names), limits.prismatic  # the joint types kept
+    return JointLimits(names, unknown=unknown, prismatic=prismatic, **values), tuple(notes)
 
 
 _KIND_ARRAYS = {
