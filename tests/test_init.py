@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from robots import ERD_ROBOTS, PANDA_URDF
+from robots import ERD_ROBOTS, PANDA_URDF, RP2_URDF
 from typer.testing import CliRunner
 
 from ident.cli import app
@@ -160,6 +160,22 @@ def test_init_bad_input_one_error_line_nothing_written(tmp_path, args, needle):
     assert needle in lines[0]
     assert not out.exists()
     assert not out.parent.exists()
+
+
+@pytest.mark.parametrize("servo", [[], ["--servo"]])
+def test_init_refuses_an_existing_output_unless_force(tmp_path, servo):
+    out = tmp_path / "mine.yaml"
+    out.write_text("# my edited config\n")
+    res = CliRunner().invoke(app, ["init", str(RP2_URDF), *servo, "-o", str(out)])
+    assert res.exit_code == 2
+    (line,) = [s for s in res.output.splitlines() if s.strip()]
+    assert line.startswith(f"error: --output {out}: exists")
+    assert "--force" in line
+    assert out.read_text() == "# my edited config\n"  # untouched
+    if servo:  # the servo config is written in milliseconds: --force replaces the file
+        res = CliRunner().invoke(app, ["init", str(RP2_URDF), *servo, "-o", str(out), "--force"])
+        assert res.exit_code == 0, res.output
+        assert yaml.safe_load(out.read_text())["robot"]["urdf"].endswith("rp2.urdf")
 
 
 # One robot end to end (a gripper welded to the flange, its meshes from the package); the

@@ -126,6 +126,45 @@ def test_one_episode_file_alone_and_a_folder_without_info(tmp_path):
         read_tables(root, "lerobot")
 
 
+def test_an_empty_episode_is_skipped_and_named_all_empty_is_refused(tmp_path):
+    rng = np.random.default_rng(6)
+    episodes = [_episode(30, 0.0, rng), _episode(0, 1.0, rng), _episode(20, 2.0, rng)]
+    root = write_dataset(tmp_path / "ds", episodes, fps=FPS, names=NAMES)
+    cfg = LogConfig.model_validate(_log_section(root, **TICKS))
+    log = read_log(cfg, TransmissionConfig(), tuple(NAMES[:3]))
+    state = np.concatenate([e["observation.state"] for e in episodes])[:, :3]
+    np.testing.assert_allclose(log.q, ticks_to_rad(state), rtol=0, atol=1e-12)
+    assert log.segments == ((0, 30), (30, 50))  # the two episodes that hold frames
+    (warning,) = log.warnings
+    assert "1 episode file(s) hold no frames, skipped" in warning
+    assert "data/chunk-000/episode_000001.parquet" in warning
+    empty = write_dataset(tmp_path / "empty", [episodes[1]] * 2, fps=FPS, names=NAMES)
+    with pytest.raises(DataError, match=r"no frames: every episode file is empty \(data/"):
+        read_log(LogConfig.model_validate(_log_section(empty, **TICKS)), TransmissionConfig(),
+                 tuple(NAMES[:3]))  # fmt: skip
+
+
+def test_logs_inspect_topic_reads_a_dataset_feature_and_is_refused_where_none(tmp_path):
+    rng = np.random.default_rng(7)
+    root = write_dataset(tmp_path / "ds", [_episode(10, 0.0, rng)], fps=FPS, names=NAMES)
+    result = CliRunner().invoke(app, ["logs", "inspect", str(root), "--topic", "action"])
+    assert result.exit_code == 0, result.output
+    assert "action/elbow_flex" in result.output
+    assert "observation.state/" not in result.output  # only the feature asked for
+    for args, part in (
+        ([str(root), "--topic", "observation.joints"], "topic 'observation.joints' is not a "
+         "feature of this LeRobot dataset (its features are its topics: observation.state, "
+         "action, observation.effort"),
+        ([str(root / "meta" / "info.json"), "--format", "csv", "--topic", "/joint_states"],
+         "is a csv log, which has no topics"),
+    ):  # fmt: skip
+        result = CliRunner().invoke(app, ["logs", "inspect", *args])
+        assert result.exit_code == 2, result.output
+        (line,) = result.output.splitlines()
+        assert line.startswith("error: "), line
+        assert part in line, line
+
+
 def _rp2_case(tmp_path, name: str) -> tuple[str, list[str]]:
     """A dataset of the rp2 arm (joints shoulder, slider and a gripper) broken as ``name``
     says, its config, and the parts the one error line must hold."""

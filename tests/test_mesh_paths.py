@@ -214,3 +214,81 @@ def test_run_without_meshes_needs_self_collision_false_and_then_says_it(tmp_path
     ]
     assert said in row
     assert re.search(r"link2 not checked against the floor", row)
+
+
+def _box_stl(half: float) -> bytes:
+    """A binary STL of the cube of half side ``half`` [m] about the origin (12 triangles)."""
+    import struct
+
+    c = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1),
+             (2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]  # fmt: skip
+    out = b"box".ljust(80, b" ") + struct.pack("<I", len(faces))
+    for f in faces:
+        out += struct.pack("<12f", 0, 0, 0, *c[list(f)].ravel()) + b"\0\0"
+    return out
+
+
+def test_run_and_verify_take_package_dir_for_package_meshes(tmp_path, monkeypatch):
+    """One --package-dir (ident.cli._common) on ident run and ident verify: the run's safety
+    geometry is the mesh Pinocchio loads with the same folder; without it, one error line."""
+    from typer.testing import CliRunner
+
+    import ident.cli.verify
+    import ident.run.pipeline
+    from ident.cli import app
+    from ident.errors import IdentError
+
+    share = tmp_path / "share"
+    (share / "boxpkg" / "meshes").mkdir(parents=True)
+    (share / "boxpkg" / "meshes" / "box.stl").write_bytes(_box_stl(0.03))
+    mesh = '<collision><geometry><mesh filename="package://boxpkg/meshes/box.stl"/></geometry>'
+    urdf = tmp_path / "arm" / "rp2.urdf"
+    urdf.parent.mkdir()
+    text = (HOSTILE.parent / "base" / "rp2.urdf").read_text()
+    urdf.write_text(text.replace('<link name="link2">', f'<link name="link2">{mesh}</collision>'))
+    config = tmp_path / "arm" / "run.yaml"
+    config.write_text(
+        (HOSTILE.parent / "round3" / "mesh" / "run_missing.yaml")
+        .read_text()
+        .replace("collision_missing.urdf, package_dirs: [.]", "rp2.urdf")
+    )
+    runs = tmp_path / "runs"
+    res = CliRunner().invoke(app, ["run", str(config), "--out", str(runs)])
+    assert res.exit_code == 2, res.output
+    (line,) = [s for s in res.output.splitlines() if s.startswith("error:")]
+    assert "package://boxpkg/meshes/box.stl" in line
+    assert "--package-dir" in line
+    seen = {}
+
+    def stop(setup, progress=None):  # the checked setup, before any optimization
+        seen["setup"] = setup
+        raise IdentError("stopped by the test")
+
+    monkeypatch.setattr(ident.run.pipeline, "feasible_start", stop)
+    res = CliRunner().invoke(app, ["run", str(config), "--out", str(runs), "--package-dir",
+                                   str(share)])  # fmt: skip
+    assert "error: stopped by the test" in res.output, res.output
+    assert not runs.exists()
+    model = pin.buildModelFromUrdf(str(urdf))
+    reference = pin.buildGeomFromUrdf(
+        model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(share)]
+    )
+    setup = seen["setup"]
+    assert setup.config.robot.package_dirs[0] == share.resolve()
+    paths = {Path(g.meshPath).resolve() for g in setup.safety.exact_geometry_model.geometryObjects}
+    assert Path(reference.geometryObjects[0].meshPath).resolve() in paths
+    # verify reads the same option (a folder that is none: one line)
+    res = CliRunner().invoke(app, ["verify", "--urdf", str(urdf), "--samples", "3",
+                                   "--package-dir", str(share / "nothing")])  # fmt: skip
+    assert res.exit_code == 2
+    assert res.output.startswith(f"error: --package-dir {share / 'nothing'}: not a folder")
+
+    def selected(selection, **kwargs):  # what verify would load, before its 3 s of checks
+        seen["selection"] = selection
+        raise IdentError("stopped by the test")
+
+    monkeypatch.setattr(ident.cli.verify, "run_verification", selected)
+    res = CliRunner().invoke(app, ["verify", "--urdf", str(urdf), "--package-dir", str(share)])
+    assert "error: stopped by the test" in res.output, res.output
+    assert seen["selection"].package_dirs == [share.resolve()]

@@ -28,6 +28,7 @@ from ident.model import Robot
 from ident.model.selection import RobotSelection, load_robot
 from ident.report.run_report import _safety_text
 from ident.report.safety_section import safety_section
+from ident.robot.limits import JointLimits
 
 runner = CliRunner()
 
@@ -143,8 +144,29 @@ def test_a_sweep_past_the_range_is_never_certified_when_the_urdf_swaps_it(tmp_pa
     assert "position:j1" not in {c.name for c in report.checks}
     assert (  # with the range the optimizer assumed; and both unknown accelerations
         "3 checks not run: position not checked on j1: the URDF gives lower = upper = 0 (an "
-        "empty range); the optimizer assumed the default range [-3.142, 3.142]"
+        "empty range); the optimizer assumed a guessed range [-3.142, 3.142] rad"
     ) in report.summary()
+
+
+def test_an_unknown_prismatic_range_is_guessed_in_metres_and_named_so(tmp_path):
+    empty = 'lower="0" upper="0" velocity="3" effort="40"'
+    robot = Robot.from_urdf(
+        _write(tmp_path, _urdf((empty, empty), ("revolute", "prismatic")), "rp.urdf")
+    )
+    # the joint types from Pinocchio's own model: the guess follows them
+    kinds = [robot.model.joints[i].shortname() for i in (1, 2)]
+    assert kinds == ["JointModelRY", "JointModelPZ"]
+    limits = JointLimits.from_robot(robot)
+    lower, upper = limits.finite_position_box()
+    np.testing.assert_array_equal(lower, [-np.pi, -1.0])  # rad, m
+    np.testing.assert_array_equal(upper, [np.pi, 1.0])
+    # a bound given in the config keeps the joint types (tighten_limits)
+    selection = RobotSelection(urdf=robot.urdf_path, limits={"j1": {"lower": -1, "upper": 1}})
+    lower, upper = JointLimits.from_robot(load_robot(selection)).finite_position_box()
+    np.testing.assert_array_equal(upper, [1.0, 1.0])
+    report = _check(robot, (0.5, 0.2))  # the check names the guess, in the joint's unit
+    assert "optimizer assumed a guessed range [-1, 1] m" in report.summary()
+    assert "optimizer assumed a guessed range [-3.142, 3.142] rad" in report.summary()
 
 
 def test_effort_zero_is_named_torque_not_checked_and_the_verdict_says_so(tmp_path):

@@ -205,14 +205,18 @@ def check_output_dir(path: str | Path, name: str, *, must_be_new_or_empty: bool 
     return path
 
 
-def check_output_file(path: str | Path, name: str) -> Path:
+def check_output_file(path: str | Path, name: str, *, force_flag: str | None = None) -> Path:
     """Check that the file ``path`` can be written (its parents may be missing).
+
+    ``force_flag`` (e.g. ``"--force"``): an existing file is refused unless the caller was
+    given that flag (it passes None then); for a file a user edits by hand (a config), which
+    is never overwritten silently, as results are never overwritten.
 
     Raises
     ------
     ConfigError
-        If ``path`` is a folder, lies under ``/proc``, ``/sys`` or ``/dev``, or its nearest
-        existing parent is not a writable folder.
+        If ``path`` is a folder, lies under ``/proc``, ``/sys`` or ``/dev``, exists and
+        ``force_flag`` is given, or its nearest existing parent is not a writable folder.
     """
     path = Path(path)
     root = _pseudo_file_system(path)
@@ -222,6 +226,11 @@ def check_output_file(path: str | Path, name: str) -> Path:
         raise ConfigError(f"{name} {path}: is a folder; give a file name.")
     if path.exists() and not path.is_file():
         raise ConfigError(f"{name} {path}: is not a regular file; give a file name.")
+    if force_flag is not None and path.exists():
+        raise ConfigError(
+            f"{name} {path}: exists and is not overwritten (it may hold your edits); choose "
+            f"a new file name, or add {force_flag} to replace it."
+        )
     ancestor = _existing_ancestor(path.parent)
     if not ancestor.is_dir():
         raise ConfigError(f"{name} {path}: {ancestor} is a file, not a folder.")

@@ -7,11 +7,12 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator
-from typing import Any
+from pathlib import Path
+from typing import Annotated, Any
 
 import typer
 
-from ident.errors import IdentError
+from ident.errors import ConfigError, IdentError
 from ident.fileio import describe_os_error
 from ident.run.rundir import failure_note
 
@@ -20,6 +21,8 @@ from ident.run.rundir import failure_note
 __all__ = [
     "EXIT_INTERRUPTED",
     "EXIT_USER_ERROR",
+    "PackageDirOption",
+    "check_package_dirs",
     "check_scheduler_address",
     "failure_note",
     "one_line",
@@ -35,6 +38,35 @@ def one_line(message: object) -> str:
     """``message`` on one line (newlines folded) and of bounded length."""
     text = " ".join(str(message).split("\n"))
     return text if len(text) <= _MAX_MESSAGE else text[: _MAX_MESSAGE - 3] + "..."
+
+
+#: ``--package-dir``, the same option on every command that reads a URDF (checked by
+#: :func:`check_package_dirs`).
+PackageDirOption = Annotated[
+    list[Path] | None,
+    typer.Option(
+        "--package-dir",
+        help="Folder holding the URDF's package:// mesh packages (and xacro's $(find ...) "
+        "ones), searched before the config's robot.package_dirs; repeatable.",
+    ),
+]
+
+
+def check_package_dirs(package_dirs: list[Path] | None) -> list[Path]:
+    """The ``--package-dir`` folders (absolute), each an existing folder.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the first one that is not a folder.
+    """
+    for folder in package_dirs or ():
+        if not folder.is_dir():
+            raise ConfigError(
+                f"--package-dir {folder}: not a folder; give the folder that holds the "
+                "package:// mesh packages (the parent of <package>/meshes)."
+            )
+    return [folder.resolve() for folder in package_dirs or ()]
 
 
 _SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx", "inproc")

@@ -27,7 +27,12 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from ident.cli._common import check_scheduler_address, user_errors
+from ident.cli._common import (
+    PackageDirOption,
+    check_package_dirs,
+    check_scheduler_address,
+    user_errors,
+)
 
 if TYPE_CHECKING:
     from ident.identify.pipeline.core import IdentifyResult
@@ -57,12 +62,7 @@ def identify(
         bool,
         typer.Option(help="Write replay.html (the measured motion, meshcat) into the run folder."),
     ] = True,
-    package_dir: Annotated[
-        list[Path] | None,
-        typer.Option(
-            help="Folder holding the URDF's package:// mesh packages, for replay.html (repeatable)."
-        ),
-    ] = None,
+    package_dir: PackageDirOption = None,
     scheduler: Annotated[
         str | None,
         typer.Option(
@@ -105,14 +105,11 @@ def _check_options(seed: int, out: Path, package_dirs: list[Path], scheduler: st
     IdentError
         One line naming the option and the fix.
     """
-    from ident.errors import IdentError
     from ident.inputs import check_number, check_output_dir
 
     check_number(seed, "--seed", low=0, high=2**63 - 1, integer=True)
     check_output_dir(out, "--out")
-    for d in package_dirs:
-        if not d.is_dir():
-            raise IdentError(f"--package-dir {d}: not a folder.")
+    check_package_dirs(package_dirs)
     check_scheduler_address(scheduler)
 
 

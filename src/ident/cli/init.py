@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ident.cli._common import user_errors
+from ident.cli._common import PackageDirOption, check_package_dirs, user_errors
 
 __all__ = ["init", "register"]
 
@@ -30,21 +30,21 @@ def init(
         list[str] | None,
         typer.Option("--lock", help="Hold a joint fixed: NAME or NAME=VALUE [rad or m]."),
     ] = None,
-    package_dir: Annotated[
-        list[Path] | None,
-        typer.Option("--package-dir", help="Folder holding the package:// mesh packages."),
-    ] = None,
+    package_dir: PackageDirOption = None,
     servo: Annotated[bool, typer.Option("--servo", help=_SERVO_HELP)] = False,
     log: Annotated[
         Path | None,
         typer.Option("--log", help="With --servo: the LeRobot dataset folder to identify."),
     ] = None,
+    force: Annotated[
+        bool, typer.Option("--force", help="Replace an existing --output file.")
+    ] = False,
 ) -> None:
     """Write a run config for the robot of URDF (chain, limits, safety, a simulated
     measurement, a budget; every guess marked), to run with 'ident run CONFIG'; with
     --servo, an identify config for its position servos and a LeRobot dataset."""
     if servo or log is not None:
-        _init_servo(urdf, output, servo, log)
+        _init_servo(urdf, output, servo, log, force)
         return
     with user_errors():
         from ident.cli.verify import parse_locks
@@ -52,7 +52,7 @@ def init(
         from ident.inputs import check_output_file
         from ident.run.init_config import init_config
 
-        check_output_file(output, "--output")
+        check_output_file(output, "--output", force_flag=None if force else "--force")
         with _InitProgress() as display:
             result = init_config(
                 urdf,
@@ -60,7 +60,7 @@ def init(
                 base_link=base_link,
                 tip_link=tip_link,
                 lock=parse_locks(lock or []),
-                package_dirs=list(package_dir or []),
+                package_dirs=check_package_dirs(package_dir),
                 progress=display.step,
             )
         atomic_write_text(output, result.text)
@@ -74,7 +74,7 @@ def init(
     )
 
 
-def _init_servo(urdf: Path, output: Path, servo: bool, log: Path | None) -> None:
+def _init_servo(urdf: Path, output: Path, servo: bool, log: Path | None, force: bool) -> None:
     """``ident init URDF --servo [--log DATASET]``: the identify config of
     :mod:`ident.run.init_servo`, checked, then written."""
     with user_errors():
@@ -85,7 +85,7 @@ def _init_servo(urdf: Path, output: Path, servo: bool, log: Path | None) -> None
 
         if not servo:
             raise ConfigError("--log is the dataset of --servo; add --servo, or remove --log.")
-        check_output_file(output, "--output")
+        check_output_file(output, "--output", force_flag=None if force else "--force")
         result = init_servo_config(urdf, output, log)
         atomic_write_text(output, result.text)
     for note in result.notes:

@@ -34,6 +34,8 @@ _PATTERNS = {
 }
 _CURRENT = re.compile(_WORD.format("cur|current|curr|amp|amps|i|ia|ma"))
 _TIME = re.compile(_WORD.format("t|time|stamp|timestamp|sec|secs|seconds"))
+_TOPIC_FORMATS = ("rosbag", "mcap", "lerobot")  # the readers that honour --topic
+_TOPIC_HELP = "ROS topic, or LeRobot dataset feature, to read (repeatable; default all)."
 # unit hints in a name, e.g. ``pos_deg``, ``q[0] (rad)``, ``time[ms]``, ``cur_mA``
 _TIME_SCALE = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _UNIT_HINTS = {
@@ -162,9 +164,7 @@ def inspect(
     format: Annotated[
         str | None, typer.Option("--format", help="Reader name (default: detected).")
     ] = None,
-    topic: Annotated[
-        list[str] | None, typer.Option(help="ROS topic to read (repeatable; default all).")
-    ] = None,
+    topic: Annotated[list[str] | None, typer.Option(help=_TOPIC_HELP)] = None,
     max_columns: Annotated[int, typer.Option(min=1, help="Columns listed per table.")] = 60,
 ) -> None:
     """List the columns/topics of FILE with rates, jitter, gaps and ranges; print a config
@@ -175,6 +175,7 @@ def inspect(
 
     with user_errors():
         fmt = format or detect_format(file)
+        _check_topic_flag(topic, fmt, file)
         estimate = estimate_read(file, fmt, topics=topic)
         if estimate is not None:  # from the file's size and headers, before reading it
             check_job(estimate)
@@ -214,6 +215,18 @@ def inspect(
                 )
         typer.echo("\nconfig skeleton (check every line):\n")
         typer.echo(skeleton(tables, file, format))
+
+
+def _check_topic_flag(topic: list[str] | None, fmt: str, file: Path) -> None:
+    """Refuse ``--topic`` on a log that has no topics (rather than ignore it)."""
+    from ident.errors import ConfigError
+
+    if topic and fmt not in _TOPIC_FORMATS:
+        raise ConfigError(
+            f"--topic {topic[0]}: {file} is a {fmt} log, which has no topics (--topic selects "
+            "the topics of a ROS 2 bag or MCAP file, the features of a LeRobot dataset); "
+            "remove --topic."
+        )
 
 
 logs_app.command("inspect")(inspect)

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Annotated, NamedTuple
 
 import typer
 
-from ident.cli._common import one_line, user_errors
+from ident.cli._common import PackageDirOption, check_package_dirs, one_line, user_errors
 from ident.errors import DataError, IdentError, IdentWarning
 
 if TYPE_CHECKING:  # imported when the command runs: the CLI starts fast
@@ -126,10 +126,6 @@ def _elite_rank(path: Path) -> int | None:
 
 # The options that select the robot's chain and its meshes (their help is the command's
 # --help).
-_PackageDirOption = Annotated[
-    list[Path] | None,
-    typer.Option(help="Folder holding package:// mesh packages (repeatable)."),
-]
 _LockOption = Annotated[
     list[str] | None,
     typer.Option(
@@ -174,7 +170,7 @@ def replay(
     open_browser: Annotated[
         bool, typer.Option("--open", help="Open the viewer in the system's web browser.")
     ] = False,
-    package_dir: _PackageDirOption = None,
+    package_dir: PackageDirOption = None,
     lock: _LockOption = None,
     base_link: _BaseLinkOption = None,
     tip_link: _TipLinkOption = None,
@@ -214,12 +210,7 @@ def _check_options(speed: float, html: Path | None, port: int, package_dirs: lis
         check_number(port, "--port", low=0, high=65535, integer=True, hint="(0: any free)")
     else:
         check_output_file(html, "--html")
-    for folder in package_dirs:
-        if not folder.is_dir():
-            raise DataError(
-                f"--package-dir {folder}: not a folder; give the folder that holds the "
-                "package:// mesh packages (e.g. the parent of <package>/meshes)."
-            )
+    check_package_dirs(package_dirs)
 
 
 def _robot_selection(

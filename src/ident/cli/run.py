@@ -20,7 +20,14 @@ from typing import Annotated, Any
 
 import typer
 
-from ident.cli._common import EXIT_USER_ERROR, failure_note, one_line, user_errors
+from ident.cli._common import (
+    EXIT_USER_ERROR,
+    PackageDirOption,
+    check_package_dirs,
+    failure_note,
+    one_line,
+    user_errors,
+)
 
 __all__ = ["register"]
 
@@ -45,6 +52,7 @@ def run(
     replay: Annotated[
         bool, typer.Option(help="Write replay.html (meshcat static page) into the run folder.")
     ] = True,
+    package_dir: PackageDirOption = None,
 ) -> None:
     """Design the excitation of CONFIG's stage, simulate, identify and write a report."""
     from ident.inputs import check_output_dir
@@ -56,7 +64,8 @@ def run(
 
     with user_errors():
         check_output_dir(out, "--out")
-        cfg = load_run_config(config)
+        package_dirs = check_package_dirs(package_dir)
+        cfg = load_run_config(config).with_package_dirs(package_dirs)
         if quick:
             cfg = cfg.quick_version()
         if seed is not None:

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from ident.cli._common import user_errors
+from ident.cli._common import PackageDirOption, check_package_dirs, user_errors
 from ident.errors import ConfigError
 from ident.model.selection import RobotSelection, load_robot, selection_from_flags
 
@@ -69,6 +69,7 @@ def verify(
     base_link: _BaseLinkOption = None,
     tip_link: _TipLinkOption = None,
     inertia_check: _InertiaCheckOption = True,
+    package_dir: PackageDirOption = None,
 ) -> None:
     """Compare the hand-derived regressor with Pinocchio on random states within the limits.
 
@@ -85,6 +86,7 @@ def verify(
             lock=parse_locks(lock or []),
             base_link=base_link,
             tip_link=tip_link,
+            package_dirs=check_package_dirs(package_dir),
             inertia_check=inertia_check,
         )
         report = run_verification(

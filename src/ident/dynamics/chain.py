@@ -24,7 +24,12 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from ident.errors import ModelError
-from ident.robot.limits import JointLimits, UnknownLimit
+from ident.robot.limits import (  # DEFAULT_Q_RANGE re-exported: the chain's guessed box
+    DEFAULT_Q_RANGE,
+    JointLimits,
+    UnknownLimit,
+    default_position_box,
+)
 
 __all__ = [
     "BoolArray",
@@ -44,7 +49,6 @@ IntArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
 
 # Fallback ranges where a model carries no limit (URDFs rarely give accelerations).
-DEFAULT_Q_RANGE = {"revolute": np.pi, "prismatic": 1.0}  # [rad], [m]
 DEFAULT_DQ_MAX = 1.0  # [rad/s or m/s]
 DEFAULT_DDQ_MAX = 10.0  # [rad/s^2 or m/s^2]
 
@@ -213,14 +217,7 @@ class KinematicChain:
     def position_box(self) -> tuple[FloatArray, FloatArray]:
         """Position limits with unknown ones replaced by ``DEFAULT_Q_RANGE`` (``[-pi, pi]`` rad,
         ``[-1, 1]`` m) [rad or m], shapes (n,)."""
-        default_range = np.where(
-            self.prismatic[self.joint_bodies],
-            DEFAULT_Q_RANGE["prismatic"],
-            DEFAULT_Q_RANGE["revolute"],
-        )
-        lower = np.where(np.isfinite(self.q_lower), self.q_lower, -default_range)
-        upper = np.where(np.isfinite(self.q_upper), self.q_upper, default_range)
-        return lower, upper
+        return default_position_box(self.q_lower, self.q_upper, self.prismatic[self.joint_bodies])
 
 
 def _joint_axis(joint: pin.JointModel) -> tuple[np.ndarray, bool] | None:
@@ -439,8 +436,17 @@ def model_limits(model: pin.Model, source: str = "the model") -> JointLimits:
     q_lower[empty], q_upper[empty] = -np.inf, np.inf
     dq_max[dq_max <= 0.0] = np.inf
     tau_max[tau_max <= 0.0] = np.inf
+    axes = [_joint_axis(model.joints[i]) for i in independent]
+    prismatic = np.array([axis is not None and axis[1] for axis in axes], dtype=bool)
     return JointLimits(
-        names, q_lower, q_upper, dq_max, np.full(len(names), np.inf), tau_max, tuple(unknown)
+        names,
+        q_lower,
+        q_upper,
+        dq_max,
+        np.full(len(names), np.inf),
+        tau_max,
+        tuple(unknown),
+        prismatic=prismatic,
     )
 
 

@@ -656,7 +656,7 @@ def _not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
 
 def _limits_not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
     """``("<kind>:<joint>", reason)`` of the limits the check could not compare with: the
-    robot's unknown ones (an unknown position with the default range the optimizer's
+    robot's unknown ones (an unknown position with the guessed range the optimizer's
     reference states assumed, :meth:`JointLimits.finite_position_box`), and
     every torque limit when ``safety.torque_limits`` is off."""
     limits = safety.limits
@@ -668,7 +668,10 @@ def _limits_not_checked(safety: SafetyModel) -> tuple[tuple[str, str], ...]:
         if u.kind == "position":
             low, high = limits.finite_position_box()
             j = limits.joint_names.index(u.joint)
-            reason += f"; the optimizer assumed the default range [{low[j]:.4g}, {high[j]:.4g}]"
+            unit = "m" if limits.prismatic[j] else "rad"
+            reason += (
+                f"; the optimizer assumed a guessed range [{low[j]:.4g}, {high[j]:.4g}] {unit}"
+            )
         out.append((u.check, reason))
     if not safety.config.torque_limits:
         out += [(f"torque:{j}", "safety.torque_limits is false") for j in limits.joint_names]

@@ -20,10 +20,23 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["LIMIT_KINDS", "JointLimits", "UnknownLimit", "describe_unknown", "tighten_limits"]
+__all__ = [
+    "DEFAULT_Q_RANGE",
+    "LIMIT_KINDS",
+    "JointLimits",
+    "UnknownLimit",
+    "default_position_box",
+    "describe_unknown",
+    "tighten_limits",
+]
 
 #: The kinds of joint limit, as the checks name them (``torque`` is the URDF's ``effort``).
 LIMIT_KINDS = ("position", "velocity", "acceleration", "torque")
+
+#: The guessed half range of a joint whose position limits are unknown: a turn each way for a
+#: revolute joint [rad]; a metre each way for a prismatic one [m] (a linear axis or a lift: a
+#: range in radians, +-3.14 m, would send a slider far beyond any real travel).
+DEFAULT_Q_RANGE = {"revolute": np.pi, "prismatic": 1.0}
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -79,6 +92,8 @@ class JointLimits:
     unknown :
         The limits that are ``inf`` above because nobody gave them, with the reason (a
         continuous joint's position is unlimited, not unknown, and is not listed).
+    prismatic :
+        True for a prismatic joint (positions in m), shape (nq,); default: all revolute.
     """
 
     joint_names: tuple[str, ...]
@@ -88,11 +103,18 @@ class JointLimits:
     ddq_max: FloatArray
     tau_max: FloatArray = None  # type: ignore[assignment]  # None: all unknown (inf)
     unknown: tuple[UnknownLimit, ...] = ()
+    prismatic: npt.NDArray[np.bool_] = None  # type: ignore[assignment]  # None: all revolute
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
         if self.tau_max is None:
             object.__setattr__(self, "tau_max", np.full(n, np.inf))
+        prismatic = np.zeros(n, dtype=bool) if self.prismatic is None else self.prismatic
+        prismatic = np.array(prismatic, dtype=bool, copy=True)
+        if prismatic.shape != (n,):
+            raise ValueError(f"JointLimits.prismatic must have shape ({n},), got {prismatic.shape}")
+        prismatic.setflags(write=False)
+        object.__setattr__(self, "prismatic", prismatic)
         object.__setattr__(self, "unknown", tuple(self.unknown))
         for name in ("q_lower", "q_upper", "dq_max", "ddq_max", "tau_max"):
             value = np.array(getattr(self, name), dtype=float, copy=True)
@@ -108,6 +130,10 @@ class JointLimits:
         n = len(names)
         ddq = getattr(robot, "ddq_max", None)
         tau = getattr(robot, "tau_max", None)
+        chain = getattr(robot, "chain", None)  # an ident.Robot's: the joint types
+        prismatic = (
+            np.zeros(n, dtype=bool) if chain is None else chain.prismatic[chain.joint_bodies]
+        )
         return cls(
             joint_names=names,
             q_lower=np.asarray(robot.q_lower, dtype=float),
@@ -116,6 +142,7 @@ class JointLimits:
             ddq_max=np.full(n, np.inf) if ddq is None else np.asarray(ddq, dtype=float),
             tau_max=np.full(n, np.inf) if tau is None else np.asarray(tau, dtype=float),
             unknown=tuple(getattr(robot, "unknown_limits", ())),
+            prismatic=prismatic,
         )
 
     @property
@@ -124,10 +151,21 @@ class JointLimits:
         return len(self.joint_names)
 
     def finite_position_box(self) -> tuple[FloatArray, FloatArray]:
-        """Position limits with unknown ones replaced by ``[-pi, pi]`` [rad], shapes (nq,)."""
-        lower = np.where(np.isfinite(self.q_lower), self.q_lower, -np.pi)
-        upper = np.where(np.isfinite(self.q_upper), self.q_upper, np.pi)
-        return lower, upper
+        """Position limits with unknown ones replaced by the guess :data:`DEFAULT_Q_RANGE`
+        (``[-pi, pi]`` rad, ``[-1, 1]`` m for a prismatic joint), shapes (nq,)."""
+        return default_position_box(self.q_lower, self.q_upper, self.prismatic)
+
+
+def default_position_box(
+    q_lower: FloatArray, q_upper: FloatArray, prismatic: npt.NDArray[np.bool_]
+) -> tuple[FloatArray, FloatArray]:
+    """``q_lower``, ``q_upper`` [rad or m], shapes (n,), with each infinite (unknown or absent)
+    bound replaced by the guess of :data:`DEFAULT_Q_RANGE` for its joint's type (``prismatic``,
+    shape (n,)): the finite box the optimizer and the reference states sample."""
+    half = np.where(prismatic, DEFAULT_Q_RANGE["prismatic"], DEFAULT_Q_RANGE["revolute"])
+    lower = np.where(np.isfinite(q_lower), q_lower, -half)
+    upper = np.where(np.isfinite(q_upper), q_upper, half)
+    return lower, upper
 
 
 _LIMIT_KINDS = (
@@ -195,10 +233,8 @@ def tighten_limits(
         if changed:
             notes.append(f"{source}: {quantity} limits [{unit}] {', '.join(changed)}")
     unknown = tuple(u for u in limits.unknown if not _now_known(u, limits.joint_names, values))
-    return (
-        JointLimits(joint_names=tuple(limits.joint_names), unknown=unknown, **values),
-        tuple(notes),
-    )
+    names, prismatic = tuple(limits.joint_names), limits.prismatic  # the joint types kept
+    return JointLimits(names, unknown=unknown, prismatic=prismatic, **values), tuple(notes)
 
 
 _KIND_ARRAYS = {

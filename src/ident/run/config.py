@@ -399,6 +399,16 @@ class RunConfig(StrictModel):
             }
         )
 
+    def with_package_dirs(self, package_dirs: list[Path]) -> RunConfig:
+        """The same run with ``package_dirs`` (``--package-dir``, absolute) searched for the
+        URDF's ``package://`` meshes before ``robot.package_dirs``."""
+        if not package_dirs:
+            return self
+        robot = self.robot.model_copy(
+            update={"package_dirs": [*package_dirs, *self.robot.package_dirs]}
+        )
+        return self.model_copy(update={"robot": robot})
+
     def with_seed(self, seed: int) -> RunConfig:
         """The same run with another seed (``--seed``)."""
         if seed < 0:

@@ -42,12 +42,12 @@ import numpy as np
 import yaml
 
 from ident.config import file_problem, validate_config
-from ident.dynamics.chain import DEFAULT_Q_RANGE
 from ident.errors import ConfigError, IdentError
 from ident.excitation.fourier import fourier_bound_factors
 from ident.excitation.safety import N_EXCLUSION_POSTURES, collision_geometry_problem
 from ident.inputs import read_urdf_text
 from ident.model.selection import RobotSelection, load_robot
+from ident.robot.limits import DEFAULT_Q_RANGE
 from ident.run.config import RunConfig
 from ident.run.init_robot import (
     base_bottom,
@@ -480,7 +480,8 @@ def _limit_guesses(robot: Any, c: _Choices) -> tuple[list[str], list[str]]:
         if u.kind == "acceleration":  # robot.acceleration_limits, written above
             continue
         j = names.index(u.joint)
-        half = DEFAULT_Q_RANGE["prismatic" if robot.chain.prismatic[j] else "revolute"]
+        prismatic = robot.chain.prismatic[robot.chain.joint_bodies[j]]  # bodies: mimics too
+        half = DEFAULT_Q_RANGE["prismatic" if prismatic else "revolute"]
         guess = {
             "position": [("lower", -half), ("upper", half)],
             "velocity": [("velocity", float(c.dq_max[j]))],

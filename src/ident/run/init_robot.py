@@ -21,6 +21,7 @@ from ident.errors import ConfigError
 from ident.excitation.safety import MIN_LOWERED_CLEARANCE_M, SafetyModel, build_safety_model
 from ident.excitation.safety.fast import EXACT_WITHIN_M
 from ident.model.robot import Robot
+from ident.robot.limits import JointLimits
 from ident.robot.mimic import mimic_lock_reasons, read_mimics
 from ident.robot.urdf_load import (
     build_model,
@@ -193,8 +194,7 @@ def effort_scale(robot: Robot) -> np.ndarray:
     model = robot.model
     data = model.createData()
     rng = np.random.default_rng(0)
-    lower = np.where(np.isfinite(robot.q_lower), robot.q_lower, -np.pi)
-    upper = np.where(np.isfinite(robot.q_upper), robot.q_upper, np.pi)
+    lower, upper = JointLimits.from_robot(robot).finite_position_box()  # guessed if unknown
     gravity = np.zeros(model.nv)
     for q in rng.uniform(lower, upper, (50, model.nq)):
         gravity = np.maximum(gravity, np.abs(pin.computeGeneralizedGravity(model, data, q)))
@@ -323,8 +323,7 @@ def clear_posture(
         },
         package_dirs=robot.package_dirs,
     )
-    lower = np.where(np.isfinite(robot.q_lower), robot.q_lower, -np.pi)
-    upper = np.where(np.isfinite(robot.q_upper), robot.q_upper, np.pi)
+    lower, upper = JointLimits.from_robot(robot).finite_position_box()  # guessed if unknown
     reference = np.clip(np.zeros(robot.nq), lower, upper)
     rng = np.random.default_rng(0)
     # postures near the reference first: a robot's zero is usually a sensible posture

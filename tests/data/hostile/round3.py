@@ -4,9 +4,11 @@ LeRobot datasets (``meta/info.json`` broken, frames missing, NaN, ticks out of r
 servo actuator section of ``ident identify``, the MuJoCo simulator's ``measurement:`` fields,
 mimic joints, meshes (a folder, a unicode name, a lying STL header), config sections of the
 wrong type, numbers as strings, absurd counts, ``ident logs inspect`` and damaged result.json
-entries of ``ident report``. Every case is refused before any work (each under 0.3 s in the
-corpus runner); ``expect.match`` pins the file and the field the one error line names where
-the cause is specific.
+entries of ``ident report``; then an episode of no frames, ``--topic`` where there is none, an
+existing ``ident init`` output and ``--package-dir`` not a folder. Every case is refused before
+any work (each under 0.3 s in the corpus runner; a dataset with one empty episode is read, its
+warning pinned in ``test_lerobot.py``); ``expect.match`` pins the file and the field the one
+error line names where the cause is specific.
 """
 
 from __future__ import annotations
@@ -97,7 +99,9 @@ def _lerobot_datasets(d: Path) -> dict[str, tuple[str, dict, list[str]]]:
     out["names_short"] = ("names_short", {}, ["observation.state"])
     # frames: none at all, the command shorter than the state
     _dataset(d / "all_zero_frames", [_episode(0, 0.0), _episode(0, 1.0)])
-    out["all_zero_frames"] = ("all_zero_frames", {}, [])
+    out["all_zero_frames"] = ("all_zero_frames", {}, ["no frames", "episode_000001.parquet"])
+    # one episode of no frames among others: skipped with a warning (logs inspect below)
+    _dataset(d / "one_episode_empty", [two[0], _episode(0, 0.5), two[1]])
     short = [{**e, "action": e["action"][:, :2]} for e in two]
     _dataset(d / "action_shorter", short)
     out["action_shorter"] = ("action_shorter", {}, ["action"])
@@ -176,6 +180,21 @@ def _lerobot(here: Path, add: Add) -> None:
         (["{data}/round3/lerobot/parquet_garbage"], "parquet_garbage"),
     ):
         add(f"logs-inspect-lerobot-{name}", ["logs", "inspect", *args])
+    # an empty episode is skipped (exit 0, its warning pinned in test_lerobot.py); --topic is a
+    # feature of a dataset: one that is none is refused, listing the features
+    episode_empty = "{data}/round3/lerobot/one_episode_empty"
+    add("logs-inspect-lerobot-one_episode_empty", ["logs", "inspect", episode_empty],
+        expect={"exit": 0})  # fmt: skip
+    add(
+        "logs-inspect-lerobot-topic_unknown",
+        ["logs", "inspect", episode_empty, "--topic", "observation.joints"],
+        expect={"match": ["observation.joints", "features are its topics", "observation.state"]},
+    )
+    add(
+        "logs-inspect-lerobot-all_zero_frames",
+        ["logs", "inspect", "{data}/round3/lerobot/all_zero_frames"],
+        expect={"match": ["all_zero_frames", "no frames"]},
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -531,8 +550,12 @@ def _commands(here: Path, add: Add) -> None:
         "folder_of_nothing": ["{data}/round3/mesh/folder.stl"],
         "npz_object": ["{data}/logs/object.npz"],
         "npz_bomb": ["{data}/logs/declares_100M.npz"],
+        "topic_on_csv": ["{data}/base/q.csv", "--topic", "/joint_states"],
     }.items():
-        match = {"dev_zero": ["/dev/zero", "not a regular file"]}.get(name)
+        match = {
+            "dev_zero": ["/dev/zero", "not a regular file"],
+            "topic_on_csv": ["--topic /joint_states", "q.csv", "no topics"],
+        }.get(name)
         add(
             f"logs-inspect-{name}",
             ["logs", "inspect", *args],
@@ -570,6 +593,27 @@ def _commands(here: Path, add: Add) -> None:
         "urdf_mimic_of_mimic": ["{data}/urdf/mimic_of_mimic.urdf", "-o", "{tmp}/c.yaml"],
     }.items():
         add(f"init-flag-{name}", ["init", *args])
+    # an existing config is never overwritten without --force (it may hold the user's edits)
+    (here / "round3" / "init").mkdir(parents=True, exist_ok=True)
+    (here / "round3" / "init" / "mine.yaml").write_text("# my edited config\n")
+    add(
+        "init-flag-out_exists",
+        ["init", "{data}/base/rp2.urdf", "-o", "{tmp}/cfg/mine.yaml"],
+        setup={"copy": "round3/init", "to": "cfg"},
+        expect={"match": ["--output", "mine.yaml: exists", "--force"], "left": "keep"},
+    )
+    # --package-dir, the one option of every command reading a URDF: a file is no folder
+    for command, args in {
+        "run": ["run", "{data}/round3/mesh/run_missing.yaml", "--out", "{tmp}/runs"],
+        "verify": ["verify", "--urdf", "{data}/base/rp2.urdf"],
+        "identify": ["identify", "{data}/identify/base.yaml", "--out", "{tmp}/r"],
+        "init": ["init", "{data}/base/rp2.urdf", "-o", "{tmp}/c.yaml"],
+    }.items():
+        add(
+            f"{command}-flag-package_dir_a_file",
+            [*args, "--package-dir", "{data}/base/rp2.urdf"],
+            expect={"match": ["--package-dir", "rp2.urdf: not a folder"]},
+        )
     for name, args in {
         "second_log_a_list": [
             "{data}/identify/base.yaml",

@@ -31,11 +31,19 @@ are servo angles: after the config's unit conversion they must stay within
 :data:`ANGLE_BOUND_RAD` (:attr:`LogTable.angle_bound_rad`, checked by
 :mod:`ident.measure.logs`): ticks or degrees declared as radians are caught there.
 
+An episode file of no frames (a recording stopped before its first frame, a conversion that
+wrote only the schema) is skipped with a warning naming it (the terminal, ``result.json``, the
+report; ``validation.fail_on_warning`` makes it fatal) when other episodes hold frames: it holds
+no data, so the result is the one of the dataset without it, and refusing would only make the
+user edit a dataset they may not own (one downloaded from the Hub). A dataset whose every
+episode is empty is refused.
+
 Bounded memory: the sizes come from the parquet footers (rows per row group, bytes per column
 chunk) before anything is read; the columns' float64 arrays plus the largest column chunk are
 checked against ``IDENT_MAX_MEMORY_GB`` and allocated once; then one column of one row group is
 read at a time (pyarrow) and converted into its place. Only the features the config names are
-read (with ``timestamp``, ``frame_index``, ``episode_index``).
+read (with ``timestamp``, ``frame_index``, ``episode_index``); option ``topics`` (``ident logs
+inspect --topic``) names the features to read, a dataset's features being its topics.
 """
 
 from __future__ import annotations
@@ -113,6 +121,11 @@ class _Plan:
     @property
     def n_rows(self) -> int:
         return sum(self.rows)
+
+    @property
+    def empty_files(self) -> tuple[Path, ...]:
+        """The episode files of no frames (skipped)."""
+        return tuple(f for f, n in zip(self.files, self.rows, strict=True) if n == 0)
 
     def memory_bytes(self) -> float:
         """The float64 columns plus one column chunk and its float64 copy."""
@@ -218,13 +231,29 @@ def _field(
     return _Field(name, width, tuple(f"{name}/{n}" for n in names), True)
 
 
-def _selected(wanted: Any, present: list[str]) -> list[str]:
+def _selected(wanted: Any, present: list[str], topics: Any = None) -> list[str]:
     """The columns to read: those the config names (``feature`` or ``feature/<name>``),
-    every one when it names none, and always the time, episode and frame columns."""
-    if wanted is None:
-        return list(present)
-    names = {str(w).split("/", 1)[0] for w in wanted} | {str(w) for w in wanted}
-    return [c for c in present if c in names or c in (_TIME, _EPISODE, _FRAME)]
+    every one when it names none, only the features ``topics`` names when given (a dataset's
+    topics are its features: ``ident logs inspect --topic``), and always the time, episode
+    and frame columns."""
+    keep = (_TIME, _EPISODE, _FRAME)
+    names = set(present)
+    if wanted is not None:
+        names = {str(w).split("/", 1)[0] for w in wanted} | {str(w) for w in wanted}
+    if topics is not None:
+        names &= {str(t) for t in topics}
+    return [c for c in present if c in names or c in keep]
+
+
+def _check_topics(file: Path, topics: Any, present: list[str]) -> None:
+    """Refuse a topic (``--topic``, ``topics:``) that is no feature of the dataset."""
+    for topic in topics or ():
+        if topic not in present:
+            features = [c for c in present if c not in (_TIME, _EPISODE, _FRAME)]
+            raise DataError(
+                f"{file}: topic '{topic}' is not a feature of this LeRobot dataset (its "
+                f"features are its topics: {', '.join(features)}); name one of them."
+            )
 
 
 def _n_leaves(t: pa.DataType) -> int:
@@ -249,23 +278,19 @@ def _chunk_bytes(pf: pq.ParquetFile, names: list[str]) -> float:
 
 
 def _plan(path: Path, options: Mapping[str, Any]) -> _Plan:
-    """Files, fields and sizes of reading ``path`` (footers and info.json only)."""
+    """Files, fields and sizes of reading ``path`` (footers and info.json only); an episode
+    file of no frames is kept with 0 rows (skipped, :attr:`_Plan.empty_files`)."""
     root, files, info_path = _dataset(path)
     info = _load_info(info_path) if info_path is not None else None
     rows, fields, chunk = [], None, 0.0
     for file in files:
-        try:
-            pf = pq.ParquetFile(file)
-        except (OSError, pa.ArrowException) as e:
-            raise DataError(f"{file}: not a readable parquet file ({e}).") from e
+        pf = _open_parquet(file)
         present = pf.schema_arrow.names
-        for required in (_TIME, _EPISODE):
-            if required not in present:
-                raise DataError(
-                    f"{file}: column '{required}' not found; the file has {', '.join(present)} "
-                    "(a LeRobot episode has timestamp, frame_index, episode_index)."
-                )
-        names = _selected(options.get("columns"), present)
+        rows.append(int(pf.metadata.num_rows))
+        if rows[-1] == 0:
+            continue  # an empty episode holds nothing to read or check
+        _check_topics(file, options.get("topics"), present)
+        names = _selected(options.get("columns"), present, options.get("topics"))
         if fields is None:
             try:
                 found = [_field(pf, file, n, info, info_path or file) for n in names]
@@ -273,11 +298,37 @@ def _plan(path: Path, options: Mapping[str, Any]) -> _Plan:
                 raise DataError(f"{file}: cannot read the parquet file ({e}).") from e
             fields = tuple(f for f in found if f is not None)
         _check_same_columns(file, present, fields)
-        rows.append(int(pf.metadata.num_rows))
         chunk = max(chunk, _chunk_bytes(pf, [f.name for f in fields]))
-    assert fields is not None
+    if fields is None:
+        raise DataError(
+            f"{path}: the dataset holds no frames: every episode file is empty "
+            f"({_listed(files, root)}); give a dataset whose episodes were recorded."
+        )
     fps = float(info["fps"]) if info is not None else None
     return _Plan(root, files, tuple(rows), fields, fps, info_path, chunk)
+
+
+def _open_parquet(file: Path) -> pq.ParquetFile:
+    """The parquet file (its footer read) with the columns every LeRobot episode has."""
+    try:
+        pf = pq.ParquetFile(file)
+    except (OSError, pa.ArrowException) as e:
+        raise DataError(f"{file}: not a readable parquet file ({e}).") from e
+    present = pf.schema_arrow.names
+    for required in (_TIME, _EPISODE):
+        if required not in present:
+            raise DataError(
+                f"{file}: column '{required}' not found; the file has {', '.join(present)} "
+                "(a LeRobot episode has timestamp, frame_index, episode_index)."
+            )
+    return pf
+
+
+def _listed(files: tuple[Path, ...], root: Path) -> str:
+    """The first three ``files`` relative to ``root``, and how many more."""
+    names = [str(f.relative_to(root)) if f.is_relative_to(root) else str(f) for f in files]
+    more = f" and {len(names) - 3} more" if len(names) > 3 else ""
+    return ", ".join(names[:3]) + more
 
 
 def _check_same_columns(file: Path, present: list[str], fields: tuple[_Field, ...]) -> None:
@@ -338,7 +389,7 @@ def _read_columns(plan: _Plan) -> dict[str, FloatArray]:
     )
     out = {f.name: np.empty((plan.n_rows, f.width), order="F") for f in plan.fields}
     start = 0
-    for file in plan.files:
+    for file in (f for f in plan.files if f not in plan.empty_files):
         try:
             pf = pq.ParquetFile(file)
             for g in range(pf.metadata.num_row_groups):
@@ -429,8 +480,6 @@ def read_lerobot(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     """Read a LeRobot dataset folder or episode file (option ``columns``: the columns the
     config names; only their features are read) as one table, episodes as segments."""
     plan = _plan(path, options)
-    if plan.n_rows == 0:
-        raise DataError(f"{path}: the dataset holds no frames.")
     values = _read_columns(plan)
     t, starts = _episodes(plan, values)
     columns: dict[str, FloatArray] = {}
@@ -443,6 +492,12 @@ def read_lerobot(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
         warnings = (
             f"{path}: no meta/info.json two folders up: fps not checked against the "
             "timestamps, joints named by index",
+        )
+    if plan.empty_files:  # nothing of them is lost by skipping; their absence is named
+        warnings += (
+            f"{plan.root}: {len(plan.empty_files)} episode file(s) hold no frames, skipped "
+            f"({_listed(plan.empty_files, plan.root)}); re-record those episodes or remove "
+            "the files",
         )
     return [
         LogTable(
