@@ -160,6 +160,11 @@ def row(result, spec: dict, seconds: float) -> str:
     )
 
 
+#: The fast harmonics of the SO-101's reference (orders of 1 / PERIOD_S: 2 and 3 Hz), added to
+#: its 0.25-0.75 Hz motion: they tell the delay from the velocity gain.
+FAST = (8, 12)
+#: The SO-101-like arm's servos of one gain: the shoulder and elbow, the wrist.
+EQUAL_KP = [["shoulder_pan", "shoulder_lift", "elbow_flex"], ["wrist_flex", "wrist_roll"]]
 SO101 = make_so101.SERVO | {"period": make_so101.PERIOD_S, "encoder": make_so101.COUNTS_PER_REV}
 ROLLOUT_WINDOW_S = 1.0
 
@@ -211,14 +216,14 @@ def run_so101(seeds: int) -> None:
     )
     robot = Robot.from_urdf(make_so101.URDF)
     ways = [
-        ("mass", "scan", {"max_delay_s": 0.01}),
+        ("mass", "scan", {"max_delay_s": 0.01, "equal_kp": EQUAL_KP}),
         ("kp", "scan", {"max_delay_s": 0.01, "kp": SO101["kp"]}),
         ("kp", "given", {"delay": 0.004, "kp": SO101["kp"]}),
     ]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         for seed in range(seeds):
-            logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1))
+            logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1), fast=FAST)
             make_so101.write(folder / "dataset", logs)
             for scale, delay, actuator in ways:
                 t0 = time.perf_counter()
