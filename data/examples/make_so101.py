@@ -33,7 +33,8 @@ RATE_HZ = 500.0  # frames per second, and the servos' command rate
 COUNTS_PER_REV, ZERO_TICK = 4096, 2048  # Feetech STS3215
 #: The simulated servos (per joint, SI): gain [N*m/rad], velocity gain and joint damping
 #: [N*m*s/rad], friction loss [N*m], armature [kg*m^2] (rotor inertia times gear ratio
-#: squared), saturation [N*m], command delay [MuJoCo steps of 1 / RATE_HZ].
+#: squared), saturation [N*m], command delay [MuJoCo steps of 1 / RATE_HZ; of
+#: 1 / (RATE_HZ substeps) with an optional ``substeps``: MuJoCo steps per frame].
 SERVO = {
     "kp": [18.0, 18.0, 18.0, 12.0, 12.0],
     "kv": [0.4, 0.4, 0.4, 0.25, 0.25],
@@ -63,6 +64,7 @@ def measurement(servo: dict = SERVO, n_periods: int = N_PERIODS) -> dict:
         "encoder_counts_per_rev": COUNTS_PER_REV,
         "settle_periods": SETTLE_PERIODS,
         "n_periods": n_periods,
+        "substeps": servo.get("substeps", 1),
     }
 
 

@@ -25,9 +25,15 @@ any ``u`` (:func:`servo_rows`). The equality is eliminated, ``u = u0 + Z v``, an
 identification's WLS (:func:`~ident.identify.estimation.estimate.least_squares_reduced`) on
 those rows: its standard deviations give those of ``kp`` and ``kd + fv`` (``Z cov Z^T``).
 
-The delay ``d`` (``actuator.delay: auto``) is the whole number of samples within ``max_delay_s``
-whose fit has the smallest residual (the scale is fixed the same way for every ``d``, so the
-residuals compare). With ``forcerange``, samples where the servo may reach it are excluded
+The delay ``d`` (``actuator.delay: auto``): every whole number of samples within
+``max_delay_s`` is fitted, then the best refined to a fraction of a sample (the command
+between samples linearly interpolated, :func:`~ident.dynamics.actuators.servo_error`), the
+delay of the smallest residual kept (the scale is fixed the same way for every ``d``, so the
+residuals compare). A shift of one sample ``h`` changes ``kp e`` by about ``-kp h (dq +
+de/dt)``: its ``dq`` part is a change of ``kd`` by ``kp h``, so only the torque's rate of
+change ``kp de/dt`` tells the delay from ``kd``: a motion of a few Hz (a 0.25-0.75 Hz one
+with 4096-tick encoders leaves the residual's minimum to the ticks' noise and the dry
+friction's reversals). With ``forcerange``, samples where the servo may reach it are excluded
 (:func:`~ident.dynamics.actuators.saturated_samples`) and the fit redone until the set stops
 changing; stretches left between them that are too short to filter are dropped with them.
 Then :func:`servo_log` hands the identification the log with ``tau = kp e`` (the identified or
@@ -43,6 +49,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 import scipy.linalg
+import scipy.optimize
 
 from ident.dynamics.actuators import saturated_samples, servo_error
 from ident.dynamics.chain import chain_from_model
@@ -70,6 +77,7 @@ __all__ = [
     "servo_log",
     "servo_rows",
     "shared_share",
+    "gravity_rows",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -77,6 +85,9 @@ BoolArray = npt.NDArray[np.bool_]
 
 #: Fits redone at most, each excluding the samples the previous one found saturated.
 MAX_SATURATION_ROUNDS = 4
+#: The scanned delay's refinement: its tolerance [samples] and most fits.
+DELAY_TOLERANCE = 0.01
+MAX_DELAY_REFINE = 16
 #: With a force range and the gains unknown, the first fit uses the samples whose every
 #: joint's error is at most this quantile of that joint's errors.
 FIRST_FIT_QUANTILE = 0.95
@@ -89,6 +100,8 @@ MIN_SHARED_SHARE = 0.1
 MIN_GRAVITY_SHARE = 0.1
 #: The URDF's gravity torque [N*m rms] the logged postures must load to fix the scale.
 MIN_GRAVITY_LOAD = 1e-6
+#: The gravity load is summed over every this-many-th posture of the log.
+GRAVITY_POSTURE_STEP = 5
 #: Gravity columns' pivots kept: those above this fraction of the largest (QR's diagonal).
 GRAVITY_RANK_TOL = 1e-8
 
@@ -156,12 +169,8 @@ def mass_scale(
     """
     p = len(pm.base_names)
     nv = pm.terms.n_joints
-    nominal = pm.base.projection @ pm.nominal
-    rest = np.zeros((q.shape[0], nv))
-    G = np.zeros((q.shape[0], nv, p))
-    G[:, :, columns.order] = columns(q, rest, rest)[:, :, : columns.order.size]
-    G = G.reshape(-1, p)
-    g = G @ nominal
+    G = gravity_rows(pm, columns, q)
+    g = G @ pm.base.projection @ pm.nominal
     rms = float(np.sqrt(np.mean(g**2))) if g.size else 0.0
     if not rms > MIN_GRAVITY_LOAD:
         raise ConfigError(
@@ -189,6 +198,16 @@ def mass_scale(
         f"({rms:.3g} N*m rms over the log's postures)"
     )
     return Scale("mass", offset, basis, free + kp_names, note, load)
+
+
+def gravity_rows(pm: ParameterModel, columns: BaseColumns, q: FloatArray) -> FloatArray:
+    """The base regressor (n nv, p) at the postures ``q`` (n, nq) at rest, in base order: the
+    gravity torque per unit of each base parameter [N*m per unit]."""
+    nv = pm.terms.n_joints
+    rest = np.zeros((q.shape[0], nv))
+    G = np.zeros((q.shape[0], nv, len(pm.base_names)))
+    G[:, :, columns.order] = columns(q, rest, rest)[:, :, : columns.order.size]
+    return G.reshape(-1, len(pm.base_names))
 
 
 def _gain_groups(
@@ -323,10 +342,10 @@ class ServoFit:
     kp_std: FloatArray
     damping: FloatArray
     damping_std: FloatArray
-    delay_samples: int
+    delay_samples: float
     sampling_rate_hz: float
     delay_auto: bool
-    delay_candidates: tuple[int, ...]
+    delay_candidates: tuple[float, ...]
     delay_residuals: tuple[float, ...]
     scale: str
     scale_note: str
@@ -420,7 +439,7 @@ class ServoFit:
         )
         return (
             f"position servos: kp [{kp}] N*m/rad ({how}); kd + fv [{damping}] N*m*s/rad (not "
-            f"separable); delay {self.delay_samples} samples = {1e3 * self.delay_s:.4g} ms "
+            f"separable); delay {self.delay_samples:.3g} samples = {1e3 * self.delay_s:.4g} ms "
             f"({'scanned' if self.delay_auto else 'given'}); saturated samples {saturated}"
         )
 
@@ -451,7 +470,7 @@ class ServoFit:
                 strict=True,
             )
         ]
-        delay = "scanned, smallest residual" if self.delay_auto else "given"
+        delay = "scanned and refined, smallest residual" if self.delay_auto else "given"
         return [
             "## Position servos",
             "",
@@ -463,7 +482,8 @@ class ServoFit:
             "| --- | ---: | ---: | ---: |",
             *rows,
             "",
-            f"- delay d = {self.delay_samples} samples = {1e3 * self.delay_s:.4g} ms ({delay}).",
+            f"- delay d = {self.delay_samples:.3g} samples = {1e3 * self.delay_s:.4g} ms "
+            f"({delay}).",
             f"- samples excluded (saturated, or between saturations): {self.n_excluded}.",
             *[f"- not determined: {text}." for text in self.undetermined()],
             "",
@@ -559,12 +579,12 @@ class _ServoProblem:
         zero-phase filters' padding and a few decimated rows."""
         return 2 * self.pp.trim_samples + 64 + 4 * preprocess.decimation_step(self.pp)
 
-    def error(self, delay: int) -> FloatArray:
+    def error(self, delay: float) -> FloatArray:
         """``e = q_cmd(t - d) - q`` (n_samples, nv) for ``d = delay`` samples."""
         assert self.log.q_cmd is not None  # servo_log checks
         return servo_error(self.log.q, self.log.q_cmd, delay, self.log.segments)
 
-    def fit(self, delay: int, keep: BoolArray) -> _Fit:
+    def fit(self, delay: float, keep: BoolArray) -> _Fit:
         """The scaled fit on the identification rows of the kept samples, ``e`` as torque."""
         log = _kept(dataclasses.replace(self.log, tau=self.error(delay)), keep, self.min_run)
         n_base = self.columns.order.size
@@ -578,10 +598,32 @@ class _ServoProblem:
         red = log_chunks.merged_rows(*log_chunks.reduce_log(chunked))
         return scaled_fit(red, self.scale, self.method)
 
-    def scan(self, delays: tuple[int, ...], keep: BoolArray) -> tuple[int, dict[int, _Fit]]:
-        """Every delay's fit and the delay of the smallest residual."""
-        fits = {d: self.fit(d, keep) for d in delays}
-        return min(fits, key=lambda d: fits[d].residual_ss), fits
+    def scan(
+        self, delays: tuple[float, ...], keep: BoolArray, refine: bool = False
+    ) -> tuple[float, dict[float, _Fit]]:
+        """Every delay's fit and the delay of the smallest residual; with ``refine``, that
+        delay to a fraction of a sample: the residual's minimum between the best whole
+        delay's neighbours (bounded Brent to :data:`DELAY_TOLERANCE` samples, at most
+        :data:`MAX_DELAY_REFINE` fits), its fit added to the scan's."""
+        fits = {float(d): self.fit(d, keep) for d in delays}
+        best = min(fits, key=lambda d: fits[d].residual_ss)
+        if not refine or len(fits) < 2:
+            return best, fits
+        tried: dict[float, _Fit] = {}
+
+        def residual(d: float) -> float:
+            tried[float(d)] = self.fit(float(d), keep)
+            return tried[float(d)].residual_ss
+
+        bounds = (max(best - 1.0, min(fits)), min(best + 1.0, max(fits)))
+        options = {"xatol": DELAY_TOLERANCE, "maxiter": MAX_DELAY_REFINE}
+        found = scipy.optimize.minimize_scalar(residual, bounds=bounds, method="bounded",
+                                               options=options)  # fmt: skip
+        d = float(found.x)
+        fit = tried[d] if d in tried else self.fit(d, keep)
+        if fit.residual_ss < fits[best].residual_ss:
+            fits[d], best = fit, d
+        return best, dict(sorted(fits.items()))
 
     def velocities(self) -> FloatArray:
         """``dq`` [rad/s] (n_samples, nv): the logged ones, else central differences of ``q``
@@ -595,26 +637,31 @@ class _ServoProblem:
         return dq
 
 
-def _delays(act: ActuatorSection, rate_hz: float) -> tuple[int, ...]:
-    """The delays to fit [samples]: the given one rounded, or every one within
-    ``max_delay_s``."""
+def _delays(act: ActuatorSection, rate_hz: float) -> tuple[float, ...]:
+    """The delays to fit [samples]: the given one, or every whole one within
+    ``max_delay_s`` (the best then refined to a fraction, :meth:`_ServoProblem.scan`)."""
     if act.delay == "auto":
-        return tuple(range(int(np.floor(act.max_delay_s * rate_hz + 1e-9)) + 1))
-    return (int(round(float(act.delay) * rate_hz)),)
+        return tuple(float(d) for d in range(int(np.floor(act.max_delay_s * rate_hz + 1e-9)) + 1))
+    return (float(act.delay) * rate_hz,)
 
 
 def servo_fit_count(act: ActuatorSection, rate_hz: float) -> int:
     """The most accumulations of the log :func:`servo_log` makes (0 for a motor): every delay
-    scanned, then three per further saturation round (for the job's estimate)."""
+    scanned, then three per further saturation round, and the refinement of each scan's
+    best delay when it is scanned (for the job's estimate)."""
     if act.kind != "position":
         return 0
     rounds = MAX_SATURATION_ROUNDS - 1 if act.forcerange is not None else 0
-    return len(_delays(act, rate_hz)) + 3 * rounds
+    refine = MAX_DELAY_REFINE + 1 if act.delay == "auto" else 0
+    return len(_delays(act, rate_hz)) + 3 * rounds + refine * (rounds + 1)
 
 
 def _fit_with_saturation(
-    problem: _ServoProblem, delays: tuple[int, ...], forcerange: FloatArray | None
-) -> tuple[int, dict[int, _Fit], BoolArray, BoolArray]:
+    problem: _ServoProblem,
+    delays: tuple[float, ...],
+    forcerange: FloatArray | None,
+    refine: bool = False,
+) -> tuple[float, dict[float, _Fit], BoolArray, BoolArray]:
     """The delay, the fits of the last scan, the kept samples (n,) and the saturated ones
     (n, nv): scan, exclude the saturated samples, again until the set stops changing (at most
     :data:`MAX_SATURATION_ROUNDS` scans; after the first, of the best delay and its two
@@ -627,9 +674,9 @@ def _fit_with_saturation(
         keep = _first_keep(problem, delays[len(delays) // 2], forcerange)
     scanned = delays
     for _ in range(MAX_SATURATION_ROUNDS):
-        delay, fits = problem.scan(scanned, keep)
+        delay, fits = problem.scan(scanned, keep, refine)
         # the next rounds move the kept samples a little: the best delay's neighbours suffice
-        scanned = tuple(d for d in delays if abs(d - delay) <= 1)
+        scanned = tuple(d for d in delays if abs(d - round(delay)) <= 1)
         if forcerange is None or dq is None:
             break
         u = fits[delay].u
@@ -643,7 +690,7 @@ def _fit_with_saturation(
     return delay, fits, keep, saturated
 
 
-def _first_keep(problem: _ServoProblem, delay: int, forcerange: FloatArray) -> BoolArray:
+def _first_keep(problem: _ServoProblem, delay: float, forcerange: FloatArray) -> BoolArray:
     """The samples (n,) the first fit uses when the servo may saturate: a saturated sample's
     error is large (the servo cannot follow), and it would pull the fit far off (its force is
     the range, not ``kp e``). With the gains given: where ``|kp e| < forcerange`` on every
@@ -705,19 +752,9 @@ def servo_log(
     pp, records, _ = preprocess.resolve_for_log(cfg.preprocess, log)
     pp = _servo_preprocess(pp)
     pm = build_parameter_model(model, cfg.model.extra_terms(nv, source))
-    kp = _per_joint_option(act.kp, nv, "kp", source)
     forcerange = _per_joint_option(act.forcerange, nv, "forcerange", source)
     columns = BaseColumns(chain_from_model(model), pm)
-    scale = (
-        kp_scale(pm, kp)
-        if act.scale == "kp" and kp is not None
-        else mass_scale(
-            pm,
-            columns,
-            log.q[:: preprocess.decimation_step(pp)],
-            _equal_kp(act.equal_kp, log.joint_names, source),
-        )
-    )
+    scale = _scale(act, pm, columns, log, source)
     problem = _ServoProblem(
         log,
         pp,
@@ -728,12 +765,25 @@ def servo_log(
         tuple(pm.base_names),
     )
     delays = _delays(act, log.sampling_rate_hz)
-    delay, fits, keep, saturated = _fit_with_saturation(problem, delays, forcerange)
-    fit = _servo_fit(problem, delay, fits, (keep, saturated), forcerange, act.delay == "auto")
+    auto = act.delay == "auto"
+    delay, fits, keep, saturated = _fit_with_saturation(problem, delays, forcerange, auto)
+    fit = _servo_fit(problem, delay, fits, (keep, saturated), forcerange, auto)
     all_records = (*log.records, *records, _record(fit))
     out = _kept(dataclasses.replace(log, tau=fit.kp * problem.error(delay), records=all_records),
                 keep, problem.min_run)  # fmt: skip
     return cfg.model_copy(update={"preprocess": pp}), out, fit
+
+
+def _scale(
+    act: ActuatorSection, pm: ParameterModel, columns: BaseColumns, log: RobotLog, source: str
+) -> Scale:
+    """What fixes the scale (``actuator.scale_from``): the gains given, or the URDF's gravity
+    load on the log's postures (every :data:`GRAVITY_POSTURE_STEP`-th), ``equal_kp`` tied."""
+    kp = _per_joint_option(act.kp, pm.terms.n_joints, "kp", source)
+    if act.scale == "kp" and kp is not None:
+        return kp_scale(pm, kp)
+    groups = _equal_kp(act.equal_kp, log.joint_names, source)
+    return mass_scale(pm, columns, log.q[::GRAVITY_POSTURE_STEP], groups)
 
 
 def _servo_preprocess(pp: PreprocessConfig) -> PreprocessConfig:
@@ -751,8 +801,8 @@ def _servo_preprocess(pp: PreprocessConfig) -> PreprocessConfig:
 
 def _servo_fit(
     problem: _ServoProblem,
-    delay: int,
-    fits: dict[int, _Fit],
+    delay: float,
+    fits: dict[float, _Fit],
     samples: tuple[BoolArray, BoolArray],
     forcerange: FloatArray | None,
     auto: bool,
@@ -796,7 +846,7 @@ def _record(fit: ServoFit) -> dict:
     return {
         "step": "actuator",
         "detail": f"position servo: tau = kp (q_cmd(t - d) - q), kp {how} "
-        f"{_values(fit.kp, 'N*m/rad')}, d = {fit.delay_samples} samples "
+        f"{_values(fit.kp, 'N*m/rad')}, d = {fit.delay_samples:.3g} samples "
         f"({1e3 * fit.delay_s:.4g} ms, {'scanned' if fit.delay_auto else 'given'}); the "
         f"servo's kd enters the viscous column (fv{{j}} is kd + fv); scale fixed by "
         f"{fit.scale_note}; {fit.n_excluded} samples excluded (saturated: "
