@@ -190,10 +190,11 @@ def test_shared_share_is_the_torque_of_the_columns_other_joints_also_carry():
 # ----------------------------------------------------------------------------- ticked encoders
 @pytest.fixture(scope="module")
 def ticked(tmp_path_factory):
-    """The arm's servos simulated as :func:`servo_log`'s (no force range), its motion with 2 and 3 Hz harmonics
-    (the torque's rate of change tells the delay from ``kd``), read by 4096-tick encoders
-    (1.5 mrad, an SO-101's STS3215), as ``ident identify`` reads it: the config (delay scanned
-    over 0..8 ms, the scale from the URDF's gravity load), the robot and the log."""
+    """The arm's servos simulated as :func:`servo_log`'s (no force range), its motion with 2
+    and 3 Hz harmonics (the torque's rate of change tells the delay from ``kd``), read by
+    4096-tick encoders (1.5 mrad, an SO-101's STS3215), as ``ident identify`` reads it: the
+    config (delay scanned over 0..8 ms, the scale from the URDF's gravity load), the robot and
+    the log."""
     folder = tmp_path_factory.mktemp("ticked")
     (folder / "arm2.urdf").write_text(ARM)
     robot = Robot.from_urdf(folder / "arm2.urdf")
@@ -226,7 +227,9 @@ def test_delay_under_4096_ticks_is_the_planted_two_samples(ticked):
     Measured: 2.00 samples; kp 0.1 %, kd + fv 0.2 %."""
     cfg, robot, log = ticked
     _, _, fit = servo_fit.servo_log(cfg, robot.model, log)
-    assert fit.delay_auto and fit.delay_candidates[0] == 0.0 and len(fit.delay_candidates) > 5
+    assert fit.delay_auto
+    assert fit.delay_candidates[0] == 0.0
+    assert len(fit.delay_candidates) > 5  # 0..4 and the refined one
     assert abs(fit.delay_samples - DELAY_STEPS) < 0.1, fit.delay_residuals
     np.testing.assert_allclose(fit.damping, KV + DAMPING, rtol=0.02)
 
@@ -240,7 +243,8 @@ def test_gains_from_the_urdf_gravity_load_under_4096_ticks(ticked):
     cfg, robot, log = ticked
     _, _, fit = servo_fit.servo_log(cfg, robot.model, log)
     np.testing.assert_allclose(fit.kp, KP, rtol=0.02)
-    assert np.all(fit.kp_std > 0) and fit.gravity_load is not None
+    assert np.all(fit.kp_std > 0)
+    assert fit.gravity_load is not None
     assert not any("carry (almost) none" in text for text in fit.undetermined())
     tied = cfg.model_copy(
         update={"actuator": cfg.actuator.model_copy(update={"equal_kp": [["j1", "j2"]]})}
@@ -248,7 +252,8 @@ def test_gains_from_the_urdf_gravity_load_under_4096_ticks(ticked):
     _, _, one = servo_fit.servo_log(tied, robot.model, log)
     # one number, near joint 1's (its gravity load, 7.9 N*m rms, is 6.6 times joint 2's);
     # a wrong tie shows in the residual
-    assert one.kp[0] == one.kp[1] and abs(one.kp[0] / KP[0] - 1) < 0.05
+    assert one.kp[0] == one.kp[1]
+    assert abs(one.kp[0] / KP[0] - 1) < 0.05
     assert one.relative_residual > 2.0 * fit.relative_residual
 
 
