@@ -277,12 +277,14 @@ def test_servo_log_without_torque_identifies_gains_delay_and_parameters(servo_lo
     estimates = []
     result = identify(load_identify_config(_config(folder, actuator)), on_estimate=estimates.append)
     fit = result.actuator
-    # the job's estimate counts the servo's fits: 5 delays, then 3 rounds of 3
-    assert any(e.what.endswith(", 14 servo fits first") for e in estimates)
+    # the job's estimate counts the servo's fits: 5 delays, then 3 rounds of 3, and 4
+    # refinements of at most 17
+    assert any(e.what.endswith(", 82 servo fits first") for e in estimates)
     errors = _errors(result, robot)
     report = ", ".join(f"{k} {v:.3f} %" for k, v in errors.items())
     print(f"servo fit (scale from {scale}): delay {fit.delay_samples} samples; {report}")
-    assert fit.delay_samples == DELAY_STEPS, fit.delay_residuals
+    # refined to a fraction: the saturated samples' exclusion leaves it within a quarter
+    assert abs(fit.delay_samples - DELAY_STEPS) < 0.25, fit.delay_residuals
     assert fit.delay_candidates[0] <= 1
     assert fit.delay_candidates[-1] >= 3
     # well inside 2 % and 5 %: the scale fixed by a combination that holds a rotor inertia
@@ -366,6 +368,8 @@ def test_rollout_of_a_servo_mjcf_is_driven_by_the_measured_torques_alone(servo_l
         ({"kind": "motor", "kp": 3.0}, "nothing", r"actuator\.kp is an option of kind"),
         ({"kind": "servo"}, "torque", r"allowed: motor, position"),
         ({"kind": "position", "delay": 0.2}, "torque", r"actuator\.delay = 0\.2 s"),
+        ({"kind": "position", "kp": 3.0, "equal_kp": [["j1", "j2"]]}, "torque", r"equal_kp ties"),
+        ({"kind": "position", "equal_kp": [["j1"]]}, "torque", r"two or more joint names"),
     ],
 )
 def test_bad_actuator_sections_are_one_line_config_errors(servo_log, actuator, drop, match):
@@ -378,6 +382,12 @@ def test_bad_actuator_sections_are_one_line_config_errors(servo_log, actuator, d
     with pytest.raises(ConfigError, match=match) as info:
         load_identify_config(path)
     assert "\n" not in str(info.value)
+
+
+def test_equal_kp_names_an_unknown_joint():
+    with pytest.raises(ConfigError, match=r"cfg\.yaml: actuator\.equal_kp: jx is not a joint"):
+        servo_fit._equal_kp([["j1", "jx"]], ("j1", "j2"), "cfg.yaml")
+    assert servo_fit._equal_kp([["j2", "j1"]], ("j1", "j2"), "cfg.yaml") == ((1, 0),)
 
 
 def test_servo_config_errors_exit_2_before_any_folder(servo_log, tmp_path):
