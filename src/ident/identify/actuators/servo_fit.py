@@ -14,9 +14,11 @@ share the rigid-body parameters, which ties their gains together). ``kd_j`` mult
 
 - ``kp``: the gains given (a datasheet): ``kp e`` moves to the right side, a plain least squares;
 - ``mass``: the URDF's masses (and centres of mass) through the gravity load they put on the
-  joints over the logged postures: the identified gravity torques' component along the URDF's
-  keeps the URDF's value (:func:`mass_scale`). A slow motion loads gravity most, so the scale
-  is as right as the URDF's gravity load; an arm moving about vertical axes only sees none.
+  joints over the logged postures: every combination of base parameters the gravity torques
+  see keeps its URDF value (:func:`mass_scale`), so the scale is as right as the URDF's
+  gravity load; an arm moving about vertical axes only sees none. A joint the gravity does not
+  load (a pan, a wrist roll) is tied to the scale through the shared inertias only;
+  ``actuator.equal_kp`` gives it the gain of loaded joints with the same servo setting.
 
 Solving: every row of a joint is reduced once by the identification's own accumulation
 (:mod:`ident.identify.estimation.log_chunks`) with ``e_j`` in place of the torque, so the QR of
@@ -70,6 +72,7 @@ __all__ = [
     "MIN_SHARED_SHARE",
     "Scale",
     "ServoFit",
+    "gravity_rows",
     "kp_scale",
     "mass_scale",
     "scaled_fit",
@@ -77,7 +80,6 @@ __all__ = [
     "servo_log",
     "servo_rows",
     "shared_share",
-    "gravity_rows",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -122,7 +124,7 @@ class Scale:
         What fixed it, in words (values and units).
     gravity_load :
         ``mass``: the URDF's gravity torque per joint over the log's postures [N*m rms]
-        (nv,); None for ``kp``.
+        (nv,), the largest of its ``equal_kp`` group; None for ``kp``.
     """
 
     kind: str
@@ -334,7 +336,8 @@ class ServoFit:
         scale (a light last link whose torque is its own rotor inertia and friction).
     gravity_load :
         ``scale == "mass"``: the URDF's gravity torque per joint over the log's postures
-        [N*m rms] (nv,), what ties each gain to the scale; None when the gains were given.
+        [N*m rms] (nv,), the largest of its ``equal_kp`` group: what ties each gain to the
+        scale; None when the gains were given.
     """
 
     joint_names: tuple[str, ...]
