@@ -5,6 +5,7 @@ MuJoCo's own ``<position>`` actuator (the simulated log and the written MJCF's f
 simulator's truth (gains, velocity gains plus damping, armature, friction loss, the URDF).
 """
 
+import dataclasses
 from pathlib import Path
 
 import mujoco
@@ -16,9 +17,9 @@ from typer.testing import CliRunner
 from ident.dynamics.actuators import saturated_samples, servo_error
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
-from ident.errors import ConfigError
+from ident.errors import ConfigError, DataError
 from ident.identify.actuators import servo_fit
-from ident.identify.actuators.servo_fit import Scale, scaled_fit, shared_share
+from ident.identify.actuators.servo_fit import Scale, ServoFit, scaled_fit, shared_share
 from ident.identify.assessment.rollout import RolloutMeasurements, rollout_score
 from ident.identify.config import load_identify_config
 from ident.identify.estimation.observations import ReducedObservations
@@ -382,6 +383,21 @@ def test_bad_actuator_sections_are_one_line_config_errors(servo_log, actuator, d
     with pytest.raises(ConfigError, match=match) as info:
         load_identify_config(path)
     assert "\n" not in str(info.value)
+
+
+def test_gains_far_below_the_gravity_load_they_carry_are_refused():
+    """A servo torque far below the URDF's gravity load of its joint (the fit drove the gain
+    to 0) is a DataError naming that joint only; with the gains given there is no check."""
+    scale = Scale("mass", np.zeros(3), np.eye(3), ("a", "b", "c"), "n", own_load=np.ones(2))
+    fit = ServoFit(
+        ("j1", "j2"), np.array([0.5, 30.0]), *[np.zeros(2)] * 3, 2.0, 500.0, True, (2.0,),
+        (0.0,), "mass", "n", None, np.zeros(2, dtype=np.int64), 0, 0.0, np.ones(2),
+    )  # fmt: skip
+    torque = np.column_stack([np.full(10, 0.3), np.full(10, 0.6)])  # rms 0.3 and 0.6 N*m
+    with pytest.raises(DataError, match=r"cfg\.yaml: .*servo torque of j1 \(0\.3 N\*m") as info:
+        servo_fit._check_gravity_carried(scale, torque, fit, "cfg.yaml")
+    assert "j2" not in str(info.value)
+    servo_fit._check_gravity_carried(dataclasses.replace(scale, own_load=None), torque, fit, "x")
 
 
 def test_equal_kp_names_an_unknown_joint():

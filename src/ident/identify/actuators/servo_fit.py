@@ -102,6 +102,9 @@ MIN_SHARED_SHARE = 0.1
 MIN_GRAVITY_SHARE = 0.1
 #: The URDF's gravity torque [N*m rms] the logged postures must load to fix the scale.
 MIN_GRAVITY_LOAD = 1e-6
+#: A joint's URDF gravity load more than this many times its identified servo torque (rms)
+#: means the gravity-load scale failed (:func:`_check_gravity_carried`).
+MAX_GRAVITY_OVER_TORQUE = 2.0
 #: The gravity load is summed over every this-many-th posture of the log.
 GRAVITY_POSTURE_STEP = 5
 #: Gravity columns' pivots kept: those above this fraction of the largest (QR's diagonal).
@@ -125,6 +128,8 @@ class Scale:
     gravity_load :
         ``mass``: the URDF's gravity torque per joint over the log's postures [N*m rms]
         (nv,), the largest of its ``equal_kp`` group; None for ``kp``.
+    own_load :
+        ``mass``: the same, each joint's own (nv,); None for ``kp``.
     """
 
     kind: str
@@ -133,6 +138,7 @@ class Scale:
     free: tuple[str, ...]
     note: str
     gravity_load: FloatArray | None = None
+    own_load: FloatArray | None = None
 
 
 def kp_scale(pm: ParameterModel, kp: FloatArray) -> Scale:
@@ -187,7 +193,8 @@ def mass_scale(
     solve = np.linalg.pinv(G[:, pivots])
     offset = np.zeros(p + nv)
     offset[pivots] = solve @ g
-    gains, kp_names, load = _gain_groups(nv, equal_kp, np.sqrt(np.mean(g.reshape(-1, nv) ** 2, 0)))
+    own = np.sqrt(np.mean(g.reshape(-1, nv) ** 2, axis=0))
+    gains, kp_names, load = _gain_groups(nv, equal_kp, own)
     basis = np.zeros((p + nv, rest_cols.size + gains.shape[1]))
     basis[rest_cols, np.arange(rest_cols.size)] = 1.0
     basis[pivots, : rest_cols.size] = -solve @ G[:, rest_cols]
@@ -199,7 +206,7 @@ def mass_scale(
         f"{rank} combinations of base parameters the gravity torques see kept at the URDF's "
         f"({rms:.3g} N*m rms over the log's postures)"
     )
-    return Scale("mass", offset, basis, free + kp_names, note, load)
+    return Scale("mass", offset, basis, free + kp_names, note, load, own)
 
 
 def gravity_rows(pm: ParameterModel, columns: BaseColumns, q: FloatArray) -> FloatArray:
@@ -371,10 +378,16 @@ class ServoFit:
             f"the common scale of every parameter and kp: not in the data, fixed by "
             f"{self.scale_note}",
         ]
+        # a gain the gravity load ties (its own joint's or its equal_kp group's) is not loose
+        tied = np.zeros(len(self.joint_names), dtype=bool)
+        if self.gravity_load is not None:
+            tied = self.gravity_load >= MIN_GRAVITY_SHARE * float(np.max(self.gravity_load))
         loose = [
             f"{name} ({100 * share:.2g} %)"
-            for name, share in zip(self.joint_names, self.shared_share, strict=True)
-            if share < MIN_SHARED_SHARE
+            for name, share, by_gravity in zip(
+                self.joint_names, self.shared_share, tied, strict=True
+            )
+            if share < MIN_SHARED_SHARE and not by_gravity
         ]
         if self.scale == "mass" and loose:
             out.append(
@@ -771,10 +784,35 @@ def servo_log(
     auto = act.delay == "auto"
     delay, fits, keep, saturated = _fit_with_saturation(problem, delays, forcerange, auto)
     fit = _servo_fit(problem, delay, fits, (keep, saturated), forcerange, auto)
+    _check_gravity_carried(problem.scale, fit.kp * problem.error(delay)[keep], fit, source)
     all_records = (*log.records, *records, _record(fit))
     out = _kept(dataclasses.replace(log, tau=fit.kp * problem.error(delay), records=all_records),
                 keep, problem.min_run)  # fmt: skip
     return cfg.model_copy(update={"preprocess": pp}), out, fit
+
+
+def _check_gravity_carried(scale: Scale, torque: FloatArray, fit: ServoFit, source: str) -> None:
+    """With the scale from the URDF's gravity load, each loaded joint's identified servo
+    torque ``torque`` (n_kept, nv) [N*m] must carry that load: far below it (less than
+    1 / :data:`MAX_GRAVITY_OVER_TORQUE` of it, rms), the fit put the scale in a direction the
+    motion does not see (the links' inertias mimicking the gravity of a slow periodic
+    motion) and every gain went to 0: :class:`DataError` naming the joints."""
+    if scale.own_load is None:
+        return
+    servo = np.sqrt(np.mean(torque**2, axis=0))
+    low = [
+        f"{name} ({t:.2g} N*m rms for a gravity load of {g:.2g}, kp {k:.3g} N*m/rad)"
+        for name, t, g, k in zip(fit.joint_names, servo, scale.own_load, fit.kp, strict=True)
+        if g > MAX_GRAVITY_OVER_TORQUE * t
+    ]
+    if low:
+        raise DataError(
+            f"{source}: actuator.scale_from: mass: the identified servo torque of "
+            f"{', '.join(low)} is far below the URDF's gravity load it carries: the motion does "
+            "not tell the gravity from the links' inertias (too slow, or periodic at one "
+            "rate); log an excitation with a few Hz in it and postures that load gravity, or "
+            "give the servos' gain actuator.kp [N*m/rad]"
+        )
 
 
 def _scale(
