@@ -335,15 +335,16 @@ class ActuatorSection(StrictModel):
     ``kind: motor`` (default): the torque is logged (``log.torque``). ``kind: position``: a
     position servo logging its command (``log.command``) and no torque, whose torque is
     ``clip(kp (q_cmd(t - d) - q) - kd dq, +-forcerange)``; the data fix it only up to one
-    common scale, set by ``scale_from``: ``mass`` (the URDF's mass, in the part of it the motion
-    sees) or ``kp`` (the gain ``kp`` [N*m/rad] given, one value or one per joint, from a
-    datasheet). Default: ``kp`` when ``kp`` is given, else ``mass``. ``forcerange`` [N*m]
-    (one value or one per joint): samples where the servo may reach it are excluded (``null``:
-    never saturates). ``delay``: the command's transport delay [s] (rounded to whole samples),
-    or ``auto``: the whole number of samples within ``max_delay_s`` with the smallest residual.
-    ``equal_kp`` (``scale_from: mass``): groups of joint names whose servos have the same gain
-    (one servo model, one P setting): one ``kp`` per group, which ties a joint that carries
-    no gravity load to one that does.
+    common scale, set by ``scale_from``: ``mass`` (the URDF's masses, through the gravity
+    load they put on the logged postures) or ``kp`` (the gain ``kp`` [N*m/rad] given, one
+    value or one per joint, from a datasheet). Default: ``kp`` when ``kp`` is given, else
+    ``mass``. ``forcerange`` [N*m] (one value or one per joint): samples where the servo may
+    reach it are excluded (``null``: never saturates). ``delay``: the command's transport
+    delay [s] (a fraction of a sample allowed), or ``auto``: the delay within
+    ``max_delay_s`` with the smallest residual (whole samples, the best refined to a
+    fraction). ``equal_kp`` (``scale_from: mass``): groups of joint names whose servos have
+    the same gain (one servo model, one P setting): one ``kp`` per group, which ties a joint
+    that carries no gravity load to one that does.
     """
 
     kind: str = "motor"

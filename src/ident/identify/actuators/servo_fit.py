@@ -445,7 +445,7 @@ class ServoFit:
 
     def line(self) -> str:
         """One line for the terminal."""
-        how = "identified, scale from the URDF's mass" if self.scale == "mass" else "given"
+        how = "identified, scale from the URDF's gravity load" if self.scale == "mass" else "given"
         kp = ", ".join(_pm(k, s) for k, s in zip(self.kp, self.kp_std, strict=True))
         damping = ", ".join(_pm(d, s) for d, s in zip(self.damping, self.damping_std, strict=True))
         saturated = (
