@@ -4,7 +4,7 @@ For each seed (the Fourier coefficients of the reference), MuJoCo simulates the 
 ``<position>`` servos (``kp``, ``kv``, a 2-step command delay) with joint damping, friction loss
 and armature, logs the encoder positions (2^19 counts per revolution on the UR5) and the
 commands, no torque; ``ident identify`` then runs with ``actuator: {kind: position}`` twice:
-the gains identified (scale from the URDF's mass) and given (``scale_from: kp``). Printed per
+the gains identified (scale from the URDF's gravity load) and given (``scale_from: kp``). Printed per
 seed and scale: the delay found, the largest relative error of ``kp`` (of every joint, and of
 the joints whose gain the shared parameters tie to the scale; the others are named, as the
 result names them), ``kd + fv`` (against
@@ -158,7 +158,7 @@ def row(result, spec: dict, seconds: float) -> str:
     named = [joints[j] for j in tied]
     loose = [j for k, j in enumerate(joints) if k not in tied] if fit.scale == "mass" else []
     return (
-        f"| {fit.scale} | {fit.delay_samples} | {worst(fit.kp, kp, joints)} "
+        f"| {fit.scale} | {fit.delay_samples:.2f} | {worst(fit.kp, kp, joints)} "
         f"| {worst(fit.kp[tied], kp[tied], named) if fit.scale == 'mass' else '-'} "
         f"| {', '.join(loose) or '-'} | {worst(fit.damping, kdfv, joints)} "
         f"| {extras(result, 'Ia', spec['armature'])} | {extras(result, 'fs', spec['coulomb'])} "
