@@ -4,12 +4,12 @@ For each seed (the Fourier coefficients of the reference), MuJoCo simulates the 
 ``<position>`` servos (``kp``, ``kv``, a 2-step command delay) with joint damping, friction loss
 and armature, logs the encoder positions (2^19 counts per revolution on the UR5) and the
 commands, no torque; ``ident identify`` then runs with ``actuator: {kind: position}`` twice:
-the gains identified (scale from the URDF's gravity load) and given (``scale_from: kp``). Printed per
-seed and scale: the delay found, the largest relative error of ``kp`` (of every joint, and of
-the joints whose gain the shared parameters tie to the scale; the others are named, as the
-result names them), ``kd + fv`` (against
-``kv + damping``), the rotor inertias (``Ia``, where a base parameter is one) and the Coulomb
-friction (``fs``, against the friction loss), and the seconds of the identification.
+the gains identified (scale from the URDF's gravity load) and given (``scale_from: kp``).
+Printed per seed and scale: the delay found, the largest relative error of ``kp`` (of every
+joint, and of the joints whose gain the shared parameters tie to the scale; the others are
+named, as the result names them), ``kd + fv`` (against ``kv + damping``), the rotor inertias
+(``Ia``, where a base parameter is one) and the Coulomb friction (``fs``, against the friction
+loss), and the seconds of the identification.
 
     python benchmarks/bench_servo.py [--robot ur5|arm2|so101] [--seeds 5] [--threshold 0.2]
 
