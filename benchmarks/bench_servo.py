@@ -4,21 +4,27 @@ For each seed (the Fourier coefficients of the reference), MuJoCo simulates the 
 ``<position>`` servos (``kp``, ``kv``, a 2-step command delay) with joint damping, friction loss
 and armature, logs the encoder positions (2^19 counts per revolution on the UR5) and the
 commands, no torque; ``ident identify`` then runs with ``actuator: {kind: position}`` twice:
-the gains identified (scale from the URDF's mass) and given (``scale_from: kp``). Printed per
-seed and scale: the delay found, the largest relative error of ``kp`` (of every joint, and of
-the joints whose gain the shared parameters tie to the scale; the others are named, as the
-result names them), ``kd + fv`` (against
-``kv + damping``), the rotor inertias (``Ia``, where a base parameter is one) and the Coulomb
-friction (``fs``, against the friction loss), and the seconds of the identification.
+the gains identified (scale from the URDF's gravity load) and given (``scale_from: kp``).
+Printed per seed and scale: the delay found, the largest relative error of ``kp`` (of every
+joint, and of the joints whose gain the shared parameters tie to the scale; the others are
+named, as the result names them), ``kd + fv`` (against ``kv + damping``), the rotor inertias
+(``Ia``, where a base parameter is one) and the Coulomb friction (``fs``, against the friction
+loss), and the seconds of the identification.
 
     python benchmarks/bench_servo.py [--robot ur5|arm2|so101] [--seeds 5] [--threshold 0.2]
 
-``so101``: the SO-101-like arm of ``data/examples/make_so101.py`` (4096-tick encoders, a 4 ms
-delay, a force range), each seed two episodes written as a LeRobot dataset and identified
-with ``configs/examples/lerobot-so101.yaml`` three ways: the scale from the URDF's mass and
-the delay scanned; ``kp`` given, the delay scanned; both given. Beside the errors, the
-held-out rollout (1 s windows, :func:`~ident.identify.assessment.rollout.rollout_score`) of
-the identified MJCF over that of the truth's (1.00: as good as the truth).
+``so101``: the SO-101-like arm of ``data/examples/make_so101.py`` (4096-tick encoders, a
+``--delay-ms`` delay, 4 ms by default, 5 ms is 2.5 samples, a force range) on its 0.25-0.75 Hz
+reference with two fast harmonics (2 and 3 Hz, :data:`FAST`: the torque's rate of change tells
+the delay from the velocity gain), each seed two episodes written as a LeRobot dataset and
+identified with ``configs/examples/lerobot-so101.yaml`` three ways: the scale from the URDF's
+gravity load (``scale_from: mass``, the shoulder-elbow and wrist servos' gains equal,
+``equal_kp``) and the delay scanned; ``kp`` given, the delay scanned; both given. Beside the
+errors, the held-out rollout (1 s windows,
+:func:`~ident.identify.assessment.rollout.rollout_score`) of the identified MJCF over that of
+the truth's (1.00: as good as the truth).
+
+    python benchmarks/bench_servo.py --robot so101 [--seeds 5] [--delay-ms 4]
 """
 
 from __future__ import annotations
@@ -152,7 +158,7 @@ def row(result, spec: dict, seconds: float) -> str:
     named = [joints[j] for j in tied]
     loose = [j for k, j in enumerate(joints) if k not in tied] if fit.scale == "mass" else []
     return (
-        f"| {fit.scale} | {fit.delay_samples} | {worst(fit.kp, kp, joints)} "
+        f"| {fit.scale} | {fit.delay_samples:.2f} | {worst(fit.kp, kp, joints)} "
         f"| {worst(fit.kp[tied], kp[tied], named) if fit.scale == 'mass' else '-'} "
         f"| {', '.join(loose) or '-'} | {worst(fit.damping, kdfv, joints)} "
         f"| {extras(result, 'Ia', spec['armature'])} | {extras(result, 'fs', spec['coulomb'])} "
@@ -160,6 +166,11 @@ def row(result, spec: dict, seconds: float) -> str:
     )
 
 
+#: The fast harmonics of the SO-101's reference (orders of 1 / PERIOD_S: 2 and 3 Hz), added to
+#: its 0.25-0.75 Hz motion: they tell the delay from the velocity gain.
+FAST = (8, 12)
+#: The SO-101-like arm's servos of one gain: the shoulder and elbow, the wrist.
+EQUAL_KP = [["shoulder_pan", "shoulder_lift", "elbow_flex"], ["wrist_flex", "wrist_roll"]]
 SO101 = make_so101.SERVO | {"period": make_so101.PERIOD_S, "encoder": make_so101.COUNTS_PER_REV}
 ROLLOUT_WINDOW_S = 1.0
 
@@ -184,7 +195,7 @@ def so101_rollout(result, folder: Path) -> float:
         for j, name in enumerate(result.joint_names)
     }
     truth = mujoco.MjModel.from_xml_string(reference_mjcf(Robot.from_urdf(make_so101.URDF), extras))
-    e = servo_error(log.q, log.q_cmd, spec["delay_steps"], log.segments)
+    e = servo_error(log.q, log.q_cmd, true_delay_samples(), log.segments)
     rows = np.searchsorted(log.t, measured.t)  # the windows' samples in the log
     tau = np.asarray(spec["kp"]) * e[rows]
     ref = rollout_score(truth, measured.with_torque(tau), windows, substeps=score.substeps)
@@ -202,8 +213,20 @@ def so101_config(folder: Path, actuator: dict) -> Path:
     return path
 
 
-def run_so101(seeds: int) -> None:
-    """Print one row per seed and way of fixing the scale and the delay (module docstring)."""
+def true_delay_samples() -> float:
+    """The simulated servos' command delay [samples of the log] (a fraction with substeps)."""
+    return SO101["delay_steps"] / SO101.get("substeps", 1)
+
+
+def run_so101(seeds: int, delay_ms: float) -> None:
+    """Print one row per seed and way of fixing the scale and the delay (module docstring);
+    the servos' delay ``delay_ms`` [ms], to half a sample (MuJoCo steps of half a frame when
+    it is not a whole number of frames)."""
+    half_samples = int(round(2e-3 * delay_ms * make_so101.RATE_HZ))
+    substeps = 1 if half_samples % 2 == 0 else 2
+    SO101.update(delay_steps=half_samples * substeps // 2, substeps=substeps)
+    delay_s = true_delay_samples() / make_so101.RATE_HZ
+    print(f"SO-101-like arm: servo delay {1e3 * delay_s:g} ms ({true_delay_samples():g} samples)")
     print(
         "| seed | scale | delay | delay [samples] | kp | kd + fv | Ia | Ia, lag-corrected | fs "
         "| rollout / truth | s |\n| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: "
@@ -211,14 +234,14 @@ def run_so101(seeds: int) -> None:
     )
     robot = Robot.from_urdf(make_so101.URDF)
     ways = [
-        ("mass", "scan", {"max_delay_s": 0.01}),
+        ("mass", "scan", {"max_delay_s": 0.01, "equal_kp": EQUAL_KP}),
         ("kp", "scan", {"max_delay_s": 0.01, "kp": SO101["kp"]}),
-        ("kp", "given", {"delay": 0.004, "kp": SO101["kp"]}),
+        ("kp", "given", {"delay": delay_s, "kp": SO101["kp"]}),
     ]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         for seed in range(seeds):
-            logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1))
+            logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1), SO101, fast=FAST)
             make_so101.write(folder / "dataset", logs)
             for scale, delay, actuator in ways:
                 t0 = time.perf_counter()
@@ -242,7 +265,7 @@ def so101_row(result, ratio: float, seconds: float) -> str:
     # central differences see an armature smaller by (kd + fv) h / 2
     lagged = np.asarray(spec["armature"]) - kdfv / (2.0 * make_so101.RATE_HZ)
     return (
-        f"| {fit.delay_samples} | {kp_text} | {worst(fit.damping, kdfv, joints)} "
+        f"| {fit.delay_samples:.2f} | {kp_text} | {worst(fit.damping, kdfv, joints)} "
         f"| {extras(result, 'Ia', spec['armature'])} | {extras(result, 'Ia', list(lagged))} "
         f"| {extras(result, 'fs', spec['coulomb'])} | {ratio:.3f} | {seconds:.1f} |"
     )
@@ -255,9 +278,12 @@ def main() -> None:
     parser.add_argument(
         "--threshold", type=float, default=0.2, help="velocity threshold [rad/s] of every joint"
     )
+    parser.add_argument(
+        "--delay-ms", type=float, default=4.0, help="so101: the servos' delay [ms], to 1 ms"
+    )
     args = parser.parse_args()
     if args.robot == "so101":
-        run_so101(args.seeds)
+        run_so101(args.seeds, args.delay_ms)
         return
     spec = ROBOTS[args.robot]
     print(

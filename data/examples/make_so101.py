@@ -33,7 +33,8 @@ RATE_HZ = 500.0  # frames per second, and the servos' command rate
 COUNTS_PER_REV, ZERO_TICK = 4096, 2048  # Feetech STS3215
 #: The simulated servos (per joint, SI): gain [N*m/rad], velocity gain and joint damping
 #: [N*m*s/rad], friction loss [N*m], armature [kg*m^2] (rotor inertia times gear ratio
-#: squared), saturation [N*m], command delay [MuJoCo steps of 1 / RATE_HZ].
+#: squared), saturation [N*m], command delay [MuJoCo steps of 1 / RATE_HZ; of
+#: 1 / (RATE_HZ substeps) with an optional ``substeps``: MuJoCo steps per frame].
 SERVO = {
     "kp": [18.0, 18.0, 18.0, 12.0, 12.0],
     "kv": [0.4, 0.4, 0.4, 0.25, 0.25],
@@ -45,6 +46,7 @@ SERVO = {
 }
 PERIOD_S = 4.0
 AMPLITUDE = 1.2  # rad/s, the reference's velocity coefficients
+FAST_AMPLITUDE = 0.15  # rad/s, those of the fast harmonics (reference(fast=...))
 EPISODE_SEEDS = (0, 1)
 SETTLE_PERIODS, N_PERIODS = 1, 1
 
@@ -62,19 +64,23 @@ def measurement(servo: dict = SERVO, n_periods: int = N_PERIODS) -> dict:
         "encoder_counts_per_rev": COUNTS_PER_REV,
         "settle_periods": SETTLE_PERIODS,
         "n_periods": n_periods,
+        "substeps": servo.get("substeps", 1),
     }
 
 
-def reference(robot: Robot, seed: int) -> tuple[np.ndarray, ...]:
+def reference(robot: Robot, seed: int, fast: Sequence[int] = ()) -> tuple[np.ndarray, ...]:
     """One period of the episode's reference at RATE_HZ: t [s], q [rad] on the ticks' grid,
     dq [rad/s], ddq [rad/s^2], shapes (n,) and (n, nv). 3 harmonics of 1 / PERIOD_S about
-    the middle of the joint ranges."""
+    the middle of the joint ranges, and the harmonics ``fast`` (of velocity amplitude up to
+    FAST_AMPLITUDE, whatever their order): the torque's rate of change at a few Hz is what
+    tells the command's delay from the servo's velocity gain (see ``bench_servo.py``)."""
     rng = np.random.default_rng(seed)
     t = np.arange(int(round(PERIOD_S * RATE_HZ))) / RATE_HZ
     w = 2.0 * np.pi / PERIOD_S
     q, dq, ddq = (np.zeros((t.size, robot.nv)) for _ in range(3))
-    for h in (1, 2, 3):
-        a, b = rng.uniform(-AMPLITUDE, AMPLITUDE, (2, robot.nv)) / h
+    orders = [(h, AMPLITUDE, h) for h in (1, 2, 3)] + [(h, FAST_AMPLITUDE, 1) for h in fast]
+    for h, amplitude, shrink in orders:
+        a, b = rng.uniform(-amplitude, amplitude, (2, robot.nv)) / shrink
         phase = w * h * t[:, None]
         q += (a * np.sin(phase) - b * np.cos(phase)) / (w * h)
         dq += a * np.cos(phase) + b * np.sin(phase)
@@ -85,11 +91,16 @@ def reference(robot: Robot, seed: int) -> tuple[np.ndarray, ...]:
 
 
 def simulate_episodes(
-    robot: Robot, seeds: Sequence[int], servo: dict = SERVO, n_periods: int = N_PERIODS
+    robot: Robot,
+    seeds: Sequence[int],
+    servo: dict = SERVO,
+    n_periods: int = N_PERIODS,
+    fast: Sequence[int] = (),
 ) -> list[SimulatedLog]:
-    """One simulated servo log per seed (its reference), logged after SETTLE_PERIODS."""
+    """One simulated servo log per seed (its reference, with the harmonics ``fast``), logged
+    after SETTLE_PERIODS."""
     config = load_mujoco_measurement(measurement(servo, n_periods))
-    return [simulate(robot, *reference(robot, s), config, rng=0) for s in seeds]
+    return [simulate(robot, *reference(robot, s, fast), config, rng=0) for s in seeds]
 
 
 def write(folder: Path, logs: Sequence[SimulatedLog]) -> Path:

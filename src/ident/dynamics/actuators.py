@@ -89,26 +89,40 @@ def actuator_law(kind: str) -> ActuatorLaw:
 def servo_error(
     q: FloatArray,
     q_cmd: FloatArray,
-    delay_samples: int,
+    delay_samples: float,
     segments: Sequence[tuple[int, int]],
 ) -> FloatArray:
     """The servo's position error ``e = q_cmd(t - d) - q`` [rad or m], shape (n_samples, nv).
 
     ``q``, ``q_cmd``: measured and commanded positions (n_samples, nv) on one uniform grid per
-    segment; ``delay_samples``: ``d`` in whole samples (>= 0). Within each ``(start, stop)``
-    segment the command is shifted by ``d`` samples; its first ``d`` samples hold the
-    segment's first command (the servo held it before the log starts, as a delayed MuJoCo
-    actuator's history does).
+    segment; ``delay_samples``: ``d`` in samples (>= 0, a fraction allowed). Within each
+    ``(start, stop)`` segment the command is shifted by ``d`` samples; its first samples hold
+    the segment's first command (the servo held it before the log starts, as a delayed MuJoCo
+    actuator's history does). A fraction ``f`` of a sample mixes the neighbouring shifts,
+    ``(1 - f) q_cmd(t - floor(d)) + f q_cmd(t - floor(d) - 1)``: a command held over each
+    period and delayed by ``d`` applies the one for a share ``1 - f`` of the period and the
+    one before for ``f``, and the period's mean force is what moves the sample's
+    acceleration.
     """
-    d = int(delay_samples)
-    if d < 0:
+    d = float(delay_samples)
+    if not d >= 0.0:
         raise ValueError(f"delay_samples = {d} must be >= 0")
-    delayed = np.empty_like(q_cmd)
+    whole = int(np.floor(d))
+    frac = d - whole
+    delayed = _shifted(q_cmd, whole, segments)
+    if frac > 0.0:
+        delayed = (1.0 - frac) * delayed + frac * _shifted(q_cmd, whole + 1, segments)
+    return delayed - q
+
+
+def _shifted(x: FloatArray, d: int, segments: Sequence[tuple[int, int]]) -> FloatArray:
+    """``x`` (n, nv) delayed by ``d`` whole samples within each segment, its first held."""
+    out = np.empty_like(x)
     for a, b in segments:
         k = min(d, b - a)
-        delayed[a : a + k] = q_cmd[a]
-        delayed[a + k : b] = q_cmd[a : b - k]
-    return delayed - q
+        out[a : a + k] = x[a]
+        out[a + k : b] = x[a : b - k]
+    return out
 
 
 def saturated_samples(

@@ -335,12 +335,16 @@ class ActuatorSection(StrictModel):
     ``kind: motor`` (default): the torque is logged (``log.torque``). ``kind: position``: a
     position servo logging its command (``log.command``) and no torque, whose torque is
     ``clip(kp (q_cmd(t - d) - q) - kd dq, +-forcerange)``; the data fix it only up to one
-    common scale, set by ``scale_from``: ``mass`` (the URDF's mass, in the part of it the motion
-    sees) or ``kp`` (the gain ``kp`` [N*m/rad] given, one value or one per joint, from a
-    datasheet). Default: ``kp`` when ``kp`` is given, else ``mass``. ``forcerange`` [N*m]
-    (one value or one per joint): samples where the servo may reach it are excluded (``null``:
-    never saturates). ``delay``: the command's transport delay [s] (rounded to whole samples),
-    or ``auto``: the whole number of samples within ``max_delay_s`` with the smallest residual.
+    common scale, set by ``scale_from``: ``mass`` (the URDF's masses, through the gravity
+    load they put on the logged postures) or ``kp`` (the gain ``kp`` [N*m/rad] given, one
+    value or one per joint, from a datasheet). Default: ``kp`` when ``kp`` is given, else
+    ``mass``. ``forcerange`` [N*m] (one value or one per joint): samples where the servo may
+    reach it are excluded (``null``: never saturates). ``delay``: the command's transport
+    delay [s] (a fraction of a sample allowed), or ``auto``: the delay within
+    ``max_delay_s`` with the smallest residual (whole samples, the best refined to a
+    fraction). ``equal_kp`` (``scale_from: mass``): groups of joint names whose servos have
+    the same gain (one servo model, one P setting): one ``kp`` per group, which ties a joint
+    that carries no gravity load to one that does.
     """
 
     kind: str = "motor"
@@ -349,6 +353,7 @@ class ActuatorSection(StrictModel):
     delay: float | Literal["auto"] = "auto"
     max_delay_s: float = Field(default=0.05, gt=0.0, le=1.0)
     scale_from: Literal["mass", "kp"] | None = None
+    equal_kp: list[list[str]] | None = None
 
     @field_validator("kind")
     @classmethod
@@ -360,7 +365,11 @@ class ActuatorSection(StrictModel):
     @model_validator(mode="after")
     def _options_of_the_kind(self) -> ActuatorSection:
         if self.kind != "position":
-            given = [k for k in ("kp", "forcerange", "scale_from") if getattr(self, k) is not None]
+            given = [
+                k
+                for k in ("kp", "forcerange", "scale_from", "equal_kp")
+                if getattr(self, k) is not None
+            ]
             if given:
                 raise ValueError(
                     f"actuator.{given[0]} is an option of kind: position (a servo logging no "
@@ -382,7 +391,25 @@ class ActuatorSection(StrictModel):
                 "actuator.kp is used only with scale_from: kp (the gain fixes the scale); "
                 "remove kp to identify it from the URDF's mass, or set scale_from: kp"
             )
+        self._check_equal_kp()
         return self
+
+    def _check_equal_kp(self) -> None:
+        """``equal_kp``: only when the gains are identified; groups of two or more distinct
+        joints, each joint in one group at most (the names are matched in the servo fit)."""
+        if self.equal_kp is None:
+            return
+        if self.scale == "kp":
+            raise ValueError(
+                "actuator.equal_kp ties identified gains; with actuator.kp given it has no "
+                "use: remove it, or remove kp (scale_from: mass)"
+            )
+        names = [n for group in self.equal_kp for n in group]
+        if any(len(group) < 2 for group in self.equal_kp) or len(set(names)) < len(names):
+            raise ValueError(
+                f"actuator.equal_kp = {self.equal_kp}: give groups of two or more joint names, "
+                "each joint in one group at most"
+            )
 
     @property
     def scale(self) -> str:

@@ -4,8 +4,8 @@ Arms of low-cost bus servos (SO-100/SO-101, Koch) record LeRobot datasets: the m
 commanded positions in servo ticks, no torque. The config :func:`init_servo_config` writes reads
 such a dataset (``format: lerobot``; ``observation.state`` and ``action``; ``unit: ticks``,
 4096 ticks per turn centred on 2048, a Feetech STS3215's, marked as a guess) and identifies
-through the servos' law (``actuator: {kind: position}``: the scale from the URDF's mass, the
-delay scanned over 0..10 ms, the samples near the URDF's effort limits left out). With a
+through the servos' law (``actuator: {kind: position}``: the scale from the URDF's gravity
+load, the delay scanned over 0..10 ms, the samples near the URDF's effort limits left out). With a
 dataset (``log``): its ``fps`` sets the filters, the decimation and the trimmed edges, and
 its motors the URDF does not move (a gripper) are excluded by name. The text is validated by
 the identify config loader before it is returned; nothing here writes a file.
@@ -89,8 +89,11 @@ def _sections(
         "  kind: position                 # tau = kp (q_cmd(t - d) - q) - kd dq, no torque logged",
         f"  forcerange: {ranges}   # N*m, the URDF's effort limits: saturated samples left out",
         f"  max_delay_s: {MAX_DELAY_S:g}              # the command's delay scanned over 0..10 ms",
-        "  # the scale from the URDF's mass; with the servos' gain known (their P coefficient),",
-        "  # give it: kp: [...] (N*m/rad, one or one per joint), and the delay: delay: 0.004 (s)",
+        "  # the scale from the URDF's gravity load; servos of one P setting share a gain:",
+        f"  # equal_kp: [[{', '.join(robot.joint_names)}]] ties the unloaded joints to it;",
+        "  # with the servos' gain known (their P coefficient), give it: kp: [...] (N*m/rad,",
+        "  # one or one per joint), and the delay: delay: 0.004 (s). The delay and the gains",
+        "  # need an excitation with a few Hz in it (the delay trades with kd otherwise)",
         "preprocess:",
         f"  lowpass: {{cutoff_hz: {cutoff:g}, order: 4}}",
         f"  trim_samples: {int(round(TRIM_S * fps))}",

@@ -2,7 +2,7 @@
 
 ``registry`` (one entry per ``actuator.kind``: ``motor``, the torque is logged; ``position``,
 a servo logging its command and no torque) and ``servo_fit`` (the position servo's gain, delay
-and saturation, the common scale fixed by the URDF's mass or a given gain). The laws
+and saturation, the common scale fixed by the URDF's gravity load or a given gain). The laws
 themselves are :mod:`ident.dynamics.actuators`, lower in the layers. Import the submodules
 directly.
 """
