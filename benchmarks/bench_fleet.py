@@ -29,11 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from ident.config import read_yaml
-from ident.dynamics.chain import chain_from_model
-from ident.dynamics.parameter_model import build_parameter_model
-from ident.identify.config import ModelConfig
-from ident.identify.estimation.accumulate import BaseColumns
 from ident.identify.streaming.fleet import ChunkSettings, FleetColumns, solve_fleet
+from ident.identify.streaming.fleet import fleet_columns as columns_of
 from ident.identify.streaming.fleet_drift import (
     kappa_from,
     rise_threshold,
@@ -57,15 +54,14 @@ def ur5() -> tuple:
     return robot, raw["measurement"]
 
 
-def fleet_columns(robot, rotor_inertia: bool = True, offset: bool = True) -> FleetColumns:  # noqa: ANN001
-    """The ``ident fleet`` columns of a robot (viscous and Coulomb friction always)."""
-    terms = ModelConfig(viscous=True, coulomb=True, rotor_inertia=rotor_inertia,
-                        offset=offset).extra_terms(robot.nv, "bench")  # fmt: skip
-    pm = build_parameter_model(robot.model, terms, rng=0)
-    return FleetColumns(BaseColumns(chain_from_model(robot.model), pm), pm.base_names)
+def fleet_columns(robot) -> FleetColumns:  # noqa: ANN001
+    """The ``ident fleet`` default columns of a robot."""
+    return columns_of(robot.model)
 
 
-def make_units(robot, measurement: dict, n_units: int, seed: int, spread: float = 0.1) -> list[dict]:  # noqa: ANN001
+def make_units(
+    robot, measurement: dict, n_units: int, seed: int, spread: float = 0.1
+) -> list[dict]:  # noqa: ANN001
     """Each unit's cycle and truth: ``{cycle: (q, dq, tau_rigid), fv, fs, offset, noise}``."""
     rng = np.random.default_rng(seed)
     fv0 = np.asarray(measurement["friction"]["viscous"], dtype=float)
@@ -76,19 +72,37 @@ def make_units(robot, measurement: dict, n_units: int, seed: int, spread: float 
         _, q, dq, ddq = reference(robot, 1000.0, 10.0, rng, amplitude=0.35)
         tau = robot.rnea(q, dq, ddq) + armature * ddq
         rms = np.sqrt(np.mean(tau**2, axis=0))
-        units.append({"cycle": (q, dq, tau),
-                      "fv": fv0 * rng.uniform(1 - spread, 1 + spread, robot.nv),
-                      "fs": fs0 * rng.uniform(1 - spread, 1 + spread, robot.nv),
-                      "offset": rng.uniform(-0.3, 0.3, robot.nv), "noise": 0.01 * rms})  # fmt: skip
+        units.append(
+            {
+                "cycle": (q, dq, tau),
+                "fv": fv0 * rng.uniform(1 - spread, 1 + spread, robot.nv),
+                "fs": fs0 * rng.uniform(1 - spread, 1 + spread, robot.nv),
+                "offset": rng.uniform(-0.3, 0.3, robot.nv),
+                "noise": 0.01 * rms,
+            }
+        )
     return units
 
 
-def unit_log(unit: dict, names: tuple, seconds: float, seed: int, **kw: float | None) -> SimulatedUnitLog:
+def unit_log(
+    unit: dict, names: tuple, seconds: float, seed: int, **kw: float | None
+) -> SimulatedUnitLog:
     """A :class:`SimulatedUnitLog` of a unit of :func:`make_units`."""
     q, dq, tau = unit["cycle"]
-    return SimulatedUnitLog(q=q, dq=dq, tau_rigid=tau, rate_hz=1000.0, seconds=seconds,
-                            fv=unit["fv"], fs=unit["fs"], offset=unit["offset"],
-                            noise_std=unit["noise"], seed=seed, joint_names=names, **kw)  # type: ignore[arg-type]  # fmt: skip
+    return SimulatedUnitLog(
+        q=q,
+        dq=dq,
+        tau_rigid=tau,
+        rate_hz=1000.0,
+        seconds=seconds,
+        fv=unit["fv"],
+        fs=unit["fs"],
+        offset=unit["offset"],
+        noise_std=unit["noise"],
+        seed=seed,
+        joint_names=names,
+        **kw,
+    )  # type: ignore[arg-type]
 
 
 def friction_errors(sol, cols: FleetColumns, units: list[dict]) -> np.ndarray:  # noqa: ANN001
@@ -110,9 +124,18 @@ def accuracy(args: argparse.Namespace) -> None:
     names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
     units = make_units(robot, meas, args.units, seed=args.seed)
     rise_at = args.seconds - args.window
-    sources = [[unit_log(u, names, args.seconds, 100 + k,
-                         **({"rise": 0.1, "rise_at_s": rise_at} if k == args.rise_unit else {}))]
-               for k, u in enumerate(units)]  # fmt: skip
+    sources = [
+        [
+            unit_log(
+                u,
+                names,
+                args.seconds,
+                100 + k,
+                **({"rise": 0.1, "rise_at_s": rise_at} if k == args.rise_unit else {}),
+            )
+        ]
+        for k, u in enumerate(units)
+    ]
     settings = ChunkSettings()
     with fleet_client(None, args.workers) as client:
         sums = fleet_sums(client, sources, cols, settings, window_s=args.window)
@@ -124,7 +147,10 @@ def accuracy(args: argparse.Namespace) -> None:
     print(f"units {args.units}, {args.seconds:g} s each at 1 kHz; joint solve {solve_s:.2f} s CPU")
     for k, e in enumerate(err):
         tag = " (friction +10 % in its last window)" if k == args.rise_unit else ""
-        print(f"unit {k:2d}: friction error |max| {np.abs(e).max():5.2f} %, rms {np.sqrt(np.mean(e**2)):5.2f} %{tag}")
+        print(
+            f"unit {k:2d}: friction error |max| {np.abs(e).max():5.2f} %, "
+            f"rms {np.sqrt(np.mean(e**2)):5.2f} %{tag}"
+        )
     clean = np.delete(err, args.rise_unit, axis=0)
     print(f"clean units: |max| friction error {np.abs(clean).max():.2f} % (target 3 %)")
     detection(sums, sol, cols, args)
@@ -133,8 +159,10 @@ def accuracy(args: argparse.Namespace) -> None:
 
 def detection(sums, sol, cols: FleetColumns, args: argparse.Namespace) -> None:  # noqa: ANN001
     """The rise window flagged? False alarms over every other window."""
-    tests = [window_tests(w, sol.x, u.sigma, cols, args.baseline, off)
-             for w, u, off in zip(sums.windows, sol.units, sums.log_offsets, strict=True)]  # fmt: skip
+    tests = [
+        window_tests(w, sol.x, u.sigma, cols, args.baseline, off)
+        for w, u, off in zip(sums.windows, sol.units, sums.log_offsets, strict=True)
+    ]
     kappa = kappa_from(tests)
     thr = rise_threshold(0.01, kappa)
     rise_at = args.seconds - args.window
@@ -147,19 +175,35 @@ def detection(sums, sol, cols: FleetColumns, args: argparse.Namespace) -> None: 
     fa = sum(t.z > thr for t in clean)
     print(f"rise test: kappa {kappa:.2f}, threshold z > {thr:.2f} (alpha 0.01, one-sided)")
     for t in hits:
-        print(f"  rise window at {t.time_s:.0f} s ({t.duration_s:.0f} s): rise {100 * t.rise:+.2f} "
-              f"+- {100 * t.std:.2f} %, z {t.z:.1f} -> {'DETECTED' if t.z > thr else 'missed'}")  # fmt: skip
-    print(f"  false alarms: {fa} of {len(clean)} change-free windows ({100 * fa / max(1, len(clean)):.2f} %; "
-          f"largest z {max(t.z for t in clean):.2f})")  # fmt: skip
+        print(
+            f"  rise window at {t.time_s:.0f} s ({t.duration_s:.0f} s): rise {100 * t.rise:+.2f} "
+            f"+- {100 * t.std:.2f} %, z {t.z:.1f} -> {'DETECTED' if t.z > thr else 'missed'}"
+        )
+    print(
+        f"  false alarms: {fa} of {len(clean)} change-free windows "
+        f"({100 * fa / max(1, len(clean)):.2f} %; "
+        f"largest z {max(t.z for t in clean):.2f})"
+    )
 
 
-def throughput_line(sums, label: str) -> None:  # noqa: ANN001
-    """Samples per second per core of the Dask pass."""
+def throughput_line(sums, label: str, load_cpu_per_sample: float = 0.0) -> None:  # noqa: ANN001
+    """Samples per second per core of the Dask pass: by the wall clock (the machine's load
+    included) and by the chunk tasks' CPU time; 100 robot-hours extrapolated from the latter
+    (plus ``load_cpu_per_sample`` [s], producing the logs) on the cluster's cores."""
     per_core = sums.samples / sums.wall_s / sums.cores
-    hours = 100 * 3600 * 1000 / (per_core * sums.cores)
-    print(f"{label}: {sums.samples} samples ({sums.samples / 3.6e6:.2f} robot-hours at 1 kHz) "
-          f"in {sums.wall_s:.1f} s wall on {sums.cores} cores: {per_core:,.0f} samples/s per core; "
-          f"100 robot-hours would take {hours / 60:.1f} min")
+    per_cpu = sums.samples / sums.chunk_cpu_s
+    cpu_per_sample = 1.0 / per_cpu + load_cpu_per_sample
+    hours = 100 * 3600 * 1000 * cpu_per_sample / sums.cores
+    print(
+        f"{label}: {sums.samples} samples ({sums.samples / 3.6e6:.2f} robot-hours at 1 kHz) "
+        f"in {sums.wall_s:.1f} s wall on {sums.cores} cores: {per_core:,.0f} samples/s per core "
+        f"by the wall clock; {per_cpu:,.0f} samples per CPU second of the chunk tasks"
+    )
+    print(
+        f"  100 robot-hours on {sums.cores} idle cores: {hours / 60:.1f} min "
+        f"({1e6 * cpu_per_sample:.2f} us CPU per sample, producing the logs included); "
+        f"at this run's wall-clock rate: {100 * 3600 * 1000 / (per_core * sums.cores) / 60:.1f} min"
+    )
 
 
 def throughput(args: argparse.Namespace) -> None:
@@ -170,8 +214,10 @@ def throughput(args: argparse.Namespace) -> None:
     units = make_units(robot, meas, args.units, seed=args.seed)
     log_s = 600.0
     n_logs = max(1, int(round(args.hours * 3600 / log_s / args.units)))
-    sources = [[unit_log(u, names, log_s, 1000 * k + m, start_s=m * log_s) for m in range(n_logs)]
-               for k, u in enumerate(units)]  # fmt: skip
+    sources = [
+        [unit_log(u, names, log_s, 1000 * k + m, start_s=m * log_s) for m in range(n_logs)]
+        for k, u in enumerate(units)
+    ]
     c0 = time.process_time()
     sources[0][0]()
     sim_per_sample = (time.process_time() - c0) / (log_s * 1000)
@@ -179,11 +225,16 @@ def throughput(args: argparse.Namespace) -> None:
         sums = fleet_sums(client, sources, cols, ChunkSettings(), window_s=args.window)
     sol = solve_fleet(sums.units, cols)
     err = friction_errors(sol, cols, units)
-    print(f"throughput case: {args.units} units x {n_logs} logs of {log_s:g} s; friction error |max| "
-          f"{np.abs(err).max():.3f} %")  # fmt: skip
-    throughput_line(sums, "throughput case (simulation on the workers included)")
-    print(f"  the simulation's own share: {1e6 * sim_per_sample:.2f} us CPU per sample "
-          f"({100 * sim_per_sample * sums.samples / (sums.wall_s * sums.cores):.0f} % of the workers' time)")  # fmt: skip
+    print(
+        f"throughput case: {args.units} units x {n_logs} logs of {log_s:g} s; friction error |max| "
+        f"{np.abs(err).max():.3f} %"
+    )
+    throughput_line(sums, "throughput case (the logs simulated on the workers)", sim_per_sample)
+    print(
+        f"  the simulation's own share: {1e6 * sim_per_sample:.2f} us CPU per sample "
+        f"({100 * sim_per_sample * sums.samples / (sums.wall_s * sums.cores):.0f} % of the "
+        "workers' time)"
+    )
 
 
 def main() -> None:

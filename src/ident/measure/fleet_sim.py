@@ -65,5 +65,6 @@ class SimulatedUnitLog:
         tau += rng.standard_normal(tau.shape) * self.noise_std
         if self.counts_per_rev is not None:
             q = quantize(q, self.counts_per_rev)
-        return RobotLog(t=t, q=q, tau=tau, sampling_rate_hz=self.rate_hz,
-                        joint_names=self.joint_names)  # fmt: skip
+        return RobotLog(
+            t=t, q=q, tau=tau, sampling_rate_hz=self.rate_hz, joint_names=self.joint_names
+        )

@@ -34,10 +34,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 import scipy.linalg
 from scipy import signal
 
+from ident.dynamics.chain import chain_from_model
+from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import DataError, NotIdentifiable
+from ident.identify.config import ModelConfig
 from ident.identify.estimation.accumulate import BaseColumns
 from ident.identify.streaming.normal import NormalEquations
 from ident.signals import central_differences, decay_length
@@ -50,7 +54,10 @@ __all__ = [
     "UnitSolution",
     "WindowSums",
     "chunk_equations",
+    "fleet_columns",
+    "schur_solve",
     "solve_fleet",
+    "window_sums",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -125,6 +132,18 @@ class FleetColumns:
     def rows(self, q: FloatArray, dq: FloatArray, ddq: FloatArray) -> FloatArray:
         """Regressor rows in :attr:`names`' (the kernels') order, shape (n, nv, p)."""
         return self.columns(q, dq, ddq)[:, :, : self.p]
+
+
+def fleet_columns(
+    model: pin.Model, rotor_inertia: bool = True, offset: bool = True, source: str = "config"
+) -> FleetColumns:
+    """The fleet's columns of a Pinocchio model: viscous and Coulomb friction on every joint,
+    offsets and rotor inertias as asked (``source`` names the config in errors)."""
+    terms = ModelConfig(
+        viscous=True, coulomb=True, rotor_inertia=rotor_inertia, offset=offset
+    ).extra_terms(model.nv, source)
+    pm = build_parameter_model(model, terms, rng=0)
+    return FleetColumns(BaseColumns(chain_from_model(model), pm), pm.base_names)
 
 
 @dataclass(frozen=True, eq=False)
@@ -237,11 +256,11 @@ def _scaled_inverse(A: FloatArray, what: str) -> FloatArray:
     return scipy.linalg.cho_solve(c, np.diag(1.0 / d), check_finite=False) / d[:, None]
 
 
-def _schur_pass(
+def schur_solve(
     units: list[NormalEquations], weights: list[FloatArray], cols: FleetColumns
 ) -> tuple[FloatArray, FloatArray, list[tuple[FloatArray, FloatArray]]]:
-    """One weighted solve: ``x_S``, ``C_SS`` and per unit ``(x_L, C_LL)`` (module
-    docstring)."""
+    """One weighted solve, per-joint weights ``weights[u]`` (nv,) for unit ``u``: ``x_S``,
+    ``C_SS`` and per unit ``(x_L, C_LL)`` (module docstring)."""
     S_, L_ = cols.shared, cols.local
     s = S_.size
     S = np.zeros((s, s))
@@ -284,7 +303,7 @@ def solve_fleet(units: list[NormalEquations], cols: FleetColumns, passes: int = 
     weights = [(eq.sw > 0).astype(float) for eq in units]
     sigma = [np.full(eq.nv, np.nan) for eq in units]
     for _ in range(passes + 1):
-        x_S, C_SS, local = _schur_pass(units, weights, cols)
+        x_S, C_SS, local = schur_solve(units, weights, cols)
         for k, (eq, (x_L, _)) in enumerate(zip(units, local, strict=True)):
             ss = np.clip(eq.residual_ss(_full(x_S, x_L, cols)), 0.0, None)
             var = np.where(eq.sw > 0, ss / np.maximum(eq.sw, 1.0), np.nan)

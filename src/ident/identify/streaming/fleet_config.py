@@ -35,7 +35,14 @@ from ident.identify.streaming.fleet import ChunkSettings
 from ident.measure.log_config import LogConfig, TransmissionConfig
 from ident.model.selection import RobotSelection
 
-__all__ = ["FleetConfig", "FleetModel", "FleetSection", "UnitEntry", "UnitFolder", "load_fleet_config"]
+__all__ = [
+    "FleetConfig",
+    "FleetModel",
+    "FleetSection",
+    "UnitEntry",
+    "UnitFolder",
+    "load_fleet_config",
+]
 
 
 class UnitEntry(StrictModel):
@@ -77,8 +84,11 @@ class FleetSection(StrictModel):
 
     def chunk_settings(self) -> ChunkSettings:
         """The rows' settings."""
-        return ChunkSettings(cutoff_hz=self.cutoff_hz, decimation=self.decimation,
-                             velocity_threshold=self.velocity_threshold)  # fmt: skip
+        return ChunkSettings(
+            cutoff_hz=self.cutoff_hz,
+            decimation=self.decimation,
+            velocity_threshold=self.velocity_threshold,
+        )
 
 
 class FleetConfig(StrictModel):
@@ -96,8 +106,9 @@ class FleetConfig(StrictModel):
     def unit_logs(self) -> list[tuple[str, list[LogConfig]]]:
         """Per unit, its name and one complete log section per log file."""
         assert isinstance(self.units, list)  # load_fleet_config expands a folder
-        return [(u.name, [self.log.model_copy(update={"path": p}) for p in u.logs])
-                for u in self.units]  # fmt: skip
+        return [
+            (u.name, [self.log.model_copy(update={"path": p}) for p in u.logs]) for u in self.units
+        ]
 
 
 def _expand(units: list[UnitEntry] | UnitFolder, base: Path, path: Path) -> list[UnitEntry]:
@@ -121,7 +132,9 @@ def _expand(units: list[UnitEntry] | UnitFolder, base: Path, path: Path) -> list
         logs = [p if p.is_absolute() else base / p for p in u.logs]
         for n, p in enumerate(logs):
             if not p.is_file():
-                raise ConfigError(f"{path}: units[{k}].logs[{n}] = {p}: file not found; fix the path.")
+                raise ConfigError(
+                    f"{path}: units[{k}].logs[{n}] = {p}: file not found; fix the path."
+                )
         out.append(UnitEntry(name=u.name, logs=logs))
     return out
 

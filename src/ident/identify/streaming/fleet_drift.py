@@ -59,9 +59,13 @@ def unit_outliers(sol: FleetSolution, cols: FleetColumns, alpha: float) -> list[
     threshold = float(chi2.isf(alpha, int(fric.sum())))
     names = [cols.names[i] for i in cols.local[fric]]
     return [
-        {"deviation_pct": dict(zip(names, (100 * r[u]).round(3).tolist(), strict=True)),
-         "mean_deviation_pct": float(100 * r[u].mean()), "statistic": float(T[u]),
-         "threshold": threshold, "flagged": bool(T[u] > threshold)}  # fmt: skip
+        {
+            "deviation_pct": dict(zip(names, (100 * r[u]).round(3).tolist(), strict=True)),
+            "mean_deviation_pct": float(100 * r[u].mean()),
+            "statistic": float(T[u]),
+            "threshold": threshold,
+            "flagged": bool(T[u] > threshold),
+        }
         for u in range(len(sol.units))
     ] + [{"fleet_spread_pct": dict(zip(names, (100 * spread).round(3).tolist(), strict=True))}]
 
@@ -92,9 +96,14 @@ def window_local(
 
 def _sum(windows: list[WindowSums]) -> WindowSums:
     """The rows of several windows as one."""
-    return WindowSums(A=sum(w.A for w in windows), c=sum(w.c for w in windows),  # type: ignore[arg-type]
-                      n=sum(w.n for w in windows), t0=windows[0].t0, t1=windows[-1].t1,  # type: ignore[arg-type]
-                      log=windows[0].log)  # fmt: skip
+    return WindowSums(
+        A=np.sum([w.A for w in windows], axis=0),
+        c=np.sum([w.c for w in windows], axis=0),
+        n=np.sum([w.n for w in windows], axis=0),
+        t0=windows[0].t0,
+        t1=windows[-1].t1,
+        log=windows[0].log,
+    )
 
 
 def _minus(a: WindowSums, b: WindowSums) -> WindowSums:
@@ -128,7 +137,9 @@ def _rise(d: FloatArray, D: FloatArray, g: FloatArray) -> tuple[float, float]:
     return float(Pg @ d) / info, 1.0 / np.sqrt(info)
 
 
-def _test(phi0, C0, phi, C, cols: FleetColumns) -> tuple[float, float, tuple[float, ...]]:  # noqa: ANN001
+def _test(
+    phi0: FloatArray, C0: FloatArray, phi: FloatArray, C: FloatArray, cols: FleetColumns
+) -> tuple[float, float, tuple[float, ...]]:
     """``(s, std, per-joint s)`` of a window against the baseline (module docstring)."""
     fric = np.array([k in ("fv", "fs") for k in cols.kind]) & np.isfinite(phi) & np.isfinite(phi0)
     if not fric.any():
@@ -169,9 +180,17 @@ def window_tests(
             ref = window_local(_minus(total, w), x_S, sigma, cols) if in_base else (phi0, C0)
             phi, C, _ = window_local(w, x_S, sigma, cols)
             s, std, per_joint = _test(ref[0], ref[1], phi, C, cols)
-        out.append(WindowTest(time_s=t, duration_s=w.t1 - w.t0, rise=s, std=std,
-                              z=s / std if std > 0 else float("nan"), per_joint=per_joint,
-                              baseline=in_base))  # fmt: skip
+        out.append(
+            WindowTest(
+                time_s=t,
+                duration_s=w.t1 - w.t0,
+                rise=s,
+                std=std,
+                z=s / std if std > 0 else float("nan"),
+                per_joint=per_joint,
+                baseline=in_base,
+            )
+        )
     return out
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,7 +57,8 @@ class ReadLog:
 @dataclass
 class FleetSums:
     """Per unit: its summed normal equations, its windows' sums, each log's start in the
-    unit's motion time [s]; the samples processed and the wall time of the pass [s]."""
+    unit's motion time [s]; the samples processed, the wall time of the pass [s], the cores
+    of the cluster and the CPU time of the chunk tasks [s] (reading the logs not counted)."""
 
     units: list[NormalEquations]
     windows: list[list[WindowSums]]
@@ -65,6 +66,7 @@ class FleetSums:
     samples: int = 0
     wall_s: float = 0.0
     cores: int = 1
+    chunk_cpu_s: float = 0.0
     durations: dict[tuple[int, int], float] = field(default_factory=dict)
 
 
@@ -93,11 +95,14 @@ def _plan_task(log: RobotLog, window_s: float, settings: ChunkSettings) -> tuple
 
 def _chunk_task(
     log: RobotLog, chunk: tuple, cols: FleetColumns, settings: ChunkSettings, index: int
-) -> tuple[NormalEquations, WindowSums, int]:
-    """One chunk's equations, its window sums and its raw sample count."""
+) -> tuple[NormalEquations, WindowSums, int, float]:
+    """One chunk's equations, its window sums, its raw sample count and the CPU time it took
+    [s] (its thread's: a loaded machine's waits are not counted)."""
+    c0 = time.thread_time()
     r0, r1, span, t0, t1 = chunk
     eq = chunk_equations(log.q[r0:r1], log.tau[r0:r1], log.sampling_rate_hz, span, cols, settings)
-    return eq, window_sums(eq, cols, (t0, t1, index)), span[1] - span[0]
+    win = window_sums(eq, cols, (t0, t1, index))
+    return eq, win, span[1] - span[0], time.thread_time() - c0
 
 
 def _load_task(source: LogSource) -> RobotLog:
@@ -132,67 +137,82 @@ def fleet_client(scheduler: str | None, workers: int, processes: bool = True) ->
             yield client
         return
     with (
-        LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                     dashboard_address=None) as cluster,  # fmt: skip
+        LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=processes, dashboard_address=":0"
+        ) as cluster,
         Client(cluster) as client,
     ):
         yield client
 
 
+class _Pass:
+    """The bookkeeping of :func:`fleet_sums`: which logs are live, what each future is."""
+
+    def __init__(self, client: Any, cols_f: Any, settings: ChunkSettings, window_s: float) -> None:
+        from distributed import as_completed
+
+        self.client, self.cols_f, self.settings, self.window_s = client, cols_f, settings, window_s
+        self.done = as_completed()
+        self.tags: dict[str, tuple] = {}
+        self.live: dict[tuple[int, int], list] = {}  # (unit, log) -> [log future, chunks left]
+
+    def start(self, u: int, k: int, src: LogSource) -> None:
+        """Read log ``k`` of unit ``u`` on a worker and plan its chunks there."""
+        log_f = self.client.submit(_load_task, src, pure=False)
+        plan_f = self.client.submit(_plan_task, log_f, self.window_s, self.settings, pure=False)
+        self.live[(u, k)] = [log_f, None]
+        self.tags[plan_f.key] = ("plan", u, k)
+        self.done.add(plan_f)
+
+    def submit_chunks(self, u: int, k: int, chunks: list) -> None:
+        """One task per chunk, on the log's future (dask runs it where the log is)."""
+        self.live[(u, k)][1] = len(chunks)
+        for chunk in chunks:
+            args = (self.live[(u, k)][0], chunk, self.cols_f, self.settings, k)
+            f = self.client.submit(_chunk_task, *args, pure=False)
+            self.tags[f.key] = ("chunk", u, k)
+            self.done.add(f)
+
+
 def fleet_sums(
     client: Any,
-    units: list[list[LogSource]],
+    units: Sequence[Sequence[LogSource]],
     cols: FleetColumns,
     settings: ChunkSettings,
     window_s: float,
     logs_in_flight: int = 4,
 ) -> FleetSums:
     """Every unit's summed normal equations and window sums (module docstring)."""
-    from distributed import as_completed
-
     nv = cols.columns.chain.n_joints
-    out = FleetSums(units=[NormalEquations(nv, cols.p) for _ in units],
-                    windows=[[] for _ in units], log_offsets=[[] for _ in units])  # fmt: skip
+    out = FleetSums(
+        units=[NormalEquations(nv, cols.p) for _ in units],
+        windows=[[] for _ in units],
+        log_offsets=[[] for _ in units],
+    )
     out.cores = int(sum(client.nthreads().values()))
     [cols_f] = client.scatter([cols], broadcast=True)
     queue = deque((u, k, src) for u, logs in enumerate(units) for k, src in enumerate(logs))
-    tags: dict[str, tuple] = {}
-    done = as_completed()
-    live: dict[tuple[int, int], list] = {}  # (unit, log) -> [log future, chunks left]
-
-    def start() -> None:
-        u, k, src = queue.popleft()
-        log_f = client.submit(_load_task, src, pure=False)
-        plan_f = client.submit(_plan_task, log_f, window_s, settings, pure=False)
-        live[(u, k)] = [log_f, None]
-        tags[plan_f.key] = ("plan", u, k)
-        done.add(plan_f)
-
+    run = _Pass(client, cols_f, settings, window_s)
     t0 = time.perf_counter()
     for _ in range(min(logs_in_flight, len(queue))):
-        start()
-    for fut in done:
-        kind, u, k = tags.pop(fut.key)
+        run.start(*queue.popleft())
+    for fut in run.done:
+        kind, u, k = run.tags.pop(fut.key)
         if kind == "plan":
-            chunks, duration = fut.result()
-            out.durations[(u, k)] = duration
-            live[(u, k)][1] = len(chunks)
-            for chunk in chunks:
-                f = client.submit(_chunk_task, live[(u, k)][0], chunk, cols_f, settings, k,
-                                  pure=False)  # fmt: skip
-                tags[f.key] = ("chunk", u, k)
-                done.add(f)
+            chunks, out.durations[(u, k)] = fut.result()
+            run.submit_chunks(u, k, chunks)
         else:
-            eq, win, n = fut.result()
+            eq, win, n, cpu = fut.result()
             out.units[u].iadd(eq)
             out.windows[u].append(win)
             out.samples += n
-            live[(u, k)][1] -= 1
+            out.chunk_cpu_s += cpu
+            run.live[(u, k)][1] -= 1
         fut.release()
-        if live[(u, k)][1] == 0:
-            del live[(u, k)]  # the log's data leave the worker
+        if run.live[(u, k)][1] == 0:
+            del run.live[(u, k)]  # the log's data leave the worker
             if queue:
-                start()
+                run.start(*queue.popleft())
     out.wall_s = time.perf_counter() - t0
     _order(out, [len(logs) for logs in units])
     return out
