@@ -14,6 +14,7 @@ import yaml
 from typer.testing import CliRunner
 
 from ident.cli import app
+from ident.errors import DataError
 from ident.identify.streaming.fleet import (
     ChunkSettings,
     FleetSolution,
@@ -27,8 +28,9 @@ from ident.identify.streaming.fleet_drift import (
     unit_outliers,
     window_tests,
 )
-from ident.identify.streaming.fleet_run import fleet_client, fleet_sums
+from ident.identify.streaming.fleet_run import fleet_client, fleet_sums, plan_chunks
 from ident.identify.streaming.normal import NormalEquations
+from ident.measure.logs import RobotLog
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
@@ -171,6 +173,15 @@ def test_bad_config_one_error_line_nothing_written(tmp_path: Path) -> None:
     assert "units[0].logs[0]" in lines[0]
     assert "fleet.yaml" in lines[0]
     assert not out.exists()
+
+
+def test_cutoff_above_the_row_rate_is_a_data_error() -> None:
+    """A cut-off at or above half the row rate would alias the rows' noise: refused."""
+    log = RobotLog(t=np.arange(2000) / 1000.0, q=np.zeros((2000, 6)), tau=np.zeros((2000, 6)),
+                   sampling_rate_hz=1000.0, joint_names=tuple("abcdef"))  # fmt: skip
+    with pytest.raises(DataError, match="fleet.cutoff_hz = 25 Hz"):
+        plan_chunks(log, 1.0, ChunkSettings(cutoff_hz=25.0, decimation=20))
+    assert plan_chunks(log, 1.0, ChunkSettings(cutoff_hz=20.0, decimation=20))
 
 
 def test_cli_on_npz_logs_through_a_scheduler_address(setup: tuple, tmp_path: Path) -> None:

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ident.errors import IdentError
+from ident.errors import DataError, IdentError
 from ident.identify.estimation.log_chunks import DASK_CONNECT_TIMEOUT
 from ident.identify.streaming.fleet import (
     ChunkSettings,
@@ -71,10 +71,18 @@ class FleetSums:
 
 
 def plan_chunks(log: RobotLog, window_s: float, settings: ChunkSettings) -> list[tuple]:
-    """The chunks of a log: ``(r0, r1, span, t0, t1)`` per chunk, ``[r0, r1)`` the raw samples
+    """The chunks of a log (:class:`DataError` when the cut-off is not below half the row
+    rate): ``(r0, r1, span, t0, t1)`` per chunk, ``[r0, r1)`` the raw samples
     with the filter's margins, ``span`` the rows' range relative to ``r0``
     (:func:`~ident.identify.streaming.fleet.chunk_equations`), ``t0``, ``t1`` [s]."""
     fs = log.sampling_rate_hz
+    nyquist = 0.5 * fs / settings.decimation
+    if not settings.cutoff_hz < nyquist:
+        raise DataError(
+            f"fleet.cutoff_hz = {settings.cutoff_hz:g} Hz is not below {nyquist:g} Hz, half the "
+            f"row rate of a {fs:g} Hz log decimated by {settings.decimation}; lower the cut-off "
+            "or fleet.decimation."
+        )
     m = settings.margin(fs)
     d = settings.decimation
     size = d * max(1, int(round(window_s * fs / d)))  # rows on one grid from the segment start
