@@ -117,6 +117,19 @@ def friction_errors(sol, cols: FleetColumns, units: list[dict]) -> np.ndarray:  
     return np.array(out)
 
 
+def coverage(sol, cols: FleetColumns, units: list[dict], args: argparse.Namespace) -> float:  # noqa: ANN001
+    """Fraction of the clean units' fv and fs whose 95 % interval (white-noise covariance,
+    as result.json without kappa) holds the truth."""
+    inside = []
+    for k, (u, truth) in enumerate(zip(sol.units, units, strict=True)):
+        if k == args.rise_unit:
+            continue
+        for i, (kind, j) in enumerate(zip(cols.kind, cols.owner, strict=True)):
+            if kind in ("fv", "fs"):
+                inside.append(abs(u.x[i] - truth[kind][j]) <= 1.959964 * u.std[i])
+    return float(np.mean(inside))
+
+
 def accuracy(args: argparse.Namespace) -> None:
     """Part 1 of the module docstring."""
     robot, meas = ur5()
@@ -153,6 +166,7 @@ def accuracy(args: argparse.Namespace) -> None:
         )
     clean = np.delete(err, args.rise_unit, axis=0)
     print(f"clean units: |max| friction error {np.abs(clean).max():.2f} % (target 3 %)")
+    print(f"95 % intervals holding the truth (clean units): {coverage(sol, cols, units, args):.3f}")
     detection(sums, sol, cols, args)
     throughput_line(sums, "accuracy case")
 
@@ -182,7 +196,7 @@ def detection(sums, sol, cols: FleetColumns, args: argparse.Namespace) -> None: 
     print(
         f"  false alarms: {fa} of {len(clean)} change-free windows "
         f"({100 * fa / max(1, len(clean)):.2f} %; "
-        f"largest z {max(t.z for t in clean):.2f})"
+        f"largest z {max(t.z for t in clean):.2f}, std of z {np.std([t.z for t in clean]):.3f})"
     )
 
 

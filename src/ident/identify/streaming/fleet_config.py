@@ -77,7 +77,7 @@ class FleetSection(StrictModel):
     window_s: PositiveFloat = 60.0
     cutoff_hz: PositiveFloat = 20.0
     decimation: int = Field(default=20, ge=1, le=1000)
-    velocity_threshold: float = Field(default=0.05, ge=0.0)
+    velocity_threshold: float = Field(default=0.2, ge=0.0)
     baseline_s: PositiveFloat = 600.0
     false_alarm: float = Field(default=0.01, gt=0.0, lt=0.5)
     logs_in_flight: int = Field(default=4, ge=1, le=1024)
