@@ -79,7 +79,8 @@ class ChunkSettings:
     decimation: int = 20
     # the Coulomb step at a velocity reversal is spread by the filter over ~1 / cutoff_hz, in
     # which the joint reaches ~0.1 rad/s: 0.05 rad/s left friction errors up to 0.7 % and
-    # 95 % intervals holding 35 % of the truths (simulated UR5 fleet); 0.2: 0.31 %, 97 %
+    # 95 % intervals holding 35 % of the truths (6 simulated UR5 units x 120 s); 0.2: 0.31 %,
+    # 97 % (20 units x 600 s, benchmarks/bench_fleet.py: 0.19 %, 82 %)
     velocity_threshold: float = 0.2
     order: int = 4
 

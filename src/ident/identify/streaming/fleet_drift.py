@@ -55,7 +55,7 @@ def unit_outliers(sol: FleetSolution, cols: FleetColumns, alpha: float) -> list[
     r = X / np.where(med != 0, med, 1.0) - 1.0
     rv = V / np.where(med != 0, med, 1.0) ** 2
     spread = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
-    T = np.sum(r * r / (spread**2 + rv), axis=1)
+    T = np.sum(r * r / np.maximum(spread**2 + rv, 1e-30), axis=1)  # identical units: no 0/0
     threshold = float(chi2.isf(alpha, int(fric.sum())))
     names = [cols.names[i] for i in cols.local[fric]]
     return [
