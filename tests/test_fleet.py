@@ -175,6 +175,27 @@ def test_bad_config_one_error_line_nothing_written(tmp_path: Path) -> None:
     assert not out.exists()
 
 
+def test_unreadable_log_on_a_worker_is_one_error_line(tmp_path: Path) -> None:
+    """A log without the named torque columns, read on a worker: the reader's error as one
+    `error:` line (no worker traceback), exit 2, no run folder."""
+    t = np.arange(3000) / 1000.0
+    np.savez(tmp_path / "u1.npz", t=t, q=np.zeros((3000, 6)), torque=np.zeros((3000, 6)))
+    cfg = {"robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+           "log": {"time": {"column": "t"}, "position": {"columns": [f"q/{j}" for j in range(6)]},
+                   "torque": {"columns": [f"tau/{j}" for j in range(6)]}},
+           "units": {"folder": ".", "glob": "u*.npz"},
+           "fleet": {"workers": 1, "processes": False}}  # fmt: skip
+    (tmp_path / "fleet.yaml").write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "runs"
+    res = CliRunner().invoke(app, ["fleet", str(tmp_path / "fleet.yaml"), "--out", str(out)])
+    assert res.exit_code == 2
+    assert "Traceback" not in res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1
+    assert "u1.npz: column 'tau/0' not found" in errors[0]
+    assert not out.exists()
+
+
 def test_cutoff_above_the_row_rate_is_a_data_error() -> None:
     """A cut-off at or above half the row rate would alias the rows' noise: refused."""
     log = RobotLog(t=np.arange(2000) / 1000.0, q=np.zeros((2000, 6)), tau=np.zeros((2000, 6)),

@@ -12,6 +12,7 @@ on a running scheduler (``tcp://HOST:PORT``).
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
@@ -96,9 +97,17 @@ def plan_chunks(log: RobotLog, window_s: float, settings: ChunkSettings) -> list
     return out
 
 
-def _plan_task(log: RobotLog, window_s: float, settings: ChunkSettings) -> tuple[list, float]:
-    """The chunks of a log and its duration [s]."""
-    return plan_chunks(log, window_s, settings), float(log.t[-1] - log.t[0])
+def _plan_task(
+    log: RobotLog | IdentError, window_s: float, settings: ChunkSettings
+) -> tuple[list, float] | IdentError:
+    """The chunks of a log and its duration [s]; a user's error returned, not raised (so the
+    worker logs no traceback: the driver raises it)."""
+    if isinstance(log, IdentError):
+        return log
+    try:
+        return plan_chunks(log, window_s, settings), float(log.t[-1] - log.t[0])
+    except IdentError as e:
+        return e
 
 
 def _chunk_task(
@@ -113,8 +122,12 @@ def _chunk_task(
     return eq, win, span[1] - span[0], time.thread_time() - c0
 
 
-def _load_task(source: LogSource) -> RobotLog:
-    return source()
+def _load_task(source: LogSource) -> RobotLog | IdentError:
+    """The log, or the user's error reading it (returned: see :func:`_plan_task`)."""
+    try:
+        return source()
+    except IdentError as e:
+        return e
 
 
 @contextlib.contextmanager
@@ -146,7 +159,11 @@ def fleet_client(scheduler: str | None, workers: int, processes: bool = True) ->
         return
     with (
         LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=processes, dashboard_address=":0"
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=processes,
+            dashboard_address=":0",
+            silence_logs=logging.CRITICAL,  # a worker's shutdown chatter is no user's error
         ) as cluster,
         Client(cluster) as client,
     ):
@@ -207,7 +224,10 @@ def fleet_sums(
     for fut in run.done:
         kind, u, k = run.tags.pop(fut.key)
         if kind == "plan":
-            chunks, out.durations[(u, k)] = fut.result()
+            planned = fut.result()
+            if isinstance(planned, IdentError):
+                raise planned
+            chunks, out.durations[(u, k)] = planned
             run.submit_chunks(u, k, chunks)
         else:
             eq, win, n, cpu = fut.result()
