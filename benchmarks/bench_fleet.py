@@ -16,7 +16,11 @@ tenths of N*m, torque noise 1 % of each joint's RMS torque and 2^19-count encode
    simulated on the workers), the same pass; the wall time, the throughput per core, the
    simulation's own share (measured apart) and the extrapolation to 100 robot-hours.
 
-Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] [--hours 0]``.
+3. **The command** (``--npz DIR``): the case of 1 written as npz logs with a config into
+   ``DIR``, and ``ident fleet`` run on them: its terminal lines and ``drift.md``.
+
+Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] [--hours 0]
+[--npz DIR]``.
 """
 
 from __future__ import annotations
@@ -27,7 +31,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
+from typer.testing import CliRunner
 
+from ident.cli import app
 from ident.config import read_yaml
 from ident.identify.streaming.fleet import ChunkSettings, FleetColumns, solve_fleet
 from ident.identify.streaming.fleet import fleet_columns as columns_of
@@ -251,6 +258,35 @@ def throughput(args: argparse.Namespace) -> None:
     )
 
 
+def cli_case(args: argparse.Namespace) -> None:
+    """Part 3: the accuracy case's logs written as npz files into ``--npz DIR`` with a config,
+    and ``ident fleet`` run on them (reading included); its terminal output and drift.md."""
+    robot, meas = ur5()
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    units = make_units(robot, meas, args.units, seed=args.seed)
+    folder = args.npz
+    (folder / "logs").mkdir(parents=True, exist_ok=True)
+    rise_at = args.seconds - args.window
+    for k, u in enumerate(units):
+        kw = {"rise": 0.1, "rise_at_s": rise_at} if k == args.rise_unit else {}
+        log = unit_log(u, names, args.seconds, 100 + k, **kw)()
+        np.savez(folder / "logs" / f"u{k:02d}.npz", t=log.t, q=log.q, tau=log.tau)
+    cfg = {"name": "bench-fleet", "robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+           "log": {"time": {"column": "t"}, "position": {"columns": [f"q/{j}" for j in range(6)]},
+                   "torque": {"columns": [f"tau/{j}" for j in range(6)]}},
+           "units": {"folder": "logs", "glob": "u*.npz"},
+           "fleet": {"workers": args.workers, "window_s": args.window,
+                     "baseline_s": args.baseline}}  # fmt: skip
+    (folder / "fleet.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    res = CliRunner().invoke(
+        app, ["fleet", str(folder / "fleet.yaml"), "--out", str(folder / "runs")]
+    )
+    print(res.output)
+    if res.exit_code == 0:
+        (run,) = sorted((folder / "runs").iterdir())[-1:]
+        print((run / "drift.md").read_text())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--units", type=int, default=20)
@@ -261,7 +297,11 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--hours", type=float, default=0.0)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--npz", type=Path, default=None, help="run `ident fleet` on npz logs here")
     args = parser.parse_args()
+    if args.npz is not None:
+        cli_case(args)
+        return
     if args.seconds > 0:
         accuracy(args)
     if args.hours > 0:
