@@ -81,6 +81,7 @@ _COMMAND_MODULES = (
     "repeatability",
     "payload",
     "stream",
+    "fleet",
     "logs",
     "bench",
     "replay",

@@ -1,0 +1,312 @@
+"""A fleet of simulated UR5 units identified jointly on a Dask LocalCluster: per-unit
+friction error, friction-rise detection and false alarms, throughput per core.
+
+The fleet (:mod:`ident.measure.fleet_sim`): the UR5 of ``configs/ur5.yaml`` (its rotor
+inertias), each unit doing its own routine motion (a 10 s 4-harmonic Fourier cycle, repeated)
+with viscous and Coulomb friction drawn within +-10 % of the config's, torque offsets of a few
+tenths of N*m, torque noise 1 % of each joint's RMS torque and 2^19-count encoders, at 1 kHz.
+
+1. **Accuracy and detection** (``--units 20 --seconds S``): every unit logs ``S`` seconds; one
+   unit's friction rises by 10 % for its last ``--window`` seconds (60 s). The logs are
+   identified jointly (:mod:`ident.identify.streaming.fleet`, the ``ident fleet`` defaults)
+   on a LocalCluster of 2 worker processes. Printed: each unit's largest friction error
+   (target: within 3 %), whether the rise window is flagged, the false alarms over every
+   other window (target: at most 1 %), and the throughput (raw samples per second per core).
+2. **Throughput** (``--hours H``): ``H`` robot-hours over the same units (10-minute logs,
+   simulated on the workers), the same pass; the wall time, the throughput per core, the
+   simulation's own share (measured apart) and the extrapolation to 100 robot-hours.
+
+3. **The command** (``--npz DIR``): the case of 1 written as npz logs with a config into
+   ``DIR``, and ``ident fleet`` run on them: its terminal lines and ``drift.md``.
+
+Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] [--hours 0]
+[--npz DIR]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+from typer.testing import CliRunner
+
+from ident.cli import app
+from ident.config import read_yaml
+from ident.identify.streaming.fleet import ChunkSettings, FleetColumns, solve_fleet
+from ident.identify.streaming.fleet import fleet_columns as columns_of
+from ident.identify.streaming.fleet_drift import (
+    kappa_from,
+    rise_threshold,
+    window_tests,
+)
+from ident.identify.streaming.fleet_run import fleet_client, fleet_sums
+from ident.measure.fleet_sim import SimulatedUnitLog
+from ident.model.selection import RobotSelection, load_robot
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "benchmarks"))
+from bench_payload import reference  # noqa: E402
+
+CONFIG = REPO / "configs" / "ur5.yaml"
+
+
+def ur5() -> tuple:
+    """The UR5 of configs/ur5.yaml and its measurement section (friction, rotor inertia)."""
+    raw = read_yaml(CONFIG)
+    robot = load_robot(RobotSelection.model_validate(raw["robot"]).resolved(CONFIG.parent))
+    return robot, raw["measurement"]
+
+
+def fleet_columns(robot) -> FleetColumns:  # noqa: ANN001
+    """The ``ident fleet`` default columns of a robot."""
+    return columns_of(robot.model)
+
+
+def make_units(
+    robot, measurement: dict, n_units: int, seed: int, spread: float = 0.1
+) -> list[dict]:  # noqa: ANN001
+    """Each unit's cycle and truth: ``{cycle: (q, dq, tau_rigid), fv, fs, offset, noise}``."""
+    rng = np.random.default_rng(seed)
+    fv0 = np.asarray(measurement["friction"]["viscous"], dtype=float)
+    fs0 = np.asarray(measurement["friction"]["coulomb"], dtype=float)
+    armature = np.asarray(measurement["armature"], dtype=float)
+    units = []
+    for _ in range(n_units):
+        _, q, dq, ddq = reference(robot, 1000.0, 10.0, rng, amplitude=0.35)
+        tau = robot.rnea(q, dq, ddq) + armature * ddq
+        rms = np.sqrt(np.mean(tau**2, axis=0))
+        units.append(
+            {
+                "cycle": (q, dq, tau),
+                "fv": fv0 * rng.uniform(1 - spread, 1 + spread, robot.nv),
+                "fs": fs0 * rng.uniform(1 - spread, 1 + spread, robot.nv),
+                "offset": rng.uniform(-0.3, 0.3, robot.nv),
+                "noise": 0.01 * rms,
+            }
+        )
+    return units
+
+
+def unit_log(
+    unit: dict, names: tuple, seconds: float, seed: int, **kw: float | None
+) -> SimulatedUnitLog:
+    """A :class:`SimulatedUnitLog` of a unit of :func:`make_units`."""
+    q, dq, tau = unit["cycle"]
+    return SimulatedUnitLog(
+        q=q,
+        dq=dq,
+        tau_rigid=tau,
+        rate_hz=1000.0,
+        seconds=seconds,
+        fv=unit["fv"],
+        fs=unit["fs"],
+        offset=unit["offset"],
+        noise_std=unit["noise"],
+        seed=seed,
+        joint_names=names,
+        **kw,
+    )  # type: ignore[arg-type]
+
+
+def friction_errors(sol, cols: FleetColumns, units: list[dict]) -> np.ndarray:  # noqa: ANN001
+    """Relative error [%] of every unit's fv and fs per joint, shape (n_units, 2 nv)."""
+    out = []
+    for u, truth in zip(sol.units, units, strict=True):
+        row = []
+        for i, (kind, j) in enumerate(zip(cols.kind, cols.owner, strict=True)):
+            if kind in ("fv", "fs"):
+                row.append(100 * (u.x[i] / truth[kind][j] - 1.0))
+        out.append(row)
+    return np.array(out)
+
+
+def coverage(sol, cols: FleetColumns, units: list[dict], args: argparse.Namespace) -> float:  # noqa: ANN001
+    """Fraction of the clean units' fv and fs whose 95 % interval (white-noise covariance,
+    as result.json without kappa) holds the truth."""
+    inside = []
+    for k, (u, truth) in enumerate(zip(sol.units, units, strict=True)):
+        if k == args.rise_unit:
+            continue
+        for i, (kind, j) in enumerate(zip(cols.kind, cols.owner, strict=True)):
+            if kind in ("fv", "fs"):
+                inside.append(abs(u.x[i] - truth[kind][j]) <= 1.959964 * u.std[i])
+    return float(np.mean(inside))
+
+
+def accuracy(args: argparse.Namespace) -> None:
+    """Part 1 of the module docstring."""
+    robot, meas = ur5()
+    cols = fleet_columns(robot)
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    units = make_units(robot, meas, args.units, seed=args.seed)
+    rise_at = args.seconds - args.window
+    sources = [
+        [
+            unit_log(
+                u,
+                names,
+                args.seconds,
+                100 + k,
+                **({"rise": 0.1, "rise_at_s": rise_at} if k == args.rise_unit else {}),
+            )
+        ]
+        for k, u in enumerate(units)
+    ]
+    settings = ChunkSettings()
+    with fleet_client(None, args.workers) as client:
+        sums = fleet_sums(client, sources, cols, settings, window_s=args.window)
+    t0 = time.process_time()
+    sol = solve_fleet(sums.units, cols)
+    solve_s = time.process_time() - t0
+    # the rise unit's rows after the rise bias its fleet estimate: truth = before the rise
+    err = friction_errors(sol, cols, units)
+    print(f"units {args.units}, {args.seconds:g} s each at 1 kHz; joint solve {solve_s:.2f} s CPU")
+    for k, e in enumerate(err):
+        tag = " (friction +10 % in its last window)" if k == args.rise_unit else ""
+        print(
+            f"unit {k:2d}: friction error |max| {np.abs(e).max():5.2f} %, "
+            f"rms {np.sqrt(np.mean(e**2)):5.2f} %{tag}"
+        )
+    clean = np.delete(err, args.rise_unit, axis=0)
+    print(f"clean units: |max| friction error {np.abs(clean).max():.2f} % (target 3 %)")
+    print(f"95 % intervals holding the truth (clean units): {coverage(sol, cols, units, args):.3f}")
+    detection(sums, sol, cols, args)
+    throughput_line(sums, "accuracy case")
+
+
+def detection(sums, sol, cols: FleetColumns, args: argparse.Namespace) -> None:  # noqa: ANN001
+    """The rise window flagged? False alarms over every other window."""
+    tests = [
+        window_tests(w, sol.x, u.sigma, cols, args.baseline, off)
+        for w, u, off in zip(sums.windows, sol.units, sums.log_offsets, strict=True)
+    ]
+    kappa = kappa_from(tests)
+    thr = rise_threshold(0.01, kappa)
+    rise_at = args.seconds - args.window
+    hits, clean = [], []
+    for k, unit in enumerate(tests):
+        for t in unit:
+            if not np.isfinite(t.z):
+                continue
+            (hits if k == args.rise_unit and t.time_s >= rise_at - 1e-9 else clean).append(t)
+    fa = sum(t.z > thr for t in clean)
+    print(f"rise test: kappa {kappa:.2f}, threshold z > {thr:.2f} (alpha 0.01, one-sided)")
+    for t in hits:
+        print(
+            f"  rise window at {t.time_s:.0f} s ({t.duration_s:.0f} s): rise {100 * t.rise:+.2f} "
+            f"+- {100 * t.std:.2f} %, z {t.z:.1f} -> {'DETECTED' if t.z > thr else 'missed'}"
+        )
+    print(
+        f"  false alarms: {fa} of {len(clean)} change-free windows "
+        f"({100 * fa / max(1, len(clean)):.2f} %; "
+        f"largest z {max(t.z for t in clean):.2f}, std of z {np.std([t.z for t in clean]):.3f})"
+    )
+
+
+def throughput_line(sums, label: str, load_cpu_per_sample: float = 0.0) -> None:  # noqa: ANN001
+    """Samples per second per core of the Dask pass: by the wall clock (the machine's load
+    included) and by the chunk tasks' CPU time; 100 robot-hours extrapolated from the latter
+    (plus ``load_cpu_per_sample`` [s], producing the logs) on the cluster's cores."""
+    per_core = sums.samples / sums.wall_s / sums.cores
+    per_cpu = sums.samples / sums.chunk_cpu_s
+    cpu_per_sample = 1.0 / per_cpu + load_cpu_per_sample
+    hours = 100 * 3600 * 1000 * cpu_per_sample / sums.cores
+    print(
+        f"{label}: {sums.samples} samples ({sums.samples / 3.6e6:.2f} robot-hours at 1 kHz) "
+        f"in {sums.wall_s:.1f} s wall on {sums.cores} cores: {per_core:,.0f} samples/s per core "
+        f"by the wall clock; {per_cpu:,.0f} samples per CPU second of the chunk tasks"
+    )
+    print(
+        f"  100 robot-hours on {sums.cores} idle cores: {hours / 60:.1f} min "
+        f"({1e6 * cpu_per_sample:.2f} us CPU per sample, producing the logs included); "
+        f"at this run's wall-clock rate: {100 * 3600 * 1000 / (per_core * sums.cores) / 60:.1f} min"
+    )
+
+
+def throughput(args: argparse.Namespace) -> None:
+    """Part 2 of the module docstring."""
+    robot, meas = ur5()
+    cols = fleet_columns(robot)
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    units = make_units(robot, meas, args.units, seed=args.seed)
+    log_s = 600.0
+    n_logs = max(1, int(round(args.hours * 3600 / log_s / args.units)))
+    sources = [
+        [unit_log(u, names, log_s, 1000 * k + m, start_s=m * log_s) for m in range(n_logs)]
+        for k, u in enumerate(units)
+    ]
+    c0 = time.process_time()
+    sources[0][0]()
+    sim_per_sample = (time.process_time() - c0) / (log_s * 1000)
+    with fleet_client(None, args.workers) as client:
+        sums = fleet_sums(client, sources, cols, ChunkSettings(), window_s=args.window)
+    sol = solve_fleet(sums.units, cols)
+    err = friction_errors(sol, cols, units)
+    print(
+        f"throughput case: {args.units} units x {n_logs} logs of {log_s:g} s; friction error |max| "
+        f"{np.abs(err).max():.3f} %"
+    )
+    throughput_line(sums, "throughput case (the logs simulated on the workers)", sim_per_sample)
+    print(
+        f"  the simulation's own share: {1e6 * sim_per_sample:.2f} us CPU per sample "
+        f"({100 * sim_per_sample * sums.samples / (sums.wall_s * sums.cores):.0f} % of the "
+        "workers' time)"
+    )
+
+
+def cli_case(args: argparse.Namespace) -> None:
+    """Part 3: the accuracy case's logs written as npz files into ``--npz DIR`` with a config,
+    and ``ident fleet`` run on them (reading included); its terminal output and drift.md."""
+    robot, meas = ur5()
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    units = make_units(robot, meas, args.units, seed=args.seed)
+    folder = args.npz
+    (folder / "logs").mkdir(parents=True, exist_ok=True)
+    rise_at = args.seconds - args.window
+    for k, u in enumerate(units):
+        kw = {"rise": 0.1, "rise_at_s": rise_at} if k == args.rise_unit else {}
+        log = unit_log(u, names, args.seconds, 100 + k, **kw)()
+        np.savez(folder / "logs" / f"u{k:02d}.npz", t=log.t, q=log.q, tau=log.tau)
+    cfg = {"name": "bench-fleet", "robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+           "log": {"time": {"column": "t"}, "position": {"columns": [f"q/{j}" for j in range(6)]},
+                   "torque": {"columns": [f"tau/{j}" for j in range(6)]}},
+           "units": {"folder": "logs", "glob": "u*.npz"},
+           "fleet": {"workers": args.workers, "window_s": args.window,
+                     "baseline_s": args.baseline}}  # fmt: skip
+    (folder / "fleet.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    res = CliRunner().invoke(
+        app, ["fleet", str(folder / "fleet.yaml"), "--out", str(folder / "runs")]
+    )
+    print(res.output)
+    if res.exit_code == 0:
+        (run,) = sorted((folder / "runs").iterdir())[-1:]
+        print((run / "drift.md").read_text())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--units", type=int, default=20)
+    parser.add_argument("--seconds", type=float, default=600.0)
+    parser.add_argument("--window", type=float, default=60.0)
+    parser.add_argument("--baseline", type=float, default=300.0)
+    parser.add_argument("--rise-unit", type=int, default=0)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--hours", type=float, default=0.0)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--npz", type=Path, default=None, help="run `ident fleet` on npz logs here")
+    args = parser.parse_args()
+    if args.npz is not None:
+        cli_case(args)
+        return
+    if args.seconds > 0:
+        accuracy(args)
+    if args.hours > 0:
+        throughput(args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,207 @@
+"""The fleet's drift report: each unit's friction against the fleet, and against its own past
+window by window (a friction-rise test with a stated false-alarm rate).
+
+**Across units** (:func:`unit_outliers`). The fleet's friction ``fv_j``, ``fs_j`` is the median
+over the units; a unit's deviation is ``r_uj = x_uj / median_j - 1``. Units of one model differ
+by manufacture, so a deviation is judged against the fleet's own spread: ``s_j`` = 1.4826 times
+the median absolute deviation of ``r_.j`` (the standard deviation of a normal population),
+plus the unit's estimation variance. ``T_u = sum_j r_uj^2 / (s_j^2 + var_uj)`` is then
+``chi^2(k)`` (``k`` friction parameters) for a unit drawn from that population, and the unit is
+flagged when ``T_u`` exceeds the ``chi^2(k)`` quantile of ``alpha``: a false-alarm rate of
+``alpha`` per unit (for a normal population; the spread's own sampling error is not counted).
+
+**Across time** (:func:`window_tests`). With the shared parameters fixed at the fleet's, a
+window's rows give the unit's local parameters ``phi_w`` (friction and offsets, per joint:
+the rows of different joints share no local column), covariance ``N_w^-1 sigma_j^2``. The
+unit's *baseline* ``phi_0`` comes from its windows that start within the first ``baseline_s``
+seconds of its motion (a baseline window is compared with the baseline without it). A friction
+rise by a factor ``1 + s`` moves ``d = phi_w - phi_0`` along ``g`` (``phi_0``'s friction
+entries); with ``D = C_w + C_0`` (the two estimates are independent) and the offsets left free
+(the friction entries' marginal), ``s = g^T D^-1 d / g^T D^-1 g``, ``std(s) = (g^T D^-1
+g)^-1/2`` and ``z = s / std(s)`` is standard normal without a change. One-sided test: alarm
+when ``z > z_alpha sqrt(kappa)`` with ``z_alpha`` the standard normal quantile of ``1 -
+alpha``: at most ``alpha`` of the change-free windows alarm. ``kappa >= 1`` allows for rows
+whose noise is not white (filtering, model error): the median of ``z^2`` over every window of
+the fleet over its ``chi^2(1)`` value 0.4549 (a median: one unit's change does not move it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy.stats import chi2, norm
+
+from ident.identify.streaming.fleet import FleetColumns, FleetSolution, WindowSums
+
+__all__ = ["WindowTest", "kappa_from", "unit_outliers", "window_local", "window_tests"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Median of the chi-square law with one degree of freedom.
+CHI2_1_MEDIAN = float(chi2.median(1))
+#: Fewest rows of a joint in a window for its local parameters to be tested.
+MIN_ROWS = 20
+
+
+def unit_outliers(sol: FleetSolution, cols: FleetColumns, alpha: float) -> list[dict]:
+    """Per unit: its friction's relative deviation from the fleet's median per parameter, the
+    statistic ``T_u``, its threshold and the flag (module docstring)."""
+    fric = np.array([k in ("fv", "fs") for k in cols.kind])
+    X = np.array([u.x[fric] for u in sol.units])  # (n_units, k)
+    V = np.array([u.std[fric] ** 2 for u in sol.units])
+    med = np.median(X, axis=0)
+    r = X / np.where(med != 0, med, 1.0) - 1.0
+    rv = V / np.where(med != 0, med, 1.0) ** 2
+    spread = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+    T = np.sum(r * r / np.maximum(spread**2 + rv, 1e-30), axis=1)  # identical units: no 0/0
+    threshold = float(chi2.isf(alpha, int(fric.sum())))
+    names = [cols.names[i] for i in cols.local[fric]]
+    return [
+        {
+            "deviation_pct": dict(zip(names, (100 * r[u]).round(3).tolist(), strict=True)),
+            "mean_deviation_pct": float(100 * r[u].mean()),
+            "statistic": float(T[u]),
+            "threshold": threshold,
+            "flagged": bool(T[u] > threshold),
+        }
+        for u in range(len(sol.units))
+    ] + [{"fleet_spread_pct": dict(zip(names, (100 * spread).round(3).tolist(), strict=True))}]
+
+
+def window_local(
+    w: WindowSums, x_S: FloatArray, sigma: FloatArray, cols: FleetColumns
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
+    """``(phi, C, ok)`` of a window's (or a sum of windows') rows: local parameters (l,),
+    their covariance (l, l) and which entries were estimated (their joint has at least
+    :data:`MIN_ROWS` rows and a well-posed block); NaN / 0 elsewhere."""
+    L = cols.local.size
+    phi, C = np.full(L, np.nan), np.zeros((L, L))
+    ok = np.zeros(L, dtype=bool)
+    b = w.c - w.A[:, cols.shared] @ x_S
+    N = w.A[:, cols.local]
+    for j in np.unique(cols.owner):
+        i = np.flatnonzero(cols.owner == j)
+        if w.n[j] < MIN_ROWS or not np.isfinite(sigma[j]):
+            continue
+        block = N[np.ix_(i, i)]
+        d = np.sqrt(np.clip(np.diag(block), 0.0, None))
+        if np.any(d == 0) or np.linalg.cond(block / np.outer(d, d)) > 1e8:
+            continue
+        inv = np.linalg.inv(block)
+        phi[i], C[np.ix_(i, i)], ok[i] = inv @ b[i], inv * sigma[j] ** 2, True
+    return phi, C, ok
+
+
+def _sum(windows: list[WindowSums]) -> WindowSums:
+    """The rows of several windows as one."""
+    return WindowSums(
+        A=np.sum([w.A for w in windows], axis=0),
+        c=np.sum([w.c for w in windows], axis=0),
+        n=np.sum([w.n for w in windows], axis=0),
+        t0=windows[0].t0,
+        t1=windows[-1].t1,
+        log=windows[0].log,
+    )
+
+
+def _minus(a: WindowSums, b: WindowSums) -> WindowSums:
+    """The rows of ``a`` without those of ``b`` (a baseline without one of its windows)."""
+    return WindowSums(A=a.A - b.A, c=a.c - b.c, n=a.n - b.n, t0=a.t0, t1=a.t1, log=a.log)
+
+
+@dataclass(frozen=True)
+class WindowTest:
+    """One window's rise test: ``time_s`` its start in the unit's motion time [s], ``rise``
+    the relative friction rise ``s`` (NaN when not tested), ``std`` its standard deviation,
+    ``z`` the statistic, ``per_joint`` the per-joint rises (NaN where not tested)."""
+
+    time_s: float
+    duration_s: float
+    rise: float
+    std: float
+    z: float
+    per_joint: tuple[float, ...]
+    baseline: bool
+
+
+def _rise(d: FloatArray, D: FloatArray, g: FloatArray) -> tuple[float, float]:
+    """GLS scale ``s`` of ``d ~ s g`` under covariance ``D`` and its standard deviation."""
+    scale = np.sqrt(np.clip(np.diag(D), 1e-300, None))
+    Ds = D / np.outer(scale, scale)
+    Pg = np.linalg.solve(Ds, g / scale) / scale
+    info = float(g @ Pg)
+    if not info > 0:
+        return float("nan"), float("nan")
+    return float(Pg @ d) / info, 1.0 / np.sqrt(info)
+
+
+def _test(
+    phi0: FloatArray, C0: FloatArray, phi: FloatArray, C: FloatArray, cols: FleetColumns
+) -> tuple[float, float, tuple[float, ...]]:
+    """``(s, std, per-joint s)`` of a window against the baseline (module docstring)."""
+    fric = np.array([k in ("fv", "fs") for k in cols.kind]) & np.isfinite(phi) & np.isfinite(phi0)
+    if not fric.any():
+        return float("nan"), float("nan"), ()
+    i = np.flatnonzero(fric)
+    d, D, g = (phi - phi0)[i], (C + C0)[np.ix_(i, i)], phi0[i]
+    s, std = _rise(d, D, g)
+    per_joint = []
+    for j in sorted(set(cols.owner.tolist())):
+        k = np.flatnonzero(cols.owner[i] == j)
+        per_joint.append(_rise(d[k], D[np.ix_(k, k)], g[k])[0] if k.size else float("nan"))
+    return s, std, tuple(per_joint)
+
+
+def window_tests(
+    windows: list[WindowSums],
+    x_S: FloatArray,
+    sigma: FloatArray,
+    cols: FleetColumns,
+    baseline_s: float,
+    offsets: list[float],
+) -> list[WindowTest]:
+    """Every window of one unit tested against the unit's baseline (module docstring).
+
+    ``offsets``: per log of the unit, its start in the unit's motion time [s] (the logs one
+    after the other); ``sigma`` (nv,) the unit's noise per joint [N*m] (the fleet solve's).
+    """
+    start = [offsets[w.log] + w.t0 for w in windows]
+    base = [w for w, t in zip(windows, start, strict=True) if t < baseline_s] or windows[:1]
+    total = _sum(base)
+    phi0, C0, _ = window_local(total, x_S, sigma, cols)
+    out = []
+    for w, t in zip(windows, start, strict=True):
+        in_base = any(w is b for b in base)
+        s = std = float("nan")
+        per_joint: tuple[float, ...] = ()
+        if not (in_base and len(base) == 1):  # a lone baseline window has nothing to meet
+            ref = window_local(_minus(total, w), x_S, sigma, cols) if in_base else (phi0, C0)
+            phi, C, _ = window_local(w, x_S, sigma, cols)
+            s, std, per_joint = _test(ref[0], ref[1], phi, C, cols)
+        out.append(
+            WindowTest(
+                time_s=t,
+                duration_s=w.t1 - w.t0,
+                rise=s,
+                std=std,
+                z=s / std if std > 0 else float("nan"),
+                per_joint=per_joint,
+                baseline=in_base,
+            )
+        )
+    return out
+
+
+def kappa_from(tests: list[list[WindowTest]]) -> float:
+    """``kappa = max(1, median z^2 / 0.4549)`` over every tested window of the fleet."""
+    z = np.array([t.z for unit in tests for t in unit if np.isfinite(t.z)])
+    if z.size == 0:
+        return 1.0
+    return max(1.0, float(np.median(z * z)) / CHI2_1_MEDIAN)
+
+
+def rise_threshold(alpha: float, kappa: float) -> float:
+    """The one-sided alarm threshold on ``z``: ``z_alpha sqrt(kappa)``."""
+    return float(norm.isf(alpha)) * float(np.sqrt(kappa))

@@ -1,0 +1,245 @@
+"""``ident fleet``: the joint solve against a dense least squares, per-unit friction on a
+3-unit toy fleet through dask.distributed, a planted friction rise flagged (none elsewhere),
+the test across units, and a bad config as one error line."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from ident.cli import app
+from ident.errors import DataError
+from ident.identify.streaming.fleet import (
+    ChunkSettings,
+    FleetSolution,
+    UnitSolution,
+    schur_solve,
+    solve_fleet,
+)
+from ident.identify.streaming.fleet_drift import (
+    kappa_from,
+    rise_threshold,
+    unit_outliers,
+    window_tests,
+)
+from ident.identify.streaming.fleet_run import fleet_client, fleet_sums, plan_chunks
+from ident.identify.streaming.normal import NormalEquations
+from ident.measure.logs import RobotLog
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "benchmarks"))
+from bench_fleet import fleet_columns, friction_errors, make_units, unit_log, ur5  # noqa: E402
+
+distributed = pytest.importorskip("distributed")
+
+
+@pytest.fixture(scope="module")
+def setup() -> tuple:
+    robot, meas = ur5()
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    return robot, meas, fleet_columns(robot), names
+
+
+def _random_units(cols, rng: np.random.Generator, n_units: int = 3) -> tuple[list, list]:  # noqa: ANN001
+    """Random rows per unit: ``(equations, rows)`` with rows ``(X (n, nv, p), y, keep)``."""
+    units, rows = [], []
+    for _ in range(n_units):
+        X = rng.normal(size=(150, 6, cols.p))
+        y = rng.normal(size=(150, 6))
+        keep = rng.random((150, 6)) > 0.2
+        eq = NormalEquations(6, cols.p)
+        eq.add_rows(X, y, keep)
+        units.append(eq)
+        rows.append((X, y, keep))
+    return units, rows
+
+
+def test_schur_solve_equals_dense_weighted_least_squares(setup: tuple) -> None:
+    """The block elimination against ``lstsq`` on the stacked rows (shared columns once, each
+    unit's local columns in its own block), per-unit per-joint weights."""
+    cols = setup[2]
+    rng = np.random.default_rng(0)
+    units, rows = _random_units(cols, rng)
+    weights = [rng.uniform(0.5, 4.0, 6) for _ in units]
+    S, L = cols.shared, cols.local
+    n_col = S.size + len(units) * L.size
+    blocks, rhs = [], []
+    for u, ((X, y, keep), v) in enumerate(zip(rows, weights, strict=True)):
+        for j in range(6):
+            k = keep[:, j]
+            G = np.zeros((int(k.sum()), n_col))
+            G[:, : S.size] = X[k, j][:, S]
+            G[:, S.size + u * L.size : S.size + (u + 1) * L.size] = X[k, j][:, L]
+            blocks.append(np.sqrt(v[j]) * G)
+            rhs.append(np.sqrt(v[j]) * y[k, j])
+    G, b = np.vstack(blocks), np.concatenate(rhs)
+    ref = np.linalg.lstsq(G, b, rcond=None)[0]
+    cov = np.linalg.inv(G.T @ G)
+    x_S, C_SS, local = schur_solve(units, weights, cols)
+    assert np.allclose(x_S, ref[: S.size], rtol=0, atol=1e-9 * np.abs(ref).max())
+    for u, (x_L, C_LL) in enumerate(local):
+        sl = slice(S.size + u * L.size, S.size + (u + 1) * L.size)
+        assert np.allclose(x_L, ref[sl], rtol=0, atol=1e-9 * np.abs(ref).max())
+        assert np.allclose(C_LL, cov[sl, sl], rtol=1e-9, atol=1e-12 * np.abs(cov).max())
+    assert np.allclose(C_SS, cov[: S.size, : S.size], rtol=1e-9, atol=1e-12 * np.abs(cov).max())
+
+
+@pytest.fixture(scope="module")
+def toy_fleet(setup: tuple) -> tuple:
+    """3 simulated UR5 units, 100 s each; unit 0's friction rises by 10 % at 80 s."""
+    robot, meas, cols, names = setup
+    units = make_units(robot, meas, 3, seed=1)
+    sources = [
+        [unit_log(u, names, 100.0, 10 + k, **({"rise": 0.1, "rise_at_s": 80.0} if k == 0 else {}))]
+        for k, u in enumerate(units)
+    ]
+    with fleet_client(None, 2, processes=False) as client:
+        sums = fleet_sums(client, sources, cols, ChunkSettings(), window_s=20.0)
+    return units, sums, solve_fleet(sums.units, cols), cols
+
+
+def test_toy_fleet_recovers_each_units_friction(toy_fleet: tuple) -> None:
+    """Units 1 and 2 (no change): every fv and fs within 1 % (their spread is +-10 %); the
+    samples summed are every raw sample of the logs."""
+    units, sums, sol, cols = toy_fleet
+    err = friction_errors(sol, cols, units)
+    assert np.abs(err[1:]).max() < 1.0, err
+    assert sums.samples == 3 * 100_000
+    assert all(len(w) == 5 for w in sums.windows)
+
+
+def test_planted_rise_flagged_and_no_alarm_elsewhere(toy_fleet: tuple) -> None:
+    """Unit 0's last 20 s window alarms with a rise near 10 %; no other window does."""
+    _, sums, sol, cols = toy_fleet
+    tests = [
+        window_tests(w, sol.x, u.sigma, cols, 40.0, off)
+        for w, u, off in zip(sums.windows, sol.units, sums.log_offsets, strict=True)
+    ]
+    thr = rise_threshold(0.01, kappa_from(tests))
+    last = tests[0][-1]
+    assert last.time_s == pytest.approx(80.0)
+    assert last.z > thr
+    assert abs(last.rise - 0.1) < 0.01
+    others = [t for unit in tests for t in unit if t is not last and np.isfinite(t.z)]
+    assert len(others) >= 12
+    assert all(t.z < thr for t in others)
+
+
+def test_unit_outliers_flags_the_unit_off_the_fleets_spread(setup: tuple) -> None:
+    """20 units within +-10 % of nominal and one at +60 %: only that one is flagged."""
+    cols = setup[2]
+    rng = np.random.default_rng(3)
+    nominal = rng.uniform(1.0, 5.0, cols.local.size)
+    units = [
+        UnitSolution(
+            x=nominal * rng.uniform(0.9, 1.1, nominal.size),
+            covariance=np.eye(nominal.size) * 1e-8,
+            sigma=np.ones(6),
+            n_rows=np.ones(6),
+        )
+        for _ in range(20)
+    ]
+    units[7] = UnitSolution(
+        x=1.6 * nominal, covariance=units[7].covariance, sigma=np.ones(6), n_rows=np.ones(6)
+    )
+    rows = unit_outliers(
+        FleetSolution(x=np.zeros(1), covariance=np.eye(1), units=tuple(units)), cols, 0.01
+    )
+    flagged = [k for k, r in enumerate(rows[:-1]) if r["flagged"]]
+    assert flagged == [7]
+
+
+def test_bad_config_one_error_line_nothing_written(tmp_path: Path) -> None:
+    """A unit's missing log: one `error:` line naming the file and the key, exit 2."""
+    cfg = {
+        "robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+        "log": {"time": {"column": "t"}, "position": {"columns": ["q/0"]}},
+        "units": [{"name": "u1", "logs": ["missing.npz"]}],
+    }
+    path = tmp_path / "fleet.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "runs"
+    res = CliRunner().invoke(app, ["fleet", str(path), "--out", str(out)])
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith("error: ")
+    assert "units[0].logs[0]" in lines[0]
+    assert "fleet.yaml" in lines[0]
+    assert not out.exists()
+
+
+def test_unreadable_log_on_a_worker_is_one_error_line(tmp_path: Path) -> None:
+    """A log without the named torque columns, read on a worker: the reader's error as one
+    `error:` line (no worker traceback), exit 2, no run folder."""
+    t = np.arange(3000) / 1000.0
+    np.savez(tmp_path / "u1.npz", t=t, q=np.zeros((3000, 6)), torque=np.zeros((3000, 6)))
+    cfg = {"robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+           "log": {"time": {"column": "t"}, "position": {"columns": [f"q/{j}" for j in range(6)]},
+                   "torque": {"columns": [f"tau/{j}" for j in range(6)]}},
+           "units": {"folder": ".", "glob": "u*.npz"},
+           "fleet": {"workers": 1, "processes": False}}  # fmt: skip
+    (tmp_path / "fleet.yaml").write_text(yaml.safe_dump(cfg))
+    out = tmp_path / "runs"
+    res = CliRunner().invoke(app, ["fleet", str(tmp_path / "fleet.yaml"), "--out", str(out)])
+    assert res.exit_code == 2
+    assert "Traceback" not in res.output
+    errors = [line for line in res.output.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1
+    assert "u1.npz: column 'tau/0' not found" in errors[0]
+    assert not out.exists()
+
+
+def test_cutoff_above_the_row_rate_is_a_data_error() -> None:
+    """A cut-off at or above half the row rate would alias the rows' noise: refused."""
+    log = RobotLog(t=np.arange(2000) / 1000.0, q=np.zeros((2000, 6)), tau=np.zeros((2000, 6)),
+                   sampling_rate_hz=1000.0, joint_names=tuple("abcdef"))  # fmt: skip
+    with pytest.raises(DataError, match="fleet.cutoff_hz = 25 Hz"):
+        plan_chunks(log, 1.0, ChunkSettings(cutoff_hz=25.0, decimation=20))
+    assert plan_chunks(log, 1.0, ChunkSettings(cutoff_hz=20.0, decimation=20))
+
+
+def test_cli_on_npz_logs_through_a_scheduler_address(setup: tuple, tmp_path: Path) -> None:
+    """Two units' npz logs identified by `ident fleet` on a running scheduler: the friction in
+    result.json within 2 % of the truth, its 95 % intervals present, the test across units
+    named as not run (2 units), the folder complete."""
+    robot, meas, cols, names = setup
+    units = make_units(robot, meas, 2, seed=5)
+    for k, u in enumerate(units):
+        log = unit_log(u, names, 30.0, k)()
+        np.savez(tmp_path / f"u{k}.npz", t=log.t, q=log.q, tau=log.tau)
+    cfg = {
+        "name": "toy",
+        "robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+        "log": {
+            "time": {"column": "t"},
+            "position": {"columns": [f"q/{j}" for j in range(6)]},
+            "torque": {"columns": [f"tau/{j}" for j in range(6)]},
+        },
+        "units": {"folder": ".", "glob": "u*.npz"},
+        "fleet": {"window_s": 15.0, "baseline_s": 15.0},
+    }
+    with distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as lc:
+        cfg["fleet"]["scheduler"] = lc.scheduler_address
+        (tmp_path / "fleet.yaml").write_text(yaml.safe_dump(cfg))
+        res = CliRunner().invoke(
+            app, ["fleet", str(tmp_path / "fleet.yaml"), "--out", str(tmp_path / "runs")]
+        )
+    assert res.exit_code == 0, res.output
+    (folder,) = (tmp_path / "runs").iterdir()
+    result = json.loads((folder / "result.json").read_text())
+    drift = json.loads((folder / "drift.json").read_text())
+    assert json.loads((folder / "run.json").read_text())["status"] == "complete"
+    for u, entry in zip(units, result["per_unit"], strict=True):
+        for j in range(6):
+            p = entry["parameters"][f"fv{j + 1}"]
+            assert abs(p["value"] / u["fv"][j] - 1) < 0.02
+            assert p["interval_95"][0] < p["value"] < p["interval_95"][1]
+    assert drift["across_units"]["status"] == "not run"
+    assert "samples/s per core" in res.output
