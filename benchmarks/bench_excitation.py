@@ -53,11 +53,12 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
+from ident.blas import one_blas_thread
 from ident.optim import minimize
 from ident.optim.elites import find_feasible_elites, spawn_from_elites
 from ident.run.config import MeasurementSection, RunConfig, load_run_config
 from ident.run.elite_identification import identify_elite
-from ident.run.problem import ExcitationProblem, excitation_problem, small_blas
+from ident.run.problem import ExcitationProblem, excitation_problem
 from ident.run.setup import RunSetup, prepare_run
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -91,7 +92,7 @@ def load_problem(name: str) -> tuple[RunSetup, ExcitationProblem]:
 def major_error(setup: RunSetup, problem: ExcitationProblem, x: np.ndarray, seed: int) -> float:
     """Largest relative error of the major base parameters when ``x`` is identified (OLS)."""
     info = problem.stage_info
-    with small_blas():
+    with one_blas_thread():
         outcome = identify_elite(
             setup.config, setup.robot, setup.family, info, 1, x, float("nan"), {}, seed
         )

@@ -43,13 +43,13 @@ import numpy as np
 import pinocchio as pin
 
 from ident import Robot
+from ident.blas import one_blas_thread
 from ident.dynamics.stage import paper_stages
 from ident.excitation.constraints import penalty
 from ident.excitation.mfs import PaperArmFamily
 from ident.excitation.objective import CRITERION_CAP, ExcitationObjective
 from ident.excitation.safety import build_safety_model
 from ident.excitation.wrist import PaperWristFamily
-from ident.run.problem import small_blas
 
 
 def reference_fitness(objective: ExcitationObjective, x: np.ndarray) -> np.ndarray:
@@ -115,7 +115,9 @@ def best_times(fast, slow, repeat: int) -> tuple[float, float]:
 
 
 def main() -> None:
-    with small_blas():  # one BLAS thread for both sides: threads on a loaded machine only add noise
+    with (
+        one_blas_thread()
+    ):  # one BLAS thread for both sides: threads on a loaded machine only add noise
         _main()
 
 

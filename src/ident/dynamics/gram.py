@@ -14,6 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ident.blas import one_blas_thread
 from ident.dynamics.chain import FloatArray, KinematicChain
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.errors import DataError
@@ -162,17 +163,18 @@ def regressor_gram(
     chunk = min(_CHUNK, max(n_samples, 1))
     buffer = np.empty((chunk * rows_i.size, cols_i.size))
     out = np.zeros((n_batch, cols_i.size, cols_i.size))
-    for b in range(n_batch):
-        for start in range(0, n_samples, chunk):
-            stop = min(start + chunk, n_samples)
-            block = buffer[: (stop - start) * rows_i.size]
-            if chain.coupled:
-                selected_rows(chain, q[b, start:stop], dq[b, start:stop], ddq[b, start:stop],
-                              rows=rows_i, columns=cols_i, row_weights=None, out=block)  # fmt: skip
-                block *= np.tile(weights, stop - start)[:, None]
-            else:
-                _kernels.selected_rows_into(
-                    *arrays, q[b], dq[b], ddq[b], start, stop, rows_i, cols_i, weights, block
-                )
-            out[b] += block.T @ block
+    with one_blas_thread():  # small products: a second thread only spins (ident.blas)
+        for b in range(n_batch):
+            for start in range(0, n_samples, chunk):
+                stop = min(start + chunk, n_samples)
+                block = buffer[: (stop - start) * rows_i.size]
+                if chain.coupled:
+                    states = (q[b, start:stop], dq[b, start:stop], ddq[b, start:stop])
+                    selected_rows(chain, *states, rows=rows_i, columns=cols_i, out=block)
+                    block *= np.tile(weights, stop - start)[:, None]
+                else:
+                    _kernels.selected_rows_into(
+                        *arrays, q[b], dq[b], ddq[b], start, stop, rows_i, cols_i, weights, block
+                    )
+                out[b] += block.T @ block
     return out if batched else out[0]

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ident.blas import one_blas_thread
 from ident.errors import IdentError, TrajectoryError
 from ident.excitation.family import feasibility_advice
 from ident.optim import minimize
@@ -49,7 +50,7 @@ from ident.run.config import RunConfig
 from ident.run.elite_identification import identify_elite
 from ident.run.examples import unsafe_run_advice
 from ident.run.log_measurement import identify_elite_log, log_stage_info
-from ident.run.problem import excitation_problem, small_blas
+from ident.run.problem import excitation_problem
 from ident.run.results import (
     EliteOutcome,
     FrameBaseInfo,
@@ -236,7 +237,7 @@ def _measurement_of(setup: RunSetup, problem: Any) -> tuple[StageInfo, Any]:
     """The stage's facts and the function that measures and identifies an elite: simulated
     states (ideal source) or a simulated log identified as a measured one (MuJoCo)."""
     if setup.config.measurement.source == "mujoco":
-        with small_blas():
+        with one_blas_thread():
             stage_info, _ = log_stage_info(setup.config, setup.robot)
         return stage_info, identify_elite_log
     return problem.stage_info, identify_elite
@@ -462,7 +463,7 @@ def _measure(
     meas_streams = stream.spawn(chosen_x.shape[0])
     for i in range(chosen_x.shape[0]):
         state.phase = f"identification of elite {i + 1}"
-        with small_blas():
+        with one_blas_thread():
             outcome = measure(
                 setup.config,
                 setup.robot,

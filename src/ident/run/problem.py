@@ -10,30 +10,19 @@ terms), with the family's bounds. :func:`ident.run.pipeline.run_pipeline` optimi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from threadpoolctl import threadpool_limits
 
+from ident.blas import one_blas_thread
 from ident.excitation.objective import ExcitationObjective
 from ident.run.results import StageInfo
 from ident.run.setup import RunSetup
 from ident.run.stage_info import build_stage_info
 
-__all__ = ["ExcitationProblem", "excitation_problem", "small_blas"]
+__all__ = ["ExcitationProblem", "excitation_problem"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def small_blas() -> Any:
-    """Single-threaded BLAS for the small least-squares problems of the estimate.
-
-    OpenBLAS threads a (1500 x 17) WLS solve; on a loaded 2-core machine that made it 15-50
-    times slower than one thread (measured 41-160 ms vs 1.3-3.4 ms, docs/run.md). The
-    objective's Gram-matrix kernel (numba) is not BLAS and is left alone.
-    """
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,7 +56,7 @@ def excitation_problem(setup: RunSetup, rng: np.random.Generator) -> ExcitationP
         Random states for the stage's numerical base parameters.
     """
     config, robot, stage, family = setup.config, setup.robot, setup.stage, setup.family
-    with small_blas():
+    with one_blas_thread():
         stage_info = build_stage_info(robot, stage, family, config.estimation.base_method, rng)
     # the objective scores the same base columns the estimate uses
     objective = ExcitationObjective(

@@ -29,8 +29,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
-from threadpoolctl import threadpool_limits
 
+from ident.blas import one_blas_thread
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.errors import DataError
@@ -225,7 +225,7 @@ def correct_log(
     if signals.delay_s == 0.0:
         return SignalCorrection(0.0, None, None, (log,))
     pp, _, _ = preprocess.resolve_for_log(pp, log)
-    with threadpool_limits(limits=1, user_api="blas"):  # small solves: threads only wait
+    with one_blas_thread():  # small solves: threads only wait
         pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
         delay_s, found, how = _delay(signals, log, pp, pm, robot)
     return SignalCorrection(delay_s, found, None, (shift_torque(log, delay_s, how),))
@@ -246,7 +246,7 @@ def correct_payload_logs(
     given = (with_payload,) if without_payload is None else (with_payload, without_payload)
     if signals.delay_s == 0.0 and signals.gain_reference is None:
         return SignalCorrection(0.0, None, None, given)
-    with threadpool_limits(limits=1, user_api="blas"):  # small solves: threads only wait
+    with one_blas_thread():  # small solves: threads only wait
         resolved, _, _ = preprocess.resolve_for_log(pp, with_payload)
         pm = build_parameter_model(robot.model, model.extra_terms(robot.nv, source))
         delay_s, found, how = _delay(signals, without_payload or with_payload, resolved, pm, robot)

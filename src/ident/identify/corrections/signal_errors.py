@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares, minimize_scalar
-from threadpoolctl import threadpool_limits
 
+from ident.blas import one_blas_thread
 from ident.errors import DataError
 
 __all__ = ["DelayEstimate", "GainEstimate", "delay_residual", "estimate_delay", "estimate_gains"]
@@ -95,7 +95,7 @@ class _DelayProblem:
         if keep is not None:
             mask = mask & np.asarray(keep, bool)
         self.rows = mask.reshape(-1)
-        with threadpool_limits(limits=1, user_api="blas"):
+        with one_blas_thread():
             self.Q = np.linalg.qr(Y.reshape(n * nv, -1)[self.rows])[0]
 
     def __call__(self, delay_s: float) -> float:
@@ -245,7 +245,7 @@ def estimate_gains(
             raise DataError(f"torque gains: the regressor has rank {rank} < {p} on these rows.")
         return y - Ag @ theta, theta
 
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         result = least_squares(lambda x: solve(x)[0], np.ones(others.size), method="trf")
         theta = np.full(acting.size, np.nan)
         theta[acting] = solve(result.x)[1]

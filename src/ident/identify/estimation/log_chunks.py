@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from threadpoolctl import threadpool_limits
 
+from ident.blas import one_blas_thread
 from ident.errors import DataError, IdentError
 from ident.identify.config import PreprocessConfig
 from ident.identify.estimation import preprocess
@@ -191,7 +191,7 @@ def _results(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -
             return
         _bound_arenas(workers)
         try:
-            with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(workers) as pool:
+            with one_blas_thread(), ThreadPoolExecutor(workers) as pool:
                 yield from pool.map(lambda task: fn(task, *extra), tasks)
         finally:
             release_free_memory()

@@ -44,10 +44,7 @@ estimates them jointly: better when WLS's friction is itself poor (a poorly exci
 
 from __future__ import annotations
 
-import contextlib
-import functools
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -61,7 +58,6 @@ __all__ = [
     "PRIOR_FLOOR",
     "ScaledProblem",
     "scaled_problem",
-    "single_threaded_blas",
 ]
 
 #: Fixed part of the prior weight (see the module docstring).
@@ -72,29 +68,6 @@ PRIOR_DIRECTIONS = ("unseen", "all")
 FRICTION_MODES = ("least_squares", "free")
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def single_threaded_blas() -> contextlib.AbstractContextManager:
-    """BLAS on one thread: these problems are small (tens of columns) and many (a weight
-    grid, trust-region steps), and threads only add synchronisation (3x to 30x slower
-    measured on a loaded 2-core machine)."""
-    controller = _blas_controller()
-    if controller is None:  # pragma: no cover - optional speed-up
-        return contextlib.nullcontext()
-    return controller.limit(limits=1, user_api="blas")
-
-
-@functools.cache
-def _blas_controller() -> Any:
-    """threadpoolctl's view of the loaded BLAS libraries, scanned once (a scan of the
-    process's shared libraries takes 3-7 ms, as long as a small solve; a library loaded later
-    keeps its threads, a speed matter only), or None without threadpoolctl."""
-    try:
-        import scipy.linalg  # noqa: F401 (its BLAS loaded before the scan)
-        from threadpoolctl import ThreadpoolController
-    except ImportError:  # pragma: no cover - optional speed-up
-        return None
-    return ThreadpoolController()
 
 
 @dataclass(frozen=True, eq=False)

@@ -32,12 +32,12 @@ from typing import Any
 
 import numpy as np
 
+from ident.blas import one_blas_thread
 from ident.identify.estimation.consistency import PSEUDO_INERTIA_BASIS
 from ident.identify.estimation.estimate import Estimate
 from ident.identify.estimators.constrained import (
     ScaledProblem,
     scaled_problem,
-    single_threaded_blas,
 )
 from ident.identify.estimators.problem import EstimationProblem, result_from_theta
 from ident.identify.estimators.registry import Contract, register_estimator, register_repeated
@@ -50,7 +50,7 @@ DEFAULT_EPSILON = 1e-6
 @register_estimator("lmi", contract=Contract(consistent=True, needs_prior=True))
 def lmi(problem: EstimationProblem) -> Estimate:
     """Physically consistent WLS estimate by an SDP (see the module docstring)."""
-    with single_threaded_blas():
+    with one_blas_thread():
         return _lmi(problem)
 
 
@@ -164,7 +164,7 @@ class LmiResolver:
         return len(self._programs)
 
     def __call__(self, problem: EstimationProblem) -> Estimate:
-        with single_threaded_blas():
+        with one_blas_thread():
             return self._solve(problem)
 
     def _solve(self, problem: EstimationProblem) -> Estimate:

@@ -33,11 +33,11 @@ import numpy.typing as npt
 import pinocchio as pin
 import scipy.optimize
 
+from ident.blas import one_blas_thread
 from ident.identify.estimation.consistency import parameters_from_pseudo_inertia, pseudo_inertia
 from ident.identify.estimation.estimate import Estimate, least_squares_reduced
 from ident.identify.estimators.constrained import (
     scaled_problem,
-    single_threaded_blas,
 )
 from ident.identify.estimators.problem import (
     EstimationProblem,
@@ -103,7 +103,7 @@ def _positive_definite(theta_b: FloatArray, scale_b: FloatArray) -> FloatArray:
 @register_estimator("log_cholesky", contract=Contract(consistent=True, needs_prior=True))
 def log_cholesky(problem: EstimationProblem) -> Estimate:
     """Physically consistent WLS estimate by the log-Cholesky parametrization."""
-    with single_threaded_blas():
+    with one_blas_thread():
         return _log_cholesky(problem)
 
 

@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
-from threadpoolctl import threadpool_limits
 
+from ident.blas import one_blas_thread
 from ident.dynamics.friction_models import FRICTION_MODELS, FrictionModel, get_friction_model
 from ident.dynamics.parameter_model import ParameterModel
 from ident.errors import DataError
@@ -208,7 +208,7 @@ def fit_friction_model(
         If the rest of the columns are rank deficient on the kept rows.
     """
     model = get_friction_model(model) if isinstance(model, str) else model
-    with threadpool_limits(limits=1, user_api="blas"):  # small problems: threads only wait
+    with one_blas_thread():  # small problems: threads only wait
         if rest is not None:
             held = FrictionRows(
                 W_rest=np.zeros((*rows.tau.shape, 0)),

@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-from threadpoolctl import threadpool_limits
 
+from ident.blas import one_blas_thread
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.errors import ConfigError, DataError
@@ -277,7 +277,7 @@ def identify_measurements(
     IdentError
         Subclasses naming the file, field or parameter: bad config, rank deficiency.
     """
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         return _identify(cfg, log, model, parameters, rng=rng, read_s=read_s, scheduler=scheduler)
 
 

@@ -24,8 +24,8 @@ from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
-from threadpoolctl import threadpool_limits
 
+from ident.blas import one_blas_thread
 from ident.identify.streaming.estimator import ChangeEvent, StreamingEstimator
 from ident.measure.logs import RobotLog
 
@@ -92,7 +92,7 @@ def stream(
     change as soon as its estimate is complete. BLAS runs on one thread: the solves are small
     and threads only wait (and a robot's computer has other work)."""
     n, cpu = 0, 0.0
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         for t, q, tau, restart in source.blocks():
             c0 = time.process_time()
             if restart:
