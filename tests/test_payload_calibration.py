@@ -18,12 +18,12 @@ from ident.identify.payload.payload_arm import select_columns
 
 N_ROWS = 240
 N_ARM = 4
-N_DRAWS = 600
+N_DRAWS = 400
 MASS = 2.5
 PHI = np.r_[MASS, MASS * np.array([0.02, 0.03, 0.08]), 0.02, 0.0, 0.03, 0.0, 0.0, 0.01]
 NOISE = 0.05  # the rows' noise s
 #: Binomial tolerance of a 95 % coverage over N_DRAWS draws: 3.5 standard deviations
-#: (sqrt(0.95 * 0.05 / 600) = 0.9 %), a false failure about once in 2000 runs.
+#: (sqrt(0.95 * 0.05 / 400) = 1.1 %), a false failure about once in 2000 runs.
 TOLERANCE = 3.5 * np.sqrt(0.95 * 0.05 / N_DRAWS)
 
 
@@ -58,11 +58,11 @@ def mass_inside(toy, seed: int, with_arm: bool) -> bool:
 
 
 def test_mass_interval_covers_95_percent_with_the_arm_error_propagated(toy):
-    """600 draws: the mass's 95 % interval (``C_log + G C_arm G^T``) holds the truth in
-    95 % +- 3.1 % (binomial, 3.5 σ; measured 96.2 %); the same intervals without the arm's
-    covariance (the arm taken as exact) hold it in ``P(|N| < 1.96 / 2) = 67 %`` (measured 69 %
-    on 100 draws) and fail."""
+    """400 draws: the mass's 95 % interval (``C_log + G C_arm G^T``) holds the truth in
+    95 % +- 3.8 % (binomial, 3.5 σ; measured 95.25 %); the same intervals without the arm's
+    covariance (the arm taken as exact) hold it in ``P(|N| < 1.96 / 2) = 67 %`` (measured
+    69 % on 80 draws) and fail."""
     with_arm = np.mean([mass_inside(toy, 1000 + k, True) for k in range(N_DRAWS)])
     assert abs(with_arm - 0.95) <= TOLERANCE, with_arm
-    without = np.mean([mass_inside(toy, 1000 + k, False) for k in range(N_DRAWS // 6)])
+    without = np.mean([mass_inside(toy, 1000 + k, False) for k in range(N_DRAWS // 5)])
     assert without < 0.8, without
