@@ -37,7 +37,7 @@ both simulations, the identification and the three payload runs; about 25 s for 
 robot). The payload runs use ``method: wls`` (the intervals are the WLS estimate's).
 ``--workdir DIR`` keeps each seed's logs and identified arm in ``DIR`` (``<robot>-seed-<k>``,
 their ``case.json``); a seed found there is reused: only ``ident payload`` runs again (a change
-of its intervals re-measured on the same seeds at a third of the CPU).
+of its intervals re-measured on the same seeds without the simulations and ``ident identify``).
 """
 
 from __future__ import annotations
