@@ -35,12 +35,16 @@ truth (mass, each CoM component, and the four pooled, counted over seeds), the R
 error / σ, the warning rate; and the CPU per seed (``time.process_time``, the whole seed:
 both simulations, the identification and the three payload runs; about 25 s for either
 robot). The payload runs use ``method: wls`` (the intervals are the WLS estimate's).
+``--workdir DIR`` keeps each seed's logs and identified arm in ``DIR`` (``<robot>-seed-<k>``,
+their ``case.json``); a seed found there is reused: only ``ident payload`` runs again (a change
+of its intervals re-measured on the same seeds without the simulations and ``ident identify``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import tempfile
 import time
@@ -279,14 +283,11 @@ def run_cad_case(
     error ``signs``), one row per :data:`CAD_MODES`: both logs; the payload log with the arm
     identified from the log without it (``ident identify`` of the CAD URDF); the payload log
     on the CAD URDF alone. ``method``: ``ident payload``'s estimator (``lmi`` or ``wls``)."""
-    mass, com, _ = payload = CAD_PAYLOAD
-    raw, robot, logs = simulate_logs(
-        config, payload, folder, seconds=seconds, seed=seed, noise_seed=noise_seed
-    )
-    cad = cad_urdf(robot, folder / "cad", signs)
+    mass, com, _ = CAD_PAYLOAD
+    raw, logs, cad, arm = _cad_inputs(config, folder, seconds, seed, noise_seed, signs)
     arms = {
         CAD_MODES[0]: (cad, logs["without"]),
-        CAD_MODES[1]: (identified_arm(raw, cad, logs["without"], folder / "arm"), None),
+        CAD_MODES[1]: (arm, None),
         CAD_MODES[2]: (cad, None),
     }
     rows = []
@@ -300,12 +301,37 @@ def run_cad_case(
             "payload": {"without": without, "method": method},
         }
         payload_cfg["robot"].pop("package_dirs", None)
+        shutil.rmtree(folder / f"mode-{k}", ignore_errors=True)  # a reused folder's last run
         (folder / f"mode-{k}").mkdir()
         summary, elapsed = ident_payload(folder / f"mode-{k}", payload_cfg)
         row = result_row(f"{config.stem}, {mode}", mass, com, summary, elapsed)
         row["z"] = normalized_errors(summary, mass, com)[summary["std_method"]]
         rows.append(row)
     return rows
+
+
+def _cad_inputs(
+    config: Path,
+    folder: Path,
+    seconds: float,
+    seed: int,
+    noise_seed: int | None,
+    signs: np.ndarray | None,
+) -> tuple[dict, dict, Path, Path]:
+    """``(raw config, {"without", "with": log section}, CAD URDF, identified URDF)`` of a CAD
+    case: simulated and identified into ``folder``, or read back from its ``case.json`` when
+    an earlier run left it there (``--workdir``: the payload runs alone are repeated)."""
+    saved = folder / "case.json"
+    if saved.exists():
+        case = json.loads(saved.read_text())
+        return read_yaml(config), case["logs"], Path(case["cad"]), Path(case["arm"])
+    raw, robot, logs = simulate_logs(
+        config, CAD_PAYLOAD, folder, seconds=seconds, seed=seed, noise_seed=noise_seed
+    )
+    cad = cad_urdf(robot, folder / "cad", signs)
+    arm = identified_arm(raw, cad, logs["without"], folder / "arm")
+    saved.write_text(json.dumps({"logs": logs, "cad": str(cad), "arm": str(arm)}))
+    return raw, logs, cad, arm
 
 
 def _cad_table(rows: list[dict], coverage_rows: dict[str, list] | None = None) -> None:
@@ -361,17 +387,24 @@ def cad_main(robots: list[str], n_seeds: int, seconds: float) -> int:
 
 
 def seeds_main(
-    robots: list[str], n_seeds: int, seconds: float, signs_mode: str, first: int = 0
+    robots: list[str],
+    n_seeds: int,
+    seconds: float,
+    signs_mode: str,
+    first: int = 0,
+    workdir: Path | None = None,
 ) -> int:
     """``--seeds N``: the CAD cases (:func:`run_cad_case`, ``method: wls``) over ``N`` seeds
     from ``first``, each drawing its own motion and noise (and, with ``signs_mode`` ``random``,
     the sign of every link's CAD errors); the table of :func:`_seeds_table`. Exit 1 when a two-log
     or identified-arm case misses 2 % / 5 mm at any seed, or a one-log CAD case misses them
-    without a warning."""
+    without a warning. ``workdir``: the seeds' logs and identified arms are kept there (else
+    in a temporary folder), and a seed found there is not simulated nor identified again."""
     cases: dict[str, list[dict]] = {}
     cpu: dict[str, list[float]] = {}
     ok = True
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as scratch:
+        tmp = str(workdir or scratch)
         for k in range(first, first + n_seeds):  # the robots alternate: a cut-short run has both
             for name in robots:
                 config = REPO / "configs" / f"{name}.yaml"
@@ -622,10 +655,18 @@ def main(argv: list[str] | None = None) -> int:
         help="--seeds: every link's CAD error +10 %% / +1 cm (fixed) or of random sign per link",
     )
     parser.add_argument("--first-seed", type=int, default=0, help="--seeds: the first seed")
+    parser.add_argument(
+        "--workdir",
+        type=Path,
+        default=None,
+        help="--seeds: keep the simulated logs and identified arms here; a seed already there "
+        "is reused (only ident payload runs again)",
+    )
     args = parser.parse_args(argv)
     if args.seeds > 0:
         robots = [r.strip() for r in args.robots.split(",")]
-        return seeds_main(robots, args.seeds, args.seconds, args.cad_signs, args.first_seed)
+        return seeds_main(robots, args.seeds, args.seconds, args.cad_signs, args.first_seed,
+                          args.workdir)  # fmt: skip
     if args.cad:
         return cad_main([r.strip() for r in args.robots.split(",")], args.coverage, args.seconds)
     if args.coverage > 0:
