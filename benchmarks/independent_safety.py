@@ -615,7 +615,13 @@ def _set_pairs(robot: Robot, excluded: list[str], homes: list[np.ndarray], out: 
         a, _, b = entry.partition("|")
         if a not in robot.link_of or b not in robot.link_of:
             continue  # the floor, an obstacle, a payload: checked on their own
-        why = justify_exclusion(robot, a, b, homes)
+        if PAYLOAD in (a, b):  # the box is left out only against its own rigid body
+            body = _bodies(robot)
+            other = b if a == PAYLOAD else a
+            same = body.get(other, other) == body.get(robot.payload_link, robot.payload_link)
+            why = "the payload box's own rigid body" if same else ""
+        else:
+            why = justify_exclusion(robot, a, b, homes)
         if why:
             accepted.add(frozenset((a, b)))
             out.notes.append(f"{a}|{b} left out: {why}")

@@ -177,3 +177,29 @@ def test_pair_speeds_bound_every_pairs_change_of_distance(checker):
     assert ratios.size > 200
     assert ratios.max() <= 1.0, ratios.max()
     assert ratios.max() > 0.3
+
+
+def test_the_payload_box_is_checked_against_the_other_bodies(checker):
+    # a 20 cm box hanging below link2's sphere (its own body: never paired with link2) reaches
+    # the base box the sphere alone keeps 46 mm from; it is checked against link1 (adjacent)
+    urdf = TWO_LINK_URDF.replace("UPPER", "1.5").replace("VELOCITY", "2").replace("EFFORT", "20")
+    robot = checker.Robot(urdf, [], ["j1", "j2"], {})
+    robot.add_payload_box({"link": "link2", "size": [0.05, 0.05, 0.2], "position": [0.3, 0, -0.1]})
+    options = {"margin_m": 0.01, "floor_z": 0.0, "rate_hz": 1000.0}
+    verdict = checker.check_trajectory(
+        robot, *_swing(0.5, 0.25, 2.0), excluded=["base|link1", "link1|link2"], **options
+    )
+    assert any(f.startswith("clearance base|payload") for f in verdict.failures), verdict.failures
+    assert verdict.pairs == ["base|link2", "base|payload", "link1|payload"]
+    assert not any(f.startswith("clearance base|link2") for f in verdict.failures)
+
+
+def test_a_trajectory_not_at_rest_at_its_ends_fails(checker):
+    t, _, dq, _ = _swing(0.5, 0.25, 2.0)  # j1 starts and ends at 0.3 w rad/s
+    verdict = checker.Verdict(1000.0, t.size, 0.01)
+    checker._check_rest(t, dq, verdict)
+    assert [f.split(":")[0] for f in verdict.failures] == ["not at rest at t = 0.000 s"] + [
+        f"not at rest at t = {t[-1]:.3f} s"
+    ]
+    checker._check_rest(t, dq * 0.0, verdict := checker.Verdict(1000.0, t.size, 0.01))
+    assert verdict.ok
