@@ -203,3 +203,19 @@ def test_a_trajectory_not_at_rest_at_its_ends_fails(checker):
     ]
     checker._check_rest(t, dq * 0.0, verdict := checker.Verdict(1000.0, t.size, 0.01))
     assert verdict.ok
+
+
+def test_the_runs_own_limits_are_checked(checker):
+    # configs/ur5.yaml: the URDF gives no acceleration limit, the config's 8 rad/s^2 is
+    # checked; the elbow's position range is the run's [-pi, pi]
+    t = np.linspace(0.0, 0.01, 11)
+    q, dq, ddq = np.zeros((11, 6)), np.zeros((11, 6)), np.zeros((11, 6))
+    ddq[5, 2], q[3, 2] = 8.5, 3.2
+    out = checker.Verdict(1000.0, t.size, 0.01)
+    checker.check_selected_limits(ROOT / "configs" / "ur5.yaml", UR5_JOINTS, t, (q, dq, ddq), out)
+    assert [f.split(" =")[0] for f in out.failures] == [
+        "position elbow_joint",
+        "acceleration elbow_joint",
+    ]
+    assert out.acceleration_ratio == pytest.approx(8.5 / 8.0)
+    assert not out.not_checked
