@@ -378,21 +378,67 @@ def _peak(
 def kinematics(robot: Robot, qs: np.ndarray, vs: np.ndarray, accs: np.ndarray) -> tuple:
     """Per sample: each joint's rotation (n, nj, 3, 3), origin (n, nj, 3) and spatial
     velocity in the world frame at the world's origin (n, nj, 6: linear, angular) [m, m/s,
-    rad/s]; the RNEA torques (n, nv) [N*m or N]."""
+    rad/s]; the RNEA torques (n, nv) [N*m or N].
+
+    The placements and twists are composed down the tree for all samples at once (reading
+    them back from Pinocchio sample by sample costs ten times its RNEA); every joint has one
+    axis (revolute, continuous, prismatic; fixed joints are not joints in Pinocchio), else
+    :func:`_sampled_kinematics`."""
+    model, data = robot.model, robot.data
+    tau = np.array([pin.rnea(model, data, *x) for x in zip(qs, vs, accs, strict=True)])
+    n, nj = qs.shape[0], model.njoints
+    rot, pos = np.zeros((n, nj, 3, 3)), np.zeros((n, nj, 3))
+    rot[:, 0] = np.eye(3)
+    linear, angular = np.zeros((n, nj, 3)), np.zeros((n, nj, 3))
+    for j in range(1, nj):
+        joint, parent, place = model.joints[j], model.parents[j], model.jointPlacements[j]
+        if joint.nv != 1:  # a floating or planar joint: Pinocchio's, sample by sample
+            return (*_sampled_kinematics(robot, qs, vs), tau)
+        jd = joint.createData()
+        joint.calc(jd, pin.neutral(model))
+        motion = np.asarray(jd.S, dtype=float).reshape(6)  # (linear, angular) in the joint
+        angle = qs[:, joint.idx_q]
+        if joint.nq == 2:  # continuous: (cos, sin)
+            angle = np.arctan2(qs[:, joint.idx_q + 1], qs[:, joint.idx_q])
+        speed = vs[:, joint.idx_v]
+        base = rot[:, parent] @ place.rotation  # (n, 3, 3)
+        pos[:, j] = pos[:, parent] + rot[:, parent] @ place.translation
+        if np.linalg.norm(motion[3:]) > 0:  # revolute about the unit axis motion[3:]
+            rot[:, j] = base @ _axis_rotation(motion[3:], angle)
+            axis = base @ motion[3:]
+            angular[:, j] = angular[:, parent] + axis * speed[:, None]
+            # a turn about the line through pos[j]: p x w at the world's origin
+            linear[:, j] = linear[:, parent] + np.cross(pos[:, j], axis) * speed[:, None]
+        else:  # prismatic along motion[:3]
+            rot[:, j], axis = base, base @ motion[:3]
+            pos[:, j] += axis * angle[:, None]
+            angular[:, j] = angular[:, parent]
+            linear[:, j] = linear[:, parent] + axis * speed[:, None]
+    return rot, pos, np.concatenate([linear, angular], axis=2), tau
+
+
+def _sampled_kinematics(robot: Robot, qs: np.ndarray, vs: np.ndarray) -> tuple:
+    """:func:`kinematics`' rotations, origins and twists read from Pinocchio sample by
+    sample (any joint type)."""
     model, data = robot.model, robot.data
     n, nj = qs.shape[0], model.njoints
     placement, local = np.zeros((n, nj, 4, 4)), np.zeros((n, nj, 6))
-    tau = np.zeros((n, model.nv))
     for s in range(n):
-        tau[s] = pin.rnea(model, data, qs[s], vs[s], accs[s])
-        pin.forwardKinematics(model, data, qs[s], vs[s])  # rnea leaves oMi as it found it
+        pin.forwardKinematics(model, data, qs[s], vs[s])
         placement[s] = [m.homogeneous for m in data.oMi]
         local[s] = [v.vector for v in data.v]
     rot, pos = placement[:, :, :3, :3], placement[:, :, :3, 3]
     # the twist moved to the world's origin: angular R w, linear R v + p x (R w)
     angular = np.einsum("njab,njb->nja", rot, local[:, :, 3:])
     linear = np.einsum("njab,njb->nja", rot, local[:, :, :3]) + np.cross(pos, angular)
-    return rot, pos, np.concatenate([linear, angular], axis=2), tau
+    return rot, pos, np.concatenate([linear, angular], axis=2)
+
+
+def _axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations (n, 3, 3) by ``angle`` (n,) [rad] about the unit ``axis`` (3,) (Rodrigues)."""
+    k = pin.skew(axis)
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
 def pair_speeds(robot: Robot, rot: np.ndarray, pos: np.ndarray, twist: np.ndarray) -> np.ndarray:
@@ -408,15 +454,19 @@ def pair_speeds(robot: Robot, rot: np.ndarray, pos: np.ndarray, twist: np.ndarra
     out = np.zeros((rot.shape[0], len(robot.geom.collisionPairs)))
     speed: dict[tuple[int, int], np.ndarray] = {}  # (geometry, other joint) -> (n,)
 
+    world: dict[int, np.ndarray] = {}  # geometry -> its sphere's centre (n, 3) [m]
+
+    def norm(x: np.ndarray) -> np.ndarray:
+        return np.sqrt(np.einsum("ni,ni->n", x, x))
+
     def sphere_speed(mine: int, jo: int) -> np.ndarray:
         if (mine, jo) not in speed:
             jm = objects[mine].parentJoint
+            if mine not in world:
+                world[mine] = rot[:, jm] @ centre[mine] + pos[:, jm]
             rel = twist[:, jm] - twist[:, jo]  # mine's motion seen from the other's body
-            c = np.einsum("nij,j->ni", rot[:, jm], centre[mine]) + pos[:, jm]
-            point = rel[:, :3] + np.cross(rel[:, 3:], c)
-            speed[mine, jo] = (
-                np.linalg.norm(point, axis=1) + np.linalg.norm(rel[:, 3:], axis=1) * radius[mine]
-            )
+            point = rel[:, :3] + np.cross(rel[:, 3:], world[mine])
+            speed[mine, jo] = norm(point) + norm(rel[:, 3:]) * radius[mine]
         return speed[mine, jo]
 
     for p, pair in enumerate(robot.geom.collisionPairs):
