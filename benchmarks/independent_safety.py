@@ -1,11 +1,16 @@
 """Re-check the trajectory of an ``ident run`` folder with plain Pinocchio and coal.
 
-Written apart from ident's safety code (nothing of ``ident`` is imported): the URDF, the
-trajectory and the run's settings are read from the folder's files, and the checks are
-re-done from the URDF's own numbers:
+Written apart from ident's safety and geometry code: the URDF, the trajectory and the run's
+settings are read from the folder's files, and the checks are re-done from the URDF's own
+numbers (ident is used for one thing only: reading the run config's joint limits, as the run
+selected them from the URDF and the config):
 
 - **positions** within the URDF's ``<limit lower upper>`` and **velocities** within its
-  ``velocity``, for every moving joint and every mimic joint that follows one;
+  ``velocity``, for every moving joint and every mimic joint that follows one; positions,
+  velocities and **accelerations** of the trajectory's joints within the run's selected
+  limits (the URDF's tightened by ``robot.limits``, ``robot.velocity_limits``,
+  ``robot.acceleration_limits`` and the export targets); the trajectory starts and ends at
+  rest;
 - **torques** from Pinocchio's RNEA (the URDF's inertials, gravity -9.81 z, no friction) within
   the URDF's ``effort`` where it gives one (``effort="0"`` or none: named as not checked);
 - **self-collision**: the distance (coal, on the collision meshes and primitives as loaded by
@@ -15,7 +20,9 @@ re-done from the URDF's own numbers:
   links joined by one moving joint (links welded by fixed or locked joints count as one
   body), links of one rigid body (their distance never changes), or links in contact at the
   home posture (each joint at 0 clipped into its limits, or at the trajectory's first sample);
-  any other excluded pair is checked like the rest and named;
+  any other excluded pair is checked like the rest and named. ``safety.payload_box`` is a
+  coal box on its link, checked against every link of another rigid body (adjacent ones
+  included) and the floor, never left out;
 - **the floor**: the lowest point of every moving geometry (mesh vertices, primitives in
   closed form) stays at least the margin above ``safety.floor.z``; a geometry whose height
   never changes (the base) is reported, not failed (ident judges it once as a mounting).
@@ -30,7 +37,8 @@ still exceeds both the margin and the smallest distance found so far (conservati
 advancement): every sample closer than the margin is measured, and the smallest clearance
 reported is the smallest over every sample.
 
-Used by ``tests/test_init.py`` and ``benchmarks/bench_quickstart.py --zoo``::
+Used by ``tests/test_shipped_trajectories.py`` (every shipped config's run),
+``tests/test_init.py`` and ``benchmarks/bench_quickstart.py --zoo``::
 
     python benchmarks/independent_safety.py RUN_FOLDER
 """
@@ -55,6 +63,12 @@ import pinocchio as pin
 import yaml
 from scipy.spatial import ConvexHull
 
+# ident reads the run config's limits only (the robot it selected: URDF + config + export
+# targets); none of its safety or geometry code is used here
+from ident.model.selection import load_robot
+from ident.run.config import load_run_config
+from ident.run.exports.run_exports import effective_limits
+
 #: Factor on the sampled speeds bounding the speed between two samples (conservative
 #: advancement); the trajectories are C2 at >= 1 kHz, their speeds change by far less.
 TRAVEL_SAFETY = 1.5
@@ -62,6 +76,10 @@ TRAVEL_SAFETY = 1.5
 LIMIT_RTOL = 1e-9
 #: A geometry whose height moves by less than this over the trajectory is fixed [m].
 FIXED_HEIGHT_M = 1e-9
+#: Speed below which the trajectory is at rest at its ends [rad/s or m/s].
+REST_TOL = 1e-9
+#: The name (as a link) of ``safety.payload_box``'s geometry.
+PAYLOAD = "payload"
 
 
 @dataclass
@@ -85,8 +103,10 @@ class Verdict:
     floor_m: float = math.inf
     floor_geometry: str = ""
     velocity_ratio: float = 0.0
+    acceleration_ratio: float = 0.0
     torque_ratio: float = 0.0
     n_pairs: int = 0
+    pairs: list[str] = field(default_factory=list)
     n_distances: int = 0
 
     @property
@@ -102,8 +122,8 @@ class Verdict:
             f"pairs: clearance {1e3 * self.clearance_m:.1f} mm ({self.closest_pair} at "
             f"t = {self.closest_time:.3f} s), floor {1e3 * self.floor_m:.1f} mm "
             f"({self.floor_geometry}), margin {1e3 * self.margin_m:g} mm; |dq| <= "
-            f"{100 * self.velocity_ratio:.0f} %, |tau| <= {100 * self.torque_ratio:.0f} % "
-            "of the URDF's limits)"
+            f"{100 * self.velocity_ratio:.0f} %, |ddq| <= {100 * self.acceleration_ratio:.0f} "
+            f"%, |tau| <= {100 * self.torque_ratio:.0f} % of the limits)"
         )
         if self.not_checked:
             text += "; not checked: " + "; ".join(self.not_checked)
@@ -227,6 +247,26 @@ class Robot:
         if missing:
             raise ValueError(f"trajectory joints {missing} are not joints of the URDF")
         self.link_of = [self.model.frames[g.parentFrame].name for g in self.geom.geometryObjects]
+        self.payload_link = ""
+
+    def add_payload_box(self, box: dict) -> None:
+        """``safety.payload_box`` (``size``, ``position``, ``rpy`` [m, rad] in the frame of
+        ``link``, by default the last trajectory joint's) as a coal box geometry named
+        :data:`PAYLOAD`: placed at the link frame's placement in its joint times the box pose."""
+        link = box.get("link") or self.joints[self.moving[-1]].child
+        frame_id = self.model.getFrameId(link)
+        frame = self.model.frames[frame_id]
+        pose = pin.SE3(
+            pin.rpy.rpyToMatrix(*[float(a) for a in box.get("rpy") or (0.0, 0.0, 0.0)]),
+            np.asarray(box.get("position") or (0.0, 0.0, 0.0), dtype=float),
+        )
+        shape = coal.Box(*[float(a) for a in box["size"]])
+        placement = frame.placement * pose
+        obj = pin.GeometryObject(PAYLOAD, frame.parentJoint, frame_id, placement, shape)
+        self.geom.addGeometryObject(obj)
+        self.gdata = pin.GeometryData(self.geom)
+        self.link_of.append(PAYLOAD)
+        self.payload_link = link
 
     def joint_values(self, q: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> dict[str, tuple]:
         """Every movable URDF joint's (q, dq, ddq) series (n,): the trajectory's own, mimic
@@ -312,37 +352,93 @@ def check_limits(robot: Robot, t: np.ndarray, values: dict, tau: np.ndarray, out
         _peak(name, "torque", np.abs(tau[:, v]), joint.effort, t, out)
 
 
-def _peak(name: str, kind: str, series: np.ndarray, limit: float, t: np.ndarray, out: Verdict):
-    """``max |series| <= limit`` (unknown when the URDF's limit is missing or 0)."""
+def _peak(
+    name: str,
+    kind: str,
+    series: np.ndarray,
+    limit: float,
+    t: np.ndarray,
+    out: Verdict,
+    whose: str = "the URDF's",
+) -> None:
+    """``max |series| <= limit`` (unknown when ``whose`` limit is missing, 0 or inf); ``kind``
+    velocity, acceleration or torque (its peak ratio kept in ``out``)."""
     if not (limit > 0 and math.isfinite(limit)):
-        out.not_checked.append(f"{kind} of {name} (the URDF gives {limit:g})")
+        out.not_checked.append(f"{kind} of {name} ({whose} limit is {limit:g})")
         return
     k = int(np.argmax(series))
-    ratio = float(series[k] / limit)
-    attr = "velocity_ratio" if kind == "velocity" else "torque_ratio"
-    setattr(out, attr, max(getattr(out, attr), ratio))
+    attr = f"{kind}_ratio"
+    setattr(out, attr, max(getattr(out, attr), float(series[k] / limit)))
     if series[k] > limit * (1 + LIMIT_RTOL):
         out.failures.append(
-            f"{kind} {name} = {series[k]:.6g} at t = {t[k]:.3f} s above the URDF's {limit:g}"
+            f"{kind} {name} = {series[k]:.6g} at t = {t[k]:.3f} s above {whose} {limit:g}"
         )
 
 
 def kinematics(robot: Robot, qs: np.ndarray, vs: np.ndarray, accs: np.ndarray) -> tuple:
     """Per sample: each joint's rotation (n, nj, 3, 3), origin (n, nj, 3) and spatial
     velocity in the world frame at the world's origin (n, nj, 6: linear, angular) [m, m/s,
-    rad/s]; the RNEA torques (n, nv) [N*m or N]."""
+    rad/s]; the RNEA torques (n, nv) [N*m or N].
+
+    The placements and twists are composed down the tree for all samples at once (reading
+    them back from Pinocchio sample by sample costs ten times its RNEA); every joint has one
+    axis (revolute, continuous, prismatic; fixed joints are not joints in Pinocchio), else
+    :func:`_sampled_kinematics`."""
     model, data = robot.model, robot.data
+    tau = np.array([pin.rnea(model, data, *x) for x in zip(qs, vs, accs, strict=True)])
     n, nj = qs.shape[0], model.njoints
     rot, pos = np.zeros((n, nj, 3, 3)), np.zeros((n, nj, 3))
-    twist = np.zeros((n, nj, 6))
-    tau = np.zeros((n, model.nv))
+    rot[:, 0] = np.eye(3)
+    linear, angular = np.zeros((n, nj, 3)), np.zeros((n, nj, 3))
+    for j in range(1, nj):
+        joint, parent, place = model.joints[j], model.parents[j], model.jointPlacements[j]
+        if joint.nv != 1:  # a floating or planar joint: Pinocchio's, sample by sample
+            return (*_sampled_kinematics(robot, qs, vs), tau)
+        jd = joint.createData()
+        joint.calc(jd, pin.neutral(model))
+        motion = np.asarray(jd.S, dtype=float).reshape(6)  # (linear, angular) in the joint
+        angle = qs[:, joint.idx_q]
+        if joint.nq == 2:  # continuous: (cos, sin)
+            angle = np.arctan2(qs[:, joint.idx_q + 1], qs[:, joint.idx_q])
+        speed = vs[:, joint.idx_v]
+        base = rot[:, parent] @ place.rotation  # (n, 3, 3)
+        pos[:, j] = pos[:, parent] + rot[:, parent] @ place.translation
+        if np.linalg.norm(motion[3:]) > 0:  # revolute about the unit axis motion[3:]
+            rot[:, j] = base @ _axis_rotation(motion[3:], angle)
+            axis = base @ motion[3:]
+            angular[:, j] = angular[:, parent] + axis * speed[:, None]
+            # a turn about the line through pos[j]: p x w at the world's origin
+            linear[:, j] = linear[:, parent] + np.cross(pos[:, j], axis) * speed[:, None]
+        else:  # prismatic along motion[:3]
+            rot[:, j], axis = base, base @ motion[:3]
+            pos[:, j] += axis * angle[:, None]
+            angular[:, j] = angular[:, parent]
+            linear[:, j] = linear[:, parent] + axis * speed[:, None]
+    return rot, pos, np.concatenate([linear, angular], axis=2), tau
+
+
+def _sampled_kinematics(robot: Robot, qs: np.ndarray, vs: np.ndarray) -> tuple:
+    """:func:`kinematics`' rotations, origins and twists read from Pinocchio sample by
+    sample (any joint type)."""
+    model, data = robot.model, robot.data
+    n, nj = qs.shape[0], model.njoints
+    placement, local = np.zeros((n, nj, 4, 4)), np.zeros((n, nj, 6))
     for s in range(n):
         pin.forwardKinematics(model, data, qs[s], vs[s])
-        tau[s] = pin.rnea(model, data, qs[s], vs[s], accs[s])
-        for j in range(nj):
-            rot[s, j], pos[s, j] = data.oMi[j].rotation, data.oMi[j].translation
-            twist[s, j] = data.oMi[j].act(data.v[j]).vector
-    return rot, pos, twist, tau
+        placement[s] = [m.homogeneous for m in data.oMi]
+        local[s] = [v.vector for v in data.v]
+    rot, pos = placement[:, :, :3, :3], placement[:, :, :3, 3]
+    # the twist moved to the world's origin: angular R w, linear R v + p x (R w)
+    angular = np.einsum("njab,njb->nja", rot, local[:, :, 3:])
+    linear = np.einsum("njab,njb->nja", rot, local[:, :, :3]) + np.cross(pos, angular)
+    return rot, pos, np.concatenate([linear, angular], axis=2)
+
+
+def _axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations (n, 3, 3) by ``angle`` (n,) [rad] about the unit ``axis`` (3,) (Rodrigues)."""
+    k = pin.skew(axis)
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
 def pair_speeds(robot: Robot, rot: np.ndarray, pos: np.ndarray, twist: np.ndarray) -> np.ndarray:
@@ -356,17 +452,29 @@ def pair_speeds(robot: Robot, rot: np.ndarray, pos: np.ndarray, twist: np.ndarra
         centre.append(obj.placement.act(np.asarray(obj.geometry.aabb_center, dtype=float)))
         radius.append(float(obj.geometry.aabb_radius))
     out = np.zeros((rot.shape[0], len(robot.geom.collisionPairs)))
-    for p, pair in enumerate(robot.geom.collisionPairs):
-        ends = []
-        for mine, other in ((pair.first, pair.second), (pair.second, pair.first)):
-            jm, jo = objects[mine].parentJoint, objects[other].parentJoint
+    speed: dict[tuple[int, int], np.ndarray] = {}  # (geometry, other joint) -> (n,)
+
+    world: dict[int, np.ndarray] = {}  # geometry -> its sphere's centre (n, 3) [m]
+
+    def norm(x: np.ndarray) -> np.ndarray:
+        return np.sqrt(np.einsum("ni,ni->n", x, x))
+
+    def sphere_speed(mine: int, jo: int) -> np.ndarray:
+        if (mine, jo) not in speed:
+            jm = objects[mine].parentJoint
+            if mine not in world:
+                world[mine] = rot[:, jm] @ centre[mine] + pos[:, jm]
             rel = twist[:, jm] - twist[:, jo]  # mine's motion seen from the other's body
-            c = np.einsum("nij,j->ni", rot[:, jm], centre[mine]) + pos[:, jm]
-            point = rel[:, :3] + np.cross(rel[:, 3:], c)
-            ends.append(
-                np.linalg.norm(point, axis=1) + np.linalg.norm(rel[:, 3:], axis=1) * radius[mine]
-            )
-        out[:, p] = np.minimum(*ends)
+            point = rel[:, :3] + np.cross(rel[:, 3:], world[mine])
+            speed[mine, jo] = norm(point) + norm(rel[:, 3:]) * radius[mine]
+        return speed[mine, jo]
+
+    for p, pair in enumerate(robot.geom.collisionPairs):
+        first, second = pair.first, pair.second
+        out[:, p] = np.minimum(
+            sphere_speed(first, objects[second].parentJoint),
+            sphere_speed(second, objects[first].parentJoint),
+        )
     return out
 
 
@@ -557,7 +665,13 @@ def _set_pairs(robot: Robot, excluded: list[str], homes: list[np.ndarray], out: 
         a, _, b = entry.partition("|")
         if a not in robot.link_of or b not in robot.link_of:
             continue  # the floor, an obstacle, a payload: checked on their own
-        why = justify_exclusion(robot, a, b, homes)
+        if PAYLOAD in (a, b):  # the box is left out only against its own rigid body
+            body = _bodies(robot)
+            other = b if a == PAYLOAD else a
+            same = body.get(other, other) == body.get(robot.payload_link, robot.payload_link)
+            why = "the payload box's own rigid body" if same else ""
+        else:
+            why = justify_exclusion(robot, a, b, homes)
         if why:
             accepted.add(frozenset((a, b)))
             out.notes.append(f"{a}|{b} left out: {why}")
@@ -566,17 +680,25 @@ def _set_pairs(robot: Robot, excluded: list[str], homes: list[np.ndarray], out: 
                 f"{a}|{b} excluded by ident, but neither adjacent nor in contact at home: checked"
             )
     robot.geom.removeAllCollisionPairs()
-    links = robot.link_of
+    links, body = robot.link_of, _bodies(robot)
+    # the payload box rides on its link's rigid body: every other body is checked against it
+    ride = {PAYLOAD: body.get(robot.payload_link, robot.payload_link)}
     for i in range(len(links)):
         for k in range(i + 1, len(links)):
-            if links[i] != links[k] and frozenset((links[i], links[k])) not in accepted:
-                robot.geom.addCollisionPair(pin.CollisionPair(i, k))
+            if links[i] == links[k] or frozenset((links[i], links[k])) in accepted:
+                continue
+            if PAYLOAD in (links[i], links[k]) and ride.get(links[i], body.get(links[i])) == (
+                ride.get(links[k], body.get(links[k]))
+            ):
+                continue  # the box and the link it is fixed to
+            robot.geom.addCollisionPair(pin.CollisionPair(i, k))
     robot.gdata = pin.GeometryData(robot.geom)
     for request in robot.gdata.collisionRequests:
         request.security_margin = 0.0
-    out.n_pairs = len(
-        {frozenset((links[c.first], links[c.second])) for c in robot.geom.collisionPairs}
+    out.pairs = sorted(
+        {"|".join(sorted((links[c.first], links[c.second]))) for c in robot.geom.collisionPairs}
     )
+    out.n_pairs = len(out.pairs)
 
 
 def _clearance_result(
@@ -630,7 +752,8 @@ def check_run_folder(run_dir: str | Path) -> Verdict:
         raise FileNotFoundError(f"{run_dir}: no trajectory.csv (ident chose no trajectory)")
     config = yaml.safe_load((run_dir / "config.yaml").read_text(encoding="utf-8"))
     result = json.loads((run_dir / "result.json").read_text(encoding="utf-8"))
-    rob, safety = config["robot"], config["safety"]
+    # no safety section: ident's defaults (its margin is the one it recorded in result.json)
+    rob, safety = config["robot"], config.get("safety") or {}
     names, t, q, dq, ddq = read_trajectory(run_dir / "trajectory.csv")
     urdf = rob.get("urdf")
     robot = Robot(
@@ -640,23 +763,65 @@ def check_run_folder(run_dir: str | Path) -> Verdict:
         {str(k): float(v) for k, v in (rob.get("lock") or {}).items()},
         mesh_dir=None if not urdf else str(Path(urdf).parent),
     )
+    if safety.get("payload_box"):
+        robot.add_payload_box(safety["payload_box"])
     rank = result.get("executed_elite") or result.get("chosen_elite") or 1
     series = result["elites"][rank - 1].get("safety_series") or {}
     excluded = [e["pair"] for e in series.get("not_checked") or [] if "pair" in e]
     floor = safety.get("floor") or {}
     out = check_trajectory(
         robot, t, q, dq, ddq,
-        margin_m=float(safety["clearance_m"]),
-        floor_z=float(floor["z"]) if floor.get("enabled", True) else None,
+        margin_m=float(safety.get("clearance_m", series.get("clearance_m", math.nan))),
+        floor_z=float(floor.get("z", 0.0)) if floor.get("enabled", True) else None,
         excluded=excluded,
         rate_hz=max(float(safety.get("check_rate_hz", 1000.0)),
                     float((config.get("controller") or {}).get("rate_hz", 0.0))),
     )  # fmt: skip
+    check_selected_limits(run_dir / "config.yaml", names, t, (q, dq, ddq), out)
+    _check_rest(t, dq, out)
     if safety.get("obstacles"):
         out.not_checked.append(f"{len(safety['obstacles'])} obstacle(s) of safety.obstacles")
-    if safety.get("payload_box") or (config.get("measurement") or {}).get("payload"):
-        out.not_checked.append("the payload (its geometry and its torques)")
+    if (config.get("measurement") or {}).get("payload"):
+        out.not_checked.append("the payload's torques (measurement.payload)")
     return out
+
+
+def check_selected_limits(
+    config_path: Path, names: list[str], t: np.ndarray, series: tuple, out: Verdict
+) -> None:
+    """The trajectory's samples t (n,) [s] and ``series`` (q, dq, ddq), each (n, len(names)),
+    against the limits the run selected (the URDF's tightened by the config and the export
+    targets, read by ident's config loader), into ``out``: positions within [lower, upper],
+    ``|dq| <= dq_max``, ``|ddq| <= ddq_max`` (a limit nobody gave: named as not checked)."""
+    config = load_run_config(config_path)
+    limits, _ = effective_limits(
+        config.controller.export, load_robot(config.robot, source=config_path), config_path
+    )
+    if list(limits.joint_names) != list(names):
+        out.failures.append(f"trajectory joints {names}, the run's robot's {limits.joint_names}")
+        return
+    q, dq, ddq = series
+    lower, upper = np.asarray(limits.q_lower), np.asarray(limits.q_upper)
+    tol = LIMIT_RTOL * np.maximum(1.0, np.maximum(np.abs(lower), np.abs(upper)))
+    for i, name in enumerate(names):
+        outside = np.maximum(lower[i] - q[:, i], q[:, i] - upper[i])
+        k = int(np.argmax(outside))
+        if outside[k] > tol[i]:
+            out.failures.append(
+                f"position {name} = {q[k, i]:.6g} at t = {t[k]:.3f} s outside the run's "
+                f"[{lower[i]:g}, {upper[i]:g}]"
+            )
+        _peak(name, "velocity", np.abs(dq[:, i]), float(limits.dq_max[i]), t, out, "the run's")
+        acc = float(limits.ddq_max[i])
+        _peak(name, "acceleration", np.abs(ddq[:, i]), acc, t, out, "the run's")
+
+
+def _check_rest(t: np.ndarray, dq: np.ndarray, out: Verdict) -> None:
+    """The trajectory starts and ends at rest: ``|dq| <= REST_TOL`` at its first and last
+    samples (dq (n, n_joints) [rad/s])."""
+    for k in (0, -1):
+        if np.abs(dq[k]).max() > REST_TOL:
+            out.failures.append(f"not at rest at t = {t[k]:.3f} s: |dq| = {np.abs(dq[k]).max():g}")
 
 
 def main() -> None:

@@ -7,9 +7,18 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+UR5_JOINTS = [
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+]
 
 # a box base (z 0..0.2), a vertical post (link1, turning about z) and a sphere of radius 0.05
 # on a 0.3 m arm (link2, turning about y at z = 0.5): the sphere can swing into the base
@@ -138,3 +147,75 @@ def test_the_checker_flags_each_violation(checker, change, needle):
     assert any(f.startswith(needle) for f in verdict.failures), verdict.failures
     if "excluded" in change:
         assert any("excluded by ident, but neither adjacent" in n for n in verdict.notes)
+
+
+def test_pair_speeds_bound_every_pairs_change_of_distance(checker):
+    # the samples the conservative advancement skips are safe only if pair_speeds bounds how
+    # fast every pair's distance changes: coal's distances on the UR5's meshes at random
+    # postures and 1 ms later at random joint speeds (a bound that missed a joint, a lever
+    # arm or a body's extent would be exceeded; a wild over-estimate would not pay)
+    urdf = (ROOT / "robot" / "urdf" / "ur5.urdf").read_text(encoding="utf-8")
+    robot = checker.Robot(urdf, [str(ROOT / "robot" / "meshes")], UR5_JOINTS, {})
+    checker._set_pairs(robot, [], [], checker.Verdict(1000.0, 0, 0.0))  # every pair of links
+    rng = np.random.default_rng(0)
+    n, h = 40, 1e-3
+    q = rng.uniform(-3.0, 3.0, (n, 6))
+    dq = rng.normal(0.0, 1.5, (n, 6)) * (rng.random((n, 6)) < 0.5)
+    # posture k and k + n: the same motion h seconds apart (dq unchanged: a 1 ms step)
+    both = (np.vstack([q, q + h * dq]), np.vstack([dq, dq]), np.zeros((2 * n, 6)))
+    qs, vs, accs = robot.configurations(robot.joint_values(*both))
+    rot, pos, twist, _ = checker.kinematics(robot, qs, vs, accs)
+    speed = checker.pair_speeds(robot, rot, pos, twist)
+    pairs = range(len(robot.geom.collisionPairs))
+    d = np.zeros((2 * n, len(pairs)))
+    for s in range(2 * n):
+        pin.updateGeometryPlacements(robot.model, robot.data, robot.geom, robot.gdata, qs[s])
+        d[s] = [checker._pair_distance(robot, p) for p in pairs]
+    change = np.abs(d[n:] - d[:n])
+    apart = (d[:n] > 0) & (d[n:] > 0) & (change > 1e-5)  # GJK's own noise is ~1e-7
+    ratios = change[apart] / (h * np.maximum(speed[:n], speed[n:])[apart])
+    assert ratios.size > 200
+    assert ratios.max() <= 1.0, ratios.max()
+    assert ratios.max() > 0.3
+
+
+def test_the_payload_box_is_checked_against_the_other_bodies(checker):
+    # a 20 cm box hanging below link2's sphere (its own body: never paired with link2) reaches
+    # the base box the sphere alone keeps 46 mm from; it is checked against link1 (adjacent)
+    urdf = TWO_LINK_URDF.replace("UPPER", "1.5").replace("VELOCITY", "2").replace("EFFORT", "20")
+    robot = checker.Robot(urdf, [], ["j1", "j2"], {})
+    robot.add_payload_box({"link": "link2", "size": [0.05, 0.05, 0.2], "position": [0.3, 0, -0.1]})
+    options = {"margin_m": 0.01, "floor_z": 0.0, "rate_hz": 1000.0}
+    verdict = checker.check_trajectory(
+        robot, *_swing(0.5, 0.25, 2.0), excluded=["base|link1", "link1|link2"], **options
+    )
+    assert any(f.startswith("clearance base|payload") for f in verdict.failures), verdict.failures
+    assert verdict.pairs == ["base|link2", "base|payload", "link1|payload"]
+    assert not any(f.startswith("clearance base|link2") for f in verdict.failures)
+
+
+def test_a_trajectory_not_at_rest_at_its_ends_fails(checker):
+    t, _, dq, _ = _swing(0.5, 0.25, 2.0)  # j1 starts and ends at 0.3 w rad/s
+    verdict = checker.Verdict(1000.0, t.size, 0.01)
+    checker._check_rest(t, dq, verdict)
+    assert [f.split(":")[0] for f in verdict.failures] == ["not at rest at t = 0.000 s"] + [
+        f"not at rest at t = {t[-1]:.3f} s"
+    ]
+    checker._check_rest(t, dq * 0.0, verdict := checker.Verdict(1000.0, t.size, 0.01))
+    assert verdict.ok
+
+
+def test_the_runs_own_limits_are_checked(checker):
+    # configs/ur5.yaml: the URDF gives no acceleration limit, the config's 8 rad/s^2 is
+    # checked; the elbow's position range is the run's [-pi, pi]
+    t = np.linspace(0.0, 0.01, 11)
+    q, dq, ddq = np.zeros((11, 6)), np.zeros((11, 6)), np.zeros((11, 6))
+    ddq[5, 2], q[3, 2] = 8.5, 3.2
+    out = checker.Verdict(1000.0, t.size, 0.01)
+    checker.check_selected_limits(ROOT / "configs" / "ur5.yaml", UR5_JOINTS, t, (q, dq, ddq), out)
+    assert [f.split(" =")[0] for f in out.failures] == [
+        "position elbow_joint",
+        "acceleration elbow_joint",
+    ]
+    assert out.acceleration_ratio == pytest.approx(8.5 / 8.0)
+    assert not out.not_checked
