@@ -85,7 +85,8 @@ def test_urdf_refuses_an_existing_output_unless_force(tmp_path):
     result = _run("urdf", "configs/paper6r.yaml", "-o", output)
     assert result.exit_code == 2
     (line,) = [s for s in result.output.splitlines() if s.strip()]
-    assert line.startswith(f"error: --output {output}: exists") and "--force" in line
+    assert line.startswith(f"error: --output {output}: exists")
+    assert "--force" in line
     assert output.read_text() == "<robot name='edited'/>\n"  # untouched
     result = _run("urdf", "configs/paper6r.yaml", "-o", output, "--force")
     assert result.exit_code == 0, result.output

@@ -288,10 +288,12 @@ def test_cli_html_refuses_an_existing_file_unless_force(tmp_path):
     result = _replay("--urdf", missing, "--html", out)
     assert result.exit_code == 2
     (line,) = [s for s in result.output.splitlines() if s.strip()]
-    assert line.startswith(f"error: --html {out}: exists") and "--force" in line
+    assert line.startswith(f"error: --html {out}: exists")
+    assert "--force" in line
     assert out.read_text() == "<p>mine</p>\n"
     # with --force the page passes the check: the next error is the missing --trajectory
     result = _replay("--urdf", missing, "--html", out, "--force")
     assert result.exit_code == 2
-    assert "--html" not in result.output and "--trajectory" in result.output
+    assert "--html" not in result.output
+    assert "--trajectory" in result.output
     assert out.read_text() == "<p>mine</p>\n"

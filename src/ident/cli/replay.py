@@ -170,7 +170,9 @@ def replay(
     open_browser: Annotated[
         bool, typer.Option("--open", help="Open the viewer in the system's web browser.")
     ] = False,
-    force: Annotated[bool, typer.Option("--force", help="Replace an existing --html file.")] = False,
+    force: Annotated[
+        bool, typer.Option("--force", help="Replace an existing --html file.")
+    ] = False,
     package_dir: PackageDirOption = None,
     lock: _LockOption = None,
     base_link: _BaseLinkOption = None,

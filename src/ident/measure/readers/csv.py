@@ -40,6 +40,7 @@ __all__ = [
     "count_lines",
     "estimate_csv",
     "is_text",
+    "open_bytes",
     "open_text",
     "read_csv",
     "sniff_delimiter",
@@ -146,7 +147,7 @@ def count_lines(path: Path, bytes_per_line: float) -> int:
     ceiling, _ = resource_ceilings()
     n, last = 0, b"\n"
     try:
-        with _open_bytes(path) as f:
+        with open_bytes(path) as f:
             while chunk := f.read(COUNT_BYTES):
                 n += chunk.count(b"\n")
                 last = chunk[-1:]
@@ -159,7 +160,7 @@ def count_lines(path: Path, bytes_per_line: float) -> int:
     return n + (last != b"\n")
 
 
-def _open_bytes(path: Path) -> io.BufferedIOBase:
+def open_bytes(path: Path) -> io.BufferedIOBase:
     check_regular_file(path)
     if path.suffix == ".gz":
         return gzip.open(path, "rb")  # type: ignore[return-value]

@@ -5,13 +5,17 @@ the order they first appear (never sorted); every joint must have one row at eve
 
 Bounded memory: the lines are counted first (:func:`ident.measure.readers.csv.count_lines`,
 a decompression bomb stops there), the values of every row go into one array allocated once
-(checked against ``IDENT_MAX_MEMORY_GB``), and the text is parsed and pivoted
-:data:`~ident.measure.readers.csv.BLOCK_LINES` lines at a time. A log written as controllers
-write it (at each stamp one row per joint, the joints in the same order) is recognised while
-it is read: only one stamp per sample is kept and the wide columns are views of the values'
-array (an hour of 7 joints at 1 kHz with two value columns: 0.40 GB of values and 29 MB of
-stamps). Rows in any other order keep every row's stamp and joint and are pivoted at the end
-(np.unique over the stamps), with that memory checked against the ceiling first.
+(checked against ``IDENT_MAX_MEMORY_GB``), and the text is parsed and pivoted a block at a
+time: 4 MiB at once by pyarrow's CSV parser (:mod:`ident.measure.readers.text_blocks`, about
+0.6 us per row), or, for text that parser may read otherwise (whitespace-delimited, a value
+that is not a number, a NaN stamp, ...), :data:`~ident.measure.readers.csv.BLOCK_LINES`
+lines at a time split in Python (about 4 us per row), whose errors name the line. A log
+written as controllers write it (at each stamp one row per joint, the joints in the same
+order) is recognised while it is read: only one stamp per sample is kept and the wide
+columns are views of the values' array (an hour of 7 joints at 1 kHz with two value
+columns: 0.40 GB of values and 29 MB of stamps). Rows in any other order keep every row's
+stamp and joint and are pivoted at the end (np.unique over the stamps), with that memory
+checked against the ceiling first.
 """
 
 from __future__ import annotations
@@ -45,7 +49,10 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 MAX_JOINTS = 10_000  # distinct names in the joint column: more is not a joint column
-_BLOCK_BYTES = 32e6  # a block's text, fields and numbers (65 536 lines)
+# a block's text, fields and numbers: 65 536 lines read line by line, or 4 MiB parsed by
+# pyarrow (measured 43 MB above the kept arrays: the text, its copy with the carried line,
+# pyarrow's columns and pool)
+_BLOCK_BYTES = 48e6
 
 
 class _Layout:
@@ -262,12 +269,46 @@ def _pivot_any_order(
     return stamps, out
 
 
-def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
+def _read_blocks(
+    path: Path, layout: _Layout, pivot: _Pivot, joints: dict[str, int], block_bytes: int | None
+) -> bool:
+    """Add the rows of ``path`` to ``pivot`` by blocks of bytes parsed at once
+    (:func:`ident.measure.readers.text_blocks.number_blocks`), the joint names to ``joints``
+    (code by order of first appearance); False, with ``pivot`` partly filled, when the text
+    must be read line by line (a delimiter of whitespace, text the parser does not take as
+    the line reader does, a NaN/inf stamp or too many joints: the line reader names the line).
+    """
+    if layout.delimiter is None or block_bytes == 0:
+        return False
+    # pyarrow (0.15 s to import) only when a long log is read
+    from ident.measure.readers import text_blocks
+
+    size = text_blocks.BLOCK_BYTES if block_bytes is None else block_bytes
+    try:
+        for names, index, numbers in text_blocks.number_blocks(
+            path, layout.delimiter, len(layout.header), layout.joint, size
+        ):
+            # split_fields strips the fields: so are the names
+            codes = np.array([joints.setdefault(n.strip(), len(joints)) for n in names])
+            t = numbers[:, layout.time]
+            if len(joints) > MAX_JOINTS or not np.all(np.isfinite(t)):
+                return False
+            pivot.add(t.copy(), codes[index], np.delete(numbers, layout.time, axis=1))
+    except text_blocks.NotPlain:
+        return False
+    return True
+
+
+def read_csv_long(
+    path: Path, options: Mapping[str, Any], *, block_bytes: int | None = None
+) -> list[LogTable]:
     """Read a long text log (one row per sample and joint) and pivot it to wide columns.
 
     Options: ``time_column`` (default: a column named like time), ``joint_column`` (default
     ``joint``), ``delimiter``. The joint column holds names (text) or numbers. NaN/inf stamps
-    are refused naming the line.
+    are refused naming the line. ``block_bytes``: text parsed at once by the vectorised
+    parser (default :data:`ident.measure.readers.text_blocks.BLOCK_BYTES`); 0 reads line by
+    line (as the reader does for any text the parser may read otherwise, or refuses).
     """
     lines = lines_of(path)
     layout = _Layout(path, first_line(lines), options)
@@ -275,8 +316,11 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     capacity = count_lines(path, 8.0 * (n_values + 2))  # values, and stamp and joint per row
     pivot = _Pivot(path, capacity, n_values)
     joints: dict[str, int] = {}
-    for block in blocks(lines):
-        pivot.add(*_parse_block(path, block, layout, joints))
+    if not _read_blocks(path, layout, pivot, joints, block_bytes):
+        del pivot  # the text is read again line by line, for the messages naming the line
+        pivot, joints = _Pivot(path, capacity, n_values), {}
+        for block in blocks(lines):
+            pivot.add(*_parse_block(path, block, layout, joints))
     if not pivot.n:
         raise DataError(f"{path}: the file has no samples.")
     names = list(joints)
