@@ -522,3 +522,23 @@ def test_long_csv_by_blocks_names_the_line_of_a_bad_value(tmp_path):
     path.write_text("t,joint,q,tau\n" + "\n".join(rows) + "\n")
     with pytest.raises(DataError, match=r"line 33, column 'q' \(field 2\): '1.5x-?[0-9.]+'"):
         csv_long.read_csv_long(path, {}, block_bytes=200)
+
+
+def test_long_csv_estimate_counts_the_kept_values(tmp_path):
+    from ident.measure.readers import csv_long, estimate_read
+
+    rows = _long_rows(500, [f"j{k}" for k in range(7)])  # 3500 rows, 2 values each
+    path = tmp_path / "l.csv"
+    path.write_text("t,joint,q,tau\n" + "\n".join(rows) + "\n")
+    columns = csv_long.read_csv_long(path, {})[0].columns
+    kept = 8.0 * (3500 * 2 + 500)  # the values and the stamps read
+    assert sum(c.nbytes for c in columns.values()) == kept
+    estimate = estimate_read(path, "csv_long")
+    assert estimate is not None
+    # one stamp per row counted (rows in any order): within 2x of what a grouped log keeps
+    assert kept < estimate.memory_bytes - csv_long._BLOCK_BYTES < 2 * kept
+    spaced = tmp_path / "s.csv"  # whitespace-delimited: read line by line, 5x slower
+    spaced.write_text(path.read_text().replace(",", " "))
+    by_line = estimate_read(spaced, "csv_long")
+    assert by_line is not None
+    assert by_line.seconds == pytest.approx(5 * estimate.seconds, rel=0.01)

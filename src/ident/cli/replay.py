@@ -139,6 +139,7 @@ _BaseLinkOption = Annotated[
     str | None, typer.Option("--base-link", help="First link of the chain.")
 ]
 _TipLinkOption = Annotated[str | None, typer.Option("--tip-link", help="Last link of the chain.")]
+_ForceOption = Annotated[bool, typer.Option("--force", help="Replace an existing --html file.")]
 
 
 def replay(
@@ -170,9 +171,7 @@ def replay(
     open_browser: Annotated[
         bool, typer.Option("--open", help="Open the viewer in the system's web browser.")
     ] = False,
-    force: Annotated[
-        bool, typer.Option("--force", help="Replace an existing --html file.")
-    ] = False,
+    force: _ForceOption = False,
     package_dir: PackageDirOption = None,
     lock: _LockOption = None,
     base_link: _BaseLinkOption = None,

@@ -43,6 +43,7 @@ __all__ = [
     "open_bytes",
     "open_text",
     "read_csv",
+    "sample_rows",
     "sniff_delimiter",
 ]
 
@@ -167,9 +168,12 @@ def open_bytes(path: Path) -> io.BufferedIOBase:
     return open(path, "rb")  # noqa: SIM115 - closed by the caller's with
 
 
-def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
-    """Memory and time of reading the text log ``path`` (its size over its first line's)."""
-    first = ""  # the first data line (the second non-blank one when there is a header)
+def sample_rows(path: Path, options: Mapping[str, Any]) -> tuple[int, float, list[str], str | None]:
+    """The text's size [characters, decompressed], its rows (the size over the first data
+    line's length), the fields of that line (the second non-blank one when there is a
+    header) and the delimiter that split them: the config's or the sniffed one (None: any
+    whitespace)."""
+    first = ""
     seen = 0
     for _, line in lines_of(path):
         if line.strip():
@@ -177,8 +181,14 @@ def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
             if seen == 2:
                 break
     size = text_size(path)
-    n_rows = size / max(len(first), 1)
-    n_columns = max(len(split_fields(first, options.get("delimiter") or sniff_delimiter(first))), 1)
+    delimiter = options.get("delimiter") or sniff_delimiter(first)
+    return size, size / max(len(first), 1), split_fields(first, delimiter), delimiter
+
+
+def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    """Memory and time of reading the text log ``path`` (its size over its first line's)."""
+    size, n_rows, fields, _ = sample_rows(path, options)
+    n_columns = max(len(fields), 1)
     return JobEstimate(
         f"reading {path.name}: about {n_rows:.3g} rows x {n_columns} columns",
         8.0 * n_rows * (n_columns + 1) + _BLOCK_BYTES,  # the numbers, a line number per row

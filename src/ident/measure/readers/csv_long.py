@@ -37,13 +37,14 @@ from ident.measure.readers.csv import (
     grew,
     lines_of,
     parse,
+    sample_rows,
     sniff_delimiter,
     split_fields,
     time_name,
 )
 from ident.measure.readers.registry import TIME_NAMES, LogTable
 
-__all__ = ["MAX_JOINTS", "read_csv_long"]
+__all__ = ["MAX_JOINTS", "estimate_csv_long", "read_csv_long"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -53,6 +54,11 @@ MAX_JOINTS = 10_000  # distinct names in the joint column: more is not a joint c
 # pyarrow (measured 43 MB above the kept arrays: the text, its copy with the carried line,
 # pyarrow's columns and pool)
 _BLOCK_BYTES = 48e6
+# Text read per second of CPU, rounded down from the 2-minute log of
+# benchmarks/bench_identify_long.py (41 MB, 7 joints) on the shared 2-core box at load 7:
+# 0.5-0.7 s by pyarrow's blocks (60-80 MB/s), 3.1 s line by line (13 MB/s).
+_BYTES_PER_S = 40e6
+_BYTES_PER_S_BY_LINE = 8e6
 
 
 class _Layout:
@@ -297,6 +303,22 @@ def _read_blocks(
     except text_blocks.NotPlain:
         return False
     return True
+
+
+def estimate_csv_long(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    """Memory and time of reading the long text log ``path`` from its size and first data
+    line: every row's values and (at most) a stamp per row, and a block; the time at the rate
+    of pyarrow's blocks, or of the line reader for a whitespace-delimited log."""
+    size, n_rows, fields, delimiter = sample_rows(path, options)
+    n_values = max(len(fields) - 2, 1)  # all but the time and the joint
+    # rows written as controllers write them keep one stamp per sample (n_rows / n_joints);
+    # in any other order every row's stamp and joint are kept: the estimate counts one per row
+    by_line = delimiter is None or len(delimiter) != 1
+    return JobEstimate(
+        f"reading {path.name}: about {n_rows:.3g} rows x {n_values} values",
+        8.0 * n_rows * (n_values + 1) + _BLOCK_BYTES,
+        size / (_BYTES_PER_S_BY_LINE if by_line else _BYTES_PER_S),
+    )
 
 
 def read_csv_long(
