@@ -54,9 +54,10 @@ MAX_JOINTS = 10_000  # distinct names in the joint column: more is not a joint c
 # pyarrow (measured 43 MB above the kept arrays: the text, its copy with the carried line,
 # pyarrow's columns and pool)
 _BLOCK_BYTES = 48e6
-# Text read per second of CPU, rounded down from the 2-minute log of
-# benchmarks/bench_identify_long.py (41 MB, 7 joints) on the shared 2-core box at load 7:
-# 0.5-0.7 s by pyarrow's blocks (60-80 MB/s), 3.1 s line by line (13 MB/s).
+# Text read per second of CPU, rounded down from benchmarks/bench_identify_long.py's long CSV
+# on the shared 2-core box at load 5-7: the hour (1288 MB, 25.2 M rows) in 16.6 s user +
+# 2.3 s system by pyarrow's blocks (68 MB/s; peak 530 MiB with the interpreter); the 2 minutes
+# (41 MB) in 3.1 s line by line (13 MB/s; 4.4 MB/s for the old hour at load 11).
 _BYTES_PER_S = 40e6
 _BYTES_PER_S_BY_LINE = 8e6
 

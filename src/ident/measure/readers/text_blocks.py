@@ -88,6 +88,9 @@ def _parse(
             column_names=names, use_threads=False, block_size=len(block) + 1
         ),
         parse_options=pa_csv.ParseOptions(delimiter=delimiter, quote_char=False),
+        # malloc, whose freed blocks the identification reuses (pyarrow's own pool kept
+        # ~40 MB of them resident through the rest of the run)
+        memory_pool=pa.system_memory_pool(),
         convert_options=pa_csv.ConvertOptions(
             column_types=types, null_values=[], strings_can_be_null=False
         ),
