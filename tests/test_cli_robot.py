@@ -77,3 +77,17 @@ def test_malformed_yaml(tmp_path):
     result = _run("urdf", config, "-o", tmp_path / "out.urdf")
     assert result.exit_code == 2
     assert "malformed YAML at line" in result.output
+
+
+def test_urdf_refuses_an_existing_output_unless_force(tmp_path):
+    output = tmp_path / "mine.urdf"
+    output.write_text("<robot name='edited'/>\n")
+    result = _run("urdf", "configs/paper6r.yaml", "-o", output)
+    assert result.exit_code == 2
+    (line,) = [s for s in result.output.splitlines() if s.strip()]
+    assert line.startswith(f"error: --output {output}: exists")
+    assert "--force" in line
+    assert output.read_text() == "<robot name='edited'/>\n"  # untouched
+    result = _run("urdf", "configs/paper6r.yaml", "-o", output, "--force")
+    assert result.exit_code == 0, result.output
+    assert output.read_text() == urdf_from_description(load_robot_config("configs/paper6r.yaml"))

@@ -478,3 +478,67 @@ def test_mcap_cut_off_by_a_crash_reads_its_complete_chunks_with_a_warning(tmp_pa
     cut.write_bytes(data[:200])
     with pytest.raises(DataError, match="cannot read the MCAP file"):
         read_tables(cut)
+
+
+def _long_rows(n: int, joints: list[str]) -> list[str]:
+    """A long log of ``n`` stamps: at each stamp one row per joint (7 significant digits)."""
+    rng = np.random.default_rng(3)
+    return [
+        f"{k * 1e-3!r},{j},{rng.normal():.7g},{rng.normal():.7g}" for k in range(n) for j in joints
+    ]
+
+
+@pytest.mark.parametrize("layout", ["grouped", "any order"])
+def test_long_csv_by_blocks_equals_the_line_reader(tmp_path, monkeypatch, layout):
+    from ident.measure.readers import csv_long
+
+    joints = [" j1", "7", "j2 ", "j3"]  # spaces stripped as split_fields does; a number
+    rows = _long_rows(40, joints)
+    if layout == "any order":  # the rows of two stamps swapped in the third block
+        rows[9], rows[13] = rows[13], rows[9]
+    text = "time,joint,pos,tau\r\n" + "\r\n".join(rows[:30]) + "\r\n\r\n" + "\n".join(rows[30:])
+    path = tmp_path / "l.csv.gz"  # decompressed on the fly; the last line without a break
+    path.write_bytes(gzip.compress(text.encode()))
+    lines = csv_long.read_csv_long(path, {}, block_bytes=0)[0].columns
+    # about three rows a block: every stamp's four rows are split across blocks
+    monkeypatch.setattr(csv_long, "blocks", None)  # the line reader is not used
+    by_blocks = csv_long.read_csv_long(path, {}, block_bytes=100)[0].columns
+    assert (
+        list(by_blocks)
+        == list(lines)
+        == ["time"] + [f"{v}/{j.strip()}" for j in joints for v in ("pos", "tau")]
+    )
+    for name, column in lines.items():
+        np.testing.assert_array_equal(by_blocks[name], column, err_msg=name)
+    assert lines["time"].size == 40
+
+
+def test_long_csv_by_blocks_names_the_line_of_a_bad_value(tmp_path):
+    from ident.measure.readers import csv_long
+
+    rows = _long_rows(20, ["a", "b"])
+    rows[31] = rows[31].replace(",b,", ",b,1.5x")  # line 33, in the fifth block
+    path = tmp_path / "l.csv"
+    path.write_text("t,joint,q,tau\n" + "\n".join(rows) + "\n")
+    with pytest.raises(DataError, match=r"line 33, column 'q' \(field 2\): '1.5x-?[0-9.]+'"):
+        csv_long.read_csv_long(path, {}, block_bytes=200)
+
+
+def test_long_csv_estimate_counts_the_kept_values(tmp_path):
+    from ident.measure.readers import csv_long, estimate_read
+
+    rows = _long_rows(500, [f"j{k}" for k in range(7)])  # 3500 rows, 2 values each
+    path = tmp_path / "l.csv"
+    path.write_text("t,joint,q,tau\n" + "\n".join(rows) + "\n")
+    columns = csv_long.read_csv_long(path, {})[0].columns
+    kept = 8.0 * (3500 * 2 + 500)  # the values and the stamps read
+    assert sum(c.nbytes for c in columns.values()) == kept
+    estimate = estimate_read(path, "csv_long")
+    assert estimate is not None
+    # one stamp per row counted (rows in any order): within 2x of what a grouped log keeps
+    assert kept < estimate.memory_bytes - csv_long._BLOCK_BYTES < 2 * kept
+    spaced = tmp_path / "s.csv"  # whitespace-delimited: read line by line, 5x slower
+    spaced.write_text(path.read_text().replace(",", " "))
+    by_line = estimate_read(spaced, "csv_long")
+    assert by_line is not None
+    assert by_line.seconds == pytest.approx(5 * estimate.seconds, rel=0.01)

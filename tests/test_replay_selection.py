@@ -279,3 +279,21 @@ def test_identify_says_when_its_replay_fails(tmp_path, monkeypatch):
     assert not (run / "replay.html").exists()
     state = json.loads((run / "run.json").read_text())
     assert state["replay"] == "no replay: RuntimeError: the replay broke"
+
+
+def test_cli_html_refuses_an_existing_file_unless_force(tmp_path):
+    out = tmp_path / "page.html"
+    out.write_text("<p>mine</p>\n")
+    missing = tmp_path / "missing.urdf"
+    result = _replay("--urdf", missing, "--html", out)
+    assert result.exit_code == 2
+    (line,) = [s for s in result.output.splitlines() if s.strip()]
+    assert line.startswith(f"error: --html {out}: exists")
+    assert "--force" in line
+    assert out.read_text() == "<p>mine</p>\n"
+    # with --force the page passes the check: the next error is the missing --trajectory
+    result = _replay("--urdf", missing, "--html", out, "--force")
+    assert result.exit_code == 2
+    assert "--html" not in result.output
+    assert "--trajectory" in result.output
+    assert out.read_text() == "<p>mine</p>\n"

@@ -139,6 +139,7 @@ _BaseLinkOption = Annotated[
     str | None, typer.Option("--base-link", help="First link of the chain.")
 ]
 _TipLinkOption = Annotated[str | None, typer.Option("--tip-link", help="Last link of the chain.")]
+_ForceOption = Annotated[bool, typer.Option("--force", help="Replace an existing --html file.")]
 
 
 def replay(
@@ -170,6 +171,7 @@ def replay(
     open_browser: Annotated[
         bool, typer.Option("--open", help="Open the viewer in the system's web browser.")
     ] = False,
+    force: _ForceOption = False,
     package_dir: PackageDirOption = None,
     lock: _LockOption = None,
     base_link: _BaseLinkOption = None,
@@ -185,7 +187,7 @@ def replay(
     with user_errors():
         from ident.cli.verify import parse_locks
 
-        _check_options(speed, html, port, package_dir or [])
+        _check_options(speed, html, port, package_dir or [], force)
         locks = parse_locks(lock or [])
         urdf_path, csvs, run_data = _inputs(run_dir, urdf, trajectory, elites)
         selection = _robot_selection(
@@ -201,15 +203,18 @@ def replay(
             _serve(scene, port, open_browser, what)
 
 
-def _check_options(speed: float, html: Path | None, port: int, package_dirs: list[Path]) -> None:
-    """Check --speed, --port (served) or --html (written), and --package-dir."""
+def _check_options(
+    speed: float, html: Path | None, port: int, package_dirs: list[Path], force: bool
+) -> None:
+    """Check --speed, --port (served) or --html (written; an existing file only with
+    ``force``), and --package-dir."""
     from ident.inputs import check_number, check_output_file
 
     check_number(speed, "--speed", low=MIN_SPEED, high=MAX_SPEED, hint="(1 = true speed)")
     if html is None:
         check_number(port, "--port", low=0, high=65535, integer=True, hint="(0: any free)")
     else:
-        check_output_file(html, "--html")
+        check_output_file(html, "--html", force_flag=None if force else "--force")
     check_package_dirs(package_dirs)
 
 

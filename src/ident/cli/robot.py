@@ -17,6 +17,9 @@ def urdf(
     output: Annotated[
         Path, typer.Option("--output", "-o", help="URDF file to write (parents are created).")
     ],
+    force: Annotated[
+        bool, typer.Option("--force", help="Replace an existing --output file.")
+    ] = False,
 ) -> None:
     """Write the URDF of the robot described in CONFIG (e.g. configs/paper6r.yaml)."""
     with user_errors():
@@ -25,7 +28,7 @@ def urdf(
         from ident.robot.robot_config import load_robot_config
         from ident.robot.urdf import urdf_from_description
 
-        check_output_file(output, "--output")
+        check_output_file(output, "--output", force_flag=None if force else "--force")
         description = load_robot_config(config)
         text = urdf_from_description(description)
         check_urdf_numbers(text, str(config))  # never write a URDF Pinocchio then refuses

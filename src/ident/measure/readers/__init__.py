@@ -87,7 +87,7 @@ register_reader(
     "csv_long",
     _csv_long.read_csv_long,
     description="CSV, one row per sample and joint (time, joint, values)",
-    estimate=_csv.estimate_csv,
+    estimate=_csv_long.estimate_csv_long,
 )
 register_reader(
     "csv",

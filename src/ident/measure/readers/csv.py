@@ -40,8 +40,10 @@ __all__ = [
     "count_lines",
     "estimate_csv",
     "is_text",
+    "open_bytes",
     "open_text",
     "read_csv",
+    "sample_rows",
     "sniff_delimiter",
 ]
 
@@ -146,7 +148,7 @@ def count_lines(path: Path, bytes_per_line: float) -> int:
     ceiling, _ = resource_ceilings()
     n, last = 0, b"\n"
     try:
-        with _open_bytes(path) as f:
+        with open_bytes(path) as f:
             while chunk := f.read(COUNT_BYTES):
                 n += chunk.count(b"\n")
                 last = chunk[-1:]
@@ -159,16 +161,19 @@ def count_lines(path: Path, bytes_per_line: float) -> int:
     return n + (last != b"\n")
 
 
-def _open_bytes(path: Path) -> io.BufferedIOBase:
+def open_bytes(path: Path) -> io.BufferedIOBase:
     check_regular_file(path)
     if path.suffix == ".gz":
         return gzip.open(path, "rb")  # type: ignore[return-value]
     return open(path, "rb")  # noqa: SIM115 - closed by the caller's with
 
 
-def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
-    """Memory and time of reading the text log ``path`` (its size over its first line's)."""
-    first = ""  # the first data line (the second non-blank one when there is a header)
+def sample_rows(path: Path, options: Mapping[str, Any]) -> tuple[int, float, list[str], str | None]:
+    """The text's size [characters, decompressed], its rows (the size over the first data
+    line's length), the fields of that line (the second non-blank one when there is a
+    header) and the delimiter that split them: the config's or the sniffed one (None: any
+    whitespace)."""
+    first = ""
     seen = 0
     for _, line in lines_of(path):
         if line.strip():
@@ -176,8 +181,14 @@ def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
             if seen == 2:
                 break
     size = text_size(path)
-    n_rows = size / max(len(first), 1)
-    n_columns = max(len(split_fields(first, options.get("delimiter") or sniff_delimiter(first))), 1)
+    delimiter = options.get("delimiter") or sniff_delimiter(first)
+    return size, size / max(len(first), 1), split_fields(first, delimiter), delimiter
+
+
+def estimate_csv(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    """Memory and time of reading the text log ``path`` (its size over its first line's)."""
+    size, n_rows, fields, _ = sample_rows(path, options)
+    n_columns = max(len(fields), 1)
     return JobEstimate(
         f"reading {path.name}: about {n_rows:.3g} rows x {n_columns} columns",
         8.0 * n_rows * (n_columns + 1) + _BLOCK_BYTES,  # the numbers, a line number per row

@@ -5,13 +5,17 @@ the order they first appear (never sorted); every joint must have one row at eve
 
 Bounded memory: the lines are counted first (:func:`ident.measure.readers.csv.count_lines`,
 a decompression bomb stops there), the values of every row go into one array allocated once
-(checked against ``IDENT_MAX_MEMORY_GB``), and the text is parsed and pivoted
-:data:`~ident.measure.readers.csv.BLOCK_LINES` lines at a time. A log written as controllers
-write it (at each stamp one row per joint, the joints in the same order) is recognised while
-it is read: only one stamp per sample is kept and the wide columns are views of the values'
-array (an hour of 7 joints at 1 kHz with two value columns: 0.40 GB of values and 29 MB of
-stamps). Rows in any other order keep every row's stamp and joint and are pivoted at the end
-(np.unique over the stamps), with that memory checked against the ceiling first.
+(checked against ``IDENT_MAX_MEMORY_GB``), and the text is parsed and pivoted a block at a
+time: 4 MiB at once by pyarrow's CSV parser (:mod:`ident.measure.readers.text_blocks`, about
+0.6 us per row), or, for text that parser may read otherwise (whitespace-delimited, a value
+that is not a number, a NaN stamp, ...), :data:`~ident.measure.readers.csv.BLOCK_LINES`
+lines at a time split in Python (about 4 us per row), whose errors name the line. A log
+written as controllers write it (at each stamp one row per joint, the joints in the same
+order) is recognised while it is read: only one stamp per sample is kept and the wide
+columns are views of the values' array (an hour of 7 joints at 1 kHz with two value
+columns: 0.40 GB of values and 29 MB of stamps). Rows in any other order keep every row's
+stamp and joint and are pivoted at the end (np.unique over the stamps), with that memory
+checked against the ceiling first.
 """
 
 from __future__ import annotations
@@ -33,19 +37,29 @@ from ident.measure.readers.csv import (
     grew,
     lines_of,
     parse,
+    sample_rows,
     sniff_delimiter,
     split_fields,
     time_name,
 )
 from ident.measure.readers.registry import TIME_NAMES, LogTable
 
-__all__ = ["MAX_JOINTS", "read_csv_long"]
+__all__ = ["MAX_JOINTS", "estimate_csv_long", "read_csv_long"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 MAX_JOINTS = 10_000  # distinct names in the joint column: more is not a joint column
-_BLOCK_BYTES = 32e6  # a block's text, fields and numbers (65 536 lines)
+# a block's text, fields and numbers: 65 536 lines read line by line, or 4 MiB parsed by
+# pyarrow (measured 43 MB above the kept arrays: the text, its copy with the carried line,
+# pyarrow's columns and pool)
+_BLOCK_BYTES = 48e6
+# Text read per second of CPU, rounded down from benchmarks/bench_identify_long.py's long CSV
+# on the shared 2-core box at load 5-7: the hour (1288 MB, 25.2 M rows) in 16.6 s user +
+# 2.3 s system by pyarrow's blocks (68 MB/s; peak 530 MiB with the interpreter); the 2 minutes
+# (41 MB) in 3.1 s line by line (13 MB/s; 4.4 MB/s for the old hour at load 11).
+_BYTES_PER_S = 40e6
+_BYTES_PER_S_BY_LINE = 8e6
 
 
 class _Layout:
@@ -262,12 +276,62 @@ def _pivot_any_order(
     return stamps, out
 
 
-def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
+def _read_blocks(
+    path: Path, layout: _Layout, pivot: _Pivot, joints: dict[str, int], block_bytes: int | None
+) -> bool:
+    """Add the rows of ``path`` to ``pivot`` by blocks of bytes parsed at once
+    (:func:`ident.measure.readers.text_blocks.number_blocks`), the joint names to ``joints``
+    (code by order of first appearance); False, with ``pivot`` partly filled, when the text
+    must be read line by line (a delimiter of whitespace, text the parser does not take as
+    the line reader does, a NaN/inf stamp or too many joints: the line reader names the line).
+    """
+    if layout.delimiter is None or block_bytes == 0:
+        return False
+    # pyarrow (0.15 s to import) only when a long log is read
+    from ident.measure.readers import text_blocks
+
+    size = text_blocks.BLOCK_BYTES if block_bytes is None else block_bytes
+    try:
+        for names, index, numbers in text_blocks.number_blocks(
+            path, layout.delimiter, len(layout.header), layout.joint, size
+        ):
+            # split_fields strips the fields: so are the names
+            codes = np.array([joints.setdefault(n.strip(), len(joints)) for n in names])
+            t = numbers[:, layout.time]
+            if len(joints) > MAX_JOINTS or not np.all(np.isfinite(t)):
+                return False
+            pivot.add(t.copy(), codes[index], np.delete(numbers, layout.time, axis=1))
+    except text_blocks.NotPlain:
+        return False
+    return True
+
+
+def estimate_csv_long(path: Path, options: Mapping[str, Any]) -> JobEstimate:
+    """Memory and time of reading the long text log ``path`` from its size and first data
+    line: every row's values and (at most) a stamp per row, and a block; the time at the rate
+    of pyarrow's blocks, or of the line reader for a whitespace-delimited log."""
+    size, n_rows, fields, delimiter = sample_rows(path, options)
+    n_values = max(len(fields) - 2, 1)  # all but the time and the joint
+    # rows written as controllers write them keep one stamp per sample (n_rows / n_joints);
+    # in any other order every row's stamp and joint are kept: the estimate counts one per row
+    by_line = delimiter is None or len(delimiter) != 1
+    return JobEstimate(
+        f"reading {path.name}: about {n_rows:.3g} rows x {n_values} values",
+        8.0 * n_rows * (n_values + 1) + _BLOCK_BYTES,
+        size / (_BYTES_PER_S_BY_LINE if by_line else _BYTES_PER_S),
+    )
+
+
+def read_csv_long(
+    path: Path, options: Mapping[str, Any], *, block_bytes: int | None = None
+) -> list[LogTable]:
     """Read a long text log (one row per sample and joint) and pivot it to wide columns.
 
     Options: ``time_column`` (default: a column named like time), ``joint_column`` (default
     ``joint``), ``delimiter``. The joint column holds names (text) or numbers. NaN/inf stamps
-    are refused naming the line.
+    are refused naming the line. ``block_bytes``: text parsed at once by the vectorised
+    parser (default :data:`ident.measure.readers.text_blocks.BLOCK_BYTES`); 0 reads line by
+    line (as the reader does for any text the parser may read otherwise, or refuses).
     """
     lines = lines_of(path)
     layout = _Layout(path, first_line(lines), options)
@@ -275,8 +339,11 @@ def read_csv_long(path: Path, options: Mapping[str, Any]) -> list[LogTable]:
     capacity = count_lines(path, 8.0 * (n_values + 2))  # values, and stamp and joint per row
     pivot = _Pivot(path, capacity, n_values)
     joints: dict[str, int] = {}
-    for block in blocks(lines):
-        pivot.add(*_parse_block(path, block, layout, joints))
+    if not _read_blocks(path, layout, pivot, joints, block_bytes):
+        del pivot  # the text is read again line by line, for the messages naming the line
+        pivot, joints = _Pivot(path, capacity, n_values), {}
+        for block in blocks(lines):
+            pivot.add(*_parse_block(path, block, layout, joints))
     if not pivot.n:
         raise DataError(f"{path}: the file has no samples.")
     names = list(joints)
