@@ -210,9 +210,9 @@ def test_dask_tcp_cluster_with_worker_processes():
 
 def test_cli_failed_campaign_leaves_no_folder(tmp_path, monkeypatch):
     pytest.importorskip("distributed")
-    import ident.bench.campaign as campaign
+    from ident.identify.estimation import log_chunks  # the one connection to a scheduler
 
-    monkeypatch.setattr(campaign, "DASK_CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(log_chunks, "DASK_CONNECT_TIMEOUT", "1s")
     out = tmp_path / "never"
     cfg = str(ROOT / "configs" / "bench-smoke.yaml")
     res = CliRunner().invoke(
@@ -225,8 +225,8 @@ def test_cli_failed_campaign_leaves_no_folder(tmp_path, monkeypatch):
 
 def test_unreachable_scheduler_is_a_clear_error(monkeypatch):
     pytest.importorskip("distributed")
-    import ident.bench.campaign as campaign
+    from ident.identify.estimation import log_chunks  # the one connection to a scheduler
 
-    monkeypatch.setattr(campaign, "DASK_CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(log_chunks, "DASK_CONNECT_TIMEOUT", "1s")
     with pytest.raises(IdentError, match="cannot reach the dask scheduler"):
         run_campaign(CampaignConfig(**TINY), scheduler="tcp://127.0.0.1:9")

@@ -40,8 +40,8 @@ from pydantic import Field, ValidationInfo, field_validator
 
 from ident.bench.functions import appendix_functions, get_function, table_functions
 from ident.config import StrictModel, load_config_file
-from ident.errors import ConfigError, IdentError, OptimizationError
-from ident.identify.estimation.log_chunks import DASK_CONNECT_TIMEOUT
+from ident.errors import ConfigError, OptimizationError
+from ident.identify.estimation.log_chunks import connect_scheduler
 from ident.inputs import JobEstimate, check_number, max_workers, safe_component
 
 __all__ = [
@@ -404,21 +404,9 @@ def run_campaign(
 def _run_dask(
     tasks: Sequence[RunTask], address: str, done: Callable[[int, RunRecord], None]
 ) -> None:
-    try:
-        from distributed import Client
-        from distributed import as_completed as dask_as_completed
-    except ImportError as e:
-        raise IdentError(
-            "--scheduler needs dask.distributed; install it with "
-            "`pip install 'ident[dask]'` (or `pip install 'dask[distributed]'`)."
-        ) from e
-    try:
-        client = Client(address, timeout=DASK_CONNECT_TIMEOUT)
-    except (OSError, TimeoutError) as e:
-        raise IdentError(
-            f"cannot reach the dask scheduler at {address}: {e}; start one with "
-            "`dask scheduler` and `dask worker <address>`, or drop --scheduler."
-        ) from e
+    client = connect_scheduler(address, "--scheduler", "drop --scheduler")
+    from distributed import as_completed as dask_as_completed
+
     try:
         futures = client.map(run_task, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}

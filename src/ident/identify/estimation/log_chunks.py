@@ -20,6 +20,7 @@ import sys
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -48,6 +49,7 @@ from ident.measure.logs import RobotLog
 __all__ = [
     "CHUNK_BUDGET_BYTES",
     "DASK_CONNECT_TIMEOUT",
+    "connect_scheduler",
     "MAX_BLOCKS",
     "ChunkTask",
     "ChunkedLog",
@@ -196,24 +198,38 @@ def _results(fn: Callable, tasks: list, scheduler: str | None, *extra: object) -
         finally:
             release_free_memory()
         return
-    try:
-        from distributed import Client
-    except ImportError as e:
-        raise IdentError(
-            "--scheduler needs dask.distributed; install it with `pip install 'ident[dask]'`."
-        ) from e
-    try:
-        client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
-    except (OSError, TimeoutError) as e:
-        raise IdentError(
-            f"cannot reach the dask scheduler at {scheduler}: {e}; start one with "
-            "`dask scheduler` and `dask worker <address>`, or drop --scheduler."
-        ) from e
+    client = connect_scheduler(scheduler, "--scheduler", "drop --scheduler")
     try:
         futures = client.map(fn, tasks, *[[x] * len(tasks) for x in extra], pure=False)
         yield from client.gather(futures)
     finally:
         client.close()
+
+
+def connect_scheduler(address: str, asked_by: str, instead: str) -> Any:
+    """A ``distributed.Client`` of the Dask scheduler at ``address`` (the one connection of
+    ``ident identify``, ``ident bench`` and ``ident fleet`` to a cluster).
+
+    Raises
+    ------
+    IdentError
+        dask.distributed missing (naming ``asked_by``, the option or setting that asked for
+        it), or the scheduler unreachable within :data:`DASK_CONNECT_TIMEOUT` (naming how to
+        start one, or ``instead``, how to do without it).
+    """
+    try:
+        from distributed import Client
+    except ImportError as e:
+        raise IdentError(
+            f"{asked_by} needs dask.distributed; install it with `pip install 'ident[dask]'`."
+        ) from e
+    try:
+        return Client(address, timeout=DASK_CONNECT_TIMEOUT)
+    except (OSError, TimeoutError) as e:
+        raise IdentError(
+            f"cannot reach the dask scheduler at {address}: {e}; start one with "
+            f"`dask scheduler` and `dask worker <address>`, or {instead}."
+        ) from e
 
 
 #: Memory a local worker gives to the samples of its chunk (:func:`default_chunk_samples`);

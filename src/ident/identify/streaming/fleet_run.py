@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ident.errors import DataError, IdentError
-from ident.identify.estimation.log_chunks import DASK_CONNECT_TIMEOUT
+from ident.identify.estimation.log_chunks import connect_scheduler
 from ident.identify.streaming.fleet import (
     ChunkSettings,
     FleetColumns,
@@ -147,13 +147,7 @@ def fleet_client(scheduler: str | None, workers: int, processes: bool = True) ->
             "ident fleet needs dask.distributed; install it with `pip install 'ident[dask]'`."
         ) from e
     if scheduler is not None:
-        try:
-            client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as e:
-            raise IdentError(
-                f"cannot reach the dask scheduler at {scheduler}: {e}; start one with "
-                "`dask scheduler` and `dask worker <address>`, or set fleet.scheduler: null."
-            ) from e
+        client = connect_scheduler(scheduler, "ident fleet", "set fleet.scheduler: null")
         with client:
             yield client
         return
