@@ -90,10 +90,10 @@ def _inject_fault(fileio, primitives: dict, fault: dict) -> None:
     if fault.get("step", "write") == "create":
         create = primitives["create"]
 
-        def failing_create(path):
+        def failing_create(path, tmp):
             if hit(path):
                 raise OSError(code, os.strerror(code), str(path.parent))
-            return create(path)
+            return create(path, tmp)
 
         fileio._create_temporary = failing_create
     else:

@@ -8,9 +8,10 @@ is untouched. :func:`describe_os_error` turns such an error into the one line a 
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
-import tempfile
+import secrets
 from pathlib import Path
 from typing import BinaryIO
 
@@ -44,9 +45,14 @@ def describe_os_error(error: OSError) -> str:
     return f"{where}: {what}" + (f" ({fix})" if fix else "")
 
 
-def _create_temporary(path: Path) -> tuple[int, str]:
-    """Open a new temporary file beside ``path``: (file descriptor, its path)."""
-    return tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+def _temporary_name(path: Path) -> Path:
+    """A new name beside ``path`` for its temporary file (hidden, random, not created)."""
+    return path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+
+
+def _create_temporary(path: Path, tmp: Path) -> int:
+    """Create ``tmp``, the temporary file of ``path`` (exclusive, 0600): its descriptor."""
+    return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
 
 
 def _write_data(file: BinaryIO, data: bytes, path: Path) -> None:
@@ -66,24 +72,30 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
         error's ``filename`` is ``path`` and no temporary file is left.
     """
     path = Path(path)
+    # the name is chosen before the file exists, so that an interruption at any point
+    # (SIGTERM raises KeyboardInterrupt between any two steps, even right after the file
+    # appears) removes it: no hidden temporary file is ever left beside the results
+    tmp = _temporary_name(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = _create_temporary(path)
-    except OSError as e:
-        raise _named(e, path) from None
-    try:
-        with os.fdopen(fd, "wb") as f:
+        with os.fdopen(_create_temporary(path, tmp), "wb") as f:
             _write_data(f, data, path)
-        # mkstemp creates 0600; give the file the permissions a plain open() would.
+        # created 0600; give the file the permissions a plain open() would.
         os.chmod(tmp, 0o666 & ~_current_umask())
         os.replace(tmp, path)
     except OSError as e:
-        Path(tmp).unlink(missing_ok=True)
+        _remove(tmp)
         raise _named(e, path) from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        _remove(tmp)
         raise
     return path
+
+
+def _remove(tmp: Path) -> None:
+    """Remove a temporary file if it exists (whatever stops that is not the error to report)."""
+    with contextlib.suppress(OSError):
+        tmp.unlink(missing_ok=True)
 
 
 def _named(error: OSError, path: Path) -> OSError:
