@@ -110,57 +110,45 @@ def _exact_smallest(
 ) -> None:
     """Make each mesh pair's smallest value of ``distances`` (n_samples, n_geometry_pairs)
     [m] exact, in place: ``exact`` marks the values already exact, the others are lower
-    bounds, measured in increasing order until one is not below the smallest exact distance
-    found. With ``travel`` (see :func:`_exact_needed`), :func:`_smallest_by_travel`."""
-    for p in np.flatnonzero(checked.mesh):
-        if travel is not None:
-            _smallest_by_travel(checked, q, distances, exact[:, p], travel[:, p], int(p), gdata)
-            continue
-        known = exact[:, p]
-        best = distances[known, p].min() if known.any() else np.inf
+    bounds, visited in increasing order and measured until one is not below the smallest
+    exact distance found.
+
+    With ``travel`` (see :func:`_exact_needed`) a value is also skipped when its bound from
+    the nearest exact samples before and after it, less the travel between (a distance
+    changes no faster than its bodies move), is not below the smallest found; at the end the
+    unmeasured values are raised to those bounds (:func:`_lower_bounds`; still lower bounds),
+    so that none is below the exact smallest.
+    """
+    for p in np.flatnonzero(checked.mesh).tolist():
+        column = distances[:, p]  # a view: _exact_into writes through it
+        known = exact[:, p].copy()
+        moved = None if travel is None else travel[:, p]
+        measured = np.flatnonzero(known).tolist()  # sorted
+        best = column[known].min() if known.any() else np.inf
         rest = np.flatnonzero(~known)
-        for s in rest[np.argsort(distances[rest, p], kind="stable")]:
-            if distances[s, p] >= best:  # lower bounds in increasing order: done
+        for s in rest[np.argsort(column[rest], kind="stable")].tolist():
+            if column[s] >= best:  # values in increasing order: done
                 break
-            _exact_into(checked, q[s], [int(p)], gdata, distances[s])
-            best = min(best, distances[s, p])
+            i = bisect.bisect(measured, s)
+            if moved is not None and _bounded_by_neighbours(column, moved, measured, i, s, best):
+                continue
+            _exact_into(checked, q[s], [p], gdata, distances[s])
+            measured.insert(i, s)
+            known[s] = True
+            best = min(best, column[s])
+        if moved is not None:
+            lower = _lower_bounds(column, known, moved)
+            column[~known] = lower[~known]
 
 
-def _smallest_by_travel(
-    checked: CheckedPairs,
-    q: FloatArray,
-    distances: FloatArray,
-    exact: npt.NDArray[np.bool_],
-    travel: FloatArray,
-    p: int,
-    gdata: pin.GeometryData,
-) -> None:
-    """Geometry pair ``p``'s smallest value of ``distances`` made exact, in place. The
-    values are visited in increasing order, as without travel, but a sample is measured
-    only if its value is below the smallest exact distance found and so is its bound from
-    the nearest exact samples before and after it, less the ``travel`` (n_samples,) [m]
-    between (a distance changes no faster than its bodies move). At the end the unmeasured
-    values are raised to those bounds (:func:`_lower_bounds`; still lower bounds), so that
-    none is below the exact smallest."""
-    column = distances[:, p]  # a view: _exact_into writes through it
-    known = exact.copy()
-    measured = np.flatnonzero(known).tolist()  # sorted
-    best = column[known].min() if known.any() else np.inf
-    rest = np.flatnonzero(~known)
-    for s in rest[np.argsort(column[rest], kind="stable")].tolist():
-        if column[s] >= best:  # values in increasing order: done
-            break
-        i = bisect.bisect(measured, s)
-        if i > 0 and column[measured[i - 1]] - (travel[s] - travel[measured[i - 1]]) >= best:
-            continue
-        if i < len(measured) and column[measured[i]] - (travel[measured[i]] - travel[s]) >= best:
-            continue
-        _exact_into(checked, q[s], [p], gdata, distances[s])
-        measured.insert(i, s)
-        known[s] = True
-        best = min(best, column[s])
-    lower = _lower_bounds(column, known, travel)
-    column[~known] = lower[~known]
+def _bounded_by_neighbours(
+    column: FloatArray, travel: FloatArray, measured: list[int], i: int, s: int, best: float
+) -> bool:
+    """Whether the exact value before sample ``s`` (``measured[i - 1]``) or after it
+    (``measured[i]``), less the ``travel`` [m] between, keeps ``best`` [m] at ``s``."""
+    if i > 0 and column[measured[i - 1]] - (travel[s] - travel[measured[i - 1]]) >= best:
+        return True
+    return i < len(measured) and column[measured[i]] - (travel[measured[i]] - travel[s]) >= best
 
 
 def _lower_bounds(
