@@ -122,3 +122,24 @@ def test_parameter_names_follow_pinocchio_order() -> None:
     inertia = model.inertias[1]
     assert params[0] == pytest.approx(inertia.mass)
     np.testing.assert_allclose(params[1:4], inertia.mass * inertia.lever)
+
+
+def test_kernels_compile_once_for_writeable_and_read_only_states() -> None:
+    # numba compiles one specialization per argument type and an array's read-only flag is
+    # part of it: a caller passing read-only logs and one passing fresh arrays made each kernel
+    # compile twice (6-13 s of CPU on a first run); the wrappers hand the kernels one type
+    from ident.dynamics import _kernels
+    from ident.dynamics.gram import regressor_gram, selected_rows
+
+    chain = chain_from_model(pin.buildModelFromUrdf(str(UR5_URDF)))
+    q, dq, ddq = random_states(chain, 5, rng=0)
+    frozen = [a.copy() for a in (q, dq, ddq)]
+    for a in frozen:
+        a.flags.writeable = False
+    for states in ((q, dq, ddq), frozen, (q.T.copy().T, dq, ddq)):  # writeable, read-only, F
+        y = joint_torque_regressor(chain, *states)
+        selected_rows(chain, *states)
+        regressor_gram(chain, *states)
+    np.testing.assert_array_equal(y, joint_torque_regressor(chain, q, dq, ddq))
+    assert len(_kernels.regressor_into.signatures) == 1
+    assert len(_kernels.selected_rows_into.signatures) == 1

@@ -29,6 +29,21 @@ def chain_arrays(chain: KinematicChain) -> tuple[FloatArray, FloatArray, np.ndar
     )
 
 
+def states(q: Arr, dq: Arr, ddq: Arr) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``q, dq, ddq`` as the kernels take them: C-contiguous float64, read-only views.
+
+    Numba compiles one specialization per argument type, and an array's read-only flag is
+    part of its type: callers passing read-only logs (``Observations``) and writeable arrays
+    made the kernels compile twice, 6-13 s of CPU each on a first run (cold cache)."""
+
+    def read_only(a: Arr) -> FloatArray:
+        view = np.ascontiguousarray(a, dtype=np.float64).view()
+        view.flags.writeable = False
+        return view
+
+    return read_only(q), read_only(dq), read_only(ddq)
+
+
 @njit(cache=True, fastmath=True, inline="always")
 def _scratch(n: int) -> tuple[Arr, Arr, Arr, Arr, Arr, Arr]:
     """Per-call buffers of :func:`_forward`: rot[i], pos[i] = parent_R_i, parent_p_i; per joint

@@ -99,7 +99,14 @@ def selected_rows(
         out[...] = (weights[:, None] * y).reshape(shape)
         return out
     _kernels.selected_rows_into(
-        *_kernels.chain_arrays(chain), q, dq, ddq, 0, q.shape[0], rows_i, cols_i, weights, out
+        *_kernels.chain_arrays(chain),
+        *_kernels.states(q, dq, ddq),
+        0,
+        q.shape[0],
+        rows_i,
+        cols_i,
+        weights,
+        out,
     )
     return out
 
@@ -165,6 +172,7 @@ def regressor_gram(
     out = np.zeros((n_batch, cols_i.size, cols_i.size))
     with one_blas_thread():  # small products: a second thread only spins (ident.blas)
         for b in range(n_batch):
+            sample_states = _kernels.states(q[b], dq[b], ddq[b])
             for start in range(0, n_samples, chunk):
                 stop = min(start + chunk, n_samples)
                 block = buffer[: (stop - start) * rows_i.size]
@@ -174,7 +182,7 @@ def regressor_gram(
                     block *= np.tile(weights, stop - start)[:, None]
                 else:
                     _kernels.selected_rows_into(
-                        *arrays, q[b], dq[b], ddq[b], start, stop, rows_i, cols_i, weights, block
+                        *arrays, *sample_states, start, stop, rows_i, cols_i, weights, block
                     )
                 out[b] += block.T @ block
     return out if batched else out[0]

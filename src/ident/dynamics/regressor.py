@@ -81,7 +81,7 @@ def joint_torque_regressor(
         q, dq, ddq = chain.body_states(q, dq, ddq)
     nb = chain.n_bodies
     out = np.empty((q.shape[0], nb, 10 * nb))
-    _kernels.regressor_into(*_kernels.chain_arrays(chain), q, dq, ddq, out)
+    _kernels.regressor_into(*_kernels.chain_arrays(chain), *_kernels.states(q, dq, ddq), out)
     return project_rows(chain, out)
 
 
