@@ -98,16 +98,8 @@ def selected_rows(
         y = joint_torque_regressor(chain, q, dq, ddq)[:, rows_i][:, :, cols_i]
         out[...] = (weights[:, None] * y).reshape(shape)
         return out
-    _kernels.selected_rows_into(
-        *_kernels.chain_arrays(chain),
-        *_kernels.states(q, dq, ddq),
-        0,
-        q.shape[0],
-        rows_i,
-        cols_i,
-        weights,
-        out,
-    )
+    arrays = (*_kernels.chain_arrays(chain), *_kernels.states(q, dq, ddq))
+    _kernels.selected_rows_into(*arrays, 0, q.shape[0], rows_i, cols_i, weights, out)
     return out
 
 
