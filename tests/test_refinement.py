@@ -171,14 +171,14 @@ def test_bad_refinement_exits_2_before_any_folder(tmp_path):
 def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_path):
     """``ident identify`` with ``refinement: rollout`` on the rp2 log: result.json's entry,
     the report's row and the terminal line are one text; accepted, the MJCF's joints carry the
-    entry's refined values and the URDF is the regressor's. By default the training windows
-    are every window of the identification part (8.4 s: 16 of 0.5 s), not a subset, and the
-    CPU estimate printed before counts those windows."""
+    entry's refined values and the URDF is the regressor's. The training windows overlap (8.4 s
+    of identification part: 80 starting every 0.1 s, more than 16 disjoint ones), 20 of them
+    (max_windows) are used, and the CPU estimate printed before counts those windows."""
     from ident.cli import app
 
     path = rp2_identify_config(tmp_path)
     cfg = yaml.safe_load(path.read_text())
-    refinement = {"method": "rollout", "max_iterations": 3}
+    refinement = {"method": "rollout", "max_iterations": 3, "max_windows": 20}
     path.write_text(yaml.safe_dump({**cfg, "refinement": refinement}))
     out = tmp_path / "runs"
     result = CliRunner().invoke(app, ["identify", str(path), "--out", str(out), "--no-replay"])
@@ -192,11 +192,11 @@ def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_p
     # the estimate printed before counts the windows the refinement then uses (not 64 and 64)
     assert (
         f"refinement on rollouts: at most 3 iterations of 7 rollouts of {entry['train_windows']} "
-        f"training windows of 0.5 s (at most 64: refinement.max_windows) and one of "
+        f"training windows of 0.5 s (at most 20: refinement.max_windows) and one of "
         f"{entry['held_out_windows']} held-out windows: estimated "
     ) in result.output
-    assert entry["max_windows"] == 64
-    assert entry["train_windows"] == 16
+    assert entry["max_windows"] == 20
+    assert entry["train_windows"] == 20
     assert entry["held_out_windows"] == data["rollout"]["windows"]
     assert entry["objective_before"] == pytest.approx(data["rollout"]["objective"], rel=1e-9)
     mjcf = mujoco.MjModel.from_xml_path(str(folder / data["model"]["files"]["mjcf"]))
