@@ -4,18 +4,24 @@ For each robot (``configs/ur5.yaml``, ``configs/panda.yaml``), the run config's 
 made MuJoCo-native (``friction.semantics: mujoco``: Coulomb friction as ``frictionloss`` with
 the constraint solver, damping, armature); MuJoCo simulates the closed-loop computed-torque
 controller tracking a smooth 3-harmonic reference (period 10 s, one settling period and the
-config's logged periods) and writes the controller's log; ``ident identify`` runs with the run
-config's ``identification`` section and ``refinement: rollout``, writing the identified MJCF;
-the rollout check scores it against the simulator's truth (same MJCF writer), and the
+config's logged periods; :func:`bounded_reference`: each joint's motion scaled down where it
+would come within :data:`RANGE_MARGIN` of a position limit or above :data:`LIMIT_FRACTION` of a
+velocity or acceleration limit) and writes the controller's log; ``ident identify`` runs with
+the run config's ``identification`` section and ``refinement: rollout``, writing the identified
+MJCF; the rollout check scores it against the simulator's truth (same MJCF writer), and the
 refinement adjusts its joints' frictionloss, damping and armature. Printed first: the load
 average at the start (the machine is shared: CPU seconds, not wall time, are the cost); per
-robot: the held-out rollout objective ``J`` of the truth, of the regressor's MJCF, of the
-refined one and of the written MJCF reloaded (the file carries what was scored), the refined
-one's distance to the truth's [%], the held-out torque errors before and after, whether the
-refinement was accepted, its training / held-out windows, iterations and CPU seconds (and the
-estimate); a NOTE when the held-out motion leaves a joint's range (:func:`outside_range`).
+robot and seed: the held-out rollout objective ``J`` of the truth, of the regressor's MJCF, of
+the refined one and of the written MJCF reloaded (the file carries what was scored), the
+refined one's distance to the truth's [%], the held-out torque errors before and after, whether
+the refinement was accepted, its training / held-out windows, iterations and CPU seconds (and
+the estimate); a NOTE when the held-out motion leaves a joint's range (:func:`outside_range`).
 
-    python benchmarks/bench_refine.py [--robots ur5 panda] [--seed 0] [--amplitude 0.8]
+    python benchmarks/bench_refine.py [--robots ur5 panda] [--seeds 0 1] [--amplitude 0.8]
+    python benchmarks/bench_refine.py --seeds 0 1 2 3 4 --simulate-only --keep runs/refine
+
+(``--simulate-only``: the logs alone, each one's largest excursion past its joints' ranges
+and velocity limits printed, no identification; with ``--keep`` the bench reuses them.)
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ import time
 from pathlib import Path
 
 import mujoco
+import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,6 +58,12 @@ from ident.measure.mujoco_sim import simulate, write_log  # noqa: E402
 from ident.model.selection import RobotSelection, load_robot  # noqa: E402
 
 PERIOD_S = 10.0
+#: Closest a reference comes to a joint's position limit [rad or m]: the computed-torque
+#: controller tracks it within milliradians, and the open-loop rollouts, which drift from the
+#: measured motion, should not meet MuJoCo's limit constraint either.
+RANGE_MARGIN = 0.1
+#: Largest fraction of a joint's velocity and acceleration limits a reference reaches.
+LIMIT_FRACTION = 0.8
 
 
 def native_measurement(run: dict) -> dict:
@@ -144,68 +157,141 @@ def outside_range(mjcf: Path, measurements) -> dict[str, float]:
     return out
 
 
+def bounded_reference(robot, *, period: float, seed: int, amplitude: float, rate_hz: float):
+    """:func:`fourier_reference` with each joint's motion about its middle scaled down (the same
+    factor on its ``q - middle``, ``dq`` and ``ddq``, so still one smooth periodic motion) until
+    it stays :data:`RANGE_MARGIN` inside the joint's range and within :data:`LIMIT_FRACTION` of
+    its velocity and acceleration limits (unknown limits: inf, no bound).
+
+    Returns ``t`` (n,) [s] and ``q, dq, ddq`` (n, nv) [rad, rad/s, rad/s^2 or m, m/s, m/s^2]; a
+    joint already inside every bound is the unscaled reference's exactly.
+    """
+    t, q, dq, ddq = fourier_reference(
+        robot, period=period, seed=seed, amplitude=amplitude, rate_hz=rate_hz
+    )
+    # fourier_reference's middle of the range (clipped to +-3 for unlimited joints); the room
+    # on each side of it, which differs where the clip moved it
+    middle = 0.5 * (np.clip(robot.q_lower, -3.0, 3.0) + np.clip(robot.q_upper, -3.0, 3.0))
+    room_up = np.maximum(robot.q_upper - RANGE_MARGIN - middle, 0.0)
+    room_down = np.maximum(middle - robot.q_lower - RANGE_MARGIN, 0.0)
+    tiny = 1e-300
+    scale = np.minimum.reduce(
+        [
+            np.ones_like(middle),
+            room_up / np.maximum((q - middle).max(axis=0), tiny),
+            room_down / np.maximum((middle - q).max(axis=0), tiny),
+            LIMIT_FRACTION * robot.dq_max / np.maximum(np.abs(dq).max(axis=0), tiny),
+            LIMIT_FRACTION * robot.ddq_max / np.maximum(np.abs(ddq).max(axis=0), tiny),
+        ]
+    )
+    return t, middle + scale * (q - middle), scale * dq, scale * ddq
+
+
+def limit_excess(robot, q, dq) -> dict[str, tuple[float, float]]:
+    """Per joint, how far positions ``q`` (n, nv) pass its range and how far ``|dq|`` passes
+    its velocity limit [rad, rad/s or m, m/s]; negative: the margin left (inf: no limit)."""
+    over_q = np.maximum(robot.q_lower - q.min(axis=0), q.max(axis=0) - robot.q_upper)
+    over_dq = np.abs(dq).max(axis=0) - robot.dq_max
+    return {name: (float(over_q[j]), float(over_dq[j])) for j, name in enumerate(robot.joint_names)}
+
+
+def _robot(run_path: Path, run: dict):
+    """The run config's robot."""
+    return load_robot(RobotSelection.model_validate(run["robot"]).resolved(run_path.parent))
+
+
 def _simulate(run_path: Path, run: dict, measurement: dict, seed: int, amplitude: float):
-    """The simulated log of the run config's robot on a smooth reference."""
-    selection = RobotSelection.model_validate(run["robot"]).resolved(run_path.parent)
-    robot = load_robot(selection)
-    reference = fourier_reference(
+    """The simulated log of the run config's robot on a smooth reference within its limits."""
+    robot = _robot(run_path, run)
+    reference = bounded_reference(
         robot, period=PERIOD_S, seed=seed, amplitude=amplitude, rate_hz=measurement["rate_hz"]
     )
     return simulate(robot, *reference, load_mujoco_measurement(measurement), rng=seed)
 
 
-def main() -> None:
+def simulate_only(name: str, folder: Path, seed: int, amplitude: float) -> str:
+    """Simulate (or reuse) one robot's log into ``folder``; the line of its limits' margins."""
+    run_path = ROOT / "configs" / f"{name}.yaml"
+    run = yaml.safe_load(run_path.read_text())
+    log = _simulate(run_path, run, native_measurement(run), seed, amplitude)
+    write_log(folder, log)
+    excess = limit_excess(_robot(run_path, run), log.q_true, log.dq_true)
+    q_worst = max(excess, key=lambda k: excess[k][0])
+    dq_worst = max(excess, key=lambda k: excess[k][1])
+    return (
+        f"{name} seed {seed}: closest to a position limit {q_worst} "
+        f"{excess[q_worst][0]:+.3g} (inside: < 0), to a velocity limit {dq_worst} "
+        f"{excess[dq_worst][1]:+.3g}"
+    )
+
+
+def _print_row(name: str, seed: int, got: dict) -> None:
+    """One robot's table row, its refinement line and any range NOTE."""
+    e = got["entry"]
+    if e.get("accepted") is None:
+        print(f"| {name} | {seed} | {e['note']} |", flush=True)
+        return
+    ref, after = e["reference_objective"], e["objective_after"]
+    print(
+        f"| {name} | {seed} | {ref:.4g} | {e['objective_before']:.4g} | {after:.4g} "
+        f"| {got['written_objective']:.4g} | {100 * (after / ref - 1):+.1f} % "
+        f"| {e['torque_error_before']:.4g} | {e['torque_error_after']:.4g} | {e['accepted']} "
+        f"| {e['train_windows']} / {e['held_out_windows']} "
+        f"| {e['iterations']} ({e['best_iteration']}) "
+        f"| {e['cpu_s']:.1f} ({e['cpu_estimate_s']:.1f}) |",
+        flush=True,
+    )
+    print(f"  {refinement_text(e)}", flush=True)
+    if got["outside_range"]:
+        where = ", ".join(f"{k} by {v:.3g}" for k, v in got["outside_range"].items())
+        print(f"  NOTE: the held-out motion leaves the joint range of {where}", flush=True)
+
+
+def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", default=["ur5", "panda"])
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", "--seed", nargs="+", type=int, default=[0])
     parser.add_argument("--amplitude", type=float, default=0.8, help="rad/s, Fourier bound")
     parser.add_argument("--json", type=Path, default=None, help="write the entries here")
     parser.add_argument(
         "--keep", type=Path, default=None, help="folder of the logs, reused when there"
     )
+    parser.add_argument("--simulate-only", action="store_true", help="the logs, no refinement")
     for key in ("max_windows", "max_iterations"):
         parser.add_argument(f"--{key.replace('_', '-')}", type=int, default=None)
     parser.add_argument("--prior-weight", type=float, default=None)
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def main() -> None:
+    args = _arguments()
     refinement = {
         key: getattr(args, key)
         for key in ("max_windows", "max_iterations", "prior_weight")
         if getattr(args, key) is not None
     }
     print(f"load average at start: {' / '.join(f'{x:.1f}' for x in os.getloadavg())}")
-    print(
-        "| robot | J truth | J regressor | J refined | J written MJCF | refined vs truth "
-        "| torque err before | torque err after | accepted | windows train / held "
-        "| iterations (best) | CPU s (estimate) |"
-    )
-    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: |")
-    out = {}
-    for name in args.robots:
-        if args.keep is not None:
-            (args.keep / name).mkdir(parents=True, exist_ok=True)
-            got = bench(name, args.keep / name, args.seed, args.amplitude, refinement)
-        else:
-            with tempfile.TemporaryDirectory() as tmp:
-                got = bench(name, Path(tmp), args.seed, args.amplitude, refinement)
-        e = got["entry"]
-        out[name] = got
-        if e.get("accepted") is None:
-            print(f"| {name} | {e['note']} |", flush=True)
-            continue
-        ref, after = e["reference_objective"], e["objective_after"]
+    if not args.simulate_only:
         print(
-            f"| {name} | {ref:.4g} | {e['objective_before']:.4g} | {after:.4g} "
-            f"| {got['written_objective']:.4g} | {100 * (after / ref - 1):+.1f} % "
-            f"| {e['torque_error_before']:.4g} | {e['torque_error_after']:.4g} | {e['accepted']} "
-            f"| {e['train_windows']} / {e['held_out_windows']} "
-            f"| {e['iterations']} ({e['best_iteration']}) "
-            f"| {e['cpu_s']:.1f} ({e['cpu_estimate_s']:.1f}) |",
-            flush=True,
+            "| robot | seed | J truth | J regressor | J refined | J written MJCF "
+            "| refined vs truth | torque err before | torque err after | accepted "
+            "| windows train / held | iterations (best) | CPU s (estimate) |"
         )
-        print(f"  {refinement_text(e)}", flush=True)
-        if got["outside_range"]:
-            where = ", ".join(f"{k} by {v:.3g}" for k, v in got["outside_range"].items())
-            print(f"  NOTE: the held-out motion leaves the joint range of {where}", flush=True)
+        print("| --- " + "| ---: " * 8 + "| --- " + "| ---: " * 3 + "|")
+    out = {}
+    for seed in args.seeds:
+        for name in args.robots:
+            with tempfile.TemporaryDirectory() as tmp:
+                folder = Path(tmp)
+                if args.keep is not None:  # <keep>/<robot>-seed<seed>
+                    folder = args.keep / f"{name}-seed{seed}"
+                    folder.mkdir(parents=True, exist_ok=True)
+                if args.simulate_only:
+                    print(simulate_only(name, folder, seed, args.amplitude), flush=True)
+                    continue
+                got = bench(name, folder, seed, args.amplitude, refinement)
+            out[f"{name}-seed{seed}"] = got
+            _print_row(name, seed, got)
     if args.json is not None:
         args.json.write_text(json.dumps(out, indent=2, default=float))
 

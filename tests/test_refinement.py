@@ -171,13 +171,14 @@ def test_bad_refinement_exits_2_before_any_folder(tmp_path):
 def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_path):
     """``ident identify`` with ``refinement: rollout`` on the rp2 log: result.json's entry,
     the report's row and the terminal line are one text; accepted, the MJCF's joints carry the
-    entry's refined values and the URDF is the regressor's. By default the training windows
-    are every window of the identification part (8.4 s: 16 of 0.5 s), not a subset."""
+    entry's refined values and the URDF is the regressor's. The training windows overlap (8.4 s
+    of identification part: 80 starting every 0.1 s, more than 16 disjoint ones), 20 of them
+    (max_windows) are used, and the CPU estimate printed before counts those windows."""
     from ident.cli import app
 
     path = rp2_identify_config(tmp_path)
     cfg = yaml.safe_load(path.read_text())
-    refinement = {"method": "rollout", "max_iterations": 3}
+    refinement = {"method": "rollout", "max_iterations": 3, "max_windows": 20}
     path.write_text(yaml.safe_dump({**cfg, "refinement": refinement}))
     out = tmp_path / "runs"
     result = CliRunner().invoke(app, ["identify", str(path), "--out", str(out), "--no-replay"])
@@ -188,9 +189,14 @@ def test_identify_writes_one_refinement_entry_the_report_and_terminal_show(tmp_p
     text = refinement_text(entry)
     assert text in result.output
     assert f"| MJCF refinement | {text} |" in (folder / "report.md").read_text()
-    assert "refinement on rollouts: at most 3 iterations of 7 rollouts" in result.output
-    assert entry["max_windows"] == 64
-    assert entry["train_windows"] == 16
+    # the estimate printed before counts the windows the refinement then uses (not 64 and 64)
+    assert (
+        f"refinement on rollouts: at most 3 iterations of 7 rollouts of {entry['train_windows']} "
+        f"training windows of 0.5 s (at most 20: refinement.max_windows) and one of "
+        f"{entry['held_out_windows']} held-out windows: estimated "
+    ) in result.output
+    assert entry["max_windows"] == 20
+    assert entry["train_windows"] == 20
     assert entry["held_out_windows"] == data["rollout"]["windows"]
     assert entry["objective_before"] == pytest.approx(data["rollout"]["objective"], rel=1e-9)
     mjcf = mujoco.MjModel.from_xml_path(str(folder / data["model"]["files"]["mjcf"]))
@@ -272,3 +278,47 @@ def test_a_refined_copy_simulates_as_its_written_mjcf_reloaded(planted, tmp_path
     np.testing.assert_allclose(copied.dof_invweight0, reloaded.dof_invweight0, rtol=1e-12)
     score = rollout_score(copied, measured, HELD).per_window
     np.testing.assert_allclose(score, rollout_score(reloaded, measured, HELD).per_window, rtol=1e-9)
+
+
+def test_bench_refines_reference_stays_inside_every_limit_for_any_seed():
+    """benchmarks/bench_refine.py's reference: seed 1 of the unbounded 3-harmonic reference takes
+    the Panda's joint 4 0.18 rad past its range. Bounded, every seed stays RANGE_MARGIN inside
+    each range and under LIMIT_FRACTION of the velocity and acceleration limits; a scaled joint
+    is still one motion (its dq the derivative of its q, a clip or a q-only scale is not) and
+    reaches its bound (no over-shrinking); a joint within bounds is the unbounded one exactly."""
+    import importlib
+    import sys
+
+    from robots import PANDA_URDF
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    bench = importlib.import_module("bench_refine")
+    panda = Robot.from_urdf(PANDA_URDF, lock_joints={"panda_finger_joint1": 0.01})
+    panda.ddq_max = np.array([np.inf, 0.3, np.inf, np.inf, np.inf, np.inf, 0.4])  # rad/s^2
+    kw = {"period": 10.0, "amplitude": 0.8, "rate_hz": 100.0}
+    margin, frac = bench.RANGE_MARGIN, bench.LIMIT_FRACTION
+    assert bench.fourier_reference(panda, seed=1, **kw)[1][:, 3].max() > panda.q_upper[3] + 0.17
+    for seed in range(6):
+        raw = bench.fourier_reference(panda, seed=seed, **kw)
+        t, q, dq, ddq = bench.bounded_reference(panda, seed=seed, **kw)
+        assert np.all(q >= panda.q_lower + margin - 1e-12)
+        assert np.all(q <= panda.q_upper - margin + 1e-12)
+        assert np.all(np.abs(dq) <= frac * panda.dq_max + 1e-12)
+        assert np.all(np.abs(ddq) <= frac * panda.ddq_max + 1e-12)
+        # periodic, so the central difference wraps; O(h^2) against the motion's size
+        np.testing.assert_allclose(
+            (np.roll(q, -1, 0) - np.roll(q, 1, 0)) * 50.0, dq, atol=2e-3 * np.abs(dq).max()
+        )
+        scaled = np.any(raw[1] != q, axis=0)
+        np.testing.assert_array_equal(q[:, ~scaled], raw[1][:, ~scaled])
+        for j in np.flatnonzero(scaled):  # one of its bounds is met
+            near = min(q[:, j].min() - panda.q_lower[j], panda.q_upper[j] - q[:, j].max())
+            assert (
+                min(
+                    abs(near - margin),
+                    abs(np.abs(dq[:, j]).max() - frac * panda.dq_max[j]),
+                    abs(np.abs(ddq[:, j]).max() - frac * panda.ddq_max[j]),
+                )
+                < 1e-9
+            )
+    assert scaled[6]  # seed 5: joint 7 under its 0.4 rad/s^2

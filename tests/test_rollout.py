@@ -19,10 +19,12 @@ from ident.identify.assessment.rollout import (
     SD_FLOOR,
     RolloutMeasurements,
     held_out_windows,
+    identification_windows,
     reference_mjcf,
     rollout_check,
     rollout_score,
     rollout_text,
+    window_count,
 )
 from ident.identify.config import PreprocessConfig
 from ident.measure.logs import RobotLog
@@ -214,6 +216,24 @@ def test_windows_come_from_the_held_out_part_capped_and_spread():
     index = np.concatenate([np.arange(s, s + 101) for s in starts])
     for got, logged in ((measured.t, log.t), (measured.q, log.q), (measured.dq, log.dq)):
         np.testing.assert_array_equal(got, logged[index])
+
+
+def test_identification_windows_overlap_outside_the_held_out_part_and_are_counted():
+    """The same log: identification part 0-1098 and 1500-2298 (the samples next to the held-out
+    ones dropped, the ends after it too short). Windows of 101 samples start every 20 (a fifth
+    of a window): 50 and 35 candidates; four spread evenly: candidates 0, 28, 56, 84, i.e.
+    samples 0, 560, 1620, 2180. window_count gives both parts' counts without filtering (a
+    count of disjoint windows, 9 + 7, or of 64 would not match)."""
+    log = _two_segment_log(states=True)
+    result = _result(log, np.r_[1100:1481:10, 2300:2591:10], NO_FILTER)
+    measured, windows = identification_windows(result, 0.1, max_windows=4)
+    index = np.concatenate([np.arange(s, s + 101) for s in (0, 560, 1620, 2180)])
+    np.testing.assert_array_equal(measured.t, log.t[index])
+    np.testing.assert_array_equal(windows, [[101 * k, 101 * (k + 1)] for k in range(4)])
+    assert window_count(result, "identification", 0.1, max_windows=4) == 4
+    assert window_count(result, "identification", 0.1, max_windows=1000) == 85
+    assert window_count(result, "held-out", 0.1) == 5
+    assert window_count(result, "held-out", 0.1, max_windows=4) == 4
 
 
 def test_window_signals_are_the_identifications_low_pass_and_differences():

@@ -231,19 +231,24 @@ def _print_summary(result: IdentifyResult, folder: Path, replay_note: str) -> No
 
 
 def _echo_refinement_estimate(result: IdentifyResult) -> None:
-    """Before a refinement on rollouts (``refinement: rollout``): its bound and CPU estimate."""
-    from ident.identify.assessment.rollout import WINDOW_S
+    """Before a refinement on rollouts (``refinement: rollout``): its bound and CPU estimate,
+    from the windows it will use."""
+    from ident.identify.assessment.rollout import WINDOW_S, window_count
     from ident.identify.refinement.rollout_refinement import estimated_cpu_s
 
     cfg = result.config.refinement
     if cfg.method == "none":
         return
     nv = len(result.joint_names)
-    seconds = estimated_cpu_s(cfg.max_windows, result.log.sampling_rate_hz, nv, cfg.max_iterations)
+    n_train = window_count(result, "identification", max_windows=cfg.max_windows)
+    n_held = window_count(result, "held-out")
+    rate = result.log.sampling_rate_hz
+    seconds = estimated_cpu_s(n_train, n_held, rate, nv, cfg.max_iterations)
     typer.echo(
         f"refinement on rollouts: at most {cfg.max_iterations} iterations of {3 * nv + 1} "
-        f"rollouts of at most {cfg.max_windows} windows of {WINDOW_S:g} s "
-        f"(refinement.max_iterations, max_windows): estimated {seconds:.0f} s of CPU or less"
+        f"rollouts of {n_train} training windows of {WINDOW_S:g} s (at most {cfg.max_windows}: "
+        f"refinement.max_windows) and one of {n_held} held-out windows: estimated "
+        f"{seconds:.0f} s of CPU or less"
     )
 
 

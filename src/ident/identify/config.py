@@ -429,11 +429,13 @@ class RefinementConfig(StrictModel):
     ``refinement: rollout`` is ``{method: rollout}``. ``none`` (the default) writes the
     regressor's values only. The CPU is bounded by ``max_windows`` training windows of 0.5 s
     and ``max_iterations`` iterations (trust-region Gauss-Newton), each ``3 n + 1`` rollouts
-    of the windows (``n`` joints). By default every window of the identification part, up to
-    64 (the held-out check's cap): the training objective averages the log's noise over its
-    windows, and with fewer its optimum strays from the held-out one by more than the
-    regressor's own error (measured: 12 of the Panda's 40 windows left its refined model
-    7.7 % above the truth's held-out rollout error, all 40 reach 4.4 %).
+    of the windows (``n`` joints). By default 64 (the held-out check's cap) of the
+    identification part's windows, which start every 0.1 s and overlap: the training objective
+    averages the log's noise over its windows, and with fewer its optimum strays from the
+    held-out one by more than the regressor's own error (measured: 12 of the Panda's 40
+    disjoint windows left its refined model 7.7 % above the truth's held-out rollout error, all
+    40 reach 4.4 %; on the UR5's seed-1 log 40 disjoint windows led to a step that a fresh noise
+    draw scored worse, :data:`~ident.identify.assessment.rollout.IDENTIFICATION_OVERLAP`).
     """
 
     method: Literal["none", "rollout"] = "none"

@@ -156,15 +156,18 @@ def with_values(model: mujoco.MjModel, joint_names: Sequence[str], x: FloatArray
     return out
 
 
-def estimated_cpu_s(n_windows: int, sampling_rate_hz: float, nv: int, iterations: int) -> float:
+def estimated_cpu_s(
+    n_train: int, n_held: int, sampling_rate_hz: float, nv: int, iterations: int
+) -> float:
     """CPU seconds of a refinement [s], before any rollout: ``iterations`` of ``3 nv + 2``
-    rollouts of ``n_windows`` training windows and one of the held-out windows (at most as
-    many as :func:`held_out_windows` keeps, 64), each window :data:`WINDOW_S` long in MuJoCo
-    steps of at most :data:`~ident.identify.assessment.rollout.MAX_TIMESTEP_S` (the sample
-    period or a divisor of it), :data:`STEP_CPU_S` per step and ``1 + nv``."""
+    rollouts of the ``n_train`` training windows and one of the ``n_held`` held-out windows
+    (the counts :func:`~ident.identify.assessment.rollout.window_count` gives), each window
+    :data:`WINDOW_S` long in MuJoCo steps of at most
+    :data:`~ident.identify.assessment.rollout.MAX_TIMESTEP_S` (the sample period or a divisor
+    of it), :data:`STEP_CPU_S` per step and ``1 + nv``."""
     substeps = max(1, math.ceil(1.0 / (sampling_rate_hz * MAX_TIMESTEP_S) - 1e-9))
     steps = substeps * round(WINDOW_S * sampling_rate_hz)
-    per_iteration = (3 * nv + 2) * n_windows + 64
+    per_iteration = (3 * nv + 2) * n_train + n_held
     return float(iterations * per_iteration * steps * (1 + nv) * STEP_CPU_S)
 
 
