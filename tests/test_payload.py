@@ -214,7 +214,8 @@ def test_no_physical_arm_plus_payload_keeps_the_estimate_and_says_why(
     assert summary["model_files"]["written"] is False
     assert note == summary["warnings"][-1]
     assert f"mass = {-last[0]:.6g} kg must be > 0" in note  # the check that failed, its value
-    assert "wrist_3_joint" in note and "payload.method: lmi" in note  # where, and the fix
+    assert "wrist_3_joint" in note  # where
+    assert "payload.method: lmi" in note  # and the fix
     assert f"warning: {note}" in result.output
     assert "model files: not written" in result.output
     assert summary["mass_kg"] == pytest.approx(3.0, rel=0.02)  # the estimate itself is kept
