@@ -4,8 +4,11 @@ For each robot (configs/ur5.yaml, configs/panda.yaml: the URDF, locked joints, t
 friction and rotor inertia of their ``measurement:`` sections) and each payload (1 to 5 kg, the
 centre of mass 3-12 cm off the flange, a box-like inertia), MuJoCo simulates two closed-loop logs
 of the same Fourier excitation (every joint moving, 20 s at 1 kHz): without and with the payload
-welded to the last link (``measurement.payload``). The torque noise is 1 % of each joint's RMS
-torque. ``ident payload`` is run on a config naming both logs, exactly as a user would; the
+welded to the last link (``measurement.payload``). The torque noise of each joint is an absolute
+floor per robot (:data:`TORQUE_NOISE_FLOOR`: UR5 0.1 N*m, Panda 0.005 N*m, docs/payload.md says
+where they come from) and 1 % of its RMS torque, added in variance (``--noise relative``: the 1 %
+alone, as before the floor; ``--noise-floor NM``: one floor for every robot). ``ident payload``
+is run on a config naming both logs, exactly as a user would; the
 errors against the simulated payload are printed as a table (docs/payload.md holds the last one).
 
 A last row uses the payload excitation instead (``configs/ur5-payload.yaml``: ``ident run``
@@ -31,10 +34,12 @@ payload is 2.5 kg at (0.02, 0.03, 0.08) m. Per seed ``k`` (its own motion and no
 cases: two logs; one log with the arm ``ident identify`` made from the log without payload
 (its model files and covariance, no report); one log on the CAD URDF. Per case: median and
 worst mass and centre-of-mass errors, the share of the reported 95 % intervals holding the
-truth (mass, each CoM component, and the four pooled, counted over seeds), the RMS of
-error / σ, the warning rate; and the CPU per seed (``time.process_time``, the whole seed:
-both simulations, the identification and the three payload runs; about 25 s for either
-robot). The payload runs use ``method: wls`` (the intervals are the WLS estimate's).
+truth (mass, each CoM component, and the four pooled, counted over seeds, with the pooled
+count's Wilson 95 % interval), the RMS of error / σ, the warning rate, the share of runs
+whose model files were not written (``ident payload`` exit code 1); and the CPU per seed
+(``time.process_time``, the whole seed: both simulations, the identification and the three
+payload runs; about 20-30 s for either robot). The payload runs use ``method: wls`` (the
+intervals are the WLS estimate's).
 ``--workdir DIR`` keeps each seed's logs and identified arm in ``DIR`` (``<robot>-seed-<k>``,
 their ``case.json``); a seed found there is reused: only ``ident payload`` runs again (a change
 of its intervals re-measured on the same seeds without the simulations and ``ident identify``).
@@ -56,6 +61,7 @@ import yaml
 from typer.testing import CliRunner
 
 from ident.cli import app
+from ident.cli.payload import EXIT_NO_MODEL_FILES
 from ident.config import read_yaml
 from ident.dynamics.parameters import parameter_names, parameters_from_model
 from ident.excitation.fourier import fourier_series
@@ -98,11 +104,31 @@ def reference(robot, rate_hz: float, period_s: float, rng: np.random.Generator, 
     return t, q[0], dq[0], ddq[0]
 
 
+#: Absolute floor of the simulated joint-torque noise per robot [N*m, 1 σ of each 1 kHz
+#: sample], added in quadrature to the relative part (:data:`RELATIVE_NOISE` of each joint's
+#: RMS torque): a real joint-torque signal has a floor however light the joint's load, and a
+#: benchmark whose noise is below its simulator's own model error (integration, filtering)
+#: measures the simulator. Panda: the datasheet's torque noise (RMS) 0.005 N*m (resolution
+#: 0.02 N*m). UR5 (torques from motor currents): see docs/payload.md, "The benchmark's noise".
+TORQUE_NOISE_FLOOR = {"ur5": 0.1, "panda": 0.005}
+#: The relative part of the simulated torque noise: this share of each joint's RMS torque.
+RELATIVE_NOISE = 0.01
+#: The floors in use (``--noise relative``: none, the benchmark's noise before the floor).
+noise_floors: dict[str, float] = dict(TORQUE_NOISE_FLOOR)
+
+
+def torque_noise_std(rms: np.ndarray, floor: float) -> list[float]:
+    """Per-joint torque noise σ [N*m]: ``sqrt(floor^2 + (RELATIVE_NOISE * rms)^2)`` of each
+    joint's RMS torque ``rms`` (nv,) [N*m] (two independent sources add in variance)."""
+    return np.sqrt(floor**2 + (RELATIVE_NOISE * np.asarray(rms)) ** 2).tolist()
+
+
 def simulation_setup(
-    config: Path, *, seconds: float, seed: int
+    config: Path, *, seconds: float, seed: int, noise_floor: float = 0.0
 ) -> tuple[dict, Any, tuple[np.ndarray, ...], dict]:
     """The robot of a run config, the reference motion (:func:`reference`, 10 s periods) and
-    the config's MuJoCo ``measurement`` section at 1 % torque noise for ``seconds`` of log:
+    the config's MuJoCo ``measurement`` section for ``seconds`` of log, its torque noise
+    :func:`torque_noise_std` (1 % of each joint's RMS torque and ``noise_floor`` [N*m]):
     ``(raw config, robot, (t, q, dq, ddq), measurement)``. Shared with bench_signals.py."""
     raw = read_yaml(config)
     selection = RobotSelection.model_validate(raw["robot"]).resolved(config.parent)
@@ -111,7 +137,7 @@ def simulation_setup(
     t, q, dq, ddq = reference(robot, 1000.0, 10.0, np.random.default_rng(seed), amplitude=0.35)
     rms = np.sqrt(np.mean(robot.rnea(q, dq, ddq) ** 2, axis=0))
     measurement.update(
-        torque_noise_std=(0.01 * rms).tolist(),
+        torque_noise_std=torque_noise_std(rms, noise_floor),
         n_periods=int(round(seconds / 10.0)),
         settle_periods=1,
         payload=None,
@@ -127,13 +153,14 @@ def payload_section(payload: tuple) -> dict:
 
 def ident_payload(folder: Path, payload_cfg: dict) -> tuple[dict, float]:
     """Write ``payload_cfg`` and run ``ident payload`` on it: its ``payload.json`` and the
-    command's wall time [s]."""
+    command's wall time [s]. Exit code 1 (the estimate written, the model files not: its
+    ``model_files`` entry and a warning say why) is a result too."""
     path = folder / "payload.yaml"
     path.write_text(yaml.safe_dump(payload_cfg, sort_keys=False))
     t0 = time.perf_counter()
     result = CliRunner().invoke(app, ["payload", str(path), "--out", str(folder / "runs")])
     elapsed = time.perf_counter() - t0
-    if result.exit_code != 0:
+    if result.exit_code not in (0, EXIT_NO_MODEL_FILES):
         raise RuntimeError(result.output)
     (summary_path,) = (folder / "runs").glob("*/payload.json")
     return json.loads(summary_path.read_text()), elapsed
@@ -168,7 +195,9 @@ def simulate_logs(
     """Both MuJoCo logs (without and with ``payload``) of the config's arm: ``(raw config,
     robot, {"without": log section, "with": log section})``. ``seed`` draws the motion;
     ``noise_seed`` (default ``seed``) the simulated noise."""
-    raw, robot, (t, q, dq, ddq), measurement = simulation_setup(config, seconds=seconds, seed=seed)
+    raw, robot, (t, q, dq, ddq), measurement = simulation_setup(
+        config, seconds=seconds, seed=seed, noise_floor=noise_floors.get(config.stem, 0.0)
+    )
     logs = {}
     for name, with_payload in (("without", False), ("with", True)):
         section = dict(measurement)
@@ -322,15 +351,21 @@ def _cad_inputs(
     case: simulated and identified into ``folder``, or read back from its ``case.json`` when
     an earlier run left it there (``--workdir``: the payload runs alone are repeated)."""
     saved = folder / "case.json"
+    floor = noise_floors.get(config.stem, 0.0)
     if saved.exists():
         case = json.loads(saved.read_text())
+        found = case.get("noise_floor", 0.0)  # a workdir from before the floor had none
+        if found != floor:  # a workdir of another noise model
+            raise SystemExit(f"{saved}: simulated with a noise floor of {found} N*m, not {floor}")
         return read_yaml(config), case["logs"], Path(case["cad"]), Path(case["arm"])
     raw, robot, logs = simulate_logs(
         config, CAD_PAYLOAD, folder, seconds=seconds, seed=seed, noise_seed=noise_seed
     )
     cad = cad_urdf(robot, folder / "cad", signs)
     arm = identified_arm(raw, cad, logs["without"], folder / "arm")
-    saved.write_text(json.dumps({"logs": logs, "cad": str(cad), "arm": str(arm)}))
+    saved.write_text(
+        json.dumps({"logs": logs, "cad": str(cad), "arm": str(arm), "noise_floor": floor})
+    )
     return raw, logs, cad, arm
 
 
@@ -404,7 +439,7 @@ def seeds_main(
     cpu: dict[str, list[float]] = {}
     ok = True
     with tempfile.TemporaryDirectory() as scratch:
-        tmp = str(workdir or scratch)
+        tmp = str(workdir.resolve() if workdir else scratch)  # the configs name absolute paths
         for k in range(first, first + n_seeds):  # the robots alternate: a cut-short run has both
             for name in robots:
                 config = REPO / "configs" / f"{name}.yaml"
@@ -420,7 +455,8 @@ def seeds_main(
                     cases.setdefault(row["robot"], []).append(row)
                     fields = ("robot", "mass_error_pct", "com_error_mm")
                     record = {**{f: row[f] for f in fields}, "seed": k, "z": row["z"].tolist(),
-                              "warned": bool(row["summary"]["warnings"])}  # fmt: skip
+                              "warned": bool(row["summary"]["warnings"]),
+                              "model_files": _model_files_written(row)}  # fmt: skip
                     print(json.dumps(record), file=sys.stderr, flush=True)  # per seed, to merge
                     inside = abs(row["mass_error_pct"]) <= 2.0 and row["com_error_mm"] <= 5.0
                     ok &= inside or bool(row["summary"]["warnings"])
@@ -434,7 +470,8 @@ def _seeds_table(
 ) -> None:
     """Per case: median and worst |mass error| [%] and CoM error [m m], the share of the
     reported 95 % intervals holding the truth (mass, each CoM component, and all four pooled:
-    ``|error| <= 1.96 σ``, counted over seeds), the warning rate and the CPU per seed."""
+    ``|error| <= 1.96 σ``, counted over seeds; the pooled count with its Wilson 95 % interval),
+    the warning rate, the share of runs without model files and the CPU per seed."""
     errors = (
         "every link +10 % mass, +1 cm CoM in x"
         if signs_mode == "fixed"
@@ -442,12 +479,13 @@ def _seeds_table(
     )
     print(
         f"CAD arm ({errors}), {CAD_PAYLOAD[0]} kg payload at CoM {CAD_PAYLOAD[1]} m, "
-        f"{seconds:g} s logs, 1 % torque noise, method wls; seed k draws the motion and noise"
+        f"{seconds:g} s logs, torque noise {_noise_line()}, method wls; seed k draws the "
+        "motion and noise"
     )
     print("| case | seeds | mass error [%] median / worst | CoM error [mm] median / worst "
-          "| 95 % coverage mass / CoM x / y / z / all | RMS error/σ | warnings "
-          "| target met |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|")
+          "| 95 % coverage mass / CoM x / y / z / all | all: inside / intervals (Wilson 95 %) "
+          "| RMS error/σ | warnings | no model files | target met |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for case, rows in cases.items():
         mass = np.abs([r["mass_error_pct"] for r in rows])
         com = np.asarray([r["com_error_mm"] for r in rows])
@@ -456,9 +494,12 @@ def _seeds_table(
         cover = " / ".join(f"{100 * c:.0f}" for c in [*inside.mean(axis=0), inside.mean()])
         warned = np.mean([bool(r["summary"]["warnings"]) for r in rows])
         met = np.mean((mass <= 2.0) & (com <= 5.0))
+        no_files = np.mean([not _model_files_written(r) for r in rows])
+        lo, hi = wilson_interval(int(inside.sum()), inside.size)
         print(f"| {case} | {len(rows)} | {np.median(mass):.2f} / {mass.max():.2f} | "
               f"{np.median(com):.2f} / {com.max():.2f} | {cover} % | "
-              f"{np.sqrt(np.mean(z**2)):.2f} | {100 * warned:.0f} % | "
+              f"{inside.sum()} / {inside.size} ({100 * lo:.0f}-{100 * hi:.0f} %) | "
+              f"{np.sqrt(np.mean(z**2)):.2f} | {100 * warned:.0f} % | {100 * no_files:.0f} % | "
               f"{100 * met:.0f} % |")  # fmt: skip
     propagated = [r for rows in cases.values() for r in rows
                   if "is in the intervals" in r["summary"].get("arm_note", "")]  # fmt: skip
@@ -468,6 +509,31 @@ def _seeds_table(
             f"{name}: CPU per seed (2 simulated logs, ident identify, 3 ident payload) "
             f"median {np.median(seconds_cpu):.1f} s, max {max(seconds_cpu):.1f} s"
         )
+
+
+def _model_files_written(row: dict) -> bool:
+    """Whether the run of ``row`` wrote its model files (``payload.json``'s ``model_files``;
+    runs from before that entry wrote them or failed)."""
+    return bool(row["summary"].get("model_files", {"written": True})["written"])
+
+
+def _noise_line() -> str:
+    """The simulated torque noise in words (:data:`noise_floors`, :data:`RELATIVE_NOISE`)."""
+    floors = ", ".join(f"{k} {v:g} N*m" for k, v in noise_floors.items() if v > 0)
+    relative = f"{100 * RELATIVE_NOISE:g} % of each joint's RMS torque"
+    return f"{relative} and a floor ({floors}) in quadrature" if floors else relative
+
+
+def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score interval of a binomial share ``k / n`` (95 % by default): where the
+    coverage lies given ``k`` of ``n`` intervals holding the truth (a calibrated 95 % interval
+    over 80 independent draws: 76 expected, the spread sqrt(0.95 * 0.05 / 80) = 2.4 %)."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return float(centre - half), float(centre + half)
 
 
 def normalized_errors(summary: dict, mass: float, com: tuple) -> dict:
@@ -558,7 +624,7 @@ def run_designed_case(
                    if k != "source"}  # fmt: skip
     rms = np.sqrt(np.mean(robot.rnea(q, dq, ddq) ** 2, axis=0))
     measurement.update(
-        torque_noise_std=(0.01 * rms).tolist(),
+        torque_noise_std=torque_noise_std(rms, noise_floors.get("ur5", 0.0)),
         settle_periods=0,
         n_periods=1,
         payload=payload_section(
@@ -656,6 +722,21 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--first-seed", type=int, default=0, help="--seeds: the first seed")
     parser.add_argument(
+        "--noise",
+        choices=("floor", "relative"),
+        default="floor",
+        help="simulated torque noise: 1 %% of each joint's RMS torque and an absolute floor per "
+        "robot in quadrature (floor: ur5 0.1, panda 0.005 N*m), or the 1 %% alone (relative: "
+        "the benchmark's noise before the floor)",
+    )
+    parser.add_argument(
+        "--noise-floor",
+        type=float,
+        default=None,
+        metavar="NM",
+        help="--noise floor: this floor [N*m] for every robot instead of the per-robot ones",
+    )
+    parser.add_argument(
         "--workdir",
         type=Path,
         default=None,
@@ -663,6 +744,9 @@ def main(argv: list[str] | None = None) -> int:
         "is reused (only ident payload runs again)",
     )
     args = parser.parse_args(argv)
+    for name in noise_floors:  # the module's noise model for every case below
+        floor = TORQUE_NOISE_FLOOR[name] if args.noise_floor is None else args.noise_floor
+        noise_floors[name] = floor if args.noise == "floor" else 0.0
     if args.seeds > 0:
         robots = [r.strip() for r in args.robots.split(",")]
         return seeds_main(robots, args.seeds, args.seconds, args.cad_signs, args.first_seed,

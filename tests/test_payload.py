@@ -183,6 +183,46 @@ def test_bad_payload_section_is_one_error_line_and_nothing_written(payload_confi
     assert not out.exists() or not any(out.iterdir())
 
 
+def test_no_physical_arm_plus_payload_keeps_the_estimate_and_says_why(
+    ur5, payload_config, tmp_path, monkeypatch
+):
+    """A WLS payload that, added to the URDF's last body, is no physical body (one log on a
+    CAD arm: the payload absorbs the arm's errors): payload.json is written with the estimate
+    and a warning naming the failed check and the fix, no model files, exit code 1, and the
+    terminal says so (was: the model-file check's error, exit 2, nothing written)."""
+    from dataclasses import replace
+
+    from ident.dynamics.parameters import parameters_from_model
+    from ident.identify.corrections import signal_correction
+
+    real = signal_correction.identify_corrected_payload
+    last = parameters_from_model(ur5.model)[-10:]
+
+    def no_body(cfg, robot):  # the last body plus this payload: minus the last body's mass
+        return replace(real(cfg, robot), phi=-2.0 * last)
+
+    monkeypatch.setattr(signal_correction, "identify_corrected_payload", no_body)
+    _, config = payload_config
+    path = tmp_path / "payload.yaml"
+    path.write_text(yaml.safe_dump({**config, "payload": {**config["payload"], "method": "wls"}}))
+    out = tmp_path / "runs"
+    result = CliRunner().invoke(app, ["payload", str(path), "--out", str(out)])
+    assert result.exit_code == 1, result.output
+    (run,) = out.iterdir()
+    summary = json.loads((run / "payload.json").read_text())
+    note = summary["model_files"]["note"]
+    assert summary["model_files"]["written"] is False
+    assert note == summary["warnings"][-1]
+    assert f"mass = {-last[0]:.6g} kg must be > 0" in note  # the check that failed, its value
+    assert "wrist_3_joint" in note  # where
+    assert "payload.method: lmi" in note  # and the fix
+    assert f"warning: {note}" in result.output
+    assert "model files: not written" in result.output
+    assert summary["mass_kg"] == pytest.approx(3.0, rel=0.02)  # the estimate itself is kept
+    assert sorted(p.name for p in run.iterdir() if p.suffix in (".urdf", ".xml")) == []
+    assert json.loads((run / "run.json").read_text())["status"] == "complete"
+
+
 def test_centre_of_mass_reported_in_another_frame_of_the_last_link(ur5):
     """Noise-free rows of a known payload: the estimate is exact, and the centre of mass in a
     frame at pose (R, p) in the last joint's frame is R^T (c - p) (a wrong-way transform, or

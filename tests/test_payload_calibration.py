@@ -66,3 +66,31 @@ def test_mass_interval_covers_95_percent_with_the_arm_error_propagated(toy):
     assert abs(with_arm - 0.95) <= TOLERANCE, with_arm
     without = np.mean([mass_inside(toy, 1000 + k, False) for k in range(N_DRAWS // 5)])
     assert without < 0.8, without
+
+
+def test_benchmark_noise_has_a_floor_and_its_coverage_a_binomial_interval():
+    """benchmarks/bench_payload.py: the simulated torque noise is the floor and 1 % of each
+    joint's RMS torque added in variance (the floor alone on a joint with no load, the
+    relative part where it dominates; no floor: the 1 % alone, as bench_signals and
+    bench_stream simulate); the coverage's spread is the Wilson interval (scipy's)."""
+    import sys
+    from pathlib import Path
+
+    from scipy.stats import binomtest
+
+    repo = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(repo / "benchmarks"))
+    from bench_payload import simulation_setup, torque_noise_std, wilson_interval
+
+    np.testing.assert_allclose(
+        torque_noise_std(np.array([0.0, 3.0, 400.0]), 0.1), [0.1, 0.1 * np.sqrt(1.09), 4.0012498]
+    )
+    config = repo / "configs" / "ur5.yaml"
+    _, robot, (_, q, dq, ddq), plain = simulation_setup(config, seconds=10, seed=3)
+    _, _, _, floored = simulation_setup(config, seconds=10, seed=3, noise_floor=0.1)
+    rms = np.sqrt(np.mean(robot.rnea(q, dq, ddq) ** 2, axis=0))
+    np.testing.assert_allclose(plain["torque_noise_std"], 0.01 * rms)
+    np.testing.assert_allclose(floored["torque_noise_std"], np.hypot(0.1, 0.01 * rms))
+    for k, n in ((76, 80), (80, 80), (71, 80), (19, 20)):
+        expected = binomtest(k, n).proportion_ci(method="wilson")
+        np.testing.assert_allclose(wilson_interval(k, n), (expected.low, expected.high))

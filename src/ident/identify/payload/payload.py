@@ -49,7 +49,7 @@ import pinocchio as pin
 from ident.dynamics.chain import KinematicChain, chain_from_model
 from ident.dynamics.friction import ExtraTerms, extra_names
 from ident.dynamics.parameters import parameter_names, parameters_from_model
-from ident.errors import ConfigError, DataError, NotIdentifiable
+from ident.errors import ConfigError, DataError, ModelError, NotIdentifiable
 from ident.identify.config import PreprocessConfig
 from ident.identify.estimation import log_chunks, preprocess
 from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
@@ -65,6 +65,7 @@ from ident.identify.estimation.uncertainty import (
 )
 from ident.identify.estimators import get_estimator
 from ident.identify.estimators.problem import EstimationProblem, ParameterStructure
+from ident.identify.model_files.files import ModelFiles, model_files
 from ident.identify.payload import payload_arm
 from ident.identify.payload.payload_config import PayloadConfig
 from ident.identify.payload.payload_rows import (  # re-exported: the rows are part of the API
@@ -82,6 +83,7 @@ from ident.model.selection import load_robot
 from ident.robot.inertia import (
     PINOCCHIO_ORDER,
     com_and_inertia,
+    consistency_problems,
     parameters_from_com,
     transform_parameters,
 )
@@ -93,6 +95,7 @@ __all__ = [
     "PayloadResult",
     "arm_with_payload",
     "block_length",
+    "payload_model_files",
     "calibrated_std",
     "decimated_samples",
     "estimate_payload",
@@ -764,3 +767,34 @@ def arm_with_payload(robot: Robot, phi: npt.ArrayLike) -> tuple[FloatArray, tupl
     theta = parameters_from_model(robot.model).copy()
     theta[-10:] += np.asarray(phi, dtype=float)
     return theta, parameter_names(robot.n_bodies)
+
+
+def payload_model_files(robot: Robot, result: PayloadResult) -> tuple[ModelFiles | None, str]:
+    """The arm + payload model files (:func:`arm_with_payload`,
+    :func:`ident.identify.model_files.files.model_files`), or None and why they are not written.
+
+    A model file must be a physical body. The URDF's last body plus ``result.phi`` is one when
+    both are (the pseudo-inertia is linear in the parameters: a sum of two positive definite
+    ones), so with ``method: lmi`` it holds; the WLS payload is unconstrained, and where the
+    log does not tell the payload from the arm's errors (one log on a CAD arm) it can be no
+    body at all. That is a result, not bad input: the estimate is still reported, with the
+    reason the files are missing (returned as the second item, else ``""``).
+    """
+    theta, names = arm_with_payload(robot, result.phi)
+    problems = consistency_problems(theta[-10:])
+    if not problems:
+        try:
+            return model_files(robot, theta, names), ""
+        except ModelError as e:  # the URDF's other bodies, MuJoCo: the estimate still stands
+            return None, "model files not written: " + " ".join(str(e).split())
+    last = robot.model.names[robot.model.njoints - 1]
+    fix = (
+        "payload.method: lmi keeps the payload a physical body"
+        if result.method == "wls"
+        else "the URDF's own last body is not a physical body; fix its <inertial>"
+    )
+    return None, (
+        f"model files not written: the last moving body (joint {last}) plus the "
+        f"{result.method.upper()} payload is not physically consistent "
+        f"({'; '.join(problems)}); payload.json holds the estimate; {fix}."
+    )
