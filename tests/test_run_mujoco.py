@@ -10,11 +10,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robots import UR5_URDF
 from typer.testing import CliRunner
 
 from ident.cli import app
+from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError
 from ident.identify.assessment.rollout import rollout_text
+from ident.model import Robot
+from ident.run.log_measurement import reference_share
 from ident.run.setup import load_run
 from ident.trajectory import read_trajectory_csv
 
@@ -291,13 +296,6 @@ def test_major_parameters_are_judged_at_the_robots_own_acceleration_limits() -> 
     by exactly 10. (The shares were taken at 10 rad/s^2 whatever the robot's limits: a Kinova
     limited to 1.9 rad/s^2 had its rotor and wrist inertias judged "major".)
     """
-    from robots import UR5_URDF
-
-    from ident.dynamics.friction import ExtraTerms
-    from ident.dynamics.parameter_model import build_parameter_model
-    from ident.model import Robot
-    from ident.run.log_measurement import reference_share
-
     robot = Robot.from_urdf(UR5_URDF)
     terms = ExtraTerms.from_options(robot.nv, coulomb=False, offset=False)
     pm = build_parameter_model(robot.model, terms)
