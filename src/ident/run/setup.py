@@ -172,15 +172,7 @@ def estimate_run(
             * min(safety.config.check_samples, n)
             * safety.hull_seconds_per_posture
         )
-        period = float(getattr(family, "period", 10.0) or 10.0)
-        certificate = (o.n_report_elites + 1) * period * safety.config.check_rate_hz
-        # the dense check, at the CPU per posture the safety model measured (meshes of
-        # 100k triangles cost milliseconds where their hulls are close), and each mesh
-        # pair's smallest value made exact
-        certificate *= (
-            _CERTIFICATE_SHARE * safety.seconds_per_posture
-            + _SMALLEST_SHARE * safety.mesh_seconds_per_posture
-        )
+        certificate = _certificate_seconds(o.n_report_elites, family, safety)
     seconds = evaluations * per_evaluation + certificate + _SECONDS_FIXED
     # the retry runs the optimizer (not the elite search) and the certificate once more
     retry = optimizer * per_evaluation + certificate if safety is not None else 0.0
@@ -205,6 +197,19 @@ def estimate_run(
         seconds,
         worst_seconds=seconds + retry,
         worst_case="if the design is retried at a wider safety margin",
+    )
+
+
+def _certificate_seconds(n_report_elites: int, family: Any, safety: SafetyModel) -> float:
+    """The dense check's CPU [s] of the reported elites' periods and the executed trajectory,
+    at the CPU per posture the safety model measured (meshes of 100k triangles cost
+    milliseconds where their hulls are close), with each mesh pair's smallest value made
+    exact."""
+    period = float(getattr(family, "period", 10.0) or 10.0)
+    samples = (n_report_elites + 1) * period * safety.config.check_rate_hz
+    return samples * (
+        _CERTIFICATE_SHARE * safety.seconds_per_posture
+        + _SMALLEST_SHARE * safety.mesh_seconds_per_posture
     )
 
 
