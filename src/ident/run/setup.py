@@ -128,10 +128,12 @@ _SECONDS_PER_LOG_SAMPLE = 30e-6
 # 1160 s from random postures); the approach and return are included
 _CERTIFICATE_SHARE = 0.25
 # the share of the samples at which the dense check measures a mesh pair to make its smallest
-# value exact (its hulls' distance is below that value): Z1 --quick, 4362 exact distances over
-# 24 mesh pairs and 11001 samples (1.7 %; one pair whose distance barely changes, a link
-# turning about its own axis, 21 %), 39 of its 44 s of CPU
-_SMALLEST_SHARE = 0.02
+# value exact (its hulls' distance is below that value), at the CPU of every mesh pair at one
+# posture: Z1 --quick, 4362 exact distances over 24 mesh pairs and 11001 samples (1.7 %; one
+# pair whose distance barely changes, a link turning about its own axis, 21 %), 39 of its 44 s
+# of CPU; 0.02 made SO-101's --quick (meshes of 100k triangles, hulls close to them) 2.5x its
+# CPU, 0.01 keeps both within 2x (Z1 0.57-0.86, SO-101 about 2 with a loaded machine's timing)
+_SMALLEST_SHARE = 0.01
 # the objective's cheap clearance term per design over the hulls' CPU timed per posture: it is
 # vectorized over the swarm and stops measuring a pair once no posture left can be closer
 # (SafetyModel.fast_min_clearances). Objective CPU per design on 20 random designs: UR10
