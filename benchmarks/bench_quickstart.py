@@ -15,7 +15,9 @@ README.md and printed with the ratio measured / stated, so a stale documented ti
 then the full ``ident run CONFIG`` it wrote, as ``docs/your-robot.md`` tells a newcomer to.
 
 ``--zoo`` runs ``ident init`` then ``ident run CONFIG --quick`` on the example-robot-data arms
-(:data:`ZOO`; ``--zoo NAME ...`` for some of them) and prints per robot: the CPU of each,
+(:data:`ZOO`) and the fetched ones (:data:`FETCHED`: ``sh benchmarks/fetch_iiwa.sh DIR``, then
+``--fetched DIR``; skipped with the reason when absent); ``--zoo NAME ...`` for some of
+them. It prints per robot: the CPU of each,
 ``init``'s and ``run``'s estimates of the quick run against its CPU (the ratio, marked ``!``
 outside [0.5, 2]), the verdict, the worst parameter error, the smallest clearance (from the
 run folder's result.json) and the independent check: the run's ``trajectory.csv`` re-checked
@@ -25,7 +27,8 @@ budget (``ident run CONFIG``, no ``--quick``; 2-15 min of CPU per robot); ``--ke
 keeps the configs and run folders.
 
 Budget: about 1.5 min for the default pair on a loaded 2-core machine; ``--zoo``: about
-30 min for the eleven arms.
+30 min of CPU for the eleven arms and the iiwa (--quick; several times that in wall time
+on a shared machine).
 """
 
 from __future__ import annotations
@@ -56,6 +59,14 @@ ZOO: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("so101", "so_arm_description/urdf/so101.urdf", ()),
     ("baxter_left", "baxter_description/urdf/baxter.urdf", ()),  # init picks the left arm
     ("tiago_arm", "tiago_description/robots/tiago.urdf", ("--tip-link", "arm_7_link")),
+)
+
+#: Robots of ``--zoo`` that example-robot-data lacks, fetched by a script beside this file into
+#: the folder given as ``--fetched``: name, its description under that folder, the script;
+#: ``init`` reads it with ``--package-dir`` that folder. The KUKA iiwa 14 is a ROS
+#: workspace's xacro (IFL-CAMP/iiwa_stack's iiwa_description), as a ROS user has it.
+FETCHED: tuple[tuple[str, str, str], ...] = (
+    ("iiwa14", "iiwa_description/urdf/iiwa14.urdf.xacro", "fetch_iiwa.sh"),
 )
 
 
@@ -97,9 +108,12 @@ def main() -> None:
         "--full", nargs="+", metavar="NAME", help="init + the full run (no --quick) on these arms"
     )
     parser.add_argument("--keep", type=Path, help="--zoo/--full: keep the run folders here")
+    parser.add_argument(
+        "--fetched", type=Path, help="--zoo/--full: the folder fetch_iiwa.sh filled (iiwa14)"
+    )
     args = parser.parse_args()
     if args.zoo is not None or args.full is not None:
-        zoo(args.full or args.zoo, quick=args.full is None, keep=args.keep)
+        zoo(args.full or args.zoo, quick=args.full is None, keep=args.keep, fetched=args.fetched)
         return
     if args.newcomer is not None:
         newcomer(args.newcomer, args.package_dir)
@@ -225,15 +239,38 @@ def _ratio(estimate: float, measured: float) -> str:
     return f"{ratio:.2f}" + ("" if 0.5 <= ratio <= 2.0 else "!")
 
 
-def zoo(names: list[str], quick: bool = True, keep: Path | None = None) -> None:
-    """``ident init`` then ``ident run --quick`` (the full run when not ``quick``) on each arm
-    of :data:`ZOO` (all, or ``names``): CPU, estimates against the CPU, verdict, worst error,
-    smallest clearance; the run folders are kept in ``keep`` when given."""
+def zoo_robots(
+    names: list[str], fetched: Path | None
+) -> list[tuple[str, Path | None, tuple[str, ...], str]]:
+    """The arms of :data:`ZOO` and :data:`FETCHED` named in ``names`` (all when empty): name,
+    description file (None when absent), extra ``init`` options, and why it is absent."""
     import importlib.metadata
 
     share = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share")
     robots = Path(str(share)) / "example-robot-data/robots"
-    chosen = [z for z in ZOO if not names or z[0] in names]
+    out: list[tuple[str, Path | None, tuple[str, ...], str]] = [
+        (name, robots / path, extra, "") for name, path, extra in ZOO if not names or name in names
+    ]
+    for name, path, script in FETCHED:
+        if names and name not in names:
+            continue
+        if fetched is None or not (fetched / path).is_file():
+            where = "no --fetched DIR" if fetched is None else f"no {path} in {fetched}"
+            why = f"not fetched ({where}; sh benchmarks/{script} DIR, then --fetched DIR)"
+            out.append((name, None, (), why))
+        else:
+            out.append((name, fetched / path, ("--package-dir", str(fetched)), ""))
+    return out
+
+
+def zoo(
+    names: list[str], quick: bool = True, keep: Path | None = None, fetched: Path | None = None
+) -> None:
+    """``ident init`` then ``ident run --quick`` (the full run when not ``quick``) on each arm
+    of :data:`ZOO` and :data:`FETCHED` (all, or ``names``; a fetched one is looked for in
+    ``fetched``): CPU, estimates against the CPU, verdict, worst error, smallest clearance; the
+    run folders are kept in ``keep`` when given."""
+    chosen = zoo_robots(names, fetched)
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
     print(
         f"{'robot':12s} {'init CPU':>9s} {'run CPU':>9s} {'init est':>8s} {'ratio':>6s} "
@@ -242,9 +279,12 @@ def zoo(names: list[str], quick: bool = True, keep: Path | None = None) -> None:
     )
     with tempfile.TemporaryDirectory(prefix="ident-zoo-") as tmp:
         out = tmp if keep is None else str(keep)
-        for name, path, extra in chosen:
+        for name, path, extra, why in chosen:
+            if path is None:
+                print(f"{name:12s} skipped: {why}", flush=True)
+                continue
             config = Path(out) / f"{name}.yaml"
-            init_cpu, code, text = _cpu_job(["init", str(robots / path), "-o", str(config), *extra])
+            init_cpu, code, text = _cpu_job(["init", str(path), "-o", str(config), *extra])
             if code != 0:
                 print(
                     f"{name:12s} {init_cpu:9.1f}  init failed: {text.strip().splitlines()[-1][:90]}"

@@ -10,11 +10,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from robots import UR5_URDF
 from typer.testing import CliRunner
 
 from ident.cli import app
+from ident.dynamics.friction import ExtraTerms
+from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError
 from ident.identify.assessment.rollout import rollout_text
+from ident.model import Robot
+from ident.run.log_measurement import reference_share
 from ident.run.setup import load_run
 from ident.trajectory import read_trajectory_csv
 
@@ -279,3 +284,32 @@ def test_a_failed_simulation_leaves_no_torques_and_names_its_cause(tmp_path, mon
     assert (run / "replay.html").is_file()
     state, saved = _statuses(run)
     assert state == saved == ("complete", "run complete")
+
+
+def test_major_parameters_are_judged_at_the_robots_own_acceleration_limits() -> None:
+    """The reference torque share (which parameters are *major* for the verdict) is taken on
+    random states within the limits the run keeps, its acceleration limits included.
+
+    Closed form: joint j's rotor-inertia column is ``ddq_j`` and its viscous column ``dq_j``
+    (both "alone" on row j), and the uniform accelerations scale with the limit, so limiting
+    every joint to 1 rad/s^2 instead of the default 10 divides ``share(Ia_j) / share(fv_j)``
+    by exactly 10. (The shares were taken at 10 rad/s^2 whatever the robot's limits: a Kinova
+    limited to 1.9 rad/s^2 had its rotor and wrist inertias judged "major".)
+    """
+    robot = Robot.from_urdf(UR5_URDF)
+    terms = ExtraTerms.from_options(robot.nv, coulomb=False, offset=False)
+    pm = build_parameter_model(robot.model, terms)
+    truth = np.array(pm.nominal, dtype=float)
+    index = {n: i for i, n in enumerate(pm.names)}
+    for j in range(robot.nv):
+        truth[index[f"Ia{j + 1}"]], truth[index[f"fv{j + 1}"]] = 0.1, 1.0
+    base = {n: i for i, n in enumerate(pm.base.base_names)}
+    alone = [j for j in range(robot.nv) if f"Ia{j + 1}" in base]  # Ia1 joins Izz1R
+    assert len(alone) >= 4
+    ia, fv = [[base[f"{k}{j + 1}"] for j in alone] for k in ("Ia", "fv")]
+    default = reference_share(pm, truth, robot)  # no acceleration limit known: 10 rad/s^2
+    robot.ddq_max = np.full(robot.nv, 1.0)
+    limited = reference_share(pm, truth, robot)
+    np.testing.assert_allclose(
+        limited[ia] / limited[fv], 0.1 * default[ia] / default[fv], rtol=1e-9
+    )

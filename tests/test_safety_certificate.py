@@ -175,6 +175,14 @@ def test_certificate_agrees_with_an_independent_mesh_loop(name, ur5_setup) -> No
     if name == "paper":
         assert independent_ok
         assert certified_ok
+    # the run's estimate: every mesh pair's exact distance at one posture (timed), which holds
+    # the near pairs' share the dense check's own CPU per posture counts; none without meshes
+    extra = safety.seconds_per_posture - safety.hull_seconds_per_posture
+    if name == "paper":
+        assert safety.mesh_seconds_per_posture == 0.0
+    else:
+        assert safety.mesh_seconds_per_posture > 0.0
+        assert safety.mesh_seconds_per_posture >= extra - 1e-12
 
 
 def test_motion_bound_covers_the_distance_change_between_nearby_postures(ur5_setup) -> None:

@@ -188,7 +188,8 @@ def _elites_section(data: dict[str, Any], stage: dict[str, Any] | None) -> list[
         "at least 1e-4 of the stage's torques (Error(share >= 1e-4)) and without the two "
         "largest (Error(all-2), the paper's Error(20)). Major parameters: those that explain "
         "at least 1 % of the stage's torques when the robot moves at full capability (random "
-        "states within the limits; the same set for every trajectory of the stage, see "
+        "states within the position, velocity and acceleration limits; the same set for "
+        "every trajectory of the stage, see "
         "`reference_torque_share` in result.json).",
         "",
     ]

@@ -25,7 +25,6 @@ import pinocchio as pin
 import yaml
 
 from ident.dynamics.base_parameters import torque_shares
-from ident.dynamics.chain import random_states
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
 from ident.dynamics.parameters import payload_on_joint
@@ -200,10 +199,15 @@ def reference_share(
 ) -> FloatArray:
     """Share of the torques each base parameter explains, on random states of the robot.
 
-    ``|beta_i| ||W_i|| / ||W_b beta||`` with ``W_b`` the base columns on the random states the
-    base parameters were found on: unit-free and independent of the trajectory, shape (n_base,).
+    ``|beta_i| ||W_i|| / ||W_b beta||`` with ``W_b`` the base columns on random states within
+    the robot's limits (:meth:`~ident.model.Robot.random_configurations`: the position range,
+    the velocity and the acceleration limits the run keeps, 10 rad/s^2 where none is known):
+    unit-free and independent of the trajectory, shape (n_base,).
     """
-    q, dq, ddq = random_states(robot.chain, _N_SHARE_STATES, rng=rng)
+    # the robot's own acceleration limits, as the design keeps them: a Kinova limited to
+    # 1.9 rad/s^2 moved at 10 rad/s^2 made its rotor and wrist inertias "major" (4x their
+    # share at its real capability) though no trajectory within its limits can show them
+    q, dq, ddq = robot.random_configurations(_N_SHARE_STATES, rng=rng)
     Yb = pm.columns(
         joint_torque_regressor(robot.chain, q, dq, ddq),
         extra_columns(pm.terms, dq, ddq),

@@ -127,6 +127,20 @@ _SECONDS_PER_LOG_SAMPLE = 30e-6
 # a designed trajectory keeps its meshes farther apart (SO-101 --quick: 300 s measured,
 # 1160 s from random postures); the approach and return are included
 _CERTIFICATE_SHARE = 0.25
+# the share of the samples at which the dense check measures a mesh pair to make its smallest
+# value exact (its hulls' distance is below that value), at the CPU of every mesh pair at one
+# posture: Z1 --quick, 4362 exact distances over 24 mesh pairs and 11001 samples (1.7 %; one
+# pair whose distance barely changes, a link turning about its own axis, 21 %), 39 of its 44 s
+# of CPU; 0.02 made SO-101's --quick (meshes of 100k triangles, hulls close to them) 2.5x its
+# CPU, 0.01 keeps both within 2x (Z1 0.57-0.86, SO-101 about 2 with a loaded machine's timing)
+_SMALLEST_SHARE = 0.01
+# the objective's cheap clearance term per design over the hulls' CPU timed per posture: it is
+# vectorized over the swarm and stops measuring a pair once no posture left can be closer
+# (SafetyModel.fast_min_clearances). Objective CPU per design on 20 random designs: UR10
+# 6.6 ms, Z1 9.0, Kinova 11.7, Baxter 37.8, SO-101 37.5; the regressor's share plus 0.35 x the
+# hulls' per check sample gives 6.3, 12.4, 10.5, 35.7, 38.2 ms (1.0 gave 11-104 ms: a UR10
+# full run of 48 s of CPU was estimated 121 s)
+_OBJECTIVE_HULL_SHARE = 0.35
 # start-up (imports), the safety model, the identification, the report and its figures:
 # 25-40 s of CPU measured on the UR5, Baxter and SO-101 --quick runs (2 cores, loaded)
 _SECONDS_FIXED = 30.0
@@ -155,12 +169,12 @@ def estimate_run(
         per_evaluation *= 3.0
     certificate = 0.0
     if safety is not None:  # the hulls' CPU per posture, timed when the model was built
-        per_evaluation += min(safety.config.check_samples, n) * safety.hull_seconds_per_posture
-        period = float(getattr(family, "period", 10.0) or 10.0)
-        certificate = (o.n_report_elites + 1) * period * safety.config.check_rate_hz
-        # the dense check, at the CPU per posture the safety model measured (meshes of
-        # 100k triangles cost milliseconds where their hulls are close)
-        certificate *= _CERTIFICATE_SHARE * safety.seconds_per_posture
+        per_evaluation += (
+            _OBJECTIVE_HULL_SHARE
+            * min(safety.config.check_samples, n)
+            * safety.hull_seconds_per_posture
+        )
+        certificate = _certificate_seconds(o.n_report_elites, family, safety)
     seconds = evaluations * per_evaluation + certificate + _SECONDS_FIXED
     # the retry runs the optimizer (not the elite search) and the certificate once more
     retry = optimizer * per_evaluation + certificate if safety is not None else 0.0
@@ -185,6 +199,19 @@ def estimate_run(
         seconds,
         worst_seconds=seconds + retry,
         worst_case="if the design is retried at a wider safety margin",
+    )
+
+
+def _certificate_seconds(n_report_elites: int, family: Any, safety: SafetyModel) -> float:
+    """The dense check's CPU [s] of the reported elites' periods and the executed trajectory,
+    at the CPU per posture the safety model measured (meshes of 100k triangles cost
+    milliseconds where their hulls are close), with each mesh pair's smallest value made
+    exact."""
+    period = float(getattr(family, "period", 10.0) or 10.0)
+    samples = (n_report_elites + 1) * period * safety.config.check_rate_hz
+    return samples * (
+        _CERTIFICATE_SHARE * safety.seconds_per_posture
+        + _SMALLEST_SHARE * safety.mesh_seconds_per_posture
     )
 
 

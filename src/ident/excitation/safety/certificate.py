@@ -196,12 +196,13 @@ def _pair_clearances(checked: CheckedPairs, q: npt.ArrayLike, columns: Sequence[
 
 def _poor_hull_pairs(
     checked: CheckedPairs, postures: FloatArray, clearance_m: float
-) -> tuple[npt.NDArray[np.bool_], float, float]:
+) -> tuple[npt.NDArray[np.bool_], float, float, float]:
     """Mesh pairs whose hulls are closer than the margin ``clearance_m`` [m] in at least half
     of 100 sampled ``postures``: the cheap term measures them on the meshes (a hull would
     forbid too much). Also returns the model's ``seconds_per_posture`` (the CPU of one
-    posture of the dense check, :func:`_exact_cost` included) and
-    ``hull_seconds_per_posture`` (the hulls' alone) [s]."""
+    posture of the dense check, :func:`_exact_cost` included), ``hull_seconds_per_posture``
+    (the hulls' alone) and ``mesh_seconds_per_posture`` (every mesh pair's exact distance at
+    one posture) [s]."""
     poor = np.zeros(checked.mesh.shape, dtype=bool)
     n = 101 if checked.mesh.any() and clearance_m > 0.0 else 11
     start = time.process_time()
@@ -209,28 +210,33 @@ def _poor_hull_pairs(
     seconds_per_posture = (time.process_time() - start) / n
     hull_seconds_per_posture = seconds_per_posture
     if n == 11:
-        return poor, seconds_per_posture, hull_seconds_per_posture
-    seconds_per_posture += _exact_cost(checked, postures, clearance_m, hull)
+        return poor, seconds_per_posture, hull_seconds_per_posture, 0.0
+    near, mesh_seconds = _exact_cost(checked, postures, clearance_m, hull)
+    seconds_per_posture += near
     poor = checked.mesh & (np.mean(hull < clearance_m, axis=0) >= 0.5)
-    return poor, seconds_per_posture, hull_seconds_per_posture
+    return poor, seconds_per_posture, hull_seconds_per_posture, mesh_seconds
 
 
 def _exact_cost(
     checked: CheckedPairs, postures: FloatArray, clearance_m: float, hull: FloatArray
-) -> float:
+) -> tuple[float, float]:
     """The meshes' CPU of one posture of the dense check [s], to add to the hulls' and
     primitives' (timed): from ``hull``, the hulls' distances at sampled ``postures``
     (n, n_geometry_pairs) [m], each mesh pair's exact distance (timed here on one posture)
     where its hulls are within the margin and 1 mm (where the dense check,
-    :func:`_clearances` with ``within``, measures the mesh)."""
+    :func:`_clearances` with ``within``, measures the mesh). Also the CPU of every mesh
+    pair's exact distance at that posture [s]: the dense check makes each pair's smallest
+    value exact (:func:`_exact_smallest`), wherever it is, which costs a share of that."""
     mesh = np.flatnonzero(checked.mesh)
     share = np.mean(hull[:, mesh] < clearance_m + 1e-3, axis=0)
     needed = mesh[share > 0.0]
-    if not needed.size:
-        return 0.0
     gdata = _geometry_data(checked.exact)
     row = np.zeros(hull.shape[1])
     start = time.process_time()
     _exact_into(checked, postures[1], needed.tolist(), gdata, row)
-    per_pair = (time.process_time() - start) / needed.size
-    return per_pair * float(share.sum())
+    near = time.process_time() - start
+    _exact_into(checked, postures[1], mesh[share == 0.0].tolist(), gdata, row)
+    every = time.process_time() - start
+    if not needed.size:
+        return 0.0, every
+    return near / needed.size * float(share.sum()), every

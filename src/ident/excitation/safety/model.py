@@ -91,10 +91,12 @@ class SafetyModel:
         above both links of a pair move them together and count 0).
     reach_m :
         A bound on the distance of any point of the robot from its base [m].
-    seconds_per_posture, hull_seconds_per_posture :
+    seconds_per_posture, hull_seconds_per_posture, mesh_seconds_per_posture :
         CPU of one posture of the dense check [s] (the meshes' exact distances timed when
-        the model is built, at random postures), and of the same on the hulls (the
-        optimizer's cheap term), for the run's time estimate.
+        the model is built, at random postures), of the same on the hulls (the optimizer's
+        cheap term), and of every mesh pair's exact distance at one posture (a share of the
+        dense check's samples makes each pair's smallest value exact), for the run's time
+        estimate.
     keepable_clearances :
         Per tested link pair, its largest clearance over the sampled postures [m]: exact
         below the margin asked for, at least that margin otherwise.
@@ -126,6 +128,7 @@ class SafetyModel:
         )
         self.margin_note = ""
         self.seconds_per_posture = self.hull_seconds_per_posture = 0.0  # _poor_hull_pairs
+        self.mesh_seconds_per_posture = 0.0
         self.keepable_clearances: dict[tuple[str, str], float] = {}  # see _settle_margin
         self.robot_model: pin.Model = robot.model
         self.limits = JointLimits.from_robot(robot)
@@ -258,9 +261,10 @@ class SafetyModel:
             self.n_pairs,
             _mesh_pairs(geom, kept),
         )
-        poor, self.seconds_per_posture, self.hull_seconds_per_posture = _poor_hull_pairs(
+        poor, self.seconds_per_posture, self.hull_seconds_per_posture, mesh = _poor_hull_pairs(
             self._checked, self.postures, self.clearance_m
         )
+        self.mesh_seconds_per_posture = mesh
         self._fast = FastClearances(self._checked, poor)
 
     # ------------------------------------------------------------------ measuring
