@@ -66,6 +66,7 @@ __all__ = [
     "RolloutMeasurements",
     "RolloutScore",
     "held_out_windows",
+    "identification_ranges",
     "identify_rollout",
     "reference_mjcf",
     "rollout_check",
@@ -430,6 +431,16 @@ def identification_windows(
     :func:`held_out_windows` does (same parameters, returns and errors). No window shares a
     sample with a held-out window.
     """
+    return _part_windows(
+        result, identification_ranges(result), "identification", window_s, max_windows
+    )
+
+
+def identification_ranges(result: Any) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The identification part's raw samples: per segment ``(a, b)`` of ``result.log``, the
+    ``[r0, r1)`` ranges before and after its held-out range (the whole segment when it has
+    none), without the ``preprocess.trim_samples`` at each end of the segment; no range shares
+    a sample with the held-out range (:func:`held_out_windows`)."""
     log = result.log
     trim = int(result.config.preprocess.trim_samples)
     held = dict(_held_out_ranges(log, np.asarray(result.t_validate)))
@@ -439,7 +450,7 @@ def identification_windows(
         for r0, r1 in ((a + trim, lo - 1), (hi + 1, b - trim)):
             if r1 > r0:
                 ranges.append(((a, b), (r0, r1)))
-    return _part_windows(result, ranges, "identification", window_s, max_windows)
+    return ranges
 
 
 def _part_windows(
