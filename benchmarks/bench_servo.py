@@ -37,7 +37,7 @@ inertia per link, armature, damping, friction loss, ``kp`` and ``kv`` per joint,
 scored by the held-out 1 s rollout over the truth's, with the process CPU time of each call.
 
     PYTHONPATH=src python benchmarks/bench_servo.py --robot so101 --peer sysid [--seeds 5]
-        [--sysid-starts cad ident near-cad] [--max-iters 200]
+        [--sysid-starts cad ident near-cad] [--max-iters 200] [--sysid-cpu-budget S]
 """
 
 from __future__ import annotations
@@ -323,7 +323,12 @@ def sysid_case(result, robot: Robot, first: SimulatedLog) -> bench_peers.Case:
     return bench_peers.Case("so101", SimpleNamespace(robot=robot), first, 0, servo)
 
 
-def run_so101_sysid(seeds: int, max_iters: int, starts: tuple[str, ...] = SYSID_STARTS) -> None:
+def run_so101_sysid(
+    seeds: int,
+    max_iters: int,
+    starts: tuple[str, ...] = SYSID_STARTS,
+    cpu_budget_s: float | None = None,
+) -> None:
     """Per seed: ident (``IDENT_WAY``) and mujoco.sysid (bench_peers.py's best set-up,
     :func:`sysid_case`) from each of ``starts`` on the same episodes, each scored by
     the held-out 1 s rollout over the truth's (:func:`so101_rollout`), with its process CPU
@@ -358,6 +363,7 @@ def run_so101_sysid(seeds: int, max_iters: int, starts: tuple[str, ...] = SYSID_
                     window_s=SYSID_WINDOW_S,
                     max_iters=max_iters,
                     ident_model=ident_model,
+                    cpu_budget_s=cpu_budget_s,
                 )
                 for start in starts
             ]
@@ -415,13 +421,20 @@ def main() -> None:
         choices=["cad", "ident", "near-cad"],
         help="--peer sysid: its starting models",
     )
+    parser.add_argument(
+        "--sysid-cpu-budget",
+        type=float,
+        default=None,
+        help="--peer sysid: stop it after this many CPU seconds, reported as not converged",
+    )
     args = parser.parse_args()
     if args.peer is not None and args.robot != "so101":
         parser.error("--peer sysid runs on --robot so101")
     if args.robot == "so101":
         set_delay(args.delay_ms)
         if args.peer == "sysid":
-            run_so101_sysid(args.seeds, args.max_iters, tuple(args.sysid_starts))
+            starts = tuple(args.sysid_starts)
+            run_so101_sysid(args.seeds, args.max_iters, starts, args.sysid_cpu_budget)
         else:
             run_so101(args.seeds)
         return
