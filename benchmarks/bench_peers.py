@@ -92,7 +92,7 @@ from ident.identify.model_files.fused_bodies import fused_bodies, parse_urdf
 from ident.identify.model_files.mjcf import identified_mjcf
 from ident.identify.pipeline.core import identify_measurements
 from ident.measure.logs import read_log
-from ident.measure.mujoco_model import dynamics_only_urdf
+from ident.measure.mujoco_model import FRICTION_SOLIMP, dynamics_only_urdf
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.run.elite_identification import elite_trajectory
 from ident.run.log_measurement import identify_config, true_parameters
@@ -107,13 +107,36 @@ FloatArray = np.ndarray
 
 
 @dataclass
+class ServoLog:
+    """A log of position servos that log no torque, as mujoco.sysid gets it
+    (``benchmarks/bench_servo.py --peer sysid``): the samples ``ident identify`` read.
+
+    ``q``, ``q_cmd``: measured and commanded positions [rad], shapes (n, nv), on one uniform
+    grid per ``segments`` ``[start, stop)`` (episodes); ``ranges``: the identification part's
+    ``[lo, hi)`` samples (within segments, the held-out part and the trims left out); ``kp``
+    [N*m/rad], ``kv`` [N*m*s/rad]: the servos' true gains, shapes (nv,); ``forcerange`` [N*m];
+    ``delay_steps``: the command's delay in samples (MuJoCo's actuator delay, whole samples).
+    """
+
+    q: FloatArray
+    q_cmd: FloatArray
+    segments: list[tuple[int, int]]
+    ranges: list[tuple[int, int]]
+    kp: FloatArray
+    kv: FloatArray
+    forcerange: float
+    delay_steps: int
+
+
+@dataclass
 class Case:
     """One robot's simulated log and everything both tools need."""
 
     name: str
     setup: Any
-    log: SimulatedLog
-    n_identify: int  # samples of the identification part (the first ones)
+    log: SimulatedLog  # a servo case's first episode: its truth and rate are every episode's
+    n_identify: int  # samples of the identification part (the first ones; torque logs)
+    servo: ServoLog | None = None  # position servos: sysid's controls are the commands
 
 
 @dataclass
@@ -235,7 +258,8 @@ def ident_written_model(result: Any) -> mujoco.MjModel:
 
 
 def sysid_spec(case: Case) -> tuple[mujoco.MjSpec, list[str], list[str]]:
-    """The robot as an MjSpec for mujoco.sysid: motors, joint-position sensors, fused bodies.
+    """The robot as an MjSpec for mujoco.sysid: motors (a servo case: ``<position>`` servos,
+    :func:`_add_actuator`), joint-position and velocity sensors, fused bodies.
 
     Same URDF text as ident's simulator (:func:`dynamics_only_urdf`), same timestep, integrator
     and gravity; contacts and joint limits off; constraints on (``frictionloss`` is one). Bodies
@@ -261,6 +285,9 @@ def sysid_spec(case: Case) -> tuple[mujoco.MjSpec, list[str], list[str]]:
             if not child.joints:
                 spec.delete(child)
     spec.option.timestep = 1.0 / case.log.rate_hz
+    # an iterate whose principal inertias miss A + B >= C by rounding (a thin link near a
+    # bound) stops the compiler; its message's fix, which leaves a valid inertia as it is
+    spec.compiler.balanceinertia = True
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
     spec.option.gravity = np.asarray(robot.model.gravity.linear, dtype=float)
     spec.option.disableflags |= (
@@ -273,7 +300,8 @@ def sysid_spec(case: Case) -> tuple[mujoco.MjSpec, list[str], list[str]]:
         sj.limited = mujoco.mjtLimited.mjLIMITED_FALSE
         for attr in ("armature", "damping", "frictionloss"):
             set_joint(sj, attr, 0.0)
-        spec.add_actuator(name=f"{j}_motor", target=j, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    for k, j in enumerate(joints):
+        _add_actuator(spec, j, case.servo, k)
     # all positions, then all velocities: the sensor columns of the windows' measured data
     for kind, sensor in (
         ("pos", mujoco.mjtSensor.mjSENS_JOINTPOS),
@@ -284,6 +312,27 @@ def sysid_spec(case: Case) -> tuple[mujoco.MjSpec, list[str], list[str]]:
                 name=f"{j}_{kind}", type=sensor, objname=j, objtype=mujoco.mjtObj.mjOBJ_JOINT
             )
     return spec, bodies, joints
+
+
+def _add_actuator(spec: mujoco.MjSpec, joint: str, servo: ServoLog | None, k: int) -> None:
+    """Joint ``joint``'s actuator ``<joint>_motor``: a torque motor, or (``servo``, joint
+    ``k``) the simulated servo's model class, MuJoCo's ``<position>`` (its true gains here;
+    the parameters set them), force range and command delay of ``servo.delay_steps`` samples
+    read with zero-order hold, and the friction loss's stiff constraint, as
+    :mod:`ident.measure.mujoco_model` builds the simulator's (sysid's model class is then the
+    truth's: the most it could be given)."""
+    act = spec.add_actuator(name=f"{joint}_motor", target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    if servo is None:
+        return
+    sj = spec.joint(joint)
+    sj.solref_friction = [2.0 * float(spec.option.timestep), 1.0]
+    sj.solimp_friction = list(FRICTION_SOLIMP)
+    act.set_to_position(kp=float(servo.kp[k]), kv=float(servo.kv[k]))
+    act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    act.forcerange = [-servo.forcerange, servo.forcerange]
+    if servo.delay_steps > 0:
+        act.nsample, act.interp = servo.delay_steps, 0
+        act.delay = (servo.delay_steps - 0.5) * float(spec.option.timestep)
 
 
 def set_joint(joint: Any, attr: str, value: float) -> None:
@@ -327,7 +376,10 @@ def _theta_modifier(body_name: str) -> Any:
 #: at :data:`JOINT_TERM_START` x its truth; ``ident``: ident's written model (its MJCF: bodies,
 #: armature, viscous and Coulomb friction); ``bad-cad``: every mass 4x, every centre of mass
 #: 8 cm off (outside the +-5 cm box sysid's parameter is then given), joint terms as ``cad``.
-SYSID_STARTS = ("cad", "ident", "bad-cad")
+#: On a servo log (:class:`ServoLog`) ``cad`` has the joint terms off (the URDF as a user has
+#: it) and ``near-cad`` has them at :data:`JOINT_TERM_START` x the truth (``cad`` on a torque
+#: log); the gains start at that factor x the truth in both.
+SYSID_STARTS = ("cad", "ident", "bad-cad", "near-cad")
 #: Rollout threads of sysid's residual (its default: every core).
 SYSID_THREADS = 2
 #: The CAD start's joint terms over their truth (50 % off).
@@ -349,7 +401,7 @@ def _start_spec(
             sb.ipos, sb.iquat = np.array(mb.ipos), np.array(mb.iquat)
             sb.inertia = np.array(mb.inertia)
         return bad
-    mass, shift = {"cad": (1.0, 0.0), "bad-cad": (4.0, 0.08)}[start]
+    mass, shift = {"cad": (1.0, 0.0), "near-cad": (1.0, 0.0), "bad-cad": (4.0, 0.08)}[start]
     for b in bodies:
         sb = bad.body(b)
         sb.mass = sb.mass * mass
@@ -370,6 +422,8 @@ def _joint_start(
                 assert ident_model is not None
                 d = int(ident_model.joint(j).dofadr[0])
                 out[j, attr] = float(getattr(ident_model, f"dof_{attr}")[d])
+            elif case.servo is not None and start == "cad":  # the URDF's: no joint terms
+                out[j, attr] = 0.0
             else:
                 out[j, attr] = JOINT_TERM_START * float(truth[key][k])
     return out
@@ -446,7 +500,96 @@ def _sysid_params(
     for k, j in enumerate(case.setup.robot.joint_names):
         for attr, key in JOINT_TERMS:
             truth_params[f"{j}_{attr}"].value = np.array([float(truth[key][k])])
+    if case.servo is not None:
+        joints = list(case.setup.robot.joint_names)
+        start_gains = _servo_start(case.servo, joints, ident_model if start == "ident" else None)
+        _servo_params(case.servo, start_gains, params, truth_params)
     return params, truth_params
+
+
+def _servo_start(
+    servo: ServoLog, joints: list[str], ident_model: mujoco.MjModel | None
+) -> dict[str, dict[str, float]]:
+    """``{joint: {"kp", "kv"}}``: the servo gains sysid starts from: :data:`JOINT_TERM_START`
+    x the truth (a datasheet's figure, 50 % off), or (``ident_model``, the ``ident`` start)
+    ident's written ``<position>`` servos ``servo_<joint>`` (``kv = 0``: its ``kd`` is in the
+    joint damping, which sysid starts from too)."""
+    if ident_model is None:
+        return {
+            j: {
+                "kp": JOINT_TERM_START * float(servo.kp[k]),
+                "kv": JOINT_TERM_START * float(servo.kv[k]),
+            }
+            for k, j in enumerate(joints)
+        }
+    out = {}
+    for j in joints:
+        a = int(ident_model.actuator(f"servo_{j}").id)
+        gain, bias = ident_model.actuator_gainprm[a, 0], ident_model.actuator_biasprm[a, 2]
+        out[j] = {"kp": float(gain), "kv": float(-bias)}
+    return out
+
+
+def _servo_params(
+    servo: ServoLog, start: dict[str, dict[str, float]], params: Any, truth: Any
+) -> None:
+    """Add each ``<position>`` servo's ``kp`` and ``kv`` (sysid's ``apply_pgain``,
+    ``apply_dgain``) to ``params`` at ``start`` (:func:`_servo_start`) and to ``truth`` at
+    the truth; boxes from 0 to 3x the largest true gain."""
+    from mujoco import sysid
+    from mujoco.sysid._src.model_modifier import apply_dgain, apply_pgain
+
+    for name, gains, write in (("kp", servo.kp, apply_pgain), ("kv", servo.kv, apply_dgain)):
+        hi = 3.0 * float(np.max(gains))
+        for k, j in enumerate(start):
+
+            def modify(s: mujoco.MjSpec, p: Any, j: str = j, write: Any = write) -> None:
+                write(s, f"{j}_motor", float(p.value[0]))
+
+            value = float(np.clip(start[j][name], 0.0, hi))
+            params.add(sysid.Parameter(f"{j}_{name}", value, 0.0, hi, modifier=modify))
+            truth.add(sysid.Parameter(f"{j}_{name}", float(gains[k]), 0.0, hi, modifier=modify))
+
+
+def _sysid_samples(case: Case) -> tuple[FloatArray, FloatArray, FloatArray, list[tuple[int, int]]]:
+    """What sysid gets of the log: encoder positions ``q`` [rad], their central differences
+    ``dq`` [rad/s] (within each segment), the controls (the logged torque [N*m]; a servo case:
+    the commanded positions [rad]), shapes (n, nv), and the identification part's ``[lo, hi)``
+    sample ranges (a torque log: its first ``n_identify`` samples)."""
+    dt = 1.0 / case.log.rate_hz
+    if case.servo is None:
+        q = np.asarray(case.log.q)
+        ranges = [(0, case.n_identify)]
+        return q, np.gradient(q, dt, axis=0), np.asarray(case.log.tau_measured), ranges
+    servo = case.servo
+    q = np.asarray(servo.q)
+    dq = np.concatenate([np.gradient(q[a:b], dt, axis=0) for a, b in servo.segments])
+    return q, dq, np.asarray(servo.q_cmd), list(servo.ranges)
+
+
+def _initial_state(
+    model: mujoco.MjModel, q: FloatArray, dq: FloatArray, control: FloatArray, i0: int
+) -> FloatArray:
+    """sysid's initial state of a window starting at sample ``i0`` (its time 0): the logged
+    position and velocity, and each delayed actuator's history holding the ``nsample``
+    commands before ``i0`` at times ``-nsample h .. -h`` (what the servo was executing)."""
+    from mujoco import sysid
+
+    state = sysid.create_initial_state(model, q[i0], dq[i0])
+    if not np.any(model.actuator_history[:, 0] > 0):
+        return state
+    data = mujoco.MjData(model)
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
+    mujoco.mj_setState(model, data, state, full)
+    h = model.opt.timestep
+    for i in range(model.nu):
+        n = int(model.actuator_history[i, 0])
+        if n > 0:
+            times = (np.arange(n) - n).astype(float)[:, None] * h
+            values = np.ascontiguousarray(control[i0 - n : i0, i : i + 1])
+            mujoco.mj_initCtrlHistory(model, data, i, times, values)
+    mujoco.mj_getState(model, data, state, full)
+    return state
 
 
 def sysid_problem(
@@ -459,11 +602,13 @@ def sysid_problem(
 ) -> SysidProblem:
     """mujoco.sysid's parameters, windows and residual on the identification samples.
 
-    Windows of ``window_s`` seconds (at most ``max_windows``, the first ones), each rolled out
-    open loop from the logged state (encoder position, central-difference velocity) under the
-    logged torque; the residual is the positions and velocities at every following sample,
-    each joint's divided by its standard deviation over the identification samples (the
-    rollout objective's weighting, :mod:`ident.identify.assessment.rollout`).
+    Windows of ``window_s`` seconds (at most ``max_windows``, the first ones) within the
+    identification part's ranges (:func:`_sysid_samples`), each rolled out open loop from the
+    logged state (encoder position, central-difference velocity; a delayed servo's history of
+    commands, :func:`_initial_state`) under the logged torque (a servo case: the commanded
+    positions); the residual is the positions and velocities at every following sample, each
+    joint's divided by its standard deviation over the identification samples (the rollout
+    objective's weighting, :mod:`ident.identify.assessment.rollout`).
     """
     from mujoco import sysid
 
@@ -471,20 +616,17 @@ def sysid_problem(
     params, truth_params = _sysid_params(case, spec, bodies, start, ident_model)
     model = spec.compile()
     n_win = max(2, int(round(window_s * case.log.rate_hz)))
-    q = np.asarray(case.log.q)
     dt = 1.0 / case.log.rate_hz
-    dq = np.gradient(q, dt, axis=0)  # central differences of the encoder
-    tau = np.asarray(case.log.tau_measured)
-    n = case.n_identify
-    sd = np.concatenate([q[:n].std(axis=0), dq[:n].std(axis=0)])
+    q, dq, control, ranges = _sysid_samples(case)
+    rows = np.concatenate([np.arange(lo, hi) for lo, hi in ranges])
+    sd = np.concatenate([q[rows].std(axis=0), dq[rows].std(axis=0)])
     weights = 1.0 / np.maximum(sd, SD_FLOOR)  # sensor order: positions, then velocities
+    starts = [i0 for lo, hi in ranges for i0 in range(lo, hi - n_win - 1, n_win)]
     states, controls, sensors, names = [], [], [], []
-    for k, i0 in enumerate(range(0, n - n_win - 1, n_win)):
-        if max_windows is not None and k >= max_windows:
-            break
-        states.append(sysid.create_initial_state(model, q[i0], dq[i0]))
+    for k, i0 in enumerate(starts[:max_windows]):
+        states.append(_initial_state(model, q, dq, control, i0))
         tc = np.arange(n_win) * dt
-        controls.append(sysid.TimeSeries(tc, tau[i0 : i0 + n_win]))
+        controls.append(sysid.TimeSeries(tc, control[i0 : i0 + n_win]))
         measured = np.hstack([q[i0 + 1 : i0 + n_win + 1], dq[i0 + 1 : i0 + n_win + 1]])
         sensors.append(sysid.TimeSeries.from_names(tc + dt, measured, model))
         names.append(f"w{k}")
@@ -564,14 +706,29 @@ def run_sysid(
         for label, p in (("start", problem.params), ("stop", opt), ("truth", problem.truth))
     }
     identified = sysid.apply_param_modifiers(opt, problem.spec)
+    info = {"iterations": iterations, "status": status, "objective": y}
+    if case.servo is not None:
+        info |= _servo_gains(identified, problem.joints)
     x = standard_from_mujoco(identified, pm, problem.joints)
     note = (
         f"{problem.n_windows} windows of {window_s:g} s, x_scale='jac', {iterations} "
         f"iterations (cap {max_iters}): {status}; objective 0.5||r||^2 at start "
         f"{y['start']:.4g}, at stop {y['stop']:.4g}, at the truth {y['truth']:.4g}"
     )
-    info = {"iterations": iterations, "status": status, "objective": y}
     return ToolRun(f"mujoco.sysid ({start})", x, wall, peak, note, cpu_s=cpu, info=info)
+
+
+def _servo_gains(model: mujoco.MjModel, joints: list[str]) -> dict[str, list[float]]:
+    """The ``<position>`` servos' ``kp`` and ``kv`` of a compiled model, per joint, with each
+    ``kv`` folded into its joint's ``dof_damping`` (``model`` changed): ident's ``kd + fv``,
+    so that :func:`standard_from_mujoco`'s ``fv`` is the velocity term a model driven by
+    ``kp e`` alone needs (the rollout score's). ``<position>``: gain ``kp``, bias ``(0, -kp,
+    -kv)`` (sysid's own reader of them refuses a compiled model's actuator here)."""
+    ids = [int(model.actuator(f"{j}_motor").id) for j in joints]
+    kp, kv = model.actuator_gainprm[ids, 0], -model.actuator_biasprm[ids, 2]
+    for j, gain in zip(joints, kv, strict=True):
+        model.dof_damping[int(model.joint(j).dofadr[0])] += gain
+    return {"kp": [float(g) for g in kp], "kv": [float(g) for g in kv]}
 
 
 def standard_from_mujoco(

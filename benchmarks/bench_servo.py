@@ -25,15 +25,30 @@ errors, the held-out rollout (1 s windows,
 the truth's (1.00: as good as the truth).
 
     python benchmarks/bench_servo.py --robot so101 [--seeds 5] [--delay-ms 4]
+
+``--peer sysid`` (the ``peers`` extra): the same episodes through mujoco.sysid at its best
+set-up (``bench_peers.run_sysid``: 0.5 s windows, positions and velocities in the residual,
+``x_scale='jac'``, run to its own convergence under ``--max-iters``), given the log ident
+reads, commanded and measured positions and no torque, of the identification part; its model
+is the simulator's class (``<position>`` servos with ``kp`` and ``kv`` fitted, the force range
+and the 2-sample delay given: sysid has no delay parameter), its parameters one log-Cholesky
+inertia per link, armature, damping, friction loss, ``kp`` and ``kv`` per joint, from each of
+``--sysid-starts`` (:data:`SYSID_STARTS`). Against ident's mass-scale, delay-scanned way, both
+scored by the held-out 1 s rollout over the truth's, with the process CPU time of each call.
+
+    PYTHONPATH=src python benchmarks/bench_servo.py --robot so101 --peer sysid [--seeds 5]
+        [--sysid-starts cad ident near-cad] [--max-iters 200] [--sysid-cpu-budget S]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import mujoco
 import numpy as np
@@ -43,6 +58,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "data" / "examples"))
 
+import bench_peers  # noqa: E402
 import make_so101  # noqa: E402
 from test_mujoco_sim import fourier_reference  # noqa: E402
 from test_servo import ARM  # noqa: E402
@@ -52,6 +68,7 @@ from ident.errors import IdentError  # noqa: E402
 from ident.identify.actuators.servo_fit import MIN_SHARED_SHARE  # noqa: E402
 from ident.identify.assessment.rollout import (  # noqa: E402
     held_out_windows,
+    identification_ranges,
     reference_mjcf,
     rollout_score,
 )
@@ -59,7 +76,7 @@ from ident.identify.config import load_identify_config  # noqa: E402
 from ident.identify.model_files.files import save_identified_model  # noqa: E402
 from ident.identify.pipeline.real import identify  # noqa: E402
 from ident.measure.mujoco_config import load_mujoco_measurement  # noqa: E402
-from ident.measure.mujoco_sim import simulate, write_log  # noqa: E402
+from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log  # noqa: E402
 from ident.model import Robot  # noqa: E402
 
 RATE = 500.0
@@ -175,17 +192,19 @@ SO101 = make_so101.SERVO | {"period": make_so101.PERIOD_S, "encoder": make_so101
 ROLLOUT_WINDOW_S = 1.0
 
 
-def so101_rollout(result, folder: Path) -> float:
+def so101_rollout(result, folder: Path, peers: tuple = ()) -> list[float]:
     """Held-out rollout objective of the identified MJCF over the truth's, 1 s windows: the
     identified model driven by the log's ``kp e`` (its gains and delay), the truth (URDF
     bodies, armature, kv + damping, friction loss) by the servos' own ``kp e`` (true gains,
-    the 2-sample delay) on the same samples."""
+    the 2-sample delay) on the same samples. Then the same ratio of each of ``peers``:
+    ``(model, kp)``, a MuJoCo model (its velocity gain in its damping) driven by its ``kp``
+    (nv,) [N*m/rad] times the error of the true delay (its model class's, given)."""
     entry = save_identified_model(result, folder)
     if not entry["written"]:
-        return float("nan")
+        return [float("nan")] * (1 + len(peers))
     measured, windows = held_out_windows(result, window_s=ROLLOUT_WINDOW_S)
     score = rollout_score(folder / entry["files"]["mjcf"], measured, windows)
-    spec, log = SO101, result.log
+    spec = SO101
     extras = {
         name: {
             "rotor_inertia": spec["armature"][j],
@@ -195,11 +214,22 @@ def so101_rollout(result, folder: Path) -> float:
         for j, name in enumerate(result.joint_names)
     }
     truth = mujoco.MjModel.from_xml_string(reference_mjcf(Robot.from_urdf(make_so101.URDF), extras))
+    driven = [(truth, spec["kp"]), *peers]
+    objectives = [
+        servo_rollout(result, model, kp, measured, windows, score.substeps) for model, kp in driven
+    ]
+    return [score.objective / objectives[0]] + [y / objectives[0] for y in objectives[1:]]
+
+
+def servo_rollout(result, model, kp, measured, windows, substeps: int) -> float:
+    """The rollout objective of ``model`` on the held-out ``windows`` of ``measured``, driven
+    by ``kp`` (nv,) [N*m/rad] times the servos' error ``q_cmd(t - d) - q`` of the log with
+    the true delay ``d``."""
+    log = result.log
     e = servo_error(log.q, log.q_cmd, true_delay_samples(), log.segments)
     rows = np.searchsorted(log.t, measured.t)  # the windows' samples in the log
-    tau = np.asarray(spec["kp"]) * e[rows]
-    ref = rollout_score(truth, measured.with_torque(tau), windows, substeps=score.substeps)
-    return score.objective / ref.objective
+    tau = np.asarray(kp) * e[rows]
+    return rollout_score(model, measured.with_torque(tau), windows, substeps=substeps).objective
 
 
 def so101_config(folder: Path, actuator: dict) -> Path:
@@ -218,15 +248,19 @@ def true_delay_samples() -> float:
     return SO101["delay_steps"] / SO101.get("substeps", 1)
 
 
-def run_so101(seeds: int, delay_ms: float) -> None:
-    """Print one row per seed and way of fixing the scale and the delay (module docstring);
-    the servos' delay ``delay_ms`` [ms], to half a sample (MuJoCo steps of half a frame when
-    it is not a whole number of frames)."""
+def set_delay(delay_ms: float) -> None:
+    """Set the simulated servos' delay to ``delay_ms`` [ms], to half a sample (MuJoCo steps
+    of half a frame when it is not a whole number of frames), and print it."""
     half_samples = int(round(2e-3 * delay_ms * make_so101.RATE_HZ))
     substeps = 1 if half_samples % 2 == 0 else 2
     SO101.update(delay_steps=half_samples * substeps // 2, substeps=substeps)
     delay_s = true_delay_samples() / make_so101.RATE_HZ
     print(f"SO-101-like arm: servo delay {1e3 * delay_s:g} ms ({true_delay_samples():g} samples)")
+
+
+def run_so101(seeds: int) -> None:
+    """Print one row per seed and way of fixing the scale and the delay (module docstring)."""
+    delay_s = true_delay_samples() / make_so101.RATE_HZ
     print(
         "| seed | scale | delay | delay [samples] | kp | kd + fv | Ia | Ia, lag-corrected | fs "
         "| rollout / truth | s |\n| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: "
@@ -251,9 +285,102 @@ def run_so101(seeds: int, delay_ms: float) -> None:
                     print(f"| {seed} | {scale} | {delay} | failed: {e} |", flush=True)
                     continue
                 seconds = time.perf_counter() - t0
-                ratio = so101_rollout(result, folder / f"model-{seed}-{scale}-{delay}")
+                ratio = so101_rollout(result, folder / f"model-{seed}-{scale}-{delay}")[0]
                 row = so101_row(result, ratio, seconds)
                 print(f"| {seed} | {scale} | {delay} " + row, flush=True)
+
+
+#: ident's way against mujoco.sysid: the gains from the URDF's gravity load, the delay scanned
+#: (a user who knows neither), the example's config otherwise.
+IDENT_WAY = {"max_delay_s": 0.01, "equal_kp": EQUAL_KP}
+#: mujoco.sysid's rollout windows [s] (its best set-up, as in bench_peers.py).
+SYSID_WINDOW_S = 0.5
+#: mujoco.sysid's starts (``--sysid-starts``, bench_peers.SYSID_STARTS): ``cad``, the URDF's
+#: bodies with the joint terms off and the gains 1.5x the truth; ``ident``, ident's written
+#: model (bodies, joint terms, gains); ``near-cad``, the URDF's bodies, joint terms and gains
+#: 1.5x the truth.
+SYSID_STARTS = ("cad", "ident")
+
+
+def sysid_case(result, robot: Robot, first: SimulatedLog) -> bench_peers.Case:
+    """The log ident read (``result.log``: measured and commanded positions of every episode,
+    SI) as bench_peers.py's mujoco.sysid gets it: the identification part's samples
+    (:func:`identification_ranges`: the held-out part and the trims left out), the servos'
+    force range and delay (its model class's, given) and true gains (its start, 1.5x)."""
+    log = result.log
+    if tuple(log.joint_names) != tuple(robot.joint_names):
+        raise ValueError(f"the log's joints {log.joint_names} are not the URDF's order")
+    servo = bench_peers.ServoLog(
+        q=np.asarray(log.q),
+        q_cmd=np.asarray(log.q_cmd),
+        segments=[tuple(s) for s in log.segments],
+        ranges=[r for _, r in identification_ranges(result)],
+        kp=np.asarray(SO101["kp"], dtype=float),
+        kv=np.asarray(SO101["kv"], dtype=float),
+        forcerange=float(SO101["forcerange"]),
+        delay_steps=int(SO101["delay_steps"]),
+    )
+    return bench_peers.Case("so101", SimpleNamespace(robot=robot), first, 0, servo)
+
+
+def run_so101_sysid(
+    seeds: int,
+    max_iters: int,
+    starts: tuple[str, ...] = SYSID_STARTS,
+    cpu_budget_s: float | None = None,
+) -> None:
+    """Per seed: ident (``IDENT_WAY``) and mujoco.sysid (bench_peers.py's best set-up,
+    :func:`sysid_case`) from each of ``starts`` on the same episodes, each scored by
+    the held-out 1 s rollout over the truth's (:func:`so101_rollout`), with its process CPU
+    time; one row per seed and sysid start."""
+    if SO101.get("substeps", 1) != 1:
+        raise SystemExit(
+            "error: --peer sysid needs a delay of whole samples (--delay-ms 2, 4, ...)"
+        )
+    print(
+        "| seed | sysid start | ident rollout / truth | sysid rollout / truth | ident CPU [s] "
+        "| sysid CPU [s] | sysid / ident CPU | ident kp | sysid kp | sysid iterations, stop "
+        "| load |\n| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: |"
+    )
+    robot = Robot.from_urdf(make_so101.URDF)
+    joints = [f"j{j + 1}" for j in range(robot.nv)]
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        for seed in range(seeds):
+            load = os.getloadavg()[0]
+            logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1), SO101, fast=FAST)
+            make_so101.write(folder / "dataset", logs)
+            c0 = time.process_time()
+            result = identify(load_identify_config(so101_config(folder, IDENT_WAY)))
+            ident_cpu = time.process_time() - c0
+            case = sysid_case(result, robot, logs[0])
+            ident_model = bench_peers.ident_written_model(result)
+            runs = [
+                bench_peers.run_sysid(
+                    case,
+                    result.parameters,
+                    start=start,
+                    window_s=SYSID_WINDOW_S,
+                    max_iters=max_iters,
+                    ident_model=ident_model,
+                    cpu_budget_s=cpu_budget_s,
+                )
+                for start in starts
+            ]
+            peers = [
+                (bench_peers.model_mjcf(case, result.parameters, r.x), r.info["kp"]) for r in runs
+            ]
+            ours, *theirs = so101_rollout(result, folder / f"model-{seed}", tuple(peers))
+            ident_kp = worst(result.actuator.kp, SO101["kp"], joints)
+            for start, run, ratio in zip(starts, runs, theirs, strict=True):
+                print(
+                    f"| {seed} | {start} | {ours:.3f} | {ratio:.3g} | {ident_cpu:.1f} "
+                    f"| {run.cpu_s:.1f} | {run.cpu_s / ident_cpu:.1f} | {ident_kp} "
+                    f"| {worst(run.info['kp'], SO101['kp'], joints)} "
+                    f"| {run.info['iterations']}: {run.info['status']} | {load:.1f} |",
+                    flush=True,
+                )
+                print(f"  sysid ({start}): {run.note}", file=sys.stderr, flush=True)
 
 
 def so101_row(result, ratio: float, seconds: float) -> str:
@@ -281,9 +408,35 @@ def main() -> None:
     parser.add_argument(
         "--delay-ms", type=float, default=4.0, help="so101: the servos' delay [ms], to 1 ms"
     )
+    parser.add_argument(
+        "--peer", choices=["sysid"], default=None, help="so101: ident against mujoco.sysid"
+    )
+    parser.add_argument(
+        "--max-iters", type=int, default=200, help="--peer sysid: its iteration cap"
+    )
+    parser.add_argument(
+        "--sysid-starts",
+        nargs="+",
+        default=list(SYSID_STARTS),
+        choices=["cad", "ident", "near-cad"],
+        help="--peer sysid: its starting models",
+    )
+    parser.add_argument(
+        "--sysid-cpu-budget",
+        type=float,
+        default=None,
+        help="--peer sysid: stop it after this many CPU seconds, reported as not converged",
+    )
     args = parser.parse_args()
+    if args.peer is not None and args.robot != "so101":
+        parser.error("--peer sysid runs on --robot so101")
     if args.robot == "so101":
-        run_so101(args.seeds, args.delay_ms)
+        set_delay(args.delay_ms)
+        if args.peer == "sysid":
+            starts = tuple(args.sysid_starts)
+            run_so101_sysid(args.seeds, args.max_iters, starts, args.sysid_cpu_budget)
+        else:
+            run_so101(args.seeds)
         return
     spec = ROBOTS[args.robot]
     print(

@@ -12,14 +12,21 @@ from __future__ import annotations
 import importlib.util
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "data" / "examples"))
 bench_peers = importlib.import_module("bench_peers")
 
+import make_so101  # noqa: E402
+
+from ident.measure.mujoco_config import load_mujoco_measurement  # noqa: E402
+from ident.measure.mujoco_sim import simulate  # noqa: E402
+from ident.model import Robot  # noqa: E402
 from ident.run.log_measurement import true_parameters  # noqa: E402
 
 
@@ -355,3 +362,53 @@ def test_peer_convention_is_figarohs_regressor():
     np.testing.assert_allclose(ours, w_fig[:, local], rtol=0, atol=1e-10 * np.abs(w_fig).max())
     assert np.linalg.cond(w) == pytest.approx(np.linalg.cond(w_fig[:, local]), rel=1e-9)
     assert np.linalg.matrix_rank(w_fig) == len(columns)
+
+
+@needs_sysid
+def test_sysid_servo_setup_gets_the_commands_their_history_and_the_servo_class():
+    """``bench_servo.py --peer sysid``'s set-up on one SO-101 servo episode (no encoder
+    ticks): sysid's windows lie in the identification ranges given; a window's initial state
+    holds the two commands before it in the servo's delay history, so that the truth's model
+    (position servos, force range, delay, friction loss as the simulator's) stepped under the
+    logged commands replays the simulator's positions to 1e-5 rad (a history of zeros, one
+    sample off, torque controls or another delay give 1e-4 and more); the start is the URDF's
+    with the joint terms off and the gains 1.5x; ``kv`` is folded into the damping."""
+    import mujoco
+    from mujoco import sysid
+
+    robot = Robot.from_urdf(make_so101.URDF)
+    measurement = make_so101.measurement() | {"encoder_counts_per_rev": None}
+    reference = make_so101.reference(robot, 0, (8, 12))
+    log = simulate(robot, *reference, load_mujoco_measurement(measurement), rng=0)
+    spec = make_so101.SERVO
+    servo = bench_peers.ServoLog(
+        q=log.q,
+        q_cmd=log.q_cmd,
+        segments=[(0, log.q.shape[0])],
+        ranges=[(100, 400)],  # one 0.5 s window (251 samples) fits
+        kp=np.array(spec["kp"]),
+        kv=np.array(spec["kv"]),
+        forcerange=spec["forcerange"],
+        delay_steps=spec["delay_steps"],
+    )
+    case = bench_peers.Case("so101", SimpleNamespace(robot=robot), log, 0, servo)
+    problem = bench_peers.sysid_problem(case, start="cad", window_s=0.5)
+    assert problem.n_windows == 1
+    for k, j in enumerate(robot.joint_names):
+        assert problem.params[f"{j}_damping"].value[0] == 0.0
+        assert problem.params[f"{j}_kp"].value[0] == pytest.approx(1.5 * spec["kp"][k])
+    assert problem.objective(problem.truth) < 1e-3 * problem.objective(problem.params)
+    model = sysid.apply_param_modifiers(problem.truth, problem.spec.copy())
+    i0 = 100
+    state = bench_peers._initial_state(model, log.q, log.dq_true, log.q_cmd, i0)
+    data = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS.value)
+    error = 0.0
+    for k in range(50):
+        data.ctrl[:] = log.q_cmd[i0 + k]
+        mujoco.mj_step(model, data)
+        error = max(error, float(np.max(np.abs(data.qpos - log.q_true[i0 + k + 1]))))
+    assert error < 1e-5
+    gains = bench_peers._servo_gains(model, problem.joints)
+    np.testing.assert_allclose(gains["kv"], spec["kv"])
+    np.testing.assert_allclose(model.dof_damping, np.add(spec["kv"], spec["damping"]))

@@ -29,6 +29,7 @@ from ident.measure.logs import read_log
 from ident.measure.mujoco_config import load_mujoco_measurement
 from ident.measure.mujoco_sim import simulate, write_log
 from ident.model import Robot
+from ident.run import init_servo
 
 # Two links on parallel horizontal axes: gravity loads both, the joints share link 2's terms.
 ARM = """<robot name="arm2"><link name="base"/>
@@ -419,3 +420,19 @@ def test_servo_config_errors_exit_2_before_any_folder(servo_log, tmp_path):
     assert lines[0].startswith("error:")
     assert "actuator.kp" in lines[0]
     assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.mark.parametrize(("axis", "unloaded"), [("0 1 0", []), ("0 0 1", ["j1"])])
+def test_init_servo_ties_the_gains_of_joints_gravity_does_not_load(tmp_path, axis, unloaded):
+    """``ident init --servo`` writes ``actuator.equal_kp`` (every joint, one group) when the
+    URDF has a joint gravity does not load beside loaded ones: joint 1 about the vertical
+    carries exactly no gravity torque (a pan), about a horizontal axis it carries the most.
+    Both joints loaded: nothing to tie, the line stays a comment."""
+    urdf = tmp_path / "arm2.urdf"
+    urdf.write_text(
+        ARM.replace('<axis xyz="0 1 0"/>\n <limit', f'<axis xyz="{axis}"/>\n <limit', 1)
+    )
+    robot = Robot.from_urdf(urdf)
+    assert init_servo.unloaded_joints(robot) == unloaded
+    config = yaml.safe_load(init_servo.init_servo_config(urdf, tmp_path / "s.yaml", None).text)
+    assert config["actuator"].get("equal_kp") == ([["j1", "j2"]] if unloaded else None)

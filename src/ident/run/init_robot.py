@@ -40,6 +40,7 @@ __all__ = [
     "clear_posture",
     "effort_scale",
     "find_package_dirs",
+    "gravity_torques",
     "keepable_clearance",
     "robot_reach",
     "self_clearance_model",
@@ -188,16 +189,21 @@ def find_package_dirs(urdf: Path, text: str, given: list[Path]) -> list[Path]:
     return found
 
 
-def effort_scale(robot: Robot) -> np.ndarray:
-    """Per joint: the URDF effort limit, or twice the largest static gravity torque [N*m]."""
-    effort = np.asarray(robot.model.effortLimit, dtype=float)
+def gravity_torques(robot: Robot, n: int = 50) -> np.ndarray:
+    """The URDF's static gravity torques [N*m] at ``n`` seeded postures uniform in the
+    position box (guessed where the URDF gives no limit), shape (n, nv)."""
     model = robot.model
     data = model.createData()
     rng = np.random.default_rng(0)
     lower, upper = JointLimits.from_robot(robot).finite_position_box()  # guessed if unknown
-    gravity = np.zeros(model.nv)
-    for q in rng.uniform(lower, upper, (50, model.nq)):
-        gravity = np.maximum(gravity, np.abs(pin.computeGeneralizedGravity(model, data, q)))
+    postures = rng.uniform(lower, upper, (n, model.nq))
+    return np.array([pin.computeGeneralizedGravity(model, data, q) for q in postures])
+
+
+def effort_scale(robot: Robot) -> np.ndarray:
+    """Per joint: the URDF effort limit, or twice the largest static gravity torque [N*m]."""
+    effort = np.asarray(robot.model.effortLimit, dtype=float)
+    gravity = np.max(np.abs(gravity_torques(robot)), axis=0)
     fallback = np.maximum(2.0 * gravity, 1.0)
     return np.where(np.isfinite(effort) & (effort > 0), effort, fallback)
 

@@ -25,13 +25,14 @@ import yaml
 
 from ident.config import read_text_input, validate_config
 from ident.errors import ConfigError, DataError, IdentError
+from ident.identify.actuators.servo_fit import MIN_GRAVITY_SHARE
 from ident.identify.config import IdentifyConfig, load_identify_config
 from ident.measure.lerobot_dataset import ACTION, STATE
 from ident.measure.readers.lerobot_layout import INFO_PATH
 from ident.run.init_config import select_robot
-from ident.run.init_robot import effort_scale
+from ident.run.init_robot import effort_scale, gravity_torques
 
-__all__ = ["COUNTS_PER_REV", "ZERO_TICK", "ServoInit", "init_servo_config"]
+__all__ = ["COUNTS_PER_REV", "ZERO_TICK", "ServoInit", "init_servo_config", "unloaded_joints"]
 
 COUNTS_PER_REV, ZERO_TICK = 4096, 2048  # guess: Feetech STS3215 (SO-100/SO-101)
 DEFAULT_FPS = 30.0  # LeRobot's usual recording rate, without a dataset
@@ -89,8 +90,7 @@ def _sections(
         "  kind: position                 # tau = kp (q_cmd(t - d) - q) - kd dq, no torque logged",
         f"  forcerange: {ranges}   # N*m, the URDF's effort limits: saturated samples left out",
         f"  max_delay_s: {MAX_DELAY_S:g}              # the command's delay scanned over 0..10 ms",
-        "  # the scale from the URDF's gravity load; servos of one P setting share a gain:",
-        f"  # equal_kp: [[{', '.join(robot.joint_names)}]] ties the unloaded joints to it;",
+        *_equal_kp_lines(robot),
         "  # with the servos' gain known (their P coefficient), give it: kp: [...] (N*m/rad,",
         "  # one or one per joint), and the delay: delay: 0.004 (s). The delay and the gains",
         "  # need an excitation with a few Hz in it (the delay trades with kd otherwise)",
@@ -102,6 +102,39 @@ def _sections(
         "model: {viscous: true, coulomb: true, rotor_inertia: true, offset: false}",
         "estimation: {method: wls, essential: {enabled: false}}",
         "validation: {identify_fraction: 0.7}",
+    ]
+
+
+def unloaded_joints(robot: Any) -> list[str]:
+    """The joints the URDF's gravity barely loads: rms gravity torque over seeded postures
+    (:func:`gravity_torques`) below :data:`MIN_GRAVITY_SHARE` of the most loaded joint's, the
+    rule by which the servo fit calls a gain not tied to the gravity scale (a pan, a wrist
+    roll); [] when gravity loads none (an arm moving about vertical axes only)."""
+    load = np.sqrt(np.mean(gravity_torques(robot) ** 2, axis=0))
+    top = float(np.max(load)) if load.size else 0.0
+    if top <= 0.0:
+        return []
+    return [
+        name for name, g in zip(robot.joint_names, load, strict=True) if g < MIN_GRAVITY_SHARE * top
+    ]
+
+
+def _equal_kp_lines(robot: Any) -> list[str]:
+    """``actuator.equal_kp``: with joints gravity does not load beside loaded ones, every
+    joint in one group (a guess: one P setting on every servo, as LeRobot's SO-100/SO-101
+    followers write it); otherwise a comment (nothing to tie, or no gravity scale at all)."""
+    names = ", ".join(robot.joint_names)
+    unloaded = unloaded_joints(robot)
+    if not unloaded or len(unloaded) == robot.nv:
+        return [
+            "  # the scale from the URDF's gravity load; servos of one P setting share a gain:",
+            f"  # equal_kp: [[{names}]] ties joints gravity does not load to it",
+        ]
+    return [
+        f"  # the scale from the URDF's gravity load, which {', '.join(unloaded)} barely",
+        "  # carry: their gains are tied to a loaded joint's. Guess: one P setting on every",
+        "  # servo (LeRobot's default); servos of other settings go in groups of their own",
+        f"  equal_kp: [[{names}]]",
     ]
 
 

@@ -67,6 +67,7 @@ __all__ = [
     "RolloutMeasurements",
     "RolloutScore",
     "held_out_windows",
+    "identification_ranges",
     "identify_rollout",
     "reference_mjcf",
     "rollout_check",
@@ -441,7 +442,7 @@ def identification_windows(
     :data:`IDENTIFICATION_OVERLAP`), spread and processed as :func:`held_out_windows` does
     (same parameters, returns and errors). No window shares a sample with a held-out window.
     """
-    ranges = _identification_ranges(result)
+    ranges = identification_ranges(result)
     return _part_windows(
         result, ranges, "identification", window_s, max_windows, IDENTIFICATION_OVERLAP
     )
@@ -456,14 +457,16 @@ def window_count(
     if part == "held-out":
         ranges, overlap = _held_out_ranges(result.log, np.asarray(result.t_validate)), 1
     else:
-        ranges, overlap = _identification_ranges(result), IDENTIFICATION_OVERLAP
+        ranges, overlap = identification_ranges(result), IDENTIFICATION_OVERLAP
     starts = _window_starts(ranges, _window_length(result.log, window_s), overlap)
     return min(len(starts), max_windows)
 
 
-def _identification_ranges(result: Any) -> list[tuple[tuple[int, int], tuple[int, int]]]:
-    """Per segment: the segment and its raw ranges [lo, hi) outside the held-out range and the
-    trimmed ends (:func:`identification_windows`)."""
+def identification_ranges(result: Any) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The identification part's raw samples: per segment ``(a, b)`` of ``result.log``, the
+    ``[r0, r1)`` ranges before and after its held-out range (the whole segment when it has
+    none), without the ``preprocess.trim_samples`` at each end of the segment; no range shares
+    a sample with the held-out range (:func:`held_out_windows`)."""
     log = result.log
     trim = int(result.config.preprocess.trim_samples)
     held = dict(_held_out_ranges(log, np.asarray(result.t_validate)))
