@@ -77,17 +77,16 @@ class ChunkSettings:
 
     cutoff_hz: float = 20.0
     decimation: int = 20
-    # the Coulomb step at a velocity reversal is spread by the filter over ~1 / cutoff_hz, in
-    # which the joint reaches ~0.1 rad/s: 0.05 rad/s left friction errors up to 0.7 % and
-    # 95 % intervals holding 35 % of the truths (6 simulated UR5 units x 120 s); 0.2: 0.31 %,
-    # 97 % (20 units x 600 s, benchmarks/bench_fleet.py: 0.19 %, 82 %)
+    # rows near a velocity reversal are left out: a real joint's friction there is not
+    # Coulomb's step (Stribeck, stiction), and sign(dq) is uncertain where dq ~ 0
     velocity_threshold: float = 0.2
     order: int = 4
 
     def margin(self, fs: float) -> int:
-        """Raw samples added on each side of a chunk for the zero-phase filter: its impulse
-        response's decay below 1e-9 of its peak."""
-        return decay_length(_sos(self, fs), rtol=1e-9) + 2
+        """Raw samples added on each side of a chunk for the zero-phase filters: twice the
+        impulse response's decay below 1e-9 of its peak (the Coulomb column is filtered from
+        a velocity that is itself filtered, :func:`chunk_equations`)."""
+        return 2 * decay_length(_sos(self, fs), rtol=1e-9) + 2
 
 
 class FleetColumns:
@@ -127,6 +126,9 @@ class FleetColumns:
         self.shared = np.setdiff1d(np.arange(len(self.names)), self.local)
         self.owner = np.array(owner, dtype=np.intp)
         self.kind = tuple(kind)
+        fs = np.array([k == "fs" for k in kind])
+        # the Coulomb columns (indices into names) and their joints
+        self.coulomb, self.coulomb_owner = self.local[fs], self.owner[fs]
 
     @property
     def p(self) -> int:
@@ -201,6 +203,13 @@ def chunk_equations(
     qf, tf = both[:nv].T, both[nv:].T
     dq, ddq = central_differences(qf, fs)
     X = cols.rows(qf[idx], dq[idx], ddq[idx])
+    # The torque's Coulomb step at a reversal went through the low-pass: spread over ~1 /
+    # cutoff_hz, ringing beyond the velocity threshold. The column goes through the same
+    # filter (sign(dq) filtered), so that rows and torques describe the same signal; with the
+    # bare sign the 20 x 600 s UR5 fleet's friction was biased by up to 4 standard
+    # deviations (82 % of its 95 % intervals held the truth)
+    sign = signal.sosfiltfilt(_sos(settings, fs), np.sign(dq[:, cols.coulomb_owner]).T, axis=1)
+    X[:, cols.coulomb_owner, cols.coulomb] = sign.T[idx]
     keep = np.abs(dq[idx]) >= settings.velocity_threshold
     eq.add_rows(X, tf[idx], keep)
     return eq
