@@ -18,6 +18,13 @@ tenths of N*m, torque noise 1 % of each joint's RMS torque and 2^19-count encode
 
 3. **The command** (``--npz DIR``): the case of 1 written as npz logs with a config into
    ``DIR``, and ``ident fleet`` run on them: its terminal lines and ``drift.md``.
+4. **Robot-hours from disk** (``--npz DIR --hours H``): each unit's ``--distinct`` 10-minute
+   npz logs (its cycle continued, fresh noise) written into ``DIR``, each listed
+   ``H / (units x distinct x 10 min)`` times in the unit's logs (disk is limited: 100
+   robot-hours of 1 kHz logs are 37 GB; the compute is the same, each log is read and every
+   chunk identified again), and ``ident fleet`` run on them in a child process: its wall
+   time, the CPU time of the whole process tree (reading included), the throughput per core
+   and the load average during the run.
 
 Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] [--hours 0]
 [--npz DIR]``.
@@ -26,7 +33,11 @@ Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] 
 from __future__ import annotations
 
 import argparse
+import os
+import resource
+import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -287,6 +298,71 @@ def cli_case(args: argparse.Namespace) -> None:
         print((run / "drift.md").read_text())
 
 
+def hours_case(args: argparse.Namespace) -> None:
+    """Part 4 of the module docstring."""
+    robot, meas = ur5()
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    units = make_units(robot, meas, args.units, seed=args.seed)
+    log_s = 600.0
+    reuse = max(1, int(round(args.hours * 3600 / (log_s * args.units * args.distinct))))
+    (args.npz / "logs").mkdir(parents=True, exist_ok=True)
+    listed = []
+    for k, u in enumerate(units):
+        files = []
+        for m in range(args.distinct):
+            f = args.npz / "logs" / f"u{k:02d}-{m}.npz"
+            if not f.exists():
+                log = unit_log(u, names, log_s, 1000 * k + m, start_s=m * log_s)()
+                np.savez(f, t=log.t, q=log.q, tau=log.tau)
+            files.append(f.name)
+        listed.append({"name": f"u{k:02d}", "logs": [f"logs/{f}" for f in files * reuse]})
+    size = sum(f.stat().st_size for f in (args.npz / "logs").glob("u*-*.npz"))
+    print(
+        f"{args.units} units x {args.distinct} distinct 10-minute logs ({size / 1e9:.2f} GB on "
+        f"disk), each listed {reuse} times: {args.units * args.distinct * reuse * log_s / 3600:g} "
+        "robot-hours read and identified (the same files reused: the compute is the same)"
+    )
+    cfg = {"name": "bench-fleet-hours", "robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+           "log": {"time": {"column": "t"}, "position": {"columns": [f"q/{j}" for j in range(6)]},
+                   "torque": {"columns": [f"tau/{j}" for j in range(6)]}},
+           "units": listed,
+           "fleet": {"workers": args.workers, "window_s": args.window,
+                     "baseline_s": args.baseline}}  # fmt: skip
+    (args.npz / "fleet-hours.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    run_measured([sys.executable, "-c", "from ident.cli import app; app()", "fleet",
+                  str(args.npz / "fleet-hours.yaml"), "--out", str(args.npz / "runs")])  # fmt: skip
+
+
+def run_measured(command: list[str]) -> None:
+    """Run ``command``; print its output, wall time, the CPU time of its process tree (user +
+    system, the LocalCluster's workers included) and the load average sampled every 10 s."""
+    loads: list[float] = []
+    stop = threading.Event()
+
+    def sample() -> None:
+        while not stop.wait(10.0):
+            loads.append(os.getloadavg()[0])
+
+    thread = threading.Thread(target=sample, daemon=True)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    thread.start()
+    res = subprocess.run(command, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    stop.set()
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    print(res.stdout + res.stderr)
+    mean = float(np.mean(loads)) if loads else float("nan")
+    print(
+        f"measured: {wall:.0f} s wall, {cpu:.0f} s CPU of the process tree "
+        f"(user {after.ru_utime - before.ru_utime:.0f} s, system "
+        f"{after.ru_stime - before.ru_stime:.0f} s; exit code {res.returncode}); load average "
+        f"(1 min) during the run: {min(loads, default=float('nan')):.1f} - "
+        f"{max(loads, default=float('nan')):.1f}, mean {mean:.1f}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--units", type=int, default=20)
@@ -297,8 +373,12 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--hours", type=float, default=0.0)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--distinct", type=int, default=3, help="distinct logs per unit (part 4)")
     parser.add_argument("--npz", type=Path, default=None, help="run `ident fleet` on npz logs here")
     args = parser.parse_args()
+    if args.npz is not None and args.hours > 0:
+        hours_case(args)
+        return
     if args.npz is not None:
         cli_case(args)
         return
