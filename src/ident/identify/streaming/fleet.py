@@ -56,6 +56,7 @@ __all__ = [
     "chunk_equations",
     "fleet_columns",
     "schur_solve",
+    "scaled_covariances",
     "solve_fleet",
     "window_sums",
 ]
@@ -328,3 +329,25 @@ def solve_fleet(units: list[NormalEquations], cols: FleetColumns, passes: int = 
         for (x_L, C_LL), sig, eq in zip(local, sigma, units, strict=True)
     )
     return FleetSolution(x=x_S, covariance=C_SS, units=solutions)
+
+
+def scaled_covariances(
+    sol: FleetSolution, units: list[NormalEquations], cols: FleetColumns, factors: FloatArray
+) -> FleetSolution:
+    """``sol`` with its covariances for rows whose noise variance, per joint ``j``, counts
+    ``factors[j]`` times its residual's (:func:`~ident.identify.streaming.fleet_drift.
+    window_factors`: the rows' noise is correlated over a few rows, so each row is worth
+    less than one independent row). The estimate is unchanged; the covariances are those of
+    the weighted solve with weights ``1 / (factors_j sigma_uj^2)`` (exact when the factors
+    are equal, the sandwich's first order otherwise)."""
+    weights = []
+    for eq, u in zip(units, sol.units, strict=True):
+        var = np.nan_to_num(u.sigma**2)
+        var = np.maximum(var, 1e-12 * var.max() + 1e-300)  # as solve_fleet's weights
+        weights.append(np.where(eq.sw > 0, 1.0 / (factors * var), 0.0))
+    _, C_SS, local = schur_solve(units, weights, cols)
+    out = tuple(
+        UnitSolution(x=u.x, covariance=C_LL, sigma=u.sigma, n_rows=u.n_rows)
+        for u, (_, C_LL) in zip(sol.units, local, strict=True)
+    )
+    return FleetSolution(x=sol.x, covariance=C_SS, units=out)
