@@ -147,6 +147,19 @@ def test_coulomb_column_as_filtered_as_the_torque(setup: tuple) -> None:
     assert np.sqrt(eq.residual_ss(x).sum() / eq.sw.sum()) < 1e-5
 
 
+def test_simulated_cycles_quantized_each_their_own_way(setup: tuple) -> None:
+    """A unit's 30 s (three 10 s cycles): every position within 1.5 counts of the cycle's
+    (the wandering offset is under one count), and the quantized positions of one cycle and
+    the next differ (they were identical sample for sample: an error every window repeats)."""
+    robot, meas, _, names = setup
+    unit = make_units(robot, meas, 1, seed=0)[0]
+    log = unit_log(unit, names, 30.0, 0)()
+    count = 2 * np.pi / 524288
+    truth = np.tile(unit["cycle"][0], (3, 1))
+    assert np.abs(log.q - truth).max() < 1.5 * count
+    assert np.mean(log.q[:10_000] != log.q[10_000:20_000]) > 0.1
+
+
 def _windows(cols, rng: np.random.Generator, theta: float, rise: float = 0.0) -> tuple:  # noqa: ANN001
     """A unit's 10 windows of 200 rows each: slowly varying regressors, friction and offsets
     of its own, MA(1) noise ``u_i + theta u_(i-1)`` along the rows (a long-run variance

@@ -23,15 +23,18 @@ when ``z > z_alpha``, ``z_alpha`` the standard normal quantile of ``1 - alpha``:
 the change-free windows alarm.
 
 **The windows' noise factor** (:func:`window_factors`). ``C_w = N_w^-1 sigma_j^2`` holds for
-independent rows; the rows' noise is not independent (the low-pass correlates neighbouring
-rows: for the default 20 Hz cut-off and 50 rows/s, white torque noise gives rows whose
-long-run variance is 1.39 times their variance), and ``sigma_j`` from the whole fit's
-residual holds errors that repeat identically in every window (a cycle-locked error, such as
-a repeated motion's encoder quantization), which cancel between windows. So the windows'
-scatter is measured: per unit and joint, ``Q = sum_w (phi_w - phi) C_w^-1 (phi_w - phi)``
-(``phi`` the windows' pooled estimate) is ``kappa_j chi^2(k (W - 1))`` for ``W`` windows and
-``k`` local parameters of the joint, and ``kappa_j`` is the median over the units of ``Q`` over
-that law's median (one unit's change does not move it). The tests use ``kappa_j sigma_j^2``.
+independent rows; the rows' noise is not independent: the low-pass correlates neighbouring
+rows (for the default 20 Hz cut-off and 50 rows/s, white torque noise gives sums of rows 1.39
+times the variance of independent ones), and the part of the residual that comes from
+differentiated position noise (the encoder's quantization in ``ddq``) has almost no power at
+the motion's slow frequencies, so it moves the friction far less than its share of
+``sigma_j`` says. So the windows' scatter is measured: per unit and joint, ``Q = sum_w
+(phi_w - phi) C_w^-1 (phi_w - phi)`` (``phi`` the windows' pooled estimate) is ``kappa_j
+chi^2(k (W - 1))`` for ``W`` windows and ``k`` local parameters of the joint, and ``kappa_j``
+is the median over the units of ``Q`` over that law's median (one unit's change does not move
+it). The tests use ``kappa_j sigma_j^2``. An error that repeats identically in every window
+(a motion repeated sample for sample, quantized alike) cancels in the scatter: it is in no
+test, nor in the intervals.
 """
 
 from __future__ import annotations
