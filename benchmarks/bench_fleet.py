@@ -162,7 +162,9 @@ def reported(sums, cols: FleetColumns, baseline_s: float) -> tuple:  # noqa: ANN
     solution with result.json's covariances, every unit's window tests."""
     sol = solve_fleet(sums.units, cols)
     kappa, _ = window_factors(sums.windows, sol, cols)
-    scaled = scaled_covariances(sol, sums.units, cols, np.nan_to_num(kappa, nan=1.0))
+    scaled = scaled_covariances(
+        sol, sums.units, cols, np.maximum(np.nan_to_num(kappa, nan=1.0), 1.0)
+    )
     tests = fleet_window_tests(sums.windows, sums.log_offsets, sol, cols, baseline_s, kappa)
     return sol, kappa, scaled, tests
 

@@ -32,9 +32,8 @@ the motion's slow frequencies, so it moves the friction far less than its share 
 (phi_w - phi) C_w^-1 (phi_w - phi)`` (``phi`` the windows' pooled estimate) is ``kappa_j
 chi^2(k (W - 1))`` for ``W`` windows and ``k`` local parameters of the joint, and ``kappa_j``
 is the median over the units of ``Q`` over that law's median (one unit's change does not move
-it). The tests use ``kappa_j sigma_j^2``. An error that repeats identically in every window
-(a motion repeated sample for sample, quantized alike) cancels in the scatter: it is in no
-test, nor in the intervals.
+it). The tests use ``kappa_j sigma_j^2``: an error common to every window cancels between a
+window and the baseline as it does in the scatter.
 """
 
 from __future__ import annotations

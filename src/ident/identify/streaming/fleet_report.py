@@ -4,11 +4,12 @@ friction and offsets with 95 % intervals, the run's throughput), the drift repor
 test).
 
 Intervals: ``x +- 1.96 std`` with ``std`` from the weighted least-squares covariance for rows
-whose noise variance counts ``kappa_j`` times the residual's per joint
+whose noise variance counts ``max(1, kappa_j)`` times the residual's per joint
 (:func:`~ident.identify.streaming.fleet.scaled_covariances`; ``kappa_j`` the windows' noise
-factor, :func:`~ident.identify.streaming.fleet_drift.window_factors`: what the rows' noise,
-correlated from row to row, does to an estimate from many rows). An error that repeats
-identically in every window cancels in the windows' scatter and is not in the intervals.
+factor, :func:`~ident.identify.streaming.fleet_drift.window_factors`: the rows' noise,
+correlated from row to row). Never below the residual's own: an error common to every window
+cancels in the windows' scatter but not in the pooled estimate (simulated UR5 units: with
+``kappa_j`` below 1 as measured, 79 % of the intervals held the truth; with the floor, 96 %).
 """
 
 from __future__ import annotations
@@ -129,7 +130,9 @@ def fleet_report(
     kappa, kappa_units = window_factors(sums.windows, sol, cols)
     tests = fleet_window_tests(sums.windows, sums.log_offsets, sol, cols, baseline, kappa)
     threshold = rise_threshold(alpha)
-    scaled = scaled_covariances(sol, sums.units, cols, np.nan_to_num(kappa, nan=1.0))
+    scaled = scaled_covariances(
+        sol, sums.units, cols, np.maximum(np.nan_to_num(kappa, nan=1.0), 1.0)
+    )
     shared = [cols.names[i] for i in cols.shared]
     local = [cols.names[i] for i in cols.local]
     result = {
