@@ -18,6 +18,13 @@ tenths of N*m, torque noise 1 % of each joint's RMS torque and 2^19-count encode
 
 3. **The command** (``--npz DIR``): the case of 1 written as npz logs with a config into
    ``DIR``, and ``ident fleet`` run on them: its terminal lines and ``drift.md``.
+4. **Robot-hours from disk** (``--npz DIR --hours H``): each unit's ``--distinct`` 10-minute
+   npz logs (its cycle continued, fresh noise) written into ``DIR``, each listed
+   ``H / (units x distinct x 10 min)`` times in the unit's logs (disk is limited: 100
+   robot-hours of 1 kHz logs are 37 GB; the compute is the same, each log is read and every
+   chunk identified again), and ``ident fleet`` run on them in a child process: its wall
+   time, the CPU time of the whole process tree (reading included), the throughput per core
+   and the load average during the run.
 
 Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] [--hours 0]
 [--npz DIR]``.
@@ -26,9 +33,14 @@ Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] 
 from __future__ import annotations
 
 import argparse
+import os
+import resource
+import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import yaml
@@ -36,14 +48,22 @@ from typer.testing import CliRunner
 
 from ident.cli import app
 from ident.config import read_yaml
-from ident.identify.streaming.fleet import ChunkSettings, FleetColumns, solve_fleet
+from ident.identify.streaming.fleet import (
+    ChunkSettings,
+    FleetColumns,
+    chunk_equations,
+    scaled_covariances,
+    solve_fleet,
+    window_sums,
+)
 from ident.identify.streaming.fleet import fleet_columns as columns_of
 from ident.identify.streaming.fleet_drift import (
-    kappa_from,
+    fleet_window_tests,
     rise_threshold,
-    window_tests,
+    window_factors,
 )
-from ident.identify.streaming.fleet_run import fleet_client, fleet_sums
+from ident.identify.streaming.fleet_run import fleet_client, fleet_sums, plan_chunks
+from ident.identify.streaming.normal import NormalEquations
 from ident.measure.fleet_sim import SimulatedUnitLog
 from ident.model.selection import RobotSelection, load_robot
 
@@ -124,17 +144,29 @@ def friction_errors(sol, cols: FleetColumns, units: list[dict]) -> np.ndarray:  
     return np.array(out)
 
 
-def coverage(sol, cols: FleetColumns, units: list[dict], args: argparse.Namespace) -> float:  # noqa: ANN001
-    """Fraction of the clean units' fv and fs whose 95 % interval (white-noise covariance,
-    as result.json without kappa) holds the truth."""
+def coverage(sol, cols: FleetColumns, units: list[dict], skip: int | None) -> list[bool]:  # noqa: ANN001
+    """Whether each fv and fs 95 % interval (``sol``'s covariance, as result.json) of the
+    units but ``skip`` holds the truth."""
     inside = []
     for k, (u, truth) in enumerate(zip(sol.units, units, strict=True)):
-        if k == args.rise_unit:
+        if k == skip:
             continue
         for i, (kind, j) in enumerate(zip(cols.kind, cols.owner, strict=True)):
             if kind in ("fv", "fs"):
-                inside.append(abs(u.x[i] - truth[kind][j]) <= 1.959964 * u.std[i])
-    return float(np.mean(inside))
+                inside.append(bool(abs(u.x[i] - truth[kind][j]) <= 1.959964 * u.std[i]))
+    return inside
+
+
+def reported(sums, cols: FleetColumns, baseline_s: float) -> tuple:  # noqa: ANN001
+    """As ``ident fleet`` reports: the solve, the windows' noise factor per joint, the
+    solution with result.json's covariances, every unit's window tests."""
+    sol = solve_fleet(sums.units, cols)
+    kappa, _ = window_factors(sums.windows, sol, cols)
+    scaled = scaled_covariances(
+        sol, sums.units, cols, np.maximum(np.nan_to_num(kappa, nan=1.0), 1.0)
+    )
+    tests = fleet_window_tests(sums.windows, sums.log_offsets, sol, cols, baseline_s, kappa)
+    return sol, kappa, scaled, tests
 
 
 def accuracy(args: argparse.Namespace) -> None:
@@ -173,19 +205,17 @@ def accuracy(args: argparse.Namespace) -> None:
         )
     clean = np.delete(err, args.rise_unit, axis=0)
     print(f"clean units: |max| friction error {np.abs(clean).max():.2f} % (target 3 %)")
-    print(f"95 % intervals holding the truth (clean units): {coverage(sol, cols, units, args):.3f}")
-    detection(sums, sol, cols, args)
+    _, kappa, scaled, tests = reported(sums, cols, args.baseline)
+    inside = coverage(scaled, cols, units, args.rise_unit)
+    print(f"windows' noise factor per joint: {np.round(kappa, 3).tolist()}")
+    print(f"95 % intervals holding the truth (clean units): {np.mean(inside):.3f}")
+    detection(tests, args)
     throughput_line(sums, "accuracy case")
 
 
-def detection(sums, sol, cols: FleetColumns, args: argparse.Namespace) -> None:  # noqa: ANN001
+def detection(tests: list, args: argparse.Namespace) -> None:
     """The rise window flagged? False alarms over every other window."""
-    tests = [
-        window_tests(w, sol.x, u.sigma, cols, args.baseline, off)
-        for w, u, off in zip(sums.windows, sol.units, sums.log_offsets, strict=True)
-    ]
-    kappa = kappa_from(tests)
-    thr = rise_threshold(0.01, kappa)
+    thr = rise_threshold(0.01)
     rise_at = args.seconds - args.window
     hits, clean = [], []
     for k, unit in enumerate(tests):
@@ -194,7 +224,7 @@ def detection(sums, sol, cols: FleetColumns, args: argparse.Namespace) -> None: 
                 continue
             (hits if k == args.rise_unit and t.time_s >= rise_at - 1e-9 else clean).append(t)
     fa = sum(t.z > thr for t in clean)
-    print(f"rise test: kappa {kappa:.2f}, threshold z > {thr:.2f} (alpha 0.01, one-sided)")
+    print(f"rise test: threshold z > {thr:.2f} (alpha 0.01, one-sided)")
     for t in hits:
         print(
             f"  rise window at {t.time_s:.0f} s ({t.duration_s:.0f} s): rise {100 * t.rise:+.2f} "
@@ -287,6 +317,123 @@ def cli_case(args: argparse.Namespace) -> None:
         print((run / "drift.md").read_text())
 
 
+def local_sums(sources: list, cols: FleetColumns, window_s: float) -> SimpleNamespace:
+    """:func:`fleet_sums`' units, windows and log offsets computed in this process (one log
+    per unit; the same chunks and sums, no cluster)."""
+    settings = ChunkSettings()
+    out = SimpleNamespace(units=[], windows=[], log_offsets=[[0.0] for _ in sources])
+    for src in sources:
+        log = src()
+        eq, wins = NormalEquations(log.q.shape[1], cols.p), []
+        for r0, r1, span, t0, t1 in plan_chunks(log, window_s, settings):
+            part = chunk_equations(log.q[r0:r1], log.tau[r0:r1], 1000.0, span, cols, settings)
+            eq.iadd(part)
+            wins.append(window_sums(part, cols, (t0, t1, 0)))
+        out.units.append(eq)
+        out.windows.append(wins)
+    return out
+
+
+def seeds_case(args: argparse.Namespace) -> None:
+    """Part 5: ``--coverage-seeds N`` fleets of ``--units`` change-free units (``--seconds``
+    each; units, motions and noise drawn from each seed), in this process: the share of the
+    95 % intervals of result.json holding the true fv and fs, and the change-free windows'
+    rise statistic (its spread, the share above the alpha 0.01 threshold)."""
+    robot, meas = ur5()
+    cols = fleet_columns(robot)
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    inside, z, kappas = [], [], []
+    c0 = time.process_time()
+    for seed in range(args.coverage_seeds):
+        units = make_units(robot, meas, args.units, seed=1000 + seed)
+        sources = [unit_log(u, names, args.seconds, 10_000 * seed + k) for k, u in enumerate(units)]
+        _, kappa, scaled, tests = reported(
+            local_sums(sources, cols, args.window), cols, args.baseline
+        )
+        got = coverage(scaled, cols, units, None)
+        inside += got
+        z += [t.z for unit in tests for t in unit if np.isfinite(t.z)]
+        kappas.append(kappa)
+        print(
+            f"seed {seed}: intervals holding the truth {np.mean(got):.3f}; "
+            f"kappa {np.round(kappa, 2)}"
+        )
+    z_ = np.array(z)
+    print(
+        f"{args.coverage_seeds} seeds x {args.units} units x {args.seconds:g} s "
+        f"({time.process_time() - c0:.0f} s CPU): 95 % intervals holding the truth "
+        f"{np.mean(inside):.3f} of {len(inside)}; windows' noise factor per joint (median over "
+        f"seeds) {np.round(np.median(kappas, axis=0), 2).tolist()}; change-free windows' z: "
+        f"{z_.size}, mean {z_.mean():+.3f}, standard deviation {z_.std():.3f}, above "
+        f"{rise_threshold(0.01):.3f}: {np.mean(z_ > rise_threshold(0.01)):.4f} (stated 0.01)"
+    )
+
+
+def hours_case(args: argparse.Namespace) -> None:
+    """Part 4 of the module docstring."""
+    robot, meas = ur5()
+    names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
+    units = make_units(robot, meas, args.units, seed=args.seed)
+    log_s = 600.0
+    reuse = max(1, int(round(args.hours * 3600 / (log_s * args.units * args.distinct))))
+    (args.npz / "logs").mkdir(parents=True, exist_ok=True)
+    listed = []
+    for k, u in enumerate(units):
+        files = []
+        for m in range(args.distinct):
+            f = args.npz / "logs" / f"u{k:02d}-{m}.npz"
+            if not f.exists():
+                log = unit_log(u, names, log_s, 1000 * k + m, start_s=m * log_s)()
+                np.savez(f, t=log.t, q=log.q, tau=log.tau)
+            files.append(f.name)
+        listed.append({"name": f"u{k:02d}", "logs": [f"logs/{f}" for f in files * reuse]})
+    size = sum(f.stat().st_size for f in (args.npz / "logs").glob("u*-*.npz"))
+    print(
+        f"{args.units} units x {args.distinct} distinct 10-minute logs ({size / 1e9:.2f} GB on "
+        f"disk), each listed {reuse} times: {args.units * args.distinct * reuse * log_s / 3600:g} "
+        "robot-hours read and identified (the same files reused: the compute is the same)"
+    )
+    cfg = {"name": "bench-fleet-hours", "robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
+           "log": {"time": {"column": "t"}, "position": {"columns": [f"q/{j}" for j in range(6)]},
+                   "torque": {"columns": [f"tau/{j}" for j in range(6)]}},
+           "units": listed,
+           "fleet": {"workers": args.workers, "window_s": args.window,
+                     "baseline_s": args.baseline}}  # fmt: skip
+    (args.npz / "fleet-hours.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    run_measured([sys.executable, "-c", "from ident.cli import app; app()", "fleet",
+                  str(args.npz / "fleet-hours.yaml"), "--out", str(args.npz / "runs")])  # fmt: skip
+
+
+def run_measured(command: list[str]) -> None:
+    """Run ``command``; print its output, wall time, the CPU time of its process tree (user +
+    system, the LocalCluster's workers included) and the load average sampled every 10 s."""
+    loads: list[float] = []
+    stop = threading.Event()
+
+    def sample() -> None:
+        while not stop.wait(10.0):
+            loads.append(os.getloadavg()[0])
+
+    thread = threading.Thread(target=sample, daemon=True)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    thread.start()
+    res = subprocess.run(command, capture_output=True, text=True, check=False)
+    wall = time.perf_counter() - t0
+    stop.set()
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    print(res.stdout + res.stderr)
+    mean = float(np.mean(loads)) if loads else float("nan")
+    print(
+        f"measured: {wall:.0f} s wall, {cpu:.0f} s CPU of the process tree "
+        f"(user {after.ru_utime - before.ru_utime:.0f} s, system "
+        f"{after.ru_stime - before.ru_stime:.0f} s; exit code {res.returncode}); load average "
+        f"(1 min) during the run: {min(loads, default=float('nan')):.1f} - "
+        f"{max(loads, default=float('nan')):.1f}, mean {mean:.1f}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--units", type=int, default=20)
@@ -297,8 +444,16 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--hours", type=float, default=0.0)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--coverage-seeds", type=int, default=0, help="part 5: N fleets")
+    parser.add_argument("--distinct", type=int, default=3, help="distinct logs per unit (part 4)")
     parser.add_argument("--npz", type=Path, default=None, help="run `ident fleet` on npz logs here")
     args = parser.parse_args()
+    if args.coverage_seeds > 0:
+        seeds_case(args)
+        return
+    if args.npz is not None and args.hours > 0:
+        hours_case(args)
+        return
     if args.npz is not None:
         cli_case(args)
         return

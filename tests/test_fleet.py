@@ -19,14 +19,17 @@ from ident.identify.streaming.fleet import (
     ChunkSettings,
     FleetSolution,
     UnitSolution,
+    chunk_equations,
+    scaled_covariances,
     schur_solve,
     solve_fleet,
+    window_sums,
 )
 from ident.identify.streaming.fleet_drift import (
-    kappa_from,
+    fleet_window_tests,
     rise_threshold,
     unit_outliers,
-    window_tests,
+    window_factors,
 )
 from ident.identify.streaming.fleet_run import fleet_client, fleet_sums, plan_chunks
 from ident.identify.streaming.normal import NormalEquations
@@ -117,11 +120,9 @@ def test_toy_fleet_recovers_each_units_friction(toy_fleet: tuple) -> None:
 def test_planted_rise_flagged_and_no_alarm_elsewhere(toy_fleet: tuple) -> None:
     """Unit 0's last 20 s window alarms with a rise near 10 %; no other window does."""
     _, sums, sol, cols = toy_fleet
-    tests = [
-        window_tests(w, sol.x, u.sigma, cols, 40.0, off)
-        for w, u, off in zip(sums.windows, sol.units, sums.log_offsets, strict=True)
-    ]
-    thr = rise_threshold(0.01, kappa_from(tests))
+    kappa, _ = window_factors(sums.windows, sol, cols)
+    tests = fleet_window_tests(sums.windows, sums.log_offsets, sol, cols, 40.0, kappa)
+    thr = rise_threshold(0.01)
     last = tests[0][-1]
     assert last.time_s == pytest.approx(80.0)
     assert last.z > thr
@@ -129,6 +130,72 @@ def test_planted_rise_flagged_and_no_alarm_elsewhere(toy_fleet: tuple) -> None:
     others = [t for unit in tests for t in unit if t is not last and np.isfinite(t.z)]
     assert len(others) >= 12
     assert all(t.z < thr for t in others)
+
+
+def test_coulomb_column_as_filtered_as_the_torque(setup: tuple) -> None:
+    """A noise-free unit without quantization (20 s, two chunks): its rows fit the simulated
+    torques to 1e-5 N*m (the bare sign(dq) column, with the torque's Coulomb step spread by
+    the low-pass and not the column's, left a residual of 5e-4 N*m rms)."""
+    robot, meas, cols, names = setup
+    unit = make_units(robot, meas, 1, seed=0)[0]
+    unit["noise"] = 0.0 * unit["noise"]
+    log = unit_log(unit, names, 20.0, 0, counts_per_rev=None)()
+    eq = NormalEquations(6, cols.p)
+    for r0, r1, span, _, _ in plan_chunks(log, 10.0, ChunkSettings()):
+        eq.iadd(chunk_equations(log.q[r0:r1], log.tau[r0:r1], 1000.0, span, cols, ChunkSettings()))
+    x = np.linalg.lstsq(eq.A.sum(axis=0), eq.c.sum(axis=0), rcond=None)[0]
+    assert np.sqrt(eq.residual_ss(x).sum() / eq.sw.sum()) < 1e-5
+
+
+def test_simulated_cycles_quantized_each_their_own_way(setup: tuple) -> None:
+    """A unit's 30 s (three 10 s cycles): every position within 1.5 counts of the cycle's
+    (the wandering offset is under one count), and the quantized positions of one cycle and
+    the next differ (they were identical sample for sample: an error every window repeats)."""
+    robot, meas, _, names = setup
+    unit = make_units(robot, meas, 1, seed=0)[0]
+    log = unit_log(unit, names, 30.0, 0)()
+    count = 2 * np.pi / 524288
+    truth = np.tile(unit["cycle"][0], (3, 1))
+    assert np.abs(log.q - truth).max() < 1.5 * count
+    assert np.mean(log.q[:10_000] != log.q[10_000:20_000]) > 0.1
+
+
+def _windows(cols, rng: np.random.Generator, theta: float, rise: float = 0.0) -> tuple:  # noqa: ANN001
+    """A unit's 10 windows of 200 rows each: slowly varying regressors, friction and offsets
+    of its own, MA(1) noise ``u_i + theta u_(i-1)`` along the rows (a long-run variance
+    ``(1 + theta)^2 / (1 + theta^2)`` times the rows'); ``rise`` on the last window's rows."""
+    x = np.zeros(cols.p)
+    x[cols.local] = rng.uniform(1.0, 2.0, cols.local.size)
+    i = np.arange(2000)[:, None, None]
+    X = np.cos(2 * np.pi * rng.uniform(0.001, 0.01, (1, 6, cols.p)) * i + rng.uniform(0, 6, cols.p))
+    X[:, :, cols.local] *= np.arange(6)[:, None] == cols.owner  # a local column: its joint only
+    u = rng.normal(size=(2001, 6))
+    y = X @ x + (u[1:] + theta * u[:-1])
+    y[1800:] += rise * (X[1800:] @ np.where(np.isin(np.arange(cols.p), cols.local), x, 0.0))
+    eqs, wins = NormalEquations(6, cols.p), []
+    for w in range(10):
+        eq = NormalEquations(6, cols.p)
+        eq.add_rows(X[200 * w : 200 * (w + 1)], y[200 * w : 200 * (w + 1)], np.ones((200, 6), bool))
+        eqs.iadd(eq)
+        wins.append(window_sums(eq, cols, (w, w + 1.0, 0)))
+    return eqs, wins
+
+
+def test_window_factors_measure_the_rows_correlated_noise(setup: tuple) -> None:
+    """16 units of MA(1)-noise rows (theta 0.5): the windows' noise factor averaged over the
+    joints within 6 % of ``(1 + theta)^2 / (1 + theta^2) = 1.8`` (chi^2 with W instead of
+    W - 1 degrees of freedom would read 10 % low, the white-noise covariance 44 %), one
+    unit's 30 % rise in a window not moving it; the covariances for a factor 2 are twice
+    those for 1."""
+    cols, theta = setup[2], 0.5
+    rng = np.random.default_rng(7)
+    units = [_windows(cols, rng, theta, rise=0.3 if k == 0 else 0.0) for k in range(16)]
+    sol = solve_fleet([u[0] for u in units], cols)
+    kappa, n = window_factors([u[1] for u in units], sol, cols)
+    assert np.all(n == 16)
+    assert np.mean(kappa) == pytest.approx((1 + theta) ** 2 / (1 + theta**2), rel=0.06)
+    one, two = (scaled_covariances(sol, [u[0] for u in units], cols, np.full(6, f)) for f in (1, 2))
+    assert np.allclose(two.units[3].covariance, 2 * one.units[3].covariance, rtol=1e-9)
 
 
 def test_unit_outliers_flags_the_unit_off_the_fleets_spread(setup: tuple) -> None:

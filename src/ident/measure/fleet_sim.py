@@ -5,7 +5,13 @@ A unit's routine motion is a cycle repeated (a periodic joint trajectory: one pe
 rigid-body torques, computed once with Pinocchio's RNEA of the shared model, the rotor
 inertias added). The unit's log then adds, at every sample, its own viscous and Coulomb
 friction (``fv dq + fs sign(dq)``) and offsets, Gaussian torque noise, and quantizes the
-positions to the encoder's counts (:func:`ident.measure.ideal.quantize`). From ``rise_at_s``
+positions to the encoder's counts (:func:`ident.measure.ideal.quantize`). The positions are
+offset before the quantization by a fraction of a count per joint that wanders from one
+repetition of the cycle to the next (linearly): a robot
+repeats its motion to its repeatability (a UR5's 0.1 mm is some 8 counts of a 2^19-count
+encoder), not to a count, so the quantization's error differs from cycle to cycle (without
+the offsets every cycle's positions were quantized identically: an error repeated in every
+window of the log, which no statistic of the log can see). From ``rise_at_s``
 on, the friction is ``1 + rise`` times larger (wear). The log is built where it is called
 (a :class:`SimulatedUnitLog` is small and picklable: a Dask worker simulates its own log).
 """
@@ -64,7 +70,15 @@ class SimulatedUnitLog:
         tau = self.tau_rigid[k] + scale * (self.fv * dq + self.fs * np.sign(dq)) + self.offset
         tau += rng.standard_normal(tau.shape) * self.noise_std
         if self.counts_per_rev is not None:
-            q = quantize(q, self.counts_per_rev)
+            # the offset wanders linearly from cycle to cycle (a step would be a ddq impulse)
+            k0 = int(round(self.start_s * self.rate_hz))
+            knots = np.arange(k0 // period, (k0 + n) // period + 2) * period
+            phase = rng.random((knots.size, q.shape[1]))  # counts
+            count = 2 * np.pi / self.counts_per_rev
+            drift = np.column_stack(
+                [np.interp(k0 + np.arange(n), knots, phase[:, j]) for j in range(q.shape[1])]
+            )
+            q = quantize(q + drift * count, self.counts_per_rev)
         return RobotLog(
             t=t, q=q, tau=tau, sampling_rate_hz=self.rate_hz, joint_names=self.joint_names
         )

@@ -56,6 +56,7 @@ __all__ = [
     "chunk_equations",
     "fleet_columns",
     "schur_solve",
+    "scaled_covariances",
     "solve_fleet",
     "window_sums",
 ]
@@ -77,17 +78,16 @@ class ChunkSettings:
 
     cutoff_hz: float = 20.0
     decimation: int = 20
-    # the Coulomb step at a velocity reversal is spread by the filter over ~1 / cutoff_hz, in
-    # which the joint reaches ~0.1 rad/s: 0.05 rad/s left friction errors up to 0.7 % and
-    # 95 % intervals holding 35 % of the truths (6 simulated UR5 units x 120 s); 0.2: 0.31 %,
-    # 97 % (20 units x 600 s, benchmarks/bench_fleet.py: 0.19 %, 82 %)
+    # rows near a velocity reversal are left out: a real joint's friction there is not
+    # Coulomb's step (Stribeck, stiction), and sign(dq) is uncertain where dq ~ 0
     velocity_threshold: float = 0.2
     order: int = 4
 
     def margin(self, fs: float) -> int:
-        """Raw samples added on each side of a chunk for the zero-phase filter: its impulse
-        response's decay below 1e-9 of its peak."""
-        return decay_length(_sos(self, fs), rtol=1e-9) + 2
+        """Raw samples added on each side of a chunk for the zero-phase filters: twice the
+        impulse response's decay below 1e-9 of its peak (the Coulomb column is filtered from
+        a velocity that is itself filtered, :func:`chunk_equations`)."""
+        return 2 * decay_length(_sos(self, fs), rtol=1e-9) + 2
 
 
 class FleetColumns:
@@ -127,6 +127,9 @@ class FleetColumns:
         self.shared = np.setdiff1d(np.arange(len(self.names)), self.local)
         self.owner = np.array(owner, dtype=np.intp)
         self.kind = tuple(kind)
+        fs = np.array([k == "fs" for k in kind])
+        # the Coulomb columns (indices into names) and their joints
+        self.coulomb, self.coulomb_owner = self.local[fs], self.owner[fs]
 
     @property
     def p(self) -> int:
@@ -201,6 +204,13 @@ def chunk_equations(
     qf, tf = both[:nv].T, both[nv:].T
     dq, ddq = central_differences(qf, fs)
     X = cols.rows(qf[idx], dq[idx], ddq[idx])
+    # The torque's Coulomb step at a reversal went through the low-pass: spread over ~1 /
+    # cutoff_hz, ringing beyond the velocity threshold. The column goes through the same
+    # filter (sign(dq) filtered), so that rows and torques describe the same signal; with the
+    # bare sign the 20 x 600 s UR5 fleet's friction was biased by up to 4 standard
+    # deviations (82 % of its 95 % intervals held the truth)
+    sign = signal.sosfiltfilt(_sos(settings, fs), np.sign(dq[:, cols.coulomb_owner]).T, axis=1)
+    X[:, cols.coulomb_owner, cols.coulomb] = sign.T[idx]
     keep = np.abs(dq[idx]) >= settings.velocity_threshold
     eq.add_rows(X, tf[idx], keep)
     return eq
@@ -319,3 +329,25 @@ def solve_fleet(units: list[NormalEquations], cols: FleetColumns, passes: int = 
         for (x_L, C_LL), sig, eq in zip(local, sigma, units, strict=True)
     )
     return FleetSolution(x=x_S, covariance=C_SS, units=solutions)
+
+
+def scaled_covariances(
+    sol: FleetSolution, units: list[NormalEquations], cols: FleetColumns, factors: FloatArray
+) -> FleetSolution:
+    """``sol`` with its covariances for rows whose noise variance, per joint ``j``, counts
+    ``factors[j]`` times its residual's (:func:`~ident.identify.streaming.fleet_drift.
+    window_factors`: the rows' noise is correlated over a few rows, so each row is worth
+    less than one independent row). The estimate is unchanged; the covariances are those of
+    the weighted solve with weights ``1 / (factors_j sigma_uj^2)`` (exact when the factors
+    are equal, the sandwich's first order otherwise)."""
+    weights = []
+    for eq, u in zip(units, sol.units, strict=True):
+        var = np.nan_to_num(u.sigma**2)
+        var = np.maximum(var, 1e-12 * var.max() + 1e-300)  # as solve_fleet's weights
+        weights.append(np.where(eq.sw > 0, 1.0 / (factors * var), 0.0))
+    _, C_SS, local = schur_solve(units, weights, cols)
+    out = tuple(
+        UnitSolution(x=u.x, covariance=C_LL, sigma=u.sigma, n_rows=u.n_rows)
+        for u, (_, C_LL) in zip(sol.units, local, strict=True)
+    )
+    return FleetSolution(x=sol.x, covariance=C_SS, units=out)

@@ -19,10 +19,21 @@ rise by a factor ``1 + s`` moves ``d = phi_w - phi_0`` along ``g`` (``phi_0``'s 
 entries); with ``D = C_w + C_0`` (the two estimates are independent) and the offsets left free
 (the friction entries' marginal), ``s = g^T D^-1 d / g^T D^-1 g``, ``std(s) = (g^T D^-1
 g)^-1/2`` and ``z = s / std(s)`` is standard normal without a change. One-sided test: alarm
-when ``z > z_alpha sqrt(kappa)`` with ``z_alpha`` the standard normal quantile of ``1 -
-alpha``: at most ``alpha`` of the change-free windows alarm. ``kappa >= 1`` allows for rows
-whose noise is not white (filtering, model error): the median of ``z^2`` over every window of
-the fleet over its ``chi^2(1)`` value 0.4549 (a median: one unit's change does not move it).
+when ``z > z_alpha``, ``z_alpha`` the standard normal quantile of ``1 - alpha``: ``alpha`` of
+the change-free windows alarm.
+
+**The windows' noise factor** (:func:`window_factors`). ``C_w = N_w^-1 sigma_j^2`` holds for
+independent rows; the rows' noise is not independent: the low-pass correlates neighbouring
+rows (for the default 20 Hz cut-off and 50 rows/s, white torque noise gives sums of rows 1.39
+times the variance of independent ones), and the part of the residual that comes from
+differentiated position noise (the encoder's quantization in ``ddq``) has almost no power at
+the motion's slow frequencies, so it moves the friction far less than its share of
+``sigma_j`` says. So the windows' scatter is measured: per unit and joint, ``Q = sum_w
+(phi_w - phi) C_w^-1 (phi_w - phi)`` (``phi`` the windows' pooled estimate) is ``kappa_j
+chi^2(k (W - 1))`` for ``W`` windows and ``k`` local parameters of the joint, and ``kappa_j``
+is the median over the units of ``Q`` over that law's median (one unit's change does not move
+it). The tests use ``kappa_j sigma_j^2``: an error common to every window cancels between a
+window and the baseline as it does in the scatter.
 """
 
 from __future__ import annotations
@@ -35,12 +46,18 @@ from scipy.stats import chi2, norm
 
 from ident.identify.streaming.fleet import FleetColumns, FleetSolution, WindowSums
 
-__all__ = ["WindowTest", "kappa_from", "unit_outliers", "window_local", "window_tests"]
+__all__ = [
+    "WindowTest",
+    "fleet_window_tests",
+    "rise_threshold",
+    "unit_outliers",
+    "window_factors",
+    "window_local",
+    "window_tests",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Median of the chi-square law with one degree of freedom.
-CHI2_1_MEDIAN = float(chi2.median(1))
 #: Fewest rows of a joint in a window for its local parameters to be tested.
 MIN_ROWS = 20
 
@@ -92,6 +109,44 @@ def window_local(
         inv = np.linalg.inv(block)
         phi[i], C[np.ix_(i, i)], ok[i] = inv @ b[i], inv * sigma[j] ** 2, True
     return phi, C, ok
+
+
+def window_factors(
+    windows: list[list[WindowSums]], sol: FleetSolution, cols: FleetColumns
+) -> tuple[FloatArray, npt.NDArray[np.intp]]:
+    """Per joint: the factor ``kappa_j`` by which the windows' local parameters scatter more
+    than their white-noise covariance says, and the units it comes from (module docstring),
+    both (nv,); ``kappa_j`` NaN where no unit has two windows that estimate joint ``j``.
+
+    Per unit and joint, ``Q = sum_w (phi_w - phi) C_w^-1 (phi_w - phi)`` over the windows
+    that estimate the joint (``phi`` their pooled estimate) is ``kappa chi^2(k (W - 1))``
+    (``k`` local parameters of the joint, ``W`` windows); ``kappa_j`` is the median over the
+    units of ``Q`` over that law's median (a median: one unit's change does not move it).
+    """
+    nv = cols.columns.chain.n_joints
+    ratios: list[list[float]] = [[] for _ in range(nv)]
+    for wins, unit in zip(windows, sol.units, strict=True):
+        est = [window_local(w, sol.x, unit.sigma, cols) for w in wins]
+        for j in range(nv):
+            i = np.flatnonzero(cols.owner == j)
+            use = [(phi[i], C[np.ix_(i, i)]) for phi, C, ok in est if ok[i].all()]
+            if len(use) < 2:
+                continue
+            Q = _scatter(use)
+            ratios[j].append(Q / float(chi2.median(i.size * (len(use) - 1))))
+    kappa = np.array([np.median(r) if r else np.nan for r in ratios])
+    return kappa, np.array([len(r) for r in ratios], dtype=np.intp)
+
+
+def _scatter(est: list[tuple[FloatArray, FloatArray]]) -> float:
+    """``sum_w (phi_w - phi) C_w^-1 (phi_w - phi)`` of estimates ``(phi_w, C_w)``, ``phi``
+    their inverse-covariance weighted mean (:func:`window_factors`)."""
+    P = [np.linalg.inv(C) for _, C in est]
+    rhs = np.sum([p @ phi for p, (phi, _) in zip(P, est, strict=True)], axis=0)
+    pooled = np.linalg.solve(np.sum(P, axis=0), rhs)
+    return sum(
+        float((phi - pooled) @ p @ (phi - pooled)) for p, (phi, _) in zip(P, est, strict=True)
+    )
 
 
 def _sum(windows: list[WindowSums]) -> WindowSums:
@@ -194,14 +249,23 @@ def window_tests(
     return out
 
 
-def kappa_from(tests: list[list[WindowTest]]) -> float:
-    """``kappa = max(1, median z^2 / 0.4549)`` over every tested window of the fleet."""
-    z = np.array([t.z for unit in tests for t in unit if np.isfinite(t.z)])
-    if z.size == 0:
-        return 1.0
-    return max(1.0, float(np.median(z * z)) / CHI2_1_MEDIAN)
+def fleet_window_tests(
+    windows: list[list[WindowSums]],
+    offsets: list[list[float]],
+    sol: FleetSolution,
+    cols: FleetColumns,
+    baseline_s: float,
+    kappa: FloatArray,
+) -> list[list[WindowTest]]:
+    """:func:`window_tests` of every unit, with the noise ``kappa_j sigma_uj^2`` per joint
+    (``kappa`` (nv,) of :func:`window_factors`; NaN counts as 1)."""
+    scale = np.sqrt(np.nan_to_num(kappa, nan=1.0))
+    return [
+        window_tests(w, sol.x, u.sigma * scale, cols, baseline_s, off)
+        for w, u, off in zip(windows, sol.units, offsets, strict=True)
+    ]
 
 
-def rise_threshold(alpha: float, kappa: float) -> float:
-    """The one-sided alarm threshold on ``z``: ``z_alpha sqrt(kappa)``."""
-    return float(norm.isf(alpha)) * float(np.sqrt(kappa))
+def rise_threshold(alpha: float) -> float:
+    """The one-sided alarm threshold on ``z``: the standard normal quantile of ``1 - alpha``."""
+    return float(norm.isf(alpha))
