@@ -141,5 +141,7 @@ def test_kernels_compile_once_for_writeable_and_read_only_states() -> None:
         selected_rows(chain, *states)
         regressor_gram(chain, *states)
     np.testing.assert_array_equal(y, joint_torque_regressor(chain, q, dq, ddq))
-    assert len(_kernels.regressor_into.signatures) == 1
-    assert len(_kernels.selected_rows_into.signatures) == 1
+    # one type of q, dq, ddq (arguments 4-6) whatever the caller passed; other tests of the
+    # same process may add a specialization for another ``out`` (a strided view: 'A' layout)
+    for kernel in (_kernels.regressor_into, _kernels.selected_rows_into):
+        assert len({signature[4:7] for signature in kernel.signatures}) == 1, kernel.signatures

@@ -27,7 +27,7 @@ _CHUNK = 512  # samples per buffer: 512 * 6 rows * 60 columns * 8 B = 1.5 MB
 def _indices(values: Sequence[int] | np.ndarray | None, size: int, label: str) -> np.ndarray:
     if values is None:
         return np.arange(size, dtype=np.int64)
-    out = np.asarray(values, dtype=np.int64).reshape(-1)
+    out = np.array(values, dtype=np.int64).reshape(-1)  # a writeable copy: one kernel type
     if out.size == 0 or out.min() < 0 or out.max() >= size:
         raise DataError(f"{label} must be non-empty indices in [0, {size}), got {out.tolist()}")
     return out
