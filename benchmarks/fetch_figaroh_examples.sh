@@ -21,21 +21,10 @@ set -eu
 DEST=${1:?usage: fetch_figaroh_examples.sh DEST [SOURCE]}
 SOURCE=${2:-https://github.com/thanhndv212/figaroh-examples}
 COMMIT=c0b5c7f0fda10078be55104f9ee76ac106b7a5ee
-mkdir -p "$DEST"
-DEST=$(cd "$DEST" && pwd)
-if [ -d "$SOURCE" ] && git -C "$SOURCE" rev-parse --git-dir >/dev/null 2>&1; then
-    REPO=$SOURCE
-else
-    REPO="$DEST/.clone"
-    [ -d "$REPO" ] || git clone --bare --filter=blob:none "$SOURCE" "$REPO"
-fi
-# the archive to a file first: sh has no pipefail, and a failed `git archive | tar` would leave a
-# partial folder behind a zero exit status
-ARCHIVE="$DEST/.examples.tar"
-git -C "$REPO" archive -o "$ARCHIVE" "$COMMIT" examples/__init__.py examples/staubli_TX40 \
+HERE=$(cd "$(dirname "$0")" && pwd)
+sh "$HERE/fetch_pinned.sh" "$DEST" "$SOURCE" "$COMMIT" examples/__init__.py examples/staubli_TX40 \
     examples/templates models/staubli_tx40_description examples/ur10/urdf
-tar -x -C "$DEST" -f "$ARCHIVE"
-rm -f "$ARCHIVE"
+DEST=$(cd "$DEST" && pwd)
 cd "$DEST/examples"
 ln -sfn staubli_TX40 staubli_tx40
 ln -sfn ../templates staubli_TX40/templates

@@ -15,18 +15,7 @@ set -eu
 DEST=${1:?usage: fetch_iiwa.sh DEST [SOURCE]}
 SOURCE=${2:-https://github.com/IFL-CAMP/iiwa_stack}
 COMMIT=44f9d13c1b444d5dc9fd3e43ba60b7d3b2ea2bbb
-mkdir -p "$DEST"
+HERE=$(cd "$(dirname "$0")" && pwd)
+sh "$HERE/fetch_pinned.sh" "$DEST" "$SOURCE" "$COMMIT" iiwa_description LICENSE
 DEST=$(cd "$DEST" && pwd)
-if [ -d "$SOURCE" ] && git -C "$SOURCE" rev-parse --git-dir >/dev/null 2>&1; then
-    REPO=$SOURCE
-else
-    REPO="$DEST/.clone"
-    [ -d "$REPO" ] || git clone --bare --filter=blob:none "$SOURCE" "$REPO"
-fi
-# the archive to a file first: sh has no pipefail, and a failed `git archive | tar` would leave a
-# partial folder behind a zero exit status
-ARCHIVE="$DEST/.iiwa.tar"
-git -C "$REPO" archive -o "$ARCHIVE" "$COMMIT" iiwa_description LICENSE
-tar -x -C "$DEST" -f "$ARCHIVE"
-rm -f "$ARCHIVE"
 echo "iiwa_description at $DEST (IFL-CAMP/iiwa_stack commit $COMMIT)"
