@@ -271,9 +271,8 @@ class _Choices:
     def effort_note(self) -> str:
         if self.placeholder:
             return (
-                f"twice the load of the links each joint moves (gravity plus link inertia at "
-                f"the acceleration limit), not the URDF's effort limits: {self.placeholder:g} "
-                "N*m on every joint looks like a placeholder"
+                f"twice the load of the links each joint moves, not the URDF's effort limits "
+                f"({self.placeholder:g} N*m on every joint looks like a placeholder)"
             )
         return (
             "the URDF's effort limits"
@@ -616,7 +615,15 @@ def _measurement_lines(c: _Choices) -> list[str]:
         "  source: mujoco",
         "  rate_hz: 1000.0",
         "  controller: {kind: computed_torque}    # default gains: 100 rad/s, critically damped",
-        f"  # guesses scaled to {c.effort_note} {_list(c.scale)} N*m:",
+        *(
+            [
+                f"  # guesses scaled to {c.effort_note}",
+                "  # (the load: gravity plus the link inertia at the acceleration limit)",
+                f"  # {_list(c.scale)} N*m:",
+            ]
+            if c.placeholder
+            else [f"  # guesses scaled to {c.effort_note} {_list(c.scale)} N*m:"]
+        ),
         "  # replace each with your robot's value",
         "  friction:",
         f"    viscous: {_list(c.viscous)}   # guess: N*m*s/rad, {VISCOUS_PER_EFFORT:g} x effort",
