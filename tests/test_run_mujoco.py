@@ -8,6 +8,7 @@ References: the simulator's truth (URDF inertials + the configured friction and 
 import json
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 from robots import UR5_URDF
@@ -16,8 +17,9 @@ from typer.testing import CliRunner
 from ident.cli import app
 from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
-from ident.errors import ConfigError
+from ident.errors import ConfigError, ModelError
 from ident.identify.assessment.rollout import rollout_text
+from ident.measure.mujoco_model import inertia_problem, mujoco_urdf
 from ident.model import Robot
 from ident.run.log_measurement import reference_share
 from ident.run.setup import load_run
@@ -26,6 +28,17 @@ from ident.trajectory import read_trajectory_csv
 REPO = Path(__file__).resolve().parents[1]
 QUICK = REPO / "tests" / "data" / "run" / "quick-ur5-mujoco.yaml"
 runner = CliRunner()
+
+
+#: TIAGo's antenna inertial (example-robot-data's tiago.urdf), fixed to the base.
+_ANTENNA = """  <link name="antenna"><inertial><mass value="0.000001"/>
+    <inertia ixx="2.371e-8" iyy="2.833e-8" izz="3.849e-8"
+      ixy="6.119e-8" ixz="1.179e-8" iyz="7.74e-9"/>
+  </inertial></link>
+  <joint name="antenna_joint" type="fixed"><parent link="base_link"/><child link="antenna"/>
+  </joint>
+</robot>
+"""
 
 
 def _only(folder: Path) -> Path:
@@ -168,6 +181,20 @@ def test_mujoco_needs_every_joint_moving_and_one_value_per_joint(tmp_path) -> No
     )
     with pytest.raises(ConfigError, match="armature"):
         load_run(short)
+    # a link fixed to the base whose inertia has products and a negative principal moment
+    # (TIAGo's 1 mg antennas): refused by the loader, naming the link, before any design
+    urdf = (REPO / "robot" / "urdf" / "ur5.urdf").read_text().replace("</robot>", _ANTENNA)
+    (tmp_path / "antenna.urdf").write_text(urdf)
+    antenna = tmp_path / "antenna.yaml"
+    antenna.write_text(text.replace(str(REPO / "robot" / "urdf" / "ur5.urdf"), "antenna.urdf"))
+    with pytest.raises(ModelError, match="link 'antenna' .*ixy, ixz, iyz set to 0"):
+        load_run(antenna)
+    # reference: MuJoCo itself refuses that text, and takes it with the products set to 0
+    with pytest.raises(ValueError, match="positive eigenvalues"):
+        mujoco.MjSpec.from_string(mujoco_urdf(urdf, {}, "antenna")).compile()
+    fixed = urdf.replace('ixy="6.119e-8" ixz="1.179e-8" iyz="7.74e-9"', 'ixy="0" ixz="0" iyz="0"')
+    mujoco.MjSpec.from_string(mujoco_urdf(fixed, {}, "antenna")).compile()
+    assert inertia_problem(fixed, "fixed") == ""
 
 
 @pytest.mark.slow

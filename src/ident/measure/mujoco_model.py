@@ -64,6 +64,7 @@ __all__ = [
     "PAYLOAD_LINK",
     "MujocoRobot",
     "dynamics_only_urdf",
+    "inertia_problem",
     "load_mujoco",
     "mujoco_urdf",
     "set_joint_parameters",
@@ -185,6 +186,45 @@ def dynamics_only_urdf(robot: Robot) -> str:
         If a locked joint is not in the URDF.
     """
     return mujoco_urdf(robot.urdf_text, robot.locked_joints, str(robot.urdf_path or robot.name))
+
+
+def _principal_moments(inertia: ET.Element) -> tuple[FloatArray, bool]:
+    """The eigenvalues [kg*m^2] of a URDF ``<inertia>`` (ascending, shape (3,)), and whether
+    it has a nonzero product of inertia (MuJoCo's ``fullinertia`` then)."""
+    value = {k: float(inertia.get(k, "0")) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")}
+    matrix = np.array(
+        [
+            [value["ixx"], value["ixy"], value["ixz"]],
+            [value["ixy"], value["iyy"], value["iyz"]],
+            [value["ixz"], value["iyz"], value["izz"]],
+        ]
+    )
+    products = any(value[k] != 0.0 for k in ("ixy", "ixz", "iyz"))
+    return np.linalg.eigvalsh(matrix), products
+
+
+def inertia_problem(urdf_text: str, where: str) -> str:
+    """Why MuJoCo would refuse the URDF's inertias ('' when it would not), one line naming
+    the links and the fix: MuJoCo compiles every link of the file, also those that never
+    move, and refuses an inertia with products of inertia whose principal moments are not
+    all positive ("inertia must have positive eigenvalues", e.g. TIAGo's 1 mg antennas), or
+    a negative principal moment. Pinocchio (the identification) accepts them."""
+    bad = []
+    for link in ET.fromstring(urdf_text).findall("link"):
+        inertia = link.find("inertial/inertia")
+        if inertia is None:
+            continue
+        moments, products = _principal_moments(inertia)
+        if moments[0] < 0.0 or (products and moments[0] <= 0.0):
+            bad.append(f"'{link.get('name')}' ({', '.join(f'{m:.3g}' for m in moments)})")
+    if not bad:
+        return ""
+    return (
+        f"{where}: MuJoCo refuses the inertia of {'links' if len(bad) > 1 else 'link'} "
+        f"{', '.join(bad)} (principal moments [kg*m^2] not all positive); give "
+        f"{'each' if len(bad) > 1 else 'it'} a positive definite <inertia> in the URDF "
+        "(e.g. its ixy, ixz, iyz set to 0), or identify from a log (measurement.source: log)."
+    )
 
 
 def _add_payload(spec: mujoco.MjSpec, robot: Robot, payload: PayloadConfig, where: str) -> None:

@@ -20,7 +20,9 @@ From the URDF alone it chooses
   for most URDFs) and a clearance of 5 % of the reach
   (between 1 and 3 cm);
 - **the measurement**: MuJoCo with friction, rotor inertia and torque noise scaled to each
-  joint's effort limit (or, without one, to the gravity torque of the links it carries), the
+  joint's effort limit (or, without one, to the gravity torque of the links it carries; where
+  every joint has the same limit although the loads of the links they move differ by orders of
+  magnitude, a placeholder, to twice those loads, and the config and ``init`` say so), the
   noise at most 1 % of the torque the excitation needs at the joint, each marked as a guess
   to replace with the robot's value;
 - **the budget**: the optimizer settings of ``configs/ur5.yaml`` and a minimal ``quick``
@@ -56,7 +58,9 @@ from ident.run.init_robot import (
     clear_posture,
     effort_scale,
     find_package_dirs,
+    joint_loads,
     keepable_clearance,
+    placeholder_effort,
     robot_reach,
     self_clearance_model,
     torque_scale,
@@ -244,6 +248,8 @@ class _Choices:
     home_clearance: float
     effort: np.ndarray
     effort_known: np.ndarray
+    scale: np.ndarray  # the effort the guesses scale with [N*m]
+    placeholder: float  # the URDF's placeholder effort limit [N*m], 0.0 if none
     viscous: np.ndarray
     coulomb: np.ndarray
     armature: np.ndarray
@@ -263,6 +269,11 @@ class _Choices:
 
     @property
     def effort_note(self) -> str:
+        if self.placeholder:
+            return (
+                f"twice the load of the links each joint moves, not the URDF's effort limits "
+                f"({self.placeholder:g} N*m on every joint looks like a placeholder)"
+            )
         return (
             "the URDF's effort limits"
             if self.effort_known.all()
@@ -308,7 +319,8 @@ def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
     g = _geometry(robot, progress)
     # measurement guesses
     effort = effort_scale(robot)
-    armature = ARMATURE_PER_EFFORT * effort
+    scale, placeholder = _guess_scale(robot, effort, ddq_max)
+    armature = ARMATURE_PER_EFFORT * scale
     torque = torque_scale(
         robot, g.home, amplitude * c_v, amplitude * c_a * w, armature, _Q0_HALF_WIDTH
     )
@@ -333,14 +345,30 @@ def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
         home_clearance=g.home_clearance,
         effort=effort,
         effort_known=np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0),
-        viscous=VISCOUS_PER_EFFORT * effort,
-        coulomb=COULOMB_PER_EFFORT * effort,
+        scale=scale,
+        placeholder=placeholder,
+        viscous=VISCOUS_PER_EFFORT * scale,
+        coulomb=COULOMB_PER_EFFORT * scale,
         armature=armature,
         torque=torque,
-        noise=np.minimum(NOISE_PER_EFFORT * effort, NOISE_PER_TORQUE * torque),
+        noise=np.minimum(NOISE_PER_EFFORT * scale, NOISE_PER_TORQUE * torque),
         threshold=np.minimum(0.15, 0.1 * amplitude * c_v),  # rad/s, below the design's speeds
         geometry_problem=g.problem,
     )
+
+
+def _guess_scale(robot: Any, effort: np.ndarray, ddq_max: np.ndarray) -> tuple[np.ndarray, float]:
+    """The effort [N*m] per joint the measurement guesses scale with, shape (n_joints,), and
+    the URDF's placeholder effort limit (0.0 when its limits are not placeholders): its
+    effort limits (``effort``, :func:`effort_scale`), or, where every joint has the same
+    limit although their loads differ by orders of magnitude
+    (:func:`~ident.run.init_robot.placeholder_effort`), twice the load of the links each
+    joint moves at its acceleration limit ``ddq_max`` [rad/s^2]
+    (:func:`~ident.run.init_robot.joint_loads`): friction and a rotor inertia sized for
+    300 N*m on a wrist that carries grams stop the simulated controller."""
+    loads = joint_loads(robot, ddq_max)
+    placeholder = placeholder_effort(robot.model.effortLimit, loads)
+    return (2.0 * loads if placeholder else effort), placeholder
 
 
 def _limits(robot: Any, text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -587,7 +615,15 @@ def _measurement_lines(c: _Choices) -> list[str]:
         "  source: mujoco",
         "  rate_hz: 1000.0",
         "  controller: {kind: computed_torque}    # default gains: 100 rad/s, critically damped",
-        f"  # guesses scaled to {c.effort_note} {_list(c.effort)} N*m:",
+        *(
+            [
+                f"  # guesses scaled to {c.effort_note}",
+                "  # (the load: gravity plus the link inertia at the acceleration limit)",
+                f"  # {_list(c.scale)} N*m:",
+            ]
+            if c.placeholder
+            else [f"  # guesses scaled to {c.effort_note} {_list(c.scale)} N*m:"]
+        ),
         "  # replace each with your robot's value",
         "  friction:",
         f"    viscous: {_list(c.viscous)}   # guess: N*m*s/rad, {VISCOUS_PER_EFFORT:g} x effort",

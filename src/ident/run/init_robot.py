@@ -34,6 +34,7 @@ from ident.robot.urdf_load import (
 __all__ = [
     "ENGINEER_CLEARANCE_M",
     "MARGIN_ROOM",
+    "PLACEHOLDER_LOAD_SPAN",
     "base_bottom",
     "chain_tip_link",
     "choose_locks",
@@ -41,7 +42,9 @@ __all__ = [
     "effort_scale",
     "find_package_dirs",
     "gravity_torques",
+    "joint_loads",
     "keepable_clearance",
+    "placeholder_effort",
     "robot_reach",
     "self_clearance_model",
     "torque_scale",
@@ -56,6 +59,9 @@ ENGINEER_CLEARANCE_M = 0.01
 MARGIN_ROOM = 2.0
 _N_CANDIDATES = 16  # postures of clear_posture measured on the exact geometry
 _FAR_M = EXACT_WITHIN_M  # beyond this clearance [m] a posture is as good as any other
+#: Equal effort limits on joints whose loads differ by more than this factor are placeholders
+#: (two orders of magnitude: real ratings follow the load, UR5 150..28, Panda 87..12 N*m).
+PLACEHOLDER_LOAD_SPAN = 100.0
 
 
 def _fmt(value: float) -> str:
@@ -189,15 +195,50 @@ def find_package_dirs(urdf: Path, text: str, given: list[Path]) -> list[Path]:
     return found
 
 
+def _postures(robot: Robot, n: int) -> np.ndarray:
+    """``n`` seeded postures uniform in the position box (guessed where the URDF gives no
+    limit) [rad or m], shape (n, nq)."""
+    rng = np.random.default_rng(0)
+    lower, upper = JointLimits.from_robot(robot).finite_position_box()  # guessed if unknown
+    return rng.uniform(lower, upper, (n, robot.model.nq))
+
+
 def gravity_torques(robot: Robot, n: int = 50) -> np.ndarray:
     """The URDF's static gravity torques [N*m] at ``n`` seeded postures uniform in the
     position box (guessed where the URDF gives no limit), shape (n, nv)."""
     model = robot.model
     data = model.createData()
-    rng = np.random.default_rng(0)
-    lower, upper = JointLimits.from_robot(robot).finite_position_box()  # guessed if unknown
-    postures = rng.uniform(lower, upper, (n, model.nq))
-    return np.array([pin.computeGeneralizedGravity(model, data, q) for q in postures])
+    return np.array([pin.computeGeneralizedGravity(model, data, q) for q in _postures(robot, n)])
+
+
+def joint_loads(robot: Robot, ddq_max: np.ndarray, n: int = 50) -> np.ndarray:
+    """Per joint: the largest load of the links it moves [N*m] over ``n`` seeded postures
+    (those of :func:`gravity_torques`): the static gravity torque plus the link-side inertia
+    (the mass matrix's diagonal [kg*m^2]) times the acceleration limit ``ddq_max``
+    [rad/s^2], shape (nv,) each."""
+    model = robot.model
+    data = model.createData()
+    loads = np.zeros(model.nv)
+    for q in _postures(robot, n):
+        gravity = pin.computeGeneralizedGravity(model, data, q)
+        inertia = np.diag(pin.crba(model, data, q))  # upper triangle filled; diagonal exact
+        loads = np.maximum(loads, np.abs(gravity) + inertia * ddq_max)
+    return loads
+
+
+def placeholder_effort(effort: np.ndarray, loads: np.ndarray) -> float:
+    """The effort limit [N*m] the URDF gives every joint alike although the loads of the
+    links they move (:func:`joint_loads`) span more than :data:`PLACEHOLDER_LOAD_SPAN`: a
+    placeholder (a vendor's 300 N*m on every joint of an arm whose wrist carries grams); 0.0
+    when the efforts are not such (they differ, are unknown, or there are under 3 joints)."""
+    effort = np.asarray(effort, dtype=float)
+    if effort.size < 3 or not np.all(np.isfinite(effort) & (effort > 0)):
+        return 0.0
+    if np.ptp(effort) > 1e-9 * effort[0]:
+        return 0.0
+    if np.max(loads) <= PLACEHOLDER_LOAD_SPAN * max(float(np.min(loads)), 1e-12):
+        return 0.0
+    return float(effort[0])
 
 
 def effort_scale(robot: Robot) -> np.ndarray:

@@ -22,6 +22,7 @@ from ident.excitation.registry import build_family
 from ident.excitation.safety import SafetyConfig, SafetyModel, build_safety_model
 from ident.inputs import JobEstimate, check_job
 from ident.measure.mujoco_config import check_joint_counts
+from ident.measure.mujoco_model import inertia_problem
 from ident.model import Robot
 from ident.model.selection import load_robot, set_robot_limits
 from ident.robot.mimic import reject_coupled_chain
@@ -310,6 +311,10 @@ def _check_measurement(config: RunConfig, robot: Robot, stage: Stage) -> None:
     """Per-joint measurement settings must have one value per joint of the robot."""
     if config.measurement.source == "mujoco":
         check_joint_counts(config.measurement, robot.nv, joint_names=robot.joint_names)
+        if robot.urdf_text:  # up front: MuJoCo refuses it only when the simulation starts
+            problem = inertia_problem(robot.urdf_text, str(robot.urdf_path or robot.name))
+            if problem:
+                raise ModelError(problem)
         if len(stage.moving_joints) != robot.nv:
             raise ConfigError(
                 f"measurement.source: mujoco identifies every body of the chain from its log, "

@@ -1,0 +1,77 @@
+"""``ident init``'s measurement guesses: scaled to the URDF's effort limits, unless they are
+placeholders (one value on every joint while the loads of the links the joints move differ by
+orders of magnitude), then to those loads; the loads against Pinocchio's RNEA."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from robots import PANDA_URDF, UR5_URDF
+
+from ident.model.robot import Robot
+from ident.run import init_robot
+from ident.run.init_config import _guess_scale
+from ident.run.init_robot import PLACEHOLDER_LOAD_SPAN, joint_loads, placeholder_effort
+
+#: The SO-101 shipped with ident: 2.9 N*m on every joint (its servo's rating), a wrist roll
+#: that carries grams.
+SO101_URDF = Path(__file__).resolve().parents[1] / "robot" / "urdf" / "so101.urdf"
+
+
+@pytest.fixture(scope="module")
+def so101():
+    return Robot.from_urdf(SO101_URDF)
+
+
+def test_joint_loads_are_gravity_plus_link_inertia_at_the_acceleration_limit(so101):
+    ddq = np.array([10.0, 20.0, 5.0, 30.0, 40.0])
+    loads = joint_loads(so101, ddq, n=20)
+    # reference: Pinocchio's RNEA at each posture, the joint alone accelerated at its limit
+    # (tau_j = g_j(q) + M_jj(q) ddq_j), no CRBA
+    expected = np.zeros(so101.nv)
+    for q in init_robot._postures(so101, 20):
+        for j in range(so101.nv):
+            ddq_j = np.zeros(so101.nv)
+            ddq_j[j] = ddq[j]
+            gravity = so101.rnea(q[None], np.zeros((1, so101.nv)), np.zeros((1, so101.nv)))[0]
+            total = so101.rnea(q[None], np.zeros((1, so101.nv)), ddq_j[None])[0]
+            inertial = total[j] - gravity[j]
+            expected[j] = max(expected[j], abs(gravity[j]) + inertial)
+    np.testing.assert_allclose(loads, expected, rtol=1e-9)
+
+
+def test_equal_efforts_on_unequal_loads_are_placeholders(so101):
+    # the SO-101: 2.9 N*m everywhere, loads from ~1 N*m (shoulder lift) to grams (wrist roll)
+    ddq = np.full(so101.nv, 30.0)
+    loads = joint_loads(so101, ddq)
+    assert loads.max() > PLACEHOLDER_LOAD_SPAN * loads.min()
+    assert placeholder_effort(so101.model.effortLimit, loads) == pytest.approx(2.9)
+    scale, placeholder = _guess_scale(so101, np.full(so101.nv, 2.9), ddq)
+    assert placeholder == pytest.approx(2.9)
+    np.testing.assert_allclose(scale, 2.0 * loads)
+    # the wrist roll's rotor-inertia guess (0.003 kg*m^2 per N*m): of the order of the link
+    # inertia it drives, where the effort-scaled one was hundreds of times it
+    q = np.zeros((1, so101.nq))
+    unit = np.zeros((1, so101.nv))
+    unit[0, -1] = 1.0
+    inertia = (so101.rnea(q, 0 * unit, unit) - so101.rnea(q, 0 * unit, 0 * unit))[0, -1]
+    assert 0.003 * scale[-1] < 2.0 * inertia
+    assert 0.003 * 2.9 > 100.0 * inertia
+    # the same efforts where the loads are alike, efforts that differ, unknown ones, 2 joints
+    assert placeholder_effort(np.full(5, 2.9), np.linspace(1.0, 50.0, 5)) == 0.0
+    assert placeholder_effort(np.array([3.0, 3.0, 3.0, 2.9, 2.9]), loads) == 0.0
+    assert placeholder_effort(np.array([np.inf] * 5), loads) == 0.0
+    assert placeholder_effort(np.array([300.0, 300.0]), np.array([100.0, 0.01])) == 0.0
+
+
+@pytest.mark.parametrize("urdf", [UR5_URDF, PANDA_URDF], ids=["ur5", "panda"])
+def test_real_effort_limits_keep_scaling_the_guesses(urdf):
+    # UR5 150/28 N*m, Panda 87/12 N*m: rated by the load; the guesses scale with them
+    lock = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0} if urdf == PANDA_URDF else {}
+    robot = Robot.from_urdf(urdf, lock_joints=lock)
+    effort = np.asarray(robot.model.effortLimit, dtype=float)
+    scale, placeholder = _guess_scale(robot, effort, np.full(robot.nv, 10.0))
+    assert placeholder == 0.0
+    np.testing.assert_array_equal(scale, effort)
