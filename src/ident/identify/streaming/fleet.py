@@ -35,15 +35,14 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-import scipy.linalg
 from scipy import signal
 
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import build_parameter_model
-from ident.errors import DataError, NotIdentifiable
+from ident.errors import DataError
 from ident.identify.config import ModelConfig
 from ident.identify.estimation.accumulate import BaseColumns
-from ident.identify.streaming.normal import NormalEquations
+from ident.identify.streaming.normal import NormalEquations, scaled_inverse, weighted_sums
 from ident.signals import central_differences, decay_length
 
 __all__ = [
@@ -252,24 +251,6 @@ class FleetSolution:
     units: tuple[UnitSolution, ...]
 
 
-def _weighted(eq: NormalEquations, v: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``(A, c)`` of a unit's rows with per-joint weights ``v`` (nv,)."""
-    return np.einsum("j,jpq->pq", v, eq.A), v @ eq.c
-
-
-def _scaled_inverse(A: FloatArray, what: str) -> FloatArray:
-    """``A^-1`` of a symmetric positive definite ``A`` through its unit-diagonal scaling
-    (the columns' units differ by orders of magnitude)."""
-    d = np.sqrt(np.clip(np.diag(A), 0.0, None))
-    if np.any(d == 0.0):
-        raise NotIdentifiable(f"{what}: {int(np.sum(d == 0.0))} column(s) have no row.")
-    try:
-        c = scipy.linalg.cho_factor(A / np.outer(d, d), check_finite=False)
-    except np.linalg.LinAlgError:
-        raise NotIdentifiable(f"{what}: the rows leave a direction undetermined.") from None
-    return scipy.linalg.cho_solve(c, np.diag(1.0 / d), check_finite=False) / d[:, None]
-
-
 def schur_solve(
     units: list[NormalEquations], weights: list[FloatArray], cols: FleetColumns
 ) -> tuple[FloatArray, FloatArray, list[tuple[FloatArray, FloatArray]]]:
@@ -281,13 +262,13 @@ def schur_solve(
     r = np.zeros(s)
     parts = []
     for k, (eq, v) in enumerate(zip(units, weights, strict=True)):
-        A, c = _weighted(eq, v)
-        inv_LL = _scaled_inverse(A[np.ix_(L_, L_)], f"unit {k}'s friction and offsets")
+        A, c = weighted_sums(eq, v)
+        inv_LL = scaled_inverse(A[np.ix_(L_, L_)], f"unit {k}'s friction and offsets")
         K = inv_LL @ A[np.ix_(L_, S_)]  # (l, s)
         S += A[np.ix_(S_, S_)] - A[np.ix_(S_, L_)] @ K
         r += c[S_] - K.T @ c[L_]
         parts.append((inv_LL, K, c[L_]))
-    C_SS = _scaled_inverse(0.5 * (S + S.T), "the shared parameters")
+    C_SS = scaled_inverse(0.5 * (S + S.T), "the shared parameters")
     x_S = C_SS @ r
     out = []
     for inv_LL, K, c_L in parts:
@@ -302,6 +283,17 @@ def _full(x_S: FloatArray, x_L: FloatArray, cols: FleetColumns) -> FloatArray:
     x = np.empty(cols.p)
     x[cols.shared], x[cols.local] = x_S, x_L
     return x
+
+
+def _joint_weights(
+    eq: NormalEquations, var: FloatArray, factors: FloatArray | float = 1.0
+) -> FloatArray:
+    """Per-joint weights ``1 / (factors_j var_j)`` (nv,) of a unit's rows, 0 on joints without
+    rows; ``var`` [N^2 m^2] (NaN where unknown) floored at 1e-12 of its largest value (a joint
+    fitted exactly would otherwise weigh infinitely)."""
+    v = np.nan_to_num(var)
+    v = np.maximum(v, 1e-12 * v.max() + 1e-300)
+    return np.where(eq.sw > 0, 1.0 / (factors * v), 0.0)
 
 
 def solve_fleet(units: list[NormalEquations], cols: FleetColumns, passes: int = 2) -> FleetSolution:
@@ -322,8 +314,7 @@ def solve_fleet(units: list[NormalEquations], cols: FleetColumns, passes: int = 
             ss = np.clip(eq.residual_ss(_full(x_S, x_L, cols)), 0.0, None)
             var = np.where(eq.sw > 0, ss / np.maximum(eq.sw, 1.0), np.nan)
             sigma[k] = np.sqrt(var)
-            floor = 1e-12 * np.nanmax(var) + 1e-300
-            weights[k] = np.where(eq.sw > 0, 1.0 / np.maximum(np.nan_to_num(var), floor), 0.0)
+            weights[k] = _joint_weights(eq, var)
     solutions = tuple(
         UnitSolution(x=x_L, covariance=C_LL, sigma=sig, n_rows=eq.sw.copy())
         for (x_L, C_LL), sig, eq in zip(local, sigma, units, strict=True)
@@ -340,11 +331,9 @@ def scaled_covariances(
     less than one independent row). The estimate is unchanged; the covariances are those of
     the weighted solve with weights ``1 / (factors_j sigma_uj^2)`` (exact when the factors
     are equal, the sandwich's first order otherwise)."""
-    weights = []
-    for eq, u in zip(units, sol.units, strict=True):
-        var = np.nan_to_num(u.sigma**2)
-        var = np.maximum(var, 1e-12 * var.max() + 1e-300)  # as solve_fleet's weights
-        weights.append(np.where(eq.sw > 0, 1.0 / (factors * var), 0.0))
+    weights = [
+        _joint_weights(eq, u.sigma**2, factors) for eq, u in zip(units, sol.units, strict=True)
+    ]
     _, C_SS, local = schur_solve(units, weights, cols)
     out = tuple(
         UnitSolution(x=u.x, covariance=C_LL, sigma=u.sigma, n_rows=u.n_rows)

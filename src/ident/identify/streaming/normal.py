@@ -36,7 +36,15 @@ import numpy.typing as npt
 from ident.errors import NotIdentifiable
 from ident.identify.estimation.observations import ReducedObservations
 
-__all__ = ["Epochs", "NormalEquations", "Solution", "reduced_observations", "split_equations"]
+__all__ = [
+    "Epochs",
+    "NormalEquations",
+    "Solution",
+    "reduced_observations",
+    "scaled_inverse",
+    "split_equations",
+    "weighted_sums",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -194,24 +202,41 @@ class NormalEquations:
 
 
 def _weighted_solve(eq: NormalEquations, v: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``x = A_v^-1 c_v`` and ``A_v^-1`` for the joint weights ``v`` (nv,); column scaling
-    keeps the solve accurate when the unknowns' units differ by orders of magnitude."""
-    A = np.einsum("j,jpq->pq", v, eq.A)
-    c = v @ eq.c
+    """``x = A_v^-1 c_v`` and ``A_v^-1`` for the joint weights ``v`` (nv,)."""
+    A, c = weighted_sums(eq, v)
+    Ainv = scaled_inverse(A, "the unknowns", rank_tol=RANK_TOL)
+    return Ainv @ c, Ainv
+
+
+def weighted_sums(eq: NormalEquations, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(A_v, c_v)``: the per-joint normal equations summed with joint weights ``v`` (nv,),
+    shapes (p, p) and (p,)."""
+    return np.einsum("j,jpq->pq", v, eq.A), v @ eq.c
+
+
+def scaled_inverse(A: FloatArray, what: str, rank_tol: float = 0.0) -> FloatArray:
+    """``A^-1`` of a symmetric positive definite ``A`` (p, p) through its unit-diagonal
+    scaling, which keeps it accurate when the unknowns' units differ by orders of magnitude.
+
+    Raises
+    ------
+    NotIdentifiable
+        Naming ``what``: a column without rows, or a direction left undetermined (Cholesky
+        fails, or with ``rank_tol`` the scaled factor's smallest squared pivot is below it).
+    """
     d = np.sqrt(np.clip(np.diag(A), 0.0, None))
     if np.any(d == 0.0):
-        raise NotIdentifiable(f"{int(np.sum(d == 0.0))} unknown(s) have no row yet.")
-    As = A / np.outer(d, d)
+        raise NotIdentifiable(f"{what}: {int(np.sum(d == 0.0))} column(s) have no row.")
+    undetermined = NotIdentifiable(f"{what}: the rows leave a direction undetermined.")
     try:
-        L = np.linalg.cholesky(As)
+        L = np.linalg.cholesky(A / np.outer(d, d))
     except np.linalg.LinAlgError:
-        raise NotIdentifiable("the rows leave a direction of the unknowns undetermined.") from None
+        raise undetermined from None
     # unit diagonal: min(diag L)^2 bounds the smallest eigenvalue from above (within a factor)
-    if np.min(np.diag(L)) ** 2 <= RANK_TOL:
-        raise NotIdentifiable("the rows leave a direction of the unknowns undetermined.")
+    if np.min(np.diag(L)) ** 2 <= rank_tol:
+        raise undetermined
     Linv = np.linalg.inv(L)
-    Ainv = (Linv.T @ Linv) / np.outer(d, d)
-    return Ainv @ c, Ainv
+    return (Linv.T @ Linv) / np.outer(d, d)
 
 
 def split_equations(
