@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from ident.identify.estimation.uncertainty import z_value
 from ident.identify.streaming.fleet import FleetColumns, FleetSolution, scaled_covariances
 from ident.identify.streaming.fleet_drift import (
     WindowTest,
@@ -32,7 +33,7 @@ from ident.identify.streaming.fleet_run import FleetSums
 __all__ = ["FleetReport", "MIN_UNITS_ACROSS", "fleet_report"]
 
 FloatArray = npt.NDArray[np.float64]
-Z95 = 1.959963984540054
+_Z95 = z_value(0.95)  # the 95 % intervals' half-width in standard deviations
 #: Fewest units for the test across units (the fleet's spread is a median absolute deviation).
 MIN_UNITS_ACROSS = 5
 
@@ -54,7 +55,7 @@ def _params(names: list[str], x: FloatArray, s: FloatArray) -> dict:
         n: {
             "value": float(v),
             "std": float(e),
-            "interval_95": [float(v - Z95 * e), float(v + Z95 * e)],
+            "interval_95": [float(v - _Z95 * e), float(v + _Z95 * e)],
         }
         for n, v, e in zip(names, x, s, strict=True)
     }
