@@ -218,12 +218,9 @@ def joint_loads(robot: Robot, ddq_max: np.ndarray, n: int = 50) -> np.ndarray:
     [rad/s^2], shape (nv,) each."""
     model = robot.model
     data = model.createData()
-    loads = np.zeros(model.nv)
-    for q in _postures(robot, n):
-        gravity = pin.computeGeneralizedGravity(model, data, q)
-        inertia = np.diag(pin.crba(model, data, q))  # upper triangle filled; diagonal exact
-        loads = np.maximum(loads, np.abs(gravity) + inertia * ddq_max)
-    return loads
+    # crba fills the upper triangle: the diagonal is exact
+    inertia = np.array([np.diag(pin.crba(model, data, q)) for q in _postures(robot, n)])
+    return np.max(np.abs(gravity_torques(robot, n)) + inertia * ddq_max, axis=0)
 
 
 def placeholder_effort(effort: np.ndarray, loads: np.ndarray) -> float:
