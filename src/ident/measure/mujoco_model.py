@@ -54,7 +54,7 @@ from ident.errors import ModelError
 from ident.measure.mujoco_config import ActuatorConfig, PayloadConfig, per_joint
 from ident.measure.mujoco_log import route_mujoco_warnings
 from ident.model import Robot
-from ident.robot.inertia import com_and_inertia
+from ident.robot.inertia import com_and_inertia, urdf_inertia_tensor
 
 route_mujoco_warnings()  # MuJoCo warnings as Python warnings, no MUJOCO_LOG.TXT
 
@@ -191,16 +191,9 @@ def dynamics_only_urdf(robot: Robot) -> str:
 def _principal_moments(inertia: ET.Element) -> tuple[FloatArray, bool]:
     """The eigenvalues [kg*m^2] of a URDF ``<inertia>`` (ascending, shape (3,)), and whether
     it has a nonzero product of inertia (MuJoCo's ``fullinertia`` then)."""
-    value = {k: float(inertia.get(k, "0")) for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")}
-    matrix = np.array(
-        [
-            [value["ixx"], value["ixy"], value["ixz"]],
-            [value["ixy"], value["iyy"], value["iyz"]],
-            [value["ixz"], value["iyz"], value["izz"]],
-        ]
-    )
-    products = any(value[k] != 0.0 for k in ("ixy", "ixz", "iyz"))
-    return np.linalg.eigvalsh(matrix), products
+    matrix = urdf_inertia_tensor(inertia.attrib)
+    products = bool(np.any(matrix[np.triu_indices(3, 1)] != 0.0))
+    return np.linalg.eigvalsh(matrix).astype(np.float64), products
 
 
 def inertia_problem(urdf_text: str, where: str) -> str:

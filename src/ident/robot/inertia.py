@@ -16,6 +16,8 @@ All functions take stacked arrays: the body axis (or any leading axes) comes fir
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import numpy.typing as npt
 
@@ -32,6 +34,7 @@ __all__ = [
     "pinocchio_to_paper",
     "transform_matrix",
     "transform_parameters",
+    "urdf_inertia_tensor",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -65,6 +68,22 @@ URDF_INERTIA_ENTRIES: dict[str, tuple[int, int]] = {
     "iyz": (1, 2),
     "izz": (2, 2),
 }
+
+
+def urdf_inertia_tensor(attributes: Mapping[str, str] | None) -> FloatArray:
+    """The symmetric 3x3 tensor [kg*m^2] of a URDF ``<inertia>`` element's attributes
+    (``element.attrib``; a missing attribute or element is 0), shape (3, 3).
+
+    Raises
+    ------
+    ValueError
+        An attribute that is not a number.
+    """
+    tensor = np.zeros((3, 3))
+    for key, (i, j) in URDF_INERTIA_ENTRIES.items():
+        tensor[i, j] = tensor[j, i] = float((attributes or {}).get(key, "0"))
+    return tensor
+
 
 # Indices of the tensor entries in a Pinocchio-ordered vector.
 _TENSOR_INDEX = np.array([[4, 5, 7], [5, 6, 8], [7, 8, 9]])

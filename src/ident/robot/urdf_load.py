@@ -34,7 +34,7 @@ import pinocchio as pin
 
 from ident.errors import ModelError
 from ident.inputs import MAX_URDF_BYTES, read_urdf_text, refuse_dtd
-from ident.robot.inertia import consistency_problems, parameters_from_com
+from ident.robot.inertia import consistency_problems, parameters_from_com, urdf_inertia_tensor
 
 __all__ = [
     "URDF_INERTIA_RTOL",
@@ -212,7 +212,6 @@ def check_inertials(root: ET.Element, where: str, links: set[str] | None = None)
     ``links``: check only these links (those that enter the chain's dynamics, see
     :func:`moving_links`); ``None`` checks every link.
     """
-    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     for link in root.findall("link"):
         name = link.get("name", "?")
         inertial = link.find("inertial")
@@ -221,19 +220,16 @@ def check_inertials(root: ET.Element, where: str, links: set[str] | None = None)
         mass_element, inertia_element = inertial.find("mass"), inertial.find("inertia")
         try:
             mass = float(mass_element.get("value", "0")) if mass_element is not None else 0.0
-            values = [
-                float(inertia_element.get(k, "0")) if inertia_element is not None else 0.0
-                for k in keys
-            ]
+            tensor = urdf_inertia_tensor(
+                inertia_element.attrib if inertia_element is not None else None
+            )
         except ValueError as e:
             raise ModelError(
                 f"{where}: link {name!r}: the <inertial> has a value that is not a number ({e}); "
                 "fix the file."
             ) from e
-        if mass == 0.0 and not any(values):
+        if mass == 0.0 and not tensor.any():
             continue
-        xx, xy, xz, yy, yz, zz = values
-        tensor = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
         problems = consistency_problems(
             parameters_from_com(mass, np.zeros(3), tensor), rtol=URDF_INERTIA_RTOL
         )

@@ -60,7 +60,7 @@ def link_inertial(link: ET.Element) -> FloatArray:
     """The link's own ``<inertial>`` as parameters about its frame origin (10,) [SI]."""
     import pinocchio as pin
 
-    from ident.robot.inertia import parameters_from_com
+    from ident.robot.inertia import parameters_from_com, urdf_inertia_tensor
 
     inertial = link.find("inertial")
     if inertial is None:
@@ -75,17 +75,7 @@ def link_inertial(link: ET.Element) -> FloatArray:
         rpy = np.array([float(v) for v in origin.get("rpy", "0 0 0").split()])
         rotation = pin.rpy.rpyToMatrix(rpy)
     el = inertial.find("inertia")
-    values = {
-        k: float(el.get(k, 0.0)) if el is not None else 0.0
-        for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-    }
-    inertia = np.array(
-        [
-            [values["ixx"], values["ixy"], values["ixz"]],
-            [values["ixy"], values["iyy"], values["iyz"]],
-            [values["ixz"], values["iyz"], values["izz"]],
-        ]
-    )
+    inertia = urdf_inertia_tensor(el.attrib if el is not None else None)
     return parameters_from_com(mass, xyz, rotation @ inertia @ rotation.T)
 
 
