@@ -251,3 +251,24 @@ def test_advancement_skips_only_what_keeps_the_limit_and_keeps_each_minimum_exac
     np.testing.assert_array_equal(advanced.min(axis=0), exact.min(axis=0))
     # the bound is used: some values above the limit are bounds, not the exact distance
     assert np.any(advanced[~below] < exact[~below])
+
+
+def test_hull_distances_of_each_posture_are_that_postures_own() -> None:
+    """``_distances`` reads coal's results through proxies made once: every row must still be
+    its own posture's distances (stale proxies would repeat one row), pair by pair as
+    ``pin.computeDistance`` gives them on fresh geometry data."""
+    from ident.excitation.safety.distances import _distances
+
+    robot = Robot.from_config("configs/paper6r.yaml")
+    checked = build_safety_model(robot)._checked
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-1.5, 1.5, (4, checked.model.nq))
+    got = _distances(checked.model, checked.hulls, q)
+    data, gdata = checked.model.createData(), pin.GeometryData(checked.hulls)
+    expected = np.empty_like(got)
+    for s in range(q.shape[0]):
+        pin.updateGeometryPlacements(checked.model, data, checked.hulls, gdata, q[s])
+        for p in range(got.shape[1]):
+            expected[s, p] = pin.computeDistance(checked.hulls, gdata, p).min_distance
+    assert np.ptp(got, axis=0).max() > 1e-3  # the postures differ
+    np.testing.assert_allclose(got, expected, atol=1e-5)  # GJK tolerance

@@ -145,9 +145,12 @@ def _distances(model: pin.Model, geom: pin.GeometryModel, q: FloatArray) -> Floa
     out = np.empty((q.shape[0], n_pairs))
     data = model.createData()
     gdata = _geometry_data(geom)
+    # the results' Python proxies, made once: computeDistances rewrites them in place, and
+    # making n_pairs proxies per posture cost as much as coal's distances of primitive hulls
+    results = list(gdata.distanceResults)
     for k in range(q.shape[0]):  # coal evaluates one posture at a time
         pin.computeDistances(model, data, geom, gdata, q[k])
-        out[k] = [r.min_distance for r in gdata.distanceResults]
+        out[k] = [r.min_distance for r in results]
     return out
 
 
