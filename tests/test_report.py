@@ -5,7 +5,7 @@ import numpy as np
 from report_data import minimal_run_data
 
 from ident.report.html import markdown_to_html
-from ident.report.plots import convergence_png, estimate_png, trajectory_png
+from ident.report.plots import convergence_png, envelope, estimate_png, trajectory_png
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -251,3 +251,28 @@ def test_summary_of_a_paper_config_says_its_box_is_expected_and_names_the_box_co
     data["config"]["excitation"]["bounds"] = {"a0(1)": [-40.0, 40.0]}
     assert "Paper's box" not in render_markdown(data)
     assert "Paper's box" not in render_markdown(minimal_run_data({}, {}))  # joint_fourier
+
+
+def test_envelope_keeps_every_buckets_extremes_and_ends_in_order():
+    """A long series is drawn through each bucket's first, lowest, highest and last sample:
+    compared with those points found one bucket at a time (a stride would lose the spike)."""
+    rng = np.random.default_rng(5)
+    n, buckets = 30_011, 50
+    x = np.arange(n) * 1e-3
+    y = np.cumsum(rng.normal(size=n))
+    y[17_777] = 1e3  # one sample's spike, e.g. a limit excursion
+    xd, yd = envelope(x, y, buckets)
+    edges = np.linspace(0, n, buckets + 1).astype(int)
+    expected = sorted(
+        {
+            i
+            for a, b in zip(edges[:-1], edges[1:], strict=True)
+            for i in (a, b - 1, a + np.argmin(y[a:b]), a + np.argmax(y[a:b]))
+        }
+    )
+    np.testing.assert_array_equal(xd, x[expected])
+    np.testing.assert_array_equal(yd, y[expected])
+    assert yd.max() == 1e3
+    # short series, and series with a gap (nan) the line must keep, are drawn whole
+    for short in (y[:200], np.where(np.arange(n) == 5, np.nan, y)):
+        assert envelope(x[: short.size], short, buckets)[1].size == short.size

@@ -49,6 +49,11 @@ DPI = 110
 MAX_WIDTH_IN = 11.0
 #: Most parameters on one panel of a parameter figure (0.32 in each: 28 fill 11 in).
 MAX_PER_PANEL = 28
+#: Buckets of a long time series drawn as its envelope (:func:`envelope`): at least one per
+#: pixel column of the widest axes (an 11 in figure at 110 dpi is 1210 px, an axes less).
+ENVELOPE_BUCKETS = 1250
+#: Most points of the Cartesian path panel (a smooth curve: a stride keeps its shape).
+MAX_PATH = 4000
 
 
 def _figure(width: float, height: float) -> Figure:
@@ -92,6 +97,57 @@ def panel_chunks(names: Sequence[str], max_per_panel: int = MAX_PER_PANEL) -> li
         chunks.append(list(range(start, stop)))
         start = stop
     return chunks
+
+
+def envelope(
+    x: npt.ArrayLike, y: npt.ArrayLike, buckets: int = ENVELOPE_BUCKETS
+) -> tuple[FloatArray, FloatArray]:
+    """The points of a long curve that its line drawing shows: per bucket of consecutive
+    samples, the first, the lowest, the highest and the last (in sample order).
+
+    A line through these points covers the same pixels as the full curve when the buckets
+    are at least as many as the axes' pixel columns (each column shows a vertical run from
+    the lowest to the highest value, joined to its neighbours at the ends), so a peak or a
+    limit excursion is never lost, at a few thousand points instead of one per 1 kHz sample:
+    matplotlib's layout, legend placement and rasterization cost grows with the points.
+
+    Parameters
+    ----------
+    x, y :
+        The curve, shape (n,) each.
+    buckets :
+        Number of buckets; curves of at most ``4 * buckets`` points, or with a non-finite
+        value (a gap the line must keep), are returned whole.
+
+    Returns
+    -------
+    :
+        ``(x, y)`` of the kept points, shape (m,) each, m <= 4 * buckets.
+    """
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    n = y.shape[0]
+    if n <= 4 * buckets or not np.all(np.isfinite(y)):
+        return x, y
+    edges = np.linspace(0, n, buckets + 1).astype(np.intp)
+    starts, stops = edges[:-1], edges[1:] - 1
+    # per bucket, the position of its lowest and highest sample (reduceat over each bucket)
+    order = np.arange(n)
+    low = _bucket_arg(y, starts, order, np.minimum)
+    high = _bucket_arg(y, starts, order, np.maximum)
+    keep = np.unique(np.concatenate([starts, low, high, stops]))
+    return x[keep], y[keep]
+
+
+def _bucket_arg(
+    y: FloatArray, starts: npt.NDArray[np.intp], order: npt.NDArray[np.intp], ufunc: Any
+) -> npt.NDArray[np.intp]:
+    """Per bucket starting at ``starts``, the first position of its ``ufunc``-extreme value."""
+    extreme = ufunc.reduceat(y, starts)
+    bucket = np.repeat(np.arange(starts.size), np.diff(np.append(starts, y.size)))
+    hit = y == extreme[bucket]
+    first = np.full(starts.size, y.size, dtype=np.intp)
+    np.minimum.at(first, bucket[hit], order[hit])
+    return first
 
 
 def figure_png(fig: object, dpi: int = DPI) -> bytes:
@@ -221,7 +277,10 @@ def trajectory_png(
 def _path_panel(ax3: Any, path: FloatArray) -> None:
     """Panel (a) of :func:`trajectory_png`: the Cartesian path (n_samples, 3) [m], its start."""
     path = np.asarray(path, dtype=float)
-    ax3.plot(path[:, 0], path[:, 1], path[:, 2], lw=1.2)
+    # a smooth 1 kHz path: every k-th point and the last draw the same curve
+    stride = max(1, len(path) // MAX_PATH)
+    drawn = np.vstack([path[:-1:stride], path[-1:]])
+    ax3.plot(drawn[:, 0], drawn[:, 1], drawn[:, 2], lw=1.2)
     ax3.scatter(*path[0], color="k", s=12, label="start")
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
@@ -241,7 +300,7 @@ def _joint_curves(
     """One curve per joint of ``values`` (n_samples, n_joints) over ``t`` [s], its limits
     dashed: (n_joints, 2) (lower, upper), or (n_joints,) drawn at +-limit when ``symmetric``."""
     for k, name in enumerate(joint_labels):
-        ax.plot(t, values[:, k], color=colors[k], lw=1.2, label=name)
+        ax.plot(*envelope(t, values[:, k]), color=colors[k], lw=1.2, label=name)
         if limits is not None:
             lim = np.asarray(limits, dtype=float)[k]
             low, high = (-abs(float(lim)), abs(float(lim))) if symmetric else lim
@@ -478,9 +537,9 @@ def torque_png(
     axes = fig.subplots(nv, 1, sharex=True, squeeze=False)[:, 0]
     styles = [("C3", "-"), ("C0", "--"), ("C2", ":"), ("C1", "-.")]
     for j, ax in enumerate(axes):
-        ax.plot(t, tau[:, j], color="k", lw=1.2, label="measured")
+        ax.plot(*envelope(t, tau[:, j]), color="k", lw=1.2, label="measured")
         for (label, pred), (color, ls) in zip(predictions.items(), styles, strict=False):
-            ax.plot(t, np.asarray(pred)[:, j], color=color, ls=ls, lw=1.0, label=label)
+            ax.plot(*envelope(t, np.asarray(pred)[:, j]), color=color, ls=ls, lw=1.0, label=label)
         if excluded is not None and np.asarray(excluded)[:, j].any():
             ex = np.asarray(excluded)[:, j]
             ax.plot(t[ex], tau[ex, j], "x", color="0.6", ms=3, label="not compared")
@@ -521,7 +580,12 @@ def clearance_png(
     """
     fig = _figure(7.0, 3.6)
     ax = fig.add_subplot(1, 1, 1)
-    ax.plot(_array(t), 1000.0 * _array(min_clearance), lw=1.2, color="C0", label="min clearance")
+    ax.plot(
+        *envelope(_array(t), 1000.0 * _array(min_clearance)),
+        lw=1.2,
+        color="C0",
+        label="min clearance",
+    )
     if clearance_m is not None:
         ax.axhline(1000.0 * clearance_m, color="C3", ls="--", lw=1.0, label="required margin")
     ax.axhline(0.0, color="k", lw=0.6)
@@ -558,7 +622,7 @@ def limits_png(
     ax = fig.add_subplot(1, 1, 1)
     times = _array(t)
     for k, (name, values) in enumerate(ratios.items()):
-        ax.plot(times, _array(values), lw=1.2, color=f"C{k}", label=f"{name} / limit")
+        ax.plot(*envelope(times, _array(values)), lw=1.2, color=f"C{k}", label=f"{name} / limit")
     ax.axhline(1.0, color="C3", ls="--", lw=1.0, label="limit")
     ax.set_ylim(bottom=0.0)
     ax.set_xlabel("time [s]")
