@@ -2,8 +2,10 @@ import base64
 import re
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from report_data import minimal_run_data
 
+import ident.report.plots as plots
 from ident.report.html import markdown_to_html
 from ident.report.plots import convergence_png, envelope, estimate_png, trajectory_png
 
@@ -276,3 +278,21 @@ def test_envelope_keeps_every_buckets_extremes_and_ends_in_order():
     # short series, and series with a gap (nan) the line must keep, are drawn whole
     for short in (y[:200], np.where(np.arange(n) == 5, np.nan, y)):
         assert envelope(x[: short.size], short, buckets)[1].size == short.size
+
+
+def test_the_paths_z_label_does_not_cover_the_next_panels_y_label(monkeypatch):
+    """The 3D path panel draws its z label outside the box the layout spaces panels by: the
+    rendered label must stay left of panel (b)'s y label (they overlapped before the gap)."""
+    figures = []
+    monkeypatch.setattr(plots, "figure_png", lambda fig, dpi=plots.DPI: figures.append(fig))
+    t = np.linspace(0.0, 12.0, 3000)
+    q = np.column_stack([np.sin(t), -2.0 + np.cos(0.5 * t), 4.0 * np.sin(0.7 * t)])
+    path = np.column_stack([1.7 + 0.05 * np.sin(t), 0.03 * np.cos(t), 0.44 + 0.01 * np.sin(2 * t)])
+    trajectory_png(t, q, q, ["joint_4", "joint_5", "joint_6"], path=path)
+    (fig,) = figures
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    z_label = fig.axes[0].zaxis.label.get_window_extent(renderer)
+    y_label = fig.axes[1].yaxis.label.get_window_extent(renderer)
+    assert z_label.x1 < y_label.x0
