@@ -518,5 +518,6 @@ def refinement_text(entry: Mapping[str, Any] | None) -> str | None:
         f"joints, {entry['iterations']} iterations (best {entry['best_iteration']}; "
         f"{entry['stop']}), {entry['train_windows']} training / {entry['held_out_windows']} "
         f"held-out windows of {entry['window_s']:g} s, prior weight {entry['prior_weight']:g}, "
-        f"CPU {entry['cpu_s']:.1f} s (estimated {entry['cpu_estimate_s']:.1f} s)"
+        f"CPU {entry['cpu_s']:.1f} s (at most {entry['cpu_estimate_s']:.1f} s: every iteration "
+        "allowed, timed on one rollout)"
     )
