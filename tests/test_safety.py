@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from pydantic import ValidationError
+from robots import ERD_SHARE, UR5_URDF
 
 from ident.excitation import ExcitationObjective, JointFourierFamily, PaperArmFamily
 from ident.excitation.check import check_trajectory, dense_family_states
@@ -265,8 +266,6 @@ def test_velocity_and_position_violations_are_reported(paper, safety):
 
 
 def test_torque_limits_with_the_nominal_model():
-    from robots import ERD_SHARE, UR5_URDF
-
     ur5 = Robot.from_urdf(UR5_URDF)
     s = build_safety_model(ur5, {"clearance_m": 0.01}, package_dirs=[ERD_SHARE])
     assert np.allclose(s.effort_max, ur5.model.effortLimit)
@@ -445,3 +444,24 @@ def test_mesh_floor_clearance_is_the_lowest_vertex_of_the_mesh():
         np.testing.assert_allclose(measured[:, k], lowest, atol=1e-6, err_msg=name)
         checked += 1
     assert checked >= 5
+
+
+def test_swarm_term_on_meshes_is_exact_up_to_its_margin_and_a_bound_beyond():
+    """The optimizer's term on a mesh robot measures coal's hull pairs only where their
+    bounding spheres are within its margin: below the margin its minima equal every posture's
+    fast clearance bit for bit (and so does the violation it gives); beyond it they may be
+    the spheres' bound, never below the margin. A term that skipped a pair within the margin,
+    or kept a bound below it, differs."""
+    ur5 = Robot.from_urdf(UR5_URDF)
+    s = build_safety_model(ur5, {"clearance_m": 0.01}, package_dirs=[ERD_SHARE])
+    q = ur5.random_configurations(40 * 6, rng=2)[0].reshape(40, 6, -1)
+    every = s.fast_clearances(q.reshape(-1, q.shape[-1])).reshape(40, 6, -1).min(axis=1)
+    fast = s.fast_min_clearances(q)
+    margin = s.clearance_m
+    assert np.sum(every < margin) >= 10  # random postures: many pairs inside the margin
+    np.testing.assert_array_equal(np.minimum(fast, margin), np.minimum(every, margin))
+    beyond = every >= margin
+    assert np.all(fast[beyond] >= margin)
+    assert np.any(fast[beyond] < every[beyond])  # bounds where no exact value was needed
+    v = collision_violations(s, q, n_check=6)
+    np.testing.assert_array_equal(v.values, np.maximum(margin - every, 0.0) / margin)

@@ -25,12 +25,13 @@ __all__ = ["EXACT_WITHIN_M", "FastClearances"]
 # for the paper robot's cylinders 20 mm deep): at most this, the cheap term counts contact
 _CONTACT_M = 1e-6
 
-#: Clearance [m] up to which the coal pairs' values are exact (hulls, meshes where poor);
-#: beyond it a pair whose bounding spheres are at least this far apart gets the spheres'
-#: distance, a lower bound of at least this much, without coal. The optimizer's term reads
-#: only ``max(margin - d, 0)`` and ``ident init`` caps what it reads at this distance, so no
-#: result changes; coal's hull distances were 56 % of a Panda run's CPU (73 % of the pairs
-#: are that far apart in its random postures).
+#: Clearance [m] up to which :meth:`FastClearances.clearances` gives the coal pairs' exact
+#: values (hulls, meshes where poor); beyond it a pair whose bounding spheres are at least
+#: this far apart gets the spheres' distance, a lower bound of at least this much, without
+#: coal. ``ident init`` caps what it reads at this distance, so no result changes; coal's hull
+#: distances were 56 % of a Panda run's CPU (73 % of the pairs are that far apart in its
+#: random postures). The optimizer's term (:meth:`FastClearances.min_clearances`) reads only
+#: ``max(margin - d, 0)``: it is exact up to the margin alone.
 EXACT_WITHIN_M = 0.15
 
 
@@ -171,7 +172,9 @@ class FastClearances:
         """:meth:`ident.excitation.safety.SafetyModel.fast_clearances` for the margin
         ``clearance_m`` [m], shape (n_samples, n_pairs)."""
         q, distances, need, finite = self._fast_bounds(
-            np.atleast_2d(np.asarray(q, dtype=float)), clearance_m
+            np.atleast_2d(np.asarray(q, dtype=float)),
+            clearance_m,
+            max(clearance_m, EXACT_WITHIN_M),
         )
         rows, pairs = np.nonzero(need)
         self._refine(q, rows, pairs, distances)
@@ -182,11 +185,15 @@ class FastClearances:
     def min_clearances(self, q: npt.ArrayLike, clearance_m: float, owner: object) -> FloatArray:
         """:meth:`ident.excitation.safety.SafetyModel.fast_min_clearances` for the margin
         ``clearance_m`` [m], shape (n_trajectories, n_pairs); ``owner``: the safety model
-        whose lifetime bounds the scratch data (:func:`_refine_scratch`)."""
+        whose lifetime bounds the scratch data (:func:`_refine_scratch`). Exact up to the
+        margin only: a coal pair whose bounding spheres are at least the margin apart keeps
+        their distance (``max(margin - d, 0)``, all the term reads, is 0 either way; half the
+        Panda's exact hull distances were between its 3 cm margin and
+        :data:`EXACT_WITHIN_M`)."""
         q = np.asarray(q, dtype=float)
         n_traj, n_samples = q.shape[0], q.shape[1]
         flat, distances, need, finite = self._fast_bounds(
-            q.reshape(n_traj * n_samples, -1), clearance_m
+            q.reshape(n_traj * n_samples, -1), clearance_m, clearance_m
         )
         # the per-trajectory, per-link-pair minimum of what needs no refinement
         known = self.checked.pair_minimum(np.where(need, np.inf, distances))
@@ -224,13 +231,15 @@ class FastClearances:
         return best
 
     def _fast_bounds(
-        self, q: FloatArray, clearance_m: float
+        self, q: FloatArray, clearance_m: float, exact_within_m: float
     ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
         """Lower bounds of every geometry pair's distance and where the exact value is needed.
 
         Returns ``q`` with non-finite postures set to 0 (n, nq); ``distances``
         (n, n_geometry_pairs) [m], exact for half-spaces, primitives coal handles and hulls of
-        convex geometry, a capsule's or a hull's lower bound elsewhere; ``need``
+        convex geometry (coal's pairs: where their bounding spheres are within
+        ``exact_within_m`` [m], the spheres' distance elsewhere), a capsule's or a hull's lower
+        bound elsewhere; ``need``
         (n, n_geometry_pairs): a cylinder pair or a poor-hull mesh pair whose bound is within
         the margin ``clearance_m`` [m] (:meth:`_refine` makes it exact); ``finite`` (n,): the
         postures without NaN (the others are measured at 0).
@@ -258,7 +267,7 @@ class FastClearances:
                 if need.any():
                     self._inner_capsules(frames, p, need, distances)
         if slow:
-            self._coal_bounds(q, frames, slow, need, distances, clearance_m)
+            self._coal_bounds(q, frames, slow, need, distances, clearance_m, exact_within_m)
         return q, distances, need, finite
 
     def _joint_frames(self, q: FloatArray) -> FloatArray:
@@ -314,15 +323,16 @@ class FastClearances:
         need: npt.NDArray[np.bool_],
         distances: FloatArray,
         clearance_m: float,
+        far: float,
     ) -> None:
         """Measure the ``slow`` geometry pairs (coal, meshes as hulls) at the postures ``q``
         (joint placements ``frames``, :meth:`_joint_frames`) into ``distances``
-        (n, n_geometry_pairs) [m], and mark in ``need`` the poor-hull mesh pairs within the
-        margin ``clearance_m`` [m] (in place)."""
+        (n, n_geometry_pairs) [m] where their bounding spheres are closer than ``far`` [m] (at
+        least the margin; the spheres' distance elsewhere), and mark in ``need`` the
+        poor-hull mesh pairs within the margin ``clearance_m`` [m] (in place)."""
         geom = self.geometry_model
         data, gdata = self.model.createData(), _geometry_data(geom)
         slow_pairs = np.asarray(slow, dtype=int)
-        far = max(clearance_m, EXACT_WITHIN_M)
         spheres = self._sphere_bounds(frames)
         distances[:, slow_pairs] = spheres
         for s in range(q.shape[0]):  # coal: one posture at a time, the near pairs only

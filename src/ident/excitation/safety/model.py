@@ -294,13 +294,16 @@ class SafetyModel:
         return self._fast.clearances(q, self.clearance_m)
 
     def fast_min_clearances(self, q: npt.ArrayLike) -> FloatArray:
-        """The smallest :meth:`fast_clearances` of each trajectory, pair by pair [m].
+        """The smallest :meth:`fast_clearances` of each trajectory, pair by pair [m], up to
+        the margin (what the cheap term reads).
 
-        ``fast_min_clearances(q) == fast_clearances(q.reshape(-1, nq)).reshape(n, s, -1)
-        .min(axis=1)``, bit for bit, with fewer exact distances: of a trajectory's postures
-        whose lower bound (capsule, hull) of a pair is within the margin, coal measures them
-        in increasing order of the bound and stops once the next bound is not below the
-        smallest distance found (no posture left can be closer).
+        Below the margin, ``fast_min_clearances(q) == fast_clearances(q.reshape(-1, nq))
+        .reshape(n, s, -1).min(axis=1)``, bit for bit, with fewer exact distances: coal's pairs
+        are measured only where their bounding spheres are within the margin (elsewhere the
+        spheres' distance stands, at least the margin), and of a trajectory's postures whose
+        lower bound (capsule, hull) of a pair is within the margin, coal measures them in
+        increasing order of the bound and stops once the next bound is not below the smallest
+        distance found (no posture left can be closer).
 
         Parameters
         ----------
