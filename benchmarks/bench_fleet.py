@@ -401,12 +401,15 @@ def hours_case(args: argparse.Namespace) -> None:
                      "baseline_s": args.baseline}}  # fmt: skip
     (args.npz / "fleet-hours.yaml").write_text(yaml.safe_dump(cfg, sort_keys=False))
     run_measured([sys.executable, "-c", "from ident.cli import app; app()", "fleet",
-                  str(args.npz / "fleet-hours.yaml"), "--out", str(args.npz / "runs")])  # fmt: skip
+                  str(args.npz / "fleet-hours.yaml"), "--out", str(args.npz / "runs")],
+                 samples=int(args.units * args.distinct * reuse * log_s * 1000))  # fmt: skip
 
 
-def run_measured(command: list[str]) -> None:
+def run_measured(command: list[str], samples: int, cores: int = 2) -> None:
     """Run ``command``; print its output, wall time, the CPU time of its process tree (user +
-    system, the LocalCluster's workers included) and the load average sampled every 10 s."""
+    system, the LocalCluster's workers included), the load average sampled every 10 s, and
+    100 robot-hours at 1 kHz on ``cores`` idle cores extrapolated from that CPU time over
+    ``samples`` (the start-up, a fixed cost, included as if per sample: an upper bound)."""
     loads: list[float] = []
     stop = threading.Event()
 
@@ -431,6 +434,12 @@ def run_measured(command: list[str]) -> None:
         f"{after.ru_stime - before.ru_stime:.0f} s; exit code {res.returncode}); load average "
         f"(1 min) during the run: {min(loads, default=float('nan')):.1f} - "
         f"{max(loads, default=float('nan')):.1f}, mean {mean:.1f}"
+    )
+    per_sample = cpu / samples
+    print(
+        f"  {1e6 * per_sample:.2f} us CPU per sample ({samples / cpu:,.0f} samples per CPU "
+        f"second: the throughput per core, the core busy); 100 robot-hours on {cores} idle "
+        f"cores, extrapolated: {3.6e8 * per_sample / cores / 60:.1f} min"
     )
 
 

@@ -40,6 +40,7 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 from bench_fleet import fleet_columns, friction_errors, make_units, unit_log, ur5  # noqa: E402
 
 distributed = pytest.importorskip("distributed")
+dask = pytest.importorskip("dask")
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +94,17 @@ def test_schur_solve_equals_dense_weighted_least_squares(setup: tuple) -> None:
     assert np.allclose(C_SS, cov[: S.size, : S.size], rtol=1e-9, atol=1e-12 * np.abs(cov).max())
 
 
+def worker_settings(cfg: dict) -> tuple:
+    """A dask config's worker profiler, work stealing, malloc trim and BLAS threads."""
+    env = cfg["nanny"]["pre-spawn-environ"]
+    return (
+        cfg["worker"]["profile"]["enabled"],
+        cfg["scheduler"]["work-stealing"],
+        "MALLOC_TRIM_THRESHOLD_" in env,
+        env["OPENBLAS_NUM_THREADS"],
+    )
+
+
 @pytest.fixture(scope="module")
 def toy_fleet(setup: tuple) -> tuple:
     """3 simulated UR5 units, 100 s each; unit 0's friction rises by 10 % at 80 s."""
@@ -104,6 +116,10 @@ def toy_fleet(setup: tuple) -> tuple:
     ]
     with fleet_client(None, 2, processes=False) as client:
         sums = fleet_sums(client, sources, cols, ChunkSettings(), window_s=20.0)
+        # the values, not the config dict (restored in place when the cluster closes)
+        settings = client.run(lambda: worker_settings(dask.config.get("distributed")))
+    # the workers ran under fleet_client's settings: no profiler thread, no malloc trim
+    assert set(settings.values()) == {(False, False, False, 1)}, settings
     return units, sums, solve_fleet(sums.units, cols), cols
 
 

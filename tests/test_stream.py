@@ -25,8 +25,9 @@ from ident.identify.payload.controller_load import (
     franka_set_load,
     ur_set_payload,
 )
+from ident.identify.streaming.detect import onset_block
 from ident.identify.streaming.estimator import StreamingEstimator, StreamSettings
-from ident.identify.streaming.normal import NormalEquations
+from ident.identify.streaming.normal import NormalEquations, Solution
 from ident.measure.ideal import NoiseModel, simulate_measurements
 
 RATE_HZ = 1000.0
@@ -133,6 +134,24 @@ def test_forgetting_closed_form() -> None:
     s2 = w @ (y - mean) ** 2 / (w.sum() - (w**2).sum() / w.sum())
     assert sol.sigma[0] ** 2 == pytest.approx(s2, rel=1e-9)
     assert sol.covariance[0, 0] == pytest.approx(s2 * (w**2).sum() / w.sum() ** 2, rel=1e-9)
+
+
+def test_onset_search_scales_the_blocks_statistic_by_kappa() -> None:
+    """One unknown, a reference at 0 known exactly, unit noise: a block with ``A = 1``, ``c =
+    z`` has ``T = z^2`` (chi-square, 1 degree of freedom; 6.63 at 0.01). Blocks with z = 0, 3,
+    3, 6: each of the last three alone is significant, so the onset is block 1; with the
+    model-error factor 2 (T / 2 = 4.5, 4.5, 18) only the newest is (the alarm's own scaling)."""
+    ref = Solution(
+        x=np.zeros(1), covariance=np.zeros((1, 1)), sigma=np.ones(1), n_eff=1e3,
+        residual_ss=np.zeros(1),
+    )  # fmt: skip
+    blocks = []
+    for z in (0.0, 3.0, 3.0, 6.0):
+        eq = NormalEquations(1, 1)
+        eq.add_rows(np.ones((1, 1, 1)), np.array([[z]]), np.ones((1, 1), bool))
+        blocks.append(eq)
+    assert onset_block(blocks, ref) == 1
+    assert onset_block(blocks, ref, kappa=2.0) == 3
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,9 @@ hour of log, one test per block: by the union bound the false-alarm rate is at m
 (the overlapping windows' tests are positively correlated, so it is lower). The change's onset
 is found by going back from the newest block while each block alone is significant (a split
 that maximizes the statistic over the window is not sharp: the reference's own error enters
-every split alike).
+every split alike), each block's statistic scaled by the same ``kappa`` as the alarm's (below):
+unscaled, blocks before a change passed for changed ones, and their rows, counted among those
+after the change, biased its estimate.
 
 **Model error.** The ``chi^2`` law holds for white noise. A model's error (a friction law a
 little off, the filters' bias at high jerk) is not white: it comes and goes with the motion, and
@@ -86,14 +88,17 @@ def glr_statistic(window: NormalEquations, ref: Solution) -> tuple[float, int]:
     return float(np.sum(g * g / w[keep])), int(np.sum(keep))
 
 
-def onset_block(blocks: Sequence[NormalEquations], ref: Solution, alpha: float = 0.01) -> int:
+def onset_block(
+    blocks: Sequence[NormalEquations], ref: Solution, alpha: float = 0.01, kappa: float = 1.0
+) -> int:
     """The first block of the changed rows: going back from the newest block, the earliest of
-    the run of blocks each of which alone departs from ``ref`` at level ``alpha``; the newest
-    block when none does (a small change the window's sum revealed)."""
+    the run of blocks each of which alone departs from ``ref`` at level ``alpha`` (the
+    statistic scaled by the model-error factor ``kappa``, as the alarm's); the newest block
+    when none does (a small change the window's sum revealed)."""
     s = len(blocks) - 1
     for b in range(len(blocks) - 1, -1, -1):
         T, r = glr_statistic(blocks[b], ref)
-        if r == 0 or chi2.sf(T, r) >= alpha:
+        if r == 0 or chi2.sf(T / kappa, r) >= alpha:
             break
         s = b
     return s

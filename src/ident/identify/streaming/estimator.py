@@ -364,7 +364,7 @@ class StreamingEstimator:
             st.ratios.append(detect.variance_ratio(window, ref))
             return
         blocks = list(st.ring)
-        s = detect.onset_block(blocks, ref)
+        s = detect.onset_block(blocks, ref, kappa=self.kappa)
         # the change lies in block s (or, for a small one, before it): the rows before are the
         # reference alone, the rows after are those after block s; the window's others are
         # left out, so neither side holds rows of the other
