@@ -141,6 +141,13 @@ _SECONDS_PER_LOG_SAMPLE = 30e-6
 # a designed trajectory keeps its meshes farther apart (SO-101 --quick: 300 s measured,
 # 1160 s from random postures); the approach and return are included
 _CERTIFICATE_SHARE = 0.25
+# of the exact mesh distances the safety model timed at random postures where hulls are within
+# the margin ("near": seconds_per_posture less the hulls'), the share a designed trajectory
+# needs: the design keeps its meshes apart. SO-101 --quick (meshes of 100k triangles, 410
+# designs): near 38.5 of its 40.6 ms per posture, 0.25 of it estimated 193 s, the profiled
+# dense check spent about 26 s (CPU) on the hulls, 94 s making each pair's smallest value
+# exact (the next term) and under a second on near values; its estimate was 2.2x the run's CPU
+_NEAR_SHARE = 0.05
 # the share of the samples at which the dense check measures a mesh pair to make its smallest
 # value exact (its hulls' distance is below that value), at the CPU of every mesh pair at one
 # posture: Z1 --quick, 4362 exact distances over 24 mesh pairs and 11001 samples (1.7 %; one
@@ -223,8 +230,10 @@ def _certificate_seconds(n_report_elites: int, family: Any, safety: SafetyModel)
     exact."""
     period = float(getattr(family, "period", 10.0) or 10.0)
     samples = (n_report_elites + 1) * period * safety.config.check_rate_hz
+    hulls = safety.hull_seconds_per_posture
     return samples * (
-        _CERTIFICATE_SHARE * safety.seconds_per_posture
+        _CERTIFICATE_SHARE * hulls
+        + _NEAR_SHARE * max(safety.seconds_per_posture - hulls, 0.0)
         + _SMALLEST_SHARE * safety.mesh_seconds_per_posture
     )
 
