@@ -109,6 +109,11 @@ def test_init_kinova_keeps_every_design_within_the_velocity_margin(tmp_path):
     assert np.all(noise > 0)
     assert np.all(noise <= 0.003 * effort * 1.01)
     assert result.quick_seconds < result.seconds
+    # --quick optimizes: 410 designs (30 left the UR10's elbow inertia 27.8 % off), still a
+    # fraction of the full budget's
+    quick, full = config["quick"]["emupso"], config["emupso"]
+    designs = quick["n_particles"] * (quick["maxiter"] + 1) * quick["n_runs"]
+    assert 400 <= designs < full["n_particles"] * (full["maxiter"] + 1) * full["n_runs"] / 5
 
 
 def test_init_locks_grippers_and_says_why(tmp_path):

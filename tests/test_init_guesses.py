@@ -13,7 +13,13 @@ from robots import PANDA_URDF, UR5_URDF
 from ident.model.robot import Robot
 from ident.run import init_robot
 from ident.run.init_config import _guess_scale
-from ident.run.init_robot import PLACEHOLDER_LOAD_SPAN, joint_loads, placeholder_effort
+from ident.run.init_robot import (
+    PLACEHOLDER_LOAD_SPAN,
+    gain_scale,
+    joint_loads,
+    placeholder_effort,
+    placeholder_velocity,
+)
 
 #: The SO-101 shipped with ident: 2.9 N*m on every joint (its servo's rating), a wrist roll
 #: that carries grams.
@@ -75,3 +81,32 @@ def test_real_effort_limits_keep_scaling_the_guesses(urdf):
     scale, placeholder = _guess_scale(robot, effort, np.full(robot.nv, 10.0))
     assert placeholder == 0.0
     np.testing.assert_array_equal(scale, effort)
+
+
+def test_equal_velocities_are_placeholders_only_beside_placeholder_efforts():
+    # the iiwa_stack's xacro: 10 rad/s and 300 N*m on every joint, both copies
+    assert placeholder_velocity(np.full(7, 10.0), 300.0) == 10.0
+    # equal velocities beside real effort ratings (UR5 3.15 on the big joints, Z1 3.1415):
+    # given, as the URDF says; velocities that differ; an unknown one; two joints
+    assert placeholder_velocity(np.full(6, 3.1415), 0.0) == 0.0
+    assert placeholder_velocity(np.array([1.48, 1.48, 1.75, 1.31, 2.27, 2.36, 2.36]), 300.0) == 0
+    assert placeholder_velocity(np.array([10.0, 10.0, np.inf]), 300.0) == 0.0
+    assert placeholder_velocity(np.array([10.0, 10.0]), 300.0) == 0.0
+
+
+def test_controller_gains_carry_the_rotor_inertia_guess(so101):
+    # reference: each joint's link-side inertia M_jj from Pinocchio's RNEA (unit acceleration
+    # of that joint alone, gravity removed), the largest over the same seeded postures
+    armature = np.array([0.1, 0.02, 0.01, 0.005, 0.001])
+    largest = np.zeros(so101.nv)
+    zero = np.zeros((1, so101.nv))
+    for q in init_robot._postures(so101, 20):
+        for j in range(so101.nv):
+            unit = zero.copy()
+            unit[0, j] = 1.0
+            m_jj = (so101.rnea(q[None], zero, unit) - so101.rnea(q[None], zero, zero))[0, j]
+            largest[j] = max(largest[j], m_jj)
+    r = gain_scale(so101, armature, n=20)
+    np.testing.assert_allclose(r, 1.0 + armature / largest, rtol=1e-9)
+    # the loop gain kp r M_jj / (M_jj + Ia_j) at the largest M_jj is exactly kp: never above
+    np.testing.assert_allclose(r * largest / (largest + armature), 1.0, rtol=1e-12)

@@ -6,7 +6,14 @@ from pathlib import Path
 
 import pytest
 
-from ident.run.setup import _SMALLEST_SHARE, estimate_run, load_run
+from ident.run.setup import (
+    _CERTIFICATE_SHARE,
+    _NEAR_SHARE,
+    _SMALLEST_SHARE,
+    _certificate_seconds,
+    estimate_run,
+    load_run,
+)
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -40,6 +47,17 @@ def test_a_safe_design_can_cost_a_second_optimization_and_the_estimate_says_so()
     assert job3.worst_seconds - job.worst_seconds == pytest.approx(
         2 * samples * _SMALLEST_SHARE * 0.01
     )
+    # the exact distances timed where random postures bring hulls within the margin count at
+    # _NEAR_SHARE (a design keeps its meshes apart: SO-101's estimate was 2.2x its CPU), the
+    # hulls at _CERTIFICATE_SHARE
+    setup.safety.seconds_per_posture += 0.01  # near values only
+    job4 = estimate_run(setup.config, setup.robot, setup.family, setup.safety)
+    assert job4.seconds - job3.seconds == pytest.approx(samples * _NEAR_SHARE * 0.01)
+    n = setup.config.emupso.n_report_elites
+    before = _certificate_seconds(n, setup.family, setup.safety)
+    setup.safety.hull_seconds_per_posture += 0.01  # now hulls: the same total per posture
+    after = _certificate_seconds(n, setup.family, setup.safety)
+    assert after - before == pytest.approx(samples * (_CERTIFICATE_SHARE - _NEAR_SHARE) * 0.01)
 
 
 def test_without_a_safety_model_there_is_no_retry_in_the_estimate():

@@ -19,7 +19,12 @@ from ident.dynamics.friction import ExtraTerms
 from ident.dynamics.parameter_model import build_parameter_model
 from ident.errors import ConfigError, ModelError
 from ident.identify.assessment.rollout import rollout_text
-from ident.measure.mujoco_model import inertia_problem, mujoco_urdf
+from ident.measure.mujoco_model import (
+    inertia_problem,
+    load_mujoco,
+    mujoco_urdf,
+    world_fixed_links,
+)
 from ident.model import Robot
 from ident.run.log_measurement import reference_share
 from ident.run.setup import load_run
@@ -181,20 +186,41 @@ def test_mujoco_needs_every_joint_moving_and_one_value_per_joint(tmp_path) -> No
     )
     with pytest.raises(ConfigError, match="armature"):
         load_run(short)
-    # a link fixed to the base whose inertia has products and a negative principal moment
-    # (TIAGo's 1 mg antennas): refused by the loader, naming the link, before any design
-    urdf = (REPO / "robot" / "urdf" / "ur5.urdf").read_text().replace("</robot>", _ANTENNA)
+    # a link whose inertia has products and a negative principal moment (TIAGo's 1 mg
+    # antennas): on a moving link refused by the loader, naming the link, before any design
+    # (the robot's inertia check first; MuJoCo's own refusal named by inertia_problem)
+    ur5 = (REPO / "robot" / "urdf" / "ur5.urdf").read_text()
+    moving = ur5.replace("</robot>", _ANTENNA.replace('link="base_link"', 'link="wrist_3_link"'))
+    (tmp_path / "moving.urdf").write_text(moving)
+    on_wrist = tmp_path / "moving.yaml"
+    on_wrist.write_text(text.replace(str(REPO / "robot" / "urdf" / "ur5.urdf"), "moving.urdf"))
+    with pytest.raises(ModelError, match="link 'antenna'"):
+        load_run(on_wrist)
+    assert "link 'antenna' (" in inertia_problem(moving, "x")
+    # fixed to the world (as TIAGo's, on its base): left out of the simulation and named
+    urdf = ur5.replace("</robot>", _ANTENNA)
     (tmp_path / "antenna.urdf").write_text(urdf)
     antenna = tmp_path / "antenna.yaml"
     antenna.write_text(text.replace(str(REPO / "robot" / "urdf" / "ur5.urdf"), "antenna.urdf"))
-    with pytest.raises(ModelError, match="link 'antenna' .*ixy, ixz, iyz set to 0"):
-        load_run(antenna)
-    # reference: MuJoCo itself refuses that text, and takes it with the products set to 0
+    setup = load_run(antenna)
+    (note,) = setup.simulation_notes
+    assert "'antenna'" in note
+    assert "left out of the MuJoCo simulation" in note
+    assert inertia_problem(urdf, "x") == ""
+    # reference: MuJoCo itself refuses that inertia (kept on the moving link), and takes it
+    # with the products set to 0; the simulated model equals the one without the antenna
     with pytest.raises(ValueError, match="positive eigenvalues"):
-        mujoco.MjSpec.from_string(mujoco_urdf(urdf, {}, "antenna")).compile()
-    fixed = urdf.replace('ixy="6.119e-8" ixz="1.179e-8" iyz="7.74e-9"', 'ixy="0" ixz="0" iyz="0"')
+        mujoco.MjSpec.from_string(mujoco_urdf(moving, {}, "x")).compile()
+    fixed = moving.replace('ixy="6.119e-8" ixz="1.179e-8" iyz="7.74e-9"', 'ixy="0" ixz="0" iyz="0"')
     mujoco.MjSpec.from_string(mujoco_urdf(fixed, {}, "antenna")).compile()
     assert inertia_problem(fixed, "fixed") == ""
+    sim = load_mujoco(setup.robot).model
+    plain = load_mujoco(Robot.from_urdf(REPO / "robot" / "urdf" / "ur5.urdf")).model
+    assert np.array_equal(sim.body_mass, plain.body_mass)
+    assert np.array_equal(sim.body_inertia, plain.body_inertia)
+    # a lock makes the links it holds fixed to the world; a moving joint does not
+    assert world_fixed_links(ur5) == {"world", "base_link", "base"}
+    assert "shoulder_link" in world_fixed_links(ur5, {"shoulder_pan_joint": 0.0})
 
 
 @pytest.mark.slow

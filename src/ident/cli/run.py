@@ -82,6 +82,7 @@ def run(
             "command": " ".join(["ident", *sys.argv[1:]]),
             "export_limits": list(setup.limit_notes),
             "safety_margin_note": setup.safety.margin_note,
+            "simulation_notes": list(setup.simulation_notes),
         }
         with _ProgressDisplay(cfg) as display:
             # stage 1, the feasible elites, also before the folder exists: an excitation box
@@ -125,6 +126,8 @@ def _setup_notes(setup: Any) -> None:
         typer.echo(f"limits tightened by {note}", err=True)
     if setup.safety.margin_note:  # the default margin, lowered to one the links can keep
         typer.echo(f"note: {setup.safety.margin_note}", err=True)
+    for note in setup.simulation_notes:  # what the MuJoCo model leaves out of the URDF
+        typer.echo(f"note: {note}", err=True)
     if max(setup.estimate.seconds, setup.estimate.worst_seconds) > 60.0 or (
         setup.estimate.memory_bytes > 2e9
     ):

@@ -11,6 +11,10 @@ about 1e-15 relative):
   one), as Pinocchio's reduced model does;
 - ``<dynamics>`` is dropped; damping, armature and friction are set from the measurement
   config, never from the file;
+- the ``<inertial>`` of a link fixed to the world (through fixed or locked joints) whose
+  inertia MuJoCo refuses is dropped: no torque depends on it, and MuJoCo would refuse the whole
+  file (TIAGo's base antennas; :func:`world_fixed_inertia_note` names them for the run's
+  output); a refused inertia of a link that moves stays an error (:func:`inertia_problem`);
 - a mimic joint of the robot's chain keeps its ``<mimic>``: MuJoCo's URDF import makes it a joint
   equality ``q_f = o + m q_l`` (``polycoef="o m 0 0 0"``), the only constraint left on (stiff:
   ``solref`` twice the timestep), so the follower moves with its leader and the leader's force is
@@ -67,7 +71,10 @@ __all__ = [
     "inertia_problem",
     "load_mujoco",
     "mujoco_urdf",
+    "refused_inertias",
     "set_joint_parameters",
+    "world_fixed_inertia_note",
+    "world_fixed_links",
 ]
 
 #: Name of the link that carries a simulated payload.
@@ -196,27 +203,94 @@ def _principal_moments(inertia: ET.Element) -> tuple[FloatArray, bool]:
     return np.linalg.eigvalsh(matrix).astype(np.float64), products
 
 
-def inertia_problem(urdf_text: str, where: str) -> str:
-    """Why MuJoCo would refuse the URDF's inertias ('' when it would not), one line naming
-    the links and the fix: MuJoCo compiles every link of the file, also those that never
-    move, and refuses an inertia with products of inertia whose principal moments are not
-    all positive ("inertia must have positive eigenvalues", e.g. TIAGo's 1 mg antennas), or
-    a negative principal moment. Pinocchio (the identification) accepts them."""
-    bad = []
+def world_fixed_links(urdf_text: str, locked_joints: Mapping[str, float] | None = None) -> set[str]:
+    """The URDF's links that never move: the root link and every link joined to it through
+    ``fixed`` joints or joints of ``locked_joints`` (names) only. No torque of the robot
+    depends on their inertials (Pinocchio leaves them out of every body; MuJoCo fuses them into
+    its world body)."""
+    root = ET.fromstring(urdf_text)
+    locked = set(locked_joints or {})
+    children: dict[str, list[tuple[str, bool]]] = {}
+    child_links = set()
+    for joint in root.findall("joint"):
+        parent, child = joint.find("parent"), joint.find("child")
+        if parent is None or child is None:
+            continue
+        still = joint.get("type") == "fixed" or joint.get("name") in locked
+        children.setdefault(str(parent.get("link")), []).append((str(child.get("link")), still))
+        child_links.add(str(child.get("link")))
+    todo = [str(link.get("name")) for link in root.findall("link")]
+    todo = [name for name in todo if name not in child_links]  # the root link(s)
+    fixed: set[str] = set()
+    while todo:
+        name = todo.pop()
+        fixed.add(name)
+        todo += [child for child, still in children.get(name, []) if still]
+    return fixed
+
+
+def refused_inertias(urdf_text: str) -> dict[str, FloatArray]:
+    """The links whose ``<inertia>`` MuJoCo refuses, with their principal moments [kg*m^2]
+    (ascending, shape (3,)): MuJoCo compiles every link of the file, also those that never
+    move, and refuses an inertia with products of inertia whose principal moments are not all
+    positive ("inertia must have positive eigenvalues", e.g. TIAGo's 1 mg antennas), or a
+    negative principal moment. Pinocchio (the identification) accepts them."""
+    bad: dict[str, FloatArray] = {}
     for link in ET.fromstring(urdf_text).findall("link"):
         inertia = link.find("inertial/inertia")
         if inertia is None:
             continue
         moments, products = _principal_moments(inertia)
         if moments[0] < 0.0 or (products and moments[0] <= 0.0):
-            bad.append(f"'{link.get('name')}' ({', '.join(f'{m:.3g}' for m in moments)})")
+            bad[str(link.get("name"))] = moments
+    return bad
+
+
+def _named(bad: Mapping[str, FloatArray]) -> str:
+    """``'a' (m1, m2, m3), 'b' (...)``: links and their principal moments."""
+    return ", ".join(f"'{k}' ({', '.join(f'{m:.3g}' for m in v)})" for k, v in bad.items())
+
+
+def inertia_problem(
+    urdf_text: str, where: str, locked_joints: Mapping[str, float] | None = None
+) -> str:
+    """Why MuJoCo would refuse the URDF's inertias of links that move ('' when it would not),
+    one line naming the links and the fix (:func:`refused_inertias`). Links that never move
+    (:func:`world_fixed_links`, ``locked_joints`` held) are not a problem: the simulation
+    leaves their inertials out (:func:`world_fixed_inertia_note`)."""
+    fixed = world_fixed_links(urdf_text, locked_joints)
+    bad = {k: v for k, v in refused_inertias(urdf_text).items() if k not in fixed}
     if not bad:
         return ""
     return (
         f"{where}: MuJoCo refuses the inertia of {'links' if len(bad) > 1 else 'link'} "
-        f"{', '.join(bad)} (principal moments [kg*m^2] not all positive); give "
+        f"{_named(bad)} (principal moments [kg*m^2] not all positive); give "
         f"{'each' if len(bad) > 1 else 'it'} a positive definite <inertia> in the URDF "
         "(e.g. its ixy, ixz, iyz set to 0), or identify from a log (measurement.source: log)."
+    )
+
+
+def _left_out(urdf_text: str, locked_joints: Mapping[str, float] | None) -> dict[str, FloatArray]:
+    """The links that never move whose inertia MuJoCo refuses: the simulation leaves their
+    ``<inertial>`` out."""
+    fixed = world_fixed_links(urdf_text, locked_joints)
+    return {k: v for k, v in refused_inertias(urdf_text).items() if k in fixed}
+
+
+def world_fixed_inertia_note(
+    urdf_text: str, locked_joints: Mapping[str, float] | None = None
+) -> str:
+    """One line naming the links that never move whose inertia MuJoCo refuses, left out of the
+    MuJoCo simulation (no torque depends on them), or '' when there are none (TIAGo: its
+    base's two 1 mg antennas)."""
+    bad = _left_out(urdf_text, locked_joints)
+    if not bad:
+        return ""
+    return (
+        f"the inertia{'s' if len(bad) > 1 else ''} of {_named(bad)} (principal moments "
+        "[kg*m^2] not all positive, which MuJoCo refuses) left out of the MuJoCo simulation: "
+        f"{'these links are' if len(bad) > 1 else 'the link is'} fixed to the world, so no "
+        "torque depends on them; the identification reads the URDF as it is"
     )
 
 
@@ -316,7 +390,8 @@ def _compile(
 
 
 def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) -> str:
-    """URDF text prepared for MuJoCo: no geometry, locked joints fixed, no ``<dynamics>``.
+    """URDF text prepared for MuJoCo: no geometry, locked joints fixed, no ``<dynamics>``, no
+    inertial MuJoCo refuses on a link fixed to the world.
 
     The conversion of :func:`dynamics_only_urdf` for any URDF text (e.g. a written identified
     model): see the module docstring.
@@ -326,9 +401,11 @@ def mujoco_urdf(urdf_text: str, locked_joints: Mapping[str, float], where: str) 
     ModelError
         If a locked joint is not in the URDF.
     """
+    left_out = _left_out(urdf_text, locked_joints)  # fixed to the world: no torque sees them
     root = ET.fromstring(urdf_text)
     for link in root.findall("link"):
-        for tag in ("visual", "collision"):
+        dropped = ("visual", "collision", "inertial") if link.get("name") in left_out else ()
+        for tag in dropped or ("visual", "collision"):
             for element in link.findall(tag):
                 link.remove(element)
     for element in root.findall("mujoco"):

@@ -6,7 +6,9 @@ From the URDF alone it chooses
   :func:`ident.model.suggested_locks` for a branched file), plus a lock for a moving joint
   named like a gripper (``gripper``, ``finger``, ``hand``) at the tip; every lock is stated
   with its reason;
-- **limits**: the URDF's velocity limits; acceleration limits from the URDF's
+- **limits**: the URDF's velocity limits (named placeholders, in a comment and a note, when
+  every joint has the same one and the effort limits are placeholders: see the measurement
+  below); acceleration limits from the URDF's
   ``<limit acceleration=...>`` where present, otherwise the rule of thumb
   ``ddq_max = ACCELERATION_PER_VELOCITY * dq_max`` (full speed in a third of a second);
   a position, velocity or effort limit the URDF leaves unknown (none, 0, an empty range) is
@@ -48,6 +50,8 @@ from ident.errors import ConfigError, IdentError
 from ident.excitation.fourier import fourier_bound_factors
 from ident.excitation.safety import N_EXCLUSION_POSTURES, collision_geometry_problem
 from ident.inputs import read_urdf_text
+from ident.measure.mujoco_config import DEFAULT_DAMPING_RATIO, DEFAULT_NATURAL_FREQUENCY_RAD_S
+from ident.measure.mujoco_model import world_fixed_inertia_note
 from ident.model.selection import RobotSelection, load_robot
 from ident.robot.limits import DEFAULT_Q_RANGE
 from ident.run.config import RunConfig
@@ -58,9 +62,11 @@ from ident.run.init_robot import (
     clear_posture,
     effort_scale,
     find_package_dirs,
+    gain_scale,
     joint_loads,
     keepable_clearance,
     placeholder_effort,
+    placeholder_velocity,
     robot_reach,
     self_clearance_model,
     torque_scale,
@@ -72,6 +78,8 @@ __all__ = [
     "ACCELERATION_PER_VELOCITY",
     "INIT_STEPS",
     "N_HARMONICS",
+    "QUICK_ITERATIONS",
+    "QUICK_PARTICLES",
     "PERIOD_S",
     "VELOCITY_MARGIN",
     "InitResult",
@@ -101,6 +109,13 @@ ARMATURE_PER_EFFORT = 0.003  # kg*m^2 per N*m (UR5: 0.5 for 150 N*m)
 NOISE_PER_EFFORT = 0.003  # N*m per N*m, at most ...
 NOISE_PER_TORQUE = 0.01  # ... and 1 % of the torque the excitation needs at the joint
 _Q0_HALF_WIDTH = 0.5  # rad: the mean postures' search box around the chosen posture
+#: ``--quick``'s optimizer: swarm size and iterations. The optimization is not what a quick
+#: run costs (its simulation, identification and checks are: 30-200 s of CPU), while a swarm
+#: of 6 for 4 iterations (30 designs) left the UR10's elbow inertia Iyz3R 27.8 % off (its
+#: std predicted from the design 27.6 %); 10 x 40 (410 designs, 1.7 s of the UR10's CPU,
+#: 15-20 s on the SO-101's and Baxter's meshes) brings that prediction to 7.2 % (the full
+#: budget's 3020 designs: 8.6 %).
+QUICK_PARTICLES, QUICK_ITERATIONS = 10, 40
 #: Room kept from each position limit by every design of the box [rad or m] (at most 5 % of
 #: the joint's range).
 POSITION_MARGIN = 0.05
@@ -250,16 +265,24 @@ class _Choices:
     effort_known: np.ndarray
     scale: np.ndarray  # the effort the guesses scale with [N*m]
     placeholder: float  # the URDF's placeholder effort limit [N*m], 0.0 if none
+    velocity_placeholder: float  # the URDF's placeholder velocity limit [rad/s], 0.0 if none
     viscous: np.ndarray
     coulomb: np.ndarray
     armature: np.ndarray
+    gains: np.ndarray  # the controller's gain factor per joint (gain_scale)
     torque: np.ndarray
     noise: np.ndarray
     threshold: np.ndarray
     geometry_problem: str = ""  # why self-collision cannot be checked ('' when it can)
+    left_out: str = ""  # the inertials the simulation leaves out ('' when none)
 
     @property
     def velocity_note(self) -> str:
+        if self.velocity_placeholder:
+            return (
+                f"the URDF's velocity limits ({self.velocity_placeholder:g} rad/s on every "
+                "joint: placeholders, as its effort limits; set your robot's)"
+            )
         return (
             "the URDF's velocity limits"
             if self.dq_known.all()
@@ -347,13 +370,16 @@ def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
         effort_known=np.isfinite(robot.model.effortLimit) & (robot.model.effortLimit > 0),
         scale=scale,
         placeholder=placeholder,
+        velocity_placeholder=placeholder_velocity(robot.dq_max, placeholder),
         viscous=VISCOUS_PER_EFFORT * scale,
         coulomb=COULOMB_PER_EFFORT * scale,
         armature=armature,
+        gains=gain_scale(robot, armature),
         torque=torque,
         noise=np.minimum(NOISE_PER_EFFORT * scale, NOISE_PER_TORQUE * torque),
         threshold=np.minimum(0.15, 0.1 * amplitude * c_v),  # rad/s, below the design's speeds
         geometry_problem=g.problem,
+        left_out=world_fixed_inertia_note(robot.urdf_text, robot.locked_joints),
     )
 
 
@@ -490,6 +516,12 @@ def _robot_lines(
             f"{ACCELERATION_PER_VELOCITY:g} x the velocity limit (full speed in "
             f"{1 / ACCELERATION_PER_VELOCITY:.2g} s): replace with your robot's value"
         )
+    if c.velocity_placeholder:
+        add(
+            f"  # velocity_limits: {_list(c.dq_max)}   # rad/s; the URDF's "
+            f"{c.velocity_placeholder:g} rad/s on every joint is a placeholder (as its effort "
+            "limits): set your robot's and remove the '#'"
+        )
     lines += guesses
     add("stage: whole                   # every joint moves, every body is unknown")
     add("seed: 0")
@@ -608,13 +640,24 @@ def _self_collision_lines(problem: str) -> list[str]:
     ]
 
 
+def _gains(values: np.ndarray) -> str:
+    """Controller gains as a YAML list of plain decimals (``1e+04`` would be a string)."""
+    return "[" + ", ".join(f"{float(v):.1f}" for v in values) + "]"
+
+
 def _measurement_lines(c: _Choices) -> list[str]:
-    """The ``measurement:`` section: MuJoCo with the guessed friction, armature and noise."""
+    """The ``measurement:`` section: MuJoCo with the guessed friction, armature and noise, and
+    the controller's gains with the rotor inertia (:func:`~ident.run.init_robot.gain_scale`)."""
+    w = DEFAULT_NATURAL_FREQUENCY_RAD_S
     return [
         "measurement:",
         "  source: mujoco",
         "  rate_hz: 1000.0",
-        "  controller: {kind: computed_torque}    # default gains: 100 rad/s, critically damped",
+        "  # computed torque on the URDF's rigid bodies, 100 rad/s and critically damped on each",
+        "  # joint with its rotor inertia: kp = 100^2 r, kd = 2 * 100 r, r = 1 + armature / the",
+        "  # joint's largest link-side inertia (the controller's model has no armature)",
+        f"  controller: {{kind: computed_torque, kp: {_gains(w**2 * c.gains)}, "
+        f"kd: {_gains(2.0 * DEFAULT_DAMPING_RATIO * w * c.gains)}}}",
         *(
             [
                 f"  # guesses scaled to {c.effort_note}",
@@ -625,6 +668,7 @@ def _measurement_lines(c: _Choices) -> list[str]:
             else [f"  # guesses scaled to {c.effort_note} {_list(c.scale)} N*m:"]
         ),
         "  # replace each with your robot's value",
+        *([f"  # note: {c.left_out}"] if c.left_out else []),
         "  friction:",
         f"    viscous: {_list(c.viscous)}   # guess: N*m*s/rad, {VISCOUS_PER_EFFORT:g} x effort",
         f"    coulomb: {_list(c.coulomb)}   # guess: N*m, {COULOMB_PER_EFFORT:g} x effort",
@@ -658,7 +702,8 @@ def _identification_lines(c: _Choices) -> list[str]:
         "quick:                         # --quick: the smallest budget that designs a trajectory",
         "  n_samples: 100",
         "  elites: {n_particles: 6, n_elites: 1, maxiter: 40}",
-        "  emupso: {n_particles: 6, maxiter: 4, stagnation: 2, n_runs: 1, n_report_elites: 1}",
+        f"  emupso: {{n_particles: {QUICK_PARTICLES}, maxiter: {QUICK_ITERATIONS}, "
+        "stagnation: 2, n_runs: 1, n_report_elites: 1}",
     ]
 
 
@@ -677,11 +722,22 @@ def _notes(c: _Choices, urdf: Path, lock_notes: list[str]) -> list[str]:
         + f" {_list(c.ddq_max)} rad/s^2",
         f"excitation: amplitude_bound {_list(c.amplitude)} rad/s keeps every design within "
         f"{VELOCITY_MARGIN:.0%} of the velocity limits {_list(c.dq_max)} rad/s",
+        *(
+            [
+                f"limits: the URDF's velocity limit {c.velocity_placeholder:g} rad/s on every "
+                "joint looks like a placeholder (its effort limits are): the design keeps "
+                "within it and the acceleration guess follows it; set your robot's "
+                "(robot.velocity_limits)"
+            ]
+            if c.velocity_placeholder
+            else []
+        ),
         f"safety: floor at z = {c.floor_z:.3f} m (under the base), clearance "
         f"{c.clearance:.3g} m; mean postures around a posture "
         f"{c.home_clearance * 100:.0f} cm clear",
         *[f"safety: margin below 1 cm: {line}" for line in c.close_pairs],
         f"measurement: friction, rotor inertia and noise are guesses scaled to {c.effort_note}",
+        *([f"measurement: {c.left_out}"] if c.left_out else []),
     ]
 
 

@@ -36,6 +36,7 @@ from ident.identify.pipeline.core import IdentifyResult, identify_measurements
 from ident.measure.log_config import LogConfig, TransmissionConfig
 from ident.measure.logs import RobotLog, read_log
 from ident.measure.mujoco_config import MujocoMeasurement, per_joint
+from ident.measure.mujoco_model import world_fixed_inertia_note
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
 from ident.run.config import RunConfig
@@ -174,6 +175,9 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
     )
     share = reference_share(pm, truth, robot)
     note = friction_truth_note(config)
+    left_out = (  # links fixed to the world whose inertia MuJoCo refuses (TIAGo's antennas)
+        world_fixed_inertia_note(robot.urdf_text, robot.locked_joints) if robot.urdf_text else ""
+    )
     if note:  # no friction truth: the base parameters holding friction are never major
         friction = [i for i, name in enumerate(names) if name.rstrip("0123456789") in ("fv", "fs")]
         holds = np.abs(np.asarray(pm.base.projection)[:, friction]).max(axis=1) > 0
@@ -186,7 +190,7 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
         base_method=pm.base.method,
         known_bodies_note="all bodies are unknown; friction and rotor inertia are identified "
         "with them (the simulator's truth: the URDF's inertials plus the configured friction "
-        "and armature)" + (f"; {note}" if note else ""),
+        "and armature)" + "".join(f"; {n}" for n in (note, left_out) if n),
         base=pm.base,
         reference_share=share,
         **base_set_fields(pm.base, names, truth),

@@ -22,14 +22,21 @@ from ident.excitation.registry import build_family
 from ident.excitation.safety import SafetyConfig, SafetyModel, build_safety_model
 from ident.inputs import JobEstimate, check_job
 from ident.measure.mujoco_config import check_joint_counts
-from ident.measure.mujoco_model import inertia_problem
+from ident.measure.mujoco_model import inertia_problem, world_fixed_inertia_note
 from ident.model import Robot
 from ident.model.selection import load_robot, set_robot_limits
 from ident.robot.mimic import reject_coupled_chain
 from ident.run.config import RunConfig, load_run_config
 from ident.run.exports.run_exports import effective_limits
 
-__all__ = ["RunSetup", "estimate_run", "load_run", "make_family", "prepare_run"]
+__all__ = [
+    "RunSetup",
+    "estimate_run",
+    "load_run",
+    "make_family",
+    "prepare_run",
+    "simulation_notes",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -57,6 +64,10 @@ class RunSetup:
         One line per joint limit an export target tightened (``controller.export``; see
         :func:`ident.run.exports.run_exports.effective_limits`); the robot carries the
         tightened limits.
+    simulation_notes :
+        What the MuJoCo simulation leaves out of the URDF and why (the inertials MuJoCo refuses
+        of links fixed to the world: :func:`~ident.measure.mujoco_model.world_fixed_inertia_note`);
+        empty for other sources.
     """
 
     config: RunConfig
@@ -66,6 +77,7 @@ class RunSetup:
     safety: SafetyModel
     estimate: JobEstimate
     limit_notes: tuple[str, ...] = ()
+    simulation_notes: tuple[str, ...] = ()
 
     @property
     def bounds(self) -> FloatArray:
@@ -115,6 +127,7 @@ def prepare_run(config: RunConfig, source: str | Path = "config") -> RunSetup:
         safety=safety,
         estimate=estimate,
         limit_notes=limit_notes,
+        simulation_notes=simulation_notes(config, robot),
     )
 
 
@@ -128,6 +141,13 @@ _SECONDS_PER_LOG_SAMPLE = 30e-6
 # a designed trajectory keeps its meshes farther apart (SO-101 --quick: 300 s measured,
 # 1160 s from random postures); the approach and return are included
 _CERTIFICATE_SHARE = 0.25
+# of the exact mesh distances the safety model timed at random postures where hulls are within
+# the margin ("near": seconds_per_posture less the hulls'), the share a designed trajectory
+# needs: the design keeps its meshes apart. SO-101 --quick (meshes of 100k triangles, 410
+# designs): near 38.5 of its 40.6 ms per posture, 0.25 of it estimated 193 s, the profiled
+# dense check spent about 26 s (CPU) on the hulls, 94 s making each pair's smallest value
+# exact (the next term) and under a second on near values; its estimate was 2.2x the run's CPU
+_NEAR_SHARE = 0.05
 # the share of the samples at which the dense check measures a mesh pair to make its smallest
 # value exact (its hulls' distance is below that value), at the CPU of every mesh pair at one
 # posture: Z1 --quick, 4362 exact distances over 24 mesh pairs and 11001 samples (1.7 %; one
@@ -210,8 +230,10 @@ def _certificate_seconds(n_report_elites: int, family: Any, safety: SafetyModel)
     exact."""
     period = float(getattr(family, "period", 10.0) or 10.0)
     samples = (n_report_elites + 1) * period * safety.config.check_rate_hz
+    hulls = safety.hull_seconds_per_posture
     return samples * (
-        _CERTIFICATE_SHARE * safety.seconds_per_posture
+        _CERTIFICATE_SHARE * hulls
+        + _NEAR_SHARE * max(safety.seconds_per_posture - hulls, 0.0)
         + _SMALLEST_SHARE * safety.mesh_seconds_per_posture
     )
 
@@ -307,12 +329,23 @@ def _check_sampling(config: RunConfig, family: Any) -> None:
             )
 
 
+def simulation_notes(config: RunConfig, robot: Robot) -> tuple[str, ...]:
+    """What a MuJoCo measurement leaves out of the robot's URDF, one line each (see
+    :attr:`RunSetup.simulation_notes`); () for other sources."""
+    if config.measurement.source != "mujoco" or not robot.urdf_text:
+        return ()
+    note = world_fixed_inertia_note(robot.urdf_text, robot.locked_joints)
+    return (note,) if note else ()
+
+
 def _check_measurement(config: RunConfig, robot: Robot, stage: Stage) -> None:
     """Per-joint measurement settings must have one value per joint of the robot."""
     if config.measurement.source == "mujoco":
         check_joint_counts(config.measurement, robot.nv, joint_names=robot.joint_names)
         if robot.urdf_text:  # up front: MuJoCo refuses it only when the simulation starts
-            problem = inertia_problem(robot.urdf_text, str(robot.urdf_path or robot.name))
+            problem = inertia_problem(
+                robot.urdf_text, str(robot.urdf_path or robot.name), robot.locked_joints
+            )
             if problem:
                 raise ModelError(problem)
         if len(stage.moving_joints) != robot.nv:
