@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 import yaml
 
-from ident.identify.config import load_identify_config
+from ident.identify.config import PreprocessConfig, load_identify_config
+from ident.identify.estimation.preprocess import resolve_for_log
 from ident.measure.log_config import TransmissionConfig
 from ident.measure.logs import read_log
 from ident.measure.readers import read_tables
@@ -95,8 +96,10 @@ def test_mcap_column_not_found_lists_every_column(joint_state_mcap):
 
 def test_npz_log_is_not_copied(tmp_path):
     """A numpy archive's (n, 7) signals become the log's q and tau as they are: the peak of
-    reading is the arrays once and the time checks (t, q, tau: 120 bytes per sample; 1.55 x
-    at the peak), not copies of the signals (3.2 x)."""
+    reading is the arrays once and the time checks (t, q, tau: 120 bytes per sample; 1.22 x
+    at the peak), not copies of the signals (3.2 x). The time checks and the automatic
+    settings' spectra hold a few arrays of the time column's size at once, not one per step
+    (an hour at 1 kHz: 29 MB each)."""
     n = 50_000
     rng = np.random.default_rng(1)
     t = np.arange(n) * 1e-3
@@ -112,6 +115,13 @@ def test_npz_log_is_not_copied(tmp_path):
     np.testing.assert_array_equal(log.tau, tau)
     arrays = t.nbytes + q.nbytes + tau.nbytes
     assert peak < 1.8 * arrays, (peak, arrays)  # copies of the signals: 3.2 x
+    # above the arrays: 3.3 columns of t (the stamps and their steps, a median's copy); 8.3
+    # when the time rule copied the clean column and the summary each step and deviation
+    assert peak - arrays < 4.5 * t.nbytes, (peak - arrays) / t.nbytes
+    # the spectra, a joint at a time: 5.1 columns (the window, the centred index, the joint's
+    # windowed positions, its spectrum); 6.1 with the previous joint's power and sum still held
+    _, peak = _traced_peak(lambda: resolve_for_log(PreprocessConfig(), log))
+    assert peak < 5.5 * t.nbytes, peak / t.nbytes
     # columns in another order are copied, in that order
     cfg = _log_config(
         tmp_path / "log.npz",

@@ -297,6 +297,7 @@ def _identify(
     cfg, log, model, joints, ellipsoids, auto_warnings, processing = _checked_inputs(
         cfg, log, model, source
     )
+    log_chunks.release_free_memory()  # the spectra's temporaries (automatic settings)
     with _timed(timings, "base_parameters"):
         pm = parameters if parameters is not None else _parameter_model(cfg, model, source, rng)
     with _timed(timings, "accumulate"):
