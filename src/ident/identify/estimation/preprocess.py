@@ -377,7 +377,9 @@ def _spectral_summary(
     return band, np.array(high, dtype=float)
 
 
-def _energy_frequency(power: FloatArray, total: float, freqs: FloatArray, energy: float) -> float:
+def _energy_frequency(
+    power: FloatArray, total: float, freqs: npt.NDArray[np.floating], energy: float
+) -> float:
     """The frequency [Hz] of ``freqs`` below which ``energy`` of ``power`` (its sum
     ``total`` > 0) lies; both shape (n_bins,)."""
     cumulative = np.cumsum(power)
