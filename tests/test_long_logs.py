@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 import yaml
 
-from ident.identify.config import load_identify_config
+from ident.identify.config import PreprocessConfig, load_identify_config
+from ident.identify.estimation import log_chunks
+from ident.identify.estimation.preprocess import resolve_for_log
 from ident.measure.log_config import TransmissionConfig
 from ident.measure.logs import read_log
 from ident.measure.readers import read_tables
@@ -95,8 +97,10 @@ def test_mcap_column_not_found_lists_every_column(joint_state_mcap):
 
 def test_npz_log_is_not_copied(tmp_path):
     """A numpy archive's (n, 7) signals become the log's q and tau as they are: the peak of
-    reading is the arrays once and the time checks (t, q, tau: 120 bytes per sample; 1.55 x
-    at the peak), not copies of the signals (3.2 x)."""
+    reading is the arrays once and the time checks (t, q, tau: 120 bytes per sample; 1.22 x
+    at the peak), not copies of the signals (3.2 x). The time checks and the automatic
+    settings' spectra hold a few arrays of the time column's size at once, not one per step
+    (an hour at 1 kHz: 29 MB each)."""
     n = 50_000
     rng = np.random.default_rng(1)
     t = np.arange(n) * 1e-3
@@ -112,6 +116,13 @@ def test_npz_log_is_not_copied(tmp_path):
     np.testing.assert_array_equal(log.tau, tau)
     arrays = t.nbytes + q.nbytes + tau.nbytes
     assert peak < 1.8 * arrays, (peak, arrays)  # copies of the signals: 3.2 x
+    # above the arrays: 3.3 columns of t (the stamps and their steps, a median's copy); 8.3
+    # when the time rule copied the clean column and the summary each step and deviation
+    assert peak - arrays < 4.5 * t.nbytes, (peak - arrays) / t.nbytes
+    # the spectra, a joint at a time: 5.1 columns (the window, the centred index, the joint's
+    # windowed positions, its spectrum); 6.1 with the previous joint's power and sum still held
+    _, peak = _traced_peak(lambda: resolve_for_log(PreprocessConfig(), log))
+    assert peak < 5.5 * t.nbytes, peak / t.nbytes
     # columns in another order are copied, in that order
     cfg = _log_config(
         tmp_path / "log.npz",
@@ -211,3 +222,23 @@ def test_joint_states_read_at_once_equal_the_decoder_and_keep_its_checks(tmp_pat
 
     with pytest.raises(DataError, match="changes its fields"):
         read_tables(_joint_state_file(tmp_path / "renamed.mcap", q, [""] * n, renamed))
+
+
+def _resident_mb() -> float:
+    with open("/proc/self/status") as f:
+        return next(int(x.split()[1]) for x in f if x.startswith("VmRSS:")) / 1024
+
+
+@pytest.mark.skipif(not log_chunks._LIBC, reason="glibc only (mallopt)")
+def test_large_blocks_are_handed_back_when_freed():
+    """After :func:`map_large_blocks` (set when ``identify`` starts), a freed array of 20 MB
+    leaves the resident set even after a larger one was freed; glibc's own rule would have
+    raised its threshold to that one's 30 MB and kept the 20 MB in the heap, resident (an
+    hour's log-length temporaries stayed so through the identification: ~60 MB)."""
+    log_chunks.map_large_blocks()
+    big = np.ones(30 << 17)  # 30 MB, touched
+    del big
+    block = np.ones(20 << 17)  # 20 MB
+    before = _resident_mb()
+    del block
+    assert before - _resident_mb() > 15.0

@@ -369,13 +369,22 @@ def _spectral_summary(
         total = power.sum()
         with np.errstate(invalid="ignore", divide="ignore"):
             high.append(power[above].sum() / total)
-        if total <= 0:
-            continue
-        cumulative = np.cumsum(power) / total
-        band = max(band, float(freqs[np.searchsorted(cumulative, energy)]))
+        if total > 0:
+            band = max(band, _energy_frequency(power, total, freqs, energy))
+        del power  # not held while the next joint's spectrum is computed
     if band <= 0:
         band = float(freqs[1] if freqs.size > 1 else sampling_rate_hz / 4)
     return band, np.array(high, dtype=float)
+
+
+def _energy_frequency(
+    power: FloatArray, total: float, freqs: npt.NDArray[np.floating], energy: float
+) -> float:
+    """The frequency [Hz] of ``freqs`` below which ``energy`` of ``power`` (its sum
+    ``total`` > 0) lies; both shape (n_bins,)."""
+    cumulative = np.cumsum(power)
+    cumulative /= total  # in place: one array of the spectrum's size, not two
+    return float(freqs[np.searchsorted(cumulative, energy)])
 
 
 def _spectra(q: FloatArray) -> Iterator[FloatArray]:
@@ -394,7 +403,10 @@ def _spectra(q: FloatArray) -> Iterator[FloatArray]:
         if kk > 0:
             x = blas.daxpy(k, x, a=-float(k @ x) / kk)  # x -= slope * k, in place
         x *= window
-        power = np.abs(np.fft.rfft(x))
+        spectrum = np.fft.rfft(x)
+        del x  # the spectrum, its power and the caller's cumulative sum only, at once
+        power = np.abs(spectrum)
+        del spectrum
         power *= power
         yield power
 

@@ -297,6 +297,7 @@ def _identify(
     cfg, log, model, joints, ellipsoids, auto_warnings, processing = _checked_inputs(
         cfg, log, model, source
     )
+    log_chunks.release_free_memory()  # the spectra's temporaries (automatic settings)
     with _timed(timings, "base_parameters"):
         pm = parameters if parameters is not None else _parameter_model(cfg, model, source, rng)
     with _timed(timings, "accumulate"):
@@ -414,14 +415,20 @@ def _timed_extras(
     est, identified_model = fits
     out: dict[str, Any] = {"identifiability": _identifiability(pm)}
     with _timed(timings, "uncertainty"):
-        out["uncertainty"], out["prediction_std"], blocks = _uncertainty(chunked, est, scheduler)
+        out["uncertainty"], blocks = _uncertainty(chunked, est, scheduler)
     n_boot = cfg.urdf_update.model_bootstrap
     if identified_model is not None and out["uncertainty"] is not None and n_boot > 0:
+        if not _same_weights(est, identified_model):
+            blocks = None  # freed before the written model's own blocks are built
         with _timed(timings, "model_intervals"):
             out["model_intervals"], out["model_intervals_note"] = _model_intervals(
                 chunked, (est, identified_model), out["uncertainty"], blocks, n_boot, scheduler
             )
-    del blocks  # 53 MB for 57 parameters: not held through the replay motion below
+    # 53 MB for 57 parameters: freed before the pass over the held-out chunks below, whose
+    # chunks in flight would otherwise come on top of them
+    del blocks
+    with _timed(timings, "uncertainty"):
+        out["prediction_std"] = _prediction_std(chunked, est, out["uncertainty"], scheduler)
     with _timed(timings, "friction_models"):
         out["friction"], out["friction_law"], out["friction_problem"] = _friction_models(
             cfg, chunked, pm, identified_model, tuple(joints)
@@ -544,21 +551,45 @@ def _held_out(
 
 def _uncertainty(
     chunked: log_chunks.ChunkedLog, est: Estimate, scheduler: str | None
-) -> tuple[Uncertainty | None, dict[str, FloatArray], BlockEquations | None]:
-    """HAC and block-bootstrap covariances of ``est``, the held-out prediction standard
-    deviations of every interval method and the block equations (none when the log has too
-    few blocks)."""
-    sigma = np.asarray(est.sigma, dtype=float)
-    weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
+) -> tuple[Uncertainty | None, BlockEquations | None]:
+    """HAC and block-bootstrap covariances of ``est`` and the block equations (none when the
+    log has too few blocks)."""
     try:
-        blocks = log_chunks.block_equations(chunked, weights, scheduler)
+        blocks = log_chunks.block_equations(chunked, _row_weights(est), scheduler)
         unc = parameter_uncertainty(blocks, est.names, est.x, est.covariance, rng=0)
     except (DataError, np.linalg.LinAlgError):
-        return None, {}, None
-    stds = log_chunks.prediction_std_log(
+        return None, None
+    return unc, blocks
+
+
+def _row_weights(est: Estimate) -> FloatArray:
+    """Per-joint row weights ``1 / sigma`` of ``est`` (0 where sigma is not positive)."""
+    sigma = np.asarray(est.sigma, dtype=float)
+    return np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
+
+
+def _same_weights(est: Estimate, identified: ConsistentIdentification) -> bool:
+    """Whether the written model's fit weighs the rows as the least-squares ``est`` does (its
+    bootstrap then reuses the block equations of :func:`_uncertainty`)."""
+    weights, ls_weights = np.asarray(identified.problem.weights, dtype=float), _row_weights(est)
+    if weights.shape != ls_weights.shape:
+        return False
+    return bool(np.allclose(weights, ls_weights, rtol=1e-12, atol=0.0))
+
+
+def _prediction_std(
+    chunked: log_chunks.ChunkedLog,
+    est: Estimate,
+    unc: Uncertainty | None,
+    scheduler: str | None,
+) -> dict[str, FloatArray]:
+    """The held-out prediction standard deviations of every interval method of ``unc``
+    (none without intervals)."""
+    if unc is None:
+        return {}
+    return log_chunks.prediction_std_log(
         chunked, unc.covariance, np.nan_to_num(est.residual_rms), scheduler
     )
-    return unc, stds, blocks
 
 
 def _model_intervals(
@@ -576,10 +607,8 @@ def _model_intervals(
     kept."""
     est, identified = fits
     weights = np.asarray(identified.problem.weights, dtype=float)
-    sigma = np.asarray(est.sigma, dtype=float)
-    ls_weights = np.where(np.isfinite(sigma) & (sigma > 0), 1.0 / sigma, 0.0)
     try:
-        if blocks is None or not np.allclose(weights, ls_weights, rtol=1e-12, atol=0.0):
+        if blocks is None or not _same_weights(est, identified):
             blocks = log_chunks.block_equations(chunked, weights, scheduler)
         length = int(np.ceil(unc.bandwidth))
         return model_intervals(identified, blocks, length, n_boot=n_boot, rng=1), ""

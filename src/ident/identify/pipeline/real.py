@@ -140,14 +140,12 @@ def identify(
         If the estimate is above the ceilings (:func:`ident.inputs.check_job`).
     """
     t0 = time.perf_counter()
+    log_chunks.map_large_blocks()  # a long log's temporaries handed back when freed
     source = str(cfg.source or "config")
     robot = load_robot(cfg.robot, source=source)
     model = robot.model
     joints = [model.names[i] for i in range(1, model.njoints)]
-    reading = check_job(estimate_log(cfg.log))  # from the files' sizes, before reading
-    if on_estimate is not None:
-        on_estimate(reading)
-    log = read_log(cfg.log, cfg.transmission, joints, source=source)
+    log = _read(cfg, joints, source, on_estimate)
     still = still_joints(log)
     if len(still) == len(joints):  # said before "too few observations" hides it
         raise DataError(
@@ -173,6 +171,24 @@ def identify(
             ) from e
         raise
     return dataclasses.replace(result, actuator=prepared.fit)
+
+
+def _read(
+    cfg: IdentifyConfig,
+    joints: list[str],
+    source: str,
+    on_estimate: Callable[[JobEstimate], None] | None,
+) -> RobotLog:
+    """The log of ``cfg`` (:func:`ident.measure.logs.read_log`), once the estimate of reading
+    it (from the files' sizes) is checked and handed to ``on_estimate``."""
+    reading = check_job(estimate_log(cfg.log))  # from the files' sizes, before reading
+    if on_estimate is not None:
+        on_estimate(reading)
+    log = read_log(cfg.log, cfg.transmission, joints, source=source)
+    # the reader's blocks and the time checks' temporaries, freed, back to the system before
+    # the identification (they stayed resident below the chunks' peak)
+    log_chunks.release_free_memory()
+    return log
 
 
 def _check_identify_job(

@@ -79,6 +79,9 @@ def _parse(
 ) -> tuple[list[str], IntArray, FloatArray]:
     """The distinct texts of field ``text_field`` in order of first appearance (m,) row
     indices into them, and the numbers (m, n_fields - 1) of the other fields of ``block``."""
+    # malloc, whose freed blocks the identification reuses (pyarrow's own pool kept ~40 MB of
+    # them resident through the rest of the run): for the parse and the joint column's codes
+    pool = pa.system_memory_pool()
     names = [f"c{k}" for k in range(n_fields)]
     types = {name: pa.float64() for name in names}
     types[names[text_field]] = pa.string()
@@ -88,9 +91,7 @@ def _parse(
             column_names=names, use_threads=False, block_size=len(block) + 1
         ),
         parse_options=pa_csv.ParseOptions(delimiter=delimiter, quote_char=False),
-        # malloc, whose freed blocks the identification reuses (pyarrow's own pool kept
-        # ~40 MB of them resident through the rest of the run)
-        memory_pool=pa.system_memory_pool(),
+        memory_pool=pool,
         convert_options=pa_csv.ConvertOptions(
             column_types=types, null_values=[], strings_can_be_null=False
         ),
@@ -98,7 +99,9 @@ def _parse(
     numbers = np.empty((table.num_rows, n_fields - 1))
     for j, k in enumerate(k for k in range(n_fields) if k != text_field):
         numbers[:, j] = table.column(k).to_numpy()
-    encoded = pc.dictionary_encode(table.column(text_field)).combine_chunks()
+    encoded = pc.dictionary_encode(table.column(text_field), memory_pool=pool).combine_chunks(
+        memory_pool=pool
+    )
     index = encoded.indices.to_numpy().astype(np.int64)
     texts = encoded.dictionary.to_pylist()
     # the dictionary holds the texts in order of first appearance (a hash table filled row
