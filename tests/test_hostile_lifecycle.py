@@ -357,6 +357,19 @@ def test_sigterm_at_each_file_of_bench(tmp_path):
 
 
 @pytest.mark.slow
+def test_sigterm_at_each_file_of_run(tmp_path):
+    """ident run, interrupted at its first file and at one among the elites' and the model's
+    files, says its folder is incomplete; a run left alone completes."""
+    from lifecycle_signals import sigterm_at_each_file
+
+    out = tmp_path / "runs"
+    args = ["run", str(ROOT / "configs/wrist.yaml"), "--quick", "--out", str(out), "--no-replay"]
+    reset = lambda: shutil.rmtree(out, ignore_errors=True)  # noqa: E731
+    n = sigterm_at_each_file(args, _only_child(out), tmp_path, reset=reset, at=(1, 5))
+    assert n >= 8  # run.json, config, robot, trajectory, elites, figures, result, reports
+
+
+@pytest.mark.slow
 def test_sigterm_at_each_file_of_identify(tmp_path):
     from lifecycle_signals import sigterm_at_each_file
 

@@ -256,10 +256,8 @@ def trajectory_png(
         PNG bytes.
     """
     n_panels = 3 if path is not None else 2
-    # the layout spaces panels by their 2D boxes; a 3D axes draws its z label outside its
-    # box, over the next panel's y label, without a wider gap
-    wspace = 0.08 if path is not None else None
-    fig = _figure(5.0 * n_panels, 4.2, wspace=wspace)  # capped at MAX_WIDTH_IN
+    # a 3D axes draws its z label outside the box the layout spaces panels by: a wider gap
+    fig = _figure(5.0 * n_panels, 4.2, wspace=None if path is None else 0.08)
     fig.suptitle(title)
     colors = [f"C{k}" for k in range(len(joint_labels))]
     panel = 1
