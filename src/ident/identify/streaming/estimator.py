@@ -23,8 +23,9 @@ intervals stay those of the least squares, as ``ident payload``'s).
 **After an alarm** the rows before the onset (the reference) and after it are solved as one
 problem whose payload (or friction) differs between the two (:func:`~ident.identify.streaming.
 normal.split_equations`) once ``after_s`` seconds of rows follow the onset; which of the two
-changed is the split with the more significant likelihood ratio. The rows after the change then
-become the new reference.
+changed is the split with the more significant likelihood ratio; with ``consistent`` the
+change's estimate is the ``lmi`` one on the same epochs (intervals of the least squares). The
+rows after the change then become the new reference.
 """
 
 from __future__ import annotations
