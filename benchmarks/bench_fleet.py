@@ -25,6 +25,10 @@ tenths of N*m, torque noise 1 % of each joint's RMS torque and 2^19-count encode
    chunk identified again), and ``ident fleet`` run on them in a child process: its wall
    time, the CPU time of the whole process tree (reading included), the throughput per core
    and the load average during the run.
+5. **Coverage and false alarms** (``--coverage-seeds N [--seed-start S] [--save-z F]``): ``N``
+   fleets of ``--units`` change-free units in this process: the share of the 95 % intervals
+   holding the truth and the change-free windows' false-alarm rate at alpha 0.01 with its
+   Wilson 95 % interval (all windows, the baseline's own, the later ones).
 
 Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] [--hours 0]
 [--npz DIR]``.
