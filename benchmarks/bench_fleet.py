@@ -25,6 +25,10 @@ tenths of N*m, torque noise 1 % of each joint's RMS torque and 2^19-count encode
    chunk identified again), and ``ident fleet`` run on them in a child process: its wall
    time, the CPU time of the whole process tree (reading included), the throughput per core
    and the load average during the run.
+5. **Coverage and false alarms** (``--coverage-seeds N [--seed-start S] [--save-z F]``): ``N``
+   fleets of ``--units`` change-free units in this process: the share of the 95 % intervals
+   holding the truth and the change-free windows' false-alarm rate at alpha 0.01 with its
+   Wilson 95 % interval (all windows, the baseline's own, the later ones).
 
 Run: ``nice -n 10 python benchmarks/bench_fleet.py [--units 20] [--seconds 600] [--hours 0]
 [--npz DIR]``.
@@ -44,6 +48,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import yaml
+from scipy.stats import norm
 from typer.testing import CliRunner
 
 from ident.cli import app
@@ -342,9 +347,9 @@ def seeds_case(args: argparse.Namespace) -> None:
     robot, meas = ur5()
     cols = fleet_columns(robot)
     names = tuple(str(robot.model.names[i]) for i in range(1, robot.model.njoints))
-    inside, z, kappas = [], [], []
+    inside, z, kappas, in_base = [], [], [], []
     c0 = time.process_time()
-    for seed in range(args.coverage_seeds):
+    for seed in range(args.seed_start, args.seed_start + args.coverage_seeds):
         units = make_units(robot, meas, args.units, seed=1000 + seed)
         sources = [unit_log(u, names, args.seconds, 10_000 * seed + k) for k, u in enumerate(units)]
         _, kappa, scaled, tests = reported(
@@ -353,12 +358,15 @@ def seeds_case(args: argparse.Namespace) -> None:
         got = coverage(scaled, cols, units, None)
         inside += got
         z += [t.z for unit in tests for t in unit if np.isfinite(t.z)]
+        in_base += [t.baseline for unit in tests for t in unit if np.isfinite(t.z)]
         kappas.append(kappa)
         print(
             f"seed {seed}: intervals holding the truth {np.mean(got):.3f}; "
             f"kappa {np.round(kappa, 2)}"
         )
     z_ = np.array(z)
+    if args.save_z is not None:
+        np.savez(args.save_z, z=z_, baseline=np.array(in_base), kappa=np.array(kappas))
     print(
         f"{args.coverage_seeds} seeds x {args.units} units x {args.seconds:g} s "
         f"({time.process_time() - c0:.0f} s CPU): 95 % intervals holding the truth "
@@ -367,6 +375,33 @@ def seeds_case(args: argparse.Namespace) -> None:
         f"{z_.size}, mean {z_.mean():+.3f}, standard deviation {z_.std():.3f}, above "
         f"{rise_threshold(0.01):.3f}: {np.mean(z_ > rise_threshold(0.01)):.4f} (stated 0.01)"
     )
+    false_alarm_lines(z_, np.array(in_base))
+
+
+def wilson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a proportion ``k / n`` at ``level`` (two-sided)."""
+    zq = float(norm.isf((1 - level) / 2))
+    p, d = k / n, 1 + zq * zq / n
+    centre = (p + zq * zq / (2 * n)) / d
+    half = zq * np.sqrt(p * (1 - p) / n + zq * zq / (4 * n * n)) / d
+    return centre - half, centre + half
+
+
+def false_alarm_lines(z: np.ndarray, baseline: np.ndarray) -> None:
+    """The change-free windows' false-alarm rate at alpha 0.01 with its Wilson 95 % interval:
+    all windows, the baseline's own (each against the baseline without it) and the later ones
+    (against the whole baseline). The windows of one unit share its baseline and noise factor,
+    so they are not independent: the interval is that of independent windows, a lower bound
+    on its width."""
+    thr = rise_threshold(0.01)
+    for label, zz in (("all", z), ("baseline", z[baseline]), ("after the baseline", z[~baseline])):
+        k, n = int(np.sum(zz > thr)), zz.size
+        lo, hi = wilson(k, n)
+        print(
+            f"false alarms ({label} windows): {k} of {n} = {100 * k / n:.2f} % "
+            f"(Wilson 95 %: {100 * lo:.2f} - {100 * hi:.2f} %; stated 1 %); "
+            f"z std {zz.std():.3f}"
+        )
 
 
 def hours_case(args: argparse.Namespace) -> None:
@@ -454,6 +489,8 @@ def main() -> None:
     parser.add_argument("--hours", type=float, default=0.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--coverage-seeds", type=int, default=0, help="part 5: N fleets")
+    parser.add_argument("--seed-start", type=int, default=0, help="part 5: first seed")
+    parser.add_argument("--save-z", type=Path, default=None, help="part 5: z values to npz")
     parser.add_argument("--distinct", type=int, default=3, help="distinct logs per unit (part 4)")
     parser.add_argument("--npz", type=Path, default=None, help="run `ident fleet` on npz logs here")
     args = parser.parse_args()

@@ -37,7 +37,7 @@ from ident.measure.logs import RobotLog
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "benchmarks"))
-from bench_fleet import fleet_columns, friction_errors, make_units, unit_log, ur5  # noqa: E402
+from bench_fleet import fleet_columns, friction_errors, make_units, unit_log, ur5, wilson  # noqa: E402
 
 distributed = pytest.importorskip("distributed")
 dask = pytest.importorskip("dask")
@@ -326,3 +326,16 @@ def test_cli_on_npz_logs_through_a_scheduler_address(setup: tuple, tmp_path: Pat
             assert p["interval_95"][0] < p["value"] < p["interval_95"][1]
     assert drift["across_units"]["status"] == "not run"
     assert "samples/s per core" in res.output
+
+
+def test_wilson_interval_closed_forms() -> None:
+    """bench_fleet's false-alarm interval: Wilson's closed forms at ``k = 0`` (upper
+    ``z^2 / (n + z^2)``) and ``k = n`` (lower ``n / (n + z^2)``), and an interval about
+    ``k / n`` pulled towards 1/2 (not the Wald interval ``p +- z sqrt(p (1 - p) / n)``)."""
+    z2 = 1.959963984540054**2
+    assert wilson(0, 100)[0] == pytest.approx(0.0, abs=1e-15)
+    assert wilson(0, 100)[1] == pytest.approx(z2 / (100 + z2))
+    assert wilson(50, 50)[0] == pytest.approx(50 / (50 + z2))
+    lo, hi = wilson(15, 1500)
+    assert lo < 0.01 < hi
+    assert hi - 0.01 > 0.01 - lo  # skewed towards 1/2

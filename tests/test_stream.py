@@ -19,6 +19,7 @@ from ident.cli import app
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameters import parameters_from_model
 from ident.identify.config import ModelConfig
+from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
 from ident.identify.payload.controller_load import (
     LoadLimits,
     check_load,
@@ -163,9 +164,11 @@ def test_payload_step_detected_and_estimated(step_log: tuple[np.ndarray, ...]) -
     """A 2 kg payload planted at 11 s (after the 10 s warm-up): one change, of kind payload,
     its onset within one block (0.164 s) of 11 s, detected within the test window plus a
     block (0.82 s); after 1 s of rows its mass within 2 % and centre of mass within 5 mm,
-    both inside their 95 % intervals give or take a factor 1.5."""
+    both inside their 95 % intervals give or take a factor 1.5. With ``consistent`` that
+    estimate is the LMI's (named ``lmi``; a realizable payload: pseudo-inertia positive
+    semidefinite), not the least squares' (the scheduled solve is off here)."""
     t, q, tau, model = step_log
-    est = _estimator(model)
+    est = _estimator(model, consistent=True)
     _feed(est, t, q, tau)
     assert len(est.events) == 1
     (event,) = est.events
@@ -179,6 +182,10 @@ def test_payload_step_detected_and_estimated(step_log: tuple[np.ndarray, ...]) -
     assert np.linalg.norm(a.com - com) < 5e-3
     assert abs(a.mass - mass) < 1.5 * 1.96 * a.mass_std
     assert np.all(np.abs(a.com - com) < 1.5 * 1.96 * a.com_std)
+    assert a.method == "lmi"
+    assert event.before.method == "wls"
+    assert pseudo_inertia_min_eigenvalue(a.x[:10]) >= -1e-9
+    assert not est.timeline  # the LMI came from the change, not from the schedule
 
 
 def test_no_change_no_alarm(step_log: tuple[np.ndarray, ...]) -> None:

@@ -23,8 +23,9 @@ intervals stay those of the least squares, as ``ident payload``'s).
 **After an alarm** the rows before the onset (the reference) and after it are solved as one
 problem whose payload (or friction) differs between the two (:func:`~ident.identify.streaming.
 normal.split_equations`) once ``after_s`` seconds of rows follow the onset; which of the two
-changed is the split with the more significant likelihood ratio. The rows after the change then
-become the new reference.
+changed is the split with the more significant likelihood ratio; with ``consistent`` the
+change's estimate is the ``lmi`` one on the same epochs (intervals of the least squares). The
+rows after the change then become the new reference.
 """
 
 from __future__ import annotations
@@ -391,7 +392,10 @@ class StreamingEstimator:
             return None
         before = self._estimate(alarm.t_onset, alarm.before.x, alarm.before.covariance,
                                 "wls", alarm.before)  # fmt: skip
-        after = self._estimate(t, sol.x, sol.covariance, "wls", sol)
+        c0 = time.process_time()
+        x, method = self._point(st.ref, sol)
+        self.solve_cpu_s += time.process_time() - c0
+        after = self._estimate(t, x, sol.covariance, method, sol)
         return ChangeEvent(alarm.t_alarm, alarm.t_onset, alarm.statistic, alarm.threshold,
                            alarm.dof, kind, log_p, before, after)  # fmt: skip
 
@@ -436,14 +440,23 @@ class StreamingEstimator:
             sol = current.solve()
         except NotIdentifiable:
             return
-        x, method = sol.x, "wls"
-        if self.s.consistent:
-            try:
-                x, method = self._consistent(current), "lmi"
-            except NotIdentifiable:
-                pass  # the WLS stands, named by its method
+        x, method = self._point(current, sol)
         self.timeline.append(self._estimate(t, x, sol.covariance, method, sol))
         self.solve_cpu_s += time.process_time() - c0
+
+    def _point(self, epochs: Epochs, sol: Solution) -> tuple[FloatArray, str]:
+        """The estimate of ``epochs``' current parameters (p,) and its method: with
+        ``consistent`` the LMI's on the same rows, else (or when it fails) the WLS ``sol``.
+
+        Why after a change too: 1 s of rows can leave one direction of the new centre of mass
+        barely excited (its three components' errors then nearly +-1 correlated); the WLS
+        wanders along it, the payload's realizability bounds it."""
+        if self.s.consistent:
+            try:
+                return self._consistent(epochs), "lmi"
+            except NotIdentifiable:
+                pass  # the WLS stands, named by its method
+        return sol.x, "wls"
 
     def _consistent(self, epochs: Epochs) -> FloatArray:
         """The registry's ``lmi`` estimate (the current payload realizable, friction >= 0) on
