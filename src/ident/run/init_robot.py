@@ -45,6 +45,7 @@ __all__ = [
     "gravity_torques",
     "joint_loads",
     "keepable_clearance",
+    "link_side_inertias",
     "placeholder_effort",
     "placeholder_velocity",
     "robot_reach",
@@ -213,15 +214,21 @@ def gravity_torques(robot: Robot, n: int = 50) -> np.ndarray:
     return np.array([pin.computeGeneralizedGravity(model, data, q) for q in _postures(robot, n)])
 
 
-def joint_loads(robot: Robot, ddq_max: np.ndarray, n: int = 50) -> np.ndarray:
-    """Per joint: the largest load of the links it moves [N*m] over ``n`` seeded postures
-    (those of :func:`gravity_torques`): the static gravity torque plus the link-side inertia
-    (the mass matrix's diagonal [kg*m^2]) times the acceleration limit ``ddq_max``
-    [rad/s^2], shape (nv,) each."""
+def link_side_inertias(robot: Robot, n: int = 50) -> np.ndarray:
+    """The mass matrix's diagonal [kg*m^2 or kg] (each joint's link-side inertia) at the
+    postures of :func:`gravity_torques`, shape (n, nv)."""
     model = robot.model
     data = model.createData()
     # crba fills the upper triangle: the diagonal is exact
-    inertia = np.array([np.diag(pin.crba(model, data, q)) for q in _postures(robot, n)])
+    return np.array([np.diag(pin.crba(model, data, q)) for q in _postures(robot, n)])
+
+
+def joint_loads(robot: Robot, ddq_max: np.ndarray, n: int = 50) -> np.ndarray:
+    """Per joint: the largest load of the links it moves [N*m] over ``n`` seeded postures
+    (those of :func:`gravity_torques`): the static gravity torque plus the link-side inertia
+    (:func:`link_side_inertias`) times the acceleration limit ``ddq_max`` [rad/s^2], shape
+    (nv,) each."""
+    inertia = link_side_inertias(robot, n)
     return np.max(np.abs(gravity_torques(robot, n)) + inertia * ddq_max, axis=0)
 
 
@@ -233,10 +240,8 @@ def gain_scale(robot: Robot, armature: np.ndarray, n: int = 50) -> np.ndarray:
     keeps the loop gain ``kp M_jj / (M_jj + Ia_j)`` at or below ``kp`` everywhere (a UR10's
     wrist 3: link 2e-4, rotor guess 0.162 kg*m^2: unscaled, its loop had 1/800 of its gain,
     and its guessed 1.6 N*m of friction held it until 0.8 rad behind)."""
-    model = robot.model
-    data = model.createData()
-    inertia = np.array([np.diag(pin.crba(model, data, q)) for q in _postures(robot, n)])
-    return 1.0 + np.asarray(armature, dtype=float) / np.max(inertia, axis=0)
+    largest = np.max(link_side_inertias(robot, n), axis=0)
+    return 1.0 + np.asarray(armature, dtype=float) / largest
 
 
 def placeholder_effort(effort: np.ndarray, loads: np.ndarray) -> float:
