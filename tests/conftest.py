@@ -9,6 +9,8 @@ import fcntl
 import functools
 import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -59,6 +61,32 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> LoadFileS
     if config.getoption("dist") != "loadfile":
         return None  # another mode asked for on the command line: xdist's own
     return _ShippedRunsTogether(config, log)  # type: ignore[arg-type]
+
+
+#: Set by .ci/run: the type check starts beside the tests (:func:`pytest_sessionstart`).
+TYPECHECK_VARIABLE = "IDENT_TYPECHECK_BESIDE_TESTS"
+_TYPECHECK: list[subprocess.Popen] = []
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Under CI, ``mypy src`` in the background while the tests run (the controller only, not
+    each xdist worker): its 47 s of one core ran alone after the tests; now .ci/run's own
+    ``mypy src`` after them reads the warm cache (a few seconds) and prints what it finds."""
+    if os.environ.get(TYPECHECK_VARIABLE) and not hasattr(session.config, "workerinput"):
+        _TYPECHECK.append(
+            subprocess.Popen(
+                [sys.executable, "-m", "mypy", "src"],
+                cwd=REPO_ROOT,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        )
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Wait for the background type check (its cache is what .ci/run's check reads)."""
+    for process in _TYPECHECK:
+        process.wait()
 
 
 @pytest.fixture(autouse=True)
