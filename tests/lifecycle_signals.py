@@ -63,9 +63,8 @@ def _interrupt_at(
             proc.send_signal(signal.SIGTERM)
             sent = True
             break
-        time.sleep(
-            0.02
-        )  # a walk of the folder each time: within PAUSE_S, without a core of its own
+        # a walk of the folder each time: well within PAUSE_S, not a core of its own
+        time.sleep(0.02)
     _, stderr = proc.communicate(timeout=300)
     return proc.returncode, stderr, find(), sent
 
