@@ -36,12 +36,12 @@ from ident.identify.pipeline.core import IdentifyResult, identify_measurements
 from ident.measure.log_config import LogConfig, TransmissionConfig
 from ident.measure.logs import RobotLog, read_log
 from ident.measure.mujoco_config import MujocoMeasurement, per_joint
-from ident.measure.mujoco_model import world_fixed_inertia_note
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
 from ident.model import Robot
 from ident.run.config import RunConfig
 from ident.run.elite_identification import elite_trajectory
 from ident.run.results import EliteOutcome, StageInfo, base_set_fields
+from ident.run.setup import simulation_notes
 
 __all__ = [
     "LogOutcome",
@@ -175,9 +175,6 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
     )
     share = reference_share(pm, truth, robot)
     note = friction_truth_note(config)
-    left_out = (  # links fixed to the world whose inertia MuJoCo refuses (TIAGo's antennas)
-        world_fixed_inertia_note(robot.urdf_text, robot.locked_joints) if robot.urdf_text else ""
-    )
     if note:  # no friction truth: the base parameters holding friction are never major
         friction = [i for i, name in enumerate(names) if name.rstrip("0123456789") in ("fv", "fs")]
         holds = np.abs(np.asarray(pm.base.projection)[:, friction]).max(axis=1) > 0
@@ -190,7 +187,7 @@ def log_stage_info(config: RunConfig, robot: Robot) -> tuple[StageInfo, Paramete
         base_method=pm.base.method,
         known_bodies_note="all bodies are unknown; friction and rotor inertia are identified "
         "with them (the simulator's truth: the URDF's inertials plus the configured friction "
-        "and armature)" + "".join(f"; {n}" for n in (note, left_out) if n),
+        "and armature)" + "".join(f"; {n}" for n in (note, *simulation_notes(config, robot)) if n),
         base=pm.base,
         reference_share=share,
         **base_set_fields(pm.base, names, truth),
