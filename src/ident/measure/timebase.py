@@ -316,7 +316,12 @@ def is_uniform(t: FloatArray, rtol: float = UNIFORM_RTOL) -> bool:
     dt = np.diff(t)
     if dt.size == 0:
         return True
-    step = float(np.median(dt))
+    return _steps_uniform(dt, float(np.median(dt)), rtol)
+
+
+def _steps_uniform(dt: FloatArray, step: float, rtol: float = UNIFORM_RTOL) -> bool:
+    """:func:`is_uniform`'s rule on the steps ``dt`` (n,) [s] of a column, ``step`` their
+    median [s]: every step within ``rtol`` of it."""
     return bool(_largest_deviation(dt, step) <= rtol * step)
 
 
@@ -471,7 +476,7 @@ def summarize_time(t: FloatArray, *, gap_factor: float = GAP_FACTOR) -> TimingSu
         n_gaps=int(gaps.sum()),
         longest_gap_s=float(dt[gaps].max()) if gaps.any() else 0.0,
         # is_uniform(finite) of a column without anomalies, from the steps already taken
-        uniform=not anomalies.any and bool(_largest_deviation(dt, step) <= UNIFORM_RTOL * step),
+        uniform=not anomalies.any and _steps_uniform(dt, step),
         anomalies=anomalies,
     )
 
