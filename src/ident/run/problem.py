@@ -58,7 +58,8 @@ def excitation_problem(setup: RunSetup, rng: np.random.Generator) -> ExcitationP
     config, robot, stage, family = setup.config, setup.robot, setup.stage, setup.family
     with one_blas_thread():
         stage_info = build_stage_info(robot, stage, family, config.estimation.base_method, rng)
-    # the objective scores the same base columns the estimate uses
+    # the objective scores the rigid-body base columns the estimate uses; the joint terms a
+    # MuJoCo measurement adds to the estimate (friction, rotor inertia) are not designed for
     objective = ExcitationObjective(
         robot,
         stage,
