@@ -87,10 +87,12 @@ from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel
 from ident.dynamics.regressor import joint_torque_regressor
 from ident.identify.assessment.rollout import SD_FLOOR, held_out_windows, rollout_score
+from ident.identify.config import RefinementConfig
 from ident.identify.model_files.files import save_identified_model
 from ident.identify.model_files.fused_bodies import fused_bodies, parse_urdf
 from ident.identify.model_files.mjcf import identified_mjcf
 from ident.identify.pipeline.core import identify_measurements
+from ident.identify.refinement.rollout_refinement import refinement_entry, refinement_text
 from ident.measure.logs import read_log
 from ident.measure.mujoco_model import FRICTION_SOLIMP, dynamics_only_urdf
 from ident.measure.mujoco_sim import SimulatedLog, simulate, write_log
@@ -241,6 +243,26 @@ def run_ident(case: Case) -> tuple[ToolRun, Any]:
             f"threshold): {held.metrics.total_relative_residual:.4f}"
         )
     return ToolRun("ident", x, wall, peak, note, cpu_s=cpu), result
+
+
+def ident_refined_model(result: Any, truth_rollout: float) -> tuple[mujoco.MjModel, dict]:
+    """ident's written model after ``refinement: rollout`` (its joints' frictionloss, damping
+    and armature refined on rollouts of the identification part, accepted only when the
+    held-out rollout objective and torque error do not get worse:
+    :func:`ident.identify.refinement.rollout_refinement.refinement_entry`), loaded, and the
+    refinement's ``result.json`` entry (``cpu_s`` its CPU). ``truth_rollout``: the truth's
+    held-out objective, the entry's reference."""
+    config = result.config.model_copy(update={"refinement": RefinementConfig(method="rollout")})
+    refined = dataclasses.replace(result, config=config)
+    with tempfile.TemporaryDirectory(prefix="bench-peers-refined-") as tmp:
+        entry = save_identified_model(refined, tmp)
+        if not entry["written"]:
+            raise RuntimeError(f"ident wrote no model: {entry['note']}")
+        mjcf = Path(tmp) / entry["files"]["mjcf"]
+        before = rollout_score(mjcf, *held_out_windows(result)).objective
+        rollout = {"objective": before, "reference": "truth", "reference_objective": truth_rollout}
+        refinement = refinement_entry(refined, Path(tmp), entry, rollout)
+        return mujoco.MjModel.from_xml_path(str(mjcf)), refinement
 
 
 def ident_written_model(result: Any) -> mujoco.MjModel:
@@ -872,8 +894,7 @@ def _row(
         "held_out": r["held_out"],
         "base": r["param"],
         "rollout": rollout_score(model, measurements, windows).objective,
-        # the hook for a refined model's rollout score (result.json's `refinement`): not built
-        "refined_rollout": None,
+        "refined_rollout": None,  # ident's row: its model after `refinement: rollout`
         "cpu_s": None if np.isnan(run.cpu_s) else run.cpu_s,
         "wall_s": run.wall_s,
         **run.info,
@@ -914,6 +935,12 @@ def duel_case(
         model = model_mjcf(case, pm, r.x) if model is None else model
         r.cpu_s = r.cpu_s if tool == "ident" else float("nan")
         rows[tool] = _row(case, pm, r, (measurements, windows, model))
+    refined_model, refinement = ident_refined_model(result, rows["truth"]["rollout"])
+    rows["ident"]["refined_rollout"] = rollout_score(refined_model, measurements, windows).objective
+    rows["ident"]["refinement"] = {
+        k: refinement.get(k) for k in ("accepted", "note", "iterations", "stop", "cpu_s")
+    }
+    print(f"{name} {kind} seed {seed}: ident refined: {refinement_text(refinement)}", flush=True)
     for start in starts:
         s = run_sysid(
             case,
@@ -947,6 +974,11 @@ def _stat(values: list[float], fmt: str) -> str:
     if not values:
         return "-"
     return f"{fmt.format(float(np.median(values)))} ({fmt.format(max(values))})"
+
+
+def _refined(rows: list[dict[str, Any]]) -> list[float]:
+    """The refined rollout objectives of a tool's rows (ident's only)."""
+    return [x["refined_rollout"] for x in rows if x.get("refined_rollout") is not None]
 
 
 def duel_verdict(records: list[dict[str, Any]]) -> dict[str, Any]:
@@ -1002,7 +1034,7 @@ def duel_table(records: list[dict[str, Any]]) -> str:
                 f"| {tool} | {_stat([x['torque'] for x in rows], '{:.4f}')} "
                 f"| {_stat([x['base'] for x in rows], '{:.4f}')} "
                 f"| {_stat([x['rollout'] for x in rows], '{:.3g}')} "
-                "| not built | "
+                f"| {_stat(refined, '{:.3g}') if (refined := _refined(rows)) else '-'} | "
                 f"{_stat(cpu, '{:.1f}')} | {'; '.join(stops) or '-'} |"
             )
         v = duel_verdict(recs)
