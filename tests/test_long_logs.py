@@ -229,10 +229,10 @@ def test_joint_states_read_at_once_equal_the_decoder_and_keep_its_checks(tmp_pat
 
 @pytest.mark.skipif(not log_chunks._LIBC, reason="glibc only (mallopt)")
 def test_large_blocks_are_handed_back_when_freed():
-    """After :func:`map_large_blocks` (set when ``identify`` starts), a freed array of 20 MB
-    leaves the resident set even after a larger one was freed; glibc's own rule would have
-    raised its threshold to that one's 30 MB and kept the 20 MB in the heap, resident (an
-    hour's log-length temporaries stayed so through the identification: ~60 MB).
+    """After :func:`map_large_blocks` (set by ``ident identify`` when it starts), a freed
+    array of 20 MB leaves the resident set even after a larger one was freed; glibc's own rule
+    would have raised its threshold to that one's 30 MB and kept the 20 MB in the heap,
+    resident (an hour's log-length temporaries stayed so through the identification: ~60 MB).
 
     In a fresh interpreter, as ``ident identify`` sets it: in a test worker whose heap holds
     free chunks from earlier tests, glibc serves a 20 MB request from them (mmap is only for

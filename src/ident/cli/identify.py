@@ -75,8 +75,12 @@ def identify(
     started_at = datetime.now(timezone.utc).isoformat(timespec="seconds")
     t_start = time.monotonic()
     from ident.identify.config import load_identify_config
+    from ident.identify.estimation.log_chunks import map_large_blocks
     from ident.identify.pipeline.real import identify as run_identify
 
+    # the command owns its process: a long log's temporaries handed back to the system when
+    # freed (a library call leaves the caller's allocator as it is)
+    map_large_blocks()
     package_dirs = list(package_dir or ())
     with user_errors():
         _check_options(seed, out, package_dirs, scheduler)

@@ -140,7 +140,6 @@ def identify(
         If the estimate is above the ceilings (:func:`ident.inputs.check_job`).
     """
     t0 = time.perf_counter()
-    log_chunks.map_large_blocks()  # a long log's temporaries handed back when freed
     source = str(cfg.source or "config")
     robot = load_robot(cfg.robot, source=source)
     model = robot.model
