@@ -113,13 +113,19 @@ def cached_step_logs(seed: int, *, friction: bool, cache: Path | None) -> dict:
     return logs
 
 
+#: Re-solves of a change's consistent estimate for its intervals (``--resolves``; 0: the least
+#: squares' intervals about it, for comparison).
+RESOLVES = [StreamSettings().interval_resolves]
+
+
 def make_estimator(robot, consistent: bool = True) -> StreamingEstimator:  # noqa: ANN001
     """The ``ident stream`` defaults on the config's model terms."""
     terms = ModelConfig(viscous=True, coulomb=True, rotor_inertia=True,
                         offset=False).extra_terms(robot.nv, "bench")  # fmt: skip
     return StreamingEstimator(chain_from_model(robot.model), terms,
                               parameters_from_model(robot.model), 1000.0,
-                              StreamSettings(consistent=consistent))  # fmt: skip
+                              StreamSettings(consistent=consistent,
+                                             interval_resolves=RESOLVES[0]))  # fmt: skip
 
 
 def feed(est: StreamingEstimator, t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> float:
@@ -321,7 +327,10 @@ def main() -> None:
                         help="more change times [s] a payload seed (coverage)")  # fmt: skip
     parser.add_argument("--cache", type=Path, default=None,
                         help="folder of the seeds' MuJoCo logs (read, else written)")  # fmt: skip
+    parser.add_argument("--resolves", type=int, default=RESOLVES[0],
+                        help="re-solves of a change's intervals (0: least squares')")  # fmt: skip
     args = parser.parse_args()
+    RESOLVES[0] = args.resolves
     rows = []
     for seed in range(args.seeds):
         rows.append(run_seed(seed, cache=args.cache, more_changes=tuple(args.more_changes)))
