@@ -490,7 +490,9 @@ class StreamingEstimator:
         the covariance the re-estimates' second moment about the estimate (their spread and
         bias). Why not the least squares' covariance: where the constraints bind (1 s of rows
         leaves a direction of the centre of mass barely excited, a realizable payload cannot
-        wander along it) the consistent estimate's error is a fraction of the least squares'."""
+        wander along it) the consistent estimate's error is smaller than the least squares'
+        (simulated UR5, 100 changes: intervals 0.71 times as wide on the centre of mass, 92.5 %
+        of 400 holding the truth; docs/lifetime.md, "Measured")."""
         if not self.s.consistent:
             return sol.x, sol.covariance, "wls", "least squares"
         resolver = get_repeated_estimator("lmi")  # one program for the estimate and re-solves
