@@ -22,7 +22,8 @@ change).
 ``--friction N`` adds N logs whose viscous and Coulomb friction rise by 50 % at the change
 (no payload): detected, and classified as friction?
 
-Run: ``nice -n 10 python benchmarks/bench_stream.py [--seeds 20] [--friction 3]`` (about 30 s
+Run: ``nice -n 10 python benchmarks/bench_stream.py [--seeds 20] [--friction 3]
+[--more-changes 12 13.5 17 18.4] [--cache DIR]`` (about 30 s
 of CPU a seed for the two MuJoCo logs, 1 s for the streams).
 """
 
@@ -87,7 +88,34 @@ def step_logs(seed: int, *, friction: bool = False) -> dict:
     tau_step = np.vstack([logs[0].tau_measured[:k], logs[1].tau_measured[k:]])
     return {"robot": robot, "t": t_log, "q": np.vstack([logs[0].q[:k], logs[1].q[k:]]),
             "q_without": logs[0].q, "tau_without": logs[0].tau_measured, "tau_step": tau_step,
+            "q_with": logs[1].q, "tau_with": logs[1].tau_measured,
             "change_s": k / 1000.0, "payload": payload}  # fmt: skip
+
+
+def cached_step_logs(seed: int, *, friction: bool, cache: Path | None) -> dict:
+    """:func:`step_logs`, read from (or written to) ``cache`` when given: the MuJoCo logs are
+    most of a seed's CPU, and the same for every version of the stream."""
+    if cache is None:
+        return step_logs(seed, friction=friction)
+    path = cache / f"{'friction' if friction else 'payload'}-{seed}.npz"
+    keys = ("t", "q", "q_without", "tau_without", "tau_step", "q_with", "tau_with")
+    if path.exists():
+        data = np.load(path)
+        _, robot, _, _ = simulation_setup(CONFIG, seconds=SECONDS, seed=seed)
+        payload = (float(data["mass"]), data["com"], data["inertia"].tolist())
+        return {"robot": robot, **{k: data[k] for k in keys},
+                "change_s": float(data["change_s"]), "payload": payload}  # fmt: skip
+    logs = step_logs(seed, friction=friction)
+    cache.mkdir(parents=True, exist_ok=True)
+    mass, com, inertia = logs["payload"]
+    np.savez(path, **{k: logs[k] for k in keys}, change_s=logs["change_s"], mass=mass,
+             com=com, inertia=np.asarray(inertia))  # fmt: skip
+    return logs
+
+
+#: Re-solves of a change's consistent estimate for its intervals (``--resolves``; 0: the least
+#: squares' intervals about it, for comparison).
+RESOLVES = [StreamSettings().interval_resolves]
 
 
 def make_estimator(robot, consistent: bool = True) -> StreamingEstimator:  # noqa: ANN001
@@ -96,7 +124,8 @@ def make_estimator(robot, consistent: bool = True) -> StreamingEstimator:  # noq
                         offset=False).extra_terms(robot.nv, "bench")  # fmt: skip
     return StreamingEstimator(chain_from_model(robot.model), terms,
                               parameters_from_model(robot.model), 1000.0,
-                              StreamSettings(consistent=consistent))  # fmt: skip
+                              StreamSettings(consistent=consistent,
+                                             interval_resolves=RESOLVES[0]))  # fmt: skip
 
 
 def feed(est: StreamingEstimator, t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> float:
@@ -129,16 +158,36 @@ def free_tests(robot, t: np.ndarray, q: np.ndarray, tau: np.ndarray) -> tuple[in
     return len(est.events), store
 
 
-def run_seed(seed: int, *, friction: bool = False) -> dict:
+def more_change(logs: dict, change_s: float) -> dict:
+    """The same seed's payload attached at ``change_s`` instead (the logs with and without
+    it joined there): another second of motion after the change, other samples' noise; the
+    change's figures (:func:`payload_figures`), or ``detected: False``."""
+    k = int(round(change_s * 1000.0))
+    q = np.vstack([logs["q_without"][:k], logs["q_with"][k:]])
+    tau = np.vstack([logs["tau_without"][:k], logs["tau_with"][k:]])
+    est = make_estimator(logs["robot"])
+    feed(est, logs["t"], q, tau)
+    seen_s = k / 1000.0 - est.filter.delay / est.rate_hz
+    events = [e for e in est.events if e.t_alarm >= seen_s]
+    if not events:
+        return {"change_s": k / 1000.0, "detected": False}
+    return {"change_s": k / 1000.0, "detected": True, "change_cpu_s": est.change_cpu_s,
+            **payload_figures(events[0].after, logs["payload"])}  # fmt: skip
+
+
+def run_seed(
+    seed: int, *, friction: bool = False, cache: Path | None = None, more_changes: tuple = ()
+) -> dict:
     """Stream one seed's step log and its change-free log; the row of figures."""
-    logs = step_logs(seed, friction=friction)
+    logs = cached_step_logs(seed, friction=friction, cache=cache)
     robot, t = logs["robot"], logs["t"]
     feed(make_estimator(robot), t[:2000], logs["q"][:2000], logs["tau_step"][:2000])  # compile
     est = make_estimator(robot)
     cpu = feed(est, t, logs["q"], logs["tau_step"])
     row: dict = {"seed": seed, "change_s": logs["change_s"], "kind": "friction" if friction
                  else "payload", "cpu_us": 1e6 * (cpu - est.solve_cpu_s) / t.size,
-                 "solve_cpu_us": 1e6 * est.solve_cpu_s / t.size,
+                 "solve_cpu_us": 1e6 * (est.solve_cpu_s - est.change_cpu_s) / t.size,
+                 "change_cpu_s": est.change_cpu_s,
                  "n_solves": len(est.timeline)}  # fmt: skip
     # a test at row time t holds samples up to t + delay / rate (each row describes the centre
     # of its causal filter's window): an alarm from then on has seen the change
@@ -153,6 +202,7 @@ def run_seed(seed: int, *, friction: bool = False) -> dict:
                    classified=e.kind, estimate_after_s=e.after.t - e.t_onset)  # fmt: skip
         if not friction:
             row.update(payload_figures(e.after, logs["payload"]))
+    row["more"] = [more_change(logs, c) for c in more_changes] if not friction else []
     row["free_alarms"], tests = free_tests(robot, t, logs["q_without"], logs["tau_without"])
     row["free_seconds"] = float(t[-1] - est.s.warmup_s)
     row["free_tests"] = tests
@@ -200,6 +250,28 @@ def _largest(rows: list[dict], key: str) -> float:
     return max((abs(r[key]) for r in rows), default=float("nan"))
 
 
+def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson's 95 % interval of a proportion ``k / n``."""
+    p, d = k / n, 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / d
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return centre - half, centre + half
+
+
+def coverage_line(title: str, rows: list[dict]) -> None:
+    """How often the rows' 95 % intervals hold the truth (mass, CoM components, all), with
+    Wilson's interval of the whole (the components of one estimate are not independent)."""
+    mass_in = [r["mass_covered"] for r in rows]
+    com_in = [c for r in rows for c in r["com_covered"]]
+    every = mass_in + com_in
+    lo, hi = wilson(int(np.sum(every)), len(every))
+    print(
+        f"{title}: mass {np.mean(mass_in):.3f}, CoM components {np.mean(com_in):.3f}, all "
+        f"{np.mean(every):.3f} ({int(np.sum(every))} of {len(every)} intervals; Wilson 95 % "
+        f"[{lo:.3f}, {hi:.3f}])"
+    )
+
+
 def report(rows: list[dict]) -> None:
     """Print the table and the summary figures."""
     pay = [r for r in rows if r["kind"] == "payload"]
@@ -213,13 +285,20 @@ def report(rows: list[dict]) -> None:
         f"|max| {_largest(det, 'mass_error_pct'):.2f} %; CoM error max "
         f"{_largest(det, 'com_error_mm'):.2f} mm"
     )
-    mass_in = [r["mass_covered"] for r in det]
-    com_in = [c for r in det for c in r["com_covered"]]
-    print(
-        f"95 % interval coverage: mass {np.mean(mass_in):.2f}, CoM components "
-        f"{np.mean(com_in):.2f}, all {np.mean(mass_in + com_in):.2f} "
-        f"({len(mass_in) + len(com_in)} intervals)"
-    )
+    coverage_line("95 % interval coverage (the bench's change times)", det)
+    more = [m for r in pay for m in r.get("more", [])]
+    if more:
+        found = [m for m in more if m["detected"]]
+        print(
+            f"more change times: detected {len(found)}/{len(more)}; mass error |max| "
+            f"{_largest(found, 'mass_error_pct'):.2f} %; CoM error max "
+            f"{_largest(found, 'com_error_mm'):.2f} mm; over 2 % or 5 mm: "
+            f"{sum(abs(m['mass_error_pct']) > 2 or m['com_error_mm'] > 5 for m in found)}"
+        )
+        coverage_line("95 % interval coverage (more change times)", found)
+        coverage_line("95 % interval coverage (all)", det + found)
+    print(f"CPU of a change's estimate and intervals: median "
+          f"{np.median([r['change_cpu_s'] for r in det]):.2f} s")  # fmt: skip
     cpu = np.array([r["cpu_us"] for r in rows])
     print(
         f"CPU per 1 kHz sample, update: median {np.median(cpu):.1f} us, max {cpu.max():.1f} us; "
@@ -244,13 +323,20 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--friction", type=int, default=3)
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
+    parser.add_argument("--more-changes", type=float, nargs="*", default=[],
+                        help="more change times [s] a payload seed (coverage)")  # fmt: skip
+    parser.add_argument("--cache", type=Path, default=None,
+                        help="folder of the seeds' MuJoCo logs (read, else written)")  # fmt: skip
+    parser.add_argument("--resolves", type=int, default=RESOLVES[0],
+                        help="re-solves of a change's intervals (0: least squares')")  # fmt: skip
     args = parser.parse_args()
+    RESOLVES[0] = args.resolves
     rows = []
     for seed in range(args.seeds):
-        rows.append(run_seed(seed))
+        rows.append(run_seed(seed, cache=args.cache, more_changes=tuple(args.more_changes)))
         print(f"seed {seed} done", flush=True)
     for seed in range(args.friction):
-        rows.append(run_seed(100 + seed, friction=True))
+        rows.append(run_seed(100 + seed, friction=True, cache=args.cache))
     report(rows)
     if args.json is not None:
         slim = [{k: v for k, v in r.items() if k != "free_tests"} for r in rows]

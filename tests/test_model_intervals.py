@@ -3,12 +3,17 @@ fit covers the truth of a simulated arm, and result.json and the report show the
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import yaml
 from robots import rp2_identify_config
 
+from ident.identify.assessment.model_intervals import parametric_resolves, spread_about
 from ident.identify.config import load_identify_config
+from ident.identify.estimation.observations import ReducedObservations
+from ident.identify.estimators.problem import EstimationProblem
 from ident.identify.pipeline.real import identify
 
 #: rp2's friction (tests/robots.py); its inertials are the URDF's.
@@ -93,3 +98,44 @@ def test_model_bootstrap_zero_switches_it_off(tmp_path):
     assert result.model_intervals is None
     assert "model_intervals" not in result.timings
     assert result.model is not None  # the model is still written
+
+
+def _disc_fit(problem: EstimationProblem) -> SimpleNamespace:
+    """A constrained estimator for the toy below: the least squares of the one group of rows,
+    projected onto the unit disc (radially: the rows' information is isotropic)."""
+    obs = problem.observations
+    x = np.linalg.solve(obs.R[0], obs.z[0])
+    norm = float(np.linalg.norm(x))
+    return SimpleNamespace(success=True, theta=x if norm <= 1.0 else x / norm)
+
+
+def test_parametric_resolves_are_calibrated_where_the_constraint_binds():
+    """The parametric bootstrap of a constrained fit (the stream's change intervals) on a toy:
+    the mean of 2-D Gaussian data (std 0.5 a component) known to lie in the unit disc, truth
+    (0, 0.9), so the constraint binds about half the time. ``theta +- 1.96 sqrt(diag)`` of 30
+    re-solves' spread about the estimate holds the truth 91-96.5 % of the time over 300 seeds
+    (0.94; 0.936 on 1000); the least squares' intervals about the same estimate hold its x
+    component nearly always (0.998: too wide where the disc cuts the error). Re-solves that
+    skip the constraint give the least squares' width again (0.977), a noise drawn with the
+    wrong covariance (A^-1 for A) a spread 16 times too small (0.525)."""
+    sigma, truth, z = 0.5, np.array([0.0, 0.9]), 1.959963984540054
+    A = np.eye(2) / sigma**2  # the rows' information; white noise: B = A
+    template = EstimationProblem(
+        observations=ReducedObservations(R=np.eye(2)[None], z=np.zeros((1, 2)), rho=np.zeros(1),
+                                         yty=np.zeros(1), n_rows=np.array([1])),
+        names=("x", "y"),
+    )  # fmt: skip
+    rng = np.random.default_rng(7)
+    boot, least = [], []
+    for seed in range(300):
+        x = _disc_fit(SimpleNamespace(observations=SimpleNamespace(
+            R=np.eye(2)[None], z=(truth + sigma * rng.normal(size=2))[None]))).theta  # fmt: skip
+        samples = parametric_resolves(_disc_fit, template, A, A, x, n_boot=30, rows=100.0,
+                                      rng=seed)  # fmt: skip
+        assert samples.shape == (30, 2)
+        half = z * np.sqrt(np.diag(spread_about(samples, x)))
+        boot.append(np.abs(x - truth) <= half)
+        least.append(np.abs(x - truth) <= z * sigma)
+    boot_cover, least_cover = np.mean(boot), np.mean(least, axis=0)
+    assert 0.91 <= boot_cover <= 0.965, boot_cover
+    assert least_cover[0] >= 0.98, least_cover

@@ -166,7 +166,8 @@ def test_payload_step_detected_and_estimated(step_log: tuple[np.ndarray, ...]) -
     block (0.82 s); after 1 s of rows its mass within 2 % and centre of mass within 5 mm,
     both inside their 95 % intervals give or take a factor 1.5. With ``consistent`` that
     estimate is the LMI's (named ``lmi``; a realizable payload: pseudo-inertia positive
-    semidefinite), not the least squares' (the scheduled solve is off here)."""
+    semidefinite), not the least squares' (the scheduled solve is off here), and so are its
+    intervals (its re-solves: ``interval_method``)."""
     t, q, tau, model = step_log
     est = _estimator(model, consistent=True)
     _feed(est, t, q, tau)
@@ -183,6 +184,9 @@ def test_payload_step_detected_and_estimated(step_log: tuple[np.ndarray, ...]) -
     assert abs(a.mass - mass) < 1.5 * 1.96 * a.mass_std
     assert np.all(np.abs(a.com - com) < 1.5 * 1.96 * a.com_std)
     assert a.method == "lmi"
+    # its intervals are the consistent re-solves' (a parametric bootstrap), not the WLS's
+    assert a.interval_method.startswith("consistent re-solves"), a.interval_method
+    assert event.summary(LoadLimits())["after"]["interval_method"] == a.interval_method
     assert event.before.method == "wls"
     assert pseudo_inertia_min_eigenvalue(a.x[:10]) >= -1e-9
     assert not est.timeline  # the LMI came from the change, not from the schedule

@@ -46,7 +46,9 @@ __all__ = [
     "ModelIntervals",
     "estimated_seconds",
     "model_intervals",
+    "parametric_resolves",
     "resampled_observations",
+    "spread_about",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -200,11 +202,67 @@ def _resolved_samples(
     c_all, rows_all = counts @ blocks.c, counts @ blocks.n_rows
     samples = []
     for A, c, rows in zip(A_all, c_all, rows_all, strict=True):
-        try:
-            obs = _reduced(A, c, float(rows))
-        except np.linalg.LinAlgError:  # a resample that does not see every base parameter
-            continue
-        fit = estimator(dataclasses.replace(problem, observations=obs, weights=np.ones(1)))
-        if fit.success and fit.theta is not None:
-            samples.append(np.asarray(fit.theta, dtype=float))
+        theta = _resolve(estimator, problem, A, c, float(rows))
+        if theta is not None:
+            samples.append(theta)
     return samples
+
+
+def _resolve(
+    estimator: Estimator, problem: EstimationProblem, A: FloatArray, c: FloatArray, rows: float
+) -> FloatArray | None:
+    """``estimator``'s standard parameters on the normal equations ``(A, c)`` (n, n), (n,)
+    (weights applied) in ``problem``'s columns; None when ``A`` is singular (a resample that
+    does not see every parameter) or the solve fails."""
+    try:
+        obs = _reduced(A, c, rows)
+    except np.linalg.LinAlgError:
+        return None
+    fit = estimator(dataclasses.replace(problem, observations=obs, weights=np.ones(1)))
+    if fit.success and fit.theta is not None:
+        return np.asarray(fit.theta, dtype=float)
+    return None
+
+
+def parametric_resolves(
+    estimator: Estimator,
+    problem: EstimationProblem,
+    A: FloatArray,
+    B: FloatArray,
+    theta: FloatArray,
+    *,
+    n_boot: int,
+    rows: float,
+    rng: np.random.Generator | int | None = 0,
+) -> FloatArray:
+    """A parametric bootstrap of a constrained fit: ``estimator`` re-solved on ``n_boot``
+    draws of the normal equations ``(A, A theta + e)``, ``e ~ N(0, B)``, shape (n_ok, n).
+
+    ``A`` (n, n) are the fit's weighted normal equations in ``problem``'s columns (standard
+    parameters, no base map), ``B`` (n, n) the covariance of their right-hand side (``A`` for
+    white noise of the weights' variance; the sandwich's middle under forgetting), ``theta``
+    (n,) the constrained estimate: the data drawn as if it were the truth, so the re-solves
+    spread as a realizable estimate does about a realizable truth, constraints included (the
+    least squares' covariance, ``A^-1 B A^-1``, is that of the unconstrained solution). Where
+    the rows leave no resample of blocks (a stream keeps only sums), this is the bootstrap
+    of :func:`model_intervals`: the same re-solve of the same estimator.
+    """
+    gen = np.random.default_rng(rng)
+    w, V = np.linalg.eigh(0.5 * (B + B.T))
+    root = V * np.sqrt(np.clip(w, 0.0, None))  # root @ root.T = B (B may be singular)
+    mean = A @ theta
+    samples = [
+        _resolve(estimator, problem, A, mean + root @ gen.normal(size=mean.size), rows)
+        for _ in range(n_boot)
+    ]
+    ok = [s for s in samples if s is not None]
+    return np.array(ok).reshape(len(ok), theta.size)
+
+
+def spread_about(samples: FloatArray, theta: FloatArray) -> FloatArray:
+    """The re-estimates' second moment about the estimate, ``mean (s - theta)(s - theta)^T``
+    (n, n) of ``samples`` (k, n): their spread and their bias together (a constrained fit's
+    re-solves about a truth on or near a constraint are biased; an interval
+    ``theta +- z sqrt(diag)`` keeps the bias in)."""
+    err = np.asarray(samples, dtype=float) - np.asarray(theta, dtype=float)
+    return np.asarray(err.T @ err / max(err.shape[0], 1), dtype=float)

@@ -97,6 +97,7 @@ __all__ = [
     "block_length",
     "payload_model_files",
     "calibrated_std",
+    "consistent_problem",
     "decimated_samples",
     "estimate_payload",
     "identify_payload",
@@ -475,22 +476,30 @@ def _lmi_structure(
     )
 
 
-def _consistent_estimate(
+def consistent_problem(
     red: ReducedObservations, wls: Estimate, extra: tuple[str, ...], names: tuple[str, ...]
-) -> Estimate:
-    """The registry's ``lmi`` estimate on the WLS rows: realizable payload, no prior.
+) -> EstimationProblem:
+    """The problem of the consistent (``lmi``) estimate on the WLS rows: realizable payload,
+    extras >= 0 (:func:`_lmi_structure`), no prior.
 
     Rows are weighted by WLS's per-joint ``1 / sigma`` (joints without rows get 0); ``names``:
-    the payload's, the ``extra`` ones, then the arm's corrections (free).
+    the payload's, the ``extra`` ones, then further free unknowns (the arm's corrections, a
+    stream's replaced parameters).
     """
-    problem = EstimationProblem(
+    return EstimationProblem(
         observations=red,
         names=names,
         structure=_lmi_structure(names, tuple(extra), wls.x),
         weights=np.where(red.n_rows > 0, 1.0 / wls.sigma, 0.0),
         options={"prior_floor": 0.0, "friction": "free"},
     )
-    return get_estimator("lmi")(problem)
+
+
+def _consistent_estimate(
+    red: ReducedObservations, wls: Estimate, extra: tuple[str, ...], names: tuple[str, ...]
+) -> Estimate:
+    """The registry's ``lmi`` estimate of :func:`consistent_problem`."""
+    return get_estimator("lmi")(consistent_problem(red, wls, extra, names))
 
 
 def in_reporting_frame(

@@ -64,6 +64,7 @@ class StreamSection(StrictModel):
     warmup_s: float = Field(default=10.0, ge=0.0)
     velocity_threshold: float = Field(default=0.15, ge=0.0)
     consistent: bool = True
+    interval_resolves: int = Field(default=40, ge=0, le=1000)
     controller: ControllerLimits = Field(default_factory=ControllerLimits)
 
     @model_validator(mode="after")
