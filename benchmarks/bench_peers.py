@@ -18,8 +18,9 @@
    parameter per moving body, ``armature``, ``damping`` and ``frictionloss`` per joint; the
    identification samples cut into windows of ``--window`` seconds (0.5), each rolled out open
    loop from the logged state (encoder position, central-difference velocity) under the logged
-   torque and compared with the logged positions AND velocities, each joint's divided by its
-   standard deviation (the rollout objective's weighting); ``x_scale='jac'``; run to its own
+   torque and compared with the logged positions AND velocities, each joint's divided by the
+   rollout objective's scale (its standard deviation over the whole log as ident filters it,
+   :func:`ident.identify.assessment.rollout.log_motion_scale`); ``x_scale='jac'``; run to its own
    convergence (its ``xtol``/``gtol`` tests or no further reduction) under a cap of
    ``--max-iters`` (200), the iterations and the reason it stopped reported. Starts
    (``--starts``, :data:`SYSID_STARTS`): ``cad``, the URDF's nominal bodies (the simulator's:
@@ -86,7 +87,7 @@ from mujoco import minimize
 from ident.dynamics.friction import extra_columns
 from ident.dynamics.parameter_model import ParameterModel
 from ident.dynamics.regressor import joint_torque_regressor
-from ident.identify.assessment.rollout import SD_FLOOR, held_out_windows, rollout_score
+from ident.identify.assessment.rollout import held_out_windows, motion_scale, rollout_score
 from ident.identify.config import RefinementConfig
 from ident.identify.model_files.files import save_identified_model
 from ident.identify.model_files.fused_bodies import fused_bodies, parse_urdf
@@ -621,6 +622,7 @@ def sysid_problem(
     window_s: float,
     ident_model: mujoco.MjModel | None = None,
     max_windows: int | None = None,
+    scale: FloatArray | None = None,
 ) -> SysidProblem:
     """mujoco.sysid's parameters, windows and residual on the identification samples.
 
@@ -629,8 +631,10 @@ def sysid_problem(
     logged state (encoder position, central-difference velocity; a delayed servo's history of
     commands, :func:`_initial_state`) under the logged torque (a servo case: the commanded
     positions); the residual is the positions and velocities at every following sample, each
-    joint's divided by its standard deviation over the identification samples (the rollout
-    objective's weighting, :mod:`ident.identify.assessment.rollout`).
+    joint's divided by ``scale`` (2, nv): rows ``sd_q``, ``sd_dq`` in ``case``'s joint order,
+    the rollout objective's (:func:`ident.identify.assessment.rollout.log_motion_scale` of
+    ident's identification, so sysid minimises the objective it is scored on); None: the
+    same formula (:func:`motion_scale`) over every sample sysid gets of the log.
     """
     from mujoco import sysid
 
@@ -640,9 +644,8 @@ def sysid_problem(
     n_win = max(2, int(round(window_s * case.log.rate_hz)))
     dt = 1.0 / case.log.rate_hz
     q, dq, control, ranges = _sysid_samples(case)
-    rows = np.concatenate([np.arange(lo, hi) for lo, hi in ranges])
-    sd = np.concatenate([q[rows].std(axis=0), dq[rows].std(axis=0)])
-    weights = 1.0 / np.maximum(sd, SD_FLOOR)  # sensor order: positions, then velocities
+    scale = motion_scale(q, dq) if scale is None else np.asarray(scale, dtype=float)
+    weights = 1.0 / scale.ravel()  # sensor order: positions, then velocities
     starts = [i0 for lo, hi in ranges for i0 in range(lo, hi - n_win - 1, n_win)]
     states, controls, sensors, names = [], [], [], []
     for k, i0 in enumerate(starts[:max_windows]):
@@ -670,6 +673,7 @@ def run_sysid(
     ident_model: mujoco.MjModel | None = None,
     max_windows: int | None = None,
     cpu_budget_s: float | None = None,
+    scale: FloatArray | None = None,
 ) -> ToolRun:
     """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names.
 
@@ -679,11 +683,17 @@ def run_sysid(
     ``max_iters``; ``info`` holds the iterations (finite-difference Jacobians) and the stop's
     reason (``"maximum iterations reached."`` when the cap stopped it). ``cpu_budget_s``: stop
     after the first iteration that ends past this much CPU time, with its iterate, reported as
-    not converged (a shared machine's time limit; None: no budget)."""
+    not converged (a shared machine's time limit; None: no budget). ``scale``: the residual's
+    (:func:`sysid_problem`)."""
     from mujoco import sysid
 
     problem = sysid_problem(
-        case, start=start, window_s=window_s, ident_model=ident_model, max_windows=max_windows
+        case,
+        start=start,
+        window_s=window_s,
+        ident_model=ident_model,
+        max_windows=max_windows,
+        scale=scale,
     )
     trace, jacobians = io.StringIO(), [0]
     opt = problem.params.copy()
@@ -924,6 +934,8 @@ def duel_case(
     pm = result.parameters
     ident_model = ident_written_model(result)
     measurements, windows = held_out_windows(result)
+    if tuple(measurements.joint_names) != tuple(case.setup.robot.joint_names):
+        raise RuntimeError("ident's joints are not the robot's, in order: no shared scale")
     x_true = true_parameters(pm, case.setup.config)
     fixed = {
         "truth": (ToolRun("truth", x_true, 0.0, 0.0), model_mjcf(case, pm, x_true)),
@@ -951,6 +963,7 @@ def duel_case(
             ident_model=ident_model,
             max_windows=max_windows,
             cpu_budget_s=cpu_budget_s,
+            scale=measurements.scale,  # the objective it is scored on (same joint order)
         )
         rows[s.tool] = _row(case, pm, s, (measurements, windows, model_mjcf(case, pm, s.x)))
         print(f"{name} {kind} seed {seed}: {s.tool}: {s.note}", flush=True)

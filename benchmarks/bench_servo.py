@@ -69,6 +69,7 @@ from ident.identify.actuators.servo_fit import MIN_SHARED_SHARE  # noqa: E402
 from ident.identify.assessment.rollout import (  # noqa: E402
     held_out_windows,
     identification_ranges,
+    log_motion_scale,
     reference_mjcf,
     rollout_score,
 )
@@ -364,6 +365,7 @@ def run_so101_sysid(
                     max_iters=max_iters,
                     ident_model=ident_model,
                     cpu_budget_s=cpu_budget_s,
+                    scale=log_motion_scale(result),  # the rollout objective's
                 )
                 for start in starts
             ]

@@ -93,6 +93,12 @@ def test_sysid_objective_is_lowest_near_the_truth(case):
     assert problem.n_windows == 2
     y_truth, y_start = problem.objective(problem.truth), problem.objective(problem.params)
     assert y_truth < 0.9 * y_start
+    # the residual divides by the scale it is given (the duel passes the rollout objective's):
+    # twice the default scale, a quarter of the objective
+    q, dq, _, _ = bench_peers._sysid_samples(c)
+    scale = 2.0 * np.array([q.std(axis=0), dq.std(axis=0)])
+    halved = bench_peers.sysid_problem(c, start="cad", window_s=0.5, max_windows=2, scale=scale)
+    assert halved.objective(halved.truth) == pytest.approx(0.25 * y_truth, rel=1e-9)
     model = sysid.apply_param_modifiers(problem.truth, problem.spec.copy())
     x = bench_peers.standard_from_mujoco(model, pm, problem.joints)
     truth = true_parameters(pm, c.setup.config)

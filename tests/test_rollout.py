@@ -20,6 +20,8 @@ from ident.identify.assessment.rollout import (
     RolloutMeasurements,
     held_out_windows,
     identification_windows,
+    log_motion_scale,
+    motion_scale,
     reference_mjcf,
     rollout_check,
     rollout_score,
@@ -74,7 +76,7 @@ def test_the_truth_replays_its_own_simulation_and_a_heavier_link_does_not(ur5, u
     """Same bodies and armature, same Euler step: the rollout replays the simulator's states
     to float round-off (J = 1.8e-30 measured). With viscous friction the simulator integrates
     it explicitly and the MJCF implicitly (MuJoCo's Euler default): J = 6.7e-7 measured, the
-    integrators' difference; a forearm 20 % heavier gives J = 8.9e-3, no armature J = 1.9."""
+    integrators' difference; a forearm 20 % heavier gives J = 9.3e-3, no armature J = 1.9."""
     measured, truth = undamped
     assert rollout_score(truth, measured, WINDOWS).objective < 1e-20
     damped_log, damped_truth = _simulated(ur5, VISCOUS)
@@ -96,7 +98,8 @@ def _copy(model):
 
 def _hand_rollout(model, measured, start, stop, substeps):
     """``J`` of one window by a plain loop: set the state, hold each torque over ``substeps``
-    ``mj_step`` calls, compare at every following sample (the module docstring's formula)."""
+    ``mj_step`` calls, compare at every following sample (the module docstring's formula: the
+    errors over the standard deviations of the whole log ``measured``, not the window's)."""
     model = _copy(model)
     model.opt.timestep = (measured.t[1] - measured.t[0]) / substeps
     data = mujoco.MjData(model)
@@ -111,8 +114,8 @@ def _hand_rollout(model, measured, start, stop, substeps):
         q_hat.append(data.qpos[qpos].copy())
         dq_hat.append(data.qvel[dof].copy())
     q, dq = measured.q[start:stop], measured.dq[start:stop]
-    e_q = (np.array(q_hat) - q[1:]) / np.maximum(q.std(axis=0), SD_FLOOR)
-    e_dq = (np.array(dq_hat) - dq[1:]) / np.maximum(dq.std(axis=0), SD_FLOOR)
+    e_q = (np.array(q_hat) - q[1:]) / np.maximum(measured.q.std(axis=0), SD_FLOOR)
+    e_dq = (np.array(dq_hat) - dq[1:]) / np.maximum(measured.dq.std(axis=0), SD_FLOOR)
     return 0.5 * (np.mean(e_q**2) + np.mean(e_dq**2))
 
 
@@ -143,6 +146,39 @@ def test_the_score_does_not_depend_on_the_window_order(ur5, undamped):
     np.testing.assert_allclose(shuffled.per_window, score.per_window[order], rtol=1e-12)
     np.testing.assert_allclose(shuffled.objective, score.objective, rtol=1e-12)
     assert score.objective > 0.1  # no armature: clearly off, so the check has teeth
+
+
+# Two independent unit-inertia wheels without gravity or damping: ddq = tau.
+WHEELS = """<mujoco><option gravity="0 0 0"/><worldbody>
+<body name="a"><joint name="a" type="hinge" axis="0 0 1"/>
+ <inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body>
+<body name="b"><joint name="b" type="hinge" axis="0 0 1"/>
+ <inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>"""
+
+
+def test_a_joint_at_rest_in_the_scored_windows_does_not_dominate_j():
+    """The scale is the whole log's motion: joint b swings in the first second and rests in the
+    second, the scored one, where a small torque (1 mN*m, a friction the model lacks) makes
+    the model creep 1.25e-4 rad per 0.5 s window. Over the log's motion (sd of b's q and dq:
+    0.25 rad, 1.57 rad/s) J is small (2.5e-6 measured, mostly a's Euler steps); over the
+    scored windows' own (0, floored at SD_FLOOR) it would be 2.2e4: a wrist at rest
+    dominating the score."""
+    t = np.arange(2001) / 1000.0
+    w = 2.0 * np.pi
+    swing = t < 1.0
+    q = np.column_stack([np.sin(w * t), np.where(swing, 0.5 * np.sin(w * t), 0.0)])
+    dq = np.column_stack([w * np.cos(w * t), np.where(swing, 0.5 * w * np.cos(w * t), 0.0)])
+    tau = np.column_stack([-(w**2) * np.sin(w * t), np.where(swing, 0.0, 1e-3)])
+    measured = RolloutMeasurements(t, q, dq, tau, ("a", "b"))
+    held = np.array([[1000, 1501], [1500, 2001]])
+    model = mujoco.MjModel.from_xml_string(WHEELS)
+    j = rollout_score(model, measured, held).objective
+    scale = np.maximum([q.std(axis=0), dq.std(axis=0)], SD_FLOOR)  # the whole log's
+    np.testing.assert_allclose(measured.sd(), scale, rtol=1e-12)
+    assert j < 1e-4
+    rows = np.r_[1000:2001]
+    windows_own = RolloutMeasurements(t, q, dq, tau, ("a", "b"), motion_scale(q[rows], dq[rows]))
+    assert rollout_score(model, windows_own, held).objective > 1e3
 
 
 @pytest.mark.parametrize("link", [None, "ee_link"])  # the last moving link, a welded link
@@ -216,6 +252,10 @@ def test_windows_come_from_the_held_out_part_capped_and_spread():
     index = np.concatenate([np.arange(s, s + 101) for s in starts])
     for got, logged in ((measured.t, log.t), (measured.q, log.q), (measured.dq, log.dq)):
         np.testing.assert_array_equal(got, logged[index])
+    # J's scale: the whole log's motion (both segments, both parts), not the windows'
+    whole = [log.q.std(axis=0), log.dq.std(axis=0)]
+    np.testing.assert_allclose(measured.scale, whole, rtol=1e-12)
+    assert not np.allclose(motion_scale(measured.q, measured.dq), whole, rtol=0.01)
 
 
 def test_identification_windows_overlap_outside_the_held_out_part_and_are_counted():
@@ -258,6 +298,15 @@ def test_window_signals_are_the_identifications_low_pass_and_differences():
     np.testing.assert_allclose(measured.q, q[index], rtol=0, atol=1e-12)
     np.testing.assert_allclose(measured.dq, dq[index], rtol=0, atol=1e-9)
     np.testing.assert_allclose(measured.tau, tau[index], rtol=0, atol=1e-12)
+    # the scale: every segment's q, dq filtered and differentiated as the identification does
+    # them (trim_samples 0), both parts; the training windows carry the same
+    q2, _ = preprocess.lowpass(log.q[1500:], 1000.0, 20.0, 4)
+    dq2 = preprocess.differentiate(q2, 1000.0)[0]
+    qs, dqs = np.vstack([q, q2]), np.vstack([dq, dq2])
+    np.testing.assert_allclose(measured.scale, [qs.std(axis=0), dqs.std(axis=0)], rtol=1e-9)
+    train, _ = identification_windows(_result(log, np.r_[400:1101], pp), 0.2)
+    np.testing.assert_array_equal(train.scale, measured.scale)
+    np.testing.assert_array_equal(log_motion_scale(_result(log, [], pp)), measured.scale)
 
 
 def test_a_check_that_cannot_run_says_why(tmp_path):

@@ -15,9 +15,15 @@ the ``L`` following samples. The objective (one formula, shown as "MJCF rollout"
     J = 1/W sum_w 1/(2 n L) sum_{k=1..L} sum_{j=1..n}
           [ ((q^_wkj - q_wkj) / sd_q_j)^2 + ((dq^_wkj - dq_wkj) / sd_dq_j)^2 ]
 
-with ``n`` joints and ``sd_q_j``, ``sd_dq_j`` the standard deviations of the measured ``q_j``,
-``dq_j`` over every sample of every window (at least :data:`SD_FLOOR`). ``J = 0``: the model
-replays the log exactly; ``J ~ 1``: its errors are as large as the motion itself. The windows
+with ``n`` joints and ``sd_q_j``, ``sd_dq_j`` the scale of joint ``j``: the standard deviations
+of its ``q_j``, ``dq_j`` over the whole log, identification and held-out parts, as the
+identification filters them (at least :data:`SD_FLOOR`; :func:`log_motion_scale`, carried by
+the measurements as :attr:`RolloutMeasurements.scale`). One scale per identification: the
+held-out score, the refinement's training and held-out objectives divide by the same numbers,
+and a joint that barely moves in the scored windows does not weigh more there than in the log
+(divided by its motion over the scored windows alone, a wrist at rest in the held-out part
+would dominate ``J`` with errors a thousandth of the log's motion). ``J = 0``: the model
+replays the log exactly; ``J ~ 1``: its errors are as large as the log's motion. The windows
 are rolled out in one call of MuJoCo's :mod:`mujoco.rollout`.
 
 Beside it, the same score of a reference model, written by the same MJCF writer
@@ -73,6 +79,8 @@ __all__ = [
     "rollout_check",
     "identification_windows",
     "joint_addresses",
+    "log_motion_scale",
+    "motion_scale",
     "rollout_not_run",
     "rollout_residuals",
     "rollout_score",
@@ -126,6 +134,11 @@ class RolloutMeasurements:
         Joint torques [N*m or N], shape (n, nv), each held from its sample to the next.
     joint_names :
         The joints, in column order (matched by name in the MJCF).
+    scale :
+        What the rollout errors are divided by: rows ``sd_q``, ``sd_dq`` [rad or m, rad/s or
+        m/s], shape (2, nv), the log's motion (:func:`log_motion_scale`, set by
+        :func:`held_out_windows` and :func:`identification_windows`); None: the motion of
+        these samples, all of them (:func:`motion_scale` of ``q``, ``dq``).
     """
 
     t: FloatArray
@@ -133,10 +146,22 @@ class RolloutMeasurements:
     dq: FloatArray
     tau: FloatArray
     joint_names: tuple[str, ...]
+    scale: FloatArray | None = None
 
     def with_torque(self, tau: FloatArray) -> RolloutMeasurements:
-        """The same motion with other torques ``tau`` (n, nv)."""
-        return RolloutMeasurements(self.t, self.q, self.dq, tau, self.joint_names)
+        """The same motion (and scale) with other torques ``tau`` (n, nv)."""
+        return RolloutMeasurements(self.t, self.q, self.dq, tau, self.joint_names, self.scale)
+
+    def sd(self) -> FloatArray:
+        """The scale the errors are divided by, shape (2, nv) (:attr:`scale`)."""
+        return motion_scale(self.q, self.dq) if self.scale is None else np.asarray(self.scale)
+
+
+def motion_scale(q: FloatArray, dq: FloatArray) -> FloatArray:
+    """The standard deviations of positions ``q`` and velocities ``dq`` (n, nv) over their
+    samples, each at least :data:`SD_FLOOR`: rows ``sd_q``, ``sd_dq``, shape (2, nv) [rad or
+    m, rad/s or m/s]. The one formula of the rollout objective's scale."""
+    return np.maximum(np.vstack([np.std(q, axis=0), np.std(dq, axis=0)]), SD_FLOOR)
 
 
 @dataclass(frozen=True, eq=False)
@@ -223,8 +248,9 @@ def _scaled_errors(
     windows: npt.ArrayLike,
     substeps: int | None,
 ) -> tuple[FloatArray, FloatArray, float, int]:
-    """The rollout's ``q`` and ``dq`` errors over the measured standard deviations, shapes
-    (W, L, nv), MuJoCo's timestep [s] and substeps (:func:`rollout_score`)."""
+    """The rollout's ``q`` and ``dq`` errors over the measurements' scale
+    (:meth:`RolloutMeasurements.sd`), shapes (W, L, nv), MuJoCo's timestep [s] and substeps
+    (:func:`rollout_score`)."""
     mj = _model_copy(model)
     starts, length = _checked_windows(windows, measurements.t.shape[0])
     dt = _sample_period(measurements.t, starts, length)
@@ -237,9 +263,8 @@ def _scaled_errors(
     qpos, dof = joint_addresses(mj, measurements.joint_names)
     q_hat, dq_hat = _rollout(mj, measurements, starts, length, substeps, (qpos, dof))
     steps = starts[:, None] + np.arange(1, length)[None, :]  # (W, L) compared samples
-    span = starts[:, None] + np.arange(length)[None, :]
-    sd_q = np.maximum(measurements.q[span].reshape(-1, len(qpos)).std(axis=0), SD_FLOOR)
-    sd_dq = np.maximum(measurements.dq[span].reshape(-1, len(dof)).std(axis=0), SD_FLOOR)
+    # the log's motion, not the scored windows' (module docstring)
+    sd_q, sd_dq = measurements.sd()
     e_q = (q_hat - measurements.q[steps]) / sd_q
     e_dq = (dq_hat - measurements.dq[steps]) / sd_dq
     return e_q, e_dq, float(mj.opt.timestep), substeps
@@ -519,8 +544,33 @@ def _part_windows(
     ]
     starts = np.arange(len(pieces), dtype=np.int64) * length
     t, q, dq, tau = (np.concatenate([p[k] for p in pieces]) for k in range(4))
-    measurements = RolloutMeasurements(t, q, dq, tau, tuple(log.joint_names))
+    scale = log_motion_scale(result)
+    measurements = RolloutMeasurements(t, q, dq, tau, tuple(log.joint_names), scale)
     return measurements, np.column_stack([starts, starts + length])
+
+
+def log_motion_scale(result: Any) -> FloatArray:
+    """The scale of the rollout objective of an identification: :func:`motion_scale` of the
+    whole log's ``q`` and ``dq`` (every segment, identification and held-out parts, without
+    the ``preprocess.trim_samples`` at each end), low-passed and differentiated on each whole
+    segment as the identification does (:func:`held_out_windows`). Shape (2, nv) [rad or m,
+    rad/s or m/s]; a segment too short to filter is left out (a DataError when none is left).
+    """
+    log, pp = result.log, result.config.preprocess
+    trim = int(pp.trim_samples)
+    qs, dqs = [], []
+    for a, b in log.segments:
+        if b - a <= 2 * trim + 2:
+            continue
+        try:
+            q, dq = _states(log, a, b, pp)
+        except DataError:
+            continue
+        qs.append(q[trim : q.shape[0] - trim])
+        dqs.append(dq[trim : dq.shape[0] - trim])
+    if not qs:
+        raise DataError("the log has no segment long enough to filter: no rollout scale.")
+    return motion_scale(np.concatenate(qs), np.concatenate(dqs))
 
 
 def _held_out_ranges(
@@ -544,16 +594,26 @@ def _window_signals(
     identification processes them, on the window plus ``margin`` samples each side."""
     fs = log.sampling_rate_hz
     r0, r1 = max(segment[0], start - margin), min(segment[1], start + length + margin)
-    q, tau = log.q[r0:r1], log.tau[r0:r1]
-    position = preprocess.position_filter(pp)
-    if log.dq is None and position is not None:
-        q, _ = preprocess.lowpass(q, fs, position.cutoff_hz, position.order)
+    q, dq = _states(log, r0, r1, pp)
+    tau = log.tau[r0:r1]
     if pp.torque_lowpass is not None:
         flt = pp.torque_lowpass
         tau, _ = preprocess.lowpass(tau, fs, flt.cutoff_hz, flt.order, what="tau")
-    dq = log.dq[r0:r1] if log.dq is not None else preprocess.differentiate(q, fs)[0]
     keep = slice(start - r0, start - r0 + length)
     return log.t[start : start + length], q[keep], dq[keep], tau[keep]
+
+
+def _states(log: Any, r0: int, r1: int, pp: Any) -> tuple[FloatArray, FloatArray]:
+    """``q``, ``dq`` (r1 - r0, nv) of the raw samples ``[r0, r1)`` of one segment, filtered
+    on them as the identification does: the log's measured ``dq``, else the low-passed
+    positions' central differences."""
+    q = log.q[r0:r1]
+    if log.dq is not None:
+        return q, log.dq[r0:r1]
+    position = preprocess.position_filter(pp)
+    if position is not None:
+        q, _ = preprocess.lowpass(q, log.sampling_rate_hz, position.cutoff_hz, position.order)
+    return q, preprocess.differentiate(q, log.sampling_rate_hz)[0]
 
 
 #: Builds a reference model for a robot: its MJCF text and the map of the measured torque to
@@ -660,8 +720,8 @@ def rollout_text(entry: Mapping[str, Any] | None) -> str:
         f"MJCF rollout error {entry['objective']:.3g} ({ref}): open-loop MuJoCo rollouts "
         f"driven by the measured torques, {entry['windows']} windows of {entry['window_s']:g} s "
         f"(at most {entry['max_windows']}) of the log's {part}, timestep "
-        f"{1e3 * entry['timestep_s']:.3g} ms; mean squared error of q and dq over their std "
-        "(0: exact)"
+        f"{1e3 * entry['timestep_s']:.3g} ms; mean squared error of q and dq over their std in "
+        "the whole log (0: exact)"
     )
 
 

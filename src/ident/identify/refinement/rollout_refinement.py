@@ -16,7 +16,9 @@ kind), starting from the regressor's ``z0``, :func:`scipy.optimize.least_squares
 
 ``J_train``: the rollout objective (:func:`~ident.identify.assessment.rollout.rollout_score`)
 over windows of the identification part (:func:`identification_windows`, disjoint from the
-held-out ones), ``w``: ``refinement.prior_weight`` (default 0.01: moving every value by 100 %
+held-out ones; its errors divided by the same scale as the held-out ``J``'s, the whole log's
+motion, :func:`~ident.identify.assessment.rollout.log_motion_scale`), ``w``:
+``refinement.prior_weight`` (default 0.01: moving every value by 100 %
 costs 1 % of the starting objective). After each iteration the held-out objective ``J_held``
 (the rollout check's windows, :func:`held_out_windows`) is computed; the iterate with the best
 ``J_held`` is kept (early stopping: the search stops after :data:`PATIENCE` iterations without
