@@ -309,6 +309,22 @@ def test_window_signals_are_the_identifications_low_pass_and_differences():
     np.testing.assert_array_equal(log_motion_scale(_result(log, [], pp)), measured.scale)
 
 
+def test_log_scale_by_blocks_equals_the_whole_segments(monkeypatch):
+    """An hour's log is filtered for the scale by blocks with the chunks' margins, their
+    moments combined: the same scale as each whole segment filtered at once (a block pass
+    that dropped its margins, or summed the blocks' variances without their means' spread,
+    would differ)."""
+    from ident.identify.assessment import rollout
+    from ident.identify.config import FilterConfig
+
+    log = _two_segment_log(states=False)
+    pp = NO_FILTER.model_copy(update={"lowpass": FilterConfig(cutoff_hz=20.0)})
+    whole = log_motion_scale(_result(log, [], pp))
+    monkeypatch.setattr(rollout, "SCALE_BLOCK_SAMPLES", 137)  # 11 blocks per segment
+    blocks = log_motion_scale(_result(log, [], pp))
+    np.testing.assert_allclose(blocks, whole, rtol=1e-9)
+
+
 def test_a_check_that_cannot_run_says_why(tmp_path):
     log = _two_segment_log(states=True)
     short = _result(log, np.r_[1450:1500], NO_FILTER)  # 50 ms held out

@@ -40,9 +40,11 @@ so: ``rollout check not run: <why>``.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import math
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -549,28 +551,77 @@ def _part_windows(
     return measurements, np.column_stack([starts, starts + length])
 
 
+#: Raw samples filtered at a time by :func:`log_motion_scale` (with the chunks' margins on
+#: both sides): an hour at 1 kHz is never filtered as one array beside the log itself.
+SCALE_BLOCK_SAMPLES = 1 << 16
+
+#: Each identification's scale, computed once (held-out and identification windows share it).
+_SCALES: weakref.WeakKeyDictionary[Any, FloatArray] = weakref.WeakKeyDictionary()
+
+
 def log_motion_scale(result: Any) -> FloatArray:
     """The scale of the rollout objective of an identification: :func:`motion_scale` of the
     whole log's ``q`` and ``dq`` (every segment, identification and held-out parts, without
-    the ``preprocess.trim_samples`` at each end), low-passed and differentiated on each whole
-    segment as the identification does (:func:`held_out_windows`). Shape (2, nv) [rad or m,
-    rad/s or m/s]; a segment too short to filter is left out (a DataError when none is left).
+    the ``preprocess.trim_samples`` at each end), low-passed and differentiated as the
+    identification does (:func:`held_out_windows`). Shape (2, nv) [rad or m, rad/s or m/s]; a
+    segment too short to filter is left out (a DataError when none is left).
+
+    Filtered by blocks of :data:`SCALE_BLOCK_SAMPLES` with the chunks' filter margins on both
+    sides (equal to filtering the whole segment, as the chunked identification relies on),
+    their moments combined: the memory is a block's, whatever the log's length. Computed
+    once per ``result``.
     """
+    try:
+        return _SCALES[result]
+    except (KeyError, TypeError):  # not computed yet; an object without weak references
+        pass
     log, pp = result.log, result.config.preprocess
     trim = int(pp.trim_samples)
-    qs, dqs = [], []
+    margin = margin_samples(pp, log.sampling_rate_hz)[0]
+    moments = _Moments()
     for a, b in log.segments:
-        if b - a <= 2 * trim + 2:
+        lo, hi = a + trim, b - trim
+        if hi - lo < 2:
             continue
-        try:
-            q, dq = _states(log, a, b, pp)
-        except DataError:
-            continue
-        qs.append(q[trim : q.shape[0] - trim])
-        dqs.append(dq[trim : dq.shape[0] - trim])
-    if not qs:
+        for c0 in range(lo, hi, SCALE_BLOCK_SAMPLES):
+            c1 = min(hi, c0 + SCALE_BLOCK_SAMPLES)
+            r0, r1 = max(a, c0 - margin), min(b, c1 + margin)
+            try:
+                q, dq = _states(log, r0, r1, pp)
+            except DataError:  # a segment too short to filter
+                break
+            moments.add(np.stack([q[c0 - r0 : c1 - r0], dq[c0 - r0 : c1 - r0]]))
+    if moments.n == 0:
         raise DataError("the log has no segment long enough to filter: no rollout scale.")
-    return motion_scale(np.concatenate(qs), np.concatenate(dqs))
+    scale = np.maximum(np.sqrt(moments.variance()), SD_FLOOR)
+    with contextlib.suppress(TypeError):
+        _SCALES[result] = scale
+    return scale
+
+
+class _Moments:
+    """Count, mean and sum of squared deviations of samples added block by block (Chan's
+    pairwise combination: no cancellation of a large mean against a small spread)."""
+
+    def __init__(self) -> None:
+        self.n, self.mean, self.m2 = 0, 0.0, 0.0
+
+    def add(self, x: FloatArray) -> None:
+        """Add the samples of ``x`` (2, m, nv) (rows ``q``, ``dq``)."""
+        m = x.shape[1]
+        if m == 0:
+            return
+        mean = x.mean(axis=1)
+        m2 = ((x - mean[:, None, :]) ** 2).sum(axis=1)
+        n = self.n + m
+        delta = mean - self.mean
+        self.mean = self.mean + delta * (m / n)
+        self.m2 = self.m2 + m2 + delta**2 * (self.n * m / n)
+        self.n = n
+
+    def variance(self) -> FloatArray:
+        """The population variance (2, nv), as ``np.std``'s."""
+        return np.asarray(self.m2 / self.n, dtype=float)
 
 
 def _held_out_ranges(
