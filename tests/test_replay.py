@@ -181,12 +181,21 @@ def test_bad_inputs_are_identerrors(tmp_path):
         replay_html(bad, [make_trajectory()])
 
 
+def _isolated(tmp_path):
+    """A folder whose parent and grandparent hold nothing else: a missing mesh is searched by
+    its path's tail there (``ident.robot.meshes``), and in a shared temporary root another
+    test's copy of the same meshes would be found (order-dependent results)."""
+    folder = tmp_path / "a" / "b" / "c"
+    folder.mkdir(parents=True)
+    return folder
+
+
 def test_missing_meshes_fall_back_to_a_stick_figure(tmp_path):
     text = URDF.read_text().replace(
         '<geometry><box size="0.3 0.3 0.1"/></geometry>',
         '<geometry><mesh filename="package://nowhere/meshes/base.stl"/></geometry>',
     )
-    urdf = tmp_path / "missing_mesh.urdf"
+    urdf = _isolated(tmp_path) / "missing_mesh.urdf"
     urdf.write_text(text)
     with pytest.warns(IdentWarning, match="base.stl.*stick figure"):
         scene = build_replay_scene(urdf, [make_trajectory()])
@@ -345,7 +354,7 @@ def test_cli_joint_count_mismatch_names_the_csv_and_the_urdf(tmp_path):
 
 def test_cli_paper_trajectory_on_ur5_names_both_sides(tmp_path):
     csv = _write_csv(tmp_path / "paper.csv", make_trajectory(duration=0.5))
-    urdf = tmp_path / "ur5_robot.urdf"  # away from its meshes (beside the original, found)
+    urdf = _isolated(tmp_path) / "ur5_robot.urdf"  # away from its meshes (beside the original)
     urdf.write_text(UR5_URDF.read_text())
     result = _invoke_replay("--urdf", urdf, "--trajectory", csv, "--html", tmp_path / "x.html")
     assert result.exit_code == 2
