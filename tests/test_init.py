@@ -95,6 +95,10 @@ def test_init_kinova_keeps_every_design_within_the_velocity_margin(tmp_path):
     np.testing.assert_allclose(robot.ddq_max, 3.0 * robot.dq_max, rtol=1e-2)
     config = yaml.safe_load(result.text)
     assert config["measurement"]["source"] == "mujoco"
+    # continuous joints and velocity-bound ones: the position ranges never bind the box, the
+    # period stays 10 s and the log three periods
+    assert config["excitation"]["options"]["base_frequency"] == 2.0 * np.pi / 10.0
+    assert config["measurement"]["n_periods"] == 3
     text_lines = result.text.splitlines()
     guessed = ("acceleration_limits:", "viscous:", "coulomb:", "armature:", "torque_noise_std:")
     for key in (*guessed, "floor:", "clearance_m:", "encoder_counts_per_rev:"):
