@@ -9,12 +9,13 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import scipy.signal
 from robots import PANDA_URDF, UR5_URDF
 
 from ident.excitation.fourier import fourier_bound_factors
 from ident.model.robot import Robot
 from ident.run import init_robot
-from ident.run.init_config import MIN_PERIOD_S, _guess_scale, excitation_period
+from ident.run.init_config import MIN_PERIOD_S, _guess_scale, _preprocess, excitation_period
 from ident.run.init_robot import (
     PLACEHOLDER_LOAD_SPAN,
     gain_scale,
@@ -136,3 +137,26 @@ def test_excitation_period_is_where_the_position_ranges_stop_binding_the_box():
     tight = SimpleNamespace(q_lower=np.full(2, -0.1), q_upper=np.full(2, 0.1))
     assert excitation_period(tight, dq, ddq) == pytest.approx(np.ceil(MIN_PERIOD_S * 100) / 100)
     assert MIN_PERIOD_S == pytest.approx(2.0 * np.pi * 4 / 20.0)
+
+
+def test_faster_excitations_filter_wider_and_drop_the_coulomb_spread():
+    factors = fourier_bound_factors(4)
+    _, c_v, c_a = factors
+    # at 10 s and a UR10's bounds: 10 Hz and 0.15 rad/s (or 10 % of the box's speed), the
+    # configs written before
+    cutoff, threshold = _preprocess(np.array([0.01, 0.2]), 2.0 * np.pi / 10.0, factors)
+    assert cutoff == pytest.approx(10.0)
+    np.testing.assert_allclose(threshold, [0.1 * c_v * 0.01, 0.15])
+    # at 1.8 s (SO-101): 20 Hz at most, and the speed a reversal at the box's acceleration
+    # c_a A w reaches in 1 / (2 cutoff)
+    w = 2.0 * np.pi / 1.8
+    cutoff, threshold = _preprocess(np.array([0.01, 0.4]), w, factors)
+    assert cutoff == 20.0
+    np.testing.assert_allclose(threshold, [c_a * 0.01 * w / 40.0, c_a * 0.4 * w / 40.0])
+    # the spread it drops: scipy's zero-phase 4th-order Butterworth on a Coulomb step at 1 kHz
+    # is still 13.6 % off 25 ms (1 / (2 cutoff)) after it and within 4 % at 50 ms
+    b, a = scipy.signal.butter(4, cutoff / 500.0)
+    t = (np.arange(-2000, 2000) + 0.5) / 1000.0
+    step = scipy.signal.filtfilt(b, a, np.sign(t))
+    assert abs(step[np.argmin(abs(t - 0.025))] - 1.0) == pytest.approx(0.136, abs=0.005)
+    assert abs(step[np.argmin(abs(t - 0.05))] - 1.0) < 0.04

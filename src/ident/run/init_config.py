@@ -119,6 +119,11 @@ MIN_PERIOD_S = 2.0 * np.pi * N_HARMONICS / (DEFAULT_NATURAL_FREQUENCY_RAD_S / 5.
 #: of the joints, while one short-ranged joint (a UR's +-pi elbow) does not shorten the
 #: period of a robot whose other joints are velocity-bound.
 PERIOD_QUANTILE = 0.75
+#: The identification's low-pass cutoff [Hz] at the 10 s period, scaled with the base
+#: frequency up to ``MAX_CUTOFF_HZ`` (a fifth of the 100 Hz the log is decimated to): the
+#: zero-phase filters spread each Coulomb step over about ``1 / cutoff``, which a faster motion
+#: crosses at a larger speed (:func:`_preprocess`).
+CUTOFF_HZ, MAX_CUTOFF_HZ = 10.0, 20.0
 #: Seconds of log the measurement records (three 10 s periods): ``n_periods`` is
 #: ``ceil(LOG_SECONDS / period)``, so a shorter period identifies from as many samples.
 LOG_SECONDS = 30.0
@@ -299,6 +304,7 @@ class _Choices:
     torque: np.ndarray
     noise: np.ndarray
     threshold: np.ndarray
+    cutoff_hz: float  # the identification's low-pass cutoff [Hz]
     geometry_problem: str = ""  # why self-collision cannot be checked ('' when it can)
     left_out: str = ""  # the inertials the simulation leaves out ('' when none)
 
@@ -373,6 +379,7 @@ def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
     torque = torque_scale(
         robot, g.home, amplitude * c_v, amplitude * c_a * w, armature, _Q0_HALF_WIDTH
     )
+    cutoff_hz, threshold = _preprocess(amplitude, w, (c_q, c_v, c_a))
     return _Choices(
         robot_name=str(robot.name),
         names=tuple(robot.joint_names),
@@ -403,10 +410,36 @@ def _choose(robot: Any, text: str, progress: Callable[[str], None]) -> _Choices:
         gains=gain_scale(robot, armature),
         torque=torque,
         noise=np.minimum(NOISE_PER_EFFORT * scale, NOISE_PER_TORQUE * torque),
-        threshold=np.minimum(0.15, 0.1 * amplitude * c_v),  # rad/s, below the design's speeds
+        threshold=threshold,
+        cutoff_hz=cutoff_hz,
         geometry_problem=g.problem,
         left_out=world_fixed_inertia_note(robot.urdf_text, robot.locked_joints),
     )
+
+
+def _preprocess(
+    amplitude: np.ndarray, w: float, factors: tuple[float, float, float]
+) -> tuple[float, np.ndarray]:
+    """The identification's low-pass cutoff [Hz] and velocity threshold [rad/s] per joint,
+    shape (n_joints,), for the Fourier bound ``amplitude`` [rad/s] at base frequency ``w``
+    [rad/s] (``factors``: ``c_q, c_v, c_a``).
+
+    The cutoff is :data:`CUTOFF_HZ` at the 10 s period, scaled with ``w`` up to
+    :data:`MAX_CUTOFF_HZ`. The zero-phase filters spread the Coulomb step of a velocity
+    reversal over about ``1 / cutoff`` on either side (a 4th-order Butterworth's, 1 kHz:
+    within 14 % of the step ``1 / (2 cutoff)`` from it, 4 % at ``1 / cutoff``); a reversal at
+    acceleration ``a`` is within ``a / (2 cutoff)`` rad/s of it for the first half, so rows
+    slower than that are dropped (``a``: the box's acceleration bound ``c_a A w``; the second
+    half would drop rows the inertias need), at least 0.15 rad/s (or 10 % of the box's speed
+    ``c_v A`` if lower), the rule at 10 s. Measured on the logs of two --quick
+    runs at 3 and 1.8 s periods, 10 Hz and 0.15 rad/s left biases of 6 sigma: Z1's Ixz3R
+    16.9 % off, SO-101's mcy3R 29.5 %; 20 Hz and this threshold (0.18, 0.6 rad/s): 3.2 %
+    and 8.1 %.
+    """
+    _, c_v, c_a = factors
+    cutoff = min(MAX_CUTOFF_HZ, CUTOFF_HZ * PERIOD_S * w / (2.0 * np.pi))
+    spread = c_a * amplitude * w / (2.0 * cutoff)
+    return cutoff, np.maximum(np.minimum(0.15, 0.1 * amplitude * c_v), spread)
 
 
 def _guess_scale(robot: Any, effort: np.ndarray, ddq_max: np.ndarray) -> tuple[np.ndarray, float]:
@@ -770,12 +803,14 @@ def _identification_lines(c: _Choices) -> list[str]:
     return [
         "identification:                # how the log is identified (an `ident identify` config)",
         "  preprocess:",
-        "    lowpass: {cutoff_hz: 10.0, order: 4}",
-        "    torque_lowpass: {cutoff_hz: 10.0, order: 4}",
+        f"    lowpass: {{cutoff_hz: {c.cutoff_hz:.1f}, order: 4}}   # Hz: {CUTOFF_HZ:g} at a "
+        f"{PERIOD_S:g} s period, scaled with the base frequency up to {MAX_CUTOFF_HZ:g}",
+        f"    torque_lowpass: {{cutoff_hz: {c.cutoff_hz:.1f}, order: 4}}",
         "    trim_samples: 500          # 0.5 s at each end: the zero-phase filters' edges",
         "    decimation: [10]           # 1 kHz -> 100 Hz",
         "    # rows slower than this are dropped: the filters spread the Coulomb step at a",
-        "    # velocity reversal (0.15 rad/s, or 10 % of the design's largest speed if lower)",
+        "    # velocity reversal over 1 / cutoff; the speed reached in half of that at the box's",
+        "    # acceleration, at least 0.15 rad/s (or 10 % of the design's largest speed if lower)",
         f"    velocity_threshold: {_list(c.threshold)}   # rad/s",
         "  model: {viscous: true, coulomb: true, rotor_inertia: true, offset: false}",
         "  estimation: {method: wls, essential: {enabled: false}}",
