@@ -129,13 +129,17 @@ def test_baxter_period_frees_the_box_from_its_short_ranges(baxter):
     # the period where the position term 0.7 h w / c_q of the amplitude bound stops binding on
     # 3/4 of the joints (h from Pinocchio's limits) lets those joints' box reach their
     # velocity or acceleration limit
-    _, config = baxter
+    result, config = baxter
     model = pin.buildModelFromUrdf(str(BAXTER))
     options = config["excitation"]["options"]
     c_q, _, _ = fourier_bound_factors(options["n_harmonics"])
     w = options["base_frequency"]
     period = 2.0 * np.pi / w
     assert 3.0 < period < 6.0
+    # the period and why, in init's notes and beside base_frequency
+    note = next(n for n in result.notes if n.startswith("excitation: period"))
+    assert f"period {period:.3g} s, shorter than 10 s" in note
+    assert "stop binding the box on 75% of the joints" in result.text
     names = [
         n
         for n in model.names[1:]

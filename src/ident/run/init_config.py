@@ -653,8 +653,8 @@ def _period_note(period: float) -> str:
     """Why the excitation has this period [s] (:func:`excitation_period`), one comment line."""
     if period >= PERIOD_S:
         return (
-            f"{PERIOD_S:g} s: the position ranges leave the box its velocity or acceleration "
-            "limits at this period"
+            "the position ranges leave the box its velocity or acceleration limits at "
+            f"{PERIOD_S:g} s"
         )
     why = (
         f"the shortest the controller tracks ({N_HARMONICS} harmonics)"
@@ -839,6 +839,7 @@ def _notes(c: _Choices, urdf: Path, lock_notes: list[str]) -> list[str]:
         + f" {_list(c.ddq_max)} rad/s^2",
         f"excitation: amplitude_bound {_list(c.amplitude)} rad/s keeps every design within "
         f"{VELOCITY_MARGIN:.0%} of the velocity limits {_list(c.dq_max)} rad/s",
+        f"excitation: period {2.0 * np.pi / c.w:.3g} s, {_period_note(2.0 * np.pi / c.w)}",
         *(
             [
                 f"limits: the URDF's velocity limit {c.velocity_placeholder:g} rad/s on every "
