@@ -164,12 +164,17 @@ class InitResult:
         What was chosen and why (the chain, each lock, the guesses), one line each.
     seconds, quick_seconds :
         Estimated wall time of ``ident run`` and ``ident run --quick`` [s].
+    worst_seconds, quick_worst_seconds :
+        The same when the design is retried at a wider safety margin [s]
+        (:func:`ident.run.setup.estimate_run`'s worst case; 0.0: no safety model).
     """
 
     text: str
     notes: tuple[str, ...]
     seconds: float
     quick_seconds: float
+    worst_seconds: float = 0.0
+    quick_worst_seconds: float = 0.0
 
 
 def _fmt(value: float) -> str:
@@ -228,9 +233,9 @@ def init_config(
     config_text = "\n".join(lines) + "\n"
     if progress is not None:
         progress(INIT_STEPS[3])
-    seconds, quick_seconds = _validate(config_text, output, urdf.resolve(), dirs)
+    times = _validate(config_text, output, urdf.resolve(), dirs)
     notes = [*_notes(c, urdf, lock_notes), *guess_notes]
-    return InitResult(config_text, tuple(notes), seconds, quick_seconds)
+    return InitResult(config_text, tuple(notes), *times)
 
 
 def select_robot(
@@ -859,8 +864,11 @@ def _notes(c: _Choices, urdf: Path, lock_notes: list[str]) -> list[str]:
     ]
 
 
-def _validate(text: str, output: Path, urdf: Path, dirs: list[Path]) -> tuple[float, float]:
-    """Load ``text`` as ``ident run`` will and build the run; the estimated wall times [s].
+def _validate(
+    text: str, output: Path, urdf: Path, dirs: list[Path]
+) -> tuple[float, float, float, float]:
+    """Load ``text`` as ``ident run`` will and build the run; the estimated wall times [s] of
+    the full and the quick run, then their worst cases (a retry at a wider safety margin).
 
     The relative paths of the text hold once ``output``'s folder exists; the check uses the
     absolute ones (the folder may not exist yet).
@@ -873,8 +881,10 @@ def _validate(text: str, output: Path, urdf: Path, dirs: list[Path]) -> tuple[fl
         setup = prepare_run(config, source=output)
     except IdentError as e:
         raise type(e)(f"the written config would not run: {e}") from e
-    quick = config.quick_version()
+    quick = estimate_run(config.quick_version(), setup.robot, setup.family, setup.safety)
     return (
         float(setup.estimate.seconds),
-        float(estimate_run(quick, setup.robot, setup.family, setup.safety).seconds),
+        float(quick.seconds),
+        float(setup.estimate.worst_seconds),
+        float(quick.worst_seconds),
     )
