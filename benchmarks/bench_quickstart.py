@@ -19,7 +19,8 @@ then the full ``ident run CONFIG`` it wrote, as ``docs/your-robot.md`` tells a n
 ``--fetched DIR``; skipped with the reason when absent); ``--zoo NAME ...`` for some of
 them. It prints per robot: the CPU of each,
 ``init``'s and ``run``'s estimates of the quick run against its CPU (the ratio, marked ``!``
-outside [0.5, 2]), the verdict, the worst parameter error, the smallest clearance (from the
+outside [0.5, 2]; their worst cases, marked ``r``, when the run optimized again at a wider
+safety margin), the verdict, the worst parameter error, the smallest clearance (from the
 run folder's result.json) and the independent check: the run's ``trajectory.csv`` re-checked
 with plain Pinocchio + coal by ``independent_safety.py`` (beside this file; none of ident's
 safety code). About 2-5 min of CPU per robot. ``--full NAME ...`` does the same with the full
@@ -210,6 +211,16 @@ def _run_outcome(output: str) -> tuple[str, str, str]:
     )
 
 
+def _retried(output: str) -> bool:
+    """Whether the run optimized again at a wider safety margin (its result.json's safety
+    message says so): the run's estimate is then its worst case ("up to ...")."""
+    folder = _run_folder(output)
+    if folder is None or not (folder / "result.json").is_file():
+        return False
+    data = json.loads((folder / "result.json").read_text(encoding="utf-8"))
+    return "optimized again" in data.get("safety", {}).get("message", "")
+
+
 def _independent(folder: Path | None) -> str:
     """The run's trajectory re-checked by :mod:`independent_safety` (plain Pinocchio + coal,
     none of ident's safety code): "pass 13.3 mm" (its smallest clearance), or what failed."""
@@ -297,10 +308,14 @@ def zoo(
             )
             run_est = _seconds(output, r"estimate: run: .*?memory and ")
             verdict, worst, clearance = _run_outcome(output)
+            if _retried(output):  # the estimate of what ran: its worst case, marked r
+                run_est = _seconds(output, r"estimate: run: .*?memory and .*?up to ")
+                init_est = _seconds(text, r"; up to " if quick else r"; up to \d+ s and ")
             # ident run prints its estimate only above a minute (the same model as init's)
-            shown = "-" if run_est != run_est else f"{run_est:.0f}"
+            shown = "-" if run_est != run_est else f"{run_est:.0f}" + "r" * _retried(output)
             print(
-                f"{name:12s} {init_cpu:9.1f} {run_cpu:9.1f} {init_est:8.0f} "
+                f"{name:12s} {init_cpu:9.1f} {run_cpu:9.1f} "
+                f"{f'{init_est:.0f}' + 'r' * _retried(output):>8s} "
                 f"{_ratio(init_est, run_cpu):>6s} {shown:>8s} {_ratio(run_est, run_cpu):>6s}  "
                 f"{verdict[:24]:24s} {worst:>9s}  {clearance:>10s}  "
                 f"{_independent(_run_folder(output))}",

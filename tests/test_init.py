@@ -95,6 +95,10 @@ def test_init_kinova_keeps_every_design_within_the_velocity_margin(tmp_path):
     np.testing.assert_allclose(robot.ddq_max, 3.0 * robot.dq_max, rtol=1e-2)
     config = yaml.safe_load(result.text)
     assert config["measurement"]["source"] == "mujoco"
+    # continuous joints and velocity-bound ones: the position ranges never bind the box, the
+    # period stays 10 s and the log three periods
+    assert config["excitation"]["options"]["base_frequency"] == 2.0 * np.pi / 10.0
+    assert config["measurement"]["n_periods"] == 3
     text_lines = result.text.splitlines()
     guessed = ("acceleration_limits:", "viscous:", "coulomb:", "armature:", "torque_noise_std:")
     for key in (*guessed, "floor:", "clearance_m:", "encoder_counts_per_rev:"):
@@ -109,6 +113,11 @@ def test_init_kinova_keeps_every_design_within_the_velocity_margin(tmp_path):
     assert np.all(noise > 0)
     assert np.all(noise <= 0.003 * effort * 1.01)
     assert result.quick_seconds < result.seconds
+    # the worst cases: the run's estimate with the retry at a wider safety margin (the
+    # safety model's CPU per posture is timed again by each build: within a factor)
+    assert result.worst_seconds == pytest.approx(setup.estimate.worst_seconds, rel=0.5)
+    assert result.seconds < result.worst_seconds
+    assert result.quick_seconds < result.quick_worst_seconds < result.worst_seconds
     # --quick optimizes: 410 designs (30 left the UR10's elbow inertia 27.8 % off), still a
     # fraction of the full budget's
     quick, full = config["quick"]["emupso"], config["emupso"]
@@ -143,6 +152,7 @@ def test_init_cli_writes_into_a_new_folder_a_config_that_loads(tmp_path):
     res = CliRunner().invoke(app, ["init", str(KINOVA), "-o", str(out)])
     assert res.exit_code == 0, res.output
     assert "estimated wall time" in res.output
+    assert "if the design is retried at a wider safety margin" in res.output
     config = load_run_config(out)  # relative paths, resolved from the new folder
     assert config.robot.urdf.resolve() == KINOVA.resolve()
 

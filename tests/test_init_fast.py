@@ -124,6 +124,39 @@ def test_baxter_box_keeps_every_joint_within_its_position_range(baxter):
         assert high + swing <= upper, name
 
 
+def test_baxter_period_frees_the_box_from_its_short_ranges(baxter):
+    # at 10 s the +-1.7 rad ranges capped the box at a fraction of the acceleration limits;
+    # the period where the position term 0.7 h w / c_q of the amplitude bound stops binding on
+    # 3/4 of the joints (h from Pinocchio's limits) lets those joints' box reach their
+    # velocity or acceleration limit
+    result, config = baxter
+    model = pin.buildModelFromUrdf(str(BAXTER))
+    options = config["excitation"]["options"]
+    c_q, _, _ = fourier_bound_factors(options["n_harmonics"])
+    w = options["base_frequency"]
+    period = 2.0 * np.pi / w
+    assert 3.0 < period < 6.0
+    # the period and why, in init's notes and beside base_frequency
+    note = next(n for n in result.notes if n.startswith("excitation: period"))
+    assert f"period {period:.3g} s, shorter than 10 s" in note
+    assert "stop binding the box on 75% of the joints" in result.text
+    names = [
+        n
+        for n in model.names[1:]
+        if n.startswith("left_") and f"q0[{n}]" in config["excitation"]["bounds"]
+    ]
+    free = 0
+    for name, amplitude in zip(names, options["amplitude_bound"], strict=True):
+        idx = model.joints[model.getJointId(name)].idx_q
+        span = model.upperPositionLimit[idx] - model.lowerPositionLimit[idx]
+        room = 0.5 * span - min(0.05, 0.05 * span)
+        free += amplitude < 0.999 * 0.7 * room * w / c_q
+    assert free >= 5, free
+    # as many logged samples as three 10 s periods
+    n_periods = config["measurement"]["n_periods"]
+    assert n_periods * period >= 30.0 > (n_periods - 1) * period
+
+
 def test_baxter_locks_tip_and_margin_say_why(baxter):
     result, config = baxter
     notes = "\n".join(result.notes)

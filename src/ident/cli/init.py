@@ -71,6 +71,16 @@ def init(
         f"'ident run {output} --quick' about {result.quick_seconds:.0f} s, 'ident run "
         f"{output}' about {result.seconds:.0f} s, start-up, safety check, simulation, "
         "identification and report included"
+        + _worst_case(result.quick_worst_seconds, result.worst_seconds)
+    )
+
+
+def _worst_case(quick: float, full: float) -> str:
+    """The estimates' worst cases [s] (a retry at a wider safety margin), when there are."""
+    if max(quick, full) <= 0.0:
+        return ""
+    return (
+        f"; up to {quick:.0f} s and {full:.0f} s if the design is retried at a wider safety margin"
     )
 
 
