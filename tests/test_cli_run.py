@@ -406,3 +406,26 @@ def test_noisy_quick_run_errors_within_reported_std(tmp_path):
             assert est["within_3std"] >= 0.8
             assert est["max_torque_error"] > 1e-6  # the noise is really there
             assert all(s > 0 for s in est["std"])
+
+
+def test_a_retry_says_the_estimates_worst_case_now_applies(capsys):
+    """The retry at a wider margin is printed when it starts, with the run's worst-case time
+    from its estimate (the typical one printed at the start no longer holds); without a worst
+    case, the note alone."""
+    from ident.cli import run as cli_run
+    from ident.inputs import JobEstimate
+    from ident.run.config import load_run_config
+    from ident.run.results import Progress
+
+    cfg = load_run_config(QUICK)
+    estimate = JobEstimate("run", 1e8, 100.0, worst_seconds=250.0, worst_case="if retried")
+    note = "no elite kept the 30 mm margin between the checked samples; optimized again."
+    with cli_run._ProgressDisplay(cfg, estimate) as display:
+        display.update(Progress("retry", 0, 1, payload=note))
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"retrying: {note} The run takes up to 4.17 min in all (its estimate)." in err
+    with cli_run._ProgressDisplay(cfg, JobEstimate("run", 1e8, 100.0)) as display:
+        display.update(Progress("retry", 0, 1, payload=note))
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"retrying: {note}" in err
+    assert "takes up to" not in err

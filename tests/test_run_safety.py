@@ -152,9 +152,17 @@ def test_elites_a_little_inside_the_margin_are_optimized_again_with_a_wider_one(
     from ident.run.config import load_run_config
     from ident.run.pipeline import run_pipeline
 
-    plan = run_pipeline(load_run_config(config)).executable
+    events = []
+    plan = run_pipeline(load_run_config(config), progress=events.append).executable
     assert plan.usable, plan.message
     assert "optimized again with the optimizer's margin at 37.5 mm" in plan.message
+    # the retry is announced when it starts (the terminal says the estimate's worst case
+    # applies), between the two optimizations
+    phases = [e.phase for e in events]
+    k = phases.index("retry")
+    assert "run_done" in phases[:k]
+    assert "optimize" in phases[k:]
+    assert events[k].payload.startswith("no elite kept the 30 mm margin")
     traj = plan.trajectory
     robot = Robot.from_config("configs/paper6r.yaml")
     model = pin.buildModelFromXML(robot.urdf_text)

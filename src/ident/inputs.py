@@ -50,6 +50,7 @@ __all__ = [
     "check_output_file",
     "check_urdf_numbers",
     "default_max_memory_gb",
+    "duration_text",
     "max_workers",
     "read_urdf_text",
     "refuse_dtd",
@@ -341,10 +342,10 @@ class JobEstimate:
     def describe(self) -> str:
         """One line: ``what: about 1.2 GB of memory and 3.4 min`` (``, up to 6.8 min if
         ...`` when a conditional step can add time)."""
-        memory, time = _bytes(self.memory_bytes), _duration(self.seconds)
+        memory, time = _bytes(self.memory_bytes), duration_text(self.seconds)
         line = f"{self.what}: about {memory} of memory and {time}"
         if self.worst_seconds > self.seconds:
-            line += f", up to {_duration(self.worst_seconds)} {self.worst_case}"
+            line += f", up to {duration_text(self.worst_seconds)} {self.worst_case}"
         return line
 
 
@@ -355,7 +356,8 @@ def _bytes(n: float) -> str:
     return f"{n:.0f} B"
 
 
-def _duration(s: float) -> str:
+def duration_text(s: float) -> str:
+    """A duration [s] as a person reads it: ``42 s``, ``3.4 min``, ``1.2 h``, ``2 days``."""
     for unit, scale in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
         if s >= scale:
             return f"{s / scale:.3g} {unit}"
@@ -416,7 +418,7 @@ def check_job(estimate: JobEstimate) -> JobEstimate:
         )
     if estimate.seconds > seconds:
         raise ResourceLimitError(
-            f"{estimate.describe()}, above the time ceiling of {_duration(seconds)}; make the "
+            f"{estimate.describe()}, above the time ceiling of {duration_text(seconds)}; make the "
             f"job smaller, or raise the ceiling with {MAX_HOURS_ENV}=<hours>."
         )
     return estimate

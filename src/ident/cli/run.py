@@ -84,7 +84,7 @@ def run(
             "safety_margin_note": setup.safety.margin_note,
             "simulation_notes": list(setup.simulation_notes),
         }
-        with _ProgressDisplay(cfg) as display:
+        with _ProgressDisplay(cfg, setup.estimate) as display:
             # stage 1, the feasible elites, also before the folder exists: an excitation box
             # that holds no design meeting the constraints is an input error
             start = feasible_start(setup, progress=display.update)
@@ -236,7 +236,7 @@ def _save_partial(partial: Any, rundir: Any) -> None:
 class _ProgressDisplay:
     """A rich progress bar over the elite search, the eMuPSO iterations and the estimates."""
 
-    def __init__(self, cfg: Any) -> None:
+    def __init__(self, cfg: Any, estimate: Any = None) -> None:
         from rich.console import Console
         from rich.progress import (
             BarColumn,
@@ -246,7 +246,7 @@ class _ProgressDisplay:
             TimeElapsedColumn,
         )
 
-        self.cfg = cfg
+        self.cfg, self.estimate = cfg, estimate
         self.progress = Progress(
             TextColumn("{task.description:<16}"),
             BarColumn(),
@@ -298,6 +298,18 @@ class _ProgressDisplay:
             p.update(self.tasks["optimize"], completed=event.step * self.cfg.emupso.maxiter)
         elif event.phase == "identify":
             p.update(self.tasks["identify"], completed=event.step, total=event.total, info="")
+        elif event.phase == "retry":  # the printed estimate's worst case now applies
+            p.console.print(f"retrying: {event.payload} {self._retry_time()}".rstrip())
+
+    def _retry_time(self) -> str:
+        """The run's worst-case time, which applies once the design is retried (the estimate
+        printed at the start gives it after 'up to'); '' without an estimate."""
+        from ident.inputs import duration_text
+
+        e = self.estimate
+        if e is None or not e.worst_seconds > e.seconds:
+            return ""
+        return f"The run takes up to {duration_text(e.worst_seconds)} in all (its estimate)."
 
 
 def _summary(

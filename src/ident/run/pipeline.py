@@ -276,6 +276,7 @@ def _retry_at_wider_margin(
         f"with the optimizer's margin at {1e3 * margin:.3g} mm (the certificate's stays "
         f"{kept:g} mm). "
     )
+    notify(Progress("retry", 0, 1, payload=note.strip()))
     first = (chosen_x, chosen_f, state.safety)
     tighter = _tighter_problem(problem, setup.safety.with_optimizer_margin(margin))
     _optimize(setup, tighter, stream, state, notify)  # new child streams

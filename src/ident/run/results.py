@@ -41,7 +41,9 @@ class Progress:
         ``"elites"`` (an iteration of the initial elite search), ``"elites_done"`` (the
         elites were found; ``payload`` holds them), ``"optimize"`` (an eMuPSO iteration),
         ``"run_done"`` (an eMuPSO run finished; ``payload`` is its :class:`OptimizerRun`),
-        ``"identify"`` (an elite was measured and identified).
+        ``"identify"`` (an elite was measured and identified), ``"retry"`` (every elite was
+        a little inside the safety margin: the optimizer runs again at a wider one; ``payload``
+        says so in one sentence).
     step, total :
         Progress within the phase (for ``optimize``: iterations over all runs).
     run :
