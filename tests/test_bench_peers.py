@@ -9,6 +9,7 @@ missing; CI does not install the peers.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import sys
 from pathlib import Path
@@ -412,3 +413,23 @@ def test_sysid_servo_setup_gets_the_commands_their_history_and_the_servo_class()
     gains = bench_peers._servo_gains(model, problem.joints)
     np.testing.assert_allclose(gains["kv"], spec["kv"])
     np.testing.assert_allclose(model.dof_damping, np.add(spec["kv"], spec["damping"]))
+    # ident's knowledge (bench_servo.sysid_case's set-up): one kp per servo setting, the
+    # velocity gain in the damping; the datasheet start: armature and gains 1.5x, no friction
+    tied = dataclasses.replace(servo, kp_groups=[[0, 1, 2], [3, 4]], fold_kv=True)
+    problem = bench_peers.sysid_problem(
+        dataclasses.replace(case, servo=tied), start="datasheet", window_s=0.5
+    )
+    assert not any(name.endswith("_kv") for name in problem.params.keys())
+    for k, j in enumerate(robot.joint_names):
+        start = {n: problem.params[f"{j}_{n}"].value[0] for n in ("armature", "damping")}
+        assert start["armature"] == pytest.approx(1.5 * spec["armature"][k])
+        assert start["damping"] == pytest.approx(1.5 * spec["kv"][k])
+        assert problem.params[f"{j}_frictionloss"].value[0] == 0.0
+    # the folded truth leaves kv out of the force range's clip: close, not the same class
+    assert problem.objective(problem.truth) < 2e-2 * problem.objective(problem.params)
+    group = problem.truth.copy()
+    group["+".join(robot.joint_names[:3]) + "_kp"].value = np.array([7.0])
+    model = sysid.apply_param_modifiers(group, problem.spec.copy())
+    gains = bench_peers._servo_gains(model, problem.joints)
+    np.testing.assert_allclose(gains["kp"], [7.0, 7.0, 7.0, *spec["kp"][3:]])
+    np.testing.assert_allclose(gains["kv"], 0.0)
