@@ -27,17 +27,22 @@ the truth's (1.00: as good as the truth).
     python benchmarks/bench_servo.py --robot so101 [--seeds 5] [--delay-ms 4]
 
 ``--peer sysid`` (the ``peers`` extra): the same episodes through mujoco.sysid at its best
-set-up (``bench_peers.run_sysid``: 0.5 s windows, positions and velocities in the residual,
-``x_scale='jac'``, run to its own convergence under ``--max-iters``), given the log ident
-reads, commanded and measured positions and no torque, of the identification part; its model
-is the simulator's class (``<position>`` servos with ``kp`` and ``kv`` fitted, the force range
-and the 2-sample delay given: sysid has no delay parameter), its parameters one log-Cholesky
-inertia per link, armature, damping, friction loss, ``kp`` and ``kv`` per joint, from each of
-``--sysid-starts`` (:data:`SYSID_STARTS`). Against ident's mass-scale, delay-scanned way, both
-scored by the held-out 1 s rollout over the truth's, with the process CPU time of each call.
+set-up found (``bench_peers.run_sysid``: 0.5 s windows, positions and velocities in the
+residual, ``x_scale='jac'``, run to its own convergence under ``--max-iters`` a stage),
+given the log ident reads, commanded and measured positions and no torque, of the
+identification part; its model is the simulator's class (``<position>`` servos, the force
+range and the 2-sample delay given: sysid has no delay parameter), its parameters one
+log-Cholesky inertia per link, armature, damping, friction loss per joint and the servos'
+``kp``, tied as ident's ``equal_kp`` with the velocity gain in the damping
+(:func:`sysid_case`; ``--sysid-per-joint-gains``: ``kp`` and ``kv`` per joint), in
+``--sysid-stages`` (default: the joint terms and gains with the links frozen, then
+everything), from each of ``--sysid-starts`` (:data:`SYSID_STARTS`). Against ident's
+mass-scale, delay-scanned way, both scored by the held-out 1 s rollout over the truth's, with
+the process CPU time of each call.
 
     PYTHONPATH=src python benchmarks/bench_servo.py --robot so101 --peer sysid [--seeds 5]
-        [--sysid-starts cad ident near-cad] [--max-iters 200] [--sysid-cpu-budget S]
+        [--seed-list 0 3] [--sysid-starts datasheet ident cad near-cad] [--max-iters 200]
+        [--sysid-cpu-budget S | --sysid-budget-x-ident F] [--sysid-velocity-weight 1]
 """
 
 from __future__ import annotations
@@ -296,11 +301,13 @@ def run_so101(seeds: int) -> None:
 IDENT_WAY = {"max_delay_s": 0.01, "equal_kp": EQUAL_KP}
 #: mujoco.sysid's rollout windows [s] (its best set-up, as in bench_peers.py).
 SYSID_WINDOW_S = 0.5
-#: mujoco.sysid's starts (``--sysid-starts``, bench_peers.SYSID_STARTS): ``cad``, the URDF's
-#: bodies with the joint terms off and the gains 1.5x the truth; ``ident``, ident's written
-#: model (bodies, joint terms, gains); ``near-cad``, the URDF's bodies, joint terms and gains
-#: 1.5x the truth.
-SYSID_STARTS = ("cad", "ident")
+#: mujoco.sysid's starts (``--sysid-starts``, bench_peers.SYSID_STARTS): ``datasheet``, the
+#: URDF's bodies, the armature and gains 1.5x the truth, no friction; ``ident``, ident's
+#: written model (bodies, joint terms, gains); ``cad``, the URDF's bodies with the joint terms
+#: off and the gains 1.5x; ``near-cad``, the URDF's bodies, joint terms and gains 1.5x.
+SYSID_STARTS = ("datasheet", "ident")
+#: Its stages (``--sysid-stages``, bench_peers.SYSID_STAGE_FREE).
+SYSID_STAGES = ("joints", "all")
 
 
 def sysid_case(result, robot: Robot, first: SimulatedLog, tied: bool = True) -> bench_peers.Case:
@@ -339,7 +346,7 @@ class SysidSetup:
 
     max_iters: int = 200
     starts: tuple[str, ...] = SYSID_STARTS
-    stages: tuple[str, ...] = ("all",)
+    stages: tuple[str, ...] = SYSID_STAGES
     tied: bool = True
     cpu_budget_s: float | None = None
     budget_x_ident: float | None = None
@@ -486,7 +493,7 @@ def main() -> None:
     parser.add_argument(
         "--sysid-stages",
         nargs="+",
-        default=["all"],
+        default=list(SYSID_STAGES),
         choices=sorted(bench_peers.SYSID_STAGE_FREE),
         help="--peer sysid: its stages, each from the previous one's stop",
     )
