@@ -118,7 +118,11 @@ class ServoLog:
     grid per ``segments`` ``[start, stop)`` (episodes); ``ranges``: the identification part's
     ``[lo, hi)`` samples (within segments, the held-out part and the trims left out); ``kp``
     [N*m/rad], ``kv`` [N*m*s/rad]: the servos' true gains, shapes (nv,); ``forcerange`` [N*m];
-    ``delay_steps``: the command's delay in samples (MuJoCo's actuator delay, whole samples).
+    ``delay_steps``: the command's delay in samples (MuJoCo's actuator delay, whole samples);
+    ``kp_groups``: joints (indices) whose servos have one setting, one ``kp`` (and ``kv``)
+    parameter each (ident's ``equal_kp``; None: one per joint); ``fold_kv``: no ``kv``
+    parameter, the servos' ``kv`` 0 and the velocity gain in the joint damping (ident's
+    ``kd + fv``: the log sees their sum only).
     """
 
     q: FloatArray
@@ -129,6 +133,8 @@ class ServoLog:
     kv: FloatArray
     forcerange: float
     delay_steps: int
+    kp_groups: list[list[int]] | None = None
+    fold_kv: bool = False
 
 
 @dataclass
@@ -350,7 +356,7 @@ def _add_actuator(spec: mujoco.MjSpec, joint: str, servo: ServoLog | None, k: in
     sj = spec.joint(joint)
     sj.solref_friction = [2.0 * float(spec.option.timestep), 1.0]
     sj.solimp_friction = list(FRICTION_SOLIMP)
-    act.set_to_position(kp=float(servo.kp[k]), kv=float(servo.kv[k]))
+    act.set_to_position(kp=float(servo.kp[k]), kv=0.0 if servo.fold_kv else float(servo.kv[k]))
     act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
     act.forcerange = [-servo.forcerange, servo.forcerange]
     if servo.delay_steps > 0:
@@ -401,8 +407,10 @@ def _theta_modifier(body_name: str) -> Any:
 #: 8 cm off (outside the +-5 cm box sysid's parameter is then given), joint terms as ``cad``.
 #: On a servo log (:class:`ServoLog`) ``cad`` has the joint terms off (the URDF as a user has
 #: it) and ``near-cad`` has them at :data:`JOINT_TERM_START` x the truth (``cad`` on a torque
-#: log); the gains start at that factor x the truth in both.
-SYSID_STARTS = ("cad", "ident", "bad-cad", "near-cad")
+#: log); the gains start at that factor x the truth in both. ``datasheet`` (servo logs): the
+#: URDF's bodies, the armature and the gains at that factor x the truth (a servo's datasheet:
+#: rotor inertia x gear ratio^2, its P and D settings, 50 % off), no friction.
+SYSID_STARTS = ("cad", "ident", "bad-cad", "near-cad", "datasheet")
 #: Rollout threads of sysid's residual (its default: every core).
 SYSID_THREADS = 2
 #: The CAD start's joint terms over their truth (50 % off).
@@ -424,7 +432,7 @@ def _start_spec(
             sb.ipos, sb.iquat = np.array(mb.ipos), np.array(mb.iquat)
             sb.inertia = np.array(mb.inertia)
         return bad
-    mass, shift = {"cad": (1.0, 0.0), "near-cad": (1.0, 0.0), "bad-cad": (4.0, 0.08)}[start]
+    mass, shift = {"bad-cad": (4.0, 0.08)}.get(start, (1.0, 0.0))
     for b in bodies:
         sb = bad.body(b)
         sb.mass = sb.mass * mass
@@ -447,8 +455,13 @@ def _joint_start(
                 out[j, attr] = float(getattr(ident_model, f"dof_{attr}")[d])
             elif case.servo is not None and start == "cad":  # the URDF's: no joint terms
                 out[j, attr] = 0.0
+            elif start == "datasheet":  # the rotor's inertia only
+                out[j, attr] = JOINT_TERM_START * float(truth[key][k]) * (attr == "armature")
             else:
                 out[j, attr] = JOINT_TERM_START * float(truth[key][k])
+            if case.servo is not None and case.servo.fold_kv and start != "ident":
+                # the velocity gain's start (ident's model has it in its damping already)
+                out[j, attr] += JOINT_TERM_START * float(case.servo.kv[k]) * (attr == "damping")
     return out
 
 
@@ -522,7 +535,10 @@ def _sysid_params(
         ).value
     for k, j in enumerate(case.setup.robot.joint_names):
         for attr, key in JOINT_TERMS:
-            truth_params[f"{j}_{attr}"].value = np.array([float(truth[key][k])])
+            value = float(truth[key][k])
+            if case.servo is not None and case.servo.fold_kv and attr == "damping":
+                value += float(case.servo.kv[k])
+            truth_params[f"{j}_{attr}"].value = np.array([value])
     if case.servo is not None:
         joints = list(case.setup.robot.joint_names)
         start_gains = _servo_start(case.servo, joints, ident_model if start == "ident" else None)
@@ -556,22 +572,33 @@ def _servo_start(
 def _servo_params(
     servo: ServoLog, start: dict[str, dict[str, float]], params: Any, truth: Any
 ) -> None:
-    """Add each ``<position>`` servo's ``kp`` and ``kv`` (sysid's ``apply_pgain``,
-    ``apply_dgain``) to ``params`` at ``start`` (:func:`_servo_start`) and to ``truth`` at
-    the truth; boxes from 0 to 3x the largest true gain."""
+    """Add the ``<position>`` servos' ``kp`` and ``kv`` (sysid's ``apply_pgain``,
+    ``apply_dgain``; no ``kv`` with ``servo.fold_kv``) to ``params`` at ``start``
+    (:func:`_servo_start`; a group of ``servo.kp_groups``, its first joint's) and to ``truth``
+    at the truth; one parameter per joint or group (``<joint>_kp``, ``<j1>+<j2>_kp``), boxes
+    from 0 to 3x the largest true gain."""
     from mujoco import sysid
     from mujoco.sysid._src.model_modifier import apply_dgain, apply_pgain
 
-    for name, gains, write in (("kp", servo.kp, apply_pgain), ("kv", servo.kv, apply_dgain)):
-        hi = 3.0 * float(np.max(gains))
-        for k, j in enumerate(start):
+    joints = list(start)
+    groups = servo.kp_groups or [[k] for k in range(len(joints))]
+    gains = [("kp", servo.kp, apply_pgain)] + (
+        [] if servo.fold_kv else [("kv", servo.kv, apply_dgain)]
+    )
+    for name, values, write in gains:
+        hi = 3.0 * float(np.max(values))
+        for group in groups:
+            motors = [f"{joints[k]}_motor" for k in group]
 
-            def modify(s: mujoco.MjSpec, p: Any, j: str = j, write: Any = write) -> None:
-                write(s, f"{j}_motor", float(p.value[0]))
+            def modify(s: mujoco.MjSpec, p: Any, motors: list = motors, write: Any = write) -> None:
+                for motor in motors:
+                    write(s, motor, float(p.value[0]))
 
-            value = float(np.clip(start[j][name], 0.0, hi))
-            params.add(sysid.Parameter(f"{j}_{name}", value, 0.0, hi, modifier=modify))
-            truth.add(sysid.Parameter(f"{j}_{name}", float(gains[k]), 0.0, hi, modifier=modify))
+            label = "+".join(joints[k] for k in group) + f"_{name}"
+            value = float(np.clip(start[joints[group[0]]][name], 0.0, hi))
+            params.add(sysid.Parameter(label, value, 0.0, hi, modifier=modify))
+            true = float(values[group[0]])
+            truth.add(sysid.Parameter(label, true, 0.0, hi, modifier=modify))
 
 
 def _sysid_samples(case: Case) -> tuple[FloatArray, FloatArray, FloatArray, list[tuple[int, int]]]:
@@ -623,6 +650,7 @@ def sysid_problem(
     ident_model: mujoco.MjModel | None = None,
     max_windows: int | None = None,
     scale: FloatArray | None = None,
+    velocity_weight: float = 1.0,
 ) -> SysidProblem:
     """mujoco.sysid's parameters, windows and residual on the identification samples.
 
@@ -634,7 +662,8 @@ def sysid_problem(
     joint's divided by ``scale`` (2, nv): rows ``sd_q``, ``sd_dq`` in ``case``'s joint order,
     the rollout objective's (:func:`ident.identify.assessment.rollout.log_motion_scale` of
     ident's identification, so sysid minimises the objective it is scored on); None: the
-    same formula (:func:`motion_scale`) over every sample sysid gets of the log.
+    same formula (:func:`motion_scale`) over every sample sysid gets of the log. The
+    velocities' weights are times ``velocity_weight`` (0: positions only).
     """
     from mujoco import sysid
 
@@ -646,6 +675,7 @@ def sysid_problem(
     q, dq, control, ranges = _sysid_samples(case)
     scale = motion_scale(q, dq) if scale is None else np.asarray(scale, dtype=float)
     weights = 1.0 / scale.ravel()  # sensor order: positions, then velocities
+    weights[q.shape[1] :] *= velocity_weight
     starts = [i0 for lo, hi in ranges for i0 in range(lo, hi - n_win - 1, n_win)]
     states, controls, sensors, names = [], [], [], []
     for k, i0 in enumerate(starts[:max_windows]):
@@ -663,6 +693,11 @@ def sysid_problem(
     return SysidProblem(spec, joints, params, truth_params, residual_fn, len(names))
 
 
+#: sysid's stages (``run_sysid(stages=...)``): ``all`` frees every parameter; ``joints``
+#: keeps the links at the start's (frozen) and frees the joint terms and the servo gains.
+SYSID_STAGE_FREE = {"all": "every parameter", "joints": "the joint terms and gains, links fixed"}
+
+
 def run_sysid(
     case: Case,
     pm: ParameterModel,
@@ -674,17 +709,21 @@ def run_sysid(
     max_windows: int | None = None,
     cpu_budget_s: float | None = None,
     scale: FloatArray | None = None,
+    stages: tuple[str, ...] = ("all",),
+    velocity_weight: float = 1.0,
 ) -> ToolRun:
     """Identify the log with mujoco.sysid (module docstring); the estimate over pm.names.
 
     MuJoCo's Gauss-Newton (sysid's ``optimizer="mujoco"`` backend) with ``x_scale="jac"``
     (each parameter scaled by its Jacobian column's norm, refreshed every iteration) and its own
     stopping tests (``xtol``, ``gtol`` 1e-8, or no further reduction) under a cap of
-    ``max_iters``; ``info`` holds the iterations (finite-difference Jacobians) and the stop's
-    reason (``"maximum iterations reached."`` when the cap stopped it). ``cpu_budget_s``: stop
-    after the first iteration that ends past this much CPU time, with its iterate, reported as
-    not converged (a shared machine's time limit; None: no budget). ``scale``: the residual's
-    (:func:`sysid_problem`)."""
+    ``max_iters`` per stage; ``stages`` (:data:`SYSID_STAGE_FREE`) run one after the other,
+    each from the previous one's stop. ``info`` holds the iterations (finite-difference
+    Jacobians, every stage's) and each stage's stop (``"maximum iterations reached."`` when the
+    cap stopped it). ``cpu_budget_s``: stop after the first iteration that ends past this much
+    CPU time (over the stages), with its iterate, reported as not converged (a shared
+    machine's time limit; None: no budget). ``scale``, ``velocity_weight``:
+    :func:`sysid_problem`'s."""
     from mujoco import sysid
 
     problem = sysid_problem(
@@ -694,44 +733,20 @@ def run_sysid(
         ident_model=ident_model,
         max_windows=max_windows,
         scale=scale,
+        velocity_weight=velocity_weight,
     )
-    trace, jacobians = io.StringIO(), [0]
-    opt = problem.params.copy()
-
-    def residual(x: FloatArray) -> FloatArray:  # sysid.optimize's, counting the Jacobians
-        jacobians[0] += int(x.ndim == 2 and x.shape[1] > 1)
-        return np.concatenate(problem.residual_fn(x, opt)[0])
-
+    opt, jacobians, statuses = problem.params.copy(), [0], []
     rss0 = _peak_rss_mb()
     c0, t0 = time.process_time(), time.perf_counter()
-    last = [problem.params.as_vector()]
-
-    def budget(log: list[Any]) -> None:  # the iterate so far; stop when the CPU budget is spent
-        last[0] = np.asarray(log[-1].candidate).ravel()
-        if cpu_budget_s is not None and time.process_time() - c0 > cpu_budget_s:
-            raise _BudgetSpent
-
-    # sysid.optimize(optimizer="mujoco") is this call with verbosity FULLITER, which costs one
-    # more finite-difference Jacobian at the end (for its log); FINAL prints the stop only
-    try:
-        x, _ = minimize.least_squares(
-            x0=problem.params.as_vector(),
-            bounds=problem.params.get_bounds(),
-            residual=residual,
-            verbose=minimize.Verbosity.FINAL,
-            output=trace,
-            max_iter=max_iters,
-            x_scale="jac",
-            iter_callback=budget,
-        )
-        stop = re.search(r"Terminated after \d+ iterations: ([^y]*)", trace.getvalue())
-        status = stop.group(1).strip() if stop else "unknown (no final message)"
-    except _BudgetSpent:
-        x, status = last[0], f"NOT converged: stopped by the CPU budget of {cpu_budget_s:g} s"
+    for stage in stages:
+        status = _sysid_stage(problem, opt, stage, max_iters, jacobians, (c0, cpu_budget_s))
+        statuses.append(f"{stage}: {status}" if len(stages) > 1 else status)
+        if status.startswith("NOT converged"):
+            break
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     peak = _peak_rss_mb() - rss0
-    opt.update_from_vector(x)
-    iterations = jacobians[0]
+    _unfreeze(opt)
+    iterations, status = jacobians[0], "; ".join(statuses)
     # sysid's objective 0.5 ||r||^2 at its start, its stop and the truth: how far it has to go
     y = {
         label: problem.objective(p)
@@ -743,11 +758,72 @@ def run_sysid(
         info |= _servo_gains(identified, problem.joints)
     x = standard_from_mujoco(identified, pm, problem.joints)
     note = (
-        f"{problem.n_windows} windows of {window_s:g} s, x_scale='jac', {iterations} "
-        f"iterations (cap {max_iters}): {status}; objective 0.5||r||^2 at start "
-        f"{y['start']:.4g}, at stop {y['stop']:.4g}, at the truth {y['truth']:.4g}"
+        f"{problem.n_windows} windows of {window_s:g} s, x_scale='jac', stages "
+        f"{'+'.join(stages)}, {iterations} iterations (cap {max_iters} a stage): {status}; "
+        f"objective 0.5||r||^2 at start {y['start']:.4g}, at stop {y['stop']:.4g}, at the "
+        f"truth {y['truth']:.4g}"
     )
     return ToolRun(f"mujoco.sysid ({start})", x, wall, peak, note, cpu_s=cpu, info=info)
+
+
+def _unfreeze(params: Any) -> None:
+    """Every parameter of ``params`` (a sysid ParameterDict) free again."""
+    for p in params.values():
+        p.frozen = False
+
+
+def _sysid_stage(
+    problem: SysidProblem,
+    opt: Any,
+    stage: str,
+    max_iters: int,
+    jacobians: list[int],
+    budget_of: tuple[float, float | None],
+) -> str:
+    """One stage (:data:`SYSID_STAGE_FREE`) of :func:`run_sysid` from ``opt`` (its stop
+    written back to it); counts its Jacobians in ``jacobians[0]``; its stop's reason.
+    ``budget_of``: the process CPU time [s] the run started at, and its budget (or None)."""
+    _unfreeze(opt)
+    if stage == "joints":  # the links stay at the start's: written on the spec once, frozen
+        for name, p in opt.items():
+            if name.endswith("_inertia"):
+                p.apply_modifier(problem.spec)
+                p.frozen = True
+    elif stage != "all":
+        raise ValueError(f"unknown sysid stage {stage!r}: one of {sorted(SYSID_STAGE_FREE)}")
+    trace = io.StringIO()
+    last = [opt.as_vector()]
+
+    def residual(x: FloatArray) -> FloatArray:  # sysid.optimize's, counting the Jacobians
+        jacobians[0] += int(x.ndim == 2 and x.shape[1] > 1)
+        return np.concatenate(problem.residual_fn(x, opt)[0])
+
+    def budget(log: list[Any]) -> None:  # the iterate so far; stop when the CPU budget is spent
+        last[0] = np.asarray(log[-1].candidate).ravel()
+        c0, cpu_budget_s = budget_of
+        if cpu_budget_s is not None and time.process_time() - c0 > cpu_budget_s:
+            raise _BudgetSpent
+
+    # sysid.optimize(optimizer="mujoco") is this call with verbosity FULLITER, which costs one
+    # more finite-difference Jacobian at the end (for its log); FINAL prints the stop only
+    try:
+        x, _ = minimize.least_squares(
+            x0=opt.as_vector(),
+            bounds=opt.get_bounds(),
+            residual=residual,
+            verbose=minimize.Verbosity.FINAL,
+            output=trace,
+            max_iter=max_iters,
+            x_scale="jac",
+            iter_callback=budget,
+        )
+        stop = re.search(r"Terminated after \d+ iterations: ([^y]*)", trace.getvalue())
+        status = stop.group(1).strip() if stop else "unknown (no final message)"
+    except _BudgetSpent:
+        x = last[0]
+        status = f"NOT converged: stopped by the CPU budget of {budget_of[1]:g} s"
+    opt.update_from_vector(x)
+    return status
 
 
 def _servo_gains(model: mujoco.MjModel, joints: list[str]) -> dict[str, list[float]]:

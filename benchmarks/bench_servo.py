@@ -27,17 +27,22 @@ the truth's (1.00: as good as the truth).
     python benchmarks/bench_servo.py --robot so101 [--seeds 5] [--delay-ms 4]
 
 ``--peer sysid`` (the ``peers`` extra): the same episodes through mujoco.sysid at its best
-set-up (``bench_peers.run_sysid``: 0.5 s windows, positions and velocities in the residual,
-``x_scale='jac'``, run to its own convergence under ``--max-iters``), given the log ident
-reads, commanded and measured positions and no torque, of the identification part; its model
-is the simulator's class (``<position>`` servos with ``kp`` and ``kv`` fitted, the force range
-and the 2-sample delay given: sysid has no delay parameter), its parameters one log-Cholesky
-inertia per link, armature, damping, friction loss, ``kp`` and ``kv`` per joint, from each of
-``--sysid-starts`` (:data:`SYSID_STARTS`). Against ident's mass-scale, delay-scanned way, both
-scored by the held-out 1 s rollout over the truth's, with the process CPU time of each call.
+set-up found (``bench_peers.run_sysid``: 0.5 s windows, positions and velocities in the
+residual, ``x_scale='jac'``, run to its own convergence under ``--max-iters`` a stage),
+given the log ident reads, commanded and measured positions and no torque, of the
+identification part; its model is the simulator's class (``<position>`` servos, the force
+range and the 2-sample delay given: sysid has no delay parameter), its parameters one
+log-Cholesky inertia per link, armature, damping, friction loss per joint and the servos'
+``kp``, tied as ident's ``equal_kp`` with the velocity gain in the damping
+(:func:`sysid_case`; ``--sysid-per-joint-gains``: ``kp`` and ``kv`` per joint), in
+``--sysid-stages`` (default: the joint terms and gains with the links frozen, then
+everything), from each of ``--sysid-starts`` (:data:`SYSID_STARTS`). Against ident's
+mass-scale, delay-scanned way, both scored by the held-out 1 s rollout over the truth's, with
+the process CPU time of each call.
 
     PYTHONPATH=src python benchmarks/bench_servo.py --robot so101 --peer sysid [--seeds 5]
-        [--sysid-starts cad ident near-cad] [--max-iters 200] [--sysid-cpu-budget S]
+        [--seed-list 0 3] [--sysid-starts datasheet ident cad near-cad] [--max-iters 200]
+        [--sysid-cpu-budget S | --sysid-budget-x-ident F] [--sysid-velocity-weight 1]
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -296,18 +302,23 @@ def run_so101(seeds: int) -> None:
 IDENT_WAY = {"max_delay_s": 0.01, "equal_kp": EQUAL_KP}
 #: mujoco.sysid's rollout windows [s] (its best set-up, as in bench_peers.py).
 SYSID_WINDOW_S = 0.5
-#: mujoco.sysid's starts (``--sysid-starts``, bench_peers.SYSID_STARTS): ``cad``, the URDF's
-#: bodies with the joint terms off and the gains 1.5x the truth; ``ident``, ident's written
-#: model (bodies, joint terms, gains); ``near-cad``, the URDF's bodies, joint terms and gains
-#: 1.5x the truth.
-SYSID_STARTS = ("cad", "ident")
+#: mujoco.sysid's starts (``--sysid-starts``, bench_peers.SYSID_STARTS): ``datasheet``, the
+#: URDF's bodies, the armature and gains 1.5x the truth, no friction; ``ident``, ident's
+#: written model (bodies, joint terms, gains); ``cad``, the URDF's bodies with the joint terms
+#: off and the gains 1.5x; ``near-cad``, the URDF's bodies, joint terms and gains 1.5x.
+SYSID_STARTS = ("datasheet", "ident")
+#: Its stages (``--sysid-stages``, bench_peers.SYSID_STAGE_FREE).
+SYSID_STAGES = ("joints", "all")
 
 
-def sysid_case(result, robot: Robot, first: SimulatedLog) -> bench_peers.Case:
+def sysid_case(result, robot: Robot, first: SimulatedLog, tied: bool = True) -> bench_peers.Case:
     """The log ident read (``result.log``: measured and commanded positions of every episode,
     SI) as bench_peers.py's mujoco.sysid gets it: the identification part's samples
     (:func:`identification_ranges`: the held-out part and the trims left out), the servos'
-    force range and delay (its model class's, given) and true gains (its start, 1.5x)."""
+    force range and delay (its model class's, given) and true gains (its start, 1.5x);
+    ``tied``: the gains as ident's config has them (one ``kp`` per ``equal_kp`` group of
+    :data:`EQUAL_KP`, the velocity gain in the joint damping), else ``kp`` and ``kv`` per
+    joint."""
     log = result.log
     if tuple(log.joint_names) != tuple(robot.joint_names):
         raise ValueError(f"the log's joints {log.joint_names} are not the URDF's order")
@@ -321,19 +332,32 @@ def sysid_case(result, robot: Robot, first: SimulatedLog) -> bench_peers.Case:
         forcerange=float(SO101["forcerange"]),
         delay_steps=int(SO101["delay_steps"]),
     )
+    if tied:  # what ident's config knows: the servos of one setting, kd + fv
+        names = list(robot.joint_names)
+        servo.kp_groups = [[names.index(j) for j in group] for group in EQUAL_KP]
+        servo.fold_kv = True
     return bench_peers.Case("so101", SimpleNamespace(robot=robot), first, 0, servo)
 
 
-def run_so101_sysid(
-    seeds: int,
-    max_iters: int,
-    starts: tuple[str, ...] = SYSID_STARTS,
-    cpu_budget_s: float | None = None,
-) -> None:
-    """Per seed: ident (``IDENT_WAY``) and mujoco.sysid (bench_peers.py's best set-up,
-    :func:`sysid_case`) from each of ``starts`` on the same episodes, each scored by
-    the held-out 1 s rollout over the truth's (:func:`so101_rollout`), with its process CPU
-    time; one row per seed and sysid start."""
+@dataclass
+class SysidSetup:
+    """mujoco.sysid's set-up in ``--peer sysid`` (its command-line options): iteration cap a
+    stage, starts, stages, ``tied`` (:func:`sysid_case`) and its CPU budget: ``cpu_budget_s``
+    [s], or ``budget_x_ident`` times ident's CPU on the same seed (None: no budget)."""
+
+    max_iters: int = 200
+    starts: tuple[str, ...] = SYSID_STARTS
+    stages: tuple[str, ...] = SYSID_STAGES
+    tied: bool = True
+    cpu_budget_s: float | None = None
+    budget_x_ident: float | None = None
+    velocity_weight: float = 1.0
+
+
+def run_so101_sysid(seeds: list[int], setup: SysidSetup) -> None:
+    """Per seed: ident (``IDENT_WAY``) and mujoco.sysid (``setup``, :func:`sysid_case`) from
+    each of its starts on the same episodes, each scored by the held-out 1 s rollout over the
+    truth's (:func:`so101_rollout`), with its process CPU time; one row per seed and start."""
     if SO101.get("substeps", 1) != 1:
         raise SystemExit(
             "error: --peer sysid needs a delay of whole samples (--delay-ms 2, 4, ...)"
@@ -344,45 +368,69 @@ def run_so101_sysid(
         "| load |\n| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: |"
     )
     robot = Robot.from_urdf(make_so101.URDF)
-    joints = [f"j{j + 1}" for j in range(robot.nv)]
     with tempfile.TemporaryDirectory() as tmp:
-        folder = Path(tmp)
-        for seed in range(seeds):
-            load = os.getloadavg()[0]
-            logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1), SO101, fast=FAST)
-            make_so101.write(folder / "dataset", logs)
-            c0 = time.process_time()
-            result = identify(load_identify_config(so101_config(folder, IDENT_WAY)))
-            ident_cpu = time.process_time() - c0
-            case = sysid_case(result, robot, logs[0])
-            ident_model = bench_peers.ident_written_model(result)
-            runs = [
-                bench_peers.run_sysid(
-                    case,
-                    result.parameters,
-                    start=start,
-                    window_s=SYSID_WINDOW_S,
-                    max_iters=max_iters,
-                    ident_model=ident_model,
-                    cpu_budget_s=cpu_budget_s,
-                    scale=log_motion_scale(result),  # the rollout objective's
-                )
-                for start in starts
-            ]
-            peers = [
-                (bench_peers.model_mjcf(case, result.parameters, r.x), r.info["kp"]) for r in runs
-            ]
-            ours, *theirs = so101_rollout(result, folder / f"model-{seed}", tuple(peers))
-            ident_kp = worst(result.actuator.kp, SO101["kp"], joints)
-            for start, run, ratio in zip(starts, runs, theirs, strict=True):
-                print(
-                    f"| {seed} | {start} | {ours:.3f} | {ratio:.3g} | {ident_cpu:.1f} "
-                    f"| {run.cpu_s:.1f} | {run.cpu_s / ident_cpu:.1f} | {ident_kp} "
-                    f"| {worst(run.info['kp'], SO101['kp'], joints)} "
-                    f"| {run.info['iterations']}: {run.info['status']} | {load:.1f} |",
-                    flush=True,
-                )
-                print(f"  sysid ({start}): {run.note}", file=sys.stderr, flush=True)
+        for seed in seeds:
+            _sysid_seed(seed, Path(tmp), robot, setup)
+
+
+def _sysid_seed(seed: int, folder: Path, robot: Robot, setup: SysidSetup) -> None:
+    """One seed of :func:`run_so101_sysid`: its rows printed."""
+    joints = [f"j{j + 1}" for j in range(robot.nv)]
+    load = os.getloadavg()[0]
+    logs = make_so101.simulate_episodes(robot, (2 * seed, 2 * seed + 1), SO101, fast=FAST)
+    make_so101.write(folder / "dataset", logs)
+    c0 = time.process_time()
+    result = identify(load_identify_config(so101_config(folder, IDENT_WAY)))
+    ident_cpu = time.process_time() - c0
+    case = sysid_case(result, robot, logs[0], setup.tied)
+    ident_model = bench_peers.ident_written_model(result)
+    budget = setup.cpu_budget_s
+    if setup.budget_x_ident is not None:
+        budget = setup.budget_x_ident * ident_cpu
+    runs = [
+        bench_peers.run_sysid(
+            case,
+            result.parameters,
+            start=start,
+            window_s=SYSID_WINDOW_S,
+            max_iters=setup.max_iters,
+            ident_model=ident_model,
+            cpu_budget_s=budget,
+            stages=setup.stages,
+            velocity_weight=setup.velocity_weight,
+            scale=log_motion_scale(result),  # the rollout objective's
+        )
+        for start in setup.starts
+    ]
+    peers = [(bench_peers.model_mjcf(case, result.parameters, r.x), r.info["kp"]) for r in runs]
+    ours, *theirs = so101_rollout(result, folder / f"model-{seed}", tuple(peers))
+    ident_kp = worst(result.actuator.kp, SO101["kp"], joints)
+    for start, run, ratio in zip(setup.starts, runs, theirs, strict=True):
+        print(
+            f"| {seed} | {start} | {ours:.3f} | {ratio:.3g} | {ident_cpu:.1f} "
+            f"| {run.cpu_s:.1f} | {run.cpu_s / ident_cpu:.1f} | {ident_kp} "
+            f"| {worst(run.info['kp'], SO101['kp'], joints)} "
+            f"| {run.info['iterations']}: {run.info['status']} | {load:.1f} |",
+            flush=True,
+        )
+        print(f"  sysid ({start}): {run.note}", file=sys.stderr, flush=True)
+        print(f"  sysid ({start}) {joint_terms(result.parameters.names, run.x)}", file=sys.stderr)
+    pm, names = result.parameters, list(robot.joint_names)
+    ours_x = bench_peers.standard_from_mujoco(ident_model, pm, names)
+    print(f"  ident: {joint_terms(pm.names, ours_x)}", file=sys.stderr, flush=True)
+
+
+def joint_terms(names: list[str], x: np.ndarray) -> str:
+    """``Ia``, ``fv`` (``kd + fv``) and ``fs`` per joint of ``x`` over ``names``, over the
+    simulated servos' truth (armature, kv + damping, friction loss)."""
+    spec, found = SO101, dict(zip(names, np.asarray(x, dtype=float), strict=True))
+    truth = {"Ia": spec["armature"], "fv": np.add(spec["kv"], spec["damping"])}
+    truth["fs"] = spec["coulomb"]
+    return "; ".join(
+        f"{key}/truth "
+        + " ".join(f"{found.get(f'{key}{j + 1}', np.nan) / t[j]:.2f}" for j in range(len(t)))
+        for key, t in truth.items()
+    )
 
 
 def so101_row(result, ratio: float, seconds: float) -> str:
@@ -420,7 +468,7 @@ def main() -> None:
         "--sysid-starts",
         nargs="+",
         default=list(SYSID_STARTS),
-        choices=["cad", "ident", "near-cad"],
+        choices=["cad", "ident", "near-cad", "datasheet"],
         help="--peer sysid: its starting models",
     )
     parser.add_argument(
@@ -429,14 +477,49 @@ def main() -> None:
         default=None,
         help="--peer sysid: stop it after this many CPU seconds, reported as not converged",
     )
+    parser.add_argument(
+        "--sysid-budget-x-ident",
+        type=float,
+        default=None,
+        help="--peer sysid: its CPU budget, this many times ident's CPU on the seed",
+    )
+    parser.add_argument(
+        "--sysid-velocity-weight",
+        type=float,
+        default=1.0,
+        help="--peer sysid: the velocities' weight in its residual (0: positions only)",
+    )
+    parser.add_argument(
+        "--seed-list", type=int, nargs="+", default=None, help="these seeds (not --seeds)"
+    )
+    parser.add_argument(
+        "--sysid-stages",
+        nargs="+",
+        default=list(SYSID_STAGES),
+        choices=sorted(bench_peers.SYSID_STAGE_FREE),
+        help="--peer sysid: its stages, each from the previous one's stop",
+    )
+    parser.add_argument(
+        "--sysid-per-joint-gains",
+        action="store_true",
+        help="--peer sysid: kp and kv per joint (default: as ident's config, sysid_case)",
+    )
     args = parser.parse_args()
     if args.peer is not None and args.robot != "so101":
         parser.error("--peer sysid runs on --robot so101")
     if args.robot == "so101":
         set_delay(args.delay_ms)
         if args.peer == "sysid":
-            starts = tuple(args.sysid_starts)
-            run_so101_sysid(args.seeds, args.max_iters, starts, args.sysid_cpu_budget)
+            setup = SysidSetup(
+                max_iters=args.max_iters,
+                starts=tuple(args.sysid_starts),
+                stages=tuple(args.sysid_stages),
+                tied=not args.sysid_per_joint_gains,
+                cpu_budget_s=args.sysid_cpu_budget,
+                budget_x_ident=args.sysid_budget_x_ident,
+                velocity_weight=args.sysid_velocity_weight,
+            )
+            run_so101_sysid(args.seed_list or list(range(args.seeds)), setup)
         else:
             run_so101(args.seeds)
         return

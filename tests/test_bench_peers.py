@@ -9,6 +9,7 @@ missing; CI does not install the peers.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import sys
 from pathlib import Path
@@ -177,10 +178,12 @@ def test_duel_models_are_the_rollout_checks_and_score_truth_best(identified):
 
 
 def _record(seed, ident, sysid, load=2.0):
-    """A fake duel record: ``ident`` and ``sysid`` as (torque, base, rollout, cpu)."""
+    """A fake duel record: ``ident`` as (torque, base, rollout, cpu, refined rollout) and
+    ``sysid`` as (torque, base, rollout, cpu)."""
 
-    def row(t, b, r, cpu, **more):
-        return {"torque": t, "base": b, "rollout": r, "cpu_s": cpu, "refined_rollout": None, **more}
+    def row(t, b, r, cpu, refined=None, **more):
+        return {"torque": t, "base": b, "rollout": r, "cpu_s": cpu, "refined_rollout": refined,
+                **more}  # fmt: skip
 
     stop = {"iterations": 12, "status": "norm(dx) < tol."}
     return {
@@ -196,20 +199,21 @@ def _record(seed, ident, sysid, load=2.0):
 
 
 def test_duel_table_gives_medians_worst_and_the_targets():
-    """Median and worst over seeds per figure, the stop of sysid, the refined-model column
-    left as a hook, and the targets' verdict on the medians: a mean for the median, a best
-    for the worst, or a verdict on the worst seed would print other figures."""
+    """Median and worst over seeds per figure, the stop of sysid, ident's refined model's
+    rollout in its own column (a dash for a tool without one), and the targets' verdict on
+    the medians: a mean for the median, a best for the worst, or a verdict on the worst seed
+    would print other figures."""
     records = [
-        _record(0, (0.001, 0.01, 0.5, 2.0), (0.004, 0.02, 0.1, 100.0), load=1.5),
-        _record(1, (0.002, 0.02, 0.6, 3.0), (0.009, 0.05, 0.2, 200.0)),
-        _record(2, (0.009, 0.03, 0.9, 4.0), (0.010, 0.06, 0.3, 10.0), load=3.0),
+        _record(0, (0.001, 0.01, 0.5, 2.0, 0.4), (0.004, 0.02, 0.1, 100.0), load=1.5),
+        _record(1, (0.002, 0.02, 0.6, 3.0, 0.3), (0.009, 0.05, 0.2, 200.0)),
+        _record(2, (0.009, 0.03, 0.9, 4.0, 0.8), (0.010, 0.06, 0.3, 10.0), load=3.0),
     ]
     text = bench_peers.duel_table(records)
     assert (
-        "| ident | 0.0020 (0.0090) | 0.0200 (0.0300) | 0.6 (0.9) | not built | 3.0 (4.0) | - |"
+        "| ident | 0.0020 (0.0090) | 0.0200 (0.0300) | 0.6 (0.9) | 0.4 (0.8) | 3.0 (4.0) | - |"
         in text
     )
-    assert "| mujoco.sysid (cad) | 0.0090 (0.0100) | 0.0500 (0.0600) | 0.2 (0.3) |" in text
+    assert "| mujoco.sysid (cad) | 0.0090 (0.0100) | 0.0500 (0.0600) | 0.2 (0.3) | - |" in text
     assert "12: norm(dx) < tol." in text
     assert "3 seeds: 0, 1, 2" in text
     assert "load average at start 1.5-3.0" in text
@@ -418,3 +422,23 @@ def test_sysid_servo_setup_gets_the_commands_their_history_and_the_servo_class()
     gains = bench_peers._servo_gains(model, problem.joints)
     np.testing.assert_allclose(gains["kv"], spec["kv"])
     np.testing.assert_allclose(model.dof_damping, np.add(spec["kv"], spec["damping"]))
+    # ident's knowledge (bench_servo.sysid_case's set-up): one kp per servo setting, the
+    # velocity gain in the damping; the datasheet start: armature and gains 1.5x, no friction
+    tied = dataclasses.replace(servo, kp_groups=[[0, 1, 2], [3, 4]], fold_kv=True)
+    problem = bench_peers.sysid_problem(
+        dataclasses.replace(case, servo=tied), start="datasheet", window_s=0.5
+    )
+    assert not any(name.endswith("_kv") for name in problem.params.keys())
+    for k, j in enumerate(robot.joint_names):
+        start = {n: problem.params[f"{j}_{n}"].value[0] for n in ("armature", "damping")}
+        assert start["armature"] == pytest.approx(1.5 * spec["armature"][k])
+        assert start["damping"] == pytest.approx(1.5 * spec["kv"][k])
+        assert problem.params[f"{j}_frictionloss"].value[0] == 0.0
+    # the folded truth leaves kv out of the force range's clip: close, not the same class
+    assert problem.objective(problem.truth) < 2e-2 * problem.objective(problem.params)
+    group = problem.truth.copy()
+    group["+".join(robot.joint_names[:3]) + "_kp"].value = np.array([7.0])
+    model = sysid.apply_param_modifiers(group, problem.spec.copy())
+    gains = bench_peers._servo_gains(model, problem.joints)
+    np.testing.assert_allclose(gains["kp"], [7.0, 7.0, 7.0, *spec["kp"][3:]])
+    np.testing.assert_allclose(gains["kv"], 0.0)

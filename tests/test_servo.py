@@ -234,6 +234,14 @@ def test_delay_under_4096_ticks_is_the_planted_two_samples(ticked):
     assert len(fit.delay_candidates) > 5  # 0..4 and the refined one
     assert abs(fit.delay_samples - DELAY_STEPS) < 0.1, fit.delay_residuals
     np.testing.assert_allclose(fit.damping, KV + DAMPING, rtol=0.02)
+    # the refined delay's fit, mixed from its whole neighbours' reductions (between_delays),
+    # is the fit of the log at that delay given (the log's rows reduced at it directly)
+    given = cfg.actuator.model_copy(update={"delay": fit.delay_s})
+    _, _, direct = servo_fit.servo_log(cfg.model_copy(update={"actuator": given}), robot.model, log)
+    assert direct.delay_samples == pytest.approx(fit.delay_samples, abs=1e-12)
+    np.testing.assert_allclose(fit.kp, direct.kp, rtol=1e-9)
+    np.testing.assert_allclose(fit.damping, direct.damping, rtol=1e-9)
+    assert fit.relative_residual == pytest.approx(direct.relative_residual, rel=1e-9)
 
 
 def test_gains_from_the_urdf_gravity_load_under_4096_ticks(ticked):
@@ -279,9 +287,9 @@ def test_servo_log_without_torque_identifies_gains_delay_and_parameters(servo_lo
     estimates = []
     result = identify(load_identify_config(_config(folder, actuator)), on_estimate=estimates.append)
     fit = result.actuator
-    # the job's estimate counts the servo's fits: 5 delays, then 3 rounds of 3, and 4
-    # refinements of at most 17
-    assert any(e.what.endswith(", 82 servo fits first") for e in estimates)
+    # the job's estimate counts the servo's passes over the log: 5 delays, then 3 rounds of
+    # 3, and 4 refinements of 2 (the differences of the best delay's neighbours)
+    assert any(e.what.endswith(", 22 servo fits first") for e in estimates)
     errors = _errors(result, robot)
     report = ", ".join(f"{k} {v:.3f} %" for k, v in errors.items())
     print(f"servo fit (scale from {scale}): delay {fit.delay_samples} samples; {report}")

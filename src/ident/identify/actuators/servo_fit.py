@@ -29,7 +29,8 @@ those rows: its standard deviations give those of ``kp`` and ``kd + fv`` (``Z co
 
 The delay ``d`` (``actuator.delay: auto``): every whole number of samples within
 ``max_delay_s`` is fitted, then the best refined to a fraction of a sample (the command
-between samples linearly interpolated, :func:`~ident.dynamics.actuators.servo_error`), the
+between samples linearly interpolated, :func:`~ident.dynamics.actuators.servo_error`; a
+fraction's reduction mixed from its whole neighbours', :func:`between_delays`), the
 delay of the smallest residual kept (the scale is fixed the same way for every ``d``, so the
 residuals compare). A shift of one sample ``h`` changes ``kp e`` by about ``-kp h (dq +
 de/dt)``: its ``dq`` part is a change of ``kd`` by ``kp h``, so only the torque's rate of
@@ -53,6 +54,7 @@ import pinocchio as pin
 import scipy.linalg
 import scipy.optimize
 
+from ident.blas import one_blas_thread
 from ident.dynamics.actuators import saturated_samples, servo_error
 from ident.dynamics.chain import chain_from_model
 from ident.dynamics.parameter_model import ParameterModel, build_parameter_model
@@ -72,6 +74,7 @@ __all__ = [
     "MIN_SHARED_SHARE",
     "Scale",
     "ServoFit",
+    "between_delays",
     "gravity_rows",
     "kp_scale",
     "mass_scale",
@@ -576,6 +579,52 @@ def _kept(log: RobotLog, keep: BoolArray, min_run: int) -> RobotLog:
     )
 
 
+def between_delays(
+    red0: ReducedObservations, red1: ReducedObservations, gap: ReducedObservations, f: float
+) -> ReducedObservations:
+    """The reduction at the delay ``k + f`` (``0 <= f <= 1``) from those at ``k`` and ``k + 1``.
+
+    The error at a fraction of a sample mixes the two shifts, ``e = (1 - f) e_k + f e_k+1``
+    (:func:`~ident.dynamics.actuators.servo_error`), and every step of the reduction (filter,
+    decimation, rows kept, QR) is linear in ``e`` with the same ``W``. Any quadratic form
+    ``Q`` (``||y||^2``, the squared residual outside ``W``'s columns, or ``||W b - y||^2`` for
+    any ``b``) then mixes as ``Q(y) = (1 - f) Q(y_k) + f Q(y_k+1) - f (1 - f) Q(y_k - y_k+1)``.
+    So the rows of both reductions weighted by ``sqrt(1 - f)`` and ``sqrt(f)`` and merged
+    (:meth:`ReducedObservations.merge`: the normal equations ``R^T R``, ``R^T z``), with
+    ``||y||^2`` from that identity and the residual ``||y||^2 - ||z||^2`` (the part of ``z``
+    a rank-deficient ``R`` does not reach is residual too), are the reduction at ``k + f`` up
+    to round-off (the fit's quadratic form ``||R b - kp z||^2 + kp^2 rho``), without the
+    log's regressor again.
+
+    ``red0``, ``red1``: the reductions at ``k`` and ``k + 1`` (same rows); ``gap``: that of
+    ``e_k - e_k+1``.
+    """
+    a, b = 1.0 - f, f
+    part0 = dataclasses.replace(red0, R=np.sqrt(a) * red0.R, z=np.sqrt(a) * red0.z)
+    part1 = dataclasses.replace(red1, R=np.sqrt(b) * red1.R, z=np.sqrt(b) * red1.z)
+    merged = part0.merge(part1)  # its residual and ||y||^2 are replaced below
+    z, _ = _reached(merged)
+    rho0, rho1, rho_gap = (_reached(red)[1] + red.rho for red in (red0, red1, gap))
+    return ReducedObservations(
+        R=merged.R,
+        z=z,
+        rho=np.maximum(a * rho0 + b * rho1 - a * b * rho_gap, 0.0),
+        yty=np.maximum(a * red0.yty + b * red1.yty - a * b * gap.yty, 0.0),
+        n_rows=red0.n_rows.copy(),
+    )
+
+
+def _reached(red: ReducedObservations) -> tuple[FloatArray, FloatArray]:
+    """``z`` (n_groups, n) projected on the column space of each ``R`` (what ``R b`` can
+    reach; singular values above ``n eps`` of the largest) and the squared norm of the rest
+    (n_groups,): residual a rank-deficient group's reduction keeps in ``z``."""
+    U, sv, _ = np.linalg.svd(red.R)
+    reached = sv > sv[:, :1] * red.n_params * np.finfo(float).eps
+    Ur = U * reached[:, None, :]
+    z = np.einsum("gij,gkj,gk->gi", Ur, Ur, red.z)
+    return z, np.einsum("gi,gi->g", red.z - z, red.z - z)
+
+
 @dataclass(frozen=True, eq=False)
 class _ServoProblem:
     """One log's servo fit for any delay and set of kept samples (:func:`servo_log`)."""
@@ -600,9 +649,10 @@ class _ServoProblem:
         assert self.log.q_cmd is not None  # servo_log checks
         return servo_error(self.log.q, self.log.q_cmd, delay, self.log.segments)
 
-    def fit(self, delay: float, keep: BoolArray) -> _Fit:
-        """The scaled fit on the identification rows of the kept samples, ``e`` as torque."""
-        log = _kept(dataclasses.replace(self.log, tau=self.error(delay)), keep, self.min_run)
+    def reduce(self, e: FloatArray, keep: BoolArray) -> ReducedObservations:
+        """The identification rows of the kept samples reduced per joint with ``e``
+        (n_samples, nv) as the torque (a servo error, or a difference of two)."""
+        log = _kept(dataclasses.replace(self.log, tau=e), keep, self.min_run)
         n_base = self.columns.order.size
         chunked = log_chunks.plan_log(
             log,
@@ -611,30 +661,43 @@ class _ServoProblem:
             identify_fraction=self.identify_fraction,
             chunk_samples=log_chunks.segment_chunk_samples(log, self.pp, n_base),
         )
-        red = log_chunks.merged_rows(*log_chunks.reduce_log(chunked))
-        return scaled_fit(red, self.scale, self.method)
+        return log_chunks.merged_rows(*log_chunks.reduce_log(chunked))
+
+    def fit(self, delay: float, keep: BoolArray) -> _Fit:
+        """The scaled fit on the identification rows of the kept samples, ``e`` as torque."""
+        return scaled_fit(self.reduce(self.error(delay), keep), self.scale, self.method)
 
     def scan(
         self, delays: tuple[float, ...], keep: BoolArray, refine: bool = False
     ) -> tuple[float, dict[float, _Fit]]:
-        """Every delay's fit and the delay of the smallest residual; with ``refine``, that
-        delay to a fraction of a sample: the residual's minimum between the best whole
-        delay's neighbours (bounded Brent to :data:`DELAY_TOLERANCE` samples, at most
-        :data:`MAX_DELAY_REFINE` fits), its fit added to the scan's."""
-        fits = {float(d): self.fit(d, keep) for d in delays}
+        """Every delay's fit and the delay of the smallest residual; with ``refine`` (whole
+        ``delays``), that delay to a fraction of a sample: the residual's minimum between the
+        best whole delay's neighbours (bounded Brent to :data:`DELAY_TOLERANCE` samples, at
+        most :data:`MAX_DELAY_REFINE` fits), its fit added to the scan's. The fits between
+        two whole delays come from their reductions (:func:`between_delays`): one more
+        reduction per interval, of the difference of their errors, and none per fit."""
+        reds = {float(d): self.reduce(self.error(d), keep) for d in delays}
+        with one_blas_thread():  # small solves, SVDs: threads only spin (ident.blas)
+            fits = {d: scaled_fit(red, self.scale, self.method) for d, red in reds.items()}
         best = min(fits, key=lambda d: fits[d].residual_ss)
         if not refine or len(fits) < 2:
             return best, fits
+        lo, hi = max(best - 1.0, min(fits)), min(best + 1.0, max(fits))
+        gaps = {
+            k: self.reduce(self.error(k) - self.error(k + 1.0), keep) for k in np.arange(lo, hi)
+        }
         tried: dict[float, _Fit] = {}
 
         def residual(d: float) -> float:
-            tried[float(d)] = self.fit(float(d), keep)
+            k = float(min(np.floor(d), hi - 1.0))
+            red = between_delays(reds[k], reds[k + 1.0], gaps[k], float(d) - k)
+            tried[float(d)] = scaled_fit(red, self.scale, self.method)
             return tried[float(d)].residual_ss
 
-        bounds = (max(best - 1.0, min(fits)), min(best + 1.0, max(fits)))
         options = {"xatol": DELAY_TOLERANCE, "maxiter": MAX_DELAY_REFINE}
-        found = scipy.optimize.minimize_scalar(residual, bounds=bounds, method="bounded",
-                                               options=options)  # fmt: skip
+        with one_blas_thread():
+            found = scipy.optimize.minimize_scalar(residual, bounds=(lo, hi), method="bounded",
+                                                   options=options)  # fmt: skip
         d = float(found.x)
         fit = tried[d] if d in tried else self.fit(d, keep)
         if fit.residual_ss < fits[best].residual_ss:
@@ -668,7 +731,7 @@ def servo_fit_count(act: ActuatorSection, rate_hz: float) -> int:
     if act.kind != "position":
         return 0
     rounds = MAX_SATURATION_ROUNDS - 1 if act.forcerange is not None else 0
-    refine = MAX_DELAY_REFINE + 1 if act.delay == "auto" else 0
+    refine = 2 if act.delay == "auto" else 0  # the reductions of the two intervals' gaps
     return len(_delays(act, rate_hz)) + 3 * rounds + refine * (rounds + 1)
 
 
