@@ -252,13 +252,16 @@ def run_ident(case: Case) -> tuple[ToolRun, Any]:
     return ToolRun("ident", x, wall, peak, note, cpu_s=cpu), result
 
 
-def ident_refined_model(result: Any, truth_rollout: float) -> tuple[mujoco.MjModel, dict]:
+def ident_refined_model(
+    result: Any, rollout: float, truth_rollout: float
+) -> tuple[mujoco.MjModel, dict]:
     """ident's written model after ``refinement: rollout`` (its joints' frictionloss, damping
     and armature refined on rollouts of the identification part, accepted only when the
     held-out rollout objective and torque error do not get worse:
     :func:`ident.identify.refinement.rollout_refinement.refinement_entry`), loaded, and the
-    refinement's ``result.json`` entry (``cpu_s`` its CPU). ``truth_rollout``: the truth's
-    held-out objective, the entry's reference."""
+    refinement's ``result.json`` entry (``cpu_s`` its CPU). ``rollout``, ``truth_rollout``:
+    the held-out objectives of ident's written model and of the truth (the entry's reference),
+    scored by the caller on the same windows."""
     config = result.config.model_copy(update={"refinement": RefinementConfig(method="rollout")})
     refined = dataclasses.replace(result, config=config)
     with tempfile.TemporaryDirectory(prefix="bench-peers-refined-") as tmp:
@@ -266,9 +269,8 @@ def ident_refined_model(result: Any, truth_rollout: float) -> tuple[mujoco.MjMod
         if not entry["written"]:
             raise RuntimeError(f"ident wrote no model: {entry['note']}")
         mjcf = Path(tmp) / entry["files"]["mjcf"]
-        before = rollout_score(mjcf, *held_out_windows(result)).objective
-        rollout = {"objective": before, "reference": "truth", "reference_objective": truth_rollout}
-        refinement = refinement_entry(refined, Path(tmp), entry, rollout)
+        check = {"objective": rollout, "reference": "truth", "reference_objective": truth_rollout}
+        refinement = refinement_entry(refined, Path(tmp), entry, check)
         return mujoco.MjModel.from_xml_path(str(mjcf)), refinement
 
 
@@ -1023,7 +1025,9 @@ def duel_case(
         model = model_mjcf(case, pm, r.x) if model is None else model
         r.cpu_s = r.cpu_s if tool == "ident" else float("nan")
         rows[tool] = _row(case, pm, r, (measurements, windows, model))
-    refined_model, refinement = ident_refined_model(result, rows["truth"]["rollout"])
+    refined_model, refinement = ident_refined_model(
+        result, rows["ident"]["rollout"], rows["truth"]["rollout"]
+    )
     rows["ident"]["refined_rollout"] = rollout_score(refined_model, measurements, windows).objective
     rows["ident"]["refinement"] = {
         k: refinement.get(k) for k in ("accepted", "note", "iterations", "stop", "cpu_s")
