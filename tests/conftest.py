@@ -32,6 +32,8 @@ threadpool_limits(limits=1, user_api="blas")
 
 #: The xdist work unit of every test file that reads :func:`shipped_run`'s folders.
 SHIPPED_RUNS_UNIT = "tests/<files reading shipped runs>"
+#: The xdist work unit of the test files that read :func:`tiago_identified`.
+TIAGO_UNIT = "tests/<files reading the TIAGo identification>"
 
 
 class _ShippedRunsTogether(LoadFileScheduling):
@@ -43,7 +45,10 @@ class _ShippedRunsTogether(LoadFileScheduling):
 
     def _split_scope(self, nodeid: str) -> str:
         path = nodeid.split("::", 1)[0]
-        return SHIPPED_RUNS_UNIT if _reads_shipped_runs(path) else path
+        if _reads_shipped_runs(path):
+            return SHIPPED_RUNS_UNIT
+        # the readers of the TIAGo identification (a session fixture) on one worker too
+        return TIAGO_UNIT if _mentions(path, "tiago_identified") else path
 
     def _assign_work_unit(self, node: object) -> None:
         if SHIPPED_RUNS_UNIT in self.workqueue:
@@ -51,10 +56,14 @@ class _ShippedRunsTogether(LoadFileScheduling):
         super()._assign_work_unit(node)  # type: ignore[arg-type]
 
 
-@functools.cache
 def _reads_shipped_runs(path: str) -> bool:
+    return _mentions(path, "shipped_run")
+
+
+@functools.cache
+def _mentions(path: str, name: str) -> bool:
     file = REPO_ROOT / path
-    return file.suffix == ".py" and "shipped_run" in file.read_text(encoding="utf-8")
+    return file.suffix == ".py" and name in file.read_text(encoding="utf-8")
 
 
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> LoadFileScheduling | None:
@@ -130,6 +139,36 @@ def shipped_run(tmp_path_factory: pytest.TempPathFactory):
         return folder
 
     return run
+
+
+@pytest.fixture(scope="session")
+def tiago_identified(tmp_path_factory: pytest.TempPathFactory):
+    """``ident identify configs/examples/tiago.yaml --out TMP`` run once per test process for
+    the files that read it (tests/test_tiago_example.py, tests/test_one_std.py: each ran the
+    same identification, about 10 s of CPU): its terminal output, run folder, result.json and
+    the :class:`IdentifyResult` it computed."""
+    import json
+
+    from typer.testing import CliRunner
+
+    import ident.identify.pipeline.real
+    from ident.cli import app
+
+    out = tmp_path_factory.mktemp("tiago")
+    seen = []
+    original = ident.identify.pipeline.real.identify
+
+    def keep(*args, **kwargs):
+        seen.append(original(*args, **kwargs))
+        return seen[-1]
+
+    with pytest.MonkeyPatch.context() as mp:  # the CLI imports identify when it runs
+        mp.setattr(ident.identify.pipeline.real, "identify", keep)
+        config = REPO_ROOT / "configs" / "examples" / "tiago.yaml"
+        cli = CliRunner().invoke(app, ["identify", str(config), "--out", str(out)])
+    assert cli.exit_code == 0, cli.output
+    (folder,) = out.iterdir()
+    return cli.output, folder, json.loads((folder / "result.json").read_text()), seen[0]
 
 
 @pytest.fixture

@@ -7,15 +7,25 @@ on stderr, ``run.json`` status ``incomplete`` and the ``INCOMPLETE`` marker, no 
 The last run is the one whose files all appeared before the signal could be sent: it must have
 finished complete. Each write of ``ident.fileio`` is preceded by a short pause in the child so
 that the signal lands between the ``k``-th file and the next one.
+
+Each run is a process of its own, forked from a Python process (one per test process) that has
+imported ``ident.cli`` and the modules the commands import on their way (Pinocchio, SciPy,
+Matplotlib, MuJoCo, CVXPY: 4-5 s of CPU a fresh process paid at each of some 15 runs); the
+child runs the console entry point with the command's argv, cwd and environment, its stderr
+captured, and exits as a fresh interpreter would (the code of ``SystemExit``, 1 and a
+traceback for an uncaught exception, the signal's death once the command's handler is gone).
 """
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -24,8 +34,26 @@ ROOT = Path(__file__).resolve().parents[1]
 PAUSE_S = 0.15  # before each atomic write in the child
 #: Set, every test interrupts at every file (``every=1``), whatever its ``at`` and ``every``.
 EVERY_FILE_VARIABLE = "IDENT_SIGTERM_EVERY_FILE"
-_DRIVER = f"""
-import time
+#: What the commands import on their way, loaded once before the forks (a missing one is
+#: only not preloaded: the child imports what it needs, as a fresh process does).
+_PRELOAD = (
+    "scipy.signal",
+    "scipy.stats",
+    "matplotlib",
+    "mujoco",
+    "cvxpy",
+    "ident.run.pipeline",
+    "ident.run.setup",
+    "ident.run.exports.run_exports",
+    "ident.identify.pipeline.real",
+    "ident.identify.payload.payload",
+    "ident.report.run_report",
+    "ident.report.identify_report",
+    "ident.bench.campaign",
+    "ident.bench.report",
+)
+_ZYGOTE = f"""
+import importlib, json, os, sys, time
 import ident.fileio as fileio
 write = fileio._write_data
 def paused(file, data, path):
@@ -33,8 +61,103 @@ def paused(file, data, path):
     write(file, data, path)
 fileio._write_data = paused
 from ident.cli import main
-main()
+for name in {_PRELOAD!r}:
+    try:
+        importlib.import_module(name)
+    except ImportError:
+        pass
+def say(**fields):
+    sys.stdout.write(json.dumps(fields) + "\\n")
+    sys.stdout.flush()
+say(ready=True)
+for line in sys.stdin:
+    job = json.loads(line)
+    pid = os.fork()
+    if pid == 0:  # the command: an interpreter that ends as a fresh one would
+        os.chdir(job["cwd"])
+        null = os.open(os.devnull, os.O_RDWR)
+        err = os.open(job["stderr"], os.O_WRONLY | os.O_TRUNC)
+        os.dup2(null, 0)
+        os.dup2(null, 1)
+        os.dup2(err, 2)
+        os.close(null)
+        os.close(err)
+        sys.argv = ["-c", *job["args"]]
+        main()
+        sys.exit(0)
+    say(pid=pid)
+    say(code=os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))
 """
+
+
+class _Zygote:
+    """The preloaded Python process that forks each run (see the module's docstring)."""
+
+    def __init__(self) -> None:
+        env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "COLUMNS": "200"}
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", _ZYGOTE],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            env=env,
+            cwd=ROOT,
+        )
+        self._buffer = b""  # read from its stdout with os.read: select sees what is unread
+        self._code: int | None = None  # the last forked command's, once it ended
+        assert self._message(120.0) == {"ready": True}
+
+    def _message(self, timeout: float) -> dict | None:
+        """The next line of the process as JSON; None if none came within ``timeout`` s."""
+        assert self.proc.stdout is not None
+        fd = self.proc.stdout.fileno()
+        while b"\n" not in self._buffer:
+            if not select.select([fd], [], [], timeout)[0]:
+                return None
+            chunk = os.read(fd, 4096)
+            assert chunk, f"the forking process died (exit {self.proc.poll()})"
+            self._buffer += chunk
+        line, self._buffer = self._buffer.split(b"\n", 1)
+        return json.loads(line)
+
+    def start(self, args: list[str], cwd: Path, stderr: str) -> int:
+        """Fork ``ident ARGS`` in ``cwd``, its stderr into the file ``stderr``: its pid."""
+        assert self.proc.stdin is not None
+        job = {"args": args, "cwd": str(cwd), "stderr": stderr}
+        self.proc.stdin.write((json.dumps(job) + "\n").encode())
+        self.proc.stdin.flush()
+        self._code = None
+        message = self._message(120.0)
+        assert message is not None, "the forking process did not answer"
+        return int(message["pid"])
+
+    def finished(self, timeout: float = 0.0) -> bool:
+        """Whether the forked command has ended (within ``timeout`` s): then :attr:`code`."""
+        if self._code is None:
+            message = self._message(timeout)
+            if message is not None:
+                self._code = int(message["code"])
+        return self._code is not None
+
+    def code(self, timeout: float = 300.0) -> int:
+        """The forked command's exit code (negative: the signal that ended it)."""
+        assert self.finished(timeout), f"the command still runs after {timeout} s"
+        assert self._code is not None
+        return self._code
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait()
+
+
+_zygotes: list[_Zygote] = []
+
+
+def _zygote() -> _Zygote:
+    if not _zygotes or _zygotes[0].proc.poll() is not None:
+        _zygotes[:] = [_Zygote()]
+        atexit.register(_zygotes[0].close)
+    return _zygotes[0]
 
 
 def _files(folder: Path | None) -> list[Path]:
@@ -50,25 +173,20 @@ def _interrupt_at(
 ) -> tuple[int, str, Path | None, bool]:
     """Run once; SIGTERM when the folder holds ``before + k`` files. Returns the exit code,
     stderr, the folder and whether the signal was sent."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "COLUMNS": "200"}
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _DRIVER, *args],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        cwd=cwd,
-    )
-    sent = False
-    while proc.poll() is None:
-        if len(_files(find())) >= before + k:
-            proc.send_signal(signal.SIGTERM)
-            sent = True
-            break
-        # a walk of the folder each time: well within PAUSE_S, not a core of its own
-        time.sleep(0.02)
-    _, stderr = proc.communicate(timeout=300)
-    return proc.returncode, stderr, find(), sent
+    zygote = _zygote()
+    with tempfile.NamedTemporaryFile("r", prefix="ident-stderr-", encoding="utf-8") as err:
+        pid = zygote.start(args, cwd, err.name)
+        sent = False
+        while not zygote.finished():
+            if len(_files(find())) >= before + k:
+                os.kill(pid, signal.SIGTERM)
+                sent = True
+                break
+            # a walk of the folder each time: well within PAUSE_S, not a core of its own
+            time.sleep(0.02)
+        code = zygote.code()
+        stderr = err.read()
+    return code, stderr, find(), sent
 
 
 def sigterm_at_each_file(

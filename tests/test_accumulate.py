@@ -128,7 +128,15 @@ def test_tx40_chunked_equals_in_memory():
     cfg = load_identify_config(ROOT / "configs" / "tx40.yaml")
     # 12 000 samples in 5 chunks (as the constrained case below): the same number of chunk
     # boundaries as 30 000 in chunks of 6 000, each chunk still longer than the filter margins
-    cfg = cfg.model_copy(update={"log": cfg.log.model_copy(update={"max_samples": 12000})})
+    # No consistent model: it is solved from the estimate and normal equations compared here
+    # (the constrained case below compares a consistent estimate); its 30 bootstrap re-solves
+    # of 6 links were most of the test's CPU
+    cfg = cfg.model_copy(
+        update={
+            "log": cfg.log.model_copy(update={"max_samples": 12000}),
+            "urdf_update": cfg.urdf_update.model_copy(update={"model": "none"}),
+        }
+    )
     a = identify(cfg)
     pp = cfg.preprocess.model_copy(update={"chunked": "always", "chunk_samples": 2500})
     b = identify(cfg.model_copy(update={"preprocess": pp}))
@@ -225,6 +233,9 @@ def test_tx40_constrained_estimate_by_chunks_equals_in_memory():
         update={
             "log": cfg.log.model_copy(update={"max_samples": 12000}),
             "estimation": estimation,
+            # the model file's bootstrap intervals (30 re-solves) are not compared: the
+            # consistent estimate is, and the model is written from it
+            "urdf_update": cfg.urdf_update.model_copy(update={"model_bootstrap": 0}),
         }
     )
     a = identify(cfg)

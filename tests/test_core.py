@@ -45,8 +45,13 @@ def _with(cfg, **preprocess):
 )
 def test_chunked_equals_whole_log_for_every_chunk_size(filters):
     # whole log (one chunk per segment) against chunks from far below the filter margins to
-    # a few per log: the same estimate and the same reduced normal equations, 1e-9 relative
+    # a few per log: the same estimate and the same reduced normal equations, 1e-9 relative.
+    # No consistent model: it is solved from the reduction compared here, and its 30
+    # bootstrap re-solves were half of the test's CPU (36 -> 18 s for the four cases)
     cfg, log = _wide_log(trim_samples=5, **filters)
+    cfg = cfg.model_copy(
+        update={"urdf_update": cfg.urdf_update.model_copy(update={"model": "none"})}
+    )
     whole = identify_measurements(_with(cfg, chunked="never"), log)
     gram = np.einsum("gki,gkj->ij", whole.reduction.R, whole.reduction.R)
     rhs = np.einsum("gki,gk->i", whole.reduction.R, whole.reduction.z)

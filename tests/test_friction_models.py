@@ -239,6 +239,8 @@ def test_identify_with_friction_auto_picks_the_simulated_law(tmp_path, ur5):
         "model": {"offset": False, "rotor_inertia": False, "friction": "auto"},
         "estimation": {"method": "wls", "essential": {"enabled": False}},
         "validation": {"identify_fraction": 0.7},
+        # the model file's bootstrap intervals (30 re-solves) are not read here
+        "urdf_update": {"model_bootstrap": 0},
     }
     (tmp_path / "identify.yaml").write_text(yaml.safe_dump(sections))
     result = identify(load_identify_config(tmp_path / "identify.yaml"))

@@ -120,15 +120,10 @@ def test_without_the_bootstrap_the_ordinary_std_is_used_and_said(correlated):
 
 
 @pytest.fixture(scope="module")
-def tiago(tmp_path_factory):
-    """The shipped TIAGo example log identified once (about 2 s), and its report folder."""
-    from ident.identify.config import load_identify_config
-    from ident.identify.pipeline.real import identify
-    from ident.report.identify_report import write_identify_report
-
-    result = identify(load_identify_config(ROOT / "configs" / "examples" / "tiago.yaml"))
-    folder = tmp_path_factory.mktemp("tiago")
-    write_identify_report(result, folder, replay=False)
+def tiago(tiago_identified):
+    """The shipped TIAGo example log identified once, and its run folder (``ident identify``'s
+    report: tests/conftest.py, shared with tests/test_tiago_example.py)."""
+    _, folder, _, result = tiago_identified
     return result, folder
 
 

@@ -12,7 +12,6 @@ import pinocchio as pin
 import pytest
 from typer.testing import CliRunner
 
-import ident.identify.pipeline.real
 from ident.cli import app
 from ident.identify.estimation.consistency import pseudo_inertia_min_eigenvalue
 from ident.identify.model_files.files import reload_parity, write_model_files
@@ -26,22 +25,10 @@ ARM = ["arm_1_joint", "arm_2_joint", "arm_3_joint", "arm_4_joint"]  # the excite
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    """``ident identify configs/examples/tiago.yaml --out TMP``, and the result it computed."""
-    out = tmp_path_factory.mktemp("tiago")
-    seen = []
-    original = ident.identify.pipeline.real.identify
-
-    def keep(*args, **kwargs):
-        seen.append(original(*args, **kwargs))
-        return seen[-1]
-
-    with pytest.MonkeyPatch.context() as mp:  # the CLI imports identify when it runs
-        mp.setattr(ident.identify.pipeline.real, "identify", keep)
-        cli = CliRunner().invoke(app, ["identify", str(CONFIG), "--out", str(out)])
-    assert cli.exit_code == 0, cli.output
-    (folder,) = out.iterdir()
-    return cli.output, folder, json.loads((folder / "result.json").read_text()), seen[0]
+def run(tiago_identified):
+    """``ident identify configs/examples/tiago.yaml --out TMP``, and the result it computed
+    (tests/conftest.py: shared with tests/test_one_std.py)."""
+    return tiago_identified
 
 
 def test_tiago_held_out_residual_beats_the_urdf_nominal(run):
