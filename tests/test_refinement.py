@@ -322,3 +322,21 @@ def test_bench_refines_reference_stays_inside_every_limit_for_any_seed():
                 < 1e-9
             )
     assert scaled[6]  # seed 5: joint 7 under its 0.4 rad/s^2
+    # --periods sets the logged periods of the MuJoCo-native measurement, None keeps the config's
+    run = {"measurement": {"source": "mujoco", "n_periods": 3, "friction": {"coulomb": [1.0]}}}
+    assert bench.native_measurement(run)["n_periods"] == 3
+    native = bench.native_measurement(run, 12)
+    assert native["n_periods"] == 12
+    assert native["friction"]["semantics"] == "mujoco"
+    assert "source" not in native
+    assert run["measurement"]["n_periods"] == 3  # the config is not changed
+    # the regressor's distance to the truth over the held-out windows and its paired standard
+    # error: the same excess on every window is no error, whatever the windows' own spread;
+    # else std(model - truth) / sqrt(W) / mean(truth) (ddof 1), not the unpaired spread
+    truth = np.array([1.0, 2.0, 3.0, 6.0])
+    assert bench.paired_gap(truth + 0.3, truth) == pytest.approx((0.1, 0.0))
+    scaled_se = 0.1 * np.std(truth, ddof=1) / 2 / 3
+    assert bench.paired_gap(1.1 * truth, truth) == pytest.approx((0.1, scaled_se))
+    gap, se = bench.paired_gap(truth + np.array([0.3, -0.3, 0.3, -0.3]), truth)
+    assert gap == pytest.approx(0.0, abs=1e-15)
+    assert se == pytest.approx(np.sqrt(0.36 / 3) / 2 / 3)
