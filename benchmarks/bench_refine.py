@@ -15,10 +15,16 @@ robot and seed: the held-out rollout objective ``J`` of the truth, of the regres
 the refined one and of the written MJCF reloaded (the file carries what was scored), the
 refined one's distance to the truth's [%], the held-out torque errors before and after, whether
 the refinement was accepted, its training / held-out windows, iterations and CPU seconds (and
-the estimate); a NOTE when the held-out motion leaves a joint's range (:func:`outside_range`).
+the estimate); a NOTE when the held-out motion leaves a joint's range (:func:`outside_range`);
+the log's length, the regressor's distance to the truth over the held-out windows with the
+standard error of that paired difference (:func:`paired_gap`: how well the windows measure a
+5 % distance) and the row's process CPU.
 
     python benchmarks/bench_refine.py [--robots ur5 panda] [--seeds 0 1] [--amplitude 0.8]
+    python benchmarks/bench_refine.py --seeds 0 1 2 3 4 --periods 12 --keep runs/refine
     python benchmarks/bench_refine.py --seeds 0 1 2 3 4 --simulate-only --keep runs/refine
+
+(``--periods``: the logged 10 s periods, default the config's 3, so 30 s; 30 % held out.)
 
 (``--simulate-only``: the logs alone, each one's largest excursion past its joints' ranges
 and velocity limits printed, no identification; with ``--keep`` the bench reuses them.)
@@ -66,10 +72,13 @@ RANGE_MARGIN = 0.1
 LIMIT_FRACTION = 0.8
 
 
-def native_measurement(run: dict) -> dict:
-    """The run config's measurement, MuJoCo-native (friction loss through the solver)."""
+def native_measurement(run: dict, periods: int | None = None) -> dict:
+    """The run config's measurement, MuJoCo-native (friction loss through the solver), with
+    ``periods`` logged periods of :data:`PERIOD_S` (None: the config's ``n_periods``)."""
     m = {k: v for k, v in run["measurement"].items() if k != "source"}
     m["friction"] = {**m["friction"], "semantics": "mujoco"}
+    if periods is not None:
+        m["n_periods"] = periods
     return m
 
 
@@ -109,11 +118,13 @@ def truth_model(measurement: dict):
     return build
 
 
-def bench(name: str, folder: Path, seed: int, amplitude: float, refinement: dict) -> dict:
+def bench(
+    name: str, folder: Path, seed: int, amplitude: float, refinement: dict, periods: int | None
+) -> dict:
     """Simulate, identify, check and refine one robot; the refinement entry and timings."""
     run_path = ROOT / "configs" / f"{name}.yaml"
     run = yaml.safe_load(run_path.read_text())
-    measurement = native_measurement(run)
+    measurement = native_measurement(run, periods)
     t0 = time.process_time()
     if not (folder / "log.yaml").exists():  # --keep: a log simulated before is reused
         write_log(folder, _simulate(run_path, run, measurement, seed, amplitude))
@@ -126,9 +137,10 @@ def bench(name: str, folder: Path, seed: int, amplitude: float, refinement: dict
     rollout = rollout_check(
         result, folder / model["files"]["mjcf"], "truth", truth_model(measurement), offsets=offsets
     )
+    held = held_out_windows(result)
+    paired = paired_error(result, folder / model["files"]["mjcf"], measurement, held)
     entry = refinement_entry(result, folder, model, rollout)
     # the written MJCF reloaded, on the same (offset-free) held-out windows
-    held = held_out_windows(result)
     written = rollout_score(folder / model["files"]["mjcf"], *held).objective
     return {
         "entry": entry,
@@ -136,7 +148,29 @@ def bench(name: str, folder: Path, seed: int, amplitude: float, refinement: dict
         "t_sim": t_sim,
         "written_objective": written,
         "outside_range": outside_range(folder / model["files"]["mjcf"], held[0]),
+        "paired": paired,
+        "log_s": float(result.log.t[-1] - result.log.t[0]),
     }
+
+
+def paired_error(result, mjcf: Path, measurement: dict, held) -> dict[str, float]:
+    """The regressor's held-out ``J`` relative to the truth's, ``mean(J_reg) / mean(J_truth)
+    - 1``, and the standard error of that ratio from the windows' paired differences
+    ``J_reg,w - J_truth,w`` (their standard deviation over ``sqrt(W)``, over the truth's mean):
+    how well the held-out windows measure a model's distance to the truth."""
+    text, _, _ = truth_model(measurement)(load_robot(result.config.robot))
+    truth = rollout_score(mujoco.MjModel.from_xml_string(text), *held).per_window
+    gap, se = paired_gap(rollout_score(mjcf, *held).per_window, truth)
+    return {"gap": gap, "se": se, "windows": truth.size}
+
+
+def paired_gap(model: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """``mean(model) / mean(truth) - 1`` of two models' per-window ``J`` (W,) on the same
+    windows, and its standard error from the paired differences: ``std(model - truth)`` (W - 1
+    degrees of freedom) over ``sqrt(W) mean(truth)`` (the truth's mean taken as exact)."""
+    d = model - truth
+    se = float(np.std(d, ddof=1) / np.sqrt(d.size) / truth.mean())
+    return float(model.mean() / truth.mean() - 1.0), se
 
 
 def outside_range(mjcf: Path, measurements) -> dict[str, float]:
@@ -209,11 +243,11 @@ def _simulate(run_path: Path, run: dict, measurement: dict, seed: int, amplitude
     return simulate(robot, *reference, load_mujoco_measurement(measurement), rng=seed)
 
 
-def simulate_only(name: str, folder: Path, seed: int, amplitude: float) -> str:
+def simulate_only(name: str, folder: Path, seed: int, amplitude: float, periods: int | None) -> str:
     """Simulate (or reuse) one robot's log into ``folder``; the line of its limits' margins."""
     run_path = ROOT / "configs" / f"{name}.yaml"
     run = yaml.safe_load(run_path.read_text())
-    log = _simulate(run_path, run, native_measurement(run), seed, amplitude)
+    log = _simulate(run_path, run, native_measurement(run, periods), seed, amplitude)
     write_log(folder, log)
     excess = limit_excess(_robot(run_path, run), log.q_true, log.dq_true)
     q_worst = max(excess, key=lambda k: excess[k][0])
@@ -242,6 +276,13 @@ def _print_row(name: str, seed: int, got: dict) -> None:
         flush=True,
     )
     print(f"  {refinement_text(e)}", flush=True)
+    p = got["paired"]
+    print(
+        f"  log {got['log_s']:.0f} s; regressor vs truth on the {p['windows']} held-out "
+        f"windows {100 * p['gap']:+.1f} % (paired standard error {100 * p['se']:.1f} %); "
+        f"process CPU {got['t_total']:.1f} s",
+        flush=True,
+    )
     if got["outside_range"]:
         where = ", ".join(f"{k} by {v:.3g}" for k, v in got["outside_range"].items())
         print(f"  NOTE: the held-out motion leaves the joint range of {where}", flush=True)
@@ -260,6 +301,9 @@ def _arguments() -> argparse.Namespace:
     for key in ("max_windows", "max_iterations"):
         parser.add_argument(f"--{key.replace('_', '-')}", type=int, default=None)
     parser.add_argument("--prior-weight", type=float, default=None)
+    parser.add_argument(
+        "--periods", type=int, default=None, help="logged 10 s periods (default: the config's 3)"
+    )
     return parser.parse_args()
 
 
@@ -283,13 +327,19 @@ def main() -> None:
         for name in args.robots:
             with tempfile.TemporaryDirectory() as tmp:
                 folder = Path(tmp)
-                if args.keep is not None:  # <keep>/<robot>-seed<seed>
-                    folder = args.keep / f"{name}-seed{seed}"
+                if args.keep is not None:  # <keep>/<robot>-seed<seed>[-<periods>p]
+                    tail = "" if args.periods is None else f"-{args.periods}p"
+                    folder = args.keep / f"{name}-seed{seed}{tail}"
                     folder.mkdir(parents=True, exist_ok=True)
                 if args.simulate_only:
-                    print(simulate_only(name, folder, seed, args.amplitude), flush=True)
+                    print(
+                        simulate_only(name, folder, seed, args.amplitude, args.periods),
+                        flush=True,
+                    )
                     continue
-                got = bench(name, folder, seed, args.amplitude, refinement)
+                t0 = time.process_time()
+                got = bench(name, folder, seed, args.amplitude, refinement, args.periods)
+                got["t_total"] = time.process_time() - t0
             out[f"{name}-seed{seed}"] = got
             _print_row(name, seed, got)
     if args.json is not None:

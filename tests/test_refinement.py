@@ -322,3 +322,67 @@ def test_bench_refines_reference_stays_inside_every_limit_for_any_seed():
                 < 1e-9
             )
     assert scaled[6]  # seed 5: joint 7 under its 0.4 rad/s^2
+    # --periods sets the logged periods of the MuJoCo-native measurement, None keeps the config's
+    run = {"measurement": {"source": "mujoco", "n_periods": 3, "friction": {"coulomb": [1.0]}}}
+    assert bench.native_measurement(run)["n_periods"] == 3
+    native = bench.native_measurement(run, 12)
+    assert native["n_periods"] == 12
+    assert native["friction"]["semantics"] == "mujoco"
+    assert "source" not in native
+    assert run["measurement"]["n_periods"] == 3  # the config is not changed
+    # the regressor's distance to the truth over the held-out windows and its paired standard
+    # error: the same excess on every window is no error, whatever the windows' own spread;
+    # else std(model - truth) / sqrt(W) / mean(truth) (ddof 1), not the unpaired spread
+    truth = np.array([1.0, 2.0, 3.0, 6.0])
+    assert bench.paired_gap(truth + 0.3, truth) == pytest.approx((0.1, 0.0))
+    scaled_se = 0.1 * np.std(truth, ddof=1) / 2 / 3
+    assert bench.paired_gap(1.1 * truth, truth) == pytest.approx((0.1, scaled_se))
+    gap, se = bench.paired_gap(truth + np.array([0.3, -0.3, 0.3, -0.3]), truth)
+    assert gap == pytest.approx(0.0, abs=1e-15)
+    assert se == pytest.approx(np.sqrt(0.36 / 3) / 2 / 3)
+
+
+def test_bench_refine_bodies_moves_keep_every_body_consistent():
+    """benchmarks/bench_refine_bodies.py moves the MJCF's bodies: a body written into MuJoCo and
+    read back is the same body (mass, first and second moments about the frame, against
+    Pinocchio's inertia at the centre of mass), a consistent body is not changed by the
+    projection, and an inconsistent one (the triangle inequality broken) comes back with a
+    positive semi-definite pseudo-inertia, its consistent part kept (a clip of theta's
+    entries, or no projection, would fail)."""
+    import importlib
+    import sys
+
+    import pinocchio as pin
+
+    from ident.identify.estimation.consistency import pseudo_inertia
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    bodies = importlib.import_module("bench_refine_bodies")
+    rng = np.random.default_rng(3)
+    mj = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><joint type='hinge'/><inertial pos='0 0 0' mass='1' "
+        "diaginertia='1 1 1'/></body></worldbody></mujoco>"
+    )
+    for _ in range(3):
+        # a solid box (a body), turned and moved off the frame's origin
+        box = pin.Inertia.FromBox(rng.uniform(0.5, 2.0), *rng.uniform(0.02, 0.3, 3))
+        placement = pin.SE3(pin.rpy.rpyToMatrix(*rng.uniform(-3, 3, 3)), rng.normal(0, 0.1, 3))
+        inertia = placement.act(box)
+        theta = np.asarray(inertia.toDynamicParameters())  # [m, mc, Ixx Ixy Iyy Ixz Iyz Izz]
+        bodies.set_mj_inertial(mj, 1, theta)
+        np.testing.assert_allclose(bodies.mj_inertial(mj, 1), theta, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(mj.body_ipos[1], inertia.lever, atol=1e-12)
+        np.testing.assert_allclose(
+            np.sort(mj.body_inertia[1]), np.linalg.eigvalsh(inertia.inertia), rtol=1e-10
+        )
+        np.testing.assert_allclose(bodies.consistent(theta), theta, rtol=1e-10, atol=1e-12)
+        bad = theta.copy()
+        bad[4] += 3.0 * (theta[6] + theta[9])  # Ixx above Iyy + Izz: not a body
+        assert np.linalg.eigvalsh(pseudo_inertia(bad))[0] < -1e-3
+        fixed = bodies.consistent(bad)
+        lam = np.linalg.eigvalsh(pseudo_inertia(fixed))
+        assert lam[0] >= -1e-10 * lam[-1]
+        # the nearest such body: the positive eigenvalues are kept, the negative one set to 0
+        np.testing.assert_allclose(
+            lam[1:], np.linalg.eigvalsh(pseudo_inertia(bad))[1:], rtol=1e-9, atol=1e-12
+        )
