@@ -25,7 +25,8 @@ tenths of N*m, torque noise 1 % of each joint's RMS torque and 2^19-count encode
    chunk identified again), and ``ident fleet`` run on them in a child process: its wall
    time, the CPU time of the whole process tree (reading included), the throughput per core
    and the load average during the run.
-5. **Coverage and false alarms** (``--coverage-seeds N [--seed-start S] [--save-z F]``): ``N``
+5. **Coverage and false alarms** (``--coverage-seeds N [--seed-start S] [--save-z F]
+   [--sums-cache DIR]``): ``N``
    fleets of ``--units`` change-free units in this process: the share of the 95 % intervals
    holding the truth and the change-free windows' false-alarm rate at alpha 0.01 with its
    Wilson 95 % interval (all windows, the baseline's own, the later ones).
@@ -38,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import pickle
 import resource
 import subprocess
 import sys
@@ -339,6 +341,25 @@ def local_sums(sources: list, cols: FleetColumns, window_s: float) -> SimpleName
     return out
 
 
+def cached_sums(
+    args: argparse.Namespace, seed: int, sources: list, cols: FleetColumns
+) -> SimpleNamespace:
+    """:func:`local_sums` of one seed's fleet, kept in ``--sums-cache DIR`` (the simulation
+    and the rows are most of part 5's CPU: a change of the drift test is measured again on the
+    same fleets without them)."""
+    if args.sums_cache is None:
+        return local_sums(sources, cols, args.window)
+    f = args.sums_cache / f"seed{seed}-units{args.units}-{args.seconds:g}s-{args.window:g}w.pkl"
+    if f.exists():
+        with f.open("rb") as fh:
+            return pickle.load(fh)  # noqa: S301 (the benchmark's own files)
+    sums = local_sums(sources, cols, args.window)
+    args.sums_cache.mkdir(parents=True, exist_ok=True)
+    with f.open("wb") as fh:
+        pickle.dump(sums, fh)
+    return sums
+
+
 def seeds_case(args: argparse.Namespace) -> None:
     """Part 5: ``--coverage-seeds N`` fleets of ``--units`` change-free units (``--seconds``
     each; units, motions and noise drawn from each seed), in this process: the share of the
@@ -353,7 +374,7 @@ def seeds_case(args: argparse.Namespace) -> None:
         units = make_units(robot, meas, args.units, seed=1000 + seed)
         sources = [unit_log(u, names, args.seconds, 10_000 * seed + k) for k, u in enumerate(units)]
         _, kappa, scaled, tests = reported(
-            local_sums(sources, cols, args.window), cols, args.baseline
+            cached_sums(args, seed, sources, cols), cols, args.baseline
         )
         got = coverage(scaled, cols, units, None)
         inside += got
@@ -491,6 +512,7 @@ def main() -> None:
     parser.add_argument("--coverage-seeds", type=int, default=0, help="part 5: N fleets")
     parser.add_argument("--seed-start", type=int, default=0, help="part 5: first seed")
     parser.add_argument("--save-z", type=Path, default=None, help="part 5: z values to npz")
+    parser.add_argument("--sums-cache", type=Path, default=None, help="part 5: fleets' sums here")
     parser.add_argument("--distinct", type=int, default=3, help="distinct logs per unit (part 4)")
     parser.add_argument("--npz", type=Path, default=None, help="run `ident fleet` on npz logs here")
     args = parser.parse_args()
