@@ -236,7 +236,8 @@ def detection(tests: list, args: argparse.Namespace) -> None:
     for t in hits:
         print(
             f"  rise window at {t.time_s:.0f} s ({t.duration_s:.0f} s): rise {100 * t.rise:+.2f} "
-            f"+- {100 * t.std:.2f} %, z {t.z:.1f} -> {'DETECTED' if t.z > thr else 'missed'}"
+            f"+- {100 * t.std:.2g} % (t {t.rise / t.std:.4g}, {t.df} degrees of freedom), "
+            f"z {t.z:.1f} -> {'DETECTED' if t.z > thr else 'missed'}"
         )
     print(
         f"  false alarms: {fa} of {len(clean)} change-free windows "
