@@ -12,15 +12,39 @@ flagged when ``T_u`` exceeds the ``chi^2(k)`` quantile of ``alpha``: a false-ala
 
 **Across time** (:func:`window_tests`). With the shared parameters fixed at the fleet's, a
 window's rows give the unit's local parameters ``phi_w`` (friction and offsets, per joint:
-the rows of different joints share no local column), covariance ``N_w^-1 sigma_j^2``. The
-unit's *baseline* ``phi_0`` comes from its windows that start within the first ``baseline_s``
-seconds of its motion (a baseline window is compared with the baseline without it). A friction
-rise by a factor ``1 + s`` moves ``d = phi_w - phi_0`` along ``g`` (``phi_0``'s friction
-entries); with ``D = C_w + C_0`` (the two estimates are independent) and the offsets left free
-(the friction entries' marginal), ``s = g^T D^-1 d / g^T D^-1 g``, ``std(s) = (g^T D^-1
-g)^-1/2`` and ``z = s / std(s)`` is standard normal without a change. One-sided test: alarm
-when ``z > z_alpha``, ``z_alpha`` the standard normal quantile of ``1 - alpha``: ``alpha`` of
-the change-free windows alarm.
+the rows of different joints share no local column), covariance ``N_w^-1 kappa_j
+sigma_j^2``. The unit's *baseline* ``phi_0`` comes from its windows that start within the
+first ``baseline_s`` seconds of its motion (a baseline window is compared with the baseline
+without it). A friction rise by a factor ``1 + s`` moves ``d = phi_w - phi_0`` along ``g``
+(``phi_0``'s friction entries); with ``D = C_w + C_0`` (the two estimates are independent) and
+the offsets left free (the friction entries' marginal), ``s = h^T d`` with ``h = D^-1 g / g^T
+D^-1 g`` (GLS), ``var(s) = h^T D h``.
+
+**The rise's own scale, per unit** (:func:`_calibration`). ``D`` holds the fleet's noise
+factor ``kappa_j``, a median over the units; a unit's own factor is not the fleet's: on the
+simulated UR5 the units' scatter ratios on the joints whose noise is mostly the encoder's
+quantization (through ``ddq``) vary 2-3 times more between units than a common factor allows
+(the share of quantization in a joint's residual, and how much of it reaches the friction,
+depend on the unit's motion), so with one factor for all ``z = s / std(s)`` is a scale mixture
+of normals: its standard deviation above 1 (the median unit's factor is below the mean of the
+units'), its tail heavier, the false-alarm rate above ``alpha``. So the rise's variance is
+measured on the unit's own reference windows ``r`` (the baseline's, without the tested
+window), in the test's own direction: ``y_r = h^T phi_r`` are independent with variances
+``rho v_r``, ``v_r = h^T C_r h``, and ``sum_r (y_r - y)^2 / v_r`` (``y`` their
+``1 / v_r``-weighted mean) is ``rho chi^2(df)``, ``df`` = reference windows - 1. That scatter
+is independent of the reference's pool (the deviations from a weighted mean are uncorrelated
+with it when the windows' rows are alike, as a routine motion's are) and of the tested window,
+so ``t = s / (std(s) sqrt(rho))`` is Student-t with ``df`` degrees of freedom without a change:
+exactly, for Gaussian noise, with the unit's factor and the fleet's estimation noise both
+accounted for. ``z`` is ``t``'s normal score (the standard normal quantile of its probability),
+standard normal without a change, and the alarm is ``z > z_alpha`` (``z_alpha`` the standard
+normal quantile of ``1 - alpha``): at most ``alpha`` of the change-free windows alarm, the
+windows after the baseline as well as the baseline's own (sharing a baseline and its ``rho``
+makes a unit's windows' alarms correlated, not more frequent). The price: a rise must exceed
+the t quantile instead of the normal one (2.33 -> 3.75 standard deviations at ``df`` 4, 2.82
+at 9); a window with fewer than two reference windows is not tested. Where one factor per
+joint suffices, the fleet's kappa alone with a per-joint Student-t gives no exact law: the
+joints' factors estimated apart reweigh the joints by their own noise (tails heavier than t).
 
 **The windows' noise factor** (:func:`window_factors`). ``C_w = N_w^-1 sigma_j^2`` holds for
 independent rows; the rows' noise is not independent: the low-pass correlates neighbouring
@@ -32,8 +56,9 @@ the motion's slow frequencies, so it moves the friction far less than its share 
 (phi_w - phi) C_w^-1 (phi_w - phi)`` (``phi`` the windows' pooled estimate) is ``kappa_j
 chi^2(k (W - 1))`` for ``W`` windows and ``k`` local parameters of the joint, and ``kappa_j``
 is the median over the units of ``Q`` over that law's median (one unit's change does not move
-it). The tests use ``kappa_j sigma_j^2``: an error common to every window cancels between a
-window and the baseline as it does in the scatter.
+it; each unit's ratio has median ``kappa_j`` whatever its ``W``, so the median over the units
+is consistent where the units share a factor). In the tests ``kappa_j`` sets the joints'
+relative weights; the scale is the unit's own (above).
 """
 
 from __future__ import annotations
@@ -42,7 +67,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from scipy.special import ndtri_exp
 from scipy.stats import chi2, norm
+from scipy.stats import t as student_t
 
 from ident.identify.streaming.fleet import FleetColumns, FleetSolution, WindowSums
 
@@ -169,8 +196,11 @@ def _minus(a: WindowSums, b: WindowSums) -> WindowSums:
 @dataclass(frozen=True)
 class WindowTest:
     """One window's rise test: ``time_s`` its start in the unit's motion time [s], ``rise``
-    the relative friction rise ``s`` (NaN when not tested), ``std`` its standard deviation,
-    ``z`` the statistic, ``per_joint`` the per-joint rises (NaN where not tested)."""
+    the relative friction rise ``s`` (NaN when not tested), ``std`` its standard deviation
+    (calibrated on the unit's baseline windows), ``z`` the statistic (the normal score of the
+    rise's Student-t probability: standard normal without a change), ``df`` the calibration's
+    degrees of freedom (0 when not tested), ``per_joint`` the per-joint rises (NaN where not
+    tested)."""
 
     time_s: float
     duration_s: float
@@ -179,34 +209,67 @@ class WindowTest:
     z: float
     per_joint: tuple[float, ...]
     baseline: bool
+    df: int = 0
 
 
-def _rise(d: FloatArray, D: FloatArray, g: FloatArray) -> tuple[float, float]:
-    """GLS scale ``s`` of ``d ~ s g`` under covariance ``D`` and its standard deviation."""
+def _rise(d: FloatArray, D: FloatArray, g: FloatArray) -> tuple[float, FloatArray]:
+    """GLS scale ``s`` of ``d ~ s g`` under covariance ``D`` and the functional ``h`` with
+    ``s = h^T d`` (``var(s) = h^T D h = 1 / g^T D^-1 g``); NaN when ``g`` carries no
+    information."""
     scale = np.sqrt(np.clip(np.diag(D), 1e-300, None))
     Ds = D / np.outer(scale, scale)
     Pg = np.linalg.solve(Ds, g / scale) / scale
     info = float(g @ Pg)
     if not info > 0:
-        return float("nan"), float("nan")
-    return float(Pg @ d) / info, 1.0 / np.sqrt(info)
+        return float("nan"), np.full(g.size, np.nan)
+    return float(Pg @ d) / info, Pg / info
+
+
+Estimate = tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]
 
 
 def _test(
-    phi0: FloatArray, C0: FloatArray, phi: FloatArray, C: FloatArray, cols: FleetColumns
-) -> tuple[float, float, tuple[float, ...]]:
-    """``(s, std, per-joint s)`` of a window against the baseline (module docstring)."""
+    ref: Estimate, refs: list[Estimate], est: Estimate, cols: FleetColumns
+) -> tuple[float, float, float, int, tuple[float, ...]]:
+    """``(s, std, z, df, per-joint s)`` of a window's estimate ``est`` against the reference
+    ``ref`` (the pool of the windows ``refs``; module docstring): ``s`` the GLS rise with the
+    fleet's noise, ``std`` its standard deviation times ``sqrt(rho)``, the unit's own factor
+    in that direction measured on ``refs`` (:func:`_calibration`), ``z`` the normal score of
+    ``s / std``'s Student-t probability with ``df`` degrees of freedom."""
+    (phi0, C0, _), (phi, C, _) = ref, est
     fric = np.array([k in ("fv", "fs") for k in cols.kind]) & np.isfinite(phi) & np.isfinite(phi0)
+    nan = float("nan")
     if not fric.any():
-        return float("nan"), float("nan"), ()
+        return nan, nan, nan, 0, ()
     i = np.flatnonzero(fric)
     d, D, g = (phi - phi0)[i], (C + C0)[np.ix_(i, i)], phi0[i]
-    s, std = _rise(d, D, g)
+    s, h = _rise(d, D, g)
     per_joint = []
     for j in sorted(set(cols.owner.tolist())):
         k = np.flatnonzero(cols.owner[i] == j)
-        per_joint.append(_rise(d[k], D[np.ix_(k, k)], g[k])[0] if k.size else float("nan"))
-    return s, std, tuple(per_joint)
+        per_joint.append(_rise(d[k], D[np.ix_(k, k)], g[k])[0] if k.size else nan)
+    rho, df = _calibration(h, i, refs)
+    if not (np.isfinite(s) and rho > 0):
+        return nan, nan, nan, 0, tuple(per_joint)
+    std = float(np.sqrt(h @ D @ h * rho))
+    return s, std, float(-ndtri_exp(student_t.logsf(s / std, df))), df, tuple(per_joint)
+
+
+def _calibration(h: FloatArray, i: npt.NDArray[np.intp], refs: list[Estimate]) -> tuple[float, int]:
+    """``(rho, df)``: the reference windows' rise functional ``y_r = h^T phi_r[i]`` (variance
+    ``v_r = h^T C_r h`` with the fleet's noise) scattered about its weighted mean, ``rho =
+    sum_r (y_r - y) ^2 / v_r / df`` with ``df`` = those windows - 1 (module docstring);
+    ``(NaN, 0)`` with fewer than two."""
+    y, v = [], []
+    for phi, C, _ in refs:
+        if np.all(np.isfinite(phi[i])):
+            y.append(float(h @ phi[i]))
+            v.append(float(h @ C[np.ix_(i, i)] @ h))
+    y_, v_ = np.array(y), np.array(v)
+    if y_.size < 2 or not np.all(v_ > 0):
+        return float("nan"), 0
+    mean = np.sum(y_ / v_) / np.sum(1 / v_)
+    return float(np.sum((y_ - mean) ** 2 / v_)) / (y_.size - 1), y_.size - 1
 
 
 def window_tests(
@@ -220,32 +283,27 @@ def window_tests(
     """Every window of one unit tested against the unit's baseline (module docstring).
 
     ``offsets``: per log of the unit, its start in the unit's motion time [s] (the logs one
-    after the other); ``sigma`` (nv,) the unit's noise per joint [N*m] (the fleet solve's).
+    after the other); ``sigma`` (nv,) the unit's noise per joint [N*m] (the fleet solve's
+    times ``sqrt(kappa_j)``). A window is not tested (NaN) when fewer than two baseline
+    windows other than itself estimate its friction (nothing to calibrate on).
     """
     start = [offsets[w.log] + w.t0 for w in windows]
     base = [w for w, t in zip(windows, start, strict=True) if t < baseline_s] or windows[:1]
     total = _sum(base)
-    phi0, C0, _ = window_local(total, x_S, sigma, cols)
+    whole = window_local(total, x_S, sigma, cols)
+    each = {id(b): window_local(b, x_S, sigma, cols) for b in base}
     out = []
     for w, t in zip(windows, start, strict=True):
-        in_base = any(w is b for b in base)
-        s = std = float("nan")
+        in_base = id(w) in each
+        refs = [e for b, e in each.items() if b != id(w)]
+        s = std = z = float("nan")
+        df = 0
         per_joint: tuple[float, ...] = ()
-        if not (in_base and len(base) == 1):  # a lone baseline window has nothing to meet
-            ref = window_local(_minus(total, w), x_S, sigma, cols) if in_base else (phi0, C0)
-            phi, C, _ = window_local(w, x_S, sigma, cols)
-            s, std, per_joint = _test(ref[0], ref[1], phi, C, cols)
-        out.append(
-            WindowTest(
-                time_s=t,
-                duration_s=w.t1 - w.t0,
-                rise=s,
-                std=std,
-                z=s / std if std > 0 else float("nan"),
-                per_joint=per_joint,
-                baseline=in_base,
-            )
-        )
+        if len(refs) >= 2:  # the rise's own scatter needs two reference windows
+            ref = window_local(_minus(total, w), x_S, sigma, cols) if in_base else whole
+            est = each[id(w)] if in_base else window_local(w, x_S, sigma, cols)
+            s, std, z, df, per_joint = _test(ref, refs, est, cols)
+        out.append(WindowTest(t, w.t1 - w.t0, s, std, z, per_joint, in_base, df))
     return out
 
 
@@ -267,5 +325,6 @@ def fleet_window_tests(
 
 
 def rise_threshold(alpha: float) -> float:
-    """The one-sided alarm threshold on ``z``: the standard normal quantile of ``1 - alpha``."""
+    """The one-sided alarm threshold on ``z``: the standard normal quantile of ``1 - alpha``
+    (``z`` is a normal score: the Student-t law of the calibrated rise is in it)."""
     return float(norm.isf(alpha))

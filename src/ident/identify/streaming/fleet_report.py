@@ -110,14 +110,14 @@ def _across(sol: FleetSolution, cols: FleetColumns, names: list[str], alpha: flo
 
 
 def _windows_csv(names: list[str], tests: list[list[WindowTest]], threshold: float) -> str:
-    lines = ["unit,start_s,duration_s,baseline,rise_pct,rise_std_pct,z,alarm,per_joint_rise_pct"]
+    lines = ["unit,start_s,duration_s,baseline,rise_pct,rise_std_pct,z,df,alarm,per_joint_rise_pct"]
     for n, unit in zip(names, tests, strict=True):
         for w in unit:
             joints = " ".join(f"{100 * r:.3f}" for r in w.per_joint)
             alarm = bool(np.isfinite(w.z) and w.z > threshold)
             lines.append(
                 f"{n},{w.time_s:.3f},{w.duration_s:.3f},{w.baseline},{100 * w.rise:.4f},"
-                f"{100 * w.std:.4f},{w.z:.3f},{alarm},{joints}"
+                f"{100 * w.std:.4f},{w.z:.3f},{w.df},{alarm},{joints}"
             )
     return "\n".join(lines) + "\n"
 
@@ -155,7 +155,12 @@ def fleet_report(
     drift = {
         "across_units": _across(sol, cols, names, alpha),
         "across_time": {
-            "test": "one-sided z of the window's friction rise against the unit's baseline",
+            "test": (
+                "one-sided z of the window's friction rise against the unit's baseline: the "
+                "normal score of the rise over its standard deviation calibrated on the unit's "
+                "own baseline windows (Student t, their number - 1 degrees of freedom); a window "
+                "with fewer than 2 baseline windows other than itself is not tested"
+            ),
             "false_alarm_per_window": alpha,
             "window_noise_factor": _factors(kappa, kappa_units),
             "threshold_z": threshold,
