@@ -297,12 +297,23 @@ def test_unit_outliers_flags_the_unit_off_the_fleets_spread(setup: tuple) -> Non
     assert flagged == [7]
 
 
-def test_bad_config_one_error_line_nothing_written(tmp_path: Path) -> None:
-    """A unit's missing log: one `error:` line naming the file and the key, exit 2."""
+@pytest.mark.parametrize(
+    ("fleet", "key"),
+    [
+        ({}, "units[0].logs[0]"),
+        # two baseline windows: neither could be calibrated on two others (the drift test
+        # would silently test nothing in the baseline)
+        ({"window_s": 60.0, "baseline_s": 120.0}, "fleet.baseline_s = 120 s"),
+    ],
+)
+def test_bad_config_one_error_line_nothing_written(tmp_path: Path, fleet: dict, key: str) -> None:
+    """A unit's missing log, a baseline shorter than 3 windows: one `error:` line naming the
+    file and the key, exit 2."""
     cfg = {
         "robot": {"urdf": str(REPO / "robot/urdf/ur5.urdf")},
         "log": {"time": {"column": "t"}, "position": {"columns": ["q/0"]}},
         "units": [{"name": "u1", "logs": ["missing.npz"]}],
+        "fleet": fleet,
     }
     path = tmp_path / "fleet.yaml"
     path.write_text(yaml.safe_dump(cfg))
@@ -312,7 +323,7 @@ def test_bad_config_one_error_line_nothing_written(tmp_path: Path) -> None:
     lines = res.output.strip().splitlines()
     assert len(lines) == 1
     assert lines[0].startswith("error: ")
-    assert "units[0].logs[0]" in lines[0]
+    assert key in lines[0]
     assert "fleet.yaml" in lines[0]
     assert not out.exists()
 
@@ -365,7 +376,7 @@ def test_cli_on_npz_logs_through_a_scheduler_address(setup: tuple, tmp_path: Pat
             "torque": {"columns": [f"tau/{j}" for j in range(6)]},
         },
         "units": {"folder": ".", "glob": "u*.npz"},
-        "fleet": {"window_s": 15.0, "baseline_s": 15.0},
+        "fleet": {"window_s": 10.0, "baseline_s": 30.0},
     }
     with distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as lc:
         cfg["fleet"]["scheduler"] = lc.scheduler_address

@@ -139,6 +139,23 @@ def _expand(units: list[UnitEntry] | UnitFolder, base: Path, path: Path) -> list
     return out
 
 
+#: Baseline windows the drift test needs: a baseline window is calibrated on the two others.
+MIN_BASELINE_WINDOWS = 3
+
+
+def _check_baseline(fleet: FleetSection, path: Path) -> None:
+    """Refuse a baseline too short for the friction-over-time test: each window's rise is
+    scaled by the scatter of at least two other baseline windows, so a baseline of fewer than
+    :data:`MIN_BASELINE_WINDOWS` windows would leave its own windows (or every window) untested."""
+    if fleet.baseline_s < MIN_BASELINE_WINDOWS * fleet.window_s:
+        raise ConfigError(
+            f"{path}: fleet.baseline_s = {fleet.baseline_s:g} s holds fewer than "
+            f"{MIN_BASELINE_WINDOWS} windows of fleet.window_s = {fleet.window_s:g} s (the drift "
+            "test calibrates each window on two others of the baseline); set baseline_s to at "
+            f"least {MIN_BASELINE_WINDOWS * fleet.window_s:g} s or shorten window_s."
+        )
+
+
 def load_fleet_config(path: str | Path) -> FleetConfig:
     """Load an ``ident fleet`` config; paths made absolute, the units' files checked.
 
@@ -157,6 +174,7 @@ def load_fleet_config(path: str | Path) -> FleetConfig:
         )
     if isinstance(cfg.units, list) and not cfg.units:
         raise ConfigError(f"{path}: units: no unit; list at least one (or give folder and glob).")
+    _check_baseline(cfg.fleet, path)
     robot = cfg.robot.resolved(base)
     if not robot.path.exists():
         key = "robot.urdf" if robot.urdf is not None else "robot.description"
