@@ -1,5 +1,7 @@
 """ident.signals.sosfiltfilt: scipy's sosfiltfilt(sos, x, axis=0)[::step], compiled."""
 
+import tracemalloc
+
 import numpy as np
 import pytest
 from scipy import signal
@@ -92,6 +94,31 @@ def test_stream_equals_the_whole_signal(sos, n, step, sizes):
         np.testing.assert_allclose(y, whole, rtol=0, atol=1e-13 * np.abs(whole).max())
     # the pieces do not matter, only the block
     np.testing.assert_array_equal(_pushed(ZeroPhaseStream(sos, 3, step), x, [n // 3, 5]), y)
+
+
+def test_stream_buffer_grows_with_the_signal_not_the_filter():
+    """A slow filter's block is long (here 219 372 rows + a 54 843-row warm-up): a signal
+    shorter than it is filtered exactly as scipy does while the buffer grows past its first
+    65 536 rows, and a filter whose decay is millions of rows (the anti-aliasing filter of a
+    decimation by 10^6) takes for a 500-row signal what measuring its decay takes, not its
+    block's 6 GB."""
+    sos = signal.butter(4, 0.0005, output="sos")
+    x = np.random.default_rng(5).normal(size=(150_000, 2)).cumsum(axis=0)
+    stream = ZeroPhaseStream(sos, 2, 3)
+    assert stream.block + stream.warm_up > len(x) > 2 * 65_536  # grown twice, one pass
+    np.testing.assert_array_equal(_pushed(stream, x, [70_000, 1]), sosfiltfilt(sos, x, 3))
+    slow = signal.cheby1(8, 0.05, 0.8 / 1e6, output="sos")
+    short = np.random.default_rng(6).normal(size=(500, 36))
+    tracemalloc.start()
+    stream = ZeroPhaseStream(slow, 36, 1000)
+    y = _pushed(stream, short, [200])
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert stream.block > 10_000_000
+    # the impulse response measuring the decay (4.2e6 samples) ~120 MB; the whole block would
+    # be 36 columns x 2.1e7 rows x 8 bytes = 6 GB
+    assert peak < 200e6, peak
+    np.testing.assert_array_equal(y, sosfiltfilt(slow, short, 1000))
 
 
 def test_stream_warm_up_is_what_makes_it_exact():

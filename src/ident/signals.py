@@ -138,6 +138,10 @@ def decay_length(sos: npt.ArrayLike, rtol: float = 1e-14, max_len: int = 2_000_0
         n *= 4
 
 
+#: Rows a :class:`ZeroPhaseStream`'s buffer starts with (it doubles up to its block's size).
+_FIRST_BUFFER_ROWS = 1 << 16
+
+
 class ZeroPhaseStream:
     """:func:`sosfiltfilt` ``(sos, x, step)`` of a signal ``x`` (n, c) pushed in pieces of rows.
 
@@ -147,9 +151,9 @@ class ZeroPhaseStream:
     from the steady state of the last of them (``sosfilt_zi`` times its value): the start's
     error has decayed below 1e-14 of the filter's response by the block. The last block starts
     from the end of the odd extension, as scipy does (bit for bit there, and everywhere when
-    the signal has fewer than ``block`` + warm-up rows). Memory: ``block`` + warm-up rows of
-    ``c`` columns, whatever the signal's length; the result depends on ``block``, never on how
-    the rows were split into pieces.
+    the signal has fewer than ``block`` + warm-up rows). Memory: at most ``block`` + warm-up rows
+    of ``c`` columns whatever the signal's length (for a shorter signal, at most twice its rows
+    or 65 536); the result depends on ``block``, never on how the rows were split into pieces.
 
     >>> stream = ZeroPhaseStream(signal.butter(4, 0.1, output="sos"), n_columns=2, step=5)
     >>> x = np.random.default_rng(0).normal(size=(100_000, 2))
@@ -169,8 +173,10 @@ class ZeroPhaseStream:
         n_sections = self.sos.shape[0]
         self._z0 = np.zeros((n_sections, n_columns))
         self._z1 = np.zeros((n_sections, n_columns))
-        # forward output of rows [emitted, emitted + fill) of the signal
-        self._buffer = np.empty((self.block + self.warm_up + self.edge, n_columns))
+        # forward output of rows [emitted, emitted + fill) of the signal; grown as rows come
+        # (:meth:`_grow`), so a short signal never allocates a long filter's whole block
+        self._capacity = self.block + self.warm_up + self.edge
+        self._buffer = np.empty((min(self._capacity, _FIRST_BUFFER_ROWS), n_columns))
         self._fill = 0
         self._emitted = 0
         self._received = 0
@@ -227,11 +233,13 @@ class ZeroPhaseStream:
         """Forward-filter ``x`` into the buffer, emitting each block that has its warm-up;
         ``flush``: ``x`` is the end's extension, and everything left is emitted."""
         out = [self._none()]
-        buf, full = self._buffer, self.block + self.warm_up
+        full = self.block + self.warm_up
         pos = 0
         while pos < len(x):
-            k = min(len(x) - pos, len(buf) - self._fill)
-            into = buf[self._fill : self._fill + k]
+            if self._fill == len(self._buffer):
+                self._grow()
+            k = min(len(x) - pos, len(self._buffer) - self._fill)
+            into = self._buffer[self._fill : self._fill + k]
             _forward_rows(self.sos, self._z0, self._z1, x[pos : pos + k], into)
             self._fill += k
             pos += k
@@ -240,6 +248,13 @@ class ZeroPhaseStream:
         if flush:
             out.append(self._backward(self._fill - 1, self._received - self._emitted))
         return np.concatenate(out)
+
+    def _grow(self) -> None:
+        """Double the buffer's rows (at most ``block`` + warm-up + edge), keeping its rows."""
+        rows = min(self._capacity, 2 * len(self._buffer))
+        grown = np.empty((rows, self._buffer.shape[1]))
+        grown[: self._fill] = self._buffer[: self._fill]
+        self._buffer = grown
 
     def _backward(self, last: int, n_rows: int) -> FloatArray:
         """Backward pass over buffer rows ``last`` down to 0; the output of its first
