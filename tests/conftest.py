@@ -40,8 +40,13 @@ class _ShippedRunsTogether(LoadFileScheduling):
     """pytest-xdist's ``--dist loadfile``, except that the files reading the shipped runs are
     one work unit: one worker runs each shipped config once and its readers one after the
     other, instead of the second worker waiting on the first one's file lock (a full run
-    takes minutes). That unit goes out first (the suite's longest chain), the others by
-    their number of tests (xdist's default)."""
+    takes minutes). That unit goes out first (the suite's longest chain), then the units with
+    end-to-end tests (a ``slow`` mark: a few tests of tens of seconds each), then the rest,
+    each group by its number of tests (xdist's order). Longest first: xdist orders by the
+    number of tests only, so a file of three minute-long runs could start last and keep one
+    worker busy while the other waits at the end."""
+
+    _ordered = False
 
     def _split_scope(self, nodeid: str) -> str:
         path = nodeid.split("::", 1)[0]
@@ -51,9 +56,19 @@ class _ShippedRunsTogether(LoadFileScheduling):
         return TIAGO_UNIT if _mentions(path, "tiago_identified") else path
 
     def _assign_work_unit(self, node: object) -> None:
-        if SHIPPED_RUNS_UNIT in self.workqueue:
-            self.workqueue.move_to_end(SHIPPED_RUNS_UNIT, last=False)
+        if not self._ordered:  # the queue is complete at the first assignment
+            for scope in sorted(self.workqueue, key=_cost_rank):
+                self.workqueue.move_to_end(scope)
+            self._ordered = True
         super()._assign_work_unit(node)  # type: ignore[arg-type]
+
+
+def _cost_rank(scope: str) -> int:
+    """0 the shipped runs, 1 a unit with a ``slow`` test, 2 the rest: the order the units
+    go out in (a stable sort keeps xdist's order within a rank)."""
+    if scope == SHIPPED_RUNS_UNIT:
+        return 0
+    return 1 if scope == TIAGO_UNIT or _mentions(scope, "mark.slow") else 2
 
 
 def _reads_shipped_runs(path: str) -> bool:
