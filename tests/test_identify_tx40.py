@@ -416,7 +416,8 @@ def test_cutoff_above_nyquist(tmp_path):
 
 def test_too_few_samples(tmp_path):
     config = _config(tmp_path, log={"max_samples": 1500})
-    _fails(_invoke(config, tmp_path / "runs"), "too few observations")
+    # the config named, and what to change (the chunked path says what the estimator says)
+    _fails(_invoke(config, tmp_path / "runs"), f"{config}: too few observations", "longer log")
     assert not (tmp_path / "runs").exists()
 
 

@@ -318,8 +318,10 @@ def merged_rows(
     red = last if first is None else first if last is None else first.merge(last)
     assert red is not None  # plan_log raises without identification rows
     if red.n_rows.sum() <= red.n_params:
-        raise DataError(
-            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters."
+        raise DataError(  # the words of estimate.least_squares', whose check it makes first
+            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters "
+            f"(need more than {red.n_params}); use a longer log, less decimation, or fewer "
+            "parameters."
         )
     return red
 

@@ -168,6 +168,8 @@ def identify(
                 f"{source}: joint(s) {', '.join(still)} never move in the log, so the rows "
                 f"that would determine their parameters are missing ({e})"
             ) from e
+        if str(e).startswith("too few observations"):  # the config whose log and settings
+            raise DataError(f"{source}: {e}") from e  # (log.*, preprocess.*) left too few
         raise
     return dataclasses.replace(result, actuator=prepared.fit)
 
