@@ -644,6 +644,17 @@ def _initial_state(
     return state
 
 
+def sysid_scorable(q: FloatArray, dq: FloatArray, i0: int, n_win: int) -> bool:
+    """Whether sysid can score the window of ``n_win`` samples from ``i0``: its residual is
+    divided by each sensor's norm over the window's measured samples after the first
+    (``normalize_residual``; the first is the initial condition), so a joint that sticks for
+    the whole window (its encoder velocity exactly 0: MuJoCo's friction loss holds it) makes
+    the objective NaN and the solve fail at its first factorization. Such windows are left out
+    of sysid's windows (the Panda's MuJoCo-native log, seed 0: the first, joint 5 stuck)."""
+    measured = np.hstack([q[i0 + 2 : i0 + n_win + 1], dq[i0 + 2 : i0 + n_win + 1]])
+    return bool(np.all(np.linalg.norm(measured, axis=0) > 0))
+
+
 def sysid_problem(
     case: Case,
     *,
@@ -679,6 +690,7 @@ def sysid_problem(
     weights = 1.0 / scale.ravel()  # sensor order: positions, then velocities
     weights[q.shape[1] :] *= velocity_weight
     starts = [i0 for lo, hi in ranges for i0 in range(lo, hi - n_win - 1, n_win)]
+    starts = [i0 for i0 in starts if sysid_scorable(q, dq, i0, n_win)]
     states, controls, sensors, names = [], [], [], []
     for k, i0 in enumerate(starts[:max_windows]):
         states.append(_initial_state(model, q, dq, control, i0))

@@ -442,3 +442,20 @@ def test_sysid_servo_setup_gets_the_commands_their_history_and_the_servo_class()
     gains = bench_peers._servo_gains(model, problem.joints)
     np.testing.assert_allclose(gains["kp"], [7.0, 7.0, 7.0, *spec["kp"][3:]])
     np.testing.assert_allclose(gains["kv"], 0.0)
+
+
+def test_sysid_leaves_out_windows_it_cannot_score():
+    """sysid divides each window's residual by each sensor's norm over the window (after its
+    first sample): a joint stuck the whole window (velocity exactly 0) would make its objective
+    NaN. Catches a check on the wrong samples (the first sample, the initial condition, is not
+    in sysid's norm: a joint that moves only there still gives a zero norm) or on positions
+    only."""
+    n = 50
+    q = np.linspace(0.1, 0.2, 200)[:, None] * np.ones((1, 2))
+    dq = np.ones((200, 2))
+    assert bench_peers.sysid_scorable(q, dq, 0, n)
+    stuck = dq.copy()
+    stuck[2 : n + 1, 1] = 0.0  # joint 2 stuck after the window's first two samples
+    stuck[1, 1] = 0.3
+    assert not bench_peers.sysid_scorable(q, stuck, 0, n)
+    assert bench_peers.sysid_scorable(q, stuck, n, n)  # the next window moves
