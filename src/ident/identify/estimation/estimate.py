@@ -438,14 +438,9 @@ def _checked(
     names = tuple(names)
     if len(names) != n:
         raise DataError(f"{len(names)} names for {n} columns of W.")
-    m = int(obs.n_rows.sum())
     if not (np.all(np.isfinite(obs.R)) and np.all(np.isfinite(obs.z))):
         raise DataError("reduced observations contain NaN/inf; clean or trim the log.")
-    if m <= n:
-        raise DataError(
-            f"too few observations: {m} rows for {n} parameters (need more than {n}); "
-            "use a longer log, less decimation, or fewer parameters."
-        )
+    obs.check_enough_rows()
     problem = rank_report(obs.R.reshape(-1, n), names)
     if problem is not None:
         raise NotIdentifiable(problem)

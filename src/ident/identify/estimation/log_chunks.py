@@ -317,12 +317,7 @@ def merged_rows(
     rows than parameters."""
     red = last if first is None else first if last is None else first.merge(last)
     assert red is not None  # plan_log raises without identification rows
-    if red.n_rows.sum() <= red.n_params:
-        raise DataError(  # the words of estimate.least_squares', whose check it makes first
-            f"too few observations: {int(red.n_rows.sum())} rows for {red.n_params} parameters "
-            f"(need more than {red.n_params}); use a longer log, less decimation, or fewer "
-            "parameters."
-        )
+    red.check_enough_rows()
     return red
 
 

@@ -144,6 +144,16 @@ class ReducedObservations:
         groups = np.broadcast_to(np.arange(n_groups), (n_samples, n_groups))
         return cls.from_rows(Y.reshape(-1, n), tau.reshape(-1), groups.reshape(-1), n_groups)
 
+    def check_enough_rows(self) -> None:
+        """Raise DataError when the rows do not outnumber the parameters (no least-squares
+        fit and no residual to estimate the noise from), saying what to change."""
+        m, n = int(self.n_rows.sum()), self.n_params
+        if m <= n:
+            raise DataError(
+                f"too few observations: {m} rows for {n} parameters (need more than {n}); "
+                "use a longer log, less decimation, or fewer parameters."
+            )
+
     def merge(self, other: ReducedObservations) -> ReducedObservations:
         """The reduction of both sets of rows (order does not matter beyond round-off)."""
         if other.R.shape != self.R.shape:

@@ -163,14 +163,15 @@ def identify(
             cfg, log, model=model, rng=rng, read_s=time.perf_counter() - t0, scheduler=scheduler
         )
     except DataError as e:
-        if still and str(e).startswith("too few observations"):  # the cause, named
+        if not str(e).startswith("too few observations"):
+            raise
+        if still:  # the cause, named
             raise DataError(
                 f"{source}: joint(s) {', '.join(still)} never move in the log, so the rows "
                 f"that would determine their parameters are missing ({e})"
             ) from e
-        if str(e).startswith("too few observations"):  # the config whose log and settings
-            raise DataError(f"{source}: {e}") from e  # (log.*, preprocess.*) left too few
-        raise
+        # the config whose log and settings (log.*, preprocess.*) left too few rows
+        raise DataError(f"{source}: {e}") from e
     return dataclasses.replace(result, actuator=prepared.fit)
 
 
