@@ -58,7 +58,11 @@ from ident.identify.estimation.consistency import (  # noqa: E402
 from ident.identify.pipeline.real import identify  # noqa: E402
 from ident.identify.refinement.rollout_refinement import torque_error  # noqa: E402
 from ident.model.selection import load_robot  # noqa: E402
-from ident.robot.inertia import PINOCCHIO_ORDER  # noqa: E402
+from ident.robot.inertia import (  # noqa: E402
+    PINOCCHIO_ORDER,
+    com_and_inertia,
+    parameters_from_com,
+)
 
 EXTRAS = {"Ia": "dof_armature", "fv": "dof_damping", "fs": "dof_frictionloss"}
 MAX_ITERATIONS, PATIENCE = 8, 2
@@ -84,16 +88,14 @@ def mj_inertial(m: mujoco.MjModel, b: int) -> np.ndarray:
     R = np.zeros(9)
     mujoco.mju_quat2Mat(R, m.body_iquat[b])
     R = R.reshape(3, 3)
-    mass, c = m.body_mass[b], m.body_ipos[b]
-    Io = R @ np.diag(m.body_inertia[b]) @ R.T + mass * (c @ c * np.eye(3) - np.outer(c, c))
-    return np.array([mass, *(mass * c), *Io[[0, 0, 1, 0, 1, 2], [0, 1, 1, 2, 2, 2]]])
+    I_com = R @ np.diag(m.body_inertia[b]) @ R.T
+    return parameters_from_com(m.body_mass[b], m.body_ipos[b], I_com)
 
 
 def set_mj_inertial(m: mujoco.MjModel, b: int, tp: np.ndarray) -> None:
     """Set the MuJoCo body's inertial from standard parameters about its frame."""
-    mass, c = tp[0], tp[1:4] / tp[0]
-    Io = np.array([[tp[4], tp[5], tp[7]], [tp[5], tp[6], tp[8]], [tp[7], tp[8], tp[9]]])
-    lam, U = np.linalg.eigh(Io - mass * (c @ c * np.eye(3) - np.outer(c, c)))
+    mass, c, I_com = com_and_inertia(tp)
+    lam, U = np.linalg.eigh(I_com)
     if np.linalg.det(U) < 0:
         U[:, 0] *= -1
     q = np.zeros(4)
